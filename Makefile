@@ -1,0 +1,32 @@
+# Every target works on a fresh clone: the venv is created and the package installed on demand.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: test demo bench lint clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+lint: $(STAMP)
+	$(BIN)/ruff check fruitcli tests
+
+test: $(STAMP) lint
+	MPLBACKEND=Agg $(BIN)/python -m pytest
+
+demo: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/fruit demo --out out
+
+bench: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py
+
+clean:
+	rm -rf out .pytest_cache build *.egg-info fruitcli.egg-info
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

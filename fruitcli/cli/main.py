@@ -1,0 +1,103 @@
+"""The `fruit` command group. Subcommands live one per module in `fruitcli.cli` and
+are imported only when used, so `fruit --help` stays fast."""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import sys
+
+import click
+
+# name -> (module, attribute, one-line help shown by `fruit --help`)
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "run": ("fruitcli.cli.run", "run", "Run every stage a scene needs (planner, reuse)."),
+    "make-artist": ("fruitcli.cli.make_artist", "make_artist",
+                    "Write the default artist mesh (the organic 'Fruit')."),
+    "make-tracks": ("fruitcli.cli.make_tracks", "make_tracks",
+                    "Reduce an artist mesh, carve yarn tracks, export taxels."),
+    "tetra": ("fruitcli.cli.tetra", "tetra", "Tetrahedralize a scene's body with its chambers."),
+    "simulate": ("fruitcli.cli.simulate", "simulate",
+                 "Quasi-static corotational FEM of a scene's states."),
+    "bench": ("fruitcli.cli.bench", "bench", "Virtual 3D-printer bench: frames with ground truth."),
+    "locate": ("fruitcli.cli.locate", "locate", "Detect touches in frames and map them to 3D."),
+    "record": ("fruitcli.cli.record", "record", "Record frames from a MuCa board over serial."),
+    "live": ("fruitcli.cli.live", "live", "Localize touches live from a MuCa board."),
+    "emulate-board": ("fruitcli.cli.emulate_board", "emulate_board",
+                      "Play frames on a pseudo-terminal like a MuCa board."),
+    "evaluate": ("fruitcli.cli.evaluate", "evaluate",
+                 "Error tables and plots against ground truth."),
+    "study": ("fruitcli.cli.study", "study", "Error-against-run-time and stability studies."),
+    "demo": ("fruitcli.cli.demo", "demo", "Run the default experiments and write out/report.md."),
+}
+
+
+class LazyGroup(click.Group):
+    """A click group that imports a subcommand's module on first use."""
+
+    def list_commands(self, ctx):
+        return list(COMMANDS)
+
+    def get_command(self, ctx, name):
+        if name not in COMMANDS:
+            return None
+        module, attr, short = COMMANDS[name]
+        try:
+            return getattr(importlib.import_module(module), attr)
+        except ModuleNotFoundError as exc:
+            if exc.name != module:
+                raise
+
+            @click.command(name=name, help=f"{short} (not implemented yet)")
+            def missing():
+                raise click.ClickException(f"'fruit {name}' is not implemented yet")
+
+            missing.short_help = f"{short} [not implemented yet]"
+            return missing
+
+    def format_commands(self, ctx, formatter):
+        rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("-v", "--verbose", count=True, help="More log output; -vv shows tracebacks.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress output on stderr.")
+@click.version_option(package_name="fruitcli")
+@click.pass_context
+def cli(ctx, verbose, quiet):
+    """fruit: model-based capacitive touch sensing on soft robots.
+
+    From an artist's mesh to a fabricated, calibrated, evaluated touch skin.
+    Units everywhere: mm, kPa, degrees, seconds, CDC counts.
+    """
+    ctx.ensure_object(dict)
+    ctx.obj["verbose"] = verbose
+    ctx.obj["quiet"] = quiet
+    level = logging.WARNING - 10 * verbose if not quiet else logging.ERROR
+    logging.basicConfig(level=max(level, logging.DEBUG), format="%(message)s", stream=sys.stderr)
+
+
+def main(argv=None):
+    """Console entry point: FruitErrors become one line on stderr and exit code 1."""
+    from fruitcli.errors import FruitError
+
+    try:
+        return cli.main(args=argv, standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("Aborted.", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except FruitError as exc:
+        if "-vv" in (argv or sys.argv):
+            raise
+        click.echo(f"Error: {exc}", err=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        click.echo("Interrupted.", err=True)
+        sys.exit(130)

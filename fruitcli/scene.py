@@ -1,0 +1,427 @@
+"""Scene files: one TOML per experiment, validated strictly against `SCHEMA`.
+
+Every user-facing key carries its unit in its name (`young_modulus_kpa`,
+`spacing_x_mm`). Relative paths are resolved against the scene file's folder,
+then against the project root (the nearest parent holding `pyproject.toml`).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fruitcli.errors import SceneError
+
+NUM = (int, float)
+
+
+@dataclass(frozen=True)
+class Key:
+    """One scene key: its accepted type, default (None: optional), and meaning."""
+
+    kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table"
+    default: Any = None
+    doc: str = ""
+    required: bool = False
+
+
+# Sections that are tables (one per scene).
+SCHEMA: dict[str, dict[str, Key]] = {
+    "scene": {
+        "name": Key("str", None, "scene name (default: file stem)"),
+        "description": Key("str", "", "free text"),
+    },
+    "geometry": {
+        "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY, mm)"),
+        "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
+        "unit": Key("str", "mm", "unit of the mesh files: mm, cm or m"),
+        "solid": Key("path", None, "closed surface used as the FEM body as is (mm)"),
+        "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
+        "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
+    },
+    "tracks": {
+        "cover_mm": Key("num", 2.0, "inward offset for the cover layer (mm)"),
+        "faces": Key("int", 5000, "target triangle count of the reduced surface"),
+        "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
+        "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
+    },
+    "grid": {
+        "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),
+        "spacing_y_mm": Key("num", 12.0, "distance between y = const planes (mm)"),
+        "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
+        "count": Key("list", None, "[nx, ny] taxels on a flat pad"),
+        "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
+    },
+    "mesh": {
+        "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)"),
+        "min_size_mm": Key("num", None, "smallest edge near chambers and taxels (mm)"),
+        "time_limit_s": Key("num", 120.0, "gmsh is killed after this many seconds"),
+        "min_quality": Key("num", 0.05, "refuse meshes whose worst SICN is below this"),
+    },
+    "material": {
+        "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)"),
+        "poisson_ratio": Key("num", 0.45, "Poisson's ratio nu (-1 < nu < 0.5)"),
+        "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)"),
+    },
+    "gravity": {
+        "vector_m_s2": Key("vec3", [0.0, 0.0, -9.81], "gravity acceleration (m/s^2)"),
+    },
+    "fixed": {},  # array of tables, see ARRAY_SCHEMA
+    "jig": {},
+    "actuation": {
+        "pressure_kpa": Key("table", None, "per chamber: one pressure per state (kPa)"),
+        "volume_growth_mm3": Key("table", None, "per chamber: one volume growth per state (mm^3)"),
+        "period_s": Key("num", None, "duration of one cycle of the states (s), for animations"),
+    },
+    "solver": {
+        "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|"),
+        "max_iterations": Key("int", 25, "Newton iterations per load step"),
+        "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
+        "linear_solver": Key("str", "splu", "splu, cg or cholmod when installed"),
+        "jig_steps": Key("int", 1, "load steps to apply the jig rotation"),
+    },
+    "board": {
+        "rows": Key("int", 21, "frame rows (Tx lines)"),
+        "cols": Key("int", 12, "frame columns (Rx lines)"),
+        "offset_i": Key("int", 0, "frame row of taxel i = 0"),
+        "offset_j": Key("int", 0, "frame column of taxel j = 0"),
+        "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
+        "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
+        "transpose": Key("bool", False, "taxel i runs along frame columns"),
+    },
+    "frames": {
+        "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
+    },
+    "detection": {
+        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)"),
+        "baseline_frames": Key("int", 10, "frames averaged into the baseline C0"),
+        "method": Key("str", "n9", "n9 (paper), n9_floor or peaks"),
+        "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)"),
+        "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis"),
+        "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
+        "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
+        "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
+    },
+    "bench": {
+        "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
+        "samples": Key("str", "quarter", "quarter (a quarter taxel off the grid) or a CSV path"),
+        "state": Key("int", 0, "FEM state the bench runs on"),
+        "step_mm": Key("num", 0.1, "indenter descent step (mm)"),
+        "seed": Key("int", 0, "seed of the noise"),
+        "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
+    },
+    "sensitivity": {
+        "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
+        "animation_frames": Key("int", 60, "frames over one animation cycle"),
+    },
+    "report": {
+        "paper_rows": Key("list", [], "paper Table I rows to show next to ours"),
+    },
+    "evaluate": {},
+}
+
+ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
+    "geometry.chamber": {
+        "name": Key("str", None, "chamber name, used in [actuation]", required=True),
+        "ellipsoid": Key("table", None, "{center_mm = [x,y,z], radii_mm = [a,b,c]}"),
+        "surface": Key("path", None, "closed surface of the cavity (mm)"),
+    },
+    "fixed": {
+        "box_mm": Key("box", None, "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)", required=True),
+    },
+    "jig": {
+        "region_box_mm": Key("box", None, "nodes pulled by the springs (mm)", required=True),
+        "rotate_deg": Key("num", 0.0, "rotation of the target about `axis` (degrees)"),
+        "axis": Key("vec3", [0.0, 0.0, 1.0], "rotation axis"),
+        "pivot_mm": Key("vec3", [0.0, 0.0, 0.0], "point on the rotation axis (mm)"),
+        "translate_mm": Key("vec3", [0.0, 0.0, 0.0], "translation after the rotation (mm)"),
+        "stiffness_n_per_mm": Key("num", 10.0, "spring stiffness per node (N/mm)"),
+    },
+    "evaluate": {
+        "label": Key("str", None, "row label, e.g. 'Rest, small'", required=True),
+        "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
+        "measured": Key("path", None, "measured CSV (same samples)", required=True),
+        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+    },
+}
+ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
+SUBTABLES = {"ellipsoid": {"center_mm": Key("vec3", required=True), "radii_mm": Key("vec3", required=True)}}
+
+
+@dataclass
+class Scene:
+    """A validated scene: `data[section][key]` with defaults filled in."""
+
+    path: Path
+    data: dict[str, Any]
+    declared: set[str] = field(default_factory=set)  # sections present in the file
+
+    @property
+    def name(self) -> str:
+        return self.data["scene"]["name"] or self.path.stem
+
+    def has(self, section: str) -> bool:
+        """True when the file declares `section` (or a non-empty array of it)."""
+        return section in self.declared
+
+    def __getitem__(self, section: str) -> Any:
+        return self.data[section]
+
+    @property
+    def chambers(self) -> list[dict]:
+        return self.data["geometry"]["chamber"]
+
+
+def _closest(name: str, options) -> str:
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def _project_root(start: Path) -> Path | None:
+    for parent in [start, *start.parents]:
+        if (parent / "pyproject.toml").exists():
+            return parent
+    return None
+
+
+def resolve_path(scene_path: Path, value: str) -> Path:
+    """Resolve a scene-relative path: scene folder first, then the project root."""
+    p = Path(value).expanduser()
+    if p.is_absolute():
+        return p
+    first = (scene_path.parent / p).resolve()
+    if first.exists():
+        return first
+    root = _project_root(scene_path.parent.resolve())
+    if root is not None and (root / p).exists():
+        return (root / p).resolve()
+    return first
+
+
+def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_exist: bool):
+    def fail(expected: str):
+        raise SceneError(f"{where}.{key}: expected {expected}, got {value!r}")
+
+    k = spec.kind
+    if k == "str":
+        if not isinstance(value, str):
+            fail("a string")
+        return value
+    if k == "path":
+        if not isinstance(value, str) or not value:
+            fail("a file path string")
+        p = resolve_path(scene_path, value)
+        if must_exist and not p.exists():
+            raise SceneError(f"{where}.{key}: file not found: {value}")
+        return p
+    if k == "bool":
+        if not isinstance(value, bool):
+            fail("true or false")
+        return value
+    if k == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            fail("an integer")
+        return value
+    if k == "num":
+        if isinstance(value, bool) or not isinstance(value, NUM) or not math.isfinite(value):
+            fail("a finite number")
+        return float(value)
+    if k in ("vec2", "vec3", "box"):
+        n = {"vec2": 2, "vec3": 3, "box": 6}[k]
+        ok = isinstance(value, list) and len(value) == n
+        ok = ok and all(isinstance(v, NUM) and not isinstance(v, bool) for v in value)
+        if not ok or not all(math.isfinite(v) for v in value):
+            fail(f"a list of {n} numbers")
+        out = [float(v) for v in value]
+        if k == "box" and any(out[a] > out[a + 3] for a in range(3)):
+            fail("[xmin, ymin, zmin, xmax, ymax, zmax] with min <= max")
+        return out
+    if k == "list":
+        if not isinstance(value, list):
+            fail("a list")
+        return value
+    if k == "table":
+        if not isinstance(value, dict):
+            fail("a table {key = value}")
+        return value
+    raise AssertionError(k)
+
+
+def _validate_table(where, table, spec, scene_path, must_exist):
+    if not isinstance(table, dict):
+        raise SceneError(f"{where}: expected a table, got {type(table).__name__}")
+    out = {}
+    for key, value in table.items():
+        if key not in spec:
+            raise SceneError(f"{where}: unknown key '{key}'{_closest(key, spec)}")
+        if key in SUBTABLES:
+            sub = _check(where, key, spec[key], value, scene_path, must_exist)
+            out[key] = _validate_table(f"{where}.{key}", sub, SUBTABLES[key], scene_path, must_exist)
+            for sk, sspec in SUBTABLES[key].items():
+                if sspec.required and sk not in out[key]:
+                    raise SceneError(f"{where}.{key}: missing key '{sk}'")
+            continue
+        out[key] = _check(where, key, spec[key], value, scene_path, must_exist)
+    for key, kspec in spec.items():
+        if key not in out:
+            if kspec.required:
+                raise SceneError(f"{where}: missing key '{key}' ({kspec.doc})")
+            out[key] = kspec.default
+    return out
+
+
+def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
+    """Validate TOML `text` (from `path`) into a `Scene`; raise `SceneError` naming the field."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    where0 = path.name
+    data: dict[str, Any] = {}
+    for section, value in raw.items():
+        if section not in SCHEMA:
+            raise SceneError(f"{where0}: unknown section [{section}]{_closest(section, SCHEMA)}")
+    for section, spec in SCHEMA.items():
+        where = f"{where0}: [{section}]"
+        value = raw.get(section)
+        if section in ARRAY_SECTIONS:
+            items = value if value is not None else []
+            if isinstance(items, dict):
+                items = [items]
+            if not isinstance(items, list):
+                raise SceneError(f"{where}: expected [[{section}]] tables")
+            data[section] = [
+                _validate_table(f"{where0}: [[{section}]] #{n + 1}", item,
+                                ARRAY_SCHEMA[section], path, must_exist)
+                for n, item in enumerate(items)
+            ]
+            continue
+        table = dict(value or {})
+        chambers = table.pop("chamber", []) if section == "geometry" else None
+        data[section] = _validate_table(where, table, spec, path, must_exist)
+        if section == "geometry":
+            if isinstance(chambers, dict):
+                chambers = [chambers]
+            if not isinstance(chambers, list):
+                raise SceneError(f"{where}.chamber: expected [[geometry.chamber]] tables")
+            data[section]["chamber"] = [
+                _validate_table(f"{where0}: [[geometry.chamber]] #{n + 1}", c,
+                                ARRAY_SCHEMA["geometry.chamber"], path, must_exist)
+                for n, c in enumerate(chambers)
+            ]
+    scene = Scene(path=path, data=data, declared={s for s, v in raw.items() if v not in ([], {})})
+    _cross_checks(scene, where0, must_exist)
+    return scene
+
+
+def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
+    geo = scene["geometry"]
+    sources = [k for k in ("artist", "solid", "pad_size_mm") if geo[k] is not None]
+    if len(sources) > 1:
+        raise SceneError(f"{where}: [geometry] give one of artist, solid, pad_size_mm, not {sources}")
+    if geo["artist"] is not None and geo["generate_artist"]:
+        pass  # the make-artist stage writes it
+    elif geo["artist"] is not None and must_exist and not Path(geo["artist"]).exists():
+        raise SceneError(f"{where}: [geometry].artist: file not found: {geo['artist']}")
+    if geo["unit"] not in ("mm", "cm", "m"):
+        raise SceneError(f"{where}: [geometry].unit: expected mm, cm or m, got {geo['unit']!r}")
+    names = []
+    for n, ch in enumerate(scene.chambers):
+        if (ch["ellipsoid"] is None) == (ch["surface"] is None):
+            raise SceneError(
+                f"{where}: [[geometry.chamber]] #{n + 1} '{ch['name']}': give exactly one of "
+                "ellipsoid or surface")
+        if ch["ellipsoid"] is not None and min(ch["ellipsoid"]["radii_mm"]) <= 0:
+            raise SceneError(f"{where}: [[geometry.chamber]] '{ch['name']}'.ellipsoid.radii_mm: "
+                             "expected positive radii")
+        if ch["name"] in names:
+            raise SceneError(f"{where}: [[geometry.chamber]]: duplicate name '{ch['name']}'")
+        names.append(ch["name"])
+    mat = scene["material"]
+    if mat["young_modulus_kpa"] <= 0:
+        raise SceneError(f"{where}: [material].young_modulus_kpa: expected > 0, "
+                         f"got {mat['young_modulus_kpa']}")
+    if not -1.0 < mat["poisson_ratio"] < 0.5:
+        raise SceneError(f"{where}: [material].poisson_ratio: expected -1 < nu < 0.5, "
+                         f"got {mat['poisson_ratio']}")
+    if mat["density_kg_m3"] < 0:
+        raise SceneError(f"{where}: [material].density_kg_m3: expected >= 0")
+    if scene["mesh"]["size_mm"] <= 0:
+        raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
+    act = scene["actuation"]
+    lengths = set()
+    for key in ("pressure_kpa", "volume_growth_mm3"):
+        table = act[key]
+        if table is None:
+            continue
+        for cname, values in table.items():
+            if cname not in names:
+                hint = _closest(cname, names) if names else " (the scene has no chambers)"
+                raise SceneError(f"{where}: [actuation].{key}.{cname}: no such chamber{hint}")
+            ok = isinstance(values, list) and values and all(
+                isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v)
+                for v in values)
+            if not ok:
+                raise SceneError(f"{where}: [actuation].{key}.{cname}: expected a non-empty "
+                                 "list of numbers, one per state")
+            lengths.add(len(values))
+    if len(lengths) > 1:
+        raise SceneError(f"{where}: [actuation]: every chamber needs the same number of states, "
+                         f"got {sorted(lengths)}")
+    if act["pressure_kpa"] and act["volume_growth_mm3"]:
+        both = set(act["pressure_kpa"]) & set(act["volume_growth_mm3"])
+        if both:
+            raise SceneError(f"{where}: [actuation]: chamber {sorted(both)[0]} is controlled by "
+                             "both pressure_kpa and volume_growth_mm3")
+    for n, jig in enumerate(scene["jig"]):
+        if jig["stiffness_n_per_mm"] <= 0:
+            raise SceneError(f"{where}: [[jig]] #{n + 1}.stiffness_n_per_mm: expected > 0")
+        if math.hypot(*jig["axis"]) == 0:
+            raise SceneError(f"{where}: [[jig]] #{n + 1}.axis: expected a non-zero vector")
+    det = scene["detection"]
+    if det["threshold_counts"] <= 0:
+        raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
+    if det["baseline_frames"] < 1:
+        raise SceneError(f"{where}: [detection].baseline_frames: expected >= 1")
+    if det["method"] not in ("n9", "n9_floor", "peaks"):
+        raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
+                         f"got {det['method']!r}")
+    for ev in scene["evaluate"]:
+        ref = ev["reference_length_mm"]
+        if ref is not None and ref <= 0:
+            raise SceneError(f"{where}: [[evaluate]] '{ev['label']}'.reference_length_mm: "
+                             "expected > 0")
+
+
+def n_states(scene: Scene) -> int:
+    """Number of actuation states (1 when the scene has no [actuation])."""
+    act = scene["actuation"]
+    for key in ("pressure_kpa", "volume_growth_mm3"):
+        if act[key]:
+            return len(next(iter(act[key].values())))
+    return 1
+
+
+def has_deformation(scene: Scene) -> bool:
+    """True when something moves the body: non-zero actuation or a jig."""
+    act = scene["actuation"]
+    for key in ("pressure_kpa", "volume_growth_mm3"):
+        if act[key] and any(v != 0 for vals in act[key].values() for v in vals):
+            return True
+    return bool(scene["jig"])
+
+
+def load_scene(path: str | Path, must_exist: bool = True) -> Scene:
+    """Read and validate a scene file."""
+    path = Path(path)
+    if not path.exists():
+        raise SceneError(f"{path}: scene file not found")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read scene: {exc}") from None
+    return parse_scene(text, path.resolve(), must_exist=must_exist)
