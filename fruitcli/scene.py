@@ -34,6 +34,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
         "name": Key("str", None, "scene name (default: file stem)"),
         "description": Key("str", "", "free text"),
+        "configuration": Key("str", "Rest", "configuration label in tables (Rest, Deformed, ...)"),
     },
     "geometry": {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY, mm)"),
@@ -113,6 +114,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "step_mm": Key("num", 0.1, "indenter descent step (mm)"),
         "seed": Key("int", 0, "seed of the noise"),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
+        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -149,7 +151,8 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
-SUBTABLES = {"ellipsoid": {"center_mm": Key("vec3", required=True), "radii_mm": Key("vec3", required=True)}}
+SUBTABLES = {"ellipsoid": {"center_mm": Key("vec3", required=True),
+                          "radii_mm": Key("vec3", required=True)}}
 
 
 @dataclass
@@ -260,7 +263,8 @@ def _validate_table(where, table, spec, scene_path, must_exist):
             raise SceneError(f"{where}: unknown key '{key}'{_closest(key, spec)}")
         if key in SUBTABLES:
             sub = _check(where, key, spec[key], value, scene_path, must_exist)
-            out[key] = _validate_table(f"{where}.{key}", sub, SUBTABLES[key], scene_path, must_exist)
+            out[key] = _validate_table(f"{where}.{key}", sub, SUBTABLES[key], scene_path,
+                                       must_exist)
             for sk, sspec in SUBTABLES[key].items():
                 if sspec.required and sk not in out[key]:
                     raise SceneError(f"{where}.{key}: missing key '{sk}'")
@@ -282,7 +286,7 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
     where0 = path.name
     data: dict[str, Any] = {}
-    for section, value in raw.items():
+    for section in raw:
         if section not in SCHEMA:
             raise SceneError(f"{where0}: unknown section [{section}]{_closest(section, SCHEMA)}")
     for section, spec in SCHEMA.items():
@@ -322,7 +326,8 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     geo = scene["geometry"]
     sources = [k for k in ("artist", "solid", "pad_size_mm") if geo[k] is not None]
     if len(sources) > 1:
-        raise SceneError(f"{where}: [geometry] give one of artist, solid, pad_size_mm, not {sources}")
+        raise SceneError(f"{where}: [geometry] give one of artist, solid, pad_size_mm, "
+                         f"not {sources}")
     if geo["artist"] is not None and geo["generate_artist"]:
         pass  # the make-artist stage writes it
     elif geo["artist"] is not None and must_exist and not Path(geo["artist"]).exists():

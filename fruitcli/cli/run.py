@@ -1,0 +1,45 @@
+"""`fruit run SCENE`: run exactly the stages a scene needs, reusing unchanged ones."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors
+
+
+def default_out(scene) -> Path:
+    return Path("out") / scene.name
+
+
+@click.command()
+@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Output folder; one sub-folder per stage. [default: out/<scene name>]")
+@click.option("--dry-run", is_flag=True,
+              help="Print each stage as run, reuse or not needed, with the reason; run nothing.")
+@click.option("--until", default=None, help="Stop after this stage (and what it needs).")
+@click.option("--force", is_flag=True, help="Rerun every needed stage even if unchanged.")
+def run(scene_file, out_dir, dry_run, until, force):
+    """Run every stage SCENE needs, in dependency order.
+
+    A stage is reused while its inputs and parameters are unchanged (its folder holds a
+    manifest.json with a content hash of what went in). Stages a scene does not need
+    (no chambers, no deformation, no artist mesh, ...) are left out and the plan says why.
+    """
+    from fruitcli import planner
+    from fruitcli.scene import load_scene
+
+    with fruit_errors():
+        scene = load_scene(scene_file)
+        out = Path(out_dir) if out_dir else default_out(scene)
+        if dry_run:
+            steps = planner.plan(scene, out)
+            click.echo(f"plan for {scene_file} -> {out}/")
+            click.echo(planner.format_plan(steps))
+            return
+        progress = Progress()
+        steps = planner.run(scene, out, until=until, progress=progress, force=force)
+        click.echo(f"{scene.name}: done -> {out}/")
+        click.echo(planner.format_plan(steps))

@@ -1,0 +1,50 @@
+"""Plots like the paper's Figs. 12-14: truth as red squares, measurement as blue dots,
+a black line joining each pair; axes in mm with equal aspect. Functions take an Axes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def pairs(ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x", "y"),
+          title: str = ""):
+    """Draw matched pairs projected on two coordinate `axes` (0=x, 1=y, 2=z)."""
+    a, b = axes
+    for t, m in zip(truth, measured, strict=True):
+        ax.plot([t[a], m[a]], [t[b], m[b]], color="black", lw=0.8, zorder=1)
+    ax.scatter(truth[:, a], truth[:, b], marker="s", color="red", s=22, label="Ground truth",
+               zorder=2)
+    ax.scatter(measured[:, a], measured[:, b], marker="o", color="blue", s=18,
+               label="Measurement", zorder=3)
+    ax.set_xlabel(f"{labels[0].upper()}-Position (mm)")
+    ax.set_ylabel(f"{labels[1].upper()}-Position (mm)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="0.8")
+    ax.legend(loc="best", fontsize=8)
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def save_pair_views(out_dir, truth: np.ndarray, measured: np.ndarray, label: str) -> list[str]:
+    """Write top.png (x-y) and, for 3D data, side.png (y-z). Returns the file names."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fruitcli.fsutil import atomic_path
+
+    names = []
+    views = [("top.png", (0, 1), ("x", "y"), "Top view")]
+    if truth.shape[1] == 3:
+        views.append(("side.png", (1, 2), ("y", "z"), "Side view"))
+    for name, axes, labels, what in views:
+        fig, ax = plt.subplots(figsize=(6, 5) if name == "top.png" else (7, 3.6))
+        pairs(ax, truth, measured, axes, labels, title=f"{label}: {what}")
+        fig.tight_layout()
+        with atomic_path(out_dir / name) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+        plt.close(fig)
+        names.append(name)
+    return names

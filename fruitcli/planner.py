@@ -1,0 +1,223 @@
+"""The stage planner: which stages a scene needs, in dependency order, and which of
+them can reuse their previous outputs.
+
+Each stage writes into `OUT/<stage>/` and leaves a `manifest.json` holding a content
+hash of everything that went in (scene parameters, input files, upstream manifests).
+A stage is reused while that hash is unchanged and its outputs are all present.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from fruitcli.errors import FruitError
+from fruitcli.scene import Scene
+
+MANIFEST = "manifest.json"
+PLANNER_VERSION = 1
+
+
+@dataclass
+class Stage:
+    """One pipeline stage. `needed(scene)` -> (bool, reason); `inputs(scene, ctx)` -> what is
+    hashed; `run(scene, ctx, out_dir)` -> summary dict; `outputs(scene)` -> file names."""
+
+    name: str
+    deps: list[str]
+    module: str
+    needed: Callable
+    inputs: Callable
+    run: Callable
+    outputs: Callable
+
+
+@dataclass
+class Step:
+    """A planned stage: action is 'run', 'reuse', 'not needed' or 'not implemented'."""
+
+    stage: str
+    action: str
+    reason: str
+    hash: str = ""
+
+
+@dataclass
+class Context:
+    """What stages share while running: the output root and a progress callback."""
+
+    out_root: Path
+    progress: Callable[[str], None] = lambda msg: None
+    hashes: dict[str, str] = field(default_factory=dict)
+
+    def dir(self, stage: str) -> Path:
+        return self.out_root / stage
+
+
+def file_hash(path: Path) -> str:
+    """sha256 of a file's bytes (or of a folder's files, sorted by name)."""
+    h = hashlib.sha256()
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for p in files:
+        h.update(p.name.encode())
+        with open(p, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()
+
+
+def _canonical(obj):
+    if isinstance(obj, Path):
+        return {"file": obj.name, "sha256": file_hash(obj) if obj.exists() else "missing"}
+    if isinstance(obj, dict):
+        return {str(k): _canonical(v) for k, v in sorted(obj.items())}
+    if isinstance(obj, (list, tuple)):
+        return [_canonical(v) for v in obj]
+    return obj
+
+
+def fingerprint(stage: Stage, scene: Scene, ctx: Context) -> str:
+    """Content hash of a stage's inputs, including its upstream stages' hashes."""
+    payload = {
+        "planner": PLANNER_VERSION,
+        "stage": stage.name,
+        "code": _code_hash(stage.module),
+        "inputs": _canonical(stage.inputs(scene, ctx)),
+        "upstream": {d: ctx.hashes.get(d, "") for d in stage.deps},
+    }
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+
+
+def _code_hash(module: str) -> str:
+    """Hash of the stage's package sources, so a code change reruns the stage."""
+    mod = importlib.import_module(module)
+    pkg_dir = Path(mod.__file__).parent
+    return file_hash_many(sorted(pkg_dir.glob("*.py")))
+
+
+def file_hash_many(paths) -> str:
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(Path(p).read_bytes())
+    return h.hexdigest()
+
+
+def _available(stage: Stage) -> bool:
+    try:
+        importlib.import_module(stage.module)
+    except ModuleNotFoundError as exc:
+        if exc.name and stage.module.startswith(exc.name):
+            return False
+        raise
+    return True
+
+
+def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
+    folder = ctx.dir(stage.name)
+    manifest = folder / MANIFEST
+    if not manifest.exists():
+        return False
+    try:
+        old = json.loads(manifest.read_text())
+    except (OSError, json.JSONDecodeError):
+        return False
+    return old.get("hash") == digest and all((folder / o).exists() for o in stage.outputs(scene))
+
+
+def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None) -> list[Step]:
+    """Decide run / reuse / not needed for every stage, in dependency order."""
+    from fruitcli.stages import STAGES
+
+    stages = STAGES if stages is None else stages
+    ctx = Context(Path(out_root))
+    steps = []
+    blocked: set[str] = set()
+    for stage in stages:
+        needed, reason = stage.needed(scene)
+        if not needed:
+            steps.append(Step(stage.name, "not needed", reason))
+            continue
+        if not _available(stage) or blocked & set(stage.deps):
+            why = ("stage not implemented yet" if not _available(stage)
+                   else f"needs {', '.join(sorted(blocked & set(stage.deps)))}")
+            steps.append(Step(stage.name, "not implemented", f"{reason} ({why})"))
+            blocked.add(stage.name)
+            continue
+        try:
+            digest = fingerprint(stage, scene, ctx)
+        except FileNotFoundError:
+            digest = ""
+        ctx.hashes[stage.name] = digest
+        action = "reuse" if digest and _reusable(stage, scene, ctx, digest) else "run"
+        steps.append(Step(stage.name, action, reason, digest))
+    return steps
+
+
+def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
+        force: bool = False, stages: list[Stage] | None = None) -> list[Step]:
+    """Run the needed stages (up to and including `until`), reusing unchanged ones."""
+    from fruitcli.stages import STAGES
+
+    stages = STAGES if stages is None else stages
+    names = [s.name for s in stages]
+    if until is not None and until not in names:
+        raise FruitError(f"unknown stage '{until}' (stages: {', '.join(names)})")
+    ctx = Context(Path(out_root), progress or (lambda msg: None))
+    done = []
+    by_name = {s.name: s for s in stages}
+    wanted = _closure(by_name, until) if until else set(names)
+    for stage in stages:
+        if stage.name not in wanted:
+            continue
+        needed, reason = stage.needed(scene)
+        if not needed:
+            done.append(Step(stage.name, "not needed", reason))
+            ctx.progress(f"{stage.name}: not needed ({reason})")
+            continue
+        if not _available(stage):
+            raise FruitError(f"stage '{stage.name}' is needed ({reason}) but not implemented yet")
+        digest = fingerprint(stage, scene, ctx)
+        ctx.hashes[stage.name] = digest
+        if not force and _reusable(stage, scene, ctx, digest):
+            done.append(Step(stage.name, "reuse", reason, digest))
+            ctx.progress(f"{stage.name}: reuse (inputs unchanged)")
+            continue
+        ctx.progress(f"{stage.name}: run ({reason})")
+        t0 = time.perf_counter()
+        folder = ctx.dir(stage.name)
+        (folder / MANIFEST).unlink(missing_ok=True)
+        summary = stage.run(scene, ctx, folder) or {}
+        # the manifest is written last: a stage interrupted before this point reruns
+        digest = fingerprint(stage, scene, ctx)  # inputs may include files made upstream
+        ctx.hashes[stage.name] = digest
+        from fruitcli.fsutil import write_json
+
+        write_json(folder / MANIFEST, {
+            "stage": stage.name, "hash": digest, "reason": reason,
+            "seconds": round(time.perf_counter() - t0, 3),
+            "outputs": list(stage.outputs(scene)), "summary": summary,
+        })
+        done.append(Step(stage.name, "run", reason, digest))
+    return done
+
+
+def _closure(by_name: dict[str, Stage], target: str) -> set[str]:
+    out, todo = set(), [target]
+    while todo:
+        name = todo.pop()
+        if name not in out:
+            out.add(name)
+            todo.extend(by_name[name].deps)
+    return out
+
+
+def format_plan(steps: list[Step]) -> str:
+    """One line per stage: name, action, reason."""
+    width = max(len(s.stage) for s in steps)
+    return "\n".join(f"{s.stage:<{width}}  {s.action:<15} {s.reason}" for s in steps)

@@ -1,0 +1,107 @@
+"""The stage planner: needed stages, reasons, reuse by content hash, `fruit run`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from conftest import PAPER
+
+from fruitcli import planner
+from fruitcli.planner import Stage
+from fruitcli.scene import parse_scene
+
+
+def _scene(tmp_path, extra=""):
+    text = f"""
+[[evaluate]]
+label = "Rest, small"
+truth = "{PAPER / 'paper_rest_truth.csv'}"
+measured = "{tmp_path / 'm.csv'}"
+reference_length_mm = 152.0
+{extra}"""
+    (tmp_path / "m.csv").write_text((PAPER / "paper_rest_measured.csv").read_text())
+    return parse_scene(text, tmp_path / "s.toml")
+
+
+def _actions(steps):
+    return {s.stage: s.action for s in steps}
+
+
+def test_evaluation_only_plan(tmp_path):
+    steps = planner.plan(_scene(tmp_path), tmp_path / "out")
+    acts = _actions(steps)
+    assert acts["evaluate"] == "run"
+    assert all(a == "not needed" for k, a in acts.items() if k != "evaluate")
+    reasons = {s.stage: s.reason for s in steps}
+    assert reasons["simulate"] == "no deformation: taxels at rest, no FEM"
+    assert reasons["evaluate"] == "evaluation only: measured points given"
+
+
+def test_reuse_until_an_input_changes(tmp_path):
+    sc = _scene(tmp_path)
+    out = tmp_path / "out"
+    assert _actions(planner.run(sc, out))["evaluate"] == "run"
+    assert _actions(planner.plan(sc, out))["evaluate"] == "reuse"
+    assert _actions(planner.run(sc, out))["evaluate"] == "reuse"
+    # a changed input file reruns the stage
+    (tmp_path / "m.csv").write_text((tmp_path / "m.csv").read_text().replace("-4.41", "-4.40"))
+    assert _actions(planner.plan(sc, out))["evaluate"] == "run"
+    planner.run(sc, out)
+    # a changed parameter too
+    sc2 = parse_scene((tmp_path / "s.toml").read_text() if False else
+                      f"""[[evaluate]]
+label = "Rest, small"
+truth = "{PAPER / 'paper_rest_truth.csv'}"
+measured = "{tmp_path / 'm.csv'}"
+reference_length_mm = 150.0
+""", tmp_path / "s.toml")
+    assert _actions(planner.plan(sc2, out))["evaluate"] == "run"
+
+
+def test_deleted_output_reruns(tmp_path):
+    sc = _scene(tmp_path)
+    out = tmp_path / "out"
+    planner.run(sc, out)
+    (out / "evaluate" / "table.md").unlink()
+    assert _actions(planner.plan(sc, out))["evaluate"] == "run"
+
+
+def test_missing_stage_module_is_reported_not_faked(tmp_path):
+    def yes(scene):
+        return True, "always"
+
+    ghost = Stage("ghost", [], "fruitcli.no_such_module", yes, lambda s, c: {},
+                  lambda s, c, o: {}, lambda s: [])
+    after = Stage("after", ["ghost"], "fruitcli.planner", yes, lambda s, c: {},
+                  lambda s, c, o: {}, lambda s: [])
+    steps = planner.plan(_scene(tmp_path), tmp_path / "o", stages=[ghost, after])
+    assert [(s.stage, s.action) for s in steps] == [("ghost", "not implemented"),
+                                                   ("after", "not implemented")]
+    assert "stage not implemented yet" in steps[0].reason
+
+
+def test_dry_run_cli(fruit, tmp_path):
+    from conftest import ROOT
+
+    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run",
+                "--out", tmp_path / "o")
+    assert res.exit_code == 0
+    assert "evaluate     run" in res.output
+    assert "no deformation: taxels at rest, no FEM" in res.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_bad_scene_is_one_line(fruit, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[material]\nyoung_modulus = 3\n")
+    res = fruit("run", bad)
+    assert res.exit_code == 1
+    assert "unknown key 'young_modulus' (did you mean 'young_modulus_kpa'?)" in res.output
+
+
+def test_fruit_help_lists_stages(fruit):
+    res = fruit("--help")
+    assert res.exit_code == 0
+    for name in ("run", "make-tracks", "simulate", "locate", "evaluate"):
+        assert name in res.output
+    assert Path  # keep import used
