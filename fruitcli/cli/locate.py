@@ -1,0 +1,44 @@
+"""`fruit locate`: detect touches in recorded frames and map them to 3D (mm)."""
+
+from __future__ import annotations
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors
+
+
+@click.command()
+@click.argument("frames", type=click.Path(dir_okay=False))
+@click.option("--taxels", "taxels_csv", required=True, type=click.Path(dir_okay=False),
+              help="Taxel CSV: id,i,j,x_mm,y_mm,z_mm (mm, rest positions).")
+@click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
+              help="states.npz from `fruit simulate`: taxels follow the deformation "
+                   "(the recording's chamber pressures, or its meta state).")
+@click.option("--scene", "scene_path", type=click.Path(dir_okay=False), default=None,
+              help="Scene whose [board] and [detection] sections to use.")
+@click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
+              help="Frames averaged into the baseline C0 (default 10).")
+@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Touch threshold on v = C - C0, counts (default 20).")
+@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks"]), default=None,
+              help="n9: the paper's sequential N9 (default); n9_floor; peaks.")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Output folder: touches.csv (and measured.csv for bench recordings).")
+def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
+           out_dir):
+    """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
+
+    Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
+    frames index from 0 including baseline frames; peak in counts).
+    """
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.stage import run_locate
+
+    progress = Progress("[locate] ")
+    with fruit_errors():
+        scene = load_scene(scene_path) if scene_path else None
+        res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
+                         baseline_frames=baseline_frames, threshold_counts=threshold,
+                         method=method)
+    click.echo(f"{res['touches']} touches in {res['frames']} frames "
+               f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}", err=True)

@@ -1,0 +1,226 @@
+"""Recordings of raw CDC frames: `.npz` and the MuCa board's ASCII log, read and written.
+
+Units: counts (raw CDC values, not baseline-subtracted), seconds, kPa.
+
+npz keys (loaded with ``allow_pickle=False``): ``frames`` (N, R, C) integer counts,
+``t_s`` (N,) host time, optional ``pressure_kpa`` (N, K) with ``chamber_names`` (K,),
+optional ``sample`` (N,) int (bench recordings), ``meta`` a JSON string.
+
+MuCa ASCII log: one frame per line, R*C comma-separated counts in the board's order
+(value k is Tx k // C, Rx k % C, so a line reshapes row-major to (R, C)); an empty
+field is 0; a line may start with one extra field, the host timestamp in seconds.
+Lines with another field count (board log lines such as ``[Muca] Set TEST mode``,
+``#`` comments, a line cut in the middle) are skipped and counted. A line with the
+right field count but a non-integer, NaN or negative field is an error in a file
+(``strict=True``) and skipped-and-counted on a live port (``strict=False``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+from fruitcli.fsutil import atomic_path
+
+MUCA_ROWS = 21  # Tx lines of the FocalTech FT5316 (MuCa)
+MUCA_COLS = 12  # Rx lines
+LOG_SUFFIXES = (".log", ".txt", ".csv", ".muca")
+
+
+@dataclass
+class Recording:
+    """Frames with their host times; optional chamber pressures and bench samples."""
+
+    frames: np.ndarray  # (N, R, C) int64 counts
+    t_s: np.ndarray  # (N,) float64 s
+    pressure_kpa: np.ndarray | None = None  # (N, K) float64 kPa
+    chamber_names: tuple[str, ...] = ()
+    sample: np.ndarray | None = None  # (N,) int64, -1: not a sample frame
+    meta: dict = field(default_factory=dict)
+    skipped_lines: int = 0  # log lines skipped while reading
+
+    def __len__(self) -> int:
+        return int(self.frames.shape[0])
+
+
+def check_frames(frames, where: str) -> np.ndarray:
+    """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64."""
+    arr = np.asarray(frames)
+    if arr.ndim != 3:
+        raise FrameError(f"{where}: frames: expected shape (N, rows, cols), got {arr.shape}")
+    if arr.shape[0] == 0:
+        raise FrameError(f"{where}: empty recording (no frames)")
+    if arr.dtype.kind == "f":
+        if not np.all(np.isfinite(arr)):
+            n = int(np.argwhere(~np.isfinite(arr))[0][0])
+            raise FrameError(f"{where}: frame {n}: NaN or infinite count")
+        if np.any(arr != np.round(arr)):
+            n = int(np.argwhere(arr != np.round(arr))[0][0])
+            raise FrameError(f"{where}: frame {n}: non-integer count")
+    elif arr.dtype.kind not in "iu":
+        raise FrameError(f"{where}: frames: expected integer counts, got dtype {arr.dtype}")
+    arr = arr.astype(np.int64)
+    if np.any(arr < 0):
+        n = int(np.argwhere(arr < 0)[0][0])
+        raise FrameError(f"{where}: frame {n}: negative count (expected counts >= 0)")
+    return arr
+
+
+def read_npz(path: str | os.PathLike) -> Recording:
+    """Read a recording `.npz`; every error names the file and the key."""
+    path = Path(path)
+    if not path.exists():
+        raise FrameError(f"{path}: file not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
+        raise FrameError(f"{path}: not a readable .npz recording: {exc}") from None
+    if "frames" not in data:
+        raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
+    frames = check_frames(data["frames"], str(path))
+    n = frames.shape[0]
+    t_s = data.get("t_s")
+    if t_s is None:
+        raise FrameError(f"{path}: missing key 't_s' (N,) seconds")
+    t_s = np.asarray(t_s, dtype=float)
+    if t_s.shape != (n,) or not np.all(np.isfinite(t_s)):
+        raise FrameError(f"{path}: t_s: expected {n} finite times, got shape {t_s.shape}")
+    meta = {}
+    if "meta" in data:
+        try:
+            meta = json.loads(str(data["meta"]))
+        except json.JSONDecodeError as exc:
+            raise FrameError(f"{path}: meta: not a JSON string: {exc}") from None
+    pressure, names = None, ()
+    if "pressure_kpa" in data:
+        pressure = np.asarray(data["pressure_kpa"], dtype=float)
+        if pressure.ndim != 2 or pressure.shape[0] != n or not np.all(np.isfinite(pressure)):
+            raise FrameError(f"{path}: pressure_kpa: expected ({n}, K) finite kPa, "
+                             f"got shape {pressure.shape}")
+        names = tuple(str(s) for s in data.get("chamber_names", []))
+        if len(names) != pressure.shape[1]:
+            names = tuple(f"c{k + 1}" for k in range(pressure.shape[1]))
+    sample = None
+    if "sample" in data:
+        sample = np.asarray(data["sample"])
+        if sample.shape != (n,) or sample.dtype.kind not in "iu":
+            raise FrameError(f"{path}: sample: expected ({n},) integers, got {sample.shape}")
+        sample = sample.astype(np.int64)
+    return Recording(frames, t_s, pressure, names, sample, meta)
+
+
+def write_npz(path: str | os.PathLike, rec: Recording) -> None:
+    """Write a recording `.npz` atomically."""
+    arrays = {"frames": check_frames(rec.frames, str(path)),
+              "t_s": np.asarray(rec.t_s, dtype=float),
+              "meta": np.array(json.dumps(rec.meta))}
+    if rec.pressure_kpa is not None:
+        arrays["pressure_kpa"] = np.asarray(rec.pressure_kpa, dtype=float)
+        arrays["chamber_names"] = np.array(list(rec.chamber_names), dtype=str)
+    if rec.sample is not None:
+        arrays["sample"] = np.asarray(rec.sample, dtype=np.int64)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None, str]:
+    """Parse one log line into (counts (n_cells,), host time or None, problem).
+
+    Returns (None, None, why) for a line to skip: wrong field count ("fields") or a bad
+    value ("value: ..."). Empty fields are 0 counts.
+    """
+    fields = line.strip().split(",")
+    t = None
+    if len(fields) == n_cells + 1:
+        try:
+            t = float(fields[0])
+        except ValueError:
+            return None, None, f"value: timestamp {fields[0]!r} is not a number"
+        if not np.isfinite(t):
+            return None, None, f"value: timestamp {fields[0]!r} is not finite"
+        fields = fields[1:]
+    elif len(fields) != n_cells:
+        return None, None, "fields"
+    if "" in fields:
+        fields = [f if f.strip() else "0" for f in fields]
+    try:
+        counts = np.array(fields, dtype=np.int64)
+    except (ValueError, OverflowError):
+        for k, f in enumerate(fields):
+            try:
+                int(f)
+            except ValueError:
+                return None, None, f"value: field {k + 1}: expected an integer count, got {f!r}"
+        return None, None, "value: count out of range"
+    if counts.min() < 0:
+        k = int(np.argmax(counts < 0))
+        return None, None, f"value: field {k + 1}: negative count {counts[k]}"
+    return counts, t, ""
+
+
+def read_muca_log(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MUCA_COLS,
+                  strict: bool = True) -> Recording:
+    """Read a MuCa ASCII log. Lines with another field count are skipped and counted."""
+    path = Path(path)
+    if not path.exists():
+        raise FrameError(f"{path}: file not found")
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as exc:
+        raise FrameError(f"{path}: cannot read: {exc}") from None
+    frames, times, skipped = [], [], 0
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        counts, t, why = parse_line(line, rows * cols)
+        if counts is None:
+            if why.startswith("value") and strict:
+                raise FrameError(f"{path}: line {lineno}: {why[7:]}")
+            skipped += 1
+            continue
+        frames.append(counts)
+        times.append(t)
+    if not frames:
+        raise FrameError(f"{path}: empty recording (no line with {rows * cols} counts; "
+                         f"{skipped} other lines skipped)")
+    stamped = [t is not None for t in times]
+    meta = {"source": "muca-log"}
+    if all(stamped):
+        t_s = np.asarray(times, dtype=float)
+    else:
+        t_s = np.arange(len(frames), dtype=float)
+        meta["t_s"] = "frame index (the log has no host timestamps on every line)"
+    arr = np.stack(frames).reshape(-1, rows, cols)
+    return Recording(arr, t_s, meta=meta, skipped_lines=skipped)
+
+
+def format_line(counts: np.ndarray, t_s: float | None = None) -> str:
+    """One frame as a MuCa log line (no line end); `repr` keeps the time exact."""
+    body = ",".join(map(str, np.asarray(counts).ravel().tolist()))
+    return body if t_s is None else f"{float(t_s)!r},{body}"
+
+
+def write_muca_log(path: str | os.PathLike, rec: Recording, timestamps: bool = True) -> None:
+    """Write frames as a MuCa ASCII log (with host timestamps unless told not to)."""
+    frames = check_frames(rec.frames, str(path))
+    lines = [format_line(f, t if timestamps else None) for f, t in zip(frames, rec.t_s,
+                                                                      strict=True)]
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text("\n".join(lines) + "\n")
+
+
+def is_log_path(path: str | os.PathLike) -> bool:
+    """True when `path` names a MuCa ASCII log rather than an `.npz`."""
+    return Path(path).suffix.lower() in LOG_SUFFIXES
+
+
+def read_recording(path: str | os.PathLike, rows: int = MUCA_ROWS,
+                   cols: int = MUCA_COLS) -> Recording:
+    """Read an `.npz` or a MuCa ASCII log (by suffix; anything but .npz is a log)."""
+    if Path(path).suffix.lower() == ".npz":
+        return read_npz(path)
+    return read_muca_log(path, rows, cols)

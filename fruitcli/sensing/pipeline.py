@@ -1,0 +1,192 @@
+"""Frames -> touches in 3D: the detection settings, a batch path and a per-frame stream.
+
+Units: counts, mm, kPa.
+
+The batch path (`Locator.batch`) is vectorized over frames and used whenever no option
+needs state carried from frame to frame. Drift tracking, hysteresis, debounce and touch
+IDs carry state, so they run frame by frame through `Stream` (also the live loop):
+
+- drift tracking (``drift_rate`` r > 0): C0 += r (C - C0) on frames whose every v is at
+  most threshold - hysteresis and that are not in a touch (frozen while touched);
+- debounce (``debounce_frames`` d): a touch starts on the d-th consecutive frame whose
+  maximum v exceeds the threshold (0 and 1: at once);
+- hysteresis (``hysteresis_counts`` h): once touched, touches are extracted above
+  threshold - h and the touch ends when no v exceeds threshold - h (frame-level state);
+- touch IDs (``track_gate_mm`` g > 0): previous and current 3D touch points are matched
+  by ``scipy.optimize.linear_sum_assignment`` on their distance; pairs farther than g,
+  and unmatched touches, get the lowest ID not in use. Without IDs, ``touch`` is the rank.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.board import Taxels, taxel_cells
+from fruitcli.sensing.detect import MAX_TOUCHES, Grid, activation_grid, baseline_counts, detect
+from fruitcli.sensing.locate import state_path_position, touches_3d
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Detection settings, as the scene's ``[detection]`` section names them."""
+
+    threshold_counts: float = 20.0
+    baseline_frames: int = 10
+    method: str = "n9"
+    noise_floor_counts: float = 0.0
+    hysteresis_counts: float = 0.0
+    debounce_frames: int = 0
+    drift_rate: float = 0.0
+    track_gate_mm: float = 0.0
+    max_touches: int = MAX_TOUCHES
+
+    @classmethod
+    def from_scene(cls, detection: dict, **overrides) -> Settings:
+        keys = {k: detection[k] for k in cls.__dataclass_fields__ if k in detection}
+        keys.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**keys)
+
+    @property
+    def stateful(self) -> bool:
+        return bool(self.drift_rate > 0 or self.hysteresis_counts > 0
+                    or self.debounce_frames > 1 or self.track_gate_mm > 0)
+
+    @property
+    def floor(self) -> float:
+        return self.noise_floor_counts if self.method != "n9" else 0.0
+
+
+@dataclass
+class TouchTable:
+    """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak."""
+
+    frame: np.ndarray
+    touch: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    xyz_mm: np.ndarray  # (n, 3)
+    peak: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.frame.shape[0])
+
+    @classmethod
+    def concat(cls, tables: list[TouchTable]) -> TouchTable:
+        if not tables:
+            e = np.zeros(0)
+            return cls(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
+        return cls(*(np.concatenate([getattr(t, f) for t in tables])
+                     for f in ("frame", "touch", "i", "j", "xyz_mm", "peak")))
+
+
+class Locator:
+    """Detection and 3D location for one taxel layout, board and set of positions.
+
+    `positions_mm` is (T, 3) (one state) or (S, T, 3) with `state_pressure_kpa` (S, K):
+    then each frame's pressures pick its place on the state path.
+    """
+
+    def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
+                 settings: Settings, state_pressure_kpa: np.ndarray | None = None,
+                 where: str = "taxels"):
+        self.taxels, self.board, self.settings = taxels, board, settings
+        self.rows, self.cols = taxel_cells(taxels, board, where)
+        self.grid = Grid.from_ij(taxels.i, taxels.j)
+        self.positions_mm = np.asarray(positions_mm, dtype=float)
+        self.state_pressure_kpa = state_pressure_kpa
+        if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
+            raise FrameError("per-state positions need the states' pressures")
+
+    def values(self, frames: np.ndarray) -> np.ndarray:
+        """Counts of the taxel cells (N, T) from frames (N, R, C)."""
+        return frames[:, self.rows, self.cols]
+
+    def baseline(self, frames: np.ndarray, where: str = "frames") -> np.ndarray:
+        """C0 per taxel (T,) from the first K frames."""
+        return baseline_counts(self.values(frames), self.settings.baseline_frames, where)
+
+    def _path(self, pressure_kpa: np.ndarray | None, n: int):
+        if self.positions_mm.ndim == 2:
+            return None, None
+        if pressure_kpa is None:
+            return np.zeros(n, np.int64), np.zeros(n)
+        return state_path_position(pressure_kpa, self.state_pressure_kpa)
+
+    def batch(self, frames: np.ndarray, baseline: np.ndarray,
+              pressure_kpa: np.ndarray | None = None) -> TouchTable:
+        """All touches of frames (N, R, C), vectorized (stateless settings only)."""
+        s = self.settings
+        if s.stateful:
+            stream = Stream(self, baseline)
+            return TouchTable.concat([stream.step(f, None if pressure_kpa is None
+                                                  else pressure_kpa[n], n)
+                                      for n, f in enumerate(self.values(frames))])
+        flat = activation_grid(self.values(frames), baseline, self.grid)
+        t = detect(flat, self.grid, s.threshold_counts, s.method, s.floor, s.max_touches)
+        seg, frac = self._path(pressure_kpa, frames.shape[0])
+        xyz = touches_3d(t, self.positions_mm, seg, frac)
+        return TouchTable(t.frame, t.rank, t.i, t.j, xyz, t.peak)
+
+
+class Stream:
+    """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
+
+    def __init__(self, locator: Locator, baseline: np.ndarray):
+        self.loc = locator
+        self.s = locator.settings
+        self.baseline = np.asarray(baseline, dtype=float).copy()
+        self.touched = False
+        self.above = 0
+        self.prev_xyz = np.zeros((0, 3))
+        self.prev_ids = np.zeros(0, np.int64)
+        self._one = replace(self.s, drift_rate=0.0, hysteresis_counts=0.0, debounce_frames=0,
+                            track_gate_mm=0.0)
+
+    def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
+             frame: int = 0) -> TouchTable:
+        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
+        loc, s = self.loc, self.s
+        if values.ndim == 2:
+            values = values[loc.rows, loc.cols]
+        flat = activation_grid(values[None, :], self.baseline, loc.grid)
+        vmax = float(flat.max())
+        low = s.threshold_counts - s.hysteresis_counts
+        if self.touched:
+            on = vmax > low
+            thr = low
+        else:
+            self.above = self.above + 1 if vmax > s.threshold_counts else 0
+            on = self.above >= max(s.debounce_frames, 1)
+            thr = s.threshold_counts
+        self.touched = on
+        if not on:
+            if s.drift_rate > 0 and vmax <= low:
+                self.baseline += s.drift_rate * (values - self.baseline)
+            self.prev_xyz, self.prev_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
+            return TouchTable.concat([])
+        t = detect(flat, loc.grid, thr, s.method, s.floor, s.max_touches)
+        seg, frac = loc._path(None if pressure_kpa is None else pressure_kpa[None, :], 1)
+        xyz = touches_3d(t, loc.positions_mm, seg, frac)
+        ids = self._ids(xyz) if s.track_gate_mm > 0 else t.rank
+        return TouchTable(np.full(len(t), frame, np.int64), ids, t.i, t.j, xyz, t.peak)
+
+    def _ids(self, xyz: np.ndarray) -> np.ndarray:
+        ids = np.full(xyz.shape[0], -1, np.int64)
+        if self.prev_xyz.shape[0] and xyz.shape[0]:
+            cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz[None, :, :], axis=2)
+            r, c = linear_sum_assignment(cost)
+            ok = cost[r, c] <= self.s.track_gate_mm
+            ids[c[ok]] = self.prev_ids[r[ok]]
+        used = set(ids[ids >= 0].tolist())
+        nxt = 0
+        for k in np.flatnonzero(ids < 0):
+            while nxt in used:
+                nxt += 1
+            ids[k] = nxt
+            used.add(nxt)
+        self.prev_xyz, self.prev_ids = xyz, ids
+        return ids
