@@ -1,0 +1,167 @@
+"""Numerical stability study: the FEM on stiff and extreme cases.
+
+Each case is a small structured body (so the whole study runs in seconds) pushed to an
+extreme: E from 1 kPa to 1 GPa, nu from 0 to 0.499, a chamber pressure ramped until
+elements would invert, jig stiffness from 1e-3 to 1e6 N/mm, a sliver tet, a body with no
+support. Each row says whether it converged or names the failure in one line, with
+Newton iterations, load-step subdivisions, final residual, max displacement, min det F
+and time. No NaN reaches a row: a non-finite result is itself a named failure.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from fruitcli.errors import FruitError
+
+BEAM_MM = (40.0, 8.0, 8.0)
+BEAM_CELLS = (10, 2, 2)
+DENSITY = 1070.0
+GRAVITY = (0.0, 0.0, -9.81)
+
+
+@dataclass(frozen=True)
+class Case:
+    """One stability case: `group` (what is swept), `name`, and its parameters."""
+
+    group: str
+    name: str
+    kind: str  # beam_gravity, hollow_pressure, jig, sliver, free_pressure
+    E_kpa: float = 100.0
+    nu: float = 0.3
+    pressure_kpa: float = 0.0
+    stiffness_n_per_mm: float = 10.0
+
+
+def default_cases() -> list[Case]:
+    cases = [Case("E", f"E = {e:g} kPa", "beam_gravity", E_kpa=e)
+             for e in (1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)]
+    cases += [Case("nu", f"nu = {nu:g}", "beam_gravity", E_kpa=100.0, nu=nu)
+              for nu in (0.0, 0.3, 0.45, 0.49, 0.499)]
+    cases += [Case("pressure", f"p = {p:g} kPa", "hollow_pressure", pressure_kpa=p)
+              for p in (5.0, 20.0, 50.0, 100.0, 200.0, 400.0)]
+    cases += [Case("jig", f"k = {k:g} N/mm", "jig", stiffness_n_per_mm=k)
+              for k in (1e-3, 1e-1, 10.0, 1e3, 1e6)]
+    cases += [Case("sliver", "one sliver tet", "sliver"),
+              Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0)]
+    return cases
+
+
+def _beam(case: Case):
+    from fruitcli.fem.model import Load, Model
+    from fruitcli.studies.meshes import box_tets
+
+    nodes, tets = box_tets(BEAM_MM, BEAM_CELLS)
+    fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
+    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, density_kg_m3=DENSITY,
+                              gravity_m_s2=GRAVITY, fixed_nodes=fixed)
+    return model, Load.pressures([], gravity=1.0)
+
+
+def _hollow(case: Case, free: bool = False):
+    from fruitcli.fem.model import Load, Model
+    from fruitcli.studies.meshes import hollow_box
+
+    nodes, tets, cavity = hollow_box(30.0, 6, 2)
+    fixed = None if free else np.flatnonzero(nodes[:, 2] < 1e-9)
+    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=fixed,
+                              chambers={"c": cavity})
+    return model, Load.pressures([case.pressure_kpa])
+
+
+def _jig(case: Case):
+    from fruitcli.fem.model import Load, Model
+    from fruitcli.fem.springs import Jig
+    from fruitcli.fem.units import spring_mn_per_mm
+    from fruitcli.studies.meshes import box_tets
+
+    nodes, tets = box_tets(BEAM_MM, BEAM_CELLS)
+    fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
+    tip = np.flatnonzero(nodes[:, 0] > BEAM_MM[0] - 1e-9)
+    jig = Jig(tip, spring_mn_per_mm(case.stiffness_n_per_mm), rotate_deg=30.0,
+              axis=(0.0, 0.0, 1.0), pivot_mm=(0.0, BEAM_MM[1] / 2, 0.0))
+    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=fixed, jigs=[jig])
+    return model, Load.pressures([], jig=1.0)
+
+
+def _sliver(case: Case):
+    from fruitcli.fem.model import Load, Model
+
+    nodes = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1e-4]], float)
+    tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4], [0, 1, 2, 4]])
+    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=[0, 1, 2])
+    return model, Load.pressures([])
+
+
+BUILDERS = {"beam_gravity": _beam, "hollow_pressure": _hollow, "jig": _jig, "sliver": _sliver,
+            "free_pressure": lambda c: _hollow(c, free=True)}
+
+
+def run_case(case: Case) -> dict:
+    """Solve one case; never raises: failures become a one-line `status`."""
+    from fruitcli.fem.newton import SolverOptions, solve_state
+
+    row = {"group": case.group, "case": case.name, "status": "converged", "iterations": 0,
+           "subdivisions": 0, "residual": None, "max_disp_mm": None, "min_det_f": None,
+           "seconds": 0.0, "note": ""}
+    t0 = time.perf_counter()
+    try:
+        model, load = BUILDERS[case.kind](case)
+        row["note"] = "; ".join(model.notes)
+        res = solve_state(model, load, options=SolverOptions(), label=case.name)
+        disp = float(np.abs(res.displacement_mm).max())
+        values = [res.residual, disp, res.min_det_f]
+        if not all(math.isfinite(v) for v in values):
+            raise FruitError(f"{case.name}: non-finite result (residual {res.residual}, "
+                             f"max displacement {disp})")
+        row.update(iterations=res.iterations, subdivisions=res.subdivisions,
+                   residual=float(res.residual), max_disp_mm=disp,
+                   min_det_f=float(res.min_det_f))
+        if case.kind == "beam_gravity":
+            row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
+        if res.min_det_f <= 0:
+            row["status"] = "converged with inverted elements"
+    except FruitError as exc:
+        row["status"] = f"failed: {exc}"
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def add_scaling_columns(rows: list[dict]) -> None:
+    """E sweep: tip deflection x E (constant while the response is linear); nu sweep: tip
+    deflection relative to nu = 0.3 (how much linear tets lock)."""
+    e_rows = [r for r in rows if r["group"] == "E" and "tip_deflection_mm" in r]
+    for r in e_rows:
+        e = float(r["case"].split("=")[1].split()[0])
+        r["note"] = (r["note"] + "; " if r["note"] else "") + \
+            f"tip x E = {r['tip_deflection_mm'] * e:.4g} mm kPa"
+    ref = [r for r in rows if r["group"] == "nu" and r["case"] == "nu = 0.3"]
+    if ref and "tip_deflection_mm" in ref[0]:
+        base = ref[0]["tip_deflection_mm"]
+        for r in rows:
+            if r["group"] == "nu" and "tip_deflection_mm" in r:
+                r["note"] = (r["note"] + "; " if r["note"] else "") + \
+                    f"tip / tip(nu=0.3) = {r['tip_deflection_mm'] / base:.3f}"
+
+
+HEADER = ["group", "case", "status", "iterations", "subdivisions", "residual", "max_disp_mm",
+          "min_det_f", "seconds", "note"]
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    return str(v)
+
+
+def table_markdown(rows: list[dict]) -> str:
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    for r in rows:
+        lines.append("| " + " | ".join(_fmt(r.get(h)).replace("|", "/") for h in HEADER) + " |")
+    return "\n".join(lines) + "\n"

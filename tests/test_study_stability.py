@@ -1,0 +1,60 @@
+"""The stability study: rows for every case, named failures, no NaN, parallel == serial."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fruitcli.studies.meshes import boundary_faces, box_tets, hollow_box
+from fruitcli.studies.parallel import run_cases
+from fruitcli.studies.stability import Case, default_cases, run_case
+
+
+def test_box_mesh_is_conforming_and_fills_the_box():
+    from fruitcli.fem.tet4 import signed_volumes
+
+    nodes, tets = box_tets((2.0, 3.0, 4.0), (2, 3, 4))
+    vol = np.abs(signed_volumes(nodes, tets))
+    assert np.isclose(vol.sum(), 24.0)
+    # closed surface: 2 triangles per boundary cell face
+    assert len(boundary_faces(tets)) == 2 * 2 * (2 * 3 + 3 * 4 + 2 * 4)
+
+
+def test_hollow_box_cavity_is_closed():
+    nodes, tets, cavity = hollow_box(30.0, 6, 2)
+    assert len(cavity) == 6 * 4 * 2  # 6 faces of 2 x 2 cells, 2 triangles each
+    edges = np.sort(np.concatenate([cavity[:, [0, 1]], cavity[:, [1, 2]], cavity[:, [2, 0]]]),
+                    axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)
+
+
+def test_every_case_gives_a_finite_row_or_a_named_failure():
+    cases = [Case("E", "E = 1e+06 kPa", "beam_gravity", E_kpa=1e6),
+             Case("sliver", "one sliver tet", "sliver"),
+             Case("jig", "k = 1e+06 N/mm", "jig", stiffness_n_per_mm=1e6)]
+    rows = [run_case(c) for c in cases]
+    assert rows[0]["status"] == "converged"
+    assert rows[0]["tip_deflection_mm"] > 0
+    assert rows[1]["status"].startswith("failed: mesh: tet")
+    assert "sliver" in rows[1]["status"] and "\n" not in rows[1]["status"]
+    for r in rows:
+        for key in ("residual", "max_disp_mm", "min_det_f"):
+            assert r[key] is None or math.isfinite(r[key])
+
+
+def test_stiff_response_scales_as_one_over_E():
+    a = run_case(Case("E", "a", "beam_gravity", E_kpa=1e4))
+    b = run_case(Case("E", "b", "beam_gravity", E_kpa=1e6))
+    ratio = a["tip_deflection_mm"] / b["tip_deflection_mm"]
+    assert abs(ratio - 100.0) < 0.5
+
+
+def test_parallel_equals_serial():
+    cases = [c for c in default_cases() if c.group in ("jig",)][:3]
+    serial = run_cases(run_case, cases, jobs=1)
+    parallel = run_cases(run_case, cases, jobs=2)
+    for s, p in zip(serial, parallel, strict=True):
+        for key in ("status", "iterations", "residual", "max_disp_mm", "min_det_f"):
+            assert s[key] == p[key]
