@@ -1,0 +1,229 @@
+"""The mechanical model of one body: rest mesh, Hooke material, fixed nodes, chambers,
+jig springs and gravity, with everything that does not change precomputed.
+
+Lower-level API (no files), for studies that sweep E, nu, pressure, jig stiffness,
+mesh size, tolerance or linear solver::
+
+    from fruitcli.fem.model import Model, Load
+    from fruitcli.fem.newton import SolverOptions, solve_state
+    model = Model.from_arrays(nodes, tets, E_kpa=100.0, nu=0.45,
+                              fixed_nodes=idx, chambers={"c0": tris})
+    res = solve_state(model, Load.pressures([5.0]), options=SolverOptions(tolerance=1e-6))
+    res.displacement_mm, res.iterations, res.residual, res.subdivisions, res.min_det_f
+
+Units: mm, kPa, mN (see `fruitcli.fem.units`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fruitcli.errors import MeshError, SolverError
+from fruitcli.fem import corotation, pressure, tet4
+from fruitcli.fem.assemble import CsrPattern
+from fruitcli.fem.springs import Jig
+from fruitcli.fem.tolerances import SLIVER_QUALITY
+from fruitcli.fem.units import body_force_mn_mm3
+
+
+@dataclass(frozen=True)
+class Load:
+    """Loads of one state. Per chamber (K,): the pressure (kPa) or, where
+    `volume_controlled`, the volume growth over the rest volume (mm^3). `gravity` and
+    `jig` scale gravity and the jig's rotation/translation (0..1)."""
+
+    pressure_kpa: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    volume_growth_mm3: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    volume_controlled: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    gravity: float = 1.0
+    jig: float = 1.0
+
+    @classmethod
+    def pressures(cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0) -> Load:
+        p = np.asarray(pressure_kpa, float).reshape(-1)
+        return cls(p, np.zeros_like(p), np.zeros(len(p), bool), gravity, jig)
+
+    @classmethod
+    def zero(cls, n_chambers: int, volume_controlled=None) -> Load:
+        vc = np.zeros(n_chambers, bool) if volume_controlled is None else volume_controlled
+        return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0)
+
+    def is_zero(self) -> bool:
+        """True when nothing loads the body (rest is then the exact answer)."""
+        return not (np.any(self.pressure_kpa) or np.any(self.volume_growth_mm3)
+                    or self.gravity or self.jig)
+
+    def lerp(self, other: Load, t: float) -> Load:
+        """The load a fraction t of the way from self to other."""
+        def mix(a, b):
+            return (1.0 - t) * a + t * b
+        return replace(other, pressure_kpa=mix(self.pressure_kpa, other.pressure_kpa),
+                       volume_growth_mm3=mix(self.volume_growth_mm3, other.volume_growth_mm3),
+                       gravity=mix(self.gravity, other.gravity), jig=mix(self.jig, other.jig))
+
+
+def pin_rigid_modes(rest: np.ndarray) -> np.ndarray:
+    """(6,) global dofs of a statically determinate 3-2-1 support: node a (x, y, z),
+    node b far along x (y, z), node c far from line ab in the xy plane (z). It removes
+    the six rigid modes without loading a self-equilibrated body."""
+    a = int(np.argmin(rest[:, 0]))
+    b = int(np.argmax(rest[:, 0]))
+    d = rest - rest[a]
+    db = d[b]
+    c = int(np.argmax(np.abs(db[0] * d[:, 1] - db[1] * d[:, 0])))
+    return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b + 1, 3 * b + 2, 3 * c + 2])
+
+
+@dataclass
+class Model:
+    """A body ready to solve. Build it with `Model.from_arrays`."""
+
+    rest: np.ndarray
+    tets: np.ndarray
+    young_modulus_kpa: float
+    poisson_ratio: float
+    dm_inv: np.ndarray
+    volumes_mm3: np.ndarray
+    k0: np.ndarray
+    chamber_names: list[str]
+    chamber_tris: list[np.ndarray]
+    chamber_rest_volume_mm3: np.ndarray
+    body_force_mn: np.ndarray  # (n, 3) nodal gravity force at full load
+    jigs: list[Jig]
+    fixed_nodes: np.ndarray
+    pinned_dofs: np.ndarray
+    pattern: CsrPattern
+    spring_diag: np.ndarray  # (n_free,) mN/mm
+    notes: list[str]
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.rest)
+
+    @classmethod
+    def from_arrays(cls, nodes, tets, E_kpa: float, nu: float, *, density_kg_m3: float = 0.0,
+                    gravity_m_s2=None, fixed_nodes=None, chambers: dict | None = None,
+                    jigs: list[Jig] | None = None,
+                    min_quality: float = SLIVER_QUALITY) -> Model:
+        """Validate and precompute. nodes (n, 3) mm, tets (m, 4), E (kPa), nu, chambers
+        {name: (t, 3) triangles}, fixed_nodes indices, jigs with node indices."""
+        rest = np.ascontiguousarray(nodes, dtype=float)
+        tets = np.ascontiguousarray(tets, dtype=np.int64)
+        if rest.ndim != 2 or rest.shape[1] != 3 or not np.isfinite(rest).all():
+            raise MeshError("nodes: expected a finite (N, 3) array in mm")
+        if tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
+            raise MeshError("tets: expected a non-empty (M, 4) array")
+        if tets.min() < 0 or tets.max() >= len(rest):
+            raise MeshError("tets: node index out of range")
+        if not E_kpa > 0:
+            raise SolverError(f"[material].young_modulus_kpa: expected > 0, got {E_kpa}")
+        if not -1.0 < nu < 0.5:
+            raise SolverError(f"[material].poisson_ratio: expected -1 < nu < 0.5, got {nu}")
+        vol = tet4.signed_volumes(rest, tets)
+        flip = vol < 0
+        if flip.any():
+            tets = tets.copy()
+            tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+        quality = tet4.tet_quality(rest, tets)
+        worst = int(np.argmin(quality))
+        if quality[worst] < min_quality:
+            c = rest[tets[worst]].mean(axis=0)
+            raise MeshError(f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+                            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+                            "remesh before solving")
+        vol = np.abs(vol)
+        lam, mu = tet4.lame_parameters(E_kpa, nu)
+        grads = tet4.shape_gradients(rest, tets)
+        k0 = tet4.element_stiffness(grads, vol, lam, mu)
+        dm_inv = np.linalg.inv(tet4.edge_matrices(rest, tets))
+        n = len(rest)
+        notes = []
+        if nu > 0.49:
+            notes.append(f"nu = {nu} is close to 0.5: linear tets lock (too stiff in bending "
+                         "and under pressure)")
+
+        names, tris_list = [], []
+        for name, tris in (chambers or {}).items():
+            tris = np.asarray(tris, dtype=np.int64)
+            if tris.ndim != 2 or tris.shape[1] != 3 or len(tris) < 4:
+                raise MeshError(f"chamber {name}: expected a closed (T, 3) triangle surface")
+            names.append(str(name))
+            tris_list.append(pressure.orient_outward(rest, tris))
+        v_rest = np.array([pressure.cavity_volume(rest, t) for t in tris_list])
+
+        body = np.zeros((n, 3))
+        if gravity_m_s2 is not None and density_kg_m3 > 0:
+            per_tet = vol[:, None] * body_force_mn_mm3(density_kg_m3, gravity_m_s2) / 4.0
+            body = corotation.scatter_nodes(tets, np.repeat(per_tet[:, None], 4, axis=1), n)
+
+        fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, np.int64))
+        jigs = list(jigs or [])
+        pinned = np.zeros(0, np.int64)
+        if len(fixed) == 0 and not jigs:
+            pinned = pin_rigid_modes(rest)
+            notes.append("no fixed region and no jig: the six rigid modes are removed by a "
+                         f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))}")
+        free_mask = np.ones(3 * n, bool)
+        free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
+        free_mask[pinned] = False
+        pattern = CsrPattern.build(tets, n, free_mask)
+        spring = np.zeros(3 * n)
+        for jig in jigs:
+            np.add.at(spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(),
+                      jig.stiffness_mn_per_mm)
+        return cls(rest=rest, tets=tets, young_modulus_kpa=float(E_kpa),
+                   poisson_ratio=float(nu), dm_inv=dm_inv, volumes_mm3=vol, k0=k0,
+                   chamber_names=names, chamber_tris=tris_list, chamber_rest_volume_mm3=v_rest,
+                   body_force_mn=body, jigs=jigs, fixed_nodes=fixed, pinned_dofs=pinned,
+                   pattern=pattern, spring_diag=spring[pattern.free], notes=notes)
+
+    # -- physics at a configuration x (n, 3) -------------------------------------------
+
+    def rotations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Element rotations (m, 3, 3) and volume ratios det F (m,) at x."""
+        f = corotation.deformation_gradients(x, self.tets, self.dm_inv)
+        return corotation.polar_rotations(f), np.linalg.det(f)
+
+    def chamber_volumes(self, x: np.ndarray) -> np.ndarray:
+        """(K,) cavity volumes (mm^3) at x."""
+        return np.array([pressure.cavity_volume(x, t) for t in self.chamber_tris])
+
+    def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
+        """(K, n, 3) H per chamber at x (mm^2)."""
+        return np.array([pressure.volume_gradient(x, t) for t in self.chamber_tris]).reshape(
+            len(self.chamber_tris), *x.shape)
+
+    def external_forces(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load,
+                        h: np.ndarray | None = None) -> np.ndarray:
+        """(n, 3) gravity + pressure (follower) + jig spring forces (mN) at x."""
+        f = load.gravity * self.body_force_mn
+        if len(self.chamber_tris):
+            h = self.chamber_gradients(x) if h is None else h
+            f = f + np.einsum("k,kni->ni", pressure_kpa, h)
+        for jig in self.jigs:
+            target = jig.targets(self.rest, load.jig)
+            np.add.at(f, jig.nodes, jig.stiffness_mn_per_mm * (target - x[jig.nodes]))
+        return f
+
+    def external_potential(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load) -> float:
+        """Potential of the external loads at x (mN mm): springs minus gravity work minus
+        p V per chamber (a constant pressure is conservative with H = dV/dx)."""
+        e = -load.gravity * float(np.einsum("ni,ni->", self.body_force_mn, x - self.rest))
+        if len(self.chamber_tris):
+            e -= float(pressure_kpa @ self.chamber_volumes(x))
+        for jig in self.jigs:
+            d = x[jig.nodes] - jig.targets(self.rest, load.jig)
+            e += 0.5 * jig.stiffness_mn_per_mm * float(np.einsum("ni,ni->", d, d))
+        return e
+
+    def internal_forces(self, x: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """(n, 3) elastic forces (mN) at x with element rotations rot."""
+        return corotation.internal_forces(x, self.rest, self.tets, self.k0, rot)
+
+    def worst_element(self, det_f: np.ndarray) -> str:
+        """'tet i at (x, y, z) mm (det F = ...)' for the most compressed element."""
+        i = int(np.argmin(det_f))
+        c = self.rest[self.tets[i]].mean(axis=0)
+        return f"tet {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"

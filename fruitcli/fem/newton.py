@@ -1,0 +1,198 @@
+"""Quasi-static equilibrium of one state (the paper's eqs. 2-3): Newton iterations on
+the warped corotational tangent with chamber pressures as Lagrange multipliers, a
+backtracking line search, and load-step halving when a step does not converge.
+
+Residual r = f_ext(x, p) - f_int(x) over the free dofs; a volume-controlled chamber
+adds the constraint V(x) = V_rest + growth with its pressure p as unknown. The linear
+system [K  -H^T; H  0] is solved by the Schur complement W = H K^-1 H^T (mm^3/kPa).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from fruitcli.errors import SolverError
+from fruitcli.fem import corotation
+from fruitcli.fem.linsolve import TangentSolver
+from fruitcli.fem.model import Load, Model
+from fruitcli.fem.tolerances import ARMIJO, FORCE_FLOOR, LINE_SEARCH_STEPS, MIN_DET_F
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """`tolerance`: |r| <= tolerance * reference force; `max_iterations` per load step;
+    `max_subdivisions`: halvings of a failing step; `load_steps`: initial steps."""
+
+    tolerance: float = 1e-6
+    max_iterations: int = 25
+    max_subdivisions: int = 6
+    linear_solver: str = "splu"
+    load_steps: int = 1
+
+
+@dataclass
+class StateResult:
+    x: np.ndarray  # (n, 3) mm
+    displacement_mm: np.ndarray  # (n, 3)
+    pressure_kpa: np.ndarray  # (K,)
+    chamber_volume_mm3: np.ndarray  # (K,)
+    iterations: int
+    residual: float  # relative, at convergence
+    subdivisions: int
+    min_det_f: float
+    solve_ms: float
+
+
+class _Step:
+    """Newton on one load step; holds the work arrays of the current iterate."""
+
+    def __init__(self, model: Model, solver: TangentSolver, load: Load, ref: float):
+        self.m, self.solver, self.load, self.ref = model, solver, load, ref
+        self.vc = np.flatnonzero(load.volume_controlled)
+        self.v_target = model.chamber_rest_volume_mm3 + load.volume_growth_mm3
+        self.v_ref = np.maximum(model.chamber_rest_volume_mm3, 1.0)
+
+    def evaluate(self, x, p):
+        """(rot, det_f, h, r, g, merit, energy) at x with chamber pressures p."""
+        m = self.m
+        rot, det_f = m.rotations(x)
+        h = m.chamber_gradients(x) if m.chamber_tris else None
+        f_int, energy = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot)
+        r = m.external_forces(x, p, self.load, h) - f_int
+        r = r.reshape(-1)[m.pattern.free]
+        energy += m.external_potential(x, p, self.load)
+        g = (m.chamber_volumes(x) - self.v_target)[self.vc] if len(self.vc) else np.zeros(0)
+        merit = np.linalg.norm(r) / self.ref
+        if len(g):
+            merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
+        return rot, det_f, h, r, g, merit, energy
+
+    def direction(self, rot, h, r, g):
+        m = self.m
+        self.solver.update(rot)
+        if not len(self.vc):
+            return self.solver.solve(r), np.zeros(0)
+        hv = h[self.vc].reshape(len(self.vc), -1)[:, m.pattern.free]  # (kv, n_free)
+        sol = self.solver.solve(np.column_stack([r, hv.T]))
+        kr, kh = sol[:, 0], sol[:, 1:]
+        w = hv @ kh  # compliance dV/dp (mm^3/kPa)
+        dp = np.linalg.solve(w, -g - hv @ kr)
+        return kr + kh @ dp, dp
+
+
+def _newton(step: _Step, x, p, options: SolverOptions):
+    """Returns (converged, x, p, iterations, merit, det_f)."""
+    m = step.m
+    rot, det_f, h, r, g, merit, energy = step.evaluate(x, p)
+    for it in range(options.max_iterations + 1):
+        if merit <= options.tolerance:
+            return True, x, p, it, merit, det_f
+        if it == options.max_iterations:
+            break
+        dx_free, dp = step.direction(rot, h, r, g)
+        dx = np.zeros(3 * m.n_nodes)
+        dx[m.pattern.free] = dx_free
+        dx = dx.reshape(-1, 3)
+        alpha, accepted = 1.0, False
+        for _ in range(LINE_SEARCH_STEPS):
+            xt, pt = x + alpha * dx, p.copy()
+            pt[step.vc] += alpha * dp
+            trial = step.evaluate(xt, pt)
+            if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
+                alpha *= 0.5
+                continue
+            descent = len(step.vc) == 0 and (
+                trial[6] <= energy - ARMIJO * alpha * float(r @ dx_free))
+            if descent or trial[5] < merit:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            return False, x, p, it + 1, merit, trial[1]
+        x, p = xt, pt
+        rot, det_f, h, r, g, merit, energy = trial
+    return False, x, p, options.max_iterations, merit, det_f
+
+
+def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
+                load_start: Load | None = None, pressure_start: np.ndarray | None = None,
+                options: SolverOptions = SolverOptions(), solver: TangentSolver | None = None,
+                label: str = "state") -> StateResult:
+    """Equilibrium under `load`, continuing from `x_start` (default: rest) reached under
+    `load_start` (default: zero load) with chamber pressures `pressure_start`. Pass the
+    same `solver` across states to reuse its factorization. Raises SolverError naming
+    `label`, the residual and the worst element when subdivision does not help."""
+    t0 = time.perf_counter()
+    k = len(model.chamber_tris)
+    vc = np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
+    if load_start is None:
+        load_start = Load.zero(k, vc)
+    if x_start is None and (load.is_zero() or _unloaded(model, load)):
+        return _result(model, model.rest.copy(), np.zeros(k), 0, 0.0, 0, t0)
+    x = model.rest.copy() if x_start is None else np.array(x_start, float)
+    p = np.zeros(k) if pressure_start is None else np.array(pressure_start, float)
+    if k:
+        p[~vc] = load_start.pressure_kpa[~vc]
+    solver = solver or TangentSolver(model, options.linear_solver)
+    scale = FORCE_FLOOR * model.young_modulus_kpa * float(np.ptp(model.rest, axis=0).max()) ** 2
+    t, dt = 0.0, 1.0 / max(1, options.load_steps)
+    iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
+    while t < 1.0:
+        t_new = min(1.0, t + dt)
+        step_load = load_start.lerp(load, t_new)
+        p_try = p.copy()
+        if k:
+            p_try[~vc] = step_load.pressure_kpa[~vc]
+        ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
+        step = _Step(model, solver, step_load, ref)
+        ok, x_new, p_new, its, merit, det_f = _newton(step, x, p_try, options)
+        iterations += its
+        if ok:
+            x, p, t = x_new, p_new, t_new
+            continue
+        subdivisions += 1
+        if subdivisions > options.max_subdivisions:
+            raise SolverError(
+                f"{label}: no equilibrium after {subdivisions - 1} load subdivisions "
+                f"(relative residual {merit:.2e} at {t_new:.3f} of the step; worst element "
+                f"{model.worst_element(det_f)}); lower the load or raise "
+                "[solver].max_subdivisions")
+        dt *= 0.5
+    return _result(model, x, p, iterations, merit, subdivisions, t0)
+
+
+def _unloaded(model: Model, load: Load) -> bool:
+    """True when the load is zero in effect: no chamber load, gravity or jig scale
+    multiplying zero, a jig whose target is its rest position."""
+    if np.any(load.pressure_kpa) or np.any(load.volume_growth_mm3):
+        return False
+    if load.gravity and np.any(model.body_force_mn):
+        return False
+    return not (load.jig and any(j.rotate_deg or np.any(j.translate_mm) for j in model.jigs))
+
+
+def _result(model: Model, x, p, iterations, merit, subdivisions, t0) -> StateResult:
+    _, det_f = model.rotations(x)
+    volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
+    return StateResult(x=x, displacement_mm=x - model.rest, pressure_kpa=p,
+                       chamber_volume_mm3=volumes, iterations=iterations, residual=merit,
+                       subdivisions=subdivisions, min_det_f=float(det_f.min()),
+                       solve_ms=1e3 * (time.perf_counter() - t0))
+
+
+def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: float) -> float:
+    """Force scale of a load step: the largest of the external loads at both ends and
+    the elastic force at the start (mN)."""
+    rot, _ = model.rotations(x)
+    free = model.pattern.free
+    fa = model.external_forces(x, p, load_a).reshape(-1)[free]
+    pb = p.copy()
+    if len(pb):
+        pb[~load_b.volume_controlled] = load_b.pressure_kpa[~load_b.volume_controlled]
+    fb = model.external_forces(x, pb, load_b).reshape(-1)[free]
+    fi = model.internal_forces(x, rot).reshape(-1)[free]
+    return max(np.linalg.norm(fa), np.linalg.norm(fb), np.linalg.norm(fi), floor)
+
