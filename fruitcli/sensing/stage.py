@@ -110,3 +110,132 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                       samples_missed=n_samples - int(ids.size))
     say(f"{len(table)} touches, {result['frames_per_s']:.0f} frames/s")
     return result
+
+
+def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
+    """(x, y) mm of the bench samples: "quarter" or a CSV (sample,x_mm,y_mm)."""
+    from fruitcli.sensing.bench import quarter_samples
+    from fruitcli.tables import read_table
+
+    spec = scene["bench"]["samples"]
+    if spec == "quarter":
+        g = scene["grid"]
+        return quarter_samples(taxels_mm[:, :2], g["spacing_x_mm"], g["spacing_y_mm"])
+    from fruitcli.scene import resolve_path
+
+    cols = read_table(resolve_path(scene.path, spec), ["x_mm", "y_mm"], error=FrameError)
+    return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
+
+
+def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> dict:
+    """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv."""
+    from fruitcli.sensing import forward
+    from fruitcli.sensing.bench import (
+        BENCH_FPS,
+        cell_counts,
+        descend,
+        surface_heights,
+        taxel_surface_heights,
+    )
+    from fruitcli.sensing.board import taxel_cells
+    from fruitcli.sensing.frames_io import write_npz
+
+    say = progress or (lambda msg: None)
+    out_dir = Path(out_dir)
+    taxels = load_taxels(taxels_csv)
+    board, bench = scene["board"], scene["bench"]
+    threshold = scene["detection"]["threshold_counts"]
+    rows, cols = taxel_cells(taxels, board, str(taxels_csv))
+    state = bench["state"]
+    skin = forward.make_skin(len(taxels), bench["seed"])
+    if states_npz_or_none is not None:
+        states = load_states(states_npz_or_none, len(taxels))
+        if not 0 <= state < states.n_states:
+            raise FrameError(f"{scene.path.name}: [bench].state: {state} not in the states "
+                             f"(0..{states.n_states - 1})")
+        taxels_mm = states.taxels_mm[state]
+        xy = _sample_points(scene, taxels_mm)
+        z = surface_heights(xy, states.nodes_mm(state), states.surface_tris)
+        shift = forward.strain_shift_counts(forward.taxel_strain(states, state), skin)
+    else:
+        if state != 0:
+            raise FrameError(f"{scene.path.name}: [bench].state = {state} needs FEM states")
+        taxels_mm = taxels.xyz_mm
+        xy = _sample_points(scene, taxels_mm)
+        z = taxel_surface_heights(xy, taxels_mm)
+        shift = np.zeros(len(taxels))
+    on_surface = np.flatnonzero(np.isfinite(z))
+    contact = np.column_stack([xy, z])[on_surface]
+    say(f"{len(contact)} samples on the surface ({len(xy) - len(contact)} off it)")
+    result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
+              "indenters": {}}
+    for n, name in enumerate(bench["indenters"]):
+        forward.footprint_sigma_mm(name)  # validates the name
+        rng = np.random.default_rng([bench["seed"], n])
+        run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
+                      bench["step_mm"], bench["baseline_frames"], threshold, rng)
+        n_frames = run.counts.shape[0]
+        fill = forward.frame_counts(np.full((n_frames, board["rows"], board["cols"]),
+                                            forward.BASELINE_COUNTS),
+                                    np.median(skin.noise_std_counts), rng)
+        frames = cell_counts(run.counts, rows, cols, (board["rows"], board["cols"]), fill)
+        meta = {"source": "bench", "scene": scene.name, "indenter": name, "state": state,
+                "seed": bench["seed"], "step_mm": bench["step_mm"],
+                "threshold_counts": threshold, "baseline_frames": bench["baseline_frames"],
+                "fps": BENCH_FPS}
+        rec = Recording(frames, np.arange(n_frames) / BENCH_FPS, sample=run.sample, meta=meta)
+        write_npz(out_dir / name / "frames.npz", rec)
+        write_csv(out_dir / name / "truth.csv", POINT_HEADER,
+                  ([int(k), *map(float, p)] for k, p in zip(run.truth_ids, run.truth_mm,
+                                                             strict=True)),
+                  comments=[f"bench contact points ({name} indenter, state {state}), mm"])
+        result["indenters"][name] = {"frames": n_frames, "samples": int(len(run.truth_ids)),
+                                     "dropped": run.dropped}
+        say(f"{name}: {len(run.truth_ids)} samples, {n_frames} frames")
+    return result
+
+
+def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> dict:
+    """Noise std per taxel at rest and max baseline shift per taxel over the states' animation
+    (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
+    from fruitcli.fsutil import write_json
+    from fruitcli.sensing import forward, sensitivity
+    from fruitcli.sensing.plots import save_heatmap
+
+    say = progress or (lambda msg: None)
+    out_dir = Path(out_dir)
+    taxels = load_taxels(taxels_csv)
+    states = load_states(states_npz, len(taxels))
+    sens = scene["sensitivity"]
+    skin = forward.make_skin(len(taxels), scene["bench"]["seed"])
+    rng = np.random.default_rng([scene["bench"]["seed"], 99])
+    rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts,
+                                                (sens["noise_frames"], len(taxels))),
+                                skin.noise_std_counts, rng)
+    std = sensitivity.noise_std_counts(rest)
+    strain = forward.taxel_strain(states)  # (S, T)
+    gain = forward.calibrate_strain_gain()
+    shift_model = forward.strain_shift_counts(strain, skin, gain)
+    anim = sensitivity.animation_shift(shift_model, sens["animation_frames"])
+    played = forward.frame_counts(skin.baseline_counts + anim, skin.noise_std_counts, rng)
+    shift = sensitivity.max_shift_counts(played, rest.mean(axis=0))
+    model_max = shift_model.max(axis=0)
+    threshold = scene["detection"]["threshold_counts"]
+    taxel_rows = [{"id": int(taxels.ids[k]), "i": int(taxels.i[k]), "j": int(taxels.j[k]),
+                   "std": float(std[k]), "max_shift": float(shift[k]),
+                   "max_shift_model": float(model_max[k]), "strain_max": float(strain[:, k].max()),
+                   "fab": float(skin.fab[k])} for k in range(len(taxels))]
+    out = {"units": "counts (strain: Green-Lagrange norm, -)", "threshold_counts": threshold,
+           "noise_frames": sens["noise_frames"], "animation_frames": sens["animation_frames"],
+           "states": states.n_states, "strain_gain_counts": gain,
+           "summary": {"std": sensitivity.summary(std), "max_shift": sensitivity.summary(shift),
+                       "max_shift_model": sensitivity.summary(model_max)},
+           "taxels": taxel_rows}
+    write_json(out_dir / "sensitivity.json", out)
+    save_heatmap(out_dir / "noise_std.png", taxels.i, taxels.j, std,
+                 f"noise std over {sens['noise_frames']} frames at rest", threshold / 2)
+    save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
+                 "max baseline shift over the animation", threshold)
+    say(f"noise std max {std.max():.2f}, max shift max {shift.max():.1f} "
+        f"mean {shift.mean():.1f} counts")
+    return out

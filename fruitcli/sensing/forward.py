@@ -1,0 +1,201 @@
+"""The skin's forward model: raw CDC counts of every taxel for an indenter and a FEM state.
+
+Units: mm, counts. Each parameter, its value and its source (none is fitted to the
+paper's Table I):
+
+- ``THRESHOLD_COUNTS`` = 20: the paper's touch threshold, "very light touch or even
+  pre-touch" (Sec. V-A).
+- ``CONTACT_COUNTS`` = 60: activation of a taxel right under an indenter at contact.
+  Assumption: three times the threshold, so the threshold is crossed just before contact
+  (pre-touch, Sec. V-A); the MuCa visualizers show touches on a 0-200 scale
+  (research/touch-anchors.md), a light touch sits in its lower part.
+- ``GAP_DECAY_MM`` = 2: activation falls as exp(-gap / 2 mm) with the indenter's gap to
+  the surface. Assumption: the fringing field reaches about one cover thickness
+  (``[tracks].cover_mm`` = 2 mm) beyond the electrodes (Sec. III-C, Fig. 5). With 60
+  counts at contact, the threshold is crossed at a gap of 2 ln 3 = 2.2 mm.
+- ``FIELD_SIGMA_MM`` = 6: the lateral reach of one crossing, a Gaussian in the 3D
+  distance from the contact point to the (deformed) taxel. Assumption: half the 12 mm
+  pitch, so a quarter-taxel offset activates more than one taxel, as the paper's bench
+  protocol requires (Sec. V-B).
+- ``INDENTER_RADIUS_MM``: small rubber tip 1.5 mm, medium Allen key 4 mm (Fig. 15 (a),
+  (b): the Allen key is the wider one); the footprint is sigma = hypot(FIELD_SIGMA_MM, r).
+- ``BASELINE_COUNTS`` = 500 +- 30 (seeded per taxel): per-taxel baselines C0. Only
+  differences matter; any level works (the FT5316 reports 16-bit counts).
+- Noise: Gaussian, per-taxel std drawn uniformly in [0.5, 1.85] counts (seeded), so the
+  measured std of the integer counts peaks near the paper's 1.9 counts (Fig. 10).
+- Deformation baseline shift: ``gain * fab * strain``, strain = Frobenius norm of the
+  Green-Lagrange strain of the taxel's tetrahedron (from the FEM state). The gain is
+  calibrated by `calibrate_strain_gain`: the flat 80 x 80 x 3 mm pad with 4 x 4 taxels
+  bent 180 deg over its 48 mm active length (radius 48/pi mm) shifts its most strained
+  taxel by 10 counts (Fig. 9). ``fab`` is a per-taxel fabrication factor,
+  lognormal(0, 0.3) seeded, standing for crossings that deform more than intended (the
+  paper's explanation of its tip outliers, Sec. V-A). The shift is positive (towards a
+  false touch, the worst case). The breathing animation's shifts are an output of the
+  model, reported by `fruit` (sensitivity.json), to compare with Fig. 11 (5 mean, 16 max).
+- Counts are rounded to integers and clipped at 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+
+THRESHOLD_COUNTS = 20.0
+CONTACT_COUNTS = 60.0
+GAP_DECAY_MM = 2.0
+FIELD_SIGMA_MM = 6.0
+INDENTER_RADIUS_MM = {"small": 1.5, "medium": 4.0}
+BASELINE_COUNTS = 500.0
+BASELINE_SPREAD_COUNTS = 30.0
+NOISE_STD_RANGE_COUNTS = (0.5, 1.85)
+FAB_LOG_SIGMA = 0.3
+BEND_SHIFT_COUNTS = 10.0  # Fig. 9: 4 x 4 pad bent 180 deg
+PAD_SIZE_MM = (80.0, 80.0, 3.0)
+PAD_ACTIVE_MM = 48.0
+PAD_PITCH_MM = 16.0
+_DET_EPS = 1e-12  # a tet with |det| below this (mm^3) is degenerate
+
+
+@dataclass(frozen=True)
+class Skin:
+    """Per-taxel properties of one fabricated skin (seeded)."""
+
+    baseline_counts: np.ndarray  # (T,)
+    noise_std_counts: np.ndarray  # (T,)
+    fab: np.ndarray  # (T,) fabrication factor of the strain shift
+
+
+def make_skin(n_taxels: int, seed: int = 0) -> Skin:
+    """Draw per-taxel baselines, noise std and fabrication factors from `seed`."""
+    rng = np.random.default_rng(seed)
+    base = BASELINE_COUNTS + rng.uniform(-1, 1, n_taxels) * BASELINE_SPREAD_COUNTS
+    std = rng.uniform(*NOISE_STD_RANGE_COUNTS, n_taxels)
+    fab = np.exp(rng.normal(0.0, FAB_LOG_SIGMA, n_taxels))
+    return Skin(np.round(base), std, fab)
+
+
+def footprint_sigma_mm(indenter: str) -> float:
+    """Lateral Gaussian width of an indenter's activation (mm)."""
+    if indenter not in INDENTER_RADIUS_MM:
+        raise FrameError(f"indenter: expected one of {', '.join(INDENTER_RADIUS_MM)}, "
+                         f"got {indenter!r}")
+    return float(np.hypot(FIELD_SIGMA_MM, INDENTER_RADIUS_MM[indenter]))
+
+
+def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str) -> np.ndarray:
+    """Mean activation (counts) of taxels at 3D distance `dist_mm` (..., T) from the
+    contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in)."""
+    sigma = footprint_sigma_mm(indenter)
+    lateral = np.exp(-0.5 * (np.asarray(dist_mm) / sigma) ** 2)
+    approach = np.exp(-np.asarray(gap_mm, dtype=float) / GAP_DECAY_MM)
+    return CONTACT_COUNTS * lateral * approach[..., None]
+
+
+def green_strain_norm(rest_nodes: np.ndarray, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """|E|_F of each tet, E = (F^T F - I) / 2 with F the tet's deformation gradient.
+
+    rest_nodes (N, 3), nodes (..., N, 3) deformed, tets (M, 4) -> (..., M)."""
+    x0 = rest_nodes[tets]  # (M, 4, 3)
+    d0 = (x0[:, 1:] - x0[:, :1]).swapaxes(-1, -2)  # (M, 3, 3) columns = edges
+    det = np.linalg.det(d0)
+    if np.any(np.abs(det) < _DET_EPS):
+        raise FrameError(f"strain: {int(np.sum(np.abs(det) < _DET_EPS))} degenerate tets")
+    x = nodes[..., tets, :]  # (..., M, 4, 3)
+    d = (x[..., 1:, :] - x[..., :1, :]).swapaxes(-1, -2)
+    f = d @ np.linalg.inv(d0)
+    e = 0.5 * (f.swapaxes(-1, -2) @ f - np.eye(3))
+    return np.sqrt(np.sum(e * e, axis=(-2, -1)))
+
+
+def taxel_strain(states, state_index=None) -> np.ndarray:
+    """Green strain norm of each taxel's tet per state: (S, T) (or (T,) for one state)."""
+    tets = states.tets[states.taxel_tet]
+    idx = slice(None) if state_index is None else state_index
+    nodes = states.rest_nodes + states.displacement_mm[idx]
+    return green_strain_norm(states.rest_nodes, nodes, tets)
+
+
+def pad_mesh(size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4):
+    """A flat pad of tets (6 per hexahedron): nodes (N, 3), tets (M, 4), z in [0, t]."""
+    sx, sy, t = size_mm
+    nx, ny = int(round(sx / step_mm)), int(round(sy / step_mm))
+    xs = np.linspace(-sx / 2, sx / 2, nx + 1)
+    ys = np.linspace(-sy / 2, sy / 2, ny + 1)
+    zs = np.linspace(0.0, t, layers + 1)
+    gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
+    nodes = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
+
+    def nid(a, b, c):
+        return (a * (ny + 1) + b) * (layers + 1) + c
+
+    a, b, c = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(layers), indexing="ij")
+    a, b, c = a.ravel(), b.ravel(), c.ravel()
+    v = [nid(a + (k & 1), b + ((k >> 1) & 1), c + ((k >> 2) & 1)) for k in range(8)]
+    # Kuhn split of the cube into 6 tets along the diagonal v0-v7
+    paths = [(1, 3), (1, 5), (2, 3), (2, 6), (4, 5), (4, 6)]
+    tets = np.concatenate([np.stack([v[0], v[p], v[q], v[7]], axis=1) for p, q in paths])
+    x = nodes[tets]
+    det = np.linalg.det((x[:, 1:] - x[:, :1]).swapaxes(1, 2))
+    tets[det < 0] = tets[det < 0][:, [0, 2, 1, 3]]
+    return nodes, tets
+
+
+def bend_nodes(nodes: np.ndarray, radius_mm: float, thickness_mm: float) -> np.ndarray:
+    """Bend a flat pad about the y axis: its mid-plane wraps a cylinder of `radius_mm`,
+    the top face (z = thickness) outside."""
+    r = radius_mm + nodes[:, 2] - thickness_mm / 2
+    th = nodes[:, 0] / radius_mm
+    return np.stack([r * np.sin(th), nodes[:, 1],
+                     r * np.cos(th) - radius_mm + thickness_mm / 2], axis=1)
+
+
+def locate_in_tets(points: np.ndarray, nodes: np.ndarray, tets: np.ndarray):
+    """(tet index (P,), barycentric (P, 4)) of points inside a tet mesh (first match)."""
+    x = nodes[tets]
+    inv = np.linalg.inv((x[:, 1:] - x[:, :1]).swapaxes(1, 2))  # (M, 3, 3)
+    rel = points[:, None, :] - x[None, :, 0, :]  # (P, M, 3)
+    lam = np.einsum("mij,pmj->pmi", inv, rel)
+    bary = np.concatenate([1 - lam.sum(-1, keepdims=True), lam], axis=-1)
+    inside = np.all(bary >= -1e-9, axis=-1)
+    if not np.all(inside.any(axis=1)):
+        raise FrameError("taxel outside the tet mesh")
+    k = inside.argmax(axis=1)
+    return k, bary[np.arange(len(points)), k]
+
+
+def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0) -> np.ndarray:
+    """n x n taxels `pitch_mm` apart centred on the pad's top face (T, 3); i along x."""
+    c = (np.arange(n) - (n - 1) / 2) * pitch_mm
+    gx, gy = np.meshgrid(c, c, indexing="ij")
+    return np.stack([gx.ravel(), gy.ravel(), np.full(n * n, z_mm)], axis=1)
+
+
+@lru_cache(maxsize=1)
+def bent_pad_taxel_strain() -> np.ndarray:
+    """Strain of each 4 x 4 pad taxel bent 180 deg over its active length (T,)."""
+    nodes, tets = pad_mesh()
+    taxels = pad_taxels_mm(z_mm=PAD_SIZE_MM[2] - 1e-6)
+    k, _ = locate_in_tets(taxels, nodes, tets)
+    bent = bend_nodes(nodes, PAD_ACTIVE_MM / np.pi, PAD_SIZE_MM[2])
+    return green_strain_norm(nodes, bent, tets[k])
+
+
+def calibrate_strain_gain() -> float:
+    """Counts per unit strain: the bent pad's most strained taxel shifts 10 counts."""
+    return BEND_SHIFT_COUNTS / float(bent_pad_taxel_strain().max())
+
+
+def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = None):
+    """Baseline shift (counts) of each taxel for strains (..., T)."""
+    g = calibrate_strain_gain() if gain is None else gain
+    return g * skin.fab * np.asarray(strain)
+
+
+def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray, rng) -> np.ndarray:
+    """Integer counts >= 0 from mean counts (..., T) plus Gaussian noise of std (T,)."""
+    noisy = mean_counts + rng.standard_normal(mean_counts.shape) * noise_std
+    return np.maximum(np.round(noisy), 0).astype(np.int64)

@@ -1,0 +1,175 @@
+"""Virtual bench, forward-model calibration targets and sensitivity on hand-built states."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from fruitcli.cli.main import cli
+from fruitcli.scene import parse_scene
+from fruitcli.sensing import forward
+from fruitcli.sensing.frames_io import read_npz
+from fruitcli.sensing.locate import load_states
+from fruitcli.sensing.sensitivity import animation_shift, noise_std_counts
+from fruitcli.sensing.stage import run_bench, run_locate, run_sensitivity
+from fruitcli.tables import read_table
+
+PAD_SCENE = """
+[grid]
+spacing_x_mm = 16.0
+spacing_y_mm = 16.0
+[bench]
+indenters = ["small", "medium"]
+seed = 3
+"""
+
+
+def boundary_tris(tets):
+    faces = np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]],
+                            tets[:, [0, 3, 2]]])
+    key = np.sort(faces, axis=1)
+    _, idx, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    return faces[idx[counts == 1]]
+
+
+def pad_states(path: Path, angles_deg=(0.0, 90.0, 180.0)):
+    """Flat 80 x 80 x 3 mm pad, 4 x 4 taxels on top, bent about y to each angle over its
+    48 mm active length."""
+    nodes, tets = forward.pad_mesh()
+    taxels = forward.pad_taxels_mm(z_mm=3.0 - 1e-6)
+    k, bary = forward.locate_in_tets(taxels, nodes, tets)
+    disp, tax = [], []
+    for a in angles_deg:
+        moved = nodes if a == 0 else forward.bend_nodes(nodes, 48.0 / np.radians(a), 3.0)
+        disp.append(moved - nodes)
+        tax.append(np.einsum("tk,tkd->td", bary, moved[tets[k]]))
+    np.savez(path, rest_nodes=nodes, tets=tets, surface_tris=boundary_tris(tets),
+             displacement_mm=np.array(disp), pressure_kpa=np.array(angles_deg)[:, None] / 90,
+             chamber_names=np.array(["bend"]), taxels_mm=np.array(tax), taxel_tet=k,
+             taxel_bary=bary)
+    return path
+
+
+def pad_taxel_csv(path: Path):
+    t = forward.pad_taxels_mm(z_mm=3.0)
+    lines = ["# 4 x 4 pad taxels, mm", "id,i,j,x_mm,y_mm,z_mm"]
+    for n, (x, y, z) in enumerate(t):
+        lines.append(f"{n},{n // 4},{n % 4},{x},{y},{z}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def scene(tmp_path, extra=""):
+    return parse_scene(PAD_SCENE + extra, tmp_path / "pad.toml", must_exist=False)
+
+
+def test_bent_pad_calibration_gives_10_counts_at_180_deg(tmp_path):
+    # the calibration rule: the most strained taxel of the pad bent 180 deg shifts 10 counts
+    states = load_states(pad_states(tmp_path / "s.npz"))
+    strain = forward.taxel_strain(states)
+    unit = forward.Skin(np.zeros(16), np.zeros(16), np.ones(16))
+    shift = forward.strain_shift_counts(strain, unit)
+    assert shift[0] == pytest.approx(np.zeros(16), abs=1e-9)
+    assert shift[2].max() == pytest.approx(forward.BEND_SHIFT_COUNTS, rel=1e-6)
+    assert shift[1].max() < shift[2].max()  # a gentler bend shifts less
+
+
+def test_noise_model_reaches_the_papers_1_9_counts():
+    skin = forward.make_skin(47, seed=0)
+    rng = np.random.default_rng(1)
+    rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts, (300, 47)),
+                                skin.noise_std_counts, rng)
+    std = noise_std_counts(rest)
+    assert 1.6 < std.max() <= 2.0 and std.min() > 0.3
+    assert rest.dtype == np.int64
+
+
+def test_activation_crosses_threshold_before_contact_and_medium_is_wider():
+    gap = 2 * forward.GAP_DECAY_MM * np.log(3) / 2  # 60 exp(-g/2) = 20 at g = 2 ln 3
+    v = forward.activation_counts(np.zeros((1, 1)), np.array([gap]), "small")
+    assert v[0, 0] == pytest.approx(forward.THRESHOLD_COUNTS)
+    far = forward.activation_counts(np.full((1, 1), 12.0), np.array([0.0]), "small")
+    wide = forward.activation_counts(np.full((1, 1), 12.0), np.array([0.0]), "medium")
+    assert wide > far
+
+
+def test_animation_shift_interpolates_between_states():
+    s = np.array([[0.0, 0.0], [10.0, 2.0], [0.0, 4.0]])
+    a = animation_shift(s, 5)
+    assert a[:, 0].tolist() == [0.0, 5.0, 10.0, 5.0, 0.0]
+
+
+def test_bench_without_states_then_locate_recovers_the_samples(tmp_path):
+    sc = scene(tmp_path)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    res = run_bench(sc, taxels, None, tmp_path / "bench")
+    # quarter offsets +4 mm: the last row and column fall off the taxels' hull
+    assert res["off_surface"] == 7 and res["indenters"]["small"]["samples"] == 9
+    rec = read_npz(tmp_path / "bench" / "small" / "frames.npz")
+    assert rec.frames.shape[1:] == (21, 12) and rec.meta["state"] == 0
+    truth = read_table(tmp_path / "bench" / "small" / "truth.csv",
+                       ["sample", "x_mm", "y_mm", "z_mm"])
+    assert np.sum(rec.sample >= 0) == len(truth["sample"])
+    assert np.allclose(truth["z_mm"], 3.0)
+    assert np.allclose((truth["x_mm"] + 24) % 16, 4.0)
+    out = run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None,
+                     tmp_path / "loc")
+    assert out["samples_missed"] == 0
+    m = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+    assert m["sample"].tolist() == truth["sample"].tolist()
+    err = np.hypot(m["x_mm"] - truth["x_mm"], m["y_mm"] - truth["y_mm"])
+    assert err.max() < 8.0 and err.mean() < 5.0  # N9 pulls towards the grid points
+
+
+def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
+    sc = scene(tmp_path, "state = 2\n")
+    states = pad_states(tmp_path / "s.npz")
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    res = run_bench(sc, taxels, states, tmp_path / "bench")
+    assert res["indenters"]["small"]["samples"] > 0
+    truth = read_table(tmp_path / "bench" / "small" / "truth.csv",
+                       ["sample", "x_mm", "y_mm", "z_mm"])
+    # the top of a cylinder of radius 48/pi + 1.5 mm around the axis z = 1.5 - R
+    r = 48 / np.pi
+    rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
+    assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements
+    out = run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, states,
+                     tmp_path / "loc")
+    m = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+    assert out["samples_missed"] == 0
+    pts = np.column_stack([m["x_mm"], m["y_mm"], m["z_mm"]])
+    tru = np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]])
+    err = np.linalg.norm(pts - tru, axis=1)
+    # the same frames located on the rest taxels (no model) are much farther off
+    run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None, tmp_path / "r")
+    r = read_table(tmp_path / "r" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+    err_rest = np.linalg.norm(np.column_stack([r["x_mm"], r["y_mm"], r["z_mm"]]) - tru, axis=1)
+    assert err.mean() < 5.0 and err_rest.mean() > err.mean() + 1.0
+
+
+def test_sensitivity_json_and_heatmaps(tmp_path):
+    sc = scene(tmp_path)
+    out = run_sensitivity(sc, pad_taxel_csv(tmp_path / "t.csv"), pad_states(tmp_path / "s.npz"),
+                          tmp_path / "sens")
+    data = json.loads((tmp_path / "sens" / "sensitivity.json").read_text())
+    assert len(data["taxels"]) == 16 and data["states"] == 3
+    model = np.array([t["max_shift_model"] for t in data["taxels"]])
+    fab = np.array([t["fab"] for t in data["taxels"]])
+    assert (model / fab).max() == pytest.approx(10.0, rel=1e-6)
+    assert out["summary"]["std"]["max"] <= 2.0
+    for name in ("noise_std.png", "max_shift.png"):
+        assert (tmp_path / "sens" / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_bench_cli_bad_input(tmp_path):
+    (tmp_path / "pad.toml").write_text(PAD_SCENE)
+    res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1 and "no taxels: give --taxels" in res.output
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    (tmp_path / "pad.toml").write_text(PAD_SCENE + "state = 1\n")
+    res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--taxels",
+                                   str(taxels), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1 and "[bench].state = 1 needs FEM states" in res.output
