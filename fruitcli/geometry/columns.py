@@ -60,9 +60,9 @@ def vertical_hits(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
              - (c[:, 0] - p[:, 0]) * (b[:, 1] - p[:, 1])) / d
         v = ((c[:, 0] - p[:, 0]) * (a[:, 1] - p[:, 1])
              - (a[:, 0] - p[:, 0]) * (c[:, 1] - p[:, 1])) / d
-    w = 1.0 - u - v
-    hit = (d != 0) & (u >= 0) & (v >= 0) & (w >= 0)
-    z = u * a[:, 2] + v * b[:, 2] + w * c[:, 2]
+        w = 1.0 - u - v
+        hit = (d != 0) & (u >= 0) & (v >= 0) & (w >= 0)
+        z = u * a[:, 2] + v * b[:, 2] + w * c[:, 2]
     pi, zi = pair_p[hit], z[hit]
     o = np.lexsort((zi, pi))
     return pi[o], zi[o]

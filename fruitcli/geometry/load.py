@@ -1,0 +1,206 @@
+"""Loading and checking an artist's mesh: one closed, consistently oriented volume in mm.
+
+Small defects are repaired (duplicate vertices, degenerate faces, small holes, winding,
+inside-out orientation) and each repair is reported; what cannot be repaired is refused
+with a GeometryError naming the file and what to change.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import GeometryError
+
+MESH_SUFFIXES = (".stl", ".obj", ".ply")
+UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
+# a mesh whose largest extent is below this (in file units) is probably not in mm
+MIN_EXTENT_MM = 2.0
+# holes with at most this many boundary edges are closed by a fan (a "small hole")
+MAX_HOLE_EDGES = 64
+# relative agreement required between trimesh's and manifold's volume
+VOLUME_RTOL = 1e-3
+
+
+def load_mesh(path, unit: str | None = None):
+    """Load `path` as one closed volume in mm. Returns (trimesh.Trimesh, repairs: list[str])."""
+    import trimesh
+
+    path = Path(path)
+    if not path.exists():
+        raise GeometryError(f"{path}: file not found")
+    if path.is_dir():
+        raise GeometryError(f"{path}: is a folder (expected an STL, OBJ or PLY mesh file)")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise GeometryError(f"{path}: unknown mesh format '{path.suffix}' "
+                            "(expected .stl, .obj or .ply)")
+    if path.stat().st_size == 0:
+        raise GeometryError(f"{path}: empty file (expected a closed triangle mesh)")
+    if unit is not None and unit not in UNIT_TO_MM:
+        raise GeometryError(f"{path}: unknown unit '{unit}' (expected mm, cm or m)")
+    try:
+        mesh = trimesh.load_mesh(path, process=False, force="mesh")
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file
+        raise GeometryError(f"{path}: cannot read as a {path.suffix[1:].upper()} mesh "
+                            f"({type(exc).__name__}: {str(exc).splitlines()[0][:80]})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise GeometryError(f"{path}: no triangles found (expected a closed triangle mesh)")
+    verts = np.asarray(mesh.vertices, dtype=float)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if not np.isfinite(verts).all():
+        raise GeometryError(f"{path}: vertices contain NaN or infinite coordinates")
+    if faces.min() < 0 or faces.max() >= len(verts):
+        raise GeometryError(f"{path}: faces refer to missing vertices")
+
+    extent = float(np.ptp(verts, axis=0).max())
+    if unit is None:
+        if extent < MIN_EXTENT_MM:
+            raise GeometryError(f"{path}: the mesh is only {extent:.3g} across, so it is not in "
+                                "millimetres; give its unit (--unit m or --unit cm)")
+        unit = "mm"
+    verts = verts * UNIT_TO_MM[unit]
+    verts, faces, repairs = repair_arrays(verts, faces)
+    if unit != "mm":
+        repairs.insert(0, f"scaled from {unit} to mm (x{UNIT_TO_MM[unit]:g})")
+    _check_closed(path, verts, faces)
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    if not mesh.is_winding_consistent:
+        trimesh.repair.fix_winding(mesh)
+        repairs.append("fixed inconsistent face winding")
+        if not mesh.is_winding_consistent:
+            raise GeometryError(f"{path}: face winding cannot be made consistent "
+                                "(the surface is not orientable)")
+    if mesh.volume < 0:
+        mesh.invert()
+        repairs.append("inverted inside-out orientation")
+    check_manifold(path, mesh)
+    return mesh, repairs
+
+
+def repair_arrays(verts: np.ndarray, faces: np.ndarray):
+    """Merge duplicate vertices, drop degenerate and duplicate faces, close small holes."""
+    import trimesh
+
+    repairs = []
+    merged = trimesh.Trimesh(verts, faces, process=False)
+    merged.merge_vertices(merge_tex=True, merge_norm=True)
+    if len(merged.vertices) < len(verts):
+        repairs.append(f"merged {len(verts) - len(merged.vertices)} duplicate vertices")
+    verts = np.asarray(merged.vertices, dtype=float)
+    faces = np.asarray(merged.faces, dtype=np.int64)
+    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) \
+        | (faces[:, 0] == faces[:, 2])
+    if degenerate.any():
+        repairs.append(f"removed {int(degenerate.sum())} degenerate faces")
+        faces = faces[~degenerate]
+    sf = np.sort(faces, axis=1)
+    n = int(faces.max()) + 1
+    _, first = np.unique((sf[:, 0] * n + sf[:, 1]) * n + sf[:, 2], return_index=True)
+    if len(first) < len(faces):
+        repairs.append(f"removed {len(faces) - len(first)} duplicate faces")
+        faces = faces[np.sort(first)]
+    faces, filled = _fill_small_holes(verts, faces)
+    if filled:
+        verts = np.concatenate([verts, filled[1]])
+        repairs.append(f"closed {filled[0]} small hole(s)")
+    return verts, faces, repairs
+
+
+def _boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Directed edges (k, 2) used by exactly one face (any direction)."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    counts = _edge_use(faces)
+    return e[counts == 1]
+
+
+def _edge_use(faces: np.ndarray) -> np.ndarray:
+    """For each directed edge (3m,) in face order, how many faces use its undirected edge."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    n = int(faces.max()) + 1
+    key = e.min(axis=1) * n + e.max(axis=1)
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return counts[inv]
+
+
+def _fill_small_holes(verts: np.ndarray, faces: np.ndarray):
+    """Close simple boundary loops of <= MAX_HOLE_EDGES edges by a fan to their centroid."""
+    edges = _boundary_edges(faces)
+    if len(edges) == 0:
+        return faces, None
+    nxt: dict[int, list[int]] = {}
+    for a, b in edges.tolist():
+        nxt.setdefault(a, []).append(b)
+    if any(len(v) != 1 for v in nxt.values()):
+        return faces, None          # pinched boundary: leave it to the closedness check
+    seen: set[int] = set()
+    new_faces, centres = [], []
+    for start in sorted(nxt):
+        if start in seen:
+            continue
+        loop = [start]
+        seen.add(start)
+        cur = nxt[start][0]
+        while cur != start and cur in nxt and cur not in seen and len(loop) <= MAX_HOLE_EDGES:
+            loop.append(cur)
+            seen.add(cur)
+            cur = nxt[cur][0]
+        if cur != start:
+            return faces, None      # an open or too large boundary: not a small hole
+        c = len(verts) + len(centres)
+        centres.append(verts[loop].mean(axis=0))
+        for a, b in zip(loop, loop[1:] + loop[:1], strict=True):
+            new_faces.append((b, a, c))
+    return np.concatenate([faces, np.asarray(new_faces, dtype=np.int64)]), \
+        (len(centres), np.asarray(centres))
+
+
+def component_count(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Connected-component label per face (faces joined through shared vertices)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.repeat(np.arange(len(faces)), 3)
+    graph = coo_matrix((np.ones(len(rows)), (rows, faces.ravel() + len(faces))),
+                       shape=(len(faces) + n_vertices,) * 2)
+    _, labels = connected_components(graph, directed=False)
+    return labels[: len(faces)]
+
+
+def _check_closed(path: Path, verts: np.ndarray, faces: np.ndarray) -> None:
+    open_edges = len(_boundary_edges(faces))
+    if open_edges:
+        raise GeometryError(f"{path}: the mesh is not closed ({open_edges} open edges after "
+                            "repair); close its holes in a modeller first")
+    counts = _edge_use(faces)
+    if (counts > 2).any():
+        raise GeometryError(f"{path}: {int((counts > 2).sum() // 3)} edges are shared by more than "
+                            "two faces (non-manifold); repair the mesh first")
+    labels = component_count(faces, len(verts))
+    bodies = len(np.unique(labels))
+    if bodies > 1:
+        raise GeometryError(f"{path}: the mesh has {bodies} separate bodies (expected one "
+                            "closed volume); merge or delete the extra bodies")
+
+
+def to_manifold(vertices: np.ndarray, faces: np.ndarray):
+    """A manifold3d.Manifold from arrays (vertices float64 mm, faces int)."""
+    import manifold3d
+
+    mesh = manifold3d.Mesh(np.ascontiguousarray(vertices, dtype=np.float32),
+                           np.ascontiguousarray(faces, dtype=np.uint32))
+    return manifold3d.Manifold(mesh)
+
+
+def check_manifold(path, mesh) -> None:
+    """Refuse what manifold3d cannot use: bad status, empty, or a volume it disagrees on."""
+    import manifold3d
+
+    m = to_manifold(mesh.vertices, mesh.faces)
+    if m.status() != manifold3d.Error.NoError or m.is_empty():
+        raise GeometryError(f"{path}: manifold3d rejects the mesh ({m.status().name}); "
+                            "it must be one closed, non-self-touching surface")
+    vol, ref = m.volume(), float(mesh.volume)
+    if vol <= 0 or abs(vol - ref) > VOLUME_RTOL * abs(ref) + 1e-6:
+        raise GeometryError(f"{path}: inconsistent volume ({vol:.6g} vs {ref:.6g} mm^3); "
+                            "the surface may overlap itself")

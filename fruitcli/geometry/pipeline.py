@@ -1,0 +1,217 @@
+"""make-tracks: artist mesh -> reduced body, carved yarn tracks, taxels (paper III-D, Fig. 6).
+
+All outputs of one run appear together in the output folder, or none of them.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import GeometryError
+
+# a face takes part in the track curves when its normal's z component exceeds this
+UP_NZ_MIN = 0.05
+# pieces of section curves shorter than this many track radii are not carved
+MIN_PIECE_RADII = 4.0
+# track curves keep this many track radii above the split plane (no tube cuts the cap)
+SPLIT_CLEARANCE_RADII = 2.0
+# the tracked piece may lose at most this fraction of its volume to the tubes
+MAX_TRACK_VOLUME_FRACTION = 0.25
+TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
+
+
+def _check_options(cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm):
+    if not cover_mm >= 0:
+        raise GeometryError(f"--cover-mm: expected a thickness >= 0 mm, got {cover_mm}")
+    if faces < 100:
+        raise GeometryError(f"--faces: expected at least 100 triangles, got {faces}")
+    for name, v in (("--spacing-x-mm", spacing_x_mm), ("--spacing-y-mm", spacing_y_mm)):
+        if not v > 0:
+            raise GeometryError(f"{name}: expected a spacing > 0 mm, got {v}")
+    if not track_radius_mm > 0:
+        raise GeometryError(f"--track-radius-mm: expected a radius > 0 mm, got {track_radius_mm}")
+    half = 0.5 * min(spacing_x_mm, spacing_y_mm)
+    if track_radius_mm > half:
+        raise GeometryError(f"--track-radius-mm: {track_radius_mm:g} mm is more than half the "
+                            f"grid spacing ({half:g} mm); use a smaller radius or larger spacings")
+
+
+def _planes(lo: float, hi: float, spacing: float, origin: float | None) -> dict[int, float]:
+    """Plane index -> coordinate for the planes origin + k * spacing inside (lo, hi)."""
+    if origin is None:
+        n = int(np.floor((hi - lo) / spacing))
+        origin = 0.5 * (lo + hi) - 0.5 * n * spacing
+    k0, k1 = int(np.ceil((lo - origin) / spacing)), int(np.floor((hi - origin) / spacing))
+    return {k: origin + k * spacing for k in range(k0, k1 + 1)}
+
+
+def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
+                spacing_x_mm=16.0, spacing_y_mm=12.0, origin_mm=None, track_radius_mm=0.6,
+                split_z_mm=None, progress=None) -> dict:
+    """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict."""
+    import manifold3d
+
+    from fruitcli.fsutil import staged_dir, write_csv, write_json
+    from fruitcli.geometry import export, load, reduce, sections, taxels, tubes
+    from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.geometry.preview import write_preview
+
+    say = progress or (lambda msg: None)
+    src = str(artist_path)
+    _check_options(cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm)
+    times: dict[str, float] = {}
+    clock = [time.perf_counter()]
+
+    def lap(step):
+        now = time.perf_counter()
+        times[step] = round(now - clock[0], 4)
+        clock[0] = now
+        say(f"{step}: {times[step]:.2f} s")
+
+    mesh, repairs = load.load_mesh(artist_path, unit)
+    av, af = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    lap("load")
+
+    dist = SurfaceDistance(av, af)
+    red = reduce.reduce_body(av, af, float(cover_mm), int(faces), src, dist)
+    rv, rf = reduce.manifold_arrays(red.body)
+    lap("reduce")
+    offset = reduce.offset_error(rv, rf, av, af, float(cover_mm), dist=dist)
+    lap("hausdorff")
+
+    zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
+    split = red.equator_z_mm if split_z_mm is None else float(split_z_mm)
+    if not zlo < split < zhi:
+        raise GeometryError(f"--split-z-mm: {split:g} mm is outside the reduced body "
+                            f"(z from {zlo:.2f} to {zhi:.2f} mm)")
+    top = red.body.trim_by_plane((0.0, 0.0, 1.0), split)
+    n_top = len(top.decompose())
+    if top.is_empty() or n_top != 1:
+        raise GeometryError(f"{src}: the part above the split plane z = {split:.2f} mm has "
+                            f"{n_top} pieces (expected one casting piece); set --split-z-mm")
+    tv, tf = reduce.manifold_arrays(top)
+    tri = tv[tf]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    up = (fn[:, 2] > UP_NZ_MIN) \
+        & (tri[:, :, 2].min(axis=1) > split + SPLIT_CLEARANCE_RADII * track_radius_mm)
+    if not up.any():
+        raise GeometryError(f"{src}: no upward-facing surface above z = {split:.2f} mm")
+    upv = tv[np.unique(tf[up])]
+    ox, oy = (None, None) if origin_mm is None else (float(origin_mm[0]), float(origin_mm[1]))
+    x_planes = _planes(upv[:, 0].min(), upv[:, 0].max(), spacing_x_mm, ox)
+    y_planes = _planes(upv[:, 1].min(), upv[:, 1].max(), spacing_y_mm, oy)
+    min_len = MIN_PIECE_RADII * track_radius_mm
+
+    def cut(axis, planes):
+        out = {}
+        for k, value in planes.items():
+            ps = [p for p in sections.section_pieces(tv, tf, axis, value, up)
+                  if p.length_mm >= min_len]
+            if ps:
+                out[k] = ps
+        return out
+
+    x_pieces, y_pieces = cut(0, x_planes), cut(1, y_planes)
+    lap("sections")
+    tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, tv, tf)
+    if len(tx["k"]) == 0:
+        raise GeometryError(f"{src}: the grid misses the shape (no crossing of x- and y-curves "
+                            "on the top surface); check --origin-mm and the spacings")
+    k0, l0 = int(tx["k"].min()), int(tx["l"].min())
+    ii, jj = tx["k"] - k0, tx["l"] - l0
+    origin_used = [float(x_planes[k0]), float(y_planes[l0])]
+    lap("taxels")
+
+    curves = [p.points for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
+    closed = [p.closed for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
+    tube_meshes = []
+    for pts, cl in zip(curves, closed, strict=True):
+        for line in tubes.track_polylines(pts, cl):
+            tube_meshes.append(tubes.tube_arrays(line, track_radius_mm))
+    tube_manifolds = [load.to_manifold(v, f) for v, f in tube_meshes]
+    bad = [m.status().name for m in tube_manifolds if m.status() != manifold3d.Error.NoError]
+    if bad:
+        raise GeometryError(f"{src}: {len(bad)} track tube(s) are not valid solids ({bad[0]}); "
+                            "try a smaller --track-radius-mm")
+    tracked = manifold3d.Manifold.batch_boolean([top, *tube_manifolds],
+                                                manifold3d.OpType.Subtract)
+    lost = 1.0 - tracked.volume() / top.volume()
+    n_tracked = len(tracked.decompose()) if not tracked.is_empty() else 0
+    if (tracked.status() != manifold3d.Error.NoError or n_tracked != 1
+            or not 0 < lost < MAX_TRACK_VOLUME_FRACTION or tracked.genus() != top.genus()):
+        raise GeometryError(f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
+                            f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
+                            "try a smaller --track-radius-mm")
+    kv, kf = reduce.manifold_arrays(tracked)
+    lap("tracks")
+
+    order = np.lexsort((jj, ii))
+    rows = []
+    for t, o in enumerate(order):
+        p, n = tx["xyz"][o], tx["normals"][o]
+        rows.append([t, int(ii[o]), int(jj[o]), *map(float, p), *map(float, n)])
+    report = {
+        "artist": src, "unit": unit or "mm", "repairs": repairs,
+        "triangles": {"artist": int(len(af)), "reduced": int(len(rf)), "reduced_top": int(len(tf)),
+                      "tracked_top": int(len(kf)),
+                      "tracks": int(sum(len(f) for _, f in tube_meshes))},
+        "cover_mm": float(cover_mm), "faces_target": int(faces),
+        "level_set_edge_mm": red.edge_mm, "distance_grid_mm": red.grid_mm,
+        "dropped_islands": red.dropped_islands, "offset_error": offset,
+        "split_z_mm": split, "split_z_automatic": split_z_mm is None,
+        "grid": {"spacing_x_mm": float(spacing_x_mm), "spacing_y_mm": float(spacing_y_mm),
+                 "origin_mm": origin_used, "x_planes": len(x_pieces), "y_planes": len(y_pieces),
+                 "curves": len(curves)},
+        "track_radius_mm": float(track_radius_mm), "taxels": len(rows),
+        "taxel_curve_mismatch_mm": tx["mismatch_mm"],
+        "volume_mm3": {"artist": float(mesh.volume), "reduced": float(red.body.volume()),
+                       "reduced_top": float(top.volume()), "tracked_top": float(tracked.volume())},
+        "times_s": times,
+    }
+    with staged_dir(out_dir) as tmp:
+        tmp = Path(tmp)
+        ok_reduced = export.write_stl(tmp / "reduced.stl", rv, rf)
+        if not ok_reduced:
+            raise GeometryError(f"{src}: reduced.stl does not reload as a closed mesh")
+        report["tracked_top_reloads_watertight"] = export.write_stl(tmp / "tracked_top.stl",
+                                                                    kv, kf)
+        tube_v = np.concatenate([v for v, _ in tube_meshes])
+        offs = np.cumsum([0] + [len(v) for v, _ in tube_meshes[:-1]])
+        tube_f = np.concatenate([f + o for (_, f), o in zip(tube_meshes, offs, strict=True)])
+        export.write_stl(tmp / "tracks.stl", tube_v, tube_f)
+        write_csv(tmp / "taxels.csv", TAXEL_COLUMNS, rows, comments=[
+            f"taxels of {Path(src).name}: crossings of the track curves on the reduced surface",
+            "x_mm, y_mm, z_mm in mm; nx, ny, nz: outward unit normal; i along x, j along y",
+            f"grid origin (plane i=0, j=0) {origin_used[0]:.6f} {origin_used[1]:.6f} mm; "
+            f"spacing {spacing_x_mm:g} x {spacing_y_mm:g} mm"])
+        lap("export")
+        write_preview(tmp / "preview.png", kv, kf, curves, np.array([r[3:6] for r in rows]),
+                      f"{Path(src).name}: {len(rows)} taxels, cover {cover_mm:g} mm, "
+                      f"tracks r = {track_radius_mm:g} mm")
+        lap("preview")
+        report["times_s"]["total"] = round(sum(times.values()), 4)
+        write_json(tmp / "report.json", report)
+    return report
+
+
+def read_taxels(path) -> dict:
+    """Read a taxels.csv: {"id", "i", "j": (T,) int, "xyz": (T, 3) mm, "normals": (T, 3)}."""
+    from fruitcli.tables import read_table
+
+    need = ["id", "i", "j", "x_mm", "y_mm", "z_mm"]
+    t = read_table(path, need, error=GeometryError)
+    out = {k: t[k].astype(np.int64) for k in ("id", "i", "j")}
+    for k in ("id", "i", "j"):
+        if not np.array_equal(out[k], t[k]) or (out[k] < 0).any():
+            raise GeometryError(f"{path}: column {k}: expected integers >= 0")
+    out["xyz"] = np.c_[t["x_mm"], t["y_mm"], t["z_mm"]]
+    if all(c in t for c in ("nx", "ny", "nz")):
+        try:
+            out["normals"] = np.c_[t["nx"], t["ny"], t["nz"]].astype(float)
+        except ValueError:
+            raise GeometryError(f"{path}: columns nx, ny, nz: expected numbers") from None
+    return out
