@@ -3,9 +3,13 @@
 K_t = sum_e R K0 R^T (warped stiffness) + spring diagonal. Three strategies, chosen
 by name (`[solver] linear_solver`):
 
-- ``splu``: a SuperLU factorization of K_t kept across Newton iterations and states
-  and used as the preconditioner of CG on the current (matrix-free) K_t; it is
-  refreshed only when CG needs more than PCG_MAX_ITERATIONS (default, fastest);
+- ``splu``: modified Newton: a SuperLU factorization of K_t kept across Newton
+  iterations and states and solved with directly; refreshed at the current
+  configuration when the residual contracts by less than REFRESH_RATIO (default,
+  fastest: one triangular solve per iteration);
+- ``splu-pcg``: the kept factorization preconditions CG on the current matrix-free
+  K_t (fewer Newton iterations, more work per iteration); refreshed when CG needs
+  more than PCG_MAX_ITERATIONS;
 - ``splu-fresh``: K_t assembled and factorized at every Newton iteration (reference);
 - ``cg``: CG with a Jacobi preconditioner, no factorization (low memory).
 """
@@ -19,9 +23,13 @@ import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
 from fruitcli.fem import corotation
-from fruitcli.fem.tolerances import PCG_MAX_ITERATIONS, PCG_RELATIVE_TOLERANCE
+from fruitcli.fem.tolerances import (
+    PCG_MAX_ITERATIONS,
+    PCG_RELATIVE_TOLERANCE,
+    REFRESH_RATIO,
+)
 
-LINEAR_SOLVERS = ("splu", "splu-fresh", "cg")
+LINEAR_SOLVERS = ("splu", "splu-pcg", "splu-fresh", "cg")
 
 
 class TangentSolver:
@@ -37,16 +45,25 @@ class TangentSolver:
         self.rot = None
         self.factor = None
         self.diag = None
+        self.refresh = False
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
     def update(self, rot: np.ndarray) -> None:
         """Set the current element rotations (m, 3, 3)."""
         self.rot = rot
-        if self.method == "splu-fresh" or (self.method == "splu" and self.factor is None):
+        if self.method == "splu-fresh" or (self.method in ("splu", "splu-pcg")
+                                           and (self.factor is None or self.refresh)):
             self._factorize()
+            self.refresh = False
         elif self.method == "cg":
             self.diag = self._assemble().diagonal()
+
+    def progress(self, ratio: float) -> None:
+        """Told the residual ratio of the last Newton step; a slow contraction asks the
+        reused factorization to be rebuilt at the next `update`."""
+        if self.method in ("splu", "splu-pcg") and ratio > REFRESH_RATIO:
+            self.refresh = True
 
     def _assemble(self):
         t0 = time.perf_counter()
@@ -75,7 +92,7 @@ class TangentSolver:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        if self.method == "splu-fresh":
+        if self.method in ("splu", "splu-fresh"):
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)
         out = np.column_stack([self._pcg(c) for c in cols.T])

@@ -113,6 +113,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         if not accepted:
             return False, x, p, it + 1, merit, trial[1]
         x, p = xt, pt
+        step.solver.progress(trial[5] / merit if merit > 0 else 0.0)
         rot, det_f, h, r, g, merit, energy = trial
     return False, x, p, options.max_iterations, merit, det_f
 

@@ -31,3 +31,7 @@ BARY_INSIDE = -1e-9
 
 ARMIJO = 1e-4
 """Sufficient decrease of the total potential energy asked of a line-search step."""
+
+REFRESH_RATIO = 0.3
+"""Modified Newton refactorizes the tangent when one step reduces the residual by
+less than this factor (a stale factorization converges too slowly)."""

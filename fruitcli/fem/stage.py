@@ -1,0 +1,206 @@
+"""The tetra and simulate stages: scene + files in, files out (mm, kPa, N/mm at the
+edge; see `fruitcli.fem.units`).
+
+- `run_tetra(scene, solid_path, out_dir)` -> out_dir/{mesh.npz, mesh.msh, mesh.vtu,
+  quality.json}
+- `run_simulate(scene, mesh_npz, taxels_xyz, out_dir)` -> out_dir/states.npz (and one
+  VTU per state with vtu=True)
+
+`progress`, when given, is called with one-line messages; per state the message
+starts with "state i/S".
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import MeshError, SceneError
+from fruitcli.fem import barycentric, io, shells, tetra
+from fruitcli.fem.linsolve import LINEAR_SOLVERS, TangentSolver
+from fruitcli.fem.model import Load, Model
+from fruitcli.fem.newton import SolverOptions, solve_state
+from fruitcli.fem.springs import Jig, nodes_in_box
+from fruitcli.fem.units import spring_mn_per_mm
+from fruitcli.fsutil import staged_dir, write_json
+from fruitcli.scene import n_states
+
+
+def _noop(msg: str) -> None:
+    pass
+
+
+def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
+    """The outer shell (solid surface or flat pad box) and the chamber shells."""
+    geo = scene["geometry"]
+    if solid_path is not None:
+        v, f = shells.load_surface(solid_path, "solid")
+        outer = shells.surface_shell(str(solid_path), v, f)
+    elif geo["solid"] is not None:
+        v, f = shells.load_surface(geo["solid"], "[geometry].solid")
+        outer = shells.surface_shell(str(geo["solid"]), v, f)
+    elif geo["pad_size_mm"] is not None:
+        x, y, t = geo["pad_size_mm"]
+        if min(x, y, t) <= 0:
+            raise SceneError("[geometry].pad_size_mm: expected positive [x, y, thickness]")
+        outer = shells.box_shell("pad", [-x / 2, -y / 2, 0.0], [x / 2, y / 2, t])
+    else:
+        raise SceneError("[geometry]: the FEM body needs `solid`, `pad_size_mm` or a solid "
+                         "surface from make-tracks (--solid)")
+    chambers = []
+    for ch in scene.chambers:
+        name = ch["name"]
+        if ch["ellipsoid"] is not None:
+            e = ch["ellipsoid"]
+            chambers.append(shells.ellipsoid_shell(name, e["center_mm"], e["radii_mm"]))
+        else:
+            v, f = shells.load_surface(ch["surface"],
+                                       f"[[geometry.chamber]] '{name}'.surface")
+            chambers.append(shells.surface_shell(name, v, f))
+    return outer, chambers
+
+
+def run_tetra(scene, solid_path, out_dir, progress=None) -> dict:
+    """Tetrahedralize the scene's body with its chambers; write mesh files to out_dir."""
+    progress = progress or _noop
+    outer, chambers = body_shells(scene, Path(solid_path) if solid_path else None)
+    shells.check_layout(outer, chambers)
+    mesh_cfg = scene["mesh"]
+    size = float(mesh_cfg["size_mm"])
+    min_size = float(mesh_cfg["min_size_mm"] or size)
+    if not 0 < min_size <= size:
+        raise SceneError(f"[mesh].min_size_mm: expected 0 < min_size_mm <= size_mm = {size}")
+    progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), "
+             f"{len(chambers)} chamber(s)")
+    raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg["time_limit_s"],
+                         label=outer["name"], work_dir=None)
+    mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size)
+    report = tetra.quality_report(mesh, mesh_cfg["min_quality"])
+    for k, ch in enumerate(chambers):
+        if not np.any(mesh["chamber_tri_owner"] == k):
+            raise MeshError(f"chamber {ch['name']}: no cavity wall in the mesh of "
+                            f"{outer['name']}")
+    if report["sicn_min"] < mesh_cfg["min_quality"]:
+        raise MeshError(f"{outer['name']}: mesh too poor: worst SICN {report['sicn_min']:.3f} "
+                        f"< [mesh].min_quality {mesh_cfg['min_quality']:g} "
+                        f"({report['poor_tets']} poor tets); check the surface or size_mm")
+    progress(f"tetra: {report['n_tets']} tets, {report['n_nodes']} nodes, "
+             f"SICN min {report['sicn_min']:.2f}")
+    with staged_dir(out_dir) as tmp:
+        io.save_npz(tmp / "mesh.npz", mesh)
+        (tmp / "mesh.msh").write_bytes(raw["msh_text"])
+        io.write_vtu(tmp / "mesh.vtu", mesh["nodes"], mesh["tets"])
+        write_json(tmp / "quality.json", report)
+    return report
+
+
+def _jigs(scene, nodes: np.ndarray) -> list[Jig]:
+    out = []
+    for n, jig in enumerate(scene["jig"]):
+        idx = nodes_in_box(nodes, jig["region_box_mm"])
+        if len(idx) == 0:
+            raise SceneError(f"[[jig]] #{n + 1}.region_box_mm: no mesh node inside "
+                             f"{jig['region_box_mm']}")
+        out.append(Jig(idx, spring_mn_per_mm(jig["stiffness_n_per_mm"]), jig["rotate_deg"],
+                       tuple(jig["axis"]), tuple(jig["pivot_mm"]), tuple(jig["translate_mm"])))
+    return out
+
+
+def _fixed(scene, nodes: np.ndarray) -> np.ndarray:
+    idx = []
+    for n, fx in enumerate(scene["fixed"]):
+        inside = nodes_in_box(nodes, fx["box_mm"])
+        if len(inside) == 0:
+            raise SceneError(f"[[fixed]] #{n + 1}.box_mm: no mesh node inside {fx['box_mm']}")
+        idx.append(inside)
+    return np.unique(np.concatenate(idx)) if idx else np.zeros(0, np.int64)
+
+
+def state_loads(scene, names: list[str]) -> list[Load]:
+    """One Load per actuation state (pressure or volume growth per chamber)."""
+    act, s = scene["actuation"], n_states(scene)
+    k = len(names)
+    pressure, growth = np.zeros((s, k)), np.zeros((s, k))
+    vc = np.zeros(k, bool)
+    for key, target in (("pressure_kpa", pressure), ("volume_growth_mm3", growth)):
+        for cname, values in (act[key] or {}).items():
+            if cname not in names:
+                raise SceneError(f"[actuation].{key}.{cname}: no such chamber in the mesh "
+                                 f"(chambers: {', '.join(names) or 'none'})")
+            target[:, names.index(cname)] = values
+            vc[names.index(cname)] = key == "volume_growth_mm3"
+    return [Load(pressure[i], growth[i], vc.copy(), 1.0, 1.0) for i in range(s)]
+
+
+def build_model(scene, mesh: dict) -> Model:
+    """Model of a scene on a loaded mesh.npz."""
+    names = [str(n) for n in mesh["chamber_names"]]
+    wanted = [c["name"] for c in scene.chambers]
+    if sorted(names) != sorted(wanted):
+        raise MeshError(f"mesh chambers {names} do not match the scene's {wanted}; "
+                        "rerun `fruit tetra`")
+    mat = scene["material"]
+    gravity = scene["gravity"]["vector_m_s2"] if scene.has("gravity") else None
+    nodes = mesh["nodes"]
+    return Model.from_arrays(nodes, mesh["tets"], mat["young_modulus_kpa"],
+                             mat["poisson_ratio"], density_kg_m3=mat["density_kg_m3"],
+                             gravity_m_s2=gravity, fixed_nodes=_fixed(scene, nodes),
+                             chambers=io.chamber_dict(mesh), jigs=_jigs(scene, nodes))
+
+
+def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False) -> dict:
+    """Solve every actuation state; write out_dir/states.npz (see module docstring)."""
+    progress = progress or _noop
+    mesh = io.load_mesh(Path(mesh_npz))
+    model = build_model(scene, mesh)
+    for note in model.notes:
+        progress(f"simulate: {note}")
+    cfg = scene["solver"]
+    if cfg["linear_solver"] not in LINEAR_SOLVERS:
+        raise SceneError(f"[solver].linear_solver: expected one of {', '.join(LINEAR_SOLVERS)}, "
+                         f"got {cfg['linear_solver']!r}")
+    if cfg["tolerance"] <= 0 or cfg["max_iterations"] < 1 or cfg["jig_steps"] < 1:
+        raise SceneError("[solver]: expected tolerance > 0, max_iterations >= 1, jig_steps >= 1")
+    loads = state_loads(scene, model.chamber_names)
+    solver = TangentSolver(model, cfg["linear_solver"])
+    results, x, p, prev = [], None, None, None
+    for i, load in enumerate(loads):
+        steps = cfg["jig_steps"] if i == 0 and model.jigs else 1
+        opts = SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
+                             cfg["linear_solver"], steps)
+        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
+                          options=opts, solver=solver, label=f"state {i}")
+        results.append(res)
+        x, p, prev = res.x, res.pressure_kpa, load
+        progress(f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "
+                 f"{res.solve_ms:.0f} ms, residual {res.residual:.1e}")
+    out = {
+        "rest_nodes": model.rest, "tets": model.tets, "surface_tris": mesh["surface_tris"],
+        "displacement_mm": np.stack([r.displacement_mm for r in results]),
+        "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(len(loads), -1),
+        "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(
+            len(loads), -1),
+        "chamber_names": np.array(model.chamber_names, dtype=str).reshape(-1),
+        "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
+        "iterations": np.array([r.iterations for r in results]),
+        "residual": np.array([r.residual for r in results]),
+        "solve_ms": np.array([r.solve_ms for r in results]),
+        "subdivisions": np.array([r.subdivisions for r in results]),
+        "min_det_f": np.array([r.min_det_f for r in results]),
+    }
+    if taxels_xyz is not None:
+        taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
+        tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
+        states_x = np.stack([r.x for r in results])
+        out.update(taxel_tet=tet, taxel_bary=w, taxel_outside=outside,
+                   taxels_mm=barycentric.apply(states_x, model.tets, tet, w))
+    with staged_dir(out_dir) as tmp:
+        io.save_npz(tmp / "states.npz", out)
+        if vtu:
+            for i, r in enumerate(results):
+                io.write_vtu(tmp / f"state_{i:03d}.vtu", r.x, model.tets,
+                             {"displacement_mm": r.displacement_mm})
+    return {"states": len(results), "iterations": out["iterations"].tolist(),
+            "solve_ms": out["solve_ms"].tolist(), "notes": model.notes,
+            "linear_solver": solver.stats | {"method": solver.method}}
