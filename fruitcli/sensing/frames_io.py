@@ -10,7 +10,7 @@ MuCa ASCII log: one frame per line, R*C comma-separated counts in the board's or
 (value k is Tx k // C, Rx k % C, so a line reshapes row-major to (R, C)); an empty
 field is 0; a line may start with one extra field, the host timestamp in seconds.
 Lines with another field count (board log lines such as ``[Muca] Set TEST mode``,
-``#`` comments, a line cut in the middle) are skipped and counted. A line with the
+a line cut in the middle) are skipped and counted; ``#`` comment lines are skipped. A line with the
 right field count but a non-integer, NaN or negative field is an error in a file
 (``strict=True``) and skipped-and-counted on a live port (``strict=False``).
 """
@@ -176,6 +176,8 @@ def read_muca_log(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MU
         raise FrameError(f"{path}: cannot read: {exc}") from None
     frames, times, skipped = [], [], 0
     for lineno, line in enumerate(text.splitlines(), start=1):
+        if line.startswith("#"):
+            continue  # our own header comments
         counts, t, why = parse_line(line, rows * cols)
         if counts is None:
             if why.startswith("value") and strict:

@@ -1,0 +1,56 @@
+"""`fruit emulate-board`: a MuCa board on a pseudo-terminal, for use without hardware."""
+
+from __future__ import annotations
+
+import click
+
+from fruitcli.cli.options import fruit_errors
+
+
+@click.command("emulate-board")
+@click.option("--from", "from_path", type=click.Path(dir_okay=False), default=None,
+              help="Recording to play (.npz or MuCa ASCII log).")
+@click.option("--bench", "bench_dir", type=click.Path(file_okay=False), default=None,
+              help="Output folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
+@click.option("--fps", type=click.FloatRange(min=0), default=30.0, show_default=True,
+              help="Frames per second (0: as fast as the reader takes them).")
+@click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
+              help="Play this many frames (default: the whole recording; 600 synthetic).")
+@click.option("--log-every", type=click.IntRange(min=0), default=0,
+              help="Mix a board log line in after every N frames (0: never).")
+@click.option("--wait/--no-wait", default=True, show_default=True,
+              help="Hold the stream until a reader opens the port.")
+def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
+    """Open a pseudo-terminal, print its path, and play frames on it like a MuCa board.
+
+    Lines: 252 comma-separated counts, \\r\\n, after the board's '[Muca] ...' log lines.
+    Without --from or --bench, plays a synthetic touch sweeping over an idle board.
+    """
+    from pathlib import Path
+
+    from fruitcli.errors import FrameError
+    from fruitcli.sensing.emulator import BoardEmulator, synthetic_frames
+    from fruitcli.sensing.frames_io import read_recording
+
+    with fruit_errors():
+        if from_path and bench_dir:
+            raise click.UsageError("give --from or --bench, not both")
+        if bench_dir:
+            found = sorted(Path(bench_dir).glob("*/frames.npz")) or \
+                sorted(Path(bench_dir).glob("frames.npz"))
+            if not found:
+                raise FrameError(f"{bench_dir}: no <indenter>/frames.npz (run `fruit bench`)")
+            from_path = found[0]
+        if from_path:
+            frames = read_recording(from_path).frames
+            frames = frames[:n_frames] if n_frames else frames
+        else:
+            frames = synthetic_frames(n_frames or 600)
+        em = BoardEmulator(frames, fps, log_every=log_every, wait_for_reader=wait)
+        click.echo(em.path)
+        try:
+            sent = em.play()
+        except KeyboardInterrupt:
+            em.close()
+            raise SystemExit(130) from None
+    click.echo(f"{sent} frames played", err=True)

@@ -1,0 +1,93 @@
+"""`fruit live`: localize touches live from a MuCa board; JSON lines on stdout (mm)."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors
+
+
+@click.command()
+@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.option("--port", required=True, help="Serial port of the board.")
+@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
+              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's [grid].taxels.")
+@click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
+              help="states.npz: taxels follow the FEM states (state 0 without pressures).")
+@click.option("--pressure-port", default=None,
+              help="Serial source of chamber pressures: lines 'P c1=2.5 c2=0.0' in kPa.")
+@click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
+              help="Stop after this many frames (baseline frames included).")
+@click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
+@click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
+              help="Frames averaged into the baseline C0 (default: the scene's).")
+@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Touch threshold, counts (default: the scene's).")
+def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud,
+         baseline_frames, threshold):
+    """Stream touches of every frame from PORT as JSON lines on stdout.
+
+    One line per frame with touches, and one with "touches": [] when they end:
+    {"frame", "t_s", "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"}]}.
+    """
+    import threading
+
+    from fruitcli.errors import FrameError
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.live import LiveLocator, pressure_thread
+    from fruitcli.sensing.locate import load_states
+    from fruitcli.sensing.pipeline import Locator, Settings
+    from fruitcli.sensing.serial_io import FrameReader, PortClosed, PressureState, open_port
+
+    progress = Progress("[live] ")
+    stop = threading.Event()
+    with fruit_errors():
+        scene = load_scene(scene_path)
+        taxels_csv = taxels_csv or scene["grid"]["taxels"]
+        if taxels_csv is None:
+            raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
+        taxels = load_taxels(taxels_csv)
+        settings = Settings.from_scene(scene["detection"], baseline_frames=baseline_frames,
+                                       threshold_counts=threshold)
+        board = scene["board"]
+        states = load_states(states_npz, len(taxels)) if states_npz else None
+        pressure = None
+        if states is None:
+            loc = Locator(taxels, board, taxels.xyz_mm, settings, where=str(taxels_csv))
+        elif pressure_port:
+            loc = Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa,
+                          where=str(taxels_csv))
+            pressure = PressureState(states.chamber_names)
+        else:
+            loc = Locator(taxels, board, states.taxels_mm[0], settings, where=str(taxels_csv))
+        ser = open_port(port, baud)
+        if pressure is not None:
+            pser = open_port(pressure_port, baud)
+            pressure_thread(pser, pressure, stop, pressure_port)
+        reader = FrameReader(ser, board["rows"], board["cols"], name=port)
+        live_loc = LiveLocator(loc, pressure)
+        progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
+        seen = 0
+        try:
+            while n_frames is None or seen < n_frames:
+                for counts, t_s, _ in reader.poll():
+                    line = live_loc.push(counts, t_s)
+                    seen += 1
+                    if line is not None:
+                        sys.stdout.write(line + "\n")
+                        sys.stdout.flush()
+                    if n_frames is not None and seen >= n_frames:
+                        break
+        except PortClosed:
+            raise FrameError(f"{port}: port closed after {seen} frames "
+                             f"({reader.skipped} lines skipped)") from None
+        except KeyboardInterrupt:
+            click.echo("Interrupted.", err=True)
+            raise SystemExit(130) from None
+        finally:
+            stop.set()
+            ser.close()
+    progress(f"{seen} frames, {reader.skipped} lines skipped")

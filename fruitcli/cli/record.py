@@ -1,0 +1,69 @@
+"""`fruit record`: record a MuCa board's frames over serial, flushed frame by frame."""
+
+from __future__ import annotations
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors
+
+
+@click.command()
+@click.option("--port", required=True, help="Serial port of the board (device path or "
+              "pyserial URL).")
+@click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False),
+              help="Recording: .npz, or a MuCa ASCII log (.log/.txt/.csv) with host "
+                   "timestamps.")
+@click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
+              help="Stop after this many frames.")
+@click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Stop after this many seconds.")
+@click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True,
+              help="Baud rate (8N1).")
+@click.option("--rows", type=click.IntRange(min=1), default=21, show_default=True,
+              help="Frame rows (Tx lines).")
+@click.option("--cols", type=click.IntRange(min=1), default=12, show_default=True,
+              help="Frame columns (Rx lines).")
+def record(port, out_path, n_frames, seconds, baud, rows, cols):
+    """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
+
+    Every whole frame received is on disk as soon as it arrives; board log lines and
+    cut lines are skipped and counted. Without --frames or --seconds, stop with Ctrl-C.
+    """
+    from fruitcli.sensing.recorder import (
+        LogSink,
+        check_limits,
+        finalize,
+        log_path_for,
+        record_stream,
+    )
+    from fruitcli.sensing.serial_io import FrameReader, open_port
+
+    progress = Progress("[record] ")
+    interrupted = False
+    with fruit_errors():
+        check_limits(n_frames, seconds)
+        ser = open_port(port, baud)
+        reader = FrameReader(ser, rows, cols, name=port)
+        sink = LogSink(log_path_for(out_path),
+                       header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
+                              f"{rows}x{cols} counts")
+        try:
+            res = record_stream(reader, sink, n_frames, seconds, progress)
+        except KeyboardInterrupt:
+            interrupted = True
+            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.lines.cut,
+                   "frames_per_s": 0.0, "closed": ""}
+        finally:
+            sink.close()
+            ser.close()
+        meta = {"source": "fruit record", "port": port, "baud": baud}
+        frames = finalize(out_path, meta, rows, cols)
+    summary = (f"{frames} frames ({res['frames_per_s']:.1f} frames/s), {res['skipped']} "
+               f"lines skipped, {res['cut']} cut -> {out_path}")
+    if res["closed"]:
+        raise click.ClickException(f"{port}: port closed after {frames} frames; {out_path} "
+                                   f"holds them ({res['skipped']} lines skipped)")
+    click.echo(summary, err=True)
+    if interrupted:
+        click.echo("Interrupted.", err=True)
+        raise SystemExit(130)

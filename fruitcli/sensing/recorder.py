@@ -1,0 +1,103 @@
+"""Recording a live board: frames appended to a MuCa log, flushed frame by frame.
+
+Units: counts, s. A crash, a Ctrl-C or an unplugged cable leaves a log holding every
+whole frame received (a line cut by the end is not a frame and is not written). An
+`.npz` output is recorded as ``<out>.partial.log`` first and converted when recording
+ends; after a hard crash the partial log remains, a valid recording itself.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.frames_io import format_line, is_log_path, read_muca_log, write_npz
+from fruitcli.sensing.serial_io import FrameReader, PortClosed
+
+PROGRESS_EVERY_S = 1.0  # frames/s progress reports this often
+
+
+class LogSink:
+    """A MuCa log with host timestamps (s), one flushed line per frame."""
+
+    def __init__(self, path: str | os.PathLike, header: str = ""):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fh = open(self.path, "w")  # noqa: SIM115 - closed by close()
+        if header:
+            self.fh.write(f"# {header}\n")
+            self.fh.flush()
+        self.frames = 0
+
+    def write(self, counts, t_s: float) -> None:
+        self.fh.write(format_line(counts, t_s) + "\n")
+        self.fh.flush()
+        self.frames += 1
+
+    def close(self) -> None:
+        self.fh.close()
+
+
+def log_path_for(out: str | os.PathLike) -> Path:
+    """Where frames are flushed while recording to `out`."""
+    out = Path(out)
+    return out if is_log_path(out) else out.with_name(out.name + ".partial.log")
+
+
+def finalize(out: str | os.PathLike, meta: dict, rows: int, cols: int) -> int:
+    """Convert the partial log of an `.npz` output (no-op for a log). -> frames."""
+    out = Path(out)
+    log = log_path_for(out)
+    if log == out:
+        return read_muca_log(out, rows, cols, strict=False).frames.shape[0] \
+            if _has_frames(out, rows * cols) else 0
+    if not _has_frames(log, rows * cols):
+        log.unlink(missing_ok=True)
+        return 0
+    rec = read_muca_log(log, rows, cols, strict=False)
+    rec.meta.update(meta)
+    write_npz(out, rec)
+    log.unlink()
+    return len(rec)
+
+
+def _has_frames(path: Path, n_cells: int) -> bool:
+    with open(path) as fh:
+        return any(line.count(",") >= n_cells - 1 for line in fh)
+
+
+def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = None,
+                  seconds: float | None = None, progress=None) -> dict:
+    """Copy frames from `reader` to `sink` until `n_frames`, `seconds` or the port closes.
+
+    Returns {frames, skipped, cut, seconds, frames_per_s, closed (message or "")}."""
+    t0 = time.monotonic()
+    last = t0
+    closed = ""
+    try:
+        while True:
+            now = time.monotonic()
+            if seconds is not None and now - t0 >= seconds:
+                break
+            if n_frames is not None and sink.frames >= n_frames:
+                break
+            for counts, t_s, _ in reader.poll():
+                sink.write(counts, t_s)
+                if n_frames is not None and sink.frames >= n_frames:
+                    break
+            if progress and now - last >= PROGRESS_EVERY_S:
+                progress(f"{sink.frames} frames, {sink.frames / (now - t0):.1f} frames/s")
+                last = now
+    except PortClosed as exc:
+        closed = str(exc)
+    dt = time.monotonic() - t0
+    return {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.lines.cut,
+            "seconds": dt, "frames_per_s": sink.frames / dt if dt > 0 else 0.0,
+            "closed": closed}
+
+
+def check_limits(n_frames: int | None, seconds: float | None) -> None:
+    if n_frames is not None and seconds is not None:
+        raise FrameError("give --frames or --seconds, not both")
