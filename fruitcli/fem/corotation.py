@@ -35,7 +35,7 @@ def polar_rotations(f: np.ndarray) -> np.ndarray:
     bad = det <= 0.0
     r = f.copy()
     if bad.any():
-        r[bad] = 1.0
+        r[bad] = np.eye(3)
     for _ in range(POLAR_ITERATIONS):
         a, b, c = r[:, :, 0], r[:, :, 1], r[:, :, 2]
         cof = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=2)

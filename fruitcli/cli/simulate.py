@@ -1,0 +1,59 @@
+"""`fruit simulate`: quasi-static corotational FEM of every actuation state (mm, kPa)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors, progressbar
+
+
+@click.command(name="simulate")
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output folder: mesh files and states.npz.")
+@click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Closed surface of the body (mm), e.g. reduced.stl; required for an "
+                   "artist scene.")
+@click.option("--taxels", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: [grid] taxels of the scene.")
+@click.option("--vtu", is_flag=True, help="Also write one VTU per state for ParaView.")
+def simulate(scene, out_dir, solid, taxels, vtu):
+    """Tetrahedralize SCENE's body, then solve each state of [actuation].
+
+    Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,
+    gravity from [material] density_kg_m3 when the scene has [gravity]. Writes
+    OUT/states.npz: rest_nodes, tets, displacement_mm (S,N,3), pressure_kpa (S,K),
+    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms.
+    """
+    from fruitcli.errors import SceneError
+    from fruitcli.fem.stage import run_simulate, run_tetra
+    from fruitcli.scene import load_scene, n_states
+    from fruitcli.tables import read_table
+
+    log = Progress("simulate ")
+    with fruit_errors():
+        sc = load_scene(scene)
+        geo = sc["geometry"]
+        if solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
+            raise SceneError(f"{scene}: [geometry] has an artist mesh: pass --solid "
+                             "(reduced.stl from `fruit make-tracks`)")
+        taxel_csv = taxels or sc["grid"]["taxels"]
+        xyz = None
+        if taxel_csv is not None:
+            cols = read_table(taxel_csv, ["id", "i", "j", "x_mm", "y_mm", "z_mm"],
+                              numeric=["i", "j", "x_mm", "y_mm", "z_mm"], error=SceneError)
+            xyz = __import__("numpy").column_stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]])
+        run_tetra(sc, solid, out_dir, progress=log)
+        with progressbar(length=n_states(sc), label="states") as bar:
+            def progress(msg: str) -> None:
+                if msg.startswith("state "):
+                    bar.update(1)
+                else:
+                    log(msg)
+
+            info = run_simulate(sc, out_dir / "mesh.npz", xyz, out_dir, progress=progress,
+                                vtu=vtu)
+    click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "
+               f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}")
