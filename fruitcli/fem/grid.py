@@ -49,8 +49,21 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
     return nodes, tets
 
 
-def box_boundary_tris(nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """(f, 3) boundary faces of a tet mesh, oriented outward."""
+def structured_box_with_cavity(lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm):
+    """Structured box minus the cells whose centre lies in the cavity box. Returns nodes
+    (n, 3), tets (m, 4) and the cavity wall triangles (t, 3), normals out of the cavity."""
     from fruitcli.fem.mesh_topology import boundary_faces
 
-    return boundary_faces(nodes, tets)
+    nodes, tets = structured_box(lo_mm, hi_mm, cells)
+    c = nodes[tets].mean(axis=1)
+    inside = np.all((c > np.asarray(cavity_lo_mm)) & (c < np.asarray(cavity_hi_mm)), axis=1)
+    tets = tets[~inside]
+    used = np.unique(tets)
+    remap = np.full(len(nodes), -1)
+    remap[used] = np.arange(len(used))
+    nodes, tets = nodes[used], remap[tets]
+    faces = boundary_faces(nodes, tets)
+    lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    on_outer = np.any(np.isclose(nodes[faces], lo) | np.isclose(nodes[faces], hi), axis=2)
+    cavity = faces[~np.all(on_outer, axis=1)]
+    return nodes, tets, cavity[:, [0, 2, 1]]

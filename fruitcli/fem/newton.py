@@ -65,7 +65,10 @@ class _Step:
         r = r.reshape(-1)[m.pattern.free]
         energy += m.external_potential(x, p, self.load)
         g = (m.chamber_volumes(x) - self.v_target)[self.vc] if len(self.vc) else np.zeros(0)
-        merit = np.linalg.norm(r) / self.ref
+        # scale: the step's load, or the elastic force once it is larger (volume
+        # control starts with an unknown pressure and no external load)
+        scale = max(self.ref, float(np.linalg.norm(f_int.reshape(-1)[m.pattern.free])))
+        merit = np.linalg.norm(r) / scale
         if len(g):
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
         return rot, det_f, h, r, g, merit, energy
