@@ -190,3 +190,32 @@ def test_pressure_interpolates_between_states():
     t = loc.batch(np.stack([f, f, f]), np.full(len(tx), float(BASE)),
                   np.array([[5.0], [15.0], [99.0]]))
     assert t.xyz_mm[:, 2] == pytest.approx(2.0 + np.array([5.0, 20.0, 30.0]))
+
+
+def test_stream_matches_batch_and_state_path_matches_vectorized():
+    from fruitcli.sensing.locate import StatePath, state_path_position
+
+    rng = np.random.default_rng(5)
+    tx = make_taxels()
+    pos = np.stack([tx.xyz_mm + [0, 0, 3.0 * s] for s in range(4)])
+    press = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 8.0]])
+    loc = Locator(tx, default_board(), pos, Settings(baseline_frames=1), press)
+    frames = np.stack([frame_with({(int(a), int(b)): int(v), (int(c), int(d)): int(u)})
+                       for a, b, v, c, d, u in zip(rng.integers(5, size=40),
+                                                    rng.integers(6, size=40),
+                                                    rng.integers(0, 90, 40),
+                                                    rng.integers(5, size=40),
+                                                    rng.integers(6, size=40),
+                                                    rng.integers(0, 90, 40), strict=True)])
+    kpa = rng.uniform(-1, 9, (40, 2))
+    base = np.full(len(tx), float(BASE))
+    whole = loc.batch(frames, base, kpa)
+    stream = Stream(loc, base)
+    parts = [stream.step(f, kpa[n], n) for n, f in enumerate(loc.values(frames))]
+    assert np.array_equal(whole.frame, np.concatenate([p.frame for p in parts]))
+    assert np.allclose(whole.xyz_mm, np.concatenate([p.xyz_mm for p in parts]))
+    assert np.allclose(whole.i, np.concatenate([p.i for p in parts]))
+    seg, frac = state_path_position(kpa, press)
+    path = StatePath(press)
+    for n in range(40):
+        assert path.locate(kpa[n]) == (seg[n], pytest.approx(frac[n]))

@@ -105,6 +105,29 @@ def state_path_position(pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray
     return seg, frac
 
 
+class StatePath:
+    """The state path precomputed for one point at a time (the live loop)."""
+
+    def __init__(self, state_pressure_kpa: np.ndarray):
+        sp = np.asarray(state_pressure_kpa, dtype=float)
+        self.a = sp[:-1]
+        self.d = np.diff(sp, axis=0)
+        dd = np.einsum("sk,sk->s", self.d, self.d)
+        self.point = dd < _SEGMENT_EPS_KPA2
+        self.inv_dd = np.where(self.point, 0.0, 1.0 / np.where(self.point, 1.0, dd))
+        self.n_states = sp.shape[0]
+
+    def locate(self, p: np.ndarray) -> tuple[int, float]:
+        """(segment, fraction) of the closest point of the path to pressures (K,)."""
+        if self.n_states == 1:
+            return 0, 0.0
+        r = p - self.a
+        t = np.clip(np.einsum("sk,sk->s", r, self.d) * self.inv_dd, 0.0, 1.0)
+        e = r - t[:, None] * self.d
+        k = int(np.argmin(np.einsum("sk,sk->s", e, e)))
+        return k, float(t[k])
+
+
 def match_chambers(names: tuple[str, ...], states: States, where: str) -> np.ndarray:
     """Column order of `names` (a recording's chambers) matching the states' chambers."""
     index = []

@@ -19,7 +19,7 @@ IDs carry state, so they run frame by frame through `Stream` (also the live loop
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -27,7 +27,7 @@ from scipy.optimize import linear_sum_assignment
 from fruitcli.errors import FrameError
 from fruitcli.sensing.board import Taxels, taxel_cells
 from fruitcli.sensing.detect import MAX_TOUCHES, Grid, activation_grid, baseline_counts, detect
-from fruitcli.sensing.locate import state_path_position, touches_3d
+from fruitcli.sensing.locate import StatePath, state_path_position, touches_3d
 
 
 @dataclass(frozen=True)
@@ -143,8 +143,14 @@ class Stream:
         self.above = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
-        self._one = replace(self.s, drift_rate=0.0, hysteresis_counts=0.0, debounce_frames=0,
-                            track_gate_mm=0.0)
+        g = locator.grid
+        self._flat = np.zeros(g.shape[0] * g.shape[1])
+        self._offs = g.offsets
+        self._di = np.repeat(np.arange(-1.0, 2.0), 3)
+        self._dj = np.tile(np.arange(-1.0, 2.0), 3)
+        self._pos, self._pos_key, self._path = None, None, None
+        self._empty = TouchTable.concat([])
+        self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
 
     def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
              frame: int = 0) -> TouchTable:
@@ -152,8 +158,11 @@ class Stream:
         loc, s = self.loc, self.s
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
-        flat = activation_grid(values[None, :], self.baseline, loc.grid)
-        vmax = float(flat.max())
+        flat = self._flat
+        v = values - self.baseline
+        np.maximum(v, 0.0, out=v)
+        flat[loc.grid.cell] = v
+        vmax = float(v.max())
         low = s.threshold_counts - s.hysteresis_counts
         if self.touched:
             on = vmax > low
@@ -166,13 +175,62 @@ class Stream:
         if not on:
             if s.drift_rate > 0 and vmax <= low:
                 self.baseline += s.drift_rate * (values - self.baseline)
-            self.prev_xyz, self.prev_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
-            return TouchTable.concat([])
-        t = detect(flat, loc.grid, thr, s.method, s.floor, s.max_touches)
-        seg, frac = loc._path(None if pressure_kpa is None else pressure_kpa[None, :], 1)
-        xyz = touches_3d(t, loc.positions_mm, seg, frac)
-        ids = self._ids(xyz) if s.track_gate_mm > 0 else t.rank
-        return TouchTable(np.full(len(t), frame, np.int64), ids, t.i, t.j, xyz, t.peak)
+            self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
+            return self._empty
+        if s.method == "peaks":
+            t = detect(flat[None, :].copy(), loc.grid, thr, s.method, s.floor, s.max_touches)
+            rows = [(t.i[n], t.j[n], t.peak[n], t.taxel[n], t.weight[n]) for n in range(len(t))]
+        else:
+            rows = self._sequential(flat, thr, s.floor if s.method == "n9_floor" else 0.0)
+        pos = self._positions(pressure_kpa)
+        n = len(rows)
+        xyz = np.empty((n, 3))
+        for k, (_, _, _, tax, w) in enumerate(rows):
+            xyz[k] = w @ pos[np.where(tax < 0, 0, tax)]
+        ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
+        return TouchTable(np.full(n, frame, np.int64), ids,
+                          np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+                          xyz, np.array([r[2] for r in rows]))
+
+    def _sequential(self, flat: np.ndarray, thr: float, floor: float) -> list:
+        """The paper's N9 loop on one padded flat frame (zeroed in place)."""
+        grid, offs = self.loc.grid, self._offs
+        width = grid.shape[1]
+        rows = []
+        for _ in range(self.s.max_touches):
+            k = int(flat.argmax())
+            peak = float(flat[k])
+            if peak <= thr:
+                break
+            idx = offs + k
+            win = flat[idx]
+            if floor > 0:
+                win = np.maximum(win - floor, 0.0)
+            w = win / win.sum()
+            ci, cj = divmod(k, width)
+            rows.append((ci - 1 + float(w @ self._di), cj - 1 + float(w @ self._dj), peak,
+                         grid.taxel_of_cell[idx], w))
+            flat[idx] = 0.0
+        flat[:] = 0.0
+        return rows
+
+    def _positions(self, pressure_kpa) -> np.ndarray:
+        """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
+        pos = self.loc.positions_mm
+        if pos.ndim == 2:
+            return pos
+        key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())
+        if key != self._pos_key or self._pos is None:
+            if key is None:
+                self._pos = pos[0]
+            else:
+                if self._path is None:
+                    self._path = StatePath(self.loc.state_pressure_kpa)
+                s0, t = self._path.locate(np.asarray(key))
+                s1 = min(s0 + 1, pos.shape[0] - 1)
+                self._pos = (1 - t) * pos[s0] + t * pos[s1]
+            self._pos_key = key
+        return self._pos
 
     def _ids(self, xyz: np.ndarray) -> np.ndarray:
         ids = np.full(xyz.shape[0], -1, np.int64)
