@@ -210,3 +210,26 @@ def test_pressure_line_protocol():
     st.update("P c2=3")
     st.update("P c3=1")
     assert st.kpa.tolist() == [0.0, 3.0] and st.skipped == 1
+
+
+def test_emulate_board_command_in_a_subprocess_feeds_record(tmp_path):
+    import subprocess
+    import sys
+
+    rec = Recording(synthetic_frames(50, seed=4), np.arange(50.0))
+    write_npz(tmp_path / "src.npz", rec)
+    proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
+                             "emulate-board", "--from", str(tmp_path / "src.npz"), "--fps",
+                             "0", "--log-every", "3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/")
+        res = invoke(["record", "--port", path, "--out", str(tmp_path / "r.log"), "--frames",
+                      "40"])
+        assert res.exit_code == 0, res.output
+        assert np.array_equal(read_recording(tmp_path / "r.log").frames, rec.frames[:40])
+    finally:
+        proc.wait(10)
+    res = invoke(["emulate-board", "--bench", str(tmp_path / "nothing")])
+    assert res.exit_code == 1 and "no <indenter>/frames.npz" in res.output
