@@ -22,7 +22,7 @@ TRUNK_START_MM = (15.0, -66.0)
 TRUNK_LENGTH_MM = 71.0
 BEND_RADIUS_MM = 45.0
 TIP_LENGTH_MM = 65.0
-BASE_Z_MM = -28.0
+BASE_Z_MM = -31.0
 BASE_SOFTNESS_MM = 2.5
 START_CAP_MM = 32.0
 END_CAP_MM = 10.0
@@ -64,9 +64,9 @@ PAPER_REST_TRUTH_MM = np.array([
 
 # three ellipsoidal pneumatic chambers inside the body (mm)
 FRUIT_CHAMBERS = [
-    {"name": "c1", "center_mm": [15.0, -36.0, -17.0], "radii_mm": [15.0, 11.0, 5.0]},
-    {"name": "c2", "center_mm": [12.0, -4.0, -17.0], "radii_mm": [15.0, 11.0, 5.0]},
-    {"name": "c3", "center_mm": [-14.0, 37.0, -14.0], "radii_mm": [11.0, 8.0, 4.5]},
+    {"name": "c1", "center_mm": [15.0, -36.0, -20.5], "radii_mm": [13.0, 10.0, 4.0]},
+    {"name": "c2", "center_mm": [12.0, -4.0, -20.5], "radii_mm": [13.0, 10.0, 4.0]},
+    {"name": "c3", "center_mm": [3.0, 30.0, -14.0], "radii_mm": [9.0, 7.0, 4.0]},
 ]
 
 

@@ -6,12 +6,17 @@ import numpy as np
 
 
 def weld_float32(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Round vertices to float32, merge those that coincide, drop faces that collapse."""
+    """Round vertices to float32, merge those that coincide, drop faces that collapse and
+    pairs of coincident faces (zero-volume fins left by the collapse)."""
     v32 = np.asarray(vertices, dtype=np.float32)
     uniq, inverse = np.unique(v32, axis=0, return_inverse=True)
     f = inverse.reshape(-1)[np.asarray(faces)]
-    ok = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
-    return uniq.astype(float), f[ok]
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+    sf = np.sort(f, axis=1).astype(np.int64)
+    n = int(f.max()) + 1 if len(f) else 1
+    _, inv, counts = np.unique((sf[:, 0] * n + sf[:, 1]) * n + sf[:, 2], return_inverse=True,
+                               return_counts=True)
+    return uniq.astype(float), f[counts[inv] % 2 == 1]
 
 
 def write_stl(path, vertices: np.ndarray, faces: np.ndarray) -> bool:

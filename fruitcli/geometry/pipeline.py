@@ -142,7 +142,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     lost = 1.0 - tracked.volume() / top.volume()
     n_tracked = len(tracked.decompose()) if not tracked.is_empty() else 0
     if (tracked.status() != manifold3d.Error.NoError or n_tracked != 1
-            or not 0 < lost < MAX_TRACK_VOLUME_FRACTION or tracked.genus() != top.genus()):
+            or not 0 < lost < MAX_TRACK_VOLUME_FRACTION):
         raise GeometryError(f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
                             f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
                             "try a smaller --track-radius-mm")
@@ -167,6 +167,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                  "origin_mm": origin_used, "x_planes": len(x_pieces), "y_planes": len(y_pieces),
                  "curves": len(curves)},
         "track_radius_mm": float(track_radius_mm), "taxels": len(rows),
+        "genus": {"reduced_top": int(top.genus()), "tracked_top": int(tracked.genus())},
         "taxel_curve_mismatch_mm": tx["mismatch_mm"],
         "volume_mm3": {"artist": float(mesh.volume), "reduced": float(red.body.volume()),
                        "reduced_top": float(top.volume()), "tracked_top": float(tracked.volume())},

@@ -1,0 +1,202 @@
+"""make-tracks end to end: shapes made here, the default Fruit, bad inputs via the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from click.testing import CliRunner
+
+from fruitcli.cli.main import cli
+from fruitcli.geometry.columns import vertical_hits
+from fruitcli.geometry.distance import SurfaceDistance
+from fruitcli.geometry.pipeline import make_tracks, read_taxels
+
+ON_SURFACE_MM = 0.01
+
+
+def ellipsoid(path, radii=(40.0, 30.0, 20.0)):
+    m = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
+    m.apply_scale(radii)
+    m.export(path)
+    return path
+
+
+def load_stl(path):
+    return trimesh.load_mesh(path, process=True)
+
+
+@pytest.fixture(scope="module")
+def ellipsoid_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ell")
+    art = ellipsoid(d / "ell.stl")
+    report = make_tracks(art, d / "out", faces=3000)
+    return d / "out", report
+
+
+def test_outputs_and_report(ellipsoid_run):
+    out, report = ellipsoid_run
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["preview.png", "reduced.stl", "report.json", "taxels.csv",
+                     "tracked_top.stl", "tracks.stl"]
+    saved = json.loads((out / "report.json").read_text())
+    assert saved["taxels"] == report["taxels"] > 10
+    assert set(saved["times_s"]) >= {"load", "reduce", "sections", "taxels", "tracks", "total"}
+    reduced = load_stl(out / "reduced.stl")
+    assert reduced.is_watertight and reduced.is_winding_consistent
+    assert abs(len(reduced.faces) - 3000) < 300
+    # the offset of an ellipsoid with semi-axes a, b, c by 2 mm spans a-2, b-2, c-2
+    assert np.allclose(reduced.extents, [76, 56, 36], atol=0.3)
+    assert report["offset_error"]["hausdorff_mm"] < 0.5
+    assert report["tracked_top_reloads_watertight"]
+    # the split plane of an ellipsoid is its equator z = 0 (within one grid cell)
+    assert abs(report["split_z_mm"]) <= report["distance_grid_mm"]
+
+
+def test_taxels_on_surface_and_planes(ellipsoid_run):
+    out, report = ellipsoid_run
+    tx = read_taxels(out / "taxels.csv")
+    assert np.array_equal(tx["id"], np.arange(len(tx["id"])))
+    assert tx["i"].min() == 0 and tx["j"].min() == 0
+    x0, y0 = report["grid"]["origin_mm"]
+    assert np.allclose(tx["xyz"][:, 0], x0 + 16.0 * tx["i"], atol=1e-5)
+    assert np.allclose(tx["xyz"][:, 1], y0 + 12.0 * tx["j"], atol=1e-5)
+    reduced = load_stl(out / "reduced.stl")
+    _, d, _ = SurfaceDistance(reduced.vertices, reduced.faces).closest(tx["xyz"])
+    assert d.max() <= ON_SURFACE_MM
+    assert np.allclose(np.linalg.norm(tx["normals"], axis=1), 1.0, atol=1e-5)
+    assert (tx["normals"][:, 2] > 0).all()
+    # the outward normal of the ellipsoid (x/a^2, y/b^2, z/c^2), a..c reduced by 2 mm
+    p = tx["xyz"]
+    n = p / np.array([38.0, 28.0, 18.0]) ** 2
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    assert np.degrees(np.arccos(np.clip((n * tx["normals"]).sum(1), -1, 1))).max() < 5.0
+    # centred grid: about symmetric about x = 0 and y = 0 (the reduced mesh is not exactly)
+    assert abs(p[:, 0].min() + p[:, 0].max()) < 0.5 and abs(p[:, 1].min() + p[:, 1].max()) < 0.5
+
+
+def test_tracked_piece_is_one_closed_volume(ellipsoid_run):
+    out, report = ellipsoid_run
+    v = report["volume_mm3"]
+    assert 0 < v["reduced_top"] - v["tracked_top"] < 0.05 * v["reduced_top"]
+    # reduced top is about half the reduced ellipsoid, 4/3 pi abc / 2
+    assert v["reduced_top"] == pytest.approx(2 / 3 * np.pi * 38 * 28 * 18, rel=0.03)
+
+
+def test_default_fruit_end_to_end(tmp_path):
+    from fruitcli.geometry.artist import FRUIT_CHAMBERS, write_artist
+
+    art = tmp_path / "fruit.ply"
+    info = write_artist(art)
+    assert info["triangles"] >= 100_000
+    report = make_tracks(art, tmp_path / "out")
+    assert 35 <= report["taxels"] <= 60
+    reduced = load_stl(tmp_path / "out" / "reduced.stl")
+    dist = SurfaceDistance(reduced.vertices, reduced.faces)
+    u, w = np.meshgrid(np.linspace(0, np.pi, 25), np.linspace(0, 2 * np.pi, 48))
+    unit = np.c_[(np.sin(u) * np.cos(w)).ravel(), (np.sin(u) * np.sin(w)).ravel(),
+                 np.cos(u).ravel()]
+    for k, ch in enumerate(FRUIT_CHAMBERS):
+        c, r = np.array(ch["center_mm"]), np.array(ch["radii_mm"])
+        pts = c + unit * r
+        _, d, _ = dist.closest(pts)
+        assert d.min() >= 3.0, ch["name"]
+        pi, zh = vertical_hits(reduced.vertices, reduced.faces, pts)
+        above = np.bincount(pi[zh > pts[pi, 2]], minlength=len(pts))
+        assert (above % 2 == 1).all(), ch["name"]          # inside the reduced body
+        for other in FRUIT_CHAMBERS[k + 1:]:
+            q = (pts - np.array(other["center_mm"])) / np.array(other["radii_mm"])
+            assert ((q ** 2).sum(1) > 1).all()
+
+
+def _cli(args):
+    return CliRunner().invoke(cli, args)
+
+
+def _assert_refused(result, out, *words):
+    assert result.exit_code == 1, result.output
+    line = result.output.strip().splitlines()[-1]
+    assert line.startswith("Error:")
+    for w in words:
+        assert w in line, line
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("content,words", [
+    (b"\x00\xff garbage \x13" * 40, ["bad.stl"]),
+    (b"", ["empty"]),
+])
+def test_cli_refuses_bad_files(tmp_path, content, words):
+    bad = tmp_path / "bad.stl"
+    bad.write_bytes(content)
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(bad), "--out", str(out)]), out, *words)
+
+
+def test_cli_refuses_missing_file(tmp_path):
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(tmp_path / "nope.stl"), "--out", str(out)]),
+                    out, "nope.stl", "not found")
+
+
+def test_cli_refuses_open_mesh(tmp_path):
+    box = trimesh.creation.box(extents=(60, 50, 30))
+    sphere = trimesh.creation.icosphere(3, 30.0)
+    sphere.update_faces(np.arange(len(sphere.faces)) % 7 != 0)   # many holes
+    path = tmp_path / "open.stl"
+    sphere.export(path)
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "open edges")
+    # a single missing triangle is a small hole: repaired and reported
+    del box
+    capsule = trimesh.creation.capsule(height=40.0, radius=20.0, count=[32, 32])
+    capsule.update_faces(np.arange(len(capsule.faces)) != 3)
+    capsule.export(tmp_path / "holed.obj")
+    res = _cli(["make-tracks", str(tmp_path / "holed.obj"), "--out", str(tmp_path / "o2")])
+    assert res.exit_code == 0, res.output
+    rep = json.loads((tmp_path / "o2" / "report.json").read_text())
+    assert any("small hole" in r for r in rep["repairs"])
+
+
+def test_cli_refuses_two_bodies(tmp_path):
+    a = trimesh.creation.box(extents=(40, 40, 20))
+    b = trimesh.creation.box(extents=(40, 40, 20))
+    b.apply_translation((100, 0, 0))
+    path = tmp_path / "two.ply"
+    trimesh.util.concatenate([a, b]).export(path)
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "2 separate bodies")
+
+
+def test_cli_metres_need_unit(tmp_path):
+    path = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "--unit m")
+    res = _cli(["make-tracks", str(path), "--out", str(out), "--unit", "m", "--faces", "1500"])
+    assert res.exit_code == 0, res.output
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["repairs"][0].startswith("scaled from m to mm")
+
+
+@pytest.mark.parametrize("opts,words", [
+    (["--spacing-x-mm", "500", "--spacing-y-mm", "500", "--origin-mm", "250", "250"],
+     ["misses the shape"]),
+    (["--track-radius-mm", "7"], ["--track-radius-mm", "half the grid spacing"]),
+    (["--cover-mm", "25"], ["consumes", "--cover-mm"]),
+    (["--split-z-mm", "40"], ["--split-z-mm", "outside"]),
+])
+def test_cli_refuses_bad_options(tmp_path, opts, words):
+    path = ellipsoid(tmp_path / "e.stl")
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500", *opts]),
+                    out, *words)
+
+
+def test_make_artist_cli(tmp_path):
+    res = _cli(["make-artist", "--out", str(tmp_path / "a.obj")])
+    assert res.exit_code == 0, res.output
+    m = trimesh.load_mesh(tmp_path / "a.obj", process=True)
+    assert m.is_watertight and len(m.faces) >= 100_000
+    res = _cli(["make-artist", "--out", str(tmp_path / "a.xyz")])
+    assert res.exit_code == 1 and "expected .stl, .obj or .ply" in res.output
+    assert "(mm)" in _cli(["make-tracks", "--help"]).output

@@ -1,0 +1,91 @@
+"""Unit tests of the geometry building blocks against closed forms."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from fruitcli.geometry.columns import inside_columns, top_z, vertical_hits
+from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
+from fruitcli.geometry.sections import section_pieces
+from fruitcli.geometry.taxels import piece_crossings
+from fruitcli.geometry.tubes import resample, track_polylines, tube_arrays
+
+
+def test_closest_on_triangle_regions():
+    a, b, c = np.array([0.0, 0, 0]), np.array([2.0, 0, 0]), np.array([0.0, 2, 0])
+    p = np.array([[0.5, 0.5, 3.0],     # above the interior -> its projection
+                  [-1.0, -1.0, 0.0],   # beyond vertex a
+                  [3.0, -1.0, 1.0],    # beyond vertex b
+                  [1.0, -2.0, 0.0],    # beyond edge ab
+                  [2.0, 2.0, 0.0]])    # beyond edge bc
+    n = len(p)
+    q = closest_on_triangles(p, np.tile(a, (n, 1)), np.tile(b, (n, 1)), np.tile(c, (n, 1)))
+    expect = [[0.5, 0.5, 0], [0, 0, 0], [2, 0, 0], [1, 0, 0], [1, 1, 0]]
+    assert np.allclose(q, expect)
+
+
+def test_surface_distance_sphere():
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    pts = np.array([[0.0, 0, 0], [0, 0, 15.0], [3.0, 4.0, 0], [0, 20.0, 0]])
+    _, d, _ = SurfaceDistance(sphere.vertices, sphere.faces).closest(pts)
+    # the polyhedron lies inside the sphere by at most its sagitta (~0.04 mm here)
+    assert np.allclose(d, [10, 5, 5, 10], atol=0.05)
+
+
+def test_top_z_and_parity_on_a_box():
+    box = trimesh.creation.box(extents=(4.0, 6.0, 2.0))  # z from -1 to 1
+    xy = np.array([[0.3, 0.7], [1.9, -2.9], [5.0, 0.0]])
+    z = top_z(box.vertices, box.faces, xy)
+    assert np.allclose(z[:2], 1.0) and np.isnan(z[2])
+    pi, zh = vertical_hits(box.vertices, box.faces, xy)
+    assert np.array_equal(pi, [0, 0, 1, 1]) and np.allclose(zh, [-1, 1, -1, 1])
+    inside = inside_columns(box.vertices, box.faces, xy, np.array([-2.0, -0.5, 0.5, 2.0]))
+    assert inside.tolist() == [[False, True, True, False], [False, True, True, False],
+                               [False] * 4]
+
+
+def test_sphere_section_is_a_circle():
+    r = 10.0
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=r)
+    pieces = section_pieces(sphere.vertices, sphere.faces, 0, 6.0)
+    assert len(pieces) == 1 and pieces[0].closed
+    rho = np.sqrt(r ** 2 - 36.0)
+    assert abs(pieces[0].length_mm - 2 * np.pi * rho) < 0.01 * 2 * np.pi * rho
+    assert np.allclose(pieces[0].points[:, 0], 6.0)
+    # only the upper half: one open arc from z ~ 0 over the top
+    up = sphere.triangles_center[:, 2] > 0
+    arcs = section_pieces(sphere.vertices, sphere.faces, 0, 6.0, up)
+    assert len(arcs) == 1 and not arcs[0].closed
+    assert abs(arcs[0].length_mm - np.pi * rho) < 0.05 * np.pi * rho
+    # crossing it with y = 0 gives the top point (6, 0, rho) on a face of the sphere
+    lidx, pts, _ = piece_crossings(arcs[0], 1, np.array([0.0, 100.0]))
+    assert lidx.tolist() == [0] and abs(pts[0, 2] - rho) < 0.05 and pts[0, 1] == 0.0
+
+
+def test_box_section_through_vertices_is_its_perimeter():
+    box = trimesh.creation.box(extents=(4.0, 6.0, 2.0))
+    pieces = section_pieces(box.vertices, box.faces, 1, 0.0)
+    assert len(pieces) == 1 and pieces[0].closed
+    assert abs(pieces[0].length_mm - 2 * (4.0 + 2.0)) < 1e-9
+
+
+def test_tube_volume_and_closedness():
+    line = np.c_[np.linspace(0, 20, 7), np.zeros(7), np.zeros(7)]
+    v, f = tube_arrays(line, 0.6, step_mm=1.0, ring=12)
+    mesh = trimesh.Trimesh(v, f, process=True)
+    assert mesh.is_watertight and mesh.volume > 0
+    # a 12-gon of circumradius r has area 3 r^2
+    assert mesh.volume == pytest.approx(3 * 0.36 * 20.0, rel=1e-9)
+    arc = np.c_[10 * np.cos(np.linspace(0, np.pi, 50)), 10 * np.sin(np.linspace(0, np.pi, 50)),
+                np.zeros(50)]
+    v, f = tube_arrays(arc, 0.5)
+    assert trimesh.Trimesh(v, f).is_watertight
+    assert len(resample(arc, 1.0)) == 33
+
+
+def test_closed_loop_becomes_two_overlapping_tubes():
+    t = np.linspace(0, 2 * np.pi, 41)
+    loop = np.c_[np.cos(t), np.sin(t), 0 * t]
+    loop[-1] = loop[0]
+    halves = track_polylines(loop, closed=True)
+    assert len(halves) == 2 and len(halves[0]) + len(halves[1]) > len(loop)
