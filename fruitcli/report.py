@@ -83,8 +83,11 @@ def fabrication_section(out: Path, scenes: list[str]) -> list[str]:
         tr = out / name / "make-tracks"
         rep = _load(tr / "report.json")
         if rep:
-            keys = ("taxel_count", "faces_artist", "faces_reduced", "hausdorff_mm")
-            facts = ", ".join(f"{k} = {rep[k]}" for k in keys if k in rep)
+            tri = rep.get("triangles", {})
+            facts = (f"{rep.get('taxels')} taxels; triangles: artist {tri.get('artist')}, "
+                     f"reduced {tri.get('reduced')}, tracked top {tri.get('tracked_top')}; "
+                     f"offset Hausdorff {rep.get('offset_error', {}).get('hausdorff_mm', 0):.2f}"
+                     " mm")
             preview = (tr / "preview.png").relative_to(out)
             lines += [f"**{name}**: {facts}", "", f"![tracked piece]({preview})", ""]
             break

@@ -101,7 +101,8 @@ def _tracks_run(scene, ctx, out_dir):
         spacing_x_mm=grid["spacing_x_mm"], spacing_y_mm=grid["spacing_y_mm"],
         origin_mm=grid["origin_mm"], track_radius_mm=tr["track_radius_mm"],
         split_z_mm=tr["split_z_mm"], progress=ctx.progress)
-    return {"taxels": report.get("taxel_count"), "hausdorff_mm": report.get("hausdorff_mm")}
+    return {"taxels": report["taxels"],
+            "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
 
 
 # ----------------------------------------------------------------------------- pad-grid
@@ -293,7 +294,8 @@ def _inputs_nothing(scene, ctx):
 
 STAGES: list[Stage] = [
     Stage("make-artist", [], "fruitcli.geometry.artist", _artist_needed,
-          lambda s, c: {"artist": str(s["geometry"]["artist"])}, _artist_run, lambda s: []),
+          lambda s, c: {"artist": str(s["geometry"]["artist"])}, _artist_run,
+          lambda s: [str(s["geometry"]["artist"])]),
     Stage("make-tracks", ["make-artist"], "fruitcli.geometry.pipeline", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
