@@ -54,6 +54,7 @@ class Context:
     out_root: Path
     progress: Callable[[str], None] = lambda msg: None
     hashes: dict[str, str] = field(default_factory=dict)
+    shared: Path | None = None  # a folder whose scenes may lend identical stage outputs
 
     def dir(self, stage: str) -> Path:
         return self.out_root / stage
@@ -159,16 +160,39 @@ def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None) -> lis
     return steps
 
 
+def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str) -> Path | None:
+    """A sibling scene's folder (under ctx.shared) holding this stage with the same hash."""
+    if ctx.shared is None:
+        return None
+    for manifest in sorted(ctx.shared.glob(f"*/{stage.name}/{MANIFEST}")):
+        folder = manifest.parent
+        if folder == ctx.dir(stage.name):
+            continue
+        try:
+            old = json.loads(manifest.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        if old.get("hash") == digest and all((folder / o).exists()
+                                              for o in stage.outputs(scene)):
+            return folder
+    return None
+
+
 def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
-        force: bool = False, stages: list[Stage] | None = None) -> list[Step]:
-    """Run the needed stages (up to and including `until`), reusing unchanged ones."""
+        force: bool = False, stages: list[Stage] | None = None,
+        shared: Path | None = None) -> list[Step]:
+    """Run the needed stages (up to and including `until`), reusing unchanged ones.
+    With `shared`, a stage whose identical inputs already ran for another scene under
+    that folder is copied from there instead of run again."""
+    import shutil
+
     from fruitcli.stages import STAGES
 
     stages = STAGES if stages is None else stages
     names = [s.name for s in stages]
     if until is not None and until not in names:
         raise FruitError(f"unknown stage '{until}' (stages: {', '.join(names)})")
-    ctx = Context(Path(out_root), progress or (lambda msg: None))
+    ctx = Context(Path(out_root), progress or (lambda msg: None), shared=shared)
     done = []
     by_name = {s.name: s for s in stages}
     wanted = _closure(by_name, until) if until else set(names)
@@ -188,9 +212,18 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
             done.append(Step(stage.name, "reuse", reason, digest))
             ctx.progress(f"{stage.name}: reuse (inputs unchanged)")
             continue
+        folder = ctx.dir(stage.name)
+        source = None if force else _borrow(stage, scene, ctx, digest)
+        if source is not None:
+            if folder.exists():
+                shutil.rmtree(folder)
+            shutil.copytree(source, folder)
+            done.append(Step(stage.name, "reuse", f"{reason} (same inputs as "
+                             f"{source.parent.name})", digest))
+            ctx.progress(f"{stage.name}: reuse (same inputs as {source.parent.name})")
+            continue
         ctx.progress(f"{stage.name}: run ({reason})")
         t0 = time.perf_counter()
-        folder = ctx.dir(stage.name)
         (folder / MANIFEST).unlink(missing_ok=True)
         summary = stage.run(scene, ctx, folder) or {}
         # the manifest is written last: a stage interrupted before this point reruns

@@ -139,9 +139,12 @@ def _fem_needed(scene):
 def _fem_reason(scene):
     parts = []
     k = len(scene.chambers)
-    if k:
+    act = scene["actuation"]
+    if k and (act["pressure_kpa"] or act["volume_growth_mm3"]):
         parts.append(f"{k} chamber(s), pressure as Lagrange multipliers over {n_states(scene)} "
                      "state(s)")
+    elif k:
+        parts.append(f"{k} chamber(s) as empty cavities, no actuation: no pressure constraint")
     else:
         parts.append("no chambers: no pressure constraint")
     if scene["jig"]:

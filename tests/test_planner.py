@@ -105,3 +105,13 @@ def test_fruit_help_lists_stages(fruit):
     for name in ("run", "make-tracks", "simulate", "locate", "evaluate"):
         assert name in res.output
     assert Path  # keep import used
+
+
+def test_identical_stage_is_borrowed_from_a_sibling_scene(tmp_path):
+    sc = _scene(tmp_path)
+    planner.run(sc, tmp_path / "out" / "first", shared=tmp_path / "out")
+    steps = planner.run(sc, tmp_path / "out" / "second", shared=tmp_path / "out")
+    step = [s for s in steps if s.stage == "evaluate"][0]
+    assert step.action == "reuse" and "same inputs as first" in step.reason
+    assert (tmp_path / "out" / "second" / "evaluate" / "table.md").read_text() == \
+        (tmp_path / "out" / "first" / "evaluate" / "table.md").read_text()

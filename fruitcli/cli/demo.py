@@ -50,7 +50,7 @@ def demo(out_dir, scenes):
                 click.echo(f"   skipped: {missing[0].stage}: {missing[0].reason}", err=True)
                 seconds[scene.name] = 0.0
                 continue
-            steps = planner.run(scene, out / scene.name, progress=Progress("   "))
+            steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
             plans[scene.name] = planner.format_plan(steps)
             seconds[scene.name] = time.perf_counter() - t0
         report = write_report(out, plans, seconds)
