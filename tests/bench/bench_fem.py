@@ -1,0 +1,121 @@
+"""Benchmark: the mechanics on the default fruit (reduced.stl from make-tracks with the
+3 chambers of pipelines/fruit-breathing.toml): tetra time, time per new pressure state
+from the previous one, Newton iterations, assembly time, ratio to one scipy sparse
+direct solve of the same K, linear solvers compared, time per state against mesh size.
+
+Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13]
+"""
+
+import argparse
+import copy
+import resource
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def fruit_solid(tmp: Path) -> Path:
+    from fruitcli.geometry.artist import write_artist
+    from fruitcli.geometry.pipeline import make_tracks
+
+    art = tmp / "fruit.stl"
+    write_artist(art)
+    make_tracks(art, tmp / "tracks")
+    return tmp / "tracks" / "reduced.stl"
+
+
+def time_states(scene, mesh_npz, solver_name: str, n_states: int):
+    """Solve the scene's states in order with one reused solver; returns per-state data."""
+    from fruitcli.fem import io
+    from fruitcli.fem.linsolve import TangentSolver
+    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.stage import build_model, state_loads
+
+    model = build_model(scene, io.load_mesh(mesh_npz))
+    loads = state_loads(scene, model.chamber_names)[:n_states]
+    solver = TangentSolver(model, solver_name)
+    cfg = scene["solver"]
+    opts = SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
+                         solver_name)
+    x = p = prev = None
+    rows = []
+    for load in loads:
+        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
+                          options=opts, solver=solver)
+        rows.append((res.solve_ms, res.iterations))
+        x, p, prev = res.x, res.pressure_kpa, load
+    return model, solver, rows
+
+
+def one_direct_solve_ms(model) -> tuple[float, float]:
+    """(assembly ms, scipy spsolve ms) of the rest tangent."""
+    import scipy.sparse.linalg as spla
+
+    from fruitcli.fem import corotation
+
+    rot = np.tile(np.eye(3), (len(model.tets), 1, 1))
+    t0 = time.perf_counter()
+    k = model.pattern.assemble(corotation.warped_stiffness(model.k0, rot), model.spring_diag)
+    t_asm = time.perf_counter() - t0
+    b = np.ones(k.shape[0])
+    t0 = time.perf_counter()
+    spla.spsolve(k.tocsc(), b)
+    return 1e3 * t_asm, 1e3 * (time.perf_counter() - t0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
+    ap.add_argument("--states", type=int, default=13)
+    args = ap.parse_args()
+    from fruitcli.fem.stage import run_tetra
+    from fruitcli.scene import load_scene
+
+    scene0 = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        t0 = time.perf_counter()
+        solid = fruit_solid(tmp)
+        print(f"default fruit: make-artist + make-tracks {time.perf_counter() - t0:.1f} s "
+              f"-> {solid.name}")
+        default_size = scene0["mesh"]["size_mm"]
+        sizes = sorted(set(args.sizes) | {default_size}, reverse=True)
+        print(f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
+              f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'factor':>6}")
+        for size in sizes:
+            scene = copy.deepcopy(scene0)
+            scene.data["mesh"]["size_mm"] = size
+            out = tmp / f"mesh-{size:g}"
+            t0 = time.perf_counter()
+            q = run_tetra(scene, solid, out)
+            t_tetra = time.perf_counter() - t0
+            solvers = ["splu", "splu-pcg", "cg"] if size == default_size else ["splu"]
+            for name in solvers:
+                model, solver, rows = time_states(scene, out / "mesh.npz", name, args.states)
+                later = np.array([r[0] for r in rows[1:]])  # states from the previous one
+                its = np.mean([r[1] for r in rows[1:]])
+                print(f"{size:7g} {q['n_tets']:7d} {q['n_nodes']:6d} {t_tetra:7.2f} "
+                      f"{name:>10} {np.median(later):9.1f} {later.max():7.1f} {its:5.1f} "
+                      f"{solver.stats['factorizations']:6d}", flush=True)
+            if size == default_size:
+                asm_ms, direct_ms = one_direct_solve_ms(model)
+                _, _, rows = time_states(scene, out / "mesh.npz", "splu", args.states)
+                med = float(np.median([r[0] for r in rows[1:]]))
+                default = (size, med, asm_ms, direct_ms)
+        size, med, asm_ms, direct_ms = default
+        print(f"\ndefault size {size:g} mm: one new pressure state {med:.1f} ms median "
+              f"(target <= 33 ms); assembly of K {asm_ms:.1f} ms; one scipy spsolve of the "
+              f"same K {direct_ms:.1f} ms; ratio state / direct solve {med / direct_ms:.2f}")
+        print(f"peak RSS {rss_mb():.0f} MB (target <= 500 MB)")
+
+
+if __name__ == "__main__":
+    main()
