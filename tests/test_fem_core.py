@@ -131,3 +131,21 @@ def test_bad_material_is_refused():
         Model.from_arrays(nodes, tets, 0.0, 0.3)
     with pytest.raises(SolverError, match="poisson_ratio"):
         Model.from_arrays(nodes, tets, 100.0, 0.5)
+
+
+def test_barycentric_inside_outside_and_affine_motion():
+    """Points inside get weights in [0, 1] summing to 1; a point 0.1 mm outside maps to
+    a boundary tet with a small negative weight; an affine motion moves mapped points
+    affinely (1e-12)."""
+    from fruitcli.fem import barycentric
+
+    nodes, tets = structured_box([0, 0, 0], [10, 10, 10], (3, 3, 3))
+    pts = np.array([[1.0, 2.0, 3.0], [9.9, 0.1, 5.0], [5.0, 5.0, 10.1]])
+    tet, w, outside = barycentric.locate(nodes, tets, pts)
+    assert np.allclose(w.sum(axis=1), 1.0)
+    assert (w[:2] >= -1e-12).all() and outside[:2].max() == 0.0
+    assert 0 < outside[2] < 0.2
+    assert np.allclose(barycentric.apply(nodes, tets, tet, w), pts, atol=1e-12)
+    a = np.array([[1.1, 0.2, 0.0], [0.0, 0.9, 0.1], [0.1, 0.0, 1.0]])
+    moved = barycentric.apply(np.stack([nodes @ a.T + 1.0]), tets, tet, w)
+    assert np.allclose(moved[0], pts @ a.T + 1.0, atol=1e-12)
