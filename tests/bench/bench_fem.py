@@ -75,6 +75,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
     ap.add_argument("--states", type=int, default=13)
+    ap.add_argument("--with-cg", action="store_true",
+                    help="also time Jacobi CG (about 11 s per state here)")
     args = ap.parse_args()
     from fruitcli.fem.stage import run_tetra
     from fruitcli.scene import load_scene
@@ -97,7 +99,9 @@ def main() -> None:
             t0 = time.perf_counter()
             q = run_tetra(scene, solid, out)
             t_tetra = time.perf_counter() - t0
-            solvers = ["splu", "splu-pcg", "cg"] if size == default_size else ["splu"]
+            solvers = ["splu"]
+            if size == default_size:
+                solvers += ["splu-pcg", "splu-fresh"] + (["cg"] if args.with_cg else [])
             for name in solvers:
                 model, solver, rows = time_states(scene, out / "mesh.npz", name, args.states)
                 later = np.array([r[0] for r in rows[1:]])  # states from the previous one
