@@ -14,8 +14,8 @@ from fruitcli.cli.options import Progress, fruit_errors, progressbar
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output folder: mesh files and states.npz.")
 @click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Closed surface of the body (mm), e.g. reduced.stl; required for an "
-                   "artist scene.")
+              help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
+                   "without it, make-tracks runs first (into OUT/make-tracks).")
 @click.option("--taxels", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: [grid] taxels of the scene.")
 @click.option("--vtu", is_flag=True, help="Also write one VTU per state for ParaView.")
@@ -36,10 +36,15 @@ def simulate(scene, out_dir, solid, taxels, vtu):
     with fruit_errors():
         sc = load_scene(scene)
         geo = sc["geometry"]
-        if solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
-            raise SceneError(f"{scene}: [geometry] has an artist mesh: pass --solid "
-                             "(reduced.stl from `fruit make-tracks`)")
         taxel_csv = taxels or sc["grid"]["taxels"]
+        if solid is None and geo["artist"] is not None:
+            from fruitcli import planner
+
+            planner.run(sc, out_dir, until="make-tracks", progress=log)
+            solid = out_dir / "make-tracks" / "reduced.stl"
+            taxel_csv = taxel_csv or out_dir / "make-tracks" / "taxels.csv"
+        elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
+            raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         xyz = None
         if taxel_csv is not None:
             cols = read_table(taxel_csv, ["id", "i", "j", "x_mm", "y_mm", "z_mm"],

@@ -58,3 +58,56 @@ def stability(out_dir, jobs):
             write_json(tmp / "stability.json", rows)
     click.echo(text, nl=False)
     click.echo(f"written to {Path(out_dir)}/")
+
+
+@study.command()
+@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
+                default="pipelines/fruit-deformed.toml")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-runtime",
+              show_default=True, help="Output folder: runtime.md, runtime.json, runtime.png.")
+@click.option("--jobs", type=int, default=None, help="Worker processes. [default: all cores]")
+def runtime(scene_file, out_dir, jobs):
+    """Error against run time on SCENE (default: the Fruit in its jig): FEM mesh size,
+    Newton tolerance and iteration cap, linear solver, detection variant.
+
+    For each setting: time per FEM state (ms), time per frame (us), the taxels' position
+    error in the deformed state against the finest setting (mm), and the localization
+    error on the bench (mm). The plot marks the Pareto front.
+    """
+    from fruitcli import planner
+    from fruitcli.cli.options import Progress
+    from fruitcli.scene import load_scene
+    from fruitcli.stages import solid_path, states_path, taxels_path
+    from fruitcli.studies import runtime as rt
+    from fruitcli.studies.parallel import run_cases
+
+    with fruit_errors():
+        scene = load_scene(scene_file)
+        out = Path(out_dir)
+        base = out / "scene"
+        planner.run(scene, base, progress=Progress("   "))
+        ctx = planner.Context(base)
+        solid, taxels = solid_path(scene, ctx), taxels_path(scene, ctx)
+        work = out / "work"
+        work.mkdir(parents=True, exist_ok=True)
+        default = scene["mesh"]["size_mm"]
+        cases = rt.fem_cases(default)
+        # meshes first (one per size, in parallel), then the solver variants reuse them
+        by_size = {}
+        for c in cases:
+            by_size.setdefault(c.size_mm, c)
+        first = list(by_size.values())
+        rest = [c for c in cases if c not in first]
+        args = [(scene.path, work, solid, taxels, c) for c in first]
+        rows = run_cases(rt.run_fem_case, args, jobs, _bar("runtime: meshes"))
+        args = [(scene.path, work, solid, taxels, c) for c in rest]
+        rows += run_cases(rt.run_fem_case, args, jobs, _bar("runtime: solver settings"))
+        order = {c.name: n for n, c in enumerate(cases)}
+        rows.sort(key=lambda r: order[r["setting"]])
+        rt.add_errors(rows)
+        det = []
+        if scene.has("bench"):
+            det = rt.run_detection_variants(scene, ctx.dir("bench"), taxels,
+                                            states_path(scene, ctx), work)
+        rt.write_outputs(out, rows, det, f"size {default:g} mm")
+    click.echo((out / "runtime.md").read_text(), nl=False)
