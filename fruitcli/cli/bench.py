@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, scene_products
 
 
 @click.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's [grid].taxels.")
+              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's own (its stages "
+                   "run into out/<scene name> when needed).")
 @click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
               help="states.npz from `fruit simulate`; without it the bench runs on the "
                    "taxels' own surface at rest.")
@@ -31,6 +32,8 @@ def bench(scene_path, taxels_csv, states_npz, out_dir):
     with fruit_errors():
         scene = load_scene(scene_path)
         taxels = taxels_csv or scene["grid"]["taxels"]
+        if taxels is None:
+            taxels, states_npz = scene_products(scene, progress=progress)
         if taxels is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         res = run_bench(scene, taxels, states_npz, out_dir, progress)

@@ -6,14 +6,15 @@ import sys
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, scene_products
 
 
 @click.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--port", required=True, help="Serial port of the board.")
 @click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's [grid].taxels.")
+              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's own (its stages "
+                   "run into out/<scene name> when needed).")
 @click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
               help="states.npz: taxels follow the FEM states (state 0 without pressures).")
 @click.option("--pressure-port", default=None,
@@ -47,6 +48,9 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud
     with fruit_errors():
         scene = load_scene(scene_path)
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
+        if taxels_csv is None:
+            taxels_csv, found_states = scene_products(scene)
+            states_npz = states_npz or found_states
         if taxels_csv is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         taxels = load_taxels(taxels_csv)

@@ -46,3 +46,21 @@ def progressbar(iterable=None, length=None, label=""):
     file = open("/dev/null", "w") if quiet() else sys.stderr  # noqa: SIM115
     return click.progressbar(iterable, length=length, label=label, file=file,
                              show_pos=True, show_eta=True)
+
+
+def scene_products(scene, out_root=None, progress=None):
+    """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
+    (into `out_root`, default out/<scene name>) and reusing what is already there."""
+    from pathlib import Path
+
+    from fruitcli import planner
+    from fruitcli.scene import has_deformation
+    from fruitcli.stages import states_path, taxels_path
+
+    out = Path(out_root) if out_root else Path("out") / scene.name
+    until = "simulate" if has_deformation(scene) else "pad-grid"
+    planner.run(scene, out, until=until, progress=progress)
+    if until == "pad-grid":
+        planner.run(scene, out, until="make-tracks", progress=progress)
+    ctx = planner.Context(out)
+    return taxels_path(scene, ctx), states_path(scene, ctx)
