@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo bench lint clean
+.PHONY: test demo bench studies lint clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -20,6 +20,10 @@ test: $(STAMP) lint
 
 demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit demo --out out
+
+studies: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/fruit study stability --out out/study-stability
+	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-deformed.toml --out out/study-runtime
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py

@@ -101,6 +101,22 @@ def fabrication_section(out: Path, scenes: list[str]) -> list[str]:
     return lines
 
 
+def studies_section(out: Path) -> list[str]:
+    """Links to the studies when `make studies` has written them under OUT."""
+    lines = ["## Studies (`make studies`)", ""]
+    found = False
+    for name, md, png in (("Error against run time", "study-runtime/runtime.md",
+                           "study-runtime/runtime.png"),
+                          ("Stability", "study-stability/stability.md", None)):
+        if (out / md).exists():
+            found = True
+            lines.append(f"- {name}: [{md}]({md})" + (f", ![plot]({png})" if png and
+                                                       (out / png).exists() else ""))
+    if not found:
+        lines.append("Not run yet: `make studies` writes them next to this report.")
+    return lines + [""]
+
+
 def plans_section(plans: dict[str, str]) -> list[str]:
     lines = ["## What ran, per scene", ""]
     for name, text in plans.items():
@@ -119,6 +135,7 @@ def write_report(out: Path, plans: dict[str, str], seconds: dict[str, float]) ->
     lines += views_section(out, scenes)
     lines += sensitivity_section(out, scenes)
     lines += fabrication_section(out, scenes)
+    lines += studies_section(out)
     lines += plans_section(plans)
     path = out / "report.md"
     write_text(path, "\n".join(lines) + "\n")
