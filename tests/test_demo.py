@@ -1,0 +1,21 @@
+"""`fruit demo` on the evaluation-only scene: report.md built from the run's files."""
+
+from __future__ import annotations
+
+
+def test_demo_report_from_paper_table(fruit, tmp_path):
+    res = fruit("demo", "--out", tmp_path, "--scenes", "paper-table")
+    assert res.exit_code == 0, res.output
+    report = (tmp_path / "report.md").read_text()
+    assert "| Rest, small (paper-table) | 29 | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) | 2.6 mm" in report
+    assert "evaluation only: measured points given" in report
+    assert "paper-table/evaluate/rest-small/top.png" in report
+    # a second run reuses the evaluation
+    res = fruit("demo", "--out", tmp_path, "--scenes", "paper-table")
+    assert "evaluate     reuse" in (tmp_path / "report.md").read_text()
+
+
+def test_demo_unknown_scene_is_one_line(fruit, tmp_path):
+    res = fruit("demo", "--out", tmp_path, "--scenes", "no-such-scene")
+    assert res.exit_code == 1
+    assert "no-such-scene.toml: scene file not found" in res.output
