@@ -10,8 +10,9 @@ from fruitcli.cli.options import fruit_errors
 @click.command("emulate-board")
 @click.option("--from", "from_path", type=click.Path(dir_okay=False), default=None,
               help="Recording to play (.npz or MuCa ASCII log).")
-@click.option("--bench", "bench_dir", type=click.Path(file_okay=False), default=None,
-              help="Output folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
+@click.option("--bench", "bench_dir", type=click.Path(), default=None,
+              help="A scene (.toml: its bench runs first, into out/<scene name>) or the output "
+                   "folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
 @click.option("--fps", type=click.FloatRange(min=0), default=30.0, show_default=True,
               help="Frames per second (0: as fast as the reader takes them).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
@@ -35,6 +36,16 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
     with fruit_errors():
         if from_path and bench_dir:
             raise click.UsageError("give --from or --bench, not both")
+        if bench_dir and str(bench_dir).endswith(".toml"):
+            from fruitcli import planner
+            from fruitcli.scene import load_scene
+
+            scene = load_scene(bench_dir)
+            if not scene.has("bench"):
+                raise FrameError(f"{bench_dir}: the scene has no [bench] section")
+            out = Path("out") / scene.name
+            planner.run(scene, out, until="bench")
+            bench_dir = out / "bench"
         if bench_dir:
             found = sorted(Path(bench_dir).glob("*/frames.npz")) or \
                 sorted(Path(bench_dir).glob("frames.npz"))
