@@ -101,3 +101,62 @@ def scatter_nodes(tets: np.ndarray, values: np.ndarray, n_nodes: int) -> np.ndar
     idx = tets.ravel()
     vals = values.reshape(-1, 3)
     return np.stack([np.bincount(idx, vals[:, c], minlength=n_nodes) for c in range(3)], axis=1)
+
+
+def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
+                   project: bool = True) -> np.ndarray:
+    """(m, 3, 3) world-frame matrices T' = R T R^T of the rotation-derivative term.
+
+    The corotational energy per unit rest volume is psi = mu |F - R|^2 + lam/2 tr(S - I)^2
+    (S = R^T F), so P = 2 mu (F - R) + lam tr(S - I) R and, with dR = R [w]x from
+    (tr S I - S) w = vee(R^T dF - dF^T R),
+    dP = R C sym(R^T dF) + R [T a]x,  a = vee(skew(R^T dF)),
+    T = 2 mu I + 2 c (tr S I - S)^-1,  c = lam tr(S - I) - 2 mu.
+    The first part is SOFA's warped stiffness; the second acts only on the skew part of
+    R^T dF (rotations) and is what the warped tangent misses. It is negative under
+    compression; `project` clamps its eigenvalues at zero (Teran 2005), which makes each
+    element's tangent positive semi-definite. The clamp is exact projection, because
+    the two parts act on orthogonal subspaces (symmetric and skew)."""
+    s = np.transpose(rot, (0, 2, 1)) @ f
+    s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
+    sig, u = np.linalg.eigh(s)
+    tr = sig.sum(axis=1, keepdims=True)
+    q = tr - sig  # eigenvalues of tr S I - S
+    c = lam * (tr - 3.0) - 2.0 * mu
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = 2.0 * mu + 2.0 * c / q
+    t = np.where(q > 1e-12, t, 0.0)
+    if project:
+        t = np.maximum(t, 0.0)
+    ru = rot @ u
+    return (ru * t[:, None, :]) @ np.transpose(ru, (0, 2, 1))
+
+
+def exact_stiffness(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: float,
+                    rot: np.ndarray, f: np.ndarray, project: bool = True,
+                    warped_only: bool = False) -> np.ndarray:
+    """(m, 12, 12) consistent tangent d f_int / dx (mN/mm) of the corotational forces:
+    R K0 R^T plus the rotation-derivative term (see `skew_stiffness`), projected to
+    positive semi-definite per element when `project`. With h_a = R g_a:
+    R K0_ab R^T = V (lam h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I) and the extra term
+    (V / 2) [h_a]x^T T' [h_b]x."""
+    m = len(grads)
+    h = grads @ np.transpose(rot, (0, 2, 1))  # rows h_a = R g_a
+    hf = h.reshape(m, 12)
+    outer = hf[:, :, None] * hf[:, None, :]
+    perm = outer.reshape(m, 4, 3, 4, 3).transpose(0, 3, 2, 1, 4).reshape(m, 12, 12)
+    k = lam * outer + mu * perm
+    gg = mu * (grads @ np.transpose(grads, (0, 2, 1)))  # (m, 4, 4)
+    k = k.reshape(m, 4, 3, 4, 3)
+    for i in range(3):
+        k[:, :, i, :, i] += gg
+    k = k.reshape(m, 12, 12)
+    if not warped_only:
+        t = skew_stiffness(f, rot, lam, mu, project)
+        x = np.zeros((m, 3, 4, 3))  # [h_a]x side by side
+        x[:, 0, :, 1], x[:, 0, :, 2] = -h[:, :, 2], h[:, :, 1]
+        x[:, 1, :, 0], x[:, 1, :, 2] = h[:, :, 2], -h[:, :, 0]
+        x[:, 2, :, 0], x[:, 2, :, 1] = -h[:, :, 1], h[:, :, 0]
+        x = x.reshape(m, 3, 12)
+        k += 0.5 * (np.transpose(x, (0, 2, 1)) @ (t @ x))
+    return k * volumes[:, None, None]

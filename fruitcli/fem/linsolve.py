@@ -1,6 +1,8 @@
 """Linear solvers for the tangent system K_t dx = b over the free dofs.
 
-K_t = sum_e R K0 R^T (warped stiffness) + spring diagonal. Three strategies, chosen
+K_t = consistent corotational tangent (R K0 R^T plus the rotation-derivative term,
+projected to positive semi-definite per element; `corotation.exact_stiffness`) + spring
+diagonal; with no deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen
 by name (`[solver] linear_solver`):
 
 - ``splu``: modified Newton: a SuperLU factorization of K_t kept across Newton
@@ -43,15 +45,29 @@ class TangentSolver:
         self.model = model
         self.method = method
         self.rot = None
+        self.f = None
+        self.load_k = None
+        self.matrix = None
         self.factor = None
+        self.factor_kind = None
+        self.kind = "warped"
+        self.project = False
         self.diag = None
         self.refresh = False
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
-    def update(self, rot: np.ndarray) -> None:
-        """Set the current element rotations (m, 3, 3)."""
-        self.rot = rot
+    def update(self, rot: np.ndarray, f: np.ndarray | None = None, load_stiffness=None,
+               project: bool = False) -> None:
+        """Set the current element rotations (m, 3, 3) and deformation gradients (m, 3, 3)
+        (without f, the tangent is the warped R K0 R^T), the sparse follower-pressure
+        stiffness over the free dofs (or None) and whether the rotation term is projected
+        to positive semi-definite per element."""
+        self.rot, self.f, self.load_k, self.matrix = rot, f, load_stiffness, None
+        self.project = project
+        self.kind = "warped" if f is None else ("projected" if project else "exact")
+        if self.method == "splu" and self.factor is not None and self.kind != self.factor_kind:
+            self.refresh = True
         if self.method == "splu-fresh" or (self.method in ("splu", "splu-pcg")
                                            and (self.factor is None or self.refresh)):
             self._factorize()
@@ -68,8 +84,12 @@ class TangentSolver:
     def _assemble(self):
         t0 = time.perf_counter()
         m = self.model
-        k = m.pattern.assemble(corotation.warped_stiffness(m.k0, self.rot), m.spring_diag)
+        k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project),
+                               m.spring_diag)
+        if self.f is not None and self.load_k is not None:
+            k = k + self.load_k
         self.stats["assembly_s"] += time.perf_counter() - t0
+        self.matrix = k
         return k
 
     def _factorize(self) -> None:
@@ -80,10 +100,15 @@ class TangentSolver:
         except RuntimeError as exc:
             raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
                               "[[fixed]], [[jig]] or its rigid modes pinned?") from None
+        self.factor_kind = self.kind
         self.stats["factor_s"] += time.perf_counter() - t0
         self.stats["factorizations"] += 1
 
     def matvec(self, v_free: np.ndarray) -> np.ndarray:
+        if self.f is not None:
+            if self.matrix is None:
+                self._assemble()
+            return self.matrix @ v_free
         m = self.model
         full = np.zeros(3 * m.n_nodes)
         full[m.pattern.free] = v_free

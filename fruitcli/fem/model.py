@@ -183,8 +183,39 @@ class Model:
 
     def rotations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Element rotations (m, 3, 3) and volume ratios det F (m,) at x."""
+        _, rot, det = self.kinematics(x)
+        return rot, det
+
+    def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x."""
         f = corotation.deformation_gradients(x, self.tets, self.dm_inv)
-        return corotation.polar_rotations(f), np.linalg.det(f)
+        return f, corotation.polar_rotations(f), np.linalg.det(f)
+
+    @property
+    def lame_kpa(self) -> tuple[float, float]:
+        return tet4.lame_parameters(self.young_modulus_kpa, self.poisson_ratio)
+
+    @property
+    def grads(self) -> np.ndarray:
+        """(m, 4, 3) rest shape-function gradients (1/mm)."""
+        g = self.__dict__.get("_grads")
+        if g is None:
+            g = np.empty((len(self.tets), 4, 3))
+            g[:, 1:] = self.dm_inv
+            g[:, 0] = -self.dm_inv.sum(axis=1)
+            self.__dict__["_grads"] = g
+        return g
+
+    def tangent_blocks(self, rot: np.ndarray, f: np.ndarray | None,
+                       project: bool = True) -> np.ndarray:
+        """(m, 12, 12) element tangents: the consistent corotational tangent (projected
+        to positive semi-definite per element) at F = f, or SOFA's warped R K0 R^T when
+        f is None."""
+        if f is None:
+            return corotation.warped_stiffness(self.k0, rot)
+        lam, mu = self.lame_kpa
+        return corotation.exact_stiffness(self.grads, self.volumes_mm3, lam, mu, rot, f,
+                                          project)
 
     def chamber_volumes(self, x: np.ndarray) -> np.ndarray:
         """(K,) cavity volumes (mm^3) at x."""
@@ -206,6 +237,24 @@ class Model:
             target = jig.targets(self.rest, load.jig)
             np.add.at(f, jig.nodes, jig.stiffness_mn_per_mm * (target - x[jig.nodes]))
         return f
+
+    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray):
+        """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k d^2V_k/dx^2
+        (mN/mm), or None without chamber pressure."""
+        if not len(self.chamber_tris) or not np.any(pressure_kpa):
+            return None
+        import scipy.sparse as sp
+
+        parts = [pressure.volume_hessian_coo(x, t) for t in self.chamber_tris]
+        rows = np.concatenate([q[0] for q in parts])
+        cols = np.concatenate([q[1] for q in parts])
+        vals = np.concatenate([-pk * q[2] for pk, q in zip(pressure_kpa, parts, strict=True)])
+        new = np.full(3 * self.n_nodes, -1, np.int64)
+        new[self.pattern.free] = np.arange(len(self.pattern.free))
+        r, c = new[rows], new[cols]
+        keep = (r >= 0) & (c >= 0)
+        n = len(self.pattern.free)
+        return sp.csr_matrix((vals[keep], (r[keep], c[keep])), shape=(n, n))
 
     def external_potential(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load) -> float:
         """Potential of the external loads at x (mN mm): springs minus gravity work minus

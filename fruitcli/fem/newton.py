@@ -56,9 +56,9 @@ class _Step:
         self.v_ref = np.maximum(model.chamber_rest_volume_mm3, 1.0)
 
     def evaluate(self, x, p):
-        """(rot, det_f, h, r, g, merit, energy) at x with chamber pressures p."""
+        """(rot, det_f, h, r, g, merit, energy, f) at x with chamber pressures p."""
         m = self.m
-        rot, det_f = m.rotations(x)
+        f, rot, det_f = m.kinematics(x)
         h = m.chamber_gradients(x) if m.chamber_tris else None
         f_int, energy = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot)
         r = m.external_forces(x, p, self.load, h) - f_int
@@ -71,11 +71,16 @@ class _Step:
         merit = np.linalg.norm(r) / scale
         if len(g):
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
-        return rot, det_f, h, r, g, merit, energy
+        return rot, det_f, h, r, g, merit, energy, f
 
-    def direction(self, rot, h, r, g):
+    def direction(self, x, p, rot, h, r, g, f, level):
+        """Newton direction with the tangent of `level` (see TANGENTS)."""
         m = self.m
-        self.solver.update(rot)
+        if TANGENTS[level] == "warped":
+            self.solver.update(rot)
+        else:
+            exact = TANGENTS[level] == "exact"
+            self.solver.update(rot, f, m.load_stiffness(x, p) if exact else None, not exact)
         if not len(self.vc):
             return self.solver.solve(r), np.zeros(0)
         hv = h[self.vc].reshape(len(self.vc), -1)[:, m.pattern.free]  # (kv, n_free)
@@ -86,16 +91,31 @@ class _Step:
         return kr + kh @ dp, dp
 
 
+TANGENTS = ("exact", "projected", "warped")
+"""Tangents tried in turn when a Newton step fails: the consistent one (rotation term and
+follower-pressure stiffness; quadratic convergence near equilibrium), then without the
+follower-pressure stiffness and with each element's rotation term clamped to positive
+semi-definite (Teran 2005; positive definite, so a descent direction), then SOFA's
+warped R K0 R^T (robust far from equilibrium, linear convergence). The consistent one
+is skipped while an element is inverted or flat."""
+
+
 def _newton(step: _Step, x, p, options: SolverOptions):
     """Returns (converged, x, p, iterations, merit, det_f)."""
     m = step.m
-    rot, det_f, h, r, g, merit, energy = step.evaluate(x, p)
+    rot, det_f, h, r, g, merit, energy, f = step.evaluate(x, p)
+    level = 0  # index into TANGENTS; raised for one step when a step fails
     for it in range(options.max_iterations + 1):
         if merit <= options.tolerance:
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
-        dx_free, dp = step.direction(rot, h, r, g)
+        if level == 0 and det_f.min() <= MIN_DET_F:
+            level = 2
+        dx_free, dp = step.direction(x, p, rot, h, r, g, f, level)
+        if not len(step.vc) and level < 2 and not float(r @ dx_free) > 0.0:
+            level += 1  # not a descent direction: indefinite tangent
+            continue
         dx = np.zeros(3 * m.n_nodes)
         dx[m.pattern.free] = dx_free
         dx = dx.reshape(-1, 3)
@@ -114,10 +134,16 @@ def _newton(step: _Step, x, p, options: SolverOptions):
                 break
             alpha *= 0.5
         if not accepted:
+            if level < 2:
+                level += 1
+                continue
             return False, x, p, it + 1, merit, trial[1]
+        # a damped step says the tangent models the energy poorly here: take the next,
+        # safer tangent until a full step is accepted again
+        level = 0 if alpha == 1.0 else min(level + 1, 2)
         x, p = xt, pt
         step.solver.progress(trial[5] / merit if merit > 0 else 0.0)
-        rot, det_f, h, r, g, merit, energy = trial
+        rot, det_f, h, r, g, merit, energy, f = trial
     return False, x, p, options.max_iterations, merit, det_f
 
 

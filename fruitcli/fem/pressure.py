@@ -31,3 +31,26 @@ def orient_outward(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """Return `tris` flipped if needed so that the enclosed volume is positive."""
     tris = np.asarray(tris)
     return tris[:, [0, 2, 1]] if cavity_volume(x, tris) < 0.0 else tris
+
+
+def volume_hessian_coo(x: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(rows, cols, values) of the volume Hessian d^2V/dx^2 (mm) in global dofs
+    3 * node + component, duplicates to be summed. For V_t = x0.(x1 x x2)/6 the blocks
+    are d^2V/dx_a dx_b = -[x_c]x / 6 for (a, b, c) cyclic, their transposes for (b, a),
+    and zero on the diagonal; the pressure's load stiffness is -p times this."""
+    p = x[tris]  # (t, 3, 3)
+    t = len(tris)
+    cross = np.zeros((t, 3, 3, 3))  # [x_c]x per vertex c
+    cross[:, :, 0, 1], cross[:, :, 0, 2] = -p[:, :, 2], p[:, :, 1]
+    cross[:, :, 1, 0], cross[:, :, 1, 2] = p[:, :, 2], -p[:, :, 0]
+    cross[:, :, 2, 0], cross[:, :, 2, 1] = -p[:, :, 1], p[:, :, 0]
+    rows, cols, vals = [], [], []
+    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        blk = -cross[:, c] / 6.0  # (t, 3, 3) d^2V / dx_a dx_b
+        for (i, j, v) in ((a, b, blk), (b, a, np.transpose(blk, (0, 2, 1)))):
+            r = 3 * tris[:, i, None, None] + np.arange(3)[None, :, None]
+            cc = 3 * tris[:, j, None, None] + np.arange(3)[None, None, :]
+            rows.append(np.broadcast_to(r, v.shape).ravel())
+            cols.append(np.broadcast_to(cc, v.shape).ravel())
+            vals.append(v.ravel())
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
