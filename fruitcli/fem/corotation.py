@@ -25,20 +25,94 @@ quadratically; 6-9 suffice for stretches within a factor 10)."""
 POLAR_TOLERANCE = 1e-13
 """Stop the polar iteration when no entry of R changes by more than this."""
 
+POLAR_WARM_ITERATIONS = 4
+"""Newton corrections of a warm-started rotation before the element falls back to the
+cold polar iteration."""
 
-def polar_rotations(f: np.ndarray) -> np.ndarray:
+POLAR_WARM_STOP = 1e-7
+"""A warm-started element is done once its last rotation correction (radians) is below
+this: the correction converges quadratically, so R is then exact to about 1e-14."""
+
+
+def det3(a: np.ndarray) -> np.ndarray:
+    """(m,) determinants of (m, 3, 3) matrices (closed form, faster than LAPACK here)."""
+    return (a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
+            - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
+            + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0]))
+
+
+def adjugate3(a: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) adjugates (transposed cofactors): a @ adj(a) = det(a) I."""
+    cof = np.empty_like(a)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            cof[:, j, i] = a[:, i1, j1] * a[:, i2, j2] - a[:, i1, j2] * a[:, i2, j1]
+    return cof
+
+
+def _cross_matrix(w: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) [w]x with [w]x v = w x v."""
+    z = np.zeros(len(w))
+    return np.stack([np.stack([z, -w[:, 2], w[:, 1]], 1),
+                     np.stack([w[:, 2], z, -w[:, 0]], 1),
+                     np.stack([-w[:, 1], w[:, 0], z], 1)], 1)
+
+
+def polar_rotations(f: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
     """(m, 3, 3) rotations R of F = R S. Scaled Newton iteration R <- (g R + R^-T / g)/2
     (Higham), all tets at once, with R^-T from cross products; where det F <= 0 the SVD
     is used and the column of the smallest singular value flipped so that R stays a
-    proper rotation (Irving 2004)."""
-    det = np.linalg.det(f)
+    proper rotation (Irving 2004).
+
+    With `guess` (rotations of a nearby configuration), R is corrected instead by
+    Newton on skew(R^T F) = 0: (tr S I - S) w = vee(A - A^T), A = R^T F, S = sym(A),
+    R <- R cay(w) (Cayley), at most POLAR_WARM_ITERATIONS times; elements that do not
+    converge, or whose tr S I - S is not positive definite, take the cold path. The
+    warm path works on (3, 3, m) arrays, where numpy's batched 3x3 products are fast."""
+    if guess is None or len(guess) != len(f):
+        return _polar_cold(f)
+    fc = np.ascontiguousarray(np.transpose(f, (1, 2, 0)))  # (3, 3, m): fast batched 3x3
+    r = np.ascontiguousarray(np.transpose(guess, (1, 2, 0)))
+    eye = np.eye(3)[:, :, None]
+    for _ in range(POLAR_WARM_ITERATIONS):
+        a = np.einsum("jim,jkm->ikm", r, fc)  # R^T F
+        tr = a[0, 0] + a[1, 1] + a[2, 2]
+        q = tr * eye - 0.5 * (a + np.transpose(a, (1, 0, 2)))
+        rhs = np.stack([a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]])
+        adj = np.empty_like(q)
+        for i in range(3):
+            i1, i2 = (i + 1) % 3, (i + 2) % 3
+            for j in range(3):
+                j1, j2 = (j + 1) % 3, (j + 2) % 3
+                adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
+        det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
+        ok = (det_q > 1e-9 * np.abs(tr) ** 3) & (q[0, 0] > 0) & (tr > 0)
+        w = np.einsum("ijm,jm->im", adj, rhs) * np.where(ok, 1.0 / np.where(ok, det_q, 1.0), 0.0)
+        u = 0.5 * w
+        z = np.zeros_like(u[0])
+        ux = np.array([[z, -u[2], u[1]], [u[2], z, -u[0]], [-u[1], u[0], z]])
+        cay = eye + 2.0 / (1.0 + (u * u).sum(axis=0)) * (ux + np.einsum("ijm,jkm->ikm", ux, ux))
+        r = np.einsum("ijm,jkm->ikm", r, cay)
+        todo = np.flatnonzero(~ok | (np.abs(w).max(axis=0) > POLAR_WARM_STOP))
+        if not len(todo):
+            break
+    out = np.ascontiguousarray(np.transpose(r, (2, 0, 1)))
+    if len(todo):
+        out[todo] = _polar_cold(f[todo])
+    return out
+
+
+def _polar_cold(f: np.ndarray) -> np.ndarray:
+    det = det3(f)
     bad = det <= 0.0
     r = f.copy()
     if bad.any():
         r[bad] = np.eye(3)
     for _ in range(POLAR_ITERATIONS):
         a, b, c = r[:, :, 0], r[:, :, 1], r[:, :, 2]
-        cof = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=2)
+        cof = np.stack([_cross(b, c), _cross(c, a), _cross(a, b)], axis=2)
         d = np.einsum("mi,mi->m", a, cof[:, :, 0])
         g = np.abs(d) ** (-1.0 / 3.0)
         new = 0.5 * (g[:, None, None] * r + cof / (g * d)[:, None, None])
@@ -49,6 +123,13 @@ def polar_rotations(f: np.ndarray) -> np.ndarray:
     if bad.any():
         r[bad] = svd_rotations(f[bad])
     return r
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (m, 3) arrays (np.cross is slow on many short rows)."""
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
 
 def svd_rotations(f: np.ndarray) -> np.ndarray:
@@ -67,15 +148,19 @@ def internal_forces(x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.nd
 
 
 def forces_and_energy(x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray,
-                      rot: np.ndarray) -> tuple[np.ndarray, float]:
+                      rot: np.ndarray, scatter=None) -> tuple[np.ndarray, float]:
     """Elastic forces (n, 3) mN and strain energy (mN mm = uJ) sum_e u.K0 u / 2 with
     u = R^T x_e - X_e. For isotropic Hooke and the polar R the forces are the exact
-    gradient of this energy (the dR/dx term vanishes), so it serves the line search."""
+    gradient of this energy (the dR/dx term vanishes), so it serves the line search.
+    `scatter` (optional, `scatter_matrix`) speeds up the sum into nodes."""
     m = len(tets)
     local = x[tets] @ rot - rest[tets]  # rows: (R^T x_a - X_a)^T, (m, 4, 3)
     g = (k0 @ local.reshape(m, 12, 1)).reshape(m, 4, 3)
     fe = g @ np.transpose(rot, (0, 2, 1))
-    return scatter_nodes(tets, fe, len(x)), 0.5 * float(np.einsum("mai,mai->", local, g))
+    energy = 0.5 * float(np.einsum("mai,mai->", local, g))
+    if scatter is not None:  # `scatter_matrix(tets, n)`: one sparse product
+        return scatter @ fe.reshape(4 * m, 3), energy
+    return scatter_nodes(tets, fe, len(x)), energy
 
 
 def warped_stiffness(k0: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -116,20 +201,66 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
     R^T dF (rotations) and is what the warped tangent misses. It is negative under
     compression; `project` clamps its eigenvalues at zero (Teran 2005), which makes each
     element's tangent positive semi-definite. The clamp is exact projection, because
-    the two parts act on orthogonal subspaces (symmetric and skew)."""
+    the two parts act on orthogonal subspaces (symmetric and skew). Without `project`
+    the inverse is taken in closed form (no eigendecomposition) wherever tr S I - S is
+    well conditioned."""
     s = np.transpose(rot, (0, 2, 1)) @ f
     s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
-    sig, u = np.linalg.eigh(s)
-    tr = sig.sum(axis=1, keepdims=True)
-    q = tr - sig  # eigenvalues of tr S I - S
+    tr = np.trace(s, axis1=1, axis2=2)
     c = lam * (tr - 3.0) - 2.0 * mu
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = 2.0 * mu + 2.0 * c / q
-    t = np.where(q > 1e-12, t, 0.0)
-    if project:
-        t = np.maximum(t, 0.0)
-    ru = rot @ u
-    return (ru * t[:, None, :]) @ np.transpose(ru, (0, 2, 1))
+    t = np.zeros_like(s)
+    easy = np.zeros(len(s), bool)
+    if not project:
+        q = -s
+        q[:, [0, 1, 2], [0, 1, 2]] += tr[:, None]
+        det_q = det3(q)
+        easy = det_q > 1e-6 * np.abs(tr) ** 3
+        t[easy] = (2.0 * c[easy] / det_q[easy])[:, None, None] * adjugate3(q[easy])
+        t[easy] += 2.0 * mu * np.eye(3)
+        t[easy] = rot[easy] @ t[easy] @ np.transpose(rot[easy], (0, 2, 1))
+    hard = ~easy
+    if hard.any():
+        sig, u = np.linalg.eigh(s[hard])
+        trh = sig.sum(axis=1, keepdims=True)
+        q = trh - sig  # eigenvalues of tr S I - S
+        with np.errstate(divide="ignore", invalid="ignore"):
+            th = 2.0 * mu + 2.0 * c[hard, None] / q
+        th = np.where(q > 1e-12, th, 0.0)
+        if project:
+            th = np.maximum(th, 0.0)
+        ru = rot[hard] @ u
+        t[hard] = (ru * th[:, None, :]) @ np.transpose(ru, (0, 2, 1))
+    return t
+
+
+def apply_tangent(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: float,
+                  rot: np.ndarray, t_world: np.ndarray | None, tets: np.ndarray,
+                  v: np.ndarray, scatter) -> np.ndarray:
+    """Matrix-free product of the consistent tangent (see `exact_stiffness`) with v
+    (n, 3); t_world from `skew_stiffness` (None: the warped tangent). Per element, with
+    h_a = R g_a and G = sum_b v_b h_b^T: (K v)_a = M h_a, M = V (lam tr G I + mu (G +
+    G^T)) + [V T' w / 2]x, w = sum_b h_b x v_b. Returns (n, 3)."""
+    m = len(tets)
+    h = grads @ np.transpose(rot, (0, 2, 1))
+    g = np.einsum("mbi,mbj->mij", v[tets], h)
+    mm = mu * (g + np.transpose(g, (0, 2, 1)))
+    mm[:, [0, 1, 2], [0, 1, 2]] += (lam * np.trace(g, axis1=1, axis2=2))[:, None]
+    if t_world is not None:
+        w = np.stack([g[:, 2, 1] - g[:, 1, 2], g[:, 0, 2] - g[:, 2, 0],
+                      g[:, 1, 0] - g[:, 0, 1]], axis=1)
+        mm += 0.5 * _cross_matrix(np.einsum("mij,mj->mi", t_world, w))
+    mm *= volumes[:, None, None]
+    fe = h @ np.transpose(mm, (0, 2, 1))  # rows (M h_a)^T
+    return scatter @ fe.reshape(4 * m, 3)
+
+
+def scatter_matrix(tets: np.ndarray, n_nodes: int):
+    """Sparse (n_nodes, 4 m) sum of per-element nodal rows (m, 4, 3) -> (n_nodes, 3)."""
+    import scipy.sparse as sp
+
+    m = len(tets)
+    return sp.csr_matrix((np.ones(4 * m), (tets.ravel(), np.arange(4 * m))),
+                         shape=(n_nodes, 4 * m))
 
 
 def exact_stiffness(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: float,

@@ -189,7 +189,17 @@ class Model:
     def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x."""
         f = corotation.deformation_gradients(x, self.tets, self.dm_inv)
-        return f, corotation.polar_rotations(f), np.linalg.det(f)
+        rot = corotation.polar_rotations(f, self.__dict__.get("_rot_guess"))
+        self.__dict__["_rot_guess"] = rot  # warm start of the next polar decomposition
+        return f, rot, corotation.det3(f)
+
+    @property
+    def scatter(self):
+        """Sparse (n, 4 m) operator summing per-element nodal rows into nodes."""
+        s = self.__dict__.get("_scatter")
+        if s is None:
+            s = self.__dict__["_scatter"] = corotation.scatter_matrix(self.tets, self.n_nodes)
+        return s
 
     @property
     def lame_kpa(self) -> tuple[float, float]:
@@ -256,6 +266,25 @@ class Model:
         n = len(self.pattern.free)
         return sp.csr_matrix((vals[keep], (r[keep], c[keep])), shape=(n, n))
 
+    def apply_load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray,
+                             v: np.ndarray) -> np.ndarray:
+        """Matrix-free -sum_k p_k (d^2V_k/dx^2) v for v (n, 3) (mN): with the vertex
+        gradient (x_b x x_c) / 6 of each triangle (a, b, c cyclic), its derivative along v
+        is (v_b x x_c + x_b x v_c) / 6."""
+        out = np.zeros_like(x)
+        for pk, tris in zip(pressure_kpa, self.chamber_tris, strict=True):
+            if not pk:
+                continue
+            px, pv = x[tris], v[tris]
+            d = np.empty_like(px)
+            for a in range(3):
+                b, c = (a + 1) % 3, (a + 2) % 3
+                d[:, a] = np.cross(pv[:, b], px[:, c]) + np.cross(px[:, b], pv[:, c])
+            for i in range(3):
+                out[:, i] -= pk / 6.0 * np.bincount(tris.ravel(), d[:, :, i].ravel(),
+                                                    minlength=len(x))
+        return out
+
     def external_potential(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load) -> float:
         """Potential of the external loads at x (mN mm): springs minus gravity work minus
         p V per chamber (a constant pressure is conservative with H = dV/dx)."""
@@ -269,7 +298,8 @@ class Model:
 
     def internal_forces(self, x: np.ndarray, rot: np.ndarray) -> np.ndarray:
         """(n, 3) elastic forces (mN) at x with element rotations rot."""
-        return corotation.internal_forces(x, self.rest, self.tets, self.k0, rot)
+        return corotation.forces_and_energy(x, self.rest, self.tets, self.k0, rot,
+                                            self.scatter)[0]
 
     def worst_element(self, det_f: np.ndarray) -> str:
         """'tet i at (x, y, z) mm (det F = ...)' for the most compressed element."""
