@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.geometry.columns import vertical_hits
-from fruitcli.geometry.distance import SurfaceDistance
+from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
 from fruitcli.geometry.pipeline import make_tracks, read_taxels
 
 ON_SURFACE_MM = 0.01
@@ -200,3 +200,61 @@ def test_make_artist_cli(tmp_path):
     res = _cli(["make-artist", "--out", str(tmp_path / "a.xyz")])
     assert res.exit_code == 1 and "expected .stl, .obj or .ply" in res.output
     assert "(mm)" in _cli(["make-tracks", "--help"]).output
+
+
+def _rounded_box(path):
+    import manifold3d
+
+    m = manifold3d.Manifold.cube((80.0, 60.0, 30.0), True).minkowski_sum(
+        manifold3d.Manifold.sphere(6.0, 24)).to_mesh()
+    trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], m.tri_verts).export(path)
+
+
+def _disc(path):
+    trimesh.creation.cylinder(radius=50.0, height=10.0, sections=128).export(path)
+
+
+def _lying_cylinder(path):
+    cyl = trimesh.creation.cylinder(radius=20.0, height=100.0, sections=96)
+    cyl.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+    cyl.export(path)
+
+
+@pytest.mark.parametrize("make,extents", [
+    (_rounded_box, None),        # sliver faces broke curves into overlapping pieces: tunnels
+    (_disc, None),               # tubes along the sharp rim cut off slivers: 9 bodies
+    (_lying_cylinder, [96.0, 36.0, 36.0]),   # long side triangles: the offset came out wrong
+])
+def test_other_shapes_give_one_piece_without_tunnels(tmp_path, make, extents):
+    art = tmp_path / "shape.stl"
+    make(art)
+    report = make_tracks(art, tmp_path / "out", faces=2000)
+    assert report["genus"]["tunnels"] == 0
+    assert report["genus"]["tracked_top"] == report["genus"]["reduced_top"] == 0
+    piece = load_stl(tmp_path / "out" / "tracked_top.stl")
+    assert piece.is_watertight and piece.is_volume
+    assert len(piece.split(only_watertight=False)) == 1
+    reduced = load_stl(tmp_path / "out" / "reduced.stl")
+    tx = read_taxels(tmp_path / "out" / "taxels.csv")
+    assert len(tx["id"]) >= 10
+    # brute force over all triangles: the reduced cylinder has long strips along its axis
+    t = reduced.triangles
+    d = [np.linalg.norm(closest_on_triangles(np.tile(p, (len(t), 1)), t[:, 0], t[:, 1], t[:, 2])
+                        - p, axis=1).min() for p in tx["xyz"]]
+    assert max(d) <= ON_SURFACE_MM
+    if extents is not None:
+        assert np.allclose(reduced.extents, extents, atol=0.3)
+        assert report["offset_error"]["reduced_to_ideal_mean_mm"] < 0.2   # was 1.4
+
+
+def test_cli_repairs_inconsistent_winding(tmp_path):
+    s = trimesh.creation.icosphere(3, 30.0)
+    f = s.faces.copy()
+    f[::2] = f[::2, ::-1]
+    path = tmp_path / "flip.obj"
+    trimesh.Trimesh(s.vertices, f, process=False).export(path)
+    out = tmp_path / "out"
+    res = _cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500"])
+    assert res.exit_code == 0, res.output
+    rep = json.loads((out / "report.json").read_text())
+    assert any("winding" in r for r in rep["repairs"])

@@ -89,3 +89,50 @@ def test_closed_loop_becomes_two_overlapping_tubes():
     loop[-1] = loop[0]
     halves = track_polylines(loop, closed=True)
     assert len(halves) == 2 and len(halves[0]) + len(halves[1]) > len(loop)
+
+
+def test_masked_runs_bridges_short_gaps_and_drops_short_parts():
+    from fruitcli.geometry.sections import Piece, masked_runs
+
+    x = np.arange(21, dtype=float)                      # 20 segments of 1 mm along x
+    piece = Piece(np.c_[x, 0 * x, 0 * x], np.arange(20), False)
+    keep = np.ones(20, dtype=bool)
+    keep[8] = False                                     # a 1 mm gap: bridged
+    keep[:2] = False                                    # a leading gap: dropped
+    keep[17] = False                                    # leaves a 2 mm tail: too short
+    keep[16] = False
+    out = masked_runs(piece, keep, max_gap_mm=1.5, min_length_mm=2.5)
+    assert len(out) == 1
+    assert out[0].points[0, 0] == 2.0 and out[0].points[-1, 0] == 16.0
+    # a closed loop with one short gap stays one closed piece
+    t = np.linspace(0, 2 * np.pi, 41)
+    loop = Piece(np.c_[np.cos(t), np.sin(t), 0 * t] * 10, np.arange(40), True)
+    keep = np.ones(40, dtype=bool)
+    keep[5] = False
+    assert [p.closed for p in masked_runs(loop, keep, 2.0, 1.0)] == [True]
+    # a long gap opens it into one arc that runs across the loop's seam
+    keep[3:20] = False
+    arcs = masked_runs(loop, keep, 2.0, 1.0)
+    assert len(arcs) == 1 and not arcs[0].closed and len(arcs[0].points) == 24
+
+
+def test_orient_faces_without_networkx():
+    from fruitcli.geometry.load import orient_faces
+
+    s = trimesh.creation.icosphere(3, 10.0)
+    f = s.faces.copy()
+    f[::3] = f[::3, ::-1]
+    out = orient_faces(f)
+    assert trimesh.Trimesh(s.vertices, out, process=False).is_winding_consistent
+    assert (out[0] == f[0]).all()                        # the first face keeps its winding
+
+
+def test_densify_splits_long_triangles_only():
+    from fruitcli.geometry.reduce import densify
+
+    box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    v, f, split = densify(box.vertices, box.faces, 5.0)
+    m = trimesh.Trimesh(v, f)
+    assert split and m.is_watertight and m.volume == pytest.approx(24000.0)
+    assert np.linalg.norm(v[f] - v[f[:, [1, 2, 0]]], axis=2).max() <= 5.0
+    assert densify(v, f, 5.0)[2] is False

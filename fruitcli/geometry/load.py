@@ -64,13 +64,14 @@ def load_mesh(path, unit: str | None = None):
     if unit != "mm":
         repairs.insert(0, f"scaled from {unit} to mm (x{UNIT_TO_MM[unit]:g})")
     _check_closed(path, verts, faces)
-    mesh = trimesh.Trimesh(verts, faces, process=False)
-    if not mesh.is_winding_consistent:
-        trimesh.repair.fix_winding(mesh)
-        repairs.append("fixed inconsistent face winding")
-        if not mesh.is_winding_consistent:
-            raise GeometryError(f"{path}: face winding cannot be made consistent "
-                                "(the surface is not orientable)")
+    oriented = orient_faces(faces)
+    if oriented is None:
+        raise GeometryError(f"{path}: face winding cannot be made consistent "
+                            "(the surface is not orientable)")
+    flipped = int((oriented[:, 0] != faces[:, 0]).sum())
+    if flipped:
+        repairs.append(f"fixed inconsistent face winding ({flipped} faces flipped)")
+    mesh = trimesh.Trimesh(verts, oriented, process=False)
     if mesh.volume < 0:
         mesh.invert()
         repairs.append("inverted inside-out orientation")
@@ -153,6 +154,53 @@ def _fill_small_holes(verts: np.ndarray, faces: np.ndarray):
             new_faces.append((b, a, c))
     return np.concatenate([faces, np.asarray(new_faces, dtype=np.int64)]), \
         (len(centres), np.asarray(centres))
+
+
+def orient_faces(faces: np.ndarray) -> np.ndarray | None:
+    """Faces of a closed edge-manifold mesh with winding made consistent (each
+    component keeps its first face's winding), or None if the surface is not orientable.
+
+    Without networkx (trimesh.repair.fix_winding needs it): faces are visited breadth
+    first through shared edges, each flipped when it runs an edge the same way as the
+    face it was reached from.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order
+
+    m = len(faces)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(m), 3)
+    n = int(faces.max()) + 1
+    key = e.min(axis=1) * n + e.max(axis=1)
+    order = np.argsort(key, kind="stable")
+    a, b = order[0::2], order[1::2]            # closed and manifold: each edge twice
+    same = e[a, 0] == e[b, 0]                  # both faces run the edge the same way
+    fa, fb = owner[a], owner[b]
+    graph = coo_matrix((np.ones(len(fa)), (fa, fb)), shape=(m, m)).tocsr()
+    # each face's three neighbours and whether it runs the shared edge the same way
+    nbr = np.concatenate([fb, fa])
+    rel = np.concatenate([same, same])
+    src = np.concatenate([fa, fb])
+    o = np.argsort(src, kind="stable")
+    nbr, rel = nbr[o].reshape(m, 3), rel[o].reshape(m, 3)
+    flip = np.zeros(m, dtype=bool)
+    seen = np.zeros(m, dtype=bool)
+    for root in range(m):
+        if seen[root]:
+            continue
+        visit, pred = breadth_first_order(graph, root, directed=False)
+        seen[visit] = True
+        f = visit[1:]
+        r = rel[f, np.argmax(nbr[f] == pred[f][:, None], axis=1)].tolist()
+        fl = flip.tolist()
+        for fi, pi, ri in zip(f.tolist(), pred[f].tolist(), r, strict=True):
+            fl[fi] = fl[pi] ^ ri
+        flip = np.asarray(fl, dtype=bool)
+    if (flip[fa] ^ flip[fb] ^ same).any():
+        return None
+    out = faces.copy()
+    out[flip] = out[flip][:, ::-1]
+    return out
 
 
 def component_count(faces: np.ndarray, n_vertices: int) -> np.ndarray:

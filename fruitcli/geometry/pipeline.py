@@ -16,10 +16,17 @@ from fruitcli.errors import GeometryError
 UP_NZ_MIN = 0.05
 # pieces of section curves shorter than this many track radii are not carved
 MIN_PIECE_RADII = 4.0
+# gaps in a track curve's upward-facing part shorter than this many track radii are bridged
+MAX_GAP_RADII = 6.0
+# artist edges longer than this many distance-grid spacings are split before the offset
+MAX_EDGE_PER_GRID = 3.0
 # track curves keep this many track radii above the split plane (no tube cuts the cap)
 SPLIT_CLEARANCE_RADII = 2.0
 # the tracked piece may lose at most this fraction of its volume to the tubes
 MAX_TRACK_VOLUME_FRACTION = 0.25
+# bodies cut off by the tubes (along a sharp edge) are dropped below this fraction of the
+# piece's volume, in total; larger ones make the carving fail
+MAX_SLIVER_VOLUME_FRACTION = 1e-3
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
 
 
@@ -46,6 +53,50 @@ def _planes(lo: float, hi: float, spacing: float, origin: float | None) -> dict[
         origin = 0.5 * (lo + hi) - 0.5 * n * spacing
     k0, k1 = int(np.ceil((lo - origin) / spacing)), int(np.floor((hi - origin) / spacing))
     return {k: origin + k * spacing for k in range(k0, k1 + 1)}
+
+
+def _drop_slivers(piece, top_volume: float):
+    """Drop the small bodies that tubes running along a sharp edge cut off the piece.
+
+    Returns (the piece without them, [their volumes in mm^3]).
+    """
+    import manifold3d
+
+    if piece.is_empty() or piece.status() != manifold3d.Error.NoError:
+        return piece, []
+    parts = sorted(piece.decompose(), key=lambda m: -m.volume())
+    small = [float(p.volume()) for p in parts[1:]]
+    if not small or sum(small) >= MAX_SLIVER_VOLUME_FRACTION * top_volume:
+        return piece, []
+    return parts[0], small
+
+
+def _drop_edge_slivers(vertices: np.ndarray, faces: np.ndarray, top_volume: float):
+    """Faces of the largest edge-connected shell, and the volumes (mm^3) of the others.
+
+    manifold3d counts shells touching at a vertex as one body, and welding for a float32
+    STL can remove the zero-volume fin that joined them; an STL reader sees separate bodies.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, edge_id = np.unique(e[:, 0] * len(vertices) + e[:, 1], return_inverse=True)
+    owner = np.tile(np.arange(len(faces)), 3)
+    graph = coo_matrix((np.ones(len(owner)), (owner, edge_id.ravel() + len(faces))),
+                       shape=(len(faces) + edge_id.max() + 1,) * 2)
+    n, labels = connected_components(graph, directed=False)
+    labels = labels[: len(faces)]
+    if len(np.unique(labels)) == 1:
+        return faces, []
+    tri = vertices[faces]
+    six_vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    vol = np.bincount(labels, six_vol, minlength=n) / 6.0
+    big = int(np.argmax(vol))
+    others = [float(v) for k, v in enumerate(vol) if k != big and np.any(labels == k)]
+    if sum(abs(v) for v in others) >= MAX_SLIVER_VOLUME_FRACTION * top_volume:
+        return faces, []
+    return faces[labels == big], others
 
 
 def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
@@ -75,11 +126,14 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     av, af = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     lap("load")
 
-    dist = SurfaceDistance(av, af)
-    red = reduce.reduce_body(av, af, float(cover_mm), int(faces), src, dist)
+    # long triangles are split so that nearest-vertex distances bound the exact ones closely
+    dv, df, split_long = reduce.densify(
+        av, af, MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces)))
+    dist = SurfaceDistance(dv, df)
+    red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist)
     rv, rf = reduce.manifold_arrays(red.body)
     lap("reduce")
-    offset = reduce.offset_error(rv, rf, av, af, float(cover_mm), dist=dist)
+    offset = reduce.offset_error(rv, rf, dv, df, float(cover_mm), dist=dist)
     lap("hausdorff")
 
     zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
@@ -93,31 +147,37 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         raise GeometryError(f"{src}: the part above the split plane z = {split:.2f} mm has "
                             f"{n_top} pieces (expected one casting piece); set --split-z-mm")
     tv, tf = reduce.manifold_arrays(top)
-    tri = tv[tf]
+    # curves and taxels lie on the reduced surface itself (reduced.stl, what the FEM uses):
+    # trim_by_plane may re-triangulate the top, so its faces can differ by a fraction of a mm
+    sv, sf = rv, rf
+    tri = sv[sf]
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     up = (fn[:, 2] > UP_NZ_MIN) \
         & (tri[:, :, 2].min(axis=1) > split + SPLIT_CLEARANCE_RADII * track_radius_mm)
     if not up.any():
         raise GeometryError(f"{src}: no upward-facing surface above z = {split:.2f} mm")
-    upv = tv[np.unique(tf[up])]
+    upv = sv[np.unique(sf[up])]
     ox, oy = (None, None) if origin_mm is None else (float(origin_mm[0]), float(origin_mm[1]))
     x_planes = _planes(upv[:, 0].min(), upv[:, 0].max(), spacing_x_mm, ox)
     y_planes = _planes(upv[:, 1].min(), upv[:, 1].max(), spacing_y_mm, oy)
     min_len = MIN_PIECE_RADII * track_radius_mm
 
+    max_gap = MAX_GAP_RADII * track_radius_mm
+    below = tri[:, :, 2].max(axis=1) < split      # sections stay on the top half
+
     def cut(axis, planes):
         out = {}
         for k, value in planes.items():
-            ps = [p for p in sections.section_pieces(tv, tf, axis, value, up)
-                  if p.length_mm >= min_len]
+            ps = [q for p in sections.section_pieces(sv, sf, axis, value, ~below)
+                  for q in sections.masked_runs(p, up[p.faces], max_gap, min_len)]
             if ps:
                 out[k] = ps
         return out
 
     x_pieces, y_pieces = cut(0, x_planes), cut(1, y_planes)
     lap("sections")
-    tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, tv, tf)
+    tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, sv, sf)
     if len(tx["k"]) == 0:
         raise GeometryError(f"{src}: the grid misses the shape (no crossing of x- and y-curves "
                             "on the top surface); check --origin-mm and the spacings")
@@ -139,6 +199,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                             "try a smaller --track-radius-mm")
     tracked = manifold3d.Manifold.batch_boolean([top, *tube_manifolds],
                                                 manifold3d.OpType.Subtract)
+    tracked, slivers = _drop_slivers(tracked, top.volume())
     lost = 1.0 - tracked.volume() / top.volume()
     n_tracked = len(tracked.decompose()) if not tracked.is_empty() else 0
     if (tracked.status() != manifold3d.Error.NoError or n_tracked != 1
@@ -146,7 +207,20 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         raise GeometryError(f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
                             f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
                             "try a smaller --track-radius-mm")
-    kv, kf = reduce.manifold_arrays(tracked)
+    kv, kf = export.weld_float32(*reduce.manifold_arrays(tracked))
+    kf, more = _drop_edge_slivers(kv, kf, top.volume())
+    slivers += more
+    warnings = []
+    if slivers:
+        warnings.append(f"dropped {len(slivers)} sliver(s) of {sum(slivers):.3g} mm^3 that "
+                        "tracks along a sharp edge cut off the piece")
+    tunnels = int(tracked.genus()) - int(top.genus())
+    if tunnels > 0:
+        warnings.append(f"the tracks tunnel through the piece ({tunnels} new handle(s), genus "
+                        f"{top.genus()} -> {tracked.genus()}); try another --origin-mm or a "
+                        "smaller --track-radius-mm")
+    for w in warnings:
+        say(f"warning: {w}")
     lap("tracks")
 
     order = np.lexsort((jj, ii))
@@ -161,13 +235,16 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                       "tracks": int(sum(len(f) for _, f in tube_meshes))},
         "cover_mm": float(cover_mm), "faces_target": int(faces),
         "level_set_edge_mm": red.edge_mm, "distance_grid_mm": red.grid_mm,
-        "dropped_islands": red.dropped_islands, "offset_error": offset,
+        "dropped_islands": red.dropped_islands, "split_long_triangles": split_long,
+        "offset_error": offset,
         "split_z_mm": split, "split_z_automatic": split_z_mm is None,
         "grid": {"spacing_x_mm": float(spacing_x_mm), "spacing_y_mm": float(spacing_y_mm),
                  "origin_mm": origin_used, "x_planes": len(x_pieces), "y_planes": len(y_pieces),
                  "curves": len(curves)},
         "track_radius_mm": float(track_radius_mm), "taxels": len(rows),
-        "genus": {"reduced_top": int(top.genus()), "tracked_top": int(tracked.genus())},
+        "genus": {"reduced_top": int(top.genus()), "tracked_top": int(tracked.genus()),
+                  "tunnels": max(tunnels, 0)},
+        "dropped_slivers_mm3": slivers, "warnings": warnings,
         "taxel_curve_mismatch_mm": tx["mismatch_mm"],
         "volume_mm3": {"artist": float(mesh.volume), "reduced": float(red.body.volume()),
                        "reduced_top": float(top.volume()), "tracked_top": float(tracked.volume())},

@@ -102,15 +102,40 @@ def edge_for_faces(area_mm2: float, faces: int) -> float:
     return float(np.sqrt(TRIANGLES_PER_AREA * area_mm2 / max(int(faces), 1)))
 
 
+def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    tri = vertices[faces]
+    return float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                      axis=1).sum())
+
+
+def grid_for_faces(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> float:
+    """Spacing (mm) of the signed-distance grid `reduce_body` uses for `target_faces`."""
+    return GRID_PER_EDGE * edge_for_faces(surface_area(vertices, faces),
+                                          OVERSAMPLE * target_faces)
+
+
+def densify(vertices: np.ndarray, faces: np.ndarray, max_edge_mm: float):
+    """Split the faces of a mesh until no edge is longer than `max_edge_mm` (same surface).
+
+    The distance grid bounds distances by the nearest vertex before measuring exactly near
+    the offset level; on long triangles (a CAD box, a cylinder's side) that bound is far off
+    and the offset would come out wrong. Returns (vertices, faces, split: bool).
+    """
+    import trimesh
+
+    edges = np.linalg.norm(vertices[faces] - vertices[faces[:, [1, 2, 0]]], axis=2)
+    if edges.max() <= max_edge_mm:
+        return vertices, faces, False
+    v, f = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge_mm, max_iter=12)
+    return np.asarray(v, dtype=float), np.asarray(f, dtype=np.int64), True
+
+
 def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target_faces: int,
                 source: str = "mesh", dist: SurfaceDistance | None = None) -> Reduced:
     """Offset a closed mesh inward by `cover_mm` with about `target_faces` triangles."""
     import manifold3d
 
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                axis=1).sum()
-    edge = edge_for_faces(area, OVERSAMPLE * target_faces)
+    edge = edge_for_faces(surface_area(vertices, faces), OVERSAMPLE * target_faces)
     h = GRID_PER_EDGE * edge
     pad = 2.0 * h
     axes, sdf = signed_distance_grid(vertices, faces, h, cover_mm, pad, dist)

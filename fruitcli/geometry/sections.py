@@ -102,3 +102,51 @@ def section_pieces(vertices: np.ndarray, faces: np.ndarray, axis: int, value: fl
     """Connected pieces of the section `coordinate[axis] = value` over `face_mask` faces."""
     nodes, pts, fid = plane_segments(vertices, faces, axis, value, face_mask)
     return chain(nodes, pts, fid)
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int, bool]]:
+    """Runs of equal values in a 1D bool array: (start, stop, value), stop exclusive."""
+    cut = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
+    bounds = np.r_[0, cut, len(flags)]
+    return [(int(a), int(b), bool(flags[a])) for a, b in zip(bounds[:-1], bounds[1:],
+                                                                strict=True)]
+
+
+def masked_runs(piece: Piece, keep: np.ndarray, max_gap_mm: float,
+                min_length_mm: float) -> list[Piece]:
+    """The parts of `piece` whose segments are kept (`keep` (k-1,) bool per segment).
+
+    A mask taken face by face is noisy (a sliver face with a tilted normal breaks a curve
+    into two pieces whose ends nearly touch, and the two tubes then leave a bridge over
+    the groove), so gaps shorter than `max_gap_mm` between kept parts are kept too, and
+    kept parts shorter than `min_length_mm` are dropped.
+    """
+    keep = np.asarray(keep, dtype=bool).copy()
+    seg_len = np.linalg.norm(np.diff(piece.points, axis=0), axis=1)
+    if keep.all():
+        return [piece] if seg_len.sum() >= min_length_mm else []
+    shift = 0
+    if not keep.any():
+        return []
+    if piece.closed:                      # start the loop where a dropped part starts
+        shift = int(np.flatnonzero(~keep & np.roll(keep, 1))[0])
+        keep = np.roll(keep, -shift)
+        seg_len = np.roll(seg_len, -shift)
+    runs = _runs(keep)
+    for n, (a, b, kept) in enumerate(runs):
+        inner = piece.closed or 0 < n < len(runs) - 1
+        if not kept and inner and seg_len[a:b].sum() < max_gap_mm:
+            keep[a:b] = True
+    if piece.closed and keep.all():
+        return [piece] if seg_len.sum() >= min_length_mm else []
+    pts = piece.points[:-1] if piece.closed else piece.points
+    fcs = piece.faces
+    if piece.closed:                      # unroll: segment s runs from point s to s + 1
+        pts = np.roll(pts, -shift, axis=0)
+        pts = np.concatenate([pts, pts[:1]])
+        fcs = np.roll(fcs, -shift)
+    out = []
+    for a, b, kept in _runs(keep):
+        if kept and seg_len[a:b].sum() >= min_length_mm:
+            out.append(Piece(pts[a:b + 1], fcs[a:b], False))
+    return out
