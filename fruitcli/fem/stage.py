@@ -61,8 +61,10 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     return outer, chambers
 
 
-def run_tetra(scene, solid_path, out_dir, progress=None) -> dict:
-    """Tetrahedralize the scene's body with its chambers; write mesh files to out_dir."""
+def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dict:
+    """Tetrahedralize the scene's body with its chambers; write mesh files to out_dir.
+    `taxels_xyz` (t, 3) mm, when given, tags the taxels' region of the surface and
+    refines the mesh there to [mesh].min_size_mm (see `fruitcli.fem.tetra`)."""
     progress = progress or _noop
     outer, chambers = body_shells(scene, Path(solid_path) if solid_path else None)
     shells.check_layout(outer, chambers)
@@ -74,8 +76,8 @@ def run_tetra(scene, solid_path, out_dir, progress=None) -> dict:
     progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), "
              f"{len(chambers)} chamber(s)")
     raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg["time_limit_s"],
-                         label=outer["name"], work_dir=None)
-    mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size)
+                         label=outer["name"], work_dir=None, taxels_xyz=taxels_xyz)
+    mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size, taxels_xyz)
     report = tetra.quality_report(mesh, mesh_cfg["min_quality"])
     for k, ch in enumerate(chambers):
         if not np.any(mesh["chamber_tri_owner"] == k):

@@ -1,9 +1,25 @@
 """Tetrahedralize a body and its chambers with gmsh in a killable child process.
 
-The boundary is handed to gmsh as discrete surfaces (the solid's own triangles, or a
-box/ellipsoid triangulated by OpenCASCADE at the target size), one surface loop per
-shell and one volume with the chambers as holes, then meshed and Netgen-optimized.
-Sizes in mm; the child is killed after `time_limit_s` seconds.
+The boundary is handed to gmsh by hand as discrete surfaces. A triangle surface (the
+solid, or a chamber file) is cut into two disk patches (`fruitcli.fem.patches`: the
+flat base and the rest when the solid stands on one) that gmsh reparametrizes and
+remeshes at the target size, so `[mesh].size_mm` sets the element size whatever the
+input triangles are. Analytic chambers (ellipsoids) and the flat pad (box) are
+triangulated by OpenCASCADE at their size and kept. One volume with the chambers as
+holes is then meshed (Delaunay) and Netgen-optimized. Sizes in mm:
+
+- the outer surface and the volume at `size_mm`, refined by curvature (8 elements per
+  2 pi radius) down to `CURVATURE_MIN_FRACTION * size_mm` (or `min_size_mm` if smaller);
+- each chamber wall, and its bounding box padded by that size, at `min_size_mm` but
+  never coarser than `CLEARANCE_FACTOR` times its clearance to the outer surface and
+  the other chambers (a coarse wall would cross them);
+- `min_size_mm` within `TAXEL_RADIUS_MM` of each taxel, growing to `size_mm` over one
+  `size_mm` further out.
+
+Surface tags (`surface_tri_tag` of mesh.npz, outer surface only): 0 other outer
+surface, 1 base (the flat bottom the solid stands on), 2 taxels' region (within
+`TAXEL_RADIUS_MM` of a taxel; the base wins where both apply). The child is killed
+after `time_limit_s` seconds. Same input, same mesh (no randomness in any step).
 """
 
 from __future__ import annotations
@@ -19,26 +35,115 @@ import numpy as np
 
 from fruitcli.errors import MeshError
 from fruitcli.fem.mesh_topology import boundary_faces
+from fruitcli.fem.patches import split_bottom_top
 from fruitcli.fem.quality import min_dihedral_deg
 
 BASE_NORMAL_COS = 0.999
-"""A boundary face whose outward normal has n_z below -this, on the lowest plane, is base."""
+"""A boundary face of an analytic box whose outward normal has n_z below -this, on the
+lowest plane, is base (surface solids get their base from the patch split)."""
+
+CURVATURE_ELEMENTS = 8.0
+"""gmsh's Mesh.MeshSizeFromCurvature: elements per 2 pi radius of curvature."""
+
+CURVATURE_MIN_FRACTION = 0.5
+"""Curvature refines the outer surface down to this fraction of size_mm at most."""
+
+TAXEL_RADIUS_MM = 3.0
+"""Surface triangles within this distance of a taxel are its region (tag 2), meshed at
+min_size_mm."""
+
+CLEARANCE_SAMPLE_MM = 0.5
+"""Spacing of the points sampled on the outer surface to measure chamber clearance."""
+
+CLEARANCE_FACTOR = 2.0
+"""A chamber wall is meshed no coarser than this many times its clearance to the outer
+surface or another chamber (a chord that long sags well under the gap on the flat
+sides of the chambers; at 3x the default fruit's facets crossed at size 8)."""
+
+TAG_OUTER, TAG_BASE, TAG_TAXEL = 0, 1, 2
+
+
+def surface_samples(vertices: np.ndarray, faces: np.ndarray, step: float) -> np.ndarray:
+    """(p, 3) points on every triangle at most about `step` apart (barycentric grids)."""
+    tri = np.asarray(vertices, float)[np.asarray(faces)]
+    edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    k = np.maximum(1, np.ceil(edge / step)).astype(np.int64)
+    out = [tri.reshape(-1, 3)]
+    for kk in np.unique(k[k > 1]):
+        i, j = np.meshgrid(np.arange(kk + 1), np.arange(kk + 1), indexing="ij")
+        keep = i + j <= kk
+        w = np.stack([i[keep], j[keep], kk - i[keep] - j[keep]], 1) / kk
+        out.append(np.einsum("pk,mkd->mpd", w, tri[k == kk]).reshape(-1, 3))
+    return np.concatenate(out)
+
+
+def chamber_sizes(shells: list[dict], min_size_mm: float) -> list[float]:
+    """Wall size per chamber: min_size_mm, or its clearance to the outer surface and to
+    the other chambers when that is smaller (only triangles closer than min_size_mm to
+    the chamber's bounding box are sampled)."""
+    from scipy.spatial import cKDTree
+
+    sizes = []
+    for k, ch in enumerate(shells[1:]):
+        pts = np.asarray(ch["vertices"], float)
+        lo, hi = pts.min(axis=0) - min_size_mm, pts.max(axis=0) + min_size_mm
+        gap = min_size_mm
+        for j, sh in enumerate(shells):
+            if j == k + 1:
+                continue
+            tri = np.asarray(sh["vertices"], float)[np.asarray(sh["faces"])]
+            near = np.all((tri.max(axis=1) >= lo) & (tri.min(axis=1) <= hi), axis=1)
+            if near.any():
+                v, f = tri[near].reshape(-1, 3), np.arange(3 * near.sum()).reshape(-1, 3)
+                samples = surface_samples(v, f, CLEARANCE_SAMPLE_MM)
+                gap = min(gap, float(cKDTree(samples).query(pts)[0].min()))
+        sizes.append(min(min_size_mm, CLEARANCE_FACTOR * max(gap, CLEARANCE_SAMPLE_MM)))
+    return sizes
+
+
+def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
+              taxels_xyz: np.ndarray | None = None) -> dict:
+    """The arrays handed to the gmsh child (see `fruitcli.fem.gmsh_job`)."""
+    wall = chamber_sizes(shells, min_size_mm)
+    # gmsh clamps every size to MeshSizeMin: chamber files remeshed at their wall size
+    # need it that low; analytic chambers are triangulated apart and kept
+    remeshed_walls = [w for w, sh in zip(wall, shells[1:], strict=True)
+                      if sh["kind"] == "surface"]
+    job = {"n_shells": np.array(len(shells)), "size_mm": np.array(size_mm),
+           "min_size_mm": np.array(min_size_mm),
+           "curvature_min_mm": np.array(min([min_size_mm, CURVATURE_MIN_FRACTION * size_mm,
+                                             *remeshed_walls])),
+           "curvature_n": np.array(CURVATURE_ELEMENTS), "base": np.array(False)}
+    for i, sh in enumerate(shells):
+        h = size_mm if i == 0 else wall[i - 1]
+        if sh["kind"] == "surface":
+            job[f"s{i}_vertices"], job[f"s{i}_faces"] = sh["vertices"], sh["faces"]
+            split = split_bottom_top(sh["vertices"], sh["faces"])
+            if split is not None:
+                job[f"s{i}_bottom"] = split[0]
+                if i == 0:
+                    job["base"] = np.array(split[1])
+        else:
+            job[f"s{i}_{sh['kind']}"] = sh["params"]
+        job[f"s{i}_size"] = np.array(h)
+        if i > 0:
+            v = np.asarray(sh["vertices"], float)
+            pad = wall[i - 1]
+            job[f"s{i}_refine_box"] = np.concatenate([v.min(axis=0) - pad, v.max(axis=0) + pad])
+    if taxels_xyz is not None and len(taxels_xyz) and min_size_mm < size_mm:
+        job["taxels"] = np.asarray(taxels_xyz, float).reshape(-1, 3)
+        job["taxel_radius_mm"] = np.array(TAXEL_RADIUS_MM)
+    return job
 
 
 def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_s: float,
-             label: str, work_dir: Path | None = None) -> dict:
+             label: str, work_dir: Path | None = None,
+             taxels_xyz: np.ndarray | None = None) -> dict:
     """Mesh the outer shell (first) with the chamber shells as holes. Returns gmsh's raw
     arrays and the .msh text path. MeshError names `label` on failure or timeout."""
+    job = build_job(shells, size_mm, min_size_mm, taxels_xyz)
     with tempfile.TemporaryDirectory(prefix="fruit-gmsh-", dir=work_dir) as tmp:
         tmp = Path(tmp)
-        job = {"n_shells": np.array(len(shells)), "size_mm": np.array(size_mm),
-               "min_size_mm": np.array(min_size_mm)}
-        for i, sh in enumerate(shells):
-            if sh["kind"] == "surface":
-                job[f"s{i}_vertices"], job[f"s{i}_faces"] = sh["vertices"], sh["faces"]
-            else:
-                job[f"s{i}_{sh['kind']}"] = sh["params"]
-                job[f"s{i}_size"] = np.array(size_mm if i == 0 else min_size_mm)
         np.savez(tmp / "job.npz", **job)
         cmd = [sys.executable, "-m", "fruitcli.fem.gmsh_job", str(tmp / "job.npz"), str(tmp)]
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
@@ -74,9 +179,30 @@ def _match_faces(faces: np.ndarray, wanted: np.ndarray) -> np.ndarray:
     return faces[np.isin(ka, kb)]
 
 
-def assemble_mesh(raw: dict, names: list[str], size_mm: float) -> dict:
+def surface_tags(nodes: np.ndarray, outer: np.ndarray, base: np.ndarray,
+                 taxels_xyz: np.ndarray | None) -> np.ndarray:
+    """(f,) int8 tag per outer triangle (see the module docstring): base where `base`,
+    else taxel region where a corner or the centroid lies within TAXEL_RADIUS_MM of a
+    taxel (and the triangle nearest each taxel), else 0."""
+    from scipy.spatial import cKDTree
+
+    tag = np.full(len(outer), TAG_OUTER, np.int8)
+    if taxels_xyz is not None and len(taxels_xyz):
+        taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
+        tri = nodes[outer]
+        pts = np.concatenate([tri, tri.mean(axis=1, keepdims=True)], axis=1)
+        d = cKDTree(taxels).query(pts.reshape(-1, 3))[0].reshape(len(outer), 4)
+        near = d.min(axis=1) <= TAXEL_RADIUS_MM
+        near[cKDTree(tri.mean(axis=1)).query(taxels)[1]] = True
+        tag[near] = TAG_TAXEL
+    tag[base] = TAG_BASE
+    return tag
+
+
+def assemble_mesh(raw: dict, names: list[str], size_mm: float,
+                  taxels_xyz: np.ndarray | None = None) -> dict:
     """Arrays of mesh.npz from gmsh's output: nodes, tets (positive), outer surface
-    (outward) with base tag, chamber triangles (normals out of the cavity)."""
+    (outward) with its tags, chamber triangles (normals out of the cavity)."""
     nodes, tets = raw["nodes"], raw["tets"].astype(np.int64)
     p = nodes[tets]
     vol = np.einsum("mi,mi->m", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
@@ -92,15 +218,22 @@ def assemble_mesh(raw: dict, names: list[str], size_mm: float) -> dict:
         tri = _match_faces(bfaces, remap[raw[f"tris{k + 1}"]])[:, [0, 2, 1]]
         chamber_tris.append(tri)
         owner.append(np.full(len(tri), k))
-    normals = np.cross(nodes[outer[:, 1]] - nodes[outer[:, 0]],
-                       nodes[outer[:, 2]] - nodes[outer[:, 0]])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    zmin = nodes[:, 2].min()
-    low = np.all(nodes[outer][:, :, 2] < zmin + 1e-6 * max(size_mm, 1.0), axis=1)
-    base = low & (normals[:, 2] < -BASE_NORMAL_COS)
+    base_tris = raw.get("base_tris", np.zeros((0, 3), np.int64))
+    if len(base_tris):
+        key = np.sort(outer, axis=1)
+        base = np.isin(key @ np.array([len(nodes) ** 2, len(nodes), 1]),
+                       np.sort(remap[base_tris], axis=1) @ np.array([len(nodes) ** 2,
+                                                                      len(nodes), 1]))
+    else:
+        normals = np.cross(nodes[outer[:, 1]] - nodes[outer[:, 0]],
+                           nodes[outer[:, 2]] - nodes[outer[:, 0]])
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        zmin = nodes[:, 2].min()
+        low = np.all(nodes[outer][:, :, 2] < zmin + 1e-6 * max(size_mm, 1.0), axis=1)
+        base = low & (normals[:, 2] < -BASE_NORMAL_COS)
     return {
         "nodes": nodes, "tets": tets, "surface_tris": outer,
-        "surface_tri_tag": base.astype(np.int8),  # 0 outer, 1 base
+        "surface_tri_tag": surface_tags(nodes, outer, base, taxels_xyz),
         "chamber_names": np.array(names, dtype=str),
         "chamber_tris": (np.concatenate(chamber_tris) if chamber_tris
                          else np.zeros((0, 3), np.int64)),
