@@ -195,3 +195,99 @@ pressure_kpa = {a = [1.0]}
                               str(tmp_path / "o2")])
     assert res.exit_code == 1
     assert "Error: chamber a:" in res.output and "outside the solid" in res.output
+
+
+DOME = """
+[geometry]
+solid = "dome.stl"
+[[geometry.chamber]]
+name = "c"
+ellipsoid = {{center_mm = [0.0, 0.0, 6.0], radii_mm = [12.0, 8.0, 3.0]}}
+[mesh]
+size_mm = {size}
+{extra}
+"""
+
+
+@pytest.fixture(scope="module")
+def dome_dir(tmp_path_factory):
+    """A half ellipsoid 60 x 40 x 15 mm standing on its flat base, as a level-set-like
+    STL: the base cap is a fan of long thin triangles (what make-tracks hands over)."""
+    import manifold3d
+
+    d = tmp_path_factory.mktemp("dome")
+    body = manifold3d.Manifold.sphere(1.0, 64).scale((30.0, 20.0, 15.0)).trim_by_plane(
+        (0.0, 0.0, 1.0), 0.0)
+    mesh = body.to_mesh64()
+    trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3],
+                    np.asarray(mesh.tri_verts)).export(d / "dome.stl")
+    return d
+
+
+def dome_mesh(dome_dir, out, size, extra="", taxels=None):
+    scene = parse_scene(DOME.format(size=size, extra=extra), dome_dir / "s.toml")
+    q = run_tetra(scene, None, out, taxels_xyz=taxels)
+    with np.load(out / "mesh.npz", allow_pickle=False) as data:
+        return q, {k: data[k] for k in data.files}
+
+
+def test_split_into_two_disks():
+    """The dome splits at its flat base (tagged); a ball, with no base, at mid height."""
+    import manifold3d
+
+    from fruitcli.fem.patches import boundary_loops, is_disk, split_bottom_top, split_loop
+
+    m = manifold3d.Manifold.sphere(1.0, 32).scale((30.0, 20.0, 15.0)).trim_by_plane(
+        (0.0, 0.0, 1.0), 0.0).to_mesh64()
+    v, f = np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts, np.int64)
+    bottom, base = split_bottom_top(v, f)
+    assert base and is_disk(f[bottom]) and is_disk(f[~bottom])
+    assert np.allclose(v[f[bottom]][:, :, 2], 0.0)
+    (loop,) = boundary_loops(f[bottom])
+    a, b = split_loop(loop, v)
+    assert a[0] == b[0] == loop[np.argmin(v[loop, 0])]
+    assert a[-1] == b[-1] == loop[np.argmax(v[loop, 0])]
+    assert len(a) + len(b) == len(loop) + 2
+    ball = trimesh.creation.icosphere(3, 10.0)
+    bottom, base = split_bottom_top(ball.vertices, ball.faces)
+    assert not base and 0.4 < bottom.mean() < 0.6
+
+
+def test_size_controls_the_mesh(dome_dir, tmp_path):
+    """The surface is remeshed at size_mm: the tet count grows as the size shrinks
+    (about 1/size^3, less where curvature already refines), the worst SICN stays
+    >= 0.15, the base is tagged on the plane z = 0, and a rerun gives the same mesh."""
+    counts = []
+    for size in (8.0, 5.0, 3.0):
+        q, mesh = dome_mesh(dome_dir, tmp_path / f"m{size:g}", size)
+        assert q["sicn_min"] >= 0.15 and q["poor_tets"] == 0
+        base = mesh["surface_tris"][mesh["surface_tri_tag"] == 1]
+        assert len(base) > 0 and np.allclose(mesh["nodes"][base][:, :, 2], 0.0, atol=1e-9)
+        edges = np.linalg.norm(np.diff(mesh["nodes"][base][:, [0, 1, 2, 0]], axis=1), axis=2)
+        assert edges.max() < 1.6 * size  # the long fan triangles of the cap are gone
+        counts.append(q["n_tets"])
+    assert counts[0] < counts[1] < counts[2]
+    assert counts[2] > 4 * counts[0]
+    _, again = dome_mesh(dome_dir, tmp_path / "again", 3.0)
+    with np.load(tmp_path / "m3" / "mesh.npz", allow_pickle=False) as first:
+        for key in ("nodes", "tets", "surface_tris", "surface_tri_tag", "chamber_tris"):
+            assert np.array_equal(first[key], again[key]), key
+
+
+def test_taxel_region_is_tagged_and_refined(dome_dir, tmp_path):
+    """Taxels on the top: the surface triangles around them carry tag 2 and, with
+    min_size_mm < size_mm, the mesh is finer there."""
+    taxels = np.array([[0.0, 0.0, 15.0], [15.0, 0.0, 15.0 * np.sqrt(0.75)]])
+    q0, plain = dome_mesh(dome_dir, tmp_path / "plain", 5.0, taxels=taxels)
+    q1, fine = dome_mesh(dome_dir, tmp_path / "fine", 5.0, "min_size_mm = 1.5", taxels)
+    for mesh in (plain, fine):
+        tag = mesh["surface_tri_tag"]
+        assert set(np.unique(tag).tolist()) == {0, 1, 2}
+        centroids = mesh["nodes"][mesh["surface_tris"][tag == 2]].mean(axis=1)
+        dist = np.linalg.norm(centroids[:, None] - taxels[None], axis=2).min(axis=1)
+        assert dist.max() < 3.0 + 5.0
+        near = np.linalg.norm(taxels[0] - centroids, axis=1) < 3.0
+        assert near.any()
+    assert q1["n_tets"] > q0["n_tets"] and q1["sicn_min"] >= 0.15
+    tri = fine["nodes"][fine["surface_tris"][fine["surface_tri_tag"] == 2]]
+    assert np.median(np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)) < 3.0
