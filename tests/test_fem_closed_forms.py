@@ -4,7 +4,7 @@ rotating a free body, H as the volume gradient, pressure/volume control, extreme
 import numpy as np
 import pytest
 
-from fruitcli.errors import SolverError
+from fruitcli.errors import MeshError, SolverError
 from fruitcli.fem import pressure
 from fruitcli.fem.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.model import Load, Model
@@ -111,6 +111,24 @@ def test_cavity_pressure_and_volume_control_agree():
     r2 = solve_state(m, load, options=SolverOptions(tolerance=1e-9))
     assert r2.pressure_kpa[0] == pytest.approx(4.0, rel=1e-6)
     assert r2.chamber_volume_mm3[0] == pytest.approx(64.0 + growth, rel=1e-9)
+
+
+def test_chamber_winding_is_made_consistent_and_open_surface_refused():
+    """A cavity given with every other triangle flipped has its rest volume (64 mm^3, not
+    the signed sum) and the same pressure response as the well-wound one; a surface with
+    a hole is refused naming the chamber."""
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
+                                                  [4, 4, 4], [8, 8, 8])
+    mixed = cav.copy()
+    mixed[::2] = mixed[::2][:, [0, 2, 1]]
+    fixed = np.flatnonzero(nodes[:, 2] == 0.0)
+    m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=fixed, chambers={"c": mixed})
+    assert m.chamber_rest_volume_mm3[0] == pytest.approx(64.0, rel=1e-12)
+    r = solve_state(m, Load.pressures([4.0]))
+    r0 = solve_state(cavity_model(), Load.pressures([4.0]))
+    assert np.abs(r.x - r0.x).max() < 1e-9 * np.abs(r0.displacement_mm).max() + 1e-12
+    with pytest.raises(MeshError, match="chamber c: .*open or non-manifold"):
+        Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=fixed, chambers={"c": cav[1:]})
 
 
 @pytest.mark.parametrize("E", [1.0, 1e2, 1e4, 1e6])

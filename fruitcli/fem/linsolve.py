@@ -1,17 +1,17 @@
 """Linear solvers for the tangent system K_t dx = b over the free dofs.
 
-K_t = consistent corotational tangent (R K0 R^T plus the rotation-derivative term,
-projected to positive semi-definite per element; `corotation.exact_stiffness`) + spring
-diagonal; with no deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen
-by name (`[solver] linear_solver`):
+K_t = consistent corotational tangent (R K0 R^T plus the rotation-derivative term;
+`corotation.apply_tangent`), optionally with the follower-pressure stiffness or with
+the rotation term projected to positive semi-definite, + spring diagonal; with no
+deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by name
+(`[solver] linear_solver`):
 
-- ``splu``: modified Newton: a SuperLU factorization of K_t kept across Newton
-  iterations and states and solved with directly; refreshed at the current
-  configuration when the residual contracts by less than REFRESH_RATIO (default,
-  fastest: one triangular solve per iteration);
-- ``splu-pcg``: the kept factorization preconditions CG on the current matrix-free
-  K_t (fewer Newton iterations, more work per iteration); refreshed when CG needs
-  more than PCG_MAX_ITERATIONS;
+- ``splu`` (default) and ``splu-pcg``: one SuperLU factorization (symmetric mode) of a
+  positive definite tangent -- the projected one at the configuration where it was
+  last refreshed -- is kept across Newton iterations and states and preconditions CG
+  on the current tangent applied matrix-free (no assembly per iteration). CG stops at
+  the relative tolerance Newton asks for (`rtol`); the factorization is refreshed at
+  the current configuration when CG needs more than PCG_REFRESH_ITERATIONS, or fails;
 - ``splu-fresh``: K_t assembled and factorized at every Newton iteration (reference);
 - ``cg``: CG with a Jacobi preconditioner, no factorization (low memory).
 """
@@ -27,16 +27,48 @@ from fruitcli.errors import SolverError
 from fruitcli.fem import corotation
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
+    PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
-    REFRESH_RATIO,
 )
 
 LINEAR_SOLVERS = ("splu", "splu-pcg", "splu-fresh", "cg")
 
+ASSEMBLE_FOR_PCG = False
+"""The kept-factorization strategies assemble the current tangent once per Newton step
+(about 55 ms on the default fruit) and multiply by the CSR matrix in CG (0.4 ms), which
+beats the matrix-free product (about 15 ms) from four CG iterations on."""
+
+
+def _cholesky(k):
+    """A sparse Cholesky factorization of the SPD matrix k with a `.solve(b)` method
+    (cholespy, whose solves are about twice as fast as SuperLU's here)."""
+    from cholespy import CholeskySolverD, MatrixType
+
+    c = k.tocoo()
+    fac = CholeskySolverD(k.shape[0], c.row.astype(np.int32), c.col.astype(np.int32),
+                          c.data, MatrixType.COO)
+
+    class _Factor:
+        @staticmethod
+        def solve(b):
+            b = np.ascontiguousarray(b, dtype=float)
+            x = np.zeros_like(b)
+            fac.solve(b, x)
+            return x
+
+    return _Factor()
+
+
+try:
+    import cholespy  # noqa: F401
+except ImportError:  # optional: SuperLU in symmetric mode instead
+    _cholesky = None  # noqa: F811
+
 
 class TangentSolver:
     """Solves with the tangent at the rotations given to `update`. Counts its work in
-    `stats` (factorizations, cg_iterations, assembly_s, factor_s)."""
+    `stats` (factorizations, cg_iterations, assembly_s, factor_s). `rtol` is the relative
+    residual the iterative strategies stop at (Newton sets it per step)."""
 
     def __init__(self, model, method: str = "splu"):
         if method not in LINEAR_SOLVERS:
@@ -47,104 +79,165 @@ class TangentSolver:
         self.rot = None
         self.f = None
         self.load_k = None
+        self.t_world = None
         self.matrix = None
         self.factor = None
-        self.factor_kind = None
         self.kind = "warped"
         self.project = False
         self.diag = None
         self.refresh = False
+        self.fresh = False  # the factorization is of the current configuration
+        self.rtol = PCG_RELATIVE_TOLERANCE
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
     def update(self, rot: np.ndarray, f: np.ndarray | None = None, load_stiffness=None,
                project: bool = False) -> None:
         """Set the current element rotations (m, 3, 3) and deformation gradients (m, 3, 3)
-        (without f, the tangent is the warped R K0 R^T), the sparse follower-pressure
-        stiffness over the free dofs (or None) and whether the rotation term is projected
-        to positive semi-definite per element."""
+        (without f, the tangent is the warped R K0 R^T), the follower-pressure stiffness
+        over the free dofs (anything with `@`, or None) and whether the rotation term is
+        projected to positive semi-definite per element."""
         self.rot, self.f, self.load_k, self.matrix = rot, f, load_stiffness, None
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
-        if self.method == "splu" and self.factor is not None and self.kind != self.factor_kind:
-            self.refresh = True
-        if self.method == "splu-fresh" or (self.method in ("splu", "splu-pcg")
-                                           and (self.factor is None or self.refresh)):
-            self._factorize()
-            self.refresh = False
+        self.t_world = None
+        if f is not None:
+            lam, mu = self.model.lame_kpa
+            self.t_world = corotation.skew_stiffness(f, rot, lam, mu, project)
+        self.fresh = False
+        if self.method == "splu-fresh":
+            self._factorize(self._assemble(self.kind == "exact"))
         elif self.method == "cg":
             self.diag = self._assemble().diagonal()
+        elif self.factor is None or self.refresh:
+            self._refresh()
+        if self.assembled and self.method != "splu-fresh":
+            self.matrix = self._assemble()  # CG then multiplies by CSR (0.4 ms a product)
+
+    @property
+    def assembled(self) -> bool:
+        """Whether CG works on the assembled tangent (ASSEMBLE_FOR_PCG) or matrix-free."""
+        return self.method == "splu-fresh" or (self.method != "cg" and ASSEMBLE_FOR_PCG)
 
     def progress(self, ratio: float) -> None:
-        """Told the residual ratio of the last Newton step; a slow contraction asks the
-        reused factorization to be rebuilt at the next `update`."""
-        if self.method in ("splu", "splu-pcg") and ratio > REFRESH_RATIO:
-            self.refresh = True
+        """Told the residual ratio of the last Newton step (kept for callers; the kept
+        factorization is refreshed on slow CG instead)."""
 
-    def _assemble(self):
+    def _refresh(self) -> None:
+        """Factorize the positive definite (projected) tangent at the current rotations."""
+        if self.f is not None and not self.project:
+            lam, mu = self.model.lame_kpa
+            t_proj = corotation.skew_stiffness(self.f, self.rot, lam, mu, True)
+            keep = self.t_world, self.project, self.load_k
+            self.t_world, self.project, self.load_k = t_proj, True, None
+            k = self._assemble(False)
+            self.t_world, self.project, self.load_k = keep
+        else:
+            k = self._assemble(False)
+        self._factorize(k)
+        self.refresh, self.fresh = False, True
+
+    def _assemble(self, with_load: bool = True):
         t0 = time.perf_counter()
         m = self.model
         k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project),
                                m.spring_diag)
-        if self.f is not None and self.load_k is not None:
+        if with_load and self.f is not None and self.load_k is not None:
             k = k + self.load_k
         self.stats["assembly_s"] += time.perf_counter() - t0
-        self.matrix = k
         return k
 
-    def _factorize(self) -> None:
-        k = self._assemble().tocsc()
+    def _factorize(self, k) -> None:
+        k = k.tocsc()
         t0 = time.perf_counter()
         try:
-            self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
+            if self.method == "splu-fresh" and self.kind == "exact":
+                self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")  # may be indefinite
+            elif _cholesky is not None:  # positive definite: sparse Cholesky when installed
+                self.factor = _cholesky(k)
+            else:  # positive definite: symmetric mode, diagonal pivots (about 5x faster)
+                self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                        options={"SymmetricMode": True})
         except RuntimeError as exc:
             raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
                               "[[fixed]], [[jig]] or its rigid modes pinned?") from None
-        self.factor_kind = self.kind
+        if not np.isfinite(self.factor.solve(np.ones(k.shape[0]))).all():
+            self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
         self.stats["factor_s"] += time.perf_counter() - t0
         self.stats["factorizations"] += 1
 
     def matvec(self, v_free: np.ndarray) -> np.ndarray:
-        if self.f is not None:
-            if self.matrix is None:
-                self._assemble()
+        """K_t v (assembled or matrix-free) for v over the free dofs."""
+        if self.matrix is not None:
             return self.matrix @ v_free
         m = self.model
         full = np.zeros(3 * m.n_nodes)
         full[m.pattern.free] = v_free
-        out = corotation.apply_warped(m.k0, self.rot, m.tets, full.reshape(-1, 3)).reshape(-1)
-        return out[m.pattern.free] + m.spring_diag * v_free
+        full = full.reshape(-1, 3)
+        lam, mu = m.lame_kpa
+        out = corotation.apply_tangent(m.grads, m.volumes_mm3, lam, mu, self.rot,
+                                       self.t_world, m.tets, full, m.scatter)
+        out = out.reshape(-1)[m.pattern.free] + m.spring_diag * v_free
+        if self.f is not None and self.load_k is not None:
+            out = out + self.load_k @ v_free
+        return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        if self.method in ("splu", "splu-fresh"):
+        if self.method == "splu-fresh":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)
-        out = np.column_stack([self._pcg(c) for c in cols.T])
+        out = np.column_stack([self._solve_one(c) for c in cols.T])
         return out.reshape(rhs.shape)
 
-    def _pcg(self, b: np.ndarray) -> np.ndarray:
-        n = len(b)
-        a = spla.LinearOperator((n, n), matvec=self.matvec, dtype=float)
+    def _solve_one(self, b: np.ndarray) -> np.ndarray:
         if self.method == "cg":
             inv_d = 1.0 / self.diag
-            prec = spla.LinearOperator((n, n), matvec=lambda v: inv_d * v, dtype=float)
-            maxiter = 20 * PCG_MAX_ITERATIONS * 50
-        else:
-            prec = spla.LinearOperator((n, n), matvec=self.factor.solve, dtype=float)
-            maxiter = PCG_MAX_ITERATIONS
-        count = [0]
-
-        def tick(_):
-            count[0] += 1
-
-        x, info = spla.cg(a, b, rtol=PCG_RELATIVE_TOLERANCE, maxiter=maxiter, M=prec,
-                          callback=tick)
-        self.stats["cg_iterations"] += count[0]
-        if info == 0:
+            x, its, ok = pcg(self.matvec, lambda v: inv_d * v, b, self.rtol,
+                             50 * 20 * PCG_MAX_ITERATIONS)
+            self.stats["cg_iterations"] += its
+            if not ok:
+                raise SolverError(f"CG did not converge in {its} iterations "
+                                  "(try [solver].linear_solver = \"splu\")")
             return x
-        if self.method == "cg":
-            raise SolverError(f"CG did not converge in {maxiter} iterations "
-                              "(try [solver].linear_solver = \"splu\")")
-        self._factorize()  # stale preconditioner: refresh it and solve exactly
-        return self.factor.solve(b)
+        x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
+        self.stats["cg_iterations"] += its
+        if ok and its <= PCG_REFRESH_ITERATIONS:
+            return x
+        if not self.fresh:  # stale preconditioner: refresh it here and retry
+            self._refresh()
+            x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
+            self.stats["cg_iterations"] += its
+        elif not ok:
+            self.refresh = True
+        return x
+
+
+def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int):
+    """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|,
+    after `maxiter` iterations or on negative curvature (an indefinite tangent); then it
+    returns the last iterate, or the preconditioned residual if there is none, which
+    is still a descent direction. Returns (x, iterations, converged)."""
+    x = np.zeros_like(b)
+    r = b.copy()
+    nb = float(np.linalg.norm(b))
+    if nb == 0.0:
+        return x, 0, True
+    z = precond(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for it in range(1, maxiter + 1):
+        q = matvec(p)
+        pq = float(p @ q)
+        if not pq > 0.0:
+            return (x if it > 1 else z), it, False
+        alpha = rz / pq
+        x += alpha * p
+        r -= alpha * q
+        if np.linalg.norm(r) <= rtol * nb:
+            return x, it, True
+        z = precond(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, maxiter, False

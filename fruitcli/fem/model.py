@@ -149,8 +149,14 @@ class Model:
             tris = np.asarray(tris, dtype=np.int64)
             if tris.ndim != 2 or tris.shape[1] != 3 or len(tris) < 4:
                 raise MeshError(f"chamber {name}: expected a closed (T, 3) triangle surface")
+            if tris.min() < 0 or tris.max() >= n:
+                raise MeshError(f"chamber {name}: node index out of range")
+            try:
+                tris = pressure.orient_outward(rest, tris)
+            except ValueError as exc:
+                raise MeshError(f"chamber {name}: {exc}") from None
             names.append(str(name))
-            tris_list.append(pressure.orient_outward(rest, tris))
+            tris_list.append(tris)
         v_rest = np.array([pressure.cavity_volume(rest, t) for t in tris_list])
 
         body = np.zeros((n, 3))

@@ -18,13 +18,27 @@ from fruitcli.errors import SolverError
 from fruitcli.fem import corotation
 from fruitcli.fem.linsolve import TangentSolver
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.tolerances import ARMIJO, FORCE_FLOOR, LINE_SEARCH_STEPS, MIN_DET_F
+from fruitcli.fem.tolerances import (
+    ARMIJO,
+    FORCE_FLOOR,
+    LINE_SEARCH_STEPS,
+    MIN_DET_F,
+    PCG_RELATIVE_TOLERANCE,
+    PCG_TARGET,
+    STALL_RESIDUAL_FACTOR,
+    STEP_TOLERANCE,
+)
 
 
 @dataclass(frozen=True)
 class SolverOptions:
     """`tolerance`: |r| <= tolerance * reference force; `max_iterations` per load step;
-    `max_subdivisions`: halvings of a failing step; `load_steps`: initial steps."""
+    `max_subdivisions`: halvings of a failing step; `load_steps`: initial steps.
+
+    A state also counts as converged when round-off keeps the residual from reaching
+    the tolerance: the residual is within STALL_RESIDUAL_FACTOR of it and the full
+    Newton correction moves no node by more than STEP_TOLERANCE times the body size
+    (see `fruitcli.fem.tolerances`)."""
 
     tolerance: float = 1e-6
     max_iterations: int = 25
@@ -54,20 +68,22 @@ class _Step:
         self.vc = np.flatnonzero(load.volume_controlled)
         self.v_target = model.chamber_rest_volume_mm3 + load.volume_growth_mm3
         self.v_ref = np.maximum(model.chamber_rest_volume_mm3, 1.0)
+        self.f_int_norm = 0.0
 
     def evaluate(self, x, p):
         """(rot, det_f, h, r, g, merit, energy, f) at x with chamber pressures p."""
         m = self.m
         f, rot, det_f = m.kinematics(x)
         h = m.chamber_gradients(x) if m.chamber_tris else None
-        f_int, energy = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot)
+        f_int, energy = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot, m.scatter)
         r = m.external_forces(x, p, self.load, h) - f_int
         r = r.reshape(-1)[m.pattern.free]
         energy += m.external_potential(x, p, self.load)
         g = (m.chamber_volumes(x) - self.v_target)[self.vc] if len(self.vc) else np.zeros(0)
         # scale: the step's load, or the elastic force once it is larger (volume
         # control starts with an unknown pressure and no external load)
-        scale = max(self.ref, float(np.linalg.norm(f_int.reshape(-1)[m.pattern.free])))
+        self.f_int_norm = float(np.linalg.norm(f_int.reshape(-1)[m.pattern.free]))
+        scale = max(self.ref, self.f_int_norm)
         merit = np.linalg.norm(r) / scale
         if len(g):
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
@@ -80,7 +96,12 @@ class _Step:
             self.solver.update(rot)
         else:
             exact = TANGENTS[level] == "exact"
-            self.solver.update(rot, f, m.load_stiffness(x, p) if exact else None, not exact)
+            load_k = None
+            if exact and self.solver.assembled:
+                load_k = m.load_stiffness(x, p)
+            elif exact and np.any(p):
+                load_k = _LoadOperator(m, x, p)
+            self.solver.update(rot, f, load_k, not exact)
         if not len(self.vc):
             return self.solver.solve(r), np.zeros(0)
         hv = h[self.vc].reshape(len(self.vc), -1)[:, m.pattern.free]  # (kv, n_free)
@@ -89,6 +110,20 @@ class _Step:
         w = hv @ kh  # compliance dV/dp (mm^3/kPa)
         dp = np.linalg.solve(w, -g - hv @ kr)
         return kr + kh @ dp, dp
+
+
+class _LoadOperator:
+    """Matrix-free follower-pressure stiffness over the free dofs (`op @ v`)."""
+
+    def __init__(self, model: Model, x, p):
+        self.m, self.x, self.p = model, x, p
+
+    def __matmul__(self, v_free):
+        m = self.m
+        full = np.zeros(3 * m.n_nodes)
+        full[m.pattern.free] = v_free
+        out = m.apply_load_stiffness(self.x, self.p, full.reshape(-1, 3))
+        return out.reshape(-1)[m.pattern.free]
 
 
 TANGENTS = ("exact", "projected", "warped")
@@ -104,6 +139,8 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     """Returns (converged, x, p, iterations, merit, det_f)."""
     m = step.m
     rot, det_f, h, r, g, merit, energy, f = step.evaluate(x, p)
+    step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
+    size = float(np.ptp(m.rest, axis=0).max())
     level = 0  # index into TANGENTS; raised for one step when a step fails
     for it in range(options.max_iterations + 1):
         if merit <= options.tolerance:
@@ -112,7 +149,12 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             break
         if level == 0 and det_f.min() <= MIN_DET_F:
             level = 2
+        step.solver.rtol = min(PCG_RELATIVE_TOLERANCE,
+                               max(PCG_TARGET * options.tolerance / max(merit, 1e-300), 1e-12))
         dx_free, dp = step.direction(x, p, rot, h, r, g, f, level)
+        if (merit <= STALL_RESIDUAL_FACTOR * options.tolerance
+                and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size):
+            return True, x, p, it, merit, det_f  # round-off stall: the correction is nil
         if not len(step.vc) and level < 2 and not float(r @ dx_free) > 0.0:
             level += 1  # not a descent direction: indefinite tangent
             continue
@@ -168,7 +210,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         p[~vc] = load_start.pressure_kpa[~vc]
     solver = solver or TangentSolver(model, options.linear_solver)
     scale = FORCE_FLOOR * model.young_modulus_kpa * float(np.ptp(model.rest, axis=0).max()) ** 2
-    t, dt = 0.0, 1.0 / max(1, options.load_steps)
+    t, dt, det_ok = 0.0, 1.0 / max(1, options.load_steps), None
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     while t < 1.0:
         t_new = min(1.0, t + dt)
@@ -181,7 +223,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         ok, x_new, p_new, its, merit, det_f = _newton(step, x, p_try, options)
         iterations += its
         if ok:
-            x, p, t = x_new, p_new, t_new
+            x, p, t, det_ok = x_new, p_new, t_new, det_f
             continue
         subdivisions += 1
         if subdivisions > options.max_subdivisions:
@@ -191,7 +233,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 f"{model.worst_element(det_f)}); lower the load or raise "
                 "[solver].max_subdivisions")
         dt *= 0.5
-    return _result(model, x, p, iterations, merit, subdivisions, t0)
+    return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
 def _unloaded(model: Model, load: Load) -> bool:
@@ -204,8 +246,10 @@ def _unloaded(model: Model, load: Load) -> bool:
     return not (load.jig and any(j.rotate_deg or np.any(j.translate_mm) for j in model.jigs))
 
 
-def _result(model: Model, x, p, iterations, merit, subdivisions, t0) -> StateResult:
-    _, det_f = model.rotations(x)
+def _result(model: Model, x, p, iterations, merit, subdivisions, t0,
+            det_f=None) -> StateResult:
+    if det_f is None:
+        det_f = corotation.det3(corotation.deformation_gradients(x, model.tets, model.dm_inv))
     volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
     return StateResult(x=x, displacement_mm=x - model.rest, pressure_kpa=p,
                        chamber_volume_mm3=volumes, iterations=iterations, residual=merit,
@@ -214,15 +258,13 @@ def _result(model: Model, x, p, iterations, merit, subdivisions, t0) -> StateRes
 
 
 def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: float) -> float:
-    """Force scale of a load step: the largest of the external loads at both ends and
-    the elastic force at the start (mN)."""
-    rot, _ = model.rotations(x)
+    """Force scale of a load step: the largest of the external loads at both ends (the
+    elastic force at the start joins it at the step's first evaluation) (mN)."""
     free = model.pattern.free
     fa = model.external_forces(x, p, load_a).reshape(-1)[free]
     pb = p.copy()
     if len(pb):
         pb[~load_b.volume_controlled] = load_b.pressure_kpa[~load_b.volume_controlled]
     fb = model.external_forces(x, pb, load_b).reshape(-1)[free]
-    fi = model.internal_forces(x, rot).reshape(-1)[free]
-    return max(np.linalg.norm(fa), np.linalg.norm(fb), np.linalg.norm(fi), floor)
+    return max(np.linalg.norm(fa), np.linalg.norm(fb), floor)
 

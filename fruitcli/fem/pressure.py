@@ -28,9 +28,45 @@ def volume_gradient(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 
 def orient_outward(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """Return `tris` flipped if needed so that the enclosed volume is positive."""
-    tris = np.asarray(tris)
+    """`tris` with a consistent winding (each edge traversed once each way, see
+    `consistent_winding`), flipped if needed so that the enclosed volume is positive."""
+    tris = consistent_winding(np.asarray(tris))
     return tris[:, [0, 2, 1]] if cavity_volume(x, tris) < 0.0 else tris
+
+
+def consistent_winding(tris: np.ndarray) -> np.ndarray:
+    """Flip triangles (t, 3) of a closed surface so that neighbours wind alike. Without
+    it, V is not the enclosed volume and H not its gradient (pressure would then do work
+    along closed paths). Raises ValueError when an edge does not have exactly two
+    triangles (an open or non-manifold surface)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    t = len(tris)
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])  # (3t, 2)
+    owner = np.tile(np.arange(t), 3)
+    key = np.sort(e, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    if np.any(counts != 2):
+        raise ValueError(f"{int(np.sum(counts != 2))} edge(s) not shared by exactly two "
+                         "triangles (open or non-manifold surface)")
+    order = np.argsort(inv, kind="stable")
+    a, b = owner[order[0::2]], owner[order[1::2]]  # the two triangles of each edge
+    same = e[order[0::2], 0] == e[order[1::2], 0]  # same direction: one must flip
+    adj = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(t, t)).tocsr()
+    flip = np.zeros(t, bool)
+    rel = dict(zip(zip(a.tolist(), b.tolist(), strict=True), same.tolist(), strict=True))
+    rel.update({(j, i): s for (i, j), s in rel.items()})
+    _, labels = connected_components(adj, directed=False)
+    for comp in np.unique(labels):
+        start = int(np.flatnonzero(labels == comp)[0])
+        nodes, pred = breadth_first_order(adj, start, directed=False)
+        for v in nodes[1:]:  # build time only: one pass over the chamber's triangles
+            u = int(pred[v])
+            flip[v] = flip[u] ^ rel[(u, int(v))]
+    out = tris.copy()
+    out[flip] = out[flip][:, [0, 2, 1]]
+    return out
 
 
 def volume_hessian_coo(x: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, ...]:

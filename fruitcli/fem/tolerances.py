@@ -16,11 +16,21 @@ LINE_SEARCH_STEPS = 8
 """Backtracking halvings tried before a Newton step is declared a failure."""
 
 PCG_MAX_ITERATIONS = 40
-"""Preconditioned CG iterations per Newton step before the cached factorization of
-the tangent is considered stale and refreshed."""
+"""Preconditioned CG iterations per linear solve before it gives up (the kept
+factorization is then refreshed and the solve retried)."""
+
+PCG_REFRESH_ITERATIONS = 12
+"""A linear solve that needs more CG iterations than this says the kept factorization
+is stale: it is refreshed at the current configuration."""
 
 PCG_RELATIVE_TOLERANCE = 1e-2
-"""Inexact Newton: each linear solve only needs to reduce the residual this much."""
+"""Inexact Newton: a linear solve never needs to reduce the residual more than this
+far from equilibrium; near it Newton asks for PCG_TARGET * tolerance / merit."""
+
+PCG_TARGET = 0.3
+"""Newton asks each linear solve for a residual of this fraction of the nonlinear
+tolerance (relative to |b|: rtol = PCG_TARGET tolerance / merit, capped by
+PCG_RELATIVE_TOLERANCE), so that one exact-enough step can finish the state."""
 
 INSIDE_VOLUME_MM3 = 1e-6
 """A chamber poking out of the solid by less than this volume (relative to the
@@ -32,6 +42,11 @@ BARY_INSIDE = -1e-9
 ARMIJO = 1e-4
 """Sufficient decrease of the total potential energy asked of a line-search step."""
 
-REFRESH_RATIO = 0.3
-"""Modified Newton refactorizes the tangent when one step reduces the residual by
-less than this factor (a stale factorization converges too slowly)."""
+STEP_TOLERANCE = 1e-9
+"""Round-off stall guard: a Newton correction that moves no node by more than this
+fraction of the body size (mm/mm) changes nothing measurable ..."""
+
+STALL_RESIDUAL_FACTOR = 100.0
+"""... and is accepted as convergence when the relative residual is within this factor
+of the tolerance (a residual that round-off keeps just above the tolerance, e.g.
+1.6e-6 against 1e-6, would otherwise stall Newton)."""
