@@ -158,13 +158,17 @@ def _fem_reason(scene):
 
 def _tetra_inputs(scene, ctx):
     return {"solid": solid_path(scene, ctx), "pad": scene["geometry"]["pad_size_mm"],
-            "chambers": scene.chambers, "mesh": scene["mesh"]}
+            "chambers": scene.chambers, "mesh": scene["mesh"], "taxels": taxels_path(scene, ctx)}
 
 
 def _tetra_run(scene, ctx, out_dir):
     from fruitcli.fem.stage import run_tetra
+    from fruitcli.geometry.pipeline import read_taxels
 
-    return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress)
+    tax = taxels_path(scene, ctx)
+    xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress,
+                     taxels_xyz=xyz)
 
 
 def _simulate_inputs(scene, ctx):
@@ -305,7 +309,7 @@ STAGES: list[Stage] = [
                      "report.json", "preview.png"]),
     Stage("pad-grid", [], "fruitcli.padgrid", _pad_needed, _pad_inputs, _pad_run,
           lambda s: ["taxels.csv"]),
-    Stage("tetra", ["make-tracks"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,
+    Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,
           _tetra_run, lambda s: ["mesh.npz", "quality.json"]),
     Stage("simulate", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed,
           _simulate_inputs, _simulate_run, lambda s: ["states.npz"]),

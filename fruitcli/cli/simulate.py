@@ -50,7 +50,7 @@ def simulate(scene, out_dir, solid, taxels, vtu):
             cols = read_table(taxel_csv, ["id", "i", "j", "x_mm", "y_mm", "z_mm"],
                               numeric=["i", "j", "x_mm", "y_mm", "z_mm"], error=SceneError)
             xyz = __import__("numpy").column_stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]])
-        run_tetra(sc, solid, out_dir, progress=log)
+        run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
         with progressbar(length=n_states(sc), label="states") as bar:
             def progress(msg: str) -> None:
                 if msg.startswith("state "):

@@ -23,8 +23,11 @@ paper's Table I):
   differences matter; any level works (the FT5316 reports 16-bit counts).
 - Noise: Gaussian, per-taxel std drawn uniformly in [0.5, 1.85] counts (seeded), so the
   measured std of the integer counts peaks near the paper's 1.9 counts (Fig. 10).
-- Deformation baseline shift: ``gain * fab * strain``, strain = Frobenius norm of the
-  Green-Lagrange strain of the taxel's tetrahedron (from the FEM state). The gain is
+- Deformation baseline shift: ``gain * fab * strain``, strain = the area-weighted
+  in-plane Green strain norm of the FEM surface within ``CROSSING_RADIUS_MM`` = 4 mm of
+  the crossing (assumption: the yarns are sewn into the surface, so the crossing feels
+  the surface's stretch; a surface measure does not depend on how many tets the
+  thickness has). The gain is
   calibrated by `calibrate_strain_gain`: the flat 80 x 80 x 3 mm pad with 4 x 4 taxels
   bent 180 deg over its 48 mm active length (radius 48/pi mm) shifts its most strained
   taxel by 10 counts (Fig. 9). ``fab`` is a per-taxel fabrication factor: 1 for a
@@ -61,6 +64,8 @@ PAD_SIZE_MM = (80.0, 80.0, 3.0)
 PAD_ACTIVE_MM = 48.0
 PAD_PITCH_MM = 16.0
 _DET_EPS = 1e-12  # a tet with |det| below this (mm^3) is degenerate
+CROSSING_RADIUS_MM = 4.0  # surface around a crossing whose stretch shifts its baseline
+CROSSING_PLANE_MM = 1.0  # ... and how far off the crossing's tangent plane it may curve
 
 
 @dataclass(frozen=True)
@@ -115,12 +120,60 @@ def green_strain_norm(rest_nodes: np.ndarray, nodes: np.ndarray, tets: np.ndarra
     return np.sqrt(np.sum(e * e, axis=(-2, -1)))
 
 
+def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray,
+                         tris: np.ndarray) -> np.ndarray:
+    """In-plane Green strain norm of each surface triangle: |E| with E = (G0^-1 G - I) / 2,
+    G0 and G the triangle's rest and deformed metric (edge dot products).
+
+    rest_nodes (N, 3), nodes (..., N, 3) deformed, tris (F, 3) -> (..., F)."""
+    def metric(x):
+        e1, e2 = x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :]
+        g = np.stack([np.stack([(e1 * e1).sum(-1), (e1 * e2).sum(-1)], -1),
+                      np.stack([(e1 * e2).sum(-1), (e2 * e2).sum(-1)], -1)], -2)
+        return g
+
+    g0 = metric(rest_nodes[tris])
+    det = g0[..., 0, 0] * g0[..., 1, 1] - g0[..., 0, 1] ** 2
+    ok = det > _DET_EPS
+    g0[~ok] = np.eye(2)
+    c = np.linalg.inv(g0) @ metric(nodes[..., tris, :])
+    e = 0.5 * (c - np.eye(2))
+    norm = np.sqrt(np.maximum(np.einsum("...ij,...ji->...", e, e), 0.0))
+    return np.where(ok, norm, 0.0)
+
+
+def taxel_surface_weights(rest_nodes: np.ndarray, tris: np.ndarray,
+                          taxels_mm: np.ndarray) -> np.ndarray:
+    """(T, F) area weights, rows summing to 1, of the surface triangles around each taxel:
+    within ``CROSSING_RADIUS_MM`` of it, parallel to the nearest one and within
+    ``CROSSING_PLANE_MM`` of its plane (so the far side of a thin pad is left out;
+    the triangles' winding does not matter)."""
+    x = rest_nodes[tris]
+    cent = x.mean(axis=1)
+    cross = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    normal = cross / np.maximum(2 * area, _DET_EPS)[:, None]
+    dist = np.linalg.norm(cent[None, :, :] - taxels_mm[:, None, :], axis=2)  # (T, F)
+    nearest = dist.argmin(axis=1)
+    n0 = normal[nearest]  # (T, 3)
+    parallel = np.abs(n0 @ normal.T) > 0.5  # (T, F)
+    off_plane = np.abs(np.einsum("tfd,td->tf", cent[None, :, :] - taxels_mm[:, None, :], n0))
+    near = (dist <= CROSSING_RADIUS_MM) & parallel & (off_plane <= CROSSING_PLANE_MM)
+    w = np.where(near, area[None, :], 0.0)
+    w[np.arange(len(taxels_mm)), nearest] += 1e-12  # a taxel always has its own triangle
+    return w / w.sum(axis=1, keepdims=True)
+
+
 def taxel_strain(states, state_index=None) -> np.ndarray:
-    """Green strain norm of each taxel's tet per state: (S, T) (or (T,) for one state)."""
-    tets = states.tets[states.taxel_tet]
+    """Surface strain at each taxel per state: (S, T) (or (T,) for one state): the
+    area-weighted in-plane Green strain norm of the surface around the crossing, the
+    stretch the sewn yarn feels."""
     idx = slice(None) if state_index is None else state_index
     nodes = states.rest_nodes + states.displacement_mm[idx]
-    return green_strain_norm(states.rest_nodes, nodes, tets)
+    rest_taxels = np.einsum("tk,tkd->td", states.taxel_bary,
+                            states.rest_nodes[states.tets[states.taxel_tet]])
+    w = taxel_surface_weights(states.rest_nodes, states.surface_tris, rest_taxels)
+    return surface_green_strain(states.rest_nodes, nodes, states.surface_tris) @ w.T
 
 
 def pad_mesh(size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4):
@@ -178,14 +231,24 @@ def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0)
     return np.stack([gx.ravel(), gy.ravel(), np.full(n * n, z_mm)], axis=1)
 
 
+def boundary_faces(tets: np.ndarray) -> np.ndarray:
+    """Triangles (F, 3) that belong to exactly one tet."""
+    faces = np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]],
+                            tets[:, [1, 2, 3]]])
+    _, idx, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True,
+                               return_counts=True)
+    return faces[idx[counts == 1]]
+
+
 @lru_cache(maxsize=1)
 def bent_pad_taxel_strain() -> np.ndarray:
-    """Strain of each 4 x 4 pad taxel bent 180 deg over its active length (T,)."""
+    """Surface strain at each 4 x 4 pad taxel bent 180 deg over its active length (T,)."""
     nodes, tets = pad_mesh()
-    taxels = pad_taxels_mm(z_mm=PAD_SIZE_MM[2] - 1e-6)
-    k, _ = locate_in_tets(taxels, nodes, tets)
+    tris = boundary_faces(tets)
+    taxels = pad_taxels_mm(z_mm=PAD_SIZE_MM[2])
     bent = bend_nodes(nodes, PAD_ACTIVE_MM / np.pi, PAD_SIZE_MM[2])
-    return green_strain_norm(nodes, bent, tets[k])
+    w = taxel_surface_weights(nodes, tris, taxels)
+    return surface_green_strain(nodes, bent, tris) @ w.T
 
 
 def calibrate_strain_gain() -> float:
