@@ -235,23 +235,30 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
 
 def apply_tangent(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: float,
                   rot: np.ndarray, t_world: np.ndarray | None, tets: np.ndarray,
-                  v: np.ndarray, scatter) -> np.ndarray:
+                  v: np.ndarray, scatter, h: np.ndarray | None = None) -> np.ndarray:
     """Matrix-free product of the consistent tangent (see `exact_stiffness`) with v
     (n, 3); t_world from `skew_stiffness` (None: the warped tangent). Per element, with
     h_a = R g_a and G = sum_b v_b h_b^T: (K v)_a = M h_a, M = V (lam tr G I + mu (G +
-    G^T)) + [V T' w / 2]x, w = sum_b h_b x v_b. Returns (n, 3)."""
+    G^T)) + [V T' w / 2]x, w = sum_b h_b x v_b. `h` (m, 4, 3): the rows h_a, when the
+    caller keeps them across products. Returns (n, 3)."""
     m = len(tets)
-    h = grads @ np.transpose(rot, (0, 2, 1))
-    g = np.einsum("mbi,mbj->mij", v[tets], h)
+    if h is None:
+        h = rotated_gradients(grads, rot)
+    g = np.transpose(v[tets], (0, 2, 1)) @ h  # (m, 3, 3) sum_b v_b h_b^T
     mm = mu * (g + np.transpose(g, (0, 2, 1)))
-    mm[:, [0, 1, 2], [0, 1, 2]] += (lam * np.trace(g, axis1=1, axis2=2))[:, None]
+    mm[:, [0, 1, 2], [0, 1, 2]] += (lam * (g[:, 0, 0] + g[:, 1, 1] + g[:, 2, 2]))[:, None]
     if t_world is not None:
         w = np.stack([g[:, 2, 1] - g[:, 1, 2], g[:, 0, 2] - g[:, 2, 0],
                       g[:, 1, 0] - g[:, 0, 1]], axis=1)
-        mm += 0.5 * _cross_matrix(np.einsum("mij,mj->mi", t_world, w))
+        mm += 0.5 * _cross_matrix((t_world @ w[:, :, None])[:, :, 0])
     mm *= volumes[:, None, None]
     fe = h @ np.transpose(mm, (0, 2, 1))  # rows (M h_a)^T
     return scatter @ fe.reshape(4 * m, 3)
+
+
+def rotated_gradients(grads: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """(m, 4, 3) rows h_a = R g_a of the rotated rest shape-function gradients."""
+    return grads @ np.transpose(rot, (0, 2, 1))
 
 
 def scatter_matrix(tets: np.ndarray, n_nodes: int):

@@ -88,6 +88,7 @@ class TangentSolver:
         self.refresh = False
         self.fresh = False  # the factorization is of the current configuration
         self.rtol = PCG_RELATIVE_TOLERANCE
+        self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
@@ -101,6 +102,7 @@ class TangentSolver:
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
         self.t_world = None
+        self.h = corotation.rotated_gradients(self.model.grads, rot)
         if f is not None:
             lam, mu = self.model.lame_kpa
             self.t_world = corotation.skew_stiffness(f, rot, lam, mu, project)
@@ -119,9 +121,6 @@ class TangentSolver:
         """Whether CG works on the assembled tangent (ASSEMBLE_FOR_PCG) or matrix-free."""
         return self.method == "splu-fresh" or (self.method != "cg" and ASSEMBLE_FOR_PCG)
 
-    def progress(self, ratio: float) -> None:
-        """Told the residual ratio of the last Newton step (kept for callers; the kept
-        factorization is refreshed on slow CG instead)."""
 
     def _refresh(self) -> None:
         """Factorize the positive definite (projected) tangent at the current rotations."""
@@ -176,7 +175,7 @@ class TangentSolver:
         full = full.reshape(-1, 3)
         lam, mu = m.lame_kpa
         out = corotation.apply_tangent(m.grads, m.volumes_mm3, lam, mu, self.rot,
-                                       self.t_world, m.tets, full, m.scatter)
+                                       self.t_world, m.tets, full, m.scatter, self.h)
         out = out.reshape(-1)[m.pattern.free] + m.spring_diag * v_free
         if self.f is not None and self.load_k is not None:
             out = out + self.load_k @ v_free
@@ -200,15 +199,18 @@ class TangentSolver:
                 raise SolverError(f"CG did not converge in {its} iterations "
                                   "(try [solver].linear_solver = \"splu\")")
             return x
-        x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
+        limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
+        x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, limit)
         self.stats["cg_iterations"] += its
-        if ok and its <= PCG_REFRESH_ITERATIONS:
+        if ok:
+            # slow but done: keep x, refresh the factorization at the next update
+            self.refresh = self.refresh or its > PCG_REFRESH_ITERATIONS
             return x
         if not self.fresh:  # stale preconditioner: refresh it here and retry
             self._refresh()
             x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
             self.stats["cg_iterations"] += its
-        elif not ok:
+        if not ok:
             self.refresh = True
         return x
 

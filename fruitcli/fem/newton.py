@@ -22,6 +22,7 @@ from fruitcli.fem.tolerances import (
     ARMIJO,
     FORCE_FLOOR,
     LINE_SEARCH_STEPS,
+    LINEAR_MARGIN,
     MIN_DET_F,
     PCG_RELATIVE_TOLERANCE,
     PCG_TARGET,
@@ -149,8 +150,13 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             break
         if level == 0 and det_f.min() <= MIN_DET_F:
             level = 2
-        step.solver.rtol = min(PCG_RELATIVE_TOLERANCE,
-                               max(PCG_TARGET * options.tolerance / max(merit, 1e-300), 1e-12))
+        # inexact Newton (Eisenstat-Walker): solve no more exactly than the nonlinear
+        # residual this step will leave, C merit^2 (C observed on earlier full steps)
+        # (first iteration of a step only: later ones converge less regularly)
+        goal = PCG_TARGET * options.tolerance
+        if it == 0:
+            goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
+        step.solver.rtol = min(PCG_RELATIVE_TOLERANCE, max(goal / max(merit, 1e-300), 1e-12))
         dx_free, dp = step.direction(x, p, rot, h, r, g, f, level)
         if (merit <= STALL_RESIDUAL_FACTOR * options.tolerance
                 and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size):
@@ -184,7 +190,8 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         # safer tangent until a full step is accepted again
         level = 0 if alpha == 1.0 else min(level + 1, 2)
         x, p = xt, pt
-        step.solver.progress(trial[5] / merit if merit > 0 else 0.0)
+        if it == 0 and alpha == 1.0 and merit > 0 and trial[5] > 3.0 * step.solver.rtol * merit:
+            step.solver.newton_c = trial[5] / merit**2  # nonlinear part dominates: observe C
         rot, det_f, h, r, g, merit, energy, f = trial
     return False, x, p, options.max_iterations, merit, det_f
 
@@ -212,26 +219,39 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     scale = FORCE_FLOOR * model.young_modulus_kpa * float(np.ptp(model.rest, axis=0).max()) ** 2
     t, dt, det_ok = 0.0, 1.0 / max(1, options.load_steps), None
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
+    last = None  # (t, x, p) of the load step before the last one, for the predictor
+    retry = False
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
-        p_try = p.copy()
+        x_try, p_try = x, p.copy()
+        if last is not None and not retry:  # secant predictor along the load path
+            s = (t_new - t) / (t - last[0])
+            x_try, p_try = x + s * (x - last[1]), p + s * (p - last[2])
         if k:
             p_try[~vc] = step_load.pressure_kpa[~vc]
         ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
         step = _Step(model, solver, step_load, ref)
-        ok, x_new, p_new, its, merit, det_f = _newton(step, x, p_try, options)
+        ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
         iterations += its
         if ok:
-            x, p, t, det_ok = x_new, p_new, t_new, det_f
+            last = (t, x, p)
+            x, p, t, det_ok, retry = x_new, p_new, t_new, det_f, False
             continue
+        if x_try is not x:  # the predictor may have misled Newton: retry from x first
+            retry = True
+            continue
+        retry = False
         subdivisions += 1
         if subdivisions > options.max_subdivisions:
+            hint = "lower the load or raise [solver].max_subdivisions"
+            if det_f.min() <= 1.01 * MIN_DET_F:
+                hint = ("elements are about to invert: the load is likely past what the body "
+                        "can carry (a chamber past its limit pressure: control its volume)")
             raise SolverError(
                 f"{label}: no equilibrium after {subdivisions - 1} load subdivisions "
-                f"(relative residual {merit:.2e} at {t_new:.3f} of the step; worst element "
-                f"{model.worst_element(det_f)}); lower the load or raise "
-                "[solver].max_subdivisions")
+                f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
+                f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}")
         dt *= 0.5
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 

@@ -32,6 +32,11 @@ PCG_TARGET = 0.3
 tolerance (relative to |b|: rtol = PCG_TARGET tolerance / merit, capped by
 PCG_RELATIVE_TOLERANCE), so that one exact-enough step can finish the state."""
 
+LINEAR_MARGIN = 0.1
+"""Inexact Newton: a linear solve aims at this fraction of the residual the Newton step
+is expected to leave from the nonlinearity (C merit^2, C observed on earlier steps);
+solving further would not lower the next residual."""
+
 INSIDE_VOLUME_MM3 = 1e-6
 """A chamber poking out of the solid by less than this volume (relative to the
 chamber's volume) is treated as round-off of the mesh boolean."""
