@@ -203,18 +203,22 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
     element's tangent positive semi-definite. The clamp is exact projection, because
     the two parts act on orthogonal subspaces (symmetric and skew). Without `project`
     the inverse is taken in closed form (no eigendecomposition) wherever tr S I - S is
-    well conditioned."""
+    well conditioned; with `project`, also where Gershgorin's bound on the eigenvalues
+    of tr S I - S shows that the clamp would change nothing (eigh only for the rest)."""
     s = np.transpose(rot, (0, 2, 1)) @ f
     s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
     tr = np.trace(s, axis1=1, axis2=2)
     c = lam * (tr - 3.0) - 2.0 * mu
     t = np.zeros_like(s)
-    easy = np.zeros(len(s), bool)
-    if not project:
-        q = -s
-        q[:, [0, 1, 2], [0, 1, 2]] += tr[:, None]
-        det_q = det3(q)
-        easy = det_q > 1e-6 * np.abs(tr) ** 3
+    q = -s
+    q[:, [0, 1, 2], [0, 1, 2]] += tr[:, None]
+    det_q = det3(q)
+    easy = det_q > 1e-6 * np.abs(tr) ** 3
+    if project:  # the clamp is idle where Gershgorin bounds every 2 mu + 2 c / q_i >= 0
+        off = np.abs(q).sum(axis=2) - np.abs(q[:, [0, 1, 2], [0, 1, 2]])
+        q_low = (q[:, [0, 1, 2], [0, 1, 2]] - off).min(axis=1)  # <= smallest eigenvalue
+        easy &= (q_low > 0.0) & ((c >= 0.0) | (mu * q_low + c >= 0.0))
+    if easy.any():
         t[easy] = (2.0 * c[easy] / det_q[easy])[:, None, None] * adjugate3(q[easy])
         t[easy] += 2.0 * mu * np.eye(3)
         t[easy] = rot[easy] @ t[easy] @ np.transpose(rot[easy], (0, 2, 1))

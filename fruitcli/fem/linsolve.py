@@ -89,6 +89,7 @@ class TangentSolver:
         self.fresh = False  # the factorization is of the current configuration
         self.rtol = PCG_RELATIVE_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
+        self.history = []  # converged (load vector, x, p) for the next state's predictor
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 

@@ -221,6 +221,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     last = None  # (t, x, p) of the load step before the last one, for the predictor
     retry = False
+    guess = _history_guess(solver.history, x_start, load) if dt == 1.0 else None
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
@@ -228,6 +229,8 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         if last is not None and not retry:  # secant predictor along the load path
             s = (t_new - t) / (t - last[0])
             x_try, p_try = x + s * (x - last[1]), p + s * (p - last[2])
+        elif guess is not None and t_new == 1.0 and not retry:  # secant over the states
+            x_try, p_try = guess[0], guess[1].copy()
         if k:
             p_try[~vc] = step_load.pressure_kpa[~vc]
         ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
@@ -253,7 +256,44 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
                 f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}")
         dt *= 0.5
+    solver.history = (solver.history + [(_load_vector(load), x, p)])[-HISTORY_STATES:]
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
+
+
+HISTORY_STATES = 4
+"""Converged states kept (on the TangentSolver) for the secant predictor of the next."""
+
+
+def _load_vector(load: Load) -> np.ndarray:
+    """The load as one vector: pressures (or volume growths where volume controlled),
+    gravity, jig scale, and which chambers are volume controlled (1.0 or 0.0: a change
+    of control mode makes the secant meaningless, see `_history_guess`)."""
+    vc = np.asarray(load.volume_controlled, bool)
+    return np.concatenate([np.where(vc, load.volume_growth_mm3, load.pressure_kpa),
+                           [load.gravity, load.jig], vc.astype(float)])
+
+
+def _history_guess(history, x_start, load: Load):
+    """Start of the next state from the previous converged ones: with q the load vector
+    and dq = q_new - q_last = sum_j c_j (q_last - q_j) (least squares over the kept
+    states), x = x_last + sum_j c_j (x_last - x_j), likewise the pressures. Used only
+    when x_start is the last state kept, for loads changing like before (|c| <= 2);
+    None otherwise."""
+    if len(history) < 2 or x_start is None or not np.array_equal(x_start, history[-1][1]):
+        return None
+    q_last, x_last, p_last = history[-1]
+    dq = _load_vector(load) - q_last
+    k = len(load.volume_controlled)
+    if len(dq) != len(q_last) or not np.any(dq) or (k and np.any(dq[-k:])):
+        return None
+    d = np.column_stack([q_last - h[0] for h in history[-2::-1]])
+    c = np.linalg.lstsq(d, dq, rcond=1e-10)[0]
+    if not np.all(np.isfinite(c)) or np.abs(c).sum() > 4.0 \
+            or np.linalg.norm(d @ c - dq) > 1e-6 * np.linalg.norm(dq):
+        return None
+    x = x_last + sum(cj * (x_last - h[1]) for cj, h in zip(c, history[-2::-1], strict=True))
+    p = p_last + sum(cj * (p_last - h[2]) for cj, h in zip(c, history[-2::-1], strict=True))
+    return x, p
 
 
 def _unloaded(model: Model, load: Load) -> bool:
