@@ -1,14 +1,18 @@
 """Benchmark: the mechanics on the default fruit (reduced.stl from make-tracks with the
 3 chambers of pipelines/fruit-breathing.toml): tetra time, time per new pressure state
 from the previous one, Newton iterations, assembly time, ratio to one scipy sparse
-direct solve of the same K, linear solvers compared, time per state against mesh size.
+direct solve of the same K, linear solvers compared, time per state against mesh size;
+and the touchpad's 180-degree bend by jig springs (pipelines/touchpad-4x4.toml, one state
+in jig_steps load steps).
 
-Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13]
+Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [--no-pad]
 """
 
 import argparse
 import copy
 import resource
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -20,6 +24,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def hwm_mb() -> float:
+    """Peak RSS of this process image from /proc (ru_maxrss survives fork + exec, so a
+    child started by a big parent would report the parent's peak)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return float(line.split()[1]) / 1024.0
+    return rss_mb()
 
 
 def fruit_solid(tmp: Path) -> Path:
@@ -48,9 +61,10 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int):
     x = p = prev = None
     rows = []
     for load in loads:
+        cg0 = solver.stats["cg_iterations"]
         res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
                           options=opts, solver=solver)
-        rows.append((res.solve_ms, res.iterations))
+        rows.append((res.solve_ms, res.iterations, solver.stats["cg_iterations"] - cg0))
         x, p, prev = res.x, res.pressure_kpa, load
     return model, solver, rows
 
@@ -71,15 +85,52 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
     return 1e3 * t_asm, 1e3 * (time.perf_counter() - t0)
 
 
+def bench_pad(tmp: Path, tolerance: float | None) -> None:
+    """The touchpad bend: tetra, then the one jig state in the scene's jig_steps."""
+    from fruitcli.fem import io
+    from fruitcli.fem.linsolve import TangentSolver
+    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.stage import build_model, run_tetra, state_loads
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(ROOT / "pipelines" / "touchpad-4x4.toml", must_exist=False)
+    cfg = scene["solver"]
+    tol = cfg["tolerance"] if tolerance is None else tolerance
+    q = run_tetra(scene, None, tmp / "pad-mesh")
+    model = build_model(scene, io.load_mesh(tmp / "pad-mesh" / "mesh.npz"))
+    load = state_loads(scene, model.chamber_names)[0]
+    solver = TangentSolver(model, cfg["linear_solver"])
+    opts = SolverOptions(tol, cfg["max_iterations"], cfg["max_subdivisions"],
+                         cfg["linear_solver"], cfg["jig_steps"])
+    res = solve_state(model, load, options=opts, solver=solver)
+    st = solver.stats
+    print(f"\ntouchpad bend: {q['n_tets']} tets, {cfg['jig_steps']} jig steps, tolerance {tol:g}: "
+          f"{res.solve_ms / 1e3:.2f} s, {res.iterations} Newton iterations, "
+          f"{res.subdivisions} subdivisions, {st['factorizations']} factorizations "
+          f"({st['factor_s']:.2f} s), {st['cg_iterations']} CG iterations, residual "
+          f"{res.residual:.1e}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
     ap.add_argument("--states", type=int, default=13)
     ap.add_argument("--with-cg", action="store_true",
                     help="also time Jacobi CG (about 11 s per state here)")
+    ap.add_argument("--no-pad", action="store_true", help="skip the touchpad bend")
+    ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--pad-tolerance", type=float, default=None,
+                    help="override the touchpad scene's [solver] tolerance")
     args = ap.parse_args()
-    from fruitcli.fem.stage import run_tetra
+    from fruitcli.fem import linsolve
     from fruitcli.scene import load_scene
+
+    if args.child_states is not None:  # peak memory of the simulation alone
+        scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+        _, _, rows = time_states(scene, args.child_states, "splu", args.states)
+        print(f"{hwm_mb():.0f} {np.median([r[0] for r in rows[1:]]):.1f}")
+        return
+    from fruitcli.fem.stage import run_tetra
 
     scene0 = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
     with tempfile.TemporaryDirectory() as tmp:
@@ -90,8 +141,10 @@ def main() -> None:
               f"-> {solid.name}")
         default_size = scene0["mesh"]["size_mm"]
         sizes = sorted(set(args.sizes) | {default_size}, reverse=True)
+        backend = "SuperLU" if linsolve._cholesky is None else "cholespy"
+        print(f"kept factorization: {backend}; iters and cg: means per state after the first")
         print(f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
-              f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'factor':>6}")
+              f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'cg':>5} {'factor':>6}")
         for size in sizes:
             scene = copy.deepcopy(scene0)
             scene.data["mesh"]["size_mm"] = size
@@ -106,19 +159,27 @@ def main() -> None:
                 model, solver, rows = time_states(scene, out / "mesh.npz", name, args.states)
                 later = np.array([r[0] for r in rows[1:]])  # states from the previous one
                 its = np.mean([r[1] for r in rows[1:]])
+                cg = np.mean([r[2] for r in rows[1:]])
                 print(f"{size:7g} {q['n_tets']:7d} {q['n_nodes']:6d} {t_tetra:7.2f} "
                       f"{name:>10} {np.median(later):9.1f} {later.max():7.1f} {its:5.1f} "
-                      f"{solver.stats['factorizations']:6d}", flush=True)
+                      f"{cg:5.1f} {solver.stats['factorizations']:6d}", flush=True)
             if size == default_size:
                 asm_ms, direct_ms = one_direct_solve_ms(model)
                 _, _, rows = time_states(scene, out / "mesh.npz", "splu", args.states)
                 med = float(np.median([r[0] for r in rows[1:]]))
-                default = (size, med, asm_ms, direct_ms)
-        size, med, asm_ms, direct_ms = default
+                child = subprocess.run([sys.executable, __file__, "--child-states",
+                                        str(out / "mesh.npz"), "--states", str(args.states)],
+                                       capture_output=True, text=True, check=True)
+                default = (size, med, asm_ms, direct_ms, child.stdout.split())
+        size, med, asm_ms, direct_ms, (child_rss, child_med) = default
         print(f"\ndefault size {size:g} mm: one new pressure state {med:.1f} ms median "
               f"(target <= 33 ms); assembly of K {asm_ms:.1f} ms; one scipy spsolve of the "
               f"same K {direct_ms:.1f} ms; ratio state / direct solve {med / direct_ms:.2f}")
-        print(f"peak RSS {rss_mb():.0f} MB (target <= 500 MB)")
+        print(f"peak RSS of the {args.states} default states alone (own process: load the mesh, "
+              f"build, solve) {child_rss} MB, median state there {child_med} ms "
+              f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
+        if not args.no_pad:
+            bench_pad(tmp, args.pad_tolerance)
 
 
 if __name__ == "__main__":
