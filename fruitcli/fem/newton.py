@@ -1,6 +1,10 @@
 """Quasi-static equilibrium of one state (the paper's eqs. 2-3): Newton iterations on
-the warped corotational tangent with chamber pressures as Lagrange multipliers, a
-backtracking line search, and load-step halving when a step does not converge.
+the consistent corotational tangent (with the follower-pressure stiffness; the projected
+or SOFA's warped tangent when a step fails, see TANGENTS) with chamber pressures as
+Lagrange multipliers, a backtracking line search, and load-step halving when a step does
+not converge. Each load step starts from a secant predictor: along the load path from
+the two previous steps, or, for a new state, from the previous states kept on the
+TangentSolver (`_history_guess`); Newton retries from the plain start if it fails.
 
 Residual r = f_ext(x, p) - f_int(x) over the free dofs; a volume-controlled chamber
 adds the constraint V(x) = V_rest + growth with its pressure p as unknown. The linear
