@@ -115,3 +115,15 @@ def test_identical_stage_is_borrowed_from_a_sibling_scene(tmp_path):
     assert step.action == "reuse" and "same inputs as first" in step.reason
     assert (tmp_path / "out" / "second" / "evaluate" / "table.md").read_text() == \
         (tmp_path / "out" / "first" / "evaluate" / "table.md").read_text()
+
+
+def test_every_subcommand_has_help_with_units(fruit):
+    from fruitcli.cli.main import COMMANDS
+
+    for name in COMMANDS:
+        res = fruit(name, "--help")
+        assert res.exit_code == 0, (name, res.output)
+        assert "not implemented yet" not in res.output, name
+    for name in ("make-tracks", "simulate", "locate", "evaluate", "bench", "record"):
+        res = fruit(name, "--help")
+        assert "mm" in res.output or "counts" in res.output or "frames" in res.output, name

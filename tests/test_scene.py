@@ -104,3 +104,15 @@ def test_every_bundled_scene_validates():
 
     for path in sorted((ROOT / "pipelines").glob("*.toml")):
         load_scene(path, must_exist=False)
+
+
+def test_readme_scene_example_is_valid():
+    import re
+
+    from conftest import ROOT
+
+    text = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```toml\n(.*?)```", text, re.S)
+    assert blocks
+    for block in blocks:
+        parse_scene(block, ROOT / "pipelines" / "example.toml", must_exist=False)
