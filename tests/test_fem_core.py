@@ -191,3 +191,32 @@ def test_soft_cantilever_converges_quadratically():
     res = solve_state(m, Load.pressures([], gravity=1.1, jig=0.0), x_start=first.x,
                       load_start=Load.pressures([], gravity=1.0, jig=0.0), options=opts)
     assert res.iterations <= 4 and res.residual <= 1e-10 and res.subdivisions == 0
+
+
+@pytest.mark.parametrize("project", [False, True])
+def test_component_major_kernels_match_per_element_ones(project):
+    """The sparse-operator kernels the solver uses (forces, energy, tangent product,
+    with F from the gradient operator) agree with the per-element reference ones
+    (R K0 (R^T x - X), assembled consistent tangent blocks) to 1e-12 relative, at 30 %
+    random strain with some elements inverted."""
+    nodes, tets = bar((4, 2, 2), (12.0, 6.0, 6.0))
+    m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=[0])
+    x = nodes + 0.3 * RNG.normal(size=nodes.shape)
+    x[m.tets[0, 0]] = 2 * x[m.tets[0]].mean(axis=0) - x[m.tets[0, 0]]  # invert tet 0
+    f, rot, det = m.kinematics(x)
+    assert det.min() < 0
+    f_ref = corotation.deformation_gradients(x, m.tets, m.dm_inv)
+    assert np.allclose(f, f_ref, rtol=0, atol=1e-12 * np.abs(f_ref).max())
+    force, energy = m.forces_and_energy(f, rot)
+    force_ref, energy_ref = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot)
+    assert np.abs(force - force_ref).max() < 1e-12 * np.abs(force_ref).max()
+    assert abs(energy - energy_ref) < 1e-12 * energy_ref
+    lam, mu = m.lame_kpa
+    t = corotation.skew_stiffness(f, rot, lam, mu, project)
+    v = RNG.normal(size=nodes.shape)
+    kv = corotation.apply_tangent_soa(m.op, m.volumes_mm3, lam, mu, corotation.soa(rot),
+                                      corotation.soa(t), v)
+    blocks = m.tangent_blocks(rot, f, project)
+    kv_ref = corotation.scatter_nodes(
+        m.tets, (blocks @ v[m.tets].reshape(-1, 12, 1)).reshape(-1, 4, 3), len(nodes))
+    assert np.abs(kv - kv_ref).max() < 1e-12 * np.abs(kv_ref).max()

@@ -205,23 +205,34 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
     the inverse is taken in closed form (no eigendecomposition) wherever tr S I - S is
     well conditioned; with `project`, also where Gershgorin's bound on the eigenvalues
     of tr S I - S shows that the clamp would change nothing (eigh only for the rest)."""
-    s = np.transpose(rot, (0, 2, 1)) @ f
-    s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
-    tr = np.trace(s, axis1=1, axis2=2)
+    t = np.zeros((3, 3, len(f)))
+    rc, fc = soa(rot), soa(f)
+    s = np.einsum("kim,kjm->ijm", rc, fc)  # R^T F
+    s = 0.5 * (s + np.transpose(s, (1, 0, 2)))
+    tr = s[0, 0] + s[1, 1] + s[2, 2]
     c = lam * (tr - 3.0) - 2.0 * mu
-    t = np.zeros_like(s)
     q = -s
-    q[:, [0, 1, 2], [0, 1, 2]] += tr[:, None]
-    det_q = det3(q)
+    for i in range(3):
+        q[i, i] += tr
+    adj = np.empty_like(q)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
+    det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
     easy = det_q > 1e-6 * np.abs(tr) ** 3
     if project:  # the clamp is idle where Gershgorin bounds every 2 mu + 2 c / q_i >= 0
-        off = np.abs(q).sum(axis=2) - np.abs(q[:, [0, 1, 2], [0, 1, 2]])
-        q_low = (q[:, [0, 1, 2], [0, 1, 2]] - off).min(axis=1)  # <= smallest eigenvalue
+        q_low = np.min([q[i, i] - np.abs(q[i, (i + 1) % 3]) - np.abs(q[i, (i + 2) % 3])
+                        for i in range(3)], axis=0)  # <= smallest eigenvalue
         easy &= (q_low > 0.0) & ((c >= 0.0) | (mu * q_low + c >= 0.0))
     if easy.any():
-        t[easy] = (2.0 * c[easy] / det_q[easy])[:, None, None] * adjugate3(q[easy])
-        t[easy] += 2.0 * mu * np.eye(3)
-        t[easy] = rot[easy] @ t[easy] @ np.transpose(rot[easy], (0, 2, 1))
+        te = adj * np.where(easy, 2.0 * c / np.where(easy, det_q, 1.0), 0.0)
+        for i in range(3):
+            te[i, i] += np.where(easy, 2.0 * mu, 0.0)
+        t = _mmt(_mm(rc, te), rc)
+    t = np.transpose(t, (2, 0, 1))
+    s = np.transpose(s, (2, 0, 1))
     hard = ~easy
     if hard.any():
         sig, u = np.linalg.eigh(s[hard])
@@ -302,3 +313,87 @@ def exact_stiffness(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: floa
         x = x.reshape(m, 3, 12)
         k += 0.5 * (np.transpose(x, (0, 2, 1)) @ (t @ x))
     return k * volumes[:, None, None]
+
+
+class GradientOperator:
+    """The rest shape-function gradients as one sparse operator over all elements, for
+    the per-iteration kernels in component-major (3, 3, m) arrays (contiguous per entry,
+    where numpy's elementwise work is fast): `grad(v)` = sum_b v_b g_b^T per element
+    (the deformation gradient F for v = x), and its adjoint `div(n)`, the nodal sums
+    sum_e n_e g_a. With them the corotational forces are div(V R sigma(R^T F - I)) and
+    the consistent tangent product is div(M R) (see `apply_tangent`)."""
+
+    def __init__(self, grads: np.ndarray, tets: np.ndarray, n_nodes: int):
+        import scipy.sparse as sp
+
+        m = len(tets)
+        # row (3 i + j) m + e, column 3 tets[e, b] + i, value g_bj
+        i, j, e, b = np.meshgrid(np.arange(3), np.arange(3), np.arange(m), np.arange(4),
+                                 indexing="ij")
+        rows = ((3 * i + j) * m + e).ravel()
+        cols = (3 * tets[e, b] + i).ravel()
+        vals = grads[e, b, j].ravel()
+        self.m = m
+        self.b = sp.csr_matrix((vals, (rows, cols)), shape=(9 * m, 3 * n_nodes))
+        self.bt = self.b.T.tocsr()
+
+    def grad(self, v: np.ndarray) -> np.ndarray:
+        """(3, 3, m) sum_b v_b g_b^T for nodal vectors v (n, 3)."""
+        return (self.b @ v.reshape(-1)).reshape(3, 3, self.m)
+
+    def div(self, n: np.ndarray) -> np.ndarray:
+        """(n, 3) sum over elements of n_e g_a into node a, for n (3, 3, m)."""
+        return (self.bt @ n.reshape(-1)).reshape(-1, 3)
+
+
+def soa(a: np.ndarray) -> np.ndarray:
+    """(3, 3, m) contiguous copy of (m, 3, 3) matrices (or a view when a is one)."""
+    return np.ascontiguousarray(np.transpose(a, (1, 2, 0)))
+
+
+def _mm(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3, m) products a_e b_e."""
+    return np.einsum("ikm,kjm->ijm", a, b, out=out)
+
+
+def _mmt(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3, 3, m) products a_e b_e^T."""
+    return np.einsum("ikm,jkm->ijm", a, b)
+
+
+def forces_and_energy_soa(op: GradientOperator, volumes: np.ndarray, lam: float, mu: float,
+                          f: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, float]:
+    """`forces_and_energy` from F and R as (3, 3, m) arrays: with H = R^T F - I and
+    sigma = lam tr H I + mu (H + H^T), the forces are div(V R sigma) and the energy
+    sum V sigma : H / 2 (equal to R K0 (R^T x - X) of the isotropic Hooke K0)."""
+    h = np.einsum("kim,kjm->ijm", rot, f)  # R^T F
+    tr = h[0, 0] + h[1, 1] + h[2, 2] - 3.0
+    sig = mu * (h + np.transpose(h, (1, 0, 2)))
+    for i in range(3):
+        sig[i, i] += lam * tr - 2.0 * mu
+        h[i, i] -= 1.0
+    sig *= volumes
+    energy = 0.5 * float(np.einsum("ijm,ijm->", sig, h))
+    return op.div(_mm(rot, sig)), energy
+
+
+def apply_tangent_soa(op: GradientOperator, volumes: np.ndarray, lam: float, mu: float,
+                      rot: np.ndarray, t_world: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    """`apply_tangent` with R and T' as (3, 3, m) arrays: G = grad(v) R^T, M as there,
+    K v = div(M R). Returns (n, 3)."""
+    g = _mmt(op.grad(v), rot)
+    mm = mu * (g + np.transpose(g, (1, 0, 2)))
+    tr = lam * (g[0, 0] + g[1, 1] + g[2, 2])
+    for i in range(3):
+        mm[i, i] += tr
+    if t_world is not None:
+        w = np.stack([g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]])
+        tw = 0.5 * np.einsum("ijm,jm->im", t_world, w)
+        mm[0, 1] -= tw[2]
+        mm[0, 2] += tw[1]
+        mm[1, 0] += tw[2]
+        mm[1, 2] -= tw[0]
+        mm[2, 0] -= tw[1]
+        mm[2, 1] += tw[0]
+    mm *= volumes
+    return op.div(_mm(mm, rot))

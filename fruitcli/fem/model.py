@@ -194,7 +194,7 @@ class Model:
 
     def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x."""
-        f = corotation.deformation_gradients(x, self.tets, self.dm_inv)
+        f = np.transpose(self.op.grad(x), (2, 0, 1))  # view of the (3, 3, m) array
         rot = corotation.polar_rotations(f, self.__dict__.get("_rot_guess"))
         self.__dict__["_rot_guess"] = rot  # warm start of the next polar decomposition
         return f, rot, corotation.det3(f)
@@ -206,6 +206,22 @@ class Model:
         if s is None:
             s = self.__dict__["_scatter"] = corotation.scatter_matrix(self.tets, self.n_nodes)
         return s
+
+    @property
+    def op(self) -> corotation.GradientOperator:
+        """The shape-function gradients as a sparse operator (built on first use)."""
+        op = self.__dict__.get("_op")
+        if op is None:
+            op = self.__dict__["_op"] = corotation.GradientOperator(self.grads, self.tets,
+                                                                    self.n_nodes)
+        return op
+
+    def forces_and_energy(self, f: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, float]:
+        """Elastic forces (n, 3) mN and strain energy (mN mm) from the deformation
+        gradients and rotations (m, 3, 3) of `kinematics`."""
+        lam, mu = self.lame_kpa
+        return corotation.forces_and_energy_soa(self.op, self.volumes_mm3, lam, mu,
+                                                corotation.soa(f), corotation.soa(rot))
 
     @property
     def lame_kpa(self) -> tuple[float, float]:
