@@ -6,6 +6,13 @@ curves. A closed (genus 0) shell is cut along triangle edges into a bottom patch
 top patch; their shared loop is split into two curves at its min-x and max-x vertices.
 The bottom patch is the flat base when the solid stands on one (the reduced fruit),
 otherwise the faces below the middle of the bounding box. Pure numpy, deterministic.
+
+A selection of whole triangles has a jagged boundary: where one patch meets a loop
+vertex with a thin wedge (the reduced fruit's base had a 34 degree spike at its max-x
+vertex), gmsh's remeshed curve cuts across the wedge in one patch's parametrization and
+the two remeshed patches overlap ("PLC Error: A segment and a facet intersect" at size
+6.25). `smooth_selection` moves the triangles of every wedge narrower than
+`MIN_CORNER_DEG` to the other patch before the split.
 """
 
 from __future__ import annotations
@@ -24,6 +31,14 @@ for base faces."""
 BASE_FLATNESS = 0.05
 """A bottom patch is a flat base (tagged) when its z extent is below this fraction of its
 extent in x and y (the reduced fruit: 1.6 mm over 45 mm; a ball's bottom cap: 9 %)."""
+
+
+MIN_CORNER_DEG = 75.0
+"""Smallest corner (sum of triangle angles at a loop vertex on one side) a patch keeps;
+a staircase of a regular grid has 90 and 270 degree corners."""
+
+SMOOTH_PASSES = 20
+"""At most this many passes of `smooth_selection` (each flips the wedges it finds)."""
 
 
 def face_components(faces: np.ndarray) -> np.ndarray:
@@ -93,6 +108,50 @@ def _close_holes(seed: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out
 
 
+def corner_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(f, 3) angle (radians) of each triangle at each of its corners."""
+    p = np.asarray(vertices, float)[faces]
+    out = np.empty((len(faces), 3))
+    for k in range(3):
+        a = p[:, (k + 1) % 3] - p[:, k]
+        b = p[:, (k + 2) % 3] - p[:, k]
+        cos = np.einsum("ij,ij->i", a, b) / np.maximum(
+            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), np.finfo(float).tiny)
+        out[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
+    return out
+
+
+def smooth_selection(vertices: np.ndarray, faces: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """The face selection `sel` (f,) bool with its wedges removed: at a vertex where the
+    selected triangles (or the others) span less than MIN_CORNER_DEG, those triangles
+    change side. Passes alternate (grow the selection, then shrink it) until nothing
+    changes; a pass that would leave either side empty is not applied."""
+    faces = np.asarray(faces, np.int64)
+    ang = corner_angles(vertices, faces).ravel()
+    vert = faces.ravel()
+    owner = np.repeat(np.arange(len(faces)), 3)
+    n_v = int(vert.max()) + 1
+    limit = np.radians(MIN_CORNER_DEG)
+    sel = np.asarray(sel, bool).copy()
+    idle = 0
+    for step in range(2 * SMOOTH_PASSES):
+        grow = step % 2 == 0
+        inside = sel[owner]
+        a_in = np.bincount(vert, ang * inside, n_v)
+        a_out = np.bincount(vert, ang * ~inside, n_v)
+        on_loop = (a_in > 0) & (a_out > 0)
+        narrow = on_loop & ((a_out if grow else a_in) < limit)
+        flip = np.zeros(len(faces), bool)
+        flip[owner[narrow[vert] & (inside != grow)]] = True
+        new = sel | flip if grow else sel & ~flip
+        idle = 0 if flip.any() else idle + 1
+        if idle == 2:  # neither growing nor shrinking changes anything
+            break
+        if new.any() and not new.all():
+            sel = new
+    return sel
+
+
 def split_bottom_top(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, bool] | None:
     """(f,) bool, True for the bottom patch, and whether it is a flat base; None when
     neither the base nor the lower half gives two disks (the surface is then kept)."""
@@ -112,6 +171,9 @@ def split_bottom_top(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarra
         candidates.append((_close_holes(seed, f), True))
     candidates.append((_close_holes(zc < 0.5 * (zmin + zmax), f), False))
     for bottom, base in candidates:
+        smooth = _close_holes(smooth_selection(v, f, bottom), f)
+        if is_disk(f[smooth]) and is_disk(f[~smooth]):
+            bottom = smooth
         if bottom.all() or not bottom.any() or not is_disk(f[bottom]) or not is_disk(f[~bottom]):
             continue
         bv = v[np.unique(f[bottom])]
