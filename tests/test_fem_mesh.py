@@ -261,6 +261,7 @@ def test_size_controls_the_mesh(dome_dir, tmp_path):
     for size in (8.0, 5.0, 3.0):
         q, mesh = dome_mesh(dome_dir, tmp_path / f"m{size:g}", size)
         assert q["sicn_min"] >= 0.15 and q["poor_tets"] == 0
+        assert q["attempts"] == [{"size_mm": size, "surfaces": "remeshed", "result": "ok"}]
         base = mesh["surface_tris"][mesh["surface_tri_tag"] == 1]
         assert len(base) > 0 and np.allclose(mesh["nodes"][base][:, :, 2], 0.0, atol=1e-9)
         edges = np.linalg.norm(np.diff(mesh["nodes"][base][:, [0, 1, 2, 0]], axis=1), axis=2)
@@ -291,3 +292,54 @@ def test_taxel_region_is_tagged_and_refined(dome_dir, tmp_path):
     assert q1["n_tets"] > q0["n_tets"] and q1["sicn_min"] >= 0.15
     tri = fine["nodes"][fine["surface_tris"][fine["surface_tri_tag"] == 2]]
     assert np.median(np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)) < 3.0
+
+
+def test_patch_boundary_has_no_wedges():
+    """The split of a ball and of a jagged selection on it leaves no corner narrower
+    than MIN_CORNER_DEG on either patch (thin wedges made gmsh's remeshed patches
+    cross on the default fruit at size 6.25)."""
+    from fruitcli.fem.patches import (
+        MIN_CORNER_DEG,
+        boundary_loops,
+        corner_angles,
+        is_disk,
+        smooth_selection,
+        split_bottom_top,
+    )
+
+    ball = trimesh.creation.icosphere(3, 10.0)
+    v, f = np.asarray(ball.vertices), np.asarray(ball.faces, np.int64)
+    jagged = v[f][:, :, 2].mean(axis=1) + 1.5 * np.sin(3 * v[f][:, :, 0].mean(axis=1)) < 0
+    smooth = smooth_selection(v, f, jagged)
+    bottom, _ = split_bottom_top(v, f)
+    ang, vert = np.degrees(corner_angles(v, f)).ravel(), f.ravel()
+    for sel in (smooth, bottom):
+        assert is_disk(f[sel]) and is_disk(f[~sel])
+        inside = np.repeat(sel, 3)
+        (loop,) = boundary_loops(f[sel])
+        for side in (inside, ~inside):
+            corner = np.bincount(vert, ang * side, len(v))[loop]
+            assert corner.min() >= MIN_CORNER_DEG
+    assert (smooth != jagged).any()
+
+
+def test_plc_failure_runs_the_fallback_chain(tmp_path, caplog):
+    """A box whose top centre is pushed through its bottom crosses itself: gmsh's PLC
+    error is retried at 0.97 size, then with the input triangles kept, each attempt
+    logged, and the final error is one line naming the file and what to change."""
+    m = trimesh.creation.box(extents=(20.0, 20.0, 10.0)).subdivide().subdivide()
+    v = m.vertices.copy()
+    v[np.all(np.isclose(v, [0.0, 0.0, 5.0]), axis=1), 2] = -8.0
+    trimesh.Trimesh(v, m.faces, process=False).export(tmp_path / "poke.stl")
+    scene = parse_scene('[geometry]\nsolid = "poke.stl"\n[mesh]\nsize_mm = 5.0\n',
+                        tmp_path / "s.toml")
+    with pytest.raises(MeshError) as err, caplog.at_level("WARNING"):
+        run_tetra(scene, None, tmp_path / "out")
+    msg = str(err.value)
+    assert "\n" not in msg and "poke.stl" in msg and "all 3 attempts" in msg
+    assert "PLC Error" in msg and "change [mesh].size_mm" in msg
+    retries = [r.getMessage() for r in caplog.records if "retrying" in r.getMessage()]
+    assert len(retries) == 2
+    assert "size 4.85 mm with the surfaces remeshed" in retries[0]
+    assert "size 5 mm with the surfaces kept as input" in retries[1]
+    assert not (tmp_path / "out").exists()

@@ -20,10 +20,20 @@ Surface tags (`surface_tri_tag` of mesh.npz, outer surface only): 0 other outer
 surface, 1 base (the flat bottom the solid stands on), 2 taxels' region (within
 `TAXEL_RADIUS_MM` of a taxel; the base wins where both apply). The child is killed
 after `time_limit_s` seconds. Same input, same mesh (no randomness in any step).
+
+Fallback chain (`fallback_plan`): when gmsh refuses the boundary it was given (a PLC
+error: remeshed facets that cross or overlap), the mesh is tried again at `size_mm *
+FALLBACK_SIZE_FACTOR`, then at `size_mm` with the surfaces kept as the input triangles
+(no remeshing: the size then acts on the volume only). Every attempt is logged as a
+warning, passed to `progress` when given, and listed in the mesh's `attempts` (a JSON
+string, copied to quality.json); when all fail, the one-line error names the input
+and what to change. Other failures (timeout, an open surface) are not retried.
 """
 
 from __future__ import annotations
 
+import json
+import logging
 import os
 import signal
 import subprocess
@@ -61,6 +71,16 @@ surface or another chamber (a chord that long sags well under the gap on the fla
 sides of the chambers; at 3x the default fruit's facets crossed at size 8)."""
 
 TAG_OUTER, TAG_BASE, TAG_TAXEL = 0, 1, 2
+
+FALLBACK_SIZE_FACTOR = 0.97
+"""Second attempt after a PLC failure: this fraction of size_mm (moves every node of the
+remeshed curves and surfaces, so the crossing facets are not built again)."""
+
+RETRY_MARKERS = ("PLC Error", "intersect", "overlap")
+"""gmsh failures (in its message) that the fallback chain retries: the boundary handed to
+the 3D mesher crosses itself."""
+
+log = logging.getLogger(__name__)
 
 
 def surface_samples(vertices: np.ndarray, faces: np.ndarray, step: float) -> np.ndarray:
@@ -101,9 +121,15 @@ def chamber_sizes(shells: list[dict], min_size_mm: float) -> list[float]:
     return sizes
 
 
+def fallback_plan(size_mm: float) -> list[tuple[float, bool]]:
+    """(size_mm, remesh the surfaces) of each attempt, in order."""
+    return [(size_mm, True), (size_mm * FALLBACK_SIZE_FACTOR, True), (size_mm, False)]
+
+
 def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
-              taxels_xyz: np.ndarray | None = None) -> dict:
-    """The arrays handed to the gmsh child (see `fruitcli.fem.gmsh_job`)."""
+              taxels_xyz: np.ndarray | None = None, remesh: bool = True) -> dict:
+    """The arrays handed to the gmsh child (see `fruitcli.fem.gmsh_job`). With
+    remesh=False the triangle surfaces are kept as they are (no patch split)."""
     wall = chamber_sizes(shells, min_size_mm)
     # gmsh clamps every size to MeshSizeMin: chamber files remeshed at their wall size
     # need it that low; analytic chambers are triangulated apart and kept
@@ -118,7 +144,7 @@ def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
         h = size_mm if i == 0 else wall[i - 1]
         if sh["kind"] == "surface":
             job[f"s{i}_vertices"], job[f"s{i}_faces"] = sh["vertices"], sh["faces"]
-            split = split_bottom_top(sh["vertices"], sh["faces"])
+            split = split_bottom_top(sh["vertices"], sh["faces"]) if remesh else None
             if split is not None:
                 job[f"s{i}_bottom"] = split[0]
                 if i == 0:
@@ -138,10 +164,45 @@ def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
 
 def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_s: float,
              label: str, work_dir: Path | None = None,
-             taxels_xyz: np.ndarray | None = None) -> dict:
-    """Mesh the outer shell (first) with the chamber shells as holes. Returns gmsh's raw
-    arrays and the .msh text path. MeshError names `label` on failure or timeout."""
-    job = build_job(shells, size_mm, min_size_mm, taxels_xyz)
+             taxels_xyz: np.ndarray | None = None, progress=None) -> dict:
+    """Mesh the outer shell (first) with the chamber shells as holes, through the
+    fallback chain (module docstring). Returns gmsh's raw arrays, the .msh text and
+    `attempts` (JSON list of {size_mm, surfaces, result}). MeshError names `label` on
+    failure or timeout."""
+    attempts, plan = [], fallback_plan(size_mm)
+    for n, (size, remesh) in enumerate(plan):
+        surfaces = "remeshed" if remesh else "kept as input"
+        try:
+            raw = _run_once(build_job(shells, size, min(min_size_mm, size), taxels_xyz,
+                                      remesh), time_limit_s, label, work_dir)
+        except MeshError as exc:
+            reason = str(exc).removeprefix(f"{label}: ")
+            if not any(m in reason for m in RETRY_MARKERS):
+                if reason.startswith("tetrahedralization failed"):
+                    raise MeshError(f"{exc}; check that the surfaces are closed and apart, "
+                                    f"or change [mesh].size_mm") from None
+                raise
+            attempts.append({"size_mm": size, "surfaces": surfaces, "result": reason})
+            if n + 1 < len(plan):
+                msg = (f"tetra: attempt {n + 1} failed ({reason}); retrying at size "
+                       f"{plan[n + 1][0]:g} mm with the surfaces "
+                       f"{'remeshed' if plan[n + 1][1] else 'kept as input'}")
+                log.warning(msg)
+                if progress is not None:
+                    progress(msg)
+            continue
+        attempts.append({"size_mm": size, "surfaces": surfaces, "result": "ok"})
+        raw["attempts"] = json.dumps(attempts)
+        return raw
+    raise MeshError(
+        f"{label}: tetrahedralization failed in all {len(plan)} attempts (size_mm "
+        f"{size_mm:g} and {size_mm * FALLBACK_SIZE_FACTOR:g} remeshed, {size_mm:g} with the "
+        f"input triangles kept; last: {attempts[-1]['result']}); change [mesh].size_mm or "
+        f"repair {label} (facets that cross or touch)")
+
+
+def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None) -> dict:
+    """One gmsh child on `job`: its raw arrays and the .msh text."""
     with tempfile.TemporaryDirectory(prefix="fruit-gmsh-", dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
@@ -240,6 +301,7 @@ def assemble_mesh(raw: dict, names: list[str], size_mm: float,
         "chamber_tri_owner": (np.concatenate(owner) if owner else np.zeros(0, np.int64)),
         "sicn": raw["sicn"],
         "gamma": raw["gamma"],
+        "attempts": np.array(raw.get("attempts", "[]")),
     }
 
 
@@ -251,4 +313,5 @@ def quality_report(mesh: dict, min_quality: float) -> dict:
             "sicn_min": float(sicn.min()), "sicn_mean": float(sicn.mean()),
             "gamma_min": float(gamma.min()), "gamma_mean": float(gamma.mean()),
             "min_dihedral_deg": float(dihedral.min()),
-            "poor_tets": int(np.sum(sicn < min_quality)), "min_quality": float(min_quality)}
+            "poor_tets": int(np.sum(sicn < min_quality)), "min_quality": float(min_quality),
+            "attempts": json.loads(str(mesh.get("attempts", "[]")))}
