@@ -76,7 +76,8 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), "
              f"{len(chambers)} chamber(s)")
     raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg["time_limit_s"],
-                         label=outer["name"], work_dir=None, taxels_xyz=taxels_xyz)
+                         label=outer["name"], work_dir=None, taxels_xyz=taxels_xyz,
+                         progress=progress)
     mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size, taxels_xyz)
     report = tetra.quality_report(mesh, mesh_cfg["min_quality"])
     for k, ch in enumerate(chambers):
