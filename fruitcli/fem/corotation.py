@@ -75,33 +75,79 @@ def polar_rotations(f: np.ndarray, guess: np.ndarray | None = None) -> np.ndarra
         return _polar_cold(f)
     fc = np.ascontiguousarray(np.transpose(f, (1, 2, 0)))  # (3, 3, m): fast batched 3x3
     r = np.ascontiguousarray(np.transpose(guess, (1, 2, 0)))
-    eye = np.eye(3)[:, :, None]
+    m = len(f)
+    idx = np.arange(m)  # elements still iterating; after the first corrections only
+    bad = np.zeros(m, bool)  # the few that need another are worked on (cold path: bad)
     for _ in range(POLAR_WARM_ITERATIONS):
-        a = np.einsum("jim,jkm->ikm", r, fc)  # R^T F
-        tr = a[0, 0] + a[1, 1] + a[2, 2]
-        q = tr * eye - 0.5 * (a + np.transpose(a, (1, 0, 2)))
-        rhs = np.stack([a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]])
-        adj = np.empty_like(q)
-        for i in range(3):
-            i1, i2 = (i + 1) % 3, (i + 2) % 3
-            for j in range(3):
-                j1, j2 = (j + 1) % 3, (j + 2) % 3
-                adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
-        det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
-        ok = (det_q > 1e-9 * np.abs(tr) ** 3) & (q[0, 0] > 0) & (tr > 0)
-        w = np.einsum("ijm,jm->im", adj, rhs) * np.where(ok, 1.0 / np.where(ok, det_q, 1.0), 0.0)
-        u = 0.5 * w
-        z = np.zeros_like(u[0])
-        ux = np.array([[z, -u[2], u[1]], [u[2], z, -u[0]], [-u[1], u[0], z]])
-        cay = eye + 2.0 / (1.0 + (u * u).sum(axis=0)) * (ux + np.einsum("ijm,jkm->ikm", ux, ux))
-        r = np.einsum("ijm,jkm->ikm", r, cay)
-        todo = np.flatnonzero(~ok | (np.abs(w).max(axis=0) > POLAR_WARM_STOP))
-        if not len(todo):
+        whole = len(idx) == m
+        # np.take keeps (3, 3, k) C-contiguous (r[:, :, idx] would put k first in memory)
+        rs, fs = (r, fc) if whole else (np.take(r, idx, 2), np.take(fc, idx, 2))
+        w, ok = _warm_correction(rs, fs)
+        rs = _rotate_cayley(rs, w)
+        if whole:
+            r = rs
+        else:
+            r[:, :, idx] = rs
+        bad[idx[~ok]] = True
+        idx = idx[ok & (np.abs(w).max(axis=0) > POLAR_WARM_STOP)]
+        if not len(idx):
             break
+    todo = np.flatnonzero(bad)
+    if len(idx):
+        todo = np.union1d(todo, idx)
     out = np.ascontiguousarray(np.transpose(r, (2, 0, 1)))
     if len(todo):
         out[todo] = _polar_cold(f[todo])
     return out
+
+
+def _warm_correction(r: np.ndarray, fc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One Newton correction w (3, m) of the rotations r (3, 3, m) towards the polar
+    rotation of fc: (tr S I - S) w = vee(A - A^T), A = R^T F, S = sym(A) (adjugate of the
+    symmetric 3x3 in closed form), and where tr S I - S is positive definite (ok)."""
+    a = np.einsum("jim,jkm->ikm", r, fc)  # R^T F
+    tr = a[0, 0] + a[1, 1] + a[2, 2]
+    q00, q11, q22 = tr - a[0, 0], tr - a[1, 1], tr - a[2, 2]
+    q01 = -0.5 * (a[0, 1] + a[1, 0])
+    q02 = -0.5 * (a[0, 2] + a[2, 0])
+    q12 = -0.5 * (a[1, 2] + a[2, 1])
+    c00 = q11 * q22 - q12 * q12
+    c11 = q00 * q22 - q02 * q02
+    c22 = q00 * q11 - q01 * q01
+    c01 = q02 * q12 - q01 * q22
+    c02 = q01 * q12 - q02 * q11
+    c12 = q01 * q02 - q00 * q12
+    det_q = q00 * c00 + q01 * c01 + q02 * c02
+    ok = (det_q > 1e-9 * np.abs(tr) ** 3) & (q00 > 0) & (tr > 0)
+    b0, b1, b2 = a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]
+    s = np.where(ok, 1.0 / np.where(ok, det_q, 1.0), 0.0)
+    w = np.empty((3, len(tr)))
+    np.multiply(c00 * b0 + c01 * b1 + c02 * b2, s, out=w[0])
+    np.multiply(c01 * b0 + c11 * b1 + c12 * b2, s, out=w[1])
+    np.multiply(c02 * b0 + c12 * b1 + c22 * b2, s, out=w[2])
+    return w, ok
+
+
+def _rotate_cayley(r: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """r cay(w / 2) for rotations r (3, 3, m): cay(u) = I + k ([u]x + u u^T - |u|^2 I),
+    k = 2 / (1 + |u|^2)."""
+    u0, u1, u2 = 0.5 * w
+    uu = u0 * u0 + u1 * u1 + u2 * u2
+    k = 2.0 / (1.0 + uu)
+    d = 1.0 - k * uu
+    ku0, ku1, ku2 = k * u0, k * u1, k * u2
+    cay = np.empty((3, 3, len(uu)))
+    cay[0, 0] = d + ku0 * u0
+    cay[1, 1] = d + ku1 * u1
+    cay[2, 2] = d + ku2 * u2
+    a01, a02, a12 = ku0 * u1, ku0 * u2, ku1 * u2
+    cay[0, 1] = a01 - ku2
+    cay[1, 0] = a01 + ku2
+    cay[0, 2] = a02 + ku1
+    cay[2, 0] = a02 - ku1
+    cay[1, 2] = a12 - ku0
+    cay[2, 1] = a12 + ku0
+    return np.einsum("ijm,jkm->ikm", r, cay)
 
 
 def _polar_cold(f: np.ndarray) -> np.ndarray:

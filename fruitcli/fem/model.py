@@ -277,16 +277,34 @@ class Model:
             return None
         import scipy.sparse as sp
 
-        parts = [pressure.volume_hessian_coo(x, t) for t in self.chamber_tris]
-        rows = np.concatenate([q[0] for q in parts])
-        cols = np.concatenate([q[1] for q in parts])
-        vals = np.concatenate([-pk * q[2] for pk, q in zip(pressure_kpa, parts, strict=True)])
-        new = np.full(3 * self.n_nodes, -1, np.int64)
-        new[self.pattern.free] = np.arange(len(self.pattern.free))
-        r, c = new[rows], new[cols]
-        keep = (r >= 0) & (c >= 0)
+        keep, slot, indices, indptr = self._load_pattern
+        vals = np.concatenate([-pk * pressure.volume_hessian_values(x, t)
+                               for pk, t in zip(pressure_kpa, self.chamber_tris, strict=True)])
+        data = np.bincount(slot, vals[keep], minlength=len(indices))
         n = len(self.pattern.free)
-        return sp.csr_matrix((vals[keep], (r[keep], c[keep])), shape=(n, n))
+        return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+    @property
+    def _load_pattern(self):
+        """(keep, slot, indices, indptr): which entries of the chambers' volume Hessians
+        (`pressure.volume_hessian_pattern`, chambers in turn) couple free dofs, where
+        each lands in the CSR data of the load stiffness, and its CSR structure (fixed:
+        filled by one bincount per Newton step instead of a COO conversion)."""
+        pat = self.__dict__.get("_load_pat")
+        if pat is None:
+            parts = [pressure.volume_hessian_pattern(t) for t in self.chamber_tris]
+            new = np.full(3 * self.n_nodes, -1, np.int64)
+            new[self.pattern.free] = np.arange(len(self.pattern.free))
+            r = new[np.concatenate([q[0] for q in parts])]
+            c = new[np.concatenate([q[1] for q in parts])]
+            keep = (r >= 0) & (c >= 0)
+            n = len(self.pattern.free)
+            uniq, slot = np.unique(r[keep] * n + c[keep], return_inverse=True)
+            indptr = np.zeros(n + 1, np.int64)
+            np.cumsum(np.bincount(uniq // n, minlength=n), out=indptr[1:])
+            pat = self.__dict__["_load_pat"] = (keep, slot.reshape(-1),
+                                               (uniq % n).astype(np.int32), indptr)
+        return pat
 
     def apply_load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray,
                              v: np.ndarray) -> np.ndarray:

@@ -74,19 +74,35 @@ def volume_hessian_coo(x: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, ...
     3 * node + component, duplicates to be summed. For V_t = x0.(x1 x x2)/6 the blocks
     are d^2V/dx_a dx_b = -[x_c]x / 6 for (a, b, c) cyclic, their transposes for (b, a),
     and zero on the diagonal; the pressure's load stiffness is -p times this."""
-    p = x[tris]  # (t, 3, 3)
-    t = len(tris)
-    cross = np.zeros((t, 3, 3, 3))  # [x_c]x per vertex c
-    cross[:, :, 0, 1], cross[:, :, 0, 2] = -p[:, :, 2], p[:, :, 1]
-    cross[:, :, 1, 0], cross[:, :, 1, 2] = p[:, :, 2], -p[:, :, 0]
-    cross[:, :, 2, 0], cross[:, :, 2, 1] = -p[:, :, 1], p[:, :, 0]
-    rows, cols, vals = [], [], []
-    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-        blk = -cross[:, c] / 6.0  # (t, 3, 3) d^2V / dx_a dx_b
-        for (i, j, v) in ((a, b, blk), (b, a, np.transpose(blk, (0, 2, 1)))):
+    rows, cols = volume_hessian_pattern(tris)
+    return rows, cols, volume_hessian_values(x, tris)
+
+
+def volume_hessian_pattern(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of `volume_hessian_coo` (they depend on the triangles only)."""
+    rows, cols = [], []
+    shape = (len(tris), 3, 3)
+    for a, b, _ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        for i, j in ((a, b), (b, a)):
             r = 3 * tris[:, i, None, None] + np.arange(3)[None, :, None]
             cc = 3 * tris[:, j, None, None] + np.arange(3)[None, None, :]
-            rows.append(np.broadcast_to(r, v.shape).ravel())
-            cols.append(np.broadcast_to(cc, v.shape).ravel())
-            vals.append(v.ravel())
-    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+            rows.append(np.broadcast_to(r, shape).ravel())
+            cols.append(np.broadcast_to(cc, shape).ravel())
+    return np.concatenate(rows), np.concatenate(cols)
+
+
+def volume_hessian_values(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """The values of `volume_hessian_coo` at x, in the order of `volume_hessian_pattern`:
+    per cyclic (a, b, c) the block -[x_c]x / 6 of (a, b), then its transpose [x_c]x / 6
+    of (b, a)."""
+    p = x[tris] / 6.0  # (t, 3, 3)
+    t = len(tris)
+    out = np.zeros((3, 2, t, 3, 3))
+    for k, c in enumerate((2, 0, 1)):
+        xc, yc, zc = p[:, c, 0], p[:, c, 1], p[:, c, 2]
+        blk = out[k, 0]  # -[x_c]x / 6
+        blk[:, 0, 1], blk[:, 0, 2] = zc, -yc
+        blk[:, 1, 0], blk[:, 1, 2] = -zc, xc
+        blk[:, 2, 0], blk[:, 2, 1] = yc, -xc
+        out[k, 1] = -blk  # its transpose ([x]x is skew)
+    return out.reshape(-1)
