@@ -98,3 +98,27 @@ def test_superlu_fallback_without_cholespy(monkeypatch):
     _, _, _, res = bent_pad(steps=6)
     assert res.residual <= 1e-6
     assert np.abs(res.x - ref.x).max() < 1e-4
+
+
+def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path():
+    """Breathing-like loads (phase-shifted sinusoids: an ellipse in a plane of the
+    pressure space): with 6 kept states the guess reproduces any response quadratic in
+    the pressures; with 3 it falls back to the first-order weights."""
+    from fruitcli.fem.newton import HISTORY_STATES, _history_guess, _load_vector
+
+    rng = np.random.default_rng(3)
+    a, b, c = rng.standard_normal((4, 3, 3, 3)), rng.standard_normal((4, 3, 3)), \
+        rng.standard_normal((4, 3))
+
+    def response(pk):  # (4, 3) "x", quadratic in the 3 pressures
+        return c + b @ pk + np.einsum("nkij,i,j->nk", a, pk, pk)
+
+    theta = 2 * np.pi * np.arange(8) / 12
+    loads = [Load.pressures(6 - 6 * np.cos(t + np.array([0.0, 2.1, 4.2]))) for t in theta]
+    hist = [(_load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:7]]
+    hist = hist[-HISTORY_STATES:]
+    x, p = _history_guess(hist, hist[-1][1], loads[7])
+    np.testing.assert_allclose(x, response(loads[7].pressure_kpa), atol=1e-8)
+    np.testing.assert_allclose(p, loads[7].pressure_kpa, atol=1e-10)
+    x3, _ = _history_guess(hist[-3:], hist[-1][1], loads[7])  # affine only
+    assert np.abs(x3 - response(loads[7].pressure_kpa)).max() > 1e-3
