@@ -250,13 +250,41 @@ class Model:
                                           project)
 
     def chamber_volumes(self, x: np.ndarray) -> np.ndarray:
-        """(K,) cavity volumes (mm^3) at x."""
-        return np.array([pressure.cavity_volume(x, t) for t in self.chamber_tris])
+        """(K,) cavity volumes (mm^3) at x: sum x0.(x1 x x2)/6 over each surface."""
+        tris, owner = self._all_chamber_tris
+        p = x[tris]
+        a, b, c = p[:, 0], p[:, 1], p[:, 2]
+        t = (a[:, 0] * (b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1])
+             + a[:, 1] * (b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2])
+             + a[:, 2] * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]))
+        return np.bincount(owner, t, minlength=len(self.chamber_tris)) / 6.0
 
     def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
-        """(K, n, 3) H per chamber at x (mm^2)."""
-        return np.array([pressure.volume_gradient(x, t) for t in self.chamber_tris]).reshape(
-            len(self.chamber_tris), *x.shape)
+        """(K, n, 3) H per chamber at x (mm^2): each triangle adds its area vector / 3 to
+        its 3 vertices (`pressure.volume_gradient`, all chambers in one pass)."""
+        tris, owner = self._all_chamber_tris
+        k, n = len(self.chamber_tris), len(x)
+        p = x[tris]
+        u, v = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        slots = (owner[:, None] * n + tris).ravel()
+        out = np.empty((k * n, 3))
+        for c in range(3):
+            c1, c2 = (c + 1) % 3, (c + 2) % 3
+            area = (u[:, c1] * v[:, c2] - u[:, c2] * v[:, c1]) / 6.0
+            out[:, c] = np.bincount(slots, np.repeat(area, 3), minlength=k * n)
+        return out.reshape(k, n, 3)
+
+    @property
+    def _all_chamber_tris(self) -> tuple[np.ndarray, np.ndarray]:
+        """All chambers' triangles (T, 3) and the chamber of each (T,)."""
+        cat = self.__dict__.get("_cat")
+        if cat is None:
+            tris = (np.concatenate(self.chamber_tris) if self.chamber_tris
+                    else np.zeros((0, 3), np.int64))
+            owner = np.repeat(np.arange(len(self.chamber_tris)),
+                              [len(t) for t in self.chamber_tris])
+            cat = self.__dict__["_cat"] = (tris, owner)
+        return cat
 
     def external_forces(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load,
                         h: np.ndarray | None = None) -> np.ndarray:

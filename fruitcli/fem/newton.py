@@ -347,10 +347,11 @@ def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: floa
     """Force scale of a load step: the largest of the external loads at both ends (the
     elastic force at the start joins it at the step's first evaluation) (mN)."""
     free = model.pattern.free
-    fa = model.external_forces(x, p, load_a).reshape(-1)[free]
+    h = model.chamber_gradients(x) if len(model.chamber_tris) else None
+    fa = model.external_forces(x, p, load_a, h).reshape(-1)[free]
     pb = p.copy()
     if len(pb):
         pb[~load_b.volume_controlled] = load_b.pressure_kpa[~load_b.volume_controlled]
-    fb = model.external_forces(x, pb, load_b).reshape(-1)[free]
+    fb = model.external_forces(x, pb, load_b, h).reshape(-1)[free]
     return max(np.linalg.norm(fa), np.linalg.norm(fb), floor)
 
