@@ -18,7 +18,8 @@ the two remeshed patches overlap ("PLC Error: A segment and a facet intersect" a
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
+
+from fruitcli.fem.mesh_topology import shells
 
 BASE_NORMAL_Z = -0.9
 """Faces whose outward normal has n_z below this (within 26 deg of straight down) and
@@ -39,22 +40,6 @@ a staircase of a regular grid has 90 and 270 degree corners."""
 
 SMOOTH_PASSES = 20
 """At most this many passes of `smooth_selection` (each flips the wedges it finds)."""
-
-
-def face_components(faces: np.ndarray) -> np.ndarray:
-    """(f,) label of the edge-connected component of each face (labels in order of the
-    first face of each component, so deterministic)."""
-    f = len(faces)
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
-                    axis=1)
-    owner = np.tile(np.arange(f), 3)
-    _, inv = np.unique(edges, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    order = np.argsort(inv, kind="stable")
-    a, b = owner[order][:-1], owner[order][1:]
-    same = inv[order][:-1] == inv[order][1:]
-    g = sp.coo_matrix((np.ones(same.sum()), (a[same], b[same])), shape=(f, f))
-    return sp.csgraph.connected_components(g, directed=False)[1]
 
 
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
@@ -86,7 +71,7 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
 
 def is_disk(faces: np.ndarray) -> bool:
     """One edge-connected piece with Euler characteristic 1 and one boundary loop."""
-    if len(faces) == 0 or len(np.unique(face_components(faces))) != 1:
+    if len(faces) == 0 or len(np.unique(shells(faces))) != 1:
         return False
     n_v = len(np.unique(faces))
     n_e = len(np.unique(np.sort(np.concatenate(
@@ -100,7 +85,7 @@ def _close_holes(seed: np.ndarray, faces: np.ndarray) -> np.ndarray:
     rest = np.flatnonzero(~seed)
     if len(rest) == 0:
         return seed
-    lab = face_components(faces[rest])
+    lab = shells(faces[rest])
     counts = np.bincount(lab)
     keep = rest[lab == int(np.argmax(counts))]
     out = np.ones(len(faces), bool)
@@ -165,7 +150,7 @@ def split_bottom_top(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarra
     low = (zc < zmin + BASE_BAND * (zmax - zmin)) & (n[:, 2] < BASE_NORMAL_Z)
     if low.any():
         idx = np.flatnonzero(low)
-        lab = face_components(f[idx])
+        lab = shells(f[idx])
         seed = np.zeros(len(f), bool)
         seed[idx[lab == lab[int(np.argmin(zc[idx]))]]] = True
         candidates.append((_close_holes(seed, f), True))
