@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.fem.mesh_topology import boundary_faces
 from fruitcli.scene import parse_scene
 from fruitcli.sensing import forward
 from fruitcli.sensing.frames_io import read_npz
@@ -26,14 +27,6 @@ seed = 3
 """
 
 
-def boundary_tris(tets):
-    faces = np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]],
-                            tets[:, [0, 3, 2]]])
-    key = np.sort(faces, axis=1)
-    _, idx, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
-    return faces[idx[counts == 1]]
-
-
 def pad_states(path: Path, angles_deg=(0.0, 90.0, 180.0)):
     """Flat 80 x 80 x 3 mm pad, 4 x 4 taxels on top, bent about y to each angle over its
     48 mm active length."""
@@ -45,7 +38,7 @@ def pad_states(path: Path, angles_deg=(0.0, 90.0, 180.0)):
         moved = nodes if a == 0 else forward.bend_nodes(nodes, 48.0 / np.radians(a), 3.0)
         disp.append(moved - nodes)
         tax.append(np.einsum("tk,tkd->td", bary, moved[tets[k]]))
-    np.savez(path, rest_nodes=nodes, tets=tets, surface_tris=boundary_tris(tets),
+    np.savez(path, rest_nodes=nodes, tets=tets, surface_tris=boundary_faces(nodes, tets),
              displacement_mm=np.array(disp), pressure_kpa=np.array(angles_deg)[:, None] / 90,
              chamber_names=np.array(["bend"]), taxels_mm=np.array(tax), taxel_tet=k,
              taxel_bary=bary)

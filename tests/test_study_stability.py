@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from fruitcli.studies.meshes import boundary_faces, box_tets, hollow_box
+from fruitcli.fem.grid import structured_box, structured_box_with_cavity
+from fruitcli.fem.mesh_topology import boundary_faces
 from fruitcli.studies.parallel import run_cases
 from fruitcli.studies.stability import Case, default_cases, run_case
 
@@ -14,15 +15,16 @@ from fruitcli.studies.stability import Case, default_cases, run_case
 def test_box_mesh_is_conforming_and_fills_the_box():
     from fruitcli.fem.tet4 import signed_volumes
 
-    nodes, tets = box_tets((2.0, 3.0, 4.0), (2, 3, 4))
+    nodes, tets = structured_box((0.0, 0.0, 0.0), (2.0, 3.0, 4.0), (2, 3, 4))
     vol = np.abs(signed_volumes(nodes, tets))
     assert np.isclose(vol.sum(), 24.0)
     # closed surface: 2 triangles per boundary cell face
-    assert len(boundary_faces(tets)) == 2 * 2 * (2 * 3 + 3 * 4 + 2 * 4)
+    assert len(boundary_faces(nodes, tets)) == 2 * 2 * (2 * 3 + 3 * 4 + 2 * 4)
 
 
 def test_hollow_box_cavity_is_closed():
-    nodes, tets, cavity = hollow_box(30.0, 6, 2)
+    nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, (30.0,) * 3, (6, 6, 6),
+                                                     (10.0,) * 3, (20.0,) * 3)
     assert len(cavity) == 6 * 4 * 2  # 6 faces of 2 x 2 cells, 2 triangles each
     edges = np.sort(np.concatenate([cavity[:, [0, 1]], cavity[:, [1, 2]], cavity[:, [2, 0]]]),
                     axis=1)

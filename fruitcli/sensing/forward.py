@@ -177,28 +177,13 @@ def taxel_strain(states, state_index=None) -> np.ndarray:
 
 
 def pad_mesh(size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4):
-    """A flat pad of tets (6 per hexahedron): nodes (N, 3), tets (M, 4), z in [0, t]."""
+    """A flat pad of tets (`fem.grid.structured_box`): nodes (N, 3), tets (M, 4),
+    x and y centred on 0, z in [0, t]."""
+    from fruitcli.fem.grid import structured_box
+
     sx, sy, t = size_mm
-    nx, ny = int(round(sx / step_mm)), int(round(sy / step_mm))
-    xs = np.linspace(-sx / 2, sx / 2, nx + 1)
-    ys = np.linspace(-sy / 2, sy / 2, ny + 1)
-    zs = np.linspace(0.0, t, layers + 1)
-    gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
-    nodes = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
-
-    def nid(a, b, c):
-        return (a * (ny + 1) + b) * (layers + 1) + c
-
-    a, b, c = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(layers), indexing="ij")
-    a, b, c = a.ravel(), b.ravel(), c.ravel()
-    v = [nid(a + (k & 1), b + ((k >> 1) & 1), c + ((k >> 2) & 1)) for k in range(8)]
-    # Kuhn split of the cube into 6 tets along the diagonal v0-v7
-    paths = [(1, 3), (1, 5), (2, 3), (2, 6), (4, 5), (4, 6)]
-    tets = np.concatenate([np.stack([v[0], v[p], v[q], v[7]], axis=1) for p, q in paths])
-    x = nodes[tets]
-    det = np.linalg.det((x[:, 1:] - x[:, :1]).swapaxes(1, 2))
-    tets[det < 0] = tets[det < 0][:, [0, 2, 1, 3]]
-    return nodes, tets
+    cells = (int(round(sx / step_mm)), int(round(sy / step_mm)), layers)
+    return structured_box((-sx / 2, -sy / 2, 0.0), (sx / 2, sy / 2, t), cells)
 
 
 def bend_nodes(nodes: np.ndarray, radius_mm: float, thickness_mm: float) -> np.ndarray:
@@ -231,20 +216,13 @@ def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0)
     return np.stack([gx.ravel(), gy.ravel(), np.full(n * n, z_mm)], axis=1)
 
 
-def boundary_faces(tets: np.ndarray) -> np.ndarray:
-    """Triangles (F, 3) that belong to exactly one tet."""
-    faces = np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]],
-                            tets[:, [1, 2, 3]]])
-    _, idx, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True,
-                               return_counts=True)
-    return faces[idx[counts == 1]]
-
-
 @lru_cache(maxsize=1)
 def bent_pad_taxel_strain() -> np.ndarray:
     """Surface strain at each 4 x 4 pad taxel bent 180 deg over its active length (T,)."""
+    from fruitcli.fem.mesh_topology import boundary_faces
+
     nodes, tets = pad_mesh()
-    tris = boundary_faces(tets)
+    tris = boundary_faces(nodes, tets)
     taxels = pad_taxels_mm(z_mm=PAD_SIZE_MM[2])
     bent = bend_nodes(nodes, PAD_ACTIVE_MM / np.pi, PAD_SIZE_MM[2])
     w = taxel_surface_weights(nodes, tris, taxels)

@@ -20,6 +20,10 @@ from fruitcli.errors import FruitError
 
 BEAM_MM = (40.0, 8.0, 8.0)
 BEAM_CELLS = (10, 2, 2)
+HOLLOW_MM = (30.0, 30.0, 30.0)  # a cube with a centred cubic cavity of 10 mm
+HOLLOW_CELLS = (6, 6, 6)
+CAVITY_LO_MM = (10.0, 10.0, 10.0)
+CAVITY_HI_MM = (20.0, 20.0, 20.0)
 DENSITY = 1070.0
 GRAVITY = (0.0, 0.0, -9.81)
 
@@ -52,10 +56,10 @@ def default_cases() -> list[Case]:
 
 
 def _beam(case: Case):
+    from fruitcli.fem.grid import structured_box
     from fruitcli.fem.model import Load, Model
-    from fruitcli.studies.meshes import box_tets
 
-    nodes, tets = box_tets(BEAM_MM, BEAM_CELLS)
+    nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
     fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
     model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, density_kg_m3=DENSITY,
                               gravity_m_s2=GRAVITY, fixed_nodes=fixed)
@@ -63,10 +67,11 @@ def _beam(case: Case):
 
 
 def _hollow(case: Case, free: bool = False):
+    from fruitcli.fem.grid import structured_box_with_cavity
     from fruitcli.fem.model import Load, Model
-    from fruitcli.studies.meshes import hollow_box
 
-    nodes, tets, cavity = hollow_box(30.0, 6, 2)
+    nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS,
+                                                     CAVITY_LO_MM, CAVITY_HI_MM)
     fixed = None if free else np.flatnonzero(nodes[:, 2] < 1e-9)
     model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=fixed,
                               chambers={"c": cavity})
@@ -74,12 +79,12 @@ def _hollow(case: Case, free: bool = False):
 
 
 def _jig(case: Case):
+    from fruitcli.fem.grid import structured_box
     from fruitcli.fem.model import Load, Model
     from fruitcli.fem.springs import Jig
     from fruitcli.fem.units import spring_mn_per_mm
-    from fruitcli.studies.meshes import box_tets
 
-    nodes, tets = box_tets(BEAM_MM, BEAM_CELLS)
+    nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
     fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
     tip = np.flatnonzero(nodes[:, 0] > BEAM_MM[0] - 1e-9)
     jig = Jig(tip, spring_mn_per_mm(case.stiffness_n_per_mm), rotate_deg=30.0,
