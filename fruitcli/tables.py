@@ -1,4 +1,5 @@
-"""Reading the project's CSV tables: `#` comment lines, a header, numeric columns.
+"""Reading the project's tables: CSV (`#` comment lines, a header, numeric columns) and
+npz arrays.
 
 Every error names the file, the row (1-based line number in the file) and the column.
 """
@@ -58,3 +59,16 @@ def read_table(path: str | Path, required: list[str], numeric: list[str] | None 
                 cols[h].append(value)
     return {h: (np.asarray(v, dtype=float) if h in numeric else np.asarray(v, dtype=object))
             for h, v in cols.items()}
+
+
+def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint: str = "") -> dict:
+    """All arrays of an npz file (`allow_pickle=False`) as a dict. A missing or unreadable
+    file is one `error` line naming it; `what` says what it should be ("states .npz")."""
+    path = Path(path)
+    if not path.exists():
+        raise error(f"{path}: file not found{missing_hint}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
+        raise error(f"{path}: not a readable {what}: {exc}") from None

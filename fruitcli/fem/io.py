@@ -12,6 +12,7 @@ import numpy as np
 
 from fruitcli.errors import MeshError
 from fruitcli.fsutil import atomic_path
+from fruitcli.tables import read_npz_arrays
 
 MESH_KEYS = ("nodes", "tets", "surface_tris", "chamber_names", "chamber_tris",
              "chamber_tri_owner")
@@ -26,13 +27,7 @@ def save_npz(path: Path, arrays: dict) -> None:
 def load_mesh(path: Path) -> dict:
     """mesh.npz as a dict of arrays; MeshError naming the file when keys are missing."""
     path = Path(path)
-    if not path.exists():
-        raise MeshError(f"{path}: mesh file not found (run `fruit tetra` first)")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            mesh = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
-        raise MeshError(f"{path}: not a readable npz mesh: {exc}") from None
+    mesh = read_npz_arrays(path, "npz mesh", MeshError, " (run `fruit tetra` first)")
     missing = [k for k in MESH_KEYS if k not in mesh]
     if missing:
         raise MeshError(f"{path}: missing array(s) {', '.join(missing)}")

@@ -26,6 +26,7 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import atomic_path
+from fruitcli.tables import read_npz_arrays
 
 MUCA_ROWS = 21  # Tx lines of the FocalTech FT5316 (MuCa)
 MUCA_COLS = 12  # Rx lines
@@ -74,13 +75,7 @@ def check_frames(frames, where: str) -> np.ndarray:
 def read_npz(path: str | os.PathLike) -> Recording:
     """Read a recording `.npz`; every error names the file and the key."""
     path = Path(path)
-    if not path.exists():
-        raise FrameError(f"{path}: file not found")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
-        raise FrameError(f"{path}: not a readable .npz recording: {exc}") from None
+    data = read_npz_arrays(path, ".npz recording", FrameError)
     if "frames" not in data:
         raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
     frames = check_frames(data["frames"], str(path))

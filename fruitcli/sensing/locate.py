@@ -20,6 +20,7 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.detect import Touches
+from fruitcli.tables import read_npz_arrays
 
 STATE_KEYS = ("rest_nodes", "tets", "surface_tris", "displacement_mm", "pressure_kpa",
               "chamber_names", "taxels_mm", "taxel_tet", "taxel_bary")
@@ -52,13 +53,7 @@ class States:
 def load_states(path: str | os.PathLike, n_taxels: int | None = None) -> States:
     """Read states.npz (``allow_pickle=False``) and check shapes; errors name the key."""
     path = Path(path)
-    if not path.exists():
-        raise FrameError(f"{path}: file not found")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:  # noqa: BLE001
-        raise FrameError(f"{path}: not a readable states .npz: {exc}") from None
+    data = read_npz_arrays(path, "states .npz", FrameError)
     missing = [k for k in STATE_KEYS if k not in data]
     if missing:
         raise FrameError(f"{path}: missing key(s) {', '.join(missing)}")
