@@ -295,10 +295,6 @@ def _sens_run(scene, ctx, out_dir):
                            progress=ctx.progress)
 
 
-def _inputs_nothing(scene, ctx):
-    return {}
-
-
 STAGES: list[Stage] = [
     Stage("make-artist", [], "fruitcli.geometry.artist", _artist_needed,
           lambda s, c: {"artist": str(s["geometry"]["artist"])}, _artist_run,

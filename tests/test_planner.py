@@ -48,8 +48,7 @@ def test_reuse_until_an_input_changes(tmp_path):
     assert _actions(planner.plan(sc, out))["evaluate"] == "run"
     planner.run(sc, out)
     # a changed parameter too
-    sc2 = parse_scene((tmp_path / "s.toml").read_text() if False else
-                      f"""[[evaluate]]
+    sc2 = parse_scene(f"""[[evaluate]]
 label = "Rest, small"
 truth = "{PAPER / 'paper_rest_truth.csv'}"
 measured = "{tmp_path / 'm.csv'}"

@@ -9,7 +9,6 @@ taxels' position error in the last (most deformed) state against the finest sett
 from __future__ import annotations
 
 import copy
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,7 +154,8 @@ def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Pat
     return rows
 
 
-def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict], default_name: str):
+def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
+                  default_name: str) -> None:
     """runtime.md, runtime.json and runtime.png (time per state against taxel error)."""
     import matplotlib
 
@@ -209,4 +209,3 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict], default
     with atomic_path(out / "runtime.png") as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
-    return json.dumps({"n": len(fem_rows)})
