@@ -119,16 +119,17 @@ def _available(stage: Stage) -> bool:
     return True
 
 
-def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
-    folder = ctx.dir(stage.name)
-    manifest = folder / MANIFEST
-    if not manifest.exists():
-        return False
+def _holds(folder: Path, stage: Stage, scene: Scene, digest: str) -> bool:
+    """True when `folder` has this stage's manifest with `digest` and all its outputs."""
     try:
-        old = json.loads(manifest.read_text())
+        old = json.loads((folder / MANIFEST).read_text())
     except (OSError, json.JSONDecodeError):
         return False
     return old.get("hash") == digest and all((folder / o).exists() for o in stage.outputs(scene))
+
+
+def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
+    return _holds(ctx.dir(stage.name), stage, scene, digest)
 
 
 def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None) -> list[Step]:
@@ -166,14 +167,7 @@ def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str) -> Path | Non
         return None
     for manifest in sorted(ctx.shared.glob(f"*/{stage.name}/{MANIFEST}")):
         folder = manifest.parent
-        if folder == ctx.dir(stage.name):
-            continue
-        try:
-            old = json.loads(manifest.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
-        if old.get("hash") == digest and all((folder / o).exists()
-                                              for o in stage.outputs(scene)):
+        if folder != ctx.dir(stage.name) and _holds(folder, stage, scene, digest):
             return folder
     return None
 
@@ -227,8 +221,6 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
         (folder / MANIFEST).unlink(missing_ok=True)
         summary = stage.run(scene, ctx, folder) or {}
         # the manifest is written last: a stage interrupted before this point reruns
-        digest = fingerprint(stage, scene, ctx)  # inputs may include files made upstream
-        ctx.hashes[stage.name] = digest
         from fruitcli.fsutil import write_json
 
         write_json(folder / MANIFEST, {
