@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.fem.barycentric import locate
 from fruitcli.fem.mesh_topology import boundary_faces
 from fruitcli.scene import parse_scene
 from fruitcli.sensing import forward
@@ -32,7 +33,7 @@ def pad_states(path: Path, angles_deg=(0.0, 90.0, 180.0)):
     48 mm active length."""
     nodes, tets = forward.pad_mesh()
     taxels = forward.pad_taxels_mm(z_mm=3.0 - 1e-6)
-    k, bary = forward.locate_in_tets(taxels, nodes, tets)
+    k, bary, _ = locate(nodes, tets, taxels)
     disp, tax = [], []
     for a in angles_deg:
         moved = nodes if a == 0 else forward.bend_nodes(nodes, 48.0 / np.radians(a), 3.0)

@@ -63,7 +63,7 @@ BEND_SHIFT_COUNTS = 10.0  # Fig. 9: 4 x 4 pad bent 180 deg
 PAD_SIZE_MM = (80.0, 80.0, 3.0)
 PAD_ACTIVE_MM = 48.0
 PAD_PITCH_MM = 16.0
-_DET_EPS = 1e-12  # a tet with |det| below this (mm^3) is degenerate
+_DET_EPS = 1e-12  # a surface triangle whose metric det (mm^4) or area is below this is degenerate
 CROSSING_RADIUS_MM = 4.0  # surface around a crossing whose stretch shifts its baseline
 CROSSING_PLANE_MM = 1.0  # ... and how far off the crossing's tangent plane it may curve
 
@@ -102,22 +102,6 @@ def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str) ->
     lateral = np.exp(-0.5 * (np.asarray(dist_mm) / sigma) ** 2)
     approach = np.exp(-np.asarray(gap_mm, dtype=float) / GAP_DECAY_MM)
     return CONTACT_COUNTS * lateral * approach[..., None]
-
-
-def green_strain_norm(rest_nodes: np.ndarray, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """|E|_F of each tet, E = (F^T F - I) / 2 with F the tet's deformation gradient.
-
-    rest_nodes (N, 3), nodes (..., N, 3) deformed, tets (M, 4) -> (..., M)."""
-    x0 = rest_nodes[tets]  # (M, 4, 3)
-    d0 = (x0[:, 1:] - x0[:, :1]).swapaxes(-1, -2)  # (M, 3, 3) columns = edges
-    det = np.linalg.det(d0)
-    if np.any(np.abs(det) < _DET_EPS):
-        raise FrameError(f"strain: {int(np.sum(np.abs(det) < _DET_EPS))} degenerate tets")
-    x = nodes[..., tets, :]  # (..., M, 4, 3)
-    d = (x[..., 1:, :] - x[..., :1, :]).swapaxes(-1, -2)
-    f = d @ np.linalg.inv(d0)
-    e = 0.5 * (f.swapaxes(-1, -2) @ f - np.eye(3))
-    return np.sqrt(np.sum(e * e, axis=(-2, -1)))
 
 
 def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray,
@@ -193,20 +177,6 @@ def bend_nodes(nodes: np.ndarray, radius_mm: float, thickness_mm: float) -> np.n
     th = nodes[:, 0] / radius_mm
     return np.stack([r * np.sin(th), nodes[:, 1],
                      r * np.cos(th) - radius_mm + thickness_mm / 2], axis=1)
-
-
-def locate_in_tets(points: np.ndarray, nodes: np.ndarray, tets: np.ndarray):
-    """(tet index (P,), barycentric (P, 4)) of points inside a tet mesh (first match)."""
-    x = nodes[tets]
-    inv = np.linalg.inv((x[:, 1:] - x[:, :1]).swapaxes(1, 2))  # (M, 3, 3)
-    rel = points[:, None, :] - x[None, :, 0, :]  # (P, M, 3)
-    lam = np.einsum("mij,pmj->pmi", inv, rel)
-    bary = np.concatenate([1 - lam.sum(-1, keepdims=True), lam], axis=-1)
-    inside = np.all(bary >= -1e-9, axis=-1)
-    if not np.all(inside.any(axis=1)):
-        raise FrameError("taxel outside the tet mesh")
-    k = inside.argmax(axis=1)
-    return k, bary[np.arange(len(points)), k]
 
 
 def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0) -> np.ndarray:
