@@ -54,13 +54,10 @@ def scene_products(scene, out_root=None, progress=None):
     from pathlib import Path
 
     from fruitcli import planner
-    from fruitcli.scene import has_deformation
     from fruitcli.stages import states_path, taxels_path
 
     out = Path(out_root) if out_root else Path("out") / scene.name
-    until = "simulate" if has_deformation(scene) else "pad-grid"
-    planner.run(scene, out, until=until, progress=progress)
-    if until == "pad-grid":
-        planner.run(scene, out, until="make-tracks", progress=progress)
+    # simulate's upstream makes the taxels; stages the scene does not need are skipped
+    planner.run(scene, out, until="simulate", progress=progress)
     ctx = planner.Context(out)
     return taxels_path(scene, ctx), states_path(scene, ctx)
