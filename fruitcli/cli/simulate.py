@@ -29,27 +29,25 @@ def simulate(scene, out_dir, solid, taxels, vtu):
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
+    from fruitcli.geometry.pipeline import read_taxels
     from fruitcli.scene import load_scene, n_states
-    from fruitcli.tables import read_table
 
     log = Progress("simulate ")
     with fruit_errors():
         sc = load_scene(scene)
         geo = sc["geometry"]
         taxel_csv = taxels or sc["grid"]["taxels"]
+        # given taxels are checked before any stage runs
+        xyz = read_taxels(taxel_csv)["xyz"] if taxel_csv is not None else None
         if solid is None and geo["artist"] is not None:
             from fruitcli import planner
 
             planner.run(sc, out_dir, until="make-tracks", progress=log)
             solid = out_dir / "make-tracks" / "reduced.stl"
-            taxel_csv = taxel_csv or out_dir / "make-tracks" / "taxels.csv"
+            if xyz is None:
+                xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv")["xyz"]
         elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
-        xyz = None
-        if taxel_csv is not None:
-            cols = read_table(taxel_csv, ["id", "i", "j", "x_mm", "y_mm", "z_mm"],
-                              numeric=["i", "j", "x_mm", "y_mm", "z_mm"], error=SceneError)
-            xyz = __import__("numpy").column_stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]])
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
         with progressbar(length=n_states(sc), label="states") as bar:
             def progress(msg: str) -> None:
