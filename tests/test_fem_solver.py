@@ -122,3 +122,21 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
     np.testing.assert_allclose(p, loads[7].pressure_kpa, atol=1e-10)
     x3, _ = _history_guess(hist[-3:], hist[-1][1], loads[7])  # affine only
     assert np.abs(x3 - response(loads[7].pressure_kpa)).max() > 1e-3
+
+
+def test_history_keeps_one_state_per_load():
+    """A repeated load (an animation closing its cycle on its first state) replaces its
+    earlier state in the kept history instead of taking a second slot; beyond
+    HISTORY_STATES the oldest goes."""
+    from fruitcli.fem.newton import HISTORY_STATES, _load_vector, _remember
+
+    hist = []
+    for i, pk in enumerate((1.0, 2.0, 3.0, 1.0, 4.0)):
+        hist = _remember(hist, _load_vector(Load.pressures([pk])), np.full((2, 3), i),
+                         np.array([pk]))
+    assert [h[2][0] for h in hist] == [2.0, 3.0, 1.0, 4.0]
+    assert hist[2][1][0, 0] == 3  # the repeated load keeps its newest state
+    for pk in range(5, 5 + HISTORY_STATES):
+        hist = _remember(hist, _load_vector(Load.pressures([pk])), np.zeros((2, 3)),
+                         np.array([float(pk)]))
+    assert [h[2][0] for h in hist] == [float(pk) for pk in range(5, 5 + HISTORY_STATES)]

@@ -243,7 +243,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
                 f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}")
         dt *= 0.5
-    solver.history = (solver.history + [(_load_vector(load), x, p)])[-HISTORY_STATES:]
+    solver.history = _remember(solver.history, _load_vector(load), x, p)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
@@ -262,6 +262,15 @@ QUADRATIC_MISFIT = 1e-6
 """The second-order weights are used when they reproduce dq and dq dq^T to this
 relative misfit (a least-squares compromise between the two can be worse than the
 first-order weights alone)."""
+
+
+def _remember(history: list, q: np.ndarray, x: np.ndarray, p: np.ndarray) -> list:
+    """The kept states with (q, x, p) appended, an earlier state of the same load q
+    dropped (a repeated load, e.g. an animation closing its cycle, would otherwise take
+    two of the HISTORY_STATES slots and leave too few distinct loads for the
+    second-order guess), and the oldest dropped beyond HISTORY_STATES."""
+    kept = [h for h in history if not np.array_equal(h[0], q)]
+    return (kept + [(q, x, p)])[-HISTORY_STATES:]
 
 
 def _load_vector(load: Load) -> np.ndarray:
