@@ -194,19 +194,22 @@ def test_soft_cantilever_converges_quadratically():
 
 
 @pytest.mark.parametrize("project", [False, True])
-def test_component_major_kernels_match_per_element_ones(project):
-    """The sparse-operator kernels the solver uses (forces, energy, tangent product,
-    with F from the gradient operator) agree with the per-element reference ones
-    (R K0 (R^T x - X), assembled consistent tangent blocks) to 1e-12 relative, at 30 %
-    random strain with some elements inverted."""
+def test_compiled_kernels_match_per_element_ones(project):
+    """The compiled kernels the solver uses (F, forces, energy, tangent product) agree
+    with the per-element reference ones (Ds Dm^-1, R K0 (R^T x - X), assembled
+    consistent tangent blocks) to 1e-12 relative, at 30 % random strain with one element
+    inverted; the warm-started rotations equal the cold polar decomposition."""
     nodes, tets = bar((4, 2, 2), (12.0, 6.0, 6.0))
     m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=[0])
     x = nodes + 0.3 * RNG.normal(size=nodes.shape)
     x[m.tets[0, 0]] = 2 * x[m.tets[0]].mean(axis=0) - x[m.tets[0, 0]]  # invert tet 0
+    m.kinematics(x + 0.05 * RNG.normal(size=nodes.shape))  # a nearby warm start
     f, rot, det = m.kinematics(x)
     assert det.min() < 0
     f_ref = corotation.deformation_gradients(x, m.tets, m.dm_inv)
     assert np.allclose(f, f_ref, rtol=0, atol=1e-12 * np.abs(f_ref).max())
+    assert np.allclose(det, corotation.det3(f_ref), rtol=1e-12, atol=1e-14)
+    assert np.abs(rot - corotation.polar_rotations(f_ref)).max() < 1e-12
     force, energy = m.forces_and_energy(f, rot)
     force_ref, energy_ref = corotation.forces_and_energy(x, m.rest, m.tets, m.k0, rot)
     assert np.abs(force - force_ref).max() < 1e-12 * np.abs(force_ref).max()
@@ -214,9 +217,9 @@ def test_component_major_kernels_match_per_element_ones(project):
     lam, mu = m.lame_kpa
     t = corotation.skew_stiffness(f, rot, lam, mu, project)
     v = RNG.normal(size=nodes.shape)
-    kv = corotation.apply_tangent_soa(m.op, m.volumes_mm3, lam, mu, corotation.soa(rot),
-                                      corotation.soa(t), v)
-    blocks = m.tangent_blocks(rot, f, project)
-    kv_ref = corotation.scatter_nodes(
-        m.tets, (blocks @ v[m.tets].reshape(-1, 12, 1)).reshape(-1, 4, 3), len(nodes))
-    assert np.abs(kv - kv_ref).max() < 1e-12 * np.abs(kv_ref).max()
+    for t_world, blocks in ((t, m.tangent_blocks(rot, f, project)),
+                            (None, m.tangent_blocks(rot, None))):
+        kv = m.apply_tangent(rot, t_world, v)
+        kv_ref = corotation.scatter_nodes(
+            m.tets, (blocks @ v[m.tets].reshape(-1, 12, 1)).reshape(-1, 4, 3), len(nodes))
+        assert np.abs(kv - kv_ref).max() < 1e-12 * np.abs(kv_ref).max()

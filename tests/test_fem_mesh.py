@@ -32,8 +32,10 @@ def pad_scene(tmp_path, cx=0.0, extra=""):
 def test_lame_thick_sphere_compliance(tmp_path):
     """Hollow ball a = 10, b = 20 mm, E = 100 kPa, nu = 0.3, free (3-2-1 pinned), 0.1 kPa
     in the cavity: dV/dp = 4 pi a^2 u(a) / p = 100.5 mm^3/kPa. Linear tets at size 3
-    (cavity 1.5) mm come out stiff: measured 95.4 (-5 %); asserted within 8 % from
-    below, and the mean radial wall displacement likewise."""
+    (cavity 1.5) mm come out stiff: measured 96.8 (-3.8 %), converging from below with
+    the mesh (2/1 mm: -1.6 %, 1.5/0.75 mm: -0.8 %; `tests/bench/bench_fem.py`);
+    asserted within 6 % from below, and the mean radial wall displacement (-3.2 %)
+    likewise."""
     trimesh.creation.icosphere(3, 20.0).export(tmp_path / "ball.stl")
     text = """
 [geometry]
@@ -61,12 +63,12 @@ pressure_kpa = {c = [0.1]}
     exact = 4 * np.pi * a**2 * u_a / p
     assert exact == pytest.approx(100.5, abs=0.1)
     compliance = (st["chamber_volume_mm3"][0, 0] - st["chamber_rest_volume_mm3"][0]) / p
-    assert 0.92 * exact < compliance < exact
+    assert 0.94 * exact < compliance < exact
     wall = np.unique(mesh["chamber_tris"])
     x0 = st["rest_nodes"][wall]
     u_r = np.einsum("ni,ni->n", st["displacement_mm"][0][wall],
                     x0 / np.linalg.norm(x0, axis=1, keepdims=True))
-    assert 0.92 * u_a < u_r.mean() < 1.02 * u_a
+    assert 0.94 * u_a < u_r.mean() < 1.02 * u_a
     assert st["pressure_kpa"][0, 0] == p
 
 

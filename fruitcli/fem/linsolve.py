@@ -1,7 +1,7 @@
 """Linear solvers for the tangent system K_t dx = b over the free dofs.
 
 K_t = consistent corotational tangent (R K0 R^T plus the rotation-derivative term;
-`corotation.apply_tangent_soa`), optionally with the follower-pressure stiffness or with
+`Model.apply_tangent`), optionally with the follower-pressure stiffness or with
 the rotation term projected to positive semi-definite, + spring diagonal; with no
 deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by name
 (`[solver] linear_solver`):
@@ -36,7 +36,7 @@ LINEAR_SOLVERS = ("splu", "splu-pcg", "splu-fresh", "cg")
 ASSEMBLE_FOR_PCG = False
 """The kept-factorization strategies assemble the current tangent once per Newton step
 (about 55 ms on the default fruit) and multiply by the CSR matrix in CG (0.4 ms) instead
-of the matrix-free product (`corotation.apply_tangent_soa`, about 1 ms): not worth it."""
+of the matrix-free product (`Model.apply_tangent`, about 0.7 ms): not worth it."""
 
 
 def _cholesky(k):
@@ -103,11 +103,10 @@ class TangentSolver:
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
         self.t_world = None
-        self.rot_c, self.t_c = corotation.soa(rot), None  # (3, 3, m) for `matvec`
         if f is not None:
             lam, mu = self.model.lame_kpa
-            self.t_world = corotation.skew_stiffness(f, rot, lam, mu, project)
-            self.t_c = corotation.soa(self.t_world)
+            self.t_world = np.ascontiguousarray(
+                corotation.skew_stiffness(f, rot, lam, mu, project))
         self.fresh = False
         if self.method == "splu-fresh":
             self._factorize(self._assemble(self.kind == "exact"))
@@ -173,9 +172,7 @@ class TangentSolver:
         m = self.model
         full = np.zeros(3 * m.n_nodes)
         full[m.pattern.free] = v_free
-        lam, mu = m.lame_kpa
-        out = corotation.apply_tangent_soa(m.op, m.volumes_mm3, lam, mu, self.rot_c, self.t_c,
-                                           full)
+        out = m.apply_tangent(self.rot, self.t_world, full.reshape(-1, 3))
         out = out.reshape(-1)[m.pattern.free] + m.spring_diag * v_free
         if self.f is not None and self.load_k is not None:
             out = out + self.load_k @ v_free

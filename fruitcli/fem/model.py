@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fruitcli.errors import MeshError, SolverError
-from fruitcli.fem import corotation, pressure, tet4
+from fruitcli.fem import corotation, kernels, pressure, tet4
 from fruitcli.fem.assemble import CsrPattern
 from fruitcli.fem.springs import Jig
 from fruitcli.fem.tolerances import SLIVER_QUALITY
@@ -193,11 +193,18 @@ class Model:
         return rot, det
 
     def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x."""
-        f = np.transpose(self.op.grad(x), (2, 0, 1))  # view of the (3, 3, m) array
-        rot = corotation.polar_rotations(f, self.__dict__.get("_rot_guess"))
+        """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x. R is
+        warm-started from the last call's (`kernels.kinematics`); elements it leaves, and
+        all on the first call, take `corotation.polar_rotations`."""
+        guess = self.__dict__.get("_rot_guess")
+        f, rot, det, cold = kernels.kinematics(
+            np.ascontiguousarray(x, dtype=float), self.tets, self.grads,
+            guess if guess is not None else np.empty((0, 3, 3)), guess is not None,
+            corotation.POLAR_WARM_ITERATIONS, corotation.POLAR_WARM_STOP)
+        if cold.any():
+            rot[cold] = corotation.polar_rotations(f[cold])
         self.__dict__["_rot_guess"] = rot  # warm start of the next polar decomposition
-        return f, rot, corotation.det3(f)
+        return f, rot, det
 
     @property
     def scatter(self):
@@ -207,21 +214,23 @@ class Model:
             s = self.__dict__["_scatter"] = corotation.scatter_matrix(self.tets, self.n_nodes)
         return s
 
-    @property
-    def op(self) -> corotation.GradientOperator:
-        """The shape-function gradients as a sparse operator (built on first use)."""
-        op = self.__dict__.get("_op")
-        if op is None:
-            op = self.__dict__["_op"] = corotation.GradientOperator(self.grads, self.tets,
-                                                                    self.n_nodes)
-        return op
-
     def forces_and_energy(self, f: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, float]:
         """Elastic forces (n, 3) mN and strain energy (mN mm) from the deformation
         gradients and rotations (m, 3, 3) of `kinematics`."""
         lam, mu = self.lame_kpa
-        return corotation.forces_and_energy_soa(self.op, self.volumes_mm3, lam, mu,
-                                                corotation.soa(f), corotation.soa(rot))
+        return kernels.forces_and_energy(self.tets, self.grads, self.volumes_mm3, lam, mu,
+                                         f, rot, self.n_nodes)
+
+    def apply_tangent(self, rot: np.ndarray, t_world: np.ndarray | None,
+                      v: np.ndarray) -> np.ndarray:
+        """The consistent tangent at rotations rot (m, 3, 3) with the rotation-derivative
+        term t_world (m, 3, 3, `corotation.skew_stiffness`; None: SOFA's warped R K0 R^T)
+        times v (n, 3); returns (n, 3) mN."""
+        lam, mu = self.lame_kpa
+        t = np.empty((0, 3, 3)) if t_world is None else np.ascontiguousarray(t_world)
+        return kernels.tangent_product(self.tets, self.grads, self.volumes_mm3, lam, mu,
+                                       np.ascontiguousarray(rot), t, t_world is not None,
+                                       np.ascontiguousarray(v, dtype=float))
 
     @property
     def lame_kpa(self) -> tuple[float, float]:

@@ -10,7 +10,10 @@ first cycle (the predictor's history still filling), the same states in cycles 2
 running animation), and the cycle sampled at 30 Hz (a periodic spline through the
 scene's states: the live rate of the target).
 
+And Lame's thick sphere as the mesh is refined (accuracy against run time).
+
 Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [--no-pad]
+     [--lame-sizes 3 2 1.5]
 """
 
 import argparse
@@ -167,6 +170,50 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
           f"{res.residual:.1e}")
 
 
+LAME_SCENE = """
+[geometry]
+solid = "ball.stl"
+[[geometry.chamber]]
+name = "c"
+ellipsoid = {{center_mm = [0.0, 0.0, 0.0], radii_mm = [10.0, 10.0, 10.0]}}
+[mesh]
+size_mm = {size}
+min_size_mm = {cavity}
+[material]
+young_modulus_kpa = 100.0
+poisson_ratio = 0.3
+[actuation]
+pressure_kpa = {{c = [0.1]}}
+"""
+
+
+def bench_lame(tmp: Path, sizes: list[float]) -> None:
+    """Lame's thick sphere (cavity a = 10, ball b = 20 mm, E = 100 kPa, nu = 0.3, 0.1 kPa,
+    free): the chamber's compliance dV/dp against the closed form as the mesh is refined
+    (size, cavity size = size / 2), with tets and the time of tetra + simulate."""
+    import trimesh
+
+    from fruitcli.fem.stage import run_simulate, run_tetra
+    from fruitcli.scene import parse_scene
+
+    trimesh.creation.icosphere(4, 20.0).export(tmp / "ball.stl")
+    e, nu, a, b, p = 100.0, 0.3, 10.0, 20.0, 0.1
+    u_a = p * a**3 / (e * (b**3 - a**3)) * ((1 - 2 * nu) * a + (1 + nu) * b**3 / (2 * a**2))
+    exact = 4 * np.pi * a**2 * u_a / p
+    print(f"\nLame's thick sphere, compliance dV/dp (closed form {exact:.2f} mm^3/kPa):")
+    print(f"{'size_mm':>7} {'cavity':>6} {'tets':>7} {'dV/dp':>7} {'error':>7} {'time_s':>6}")
+    for size in sizes:
+        scene = parse_scene(LAME_SCENE.format(size=size, cavity=size / 2), tmp / "lame.toml")
+        out = tmp / f"lame-{size:g}"
+        t0 = time.perf_counter()
+        q = run_tetra(scene, None, out)
+        run_simulate(scene, out / "mesh.npz", None, out)
+        st = np.load(out / "states.npz", allow_pickle=False)
+        dv = (st["chamber_volume_mm3"][0, 0] - st["chamber_rest_volume_mm3"][0]) / p
+        print(f"{size:7g} {size / 2:6g} {q['n_tets']:7d} {dv:7.2f} {100 * (dv / exact - 1):+6.1f}% "
+              f"{time.perf_counter() - t0:6.1f}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
@@ -174,6 +221,8 @@ def main() -> None:
     ap.add_argument("--with-cg", action="store_true",
                     help="also time Jacobi CG (about 11 s per state here)")
     ap.add_argument("--no-pad", action="store_true", help="skip the touchpad bend")
+    ap.add_argument("--lame-sizes", type=float, nargs="*", default=[3.0, 2.0],
+                    help="mesh sizes of Lame's sphere (1.5 adds about 70 s); none to skip")
     ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--pad-tolerance", type=float, default=None,
                     help="override the touchpad scene's [solver] tolerance")
@@ -244,6 +293,8 @@ def main() -> None:
               f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
         if not args.no_pad:
             bench_pad(tmp, args.pad_tolerance)
+        if args.lame_sizes:
+            bench_lame(tmp, args.lame_sizes)
 
 
 if __name__ == "__main__":

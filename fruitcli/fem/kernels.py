@@ -1,0 +1,178 @@
+"""Compiled per-element loops (numba) for the three kernels a Newton step repeats:
+the kinematics (F, warm-started polar rotation, det F), the corotational forces with
+their strain energy, and the consistent tangent applied to a vector (CG's product).
+One pass over the elements each, without the temporaries numpy would allocate: about
+2x faster than the vectorized versions on the default fruit.
+
+Arrays are element-major: tets (m, 4), grads (m, 4, 3) rest shape-function gradients
+(1/mm), volumes (m,) mm^3, F and R (m, 3, 3), nodal vectors (n, 3). Lame parameters and
+stresses in kPa, forces in mN, energy in mN mm. Compiled on first use and cached on disk.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
+    """(f, rot, det, cold) at points x (n, 3): F = sum_b x_b g_b^T, det F, and R of F = R S
+    by Newton on skew(R^T F) = 0 from the rotations `guess` (m, 3, 3) of a nearby
+    configuration: (tr S I - S) w = vee(A - A^T), A = R^T F, S = sym(A), R <- R cay(w/2),
+    at most `iterations` times, done once |w| <= stop (radians). `cold` (m,) marks the
+    elements left to the caller's cold polar decomposition: all without `use_guess`, else
+    those where tr S I - S is not positive definite or that did not converge."""
+    m = tets.shape[0]
+    f = np.empty((m, 3, 3))
+    rot = np.empty((m, 3, 3))
+    det = np.empty(m)
+    cold = np.zeros(m, dtype=np.bool_)
+    a = np.empty((3, 3))
+    r = np.empty((3, 3))
+    c = np.empty((3, 3))
+    for e in range(m):
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for b in range(4):
+                    s += x[tets[e, b], i] * grads[e, b, j]
+                f[e, i, j] = s
+        fe = f[e]
+        det[e] = (fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
+                  - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
+                  + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0]))
+        if not use_guess:
+            cold[e] = True
+            continue
+        r[:, :] = guess[e]
+        done = False
+        for _ in range(iterations):
+            for i in range(3):
+                for j in range(3):
+                    a[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+            tr = a[0, 0] + a[1, 1] + a[2, 2]
+            q00, q11, q22 = tr - a[0, 0], tr - a[1, 1], tr - a[2, 2]
+            q01 = -0.5 * (a[0, 1] + a[1, 0])
+            q02 = -0.5 * (a[0, 2] + a[2, 0])
+            q12 = -0.5 * (a[1, 2] + a[2, 1])
+            c00 = q11 * q22 - q12 * q12
+            c11 = q00 * q22 - q02 * q02
+            c22 = q00 * q11 - q01 * q01
+            c01 = q02 * q12 - q01 * q22
+            c02 = q01 * q12 - q02 * q11
+            c12 = q01 * q02 - q00 * q12
+            det_q = q00 * c00 + q01 * c01 + q02 * c02
+            if not (det_q > 1e-9 * abs(tr) ** 3 and q00 > 0.0 and tr > 0.0):
+                break
+            b0, b1, b2 = a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]
+            u0 = 0.5 * (c00 * b0 + c01 * b1 + c02 * b2) / det_q
+            u1 = 0.5 * (c01 * b0 + c11 * b1 + c12 * b2) / det_q
+            u2 = 0.5 * (c02 * b0 + c12 * b1 + c22 * b2) / det_q
+            # cay(u) = I + k ([u]x + u u^T - |u|^2 I), k = 2 / (1 + |u|^2)
+            uu = u0 * u0 + u1 * u1 + u2 * u2
+            k = 2.0 / (1.0 + uu)
+            d = 1.0 - k * uu
+            c[0, 0], c[1, 1], c[2, 2] = d + k * u0 * u0, d + k * u1 * u1, d + k * u2 * u2
+            c[0, 1], c[1, 0] = k * (u0 * u1 - u2), k * (u0 * u1 + u2)
+            c[0, 2], c[2, 0] = k * (u0 * u2 + u1), k * (u0 * u2 - u1)
+            c[1, 2], c[2, 1] = k * (u1 * u2 - u0), k * (u1 * u2 + u0)
+            for i in range(3):
+                r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+                for j in range(3):
+                    r[i, j] = r0 * c[0, j] + r1 * c[1, j] + r2 * c[2, j]
+            if 2.0 * max(abs(u0), abs(u1), abs(u2)) <= stop:
+                done = True
+                break
+        rot[e] = r
+        cold[e] = not done
+    return f, rot, det, cold
+
+
+@njit(cache=True)
+def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, n_nodes):
+    """Elastic forces (n, 3) mN and strain energy (mN mm): with H = R^T F - I and
+    sigma = lam tr H I + mu (H + H^T), node a of element e gets V R sigma g_a and the
+    energy sums V sigma : H / 2 (R K0 (R^T x - X) of the isotropic Hooke K0)."""
+    out = np.zeros((n_nodes, 3))
+    h = np.empty((3, 3))
+    sig = np.empty((3, 3))
+    p = np.empty((3, 3))
+    energy = 0.0
+    for e in range(tets.shape[0]):
+        r, fe = rot[e], f[e]
+        for i in range(3):
+            for j in range(3):
+                h[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+        for i in range(3):
+            h[i, i] -= 1.0
+        tr = lam * (h[0, 0] + h[1, 1] + h[2, 2])
+        en = 0.0
+        for i in range(3):
+            for j in range(3):
+                sig[i, j] = mu * (h[i, j] + h[j, i])
+            sig[i, i] += tr
+            for j in range(3):
+                en += sig[i, j] * h[i, j]
+        v = volumes[e]
+        for i in range(3):
+            for j in range(3):
+                p[i, j] = v * (r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j])
+        energy += 0.5 * v * en
+        for b in range(4):
+            nb = tets[e, b]
+            for i in range(3):
+                out[nb, i] += p[i, 0] * grads[e, b, 0] + p[i, 1] * grads[e, b, 1] \
+                    + p[i, 2] * grads[e, b, 2]
+    return out, energy
+
+
+@njit(cache=True)
+def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
+    """Consistent tangent times v (n, 3) (mN): per element G = (sum_b v_b g_b^T) R^T,
+    M = V (lam tr G I + mu (G + G^T) + [T' w / 2]x), w = vee(G - G^T), and node a gets
+    M R g_a. t_world (m, 3, 3): the rotation-derivative term T' of
+    `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped R K0 R^T)."""
+    out = np.zeros_like(v)
+    gr = np.empty((3, 3))
+    g = np.empty((3, 3))
+    mm = np.empty((3, 3))
+    mr = np.empty((3, 3))
+    for e in range(tets.shape[0]):
+        r = rot[e]
+        for i in range(3):
+            for j in range(3):
+                s = 0.0
+                for b in range(4):
+                    s += v[tets[e, b], i] * grads[e, b, j]
+                gr[i, j] = s
+        for i in range(3):
+            for k in range(3):
+                g[i, k] = gr[i, 0] * r[k, 0] + gr[i, 1] * r[k, 1] + gr[i, 2] * r[k, 2]
+        tr = lam * (g[0, 0] + g[1, 1] + g[2, 2])
+        for i in range(3):
+            for k in range(3):
+                mm[i, k] = mu * (g[i, k] + g[k, i])
+            mm[i, i] += tr
+        if with_t:
+            t = t_world[e]
+            w0, w1, w2 = g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]
+            t0 = 0.5 * (t[0, 0] * w0 + t[0, 1] * w1 + t[0, 2] * w2)
+            t1 = 0.5 * (t[1, 0] * w0 + t[1, 1] * w1 + t[1, 2] * w2)
+            t2 = 0.5 * (t[2, 0] * w0 + t[2, 1] * w1 + t[2, 2] * w2)
+            mm[0, 1] -= t2
+            mm[0, 2] += t1
+            mm[1, 0] += t2
+            mm[1, 2] -= t0
+            mm[2, 0] -= t1
+            mm[2, 1] += t0
+        vol = volumes[e]
+        for i in range(3):
+            for j in range(3):
+                mr[i, j] = vol * (mm[i, 0] * r[0, j] + mm[i, 1] * r[1, j] + mm[i, 2] * r[2, j])
+        for a in range(4):
+            na = tets[e, a]
+            for i in range(3):
+                out[na, i] += mr[i, 0] * grads[e, a, 0] + mr[i, 1] * grads[e, a, 1] \
+                    + mr[i, 2] * grads[e, a, 2]
+    return out
