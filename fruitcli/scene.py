@@ -82,7 +82,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|"),
         "max_iterations": Key("int", 25, "Newton iterations per load step"),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
-        "linear_solver": Key("str", "splu", "splu, cg or cholmod when installed"),
+        "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi"),
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation"),
     },
     "board": {

@@ -16,7 +16,7 @@ RNG = np.random.default_rng(3)
 L, B, H = 100.0, 10.0, 10.0
 
 
-def cantilever_tip(cells, E=1e5, nu=0.3, rho=1000.0, solver="splu"):
+def cantilever_tip(cells, E=1e5, nu=0.3, rho=1000.0, solver="pcg"):
     nodes, tets = structured_box([0, 0, 0], [L, B, H], cells)
     fixed = np.flatnonzero(nodes[:, 0] == 0.0)
     m = Model.from_arrays(nodes, tets, E, nu, density_kg_m3=rho, gravity_m_s2=[0, 0, -9.81],

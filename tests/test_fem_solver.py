@@ -13,7 +13,7 @@ from fruitcli.fem.newton import SolverOptions, solve_state
 from fruitcli.fem.springs import Jig, nodes_in_box
 
 
-def bent_pad(steps=8, solver="splu"):
+def bent_pad(steps=8, solver="pcg"):
     """A 40 x 16 x 2 mm pad, left strip fixed, right strip carried 180 degrees over the
     y axis through a pivot 7.4 mm above the mid-plane (the touchpad scene's bend)."""
     nodes, tets = structured_box([-20, -8, 0], [20, 8, 2], (20, 8, 1))

@@ -6,14 +6,16 @@ the rotation term projected to positive semi-definite, + spring diagonal; with n
 deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by name
 (`[solver] linear_solver`):
 
-- ``splu`` (default) and ``splu-pcg``: one SuperLU factorization (symmetric mode) of a
-  positive definite tangent -- the projected one at the configuration where it was
-  last refreshed -- is kept across Newton iterations and states and preconditions CG
-  on the current tangent applied matrix-free (no assembly per iteration). CG stops at
-  the relative tolerance Newton asks for (`rtol`); the factorization is refreshed at
-  the current configuration when CG needs more than PCG_REFRESH_ITERATIONS, or fails;
-- ``splu-fresh``: K_t assembled and factorized at every Newton iteration (reference);
-- ``cg``: CG with a Jacobi preconditioner, no factorization (low memory).
+- ``pcg`` (default): one sparse Cholesky factorization (cholespy; SuperLU in
+  symmetric mode when it is missing) of a positive definite tangent -- the projected one
+  at the configuration where it was last refreshed -- is kept across Newton iterations
+  and states and preconditions CG on the current tangent applied matrix-free (no
+  assembly per iteration: assembling costs about 40 ms here, a product 0.7 ms). CG
+  stops at the relative tolerance Newton asks for (`rtol`); the factorization is
+  refreshed at the current configuration when CG needs more than
+  PCG_REFRESH_ITERATIONS, or fails;
+- ``direct``: K_t assembled and factorized at every Newton iteration (reference);
+- ``jacobi``: CG with a Jacobi preconditioner, no factorization (low memory).
 """
 
 from __future__ import annotations
@@ -31,12 +33,7 @@ from fruitcli.fem.tolerances import (
     PCG_RELATIVE_TOLERANCE,
 )
 
-LINEAR_SOLVERS = ("splu", "splu-pcg", "splu-fresh", "cg")
-
-ASSEMBLE_FOR_PCG = False
-"""The kept-factorization strategies assemble the current tangent once per Newton step
-(about 55 ms on the default fruit) and multiply by the CSR matrix in CG (0.4 ms) instead
-of the matrix-free product (`Model.apply_tangent`, about 0.7 ms): not worth it."""
+LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
 
 
 def _cholesky(k):
@@ -70,7 +67,7 @@ class TangentSolver:
     `stats` (factorizations, cg_iterations, assembly_s, factor_s). `rtol` is the relative
     residual the iterative strategies stop at (Newton sets it per step)."""
 
-    def __init__(self, model, method: str = "splu"):
+    def __init__(self, model, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
             raise SolverError(f"[solver].linear_solver: expected one of "
                               f"{', '.join(LINEAR_SOLVERS)}, got {method!r}")
@@ -80,7 +77,6 @@ class TangentSolver:
         self.f = None
         self.load_k = None
         self.t_world = None
-        self.matrix = None
         self.factor = None
         self.kind = "warped"
         self.project = False
@@ -99,7 +95,7 @@ class TangentSolver:
         (without f, the tangent is the warped R K0 R^T), the follower-pressure stiffness
         over the free dofs (anything with `@`, or None) and whether the rotation term is
         projected to positive semi-definite per element."""
-        self.rot, self.f, self.load_k, self.matrix = rot, f, load_stiffness, None
+        self.rot, self.f, self.load_k = rot, f, load_stiffness
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
         self.t_world = None
@@ -108,19 +104,12 @@ class TangentSolver:
             self.t_world = np.ascontiguousarray(
                 corotation.skew_stiffness(f, rot, lam, mu, project))
         self.fresh = False
-        if self.method == "splu-fresh":
+        if self.method == "direct":
             self._factorize(self._assemble(self.kind == "exact"))
-        elif self.method == "cg":
+        elif self.method == "jacobi":
             self.diag = self._assemble().diagonal()
         elif self.factor is None or self.refresh:
             self._refresh()
-        if self.assembled and self.method != "splu-fresh":
-            self.matrix = self._assemble()  # CG then multiplies by CSR (0.4 ms a product)
-
-    @property
-    def assembled(self) -> bool:
-        """Whether CG works on the assembled tangent (ASSEMBLE_FOR_PCG) or matrix-free."""
-        return self.method == "splu-fresh" or (self.method != "cg" and ASSEMBLE_FOR_PCG)
 
 
     def _refresh(self) -> None:
@@ -150,7 +139,7 @@ class TangentSolver:
         k = k.tocsc()
         t0 = time.perf_counter()
         try:
-            if self.method == "splu-fresh" and self.kind == "exact":
+            if self.method == "direct" and self.kind == "exact":
                 self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")  # may be indefinite
             elif _cholesky is not None:  # positive definite: sparse Cholesky when installed
                 self.factor = _cholesky(k)
@@ -166,9 +155,7 @@ class TangentSolver:
         self.stats["factorizations"] += 1
 
     def matvec(self, v_free: np.ndarray) -> np.ndarray:
-        """K_t v (assembled or matrix-free) for v over the free dofs."""
-        if self.matrix is not None:
-            return self.matrix @ v_free
+        """K_t v (matrix-free) for v over the free dofs."""
         m = self.model
         full = np.zeros(3 * m.n_nodes)
         full[m.pattern.free] = v_free
@@ -180,21 +167,21 @@ class TangentSolver:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        if self.method == "splu-fresh":
+        if self.method == "direct":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)
         out = np.column_stack([self._solve_one(c) for c in cols.T])
         return out.reshape(rhs.shape)
 
     def _solve_one(self, b: np.ndarray) -> np.ndarray:
-        if self.method == "cg":
+        if self.method == "jacobi":
             inv_d = 1.0 / self.diag
             x, its, ok = pcg(self.matvec, lambda v: inv_d * v, b, self.rtol,
                              50 * 20 * PCG_MAX_ITERATIONS)
             self.stats["cg_iterations"] += its
             if not ok:
                 raise SolverError(f"CG did not converge in {its} iterations "
-                                  "(try [solver].linear_solver = \"splu\")")
+                                  "(try [solver].linear_solver = \"pcg\")")
             return x
         limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
         x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, limit)

@@ -48,7 +48,7 @@ class SolverOptions:
     tolerance: float = 1e-6
     max_iterations: int = 25
     max_subdivisions: int = 6
-    linear_solver: str = "splu"
+    linear_solver: str = "pcg"
     load_steps: int = 1
 
 

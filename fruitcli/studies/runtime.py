@@ -32,10 +32,10 @@ class FemCase:
 def fem_cases(default_size: float) -> list[FemCase]:
     sizes = sorted({round(default_size * f, 2) for f in (2.0, 1.5, 1.25, 1.0, 0.8)},
                    reverse=True)
-    cases = [FemCase(f"size {s:g} mm", s, 1e-6, 25, "splu") for s in sizes]
-    cases += [FemCase(f"tol {t:g}", default_size, t, 25, "splu") for t in (1e-2, 1e-4, 1e-8)]
-    cases += [FemCase("tol 1e-3, cap 3 its", default_size, 1e-3, 3, "splu"),
-              FemCase("solver splu-pcg", default_size, 1e-6, 25, "splu-pcg")]
+    cases = [FemCase(f"size {s:g} mm", s, 1e-6, 25, "pcg") for s in sizes]
+    cases += [FemCase(f"tol {t:g}", default_size, t, 25, "pcg") for t in (1e-2, 1e-4, 1e-8)]
+    cases += [FemCase("tol 1e-3, cap 3 its", default_size, 1e-3, 3, "pcg"),
+              FemCase("solver direct", default_size, 1e-6, 25, "direct")]
     return cases
 
 
@@ -114,7 +114,7 @@ def default_reason(rows: list[dict], default_name: str) -> str:
     if row is None:
         return f"The default setting ({default_name}) did not run."
     verdict = ("below" if row["taxel_err_mean_mm"] < PRINTER_ACCURACY_MM else "above")
-    return (f"Default ({default_name}, tolerance 1e-6, splu): mean taxel error "
+    return (f"Default ({default_name}, tolerance 1e-6, pcg): mean taxel error "
             f"{row['taxel_err_mean_mm']:.3f} mm, {verdict} the bench's {PRINTER_ACCURACY_MM} mm "
             f"positioning accuracy, at {row['state_ms']:.0f} ms per state; coarser or looser "
             "settings save time but move taxels by more than the printer can resolve, finer "

@@ -108,10 +108,10 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None):
 def breathing_runs(scene, mesh_npz, n_states: int) -> list:
     """[(label, rows)] of the three timings of the breathing (see the module docstring);
     rows exclude each run's first state, solved from rest."""
-    _, _, rows = time_states(scene, mesh_npz, "splu", n_states,
+    _, _, rows = time_states(scene, mesh_npz, "pcg", n_states,
                              lambda names: scene_loads(scene, names, n_states, cycles=3))
     per_cycle = len(scene_loads(scene, _names(mesh_npz), n_states, cycles=3)) // 3
-    _, _, live = time_states(scene, mesh_npz, "splu", n_states,
+    _, _, live = time_states(scene, mesh_npz, "pcg", n_states,
                              lambda names: live_loads(scene, names, LIVE_HZ, cycles=2))
     return [(f"scene's states, first cycle ({per_cycle} states, history filling)",
              rows[1:per_cycle]),
@@ -218,7 +218,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
     ap.add_argument("--states", type=int, default=13)
-    ap.add_argument("--with-cg", action="store_true",
+    ap.add_argument("--with-jacobi", action="store_true",
                     help="also time Jacobi CG (about 11 s per state here)")
     ap.add_argument("--no-pad", action="store_true", help="skip the touchpad bend")
     ap.add_argument("--lame-sizes", type=float, nargs="*", default=[3.0, 2.0],
@@ -232,7 +232,7 @@ def main() -> None:
 
     if args.child_states is not None:  # peak memory of the simulation alone
         scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
-        _, _, rows = time_states(scene, args.child_states, "splu", args.states)
+        _, _, rows = time_states(scene, args.child_states, "pcg", args.states)
         print(f"{hwm_mb():.0f} {np.median([r[0] for r in rows[1:]]):.1f}")
         return
     from fruitcli.fem.stage import run_tetra
@@ -257,9 +257,9 @@ def main() -> None:
             t0 = time.perf_counter()
             q = run_tetra(scene, solid, out)
             t_tetra = time.perf_counter() - t0
-            solvers = ["splu"]
+            solvers = ["pcg"]
             if size == default_size:
-                solvers += ["splu-pcg", "splu-fresh"] + (["cg"] if args.with_cg else [])
+                solvers += ["direct"] + (["jacobi"] if args.with_jacobi else [])
             for name in solvers:
                 model, solver, rows = time_states(scene, out / "mesh.npz", name, args.states)
                 later = np.array([r[0] for r in rows[1:]])  # states from the previous one
