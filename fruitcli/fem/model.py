@@ -179,6 +179,7 @@ class Model:
         for jig in jigs:
             np.add.at(spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(),
                       jig.stiffness_mn_per_mm)
+        kernels.warm_up()  # compiled now, not inside the first state's timing
         return cls(rest=rest, tets=tets, young_modulus_kpa=float(E_kpa),
                    poisson_ratio=float(nu), dm_inv=dm_inv, volumes_mm3=vol, k0=k0,
                    chamber_names=names, chamber_tris=tris_list, chamber_rest_volume_mm3=v_rest,
