@@ -197,15 +197,26 @@ def test_soft_cantilever_converges_quadratically():
 def test_compiled_kernels_match_per_element_ones(project):
     """The compiled kernels the solver uses (F, forces, energy, tangent product) agree
     with the per-element reference ones (Ds Dm^-1, R K0 (R^T x - X), assembled
-    consistent tangent blocks) to 1e-12 relative, at 30 % random strain with one element
-    inverted; the warm-started rotations equal the cold polar decomposition."""
+    consistent tangent blocks) to 1e-12 relative, at 30 % random strain with some
+    elements inverted. The warm-started rotations equal the cold polar decomposition,
+    also where the warm start is 179 degrees off and the element falls back to it."""
+    from fruitcli.fem import kernels
+
     nodes, tets = bar((4, 2, 2), (12.0, 6.0, 6.0))
     m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=[0])
     x = nodes + 0.3 * RNG.normal(size=nodes.shape)
     x[m.tets[0, 0]] = 2 * x[m.tets[0]].mean(axis=0) - x[m.tets[0, 0]]  # invert tet 0
     m.kinematics(x + 0.05 * RNG.normal(size=nodes.shape))  # a nearby warm start
+    far = np.array([[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
+    c, s = np.cos(np.radians(1.0)), np.sin(np.radians(1.0))
+    far = far @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # 179 deg about z
+    m.__dict__["_rot_guess"][5:9] = far
+    guess = m.__dict__["_rot_guess"].copy()
     f, rot, det = m.kinematics(x)
     assert det.min() < 0
+    cold = kernels.kinematics(x, m.tets, m.grads, guess, True, corotation.POLAR_WARM_ITERATIONS,
+                              corotation.POLAR_WARM_STOP)[3]
+    assert cold[5:9].all() and cold[det <= 0].all() and not cold.all()
     f_ref = corotation.deformation_gradients(x, m.tets, m.dm_inv)
     assert np.allclose(f, f_ref, rtol=0, atol=1e-12 * np.abs(f_ref).max())
     assert np.allclose(det, corotation.det3(f_ref), rtol=1e-12, atol=1e-14)

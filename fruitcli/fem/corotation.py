@@ -41,17 +41,6 @@ def det3(a: np.ndarray) -> np.ndarray:
             + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0]))
 
 
-def adjugate3(a: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) adjugates (transposed cofactors): a @ adj(a) = det(a) I."""
-    cof = np.empty_like(a)
-    for i in range(3):
-        i1, i2 = (i + 1) % 3, (i + 2) % 3
-        for j in range(3):
-            j1, j2 = (j + 1) % 3, (j + 2) % 3
-            cof[:, j, i] = a[:, i1, j1] * a[:, i2, j2] - a[:, i1, j2] * a[:, i2, j1]
-    return cof
-
-
 def polar_rotations(f: np.ndarray) -> np.ndarray:
     """(m, 3, 3) rotations R of F = R S from scratch (the solver warm-starts them in
     `kernels.kinematics` and sends here only the elements that fail there). Scaled
@@ -92,12 +81,6 @@ def svd_rotations(f: np.ndarray) -> np.ndarray:
     det = np.linalg.det(u @ vt)
     u[:, :, 2] *= np.where(det < 0.0, -1.0, 1.0)[:, None]
     return u @ vt
-
-
-def internal_forces(x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray,
-                    rot: np.ndarray) -> np.ndarray:
-    """(n, 3) elastic forces (mN) that resist the deformation: sum_e R K0 (R^T x_e - X_e)."""
-    return forces_and_energy(x, rest, tets, k0, rot)[0]
 
 
 def forces_and_energy(x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray,
@@ -236,9 +219,9 @@ def soa(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.transpose(a, (1, 2, 0)))
 
 
-def _mm(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(3, 3, m) products a_e b_e."""
-    return np.einsum("ikm,kjm->ijm", a, b, out=out)
+    return np.einsum("ikm,kjm->ijm", a, b)
 
 
 def _mmt(a: np.ndarray, b: np.ndarray) -> np.ndarray:

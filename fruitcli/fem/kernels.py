@@ -6,7 +6,8 @@ One pass over the elements each, without the temporaries numpy would allocate: a
 
 Arrays are element-major: tets (m, 4), grads (m, 4, 3) rest shape-function gradients
 (1/mm), volumes (m,) mm^3, F and R (m, 3, 3), nodal vectors (n, 3). Lame parameters and
-stresses in kPa, forces in mN, energy in mN mm. Compiled on first use and cached on disk.
+stresses in kPa, forces in mN, energy in mN mm. Compiled (or loaded from numba's disk
+cache) by `warm_up` when a `Model` is built.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
     configuration: (tr S I - S) w = vee(A - A^T), A = R^T F, S = sym(A), R <- R cay(w/2),
     at most `iterations` times, done once |w| <= stop (radians). `cold` (m,) marks the
     elements left to the caller's cold polar decomposition: all without `use_guess`, else
-    those where tr S I - S is not positive definite or that did not converge."""
+    the inverted or flat ones (det F <= 0), those where tr S I - S is not positive
+    definite and those that did not converge."""
     m = tets.shape[0]
     f = np.empty((m, 3, 3))
     rot = np.empty((m, 3, 3))
@@ -42,7 +44,7 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
         det[e] = (fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
                   - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
                   + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0]))
-        if not use_guess:
+        if not use_guess or det[e] <= 0.0:  # inverted or flat: the cold path's SVD
             cold[e] = True
             continue
         r[:, :] = guess[e]
@@ -63,7 +65,8 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
             c02 = q01 * q12 - q02 * q11
             c12 = q01 * q02 - q00 * q12
             det_q = q00 * c00 + q01 * c01 + q02 * c02
-            if not (det_q > 1e-9 * abs(tr) ** 3 and q00 > 0.0 and tr > 0.0):
+            # tr S I - S positive definite (Sylvester: leading minors q00, c22, det_q)
+            if not (det_q > 1e-9 * abs(tr) ** 3 and q00 > 0.0 and c22 > 0.0 and tr > 0.0):
                 break
             b0, b1, b2 = a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]
             u0 = 0.5 * (c00 * b0 + c01 * b1 + c02 * b2) / det_q

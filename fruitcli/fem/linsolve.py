@@ -111,7 +111,6 @@ class TangentSolver:
         elif self.factor is None or self.refresh:
             self._refresh()
 
-
     def _refresh(self) -> None:
         """Factorize the positive definite (projected) tangent at the current rotations."""
         if self.f is not None and not self.project:

@@ -198,9 +198,10 @@ class Model:
         warm-started from the last call's (`kernels.kinematics`); elements it leaves, and
         all on the first call, take `corotation.polar_rotations`."""
         guess = self.__dict__.get("_rot_guess")
+        warm = guess is not None and guess.shape == (len(self.tets), 3, 3)
         f, rot, det, cold = kernels.kinematics(
             np.ascontiguousarray(x, dtype=float), self.tets, self.grads,
-            guess if guess is not None else np.empty((0, 3, 3)), guess is not None,
+            guess if warm else np.empty((0, 3, 3)), warm,
             corotation.POLAR_WARM_ITERATIONS, corotation.POLAR_WARM_STOP)
         if cold.any():
             rot[cold] = corotation.polar_rotations(f[cold])
