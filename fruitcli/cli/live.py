@@ -19,6 +19,10 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products
               help="states.npz: taxels follow the FEM states (state 0 without pressures).")
 @click.option("--pressure-port", default=None,
               help="Serial source of chamber pressures: lines 'P c1=2.5 c2=0.0' in kPa.")
+@click.option("--online", is_flag=True,
+              help="Solve the FEM at every new measured pressure (in a background thread; "
+                   "needs --pressure-port and the scene's mesh) instead of interpolating "
+                   "the precomputed states.")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames (baseline frames included).")
 @click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
@@ -26,7 +30,7 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
-def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud,
+def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
          baseline_frames, threshold):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
@@ -58,8 +62,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud
                                        threshold_counts=threshold)
         board = scene["board"]
         states = load_states(states_npz, len(taxels)) if states_npz else None
-        pressure = None
-        if states is None:
+        pressure = solver = None
+        if online:
+            solver = online_solver(scene, scene_path, taxels.xyz_mm, pressure_port, progress)
+            loc = Locator(taxels, board, solver.taxels_mm, settings, where=str(taxels_csv))
+            pressure = PressureState(tuple(solver.model.chamber_names))
+        elif states is None:
             loc = Locator(taxels, board, taxels.xyz_mm, settings, where=str(taxels_csv))
         elif pressure_port:
             loc = Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa,
@@ -71,8 +79,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud
         if pressure is not None:
             pser = open_port(pressure_port, baud)
             pressure_thread(pser, pressure, stop, pressure_port)
+        if solver is not None:
+            solver.run(lambda: pressure.kpa, stop)
         reader = FrameReader(ser, board["rows"], board["cols"], name=port)
-        live_loc = LiveLocator(loc, pressure)
+        live_loc = LiveLocator(loc, pressure, solver)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
         try:
@@ -95,3 +105,33 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, n_frames, baud
             stop.set()
             ser.close()
     progress(f"{seen} frames, {reader.skipped} lines skipped")
+    if solver is not None:
+        progress(solver.summary())
+
+
+def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
+    """The OnlineSolver of `fruit live --online`: the scene's mesh (its stages run into
+    out/<scene name> when needed) with the taxels mapped into it."""
+    from pathlib import Path
+
+    from fruitcli import planner
+    from fruitcli.errors import FrameError
+    from fruitcli.fem import barycentric, io
+    from fruitcli.fem.online import OnlineSolver
+    from fruitcli.fem.stage import build_model, solver_options
+
+    if not pressure_port:
+        raise FrameError("--online: needs --pressure-port, the source of the pressures")
+    if not scene.chambers:
+        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
+    out = Path("out") / scene.name
+    steps = planner.run(scene, out, until="tetra", progress=progress)
+    skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
+    if skipped:
+        raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
+                         "give [actuation] pressures for its chambers")
+    model = build_model(scene, io.load_mesh(planner.Context(out).dir("tetra") / "mesh.npz"))
+    tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
+    progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
+    return OnlineSolver(model, tet, w, solver_options(scene),
+                        solver_options(scene, first_state=bool(model.jigs)))

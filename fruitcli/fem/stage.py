@@ -152,6 +152,14 @@ def build_model(scene, mesh: dict) -> Model:
                              chambers=io.chamber_dict(mesh), jigs=_jigs(scene, nodes))
 
 
+def solver_options(scene, first_state: bool = False) -> SolverOptions:
+    """The scene's [solver] settings; the state solved from rest under a jig takes
+    `jig_steps` load steps (`first_state`)."""
+    cfg = scene["solver"]
+    return SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
+                         cfg["linear_solver"], cfg["jig_steps"] if first_state else 1)
+
+
 def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False) -> dict:
     """Solve every actuation state; write out_dir/states.npz (see module docstring)."""
     progress = progress or _noop
@@ -169,9 +177,7 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False)
     solver = TangentSolver(model, cfg["linear_solver"])
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
-        steps = cfg["jig_steps"] if i == 0 and model.jigs else 1
-        opts = SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
-                             cfg["linear_solver"], steps)
+        opts = solver_options(scene, first_state=i == 0 and bool(model.jigs))
         res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
                           options=opts, solver=solver, label=f"state {i}")
         results.append(res)

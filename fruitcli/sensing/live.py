@@ -18,11 +18,15 @@ from fruitcli.sensing.serial_io import LineReader, PortClosed, PressureState
 
 
 class LiveLocator:
-    """Feed frames one by one; `push` returns a JSON line or None."""
+    """Feed frames one by one; `push` returns a JSON line or None. With `online` (an
+    object whose `taxels_mm` (T, 3) holds the taxels at the latest measured pressures,
+    `fruitcli.fem.online.OnlineSolver`), each frame uses those positions."""
 
-    def __init__(self, locator: Locator, pressure: PressureState | None = None):
+    def __init__(self, locator: Locator, pressure: PressureState | None = None,
+                 online=None):
         self.loc = locator
         self.pressure = pressure
+        self.online = online
         self.k = locator.settings.baseline_frames
         self._base: list[np.ndarray] = []
         self.stream: Stream | None = None
@@ -39,6 +43,8 @@ class LiveLocator:
                 self.stream = Stream(self.loc, np.mean(self._base, axis=0))
             return None
         p = None if self.pressure is None else self.pressure.kpa
+        if self.online is not None:
+            self.loc.positions_mm, p = self.online.taxels_mm, None
         t = self.stream.step(values, p, self.frame)
         if len(t) == 0 and not self._had:
             return None

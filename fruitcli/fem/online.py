@@ -1,0 +1,101 @@
+"""Online mechanics for the live loop (the paper's online SOFA simulation): the body's
+equilibrium at the chamber pressures just measured, instead of precomputed states
+interpolated along their path (which is exact only for pressures on that path).
+
+Each new pressure vector (kPa, one per chamber, in the model's chamber order) is solved
+from the last equilibrium with one kept TangentSolver (its factorization and the
+predictor's history), and the taxels follow by their barycentric coordinates. `run`
+does this in a background thread so that the live loop never waits on the FEM: it
+reads `taxels_mm`, the positions at the last solved pressures.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from fruitcli.errors import SolverError
+from fruitcli.fem import barycentric
+from fruitcli.fem.linsolve import TangentSolver
+from fruitcli.fem.model import Load, Model
+from fruitcli.fem.newton import SolverOptions, solve_state
+
+MIN_CHANGE_KPA = 0.05
+"""Pressures that differ from the last solved ones by less than this in every chamber
+are not solved again (a pressure sensor's noise is of this order)."""
+
+
+class OnlineSolver:
+    """Taxel positions (T, 3) mm at the latest chamber pressures. `update(p)` solves
+    synchronously; `run(source, stop)` keeps solving the pressures `source()` returns
+    until `stop` is set. A pressure the solver cannot reach (past what the body can
+    carry) keeps the last positions and is counted in `failures` with `last_error`."""
+
+    def __init__(self, model: Model, taxel_tet: np.ndarray, taxel_bary: np.ndarray,
+                 options: SolverOptions, first_options: SolverOptions | None = None,
+                 min_change_kpa: float = MIN_CHANGE_KPA):
+        """`first_options`: for the first state, solved from rest (e.g. in the jig's
+        load steps); default `options`."""
+        self.model, self.options, self.min_change = model, options, min_change_kpa
+        self.first_options = first_options or options
+        self.tet, self.bary = np.asarray(taxel_tet), np.asarray(taxel_bary, float)
+        self.solver = TangentSolver(model, options.linear_solver)
+        self.x: np.ndarray | None = None  # None until the first solve (rest)
+        self.p = np.zeros(len(model.chamber_names))
+        self.load: Load | None = None
+        self.solved_kpa: np.ndarray | None = None
+        self.taxels_mm = barycentric.apply(model.rest, model.tets, self.tet, self.bary)
+        self.solve_ms: list[float] = []
+        self.failures = 0
+        self.last_error: str | None = None
+
+    def update(self, pressure_kpa) -> bool:
+        """Solve at pressure_kpa (K,) unless it is within `min_change_kpa` of the last
+        solved (or failed) pressures; returns whether new positions were published."""
+        p = np.asarray(pressure_kpa, float).reshape(-1)
+        if len(p) != len(self.p):
+            raise SolverError(f"online FEM: expected {len(self.p)} chamber pressures "
+                              f"({', '.join(self.model.chamber_names)}), got {len(p)}")
+        if self.solved_kpa is not None and np.all(np.abs(p - self.solved_kpa) < self.min_change):
+            return False
+        self.solved_kpa = p
+        load = Load.pressures(p)
+        opts = self.first_options if self.x is None else self.options
+        try:
+            res = solve_state(self.model, load, x_start=self.x, load_start=self.load,
+                              pressure_start=None if self.x is None else self.p,
+                              options=opts, solver=self.solver,
+                              label=f"online state at {np.round(p, 3).tolist()} kPa")
+        except SolverError as exc:
+            self.failures += 1
+            self.last_error = str(exc)
+            return False
+        self.x, self.p, self.load = res.x, res.pressure_kpa, load
+        # one assignment: the live loop reads the old positions or the new, never half
+        self.taxels_mm = barycentric.apply(res.x, self.model.tets, self.tet, self.bary)
+        self.solve_ms.append(res.solve_ms)
+        return True
+
+    def run(self, source, stop: threading.Event, idle_s: float = 0.002) -> threading.Thread:
+        """Start a daemon thread solving the pressures `source()` returns (K,) kPa until
+        `stop` is set; it sleeps `idle_s` whenever nothing changed."""
+
+        def loop():
+            while not stop.is_set():
+                if not self.update(source()):
+                    time.sleep(idle_s)
+
+        th = threading.Thread(target=loop, daemon=True, name="online FEM")
+        th.start()
+        return th
+
+    def summary(self) -> str:
+        """One line: solves, median and max time per solve, failures."""
+        if not self.solve_ms:
+            return f"online FEM: no state solved, {self.failures} failed"
+        ms = np.array(self.solve_ms)
+        text = (f"online FEM: {len(ms)} states solved, {np.median(ms):.1f} ms median, "
+                f"{ms.max():.1f} ms max, {self.failures} failed")
+        return text + (f" (last: {self.last_error})" if self.last_error else "")

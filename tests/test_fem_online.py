@@ -1,0 +1,176 @@
+"""The online FEM of `fruit live --online`: taxels at the measured pressures, solved from
+the last equilibrium (synchronously and in its thread), a pressure past what the body
+carries kept out of the output, and the live loop using the online positions."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from test_sensing_bench import pad_taxel_csv
+from test_sensing_serial import PressureSource, live_lines, touch_frames
+
+from fruitcli.cli.main import cli
+from fruitcli.errors import SolverError
+from fruitcli.fem import barycentric
+from fruitcli.fem.grid import structured_box_with_cavity
+from fruitcli.fem.model import Load, Model
+from fruitcli.fem.newton import SolverOptions, solve_state
+from fruitcli.fem.online import OnlineSolver
+
+OPTS = SolverOptions(tolerance=1e-8)
+
+
+def cube_with_cavity():
+    """30 mm cube on a fixed base, a 10 mm cavity (the stability study's body), and three
+    'taxels' on its top face."""
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [30, 30, 30], (6, 6, 6),
+                                                  [10, 10, 10], [20, 20, 20])
+    m = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav},
+                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    taxels = np.array([[15.0, 15.0, 29.9], [7.0, 21.0, 29.9], [24.0, 5.0, 29.9]])
+    tet, w, _ = barycentric.locate(m.rest, m.tets, taxels)
+    return m, tet, w
+
+
+def fresh_taxels(m, tet, w, kpa):
+    res = solve_state(m, Load.pressures([kpa]), options=OPTS)
+    return barycentric.apply(res.x, m.tets, tet, w)
+
+
+def test_online_states_match_fresh_solves_and_skip_small_changes():
+    """Each new pressure is solved from the last equilibrium and gives the fresh solution
+    (1e-6 of the displacement); a change below MIN_CHANGE_KPA is not solved again."""
+    m, tet, w = cube_with_cavity()
+    online = OnlineSolver(m, tet, w, OPTS)
+    assert np.allclose(online.taxels_mm, barycentric.apply(m.rest, m.tets, tet, w))
+    for kpa in (5.0, 12.0, 8.0):
+        assert online.update([kpa])
+        expect = fresh_taxels(m, tet, w, kpa)
+        scale = np.abs(expect - barycentric.apply(m.rest, m.tets, tet, w)).max()
+        assert scale > 0.05
+        assert np.abs(online.taxels_mm - expect).max() < 1e-6 * scale
+    before = online.taxels_mm
+    assert not online.update([8.0 + 0.5 * online.min_change])
+    assert online.taxels_mm is before and len(online.solve_ms) == 3
+    assert "3 states solved" in online.summary() and "0 failed" in online.summary()
+
+
+def test_online_pressure_past_the_limit_keeps_the_last_positions():
+    """400 kPa inverts elements of this cube (limit about 44 kPa): the update fails
+    without raising, the positions stay those of the last solved pressure, the failure is
+    counted and named, and the next reachable pressure is solved again."""
+    m, tet, w = cube_with_cavity()
+    online = OnlineSolver(m, tet, w, OPTS)
+    online.update([10.0])
+    at_10 = online.taxels_mm
+    assert not online.update([400.0])
+    assert online.taxels_mm is at_10 and online.failures == 1
+    assert "about to invert" in online.last_error and "400.0" in online.last_error
+    assert online.update([15.0])
+    assert np.abs(online.taxels_mm - fresh_taxels(m, tet, w, 15.0)).max() < 1e-4
+    with pytest.raises(SolverError, match="expected 1 chamber pressures"):
+        online.update([1.0, 2.0])
+
+
+def test_online_thread_follows_the_pressure_source():
+    m, tet, w = cube_with_cavity()
+    online = OnlineSolver(m, tet, w, OPTS)
+    kpa = {"now": np.array([6.0])}
+    stop = threading.Event()
+    th = online.run(lambda: kpa["now"], stop)
+    try:
+        deadline = time.monotonic() + 30
+        while len(online.solve_ms) < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        kpa["now"] = np.array([9.0])
+        while len(online.solve_ms) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        stop.set()
+        th.join(5)
+    assert not th.is_alive() and len(online.solve_ms) == 2
+    assert np.abs(online.taxels_mm - fresh_taxels(m, tet, w, 9.0)).max() < 1e-5
+
+
+PAD_SCENE = """
+[scene]
+name = "online-pad"
+[geometry]
+pad_size_mm = [80.0, 80.0, 10.0]
+[[geometry.chamber]]
+name = "bend"
+ellipsoid = {center_mm = [0.0, 0.0, 4.0], radii_mm = [20.0, 20.0, 2.5]}
+[grid]
+spacing_x_mm = 16.0
+spacing_y_mm = 16.0
+[mesh]
+size_mm = 6.0
+[[fixed]]
+box_mm = [-50, -50, -0.01, 50, 50, 0.01]
+[actuation]
+pressure_kpa = {bend = [0.0, 3.0]}
+[detection]
+baseline_frames = 5
+"""
+
+
+def top_taxel_csv(path):
+    """The 4 x 4 pad taxels (16 mm apart) on the 10 mm pad's top face."""
+    pad_taxel_csv(path)
+    path.write_text(path.read_text().replace(",3.0\n", ",10.0\n"))
+    return path
+
+
+def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
+    """`fruit live --online` with a pressure port: the FEM thread solves the measured
+    pressure on the scene's mesh (meshed into out/<scene> on first use) and the touches
+    come out on the inflated pad; the summary line counts the solves."""
+    from fruitcli.sensing.emulator import BoardEmulator
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(PAD_SCENE)
+    taxels = top_taxel_csv(tmp_path / "t.csv")
+    src = PressureSource(3.0)
+    frames = touch_frames(noise=False)
+    frames = np.concatenate([frames[:10]] * 3 + [frames])  # touches in frames 40..49, at 0.8 s
+    em = BoardEmulator(frames, fps=50, wait_for_reader=True)
+    th = em.start()
+    try:
+        res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
+                                       "--taxels", str(taxels), "--pressure-port", src.path,
+                                       "--online", "--frames", "60"])
+    finally:
+        th.join(5)
+        src.close()
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "online-pad" / "tetra" / "mesh.npz").exists()
+    assert "online FEM:" in res.output and "states solved" in res.output
+    lines = live_lines(res.output)
+    assert [d["frame"] for d in lines] == list(range(40, 51))
+    z = [d["touches"][0]["z_mm"] for d in lines[:-1]]
+    assert all(10.0 <= v < 12.0 for v in z)  # at rest until the first solve, then up
+    assert z[-1] > 10.05
+
+
+def test_live_online_bad_inputs(tmp_path, monkeypatch):
+    """--online without a pressure port, on a scene without chambers, and on a scene
+    whose actuation never moves it (so it is not meshed): one line each, exit 1."""
+    monkeypatch.chdir(tmp_path)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    flat = PAD_SCENE.replace(
+        '[[geometry.chamber]]\nname = "bend"\n'
+        'ellipsoid = {center_mm = [0.0, 0.0, 4.0], radii_mm = [20.0, 20.0, 2.5]}\n', "")
+    flat = flat.replace("[actuation]\npressure_kpa = {bend = [0.0, 3.0]}\n", "")
+    still = PAD_SCENE.replace("[0.0, 3.0]", "[0.0, 0.0]")
+    cases = [(PAD_SCENE, [], "--online: needs --pressure-port"),
+             (flat, ["--pressure-port", "y"], "--online: the scene has no [[geometry.chamber]]"),
+             (still, ["--pressure-port", "y"],
+              "--online: the scene is not meshed (no deformation")]
+    for n, (text, extra, message) in enumerate(cases):
+        (tmp_path / f"s{n}.toml").write_text(text)
+        res = CliRunner().invoke(cli, ["live", str(tmp_path / f"s{n}.toml"), "--port", "x",
+                                       "--taxels", str(taxels), "--online", *extra])
+        assert res.exit_code == 1 and message in res.output, res.output
+        assert res.output.count("Error") == 1
