@@ -123,6 +123,72 @@ def breathing_runs(scene, mesh_npz, n_states: int) -> list:
 LIVE_HZ = 30.0
 
 
+def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
+    """`fruit live --online` without hardware: the online FEM thread follows the
+    breathing pressures as they change in wall-clock time (the scene's cycle, a periodic
+    spline) while the main thread pushes board frames through the live locator as fast as
+    it can. Prints the states solved per second, the time per state (the taxels' lag
+    behind the pressures), and the live loop's time per frame with and without the
+    thread."""
+    import threading
+
+    from scipy.interpolate import CubicSpline
+
+    from fruitcli.fem import barycentric, io
+    from fruitcli.fem.online import OnlineSolver
+    from fruitcli.fem.stage import build_model, solver_options, state_loads
+    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.emulator import synthetic_frames
+    from fruitcli.sensing.live import LiveLocator
+    from fruitcli.sensing.pipeline import Locator, Settings
+
+    model = build_model(scene, io.load_mesh(mesh_npz))
+    taxels = load_taxels(taxels_csv)
+    tet, w, _ = barycentric.locate(model.rest, model.tets, taxels.xyz_mm)
+    online = OnlineSolver(model, tet, w, solver_options(scene))
+    table = np.array([ld.pressure_kpa for ld in state_loads(scene, model.chamber_names)])
+    period = scene["actuation"]["period_s"]
+    spline = CubicSpline(np.linspace(0.0, period, len(table)), table, bc_type="periodic")
+    online.update(spline(0.0))  # the first state, from rest, before the clock starts
+    settings = Settings.from_scene(scene["detection"])
+    frames = synthetic_frames(2000, seed=4)
+
+    def frame_times(follower):
+        loc = Locator(taxels, scene["board"], online.taxels_mm, settings)
+        live = LiveLocator(loc, None, follower)
+        ms = []
+        t_end = time.perf_counter() + seconds
+        n = 0
+        while time.perf_counter() < t_end:
+            t0 = time.perf_counter()
+            live.push(frames[n % len(frames)], t0)
+            ms.append(1e3 * (time.perf_counter() - t0))
+            n += 1
+            time.sleep(0.0005)  # a board delivers frames, it does not flood the loop
+        return np.array(ms)
+
+    alone = frame_times(None)
+    t_start = time.perf_counter()
+    stop = threading.Event()
+
+    def source():
+        return spline((time.perf_counter() - t_start) % period)
+
+    solved0 = len(online.solve_ms)
+    th = online.run(source, stop)
+    with_fem = frame_times(online)
+    stop.set()
+    th.join(5)
+    solves = np.array(online.solve_ms[solved0:])
+    print(f"\nonline FEM (fruit live --online) on the breathing in real time, {seconds:g} s: "
+          f"{len(solves) / seconds:.0f} states solved per second, {np.median(solves):.1f} ms "
+          f"median per state (the taxels' lag behind the pressures), "
+          f"{online.failures} failed")
+    print(f"live loop per frame: {np.median(alone):.3f} ms median alone, "
+          f"{np.median(with_fem):.3f} ms with the FEM thread (p99 {np.percentile(alone, 99):.3f}"
+          f" and {np.percentile(with_fem, 99):.3f} ms)")
+
+
 def _names(mesh_npz) -> list[str]:
     from fruitcli.fem import io
 
@@ -277,6 +343,7 @@ def main() -> None:
                                         str(out / "mesh.npz"), "--states", str(args.states)],
                                        capture_output=True, text=True, check=True)
                 default = (size, runs, asm_ms, direct_ms, child.stdout.split())
+                default_mesh = out / "mesh.npz"
         size, runs, asm_ms, direct_ms, (child_rss, child_med) = default
         print(f"\ndefault size {size:g} mm, one new pressure state from the previous one "
               f"(target <= 33 ms median):")
@@ -293,6 +360,7 @@ def main() -> None:
         print(f"peak RSS of the {args.states} default states alone (own process: load the mesh, "
               f"build, solve) {child_rss} MB, median state there {child_med} ms "
               f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
+        bench_online(scene0, default_mesh, tmp / "tracks" / "taxels.csv")
         if not args.no_pad:
             bench_pad(tmp, args.pad_tolerance)
         if args.lame_sizes:
