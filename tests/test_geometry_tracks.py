@@ -258,3 +258,46 @@ def test_cli_repairs_inconsistent_winding(tmp_path):
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert any("winding" in r for r in rep["repairs"])
+
+
+def test_tall_thin_column_gives_one_piece_quickly(tmp_path):
+    # a capped column r = 8 mm, 150 mm tall: splitting its 150 mm side triangles made 283k
+    # faces (27 s), and the sawtooth facets of the offset wall looked upward-facing, so
+    # tracks ran down the wall and the piece reloaded as 2 bodies
+    art = tmp_path / "col.stl"
+    trimesh.creation.cylinder(radius=8.0, height=150.0, sections=64).export(art)
+    out = tmp_path / "out"
+    res = _cli(["make-tracks", str(art), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["split_long_triangles"] and rep["split_edge_mm"] < 2.5
+    assert rep["triangles"]["split"] < 25_000
+    assert rep["warnings"] == [] and rep["genus"]["tracked_top"] == 0
+    piece = load_stl(out / "tracked_top.stl")
+    assert piece.is_watertight and piece.is_volume
+    assert len(piece.split(only_watertight=False)) == 1
+    reduced = load_stl(out / "reduced.stl")
+    assert np.allclose(reduced.extents, [12.0, 12.0, 146.0], atol=0.3)
+    assert rep["offset_error"]["reduced_to_ideal_mean_mm"] < 0.1
+    # the grid fits one x- and one y-line on the 12 mm top: one taxel at its centre, facing
+    # up; the tracks stay on the top (they ran down to z = 1.8 mm)
+    tx = read_taxels(out / "taxels.csv")
+    assert len(tx["id"]) == 1
+    assert np.allclose(tx["xyz"], [[0.0, 0.0, 73.0]], atol=0.1)
+    assert tx["normals"][0, 2] > 0.99
+    assert load_stl(out / "tracks.stl").bounds[0, 2] > 73.0 - 4.0
+
+
+def test_cli_refuses_tracks_that_cut_the_piece_apart(tmp_path):
+    import manifold3d
+
+    # an arch whose bridge is 2 mm thick after the cover: 5.5 mm tubes cut it to pieces
+    arch = (manifold3d.Manifold.cube((100.0, 30.0, 60.0), True)
+            - manifold3d.Manifold.cube((80.0, 40.0, 54.0), True).translate((0, 0, -6.0)))
+    m = arch.to_mesh()
+    path = tmp_path / "arch.stl"
+    trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], m.tri_verts).export(path)
+    out = tmp_path / "out"
+    res = _cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500",
+                "--split-z-mm", "-10", "--track-radius-mm", "5.5"])
+    _assert_refused(res, out, "arch.stl", "bodies", "--track-radius-mm", "--origin-mm")

@@ -131,8 +131,45 @@ def test_densify_splits_long_triangles_only():
     from fruitcli.geometry.reduce import densify
 
     box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
-    v, f, split = densify(box.vertices, box.faces, 5.0)
+    v, f, edge = densify(box.vertices, box.faces, 5.0)
     m = trimesh.Trimesh(v, f)
-    assert split and m.is_watertight and m.volume == pytest.approx(24000.0)
+    assert edge == 5.0 and m.is_watertight and m.volume == pytest.approx(24000.0)
     assert np.linalg.norm(v[f] - v[f[:, [1, 2, 0]]], axis=2).max() <= 5.0
-    assert densify(v, f, 5.0)[2] is False
+    assert densify(v, f, 5.0)[2] is None
+
+
+def test_densify_cuts_long_strips_along_their_length_only():
+    from fruitcli.geometry.reduce import densify
+
+    # a column's side: 128 strips 150 mm x 0.79 mm; cutting each face in four until the
+    # 150 mm edges were short cut the strips across as well (281k faces, 0.006 mm edges)
+    col = trimesh.creation.cylinder(radius=8.0, height=150.0, sections=64)
+    v, f, edge = densify(col.vertices, col.faces, 2.2)
+    m = trimesh.Trimesh(v, f, process=False)
+    assert m.is_watertight and m.is_winding_consistent
+    assert m.volume == pytest.approx(col.volume, rel=1e-9)
+    lengths = np.linalg.norm(v[f] - v[f[:, [1, 2, 0]]], axis=2)
+    assert edge == 2.2 and lengths.max() <= 2.2
+    # about 2 L / edge faces per strip: 128 * 2 * 150 / 2.2 = 17.5k
+    assert len(f) < 22_000
+    # a face cap relaxes the edge length instead
+    v, f, edge = densify(col.vertices, col.faces, 2.2, max_faces=5000)
+    assert len(f) <= 5000 and edge > 2.2
+    assert np.linalg.norm(v[f] - v[f[:, [1, 2, 0]]], axis=2).max() <= edge
+    assert trimesh.Trimesh(v, f, process=False).is_watertight
+
+
+def test_weld_merges_what_a_reader_merges(tmp_path):
+    from fruitcli.geometry.export import weld_float32, write_stl
+
+    # a tetrahedron whose fourth corner appears twice, 2e-9 mm apart, joined by two needle
+    # faces (as a boolean left them where a tube ended on a wall): an STL reader merges the
+    # two corners and sees two collapsed faces (2 bodies, not watertight), so the weld must
+    # merge them too
+    v = np.array([[0.0, 0, 0], [10.0, 0, 0], [0.0, 10, 0], [0.003876361763, -5.98, 1.8],
+                  [0.003876359668, -5.98, 1.8]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 0, 4], [0, 3, 4]])
+    assert trimesh.Trimesh(v, f, process=False).is_watertight
+    wv, wf = weld_float32(v, f)
+    assert len(wv) == 4 and len(wf) == 4
+    assert write_stl(tmp_path / "t.stl", v, f) == (True, 1)

@@ -20,6 +20,8 @@ MIN_PIECE_RADII = 4.0
 MAX_GAP_RADII = 6.0
 # artist edges longer than this many distance-grid spacings are split before the offset
 MAX_EDGE_PER_GRID = 3.0
+# the split adds at most this many times the target triangle count (else edges stay longer)
+MAX_SPLIT_FACES_PER_TARGET = 16
 # track curves keep this many track radii above the split plane (no tube cuts the cap)
 SPLIT_CLEARANCE_RADII = 2.0
 # the tracked piece may lose at most this fraction of its volume to the tubes
@@ -27,6 +29,9 @@ MAX_TRACK_VOLUME_FRACTION = 0.25
 # bodies cut off by the tubes (along a sharp edge) are dropped below this fraction of the
 # piece's volume, in total; larger ones make the carving fail
 MAX_SLIVER_VOLUME_FRACTION = 1e-3
+# what to change when the tracks cut the piece apart
+CHANGE_TRACKS = ("try a smaller --track-radius-mm, or move the grid lines (--origin-mm, "
+                 "--spacing-x-mm, --spacing-y-mm)")
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
 
 
@@ -53,6 +58,26 @@ def _planes(lo: float, hi: float, spacing: float, origin: float | None) -> dict[
         origin = 0.5 * (lo + hi) - 0.5 * n * spacing
     k0, k1 = int(np.ceil((lo - origin) / spacing)), int(np.floor((hi - origin) / spacing))
     return {k: origin + k * spacing for k in range(k0, k1 + 1)}
+
+
+def _upward_nz(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Per face, the smaller z component of its unit normal and of the area-weighted mean
+    normal of the faces sharing a vertex with it.
+
+    A level-set wall is a sawtooth of facets tilted alternately up and down by a few
+    degrees; face by face about half of a vertical wall looks upward-facing, and bridging
+    the gaps between those faces would run tracks down the wall. The neighbourhood mean
+    cancels the sawtooth; taking the smaller value only ever drops faces from the mask.
+    """
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    vn = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(vn, faces[:, k], fn)
+    out = []
+    for n in (fn, vn[faces].sum(axis=1)):
+        out.append(n[:, 2] / np.maximum(np.linalg.norm(n, axis=1), 1e-300))
+    return np.minimum(*out)
 
 
 def _drop_slivers(piece, top_volume: float):
@@ -127,8 +152,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     lap("load")
 
     # long triangles are split so that nearest-vertex distances bound the exact ones closely
-    dv, df, split_long = reduce.densify(
-        av, af, MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces)))
+    want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces))
+    split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)
+    dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
     dist = SurfaceDistance(dv, df)
     red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist)
     rv, rf = reduce.manifold_arrays(red.body)
@@ -151,9 +177,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     # trim_by_plane may re-triangulate the top, so its faces can differ by a fraction of a mm
     sv, sf = rv, rf
     tri = sv[sf]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-    up = (fn[:, 2] > UP_NZ_MIN) \
+    up = (_upward_nz(sv, sf) > UP_NZ_MIN) \
         & (tri[:, :, 2].min(axis=1) > split + SPLIT_CLEARANCE_RADII * track_radius_mm)
     if not up.any():
         raise GeometryError(f"{src}: no upward-facing surface above z = {split:.2f} mm")
@@ -206,11 +230,15 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
             or not 0 < lost < MAX_TRACK_VOLUME_FRACTION):
         raise GeometryError(f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
                             f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
-                            "try a smaller --track-radius-mm")
+                            f"{CHANGE_TRACKS}")
     kv, kf = export.weld_float32(*reduce.manifold_arrays(tracked))
     kf, more = _drop_edge_slivers(kv, kf, top.volume())
     slivers += more
     warnings = []
+    if split_edge is not None and split_edge > want_edge:
+        warnings.append(f"long triangles were split to {split_edge:.2f} mm edges, not "
+                        f"{want_edge:.2f} mm (at most {split_cap} triangles); the offset "
+                        "may be less accurate (check offset_error)")
     if slivers:
         warnings.append(f"dropped {len(slivers)} sliver(s) of {sum(slivers):.3g} mm^3 that "
                         "tracks along a sharp edge cut off the piece")
@@ -230,12 +258,13 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         rows.append([t, int(ii[o]), int(jj[o]), *map(float, p), *map(float, n)])
     report = {
         "artist": src, "unit": unit or "mm", "repairs": repairs,
-        "triangles": {"artist": int(len(af)), "reduced": int(len(rf)), "reduced_top": int(len(tf)),
-                      "tracked_top": int(len(kf)),
+        "triangles": {"artist": int(len(af)), "split": int(len(df)), "reduced": int(len(rf)),
+                      "reduced_top": int(len(tf)), "tracked_top": int(len(kf)),
                       "tracks": int(sum(len(f) for _, f in tube_meshes))},
         "cover_mm": float(cover_mm), "faces_target": int(faces),
         "level_set_edge_mm": red.edge_mm, "distance_grid_mm": red.grid_mm,
-        "dropped_islands": red.dropped_islands, "split_long_triangles": split_long,
+        "dropped_islands": red.dropped_islands, "split_long_triangles": split_edge is not None,
+        "split_edge_mm": split_edge,
         "offset_error": offset,
         "split_z_mm": split, "split_z_automatic": split_z_mm is None,
         "grid": {"spacing_x_mm": float(spacing_x_mm), "spacing_y_mm": float(spacing_y_mm),
@@ -252,11 +281,17 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     }
     with staged_dir(out_dir) as tmp:
         tmp = Path(tmp)
-        ok_reduced = export.write_stl(tmp / "reduced.stl", rv, rf)
-        if not ok_reduced:
-            raise GeometryError(f"{src}: reduced.stl does not reload as a closed mesh")
-        report["tracked_top_reloads_watertight"] = export.write_stl(tmp / "tracked_top.stl",
-                                                                    kv, kf)
+        closed, bodies = export.write_stl(tmp / "reduced.stl", rv, rf)
+        if not closed or bodies != 1:
+            raise GeometryError(f"{src}: reduced.stl does not reload as one closed mesh "
+                                f"({bodies} bodies)")
+        closed, bodies = export.write_stl(tmp / "tracked_top.stl", kv, kf)
+        if not closed or bodies != 1:
+            raise GeometryError(
+                f"{src}: the tracked piece does not reload as one closed body ({bodies} "
+                f"bodies{'' if closed else ', open'}); {CHANGE_TRACKS}")
+        report["tracked_top_reloads_watertight"] = closed
+        report["tracked_top_bodies"] = bodies
         tube_v = np.concatenate([v for v, _ in tube_meshes])
         offs = np.cumsum([0] + [len(v) for v, _ in tube_meshes[:-1]])
         tube_f = np.concatenate([f + o for (_, f), o in zip(tube_meshes, offs, strict=True)])
