@@ -132,41 +132,21 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
     the inverse is taken in closed form (no eigendecomposition) wherever tr S I - S is
     well conditioned; with `project`, also where Gershgorin's bound on the eigenvalues
     of tr S I - S shows that the clamp would change nothing (eigh only for the rest)."""
-    t = np.zeros((3, 3, len(f)))
-    rc, fc = soa(rot), soa(f)
-    s = np.einsum("kim,kjm->ijm", rc, fc)  # R^T F
-    s = 0.5 * (s + np.transpose(s, (1, 0, 2)))
-    tr = s[0, 0] + s[1, 1] + s[2, 2]
-    c = lam * (tr - 3.0) - 2.0 * mu
-    q = -s
-    for i in range(3):
-        q[i, i] += tr
-    adj = np.empty_like(q)
-    for i in range(3):
-        i1, i2 = (i + 1) % 3, (i + 2) % 3
-        for j in range(3):
-            j1, j2 = (j + 1) % 3, (j + 2) % 3
-            adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
-    det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
-    easy = det_q > 1e-6 * np.abs(tr) ** 3
-    if project:  # the clamp is idle where Gershgorin bounds every 2 mu + 2 c / q_i >= 0
-        q_low = np.min([q[i, i] - np.abs(q[i, (i + 1) % 3]) - np.abs(q[i, (i + 2) % 3])
-                        for i in range(3)], axis=0)  # <= smallest eigenvalue
-        easy &= (q_low > 0.0) & ((c >= 0.0) | (mu * q_low + c >= 0.0))
-    if easy.any():
-        te = adj * np.where(easy, 2.0 * c / np.where(easy, det_q, 1.0), 0.0)
-        for i in range(3):
-            te[i, i] += np.where(easy, 2.0 * mu, 0.0)
-        t = _mmt(_mm(rc, te), rc)
-    t = np.transpose(t, (2, 0, 1))
-    s = np.transpose(s, (2, 0, 1))
+    from fruitcli.fem import kernels
+
+    f = np.ascontiguousarray(f, dtype=float)
+    rot = np.ascontiguousarray(rot, dtype=float)
+    t, easy = kernels.skew_stiffness_closed_form(f, rot, float(lam), float(mu), bool(project))
     hard = ~easy
     if hard.any():
-        sig, u = np.linalg.eigh(s[hard])
+        s = np.transpose(rot[hard], (0, 2, 1)) @ f[hard]  # R^T F
+        s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
+        sig, u = np.linalg.eigh(s)
         trh = sig.sum(axis=1, keepdims=True)
+        c = lam * (trh - 3.0) - 2.0 * mu
         q = trh - sig  # eigenvalues of tr S I - S
         with np.errstate(divide="ignore", invalid="ignore"):
-            th = 2.0 * mu + 2.0 * c[hard, None] / q
+            th = 2.0 * mu + 2.0 * c / q
         th = np.where(q > 1e-12, th, 0.0)
         if project:
             th = np.maximum(th, 0.0)
@@ -212,18 +192,3 @@ def exact_stiffness(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: floa
         x = x.reshape(m, 3, 12)
         k += 0.5 * (np.transpose(x, (0, 2, 1)) @ (t @ x))
     return k * volumes[:, None, None]
-
-
-def soa(a: np.ndarray) -> np.ndarray:
-    """(3, 3, m) contiguous copy of (m, 3, 3) matrices (or a view when a is one)."""
-    return np.ascontiguousarray(np.transpose(a, (1, 2, 0)))
-
-
-def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3, 3, m) products a_e b_e."""
-    return np.einsum("ikm,kjm->ijm", a, b)
-
-
-def _mmt(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3, 3, m) products a_e b_e^T."""
-    return np.einsum("ikm,jkm->ijm", a, b)
