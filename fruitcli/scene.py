@@ -29,6 +29,9 @@ class Key:
     required: bool = False
 
 
+LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
+"""[solver].linear_solver values (see `fruitcli.fem.linsolve`)."""
+
 # Sections that are tables (one per scene).
 SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
@@ -362,6 +365,13 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: [material].density_kg_m3: expected >= 0")
     if scene["mesh"]["size_mm"] <= 0:
         raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
+    sol = scene["solver"]
+    if sol["linear_solver"] not in LINEAR_SOLVERS:
+        raise SceneError(f"{where}: [solver].linear_solver: expected one of "
+                         f"{', '.join(LINEAR_SOLVERS)}, got {sol['linear_solver']!r}")
+    if sol["tolerance"] <= 0 or sol["max_iterations"] < 1 or sol["jig_steps"] < 1:
+        raise SceneError(f"{where}: [solver]: expected tolerance > 0, max_iterations >= 1, "
+                         "jig_steps >= 1")
     act = scene["actuation"]
     lengths = set()
     for key in ("pressure_kpa", "volume_growth_mm3"):

@@ -32,8 +32,7 @@ from fruitcli.fem.tolerances import (
     PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
 )
-
-LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
+from fruitcli.scene import LINEAR_SOLVERS
 
 
 def _cholesky(k):
