@@ -132,15 +132,20 @@ def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
     return _holds(ctx.dir(stage.name), stage, scene, digest)
 
 
-def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None) -> list[Step]:
-    """Decide run / reuse / not needed for every stage, in dependency order."""
+def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
+         until: str | None = None) -> list[Step]:
+    """Decide run / reuse / not needed for every stage (up to and including `until`),
+    in dependency order."""
     from fruitcli.stages import STAGES
 
     stages = STAGES if stages is None else stages
+    wanted = _wanted(stages, until)
     ctx = Context(Path(out_root))
     steps = []
     blocked: set[str] = set()
     for stage in stages:
+        if stage.name not in wanted:
+            continue
         needed, reason = stage.needed(scene)
         if not needed:
             steps.append(Step(stage.name, "not needed", reason))
@@ -183,13 +188,9 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
     from fruitcli.stages import STAGES
 
     stages = STAGES if stages is None else stages
-    names = [s.name for s in stages]
-    if until is not None and until not in names:
-        raise FruitError(f"unknown stage '{until}' (stages: {', '.join(names)})")
+    wanted = _wanted(stages, until)
     ctx = Context(Path(out_root), progress or (lambda msg: None), shared=shared)
     done = []
-    by_name = {s.name: s for s in stages}
-    wanted = _closure(by_name, until) if until else set(names)
     for stage in stages:
         if stage.name not in wanted:
             continue
@@ -230,6 +231,16 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
         })
         done.append(Step(stage.name, "run", reason, digest))
     return done
+
+
+def _wanted(stages: list[Stage], until: str | None) -> set[str]:
+    """Names of the stages up to and including `until` (and what it needs), or all."""
+    names = [s.name for s in stages]
+    if until is None:
+        return set(names)
+    if until not in names:
+        raise FruitError(f"unknown stage '{until}' (stages: {', '.join(names)})")
+    return _closure({s.name: s for s in stages}, until)
 
 
 def _closure(by_name: dict[str, Stage], target: str) -> set[str]:

@@ -88,6 +88,13 @@ def test_dry_run_cli(fruit, tmp_path):
     assert "evaluate     run" in res.output
     assert "no deformation: taxels at rest, no FEM" in res.output
     assert not (tmp_path / "o").exists()
+    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run", "--until",
+                "make-tracks", "--out", tmp_path / "o")
+    assert res.exit_code == 0 and "make-tracks" in res.output
+    assert "evaluate" not in res.output and "locate" not in res.output
+    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run", "--until",
+                "bogus", "--out", tmp_path / "o")
+    assert res.exit_code == 1 and "unknown stage 'bogus'" in res.output
 
 
 def test_run_bad_scene_is_one_line(fruit, tmp_path):
