@@ -2,6 +2,7 @@
 the last equilibrium (synchronously and in its thread), a pressure past what the body
 carries kept out of the output, and the live loop using the online positions."""
 
+import re
 import threading
 import time
 
@@ -147,6 +148,8 @@ def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "online-pad" / "tetra" / "mesh.npz").exists()
     assert "online FEM:" in res.output and "states solved" in res.output
+    skipped = re.search(r"pressure lines: (\d+) skipped", res.output)
+    assert skipped and int(skipped.group(1)) > 0  # the source's 'noise' lines
     lines = live_lines(res.output)
     assert [d["frame"] for d in lines] == list(range(40, 51))
     z = [d["touches"][0]["z_mm"] for d in lines[:-1]]

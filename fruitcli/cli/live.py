@@ -79,8 +79,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         if pressure is not None:
             pser = open_port(pressure_port, baud)
             pressure_thread(pser, pressure, stop, pressure_port)
-        if solver is not None:
-            solver.run(lambda: pressure.kpa, stop)
+        fem_thread = None if solver is None else solver.run(lambda: pressure.kpa, stop)
         reader = FrameReader(ser, board["rows"], board["cols"], name=port)
         live_loc = LiveLocator(loc, pressure, solver)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
@@ -104,9 +103,21 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         finally:
             stop.set()
             ser.close()
-    progress(f"{seen} frames, {reader.skipped} lines skipped")
+            if fem_thread is not None:
+                fem_thread.join(30)  # ends after its current solve
+            for line in _summary(seen, reader, pressure, solver):
+                progress(line)
+
+
+def _summary(seen, reader, pressure, solver) -> list[str]:
+    """The closing lines of `fruit live`: frames, skipped lines, online FEM."""
+    lines = [f"{seen} frames, {reader.skipped} board lines skipped"]
+    if pressure is not None:
+        lines.append(f"pressure lines: {pressure.skipped} skipped (not 'P name=kPa ...' with "
+                     f"known chambers {', '.join(pressure.chambers)} and finite values)")
     if solver is not None:
-        progress(solver.summary())
+        lines.append(solver.summary())
+    return lines
 
 
 def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
