@@ -48,10 +48,12 @@ def demo(out_dir, scenes):
             if missing:
                 plans[scene.name] = planner.format_plan(steps)
                 click.echo(f"   skipped: {missing[0].stage}: {missing[0].reason}", err=True)
-                seconds[scene.name] = 0.0
+                seconds[scene.name] = (0.0, 0, 0)
                 continue
             steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
             plans[scene.name] = planner.format_plan(steps)
-            seconds[scene.name] = time.perf_counter() - t0
+            seconds[scene.name] = (time.perf_counter() - t0,
+                                   sum(s.action == "run" for s in steps),
+                                   sum(s.action == "reuse" for s in steps))
         report = write_report(out, plans, seconds)
     click.echo(f"report: {report}")
