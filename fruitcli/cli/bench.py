@@ -38,5 +38,6 @@ def bench(scene_path, taxels_csv, states_npz, out_dir):
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         res = run_bench(scene, taxels, states_npz, out_dir, progress)
     for name, r in res["indenters"].items():
-        click.echo(f"{name}: {r['samples']} samples ({r['dropped']} dropped), "
+        click.echo(f"{name}: {r['samples']} samples recorded ({r['dropped']} never reached "
+                   "the threshold), "
                    f"{r['frames']} frames -> {out_dir}/{name}", err=True)

@@ -166,7 +166,8 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> 
         shift = np.zeros(len(taxels))
     on_surface = np.flatnonzero(np.isfinite(z))
     contact = np.column_stack([xy, z])[on_surface]
-    say(f"{len(contact)} samples on the surface ({len(xy) - len(contact)} off it)")
+    say(f"{len(xy)} sample points, {len(contact)} of them over the taxels' surface "
+        f"({len(xy) - len(contact)} outside it are left out)")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "indenters": {}}
     for n, name in enumerate(bench["indenters"]):
