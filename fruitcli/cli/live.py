@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, scene_products
+from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_outputs
 
 
 @click.command()
@@ -136,7 +136,7 @@ def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
     if not scene.chambers:
         raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
     out = Path("out") / scene.name
-    steps = planner.run(scene, out, until="tetra", progress=progress)
+    steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs())
     skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
     if skipped:
         raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "

@@ -48,6 +48,14 @@ def progressbar(iterable=None, length=None, label=""):
                              show_pos=True, show_eta=True)
 
 
+def shared_outputs():
+    """out/ when it exists: stages with the same inputs as a scene's there are copied
+    from it instead of run again (`planner.run(shared=...)`)."""
+    from pathlib import Path
+
+    return Path("out") if Path("out").is_dir() else None
+
+
 def scene_products(scene, out_root=None, progress=None):
     """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
     (into `out_root`, default out/<scene name>) and reusing what is already there."""
@@ -58,6 +66,6 @@ def scene_products(scene, out_root=None, progress=None):
 
     out = Path(out_root) if out_root else Path("out") / scene.name
     # simulate's upstream makes the taxels; stages the scene does not need are skipped
-    planner.run(scene, out, until="simulate", progress=progress)
+    planner.run(scene, out, until="simulate", progress=progress, shared=shared_outputs())
     ctx = planner.Context(out)
     return taxels_path(scene, ctx), states_path(scene, ctx)

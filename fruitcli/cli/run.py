@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, shared_outputs
 
 
 def default_out(scene) -> Path:
@@ -40,6 +40,7 @@ def run(scene_file, out_dir, dry_run, until, force):
             click.echo(planner.format_plan(steps))
             return
         progress = Progress()
-        steps = planner.run(scene, out, until=until, progress=progress, force=force)
+        steps = planner.run(scene, out, until=until, progress=progress, force=force,
+                            shared=shared_outputs())
         click.echo(f"{scene.name}: done -> {out}/")
         click.echo(planner.format_plan(steps))

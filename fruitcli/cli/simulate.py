@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, progressbar
+from fruitcli.cli.options import Progress, fruit_errors, progressbar, shared_outputs
 
 
 @click.command(name="simulate")
@@ -42,7 +42,7 @@ def simulate(scene, out_dir, solid, taxels, vtu):
         if solid is None and geo["artist"] is not None:
             from fruitcli import planner
 
-            planner.run(sc, out_dir, until="make-tracks", progress=log)
+            planner.run(sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs())
             solid = out_dir / "make-tracks" / "reduced.stl"
             if xyz is None:
                 xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv")["xyz"]
