@@ -115,8 +115,46 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
 
 def test_chamber_poking_out_is_refused(tmp_path):
     scene = pad_scene(tmp_path, cx=17.0)
-    with pytest.raises(MeshError, match="chamber a: .* outside the solid"):
+    with pytest.raises(MeshError, match=r"^pad.toml: \[\[geometry.chamber\]\] 'a': .* mm\^3 "
+                                        "of it lies outside the solid pad "):
         run_tetra(scene, None, tmp_path / "m")
+
+
+SPHERE_M = """
+[geometry]
+solid = "sphere_m.stl"
+{unit}
+[[geometry.chamber]]
+name = "c1"
+surface = "chamber_m.stl"
+[[fixed]]
+box_mm = [-50, -50, -41, 50, 50, -35]
+[actuation]
+pressure_kpa = {{c1 = [1.0]}}
+"""
+
+
+def test_solid_in_metres_needs_its_unit(tmp_path):
+    """A solid (and chamber surface) in metres: refused before any mesh unless
+    [geometry].unit says so, then scaled to mm."""
+    from fruitcli.cli.main import cli
+    from fruitcli.fem.stage import body_shells
+
+    trimesh.creation.icosphere(3, 0.04).export(tmp_path / "sphere_m.stl")
+    trimesh.creation.icosphere(2, 0.008).export(tmp_path / "chamber_m.stl")
+    (tmp_path / "s.toml").write_text(SPHERE_M.format(unit=""))
+    res = CliRunner().invoke(cli, ["-q", "run", str(tmp_path / "s.toml"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        'Error: s.toml: [geometry].solid: sphere_m.stl is only 0.08 mm across, so it is not '
+        'in millimetres; set [geometry].unit = "m" (or "cm")')
+    assert not (tmp_path / "o" / "tetra").exists()
+    scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
+    outer, (chamber,) = body_shells(scene, scene["geometry"]["solid"])
+    assert np.ptp(outer["vertices"], axis=0) == pytest.approx([80.0] * 3, rel=1e-6)
+    assert np.ptp(chamber["vertices"], axis=0) == pytest.approx([16.0] * 3, rel=1e-6)
+    assert outer["name"] == "sphere_m.stl"
 
 
 def test_open_chamber_surface_is_refused(tmp_path):
@@ -197,7 +235,8 @@ pressure_kpa = {a = [1.0]}
     res = runner.invoke(cli, ["-q", "tetra", str(tmp_path / "pad.toml"), "--out",
                               str(tmp_path / "o2")])
     assert res.exit_code == 1
-    assert "Error: chamber a:" in res.output and "outside the solid" in res.output
+    assert "Error: pad.toml: [[geometry.chamber]] 'a': " in res.output
+    assert "of it lies outside the solid pad" in res.output
 
 
 DOME = """

@@ -8,9 +8,11 @@ import trimesh
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.errors import GeometryError
+from fruitcli.geometry import load
 from fruitcli.geometry.columns import vertical_hits
 from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
-from fruitcli.geometry.pipeline import make_tracks, read_taxels
+from fruitcli.geometry.pipeline import SCENE_NAMES, make_tracks, read_taxels
 
 ON_SURFACE_MM = 0.01
 
@@ -156,6 +158,22 @@ def test_cli_refuses_open_mesh(tmp_path):
     assert res.exit_code == 0, res.output
     rep = json.loads((tmp_path / "o2" / "report.json").read_text())
     assert any("small hole" in r for r in rep["repairs"])
+    assert "make-tracks: repaired: closed 1 small hole(s)\n" in res.output
+
+
+def test_cli_refuses_a_large_hole(tmp_path):
+    """A sphere of radius 40 with its cap above z = 35 cut off: a hole about 39 mm across,
+    with few enough edges to count as small, is an opening, not a defect to fill."""
+    s = trimesh.creation.icosphere(3, 40.0)
+    s.update_faces(s.vertices[s.faces][:, :, 2].max(axis=1) < 35.0)
+    s.remove_unreferenced_vertices()
+    rim = s.vertices[np.unique(s.edges_sorted[trimesh.grouping.group_rows(
+        s.edges_sorted, require_count=1)])]
+    assert len(rim) <= load.MAX_HOLE_EDGES and np.ptp(rim[:, 0]) > 35.0
+    s.export(tmp_path / "cut.obj")
+    out = tmp_path / "out"
+    _assert_refused(_cli(["make-tracks", str(tmp_path / "cut.obj"), "--out", str(out)]), out,
+                    "cut.obj", "not closed", "open edges")
 
 
 def test_cli_refuses_two_bodies(tmp_path):
@@ -171,11 +189,41 @@ def test_cli_refuses_two_bodies(tmp_path):
 def test_cli_metres_need_unit(tmp_path):
     path = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "--unit m")
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out,
+                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
+                    "give its unit (--unit m or --unit cm)")
     res = _cli(["make-tracks", str(path), "--out", str(out), "--unit", "m", "--faces", "1500"])
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert rep["repairs"][0].startswith("scaled from m to mm")
+    # each repair is also a progress line
+    assert "make-tracks: scaled from m to mm (x1000)\n" in res.output
+    merged = [r for r in rep["repairs"] if r.startswith("merged")]
+    assert merged and f"make-tracks: repaired: {merged[0]}\n" in res.output
+
+
+def test_scene_artist_in_metres_is_refused(tmp_path):
+    """Through a scene (whose unit defaults to mm) the metres check runs too."""
+    ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
+    (tmp_path / "s.toml").write_text('[geometry]\nartist = "m.stl"\n')
+    out = tmp_path / "out"
+    _assert_refused(_cli(["run", str(tmp_path / "s.toml"), "--out", str(out)]), out,
+                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres")
+
+
+def test_scene_names_in_errors(tmp_path):
+    """With SCENE_NAMES (the scene's make-tracks stage) hints name scene keys, not flags."""
+    small = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
+    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\)$'):
+        make_tracks(small, tmp_path / "o", unit="mm", names=SCENE_NAMES)
+    big = ellipsoid(tmp_path / "e.stl")
+    with pytest.raises(GeometryError, match=r"consumes the whole body \(use a smaller "
+                                            r"\[tracks\]\.cover_mm\)$"):
+        make_tracks(big, tmp_path / "o", unit="mm", cover_mm=25.0, faces=1500,
+                    names=SCENE_NAMES)
+    with pytest.raises(GeometryError, match=r"^\[tracks\]\.track_radius_mm: 7 mm"):
+        make_tracks(big, tmp_path / "o", track_radius_mm=7.0, names=SCENE_NAMES)
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("opts,words", [
@@ -258,6 +306,7 @@ def test_cli_repairs_inconsistent_winding(tmp_path):
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert any("winding" in r for r in rep["repairs"])
+    assert "make-tracks: repaired: fixed inconsistent face winding" in res.output
 
 
 def test_tall_thin_column_gives_one_piece_quickly(tmp_path):

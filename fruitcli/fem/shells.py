@@ -16,8 +16,10 @@ from fruitcli.errors import MeshError, SceneError
 from fruitcli.fem.tolerances import INSIDE_VOLUME_MM3
 
 
-def load_surface(path: Path, what: str, error=SceneError) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (v, 3) mm and faces (f, 3) of a closed, consistently wound surface file."""
+def load_surface(path: Path, what: str, error=SceneError,
+                 scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (v, 3) mm and faces (f, 3) of a closed, consistently wound surface file
+    (its coordinates times `scale`: 1000 for a file in metres)."""
     import trimesh
 
     path = Path(path)
@@ -33,7 +35,7 @@ def load_surface(path: Path, what: str, error=SceneError) -> tuple[np.ndarray, n
         raise error(f"{what}: {path} has inconsistent triangle winding")
     if mesh.volume < 0:
         mesh.invert()
-    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    return np.asarray(mesh.vertices, float) * scale, np.asarray(mesh.faces, np.int64)
 
 
 def surface_shell(name: str, vertices, faces) -> dict:
@@ -73,9 +75,9 @@ def _manifold(shell: dict):
     return man
 
 
-def check_layout(outer: dict, chambers: list[dict]) -> None:
+def check_layout(outer: dict, chambers: list[dict], where: str = "scene") -> None:
     """Refuse chambers that poke out of the solid or overlap each other (MeshError
-    naming the chamber)."""
+    naming the scene file `where` and the chamber)."""
     body = _manifold(outer)
     mans = []
     for ch in chambers:
@@ -83,9 +85,11 @@ def check_layout(outer: dict, chambers: list[dict]) -> None:
         vol = man.volume()
         outside = (man - body).volume()
         if outside > INSIDE_VOLUME_MM3 * max(vol, 1.0) + 1e-9:
-            raise MeshError(f"chamber {ch['name']}: {outside:.3g} mm^3 of it lies outside the "
-                            f"solid {outer['name']} (chambers must be inside the body)")
+            raise MeshError(f"{where}: [[geometry.chamber]] '{ch['name']}': {outside:.3g} mm^3 "
+                            f"of it lies outside the solid {outer['name']} (chambers must be "
+                            "inside the body)")
         for other, oman in zip(chambers, mans, strict=False):
             if (man ^ oman).volume() > INSIDE_VOLUME_MM3 * max(vol, 1.0) + 1e-9:
-                raise MeshError(f"chamber {ch['name']} intersects chamber {other['name']}")
+                raise MeshError(f"{where}: [[geometry.chamber]] '{ch['name']}' intersects "
+                                f"[[geometry.chamber]] '{other['name']}'")
         mans.append(man)

@@ -24,6 +24,7 @@ from fruitcli.fem.newton import SolverOptions, solve_state
 from fruitcli.fem.springs import Jig, nodes_in_box
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
+from fruitcli.geometry.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_in_mm
 from fruitcli.scene import n_states
 
 
@@ -32,14 +33,23 @@ def _noop(msg: str) -> None:
 
 
 def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
-    """The outer shell (solid surface or flat pad box) and the chamber shells."""
-    geo = scene["geometry"]
-    if solid_path is not None:
+    """The outer shell (solid surface or flat pad box) and the chamber shells.
+
+    The scene's own surface files (`solid`, chamber `surface`) are in [geometry].unit; a
+    scene solid in mm must be at least MIN_EXTENT_MM across. Any other `solid_path`
+    (reduced.stl from make-tracks) is in mm.
+    """
+    geo, where = scene["geometry"], scene.path.name
+    scale = UNIT_TO_MM[geo["unit"]]
+    if solid_path is not None and solid_path != geo["solid"]:
         v, f = shells.load_surface(solid_path, "solid")
-        outer = shells.surface_shell(str(solid_path), v, f)
+        outer = shells.surface_shell(solid_path.name, v, f)
     elif geo["solid"] is not None:
-        v, f = shells.load_surface(geo["solid"], "[geometry].solid")
-        outer = shells.surface_shell(str(geo["solid"]), v, f)
+        what = f"{where}: [geometry].solid"
+        v, f = shells.load_surface(geo["solid"], what, scale=scale)
+        if geo["unit"] == "mm":
+            check_in_mm(v, f"{what}: {geo['solid'].name}", SCENE_UNIT_HINT)
+        outer = shells.surface_shell(geo["solid"].name, v, f)
     elif geo["pad_size_mm"] is not None:
         x, y, t = geo["pad_size_mm"]
         if min(x, y, t) <= 0:
@@ -56,7 +66,8 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
             chambers.append(shells.ellipsoid_shell(name, e["center_mm"], e["radii_mm"]))
         else:
             v, f = shells.load_surface(ch["surface"],
-                                       f"[[geometry.chamber]] '{name}'.surface")
+                                       f"{where}: [[geometry.chamber]] '{name}'.surface",
+                                       scale=scale)
             chambers.append(shells.surface_shell(name, v, f))
     return outer, chambers
 
@@ -67,7 +78,7 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     refines the mesh there to [mesh].min_size_mm (see `fruitcli.fem.tetra`)."""
     progress = progress or _noop
     outer, chambers = body_shells(scene, Path(solid_path) if solid_path else None)
-    shells.check_layout(outer, chambers)
+    shells.check_layout(outer, chambers, scene.path.name)
     mesh_cfg = scene["mesh"]
     size = float(mesh_cfg["size_mm"])
     min_size = float(mesh_cfg["min_size_mm"] or size)

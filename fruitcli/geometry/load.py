@@ -19,12 +19,31 @@ UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
 MIN_EXTENT_MM = 2.0
 # holes with at most this many boundary edges are closed by a fan (a "small hole")
 MAX_HOLE_EDGES = 64
+MAX_HOLE_FRACTION = 0.1
+"""A hole is closed only when it spans at most this fraction of the body's largest extent
+(bounding-box diagonal of its boundary loop). A flat fan across a hole of width w on a
+surface of radius R sags by w^2 / (8 R): at a tenth of a sphere's diameter that is R / 200,
+0.2 mm on an 80 mm body (a tenth of the default cover). Larger holes are real openings
+(a cut-off cap): the mesh is refused as open."""
+CLI_UNIT_HINT = "give its unit (--unit m or --unit cm)"
+SCENE_UNIT_HINT = 'set [geometry].unit = "m" (or "cm")'
 # relative agreement required between trimesh's and manifold's volume
 VOLUME_RTOL = 1e-3
 
 
-def load_mesh(path, unit: str | None = None):
-    """Load `path` as one closed volume in mm. Returns (trimesh.Trimesh, repairs: list[str])."""
+def check_in_mm(verts: np.ndarray, what: str, hint: str) -> None:
+    """Refuse vertices under MIN_EXTENT_MM across: the file is in metres or centimetres.
+    `what` names the mesh (and where it was given), `hint` says how to give its unit."""
+    extent = float(np.ptp(verts, axis=0).max())
+    if extent < MIN_EXTENT_MM:
+        raise GeometryError(f"{what} is only {extent:.3g} mm across, so it is not in "
+                            f"millimetres; {hint}")
+
+
+def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT):
+    """Load `path` as one closed volume in mm. Returns (trimesh.Trimesh, repairs: list[str]).
+    Unless `unit` is cm or m the mesh must be at least MIN_EXTENT_MM across (`unit_hint`
+    tells how to give its unit)."""
     import trimesh
 
     path = Path(path)
@@ -53,11 +72,8 @@ def load_mesh(path, unit: str | None = None):
     if faces.min() < 0 or faces.max() >= len(verts):
         raise GeometryError(f"{path}: faces refer to missing vertices")
 
-    extent = float(np.ptp(verts, axis=0).max())
-    if unit is None:
-        if extent < MIN_EXTENT_MM:
-            raise GeometryError(f"{path}: the mesh is only {extent:.3g} across, so it is not in "
-                                "millimetres; give its unit (--unit m or --unit cm)")
+    if unit in (None, "mm"):
+        check_in_mm(verts, f"{path}: the mesh", unit_hint)
         unit = "mm"
     verts = verts * UNIT_TO_MM[unit]
     verts, faces, repairs = repair_arrays(verts, faces)
@@ -125,10 +141,12 @@ def _edge_use(faces: np.ndarray) -> np.ndarray:
 
 
 def _fill_small_holes(verts: np.ndarray, faces: np.ndarray):
-    """Close simple boundary loops of <= MAX_HOLE_EDGES edges by a fan to their centroid."""
+    """Close simple boundary loops of <= MAX_HOLE_EDGES edges, spanning at most
+    MAX_HOLE_FRACTION of the body, by a fan to their centroid (all of them or none)."""
     edges = _boundary_edges(faces)
     if len(edges) == 0:
         return faces, None
+    max_span = MAX_HOLE_FRACTION * float(np.ptp(verts, axis=0).max())
     nxt: dict[int, list[int]] = {}
     for a, b in edges.tolist():
         nxt.setdefault(a, []).append(b)
@@ -146,7 +164,7 @@ def _fill_small_holes(verts: np.ndarray, faces: np.ndarray):
             loop.append(cur)
             seen.add(cur)
             cur = nxt[cur][0]
-        if cur != start:
+        if cur != start or np.linalg.norm(np.ptp(verts[loop], axis=0)) > max_span:
             return faces, None      # an open or too large boundary: not a small hole
         c = len(verts) + len(centres)
         centres.append(verts[loop].mean(axis=0))

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import GeometryError
+from fruitcli.geometry import load
 
 # a face takes part in the track curves when its normal's z component exceeds this
 UP_NZ_MIN = 0.05
@@ -29,26 +30,41 @@ MAX_TRACK_VOLUME_FRACTION = 0.25
 # bodies cut off by the tubes (along a sharp edge) are dropped below this fraction of the
 # piece's volume, in total; larger ones make the carving fail
 MAX_SLIVER_VOLUME_FRACTION = 1e-3
-# what to change when the tracks cut the piece apart
-CHANGE_TRACKS = ("try a smaller --track-radius-mm, or move the grid lines (--origin-mm, "
-                 "--spacing-x-mm, --spacing-y-mm)")
+CLI_NAMES = {"cover_mm": "--cover-mm", "faces": "--faces", "spacing_x_mm": "--spacing-x-mm",
+             "spacing_y_mm": "--spacing-y-mm", "origin_mm": "--origin-mm",
+             "track_radius_mm": "--track-radius-mm", "split_z_mm": "--split-z-mm",
+             "unit_hint": load.CLI_UNIT_HINT}
+"""How a `fruit make-tracks` user sets each option (the names in error messages)."""
+SCENE_NAMES = {"cover_mm": "[tracks].cover_mm", "faces": "[tracks].faces",
+               "spacing_x_mm": "[grid].spacing_x_mm", "spacing_y_mm": "[grid].spacing_y_mm",
+               "origin_mm": "[grid].origin_mm", "track_radius_mm": "[tracks].track_radius_mm",
+               "split_z_mm": "[tracks].split_z_mm", "unit_hint": load.SCENE_UNIT_HINT}
+"""The same for a scene's make-tracks stage (pass as `make_tracks(..., names=SCENE_NAMES)`)."""
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
 
 
-def _check_options(cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm):
+def _change_tracks(opt: dict) -> str:
+    """What to change when the tracks cut the piece apart (`opt`: CLI_NAMES or SCENE_NAMES)."""
+    return (f"try a smaller {opt['track_radius_mm']}, or move the grid lines ({opt['origin_mm']}, "
+            f"{opt['spacing_x_mm']}, {opt['spacing_y_mm']})")
+
+
+def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm):
     if not cover_mm >= 0:
-        raise GeometryError(f"--cover-mm: expected a thickness >= 0 mm, got {cover_mm}")
+        raise GeometryError(f"{opt['cover_mm']}: expected a thickness >= 0 mm, got {cover_mm}")
     if faces < 100:
-        raise GeometryError(f"--faces: expected at least 100 triangles, got {faces}")
-    for name, v in (("--spacing-x-mm", spacing_x_mm), ("--spacing-y-mm", spacing_y_mm)):
+        raise GeometryError(f"{opt['faces']}: expected at least 100 triangles, got {faces}")
+    for key, v in (("spacing_x_mm", spacing_x_mm), ("spacing_y_mm", spacing_y_mm)):
         if not v > 0:
-            raise GeometryError(f"{name}: expected a spacing > 0 mm, got {v}")
+            raise GeometryError(f"{opt[key]}: expected a spacing > 0 mm, got {v}")
     if not track_radius_mm > 0:
-        raise GeometryError(f"--track-radius-mm: expected a radius > 0 mm, got {track_radius_mm}")
+        raise GeometryError(f"{opt['track_radius_mm']}: expected a radius > 0 mm, "
+                            f"got {track_radius_mm}")
     half = 0.5 * min(spacing_x_mm, spacing_y_mm)
     if track_radius_mm > half:
-        raise GeometryError(f"--track-radius-mm: {track_radius_mm:g} mm is more than half the "
-                            f"grid spacing ({half:g} mm); use a smaller radius or larger spacings")
+        raise GeometryError(f"{opt['track_radius_mm']}: {track_radius_mm:g} mm is more than half "
+                            f"the grid spacing ({half:g} mm); use a smaller radius or larger "
+                            "spacings")
 
 
 def _planes(lo: float, hi: float, spacing: float, origin: float | None) -> dict[int, float]:
@@ -126,18 +142,20 @@ def _drop_edge_slivers(vertices: np.ndarray, faces: np.ndarray, top_volume: floa
 
 def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                 spacing_x_mm=16.0, spacing_y_mm=12.0, origin_mm=None, track_radius_mm=0.6,
-                split_z_mm=None, progress=None) -> dict:
-    """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict."""
+                split_z_mm=None, progress=None, names=None) -> dict:
+    """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict.
+    `names` (default CLI_NAMES; SCENE_NAMES from a scene) names the options in errors."""
     import manifold3d
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json
-    from fruitcli.geometry import export, load, reduce, sections, taxels, tubes
+    from fruitcli.geometry import export, reduce, sections, taxels, tubes
     from fruitcli.geometry.distance import SurfaceDistance
     from fruitcli.geometry.preview import write_preview
 
     say = progress or (lambda msg: None)
+    opt = names or CLI_NAMES
     src = str(artist_path)
-    _check_options(cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm)
+    _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm)
     times: dict[str, float] = {}
     clock = [time.perf_counter()]
 
@@ -147,7 +165,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         clock[0] = now
         say(f"{step}: {times[step]:.2f} s")
 
-    mesh, repairs = load.load_mesh(artist_path, unit)
+    mesh, repairs = load.load_mesh(artist_path, unit, opt["unit_hint"])
+    for r in repairs:
+        say(f"make-tracks: {r}" if r.startswith("scaled") else f"make-tracks: repaired: {r}")
     av, af = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     lap("load")
 
@@ -156,7 +176,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)
     dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
     dist = SurfaceDistance(dv, df)
-    red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist)
+    red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"])
     rv, rf = reduce.manifold_arrays(red.body)
     lap("reduce")
     offset = reduce.offset_error(rv, rf, dv, df, float(cover_mm), dist=dist)
@@ -165,13 +185,13 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
     split = red.equator_z_mm if split_z_mm is None else float(split_z_mm)
     if not zlo < split < zhi:
-        raise GeometryError(f"--split-z-mm: {split:g} mm is outside the reduced body "
+        raise GeometryError(f"{opt['split_z_mm']}: {split:g} mm is outside the reduced body "
                             f"(z from {zlo:.2f} to {zhi:.2f} mm)")
     top = red.body.trim_by_plane((0.0, 0.0, 1.0), split)
     n_top = len(top.decompose())
     if top.is_empty() or n_top != 1:
         raise GeometryError(f"{src}: the part above the split plane z = {split:.2f} mm has "
-                            f"{n_top} pieces (expected one casting piece); set --split-z-mm")
+                            f"{n_top} pieces (expected one casting piece); set {opt['split_z_mm']}")
     tv, tf = reduce.manifold_arrays(top)
     # curves and taxels lie on the reduced surface itself (reduced.stl, what the FEM uses):
     # trim_by_plane may re-triangulate the top, so its faces can differ by a fraction of a mm
@@ -204,7 +224,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, sv, sf)
     if len(tx["k"]) == 0:
         raise GeometryError(f"{src}: the grid misses the shape (no crossing of x- and y-curves "
-                            "on the top surface); check --origin-mm and the spacings")
+                            f"on the top surface); check {opt['origin_mm']} and the spacings")
     k0, l0 = int(tx["k"].min()), int(tx["l"].min())
     ii, jj = tx["k"] - k0, tx["l"] - l0
     origin_used = [float(x_planes[k0]), float(y_planes[l0])]
@@ -220,7 +240,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     bad = [m.status().name for m in tube_manifolds if m.status() != manifold3d.Error.NoError]
     if bad:
         raise GeometryError(f"{src}: {len(bad)} track tube(s) are not valid solids ({bad[0]}); "
-                            "try a smaller --track-radius-mm")
+                            f"try a smaller {opt['track_radius_mm']}")
     tracked = manifold3d.Manifold.batch_boolean([top, *tube_manifolds],
                                                 manifold3d.OpType.Subtract)
     tracked, slivers = _drop_slivers(tracked, top.volume())
@@ -230,7 +250,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
             or not 0 < lost < MAX_TRACK_VOLUME_FRACTION):
         raise GeometryError(f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
                             f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
-                            f"{CHANGE_TRACKS}")
+                            f"{_change_tracks(opt)}")
     kv, kf = export.weld_float32(*reduce.manifold_arrays(tracked))
     kf, more = _drop_edge_slivers(kv, kf, top.volume())
     slivers += more
@@ -245,8 +265,8 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     tunnels = int(tracked.genus()) - int(top.genus())
     if tunnels > 0:
         warnings.append(f"the tracks tunnel through the piece ({tunnels} new handle(s), genus "
-                        f"{top.genus()} -> {tracked.genus()}); try another --origin-mm or a "
-                        "smaller --track-radius-mm")
+                        f"{top.genus()} -> {tracked.genus()}); try another {opt['origin_mm']} "
+                        f"or a smaller {opt['track_radius_mm']}")
     for w in warnings:
         say(f"warning: {w}")
     lap("tracks")
@@ -289,7 +309,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         if not closed or bodies != 1:
             raise GeometryError(
                 f"{src}: the tracked piece does not reload as one closed body ({bodies} "
-                f"bodies{'' if closed else ', open'}); {CHANGE_TRACKS}")
+                f"bodies{'' if closed else ', open'}); {_change_tracks(opt)}")
         report["tracked_top_reloads_watertight"] = closed
         report["tracked_top_bodies"] = bodies
         tube_v = np.concatenate([v for v, _ in tube_meshes])

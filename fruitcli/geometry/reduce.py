@@ -276,8 +276,10 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
 
 
 def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target_faces: int,
-                source: str = "mesh", dist: SurfaceDistance | None = None) -> Reduced:
-    """Offset a closed mesh inward by `cover_mm` with about `target_faces` triangles."""
+                source: str = "mesh", dist: SurfaceDistance | None = None,
+                cover_name: str = "--cover-mm") -> Reduced:
+    """Offset a closed mesh inward by `cover_mm` with about `target_faces` triangles
+    (`cover_name`: how the user sets cover_mm, named in errors)."""
     import manifold3d
 
     edge = edge_for_faces(surface_area(vertices, faces), OVERSAMPLE * target_faces)
@@ -286,19 +288,19 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
     axes, sdf = signed_distance_grid(vertices, faces, h, cover_mm, pad, dist)
     if not (sdf > cover_mm).any():
         raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm consumes the whole "
-                            "body (use a smaller --cover-mm)")
+                            f"body (use a smaller {cover_name})")
     lo = [float(a[0]) for a in axes]
     hi = [float(a[-1]) for a in axes]
     body = manifold3d.Manifold.level_set(_trilinear(axes, sdf), lo + hi, edge, cover_mm)
     if body.status() != manifold3d.Error.NoError or body.is_empty():
         raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm consumes the whole "
-                            "body (use a smaller --cover-mm)")
+                            f"body (use a smaller {cover_name})")
     pieces = sorted(body.decompose(), key=lambda m: -m.volume())
     big = pieces[0].volume()
     kept = [p for p in pieces if p.volume() >= ISLAND_VOLUME_FRACTION * big]
     if len(kept) > 1:
         raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm pinches the body "
-                            f"apart into {len(kept)} pieces (use a smaller --cover-mm)")
+                            f"apart into {len(kept)} pieces (use a smaller {cover_name})")
     body = simplify_to(pieces[0], target_faces, SIMPLIFY_MAX_PER_EDGE * edge)
     # equator: the height of the largest horizontal cross-section of the reduced body
     area_z = (sdf > cover_mm).sum(axis=(0, 1)).astype(float)
