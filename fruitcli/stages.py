@@ -93,14 +93,14 @@ def _tracks_inputs(scene, ctx):
 
 
 def _tracks_run(scene, ctx, out_dir):
-    from fruitcli.geometry.pipeline import make_tracks
+    from fruitcli.geometry.pipeline import SCENE_NAMES, make_tracks
 
     geo, tr, grid = scene["geometry"], scene["tracks"], scene["grid"]
     report = make_tracks(
         geo["artist"], out_dir, unit=geo["unit"], cover_mm=tr["cover_mm"], faces=tr["faces"],
         spacing_x_mm=grid["spacing_x_mm"], spacing_y_mm=grid["spacing_y_mm"],
         origin_mm=grid["origin_mm"], track_radius_mm=tr["track_radius_mm"],
-        split_z_mm=tr["split_z_mm"], progress=ctx.progress)
+        split_z_mm=tr["split_z_mm"], progress=ctx.progress, names=SCENE_NAMES)
     return {"taxels": report["taxels"],
             "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
 
@@ -157,8 +157,9 @@ def _fem_reason(scene):
 
 
 def _tetra_inputs(scene, ctx):
-    return {"solid": solid_path(scene, ctx), "pad": scene["geometry"]["pad_size_mm"],
-            "chambers": scene.chambers, "mesh": scene["mesh"], "taxels": taxels_path(scene, ctx)}
+    return {"solid": solid_path(scene, ctx), "unit": scene["geometry"]["unit"],
+            "pad": scene["geometry"]["pad_size_mm"], "chambers": scene.chambers,
+            "mesh": scene["mesh"], "taxels": taxels_path(scene, ctx)}
 
 
 def _tetra_run(scene, ctx, out_dir):

@@ -208,7 +208,8 @@ def test_scene_artist_in_metres_is_refused(tmp_path):
     (tmp_path / "s.toml").write_text('[geometry]\nartist = "m.stl"\n')
     out = tmp_path / "out"
     _assert_refused(_cli(["run", str(tmp_path / "s.toml"), "--out", str(out)]), out,
-                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres")
+                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
+                    'set [geometry].unit = "m" (or "cm")')
 
 
 def test_scene_names_in_errors(tmp_path):

@@ -13,8 +13,8 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="Output folder (reduced.stl, tracked_top.stl, tracks.stl, taxels.csv, "
                    "report.json, preview.png).")
 @click.option("--unit", type=click.Choice(["mm", "cm", "m"]), default=None,
-              help="Unit of the mesh file (default: mm; a mesh under 2 units across is refused "
-                   "unless given).")
+              help="Unit of the mesh file (default: mm; read in mm, a mesh under 2 mm across "
+                   "is refused as being in m or cm).")
 @click.option("--cover-mm", type=float, default=2.0, show_default=True,
               help="Inward offset left for the cover layer (mm).")
 @click.option("--faces", type=int, default=5000, show_default=True,
