@@ -33,7 +33,7 @@ def test_lame_thick_sphere_compliance(tmp_path):
     """Hollow ball a = 10, b = 20 mm, E = 100 kPa, nu = 0.3, free (3-2-1 pinned), 0.1 kPa
     in the cavity: dV/dp = 4 pi a^2 u(a) / p = 100.5 mm^3/kPa. Linear tets at size 3
     (cavity 1.5) mm come out stiff: measured 96.8 (-3.8 %), converging from below with
-    the mesh (2/1 mm: -1.6 %, 1.5/0.75 mm: -0.8 %; `tests/bench/bench_fem.py`);
+    the mesh (2/1 mm: -1.5 %, 1.5/0.75 mm: -0.8 %; `tests/bench/bench_fem.py`);
     asserted within 6 % from below, and the mean radial wall displacement (-3.2 %)
     likewise."""
     trimesh.creation.icosphere(3, 20.0).export(tmp_path / "ball.stl")
