@@ -184,6 +184,9 @@ def _simulate_run(scene, ctx, out_dir):
 
     tax = taxels_path(scene, ctx)
     xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    if tax is None:
+        ctx.progress("simulate: no taxels to follow (a [geometry].solid scene takes them "
+                     "from [grid].taxels, a CSV of id,i,j,x_mm,y_mm,z_mm)")
     return run_simulate(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
                         progress=ctx.progress)
 
