@@ -209,10 +209,13 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
             continue
         folder = ctx.dir(stage.name)
         source = None if force else _borrow(stage, scene, ctx, digest)
-        if source is not None:
+        if source is not None:  # copied whole beside it, then swapped in: never half
+            tmp = folder.with_name(folder.name + ".copying")
+            shutil.rmtree(tmp, ignore_errors=True)
+            shutil.copytree(source, tmp)
             if folder.exists():
                 shutil.rmtree(folder)
-            shutil.copytree(source, folder)
+            tmp.rename(folder)
             done.append(Step(stage.name, "reuse", f"{reason} (same inputs as "
                              f"{source.parent.name})", digest))
             ctx.progress(f"{stage.name}: reuse (same inputs as {source.parent.name})")

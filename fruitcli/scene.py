@@ -40,10 +40,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "configuration": Key("str", "Rest", "configuration label in tables (Rest, Deformed, ...)"),
     },
     "geometry": {
-        "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY, mm)"),
+        "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
-        "unit": Key("str", "mm", "unit of the mesh files: mm, cm or m"),
-        "solid": Key("path", None, "closed surface used as the FEM body as is (mm)"),
+        "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m"),
+        "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
         "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
     },
@@ -133,7 +133,7 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
     "geometry.chamber": {
         "name": Key("str", None, "chamber name, used in [actuation]", required=True),
         "ellipsoid": Key("table", None, "{center_mm = [x,y,z], radii_mm = [a,b,c]}"),
-        "surface": Key("path", None, "closed surface of the cavity (mm)"),
+        "surface": Key("path", None, "closed surface of the cavity ([geometry].unit)"),
     },
     "fixed": {
         "box_mm": Key("box", None, "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)", required=True),

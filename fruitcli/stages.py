@@ -199,9 +199,13 @@ def _bench_needed(scene):
 
 
 def _bench_inputs(scene, ctx):
-    return {"bench": scene["bench"], "board": scene["board"], "detection": scene["detection"],
-            "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx),
-            "grid": scene["grid"]}
+    from fruitcli.scene import resolve_path
+
+    spec = scene["bench"]["samples"]  # "quarter" or a CSV, hashed by its content
+    samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
+    return {"bench": scene["bench"], "samples": samples, "board": scene["board"],
+            "detection": scene["detection"], "taxels": taxels_path(scene, ctx),
+            "states": states_path(scene, ctx), "grid": scene["grid"]}
 
 
 def _bench_run(scene, ctx, out_dir):

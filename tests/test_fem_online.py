@@ -95,6 +95,26 @@ def test_online_thread_follows_the_pressure_source():
     assert np.abs(online.taxels_mm - fresh_taxels(m, tet, w, 9.0)).max() < 1e-5
 
 
+def test_online_thread_stops_on_an_unexpected_error_and_says_so():
+    """A source that raises ends the thread; the summary names the error instead of
+    claiming that nothing failed."""
+    m, tet, w = cube_with_cavity()
+    online = OnlineSolver(m, tet, w, OPTS)
+    calls = []
+
+    def source():
+        calls.append(1)
+        if len(calls) > 1:
+            raise ValueError("pressure sensor unplugged")
+        return np.array([4.0])
+
+    th = online.run(source, threading.Event())
+    th.join(30)
+    assert not th.is_alive() and len(online.solve_ms) == 1 and online.failures == 1
+    assert "stopped early (ValueError: pressure sensor unplugged)" in online.summary()
+    assert not online.update(None)  # nothing measured: nothing to solve
+
+
 PAD_SCENE = """
 [scene]
 name = "online-pad"
@@ -147,13 +167,14 @@ def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
         src.close()
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "online-pad" / "tetra" / "mesh.npz").exists()
-    assert "online FEM:" in res.output and "states solved" in res.output
+    # solved once: at the first pressure line (3 kPa), not at rest before it
+    assert "online FEM: 1 state solved" in res.output and "0 failed" in res.output
     skipped = re.search(r"pressure lines: (\d+) skipped", res.output)
     assert skipped and int(skipped.group(1)) > 0  # the source's 'noise' lines
     lines = live_lines(res.output)
     assert [d["frame"] for d in lines] == list(range(40, 51))
     z = [d["touches"][0]["z_mm"] for d in lines[:-1]]
-    assert all(10.0 <= v < 12.0 for v in z)  # at rest until the first solve, then up
+    assert all(10.0 <= v < 13.0 for v in z)  # at rest until the first solve, then up
     assert z[-1] > 10.05
 
 

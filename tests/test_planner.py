@@ -133,3 +133,22 @@ def test_every_subcommand_has_help_with_units(fruit):
     for name in ("make-tracks", "simulate", "locate", "evaluate", "bench", "record"):
         res = fruit(name, "--help")
         assert "mm" in res.output or "counts" in res.output or "frames" in res.output, name
+
+
+def test_bench_samples_csv_is_hashed_by_content(tmp_path):
+    """A bench's sample CSV is an input by its content: two scenes naming different
+    files 'pts.csv' get different bench hashes (so one is never copied for the other),
+    and editing the file reruns the stage."""
+    from fruitcli.stages import STAGES
+
+    bench = next(s for s in STAGES if s.name == "bench")
+    hashes = []
+    for n, rows in enumerate(["0,1.0,2.0\n", "0,5.0,2.0\n", "0,5.0,2.0\n"]):
+        d = tmp_path / f"s{n}"
+        d.mkdir()
+        (d / "pts.csv").write_text("sample,x_mm,y_mm\n" + rows)
+        (d / "t.csv").write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n")
+        text = '[grid]\ntaxels = "t.csv"\n[bench]\nsamples = "pts.csv"\n'
+        scene = parse_scene(text, d / "s.toml")
+        hashes.append(planner.fingerprint(bench, scene, planner.Context(d / "out")))
+    assert hashes[0] != hashes[1] and hashes[1] == hashes[2]

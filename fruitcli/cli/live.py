@@ -52,9 +52,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
     with fruit_errors():
         scene = load_scene(scene_path)
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
-        if taxels_csv is None:
-            taxels_csv, found_states = scene_products(scene)
-            states_npz = states_npz or found_states
+        if taxels_csv is None:  # --online needs the mesh (tetra), not the states
+            taxels_csv, found_states = scene_products(
+                scene, until="tetra" if online else "simulate")
+            states_npz = states_npz or (None if online else found_states)
         if taxels_csv is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         taxels = load_taxels(taxels_csv)
@@ -76,10 +77,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         else:
             loc = Locator(taxels, board, states.taxels_mm[0], settings, where=str(taxels_csv))
         ser = open_port(port, baud)
+        pser = p_thread = fem_thread = None
         if pressure is not None:
             pser = open_port(pressure_port, baud)
-            pressure_thread(pser, pressure, stop, pressure_port)
-        fem_thread = None if solver is None else solver.run(lambda: pressure.kpa, stop)
+            p_thread = pressure_thread(pser, pressure, stop, pressure_port)
+        if solver is not None:  # nothing to solve until a pressure line arrived
+            fem_thread = solver.run(lambda: pressure.kpa if pressure.received else None, stop)
         reader = FrameReader(ser, board["rows"], board["cols"], name=port)
         live_loc = LiveLocator(loc, pressure, solver)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
@@ -103,10 +106,22 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         finally:
             stop.set()
             ser.close()
-            if fem_thread is not None:
-                fem_thread.join(30)  # ends after its current solve
+            if fem_thread is not None and fem_thread.is_alive():
+                progress("waiting for the online FEM to finish its state")
+                fem_thread.join(FEM_JOIN_S)
+                if fem_thread.is_alive():
+                    progress(f"the online FEM is still solving after {FEM_JOIN_S:g} s; "
+                             "leaving it")
+            if p_thread is not None:
+                p_thread.join(1.0)
+                pser.close()
             for line in _summary(seen, reader, pressure, solver):
                 progress(line)
+
+
+FEM_JOIN_S = 30.0
+"""How long `fruit live` waits at exit for the online FEM's current state (a state takes
+tens of ms; a hard one with load subdivisions a few seconds)."""
 
 
 def _summary(seen, reader, pressure, solver) -> list[str]:
@@ -136,7 +151,7 @@ def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
     if not scene.chambers:
         raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
     out = Path("out") / scene.name
-    steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs())
+    steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs(out))
     skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
     if skipped:
         raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "

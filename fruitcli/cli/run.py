@@ -41,6 +41,6 @@ def run(scene_file, out_dir, dry_run, until, force):
             return
         progress = Progress()
         steps = planner.run(scene, out, until=until, progress=progress, force=force,
-                            shared=shared_outputs())
+                            shared=shared_outputs(out))
         click.echo(f"{scene.name}: done -> {out}/")
         click.echo(planner.format_plan(steps))

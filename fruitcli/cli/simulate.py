@@ -42,7 +42,8 @@ def simulate(scene, out_dir, solid, taxels, vtu):
         if solid is None and geo["artist"] is not None:
             from fruitcli import planner
 
-            planner.run(sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs())
+            planner.run(sc, out_dir, until="make-tracks", progress=log,
+                        shared=shared_outputs(out_dir))
             solid = out_dir / "make-tracks" / "reduced.stl"
             if xyz is None:
                 xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv")["xyz"]

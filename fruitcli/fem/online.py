@@ -50,11 +50,15 @@ class OnlineSolver:
         self.solve_ms: list[float] = []
         self.failures = 0
         self.last_error: str | None = None
+        self.stopped: str | None = None  # why the thread of `run` ended early
 
     def update(self, pressure_kpa) -> bool:
-        """Solve at pressure_kpa (K,) unless it is within `min_change_kpa` of the last
-        solved (or failed) pressures; returns whether new positions were published."""
-        p = np.asarray(pressure_kpa, float).reshape(-1)
+        """Solve at pressure_kpa (K,) unless it is None (nothing measured yet) or within
+        `min_change_kpa` of the last pressures tried (solved or failed); returns whether
+        new positions were published."""
+        if pressure_kpa is None:
+            return False
+        p = np.array(pressure_kpa, float).reshape(-1)  # a copy: the source may reuse its array
         if len(p) != len(self.p):
             raise SolverError(f"online FEM: expected {len(self.p)} chamber pressures "
                               f"({', '.join(self.model.chamber_names)}), got {len(p)}")
@@ -84,7 +88,13 @@ class OnlineSolver:
 
         def loop():
             while not stop.is_set():
-                if not self.update(source()):
+                try:
+                    solved = self.update(source())
+                except Exception as exc:  # noqa: BLE001 -- reported by summary(), not lost
+                    self.failures += 1
+                    self.stopped = f"{type(exc).__name__}: {exc}"
+                    return
+                if not solved:
                     time.sleep(idle_s)
 
         th = threading.Thread(target=loop, daemon=True, name="online FEM")
@@ -94,8 +104,13 @@ class OnlineSolver:
     def summary(self) -> str:
         """One line: solves, median and max time per solve, failures."""
         if not self.solve_ms:
-            return f"online FEM: no state solved, {self.failures} failed"
+            text = f"online FEM: no state solved, {self.failures} failed"
+            return text + (f"; the FEM thread stopped early ({self.stopped})"
+                           if self.stopped else "")
         ms = np.array(self.solve_ms)
-        text = (f"online FEM: {len(ms)} states solved, {np.median(ms):.1f} ms median, "
+        plural = "s" if len(ms) != 1 else ""
+        text = (f"online FEM: {len(ms)} state{plural} solved, {np.median(ms):.1f} ms median, "
                 f"{ms.max():.1f} ms max, {self.failures} failed")
+        if self.stopped:
+            text += f"; the FEM thread stopped early ({self.stopped})"
         return text + (f" (last: {self.last_error})" if self.last_error else "")

@@ -41,7 +41,9 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     """
     geo, where = scene["geometry"], scene.path.name
     scale = UNIT_TO_MM[geo["unit"]]
-    if solid_path is not None and solid_path != geo["solid"]:
+    own = geo["solid"] is not None and (
+        solid_path is None or Path(solid_path).resolve() == Path(geo["solid"]).resolve())
+    if not own and solid_path is not None:
         v, f = shells.load_surface(solid_path, "solid")
         outer = shells.surface_shell(solid_path.name, v, f)
     elif geo["solid"] is not None:
@@ -93,8 +95,8 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     report = tetra.quality_report(mesh, mesh_cfg["min_quality"])
     for k, ch in enumerate(chambers):
         if not np.any(mesh["chamber_tri_owner"] == k):
-            raise MeshError(f"chamber {ch['name']}: no cavity wall in the mesh of "
-                            f"{outer['name']}")
+            raise MeshError(f"[[geometry.chamber]] '{ch['name']}': no cavity wall in the mesh "
+                            f"of {outer['name']}")
     if report["sicn_min"] < mesh_cfg["min_quality"]:
         raise MeshError(f"{outer['name']}: mesh too poor: worst SICN {report['sicn_min']:.3f} "
                         f"< [mesh].min_quality {mesh_cfg['min_quality']:g} "

@@ -130,6 +130,7 @@ class PressureState:
         self.chambers = chambers
         self.kpa = np.zeros(len(chambers))
         self.skipped = 0
+        self.received = 0  # pressure lines taken
 
     def update(self, line: str) -> None:
         got = parse_pressure_line(line)
@@ -140,3 +141,4 @@ class PressureState:
         for c, v in got.items():
             kpa[self.chambers.index(c)] = v
         self.kpa = kpa  # one assignment: readers see old or new, never half
+        self.received += 1
