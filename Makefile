@@ -24,6 +24,7 @@ demo: $(STAMP)
 studies: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit study stability --out out/study-stability
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-deformed.toml --out out/study-runtime
+	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-breathing.toml --out out/study-runtime-breathing
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py

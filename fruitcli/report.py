@@ -121,8 +121,11 @@ def studies_section(out: Path) -> list[str]:
     """Links to the studies when `make studies` has written them under OUT."""
     lines = ["## Studies (`make studies`)", ""]
     found = False
-    for name, md, png in (("Error against run time", "study-runtime/runtime.md",
-                           "study-runtime/runtime.png"),
+    for name, md, png in (("Error against run time, the Fruit in its jig (one hard state)",
+                           "study-runtime/runtime.md", "study-runtime/runtime.png"),
+                          ("Error against run time, the Fruit breathing (13 states)",
+                           "study-runtime-breathing/runtime.md",
+                           "study-runtime-breathing/runtime.png"),
                           ("Stability", "study-stability/stability.md", None)):
         if (out / md).exists():
             found = True

@@ -41,4 +41,12 @@ def test_default_reason_uses_the_measured_row():
     rows = [{"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.07,
              "state_ms": 120.0}]
     text = default_reason(rows, "size 5 mm")
-    assert "0.070 mm, below" in text and "120 ms" in text
+    assert "0.070 mm against the finest setting, at 120 ms per state: below" in text
+    rows = [{"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.12,
+             "state_ms": 24.0},
+            {"setting": "size 4 mm", "status": "ok", "taxel_err_mean_mm": 0.0,
+             "state_ms": 37.0, "reference": True}]
+    text = default_reason(rows, "size 5 mm")
+    assert "0.120 mm against the finest setting, at 24 ms per state: above" in text
+    assert "the finest setting (size 4 mm) takes 37 ms per state" in text
+    assert "finer settings cost time for no difference" not in text
