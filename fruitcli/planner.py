@@ -96,10 +96,26 @@ def fingerprint(stage: Stage, scene: Scene, ctx: Context) -> str:
 
 
 def _code_hash(module: str) -> str:
-    """Hash of the stage's package sources, so a code change reruns the stage."""
-    mod = importlib.import_module(module)
-    pkg_dir = Path(mod.__file__).parent
-    return file_hash_many(sorted(pkg_dir.glob("*.py")))
+    """Hash of the stage's package sources and of the sibling packages and modules they
+    import (one level: `from <root>.x ...`), so a code change there reruns the stage."""
+    return file_hash_many(code_files(module))
+
+
+def code_files(module: str) -> list[Path]:
+    """The source files `_code_hash` covers for `module` (sorted)."""
+    import re
+
+    root = module.split(".")[0]
+    pkg_dir = Path(importlib.import_module(module).__file__).parent
+    top = Path(importlib.import_module(root).__file__).parent
+    files = set(pkg_dir.glob("*.py"))
+    pattern = re.compile(rf"^\s*(?:from|import)\s+{root}\.(\w+)", re.MULTILINE)
+    for name in {m for f in list(files) for m in pattern.findall(f.read_text())}:
+        if (top / name).is_dir():
+            files.update((top / name).glob("*.py"))
+        elif (top / f"{name}.py").exists():
+            files.add(top / f"{name}.py")
+    return sorted(files)
 
 
 def file_hash_many(paths) -> str:
