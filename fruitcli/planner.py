@@ -55,9 +55,11 @@ class Context:
     progress: Callable[[str], None] = lambda msg: None
     hashes: dict[str, str] = field(default_factory=dict)
     shared: Path | None = None  # a folder whose scenes may lend identical stage outputs
+    lent: dict[str, Path] = field(default_factory=dict)  # plan only: stage -> its lender
 
     def dir(self, stage: str) -> Path:
-        return self.out_root / stage
+        """The stage's folder (for a plan, the sibling's it would be copied from)."""
+        return self.lent.get(stage, self.out_root / stage)
 
 
 def file_hash(path: Path) -> str:
@@ -149,14 +151,15 @@ def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
 
 
 def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
-         until: str | None = None) -> list[Step]:
+         until: str | None = None, shared: Path | None = None) -> list[Step]:
     """Decide run / reuse / not needed for every stage (up to and including `until`),
-    in dependency order."""
+    in dependency order; with `shared`, a stage `run` would copy from a sibling scene is
+    "reuse" too, and the stages after it are judged on the sibling's outputs."""
     from fruitcli.stages import STAGES
 
     stages = STAGES if stages is None else stages
     wanted = _wanted(stages, until)
-    ctx = Context(Path(out_root))
+    ctx = Context(Path(out_root), shared=shared)
     steps = []
     blocked: set[str] = set()
     for stage in stages:
@@ -177,8 +180,14 @@ def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
         except FileNotFoundError:
             digest = ""
         ctx.hashes[stage.name] = digest
-        action = "reuse" if digest and _reusable(stage, scene, ctx, digest) else "run"
-        steps.append(Step(stage.name, action, reason, digest))
+        if digest and _reusable(stage, scene, ctx, digest):
+            steps.append(Step(stage.name, "reuse", reason, digest))
+        elif digest and (source := _borrow(stage, scene, ctx, digest)) is not None:
+            ctx.lent[stage.name] = source
+            steps.append(Step(stage.name, "reuse",
+                              f"{reason} (same inputs as {source.parent.name})", digest))
+        else:
+            steps.append(Step(stage.name, "run", reason, digest))
     return steps
 
 

@@ -123,6 +123,33 @@ def test_identical_stage_is_borrowed_from_a_sibling_scene(tmp_path):
         (tmp_path / "out" / "first" / "evaluate" / "table.md").read_text()
 
 
+def test_plan_shows_stages_copied_from_a_sibling_and_judges_the_next_on_them(tmp_path):
+    """Stage b reads stage a's output file. After a run for scene 'first', the plan for
+    'second' (with the same inputs) says both are copied from 'first', not run: b's input
+    is judged on the file it would be copied with."""
+    def yes(scene):
+        return True, "always"
+
+    def write(name):
+        def run(scene, ctx, out_dir):
+            out_dir.mkdir(parents=True, exist_ok=True)
+            (out_dir / f"{name}.txt").write_text(name)
+            return {}
+        return run
+
+    a = Stage("a", [], "fruitcli.padgrid", yes, lambda s, c: {"k": 1}, write("a"),
+              lambda s: ["a.txt"])
+    b = Stage("b", ["a"], "fruitcli.padgrid", yes, lambda s, c: {"a": c.dir("a") / "a.txt"},
+              write("b"), lambda s: ["b.txt"])
+    sc, out = _scene(tmp_path), tmp_path / "out"
+    planner.run(sc, out / "first", stages=[a, b])
+    steps = planner.plan(sc, out / "second", stages=[a, b], shared=out)
+    assert [(st.stage, st.action) for st in steps] == [("a", "reuse"), ("b", "reuse")]
+    assert all("same inputs as first" in st.reason for st in steps)
+    assert not (out / "second").exists()
+    assert [st.action for st in planner.plan(sc, out / "second", stages=[a, b])] == ["run"] * 2
+
+
 def test_every_subcommand_has_help_with_units(fruit):
     from fruitcli.cli.main import COMMANDS
 

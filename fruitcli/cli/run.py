@@ -35,7 +35,7 @@ def run(scene_file, out_dir, dry_run, until, force):
         scene = load_scene(scene_file)
         out = Path(out_dir) if out_dir else default_out(scene)
         if dry_run:
-            steps = planner.plan(scene, out, until=until)
+            steps = planner.plan(scene, out, until=until, shared=shared_outputs(out))
             click.echo(f"plan for {scene_file} -> {out}/")
             click.echo(planner.format_plan(steps))
             return
