@@ -6,7 +6,7 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from fruitcli.errors import MeshError, SceneError
+from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem.stage import run_simulate, run_tetra
 from fruitcli.scene import parse_scene
 
@@ -155,6 +155,11 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
     assert np.ptp(outer["vertices"], axis=0) == pytest.approx([80.0] * 3, rel=1e-6)
     assert np.ptp(chamber["vertices"], axis=0) == pytest.approx([16.0] * 3, rel=1e-6)
     assert outer["name"] == "sphere_m.stl"
+    trimesh.creation.icosphere(3, 40.0).export(tmp_path / "sphere_m.stl")  # now in mm
+    scene = parse_scene(SPHERE_M.format(unit=""), tmp_path / "s.toml")
+    with pytest.raises(GeometryError, match=r"^s.toml: \[\[geometry.chamber\]\] 'c1'.surface: "
+                                         r"chamber_m.stl is only 0.016 mm across"):
+        body_shells(scene, scene["geometry"]["solid"])
 
 
 def test_open_chamber_surface_is_refused(tmp_path):

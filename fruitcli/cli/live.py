@@ -106,6 +106,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         finally:
             stop.set()
             ser.close()
+            if fem_thread is not None:
+                fem_thread.join(0.5)  # an idle thread ends at once
             if fem_thread is not None and fem_thread.is_alive():
                 progress("waiting for the online FEM to finish its state")
                 fem_thread.join(FEM_JOIN_S)
@@ -128,8 +130,12 @@ def _summary(seen, reader, pressure, solver) -> list[str]:
     """The closing lines of `fruit live`: frames, skipped lines, online FEM."""
     lines = [f"{seen} frames, {reader.skipped} board lines skipped"]
     if pressure is not None:
-        lines.append(f"pressure lines: {pressure.skipped} skipped (not 'P name=kPa ...' with "
-                     f"known chambers {', '.join(pressure.chambers)} and finite values)")
+        lines.append(f"pressure lines: {pressure.received} taken, {pressure.skipped} skipped "
+                     f"(not 'P name=kPa ...' with known chambers {', '.join(pressure.chambers)} "
+                     "and finite values)")
+        if pressure.closed:
+            lines.append("the pressure port closed during the run: the taxels kept the last "
+                         "pressures received")
     if solver is not None:
         lines.append(solver.summary())
     return lines

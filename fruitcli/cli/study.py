@@ -85,7 +85,8 @@ def runtime(scene_file, out_dir, jobs):
         scene = load_scene(scene_file)
         out = Path(out_dir)
         base = out / "scene"
-        planner.run(scene, base, progress=Progress("   "))
+        # the scene's own stages: copied from the demo's out/<scene> when identical
+        planner.run(scene, base, progress=Progress("   "), shared=out.resolve().parent)
         ctx = planner.Context(base)
         solid, taxels = solid_path(scene, ctx), taxels_path(scene, ctx)
         work = out / "work"

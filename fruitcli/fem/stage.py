@@ -67,9 +67,10 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
             e = ch["ellipsoid"]
             chambers.append(shells.ellipsoid_shell(name, e["center_mm"], e["radii_mm"]))
         else:
-            v, f = shells.load_surface(ch["surface"],
-                                       f"{where}: [[geometry.chamber]] '{name}'.surface",
-                                       scale=scale)
+            what = f"{where}: [[geometry.chamber]] '{name}'.surface"
+            v, f = shells.load_surface(ch["surface"], what, scale=scale)
+            if geo["unit"] == "mm":
+                check_in_mm(v, f"{what}: {Path(ch['surface']).name}", SCENE_UNIT_HINT)
             chambers.append(shells.surface_shell(name, v, f))
     return outer, chambers
 

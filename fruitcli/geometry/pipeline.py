@@ -140,6 +140,11 @@ def _drop_edge_slivers(vertices: np.ndarray, faces: np.ndarray, top_volume: floa
     return faces[labels == big], others
 
 
+OFFSET_WARN_FRACTION = 0.5
+"""Warn when the reduced surface's Hausdorff distance to the ideal offset exceeds this
+fraction of the cover thickness (the default Fruit: 0.81 mm against 2 mm)."""
+
+
 def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                 spacing_x_mm=16.0, spacing_y_mm=12.0, origin_mm=None, track_radius_mm=0.6,
                 split_z_mm=None, progress=None, names=None) -> dict:
@@ -167,6 +172,8 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
 
     mesh, repairs = load.load_mesh(artist_path, unit, opt["unit_hint"])
     for r in repairs:
+        if r.startswith("merged") and Path(artist_path).suffix.lower() == ".stl":
+            continue  # STL stores each triangle's corners apart: welding them is normal
         say(f"make-tracks: {r}" if r.startswith("scaled") else f"make-tracks: repaired: {r}")
     av, af = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     lap("load")
@@ -267,6 +274,11 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         warnings.append(f"the tracks tunnel through the piece ({tunnels} new handle(s), genus "
                         f"{top.genus()} -> {tracked.genus()}); try another {opt['origin_mm']} "
                         f"or a smaller {opt['track_radius_mm']}")
+    if offset["hausdorff_mm"] > OFFSET_WARN_FRACTION * float(cover_mm):
+        warnings.append(f"the reduced surface departs from the ideal {cover_mm:g} mm offset by "
+                        f"up to {offset['hausdorff_mm']:.2f} mm (mean "
+                        f"{offset['reduced_to_ideal_mean_mm']:.2f} mm): thin features lose "
+                        f"detail; raise {opt['faces']}")
     for w in warnings:
         say(f"warning: {w}")
     lap("tracks")

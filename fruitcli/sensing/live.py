@@ -68,6 +68,7 @@ def pressure_thread(port, state: PressureState, stop: threading.Event,
             try:
                 lines = reader.poll()
             except PortClosed:
+                state.closed = True  # said in the closing summary
                 return
             for line in lines:
                 state.update(line)

@@ -131,6 +131,7 @@ class PressureState:
         self.kpa = np.zeros(len(chambers))
         self.skipped = 0
         self.received = 0  # pressure lines taken
+        self.closed = False  # the pressure port closed (the last pressures stay)
 
     def update(self, line: str) -> None:
         got = parse_pressure_line(line)
