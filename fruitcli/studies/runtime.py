@@ -183,9 +183,8 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
             lines.append(f"| {r['setting']} | - | - | - | {r['status']} | |")
             continue
         mark = "yes" if r.get("pareto") else ""
-        if r["setting"] == default_name:
-            mark += " (default)"
-        lines.append(f"| {r['setting']} | {r['tets']} | {r['state_ms']:.1f} | "
+        name = r["setting"] + (" (default)" if r["setting"] == default_name else "")
+        lines.append(f"| {name} | {r['tets']} | {r['state_ms']:.1f} | "
                      f"{r['iterations']:.1f} | {r['taxel_err_mean_mm']:.3f} / "
                      f"{r['taxel_err_max_mm']:.3f} | {mark} |")
     lines += ["", "Taxel error: positions in the last state against the finest setting "
