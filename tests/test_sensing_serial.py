@@ -233,3 +233,21 @@ def test_emulate_board_command_in_a_subprocess_feeds_record(tmp_path):
         proc.wait(10)
     res = invoke(["emulate-board", "--bench", str(tmp_path / "nothing")])
     assert res.exit_code == 1 and "no <indenter>/frames.npz" in res.output
+
+
+def test_emulator_stops_when_its_reader_has_gone(monkeypatch):
+    """A reader takes a few lines and closes the port: the emulator, finding the port
+    full for NO_READER_S, stops instead of blocking forever, and says why."""
+    import serial
+
+    from fruitcli.sensing import emulator
+
+    monkeypatch.setattr(emulator, "NO_READER_S", 0.5)
+    em = BoardEmulator(synthetic_frames(5000), fps=0, wait_for_reader=True)
+    th = em.start()
+    port = serial.Serial(em.path, 115200, timeout=2)
+    for _ in range(5):
+        port.readline()
+    port.close()
+    th.join(20)
+    assert not th.is_alive() and em.reader_gone and 0 < em.sent < 5000

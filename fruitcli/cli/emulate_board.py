@@ -30,7 +30,7 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
     from pathlib import Path
 
     from fruitcli.errors import FrameError
-    from fruitcli.sensing.emulator import BoardEmulator, synthetic_frames
+    from fruitcli.sensing.emulator import NO_READER_S, BoardEmulator, synthetic_frames
     from fruitcli.sensing.frames_io import read_recording
 
     with fruit_errors():
@@ -64,4 +64,6 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
         except KeyboardInterrupt:
             em.close()
             raise SystemExit(130) from None
-    click.echo(f"{sent} frames played", err=True)
+    ending = (f"; stopped: nothing was read from the port for {NO_READER_S:g} s"
+              if em.reader_gone else "")
+    click.echo(f"{sent} frames played{ending}", err=True)

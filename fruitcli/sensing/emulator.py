@@ -21,6 +21,7 @@ from fruitcli.sensing.frames_io import format_line
 BANNER = ("[Muca] Init", "[Muca] Set TEST mode", "[Muca] Gain set to 10")
 DRAIN_TIMEOUT_S = 2.0  # wait this long for a reader to take the last bytes before closing
 READER_TIMEOUT_S = 10.0  # wait_for_reader gives up after this long and plays anyway
+NO_READER_S = 5.0  # nothing taken from the port for this long: the reader has gone, stop
 READER_SETTLE_S = 0.1  # pyserial flushes the input right after configuring the port
 _POLL_S = 0.01
 _DRAIN_EMPTY_POLLS = 5  # consecutive empty polls that mean drained
@@ -37,6 +38,10 @@ def synthetic_frames(n: int, seed: int = 0, rows: int = 21, cols: int = 12) -> n
         r0, c0 = 2 + u * (rows - 5), 2 + u * (cols - 5)
         frames[k] += 60 * np.exp(-((r - r0) ** 2 + (c - c0) ** 2) / (2 * 0.8 ** 2))
     return np.maximum(np.round(frames), 0).astype(np.int64)
+
+
+class _ReaderGone(Exception):
+    """Nothing was read from the port for NO_READER_S (or stop was set while full)."""
 
 
 class BoardEmulator:
@@ -63,12 +68,25 @@ class BoardEmulator:
         self.path = os.ttyname(self.slave)
         self.stop = threading.Event()
         self.sent = 0  # whole frames sent
+        self.reader_gone = False  # play() stopped: nothing was taken for NO_READER_S
+        os.set_blocking(self.master, False)  # a full port must not block play() forever
 
     def _write(self, text: str) -> None:
+        """Write all of text; raise _ReaderGone when the port stays full NO_READER_S."""
         data = text.encode("ascii")
+        stalled = None
         while data:
-            n = os.write(self.master, data)
-            data = data[n:]
+            try:
+                n = os.write(self.master, data)
+            except BlockingIOError:
+                n = 0
+            if n:
+                data, stalled = data[n:], None
+                continue
+            stalled = stalled or time.monotonic()
+            if self.stop.is_set() or time.monotonic() - stalled > NO_READER_S:
+                raise _ReaderGone
+            time.sleep(_POLL_S)
 
     def play(self) -> int:
         """Send the banner and the frames at `fps`; close the port. -> frames sent whole."""
@@ -98,6 +116,8 @@ class BoardEmulator:
                 if self.log_every and (k + 1) % self.log_every == 0:
                     self._write(f"Calibration performed {(k // self.log_every) % 20 + 1}/20\r\n")
             self._drain()
+        except _ReaderGone:
+            self.reader_gone = not self.stop.is_set()
         except OSError:
             pass  # the reader side went away
         finally:
