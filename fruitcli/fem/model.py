@@ -345,25 +345,6 @@ class Model:
                                                (uniq % n).astype(np.int32), indptr)
         return pat
 
-    def apply_load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray,
-                             v: np.ndarray) -> np.ndarray:
-        """Matrix-free -sum_k p_k (d^2V_k/dx^2) v for v (n, 3) (mN): with the vertex
-        gradient (x_b x x_c) / 6 of each triangle (a, b, c cyclic), its derivative along v
-        is (v_b x x_c + x_b x v_c) / 6."""
-        out = np.zeros_like(x)
-        for pk, tris in zip(pressure_kpa, self.chamber_tris, strict=True):
-            if not pk:
-                continue
-            px, pv = x[tris], v[tris]
-            d = np.empty_like(px)
-            for a in range(3):
-                b, c = (a + 1) % 3, (a + 2) % 3
-                d[:, a] = np.cross(pv[:, b], px[:, c]) + np.cross(px[:, b], pv[:, c])
-            for i in range(3):
-                out[:, i] -= pk / 6.0 * np.bincount(tris.ravel(), d[:, :, i].ravel(),
-                                                    minlength=len(x))
-        return out
-
     def external_potential(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load) -> float:
         """Potential of the external loads at x (mN mm): springs minus gravity work minus
         p V per chamber (a constant pressure is conservative with H = dV/dx)."""

@@ -69,17 +69,11 @@ def consistent_winding(tris: np.ndarray) -> np.ndarray:
     return out
 
 
-def volume_hessian_coo(x: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, ...]:
-    """(rows, cols, values) of the volume Hessian d^2V/dx^2 (mm) in global dofs
-    3 * node + component, duplicates to be summed. For V_t = x0.(x1 x x2)/6 the blocks
-    are d^2V/dx_a dx_b = -[x_c]x / 6 for (a, b, c) cyclic, their transposes for (b, a),
-    and zero on the diagonal; the pressure's load stiffness is -p times this."""
-    rows, cols = volume_hessian_pattern(tris)
-    return rows, cols, volume_hessian_values(x, tris)
-
-
 def volume_hessian_pattern(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(rows, cols) of `volume_hessian_coo` (they depend on the triangles only)."""
+    """(rows, cols) of the volume Hessian d^2V/dx^2 in global dofs 3 * node + component,
+    duplicates to be summed (they depend on the triangles only). For V_t = x0.(x1 x x2)/6
+    the blocks are d^2V/dx_a dx_b = -[x_c]x / 6 for (a, b, c) cyclic, their transposes for
+    (b, a), and zero on the diagonal; the pressure's load stiffness is -p times this."""
     rows, cols = [], []
     shape = (len(tris), 3, 3)
     for a, b, _ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
@@ -92,7 +86,7 @@ def volume_hessian_pattern(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def volume_hessian_values(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """The values of `volume_hessian_coo` at x, in the order of `volume_hessian_pattern`:
+    """The Hessian's values (mm) at x, in the order of `volume_hessian_pattern`:
     per cyclic (a, b, c) the block -[x_c]x / 6 of (a, b), then its transpose [x_c]x / 6
     of (b, a)."""
     p = x[tris] / 6.0  # (t, 3, 3)

@@ -41,9 +41,6 @@ INSIDE_VOLUME_MM3 = 1e-6
 """A chamber poking out of the solid by less than this volume (relative to the
 chamber's volume) is treated as round-off of the mesh boolean."""
 
-BARY_INSIDE = -1e-9
-"""A point whose smallest barycentric coordinate is above this lies in the tet."""
-
 ARMIJO = 1e-4
 """Sufficient decrease of the total potential energy asked of a line-search step."""
 

@@ -199,7 +199,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     if top.is_empty() or n_top != 1:
         raise GeometryError(f"{src}: the part above the split plane z = {split:.2f} mm has "
                             f"{n_top} pieces (expected one casting piece); set {opt['split_z_mm']}")
-    tv, tf = reduce.manifold_arrays(top)
+    _, tf = reduce.manifold_arrays(top)
     # curves and taxels lie on the reduced surface itself (reduced.stl, what the FEM uses):
     # trim_by_plane may re-triangulate the top, so its faces can differ by a fraction of a mm
     sv, sf = rv, rf

@@ -34,10 +34,6 @@ class Taxels:
     def __len__(self) -> int:
         return int(self.ids.shape[0])
 
-    @property
-    def grid_shape(self) -> tuple[int, int]:
-        return int(self.i.max()) + 1, int(self.j.max()) + 1
-
 
 def load_taxels(path: str | os.PathLike) -> Taxels:
     """Read a taxel CSV (``#`` comments, header with at least id,i,j,x_mm,y_mm,z_mm)."""
