@@ -251,3 +251,32 @@ def test_emulator_stops_when_its_reader_has_gone(monkeypatch):
     port.close()
     th.join(20)
     assert not th.is_alive() and em.reader_gone and 0 < em.sent < 5000
+
+
+def test_record_wrong_frame_size_says_why_and_writes_nothing(tmp_path):
+    em = BoardEmulator(synthetic_frames(8), fps=0, vanish_after=8, wait_for_reader=True)
+    th = em.start()
+    out = tmp_path / "r.npz"
+    res = invoke(["record", "--port", em.path, "--out", str(out), "--rows", "20"])
+    th.join(5)
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "8 lines of 252 counts, expected 240 = 20 x 12" in res.output
+    assert "nothing written" in res.output and "holds them" not in res.output
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("out", ["r.npz", "r.log"])
+def test_record_no_frame_is_an_error_and_writes_nothing(tmp_path, out):
+    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
+                  str(tmp_path / out)])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "loop://: no frame received" in res.output and "nothing written" in res.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_record_refuses_an_unknown_out_suffix(tmp_path):
+    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
+                  str(tmp_path / "r.xyz")])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "r.xyz: expected a .npz or a MuCa log" in res.output
+    assert list(tmp_path.iterdir()) == []

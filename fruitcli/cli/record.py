@@ -29,9 +29,11 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
     Every whole frame received is on disk as soon as it arrives; board log lines and
     cut lines are skipped and counted. Without --frames or --seconds, stop with Ctrl-C.
     """
+    from fruitcli.errors import FrameError
     from fruitcli.sensing.recorder import (
         LogSink,
         check_limits,
+        check_out_path,
         finalize,
         log_path_for,
         record_stream,
@@ -42,6 +44,7 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
     interrupted = False
     with fruit_errors():
         check_limits(n_frames, seconds)
+        check_out_path(out_path)
         ser = open_port(port, baud)
         reader = FrameReader(ser, rows, cols, name=port)
         sink = LogSink(log_path_for(out_path),
@@ -58,11 +61,23 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
             ser.close()
         meta = {"source": "fruit record", "port": port, "baud": baud}
         frames = finalize(out_path, meta, rows, cols)
-    summary = (f"{frames} frames ({res['frames_per_s']:.1f} frames/s), {res['skipped']} "
-               f"lines skipped, {res['cut']} cut -> {out_path}")
+        why = reader.skip_reasons()
+        skipped = f"{res['skipped']} lines skipped" + (f": {why}" if why else "")
+        if frames == 0:
+            how = ("port closed" if res["closed"] else "interrupted" if interrupted
+                   else f"stopped after {seconds:g} s" if seconds else "stopped")
+            got = skipped if res["skipped"] else "no line received"
+            if interrupted:
+                click.echo(f"Interrupted: no frame received from {port}; nothing written "
+                           f"to {out_path} ({got})", err=True)
+                raise SystemExit(130)
+            raise FrameError(f"{port}: no frame received ({how}; {got}); nothing written "
+                             f"to {out_path}")
+    summary = (f"{frames} frames ({res['frames_per_s']:.1f} frames/s), {skipped}, "
+               f"{res['cut']} cut -> {out_path}")
     if res["closed"]:
         raise click.ClickException(f"{port}: port closed after {frames} frames; {out_path} "
-                                   f"holds them ({res['skipped']} lines skipped)")
+                                   f"holds them ({skipped})")
     click.echo(summary, err=True)
     if interrupted:
         click.echo("Interrupted.", err=True)

@@ -13,7 +13,13 @@ import time
 from pathlib import Path
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.frames_io import format_line, is_log_path, read_muca_log, write_npz
+from fruitcli.sensing.frames_io import (
+    LOG_SUFFIXES,
+    format_line,
+    is_log_path,
+    read_muca_log,
+    write_npz,
+)
 from fruitcli.sensing.serial_io import FrameReader, PortClosed
 
 PROGRESS_EVERY_S = 1.0  # frames/s progress reports this often
@@ -47,15 +53,16 @@ def log_path_for(out: str | os.PathLike) -> Path:
 
 
 def finalize(out: str | os.PathLike, meta: dict, rows: int, cols: int) -> int:
-    """Convert the partial log of an `.npz` output (no-op for a log). -> frames."""
+    """Convert the partial log of an `.npz` output (no-op for a log). -> frames.
+
+    Without a frame, nothing is left: the log (partial or not) is removed."""
     out = Path(out)
     log = log_path_for(out)
-    if log == out:
-        return read_muca_log(out, rows, cols, strict=False).frames.shape[0] \
-            if _has_frames(out, rows * cols) else 0
     if not _has_frames(log, rows * cols):
         log.unlink(missing_ok=True)
         return 0
+    if log == out:
+        return read_muca_log(out, rows, cols, strict=False).frames.shape[0]
     rec = read_muca_log(log, rows, cols, strict=False)
     rec.meta.update(meta)
     write_npz(out, rec)
@@ -88,7 +95,9 @@ def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = Non
                 if n_frames is not None and sink.frames >= n_frames:
                     break
             if progress and now - last >= PROGRESS_EVERY_S:
-                progress(f"{sink.frames} frames, {sink.frames / (now - t0):.1f} frames/s")
+                why = reader.skip_reasons() if not sink.frames else ""
+                progress(f"{sink.frames} frames, {sink.frames / (now - t0):.1f} frames/s"
+                         + (f", {reader.skipped} lines skipped: {why}" if why else ""))
                 last = now
     except PortClosed as exc:
         closed = str(exc)
@@ -101,3 +110,11 @@ def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = Non
 def check_limits(n_frames: int | None, seconds: float | None) -> None:
     if n_frames is not None and seconds is not None:
         raise FrameError("give --frames or --seconds, not both")
+
+
+def check_out_path(out: str | os.PathLike) -> None:
+    """`out` must be an `.npz` or a MuCa log by its suffix."""
+    suffix = Path(out).suffix.lower()
+    if suffix != ".npz" and not is_log_path(out):
+        raise FrameError(f"--out {out}: expected a .npz or a MuCa log "
+                         f"({', '.join(LOG_SUFFIXES)}), got {suffix or 'no suffix'!r}")

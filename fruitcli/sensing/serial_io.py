@@ -17,6 +17,7 @@ from __future__ import annotations
 import errno
 import math
 import time
+from collections import Counter
 
 import numpy as np
 
@@ -88,15 +89,44 @@ class FrameReader:
         self.lines = LineReader(port, name)
         self.rows, self.cols = rows, cols
         self.skipped = 0
+        self.board_lines = 0  # skipped lines without a comma (board log lines)
+        self.wrong_size: Counter[int] = Counter()  # counts per line -> skipped lines
+        self.bad_values = 0  # skipped lines with the right size but a bad value
+        self.last_bad_value = ""
         self.t0 = time.monotonic()
+
+    def skip_reasons(self) -> str:
+        """Why lines were skipped, e.g. "252 lines of 252 counts, expected 240 = 20 x 12";
+        "" when none was."""
+        n_cells = self.rows * self.cols
+        parts = []
+        for n, k in self.wrong_size.most_common(2):
+            parts.append(f"{k} line{'s' * (k != 1)} of {n} counts, expected {n_cells} = "
+                         f"{self.rows} x {self.cols}")
+        rest = sum(self.wrong_size.values()) - sum(k for _, k in
+                                                   self.wrong_size.most_common(2))
+        if rest:
+            parts.append(f"{rest} other line{'s' * (rest != 1)} of another size")
+        if self.bad_values:
+            parts.append(f"{self.bad_values} with bad values ({self.last_bad_value})")
+        if self.board_lines:
+            parts.append(f"{self.board_lines} board log line{'s' * (self.board_lines != 1)}")
+        return "; ".join(parts)
 
     def poll(self) -> list[tuple[np.ndarray, float, str]]:
         """Frames completed since the last call: (counts (R, C), t_s, raw line)."""
         out = []
         for line in self.lines.poll():
-            counts, _, _ = parse_line(line, self.rows * self.cols)
+            counts, _, why = parse_line(line, self.rows * self.cols)
             if counts is None:
                 self.skipped += 1
+                if why.startswith("value"):
+                    self.bad_values += 1
+                    self.last_bad_value = why[7:]
+                elif "," not in line:
+                    self.board_lines += 1
+                else:
+                    self.wrong_size[len(line.strip().split(","))] += 1
                 continue
             out.append((counts.reshape(self.rows, self.cols), time.monotonic() - self.t0,
                         line))
