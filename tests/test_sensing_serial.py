@@ -280,3 +280,34 @@ def test_record_refuses_an_unknown_out_suffix(tmp_path):
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert "r.xyz: expected a .npz or a MuCa log" in res.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_live_wrong_frame_size_says_why(tmp_path):
+    (tmp_path / "s.toml").write_text(SCENE)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    em = BoardEmulator(synthetic_frames(12, rows=20), fps=0, vanish_after=12,
+                       wait_for_reader=True)
+    th = em.start()
+    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
+                  str(taxels)])
+    th.join(5)
+    assert res.exit_code == 1
+    assert f"Error: {em.path}: port closed after 0 frames" in res.output
+    assert "12 lines of 240 counts, expected 252 = 21 x 12" in res.output
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--pressure-port", "/dev/nonexistent"],
+     "--pressure-port /dev/nonexistent: nothing uses the pressures; it needs --states or "
+     "--online"),
+    (["--frames", "5", "--baseline-frames", "50"],
+     "--frames 5: expected more than the 50 baseline frames"),
+    (["--frames", "5"], "--frames 5: expected more than the 5 baseline frames"),
+])
+def test_live_refuses_options_that_cannot_work(tmp_path, args, msg):
+    (tmp_path / "s.toml").write_text(SCENE)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    res = invoke(["live", str(tmp_path / "s.toml"), "--port", "loop://", "--taxels",
+                  str(taxels), *args])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert f"Error: {msg}" in res.output

@@ -51,6 +51,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
     stop = threading.Event()
     with fruit_errors():
         scene = load_scene(scene_path)
+        settings = Settings.from_scene(scene["detection"], baseline_frames=baseline_frames,
+                                       threshold_counts=threshold)
+        if n_frames is not None and n_frames <= settings.baseline_frames:
+            raise FrameError(f"--frames {n_frames}: expected more than the "
+                             f"{settings.baseline_frames} baseline frames (--baseline-frames "
+                             "or the scene's [detection]); nothing could be located")
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
         if taxels_csv is None:  # --online needs the mesh (tetra), not the states
             taxels_csv, found_states = scene_products(
@@ -58,9 +64,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             states_npz = states_npz or (None if online else found_states)
         if taxels_csv is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
+        if pressure_port and not online and not states_npz:
+            raise FrameError(f"--pressure-port {pressure_port}: nothing uses the pressures; "
+                             "it needs --states or --online, or the scene's states")
         taxels = load_taxels(taxels_csv)
-        settings = Settings.from_scene(scene["detection"], baseline_frames=baseline_frames,
-                                       threshold_counts=threshold)
         board = scene["board"]
         states = load_states(states_npz, len(taxels)) if states_npz else None
         pressure = solver = None
@@ -87,9 +94,15 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         live_loc = LiveLocator(loc, pressure, solver)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
+        warned = False
         try:
             while n_frames is None or seen < n_frames:
-                for counts, t_s, _ in reader.poll():
+                got = reader.poll()
+                if not seen and not warned and sum(reader.wrong_size.values()) >= 10:
+                    warned = True  # the board's frames do not fit [board]: say it once
+                    progress(f"no frame yet, {reader.skipped} lines skipped: "
+                             f"{reader.skip_reasons()} ([board] rows x cols)")
+                for counts, t_s, _ in got:
                     line = live_loc.push(counts, t_s)
                     seen += 1
                     if line is not None:
@@ -98,8 +111,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
                     if n_frames is not None and seen >= n_frames:
                         break
         except PortClosed:
+            why = reader.skip_reasons()
             raise FrameError(f"{port}: port closed after {seen} frames "
-                             f"({reader.skipped} lines skipped)") from None
+                             f"({reader.skipped} lines skipped{': ' + why if why else ''})"
+                             ) from None
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             raise SystemExit(130) from None
@@ -128,7 +143,8 @@ tens of ms; a hard one with load subdivisions a few seconds)."""
 
 def _summary(seen, reader, pressure, solver) -> list[str]:
     """The closing lines of `fruit live`: frames, skipped lines, online FEM."""
-    lines = [f"{seen} frames, {reader.skipped} board lines skipped"]
+    why = reader.skip_reasons()
+    lines = [f"{seen} frames, {reader.skipped} lines skipped" + (f": {why}" if why else "")]
     if pressure is not None:
         lines.append(f"pressure lines: {pressure.received} taken, {pressure.skipped} skipped "
                      f"(not 'P name=kPa ...' with known chambers {', '.join(pressure.chambers)} "
