@@ -190,3 +190,23 @@ def test_meta_is_json(tmp_path):
     write_npz(tmp_path / "f.npz", rec())
     with np.load(tmp_path / "f.npz", allow_pickle=False) as z:
         assert json.loads(str(z["meta"]))["board"] == "muca"
+
+
+def test_taxels_with_a_duplicate_id_are_refused(tmp_path):
+    from fruitcli.sensing.board import load_taxels
+
+    path = tmp_path / "t.csv"
+    path.write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,0,1,0,1,0\n0,1,0,1,0,0\n")
+    with pytest.raises(FrameError, match=r"t\.csv: data row 3: duplicate taxel id 0 "
+                                         r"\(also on data row 1\)"):
+        load_taxels(path)
+
+
+def test_emulate_board_refuses_frames_not_21_by_12(tmp_path):
+    r = rec()
+    r.frames = r.frames[:, :20]
+    write_npz(tmp_path / "f.npz", r)
+    res = CliRunner().invoke(cli, ["emulate-board", "--from", str(tmp_path / "f.npz")])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "f.npz: frames of 20 x 12, expected 21 x 12 (the MuCa board's Tx x Rx)" \
+        in res.output

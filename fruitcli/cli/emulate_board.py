@@ -31,7 +31,7 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
 
     from fruitcli.errors import FrameError
     from fruitcli.sensing.emulator import NO_READER_S, BoardEmulator, synthetic_frames
-    from fruitcli.sensing.frames_io import read_recording
+    from fruitcli.sensing.frames_io import MUCA_COLS, MUCA_ROWS, read_recording
 
     with fruit_errors():
         if from_path and bench_dir:
@@ -54,6 +54,10 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
             from_path = found[0]
         if from_path:
             frames = read_recording(from_path).frames
+            if frames.shape[1:] != (MUCA_ROWS, MUCA_COLS):
+                raise FrameError(f"{from_path}: frames of {frames.shape[1]} x "
+                                 f"{frames.shape[2]}, expected {MUCA_ROWS} x {MUCA_COLS} "
+                                 "(the MuCa board's Tx x Rx)")
             frames = frames[:n_frames] if n_frames else frames
         else:
             frames = synthetic_frames(n_frames or 600)

@@ -49,13 +49,19 @@ def load_taxels(path: str | os.PathLike) -> Taxels:
     if bad.size:
         raise FrameError(f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
                          f"got ({i[bad[0]]}, {j[bad[0]]})")
+    ids = cols["id"].astype(np.int64)
+    _, first = np.unique(ids, return_index=True)
+    if first.size < ids.size:
+        k = int(np.setdiff1d(np.arange(ids.size), first)[0])
+        raise FrameError(f"{path}: data row {k + 1}: duplicate taxel id {ids[k]} (also on "
+                         f"data row {int(np.nonzero(ids == ids[k])[0][0]) + 1})")
     key = i * (j.max() + 1) + j
     _, first, counts = np.unique(key, return_index=True, return_counts=True)
     if np.any(counts > 1):
         k = first[np.argmax(counts > 1)]
         raise FrameError(f"{path}: two taxels share grid index ({i[k]}, {j[k]})")
     xyz = np.stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]], axis=1)
-    return Taxels(cols["id"].astype(np.int64), i, j, xyz)
+    return Taxels(ids, i, j, xyz)
 
 
 def taxel_cells(taxels: Taxels, board: dict, where: str = "taxels") -> tuple[np.ndarray,
