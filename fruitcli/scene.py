@@ -331,6 +331,11 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
 
 
 def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
+    name = scene["scene"]["name"]
+    if name is not None and (not name.strip() or name in (".", "..")
+                             or any(c in name for c in "/\\")):
+        raise SceneError(f"{where}: [scene].name: expected a plain folder name (it names "
+                         f"out/<name>), got {name!r}")
     geo = scene["geometry"]
     sources = [k for k in ("artist", "solid", "pad_size_mm") if geo[k] is not None]
     if len(sources) > 1:
@@ -402,6 +407,30 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
             raise SceneError(f"{where}: [[jig]] #{n + 1}.stiffness_n_per_mm: expected > 0")
         if math.hypot(*jig["axis"]) == 0:
             raise SceneError(f"{where}: [[jig]] #{n + 1}.axis: expected a non-zero vector")
+    grid = scene["grid"]
+    count = grid["count"]
+    if count is not None and not (len(count) == 2 and all(
+            isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in count)):
+        raise SceneError(f"{where}: [grid].count: expected two positive integers [nx, ny], "
+                         f"got {count}")
+    if grid["spacing_x_mm"] <= 0 or grid["spacing_y_mm"] <= 0:
+        raise SceneError(f"{where}: [grid]: expected spacing_x_mm and spacing_y_mm > 0")
+    if scene.has("bench"):
+        bench = scene["bench"]
+        names = ("small", "medium")  # the paper's indenters (fruitcli.sensing.forward)
+        if not bench["indenters"] or any(i not in names for i in bench["indenters"]):
+            raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "
+                             f"{' and '.join(names)}, got {bench['indenters']}")
+        if bench["step_mm"] <= 0:
+            raise SceneError(f"{where}: [bench].step_mm: expected > 0, got {bench['step_mm']}")
+        ref = bench["reference_length_mm"]
+        if ref is not None and ref <= 0:
+            raise SceneError(f"{where}: [bench].reference_length_mm: expected > 0, got {ref}")
+        if bench["baseline_frames"] < 1:
+            raise SceneError(f"{where}: [bench].baseline_frames: expected >= 1")
+    period = scene["actuation"]["period_s"]
+    if period is not None and period <= 0:
+        raise SceneError(f"{where}: [actuation].period_s: expected > 0, got {period}")
     det = scene["detection"]
     if det["threshold_counts"] <= 0:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")

@@ -24,7 +24,7 @@ def read_table(path: str | Path, required: list[str], numeric: list[str] | None 
     if not path.exists():
         raise error(f"{path}: file not found")
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"{path}: cannot read as text: {exc}") from None
     lines = [(n + 1, line) for n, line in enumerate(text.splitlines())
@@ -71,4 +71,6 @@ def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
     except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
-        raise error(f"{path}: not a readable {what}: {exc}") from None
+        why = ("it holds Python objects, not plain arrays" if "allow_pickle" in str(exc)
+               else str(exc))
+        raise error(f"{path}: not a readable {what}: {why}") from None

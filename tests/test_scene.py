@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from fruitcli.errors import SceneError
-from fruitcli.scene import has_deformation, n_states, parse_scene
+from fruitcli.scene import has_deformation, load_scene, n_states, parse_scene
 
 MINIMAL = """
 [geometry]
@@ -116,3 +116,21 @@ def test_readme_scene_example_is_valid():
     assert blocks
     for block in blocks:
         parse_scene(block, ROOT / "pipelines" / "example.toml", must_exist=False)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[grid]\ncount = [4]", r"\[grid\].count: expected two positive integers"),
+    ("[grid]\ncount = [4, 0]", r"\[grid\].count: expected two positive integers"),
+    ("[grid]\nspacing_x_mm = 0.0", r"\[grid\]: expected spacing_x_mm and spacing_y_mm > 0"),
+    ("[bench]\nindenters = []", r"\[bench\].indenters: expected a non-empty list"),
+    ("[bench]\nindenters = ['huge']", r"\[bench\].indenters: .* got \['huge'\]"),
+    ("[bench]\nstep_mm = 0.0", r"\[bench\].step_mm: expected > 0"),
+    ("[bench]\nreference_length_mm = -1.0", r"\[bench\].reference_length_mm: expected > 0"),
+    ("[actuation]\nperiod_s = -6.0", r"\[actuation\].period_s: expected > 0"),
+    ("[scene]\nname = '../../evil'", r"\[scene\].name: expected a plain folder name"),
+])
+def test_values_checked_when_the_scene_is_read(tmp_path, text, match):
+    """Each bad value is one error naming the file and the field, before any stage."""
+    (tmp_path / "s.toml").write_text(text + "\n")
+    with pytest.raises(SceneError, match="^s.toml: " + match):
+        load_scene(tmp_path / "s.toml")

@@ -38,9 +38,11 @@ def demo(out_dir, scenes):
     out = Path(out_dir)
     plans, seconds = {}, {}
     with fruit_errors():
-        for name in [s.strip() for s in scenes.split(",") if s.strip()]:
-            path = _pipelines_dir() / f"{name}.toml"
-            scene = load_scene(path)
+        names = [s.strip() for s in scenes.split(",") if s.strip()]
+        if not names:
+            raise click.UsageError("--scenes: expected at least one scene name from pipelines/")
+        loaded = [load_scene(_pipelines_dir() / f"{name}.toml") for name in names]  # all first
+        for name, scene in zip(names, loaded, strict=True):
             click.echo(f"== {name} ==", err=True)
             t0 = time.perf_counter()
             steps = planner.plan(scene, out / scene.name)

@@ -98,6 +98,13 @@ def main(argv=None):
             raise
         click.echo(f"Error: {exc}", err=True)
         sys.exit(1)
+    except OSError as exc:  # an unwritable output folder, a full disk, ...
+        if "-vv" in (argv or sys.argv):
+            raise
+        from fruitcli.cli.options import os_error_line
+
+        click.echo(f"Error: {os_error_line(exc)}", err=True)
+        sys.exit(1)
     except KeyboardInterrupt:
         click.echo("Interrupted.", err=True)
         sys.exit(130)

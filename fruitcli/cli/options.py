@@ -13,11 +13,23 @@ from fruitcli.errors import FruitError
 
 @contextlib.contextmanager
 def fruit_errors():
-    """Turn library errors into one-line click errors (exit 1)."""
+    """Turn library errors, and operating-system errors such as an unwritable output
+    folder, into one-line click errors (exit 1)."""
     try:
         yield
     except FruitError as exc:
         raise click.ClickException(str(exc)) from None
+    except OSError as exc:
+        raise click.ClickException(os_error_line(exc)) from None
+
+
+def os_error_line(exc: OSError) -> str:
+    """'path: reason' for an operating-system error (e.g. a read-only output folder)."""
+    where = exc.filename or ""
+    if exc.filename2:
+        where = f"{exc.filename} -> {exc.filename2}"
+    reason = exc.strerror or str(exc)
+    return f"{where}: {reason}" if where else reason
 
 
 def quiet(ctx: click.Context | None = None) -> bool:

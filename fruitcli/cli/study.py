@@ -27,7 +27,7 @@ def study():
 @study.command()
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-stability",
               show_default=True, help="Output folder: stability.md, .csv, .json.")
-@click.option("--jobs", type=int, default=None,
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes. [default: all cores]")
 def stability(out_dir, jobs):
     """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.499, pressure until elements
@@ -65,7 +65,8 @@ def stability(out_dir, jobs):
                 default="pipelines/fruit-deformed.toml")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-runtime",
               show_default=True, help="Output folder: runtime.md, runtime.json, runtime.png.")
-@click.option("--jobs", type=int, default=None, help="Worker processes. [default: all cores]")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes. [default: all cores]")
 def runtime(scene_file, out_dir, jobs):
     """Error against run time on SCENE (default: the Fruit in its jig): FEM mesh size,
     Newton tolerance and iteration cap, linear solver, detection variant.
@@ -83,6 +84,10 @@ def runtime(scene_file, out_dir, jobs):
 
     with fruit_errors():
         scene = load_scene(scene_file)
+        fem = planner.plan(scene, Path(out_dir) / "scene", until="simulate")[-1]
+        if fem.action not in ("run", "reuse"):
+            raise click.UsageError(f"{scene_file}: the scene has no FEM to study (no "
+                                   "deformation or no geometry: see `fruit run --dry-run`)")
         out = Path(out_dir)
         base = out / "scene"
         # the scene's own stages: copied from the demo's out/<scene> when identical

@@ -218,6 +218,10 @@ def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None)
             proc.communicate()
             raise MeshError(f"{label}: gmsh did not finish within [mesh].time_limit_s = "
                             f"{time_limit_s:g} s (killed); try a larger size_mm") from None
+        except BaseException:  # Ctrl-C or any error here: the child (own session) goes too
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
         if proc.returncode != 0 or not (tmp / "raw.npz").exists():
             lines = [ln for ln in err.strip().splitlines() if ln.strip()]
             msg = lines[-1] if lines else f"exit code {proc.returncode}"

@@ -61,8 +61,12 @@ def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT):
     try:
         mesh = trimesh.load_mesh(path, process=False, force="mesh")
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file
-        raise GeometryError(f"{path}: cannot read as a {path.suffix[1:].upper()} mesh "
-                            f"({type(exc).__name__}: {str(exc).splitlines()[0][:80]})") from None
+        # (a garbage binary STL makes trimesh try it as text, which may need a module
+        # that is not installed: that says nothing about the file, so it is not shown)
+        why = "" if isinstance(exc, ImportError) else \
+            f" ({type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:80]})"
+        raise GeometryError(f"{path}: cannot read as a {path.suffix[1:].upper()} mesh{why}; "
+                            "is it a triangle mesh file?") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise GeometryError(f"{path}: no triangles found (expected a closed triangle mesh)")
     verts = np.asarray(mesh.vertices, dtype=float)

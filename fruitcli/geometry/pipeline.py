@@ -161,6 +161,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     opt = names or CLI_NAMES
     src = str(artist_path)
     _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm)
+    if origin_mm is not None and not np.all(np.isfinite(np.asarray(origin_mm, float))):
+        raise GeometryError(f"{opt['origin_mm']}: expected two finite numbers (mm), "
+                            f"got {list(origin_mm)}")
     times: dict[str, float] = {}
     clock = [time.perf_counter()]
 

@@ -1,0 +1,74 @@
+"""Bad input across commands (from a sweep of every subcommand): one `Error:` line, a
+non-zero exit code, nothing half-written; outputs readable by other users."""
+
+import os
+
+import numpy as np
+from click.testing import CliRunner
+from conftest import PAPER, ROOT
+
+from fruitcli.cli.main import cli
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def last_line(res):
+    return res.output.strip().splitlines()[-1]
+
+
+def test_unwritable_output_is_one_line(tmp_path):
+    (tmp_path / "a_file").write_text("x")
+    res = run("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured",
+              PAPER / "paper_rest_measured.csv", "--out", tmp_path / "a_file" / "sub")
+    assert res.exit_code == 1 and last_line(res).startswith(f"Error: {tmp_path / 'a_file'}")
+    assert "Traceback" not in res.output
+
+
+def test_outputs_have_the_usual_permissions(tmp_path):
+    res = run("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured",
+              PAPER / "paper_rest_measured.csv", "--out", tmp_path / "o")
+    assert res.exit_code == 0, res.output
+    umask = os.umask(0o022)
+    os.umask(umask)
+    for name in ("table.md", "summary.json", "errors.csv"):
+        assert os.stat(tmp_path / "o" / name).st_mode & 0o777 == 0o666 & ~umask, name
+
+
+def test_demo_checks_every_scene_name_before_running(tmp_path):
+    res = run("demo", "--scenes", "paper-table,nosuch", "--out", tmp_path / "o")
+    assert res.exit_code == 1 and "nosuch.toml: scene file not found" in last_line(res)
+    assert not (tmp_path / "o").exists()
+    res = run("demo", "--scenes", ",,", "--out", tmp_path / "o")
+    assert res.exit_code == 2 and "--scenes: expected at least one scene name" in res.output
+
+
+def test_runtime_study_refuses_a_scene_without_fem(tmp_path):
+    res = run("study", "runtime", ROOT / "pipelines" / "paper-table.toml", "--out",
+              tmp_path / "o")
+    assert res.exit_code == 2 and "the scene has no FEM to study" in res.output
+    assert not (tmp_path / "o").exists()
+    assert run("study", "stability", "--jobs", "0").exit_code == 2
+
+
+def test_make_tracks_garbage_and_nan_origin(tmp_path):
+    garbage = tmp_path / "g.stl"
+    garbage.write_bytes(np.random.default_rng(0).bytes(3000))
+    res = run("make-tracks", garbage, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == f"Error: {garbage}: cannot read as a STL mesh; is it a triangle " \
+        "mesh file?"
+    res = run("make-tracks", garbage, "--out", tmp_path / "o", "--origin-mm", "nan", "0")
+    assert res.exit_code == 1
+    assert last_line(res) == "Error: --origin-mm: expected two finite numbers (mm), got " \
+        "[nan, 0.0]"
+    assert not (tmp_path / "o").exists()
+
+
+def test_csv_saved_with_a_byte_order_mark_is_read(tmp_path):
+    from fruitcli.tables import read_table
+
+    path = tmp_path / "t.csv"
+    path.write_bytes(b"\xef\xbb\xbfsample,x_mm,y_mm\n0,1,2\n")
+    assert read_table(path, ["sample", "x_mm", "y_mm"])["x_mm"].tolist() == [1.0]
