@@ -72,3 +72,16 @@ def test_csv_saved_with_a_byte_order_mark_is_read(tmp_path):
     path = tmp_path / "t.csv"
     path.write_bytes(b"\xef\xbb\xbfsample,x_mm,y_mm\n0,1,2\n")
     assert read_table(path, ["sample", "x_mm", "y_mm"])["x_mm"].tolist() == [1.0]
+
+
+def test_mesh_far_too_large_for_its_unit_is_refused(tmp_path):
+    """A mm mesh given as metres (150 km across) is refused at once, not reduced for
+    minutes."""
+    import trimesh
+
+    art = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(2, 40.0).export(art)
+    res = run("make-tracks", art, "--out", tmp_path / "o", "--unit", "m")
+    assert res.exit_code == 1
+    assert last_line(res) == (f"Error: {art}: the mesh is 8e+04 mm across in m, more than "
+                              "5000 mm: is that its unit?")

@@ -16,6 +16,10 @@ from fruitcli.errors import GeometryError
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
 # a mesh whose largest extent is below this (in file units) is probably not in mm
+MAX_EXTENT_MM = 5000.0
+"""A mesh larger than this (after its unit) is refused: a touch skin for a soft robot is
+not 5 m across, so the unit is wrong (a mm file read with --unit m took minutes)."""
+
 MIN_EXTENT_MM = 2.0
 # holes with at most this many boundary edges are closed by a fan (a "small hole")
 MAX_HOLE_EDGES = 64
@@ -80,6 +84,10 @@ def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT):
         check_in_mm(verts, f"{path}: the mesh", unit_hint)
         unit = "mm"
     verts = verts * UNIT_TO_MM[unit]
+    extent = float(np.ptp(verts, axis=0).max())
+    if extent > MAX_EXTENT_MM:
+        raise GeometryError(f"{path}: the mesh is {extent:.4g} mm across in {unit}, more than "
+                            f"{MAX_EXTENT_MM:g} mm: is that its unit?")
     verts, faces, repairs = repair_arrays(verts, faces)
     if unit != "mm":
         repairs.insert(0, f"scaled from {unit} to mm (x{UNIT_TO_MM[unit]:g})")
