@@ -136,7 +136,7 @@ pressure_kpa = {{c1 = [1.0]}}
 
 def test_solid_in_metres_needs_its_unit(tmp_path):
     """A solid (and chamber surface) in metres: refused before any mesh unless
-    [geometry].unit says so, then scaled to mm."""
+    [geometry].unit says so, then scaled to mm; a mm solid read as metres is refused."""
     from fruitcli.cli.main import cli
     from fruitcli.fem.stage import body_shells
 
@@ -160,6 +160,10 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
     with pytest.raises(GeometryError, match=r"^s.toml: \[\[geometry.chamber\]\] 'c1'.surface: "
                                          r"chamber_m.stl is only 0.016 mm across"):
         body_shells(scene, scene["geometry"]["solid"])
+    scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
+    with pytest.raises(GeometryError, match=r"^s.toml: \[geometry\].solid: sphere_m.stl is "
+                                         r"8e\+04 mm across in m, more than 5000 mm"):
+        body_shells(scene, scene["geometry"]["solid"])  # a mm solid read as metres
 
 
 def test_open_chamber_surface_is_refused(tmp_path):

@@ -24,7 +24,7 @@ from fruitcli.fem.newton import SolverOptions, solve_state
 from fruitcli.fem.springs import Jig, nodes_in_box
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
-from fruitcli.geometry.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_in_mm
+from fruitcli.geometry.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent
 from fruitcli.scene import n_states
 
 
@@ -35,22 +35,24 @@ def _noop(msg: str) -> None:
 def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     """The outer shell (solid surface or flat pad box) and the chamber shells.
 
-    The scene's own surface files (`solid`, chamber `surface`) are in [geometry].unit; a
-    scene solid in mm must be at least MIN_EXTENT_MM across. Any other `solid_path`
+    The scene's own surface files (`solid`, chamber `surface`) are in [geometry].unit,
+    and their size must fit it (`geometry.load.check_extent`). Any other `solid_path`
     (reduced.stl from make-tracks) is in mm.
     """
     geo, where = scene["geometry"], scene.path.name
-    scale = UNIT_TO_MM[geo["unit"]]
+
+    def scene_surface(path, what):  # a file of the scene's, in [geometry].unit
+        v, f = shells.load_surface(path, what, scale=UNIT_TO_MM[geo["unit"]])
+        check_extent(v, geo["unit"], f"{what}: {Path(path).name}", SCENE_UNIT_HINT)
+        return v, f
+
     own = geo["solid"] is not None and (
         solid_path is None or Path(solid_path).resolve() == Path(geo["solid"]).resolve())
     if not own and solid_path is not None:
         v, f = shells.load_surface(solid_path, "solid")
         outer = shells.surface_shell(solid_path.name, v, f)
     elif geo["solid"] is not None:
-        what = f"{where}: [geometry].solid"
-        v, f = shells.load_surface(geo["solid"], what, scale=scale)
-        if geo["unit"] == "mm":
-            check_in_mm(v, f"{what}: {geo['solid'].name}", SCENE_UNIT_HINT)
+        v, f = scene_surface(geo["solid"], f"{where}: [geometry].solid")
         outer = shells.surface_shell(geo["solid"].name, v, f)
     elif geo["pad_size_mm"] is not None:
         x, y, t = geo["pad_size_mm"]
@@ -67,10 +69,7 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
             e = ch["ellipsoid"]
             chambers.append(shells.ellipsoid_shell(name, e["center_mm"], e["radii_mm"]))
         else:
-            what = f"{where}: [[geometry.chamber]] '{name}'.surface"
-            v, f = shells.load_surface(ch["surface"], what, scale=scale)
-            if geo["unit"] == "mm":
-                check_in_mm(v, f"{what}: {Path(ch['surface']).name}", SCENE_UNIT_HINT)
+            v, f = scene_surface(ch["surface"], f"{where}: [[geometry.chamber]] '{name}'.surface")
             chambers.append(shells.surface_shell(name, v, f))
     return outer, chambers
 

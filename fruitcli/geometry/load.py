@@ -15,12 +15,12 @@ from fruitcli.errors import GeometryError
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
-# a mesh whose largest extent is below this (in file units) is probably not in mm
 MAX_EXTENT_MM = 5000.0
 """A mesh larger than this (after its unit) is refused: a touch skin for a soft robot is
 not 5 m across, so the unit is wrong (a mm file read with --unit m took minutes)."""
 
 MIN_EXTENT_MM = 2.0
+"""A mesh read in mm and smaller than this across is refused: it is in m or cm."""
 # holes with at most this many boundary edges are closed by a fan (a "small hole")
 MAX_HOLE_EDGES = 64
 MAX_HOLE_FRACTION = 0.1
@@ -35,13 +35,18 @@ SCENE_UNIT_HINT = 'set [geometry].unit = "m" (or "cm")'
 VOLUME_RTOL = 1e-3
 
 
-def check_in_mm(verts: np.ndarray, what: str, hint: str) -> None:
-    """Refuse vertices under MIN_EXTENT_MM across: the file is in metres or centimetres.
-    `what` names the mesh (and where it was given), `hint` says how to give its unit."""
-    extent = float(np.ptp(verts, axis=0).max())
-    if extent < MIN_EXTENT_MM:
+def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
+    """Refuse a mesh whose size (vertices in mm, read from a file in `unit`) says the
+    unit is wrong: under MIN_EXTENT_MM read as mm (it is in metres or centimetres; `hint`
+    says how to give its unit), over MAX_EXTENT_MM in any unit. `what` names the mesh
+    (and where it was given)."""
+    extent = float(np.ptp(verts_mm, axis=0).max())
+    if unit == "mm" and extent < MIN_EXTENT_MM:
         raise GeometryError(f"{what} is only {extent:.3g} mm across, so it is not in "
                             f"millimetres; {hint}")
+    if extent > MAX_EXTENT_MM:
+        raise GeometryError(f"{what} is {extent:.4g} mm across in {unit}, more than "
+                            f"{MAX_EXTENT_MM:g} mm: is that its unit?")
 
 
 def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT):
@@ -80,14 +85,9 @@ def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT):
     if faces.min() < 0 or faces.max() >= len(verts):
         raise GeometryError(f"{path}: faces refer to missing vertices")
 
-    if unit in (None, "mm"):
-        check_in_mm(verts, f"{path}: the mesh", unit_hint)
-        unit = "mm"
+    unit = unit or "mm"
     verts = verts * UNIT_TO_MM[unit]
-    extent = float(np.ptp(verts, axis=0).max())
-    if extent > MAX_EXTENT_MM:
-        raise GeometryError(f"{path}: the mesh is {extent:.4g} mm across in {unit}, more than "
-                            f"{MAX_EXTENT_MM:g} mm: is that its unit?")
+    check_extent(verts, unit, f"{path}: the mesh", unit_hint)
     verts, faces, repairs = repair_arrays(verts, faces)
     if unit != "mm":
         repairs.insert(0, f"scaled from {unit} to mm (x{UNIT_TO_MM[unit]:g})")
