@@ -58,10 +58,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
                              f"{settings.baseline_frames} baseline frames (--baseline-frames "
                              "or the scene's [detection]); nothing could be located")
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
-        if taxels_csv is None:  # --online needs the mesh (tetra), not the states
-            taxels_csv, found_states = scene_products(
-                scene, until="tetra" if online else "simulate")
-            states_npz = states_npz or (None if online else found_states)
+        if online:  # the scene's mesh (tetra), not its states
+            taxels_csv, mesh_npz = online_products(scene, scene_path, taxels_csv,
+                                                   pressure_port, progress)
+        elif taxels_csv is None:
+            taxels_csv, found_states = scene_products(scene)
+            states_npz = states_npz or found_states
         if taxels_csv is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         if pressure_port and not online and not states_npz:
@@ -72,7 +74,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         states = load_states(states_npz, len(taxels)) if states_npz else None
         pressure = solver = None
         if online:
-            solver = online_solver(scene, scene_path, taxels.xyz_mm, pressure_port, progress)
+            solver = online_solver(scene, mesh_npz, taxels.xyz_mm, progress)
             loc = Locator(taxels, board, solver.taxels_mm, settings, where=str(taxels_csv))
             pressure = PressureState(tuple(solver.model.chamber_names))
         elif states is None:
@@ -157,16 +159,14 @@ def _summary(seen, reader, pressure, solver) -> list[str]:
     return lines
 
 
-def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
-    """The OnlineSolver of `fruit live --online`: the scene's mesh (its stages run into
-    out/<scene name> when needed) with the taxels mapped into it."""
+def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
+    """(taxels CSV, mesh.npz) for `fruit live --online`: the scene's stages up to tetra,
+    run into out/<scene name> when needed (one planner run); given taxels are kept."""
     from pathlib import Path
 
     from fruitcli import planner
     from fruitcli.errors import FrameError
-    from fruitcli.fem import barycentric, io
-    from fruitcli.fem.online import OnlineSolver
-    from fruitcli.fem.stage import build_model, solver_options
+    from fruitcli.stages import taxels_path
 
     if not pressure_port:
         raise FrameError("--online: needs --pressure-port, the source of the pressures")
@@ -178,7 +178,18 @@ def online_solver(scene, scene_path, taxels_xyz, pressure_port, progress):
     if skipped:
         raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
                          "give [actuation] pressures for its chambers")
-    model = build_model(scene, io.load_mesh(planner.Context(out).dir("tetra") / "mesh.npz"))
+    ctx = planner.Context(out)
+    return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
+
+
+def online_solver(scene, mesh_npz, taxels_xyz, progress):
+    """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
+    mapped into it."""
+    from fruitcli.fem import barycentric, io
+    from fruitcli.fem.online import OnlineSolver
+    from fruitcli.fem.stage import build_model, solver_options
+
+    model = build_model(scene, io.load_mesh(mesh_npz))
     tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
     progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
     return OnlineSolver(model, tet, w, solver_options(scene),

@@ -70,10 +70,9 @@ def shared_outputs(out_dir):
     return parent if parent.is_dir() else None
 
 
-def scene_products(scene, out_root=None, progress=None, until: str = "simulate"):
-    """Taxels CSV and states.npz (or None) of a scene, running the stages that make them,
-    up to `until` (into `out_root`, default out/<scene name>) and reusing what is already
-    there."""
+def scene_products(scene, out_root=None, progress=None):
+    """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
+    (into `out_root`, default out/<scene name>) and reusing what is already there."""
     from pathlib import Path
 
     from fruitcli import planner
@@ -81,6 +80,6 @@ def scene_products(scene, out_root=None, progress=None, until: str = "simulate")
 
     out = Path(out_root) if out_root else Path("out") / scene.name
     # simulate's upstream makes the taxels; stages the scene does not need are skipped
-    planner.run(scene, out, until=until, progress=progress, shared=shared_outputs(out))
+    planner.run(scene, out, until="simulate", progress=progress, shared=shared_outputs(out))
     ctx = planner.Context(out)
     return taxels_path(scene, ctx), states_path(scene, ctx)
