@@ -110,7 +110,7 @@ def breathing_runs(scene, mesh_npz, n_states: int) -> list:
     rows exclude each run's first state, solved from rest."""
     _, _, rows = time_states(scene, mesh_npz, "pcg", n_states,
                              lambda names: scene_loads(scene, names, n_states, cycles=3))
-    per_cycle = len(scene_loads(scene, _names(mesh_npz), n_states, cycles=3)) // 3
+    per_cycle = len(rows) // 3  # one row per state solved
     _, _, live = time_states(scene, mesh_npz, "pcg", n_states,
                              lambda names: live_loads(scene, names, LIVE_HZ, cycles=2))
     return [(f"scene's states, first cycle ({per_cycle - 1} after the one from rest, "
@@ -187,12 +187,6 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     print(f"live loop per frame: {np.median(alone):.3f} ms median alone, "
           f"{np.median(with_fem):.3f} ms with the FEM thread (p99 {np.percentile(alone, 99):.3f}"
           f" and {np.percentile(with_fem, 99):.3f} ms)")
-
-
-def _names(mesh_npz) -> list[str]:
-    from fruitcli.fem import io
-
-    return [str(n) for n in io.load_mesh(mesh_npz)["chamber_names"]]
 
 
 def one_direct_solve_ms(model) -> tuple[float, float]:
