@@ -1,5 +1,6 @@
-"""Sparse assembly with a precomputed pattern: (m, 12, 12) element blocks -> CSR over
-the free degrees of freedom, by one bincount per assembly (no sorting at run time)."""
+"""Sparse assembly with a precomputed pattern: (m, d, d) element blocks (d = 3 nodes per
+element: 12 for linear tets, 30 for quadratic) -> CSR over the free degrees of freedom,
+by one bincount per assembly (no sorting at run time)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import scipy.sparse as sp
 
 
 def element_dofs(tets: np.ndarray) -> np.ndarray:
-    """(m, 12) global dof numbers 3 * node + component, node-major."""
-    return (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 12)
+    """(m, 3 nen) global dof numbers 3 * node + component, node-major."""
+    return (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 3 * tets.shape[1])
 
 
 @dataclass(frozen=True)
@@ -19,7 +20,7 @@ class CsrPattern:
     """Where each kept element-matrix entry lands in the CSR data of the free-dof matrix."""
 
     free: np.ndarray  # (n_free,) global dof numbers
-    keep: np.ndarray  # (m*144,) bool: entry couples two free dofs
+    keep: np.ndarray  # (m*d*d,) bool: entry couples two free dofs
     slot: np.ndarray  # (n_kept,) index into CSR data
     diag_slot: np.ndarray  # (n_free,) CSR data index of each diagonal entry
     indptr: np.ndarray
@@ -32,8 +33,9 @@ class CsrPattern:
         new = np.full(3 * n_nodes, -1, dtype=np.int64)
         new[free] = np.arange(len(free))
         dofs = element_dofs(tets)
-        rows = new[np.repeat(dofs, 12, axis=1)].ravel()
-        cols = new[np.tile(dofs, (1, 12))].ravel()
+        d = dofs.shape[1]
+        rows = new[np.repeat(dofs, d, axis=1)].ravel()
+        cols = new[np.tile(dofs, (1, d))].ravel()
         keep = (rows >= 0) & (cols >= 0)
         n = len(free)
         diag = np.arange(n)
@@ -53,7 +55,7 @@ class CsrPattern:
         return len(self.indices)
 
     def assemble(self, blocks: np.ndarray, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
-        """CSR matrix from element blocks (m, 12, 12) plus an optional diagonal (n_free,)."""
+        """CSR matrix from element blocks (m, d, d) plus an optional diagonal (n_free,)."""
         data = np.bincount(self.slot, blocks.reshape(-1)[self.keep], minlength=self.nnz)
         if diagonal is not None:
             data[self.diag_slot] += diagonal

@@ -1,0 +1,302 @@
+"""The hyperelastic model of one body on any element family (`fruitcli.fem.elements`)
+with any material of `fruitcli.fem.materials`: the same loads as the paper's
+corotational `Model` (chamber pressure or volume as a Lagrange multiplier per chamber,
+follower pressure on curved walls, jig springs, gravity, fixed and moved regions) and
+the same interface to Newton (`fruitcli.fem.newton`), so both are solved alike.
+
+    from fruitcli.fem.continuum import ContinuumModel
+    model = ContinuumModel.from_arrays(nodes2, tets10, material("neo-hookean", 100, 0.49),
+                                       "p2", chambers={"c": tris6}, fixed_nodes=idx)
+
+Units: mm, kPa, mN (see `fruitcli.fem.units`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from fruitcli.errors import MeshError, SceneError
+from fruitcli.fem import tet4
+from fruitcli.fem.assemble import CsrPattern
+from fruitcli.fem.elements.integrate import evaluate
+from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shape_gradients
+from fruitcli.fem.loads.cavity import Wall
+from fruitcli.fem.materials.build import Material
+from fruitcli.fem.model import pin_rigid_modes, prescribed_dofs
+from fruitcli.fem.springs import Jig
+from fruitcli.fem.tolerances import SLIVER_QUALITY
+from fruitcli.fem.units import body_force_mn_mm3
+
+
+def reference_gradients(nodes: np.ndarray, conn: np.ndarray, fam: Family):
+    """(dN (m, q, nen, 3) 1/mm, weights (m, q) mm^3) at the family's volume rule; raises
+    MeshError naming an element whose map from the reference tet is not invertible."""
+    pts, w = fam.volume_rule()
+    dref = tet_shape_gradients(pts, fam.order)  # (q, nen, 3)
+    x = nodes[conn]  # (m, nen, 3)
+    jac = np.einsum("mai,qaj->mqij", x, dref)  # dX/dxi
+    det = np.linalg.det(jac)
+    bad = np.flatnonzero(~(det > 0).all(axis=1))
+    if len(bad):
+        c = x[bad[0], :4].mean(axis=0)
+        raise MeshError(f"mesh: element {bad[0]} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm "
+                        "is inverted or too curved for its edge nodes; remesh finer")
+    inv = np.linalg.inv(jac)
+    dn = np.einsum("qaj,mqji->mqai", dref, inv)
+    return np.ascontiguousarray(dn), np.ascontiguousarray(det * w)
+
+
+def support_check(rest: np.ndarray, held: np.ndarray, what: str) -> None:
+    """Refuse a support whose nodes lie on one line (rotations about it stay free)."""
+    pts = rest[held]
+    size = float(np.ptp(rest, axis=0).max())
+    if len(pts) < 3 or np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)[1] \
+            <= 1e-6 * size:
+        raise SceneError(f"{what} holds the body at {len(pts)} node(s) on one line or "
+                         "point, so it can still rotate about it: widen the region "
+                         "(a face or a volume of the body)")
+
+
+@dataclass
+class ContinuumModel:
+    """A body ready to solve. Build it with `ContinuumModel.from_arrays`."""
+
+    escalate_on_damping = False
+    """Newton keeps the full tangent after a damped step (it stays a descent direction
+    for this energy; the clamped tangent would slow convergence to linear)."""
+
+    rest: np.ndarray  # (n, 3) mm, corners first then edge nodes
+    conn: np.ndarray  # (m, nen)
+    family: Family
+    material: Material
+    dn: np.ndarray
+    wq: np.ndarray
+    volumes_mm3: np.ndarray
+    chamber_names: list[str]
+    chamber_tris: list[np.ndarray]
+    chamber_rest_volume_mm3: np.ndarray
+    body_force_mn: np.ndarray
+    jigs: list[Jig]
+    fixed_nodes: np.ndarray
+    pinned_dofs: np.ndarray
+    pattern: CsrPattern
+    spring_diag: np.ndarray
+    notes: list[str]
+    prescribed_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    prescribed_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.rest)
+
+    @property
+    def tets(self) -> np.ndarray:
+        """(m, 4) corner nodes of each element."""
+        return self.conn[:, :4]
+
+    @property
+    def young_modulus_kpa(self) -> float:
+        return self.material.young_modulus_kpa
+
+    @property
+    def poisson_ratio(self) -> float:
+        return self.material.poisson_ratio
+
+    @classmethod
+    def from_arrays(cls, nodes, conn, mat: Material, element: str = "p2", *,
+                    density_kg_m3: float = 0.0, gravity_m_s2=None, fixed_nodes=None,
+                    chambers: dict | None = None, jigs: list[Jig] | None = None,
+                    prescribed: list | None = None,
+                    min_quality: float = SLIVER_QUALITY) -> ContinuumModel:
+        """Validate and precompute. nodes (n, 3) mm, conn (m, nen) of `element`'s
+        family, chambers {name: (t, 3 or 6) wall triangles, normals out of the cavity},
+        prescribed [(node indices, (3,) displacement mm[, (3,) components held])]
+        (moved clamps, rollers; `fruitcli.fem.model.prescribed_dofs`)."""
+        fam = ELEMENTS[element]
+        rest = np.ascontiguousarray(nodes, dtype=float)
+        conn = np.ascontiguousarray(conn, dtype=np.int64)
+        if conn.ndim != 2 or conn.shape[1] != fam.nodes_per_tet or len(conn) == 0:
+            raise MeshError(f"elements: expected a non-empty (M, {fam.nodes_per_tet}) array "
+                            f"for element {element!r}")
+        if conn.min() < 0 or conn.max() >= len(rest):
+            raise MeshError("elements: node index out of range")
+        corners = conn[:, :4]
+        quality = tet4.tet_quality(rest, corners)
+        worst = int(np.argmin(quality))
+        if quality[worst] < min_quality:
+            c = rest[corners[worst]].mean(axis=0)
+            raise MeshError(f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+                            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+                            "remesh before solving")
+        if (tet4.signed_volumes(rest, corners) < 0).any():
+            raise MeshError("elements: expected positively oriented tets")
+        dn, wq = reference_gradients(rest, conn, fam)
+        n = len(rest)
+        names, tris_list, walls = [], [], []
+        for name, tris in (chambers or {}).items():
+            tris = np.asarray(tris, np.int64)
+            if tris.ndim != 2 or tris.shape[1] != fam.nodes_per_tri or len(tris) < 4:
+                raise MeshError(f"chamber {name}: expected a closed wall of (T, "
+                                f"{fam.nodes_per_tri}) triangles")
+            names.append(str(name))
+            tris_list.append(tris)
+            walls.append(Wall(tris))
+        v_rest = np.array([w.volume(rest) for w in walls])
+        if (v_rest <= 0).any():
+            raise MeshError(f"chamber {names[int(np.argmin(v_rest))]}: wall normals must "
+                            "point out of the cavity")
+        body = np.zeros((n, 3))
+        if gravity_m_s2 is not None and density_kg_m3 > 0:
+            pts, w = fam.volume_rule()
+            shape = tet_shape(pts, fam.order)  # (q, nen)
+            per = np.einsum("mq,qa->ma", wq, shape)  # (m, nen) mm^3: int N_a dV
+            np.add.at(body, conn.ravel(), per.reshape(-1, 1)
+                      * body_force_mn_mm3(density_kg_m3, gravity_m_s2))
+        fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, np.int64))
+        p_dofs, p_mm = prescribed_dofs(prescribed)
+        held = np.unique(np.concatenate([fixed, p_dofs // 3]))
+        jigs = list(jigs or [])
+        notes: list[str] = []
+        pinned = np.zeros(0, np.int64)
+        gravity_on = bool(np.any(body))
+        if len(held) == 0 and not jigs:
+            if gravity_on:
+                raise SceneError("[gravity]: nothing supports the body, so gravity has no "
+                                 "equilibrium; add a [[fixed]] region or a [[jig]], or "
+                                 "remove [gravity]")
+            pinned = pin_rigid_modes(rest[: int(conn[:, :4].max()) + 1])
+            notes.append("no fixed region and no jig: the six rigid modes are removed by a "
+                         f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))} "
+                         "(the loads are self-equilibrated)")
+        elif not jigs and len(p_dofs) < 3 * len(np.unique(p_dofs // 3)):
+            pass  # rollers: the caller's components hold the rigid modes
+        elif not jigs:
+            support_check(rest, held, "[[fixed]]")
+        elif len(held) == 0:
+            support_check(rest, np.unique(np.concatenate([j.nodes for j in jigs])), "[[jig]]")
+        free_mask = np.ones(3 * n, bool)
+        free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
+        free_mask[p_dofs] = False
+        free_mask[pinned] = False
+        pattern = CsrPattern.build(conn, n, free_mask)
+        spring = np.zeros(3 * n)
+        for jig in jigs:
+            np.add.at(spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(),
+                      jig.stiffness_mn_per_mm)
+        model = cls(rest=rest, conn=conn, family=fam, material=mat, dn=dn, wq=wq,
+                    volumes_mm3=wq.sum(axis=1), chamber_names=names, chamber_tris=tris_list,
+                    chamber_rest_volume_mm3=v_rest, body_force_mn=body, jigs=jigs,
+                    fixed_nodes=fixed, pinned_dofs=pinned, pattern=pattern,
+                    spring_diag=spring[pattern.free], notes=notes,
+                    prescribed_dofs=p_dofs, prescribed_mm=p_mm)
+        model.__dict__["_walls"] = walls
+        model.evaluate(rest, tangent=False)  # compiled now, not inside the first state
+        return model
+
+    # -- physics at a configuration x (n, 3) -------------------------------------------
+
+    def evaluate(self, x: np.ndarray, tangent: bool = False):
+        """(internal forces (n, 3) mN, strain energy mN mm or nan when an element is
+        inverted, smallest det F per element (m,), element tangents (m, d, d) or None)."""
+        x = np.ascontiguousarray(x, dtype=float)
+        forces = np.zeros((self.n_nodes, 3))
+        d = 3 * self.conn.shape[1]
+        blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
+        jmin = np.empty(len(self.conn))
+        energy = evaluate(x, self.conn, self.dn, self.wq, self.material.constants(),
+                          self.family.mean_dilatation, tangent, forces, blocks, jmin)
+        if energy == -1.0:
+            energy = np.nan
+        return forces, energy, jmin, (blocks if tangent else None)
+
+    def kinematics(self, x: np.ndarray):
+        """(state, state, smallest det F per element): the state is x itself, evaluated
+        once here and reused by `forces_and_energy` (Newton's interface)."""
+        x = np.array(x, float)
+        forces, energy, jmin, _ = self.evaluate(x)
+        self.__dict__["_last"] = (x, forces, energy)
+        return x, x, jmin
+
+    def forces_and_energy(self, f: np.ndarray, rot=None) -> tuple[np.ndarray, float]:
+        """Internal forces (n, 3) mN and strain energy (mN mm) at the state of
+        `kinematics`."""
+        last = self.__dict__.get("_last")
+        if last is None or last[0] is not f:
+            forces, energy, _, _ = self.evaluate(f)
+            return forces, energy
+        return last[1], last[2]
+
+    def tangent(self, x: np.ndarray, project: bool = False) -> sp.csr_matrix:
+        """Material and geometric tangent over the free dofs (mN/mm) plus the springs;
+        with `project`, each element's block clamped to positive semi-definite."""
+        _, _, _, blocks = self.evaluate(x, tangent=True)
+        if project:
+            w, v = np.linalg.eigh(blocks)
+            blocks = np.einsum("mij,mj,mkj->mik", v, np.maximum(w, 0.0), v)
+        return self.pattern.assemble(blocks, self.spring_diag)
+
+    @property
+    def walls(self) -> list[Wall]:
+        return self.__dict__["_walls"]
+
+    def chamber_volumes(self, x: np.ndarray) -> np.ndarray:
+        """(K,) cavity volumes (mm^3) at x."""
+        return np.array([w.volume(x) for w in self.walls])
+
+    def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
+        """(K, n, 3) dV/dx per chamber (mm^2)."""
+        return np.stack([w.gradient(x) for w in self.walls]) if self.walls else None
+
+    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray):
+        """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k
+        d2V_k/dx2 (mN/mm), or None without chamber pressure."""
+        if not self.walls or not np.any(pressure_kpa):
+            return None
+        free = self.pattern.free
+        h = sum(-pk * w.hessian(x, self.n_nodes)
+                for pk, w in zip(pressure_kpa, self.walls, strict=True) if pk)
+        return sp.csr_matrix(h)[free][:, free]
+
+    def external_forces(self, x, pressure_kpa, load, h=None) -> np.ndarray:
+        """(n, 3) gravity + pressure (follower) + jig spring forces (mN) at x."""
+        f = load.gravity * self.body_force_mn
+        if self.walls:
+            h = self.chamber_gradients(x) if h is None else h
+            f = f + np.einsum("k,kni->ni", pressure_kpa, h)
+        for jig in self.jigs:
+            target = jig.targets(self.rest, load.jig)
+            np.add.at(f, jig.nodes, jig.stiffness_mn_per_mm * (target - x[jig.nodes]))
+        return f
+
+    def external_potential(self, x, pressure_kpa, load) -> float:
+        """Potential of the external loads at x (mN mm)."""
+        e = -load.gravity * float(np.einsum("ni,ni->", self.body_force_mn, x - self.rest))
+        if self.walls:
+            e -= float(pressure_kpa @ self.chamber_volumes(x))
+        for jig in self.jigs:
+            d = x[jig.nodes] - jig.targets(self.rest, load.jig)
+            e += 0.5 * jig.stiffness_mn_per_mm * float(np.einsum("ni,ni->", d, d))
+        return e
+
+    def min_det_f(self, x: np.ndarray) -> np.ndarray:
+        return self.evaluate(x)[2]
+
+    def worst_element(self, det_f: np.ndarray) -> str:
+        i = int(np.argmin(det_f))
+        c = self.rest[self.conn[i, :4]].mean(axis=0)
+        return f"element {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"
+
+    def make_solver(self, method: str = "pcg"):
+        from fruitcli.fem.continuum_solve import ContinuumSolver
+
+        return ContinuumSolver(self, method)
+
+    def map_points(self, tet_index: np.ndarray, bary: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Positions (t, 3), or (s, t, 3) for x (s, n, 3), of points given by their
+        element and barycentric (reference) coordinates (t, 4), with the element's own
+        shape functions (quadratic on 10-node tets)."""
+        shape = tet_shape(bary, self.family.order)  # (t, nen)
+        return np.einsum("...tai,ta->...ti", x[..., self.conn[tet_index], :], shape)
