@@ -66,7 +66,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "time_limit_s": Key("num", 120.0, "gmsh is killed after this many seconds"),
         "min_quality": Key("num", 0.05, "refuse meshes whose worst SICN is below this"),
     },
+    "fem": {
+        "element": Key("str", "p2", "p2 (quadratic tets, P2/P0 mean dilatation: no locking), "
+                       "p2-pure (quadratic, displacement only) or p1 (linear tets, the "
+                       "paper's SOFA element)"),
+    },
     "material": {
+        "model": Key("str", "neo-hookean", "neo-hookean (from E and nu), yeoh (c10_kpa, "
+                     "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)"),
+        "c10_kpa": Key("num", None, "yeoh: C10 (kPa; the shear modulus is 2 C10)"),
+        "c20_kpa": Key("num", 0.0, "yeoh: C20 (kPa)"),
+        "c30_kpa": Key("num", 0.0, "yeoh: C30 (kPa)"),
+        "bulk_modulus_kpa": Key("num", None, "bulk modulus kappa (kPa; default from E, nu)"),
         "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)"),
         "poisson_ratio": Key("num", 0.45, "Poisson's ratio nu (-1 < nu < 0.5)"),
         "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)"),
@@ -87,6 +98,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
         "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi"),
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation"),
+        "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
+                           "models)"),
     },
     "board": {
         "rows": Key("int", 21, "frame rows (Tx lines)"),
@@ -137,6 +150,8 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
     },
     "fixed": {
         "box_mm": Key("box", None, "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)", required=True),
+        "displacement_mm": Key("vec3", None, "the clamp moved by [dx, dy, dz] (mm), ramped "
+                               "with the load steps (default: held at rest)"),
     },
     "jig": {
         "region_box_mm": Key("box", None, "nodes pulled by the springs (mm)", required=True),
@@ -368,15 +383,32 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                          f"got {mat['poisson_ratio']}")
     if mat["density_kg_m3"] < 0:
         raise SceneError(f"{where}: [material].density_kg_m3: expected >= 0")
+    from fruitcli.fem.elements.lagrange import ELEMENTS
+    from fruitcli.fem.materials.build import from_scene
+
+    element = scene["fem"]["element"]
+    if element not in ELEMENTS:
+        near = _closest(element, ELEMENTS)
+        raise SceneError(f"{where}: [fem].element: expected one of {', '.join(ELEMENTS)}, "
+                         f"got {element!r}{near}")
+    try:
+        material = from_scene(mat)
+    except SceneError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+    if material.model == "corotational" and element != "p1":
+        raise SceneError(f"{where}: [material].model = \"corotational\" is the paper's SOFA "
+                         f"model on linear tets: set [fem].element = \"p1\" (got "
+                         f"{element!r}), or use model = \"neo-hookean\"")
     if scene["mesh"]["size_mm"] <= 0:
         raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
     sol = scene["solver"]
     if sol["linear_solver"] not in LINEAR_SOLVERS:
         raise SceneError(f"{where}: [solver].linear_solver: expected one of "
                          f"{', '.join(LINEAR_SOLVERS)}, got {sol['linear_solver']!r}")
-    if sol["tolerance"] <= 0 or sol["max_iterations"] < 1 or sol["jig_steps"] < 1:
+    if sol["tolerance"] <= 0 or sol["max_iterations"] < 1 or sol["jig_steps"] < 1 \
+            or sol["first_steps"] < 1:
         raise SceneError(f"{where}: [solver]: expected tolerance > 0, max_iterations >= 1, "
-                         "jig_steps >= 1")
+                         "jig_steps >= 1, first_steps >= 1")
     act = scene["actuation"]
     lengths = set()
     for key in ("pressure_kpa", "volume_growth_mm3"):

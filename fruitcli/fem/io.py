@@ -47,8 +47,10 @@ def _b64(array: np.ndarray) -> str:
 
 def write_vtu(path: Path, nodes: np.ndarray, tets: np.ndarray,
               point_data: dict[str, np.ndarray] | None = None) -> None:
-    """Unstructured grid of linear tets (VTK XML, base64 binary), atomically."""
-    n, m = len(nodes), len(tets)
+    """Unstructured grid of linear (m, 4) or quadratic (m, 10, VTK's node order) tets
+    (VTK XML, base64 binary), atomically."""
+    n, (m, nen) = len(nodes), np.shape(tets)
+    cell_type = 10 if nen == 4 else 24  # VTK_TETRA, VTK_QUADRATIC_TETRA
     def arr(name, a, dtype, comps):
         return (f'<DataArray type="{dtype}" Name="{name}" NumberOfComponents="{comps}" '
                 f'format="binary">{_b64(a)}</DataArray>')
@@ -62,8 +64,8 @@ def write_vtu(path: Path, nodes: np.ndarray, tets: np.ndarray,
         f'<Points>{arr("Points", np.asarray(nodes, np.float64), "Float64", 3)}</Points>\n'
         '<Cells>'
         f'{arr("connectivity", np.asarray(tets, np.int64).ravel(), "Int64", 1)}'
-        f'{arr("offsets", 4 * np.arange(1, m + 1, dtype=np.int64), "Int64", 1)}'
-        f'{arr("types", np.full(m, 10, np.uint8), "UInt8", 1)}'
+        f'{arr("offsets", nen * np.arange(1, m + 1, dtype=np.int64), "Int64", 1)}'
+        f'{arr("types", np.full(m, cell_type, np.uint8), "UInt8", 1)}'
         '</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n')
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text)

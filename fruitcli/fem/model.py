@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fruitcli.errors import MeshError, SolverError
+from fruitcli.errors import MeshError, SceneError, SolverError
 from fruitcli.fem import corotation, kernels, pressure, tet4
 from fruitcli.fem.assemble import CsrPattern
 from fruitcli.fem.springs import Jig
@@ -39,21 +39,24 @@ class Load:
     volume_controlled: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     gravity: float = 1.0
     jig: float = 1.0
+    prescribed: float = 1.0
 
     @classmethod
-    def pressures(cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0) -> Load:
+    def pressures(cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0,
+                  prescribed: float = 1.0) -> Load:
         p = np.asarray(pressure_kpa, float).reshape(-1)
-        return cls(p, np.zeros_like(p), np.zeros(len(p), bool), gravity, jig)
+        return cls(p, np.zeros_like(p), np.zeros(len(p), bool), gravity, jig, prescribed)
 
     @classmethod
     def zero(cls, n_chambers: int, volume_controlled=None) -> Load:
         vc = np.zeros(n_chambers, bool) if volume_controlled is None else volume_controlled
-        return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0)
+        return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0,
+                   0.0)
 
     def is_zero(self) -> bool:
         """True when nothing loads the body (rest is then the exact answer)."""
         return not (np.any(self.pressure_kpa) or np.any(self.volume_growth_mm3)
-                    or self.gravity or self.jig)
+                    or self.gravity or self.jig or self.prescribed)
 
     def lerp(self, other: Load, t: float) -> Load:
         """The load a fraction t of the way from self to other."""
@@ -61,7 +64,8 @@ class Load:
             return (1.0 - t) * a + t * b
         return replace(other, pressure_kpa=mix(self.pressure_kpa, other.pressure_kpa),
                        volume_growth_mm3=mix(self.volume_growth_mm3, other.volume_growth_mm3),
-                       gravity=mix(self.gravity, other.gravity), jig=mix(self.jig, other.jig))
+                       gravity=mix(self.gravity, other.gravity), jig=mix(self.jig, other.jig),
+                       prescribed=mix(self.prescribed, other.prescribed))
 
 
 def pin_rigid_modes(rest: np.ndarray) -> np.ndarray:
@@ -74,6 +78,22 @@ def pin_rigid_modes(rest: np.ndarray) -> np.ndarray:
     db = d[b]
     c = int(np.argmax(np.abs(db[0] * d[:, 1] - db[1] * d[:, 0])))
     return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b + 1, 3 * b + 2, 3 * c + 2])
+
+
+def prescribed_dofs(prescribed) -> tuple[np.ndarray, np.ndarray]:
+    """(global dofs (d,), their displacement at full load (d,) mm) of prescribed
+    [(node indices, (3,) displacement mm[, (3,) components held])]: a moved clamp
+    holds all three components; a mask holds some (a roller)."""
+    dofs, vals = [np.zeros(0, np.int64)], [np.zeros(0)]
+    for entry in prescribed or []:
+        nodes, disp = np.asarray(entry[0], np.int64), np.asarray(entry[1], float)
+        mask = np.asarray(entry[2], bool) if len(entry) > 2 else np.ones(3, bool)
+        comp = np.flatnonzero(mask)
+        dofs.append((3 * nodes[:, None] + comp).ravel())
+        vals.append(np.tile(disp[comp], len(nodes)))
+    d, v = np.concatenate(dofs), np.concatenate(vals)
+    d, first = np.unique(d, return_index=True)
+    return d, v[first]
 
 
 @dataclass
@@ -97,6 +117,8 @@ class Model:
     pattern: CsrPattern
     spring_diag: np.ndarray  # (n_free,) mN/mm
     notes: list[str]
+    prescribed_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    prescribed_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_nodes(self) -> int:
@@ -105,10 +127,11 @@ class Model:
     @classmethod
     def from_arrays(cls, nodes, tets, E_kpa: float, nu: float, *, density_kg_m3: float = 0.0,
                     gravity_m_s2=None, fixed_nodes=None, chambers: dict | None = None,
-                    jigs: list[Jig] | None = None,
+                    jigs: list[Jig] | None = None, prescribed: list | None = None,
                     min_quality: float = SLIVER_QUALITY) -> Model:
         """Validate and precompute. nodes (n, 3) mm, tets (m, 4), E (kPa), nu, chambers
-        {name: (t, 3) triangles}, fixed_nodes indices, jigs with node indices."""
+        {name: (t, 3) triangles}, fixed_nodes indices, jigs with node indices,
+        prescribed [(node indices, (3,) displacement mm)] (moved clamps)."""
         rest = np.ascontiguousarray(nodes, dtype=float)
         tets = np.ascontiguousarray(tets, dtype=np.int64)
         if rest.ndim != 2 or rest.shape[1] != 3 or not np.isfinite(rest).all():
@@ -164,16 +187,22 @@ class Model:
             per_tet = vol[:, None] * body_force_mn_mm3(density_kg_m3, gravity_m_s2) / 4.0
             body = corotation.scatter_nodes(tets, np.repeat(per_tet[:, None], 4, axis=1), n)
 
+        p_dofs, p_mm = prescribed_dofs(prescribed)
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, np.int64))
         jigs = list(jigs or [])
         pinned = np.zeros(0, np.int64)
-        if len(fixed) == 0 and not jigs:
+        if len(fixed) == 0 and not jigs and not len(p_dofs):
+            if gravity_m_s2 is not None and density_kg_m3 > 0 and np.any(gravity_m_s2):
+                raise SceneError("[gravity]: nothing supports the body, so gravity has no "
+                                 "equilibrium; add a [[fixed]] region or a [[jig]], or "
+                                 "remove [gravity]")
             pinned = pin_rigid_modes(rest)
             notes.append("no fixed region and no jig: the six rigid modes are removed by a "
                          f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))}")
         free_mask = np.ones(3 * n, bool)
         free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
         free_mask[pinned] = False
+        free_mask[p_dofs] = False
         pattern = CsrPattern.build(tets, n, free_mask)
         spring = np.zeros(3 * n)
         for jig in jigs:
@@ -184,7 +213,8 @@ class Model:
                    poisson_ratio=float(nu), dm_inv=dm_inv, volumes_mm3=vol, k0=k0,
                    chamber_names=names, chamber_tris=tris_list, chamber_rest_volume_mm3=v_rest,
                    body_force_mn=body, jigs=jigs, fixed_nodes=fixed, pinned_dofs=pinned,
-                   pattern=pattern, spring_diag=spring[pattern.free], notes=notes)
+                   pattern=pattern, spring_diag=spring[pattern.free], notes=notes,
+                   prescribed_dofs=p_dofs, prescribed_mm=p_mm)
 
     # -- physics at a configuration x (n, 3) -------------------------------------------
 
@@ -360,6 +390,19 @@ class Model:
         """(n, 3) elastic forces (mN) at x with element rotations rot."""
         return corotation.forces_and_energy(x, self.rest, self.tets, self.k0, rot,
                                             self.scatter)[0]
+
+    def min_det_f(self, x: np.ndarray) -> np.ndarray:
+        """(m,) det F per tet at x."""
+        return corotation.det3(corotation.deformation_gradients(x, self.tets, self.dm_inv))
+
+    def make_solver(self, method: str = "pcg"):
+        from fruitcli.fem.linsolve import TangentSolver
+
+        return TangentSolver(self, method)
+
+    def map_points(self, tet_index: np.ndarray, bary: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Positions (t, 3), or (s, t, 3), of points given by tet and weights (t, 4)."""
+        return np.einsum("...tai,ta->...ti", x[..., self.tets[tet_index], :], bary)
 
     def worst_element(self, det_f: np.ndarray) -> str:
         """'tet i at (x, y, z) mm (det F = ...)' for the most compressed element."""

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem import corotation
 from fruitcli.fem.linsolve import TangentSolver
 from fruitcli.fem.model import Load, Model
 from fruitcli.fem.tolerances import (
@@ -127,6 +126,8 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     """Returns (converged, x, p, iterations, merit, det_f)."""
     m = step.m
     rot, det_f, h, r, g, merit, energy, f = step.evaluate(x, p)
+    if not np.isfinite(energy):  # an element inverted at the start (hyperelastic model)
+        return False, x, p, 0, np.inf, det_f
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
     size = float(np.ptp(m.rest, axis=0).max())
     level = 0  # index into TANGENTS; raised for one step when a step fails
@@ -175,7 +176,8 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return False, x, p, it + 1, merit, trial[1]
         # a damped step says the tangent models the energy poorly here: take the next,
         # safer tangent until a full step is accepted again
-        level = 0 if alpha == 1.0 else min(level + 1, 2)
+        damped_escalates = getattr(m, "escalate_on_damping", True)
+        level = 0 if alpha == 1.0 or not damped_escalates else min(level + 1, 2)
         x, p = xt, pt
         if it == 0 and alpha == 1.0 and merit > 0 and trial[5] > 3.0 * step.solver.rtol * merit:
             step.solver.newton_c = trial[5] / merit**2  # nonlinear part dominates: observe C
@@ -202,7 +204,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     p = np.zeros(k) if pressure_start is None else np.array(pressure_start, float)
     if k:
         p[~vc] = load_start.pressure_kpa[~vc]
-    solver = solver or TangentSolver(model, options.linear_solver)
+    solver = solver or model.make_solver(options.linear_solver)
     scale = FORCE_FLOOR * model.young_modulus_kpa * float(np.ptp(model.rest, axis=0).max()) ** 2
     t, dt, det_ok = 0.0, 1.0 / max(1, options.load_steps), None
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
@@ -220,6 +222,10 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
             x_try, p_try = guess[0], guess[1].copy()
         if k:
             p_try[~vc] = step_load.pressure_kpa[~vc]
+        if x_try is x and len(model.prescribed_dofs) and not retry:
+            x_try = _lift_prescribed(model, solver, x, load_start.lerp(load, t), step_load)
+        x_try = impose_prescribed(model, x_try, step_load)
+        lifted = x_try is not x
         ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
         step = _Step(model, solver, step_load, ref)
         ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
@@ -228,13 +234,17 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
             last = (t, x, p)
             x, p, t, det_ok, retry = x_new, p_new, t_new, det_f, False
             continue
-        if x_try is not x:  # the predictor may have misled Newton: retry from x first
+        if lifted and not retry:  # the predictor may have misled Newton: retry from x first
             retry = True
             continue
         retry = False
         subdivisions += 1
         if subdivisions > options.max_subdivisions:
             hint = "lower the load or raise [solver].max_subdivisions"
+            if k and np.any(load.pressure_kpa[~vc]):
+                hint = ("a chamber pressure may be past the body's limit point (the largest "
+                        "pressure it can hold while inflating): control its volume "
+                        "([actuation].volume_growth_mm3) to follow the inflation past it")
             if det_f.min() <= 1.01 * MIN_DET_F:
                 hint = ("elements are about to invert: the load is likely past what the body "
                         "can carry (a chamber past its limit pressure: control its volume)")
@@ -279,7 +289,7 @@ def _load_vector(load: Load) -> np.ndarray:
     of control mode makes the secant meaningless, see `_history_guess`)."""
     vc = np.asarray(load.volume_controlled, bool)
     return np.concatenate([np.where(vc, load.volume_growth_mm3, load.pressure_kpa),
-                           [load.gravity, load.jig], vc.astype(float)])
+                           [load.gravity, load.jig, load.prescribed], vc.astype(float)])
 
 
 def _history_guess(history, x_start, load: Load):
@@ -331,10 +341,53 @@ def _quadratic_weights(d: np.ndarray, dq: np.ndarray):
     return c
 
 
+def impose_prescribed(model, x: np.ndarray, load: Load) -> np.ndarray:
+    """x with the prescribed dofs (moved [[fixed]] regions) at rest + load.prescribed *
+    displacement (a copy when anything is prescribed)."""
+    if not len(model.prescribed_dofs):
+        return x
+    x = np.array(x, float)
+    flat = x.reshape(-1)
+    flat[model.prescribed_dofs] = (model.rest.reshape(-1)[model.prescribed_dofs]
+                                   + load.prescribed * model.prescribed_mm)
+    return x
+
+
+LIFT_FRACTION = 1e-3
+"""`_lift_prescribed` measures the forces of the prescribed motion over this fraction of
+it (small enough to stay linear and invert nothing)."""
+
+
+def _lift_prescribed(model, solver, x: np.ndarray, load_a: Load, load_b: Load) -> np.ndarray:
+    """Start of a load step that moves prescribed dofs: the free dofs follow the motion
+    by one linear solve with the tangent at x, K_ff dx_f = -K_fp dx_p (K_fp dx_p from
+    the forces over LIFT_FRACTION of the motion), so that moving a clamp inverts no
+    element next to it. x itself when nothing moves."""
+    dp = (load_b.prescribed - load_a.prescribed) * model.prescribed_mm
+    if not np.any(dp):
+        return x
+    free = model.pattern.free
+    kin = model.kinematics(x)
+    f0 = model.forces_and_energy(kin[0], kin[1])[0].reshape(-1)[free].copy()
+    xe = np.array(x, float)
+    xe.reshape(-1)[model.prescribed_dofs] += LIFT_FRACTION * dp
+    kin_e = model.kinematics(xe)
+    f1 = model.forces_and_energy(kin_e[0], kin_e[1])[0].reshape(-1)[free]
+    kin = model.kinematics(x)
+    solver.update(kin[1], kin[0], None, True)
+    dx = solver.solve(-(f1 - f0) / LIFT_FRACTION)
+    out = np.array(x, float)
+    out.reshape(-1)[free] += dx
+    out.reshape(-1)[model.prescribed_dofs] += dp
+    return out
+
+
 def _unloaded(model: Model, load: Load) -> bool:
     """True when the load is zero in effect: no chamber load, gravity or jig scale
-    multiplying zero, a jig whose target is its rest position."""
+    multiplying zero, a jig whose target is its rest position, no moved region."""
     if np.any(load.pressure_kpa) or np.any(load.volume_growth_mm3):
+        return False
+    if load.prescribed and np.any(model.prescribed_mm):
         return False
     if load.gravity and np.any(model.body_force_mn):
         return False
@@ -344,7 +397,7 @@ def _unloaded(model: Model, load: Load) -> bool:
 def _result(model: Model, x, p, iterations, merit, subdivisions, t0,
             det_f=None) -> StateResult:
     if det_f is None:
-        det_f = corotation.det3(corotation.deformation_gradients(x, model.tets, model.dm_inv))
+        det_f = model.min_det_f(x)
     volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
     return StateResult(x=x, displacement_mm=x - model.rest, pressure_kpa=p,
                        chamber_volume_mm3=volumes, iterations=iterations, residual=merit,

@@ -17,8 +17,6 @@ import time
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem import barycentric
-from fruitcli.fem.linsolve import TangentSolver
 from fruitcli.fem.model import Load, Model
 from fruitcli.fem.newton import SolverOptions, solve_state
 
@@ -41,12 +39,12 @@ class OnlineSolver:
         self.model, self.options, self.min_change = model, options, min_change_kpa
         self.first_options = first_options or options
         self.tet, self.bary = np.asarray(taxel_tet), np.asarray(taxel_bary, float)
-        self.solver = TangentSolver(model, options.linear_solver)
+        self.solver = model.make_solver(options.linear_solver)
         self.x: np.ndarray | None = None  # None until the first solve (rest)
         self.p = np.zeros(len(model.chamber_names))
         self.load: Load | None = None
         self.solved_kpa: np.ndarray | None = None
-        self.taxels_mm = barycentric.apply(model.rest, model.tets, self.tet, self.bary)
+        self.taxels_mm = model.map_points(self.tet, self.bary, model.rest)
         self.solve_ms: list[float] = []
         self.failures = 0
         self.last_error: str | None = None
@@ -78,7 +76,7 @@ class OnlineSolver:
             return False
         self.x, self.p, self.load = res.x, res.pressure_kpa, load
         # one assignment: the live loop reads the old positions or the new, never half
-        self.taxels_mm = barycentric.apply(res.x, self.model.tets, self.tet, self.bary)
+        self.taxels_mm = self.model.map_points(self.tet, self.bary, res.x)
         self.solve_ms.append(res.solve_ms)
         return True
 
