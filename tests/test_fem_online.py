@@ -126,6 +126,10 @@ ellipsoid = {center_mm = [0.0, 0.0, 4.0], radii_mm = [20.0, 20.0, 2.5]}
 [grid]
 spacing_x_mm = 16.0
 spacing_y_mm = 16.0
+[fem]                   # the paper's model: fast enough to follow the frames here
+element = "p1"
+[material]
+model = "corotational"
 [mesh]
 size_mm = 6.0
 [[fixed]]

@@ -3,7 +3,10 @@
 Each case is a small structured body (so the whole study runs in seconds) pushed to an
 extreme: E from 1 kPa to 1 GPa, nu from 0 to 0.499, a chamber pressure ramped until
 elements would invert, jig stiffness from 1e-3 to 1e6 N/mm, a sliver tet, a body with no
-support. Each row says whether it converged or names the failure in one line, with
+support (the paper's model); and with the default element and material (p2,
+neo-Hookean): nu up to 0.4999, a chamber pressure past the inflation's limit point
+(pressure control fails there, naming it) and the same inflation followed under volume
+control. Each row says whether it converged or names the failure in one line, with
 Newton iterations, load-step subdivisions, final residual, max displacement, min det F
 and time. No NaN reaches a row: a non-finite result is itself a named failure.
 """
@@ -39,6 +42,9 @@ class Case:
     nu: float = 0.3
     pressure_kpa: float = 0.0
     stiffness_n_per_mm: float = 10.0
+    element: str = "p1"
+    material: str = "corotational"
+    volume_growth: float = 0.0  # times the cavity's rest volume (volume control)
 
 
 def default_cases() -> list[Case]:
@@ -50,31 +56,71 @@ def default_cases() -> list[Case]:
               for p in (5.0, 20.0, 50.0, 100.0, 200.0, 400.0)]
     cases += [Case("jig", f"k = {k:g} N/mm", "jig", stiffness_n_per_mm=k)
               for k in (1e-3, 1e-1, 10.0, 1e3, 1e6)]
+    p2 = {"element": "p2", "material": "neo-hookean"}
+    cases += [Case("nu, p2", f"nu = {nu:g} (p2)", "beam_gravity", nu=nu, **p2)
+              for nu in (0.3, 0.45, 0.49, 0.499, 0.4999)]
+    cases += [Case("pressure, p2", f"p = {p:g} kPa (p2)", "hollow_pressure", pressure_kpa=p, **p2)
+              for p in (5.0, 20.0, 50.0, 100.0)]
+    cases += [Case("volume, p2", f"growth {g:g} V0 (p2)", "hollow_pressure", volume_growth=g,
+                   **p2) for g in (0.5, 1.0, 2.0)]
     cases += [Case("sliver", "one sliver tet", "sliver"),
               Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0)]
     return cases
 
 
+def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
+    """The case's model: the paper's `Model` (p1, corotational) or the hyperelastic one
+    on the case's element (quadratic meshes built from the linear one here). Nodes with
+    coordinate `fixed_where` = (axis, value) are held."""
+    from fruitcli.fem.model import Model
+
+    def held(x):
+        return None if fixed_where is None else np.flatnonzero(
+            np.abs(x[:, fixed_where[0]] - fixed_where[1]) < 1e-9)
+
+    if case.element == "p1" and case.material == "corotational":
+        return Model.from_arrays(nodes, tets, case.E_kpa, case.nu, chambers=chambers,
+                                 fixed_nodes=held(nodes), **kw)
+    from fruitcli.fem.continuum import ContinuumModel
+    from fruitcli.fem.elements.quadratic import quadratic_mesh
+    from fruitcli.fem.materials.build import material
+
+    names = list(chambers or {})
+    walls = [pressure_outward(nodes, w) for w in (chambers or {}).values()]
+    if case.element != "p1":
+        nodes, tets, walls = quadratic_mesh(nodes, tets, walls)
+    return ContinuumModel.from_arrays(
+        nodes, tets, material(case.material, case.E_kpa, case.nu), case.element,
+        chambers=dict(zip(names, walls, strict=True)), fixed_nodes=held(nodes), **kw)
+
+
+def pressure_outward(nodes, tris):
+    from fruitcli.fem.pressure import orient_outward
+
+    return orient_outward(nodes, np.asarray(tris, np.int64))
+
+
 def _beam(case: Case):
     from fruitcli.fem.grid import structured_box
-    from fruitcli.fem.model import Load, Model
+    from fruitcli.fem.model import Load
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
-    fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
-    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, density_kg_m3=DENSITY,
-                              gravity_m_s2=GRAVITY, fixed_nodes=fixed)
+    model = _build(case, nodes, tets, density_kg_m3=DENSITY, gravity_m_s2=GRAVITY,
+                   fixed_where=(0, 0.0))
     return model, Load.pressures([], gravity=1.0)
 
 
 def _hollow(case: Case, free: bool = False):
     from fruitcli.fem.grid import structured_box_with_cavity
-    from fruitcli.fem.model import Load, Model
+    from fruitcli.fem.model import Load
 
     nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS,
                                                      CAVITY_LO_MM, CAVITY_HI_MM)
-    fixed = None if free else np.flatnonzero(nodes[:, 2] < 1e-9)
-    model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=fixed,
-                              chambers={"c": cavity})
+    model = _build(case, nodes, tets, chambers={"c": cavity},
+                   fixed_where=None if free else (2, 0.0))
+    if case.volume_growth:
+        growth = case.volume_growth * model.chamber_rest_volume_mm3
+        return model, Load(np.zeros(1), growth, np.ones(1, bool), 1.0, 1.0)
     return model, Load.pressures([case.pressure_kpa])
 
 
@@ -128,6 +174,10 @@ def run_case(case: Case) -> dict:
                    min_det_f=float(res.min_det_f))
         if case.kind == "beam_gravity":
             row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
+        if case.kind == "hollow_pressure" and len(res.pressure_kpa):
+            growth = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0] - 1.0
+            row["note"] = (row["note"] + "; " if row["note"] else "") + \
+                f"pressure {res.pressure_kpa[0]:.4g} kPa, volume growth {growth:.3g} V0"
         if res.min_det_f <= 0:
             row["status"] = "converged with inverted elements"
     except FruitError as exc:
@@ -144,11 +194,13 @@ def add_scaling_columns(rows: list[dict]) -> None:
         e = float(r["case"].split("=")[1].split()[0])
         r["note"] = (r["note"] + "; " if r["note"] else "") + \
             f"tip x E = {r['tip_deflection_mm'] * e:.4g} mm kPa"
-    ref = [r for r in rows if r["group"] == "nu" and r["case"] == "nu = 0.3"]
-    if ref and "tip_deflection_mm" in ref[0]:
+    for group, ref_name in (("nu", "nu = 0.3"), ("nu, p2", "nu = 0.3 (p2)")):
+        ref = [r for r in rows if r["group"] == group and r["case"] == ref_name]
+        if not (ref and "tip_deflection_mm" in ref[0]):
+            continue
         base = ref[0]["tip_deflection_mm"]
         for r in rows:
-            if r["group"] == "nu" and "tip_deflection_mm" in r:
+            if r["group"] == group and "tip_deflection_mm" in r:
                 r["note"] = (r["note"] + "; " if r["note"] else "") + \
                     f"tip / tip(nu=0.3) = {r['tip_deflection_mm'] / base:.3f}"
 

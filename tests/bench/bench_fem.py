@@ -12,6 +12,10 @@ scene's states: the live rate of the target).
 
 And Lame's thick sphere as the mesh is refined (accuracy against run time).
 
+The tables up to the online FEM time the paper's model (linear tets, corotational Hooke,
+as SOFA); `bench_elements` then times every element and material of [fem] / [material]
+on the default mesh, and the default scenes' own (p2, neo-Hookean).
+
 Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [--no-pad]
      [--lame-sizes 3 2 1.5]
 """
@@ -80,29 +84,31 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
     return [Load.pressures(row) for row in spline(t)]
 
 
-def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None):
+def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
+                keep_states: bool = False):
     """Solve the scene's states (or `loads`, a function of the chamber names) in order
-    with one reused solver; returns (model, solver, rows (ms, iterations, cg))."""
+    with one reused solver; returns (model, solver, rows (ms, iterations, cg)[, the
+    StateResults])."""
     from fruitcli.fem import io
-    from fruitcli.fem.linsolve import TangentSolver
     from fruitcli.fem.newton import SolverOptions, solve_state
     from fruitcli.fem.stage import build_model
 
     model = build_model(scene, io.load_mesh(mesh_npz))
     loads = (loads or (lambda names: scene_loads(scene, names, n_states)))(model.chamber_names)
-    solver = TangentSolver(model, solver_name)
+    solver = model.make_solver(solver_name)
     cfg = scene["solver"]
     opts = SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
                          solver_name)
     x = p = prev = None
-    rows = []
+    rows, states = [], []
     for load in loads:
         cg0 = solver.stats["cg_iterations"]
         res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
                           options=opts, solver=solver)
         rows.append((res.solve_ms, res.iterations, solver.stats["cg_iterations"] - cg0))
+        states.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
-    return model, solver, rows
+    return (model, solver, rows, states) if keep_states else (model, solver, rows)
 
 
 def breathing_runs(scene, mesh_npz, n_states: int) -> list:
@@ -240,39 +246,93 @@ ellipsoid = {{center_mm = [0.0, 0.0, 0.0], radii_mm = [10.0, 10.0, 10.0]}}
 [mesh]
 size_mm = {size}
 min_size_mm = {cavity}
+[fem]
+element = "{element}"
 [material]
+model = "{model}"
 young_modulus_kpa = 100.0
-poisson_ratio = 0.3
+poisson_ratio = {nu}
 [actuation]
 pressure_kpa = {{c = [0.1]}}
 """
 
 
-def bench_lame(tmp: Path, sizes: list[float]) -> None:
-    """Lame's thick sphere (cavity a = 10, ball b = 20 mm, E = 100 kPa, nu = 0.3, 0.1 kPa,
-    free): the chamber's compliance dV/dp against the closed form as the mesh is refined
-    (size, cavity size = size / 2), with tets and the time of tetra + simulate."""
+def bench_lame(tmp: Path, sizes: list[float], p2_sizes: list[float]) -> None:
+    """Lame's thick sphere (cavity a = 10, ball b = 20 mm, E = 100 kPa, 0.1 kPa, free):
+    the chamber's compliance dV/dp against the closed form as the mesh is refined (size,
+    cavity size = size / 2), with tets and the time of tetra + simulate: the paper's
+    model (p1, corotational) at nu = 0.3 on `sizes`, the default element (p2,
+    neo-Hookean) at nu = 0.3, 0.49 and 0.4999 on `p2_sizes`."""
     import trimesh
 
     from fruitcli.fem.stage import run_simulate, run_tetra
     from fruitcli.scene import parse_scene
 
     trimesh.creation.icosphere(3, 20.0).export(tmp / "ball.stl")
-    e, nu, a, b, p = 100.0, 0.3, 10.0, 20.0, 0.1
-    u_a = p * a**3 / (e * (b**3 - a**3)) * ((1 - 2 * nu) * a + (1 + nu) * b**3 / (2 * a**2))
-    exact = 4 * np.pi * a**2 * u_a / p
-    print(f"\nLame's thick sphere, compliance dV/dp (closed form {exact:.2f} mm^3/kPa):")
-    print(f"{'size_mm':>7} {'cavity':>6} {'tets':>7} {'dV/dp':>7} {'error':>7} {'time_s':>6}")
-    for size in sizes:
-        scene = parse_scene(LAME_SCENE.format(size=size, cavity=size / 2), tmp / "lame.toml")
-        out = tmp / f"lame-{size:g}"
+    a, b, p = 10.0, 20.0, 0.1
+    print("\nLame's thick sphere, compliance dV/dp against the closed form:")
+    print(f"{'element':>8} {'nu':>6} {'size_mm':>7} {'cavity':>6} {'tets':>7} {'dV/dp':>7} "
+          f"{'exact':>7} {'error':>7} {'time_s':>6}")
+    runs = [("p1", "corotational", 0.3, size) for size in sizes]
+    runs += [("p2", "neo-hookean", nu, size) for nu in (0.3, 0.49, 0.4999) for size in p2_sizes]
+    for element, model, nu, size in runs:
+        u_a = p * a**3 / (100.0 * (b**3 - a**3)) * ((1 - 2 * nu) * a
+                                                    + (1 + nu) * b**3 / (2 * a**2))
+        exact = 4 * np.pi * a**2 * u_a / p
+        text = LAME_SCENE.format(size=size, cavity=size / 2, element=element, model=model,
+                                 nu=nu)
+        scene = parse_scene(text, tmp / "lame.toml")
+        out = tmp / f"lame-{element}-{nu:g}-{size:g}"
         t0 = time.perf_counter()
         q = run_tetra(scene, None, out)
         run_simulate(scene, out / "mesh.npz", None, out)
         st = np.load(out / "states.npz", allow_pickle=False)
         dv = (st["chamber_volume_mm3"][0, 0] - st["chamber_rest_volume_mm3"][0]) / p
-        print(f"{size:7g} {size / 2:6g} {q['n_tets']:7d} {dv:7.2f} {100 * (dv / exact - 1):+6.1f}% "
-              f"{time.perf_counter() - t0:6.1f}", flush=True)
+        print(f"{element:>8} {nu:6g} {size:7g} {size / 2:6g} {q['n_tets']:7d} {dv:7.2f} "
+              f"{exact:7.2f} {100 * (dv / exact - 1):+6.1f}% {time.perf_counter() - t0:6.1f}",
+              flush=True)
+
+
+def paper_model(scene):
+    """The scene with the paper's SOFA model: linear tets, corotational Hooke."""
+    scene = copy.deepcopy(scene)
+    scene.data["fem"]["element"] = "p1"
+    scene.data["material"]["model"] = "corotational"
+    return scene
+
+
+ELEMENT_SETTINGS = [("p1", "corotational"), ("p1", "neo-hookean"), ("p2-pure", "neo-hookean"),
+                    ("p2", "neo-hookean")]
+
+
+def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
+    """Time per breathing state for each element and material on the default mesh: the
+    first state from rest, the median of the others from the previous one, and the
+    chambers' volume growth at the state with c1 at its peak relative to the default
+    element's (what the paper's model costs in accuracy)."""
+    print(f"\nelements on the default fruit's breathing ({n_states} states, pcg):")
+    print(f"{'element':>8} {'material':>12} {'dofs':>6} {'rest_ms':>8} {'median_ms':>9} "
+          f"{'iters':>5} {'factor':>6} {'dV c1/c2/c3 vs p2':>20}")
+    growth = {}
+    for element, material in ELEMENT_SETTINGS:
+        scene = copy.deepcopy(scene0)
+        scene.data["fem"]["element"] = element
+        scene.data["material"]["model"] = material
+        model, solver, rows, states = time_states(scene, mesh_npz, "pcg", n_states,
+                                                  keep_states=True)
+        peak = int(np.argmax([s.pressure_kpa[0] for s in states]))
+        growth[(element, material)] = (states[peak].chamber_volume_mm3
+                                       - model.chamber_rest_volume_mm3)
+        later = np.array([r[0] for r in rows[1:]])
+        dofs = len(model.pattern.free)
+        print(f"{element:>8} {material:>12} {dofs:6d} {rows[0][0]:8.0f} {np.median(later):9.1f} "
+              f"{np.mean([r[1] for r in rows[1:]]):5.1f} {solver.stats['factorizations']:6d}",
+              end="", flush=True)
+        print()
+    ref = growth[("p2", "neo-hookean")]
+    for key, g in growth.items():
+        print(f"  {key[0]:>8} {key[1]:>12}: chamber growth / default element's = "
+              + " / ".join(f"{v:.2f}" for v in g / ref))
 
 
 def main() -> None:
@@ -284,6 +344,8 @@ def main() -> None:
     ap.add_argument("--no-pad", action="store_true", help="skip the touchpad bend")
     ap.add_argument("--lame-sizes", type=float, nargs="*", default=[3.0, 2.0],
                     help="mesh sizes of Lame's sphere (1.5 adds about 70 s); none to skip")
+    ap.add_argument("--lame-p2-sizes", type=float, nargs="*", default=[6.0, 5.0, 4.0],
+                    help="mesh sizes of Lame's sphere for the default element")
     ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--pad-tolerance", type=float, default=None,
                     help="override the touchpad scene's [solver] tolerance")
@@ -292,13 +354,15 @@ def main() -> None:
     from fruitcli.scene import load_scene
 
     if args.child_states is not None:  # peak memory of the simulation alone
-        scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+        scene = paper_model(load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
+                                       must_exist=False))
         _, _, rows = time_states(scene, args.child_states, "pcg", args.states)
         print(f"{hwm_mb():.0f} {np.median([r[0] for r in rows[1:]]):.1f}")
         return
     from fruitcli.fem.stage import run_tetra
 
-    scene0 = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    scene0 = paper_model(scene_default)  # the tables below: the paper's model, as before
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
@@ -355,10 +419,11 @@ def main() -> None:
               f"build, solve) {child_rss} MB, median state there {child_med} ms "
               f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
         bench_online(scene0, default_mesh, tmp / "tracks" / "taxels.csv")
+        bench_elements(scene_default, default_mesh, args.states)
         if not args.no_pad:
             bench_pad(tmp, args.pad_tolerance)
         if args.lame_sizes:
-            bench_lame(tmp, args.lame_sizes)
+            bench_lame(tmp, args.lame_sizes, args.lame_p2_sizes)
 
 
 if __name__ == "__main__":
