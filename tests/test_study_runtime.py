@@ -35,6 +35,10 @@ def test_cases_sweep_size_tolerance_cap_and_solver():
     assert {c.linear_solver for c in cases} >= {"pcg", "direct"}
     assert any(c.max_iterations < 25 for c in cases)
     assert len({c.name for c in cases}) == len(cases)
+    # the paper's model and the other elements, at the default size, against the scene's
+    elements = {(c.element, c.material) for c in cases if c.element is not None}
+    assert ("p1", "corotational") in elements and ("p2-pure", "neo-hookean") in elements
+    assert all(c.size_mm == 5.0 for c in cases if c.element is not None)
 
 
 def test_default_reason_uses_the_measured_row():

@@ -20,13 +20,16 @@ from fruitcli.scene import load_scene
 
 @dataclass(frozen=True)
 class FemCase:
-    """One FEM setting: mesh size (mm), Newton tolerance, iteration cap, linear solver."""
+    """One FEM setting: mesh size (mm), Newton tolerance, iteration cap, linear solver,
+    element and material (None: the scene's)."""
 
     name: str
     size_mm: float
     tolerance: float
     max_iterations: int
     linear_solver: str
+    element: str | None = None
+    material: str | None = None
 
 
 def fem_cases(default_size: float) -> list[FemCase]:
@@ -36,6 +39,12 @@ def fem_cases(default_size: float) -> list[FemCase]:
     cases += [FemCase(f"tol {t:g}", default_size, t, 25, "pcg") for t in (1e-2, 1e-4, 1e-8)]
     cases += [FemCase("tol 1e-3, cap 3 its", default_size, 1e-3, 3, "pcg"),
               FemCase("solver direct", default_size, 1e-6, 25, "direct")]
+    cases += [FemCase("element p1, corotational (the paper's model)", default_size, 1e-6, 25,
+                      "pcg", "p1", "corotational"),
+              FemCase("element p1, neo-hookean", default_size, 1e-6, 25, "pcg", "p1",
+                      "neo-hookean"),
+              FemCase("element p2-pure, neo-hookean", default_size, 1e-6, 25, "pcg",
+                      "p2-pure", "neo-hookean")]
     return cases
 
 
@@ -44,6 +53,9 @@ def _scene_variant(scene, case: FemCase):
     variant.data["mesh"]["size_mm"] = case.size_mm
     variant.data["solver"].update(tolerance=case.tolerance, max_iterations=case.max_iterations,
                                   linear_solver=case.linear_solver)
+    if case.element is not None:
+        variant.data["fem"]["element"] = case.element
+        variant.data["material"]["model"] = case.material
     return variant
 
 
@@ -83,7 +95,7 @@ def add_errors(rows: list[dict]) -> None:
     ok = [r for r in rows if r["status"] == "ok"]
     if not ok:
         return
-    ref = min(ok, key=lambda r: (r["size_mm"], r["tolerance"]))
+    ref = min(ok, key=lambda r: (r["size_mm"], r["tolerance"], "element" in r["setting"]))
     ref_xyz = np.asarray(ref["taxels"])
     for r in ok:
         d = np.linalg.norm(np.asarray(r["taxels"]) - ref_xyz, axis=1)
