@@ -193,4 +193,4 @@ def online_solver(scene, mesh_npz, taxels_xyz, progress):
     tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
     progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
     return OnlineSolver(model, tet, w, solver_options(scene),
-                        solver_options(scene, first_state=bool(model.jigs)))
+                        solver_options(scene, first_state=True, jig=bool(model.jigs)))
