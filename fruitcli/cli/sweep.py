@@ -67,7 +67,8 @@ def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, fig
             specs = [parse_set(s) for s in sets]
             variants = build_variants(scene.path, specs, "grid" if grid else "zip")
         except SweepError as exc:
-            raise click.BadParameter(str(exc), param_hint="--set") from None
+            raise click.BadParameter(str(exc).removeprefix("--set "), param_hint="--set") \
+                from None
         out = Path(out_dir) if out_dir else Path("out") / f"sweep-{scene.name}"
         if dry_run:
             _dry_run(variants, out)
