@@ -362,3 +362,20 @@ def test_studies_run_their_cases_on_a_dask_cluster(cluster):
     for s, d in zip(serial, on_dask, strict=True):
         for key in ("status", "iterations", "residual", "max_disp_mm", "min_det_f"):
             assert s[key] == d[key]
+
+
+@pytest.mark.slow
+def test_the_runtime_study_on_a_dask_cluster_gives_the_serial_rows(pad, tmp_path, cluster,
+                                                                   fruit):
+    scene = tmp_path / "pad8.toml"  # coarser: the study meshes 16 to 6.4 mm
+    scene.write_text(PAD.replace("size_mm = 5.0", "size_mm = 8.0"))
+    rows = {}
+    for where in (["--jobs", 1], ["--scheduler", cluster.scheduler_address]):
+        out = tmp_path / where[0].strip("-")
+        result = fruit("-q", "study", "runtime", scene, "--out", out, *where)
+        assert result.exit_code == 0, result.output
+        fem = json.loads((out / "runtime.json").read_text())["fem"]
+        rows[where[0]] = [{k: v for k, v in r.items() if k not in ("state_ms", "simulate_s",
+                                                                    "pareto")} for r in fem]
+    assert rows["--jobs"] == rows["--scheduler"]
+    assert len(rows["--jobs"]) == 10 and all(r["status"] == "ok" for r in rows["--jobs"])
