@@ -83,6 +83,7 @@ def test_set_values_are_toml_values_and_bare_words_strings():
     assert spec.key == "geometry.chamber.c1.radii_mm"
     assert spec.values == ([10, 10, 4], [12, 10, 4])
     assert parse_set("solver.linear_solver=pcg,direct").values == ("pcg", "direct")
+    assert parse_set("geometry.solid=data/a.stl,b.stl").values == ("data/a.stl", "b.stl")
     assert parse_set("mesh.size_mm=3,4.5,1e1").values == (3, 4.5, 10.0)
     assert parse_set('scene.description="a, b",true').values == ("a, b", True)
 

@@ -47,7 +47,7 @@ def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, fig
     Each variant is validated like a scene file before anything runs; a bad key or value
     stops the sweep at once, naming it. Keys are written as in the scene file
     (section.key; geometry.chamber.<name>.<key>; jig.1.rotate_deg); values are TOML
-    values, a bare word is a string. Each variant's stages go to OUT/variants/<name>/;
+    values, a bare word or path is a string. Each variant's stages go to OUT/variants/<name>/;
     stages that variants share (same inputs) run once. A variant that fails is a row with
     its error and the sweep goes on; running the same sweep again reuses every finished
     variant.

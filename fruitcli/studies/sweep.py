@@ -7,7 +7,7 @@ part (`actuation.pressure_kpa.c1`, `geometry.chamber.c1.ellipsoid.radii_mm`). Ch
 are named by their `name` (or their number, from 1), other arrays of tables by number:
 `jig.1.rotate_deg`, `fixed.1.box_mm`. `geometry.chamber.c1.radii_mm` is short for
 `...c1.ellipsoid.radii_mm`. Values are TOML values (`3.5`, `true`, `"text"`,
-`[10, 10, 4]`); a bare word is a string (`solver.linear_solver=pcg,direct`).
+`[10, 10, 4]`); a bare word or path is a string (`solver.linear_solver=pcg,direct`).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ class Variant:
     text: str
 
 
-BARE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.+-]*$")
+BARE = re.compile(r"^[A-Za-z_./][A-Za-z0-9_./+-]*$")  # words and paths
 
 
 def parse_set(option: str) -> SetSpec:
