@@ -112,6 +112,11 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
     def progress(done, total, row):
         if silent:
             return
+        if row is not None and "stage" in row:  # a stage several variants share
+            state = f"failed ({row['error']})" if row["error"] else "done"
+            click.echo(f"sweep: {done}/{total} variants, shared {row['stage']} {state} "
+                       f"(in {row['variant']})", err=True)
+            return
         last = "" if row is None else (f", last: {row['variant']} " + (
             "ok" if row["status"] == "ok" else f"failed ({row['error']})"))
         click.echo(f"sweep: {done}/{total} variants{last}", err=True)

@@ -19,19 +19,11 @@ UNITS = ("units: *_mm in mm, state_ms in ms (median time per FEM state), variant
 
 def columns(rows: list[dict], keys: list[str]) -> list[str]:
     """variant, the swept keys, the figures present in some row (a stable order), status."""
-    present = {c for r in rows if r for c in r}
-    extra = sorted({c for c in present if c not in set(keys) | set(FIGURE_ORDER) | set(TAIL)
-                    | {"variant"}}, key=_eval_order)
+    present = list(dict.fromkeys(c for r in rows if r for c in r))  # first seen first
+    known = set(keys) | set(FIGURE_ORDER) | set(TAIL) | {"variant"}
+    extra = [c for c in present if c not in known]  # Table I: <row>_n, _mean_mm, _std_mm
     return (["variant", *keys] + [c for c in FIGURE_ORDER if c in present] + extra
             + [c for c in TAIL if c in present or c in ("status", "error")])
-
-
-def _eval_order(col: str):
-    """Table I columns grouped by row: <row>_n, <row>_mean_mm, <row>_std_mm."""
-    for n, suffix in enumerate(("_n", "_mean_mm", "_std_mm")):
-        if col.endswith(suffix):
-            return col[:-len(suffix)], n
-    return col, 9
 
 
 def cell(value) -> str:

@@ -224,7 +224,8 @@ def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
               on_row=None) -> tuple[list[dict], dict]:
     """Run (or reuse) every variant on `pool`; returns the rows in variant order and
     counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
-    after each variant; `on_row(rows)` with the rows so far (None: not yet done)."""
+    after each variant, and with {"stage", "error"} after each shared stage;
+    `on_row(rows)` with the rows so far (None: not yet done)."""
     out_dir = Path(out_dir).resolve()
     variants_dir = out_dir / "variants"
     variants_dir.mkdir(parents=True, exist_ok=True)
@@ -245,6 +246,9 @@ def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
     def on_done(key, result):
         nonlocal done
         if key[0] != "variant":
+            if progress:
+                progress(done, len(variants), {"stage": key[1], "error": result["error"],
+                                               "variant": Path(tasks[key].arg[2]).name})
             return
         rows[key[1]] = _with_values(variants[key[1]], result)
         done += 1
