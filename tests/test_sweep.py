@@ -274,6 +274,23 @@ def test_a_failing_variant_is_a_row_and_the_sweep_goes_on(fruit, pad, tmp_path):
     assert after[bad["variant"]] == before[bad["variant"]] + 1
 
 
+def test_a_shared_stage_that_fails_runs_once_and_fails_the_variants_needing_it(fruit, pad,
+                                                                             tmp_path):
+    out = tmp_path / "sweep"
+    result = fruit("sweep", pad, "--set", "mesh.min_quality=0.99", "--set",
+                   "material.poisson_ratio=0.3,0.45", "--out", out, "--jobs", 1)
+    assert result.exit_code == 1
+    rows = read_rows(out / "sweep.csv")
+    assert [r["status"] for r in rows] == ["failed", "failed"]
+    assert rows[0]["error"] == rows[1]["error"]
+    assert rows[0]["error"].startswith("tetra: pad: mesh too poor: worst SICN")
+    assert "every variant failed (first: tetra: pad: mesh too poor" in result.output
+    starts = [ln.split(" pid=")[0] for p in (out / "variants").glob("*/attempts.log")
+              for ln in p.read_text().splitlines()]
+    assert sorted(starts) == ["stage pad-grid", "stage tetra"]  # no variant task ran
+    assert not (out / "sweep.png").exists()
+
+
 def _kill_first_variant(out: Path, proc: subprocess.Popen, timeout_s: float = 300) -> str:
     """Wait until a variant task starts, SIGKILL the process running it; its name."""
     t0 = time.perf_counter()

@@ -132,6 +132,8 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
     figure = figure or report.default_figure(rows)
     note = (report.plot(out / "sweep.png", rows, keys, figure) if figure
             else "sweep.png: not drawn (no figure in any row)")
+    if "not drawn" in note:
+        (out / "sweep.png").unlink(missing_ok=True)  # a previous run's plot would mislead
     head += ["", f"{stats['run']} variant(s) ran, {stats['reused']} reused from a previous run "
              f"of this sweep, {stats['failed']} failed; {stats['shared_stages']} stage(s) "
              "shared between variants (run once, copied to the others).",
@@ -139,3 +141,6 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
     write_tables(rows, head)
     click.echo(report.markdown(rows, keys, []).lstrip("\n"), nl=False)
     click.echo(f"written to {out}/ ({stats['failed']} of {len(rows)} variants failed)")
+    if stats["failed"] == len(rows):
+        raise click.ClickException(f"every variant failed (first: {rows[0]['error']}); "
+                                   f"see {out}/sweep.md")
