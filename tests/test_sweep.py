@@ -196,6 +196,21 @@ def test_a_scheduler_that_does_not_answer_times_out_in_one_line(fruit, pad, tmp_
     assert not (tmp_path / "s" / "variants").exists()
 
 
+@pytest.mark.parametrize("address, message", [
+    ("foo", "--scheduler foo: not a scheduler address (missing port number in address 'foo'); "
+            "expected tcp://host:port"),
+    ("xyz://1.2.3.4:1", "--scheduler xyz://1.2.3.4:1: not a scheduler address (unknown "
+                        "address scheme 'xyz'"),
+])
+def test_a_malformed_scheduler_address_is_one_line(pad, tmp_path, address, message):
+    proc = subprocess.run(fruit_cmd("sweep", pad, "--set", "mesh.size_mm=5", "--out",
+                                    tmp_path / "s", "--scheduler", address),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"Error: {message}"), proc.stderr
+
+
 # ----------------------------------------------------------------------------- runs
 @pytest.fixture(scope="module")
 def serial(pad, tmp_path_factory):

@@ -89,6 +89,7 @@ class DaskPool:
             raise FruitError("--scheduler needs the Dask extra: pip install "
                              "'fruitcli[cluster]'") from None
         self.address = address
+        _check_address(address)
         try:
             self.client = Client(address, timeout=timeout_s, set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
@@ -149,6 +150,19 @@ class DaskPool:
     def close(self):
         self.executor.shutdown(wait=False)
         self.client.close()
+
+
+def _check_address(address: str) -> None:
+    """A malformed address is refused before a Client is made (a half-made one would
+    print a traceback when collected)."""
+    from distributed.comm import get_address_host_port
+
+    try:
+        get_address_host_port(address)
+    except ValueError as exc:
+        if "don't know how to extract" not in str(exc):  # inproc://, ucx:// are fine
+            raise FruitError(f"--scheduler {address}: not a scheduler address ({exc}); "
+                             "expected tcp://host:port") from None
 
 
 def see_probe(path: str, token: str) -> tuple[bool, str, str]:
