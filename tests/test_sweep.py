@@ -412,3 +412,25 @@ def test_the_runtime_study_on_a_dask_cluster_gives_the_serial_rows(pad, tmp_path
                                                                     "pareto")} for r in fem]
     assert rows["--jobs"] == rows["--scheduler"]
     assert len(rows["--jobs"]) == 10 and all(r["status"] == "ok" for r in rows["--jobs"])
+
+
+def _die(arg, deps):
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def _after(arg, deps):
+    return arg, dict(deps)
+
+
+def test_a_task_whose_local_worker_always_dies_is_given_up_after_3_attempts():
+    from fruitcli.studies.executors import MAX_ATTEMPTS, LocalPool, Task, run_graph
+
+    pool = LocalPool(2)
+    try:
+        tasks = {"dies": Task(_die, None), "next": Task(_after, 7, deps=("dies",))}
+        results = run_graph(pool, tasks, on_lost=lambda key, message: f"lost: {message}")
+    finally:
+        pool.close()
+    assert MAX_ATTEMPTS == 3 and tasks["dies"].attempts == 3
+    assert results["dies"] == "lost: its worker process died 3 time(s)"
+    assert results["next"] == (7, {"dies": "lost: its worker process died 3 time(s)"})
