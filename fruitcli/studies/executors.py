@@ -102,8 +102,13 @@ class DaskPool:
             self.client.close()
             raise FruitError(f"--scheduler {address}: the scheduler has no worker after "
                              f"{timeout_s:g} s; start some (dask worker {address})") from exc
-        self.workers = len(self.client.scheduler_info()["workers"])
+        workers = self.client.scheduler_info()["workers"]
+        self.workers = len(workers)
+        threads = max((w.get("nthreads", 1) for w in workers.values()), default=1)
         self.name = f"Dask scheduler {address} ({self.workers} workers)"
+        if threads > 1:  # see fruitcli.studies.sweep_run.ONE_AT_A_TIME
+            self.name += (f"; a worker with {threads} threads runs one sweep variant at a "
+                          "time: give workers one thread each and more processes")
         self.executor = self.client.get_executor(pure=False)
 
     def submit(self, func, *args):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -24,6 +25,10 @@ from fruitcli.studies.executors import Task, run_graph
 from fruitcli.studies.sweep import Variant, rebuild
 
 RESULT = "result.json"
+# One task at a time per process: a Dask worker with several threads would otherwise run
+# variants side by side in one process, and the stages plot with matplotlib, which is not
+# thread-safe. Give workers one thread each and more processes instead.
+ONE_AT_A_TIME = threading.Lock()
 TIMING = ("state_ms", "variant_s")  # columns that vary between runs of the same sweep
 
 
@@ -112,16 +117,20 @@ def _failed_dep(deps: dict) -> str | None:
 
 def run_stage_task(arg, deps) -> dict:
     """On a worker: run a variant's stages up to `stage` (shared with other variants)."""
-    from fruitcli import planner
-
     text, scene_path, folder, stage, shared = arg
-    folder = Path(folder)
     if (failed := _failed_dep(deps)) is not None:
         return {"error": failed}
+    with ONE_AT_A_TIME:
+        return _run_stage(text, scene_path, Path(folder), stage, Path(shared))
+
+
+def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict:
+    from fruitcli import planner
+
     _note_attempt(folder, f"stage {stage}")
     log = _Log(folder)
     try:
-        planner.run(rebuild(text, scene_path), folder, until=stage, shared=Path(shared),
+        planner.run(rebuild(text, scene_path), folder, until=stage, shared=shared,
                     progress=log)
     except Exception as exc:  # noqa: BLE001 - any failure is this stage's row text
         (folder / "error.log").write_text(traceback.format_exc())
@@ -132,27 +141,33 @@ def run_stage_task(arg, deps) -> dict:
 def run_variant_task(arg, deps) -> dict:
     """On a worker: run every stage of one variant (copying the shared ones) and return
     its row: figures, status ("ok" or "failed"), error line, wall time (s)."""
-    from fruitcli import planner
     from fruitcli.fsutil import write_json
 
     text, scene_path, folder, shared = arg
     folder = Path(folder)
-    row: dict = {}
-    t0 = time.perf_counter()
     if (failed := _failed_dep(deps)) is not None:
-        row.update(status="failed", error=failed)
+        row = {"status": "failed", "error": failed, "variant_s": 0.0}
     else:
-        _note_attempt(folder, "variant")
-        log = _Log(folder)
-        try:
-            scene = rebuild(text, scene_path)
-            planner.run(scene, folder, shared=Path(shared), progress=log)
-            row.update(variant_figures(scene, folder), status="ok", error="")
-        except Exception as exc:  # noqa: BLE001 - the row carries the error
-            (folder / "error.log").write_text(traceback.format_exc())
-            row.update(status="failed", error=log.where(exc))
-    row["variant_s"] = time.perf_counter() - t0
+        with ONE_AT_A_TIME:
+            row = _run_variant(text, scene_path, folder, Path(shared))
     write_json(folder / RESULT, {"scene_text": text, "row": row})
+    return row
+
+
+def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
+    from fruitcli import planner
+
+    t0 = time.perf_counter()
+    _note_attempt(folder, "variant")
+    log = _Log(folder)
+    try:
+        scene = rebuild(text, scene_path)
+        planner.run(scene, folder, shared=shared, progress=log)
+        row = {**variant_figures(scene, folder), "status": "ok", "error": ""}
+    except Exception as exc:  # noqa: BLE001 - the row carries the error
+        (folder / "error.log").write_text(traceback.format_exc())
+        row = {"status": "failed", "error": log.where(exc)}
+    row["variant_s"] = time.perf_counter() - t0
     return row
 
 
