@@ -28,6 +28,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "evaluate": ("fruitcli.cli.evaluate", "evaluate",
                  "Error tables and plots against ground truth."),
     "study": ("fruitcli.cli.study", "study", "Error-against-run-time and stability studies."),
+    "sweep": ("fruitcli.cli.sweep", "sweep",
+              "Run a scene for many values of its keys (local or on a Dask cluster)."),
     "demo": ("fruitcli.cli.demo", "demo", "Run the default experiments and write out/report.md."),
 }
 
