@@ -118,6 +118,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seed": Key("int", 0, "seed of the noise"),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "registration of the bench rows: none, translation, "
+                                       "rigid or similarity (see [[evaluate]].register)"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -151,6 +153,8 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "none, translation (the paper's protocol), rigid or "
+                                       "similarity: measurement mapped onto the truth first"),
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
@@ -439,6 +443,14 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")
+    from fruitcli.evaluation.register import METHODS
+
+    for what, reg in ([("[bench]", scene["bench"]["register"])]
+                      + [(f"[[evaluate]] '{ev['label']}'", ev["register"])
+                         for ev in scene["evaluate"]]):
+        if reg not in METHODS:
+            raise SceneError(f"{where}: {what}.register: expected one of {', '.join(METHODS)}, "
+                             f"got {reg!r}")
     for ev in scene["evaluate"]:
         ref = ev["reference_length_mm"]
         if ref is not None and ref <= 0:

@@ -262,7 +262,8 @@ def _eval_rows(scene, ctx) -> list[dict]:
             rows.append({"label": f"{config}, {ind}",
                          "truth": ctx.dir("bench") / ind / "truth.csv",
                          "measured": ctx.dir("locate") / ind / "measured.csv",
-                         "reference_length_mm": scene["bench"]["reference_length_mm"]})
+                         "reference_length_mm": scene["bench"]["reference_length_mm"],
+                         "register": scene["bench"]["register"]})
     return rows
 
 
@@ -277,7 +278,8 @@ def _eval_needed(scene):
 def _eval_run(scene, ctx, out_dir):
     from fruitcli.evaluation.report import evaluate_pair, write_many
 
-    results = [evaluate_pair(r["truth"], r["measured"], r["reference_length_mm"], r["label"])
+    results = [evaluate_pair(r["truth"], r["measured"], r["reference_length_mm"], r["label"],
+                             r["register"])
                for r in _eval_rows(scene, ctx)]
     summaries = write_many(out_dir, results)
     return {s["label"]: {k: round(v, 4) if isinstance(v, float) else v for k, v in s.items()
