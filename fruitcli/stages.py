@@ -205,14 +205,17 @@ def _bench_inputs(scene, ctx):
     samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
     return {"bench": scene["bench"], "samples": samples, "board": scene["board"],
             "detection": scene["detection"], "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "grid": scene["grid"]}
+            "states": states_path(scene, ctx), "grid": scene["grid"],
+            "surface": solid_path(scene, ctx)}
 
 
 def _bench_run(scene, ctx, out_dir):
     from fruitcli.sensing.stage import run_bench
 
+    solid = solid_path(scene, ctx)
+    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
     return run_bench(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                     progress=ctx.progress)
+                     progress=ctx.progress, surface_path=solid, surface_unit=unit)
 
 
 def _frame_sources(scene, ctx) -> dict[str, Path]:

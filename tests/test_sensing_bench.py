@@ -168,3 +168,60 @@ def test_bench_cli_bad_input(tmp_path):
     res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--taxels",
                                    str(taxels), "--out", str(tmp_path / "o")])
     assert res.exit_code == 1 and "[bench].state = 1 needs FEM states" in res.output
+
+
+def pad_surface_stl(path: Path):
+    """The pad's closed boundary at rest (the body the bench touches), as an STL in mm."""
+    import trimesh
+
+    nodes, tets = forward.pad_mesh()
+    trimesh.Trimesh(nodes, boundary_faces(nodes, tets), process=False).export(path)
+    return path
+
+
+def test_one_truth_a_state_with_zero_displacement_gives_the_rest_row(tmp_path):
+    """The truth lies on the body's surface in every configuration: a FEM state that does
+    not move the body (a jig rotated by 0 deg) gives the rest bench's truth, frames and
+    Table I row."""
+    from fruitcli.evaluation.report import evaluate_pair
+
+    sc = scene(tmp_path)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    still = pad_states(tmp_path / "s.npz", angles_deg=(0.0,))
+    rest = run_bench(sc, taxels, None, tmp_path / "rest", surface_path=surface)
+    held = run_bench(sc, taxels, still, tmp_path / "held", surface_path=surface)
+    assert "at rest" in rest["truth_surface"] and "carried by FEM state 0" in held[
+        "truth_surface"]
+    # every quarter sample lies over the 80 x 80 mm body, also those past the taxels' hull
+    assert rest["off_surface"] == held["off_surface"] == 0
+    rows = {}
+    for name, states in (("rest", None), ("held", still)):
+        t = read_table(tmp_path / name / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
+                                                                 "z_mm"])
+        assert np.allclose(t["z_mm"], 3.0, atol=1e-9)  # the pad's top face
+        run_locate(sc, tmp_path / name / "small" / "frames.npz", taxels, states,
+                   tmp_path / f"loc-{name}")
+        rows[name], _, truth, _ = evaluate_pair(tmp_path / name / "small" / "truth.csv",
+                                                tmp_path / f"loc-{name}" / "measured.csv")
+        rows[name]["truth"] = truth
+    np.testing.assert_allclose(rows["held"]["truth"], rows["rest"]["truth"], atol=1e-9)
+    a = read_npz(tmp_path / "rest" / "small" / "frames.npz").frames
+    b = read_npz(tmp_path / "held" / "small" / "frames.npz").frames
+    assert np.array_equal(a, b)
+    for key in ("n", "mean_mm", "std_mm", "max_mm"):
+        assert rows["held"][key] == pytest.approx(rows["rest"][key], abs=1e-9)
+
+
+def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
+    sc = scene(tmp_path, "state = 1\n")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    res = run_bench(sc, pad_taxel_csv(tmp_path / "t.csv"),
+                    pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0)), tmp_path / "b",
+                    surface_path=surface)
+    truth = read_table(tmp_path / "b" / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
+                                                                "z_mm"])
+    assert res["indenters"]["small"]["samples"] > 0
+    r = 48 / np.pi  # the mid-plane's bend radius; the top face lies 1.5 mm outside it
+    rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
+    assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements

@@ -59,7 +59,7 @@ class Transform:
         """One line for a table caption."""
         if self.method == "none":
             return "not registered"
-        t = ", ".join(f"{v:+.2f}" for v in self.translation_mm)
+        t = ", ".join(f"{round(v, 2) + 0.0:+.2f}" for v in self.translation_mm)
         text = f"{self.method}: translation ({t}) mm"
         if self.method in ("rigid", "similarity"):
             text += f", rotation {self.rotation_deg:.2f} deg"

@@ -55,7 +55,7 @@ def table_markdown(rows: list[dict]) -> str:
               "| mean error vector (mm) |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         lo, hi = r["ci95_mean_mm"]
-        bias = ", ".join(f"{v:+.2f}" for v in r["bias_mm"])
+        bias = ", ".join(f"{round(v, 2) + 0.0:+.2f}" for v in r["bias_mm"])
         lines.append(f"| {r['label']} | {r['rmse_mm']:.2f} mm | {r['median_mm']:.2f} mm | "
                      f"{r['p95_mm']:.2f} mm | {r['max_mm']:.2f} mm | {lo:.2f}-{hi:.2f} mm | "
                      f"({bias}) |")

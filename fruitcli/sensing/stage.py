@@ -127,16 +127,41 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
 
 
-def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> dict:
-    """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv."""
+def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) mm and triangles (F, 3) of the body's closed surface at rest."""
+    from fruitcli.geometry.load import load_mesh
+
+    mesh, _ = load_mesh(path, unit)
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+
+
+def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
+                    surface) -> tuple[np.ndarray, str]:
+    """z (P,) mm where vertical lines at `xy` (P, 2) meet the body from above (NaN: miss),
+    and what the surface was. `surface`: (vertices, triangles) of the body at rest or None."""
+    from fruitcli.sensing.bench import carried_vertices, surface_heights, taxel_surface_heights
+
+    if surface is not None:
+        verts, tris = surface
+        if states is None:
+            return surface_heights(xy, verts, tris), "the body's reduced surface at rest"
+        moved = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
+        return (surface_heights(xy, moved, tris),
+                f"the body's reduced surface carried by FEM state {state}")
+    if states is not None:
+        return (surface_heights(xy, states.nodes_mm(state), states.surface_tris),
+                f"the FEM boundary of state {state} (no body surface given)")
+    return (taxel_surface_heights(xy, taxels_mm),
+            "the taxels' interpolated surface (no body surface given)")
+
+
+def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
+              surface_path=None, surface_unit: str = "mm") -> dict:
+    """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv.
+    `surface_path`: the body's closed surface at rest (the ground truth's surface; see
+    `fruitcli.sensing.bench`), in `surface_unit`."""
     from fruitcli.sensing import forward
-    from fruitcli.sensing.bench import (
-        BENCH_FPS,
-        cell_counts,
-        descend,
-        surface_heights,
-        taxel_surface_heights,
-    )
+    from fruitcli.sensing.bench import BENCH_FPS, cell_counts, descend
     from fruitcli.sensing.board import taxel_cells
     from fruitcli.sensing.frames_io import write_npz
 
@@ -148,28 +173,28 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> 
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     state = bench["state"]
     skin = forward.make_skin(len(taxels), bench["seed"])
+    surface = None if surface_path is None else body_surface(surface_path, surface_unit)
+    states = None
     if states_npz_or_none is not None:
         states = load_states(states_npz_or_none, len(taxels))
         if not 0 <= state < states.n_states:
             raise FrameError(f"{scene.path.name}: [bench].state: {state} not in the states "
                              f"(0..{states.n_states - 1})")
         taxels_mm = states.taxels_mm[state]
-        xy = _sample_points(scene, taxels_mm)
-        z = surface_heights(xy, states.nodes_mm(state), states.surface_tris)
         shift = forward.strain_shift_counts(forward.taxel_strain(states, state), skin)
     else:
         if state != 0:
             raise FrameError(f"{scene.path.name}: [bench].state = {state} needs FEM states")
         taxels_mm = taxels.xyz_mm
-        xy = _sample_points(scene, taxels_mm)
-        z = taxel_surface_heights(xy, taxels_mm)
         shift = np.zeros(len(taxels))
+    xy = _sample_points(scene, taxels_mm)
+    z, truth_surface = contact_heights(xy, taxels_mm, states, state, surface)
     on_surface = np.flatnonzero(np.isfinite(z))
     contact = np.column_stack([xy, z])[on_surface]
-    say(f"{len(xy)} sample points, {len(contact)} of them over the taxels' surface "
+    say(f"{len(xy)} sample points, {len(contact)} of them over {truth_surface} "
         f"({len(xy) - len(contact)} outside it are left out)")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
-              "indenters": {}}
+              "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench["indenters"]):
         forward.footprint_sigma_mm(name)  # validates the name
         rng = np.random.default_rng([bench["seed"], n])
@@ -189,7 +214,8 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> 
         write_csv(out_dir / name / "truth.csv", POINT_HEADER,
                   ([int(k), *map(float, p)] for k, p in zip(run.truth_ids, run.truth_mm,
                                                              strict=True)),
-                  comments=[f"bench contact points ({name} indenter, state {state}), mm"])
+                  comments=[f"bench contact points ({name} indenter, state {state}), mm, on "
+                            f"{truth_surface}"])
         result["indenters"][name] = {"frames": n_frames, "samples": int(len(run.truth_ids)),
                                      "dropped": run.dropped}
         say(f"{name}: {len(run.truth_ids)} samples, {n_frames} frames")
