@@ -206,7 +206,7 @@ def _bench_inputs(scene, ctx):
     return {"bench": scene["bench"], "samples": samples, "board": scene["board"],
             "detection": scene["detection"], "taxels": taxels_path(scene, ctx),
             "states": states_path(scene, ctx), "grid": scene["grid"],
-            "surface": solid_path(scene, ctx)}
+            "surface": solid_path(scene, ctx), "skin": scene["skin"]}
 
 
 def _bench_run(scene, ctx, out_dir):
@@ -297,7 +297,7 @@ def _sens_needed(scene):
 
 
 def _sens_inputs(scene, ctx):
-    return {"sensitivity": scene["sensitivity"], "bench": scene["bench"],
+    return {"sensitivity": scene["sensitivity"], "bench": scene["bench"], "skin": scene["skin"],
             "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)}
 
 

@@ -225,3 +225,58 @@ def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
     r = 48 / np.pi  # the mid-plane's bend radius; the top face lies 1.5 mm outside it
     rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
     assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements
+
+
+def test_skin_table_defaults_are_the_models_assumptions(tmp_path):
+    p = forward.SkinParams.from_table(scene(tmp_path)["skin"])
+    assert p == forward.DEFAULT_PARAMS
+    assert p.footprint_sigma_mm == pytest.approx({"small": np.hypot(6, 1.5),
+                                                  "medium": np.hypot(6, 4)})
+    assert (p.contact_counts, p.gap_decay_mm, p.gain_spread) == (60.0, 2.0, 0.0)
+    assert p.noise_std_counts == (0.5, 1.85)
+
+
+def test_skin_table_sets_the_touch_response(tmp_path):
+    text = ("[skin]\nfootprint_sigma_mm = { small = 4.5 }\ncontact_counts = 80.0\n"
+            "gap_decay_mm = 1.0\ngain_spread = 0.2\nnoise_std_counts = 1.2\n")
+    p = forward.SkinParams.from_table(scene(tmp_path, text)["skin"])
+    assert p.footprint_sigma_mm["small"] == 4.5
+    assert p.footprint_sigma_mm["medium"] == pytest.approx(np.hypot(6, 4))  # default kept
+    plain = forward.make_skin(40, seed=5)
+    skin = forward.make_skin(40, seed=5, params=p)
+    # the other draws stay those of the default skin
+    assert np.array_equal(skin.baseline_counts, plain.baseline_counts)
+    assert np.array_equal(skin.fab, plain.fab) and np.all(skin.noise_std_counts == 1.2)
+    assert plain.gain is None and np.all(np.abs(skin.gain - 1) <= 0.2) and skin.gain.std() > 0
+    dist = np.stack([np.zeros(40), np.full(40, 4.5)])  # (2 steps, 40 taxels)
+    v = forward.activation_counts(dist, np.array([0.0, 1.0]), "small", skin)
+    g = skin.gain
+    np.testing.assert_allclose(v[0], 80 * g)  # at contact, under the taxel
+    np.testing.assert_allclose(v[1], 80 * np.exp(-0.5) * np.exp(-1.0) * g)  # 1 sigma, 1 decay
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("contact_counts = 0.0", "[skin].contact_counts: expected > 0"),
+    ("gap_decay_mm = -1.0", "[skin].gap_decay_mm: expected > 0"),
+    ("gain_spread = 1.5", "[skin].gain_spread: expected 0 <= spread < 1"),
+    ("noise_std_counts = [2.0, 1.0]", "[skin].noise_std_counts: expected a number >= 0 or "
+                                      "[lo, hi]"),
+    ("footprint_sigma_mm = { small = 0 }", "[skin].footprint_sigma_mm.small: expected a width"),
+    ("contact_count = 60.0", "unknown key 'contact_count' (did you mean 'contact_counts'?)"),
+])
+def test_bad_skin_table_is_one_line(tmp_path, text, expected):
+    from fruitcli.errors import SceneError
+
+    with pytest.raises(SceneError) as info:
+        scene(tmp_path, "[skin]\n" + text + "\n")
+    assert expected in str(info.value)
+
+
+def test_bench_reads_the_skin_table(tmp_path):
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    run_bench(scene(tmp_path), taxels, None, tmp_path / "a")
+    run_bench(scene(tmp_path, "[skin]\ncontact_counts = 120.0\n"), taxels, None, tmp_path / "b")
+    a = read_npz(tmp_path / "a" / "small" / "frames.npz")
+    b = read_npz(tmp_path / "b" / "small" / "frames.npz")
+    # a stronger touch crosses the threshold earlier: fewer approach frames
+    assert len(b.frames) < len(a.frames)

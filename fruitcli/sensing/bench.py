@@ -105,7 +105,7 @@ def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarr
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
     for k, p in enumerate(contact_mm):
         dist = np.linalg.norm(taxels_mm - p, axis=1)
-        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter)
+        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter, skin)
         counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
         hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
         if hit.size == 0:

@@ -172,7 +172,8 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     threshold = scene["detection"]["threshold_counts"]
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     state = bench["state"]
-    skin = forward.make_skin(len(taxels), bench["seed"])
+    skin = forward.make_skin(len(taxels), bench["seed"], forward.SkinParams.from_table(
+        _section(scene, "skin")))
     surface = None if surface_path is None else body_surface(surface_path, surface_unit)
     states = None
     if states_npz_or_none is not None:
@@ -196,7 +197,7 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench["indenters"]):
-        forward.footprint_sigma_mm(name)  # validates the name
+        forward.footprint_sigma_mm(name, skin.params)  # validates the name
         rng = np.random.default_rng([bench["seed"], n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
                       bench["step_mm"], bench["baseline_frames"], threshold, rng)
@@ -234,7 +235,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     taxels = load_taxels(taxels_csv)
     states = load_states(states_npz, len(taxels))
     sens = scene["sensitivity"]
-    skin = forward.make_skin(len(taxels), scene["bench"]["seed"])
+    skin = forward.make_skin(len(taxels), scene["bench"]["seed"],
+                             forward.SkinParams.from_table(_section(scene, "skin")))
     rng = np.random.default_rng([scene["bench"]["seed"], 99])
     rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts,
                                                 (sens["noise_frames"], len(taxels))),
