@@ -155,7 +155,9 @@ def studies_section(out: Path) -> list[str]:
                           ("Error against run time, the Fruit breathing (13 states)",
                            "study-runtime-breathing/runtime.md",
                            "study-runtime-breathing/runtime.png"),
-                          ("Stability", "study-stability/stability.md", None)):
+                          ("Stability", "study-stability/stability.md", None),
+                          ("What the bench's rows depend on: the skin model's assumed "
+                           "parameters", "study-bench/bench.md", "study-bench/bench.png")):
         if (out / md).exists():
             found = True
             lines.append(f"- {name}: [{md}]({md})" + (f", ![plot]({png})" if png and
