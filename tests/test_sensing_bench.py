@@ -154,7 +154,7 @@ def test_sensitivity_json_and_heatmaps(tmp_path):
     assert (model / fab).max() == pytest.approx(10.0, rel=1e-6)
     assert np.all(fab == 1.0) and model.max() <= 10.0 + 1e-9  # seed 3: no defective crossing
     assert out["summary"]["std"]["max"] <= 2.0
-    for name in ("noise_std.png", "max_shift.png"):
+    for name in ("noise_std.png", "max_shift.png", "noise_std_top.png", "max_shift_top.png"):
         assert (tmp_path / "sens" / name).read_bytes()[:4] == b"\x89PNG"
 
 

@@ -228,7 +228,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
     from fruitcli.fsutil import write_json
     from fruitcli.sensing import forward, sensitivity
-    from fruitcli.sensing.plots import save_heatmap
+    from fruitcli.sensing.plots import save_heatmap, save_topview
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
@@ -265,6 +265,13 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                  f"noise std over {sens['noise_frames']} frames at rest", threshold / 2)
     save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
                  "max baseline shift over the animation", threshold)
+    outline = states.rest_nodes[states.surface_tris][:, :, :2]
+    xy = taxels.xyz_mm[:, :2]
+    save_topview(out_dir / "noise_std_top.png", xy, std, outline,
+                 f"noise std over {sens['noise_frames']} frames at rest (top view, counts)",
+                 threshold / 2)
+    save_topview(out_dir / "max_shift_top.png", xy, shift, outline,
+                 "max baseline shift over the animation (top view, counts)", threshold)
     say(f"noise std max {std.max():.2f}, max shift max {shift.max():.1f} "
         f"mean {shift.mean():.1f} counts")
     return out
