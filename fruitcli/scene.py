@@ -110,6 +110,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
         "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
         "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
+        "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
+                                      "surface (moved to the nearest point of the body)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
@@ -474,6 +476,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
     if det["baseline_frames"] < 1:
         raise SceneError(f"{where}: [detection].baseline_frames: expected >= 1")
+    if det["project"] not in ("none", "surface"):
+        raise SceneError(f"{where}: [detection].project: expected none or surface, "
+                         f"got {det['project']!r}")
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")

@@ -237,16 +237,20 @@ def _locate_needed(scene):
 def _locate_inputs(scene, ctx):
     return {"frames": _frame_sources(scene, ctx), "taxels": taxels_path(scene, ctx),
             "states": states_path(scene, ctx), "detection": scene["detection"],
-            "board": scene["board"]}
+            "board": scene["board"],
+            "surface": solid_path(scene, ctx) if scene["detection"]["project"] == "surface"
+            else None}
 
 
 def _locate_run(scene, ctx, out_dir):
     from fruitcli.sensing.stage import run_locate
 
     out = {}
+    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
     for name, frames in _frame_sources(scene, ctx).items():
         out[name] = run_locate(scene, frames, taxels_path(scene, ctx), states_path(scene, ctx),
-                               out_dir / name, progress=ctx.progress)
+                               out_dir / name, progress=ctx.progress,
+                               surface_path=solid_path(scene, ctx), surface_unit=unit)
     return out
 
 

@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.errors import FrameError
 from fruitcli.fem.barycentric import locate
 from fruitcli.fem.mesh_topology import boundary_faces
 from fruitcli.scene import parse_scene
@@ -280,3 +281,43 @@ def test_bench_reads_the_skin_table(tmp_path):
     b = read_npz(tmp_path / "b" / "small" / "frames.npz")
     # a stronger touch crosses the threshold earlier: fewer approach frames
     assert len(b.frames) < len(a.frames)
+
+
+def test_project_to_surface_moves_a_chord_point_onto_the_body(tmp_path):
+    from fruitcli.sensing.stage import body_surface, project_to_surface
+
+    surface = body_surface(pad_surface_stl(tmp_path / "pad.stl"))
+    pts, dist = project_to_surface(np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]), surface,
+                                   None, None, forward.pad_taxels_mm(z_mm=3.0))
+    np.testing.assert_allclose(pts, [[1.0, 2.0, 3.0], [0.0, 0.0, 3.0]], atol=1e-12)
+    np.testing.assert_allclose(dist, [0.5, 0.4], atol=1e-12)
+
+
+def test_locate_project_surface_on_the_bent_pad(tmp_path):
+    """On the pad bent 180 deg the N9 average of the taxels lies on a chord inside the
+    cylinder; projected, the located points are on the outer surface."""
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    states = pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0))
+    sc = scene(tmp_path, "state = 1\n")
+    run_bench(sc, taxels, states, tmp_path / "b", surface_path=surface)
+    frames = tmp_path / "b" / "small" / "frames.npz"
+    r = 48 / np.pi
+
+    def radius(folder):
+        m = read_table(folder / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+        return np.hypot(m["x_mm"], m["z_mm"] - (1.5 - r))
+
+    run_locate(sc, frames, taxels, states, tmp_path / "plain")
+    proj = scene(tmp_path, "state = 1\n[detection]\nproject = \"surface\"\n")
+    res = run_locate(proj, frames, taxels, states, tmp_path / "proj", surface_path=surface)
+    assert np.all(radius(tmp_path / "plain") < r + 1.5 - 0.3)  # inside the body
+    # on its outer face (4 mm facets), not the inner one 3 mm below
+    assert np.allclose(radius(tmp_path / "proj"), r + 1.5, atol=0.2)
+    assert res["projected_to_surface"]["mean_mm"] > 0.3
+    with pytest.raises(FrameError, match="project = surface needs the body's surface"):
+        run_locate(proj, frames, taxels, states, tmp_path / "x")
+    from fruitcli.errors import SceneError
+
+    with pytest.raises(SceneError, match=r"\[detection\].project: expected none or surface"):
+        scene(tmp_path, "[detection]\nproject = \"nearest\"\n")

@@ -32,6 +32,9 @@ def test_cases_move_one_parameter_at_a_time(tmp_path):
     assert [c.value for c in feet] == [4.0, 5.0, 7.0, 8.0]  # 6 mm is the default
     assert feet[0].skin["footprint_sigma_mm"]["small"] == pytest.approx(np.hypot(4, 1.5))
     assert not any(c.parameter == "gain_spread" and c.value == 0 for c in cases)
+    assert not any(c.parameter == "project" for c in cases)  # no body surface given
+    last = bs.cases(skin, ["small"], surface=True)[-1]
+    assert last.detection == {"project": "surface"} and last.skin == {}
 
 
 def test_study_bench_table_plot_and_the_default_row(fruit, tmp_path):

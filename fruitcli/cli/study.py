@@ -130,7 +130,8 @@ def runtime(scene_file, out_dir, jobs):
 def bench_study(scene_file, out_dir, jobs):
     """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
     parameters ([skin]: footprint width, counts at contact, gap decay, noise std, taxel
-    gain spread), one at a time off its default, same seed.
+    gain spread), one at a time off its default, same seed; and, with a body surface, the
+    default located with [detection].project = "surface".
 
     For each setting and indenter: n, the mean and std of the error unregistered and
     translation-registered (the paper's protocol, mm), and the registered mean's
@@ -162,8 +163,9 @@ def bench_study(scene_file, out_dir, jobs):
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
         skin = dict(scene["skin"])
-        args = [(scene.path, work, taxels, states_path(scene, ctx), solid_path(scene, ctx),
-                 unit, c) for c in bs.cases(skin, list(scene["bench"]["indenters"]))]
+        solid = solid_path(scene, ctx)
+        args = [(scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
+                for c in bs.cases(skin, list(scene["bench"]["indenters"]), solid is not None)]
         results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
         rows = [r for res in results for r in res["rows"]]
         text = bs.table_markdown(rows, scene.name, PAPER_TABLE_I)

@@ -70,10 +70,53 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
     return ids, pts
 
 
+FACING_COS = 0.5  # a face "faces the same way" as a taxel's surface within 60 degrees
+
+
+def project_to_surface(xyz_mm: np.ndarray, surface, states, state: int | None,
+                       taxels_mm: np.ndarray):
+    """Touch points (n, 3) mm moved to the nearest point of the body's surface (vertices,
+    triangles at rest, outward; carried by FEM state `state` when states are given) among
+    the faces that face the same way as the surface at the nearest taxel (`taxels_mm`
+    (T, 3), in that state), so a thin body is not crossed to its far side. The N9 average
+    of 3D taxels lies on a chord, inside a curved body. -> (points, distances (n,) mm)."""
+    from scipy.spatial import cKDTree
+
+    from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.sensing.bench import carried_vertices
+
+    verts, tris = surface
+    if states is not None:
+        verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
+    if len(xyz_mm) == 0:
+        return xyz_mm, np.zeros(0)
+    t = verts[tris]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    _, _, own = SurfaceDistance(verts, tris).closest(taxels_mm)
+    _, nearest = cKDTree(taxels_mm).query(xyz_mm)
+    points, dist = np.empty_like(xyz_mm), np.empty(len(xyz_mm))
+    for k in np.unique(nearest):
+        rows = np.flatnonzero(nearest == k)
+        facing = normal @ normal[own[k]] > FACING_COS
+        q, d, _ = SurfaceDistance(verts, tris[facing]).closest(xyz_mm[rows])
+        points[rows], dist[rows] = q, d
+    return points, dist
+
+
+def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
+    """Taxel positions (T, 3) mm of the recording's state (rest without states)."""
+    return taxels.xyz_mm if states is None else states.taxels_mm[state]
+
+
 def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
-               threshold_counts: float | None = None, method: str | None = None) -> dict:
-    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv)."""
+               threshold_counts: float | None = None, method: str | None = None,
+               surface_path=None, surface_unit: str = "mm") -> dict:
+    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
+    With ``[detection].project = "surface"`` the located points are moved to the nearest
+    point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
+    the recording's FEM state)."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
@@ -93,6 +136,26 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     baseline = locator.baseline(rec.frames, where)
     table = locator.batch(rec.frames, baseline, pressure)
     dt = time.perf_counter() - t0
+    projected = None
+    if _section(scene, "detection").get("project", "none") == "surface":
+        if surface_path is None:
+            raise FrameError(f"{where}: [detection].project = surface needs the body's surface "
+                             "(make-tracks' reduced.stl or [geometry].solid; `fruit locate "
+                             "--surface`)")
+        if pressure is not None:
+            raise FrameError(f"{where}: [detection].project = surface works on a recording at "
+                             "one FEM state; this one follows the states by its pressures "
+                             "(not supported)")
+        state = None if states is None else int(rec.meta.get("state", 0))
+        table.xyz_mm, dist = project_to_surface(table.xyz_mm, body_surface(surface_path,
+                                                                           surface_unit),
+                                                states, state, locator_taxels(states, state,
+                                                                              taxels))
+        projected = {"touches": int(len(dist)),
+                     "mean_mm": float(dist.mean()) if len(dist) else 0.0,
+                     "max_mm": float(dist.max()) if len(dist) else 0.0}
+        say(f"projected {len(dist)} touches onto the surface: moved "
+            f"{projected['mean_mm']:.2f} mm on average, {projected['max_mm']:.2f} mm at most")
     write_csv(out_dir / "touches.csv", TOUCH_HEADER, touch_rows(table, rec.t_s),
               comments=[f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
@@ -100,6 +163,8 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     result = {"frames": len(rec), "touches": len(table), "skipped_lines": rec.skipped_lines,
               "seconds": dt, "frames_per_s": len(rec) / max(dt, 1e-9),
               "touches_csv": str(out_dir / "touches.csv")}
+    if projected is not None:
+        result["projected_to_surface"] = projected
     if rec.sample is not None:
         ids, pts = strongest_per_sample(table, rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,

@@ -30,23 +30,27 @@ UNITS = {"footprint": "field sigma (mm)", "contact_counts": "counts at contact",
 class Case:
     """One skin setting: the parameter moved, its value, and the [skin] keys it sets."""
 
-    parameter: str  # one of PARAMETERS, or "default"
+    parameter: str  # one of PARAMETERS, "default" or "project"
     value: float
     skin: dict = field(default_factory=dict)
+    detection: dict = field(default_factory=dict)
 
     @property
     def name(self) -> str:
         if self.parameter == "default":
             return "default"
+        if self.parameter == "project":
+            return "detection: project = surface"
         if self.parameter == "footprint":
             feet = ", ".join(f"{k} {v:.2f}" for k, v in self.skin["footprint_sigma_mm"].items())
             return f"footprint {feet} mm"
         return f"{self.parameter} {self.value:g}"
 
 
-def cases(skin_table: dict, indenters: list[str]) -> list[Case]:
+def cases(skin_table: dict, indenters: list[str], surface: bool = False) -> list[Case]:
     """The default, then each parameter moved alone. The footprint of an indenter of
-    radius r is hypot(field sigma, r), as in `fruitcli.sensing.forward`."""
+    radius r is hypot(field sigma, r), as in `fruitcli.sensing.forward`. With the body's
+    `surface`, also the default skin located with ``[detection].project = "surface"``."""
     from fruitcli.sensing import forward
 
     out = [Case("default", float("nan"))]
@@ -61,6 +65,8 @@ def cases(skin_table: dict, indenters: list[str]) -> list[Case]:
         for v in values:
             if skin_table.get(key) != v:
                 out.append(Case(key, v, {key: v}))
+    if surface:
+        out.append(Case("project", float("nan"), detection={"project": "surface"}))
     return out
 
 
@@ -73,13 +79,15 @@ def run_case(args) -> dict:
     scene_path, work, taxels, states, surface, unit, case = args
     scene = copy.deepcopy(load_scene(scene_path))
     scene.data["skin"].update(case.skin)
+    scene.data["detection"].update(case.detection)
     base = Path(work) / case.name.replace(" ", "_").replace(",", "")
     bench = run_bench(scene, taxels, states, base / "bench", surface_path=surface,
                       surface_unit=unit)
     config = scene["scene"]["configuration"]
     rows = []
     for ind in scene["bench"]["indenters"]:
-        run_locate(scene, base / "bench" / ind / "frames.npz", taxels, states, base / ind)
+        run_locate(scene, base / "bench" / ind / "frames.npz", taxels, states, base / ind,
+                   surface_path=surface, surface_unit=unit)
         s, *_ = evaluate_pair(base / "bench" / ind / "truth.csv", base / ind / "measured.csv",
                               scene["bench"]["reference_length_mm"], f"{config}, {ind}")
         c = s["compare"]
@@ -125,6 +133,13 @@ def table_markdown(rows: list[dict], scene_name: str, paper: dict) -> str:
         if label in paper:
             p = paper[label]
             lines.append(f"The paper's Table I, {label}: {p[0]:.1f} / {p[2]:.1f} mm.")
+    proj = [r for r in rows if r["parameter"] == "project"]
+    for r in proj:
+        base = next(b for b in rows if b["parameter"] == "default"
+                    and b["indenter"] == r["indenter"])
+        lines.append(f"Projected onto the surface ({r['indenter']}): unregistered "
+                     f"{base['mean_mm']:.2f} -> {r['mean_mm']:.2f} mm, registered "
+                     f"{base['reg_mean_mm']:.2f} -> {r['reg_mean_mm']:.2f} mm.")
     lines += ["", "Range of the registered mean over each parameter's settings:", ""]
     for par in PARAMETERS:
         for ind in dict.fromkeys(r["indenter"] for r in rows):
