@@ -172,3 +172,16 @@ def test_scene_register_key(fruit, tmp_path):
     with pytest.raises(SceneError, match=r"\[\[evaluate\]\] 'Rest, small'.register: expected "
                                          "one of none, translation, rigid, similarity"):
         parse_scene(text.replace('"translation"', '"affine"'), tmp_path / "s.toml")
+
+
+def test_large_samples_get_the_normal_interval():
+    from fruitcli.evaluation.metrics import BOOTSTRAP_MAX_N
+
+    rng = np.random.default_rng(2)
+    err = rng.normal(0, 1.0, (BOOTSTRAP_MAX_N + 1, 3))
+    s = error_stats(err)
+    norm = np.linalg.norm(err, axis=1)
+    half = 1.959964 * norm.std() / np.sqrt(len(norm))
+    assert s["ci95_method"] == "normal"
+    np.testing.assert_allclose(s["ci95_mean_mm"], [norm.mean() - half, norm.mean() + half])
+    assert error_stats(err[:BOOTSTRAP_MAX_N])["ci95_method"] == "bootstrap"

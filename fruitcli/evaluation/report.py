@@ -16,7 +16,7 @@ TABLE_HEADER = ["label", "n", "dims", "register", "mean_mm", "std_mm", "mean_pct
                 "bias_x_mm", "bias_y_mm", "bias_z_mm", "unregistered_mean_mm",
                 "translation_mean_mm", "reference_length_mm"]
 SUMMARY_KEYS = ["n", "dims", "register", "mean_mm", "std_mm", "mean_pct", "std_pct", "rmse_mm",
-                "median_mm", "p95_mm", "max_mm", "ci95_mean_mm", "bias_mm",
+                "median_mm", "p95_mm", "max_mm", "ci95_mean_mm", "ci95_method", "bias_mm",
                 "reference_length_mm", "transform", "transform_text", "compare"]
 
 
@@ -63,8 +63,9 @@ def table_markdown(rows: list[dict]) -> str:
     lines.append("")
     lines.append(f"Percentages relative to the reference length ({', '.join(map(str, ref))} mm); "
                  "std is the population standard deviation; the interval is a seeded "
-                 "percentile bootstrap of the mean (10,000 resamples); the mean error vector is "
-                 "measured - truth after the registration.")
+                 "percentile bootstrap of the mean (10,000 resamples; the normal interval above "
+                 "2,000 samples); the mean error vector is measured - truth after the "
+                 "registration.")
     for r in rows:
         c = r["compare"]
         lines.append(f"- {r['label']}: {r['transform_text']}; mean error unregistered "
