@@ -23,7 +23,8 @@ NUM = (int, float)
 class Key:
     """One scene key: its accepted type, default (None: optional), and meaning."""
 
-    kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table"
+    kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table",
+    # "range" (a number or [lo, hi])
     default: Any = None
     doc: str = ""
     required: bool = False
@@ -109,6 +110,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
         "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
         "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
+        "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
+                                      "surface (moved to the nearest point of the body)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
@@ -118,6 +121,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seed": Key("int", 0, "seed of the noise"),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "registration of the bench rows: none, translation, "
+                                       "rigid or similarity (see [[evaluate]].register)"),
+    },
+    "skin": {  # the skin's forward model (fruitcli.sensing.forward); defaults: its assumptions
+        "footprint_sigma_mm": Key("table", None, "per indenter: lateral Gaussian width (mm); "
+                                                 "default small 6.18, medium 7.21"),
+        "contact_counts": Key("num", 60.0, "activation of the taxel under the indenter at "
+                                           "contact (counts)"),
+        "gap_decay_mm": Key("num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)"),
+        "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)"),
+        "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
+                                                      "[lo, hi] drawn per taxel (seeded)"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -151,6 +166,8 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "none, translation (the paper's protocol), rigid or "
+                                       "similarity: measurement mapped onto the truth first"),
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
@@ -236,6 +253,15 @@ def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_e
         if isinstance(value, bool) or not isinstance(value, NUM) or not math.isfinite(value):
             fail("a finite number")
         return float(value)
+    if k == "range":
+        if isinstance(value, NUM) and not isinstance(value, bool) and math.isfinite(value) \
+                and value >= 0:
+            return float(value)
+        ok = isinstance(value, list) and len(value) == 2 and all(
+            isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        if not ok or not 0 <= value[0] <= value[1]:
+            fail("a number >= 0 or [lo, hi] with 0 <= lo <= hi")
+        return [float(v) for v in value]
     if k in ("vec2", "vec3", "box"):
         n = {"vec2": 2, "vec3": 3, "box": 6}[k]
         ok = isinstance(value, list) and len(value) == n
@@ -415,12 +441,26 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                          f"got {count}")
     if grid["spacing_x_mm"] <= 0 or grid["spacing_y_mm"] <= 0:
         raise SceneError(f"{where}: [grid]: expected spacing_x_mm and spacing_y_mm > 0")
+    skin = scene["skin"]
+    for key in ("contact_counts", "gap_decay_mm"):
+        if skin[key] <= 0:
+            raise SceneError(f"{where}: [skin].{key}: expected > 0, got {skin[key]}")
+    if not 0 <= skin["gain_spread"] < 1:
+        raise SceneError(f"{where}: [skin].gain_spread: expected 0 <= spread < 1, "
+                         f"got {skin['gain_spread']}")
+    feet = skin["footprint_sigma_mm"] or {}
+    for ind, sigma in feet.items():
+        if isinstance(sigma, bool) or not isinstance(sigma, NUM) or not sigma > 0 \
+                or not math.isfinite(sigma):
+            raise SceneError(f"{where}: [skin].footprint_sigma_mm.{ind}: expected a width > 0 "
+                             f"mm, got {sigma!r}")
     if scene.has("bench"):
         bench = scene["bench"]
-        names = ("small", "medium")  # the paper's indenters (fruitcli.sensing.forward)
+        # the paper's indenters (fruitcli.sensing.forward) and those [skin] gives a width
+        names = tuple(dict.fromkeys(["small", "medium", *feet]))
         if not bench["indenters"] or any(i not in names for i in bench["indenters"]):
             raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "
-                             f"{' and '.join(names)}, got {bench['indenters']}")
+                             f"{', '.join(names)}, got {bench['indenters']}")
         if bench["step_mm"] <= 0:
             raise SceneError(f"{where}: [bench].step_mm: expected > 0, got {bench['step_mm']}")
         ref = bench["reference_length_mm"]
@@ -436,9 +476,20 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
     if det["baseline_frames"] < 1:
         raise SceneError(f"{where}: [detection].baseline_frames: expected >= 1")
+    if det["project"] not in ("none", "surface"):
+        raise SceneError(f"{where}: [detection].project: expected none or surface, "
+                         f"got {det['project']!r}")
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")
+    from fruitcli.evaluation.register import METHODS
+
+    for what, reg in ([("[bench]", scene["bench"]["register"])]
+                      + [(f"[[evaluate]] '{ev['label']}'", ev["register"])
+                         for ev in scene["evaluate"]]):
+        if reg not in METHODS:
+            raise SceneError(f"{where}: {what}.register: expected one of {', '.join(METHODS)}, "
+                             f"got {reg!r}")
     for ev in scene["evaluate"]:
         ref = ev["reference_length_mm"]
         if ref is not None and ref <= 0:

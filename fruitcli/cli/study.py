@@ -142,3 +142,65 @@ def runtime(scene_file, out_dir, jobs, scheduler):
                                             states_path(scene, ctx), work)
         rt.write_outputs(out, rows, det, f"size {default:g} mm")
     click.echo((out / "runtime.md").read_text(), nl=False)
+
+
+@study.command("bench")
+@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
+                default="pipelines/fruit-rest.toml")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-bench",
+              show_default=True, help="Output folder: bench.md, bench.csv, bench.json, "
+                                      "bench.png.")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes. [default: all cores]")
+def bench_study(scene_file, out_dir, jobs):
+    """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
+    parameters ([skin]: footprint width, counts at contact, gap decay, noise std, taxel
+    gain spread), one at a time off its default, same seed; and, with a body surface, the
+    default located with [detection].project = "surface".
+
+    For each setting and indenter: n, the mean and std of the error unregistered and
+    translation-registered (the paper's protocol, mm), and the registered mean's
+    bootstrap 95 % interval. The plot has one panel per parameter.
+    """
+    from fruitcli import planner
+    from fruitcli.cli.options import Progress
+    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    from fruitcli.report import PAPER_TABLE_I
+    from fruitcli.scene import load_scene
+    from fruitcli.stages import _geometry_kind, solid_path, states_path, taxels_path
+    from fruitcli.studies import bench_study as bs
+    from fruitcli.studies.parallel import run_cases
+
+    with fruit_errors():
+        scene = load_scene(scene_file)
+        if not scene.has("bench"):
+            raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
+        out = Path(out_dir)
+        base = out / "scene"
+        # the scene's own stages up to the bench: copied from the demo's out/<scene>
+        planner.run(scene, base, until="simulate", progress=Progress("   "),
+                    shared=out.resolve().parent)
+        ctx = planner.Context(base)
+        taxels = taxels_path(scene, ctx)
+        if taxels is None:
+            raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
+        unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+        work = out / "work"
+        work.mkdir(parents=True, exist_ok=True)
+        skin = dict(scene["skin"])
+        solid = solid_path(scene, ctx)
+        args = [(scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
+                for c in bs.cases(skin, list(scene["bench"]["indenters"]), solid is not None)]
+        results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
+        rows = [r for res in results for r in res["rows"]]
+        text = bs.table_markdown(rows, scene.name, PAPER_TABLE_I)
+        with staged_dir(out) as tmp:
+            write_text(tmp / "bench.md", text)
+            write_csv(tmp / "bench.csv", bs.HEADER, bs.csv_rows(rows),
+                      comments=[f"bench study of {scene.name}: errors in mm, registered = "
+                                "translation (the paper's protocol)"])
+            write_json(tmp / "bench.json", {"scene": scene.name, "skin_defaults": skin,
+                                            "rows": rows})
+            bs.plot(tmp / "bench.png", rows, skin, PAPER_TABLE_I)
+    click.echo(text, nl=False)
+    click.echo(f"written to {out}/")

@@ -70,10 +70,53 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
     return ids, pts
 
 
+FACING_COS = 0.5  # a face "faces the same way" as a taxel's surface within 60 degrees
+
+
+def project_to_surface(xyz_mm: np.ndarray, surface, states, state: int | None,
+                       taxels_mm: np.ndarray):
+    """Touch points (n, 3) mm moved to the nearest point of the body's surface (vertices,
+    triangles at rest, outward; carried by FEM state `state` when states are given) among
+    the faces that face the same way as the surface at the nearest taxel (`taxels_mm`
+    (T, 3), in that state), so a thin body is not crossed to its far side. The N9 average
+    of 3D taxels lies on a chord, inside a curved body. -> (points, distances (n,) mm)."""
+    from scipy.spatial import cKDTree
+
+    from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.sensing.bench import carried_vertices
+
+    verts, tris = surface
+    if states is not None:
+        verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
+    if len(xyz_mm) == 0:
+        return xyz_mm, np.zeros(0)
+    t = verts[tris]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    _, _, own = SurfaceDistance(verts, tris).closest(taxels_mm)
+    _, nearest = cKDTree(taxels_mm).query(xyz_mm)
+    points, dist = np.empty_like(xyz_mm), np.empty(len(xyz_mm))
+    for k in np.unique(nearest):
+        rows = np.flatnonzero(nearest == k)
+        facing = normal @ normal[own[k]] > FACING_COS
+        q, d, _ = SurfaceDistance(verts, tris[facing]).closest(xyz_mm[rows])
+        points[rows], dist[rows] = q, d
+    return points, dist
+
+
+def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
+    """Taxel positions (T, 3) mm of the recording's state (rest without states)."""
+    return taxels.xyz_mm if states is None else states.taxels_mm[state]
+
+
 def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
-               threshold_counts: float | None = None, method: str | None = None) -> dict:
-    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv)."""
+               threshold_counts: float | None = None, method: str | None = None,
+               surface_path=None, surface_unit: str = "mm") -> dict:
+    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
+    With ``[detection].project = "surface"`` the located points are moved to the nearest
+    point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
+    the recording's FEM state)."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
@@ -93,6 +136,26 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     baseline = locator.baseline(rec.frames, where)
     table = locator.batch(rec.frames, baseline, pressure)
     dt = time.perf_counter() - t0
+    projected = None
+    if _section(scene, "detection").get("project", "none") == "surface":
+        if surface_path is None:
+            raise FrameError(f"{where}: [detection].project = surface needs the body's surface "
+                             "(make-tracks' reduced.stl or [geometry].solid; `fruit locate "
+                             "--surface`)")
+        if pressure is not None:
+            raise FrameError(f"{where}: [detection].project = surface works on a recording at "
+                             "one FEM state; this one follows the states by its pressures "
+                             "(not supported)")
+        state = None if states is None else int(rec.meta.get("state", 0))
+        table.xyz_mm, dist = project_to_surface(table.xyz_mm, body_surface(surface_path,
+                                                                           surface_unit),
+                                                states, state, locator_taxels(states, state,
+                                                                              taxels))
+        projected = {"touches": int(len(dist)),
+                     "mean_mm": float(dist.mean()) if len(dist) else 0.0,
+                     "max_mm": float(dist.max()) if len(dist) else 0.0}
+        say(f"projected {len(dist)} touches onto the surface: moved "
+            f"{projected['mean_mm']:.2f} mm on average, {projected['max_mm']:.2f} mm at most")
     write_csv(out_dir / "touches.csv", TOUCH_HEADER, touch_rows(table, rec.t_s),
               comments=[f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
@@ -100,6 +163,8 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     result = {"frames": len(rec), "touches": len(table), "skipped_lines": rec.skipped_lines,
               "seconds": dt, "frames_per_s": len(rec) / max(dt, 1e-9),
               "touches_csv": str(out_dir / "touches.csv")}
+    if projected is not None:
+        result["projected_to_surface"] = projected
     if rec.sample is not None:
         ids, pts = strongest_per_sample(table, rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,
@@ -127,16 +192,41 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
 
 
-def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> dict:
-    """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv."""
+def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) mm and triangles (F, 3) of the body's closed surface at rest."""
+    from fruitcli.geometry.load import load_mesh
+
+    mesh, _ = load_mesh(path, unit)
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+
+
+def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
+                    surface) -> tuple[np.ndarray, str]:
+    """z (P,) mm where vertical lines at `xy` (P, 2) meet the body from above (NaN: miss),
+    and what the surface was. `surface`: (vertices, triangles) of the body at rest or None."""
+    from fruitcli.sensing.bench import carried_vertices, surface_heights, taxel_surface_heights
+
+    if surface is not None:
+        verts, tris = surface
+        if states is None:
+            return surface_heights(xy, verts, tris), "the body's reduced surface at rest"
+        moved = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
+        return (surface_heights(xy, moved, tris),
+                f"the body's reduced surface carried by FEM state {state}")
+    if states is not None:
+        return (surface_heights(xy, states.nodes_mm(state), states.surface_tris),
+                f"the FEM boundary of state {state} (no body surface given)")
+    return (taxel_surface_heights(xy, taxels_mm),
+            "the taxels' interpolated surface (no body surface given)")
+
+
+def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
+              surface_path=None, surface_unit: str = "mm") -> dict:
+    """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv.
+    `surface_path`: the body's closed surface at rest (the ground truth's surface; see
+    `fruitcli.sensing.bench`), in `surface_unit`."""
     from fruitcli.sensing import forward
-    from fruitcli.sensing.bench import (
-        BENCH_FPS,
-        cell_counts,
-        descend,
-        surface_heights,
-        taxel_surface_heights,
-    )
+    from fruitcli.sensing.bench import BENCH_FPS, cell_counts, descend
     from fruitcli.sensing.board import taxel_cells
     from fruitcli.sensing.frames_io import write_npz
 
@@ -147,31 +237,32 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> 
     threshold = scene["detection"]["threshold_counts"]
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     state = bench["state"]
-    skin = forward.make_skin(len(taxels), bench["seed"])
+    skin = forward.make_skin(len(taxels), bench["seed"], forward.SkinParams.from_table(
+        _section(scene, "skin")))
+    surface = None if surface_path is None else body_surface(surface_path, surface_unit)
+    states = None
     if states_npz_or_none is not None:
         states = load_states(states_npz_or_none, len(taxels))
         if not 0 <= state < states.n_states:
             raise FrameError(f"{scene.path.name}: [bench].state: {state} not in the states "
                              f"(0..{states.n_states - 1})")
         taxels_mm = states.taxels_mm[state]
-        xy = _sample_points(scene, taxels_mm)
-        z = surface_heights(xy, states.nodes_mm(state), states.surface_tris)
         shift = forward.strain_shift_counts(forward.taxel_strain(states, state), skin)
     else:
         if state != 0:
             raise FrameError(f"{scene.path.name}: [bench].state = {state} needs FEM states")
         taxels_mm = taxels.xyz_mm
-        xy = _sample_points(scene, taxels_mm)
-        z = taxel_surface_heights(xy, taxels_mm)
         shift = np.zeros(len(taxels))
+    xy = _sample_points(scene, taxels_mm)
+    z, truth_surface = contact_heights(xy, taxels_mm, states, state, surface)
     on_surface = np.flatnonzero(np.isfinite(z))
     contact = np.column_stack([xy, z])[on_surface]
-    say(f"{len(xy)} sample points, {len(contact)} of them over the taxels' surface "
+    say(f"{len(xy)} sample points, {len(contact)} of them over {truth_surface} "
         f"({len(xy) - len(contact)} outside it are left out)")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
-              "indenters": {}}
+              "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench["indenters"]):
-        forward.footprint_sigma_mm(name)  # validates the name
+        forward.footprint_sigma_mm(name, skin.params)  # validates the name
         rng = np.random.default_rng([bench["seed"], n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
                       bench["step_mm"], bench["baseline_frames"], threshold, rng)
@@ -189,7 +280,8 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None) -> 
         write_csv(out_dir / name / "truth.csv", POINT_HEADER,
                   ([int(k), *map(float, p)] for k, p in zip(run.truth_ids, run.truth_mm,
                                                              strict=True)),
-                  comments=[f"bench contact points ({name} indenter, state {state}), mm"])
+                  comments=[f"bench contact points ({name} indenter, state {state}), mm, on "
+                            f"{truth_surface}"])
         result["indenters"][name] = {"frames": n_frames, "samples": int(len(run.truth_ids)),
                                      "dropped": run.dropped}
         say(f"{name}: {len(run.truth_ids)} samples, {n_frames} frames")
@@ -201,14 +293,15 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
     from fruitcli.fsutil import write_json
     from fruitcli.sensing import forward, sensitivity
-    from fruitcli.sensing.plots import save_heatmap
+    from fruitcli.sensing.plots import save_heatmap, save_topview
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
     states = load_states(states_npz, len(taxels))
     sens = scene["sensitivity"]
-    skin = forward.make_skin(len(taxels), scene["bench"]["seed"])
+    skin = forward.make_skin(len(taxels), scene["bench"]["seed"],
+                             forward.SkinParams.from_table(_section(scene, "skin")))
     rng = np.random.default_rng([scene["bench"]["seed"], 99])
     rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts,
                                                 (sens["noise_frames"], len(taxels))),
@@ -237,6 +330,13 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                  f"noise std over {sens['noise_frames']} frames at rest", threshold / 2)
     save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
                  "max baseline shift over the animation", threshold)
+    outline = states.rest_nodes[states.surface_tris][:, :, :2]
+    xy = taxels.xyz_mm[:, :2]
+    save_topview(out_dir / "noise_std_top.png", xy, std, outline,
+                 f"noise std over {sens['noise_frames']} frames at rest (top view, counts)",
+                 threshold / 2)
+    save_topview(out_dir / "max_shift_top.png", xy, shift, outline,
+                 "max baseline shift over the animation (top view, counts)", threshold)
     say(f"noise std max {std.max():.2f}, max shift max {shift.max():.1f} "
         f"mean {shift.mean():.1f} counts")
     return out
