@@ -96,6 +96,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
+        "format": Key("str", "auto", "frames on the port and in raw captures: auto, ascii "
+                      "(stock Muca_Raw) or binary (stock SendRawByte packets)"),
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
@@ -431,6 +433,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     period = scene["actuation"]["period_s"]
     if period is not None and period <= 0:
         raise SceneError(f"{where}: [actuation].period_s: expected > 0, got {period}")
+    if scene["board"]["format"] not in ("auto", "ascii", "binary"):
+        raise SceneError(f"{where}: [board].format: expected auto, ascii or binary, got "
+                         f"{scene['board']['format']!r}")
     det = scene["detection"]
     if det["threshold_counts"] <= 0:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")

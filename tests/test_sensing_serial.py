@@ -36,7 +36,7 @@ def test_record_npz_with_log_lines_and_a_cut_line(tmp_path):
     expected = np.delete(frames, 7, axis=0)[:30]
     assert np.array_equal(rec.frames, expected)
     assert np.all(np.diff(rec.t_s) >= 0) and rec.meta["port"] == em.path
-    assert "30 frames" in res.output and not (tmp_path / "rec.npz.partial.log").exists()
+    assert "30 ascii frames" in res.output and not (tmp_path / "rec.npz.partial.log").exists()
 
 
 def test_record_port_vanishing_keeps_every_whole_frame(tmp_path):

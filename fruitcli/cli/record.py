@@ -23,11 +23,16 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="Frame rows (Tx lines).")
 @click.option("--cols", type=click.IntRange(min=1), default=12, show_default=True,
               help="Frame columns (Rx lines).")
-def record(port, out_path, n_frames, seconds, baud, rows, cols):
+@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]),
+              default="auto", show_default=True,
+              help="The board's frame format: stock Muca_Raw ASCII lines or SendRawByte "
+                   "binary packets (auto: whichever yields frames first).")
+def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt):
     """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
 
-    Every whole frame received is on disk as soon as it arrives; board log lines and
-    cut lines are skipped and counted. Without --frames or --seconds, stop with Ctrl-C.
+    Every whole frame received is on disk as soon as it arrives; board log lines, cut
+    lines and damaged binary packets are skipped and counted. Without --frames or
+    --seconds, stop with Ctrl-C.
     """
     from fruitcli.errors import FrameError
     from fruitcli.sensing.recorder import (
@@ -46,7 +51,7 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
         check_limits(n_frames, seconds)
         check_out_path(out_path)
         ser = open_port(port, baud)
-        reader = FrameReader(ser, rows, cols, name=port)
+        reader = FrameReader(ser, rows, cols, name=port, fmt=fmt)
         sink = LogSink(log_path_for(out_path),
                        header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
                               f"{rows}x{cols} counts")
@@ -54,12 +59,13 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
             res = record_stream(reader, sink, n_frames, seconds, progress)
         except KeyboardInterrupt:
             interrupted = True
-            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.lines.cut,
+            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
                    "frames_per_s": 0.0, "closed": ""}
         finally:
             sink.close()
             ser.close()
-        meta = {"source": "fruit record", "port": port, "baud": baud}
+        meta = {"source": "fruit record", "port": port, "baud": baud,
+                "format": reader.format}
         frames = finalize(out_path, meta, rows, cols)
         why = reader.skip_reasons()
         skipped = f"{res['skipped']} lines skipped" + (f": {why}" if why else "")
@@ -73,7 +79,8 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
                 raise SystemExit(130)
             raise FrameError(f"{port}: no frame received ({how}; {got}); nothing written "
                              f"to {out_path}")
-    summary = (f"{frames} frames ({res['frames_per_s']:.1f} frames/s), {skipped}, "
+    summary = (f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
+               f"{skipped}, "
                f"{res['cut']} cut -> {out_path}")
     if res["closed"]:
         raise click.ClickException(f"{port}: port closed after {frames} frames; {out_path} "

@@ -101,8 +101,11 @@ def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = Non
                 last = now
     except PortClosed as exc:
         closed = str(exc)
+        for counts, t_s, _ in reader.finish():  # binary: the last packet, when whole
+            if n_frames is None or sink.frames < n_frames:
+                sink.write(counts, t_s)
     dt = time.monotonic() - t0
-    return {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.lines.cut,
+    return {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
             "seconds": dt, "frames_per_s": sink.frames / dt if dt > 0 else 0.0,
             "closed": closed}
 

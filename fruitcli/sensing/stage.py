@@ -78,7 +78,7 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
     board = _section(scene, "board")
-    rec = read_recording(frames_path, board["rows"], board["cols"])
+    rec = read_recording(frames_path, board["rows"], board["cols"], board.get("format", "auto"))
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
     settings = Settings.from_scene(_section(scene, "detection"),
