@@ -27,7 +27,9 @@ from fruitcli.cli.options import Progress, fruit_errors
               default="auto", show_default=True,
               help="The board's frame format: stock Muca_Raw ASCII lines or SendRawByte "
                    "binary packets (auto: whichever yields frames first).")
-def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt):
+@click.option("--overwrite", is_flag=True,
+              help="Replace an existing --out file (once the new recording has frames).")
+def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, overwrite):
     """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
 
     Every whole frame received is on disk as soon as it arrives; board log lines, cut
@@ -49,7 +51,11 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt):
     interrupted = False
     with fruit_errors():
         check_limits(n_frames, seconds)
-        check_out_path(out_path)
+        check_out_path(out_path, overwrite)
+        from pathlib import Path
+
+        untouched = (f"{out_path} left as it was" if Path(out_path).exists()
+                     else f"nothing written to {out_path}")
         ser = open_port(port, baud)
         reader = FrameReader(ser, rows, cols, name=port, fmt=fmt)
         sink = LogSink(log_path_for(out_path),
@@ -68,17 +74,17 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt):
                 "format": reader.format}
         frames = finalize(out_path, meta, rows, cols)
         why = reader.skip_reasons()
-        skipped = f"{res['skipped']} lines skipped" + (f": {why}" if why else "")
+        unit = "damaged packets" if reader.format == "binary" else "lines"
+        skipped = f"{res['skipped']} {unit} skipped" + (f": {why}" if why else "")
         if frames == 0:
             how = ("port closed" if res["closed"] else "interrupted" if interrupted
                    else f"stopped after {seconds:g} s" if seconds else "stopped")
-            got = skipped if res["skipped"] else "no line received"
+            got = skipped if res["skipped"] or why else "nothing received"
             if interrupted:
-                click.echo(f"Interrupted: no frame received from {port}; nothing written "
-                           f"to {out_path} ({got})", err=True)
+                click.echo(f"Interrupted: no frame received from {port}; {untouched} "
+                           f"({got})", err=True)
                 raise SystemExit(130)
-            raise FrameError(f"{port}: no frame received ({how}; {got}); nothing written "
-                             f"to {out_path}")
+            raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
     summary = (f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
                f"{skipped}, "
                f"{res['cut']} cut -> {out_path}")

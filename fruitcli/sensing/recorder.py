@@ -1,9 +1,11 @@
 """Recording a live board: frames appended to a MuCa log, flushed frame by frame.
 
-Units: counts, s. A crash, a Ctrl-C or an unplugged cable leaves a log holding every
-whole frame received (a line cut by the end is not a frame and is not written). An
-`.npz` output is recorded as ``<out>.partial.log`` first and converted when recording
-ends; after a hard crash the partial log remains, a valid recording itself.
+Units: counts, s. Frames are recorded into ``<out>.partial.log`` and moved (a log) or
+converted (an `.npz`) onto `out` when recording ends with at least one frame, so an
+existing `out` is replaced only by a recording that has frames (and only with
+``--overwrite``). A Ctrl-C or an unplugged cable ends the recording normally; after a
+hard crash the partial log remains, a valid recording itself (a line cut by the end is
+not a frame and is not written), and a new recording refuses to start over it.
 """
 
 from __future__ import annotations
@@ -49,21 +51,22 @@ class LogSink:
 def log_path_for(out: str | os.PathLike) -> Path:
     """Where frames are flushed while recording to `out`."""
     out = Path(out)
-    return out if is_log_path(out) else out.with_name(out.name + ".partial.log")
+    return out.with_name(out.name + ".partial.log")
 
 
 def finalize(out: str | os.PathLike, meta: dict, rows: int, cols: int) -> int:
-    """Convert the partial log of an `.npz` output (no-op for a log). -> frames.
+    """Move (a log) or convert (an `.npz`) the partial log onto `out`. -> frames.
 
-    Without a frame, nothing is left: the log (partial or not) is removed."""
+    Without a frame, the partial log is removed and `out` is left as it was."""
     out = Path(out)
     log = log_path_for(out)
     if not _has_frames(log, rows * cols):
         log.unlink(missing_ok=True)
         return 0
-    if log == out:
-        return read_muca_log(out, rows, cols, strict=False).frames.shape[0]
     rec = read_muca_log(log, rows, cols, strict=False)
+    if is_log_path(out):
+        os.replace(log, out)
+        return len(rec)
     rec.meta.update(meta)
     write_npz(out, rec)
     log.unlink()
@@ -115,9 +118,19 @@ def check_limits(n_frames: int | None, seconds: float | None) -> None:
         raise FrameError("give --frames or --seconds, not both")
 
 
-def check_out_path(out: str | os.PathLike) -> None:
-    """`out` must be an `.npz` or a MuCa log by its suffix."""
+def check_out_path(out: str | os.PathLike, overwrite: bool = False) -> None:
+    """`out` must be an `.npz` or a MuCa log by its suffix, must not exist unless
+    `overwrite`, and no partial log of an unfinished recording may be in the way."""
     suffix = Path(out).suffix.lower()
     if suffix != ".npz" and not is_log_path(out):
         raise FrameError(f"--out {out}: expected a .npz or a MuCa log "
                          f"({', '.join(LOG_SUFFIXES)}), got {suffix or 'no suffix'!r}")
+    if Path(out).is_dir():
+        raise FrameError(f"--out {out}: is a folder, expected a file")
+    if Path(out).exists() and not overwrite:
+        raise FrameError(f"--out {out}: exists; give --overwrite to replace it (it is "
+                         "replaced only once the new recording has frames)")
+    partial = log_path_for(out)
+    if partial.exists():
+        raise FrameError(f"{partial}: left by a recording that did not finish (it holds "
+                         "its frames, a MuCa log); move or remove it first")
