@@ -4,7 +4,9 @@ Units: counts (raw CDC values, not baseline-subtracted), seconds, kPa.
 
 npz keys (loaded with ``allow_pickle=False``): ``frames`` (N, R, C) integer counts,
 ``t_s`` (N,) host time, optional ``pressure_kpa`` (N, K) with ``chamber_names`` (K,),
-optional ``sample`` (N,) int (bench recordings), ``meta`` a JSON string.
+optional ``pressure_t_s`` (N,) host time of the pressure reading each frame carries (NaN
+before the first reading), optional ``sample`` (N,) int (bench recordings), ``meta`` a
+JSON string.
 
 MuCa ASCII log: one frame per line, R*C comma-separated counts in the board's order
 (value k is Tx k // C, Rx k % C, so a line reshapes row-major to (R, C)); an empty
@@ -49,6 +51,8 @@ class Recording:
     chamber_names: tuple[str, ...] = ()
     sample: np.ndarray | None = None  # (N,) int64, -1: not a sample frame
     meta: dict = field(default_factory=dict)
+    pressure_t_s: np.ndarray | None = None  # (N,) host time of each frame's pressure
+    # reading (s, same clock as t_s; NaN: no reading before that frame, 0 kPa assumed)
     skipped_lines: int = 0  # log lines skipped while reading
 
     def __len__(self) -> int:
@@ -107,13 +111,19 @@ def read_npz(path: str | os.PathLike) -> Recording:
         names = tuple(str(s) for s in data.get("chamber_names", []))
         if len(names) != pressure.shape[1]:
             names = tuple(f"c{k + 1}" for k in range(pressure.shape[1]))
+    pressure_t = None
+    if "pressure_t_s" in data:
+        pressure_t = np.asarray(data["pressure_t_s"], dtype=float)
+        if pressure is None or pressure_t.shape != (n,) or np.any(np.isinf(pressure_t)):
+            raise FrameError(f"{path}: pressure_t_s: expected ({n},) times (s, NaN before "
+                             f"the first reading) with pressure_kpa, got {pressure_t.shape}")
     sample = None
     if "sample" in data:
         sample = np.asarray(data["sample"])
         if sample.shape != (n,) or sample.dtype.kind not in "iu":
             raise FrameError(f"{path}: sample: expected ({n},) integers, got {sample.shape}")
         sample = sample.astype(np.int64)
-    return Recording(frames, t_s, pressure, names, sample, meta)
+    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t)
 
 
 def write_npz(path: str | os.PathLike, rec: Recording) -> None:
@@ -124,6 +134,8 @@ def write_npz(path: str | os.PathLike, rec: Recording) -> None:
     if rec.pressure_kpa is not None:
         arrays["pressure_kpa"] = np.asarray(rec.pressure_kpa, dtype=float)
         arrays["chamber_names"] = np.array(list(rec.chamber_names), dtype=str)
+        if rec.pressure_t_s is not None:
+            arrays["pressure_t_s"] = np.asarray(rec.pressure_t_s, dtype=float)
     if rec.sample is not None:
         arrays["sample"] = np.asarray(rec.sample, dtype=np.int64)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:

@@ -164,16 +164,18 @@ def parse_pressure_line(line: str) -> dict[str, float] | None:
 
 
 class PressureState:
-    """Latest chamber pressures (kPa) in a fixed chamber order, updated from lines."""
+    """Latest chamber pressures (kPa) in a fixed chamber order, updated from lines, with
+    the host monotonic time (s) of the line that set them (NaN before the first)."""
 
     def __init__(self, chambers: tuple[str, ...]):
         self.chambers = chambers
         self.kpa = np.zeros(len(chambers))
+        self.latest = (self.kpa, math.nan)  # (kPa, monotonic s): read as one tuple
         self.skipped = 0
         self.received = 0  # pressure lines taken
         self.closed = False  # the pressure port closed (the last pressures stay)
 
-    def update(self, line: str) -> None:
+    def update(self, line: str, t_monotonic: float | None = None) -> None:
         got = parse_pressure_line(line)
         if got is None or any(c not in self.chambers for c in got):
             self.skipped += 1
@@ -181,5 +183,7 @@ class PressureState:
         kpa = self.kpa.copy()
         for c, v in got.items():
             kpa[self.chambers.index(c)] = v
+        t = time.monotonic() if t_monotonic is None else t_monotonic
         self.kpa = kpa  # one assignment: readers see old or new, never half
+        self.latest = (kpa, t)
         self.received += 1

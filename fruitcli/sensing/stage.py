@@ -100,6 +100,11 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     result = {"frames": len(rec), "touches": len(table), "skipped_lines": rec.skipped_lines,
               "seconds": dt, "frames_per_s": len(rec) / max(dt, 1e-9),
               "touches_csv": str(out_dir / "touches.csv")}
+    if pressure is not None:  # frames far from the simulated path: counted, not hidden
+        from fruitcli.sensing.pressure_path import report_off_path
+
+        result["pressure_path"] = report_off_path(rec, pressure, locator.state_pressure_kpa,
+                                                  out_dir, say)
     if rec.sample is not None:
         ids, pts = strongest_per_sample(table, rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,
