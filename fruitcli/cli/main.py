@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "live": ("fruitcli.cli.live", "live", "Localize touches live from a MuCa board."),
     "emulate-board": ("fruitcli.cli.emulate_board", "emulate_board",
                       "Play frames on a pseudo-terminal like a MuCa board."),
+    "emulate-printer": ("fruitcli.cli.emulate_printer", "emulate_printer",
+                        "A Marlin-like printer and a skin-touching board on two ptys."),
     "evaluate": ("fruitcli.cli.evaluate", "evaluate",
                  "Error tables and plots against ground truth."),
     "study": ("fruitcli.cli.study", "study", "Error-against-run-time and stability studies."),

@@ -12,6 +12,7 @@ bytes/s (a 21 x 12 ASCII frame of ~1,265 bytes: ~9 frames/s; a 254-byte binary p
 from __future__ import annotations
 
 import fcntl
+import itertools
 import os
 import struct
 import termios
@@ -88,14 +89,16 @@ class BoardEmulator:
     `lose_byte_at` / `extra_byte_at` frames lose a byte or get one more (in their middle);
     `reset_at` frames are cut by a board reset (half sent, then the start-up lines again);
     `trailing_comma` ends ASCII lines with a comma; `vanish_after` closes the port (like
-    an unplugged cable) in the middle of the next frame.
+    an unplugged cable) in the middle of the next frame. `frames` may be a function of
+    the frame index returning a frame, or None to end (frames made as they are sent).
     """
 
     def __init__(self, frames: np.ndarray, fps: float = 60.0, log_every: int = 0,
                  cut_at=(), vanish_after: int | None = None, wait_for_reader: bool = False,
                  fmt: str = "ascii", baud: int = 0, lose_byte_at=(), extra_byte_at=(),
                  reset_at=(), trailing_comma: bool = False):
-        self.frames = np.asarray(frames)
+        self.source = frames if callable(frames) else None  # k -> frame, or None: the end
+        self.frames = None if callable(frames) else np.asarray(frames)
         self.fps = fps
         self.fmt = check_format(fmt)
         if fmt == "auto":
@@ -155,8 +158,11 @@ class BoardEmulator:
                 self._await_reader()
             self._banner()
             t0 = time.monotonic()
-            for k, frame in enumerate(self.frames):
-                if self.stop.is_set():
+            for k in itertools.count():
+                if self.source is not None and self.rate:  # made when the line is free
+                    time.sleep(max(0.0, self._line_free - time.monotonic()))
+                frame = self._frame(k)
+                if frame is None or self.stop.is_set():
                     break
                 data = frame_bytes(frame, self.fmt, self.trailing_comma)
                 half = len(data) // 2
@@ -189,6 +195,11 @@ class BoardEmulator:
         finally:
             self.close()
         return self.sent
+
+    def _frame(self, k: int):
+        if self.source is not None:
+            return self.source(k)
+        return self.frames[k] if k < len(self.frames) else None
 
     def _await_reader(self) -> None:
         end = time.monotonic() + READER_TIMEOUT_S

@@ -4,9 +4,10 @@ Units: counts (raw CDC values, not baseline-subtracted), seconds, kPa.
 
 npz keys (loaded with ``allow_pickle=False``): ``frames`` (N, R, C) integer counts,
 ``t_s`` (N,) host time, optional ``pressure_kpa`` (N, K) with ``chamber_names`` (K,),
-optional ``pressure_t_s`` (N,) host time of the pressure reading each frame carries (NaN
-before the first reading), optional ``sample`` (N,) int (bench recordings), ``meta`` a
-JSON string.
+optional ``printer_mm`` (N, 3) the printer bench's tip position at each frame (mm,
+printer coordinates), optional ``pressure_t_s`` (N,) host time of the pressure reading
+each frame carries (NaN before the first reading), optional ``sample`` (N,) int (bench
+recordings), ``meta`` a JSON string.
 
 MuCa ASCII log: one frame per line, R*C comma-separated counts in the board's order
 (value k is Tx k // C, Rx k % C, so a line reshapes row-major to (R, C)); an empty
@@ -53,6 +54,7 @@ class Recording:
     meta: dict = field(default_factory=dict)
     pressure_t_s: np.ndarray | None = None  # (N,) host time of each frame's pressure
     # reading (s, same clock as t_s; NaN: no reading before that frame, 0 kPa assumed)
+    printer_mm: np.ndarray | None = None  # (N, 3) the bench printer's tip at each frame
     skipped_lines: int = 0  # log lines skipped while reading
 
     def __len__(self) -> int:
@@ -123,7 +125,14 @@ def read_npz(path: str | os.PathLike) -> Recording:
         if sample.shape != (n,) or sample.dtype.kind not in "iu":
             raise FrameError(f"{path}: sample: expected ({n},) integers, got {sample.shape}")
         sample = sample.astype(np.int64)
-    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t)
+    printer = None
+    if "printer_mm" in data:
+        printer = np.asarray(data["printer_mm"], dtype=float)
+        if printer.shape != (n, 3) or not np.all(np.isfinite(printer)):
+            raise FrameError(f"{path}: printer_mm: expected ({n}, 3) finite mm, got "
+                             f"shape {printer.shape}")
+    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t,
+                     printer_mm=printer)
 
 
 def write_npz(path: str | os.PathLike, rec: Recording) -> None:
@@ -138,6 +147,8 @@ def write_npz(path: str | os.PathLike, rec: Recording) -> None:
             arrays["pressure_t_s"] = np.asarray(rec.pressure_t_s, dtype=float)
     if rec.sample is not None:
         arrays["sample"] = np.asarray(rec.sample, dtype=np.int64)
+    if rec.printer_mm is not None:
+        arrays["printer_mm"] = np.asarray(rec.printer_mm, dtype=float)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.savez(fh, **arrays)
 

@@ -54,6 +54,7 @@ MAX_MIN_STEP_COUNTS = 16  # (b): change of the minimum between consecutive packe
 SYNC_PACKETS = 8  # packets scored per candidate offset when synchronizing
 MIN_FINAL_PACKETS = 3  # ... at the end of a stream, when fewer are left
 NO_POSITIVE_MINIMUM = 80000 & 0xFFFF  # the firmware's start value, as a 16-bit unsigned
+DECODE_CHUNK_BYTES = 4096  # a capture file is decoded in chunks like a port's reads
 MAX_LINE_BYTES = 65536  # a "line" longer than this is garbage: dropped and counted as cut
 
 
@@ -99,21 +100,26 @@ class AsciiDecoder:
         self.bad_values = 0
         self.last_bad_value = ""
         self.shifted = 0  # one field too many and no host timestamp in front
-        self.bytes = 0
+        self.bytes = 0  # fed so far
+        self.starts: list[int] = []  # stream offsets of the frames last returned
 
     def feed(self, chunk: bytes) -> list[np.ndarray]:
+        """Frames completed by `chunk`; `self.starts` gets their stream offsets."""
         self.bytes += len(chunk)
         self.buf += chunk
+        at = self.bytes - len(self.buf)  # stream offset of buf[0]
         parts = self.buf.split(b"\n")
         self.buf = bytearray(parts.pop())
         if len(self.buf) > MAX_LINE_BYTES:
             self.buf.clear()
             self.cut += 1
-        out = []
+        out, self.starts = [], []
         for p in parts:
             got = self.line(p.decode("ascii", errors="replace").rstrip("\r"))
             if got is not None:
                 out.append(got)
+                self.starts.append(at)
+            at += len(p) + 1
         return out
 
     def line(self, line: str) -> np.ndarray | None:
@@ -136,6 +142,7 @@ class AsciiDecoder:
         if self.buf.strip():
             self.cut += 1
         self.buf.clear()
+        self.starts = []
         return []
 
     def skip_reasons(self) -> str:
@@ -174,7 +181,8 @@ class BinaryDecoder:
         self.skipped = 0  # packets dropped after synchronization (damaged)
         self.skipped_bytes = 0  # bytes outside packets (start-up lines, resets, damage)
         self.syncs = 0  # times the boundary was found (1 + resynchronizations)
-        self.bytes = 0
+        self.bytes = 0  # fed so far
+        self.starts: list[int] = []  # stream offsets of the frames last returned
         self.cut = 0  # a partial packet left at the end
         self.wrong_size: Counter[int] = Counter()  # (ASCII only; kept empty)
 
@@ -202,17 +210,19 @@ class BinaryDecoder:
             return None
         win = np.lib.stride_tricks.sliding_window_view(raw, n * p)[:p]
         win = win.reshape(len(win), n, p)
-        head = win[:, :, 0].astype(np.int64) << 8 | win[:, :, 1]
         data = win[:, :, HEADER_BYTES:]
-        counts = head[:, :, None] + data
+        cand = np.flatnonzero((data == 0).any(axis=2).all(axis=1))  # (a), cheap: first
+        if not cand.size:
+            return None
+        head = win[cand, :, 0].astype(np.int64) << 8 | win[cand, :, 1]
+        counts = head[:, :, None] + data[cand]
         step = np.abs(np.diff(counts, axis=1))
-        ok = ((data == 0).any(axis=2).all(axis=1)
-              & (np.abs(np.diff(head, axis=1)) <= MAX_MIN_STEP_COUNTS).all(axis=1)
+        ok = ((np.abs(np.diff(head, axis=1)) <= MAX_MIN_STEP_COUNTS).all(axis=1)
               & (np.median(step, axis=2) <= MAX_MEDIAN_STEP_COUNTS).all(axis=1))
         if not ok.any():
             return None
         variation = np.where(ok, step.mean(axis=(1, 2)), np.inf)
-        return int(np.argmin(variation))
+        return int(cand[np.argmin(variation)])
 
     def _sync(self) -> list[np.ndarray] | None:
         """Find the boundary; -> the first SYNC_PACKETS - 1 packets there (the last stays
@@ -226,6 +236,8 @@ class BinaryDecoder:
                 continue
             self.skipped_bytes += off
             del self.buf[:off]
+            at = self.bytes - len(self.buf)
+            self.starts.extend(at + k * p for k in range(n - 1))
             run = [packet_counts(self.buf[k * p: (k + 1) * p]) for k in range(n - 1)]
             del self.buf[: (n - 1) * p]
             self.synced = True
@@ -238,6 +250,7 @@ class BinaryDecoder:
         self.bytes += len(chunk)
         self.buf += chunk
         out: list[np.ndarray] = []
+        self.starts = []  # stream offsets of the frames returned
         p = self.size
         while True:
             if not self.synced:
@@ -252,6 +265,7 @@ class BinaryDecoder:
             if this is not None and self.agree(self.prev, this) and \
                     abs(self._header(p) - int(this.min())) <= MAX_MIN_STEP_COUNTS:
                 out.append(this)
+                self.starts.append(self.bytes - len(self.buf))
                 self.prev = this
                 del self.buf[:p]
             else:  # damaged packet (a lost or extra byte) or a reset: find the boundary
@@ -266,11 +280,14 @@ class BinaryDecoder:
         before (it has no successor); unsynchronized, a shorter run of at least
         MIN_FINAL_PACKETS agreeing packets."""
         out = []
+        self.starts = []
         p = self.size
+        at = self.bytes - len(self.buf)
         if self.synced and len(self.buf) >= p:
             c = self._counts(0)
             if c is not None and self.agree(self.prev, c):
                 out.append(c.reshape(self.rows, self.cols))
+                self.starts.append(at)
                 del self.buf[:p]
         elif not self.synced:
             n = len(self.buf) // p
@@ -280,6 +297,7 @@ class BinaryDecoder:
                 self.skipped_bytes += off
                 out = [packet_counts(self.buf[off + k * p: off + (k + 1) * p]).reshape(
                     self.rows, self.cols) for k in range(n)]
+                self.starts = [at + off + k * p for k in range(n)]
                 del self.buf[: off + n * p]
         if self.buf:
             self.cut += 1
@@ -313,6 +331,10 @@ class AutoDecoder:
     @property
     def format(self) -> str | None:
         return None if self.chosen is None else self.chosen.format
+
+    @property
+    def starts(self) -> list[int]:
+        return (self.chosen or self.candidates[0]).starts
 
     def _pick(self, results):
         best = max(range(len(results)), key=lambda k: len(results[k]))
@@ -364,6 +386,9 @@ def make_decoder(fmt: str, rows: int, cols: int):
 def decode_bytes(data: bytes, fmt: str, rows: int, cols: int):
     """All frames (N, rows, cols) of a whole capture, and the decoder (its counters)."""
     dec = make_decoder(fmt, rows, cols)
-    frames = dec.feed(data) + dec.finish()
+    frames = []
+    for k in range(0, len(data), DECODE_CHUNK_BYTES):  # auto-detection commits early
+        frames += dec.feed(data[k: k + DECODE_CHUNK_BYTES])
+    frames += dec.finish()
     arr = np.stack(frames) if frames else np.zeros((0, rows, cols), np.int64)
     return arr, dec

@@ -101,6 +101,7 @@ class FrameReader:
         self.port, self.name = port, name
         self.rows, self.cols = rows, cols
         self.decoder = make_decoder(fmt, rows, cols)
+        self.decoder_bytes = 0
         self.t0 = time.monotonic()
 
     @property
@@ -127,18 +128,25 @@ class FrameReader:
         20 x 12"; "" when none was."""
         return self.decoder.skip_reasons()
 
-    def _stamp(self, frames) -> list[tuple[np.ndarray, float, str]]:
+    def _stamp(self, frames) -> list[tuple[np.ndarray, float, int]]:
         t = time.monotonic() - self.t0
-        return [(c, t, "") for c in frames]
+        return list(zip(frames, [t] * len(frames), self.decoder.starts, strict=True))
 
-    def poll(self) -> list[tuple[np.ndarray, float, str]]:
-        """Frames completed since the last call: (counts (R, C), t_s, "")."""
+    @property
+    def bytes_read(self) -> int:
+        """Bytes taken from the port so far (the stream offset of the next byte)."""
+        return self.decoder_bytes
+
+    def poll(self) -> list[tuple[np.ndarray, float, int]]:
+        """Frames completed since the last call: (counts (R, C), t_s, stream offset of the
+        frame's first byte)."""
         chunk = read_chunk(self.port, self.name)
         if not chunk:
             return []
+        self.decoder_bytes += len(chunk)
         return self._stamp(self.decoder.feed(chunk))
 
-    def finish(self) -> list[tuple[np.ndarray, float, str]]:
+    def finish(self) -> list[tuple[np.ndarray, float, int]]:
         """Frames still held when the stream ends (binary: the last packet)."""
         return self._stamp(self.decoder.finish())
 
