@@ -274,3 +274,45 @@ def test_live_and_locate_read_binary(tmp_path):
     touched = read_table(tmp_path / "loc" / "touches.csv", ["frame"])["frame"]
     live_frames = [ln["frame"] for ln in live_lines(res.output) if ln["touches"]]
     assert sorted(set(touched.astype(int).tolist())) == live_frames == list(range(10, 20))
+
+
+def test_decoders_report_each_frames_stream_offset():
+    """The printer bench matches frames to moves by the offset of their first byte."""
+    frames = board_frames(12, seed=10)
+    lines = [format_ascii_line(f) for f in frames]
+    data = START + b"".join(lines)
+    dec = AsciiDecoder(21, 12)
+    starts = []
+    for k in range(0, len(data), 500):
+        dec.feed(data[k:k + 500])
+        starts += dec.starts
+    assert starts == [len(START) + sum(map(len, lines[:k])) for k in range(12)]
+    dec = BinaryDecoder(21, 12)
+    data = binary_stream(board_frames(30, seed=10), {15: ("lose", 50)})
+    starts = []
+    for k in range(0, len(data), 300):
+        dec.feed(data[k:k + 300])
+        starts += dec.starts
+    dec.finish()
+    starts += dec.starts
+    assert starts == [len(START) + 254 * k - (k > 15) for k in range(30) if k != 15]
+
+
+def test_emulate_board_command_speaks_binary_and_says_its_pacing(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
+                             "emulate-board", "--format", "binary", "--frames", "30"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        path = proc.stdout.readline().strip()
+        res = invoke(["record", "--port", path, "--out", str(tmp_path / "r.npz"),
+                      "--frames", "29", "--format", "binary"])
+    finally:
+        _, err = proc.communicate(timeout=20)
+    assert res.exit_code == 0, res.output
+    assert np.array_equal(read_recording(tmp_path / "r.npz").frames, synthetic_frames(30)[:29])
+    assert ("30 21 x 12 frames, binary; pacing: 115200 baud 8N1 = 11520 bytes/s: 254-byte "
+            "binary packets, at most 45.4 frames/s") in err
+    assert "29 binary frames" in res.output and "frames/s" in res.output

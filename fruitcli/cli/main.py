@@ -27,6 +27,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                       "Play frames on a pseudo-terminal like a MuCa board."),
     "emulate-printer": ("fruitcli.cli.emulate_printer", "emulate_printer",
                         "A Marlin-like printer and a skin-touching board on two ptys."),
+    "calibrate": ("fruitcli.cli.calibrate", "calibrate",
+                  "Fit the skin's forward model to a bench recording."),
     "evaluate": ("fruitcli.cli.evaluate", "evaluate",
                  "Error tables and plots against ground truth."),
     "study": ("fruitcli.cli.study", "study", "Error-against-run-time and stability studies."),
