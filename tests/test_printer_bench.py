@@ -118,10 +118,10 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
 class Rig:
     """The printer and the board emulators in this process (their state can be read)."""
 
-    def __init__(self, scene_path, faults=None, vanish_after=None):
+    def __init__(self, scene_path, faults=None, vanish_after=None, printer_bed=None):
         self.scene = load_scene(scene_path)
         pr = self.scene["printer"]
-        bed = pr["bed_mm"]
+        bed = printer_bed or pr["bed_mm"]
         self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), 0.1, faults)
         skin = SkinBoard(load_taxels(scene_path.parent / "t.csv"), self.scene["board"],
                          Placement.from_printer(pr), self.printer.tip_mm)
@@ -207,6 +207,32 @@ def test_the_board_vanishing_retracts_and_keeps_the_frames(tmp_path):
         rig.run(tmp_path / "out", progress)
     assert rig.z_at_end == pytest.approx(13.0)
     assert kept(tmp_path / "out").sample.max() == 0
+
+
+def test_the_printer_vanishing_keeps_the_frames_and_says_it_could_not_retract(tmp_path):
+    rig = Rig(make_scene(tmp_path))
+
+    def progress(msg):
+        if msg.startswith("sample 0"):
+            rig.printer.stop.set()  # its thread closes the pty
+
+    with pytest.raises(BenchStopped, match=r"^sample 1 .*: printer port closed or unplugged.*"
+                                           r"; \d+ frames and 1 samples kept in .*\(not "
+                                           r"retracted: the printer does not answer\)$"):
+        rig.run(tmp_path / "out", progress)
+    assert kept(tmp_path / "out").sample.max() == 0
+
+
+def test_m114_catches_a_move_the_printer_clamped(tmp_path):
+    """The scene's bed_mm claims more room than the printer has: its software endstops
+    clamp the move to sample 1 (y 103.5 -> 102), and M114 says so."""
+    rig = Rig(make_scene(tmp_path), printer_bed=[0, 0, 0, 220, 102, 250])
+    with pytest.raises(BenchStopped, match=r"^sample 1 .*: the printer reports X98\.00 "
+                                           r"Y102\.00 Z8\.00 after a move to X98\.00 "
+                                           r"Y103\.46 Z8\.00 \(software endstops or lost "
+                                           r"steps\); \d+ frames and 1 samples kept"):
+        rig.run(tmp_path / "out")
+    assert rig.printer.clamped >= 1 and rig.z_at_end == pytest.approx(13.0)
 
 
 def test_ctrl_c_retracts_and_keeps_the_frames(tmp_path):

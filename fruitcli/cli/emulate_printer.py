@@ -44,7 +44,8 @@ def parse_faults(specs) -> dict:
                    "once), no-ok:N (never answered), halt:N (Error:Printer halted).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Skin and noise seed.")
 def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, faults, seed):
-    """Print the printer's and the board's pty paths, then answer on both until Ctrl-C.
+    """Print the printer's and the board's pty paths, then answer on both until Ctrl-C
+    (or until 5 s after the bench has closed the board's port).
 
     The printer answers the Marlin host protocol; the board sends frames of the skin
     under the printer's tip, so `fruit bench SCENE --printer P --board B` runs whole.
