@@ -132,16 +132,37 @@ class Rig:
         self.threads[1].start()
 
     def run(self, out, progress=None):
+        """run_printer_bench itself (to inject Ctrl-C or a pulled cable via `progress`)."""
         try:
             return run_printer_bench(self.scene, self.scene.path.parent / "t.csv", None,
                                      self.printer.path, self.board.path, out, "small",
                                      "binary", progress=progress)
         finally:
-            self.z_at_end = float(self.printer.tip_mm(1e18)[2])
-            self.printer.stop.set()
-            self.board.stop.set()
-            for th in self.threads:
-                th.join(5)
+            self.end()
+
+    def cli(self, out):
+        """`fruit bench SCENE --printer P --board B --out OUT`: -> the click result."""
+        try:
+            return CliRunner().invoke(cli, ["bench", str(self.scene.path), "--printer",
+                                            self.printer.path, "--board", self.board.path,
+                                            "--out", str(out)])
+        finally:
+            self.end()
+
+    def end(self):
+        self.z_at_end = float(self.printer.tip_mm(1e18)[2])
+        self.printer.stop.set()
+        self.board.stop.set()
+        for th in self.threads:
+            th.join(5)
+
+
+def one_error_line(res, pattern):
+    import re
+
+    assert res.exit_code == 1 and res.output.count("Error: ") == 1, res.output
+    line = [ln for ln in res.output.splitlines() if ln.startswith("Error: ")][0]
+    assert re.search(pattern, line[len("Error: "):]), line
 
 
 def kept(out):
@@ -150,11 +171,9 @@ def kept(out):
 
 def test_a_missing_ok_times_out_retracts_and_keeps_the_frames(tmp_path):
     rig = Rig(make_scene(tmp_path), faults={"no-ok": [40]})
-    with pytest.raises(BenchStopped, match=r"^sample \d \(model x .*\): /dev/.*: no 'ok' "
-                                           r"for '(G1|M400).*' within 3 s \(printer not "
-                                           r"answering\); \d+ frames and \d samples kept in "
-                                           r".*small$"):
-        rig.run(tmp_path / "out")
+    one_error_line(rig.cli(tmp_path / "out"),
+                   r"^sample \d \(model x .*\): /dev/.*: no 'ok' for '(G1|M400).*' within 3 s "
+                   r"\(printer not answering\); \d+ frames and \d samples kept in .*small$")
     assert rig.z_at_end == pytest.approx(13.0)  # retracted to the safe height
     rec = kept(tmp_path / "out")
     assert len(rec) > 10 and "no 'ok'" in rec.meta["stopped"]
@@ -162,22 +181,20 @@ def test_a_missing_ok_times_out_retracts_and_keeps_the_frames(tmp_path):
 
 def test_a_printer_error_halts_keeps_the_frames_and_says_so(tmp_path):
     rig = Rig(make_scene(tmp_path), faults={"halt": [45]})
-    with pytest.raises(BenchStopped, match=r"Error:Printer halted\. kill\(\) called! \(the "
-                                           r"printer has stopped\); \d+ frames and \d samples "
-                                           r"kept in .*\(not retracted: the printer does not "
-                                           r"answer\)$"):
-        rig.run(tmp_path / "out")
+    one_error_line(rig.cli(tmp_path / "out"),
+                   r"Error:Printer halted\. kill\(\) called! \(the printer has stopped\); "
+                   r"\d+ frames and \d samples kept in .*\(not retracted: the printer does "
+                   r"not answer\)$")
     assert len(kept(tmp_path / "out")) > 10
 
 
 def test_a_sample_outside_the_bed_stops_there_after_the_samples_before(tmp_path):
     printer = PRINTER + "bed_mm = [0, 0, 0, 220, 102, 250]\n"  # sample 1 is at y 103.5
     rig = Rig(make_scene(tmp_path, printer))
-    with pytest.raises(BenchStopped, match=r"^sample 1 \(model x 0\.00, y 4\.00 mm\): printer "
-                                           r"x 98\.00, y 103\.46, z 1\.50\.\.13\.00 mm is "
-                                           r"outside \[printer\]\.bed_mm .*; \d+ frames and 1 "
-                                           r"samples kept in"):
-        rig.run(tmp_path / "out")
+    one_error_line(rig.cli(tmp_path / "out"),
+                   r"^sample 1 \(model x 0\.00, y 4\.00 mm\): printer x 98\.00, y 103\.46, "
+                   r"z 1\.50\.\.13\.00 mm is outside \[printer\]\.bed_mm .*; \d+ frames and "
+                   r"1 samples kept in")
     assert rig.z_at_end == pytest.approx(13.0)
     assert kept(tmp_path / "out").sample.max() == 0
     truth = read_table(tmp_path / "out" / "small" / "truth.csv", ["sample"])
@@ -186,9 +203,8 @@ def test_a_sample_outside_the_bed_stops_there_after_the_samples_before(tmp_path)
 
 def test_no_touch_before_max_press_is_an_error_naming_the_sample(tmp_path):
     rig = Rig(make_scene(tmp_path, extra="[detection]\nthreshold_counts = 5000.0\n"))
-    with pytest.raises(BenchStopped, match=r"^sample 0 .*: no touch registered down to "
-                                           r"\[printer\]\.max_press_mm = 1\.5 mm below"):
-        rig.run(tmp_path / "out")
+    one_error_line(rig.cli(tmp_path / "out"), r"^sample 0 .*: no touch registered down to "
+                   r"\[printer\]\.max_press_mm = 1\.5 mm below")
     rec = kept(tmp_path / "out")
     assert rig.z_at_end == pytest.approx(13.0)
     assert rec.printer_mm[:, 2].min() == pytest.approx(Placement(
@@ -227,11 +243,10 @@ def test_m114_catches_a_move_the_printer_clamped(tmp_path):
     """The scene's bed_mm claims more room than the printer has: its software endstops
     clamp the move to sample 1 (y 103.5 -> 102), and M114 says so."""
     rig = Rig(make_scene(tmp_path), printer_bed=[0, 0, 0, 220, 102, 250])
-    with pytest.raises(BenchStopped, match=r"^sample 1 .*: the printer reports X98\.00 "
-                                           r"Y102\.00 Z8\.00 after a move to X98\.00 "
-                                           r"Y103\.46 Z8\.00 \(software endstops or lost "
-                                           r"steps\); \d+ frames and 1 samples kept"):
-        rig.run(tmp_path / "out")
+    one_error_line(rig.cli(tmp_path / "out"),
+                   r"^sample 1 .*: the printer reports X98\.00 Y102\.00 Z8\.00 after a move to "
+                   r"X98\.00 Y103\.46 Z8\.00 \(software endstops or lost steps\); \d+ frames "
+                   r"and 1 samples kept")
     assert rig.printer.clamped >= 1 and rig.z_at_end == pytest.approx(13.0)
 
 

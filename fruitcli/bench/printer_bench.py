@@ -37,7 +37,8 @@ from fruitcli.sensing.frames_io import Recording, write_npz
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position
 FRAME_TIMEOUT_S = 5.0  # longest wait for a board frame after a move
-RETRACT_TIMEOUT_S = 10.0  # the retract after an error waits this long for its ok
+RETRACT_TIMEOUT_S = 10.0
+YIELD_S = 0.0005  # the board reader's pause between reads  # the retract after an error waits this long for its ok
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
@@ -108,13 +109,15 @@ class BoardStream:
         self.error: FruitError | None = None
         self.stop = threading.Event()
         self.cond = threading.Condition()
+        self.read_lock = threading.Lock()  # a byte is counted read or waiting, never both
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
     def _run(self):
         while not self.stop.is_set():
             try:
-                got = self.reader.poll()
+                with self.read_lock:
+                    got = self.reader.poll()
             except FruitError as exc:  # the port vanished
                 with self.cond:
                     self.error = exc
@@ -124,15 +127,17 @@ class BoardStream:
                 with self.cond:
                     self.frames.extend(got)
                     self.cond.notify_all()
+            time.sleep(YIELD_S)  # let next_frame_after take the read lock
 
     def next_frame_after(self, timeout_s: float = FRAME_TIMEOUT_S):
         """The next whole frame whose first byte arrived after now: (counts, t_s)."""
-        try:
-            waiting = self.reader.port.in_waiting
-        except (OSError, TypeError, ValueError):
-            waiting = 0  # the port vanished: the reading thread reports it
-        with self.cond:
+        with self.read_lock:
+            try:
+                waiting = self.reader.port.in_waiting
+            except (OSError, TypeError, ValueError):
+                waiting = 0  # the port vanished: the reading thread reports it
             mark = self.reader.bytes_read + waiting
+        with self.cond:
             end = time.monotonic() + timeout_s
             while True:
                 while self.frames:
@@ -275,7 +280,8 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
         log.save(out, meta, indenter)
         kept = (f"{len(log.frames)} frames and {len(log.truth)} samples kept in {out}"
                 if log.frames else "no frame recorded")
-        tail = "" if retracted else " (not retracted: the printer does not answer)"
+        tail = "" if retracted or tip is None else \
+            " (not retracted: the printer does not answer)"
         if isinstance(exc, KeyboardInterrupt):
             raise BenchInterrupted(f"interrupted at {where}; {kept}{tail}") from None
         msg = str(exc) if where in str(exc) else f"{where}: {exc}"
