@@ -45,6 +45,19 @@ def test_npz_round_trip_exact(tmp_path):
     assert back.meta == r.meta
 
 
+def test_npz_round_trip_of_bench_positions_and_pressure_times(tmp_path):
+    r = rec(pressure=True, sample=True)
+    r.printer_mm = np.random.default_rng(1).uniform(0, 220, (12, 3))
+    r.pressure_t_s = np.r_[np.nan, np.cumsum(np.full(11, 0.013))]
+    write_npz(tmp_path / "a.npz", r)
+    back = read_npz(tmp_path / "a.npz")
+    assert np.array_equal(back.printer_mm, r.printer_mm)
+    assert np.array_equal(back.pressure_t_s, r.pressure_t_s, equal_nan=True)
+    np.savez(tmp_path / "b.npz", frames=r.frames, t_s=r.t_s, printer_mm=np.zeros((3, 3)))
+    with pytest.raises(FrameError, match=r"b\.npz: printer_mm: expected \(12, 3\) finite mm"):
+        read_npz(tmp_path / "b.npz")
+
+
 def test_log_round_trip_exact(tmp_path):
     r = rec()
     write_muca_log(tmp_path / "a.log", r)

@@ -27,6 +27,7 @@ from fruitcli.sensing.bench import START_GAP_MM
 
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
+GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts trade off)
 
 
 def descent_gaps(rec, truth_z: dict[int, float], n_idle: int, where: str):
@@ -95,11 +96,25 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
                 * np.exp(-gap_mm / lam)[:, None])
 
     def residual(x):
-        return np.concatenate([(model(x) - v).ravel(), [100.0 * x[3:].mean()]])
+        return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
+
+    def jacobian(x):
+        """d residual / d log-parameters: m, m d^2/s^2, m gap/l, and m in taxel t's
+        column for log g_t; the gauge row last."""
+        m = model(x)
+        s, lam = np.exp(x[1]), np.exp(x[2])
+        jac = np.zeros((m.size + 1, 3 + t))
+        jac[:-1, 0] = m.ravel()
+        jac[:-1, 1] = (m * (dist_mm / s) ** 2).ravel()
+        jac[:-1, 2] = (m * (gap_mm / lam)[:, None]).ravel()
+        rows = np.arange(m.size)
+        jac[rows, 3 + rows % t] = m.ravel()
+        jac[-1, 3:] = GAUGE_WEIGHT / t
+        return jac
 
     peak = max(float(v.max()), 1.0)
     x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), np.zeros(t)]
-    res = least_squares(residual, x0, method="trf", x_scale="jac")
+    res = least_squares(residual, x0, jac=jacobian, method="trf", x_scale="jac")
     a, s, lam = np.exp(res.x[:3])
     g = np.exp(res.x[3:])
     pred = model(res.x)
