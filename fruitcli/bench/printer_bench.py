@@ -37,8 +37,8 @@ from fruitcli.sensing.frames_io import Recording, write_npz
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position
 FRAME_TIMEOUT_S = 5.0  # longest wait for a board frame after a move
-RETRACT_TIMEOUT_S = 10.0
-YIELD_S = 0.0005  # the board reader's pause between reads  # the retract after an error waits this long for its ok
+RETRACT_TIMEOUT_S = 10.0  # the retract after an error waits this long for its ok
+YIELD_S = 0.0005  # the board reader's pause between reads
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
