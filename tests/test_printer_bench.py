@@ -118,15 +118,17 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
 class Rig:
     """The printer and the board emulators in this process (their state can be read)."""
 
-    def __init__(self, scene_path, faults=None, vanish_after=None, printer_bed=None):
+    def __init__(self, scene_path, faults=None, vanish_after=None, printer_bed=None,
+                 fmt="binary", baud=2000000, time_scale=0.1):
         self.scene = load_scene(scene_path)
         pr = self.scene["printer"]
         bed = printer_bed or pr["bed_mm"]
-        self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), 0.1, faults)
+        self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, faults)
         skin = SkinBoard(load_taxels(scene_path.parent / "t.csv"), self.scene["board"],
                          Placement.from_printer(pr), self.printer.tip_mm)
-        self.board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt="binary",
-                                   baud=2000000, vanish_after=vanish_after)
+        self.board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt,
+                                   baud=baud, vanish_after=vanish_after)
+        self.fmt = fmt
         self.threads = [self.printer.start(), threading.Thread(target=self.board.play,
                                                                daemon=True)]
         self.threads[1].start()
@@ -136,7 +138,7 @@ class Rig:
         try:
             return run_printer_bench(self.scene, self.scene.path.parent / "t.csv", None,
                                      self.printer.path, self.board.path, out, "small",
-                                     "binary", progress=progress)
+                                     self.fmt, progress=progress)
         finally:
             self.end()
 

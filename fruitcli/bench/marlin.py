@@ -88,12 +88,14 @@ class Marlin:
             self.buf += chunk
 
     def _write(self, text: str) -> None:
+        import termios
+
         import serial
 
         try:
             self.port.write((text + "\n").encode("ascii"))
             self.port.flush()
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except (serial.SerialException, OSError, TypeError, termios.error) as exc:
             raise PrinterGone(f"{self.name}: printer port closed or unplugged "
                               f"({exc})") from None
 

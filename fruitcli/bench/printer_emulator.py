@@ -3,7 +3,7 @@
 Units: mm, mm/min, s. It answers as Marlin 2 does: ``start`` and ``echo:`` lines once a
 host opens the port; ``ok`` for every command; numbered lines ``N<n> <cmd>*<cs>`` checked
 (checksum, line number), a bad one answered ``Error:...``, ``Resend: <n>``, ``ok``;
-``G28`` prints ``echo:busy: processing`` while it homes; ``G0``/``G1`` are queued and
+``G28`` and ``M400`` print ``echo:busy: processing`` while they take; ``G0``/``G1`` are queued and
 take distance / feed rate (times `time_scale`), clamped to the bed like Marlin's
 software endstops; ``M400`` answers once every move is done; ``M114`` reports the
 planned position. Faults for tests (`faults`, by the count of command lines received):
@@ -27,7 +27,8 @@ from fruitcli.bench.marlin import checksum
 BANNER = ("start", "echo:Marlin 2.1.2 (fruit emulate-printer)",
           "echo: Last Updated: 2023-01-01 | Author: fruit", "echo: Free Memory: 4096")
 HOME_S = 1.2  # homing takes this long
-BUSY_EVERY_S = 0.5  # echo:busy: processing while homing
+BUSY_EVERY_S = 0.5  # echo:busy: processing while homing or waiting in M400 (Marlin's
+# host keepalive; its default interval is 2 s)
 FAULTS = ("resend", "no-ok", "halt")
 _WORD = re.compile(r"([A-Z])(-?[\d.]+)")
 
@@ -186,9 +187,13 @@ class PrinterEmulator:
             return []
         if code == "G28":
             return self._home()
-        if code == "M400":
+        if code == "M400":  # waits for the moves, with Marlin's host keepalive lines
+            last = time.monotonic()
             while time.monotonic() < self._moves_done_at() and not self.stop.is_set():
                 time.sleep(0.002)
+                if time.monotonic() - last >= BUSY_EVERY_S:
+                    self._send("echo:busy: processing")
+                    last = time.monotonic()
             return []
         if code == "M114":
             x, y, z = self.planned

@@ -26,6 +26,8 @@ from fruitcli.sensing.muca_formats import check_format, encode_packet, format_as
 
 BANNER = ("[Muca] Set TEST mode", "[Muca] Gain set to 2")  # init + useRawData, setGain(2)
 BITS_PER_BYTE = 10  # 8N1: start bit, 8 data bits, stop bit
+PACED_PIECE_BYTES = 16  # paced bytes are written in pieces of this many (or more)
+MAX_PACED_WRITES_PER_S = 1000  # ... but no more pieces than this a second
 DRAIN_TIMEOUT_S = 2.0  # wait this long for a reader to take the last bytes before closing
 READER_TIMEOUT_S = 10.0  # wait_for_reader gives up after this long and plays anyway
 NO_READER_S = 5.0  # nothing taken from the port for this long: the reader has gone, stop
@@ -127,11 +129,19 @@ class BoardEmulator:
         full NO_READER_S."""
         if isinstance(data, str):
             data = data.encode("ascii")
-        if self.rate:
-            delay = self._line_free - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            self._line_free = max(self._line_free, time.monotonic()) + len(data) / self.rate
+        if self.rate:  # in pieces, each when the line has carried the one before
+            piece = max(PACED_PIECE_BYTES, int(self.rate / MAX_PACED_WRITES_PER_S))
+            for k in range(0, len(data), piece):
+                delay = self._line_free - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+                chunk = data[k:k + piece]
+                self._line_free = max(self._line_free, time.monotonic()) + len(chunk) / self.rate
+                self._write_now(chunk)
+            return
+        self._write_now(data)
+
+    def _write_now(self, data: bytes) -> None:
         stalled = None
         while data:
             try:
