@@ -34,8 +34,10 @@ previous packet then finds no valid header after it); each resynchronization nee
 as long as the next damage is more than ``SYNC_PACKETS`` packets later; damage within a
 synchronization window costs the packets of that window before it.
 A board whose counts do not move at all (no noise) cannot be synchronized with
-certainty: every offset then looks alike. The stream's last packet is passed on at
-`finish` when it agrees with the one before.
+certainty: every offset then looks alike. Latency: a packet waits for the next packet's
+two header bytes; after a (re)synchronization the first packets wait for all
+``SYNC_PACKETS``. The stream's last packet is passed on at `finish` when it agrees with
+the one before.
 """
 
 from __future__ import annotations
