@@ -97,6 +97,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
+        "format": Key("str", "auto", "frames on the port and in raw captures: auto, ascii "
+                      "(stock Muca_Raw) or binary (stock SendRawByte packets)"),
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
@@ -133,6 +135,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)"),
         "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
                                                       "[lo, hi] drawn per taxel (seeded)"),
+    },
+    "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
+        "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "
+                               "(mm; required with [printer])"),
+        "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)"),
+        "safe_height_mm": Key("num", 20.0, "tip height above the model's highest point "
+                              "between samples (mm)"),
+        "step_mm": Key("num", 0.1, "descent step (mm, 0 < step <= 1)"),
+        "feed_mm_min": Key("num", 600.0, "feed rate of every move (mm/min)"),
+        "max_press_mm": Key("num", 1.5, "deepest press below the expected surface before the "
+                            "sample is an error (mm)"),
+        "bed_mm": Key("box", [0.0, 0.0, 0.0, 220.0, 220.0, 250.0], "reachable volume "
+                      "[xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)"),
+        "baud": Key("int", 115200, "the printer's serial baud rate"),
+        "home": Key("bool", False, "send G28 (home all axes) first"),
+        "timeout_s": Key("num", 30.0, "longest wait for an 'ok' (s; busy lines extend it)"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -468,9 +486,14 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
             raise SceneError(f"{where}: [bench].reference_length_mm: expected > 0, got {ref}")
         if bench["baseline_frames"] < 1:
             raise SceneError(f"{where}: [bench].baseline_frames: expected >= 1")
+    if scene.has("printer"):
+        _check_printer(scene["printer"], where)
     period = scene["actuation"]["period_s"]
     if period is not None and period <= 0:
         raise SceneError(f"{where}: [actuation].period_s: expected > 0, got {period}")
+    if scene["board"]["format"] not in ("auto", "ascii", "binary"):
+        raise SceneError(f"{where}: [board].format: expected auto, ascii or binary, got "
+                         f"{scene['board']['format']!r}")
     det = scene["detection"]
     if det["threshold_counts"] <= 0:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
@@ -495,6 +518,32 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         if ref is not None and ref <= 0:
             raise SceneError(f"{where}: [[evaluate]] '{ev['label']}'.reference_length_mm: "
                              "expected > 0")
+
+
+def _check_printer(pr: dict, where: str) -> None:
+    """[printer] values that cannot drive a bench: one line naming the key."""
+    def fail(key: str, expected: str):
+        raise SceneError(f"{where}: [printer].{key}: expected {expected}, got {pr[key]!r}")
+
+    if pr["model_origin_mm"] is None:
+        raise SceneError(f"{where}: [printer]: missing key 'model_origin_mm' (where the "
+                         "model's origin is, printer coordinates, mm)")
+    if pr["safe_height_mm"] <= 0:
+        fail("safe_height_mm", "> 0 (mm above the model's highest point; lower would "
+             "drag the tip through the model)")
+    if not 0 < pr["step_mm"] <= 1.0:
+        fail("step_mm", "0 < step <= 1 mm")
+    if pr["feed_mm_min"] <= 0:
+        fail("feed_mm_min", "> 0 mm/min")
+    if pr["max_press_mm"] <= 0:
+        fail("max_press_mm", "> 0 mm")
+    if pr["baud"] <= 0:
+        fail("baud", "> 0")
+    if pr["timeout_s"] <= 0:
+        fail("timeout_s", "> 0 s")
+    bed = pr["bed_mm"]
+    if any(bed[a] >= bed[a + 3] for a in range(3)):
+        fail("bed_mm", "[xmin, ymin, zmin, xmax, ymax, zmax] with min < max")
 
 
 def n_states(scene: Scene) -> int:

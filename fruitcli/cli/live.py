@@ -26,12 +26,15 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames (baseline frames included).")
 @click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
+@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]), default=None,
+              help="The board's frame format (stock Muca_Raw ASCII or SendRawByte binary); "
+                   "default: the scene's [board].format (auto-detected).")
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
-         baseline_frames, threshold):
+         fmt, baseline_frames, threshold):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:
@@ -92,7 +95,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             p_thread = pressure_thread(pser, pressure, stop, pressure_port)
         if solver is not None:  # nothing to solve until a pressure line arrived
             fem_thread = solver.run(lambda: pressure.kpa if pressure.received else None, stop)
-        reader = FrameReader(ser, board["rows"], board["cols"], name=port)
+        reader = FrameReader(ser, board["rows"], board["cols"], name=port,
+                             fmt=fmt or board["format"])
         live_loc = LiveLocator(loc, pressure, solver)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0

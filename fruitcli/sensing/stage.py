@@ -121,7 +121,7 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
     board = _section(scene, "board")
-    rec = read_recording(frames_path, board["rows"], board["cols"])
+    rec = read_recording(frames_path, board["rows"], board["cols"], board.get("format", "auto"))
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
     settings = Settings.from_scene(_section(scene, "detection"),
@@ -165,6 +165,11 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
               "touches_csv": str(out_dir / "touches.csv")}
     if projected is not None:
         result["projected_to_surface"] = projected
+    if pressure is not None:  # frames far from the simulated path: counted, not hidden
+        from fruitcli.sensing.pressure_path import report_off_path
+
+        result["pressure_path"] = report_off_path(rec, pressure, locator.state_pressure_kpa,
+                                                  out_dir, say)
     if rec.sample is not None:
         ids, pts = strongest_per_sample(table, rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,

@@ -1,0 +1,111 @@
+"""`fruit calibrate`: the skin's parameters recovered from a bench recording made with
+parameters the calibration does not know, and mismatched inputs refused."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from test_sensing_bench import pad_taxel_csv
+
+from fruitcli.cli.main import cli
+from fruitcli.fsutil import write_csv
+from fruitcli.sensing import forward
+from fruitcli.sensing.bench import START_GAP_MM
+from fruitcli.sensing.calibrate import descent_gaps
+from fruitcli.sensing.frames_io import Recording, write_npz
+from fruitcli.tables import read_table
+
+HIDDEN = {"sigma_mm": 4.5, "contact_counts": 80.0, "gap_decay_mm": 2.0, "noise": 1.2}
+
+
+def hidden_bench(tmp_path, seed=0, step_mm=0.1, n_idle=10, threshold=20.0):
+    """A bench recording in the virtual bench's format (idle frames, then per sample the
+    descent from 5 mm in step_mm steps up to the first frame over the threshold), made by
+    the forward model's formula with HIDDEN parameters and taxel gains in 1 +- 20 %."""
+    rng = np.random.default_rng(seed)
+    taxels = forward.pad_taxels_mm(z_mm=3.0)
+    t = len(taxels)
+    gains = rng.uniform(0.8, 1.2, t)
+    base = np.round(500 + rng.uniform(-30, 30, t))
+    xy = np.concatenate([taxels[:, :2] + [3.0, 2.0], taxels[:, :2] - [2.0, 3.0]])
+
+    def noisy(mean):
+        return np.round(mean + rng.normal(0, HIDDEN["noise"], mean.shape)).astype(np.int64)
+
+    rows, samples = [noisy(np.broadcast_to(base, (n_idle, t)))], [np.full(n_idle, -1)]
+    c0 = rows[0].mean(axis=0)
+    for k, p in enumerate(xy):
+        d = np.linalg.norm(taxels - [p[0], p[1], 3.0], axis=1)
+        lateral = gains * HIDDEN["contact_counts"] * np.exp(-0.5 * (d / HIDDEN["sigma_mm"]) ** 2)
+        for gap in np.arange(START_GAP_MM, -2.0, -step_mm):
+            c = noisy(base + lateral * np.exp(-gap / HIDDEN["gap_decay_mm"]))
+            rows.append(c[None, :])
+            hit = bool(np.any(c - c0 > threshold))
+            samples.append(np.array([k if hit else -1]))
+            if hit:
+                break
+    counts = np.concatenate(rows)
+    frames = noisy(np.full((len(counts), 21, 12), 500.0))
+    frames[:, np.arange(t) // 4, np.arange(t) % 4] = counts
+    meta = {"source": "bench", "indenter": "small", "step_mm": step_mm,
+            "baseline_frames": n_idle, "threshold_counts": threshold}
+    write_npz(tmp_path / "frames.npz", Recording(frames, np.arange(len(frames)) / 60.0,
+                                                 sample=np.concatenate(samples), meta=meta))
+    write_csv(tmp_path / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"],
+              ([k, float(p[0]), float(p[1]), 3.0] for k, p in enumerate(xy)))
+    pad_taxel_csv(tmp_path / "t.csv")
+    (tmp_path / "s.toml").write_text('[grid]\ntaxels = "t.csv"\n')
+    return gains
+
+
+def calibrate(tmp_path, truth="truth.csv"):
+    return CliRunner().invoke(cli, ["calibrate", str(tmp_path / "frames.npz"), "--truth",
+                                    str(tmp_path / truth), "--scene", str(tmp_path / "s.toml"),
+                                    "--out", str(tmp_path / "cal")])
+
+
+def test_calibration_recovers_hidden_parameters_within_10_percent(tmp_path):
+    import tomllib
+
+    gains = hidden_bench(tmp_path)
+    res = calibrate(tmp_path)
+    assert res.exit_code == 0, res.output
+    skin = tomllib.loads((tmp_path / "cal" / "skin.toml").read_text())["skin"]
+    assert skin["footprint_sigma_mm"]["small"] == pytest.approx(HIDDEN["sigma_mm"], rel=0.1)
+    assert skin["gap_decay_mm"] == pytest.approx(HIDDEN["gap_decay_mm"], rel=0.1)
+    assert skin["noise_std_counts"] == pytest.approx(HIDDEN["noise"], rel=0.1)
+    assert skin["taxel_gain"] == "gains.csv"
+    got = read_table(tmp_path / "cal" / "gains.csv", ["id", "gain", "measured"])
+    measured = got["measured"] == 1
+    assert measured.all()  # every taxel has a sample 3.6 mm away
+    scale = gains.mean()  # the gains' common factor belongs to contact_counts
+    assert skin["contact_counts"] == pytest.approx(HIDDEN["contact_counts"] * scale, rel=0.1)
+    assert got["gain"] == pytest.approx(gains / scale, rel=0.1)
+    assert np.corrcoef(got["gain"], gains)[0, 1] > 0.9  # the gains themselves, not noise
+
+
+def test_calibration_refuses_a_truth_file_that_does_not_match(tmp_path):
+    hidden_bench(tmp_path)
+    rows = read_table(tmp_path / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+    write_csv(tmp_path / "bad.csv", ["sample", "x_mm", "y_mm", "z_mm"],
+              ([int(k) + 100, x, y, z] for k, x, y, z in zip(
+                  rows["sample"], rows["x_mm"], rows["y_mm"], rows["z_mm"], strict=True)))
+    res = calibrate(tmp_path, "bad.csv")
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "bad.csv: does not match the recording: samples 100, 101, 102" in res.output
+    assert not (tmp_path / "cal").exists()
+
+
+def test_descent_gaps_of_a_printer_bench_recording():
+    """Printer-bench frames: the gap is the tip's z less the model origin's and the
+    contact's; virtual-bench frames: 5 mm less j steps."""
+    sample = np.array([-1, -1, -1, -1, 0, -1, 1])
+    tip_z = np.array([30.0, 30.0, 12.0, 11.9, 11.8, 13.0, 12.9])
+    rec = Recording(np.zeros((7, 2, 2), np.int64), np.arange(7.0), sample=sample,
+                    meta={"model_origin_mm": [100.0, 100.0, 5.0], "step_mm": 0.1},
+                    printer_mm=np.column_stack([np.zeros(7), np.zeros(7), tip_z]))
+    frames, samples, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
+    assert frames.tolist() == [2, 3, 4, 5, 6] and samples.tolist() == [0, 0, 0, 1, 1]
+    assert gaps == pytest.approx([4.0, 3.9, 3.8, 4.0, 3.9])
+    rec.printer_mm = None
+    _, _, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
+    assert gaps == pytest.approx([5.0, 4.9, 4.8, 5.0, 4.9])
