@@ -23,21 +23,25 @@ def osc_string(text: str) -> bytes:
 
 class Template:
     """Messages to `address` whose arguments are the fixed `strings`, then numbers of
-    the type letters `tags` (i, f, d)."""
+    the type letters `tags` (i, f, d). `element` gives a message as a bundle element
+    (its int32 size first); messages of a template all have the same size."""
 
     def __init__(self, address: str, strings: tuple[str, ...] = (), tags: str = ""):
         self.prefix = (osc_string(address) + osc_string("," + "s" * len(strings) + tags)
                        + b"".join(osc_string(s) for s in strings))
         self._struct = struct.Struct(">" + tags)
+        size = len(self.prefix) + self._struct.size
+        self._sized = size.to_bytes(4, "big") + self.prefix
 
     def pack(self, *numbers) -> bytes:
+        """The message alone."""
         return self.prefix + self._struct.pack(*numbers)
 
+    def element(self, *numbers) -> bytes:
+        """The message as an element of a bundle."""
+        return self._sized + self._struct.pack(*numbers)
 
-def bundle(messages: list[bytes]) -> bytes:
-    """An OSC bundle (time tag immediately) of encoded messages."""
-    out = [BUNDLE_HEAD]
-    for m in messages:
-        out.append(len(m).to_bytes(4, "big"))
-        out.append(m)
-    return b"".join(out)
+
+def bundle(elements: list[bytes]) -> bytes:
+    """An OSC bundle (time tag immediately) of `Template.element` outputs."""
+    return BUNDLE_HEAD + b"".join(elements)

@@ -40,7 +40,8 @@ class SessionTracker:
         n = xyz_mm.shape[0]
         ids = np.full(n, -1, np.int64)
         if self.gate_mm > 0 and n and self.prev_xyz.shape[0]:
-            cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz_mm[None, :, :], axis=2)
+            d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
+            cost = np.sqrt((d * d).sum(axis=2))
             r, c = linear_sum_assignment(cost)
             ok = cost[r, c] <= self.gate_mm
             ids[c[ok]] = self.prev_ids[r[ok]]

@@ -24,6 +24,7 @@ Ints are int32, values float32, t_s (host time, s) float64.
 
 from __future__ import annotations
 
+import math
 import socket
 from dataclasses import dataclass
 
@@ -94,37 +95,38 @@ class Normalizer:
 
 
 class Kinematics:
-    """Velocity and motion acceleration per session from successive positions."""
+    """Velocity and motion acceleration per session from successive positions, for the
+    2D and the 3D profile at once (plain Python: a frame has at most 10 touches, too
+    few for numpy to pay)."""
 
-    def __init__(self, dim: int):
-        self.ids: dict[int, int] = {}  # session -> row of the arrays below
-        self.t = np.zeros(0)
-        self.pos = np.zeros((0, dim))
-        self.vel = np.zeros((0, dim))
-        self.speed = np.zeros(0)
+    def __init__(self):
+        self.last: dict[int, tuple[float, list[float], list[float], float, float]] = {}
 
-    def update(self, ids: list[int], pos: np.ndarray, t_s: float
-               ) -> tuple[np.ndarray, np.ndarray]:
-        """(velocity (n, d), acceleration (n,)) for positions (n, d) of sessions `ids`:
-        v = (p - p_prev) / dt, m = (|v| - |v_prev|) / dt; 0 for a new session (and v
-        kept, m 0, when dt <= 0)."""
-        row = np.array([self.ids.get(s, -1) for s in ids], np.int64)
-        old = row >= 0
-        vel = np.zeros_like(pos)
-        acc = np.zeros(len(ids))
-        if old.any():
-            r = row[old]
-            dt = t_s - self.t[r]
-            ok = dt > 0
-            dtc = np.where(ok, dt, 1.0)
-            v = np.where(ok[:, None], (pos[old] - self.pos[r]) / dtc[:, None], self.vel[r])
-            vel[old] = v
-            acc[old] = np.where(ok, (np.linalg.norm(v, axis=1) - self.speed[r]) / dtc, 0.0)
-        self.ids = {s: k for k, s in enumerate(ids)}
-        self.t = np.full(len(ids), t_s)
-        self.pos, self.vel = pos.copy(), vel
-        self.speed = np.linalg.norm(vel, axis=1)
-        return vel, acc
+    def update(self, ids: list[int], pos: list[list[float]], t_s: float
+               ) -> list[tuple[list[float], float, float]]:
+        """Positions (x2, y2, x3, y3, z3) of sessions `ids` -> [(velocity (5 values), m2,
+        m3)]: v = (p - p_prev) / dt, m = (|v| - |v_prev|) / dt over the 2D and the 3D
+        part; 0 for a new session (and v kept, m 0, when dt <= 0)."""
+        out, now = [], {}
+        hypot = math.hypot
+        for s, p in zip(ids, pos, strict=True):
+            prev = self.last.get(s)
+            if prev is None:
+                v, m2, m3 = [0.0] * 5, 0.0, 0.0
+                s2 = s3 = 0.0
+            else:
+                t0, p0, v0, s20, s30 = prev
+                dt = t_s - t0
+                if dt > 0:
+                    v = [(a - b) / dt for a, b in zip(p, p0, strict=True)]
+                    s2, s3 = hypot(v[0], v[1]), hypot(v[2], v[3], v[4])
+                    m2, m3 = (s2 - s20) / dt, (s3 - s30) / dt
+                else:
+                    v, m2, m3, s2, s3 = v0, 0.0, 0.0, s20, s30
+            now[s] = (t_s, p, v, s2, s3)
+            out.append((v, m2, m3))
+        self.last = now
+        return out
 
 
 class TuioSender:
@@ -142,7 +144,7 @@ class TuioSender:
         self.norm = norm
         self.profiles = ("/tuio/2Dcur", f"/tuio/{profile_3d}", "/tuio/_sp")
         self.source = source or f"fruit@{socket.gethostname()}"
-        self.k2, self.k3 = Kinematics(2), Kinematics(3)
+        self.kin = Kinematics()
         self._templates()
         self.fseq = 0
         self.sent = 0  # datagrams sent
@@ -150,7 +152,8 @@ class TuioSender:
 
     def _templates(self) -> None:
         p2, p3, pp = self.profiles
-        self._source = {p: osc.Template(p, ("source", self.source)).pack() for p in self.profiles}
+        self._source = {p: osc.Template(p, ("source", self.source)).element()
+                        for p in self.profiles}
         self._set = {p2: osc.Template(p2, ("set",), "ifffff"),
                      p3: osc.Template(p3, ("set",), "ifffffff"),
                      pp: osc.Template(pp, ("set",), "if")}
@@ -167,9 +170,9 @@ class TuioSender:
             alive = self._alive[(profile, len(ids))] = osc.Template(profile, ("alive",),
                                                                      "i" * len(ids))
         st = self._set[profile]
-        msgs = [self._source[profile], alive.pack(*ids)]
-        msgs += [st.pack(s, *row) for s, row in zip(ids, rows, strict=True)]
-        msgs.append(self._fseq[profile].pack(self.fseq))
+        msgs = [self._source[profile], alive.element(*ids)]
+        msgs += [st.element(s, *row) for s, row in zip(ids, rows, strict=True)]
+        msgs.append(self._fseq[profile].element(self.fseq))
         return osc.bundle(msgs)
 
     def bundles(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
@@ -178,19 +181,24 @@ class TuioSender:
         `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool."""
         self.fseq += 1
         sid = [int(s) for s in ids]
-        g2 = self.norm.grid(ij[:, 0], ij[:, 1])
-        g3 = self.norm.space(xyz_mm)
-        v2, m2 = self.k2.update(sid, g2, t_s)
-        v3, m3 = self.k3.update(sid, g3, t_s)
-        plain = [self._frame.pack(self.fseq, float(t_s), len(sid))]
-        rows = np.column_stack([xyz_mm, ij, peak]).tolist()
-        plain += [self._down.pack(sid[k], *rows[k]) for k in np.flatnonzero(new).tolist()]
-        plain += [self._touch.pack(s, *r) for s, r in zip(sid, rows, strict=True)]
-        plain += [self._up.pack(int(s)) for s in ended]
+        ijl, xyzl, peaks = ij.tolist(), xyz_mm.tolist(), np.asarray(peak, float).tolist()
+        nm = self.norm
+        g2 = [[(i - nm.i_min) / nm.i_span, 1.0 - (j - nm.j_min) / nm.j_span] for i, j in ijl]
+        o, sc = nm.origin_mm.tolist(), nm.scale_mm
+        g3 = [[(p[0] - o[0]) / sc, (p[1] - o[1]) / sc, (p[2] - o[2]) / sc] for p in xyzl]
+        kin = self.kin.update(sid, [a + b for a, b in zip(g2, g3, strict=True)], t_s)
+        rows = [(s, *p, *q, pk) for s, p, q, pk in zip(sid, xyzl, ijl, peaks, strict=True)]
+        plain = [self._frame.element(self.fseq, float(t_s), len(sid))]
+        plain += [self._down.element(*r) for r, is_new in zip(rows, new.tolist(), strict=True)
+                  if is_new]
+        plain += [self._touch.element(*r) for r in rows]
+        plain += [self._up.element(int(s)) for s in ended]
         p2, p3, pp = self.profiles
-        return [self._profile(p2, sid, np.column_stack([g2, v2, m2]).tolist()),
-                self._profile(p3, sid, np.column_stack([g3, v3, m3]).tolist()),
-                self._profile(pp, sid, np.asarray(peak, float)[:, None].tolist()),
+        return [self._profile(p2, sid, [(*g, *v[:2], m2) for g, (v, m2, _) in
+                                        zip(g2, kin, strict=True)]),
+                self._profile(p3, sid, [(*g, *v[2:], m3) for g, (v, _, m3) in
+                                        zip(g3, kin, strict=True)]),
+                self._profile(pp, sid, [(pk,) for pk in peaks]),
                 osc.bundle(plain)]
 
     def send(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
