@@ -140,8 +140,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         if reconnect:
             from fruitcli.sensing.reconnect import wait_for_port
 
-            ser = wait_for_port(port, baud, on_wait=lambda why: progress(
-                f"{why}; waiting for it (--reconnect)"))
+            try:
+                ser = wait_for_port(port, baud, on_wait=lambda why: progress(
+                    f"{why}; waiting for it (--reconnect)"))
+            except KeyboardInterrupt:
+                click.echo("Interrupted.", err=True)
+                raise SystemExit(130) from None
         else:
             ser = open_port(port, baud)
         pser = p_thread = fem_thread = None

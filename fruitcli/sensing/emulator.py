@@ -51,13 +51,16 @@ class BoardEmulator:
     its baud rate on open, then flushes the input), so no frame is sent into the void;
     `log_every` mixes a log line after every that many frames; `cut_at` frame indices
     are sent cut in the middle (half a line, then ``\\r\\n``); `vanish_after` closes the
-    port (like an unplugged cable) in the middle of the next frame's line.
+    port (like an unplugged cable) in the middle of the next frame's line;
+    `time_scale` plays `fps` emulated frames per second that many times faster (the
+    compressed-time soak test, `fruitcli.sensing.soak`).
     """
 
     def __init__(self, frames: np.ndarray, fps: float = 60.0, log_every: int = 0,
-                 cut_at=(), vanish_after: int | None = None, wait_for_reader: bool = False):
+                 cut_at=(), vanish_after: int | None = None, wait_for_reader: bool = False,
+                 time_scale: float = 1.0):
         self.frames = np.asarray(frames)
-        self.fps = fps
+        self.fps = fps * time_scale
         self.log_every = log_every
         self.cut_at = set(cut_at)
         self.vanish_after = vanish_after
