@@ -128,7 +128,7 @@ def test_tuio_bundles_carry_every_field_in_closed_form():
         # plain messages: frame, downs, touches, ups
         downs = [s for s in ids if s not in (want[f - 1][0] if f else [])]
         ups = [s for s in (want[f - 1][0] if f else []) if s not in ids]
-        assert plain[0] == ("/fruit/frame", [f + 1, pytest.approx(t[3 + f]), len(ids)])
+        assert plain[0] == ("/fruit/frame", [f + 1, len(ids), pytest.approx(t[3 + f], **F32)])
         addrs = [a for a, _ in plain[1:]]
         assert addrs == ["/fruit/down"] * len(downs) + ["/fruit/touch"] * len(ids) + \
             ["/fruit/up"] * len(ups)
@@ -170,7 +170,7 @@ def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
     assert src[0] == "source" and alive == ["alive", 7] and fseq == ["fseq", 1]
     assert st[:2] == ["set", 7]
     assert st[2:] == pytest.approx([32 / 80, 12 / 80, 1 / 80, 0, 0, 0, 0], **F32)
-    assert by["/fruit/frame"] == [[1, 1.5, 1]]
+    assert by["/fruit/frame"] == [[1, 1, 1.5]]
     assert by["/fruit/down"] == by["/fruit/touch"]
     assert by["/fruit/down"][0] == pytest.approx([7, 32, 12, 1, 2, 1, 44], **F32)
     assert by["/fruit/up"] == [[3]]

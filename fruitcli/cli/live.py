@@ -56,12 +56,15 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Size of the log file before it rotates, kB.")
 @click.option("--log-backups", type=click.IntRange(min=1), default=5, show_default=True,
               help="Rotated log files kept (FILE.1 ...).")
+@click.option("--view", "view_target", default=None, metavar="[HOST:]PORT",
+              help="Serve the live view (heat map, touches, pressures, frames/s, baseline) "
+                   "at http://HOST:PORT/ (HOST default 127.0.0.1: this machine only).")
 @click.option("--time-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
               help="Host time runs this many times faster (compressed-time tests with "
                    "`fruit emulate-board --time-scale`); scales t_s, drift, status.")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
          baseline_frames, threshold, osc_target, tuio_3d, session_gate_mm, drift_tau_s,
-         no_drift, reconnect, log_path, log_max_kb, log_backups, time_scale):
+         no_drift, reconnect, log_path, log_max_kb, log_backups, view_target, time_scale):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:
@@ -126,7 +129,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         drift = None if no_drift else DriftTracker(drift_tau_s, settings.threshold_counts)
         live_loc = LiveLocator(loc, pressure, solver, gate_mm=session_gate_mm, drift=drift,
                                health=True)
-        outputs = Outputs(live_loc, taxels, progress, time_scale)
+        outputs = Outputs(live_loc, taxels, progress, time_scale, pressure)
         if osc_address is not None:
             from fruitcli.sensing.tuio import Normalizer, TuioSender
 
@@ -137,6 +140,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             from fruitcli.sensing.runlog import RunLog
 
             outputs.log = RunLog(log_path, log_max_kb * 1024, log_backups)
+        if view_target is not None:
+            outputs.start_view(view_target)
         if reconnect:
             from fruitcli.sensing.reconnect import wait_for_port
 
@@ -209,10 +214,15 @@ class Outputs:
     """Where each located frame goes: stdout (JSON lines), TUIO/OSC, the run log; and
     the run's counters (reconnects, frames per second, status)."""
 
-    def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0):
+    def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0, pressure=None):
         import time
+        from collections import deque
 
         self.live, self.taxels, self.progress = live_loc, taxels, progress
+        self.pressure = pressure
+        self.view = None
+        self.last = None  # the latest LiveFrame (for the view)
+        self.recent = deque(maxlen=32)  # host times of the latest frames (frames/s)
         self.scale = time_scale
         self.t0 = time.monotonic()
         self.tuio = None
@@ -232,6 +242,8 @@ class Outputs:
         t = self.now(monotonic_s)
         f = self.live.step(counts, t)
         self.frames += 1
+        self.recent.append(t)
+        self.last = f
         if f is not None:
             line = self.live.json_line(f)
             if line is not None:
@@ -272,6 +284,7 @@ class Outputs:
 
         t = self.now(time.monotonic())
         ended = self.live.rebaseline()
+        self.last = None
         self._ended(t, ended)
         self.progress(f"{port}: port lost after {self.frames} frames; waiting for it")
         if self.log is not None:
@@ -284,6 +297,48 @@ class Outputs:
             self.log.event(f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
                            f"reconnect {self.reconnects}")
         return ser, FrameReader(ser, board["rows"], board["cols"], name=port)
+
+    def start_view(self, target: str) -> None:
+        from fruitcli.sensing.tuio import parse_host_port
+        from fruitcli.sensing.view import ViewServer
+
+        host, port = parse_host_port(target, "--view", default_host="127.0.0.1")
+        tx = self.taxels
+        layout = {"taxels": [[int(tx.ids[k]), int(tx.i[k]), int(tx.j[k]),
+                              float(tx.xyz_mm[k, 0]), float(tx.xyz_mm[k, 1])]
+                             for k in range(len(tx))],
+                  "threshold_counts": self.live.loc.settings.threshold_counts}
+        self.view = ViewServer(host, port, layout, self.view_state)
+        self.progress(f"live view at {self.view.url}")
+
+    def view_state(self) -> dict:
+        """The live view's state (called from the view's threads)."""
+        f, recent = self.last, list(self.recent)
+        fps = (len(recent) - 1) / (recent[-1] - recent[0]) \
+            if len(recent) > 1 and recent[-1] > recent[0] else 0.0
+        touches = []
+        if f is not None:
+            tt = f.touches
+            touches = [{"id": int(tt.touch[n]), "x_mm": float(tt.xyz_mm[n, 0]),
+                        "y_mm": float(tt.xyz_mm[n, 1]), "z_mm": float(tt.xyz_mm[n, 2]),
+                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n])}
+                       for n in range(len(tt))]
+        act = f.activation if f is not None else [0.0] * len(self.taxels)
+        h = self.live.health
+        flags = {name: self.taxels.ids[idx].tolist() for name, idx in h.flags().items()} \
+            if h is not None else {}
+        p = self.pressure
+        return {"frame": self.live.frame, "t_s": round(self.now_s(), 3), "fps": fps,
+                "baseline": self.live.baseline_state, "reconnects": self.reconnects,
+                "activation": [round(float(v), 1) for v in act], "touches": touches,
+                "pressures": {} if p is None or not p.received else
+                dict(zip(p.chambers, (float(v) for v in p.kpa), strict=True)),
+                "flags": flags}
+
+    def now_s(self) -> float:
+        import time
+
+        return self.now(time.monotonic())
 
     def _ended(self, t: float, ended: list[int]) -> None:
         """Touches that ended without a frame (the board went away)."""
@@ -315,6 +370,8 @@ class Outputs:
         return lines
 
     def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
         if self.tuio is not None:
             self.tuio.close()
         if self.log is not None:

@@ -1,5 +1,5 @@
-"""OSC 1.0 encoding of messages and bundles (int32 ``i``, float32 ``f``, float64 ``d``,
-string ``s``), for the live loop's hot path.
+"""OSC 1.0 encoding of messages and bundles (int32 ``i``, float32 ``f``, string ``s``),
+for the live loop's hot path.
 
 python-osc's builders re-parse every message they build; with 10 touches (44 messages
 per frame) they took 4.5 ms per frame on this machine, over the 1 ms budget from board
@@ -23,7 +23,7 @@ def osc_string(text: str) -> bytes:
 
 class Template:
     """Messages to `address` whose arguments are the fixed `strings`, then numbers of
-    the type letters `tags` (i, f, d). `element` gives a message as a bundle element
+    the type letters `tags` (i, f). `element` gives a message as a bundle element
     (its int32 size first); messages of a template all have the same size."""
 
     def __init__(self, address: str, strings: tuple[str, ...] = (), tags: str = ""):

@@ -11,7 +11,7 @@ Per frame (the baseline frames excepted) four OSC bundles leave, in this order:
    ``set s x y z X Y Z m`` per touch, ``fseq``: the 3D point on the (deformed) body.
 3. ``/tuio/_sp`` (a TUIO 1.1 custom profile): ``source``, ``alive``, one ``set s p`` per
    touch with p the touch's peak activation (counts), ``fseq``.
-4. plain messages: ``/fruit/frame f t_s n``, then ``/fruit/down id x y z i j peak`` for
+4. plain messages: ``/fruit/frame f n t_s``, then ``/fruit/down id x y z i j peak`` for
    each touch that starts, ``/fruit/touch id x y z i j peak`` for every touch,
    ``/fruit/up id`` for each that ended (x y z mm, i j grid, peak counts).
 
@@ -19,7 +19,8 @@ s and id are session ids (a finger keeps its id; ids are never reused), f counts
 frames sent (fseq). X, Y (Z) are velocities (normalized units per s) from the previous
 frame's position of the same session, m the motion acceleration (change of speed per s,
 as the TUIO reference implementation defines it); both are 0 on a session's first frame.
-Ints are int32, values float32, t_s (host time, s) float64.
+Ints are int32, values float32 (so t_s, the host time of the run in s, has a resolution of
+1 ms up to 2.3 h and 8 ms after a day); only the standard types i, f, s are used.
 """
 
 from __future__ import annotations
@@ -159,7 +160,7 @@ class TuioSender:
                      pp: osc.Template(pp, ("set",), "if")}
         self._fseq = {p: osc.Template(p, ("fseq",), "i") for p in self.profiles}
         self._alive: dict[tuple[str, int], osc.Template] = {}
-        self._frame = osc.Template("/fruit/frame", (), "idi")
+        self._frame = osc.Template("/fruit/frame", (), "iif")
         self._down = osc.Template("/fruit/down", (), "iffffff")
         self._touch = osc.Template("/fruit/touch", (), "iffffff")
         self._up = osc.Template("/fruit/up", (), "i")
@@ -188,7 +189,7 @@ class TuioSender:
         g3 = [[(p[0] - o[0]) / sc, (p[1] - o[1]) / sc, (p[2] - o[2]) / sc] for p in xyzl]
         kin = self.kin.update(sid, [a + b for a, b in zip(g2, g3, strict=True)], t_s)
         rows = [(s, *p, *q, pk) for s, p, q, pk in zip(sid, xyzl, ijl, peaks, strict=True)]
-        plain = [self._frame.element(self.fseq, float(t_s), len(sid))]
+        plain = [self._frame.element(self.fseq, len(sid), float(t_s))]
         plain += [self._down.element(*r) for r, is_new in zip(rows, new.tolist(), strict=True)
                   if is_new]
         plain += [self._touch.element(*r) for r in rows]
