@@ -235,3 +235,36 @@ def test_view_port_in_use_is_one_line(tmp_path):
                                    str(tmp_path / "tty"), "--taxels", str(taxels),
                                    "--view", "80800"])
     assert res.exit_code == 1 and "expected [HOST:]PORT with a port in 1-65535" in res.output
+
+
+def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
+    from fruitcli.cli.live import Outputs
+    from fruitcli.sensing.board import default_board, load_taxels
+    from fruitcli.sensing.drift import DriftTracker
+    from fruitcli.sensing.live import LiveLocator
+    from fruitcli.sensing.pipeline import Locator, Settings
+    from fruitcli.sensing.serial_io import PressureState
+
+    taxels = load_taxels(board_taxel_csv(tmp_path / "t.csv"))
+    live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
+                               Settings(baseline_frames=10)), drift=DriftTracker(60, 20),
+                        health=True)
+    pressure = PressureState(("c1", "c2"))
+    out = Outputs(live, taxels, lambda message: None, 1.0, pressure)
+    frames = held_touch_frames(40)
+    st = out.view_state()
+    assert st["baseline"] == "collecting 0/10" and st["touches"] == [] and st["fps"] == 0
+    assert st["pressures"] == {}  # nothing measured yet
+    pressure.update("P c1=2.5 c2=7.0")
+    for k, f in enumerate(frames):
+        out.frame(f, out.t0 + k / 25)  # 25 frames/s
+    st = out.view_state()
+    assert st["frame"] == 39 and st["baseline"] == "tracking" and st["reconnects"] == 0
+    assert st["fps"] == pytest.approx(25.0)
+    assert st["pressures"] == {"c1": 2.5, "c2": 7.0}
+    (t,) = st["touches"]
+    assert t["id"] == 0 and (t["x_mm"], t["y_mm"], t["i"], t["j"]) == pytest.approx(
+        (160, 60, 10, 5), abs=0.2)
+    assert st["activation"][10 * 12 + 5] == pytest.approx(60, abs=2)
+    assert st["flags"] == {"dead": [], "stuck": [], "saturated": [], "noisy": []}
+    assert capsys.readouterr().out.count('"touch": 0') == 20  # the JSON lines
