@@ -198,3 +198,43 @@ def test_frames_while_reconnecting_and_a_drift_tau_of_zero(tmp_path):
     err = err.decode() + rest
     assert "ttyNONE: serial port does not exist; waiting for it (--reconnect)" in err
     assert proc.returncode == 130 and "Interrupted." in err and "Traceback" not in err
+
+
+def test_rebaseline_ends_the_touches_and_collects_a_new_baseline():
+    import json
+
+    from fruitcli.sensing.live import LiveLocator
+
+    i, j = np.divmod(np.arange(16), 4)
+    taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))
+    live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
+                               Settings(baseline_frames=2)), drift=DriftTracker(60, 20))
+    idle = np.full((21, 12), 500)
+    touched = idle.copy()
+    touched[1, 1] += 50
+    assert live.step(idle, 0.0) is None and live.step(idle, 0.1) is None
+    assert live.baseline_state == "tracking" and live.baselines == 1
+    f = live.step(touched, 0.2)
+    assert f.sessions.ids.tolist() == [0] and live.json_line(f) is not None
+    ended, line = live.rebaseline(0.3)
+    assert ended == [0] and json.loads(line) == {"frame": 2, "t_s": 0.3, "touches": []}
+    assert live.baseline_state == "collecting 0/2"
+    # the board back with counts 40 higher: the new baseline takes them
+    assert live.step(idle + 40, 1.0) is None and live.step(idle + 40, 1.1) is None
+    f = live.step(idle + 40, 1.2)
+    assert len(f.touches) == 0 and live.baselines == 2
+    assert live.baseline_shift() == pytest.approx(np.full(16, 40.0))
+    f = live.step(touched + 40, 1.3)
+    assert f.sessions.ids.tolist() == [1]  # a new session id, never 0 again
+    assert live.rebaseline(1.4)[0] == [1]
+
+
+def test_log_in_a_missing_folder_is_one_line(tmp_path):
+    (tmp_path / "s.toml").write_text(SCENE)
+    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
+                                   str(tmp_path / "tty"), "--taxels",
+                                   str(board_taxel_csv(tmp_path / "t.csv")), "--log",
+                                   str(tmp_path / "no" / "run.log")])
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == \
+        f"Error: {tmp_path / 'no' / 'run.log'}: No such file or directory"

@@ -60,8 +60,9 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Serve the live view (heat map, touches, pressures, frames/s, baseline) "
                    "at http://HOST:PORT/ (HOST default 127.0.0.1: this machine only).")
 @click.option("--time-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
-              help="Host time runs this many times faster (compressed-time tests with "
-                   "`fruit emulate-board --time-scale`); scales t_s, drift, status.")
+              help="Host time runs this many times faster, for compressed-time tests "
+                   "against an emulated board played as fast (tests/test_live_soak.py); "
+                   "scales t_s, the drift tracker and the status lines.")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
          baseline_frames, threshold, osc_target, tuio_3d, session_gate_mm, drift_tau_s,
          no_drift, reconnect, log_path, log_max_kb, log_backups, view_target, time_scale):
@@ -283,8 +284,11 @@ class Outputs:
         from fruitcli.sensing.serial_io import FrameReader
 
         t = self.now(time.monotonic())
-        ended = self.live.rebaseline()
+        ended, line = self.live.rebaseline(t)
         self.last = None
+        if line is not None:
+            sys.stdout.write(line + "\n")
+            sys.stdout.flush()
         self._ended(t, ended)
         self.progress(f"{port}: port lost after {self.frames} frames; waiting for it")
         if self.log is not None:
@@ -344,11 +348,6 @@ class Outputs:
         """Touches that ended without a frame (the board went away)."""
         import numpy as np
 
-        if ended and self.live._had:
-            self.live._had = False
-            sys.stdout.write(f'{{"frame": {self.live.frame}, "t_s": {round(t, 6)}, '
-                             '"touches": []}\n')
-            sys.stdout.flush()
         e = np.zeros(0)
         if self.tuio is not None:
             self.tuio.send(t, e.astype(np.int64), e.astype(bool), ended, np.zeros((0, 2)),

@@ -76,13 +76,16 @@ class LiveLocator:
             return f"collecting {len(self._base)}/{self.k}"
         return "tracking" if self.drift is not None else "fixed"
 
-    def rebaseline(self) -> list[int]:
-        """Start a new baseline (the board was away); -> sessions that ended."""
+    def rebaseline(self, t_s: float) -> tuple[list[int], str | None]:
+        """Start a new baseline (the board was away); -> the sessions that ended and the
+        JSON line saying so (``"touches": []``; None when no touch was going on)."""
         self._base, self.stream = [], None
         if self.drift is not None:
             self.drift.reset()
+        line = json.dumps({"frame": self.frame, "t_s": round(float(t_s), 6),
+                           "touches": []}) if self._had else None
         self._had = False
-        return self.sessions.end_all()
+        return self.sessions.end_all(), line
 
     def step(self, counts: np.ndarray, t_s: float) -> LiveFrame | None:
         """One frame (R, C) counts at host time `t_s` (s)."""
