@@ -238,3 +238,12 @@ def test_log_in_a_missing_folder_is_one_line(tmp_path):
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1] == \
         f"Error: {tmp_path / 'no' / 'run.log'}: No such file or directory"
+
+
+def test_a_log_that_cannot_be_written_is_counted_not_fatal(tmp_path, capsys):
+    log = RunLog(tmp_path / "run.log", max_bytes=10_000, backups=1)
+    log.handler.stream.close()  # as if the disk had gone away
+    log.status("one")
+    log.status("two")
+    assert log.failed == 2 and "Traceback" not in capsys.readouterr().err
+    log.close()

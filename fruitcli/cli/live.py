@@ -366,6 +366,8 @@ class Outputs:
             lines.append(self.live.health.summary(self.taxels.ids))
         if self.tuio is not None:
             lines.append(f"OSC: {self.tuio.sent} bundles sent, {self.tuio.failed} failed")
+        if self.log is not None and self.log.failed:
+            lines.append(f"log: {self.log.failed} lines could not be written")
         return lines
 
     def close(self) -> None:

@@ -27,8 +27,13 @@ class RunLog:
         fmt = logging.Formatter("%(asctime)s.%(msecs)03dZ %(message)s", "%Y-%m-%dT%H:%M:%S")
         fmt.converter = time.gmtime
         self.handler.setFormatter(fmt)
+        self.failed = 0  # lines that could not be written (a full disk): counted, not fatal
+        self.handler.handleError = self._count_failure  # instead of a traceback on stderr
         self.logger.addHandler(self.handler)
         self.open: dict[int, tuple[float, float]] = {}  # session -> (start t_s, max peak)
+
+    def _count_failure(self, record) -> None:
+        self.failed += 1
 
     def frame(self, t_s: float, sessions, xyz_mm, ij, peak) -> None:
         """Log the frame's touch downs and ups (sessions: a SessionStep)."""
@@ -57,4 +62,7 @@ class RunLog:
 
     def close(self) -> None:
         self.logger.removeHandler(self.handler)
-        self.handler.close()
+        try:
+            self.handler.close()
+        except (OSError, ValueError):  # the file could not be flushed: already counted
+            self.failed += 1
