@@ -246,15 +246,15 @@ class Outputs:
         self.recent.append(t)
         self.last = f
         if f is not None:
+            tt = f.touches
+            if self.tuio is not None:  # first: a slow reader of stdout must not delay it
+                self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
+                               tt.xyz_mm, tt.peak)
             line = self.live.json_line(f)
             if line is not None:
                 sys.stdout.write(line + "\n")
                 sys.stdout.flush()
             self.touches += int(f.sessions.new.sum())
-            tt = f.touches
-            if self.tuio is not None:
-                self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
-                               tt.xyz_mm, tt.peak)
             if self.log is not None:
                 self.log.frame(t, f.sessions, tt.xyz_mm, f.ij, tt.peak)
         if self.log is not None and t >= self.next_status:
