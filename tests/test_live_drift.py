@@ -247,3 +247,29 @@ def test_a_log_that_cannot_be_written_is_counted_not_fatal(tmp_path, capsys):
     log.status("two")
     assert log.failed == 2 and "Traceback" not in capsys.readouterr().err
     log.close()
+
+
+def test_a_noisy_taxel_is_flagged_and_does_not_freeze_the_drift_tracker():
+    """Taxel 0 has noise std 6 counts (over a quarter of the threshold): it crosses the
+    guard (10 counts) on about 10 % of the frames, which alone would hold the tracker
+    frozen; once flagged noisy it no longer does, and the others follow a ramp of
+    0.1 counts/s with their first-order lag."""
+    from fruitcli.sensing.live import LiveLocator
+
+    i, j = np.divmod(np.arange(16), 4)
+    taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))
+    ends = {}
+    for health in (False, True):
+        live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
+                                   Settings(baseline_frames=10)),
+                           drift=DriftTracker(10.0, 20.0), health=health)
+        noise = np.random.default_rng(5)
+        for k in range(3000):  # 10 frames/s, 300 s
+            f = 500.0 + 0.1 * k / 10 + noise.normal(0, 0.5, (21, 12))
+            f[0, 0] += noise.normal(0, 6.0) - 0.1 * k / 10  # taxel 0: noisy, no drift
+            live.step(np.round(f), k / 10)
+        ends[health] = live.stream.baseline[1:] - 500.0
+        if health:
+            assert live.health.flags()["noisy"].tolist() == [0]
+    assert np.median(ends[True]) == pytest.approx(30.0 - 0.1 * 10, abs=0.5)  # r tau lag
+    assert np.median(ends[False]) < 10.0  # frozen most of the time

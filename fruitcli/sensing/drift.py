@@ -10,7 +10,9 @@ threshold by default), and at least `hold_s` since the last frame that had one (
 silicone relaxes after a press). So a hand hovering just below the threshold freezes the
 baseline instead of being absorbed into it, as Infineon CAPSENSE and Microchip QTouch do
 (update only below a noise threshold; QTouch's 4 s drift hold time). Counts falling
-below the baseline (C - C0 < 0) are never a touch and are always followed.
+below the baseline (C - C0 < 0) are never a touch and are always followed. Taxels
+flagged broken (`fruitcli.sensing.health`) do not freeze it: a taxel stuck high would
+otherwise stop the tracking of all the others for the rest of the run.
 """
 
 from __future__ import annotations
@@ -47,12 +49,18 @@ class DriftTracker:
         """After a new baseline (reconnect): no history."""
         self.last_t, self.last_active = None, -math.inf
 
-    def update(self, baseline: np.ndarray, values: np.ndarray, t_s: float) -> bool:
-        """One frame's taxel counts (T,) at host time t_s; -> True if it adapted."""
+    def update(self, baseline: np.ndarray, values: np.ndarray, t_s: float,
+               ignore: np.ndarray | None = None) -> bool:
+        """One frame's taxel counts (T,) at host time t_s; -> True if it adapted.
+        `ignore` (T,) bool: taxels that cannot freeze the tracker (flagged stuck,
+        saturated, dead or noisy: not a hand; they are still tracked)."""
         dt = 0.0 if self.last_t is None else max(t_s - self.last_t, 0.0)
         self.last_t = t_s
         d = values - baseline
-        if float(d.max()) > self.guard:
+        near = d > self.guard
+        if ignore is not None:
+            near &= ~ignore
+        if near.any():
             self.last_active = t_s
         if t_s - self.last_active < self.hold_s:
             low = d < 0  # below the baseline: follow it even while frozen

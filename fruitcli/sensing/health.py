@@ -13,7 +13,8 @@ Units: counts, frames. Flags, checked on every frame (vectorized over taxels):
   (a quarter of the threshold by default: noise that crosses it at 4 sigma), once
   `run_frames` quiet frame pairs were seen.
 
-Flags are reported (summary, status lines, live view); they do not change detection.
+Flags are reported (summary, status lines, live view); they do not change detection, but
+flagged taxels cannot freeze the drift tracker (`fruitcli.sensing.drift`).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ class TaxelHealth:
         self.saturated = np.zeros(n_taxels, bool)
 
     def update(self, values: np.ndarray, quiet: bool) -> None:
-        """One frame's raw taxel counts (T,); `quiet`: no taxel near a touch."""
+        """One frame's raw taxel counts (T,); `quiet`: no touch in the frame."""
         if self.prev is not None:
             same = values == self.prev
             self.same = np.where(same, self.same + 1, 0)
@@ -70,6 +71,13 @@ class TaxelHealth:
             noisy = self.noise_std() > self.noisy_std
         return {"dead": np.flatnonzero(dead), "stuck": np.flatnonzero(stuck),
                 "saturated": np.flatnonzero(self.saturated), "noisy": np.flatnonzero(noisy)}
+
+    def broken(self) -> np.ndarray:
+        """(T,) bool: taxels with any flag."""
+        out = np.zeros(self.same.shape, bool)
+        for idx in self.flags().values():
+            out[idx] = True
+        return out
 
     def summary(self, taxel_ids: np.ndarray) -> str:
         """'taxels: dead 3, 7; noisy 12' or 'taxels: all healthy' (taxel ids)."""

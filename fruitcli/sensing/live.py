@@ -25,6 +25,8 @@ from fruitcli.sensing.pipeline import Locator, Stream, TouchTable
 from fruitcli.sensing.serial_io import LineReader, PortClosed, PressureState
 from fruitcli.sensing.sessions import DEFAULT_GATE_MM, SessionStep, SessionTracker
 
+BROKEN_EVERY = 30  # frames between refreshes of the taxel flags the drift tracker ignores
+
 
 @dataclass
 class LiveFrame:
@@ -68,6 +70,7 @@ class LiveLocator:
         self.frame = -1
         self.baselines = 0  # baselines taken (1 + re-baselines)
         self._had = False
+        self._broken = None  # taxels flagged by `health`, refreshed every BROKEN_EVERY
 
     @property
     def baseline_state(self) -> str:
@@ -108,10 +111,11 @@ class LiveLocator:
         s = self.sessions.update(t.xyz_mm)
         t.touch = s.ids
         if self.health is not None:
-            quiet = float(activation.max()) <= 0.5 * self.loc.settings.threshold_counts
-            self.health.update(values, quiet)
+            self.health.update(values, quiet=len(t) == 0)
+            if self.frame % BROKEN_EVERY == 0:
+                self._broken = self.health.broken()
         if self.drift is not None:
-            self.drift.update(base, values, t_s)
+            self.drift.update(base, values, t_s, self._broken)
         return LiveFrame(self.frame, t_s, t, s, values, activation)
 
     def push(self, counts: np.ndarray, t_s: float) -> str | None:
