@@ -74,8 +74,13 @@ class ViewServer:
                 self.wfile.write(body)
 
         where = f"{option} {host}:{port}"
+        server = ThreadingHTTPServer
+        if ":" in host:  # an IPv6 address, e.g. --view [::1]:8080
+
+            class server(ThreadingHTTPServer):  # noqa: N801
+                address_family = socket.AF_INET6
         try:
-            self.httpd = ThreadingHTTPServer((host, port), Handler)
+            self.httpd = server((host, port), Handler)
         except socket.gaierror as exc:
             raise FrameError(f"{where}: host {host!r} does not resolve ({exc.strerror})"
                              ) from None
