@@ -93,19 +93,21 @@ class BoardEmulator:
     `trailing_comma` ends ASCII lines with a comma; `vanish_after` closes the port (like
     an unplugged cable) in the middle of the next frame. `frames` may be a function of
     the frame index returning a frame, or None to end (frames made as they are sent).
+    `time_scale` plays `fps` emulated frames per second (and the baud's bytes) that many
+    times faster (the compressed-time soak test, `fruitcli.sensing.soak`).
     """
 
     def __init__(self, frames: np.ndarray, fps: float = 60.0, log_every: int = 0,
                  cut_at=(), vanish_after: int | None = None, wait_for_reader: bool = False,
                  fmt: str = "ascii", baud: int = 0, lose_byte_at=(), extra_byte_at=(),
-                 reset_at=(), trailing_comma: bool = False):
+                 reset_at=(), trailing_comma: bool = False, time_scale: float = 1.0):
         self.source = frames if callable(frames) else None  # k -> frame, or None: the end
         self.frames = None if callable(frames) else np.asarray(frames)
-        self.fps = fps
+        self.fps = fps * time_scale
         self.fmt = check_format(fmt)
         if fmt == "auto":
             raise ValueError("the emulator speaks ascii or binary, not auto")
-        self.rate = byte_rate(baud)
+        self.rate = byte_rate(baud) * time_scale
         self.log_every = log_every
         self.cut_at = set(cut_at)
         self.lose_byte_at, self.extra_byte_at = set(lose_byte_at), set(extra_byte_at)
