@@ -135,6 +135,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)"),
         "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
                                                       "[lo, hi] drawn per taxel (seeded)"),
+        "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
+                                        "calibrate's gains.csv (with gain_spread = 0)"),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
         "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "
@@ -466,6 +468,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if not 0 <= skin["gain_spread"] < 1:
         raise SceneError(f"{where}: [skin].gain_spread: expected 0 <= spread < 1, "
                          f"got {skin['gain_spread']}")
+    if skin["taxel_gain"] is not None and skin["gain_spread"] > 0:
+        raise SceneError(f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
+                         f"are measured, not drawn), got {skin['gain_spread']}")
     feet = skin["footprint_sigma_mm"] or {}
     for ind, sigma in feet.items():
         if isinstance(sigma, bool) or not isinstance(sigma, NUM) or not sigma > 0 \
@@ -544,6 +549,22 @@ def _check_printer(pr: dict, where: str) -> None:
     bed = pr["bed_mm"]
     if any(bed[a] >= bed[a + 3] for a in range(3)):
         fail("bed_mm", "[xmin, ymin, zmin, xmax, ymax, zmax] with min < max")
+
+
+def load_skin_table(path: str | Path) -> dict:
+    """The validated [skin] table of a file that holds only one (`fruit calibrate`'s
+    skin.toml); its paths are resolved against that file's folder."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read: {exc}") from None
+    skin = parse_scene(text, path)
+    other = sorted(skin.declared - {"skin"})
+    if "skin" not in skin.declared or other:
+        raise SceneError(f"{path.name}: expected only a [skin] table"
+                         + (f", found [{'], ['.join(other)}]" if other else ", found none"))
+    return skin["skin"]
 
 
 def n_states(scene: Scene) -> int:

@@ -109,3 +109,119 @@ def test_descent_gaps_of_a_printer_bench_recording():
     rec.printer_mm = None
     _, _, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
     assert gaps == pytest.approx([5.0, 4.9, 4.8, 5.0, 4.9])
+
+
+HIDDEN_SKIN = """
+[skin]
+footprint_sigma_mm = { small = 4.5 }
+contact_counts = 80.0
+gap_decay_mm = 2.0
+gain_spread = 0.2
+noise_std_counts = 1.2
+"""
+
+
+def virtual_bench_scene(tmp_path, skin=HIDDEN_SKIN):
+    """The 4 x 4 pad on the virtual bench (`fruit bench`): 36 samples over the taxels,
+    50 idle frames, the [skin] given."""
+    pad_taxel_csv(tmp_path / "t.csv")
+    c = np.linspace(-21.0, 21.0, 6)
+    write_csv(tmp_path / "samples.csv", ["sample", "x_mm", "y_mm"],
+              ([n, float(x), float(y)] for n, (x, y) in enumerate(
+                  (x, y) for x in c for y in c)))
+    (tmp_path / "s.toml").write_text(
+        '[grid]\ntaxels = "t.csv"\nspacing_x_mm = 16.0\nspacing_y_mm = 16.0\n'
+        '[bench]\nindenters = ["small"]\nsamples = "samples.csv"\nbaseline_frames = 50\n'
+        "seed = 4\n" + skin)
+    return tmp_path / "s.toml"
+
+
+def bench_and_calibrate(tmp_path, name, extra=()):
+    runner = CliRunner()
+    res = runner.invoke(cli, ["bench", str(tmp_path / "s.toml"), "--out",
+                              str(tmp_path / name), *extra])
+    assert res.exit_code == 0, res.output
+    rec = tmp_path / name / "small"
+    res = runner.invoke(cli, ["calibrate", str(rec / "frames.npz"), "--truth",
+                              str(rec / "truth.csv"), "--scene", str(tmp_path / "s.toml"),
+                              "--out", str(tmp_path / f"cal-{name}")])
+    assert res.exit_code == 0, res.output
+    return tmp_path / f"cal-{name}"
+
+
+def assert_hidden_skin(cal, gains):
+    """skin.toml's [skin] as a scene's, and its parameters within 10 % of the hidden ones."""
+    from fruitcli.scene import load_skin_table
+
+    table = load_skin_table(cal / "skin.toml")  # readable as a scene's [skin]
+    p = forward.SkinParams.from_table(table)
+    assert p.footprint_sigma_mm["small"] == pytest.approx(4.5, rel=0.1)
+    assert p.gap_decay_mm == pytest.approx(2.0, rel=0.1)
+    assert p.noise_std_counts == pytest.approx(1.2, rel=0.1)
+    scale = gains.mean()
+    assert p.contact_counts == pytest.approx(80.0 * scale, rel=0.1)
+    got = forward.load_taxel_gains(p.taxel_gain, np.arange(16))
+    assert got == pytest.approx(gains / scale, rel=0.1)
+    assert np.corrcoef(got, gains)[0, 1] > 0.9
+    return p
+
+
+def test_a_virtual_bench_with_a_hidden_skin_calibrates_back_and_replays(tmp_path):
+    """`fruit bench` with hidden [skin] parameters, `fruit calibrate` on its recording: the
+    parameters within 10 %; `fruit bench --skin skin.toml` then replays with the calibrated
+    skin (its gains from gains.csv), and calibrating that recording finds them again."""
+    from fruitcli.scene import load_scene, load_skin_table
+
+    virtual_bench_scene(tmp_path)
+    hidden = forward.SkinParams.from_table(load_scene(tmp_path / "s.toml")["skin"])
+    gains = forward.make_skin(16, 4, hidden).gain
+    assert gains.std() > 0.05  # the hidden skin is not uniform
+    cal = bench_and_calibrate(tmp_path, "hidden")
+    p = assert_hidden_skin(cal, gains)
+    skin = forward.make_skin(16, 4, p, np.arange(16))
+    assert np.array_equal(skin.gain, forward.load_taxel_gains(cal / "gains.csv",
+                                                              np.arange(16)))
+    again = bench_and_calibrate(tmp_path, "replayed", ["--skin", str(cal / "skin.toml")])
+    assert_hidden_skin(again, gains)
+    # the replay's skin is the file's: half its contact counts, half the calibrated ones
+    text = (cal / "skin.toml").read_text()
+    half = text.replace(f"contact_counts = {p.contact_counts:.4f}",
+                        f"contact_counts = {p.contact_counts / 2:.4f}")
+    assert half != text
+    (cal / "half.toml").write_text(half)
+    weak = bench_and_calibrate(tmp_path, "half", ["--skin", str(cal / "half.toml")])
+    q = forward.SkinParams.from_table(load_skin_table(weak / "skin.toml"))
+    assert q.contact_counts == pytest.approx(p.contact_counts / 2, rel=0.1)
+    meta = read_table(cal / "gains.csv", ["id", "gain"])
+    assert meta["id"].tolist() == list(range(16))
+
+
+def test_a_scene_skin_with_measured_gains(tmp_path):
+    """[skin].taxel_gain in a scene: the virtual bench's gains are the file's; a taxel
+    missing from it, or a drawn spread with it, is one line."""
+    from fruitcli.errors import FrameError, SceneError
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.board import load_taxels
+
+    write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0 + 0.01 * k] for k in range(16)))
+    path = virtual_bench_scene(tmp_path, '[skin]\ntaxel_gain = "g.csv"\n')
+    scene = load_scene(path)
+    ids = load_taxels(tmp_path / "t.csv").ids
+    skin = forward.make_skin(16, 0, forward.SkinParams.from_table(scene["skin"]), ids[::-1])
+    np.testing.assert_allclose(skin.gain, 1.0 + 0.01 * np.arange(16)[::-1])
+    write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0] for k in range(15)))
+    res = CliRunner().invoke(cli, ["bench", str(path), "--out", str(tmp_path / "b")])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert "g.csv: no gain for taxel(s) 15 (1 of 16 taxels missing" in res.output
+    with pytest.raises(FrameError, match="taxel 3: gain expected > 0"):
+        write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, float(k != 3)] for k in range(16)))
+        forward.load_taxel_gains(tmp_path / "g.csv", ids)
+    virtual_bench_scene(tmp_path, '[skin]\ntaxel_gain = "g.csv"\ngain_spread = 0.1\n')
+    with pytest.raises(SceneError, match=r"\[skin\].gain_spread: expected 0 with taxel_gain"):
+        load_scene(path)
+    virtual_bench_scene(tmp_path)
+    (tmp_path / "bad.toml").write_text('[skin]\ncontact_counts = 70.0\n[bench]\nseed = 1\n')
+    res = CliRunner().invoke(cli, ["bench", str(path), "--skin", str(tmp_path / "bad.toml"),
+                                   "--out", str(tmp_path / "b")])
+    assert res.exit_code == 1 and "bad.toml: expected only a [skin] table, found [bench]" \
+        in res.output, res.output

@@ -32,6 +32,9 @@ def scene_surface(scene):
                    "default: the scene's own (reduced.stl or its solid).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: <indenter>/frames.npz and <indenter>/truth.csv.")
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
+                   "scene's: the virtual bench's skin.")
 @click.option("--printer", "printer_port", default=None,
               help="Real bench: the Marlin printer's serial port (with --board; the "
                    "scene's [printer] says where the model sits and how to move).")
@@ -47,8 +50,8 @@ def scene_surface(scene):
               help="Real bench: the board's baud rate.")
 @click.option("--overwrite", is_flag=True,
               help="Real bench: replace an existing <indenter>/frames.npz.")
-def bench(scene_path, taxels_csv, states_npz, surface, out_dir, printer_port, board_port, indenter,
-          fmt, board_baud, overwrite):
+def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, printer_port,
+          board_port, indenter, fmt, board_baud, overwrite):
     """Replay the paper's bench protocol on the model for SCENE's [bench] section, or run
     it on a real printer and board (--printer, --board).
 
@@ -60,15 +63,20 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, printer_port, bo
     every frame recorded and stops with one line naming the sample.
     """
     if printer_port or board_port:
+        if skin_toml:
+            raise click.UsageError("--skin models the virtual bench's skin; the real bench "
+                                   "(--printer, --board) measures the real one")
         return real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port,
                           board_port, indenter, fmt, board_baud, overwrite)
     from fruitcli.errors import FrameError
-    from fruitcli.scene import load_scene
+    from fruitcli.scene import load_scene, load_skin_table
     from fruitcli.sensing.stage import run_bench
 
     progress = Progress("[bench] ")
     with fruit_errors():
         scene = load_scene(scene_path)
+        if skin_toml:
+            scene.data["skin"] = load_skin_table(skin_toml)
         taxels = taxels_csv or scene["grid"]["taxels"]
         unit = "mm"
         if taxels is None:

@@ -43,7 +43,11 @@ def parse_faults(specs) -> dict:
               help="Inject a fault at the N-th command line: resend:N (checksum mismatch, "
                    "once), no-ok:N (never answered), halt:N (Error:Printer halted).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Skin and noise seed.")
-def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, faults, seed):
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
+                   "scene's.")
+def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, faults, seed,
+                    skin_toml):
     """Print the printer's and the board's pty paths, then answer on both until Ctrl-C
     (or until 5 s after the bench has closed the board's port).
 
@@ -56,7 +60,8 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
     from fruitcli.bench.printer_emulator import PrinterEmulator
     from fruitcli.bench.skin_board import SkinBoard
     from fruitcli.errors import SceneError
-    from fruitcli.scene import load_scene
+    from fruitcli.scene import load_scene, load_skin_table
+    from fruitcli.sensing import forward
     from fruitcli.sensing.board import load_taxels
     from fruitcli.sensing.emulator import BoardEmulator, pacing_line
 
@@ -71,8 +76,10 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
         taxels = load_taxels(taxels_csv)
         bed = pr["bed_mm"]
         printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, fault_table)
+        params = forward.SkinParams.from_table(load_skin_table(skin_toml) if skin_toml
+                                                else scene["skin"])
         skin = SkinBoard(taxels, scene["board"], Placement.from_printer(pr), printer.tip_mm,
-                         indenter, seed)
+                         indenter, seed, params)
         board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt, baud=baud)
         click.echo(f"printer: {printer.path}")
         click.echo(f"board: {board.path}")

@@ -26,6 +26,8 @@ rows depend on the assumed ones):
   sets the bench's error more than any other parameter (`fruit study bench`).
 - Taxel gain: activation times a per-taxel gain, 1 by default; ``[skin].gain_spread`` =
   s draws gains uniformly in 1 +- s (seeded). Assumption: a uniform skin.
+  ``[skin].taxel_gain`` = a CSV (id, gain), e.g. `fruit calibrate`'s gains.csv, gives
+  measured gains instead.
 - ``BASELINE_COUNTS`` = 500 +- 30 (seeded per taxel): per-taxel baselines C0. Only
   differences matter; any level works (the FT5316 reports 16-bit counts).
 - Noise: Gaussian, per-taxel std drawn uniformly in [0.5, 1.85] counts (seeded), so the
@@ -52,6 +54,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -93,6 +96,7 @@ class SkinParams:
     gap_decay_mm: float = GAP_DECAY_MM
     gain_spread: float = 0.0  # taxel gains uniform in 1 +- spread
     noise_std_counts: float | tuple = NOISE_STD_RANGE_COUNTS  # one std, or (lo, hi) per taxel
+    taxel_gain: Path | None = None  # CSV (id, gain) of measured gains, instead of the spread
 
     @classmethod
     def from_table(cls, table: dict | None) -> SkinParams:
@@ -104,7 +108,8 @@ class SkinParams:
                    float(table.get("contact_counts", CONTACT_COUNTS)),
                    float(table.get("gap_decay_mm", GAP_DECAY_MM)),
                    float(table.get("gain_spread", 0.0)),
-                   tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise))
+                   tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
+                   table.get("taxel_gain"))
 
 
 DEFAULT_PARAMS = SkinParams(default_footprints_mm())
@@ -121,8 +126,10 @@ class Skin:
     params: SkinParams = DEFAULT_PARAMS
 
 
-def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS) -> Skin:
-    """Draw per-taxel baselines, noise std, fabrication factors and gains from `seed`."""
+def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS,
+              taxel_ids=None) -> Skin:
+    """Draw per-taxel baselines, noise std, fabrication factors and gains from `seed`;
+    with ``params.taxel_gain`` the gains are read from it for `taxel_ids` (T,)."""
     rng = np.random.default_rng(seed)
     base = BASELINE_COUNTS + rng.uniform(-1, 1, n_taxels) * BASELINE_SPREAD_COUNTS
     noise = params.noise_std_counts
@@ -136,7 +143,33 @@ def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS)
     if params.gain_spread > 0:
         g = np.random.default_rng([seed, GAIN_STREAM])
         gain = 1.0 + g.uniform(-1, 1, n_taxels) * params.gain_spread
+    if params.taxel_gain is not None:
+        if taxel_ids is None or len(taxel_ids) != n_taxels:
+            raise ValueError("make_skin: [skin].taxel_gain needs the taxel ids")
+        gain = load_taxel_gains(params.taxel_gain, taxel_ids)
     return Skin(np.round(base), std, fab, gain, params)
+
+
+def load_taxel_gains(path, taxel_ids) -> np.ndarray:
+    """Gains (T,) of the taxels `taxel_ids` (T,) from a CSV with columns id, gain (e.g.
+    `fruit calibrate`'s gains.csv); every taxel must be in it, each gain > 0."""
+    from fruitcli.tables import read_table
+
+    cols = read_table(path, ["id", "gain"], error=FrameError)
+    ids, gains = cols["id"].astype(np.int64), cols["gain"]
+    if len(np.unique(ids)) != len(ids):
+        raise FrameError(f"{path}: a taxel id appears twice")
+    bad = np.flatnonzero(gains <= 0)
+    if bad.size:
+        raise FrameError(f"{path}: taxel {ids[bad[0]]}: gain expected > 0, got "
+                         f"{gains[bad[0]]:g}")
+    row = dict(zip(ids.tolist(), range(len(ids)), strict=True))
+    missing = [int(t) for t in taxel_ids if int(t) not in row]
+    if missing:
+        raise FrameError(f"{path}: no gain for taxel(s) {', '.join(map(str, missing[:5]))} "
+                         f"({len(missing)} of {len(taxel_ids)} taxels missing; [skin].taxel_gain "
+                         "must be made for these taxels)")
+    return gains[[row[int(t)] for t in taxel_ids]]
 
 
 def footprint_sigma_mm(indenter: str, params: SkinParams = DEFAULT_PARAMS) -> float:

@@ -243,7 +243,7 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     state = bench["state"]
     skin = forward.make_skin(len(taxels), bench["seed"], forward.SkinParams.from_table(
-        _section(scene, "skin")))
+        _section(scene, "skin")), taxels.ids)
     surface = None if surface_path is None else body_surface(surface_path, surface_unit)
     states = None
     if states_npz_or_none is not None:
@@ -306,7 +306,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     states = load_states(states_npz, len(taxels))
     sens = scene["sensitivity"]
     skin = forward.make_skin(len(taxels), scene["bench"]["seed"],
-                             forward.SkinParams.from_table(_section(scene, "skin")))
+                             forward.SkinParams.from_table(_section(scene, "skin")),
+                             taxels.ids)
     rng = np.random.default_rng([scene["bench"]["seed"], 99])
     rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts,
                                                 (sens["noise_frames"], len(taxels))),

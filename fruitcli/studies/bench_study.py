@@ -64,7 +64,10 @@ def cases(skin_table: dict, indenters: list[str], surface: bool = False) -> list
                         ("noise_std_counts", NOISE_STDS), ("gain_spread", GAIN_SPREADS)):
         for v in values:
             if skin_table.get(key) != v:
-                out.append(Case(key, v, {key: v}))
+                # drawn gains replace measured ones
+                extra = {"taxel_gain": None} if key == "gain_spread" and \
+                    skin_table.get("taxel_gain") else {}
+                out.append(Case(key, v, {key: v, **extra}))
     if surface:
         out.append(Case("project", float("nan"), detection={"project": "surface"}))
     return out
