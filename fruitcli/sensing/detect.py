@@ -6,6 +6,12 @@ rounds loop over touches per frame, never over frames.
 Activation v = C - C0 clipped at 0, on a padded taxel grid (H, W) = (I + 2, J + 2) whose
 border and cells without a taxel stay 0, so off-grid and missing cells count 0 in N9.
 Ties of the maximum go to the first cell in row-major order (lowest i, then lowest j).
+
+The batch N9 (`n9_sequential`) does not build that grid: it works on the frames' own
+cells (or the taxels' counts in grid order, `Layout`) and reads the N9 neighbours
+through a table, so a frame costs rows * cols (or T) numbers instead of H * W. The
+weighted offsets sum the N9 terms in one fixed order (`weighted_offset`), so a touch's
+i and j do not depend on how many frames are detected together.
 """
 
 from __future__ import annotations
@@ -37,13 +43,15 @@ class Touches:
         return int(self.frame.shape[0])
 
 
-def baseline_counts(frames: np.ndarray, k: int, where: str = "frames") -> np.ndarray:
-    """C0: mean of the first `k` frames (counts), shape of one frame."""
+def baseline_counts(frames: np.ndarray, k: int, where: str = "frames",
+                    n_frames: int | None = None) -> np.ndarray:
+    """C0: mean of the first `k` frames (counts), shape of one frame. `n_frames`: the
+    recording's length when `frames` holds only its first frames."""
+    n = frames.shape[0] if n_frames is None else n_frames
     if k < 1:
         raise FrameError(f"{where}: baseline frames: expected >= 1, got {k}")
-    if frames.shape[0] < k:
-        raise FrameError(f"{where}: {frames.shape[0]} frames, fewer than the {k} baseline "
-                         "frames")
+    if n < k:
+        raise FrameError(f"{where}: {n} frames, fewer than the {k} baseline frames")
     return frames[:k].mean(axis=0)
 
 
@@ -68,6 +76,80 @@ class Grid:
         """(9,) flat offsets of the N9 cells."""
         return _DI * self.shape[1] + _DJ
 
+@dataclass(frozen=True)
+class Layout:
+    """Where the batch N9 keeps each taxel's v in a row of X numbers.
+
+    When the board keeps the grid's row-major order (frame index increasing with (i, j)
+    row-major, as the default board does), a row is the frame itself: X = rows * cols,
+    cells without a taxel hold v = -inf, and no copy of the frames is made. Otherwise the
+    taxels' counts are taken into X = T columns in row-major grid order. Either way the
+    first maximum of a row is the first in the grid's row-major order, as on the padded
+    grid, and N9 cells without a taxel (or off the frame) read 0.
+    """
+
+    frame_cell: np.ndarray  # (T,) flat frame index of each taxel
+    take: np.ndarray | None  # (X,) frame cells taken into a row, None: the frame's own
+    width: int  # X
+    column: np.ndarray  # (T,) row position of each taxel
+    n9: np.ndarray  # (X, 9) row position of each N9 cell (-1: no taxel there)
+    n9_taxel: np.ndarray  # (X, 9) taxel of each N9 cell (-1: none)
+    ci: np.ndarray  # (X,) padded grid row of the taxel at each position
+    cj: np.ndarray  # (X,) padded grid column
+
+    @classmethod
+    def build(cls, grid: Grid, frame_cell: np.ndarray, frame_size: int) -> Layout:
+        """`frame_cell` (T,): flat frame index of each taxel; `frame_size`: rows * cols."""
+        frame_cell = np.asarray(frame_cell, dtype=np.int64)
+        order = np.argsort(grid.cell, kind="stable")  # taxels in row-major grid order
+        if np.all(np.diff(frame_cell[order]) > 0):
+            take, width, column = None, frame_size, frame_cell
+        else:
+            take, width = frame_cell[order], order.size
+            column = np.empty(order.size, np.int64)
+            column[order] = np.arange(order.size)
+        pos_of_cell = np.full(grid.taxel_of_cell.size, -1, np.int64)
+        pos_of_cell[grid.cell] = column
+        n9 = np.full((width, 9), -1, np.int64)
+        n9_taxel = np.full((width, 9), -1, np.int64)
+        ci, cj = np.zeros(width, np.int64), np.zeros(width, np.int64)
+        idx = grid.cell[:, None] + grid.offsets
+        n9[column] = pos_of_cell[idx]
+        n9_taxel[column] = grid.taxel_of_cell[idx]
+        ci[column], cj[column] = np.divmod(grid.cell, grid.shape[1])
+        return cls(frame_cell, take, width, column, n9, n9_taxel, ci, cj)
+
+    def baseline_row(self, baseline: np.ndarray) -> np.ndarray:
+        """C0 (T,) at the taxels' row positions, +inf elsewhere (X,)."""
+        base = np.full(self.width, np.inf)
+        base[self.column] = baseline
+        return base
+
+    def activations(self, frames: np.ndarray, base_row: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray:
+        """C - C0 (not clipped) of frames (N, rows * cols) in rows of X, as a flat
+        (N * X + 1,) array whose last element is 0 (what N9 cells without a taxel read).
+        `base_row` from `baseline_row`; `out`: a buffer of at least N * X + 1 to reuse."""
+        n = frames.shape[0]
+        size = n * self.width + 1
+        buf = np.empty(size) if out is None or out.size < size else out[:size]
+        src = frames if self.take is None else np.take(frames, self.take, axis=1)
+        np.subtract(src, base_row, out=buf[:-1].reshape(n, self.width))
+        buf[-1] = 0.0
+        return buf
+
+
+def weighted_offset(w: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """sum_k w[:, k] d[k] for N9 weights (n, 9) and offsets d (9,) in {-1, 0, 1}.
+
+    The products are exact; the sum is taken in the order of the BLAS kernel that
+    ``w @ d`` ran on whole recordings before (four lanes k, k + 4, then the lanes
+    pairwise (0 + 2) + (1 + 3), then term 8), in one fixed order for every row.
+    """
+    p = w * d
+    lane = p[:, :4] + p[:, 4:8]
+    return ((lane[:, 0] + lane[:, 2]) + (lane[:, 1] + lane[:, 3])) + p[:, 8]
+
 
 def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid) -> np.ndarray:
     """v = max(C - C0, 0) per taxel (N, T) -> padded flat grid (N, H * W) float64."""
@@ -87,8 +169,8 @@ def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Gri
         win = np.maximum(win - floor, 0.0)
     w = win / win.sum(axis=1, keepdims=True)
     ci, cj = np.divmod(centre, grid.shape[1])
-    i = (ci - 1) + w @ _DI
-    j = (cj - 1) + w @ _DJ
+    i = (ci - 1) + weighted_offset(w, _DI)
+    j = (cj - 1) + weighted_offset(w, _DJ)
     return i, j, grid.taxel_of_cell[idx], w, idx
 
 
@@ -103,27 +185,40 @@ def _collect(parts: list[tuple]) -> Touches:
     return Touches(*(c[order] for c in cols))
 
 
-def n9_sequential(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
+def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: float = 0.0,
                   max_touches: int = MAX_TOUCHES) -> Touches:
     """The paper's multitouch: take the maximum, N9 centroid, zero N9, repeat while
-    some v > threshold. `flat` (N, H*W) padded activations (modified in place)."""
+    some v > threshold. `buf` from `Layout.activations` (modified in place); the N9
+    values are clipped at 0 as they are read."""
     if floor >= threshold:
         raise FrameError(f"noise floor {floor} counts must be below the threshold {threshold}")
-    alive = np.arange(flat.shape[0])
+    x = layout.width
+    n = (buf.size - 1) // x
+    v = buf[:-1].reshape(n, x)
+    dump = buf.size - 1
+    alive = np.arange(n)
     parts = []
     for r in range(max_touches):
         if alive.size == 0:
             break
-        sub = flat[alive]
-        k = sub.argmax(axis=1)
-        peak = sub[np.arange(alive.size), k]
+        if 3 * alive.size > n:  # most frames: one pass over all beats a copy of these
+            k = v.argmax(axis=1)[alive]
+        else:
+            k = v[alive].argmax(axis=1)
+        peak = buf[alive * x + k]
         hit = peak > threshold
         alive, k, peak = alive[hit], k[hit], peak[hit]
         if alive.size == 0:
             break
-        i, j, tax, w, idx = _centroids(flat, alive, k, grid, floor)
-        parts.append((alive, np.full(alive.size, r), i, j, peak, tax, w))
-        flat[alive[:, None], idx] = 0.0
+        nb = layout.n9[k]
+        at = np.where(nb >= 0, alive[:, None] * x + nb, dump)
+        win = buf[at]
+        win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
+        w = win / win.sum(axis=1, keepdims=True)
+        i = (layout.ci[k] - 1) + weighted_offset(w, _DI)
+        j = (layout.cj[k] - 1) + weighted_offset(w, _DJ)
+        parts.append((alive, np.full(alive.size, r), i, j, peak, layout.n9_taxel[k], w))
+        buf[at] = 0.0
     return _collect(parts)
 
 
@@ -165,13 +260,20 @@ def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
     return Touches(f, rank, i, j, peak, tax, w)
 
 
-def detect(flat: np.ndarray, grid: Grid, threshold: float, method: str = "n9",
-           floor: float = 0.0, max_touches: int = MAX_TOUCHES) -> Touches:
-    """Dispatch on the scene's ``[detection].method``: n9 (paper), n9_floor or peaks."""
-    if method == "n9":
-        return n9_sequential(flat, grid, threshold, 0.0, max_touches)
-    if method == "n9_floor":
-        return n9_sequential(flat, grid, threshold, floor, max_touches)
+def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
+           threshold: float, method: str = "n9", floor: float = 0.0,
+           max_touches: int = MAX_TOUCHES, base_row: np.ndarray | None = None,
+           out: np.ndarray | None = None) -> Touches:
+    """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
+    ``[detection].method``: n9 (paper), n9_floor or peaks. `base_row`
+    (`Layout.baseline_row` of C0) and `out` (a buffer to reuse) save work per chunk."""
+    if method in ("n9", "n9_floor"):
+        if base_row is None:
+            base_row = layout.baseline_row(baseline)
+        return n9_sequential(layout.activations(frames, base_row, out), layout, threshold,
+                             floor if method == "n9_floor" else 0.0, max_touches)
     if method == "peaks":
-        return n9_peaks(flat, grid, threshold, floor, max_touches)
+        values = np.take(frames, layout.frame_cell, axis=1)
+        return n9_peaks(activation_grid(values, baseline, grid), grid, threshold, floor,
+                        max_touches)
     raise FrameError(f"detection method: expected n9, n9_floor or peaks, got {method!r}")

@@ -2,9 +2,11 @@
 
 Units: counts, mm, kPa.
 
-The batch path (`Locator.batch`) is vectorized over frames and used whenever no option
-needs state carried from frame to frame. Drift tracking, hysteresis, debounce and touch
-IDs carry state, so they run frame by frame through `Stream` (also the live loop):
+The batch path (`Locator.chunks`, `Locator.batch`) is vectorized over the frames of a
+chunk and used whenever no option needs state carried from frame to frame; a recording
+goes through it chunk by chunk, so its memory does not grow with its length. Drift
+tracking, hysteresis, debounce and touch IDs carry state, so they run frame by frame
+through `Stream` (also the live loop):
 
 - drift tracking (``drift_rate`` r > 0): C0 += r (C - C0) on frames whose every v is at
   most threshold - hysteresis and that are not in a touch (frozen while touched);
@@ -19,15 +21,24 @@ IDs carry state, so they run frame by frame through `Stream` (also the live loop
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.board import Taxels, taxel_cells
-from fruitcli.sensing.detect import MAX_TOUCHES, Grid, activation_grid, baseline_counts, detect
+from fruitcli.sensing.detect import (
+    MAX_TOUCHES,
+    Grid,
+    Layout,
+    baseline_counts,
+    detect,
+    n9_peaks,
+)
 from fruitcli.sensing.locate import StatePath, state_path_position, touches_3d
+
+CHUNK_FRAMES = 8192  # frames detected together: a few MB of activations
 
 
 @dataclass(frozen=True)
@@ -96,6 +107,9 @@ class Locator:
         self.taxels, self.board, self.settings = taxels, board, settings
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
+        self.frame_shape = (board["rows"], board["cols"])
+        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols,
+                                   board["rows"] * board["cols"])
         self.positions_mm = np.asarray(positions_mm, dtype=float)
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
@@ -103,11 +117,16 @@ class Locator:
 
     def values(self, frames: np.ndarray) -> np.ndarray:
         """Counts of the taxel cells (N, T) from frames (N, R, C)."""
-        return frames[:, self.rows, self.cols]
+        cell = self.rows * frames.shape[2] + self.cols
+        return np.take(frames.reshape(frames.shape[0], -1), cell, axis=1)
 
-    def baseline(self, frames: np.ndarray, where: str = "frames") -> np.ndarray:
-        """C0 per taxel (T,) from the first K frames."""
-        return baseline_counts(self.values(frames), self.settings.baseline_frames, where)
+    def baseline(self, frames: np.ndarray, where: str = "frames",
+                 n_frames: int | None = None) -> np.ndarray:
+        """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
+        `n_frames` the recording's length."""
+        k = self.settings.baseline_frames
+        return baseline_counts(self.values(frames[:max(k, 1)]), k, where,
+                               frames.shape[0] if n_frames is None else n_frames)
 
     def _path(self, pressure_kpa: np.ndarray | None, n: int):
         if self.positions_mm.ndim == 2:
@@ -116,20 +135,48 @@ class Locator:
             return np.zeros(n, np.int64), np.zeros(n)
         return state_path_position(pressure_kpa, self.state_pressure_kpa)
 
-    def batch(self, frames: np.ndarray, baseline: np.ndarray,
-              pressure_kpa: np.ndarray | None = None) -> TouchTable:
-        """All touches of frames (N, R, C), vectorized (stateless settings only)."""
+    def chunks(self, chunks: Iterable[tuple[int, np.ndarray]], baseline: np.ndarray,
+               pressure_kpa: np.ndarray | None = None,
+               n_frames: int | None = None) -> Iterator[TouchTable]:
+        """Touches of each chunk (first frame index, frames (n, R, C)), frame indices
+        counted over the whole recording; `pressure_kpa` (N, K) covers all N frames.
+        Stateful settings run through one `Stream` carried across the chunks."""
         s = self.settings
         if s.stateful:
             stream = Stream(self, baseline)
-            return TouchTable.concat([stream.step(f, None if pressure_kpa is None
-                                                  else pressure_kpa[n], n)
-                                      for n, f in enumerate(self.values(frames))])
-        flat = activation_grid(self.values(frames), baseline, self.grid)
-        t = detect(flat, self.grid, s.threshold_counts, s.method, s.floor, s.max_touches)
-        seg, frac = self._path(pressure_kpa, frames.shape[0])
-        xyz = touches_3d(t, self.positions_mm, seg, frac)
-        return TouchTable(t.frame, t.rank, t.i, t.j, xyz, t.peak)
+            for start, frames in chunks:
+                yield TouchTable.concat([stream.step(f, None if pressure_kpa is None
+                                                     else pressure_kpa[start + n], start + n)
+                                         for n, f in enumerate(self.values(frames))])
+            return
+        seg = frac = None
+        if self.positions_mm.ndim == 3:
+            if n_frames is None and pressure_kpa is None:
+                raise FrameError("per-state positions need the number of frames or their "
+                                 "pressures")
+            seg, frac = self._path(pressure_kpa, n_frames if pressure_kpa is None
+                                   else pressure_kpa.shape[0])
+        base_row, buf = self.layout.baseline_row(baseline), None
+        for start, frames in chunks:
+            if tuple(frames.shape[1:]) != self.frame_shape:
+                raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
+                                 f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
+            if buf is None or buf.size < frames.shape[0] * self.layout.width + 1:
+                buf = np.empty(frames.shape[0] * self.layout.width + 1)
+            t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
+                       s.threshold_counts, s.method, s.floor, s.max_touches, base_row, buf)
+            end = start + frames.shape[0]
+            xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
+                             None if frac is None else frac[start:end])
+            yield TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak)
+
+    def batch(self, frames: np.ndarray, baseline: np.ndarray,
+              pressure_kpa: np.ndarray | None = None,
+              chunk_frames: int = CHUNK_FRAMES) -> TouchTable:
+        """All touches of frames (N, R, C) in memory, `chunk_frames` at a time."""
+        n = frames.shape[0]
+        parts = ((a, frames[a:a + chunk_frames]) for a in range(0, n, chunk_frames))
+        return TouchTable.concat(list(self.chunks(parts, baseline, pressure_kpa, n)))
 
 
 class Stream:
@@ -178,7 +225,7 @@ class Stream:
             self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
             return self._empty
         if s.method == "peaks":
-            t = detect(flat[None, :].copy(), loc.grid, thr, s.method, s.floor, s.max_touches)
+            t = n9_peaks(flat[None, :].copy(), loc.grid, thr, s.floor, s.max_touches)
             rows = [(t.i[n], t.j[n], t.peak[n], t.taxel[n], t.weight[n]) for n in range(len(t))]
         else:
             rows = self._sequential(flat, thr, s.floor if s.method == "n9_floor" else 0.0)
@@ -233,6 +280,8 @@ class Stream:
         return self._pos
 
     def _ids(self, xyz: np.ndarray) -> np.ndarray:
+        from scipy.optimize import linear_sum_assignment  # slow to import: only for IDs
+
         ids = np.full(xyz.shape[0], -1, np.int64)
         if self.prev_xyz.shape[0] and xyz.shape[0]:
             cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz[None, :, :], axis=2)

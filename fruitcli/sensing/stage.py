@@ -14,11 +14,12 @@ import numpy as np
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.sensing.board import Taxels, check_frame_shape, load_taxels
-from fruitcli.sensing.frames_io import Recording, read_recording
+from fruitcli.sensing.frames_io import Recording
 from fruitcli.sensing.locate import States, load_states, match_chambers
-from fruitcli.sensing.pipeline import Locator, Settings, TouchTable
+from fruitcli.sensing.pipeline import CHUNK_FRAMES, Locator, Settings, TouchTable
+from fruitcli.sensing.recording_chunks import ChunkedRecording, open_recording
+from fruitcli.sensing.touch_csv import touch_csv
 
-TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"]
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
@@ -30,12 +31,12 @@ def _section(scene, name: str) -> dict:
     return scene[name]
 
 
-def build_locator(scene, taxels: Taxels, states: States | None, rec: Recording,
+def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
                   settings: Settings, where: str) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
     or the state path when the recording carries chamber pressures. -> (locator, pressure)."""
     board = _section(scene, "board")
-    check_frame_shape(rec.frames, board, where)
+    check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if states is None:
         return Locator(taxels, board, taxels.xyz_mm, settings, where=where), None
     if rec.pressure_kpa is not None and states.n_states > 1:
@@ -47,15 +48,6 @@ def build_locator(scene, taxels: Taxels, states: States | None, rec: Recording,
         raise FrameError(f"{where}: meta state {state} not in the states "
                          f"(0..{states.n_states - 1})")
     return Locator(taxels, board, states.taxels_mm[state], settings, where=where), None
-
-
-def touch_rows(table: TouchTable, t_s: np.ndarray):
-    """Rows of touches.csv."""
-    for n in range(len(table)):
-        f = int(table.frame[n])
-        x, y, z = table.xyz_mm[n]
-        yield [f, float(t_s[f]), int(table.touch[n]), float(table.i[n]), float(table.j[n]),
-               float(x), float(y), float(z), float(table.peak[n])]
 
 
 def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndarray,
@@ -72,13 +64,14 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
 
 def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
-               threshold_counts: float | None = None, method: str | None = None) -> dict:
-    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv)."""
+               threshold_counts: float | None = None, method: str | None = None,
+               chunk_frames: int = CHUNK_FRAMES) -> dict:
+    """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
+    The recording is read, detected and written `chunk_frames` frames at a time."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
     board = _section(scene, "board")
-    rec = read_recording(frames_path, board["rows"], board["cols"])
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
     settings = Settings.from_scene(_section(scene, "detection"),
@@ -87,29 +80,46 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
-    locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
-    say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
-    t0 = time.perf_counter()
-    baseline = locator.baseline(rec.frames, where)
-    table = locator.batch(rec.frames, baseline, pressure)
-    dt = time.perf_counter() - t0
-    write_csv(out_dir / "touches.csv", TOUCH_HEADER, touch_rows(table, rec.t_s),
-              comments=[f"touches of {Path(frames_path).name}: frame index from 0 "
+    with open_recording(frames_path, board["rows"], board["cols"]) as rec:
+        locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
+        say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
+        t0 = time.perf_counter()
+        baseline = locator.baseline(rec.read(0, settings.baseline_frames), where, len(rec))
+        sampled, done, shown = [], 0, t0
+        with touch_csv(out_dir / "touches.csv",
+                       [f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
-                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"])
-    result = {"frames": len(rec), "touches": len(table), "skipped_lines": rec.skipped_lines,
+                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"]) as out:
+            for table in locator.chunks(rec.chunks(chunk_frames), baseline, pressure,
+                                        len(rec)):
+                out.write(table, rec.t_s)
+                if rec.sample is not None:
+                    sampled.append(_sample_touches(table, rec.sample))
+                done = min(done + chunk_frames, len(rec))
+                if time.perf_counter() - shown > 2.0:
+                    shown = time.perf_counter()
+                    say(f"{done} of {len(rec)} frames, {out.rows} touches")
+        dt = time.perf_counter() - t0
+    result = {"frames": len(rec), "touches": out.rows, "skipped_lines": rec.skipped_lines,
               "seconds": dt, "frames_per_s": len(rec) / max(dt, 1e-9),
               "touches_csv": str(out_dir / "touches.csv")}
     if rec.sample is not None:
-        ids, pts = strongest_per_sample(table, rec.sample)
+        ids, pts = strongest_per_sample(TouchTable.concat(sampled), rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,
                   ([int(k), *map(float, p)] for k, p in zip(ids, pts, strict=True)),
                   comments=["strongest touch of each bench sample's frame, mm"])
         n_samples = int(np.unique(rec.sample[rec.sample >= 0]).size)
         result.update(measured_csv=str(out_dir / "measured.csv"), samples=n_samples,
                       samples_missed=n_samples - int(ids.size))
-    say(f"{len(table)} touches, {result['frames_per_s']:.0f} frames/s")
+    say(f"{out.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
+
+
+def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
+    """The touches of `table` in bench sample frames (sample >= 0)."""
+    keep = sample[table.frame] >= 0
+    return TouchTable(table.frame[keep], table.touch[keep], table.i[keep], table.j[keep],
+                      table.xyz_mm[keep], table.peak[keep])
 
 
 def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
