@@ -93,10 +93,9 @@ class _NpyMember:
             fields = _LOCAL_HEADER.unpack(head)
             begin = info.header_offset + _LOCAL_HEADER.size + fields[-2] + fields[-1]
             self._fh.seek(begin)
-            self._seekable = True
         else:
             self._fh = zf.open(info)
-            begin, self._seekable = 0, False
+            begin = 0
         version = np.lib.format.read_magic(self._fh)
         if version == (1, 0):
             shape, fortran, dtype = np.lib.format.read_array_header_1_0(self._fh)
@@ -113,13 +112,11 @@ class _NpyMember:
         if self._data_at - begin + n_frames * self.frame_bytes > info.file_size:
             raise ValueError(f"the member holds fewer bytes than its shape {tuple(shape)} "
                              "needs (truncated)")
-        self._next = 0  # frame index the stream is at (compressed members read forward)
+        self._next = 0  # the frame the file is at
         self._buf = np.empty(0, np.uint8)  # reused by every read
 
     def read(self, start: int, count: int) -> np.ndarray:
-        if start != self._next:
-            if not self._seekable:
-                raise ValueError("a compressed frames member is read front to back")
+        if start != self._next:  # (zipfile seeks in a compressed member by reading on)
             self._fh.seek(self._data_at + start * self.frame_bytes)
         size = count * self.frame_bytes
         if self._buf.size < size:
