@@ -10,7 +10,7 @@ Ties of the maximum go to the first cell in row-major order (lowest i, then lowe
 The batch N9 (`n9_sequential`) does not build that grid: it works on the frames' own
 cells (or the taxels' counts in grid order, `Layout`) and reads the N9 neighbours
 through a table, so a frame costs rows * cols (or T) numbers instead of H * W. The
-weighted offsets sum the N9 terms in one fixed order (`weighted_offset`), so a touch's
+weighted offsets sum the N9 terms in one fixed order (`n9_offsets`), so a touch's
 i and j do not depend on how many frames are detected together.
 """
 
@@ -139,16 +139,17 @@ class Layout:
         return buf
 
 
-def weighted_offset(w: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """sum_k w[:, k] d[k] for N9 weights (n, 9) and offsets d (9,) in {-1, 0, 1}.
+def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted N9 offsets (sum_k w_k di_k, sum_k w_k dj_k) of weights w (n, 9).
 
-    The products are exact; the sum is taken in the order of the BLAS kernel that
-    ``w @ d`` ran on whole recordings before (four lanes k, k + 4, then the lanes
-    pairwise (0 + 2) + (1 + 3), then term 8), in one fixed order for every row.
+    The terms are +-w_k or 0 (exact); they are summed in the order of the BLAS kernel
+    that ``w @ di`` ran on whole recordings before (lanes k and k + 4, lanes (0 + 2) +
+    (1 + 3), then term 8), the same for every row, however many are summed together.
     """
-    p = w * d
-    lane = p[:, :4] + p[:, 4:8]
-    return ((lane[:, 0] + lane[:, 2]) + (lane[:, 1] + lane[:, 3])) + p[:, 8]
+    c = [w[:, k] for k in range(9)]
+    di = (((c[6] - c[2]) - c[0]) + (c[7] - c[1])) + c[8]
+    dj = (((c[2] - c[6]) - c[0]) + (c[5] - c[3])) + c[8]
+    return di, dj
 
 
 def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid) -> np.ndarray:
@@ -169,8 +170,9 @@ def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Gri
         win = np.maximum(win - floor, 0.0)
     w = win / win.sum(axis=1, keepdims=True)
     ci, cj = np.divmod(centre, grid.shape[1])
-    i = (ci - 1) + weighted_offset(w, _DI)
-    j = (cj - 1) + weighted_offset(w, _DJ)
+    di, dj = n9_offsets(w)
+    i = (ci - 1) + di
+    j = (cj - 1) + dj
     return i, j, grid.taxel_of_cell[idx], w, idx
 
 
@@ -215,8 +217,9 @@ def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: floa
         win = buf[at]
         win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
         w = win / win.sum(axis=1, keepdims=True)
-        i = (layout.ci[k] - 1) + weighted_offset(w, _DI)
-        j = (layout.cj[k] - 1) + weighted_offset(w, _DJ)
+        di, dj = n9_offsets(w)
+        i = (layout.ci[k] - 1) + di
+        j = (layout.cj[k] - 1) + dj
         parts.append((alive, np.full(alive.size, r), i, j, peak, layout.n9_taxel[k], w))
         buf[at] = 0.0
     return _collect(parts)

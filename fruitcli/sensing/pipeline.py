@@ -21,7 +21,10 @@ through `Stream` (also the live loop):
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import threading
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,48 +138,78 @@ class Locator:
             return np.zeros(n, np.int64), np.zeros(n)
         return state_path_position(pressure_kpa, self.state_pressure_kpa)
 
-    def chunks(self, chunks: Iterable[tuple[int, np.ndarray]], baseline: np.ndarray,
-               pressure_kpa: np.ndarray | None = None,
-               n_frames: int | None = None) -> Iterator[TouchTable]:
-        """Touches of each chunk (first frame index, frames (n, R, C)), frame indices
-        counted over the whole recording; `pressure_kpa` (N, K) covers all N frames.
-        Stateful settings run through one `Stream` carried across the chunks."""
+    def chunks(self, read: Callable[[int, int], np.ndarray], n_frames: int,
+               baseline: np.ndarray, pressure_kpa: np.ndarray | None = None,
+               size: int = CHUNK_FRAMES, then: Callable | None = None,
+               workers: int = 1) -> Iterator:
+        """Touches of frames 0 .. n_frames - 1, `size` at a time: ``read(start, count)``
+        gives frames (count, R, C); frame indices count over the whole recording and
+        `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
+        ``then(table)`` computed in the worker. Stateless settings spread the chunks over
+        `workers` threads (numpy releases the GIL in its loops), in order; stateful ones
+        run through one `Stream` carried across the chunks."""
         s = self.settings
+        finish = then or (lambda table: table)
+        starts = range(0, n_frames, size)
         if s.stateful:
             stream = Stream(self, baseline)
-            for start, frames in chunks:
-                yield TouchTable.concat([stream.step(f, None if pressure_kpa is None
-                                                     else pressure_kpa[start + n], start + n)
-                                         for n, f in enumerate(self.values(frames))])
+            for start in starts:
+                frames = read(start, size)
+                yield finish(TouchTable.concat([
+                    stream.step(f, None if pressure_kpa is None else pressure_kpa[start + n],
+                                start + n) for n, f in enumerate(self.values(frames))]))
             return
         seg = frac = None
         if self.positions_mm.ndim == 3:
-            if n_frames is None and pressure_kpa is None:
-                raise FrameError("per-state positions need the number of frames or their "
-                                 "pressures")
-            seg, frac = self._path(pressure_kpa, n_frames if pressure_kpa is None
-                                   else pressure_kpa.shape[0])
-        base_row, buf = self.layout.baseline_row(baseline), None
-        for start, frames in chunks:
+            seg, frac = self._path(pressure_kpa, n_frames)
+        base_row = self.layout.baseline_row(baseline)
+        local = threading.local()  # each worker's activation buffer
+
+        def job(start: int):
+            frames = read(start, size)
             if tuple(frames.shape[1:]) != self.frame_shape:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
-            if buf is None or buf.size < frames.shape[0] * self.layout.width + 1:
-                buf = np.empty(frames.shape[0] * self.layout.width + 1)
+            need = frames.shape[0] * self.layout.width + 1
+            if getattr(local, "buf", None) is None or local.buf.size < need:
+                local.buf = np.empty(need)
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches, base_row, buf)
+                       s.threshold_counts, s.method, s.floor, s.max_touches, base_row,
+                       local.buf)
             end = start + frames.shape[0]
             xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
                              None if frac is None else frac[start:end])
-            yield TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak)
+            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak))
+
+        yield from _in_order(job, starts, workers)
 
     def batch(self, frames: np.ndarray, baseline: np.ndarray,
               pressure_kpa: np.ndarray | None = None,
-              chunk_frames: int = CHUNK_FRAMES) -> TouchTable:
-        """All touches of frames (N, R, C) in memory, `chunk_frames` at a time."""
-        n = frames.shape[0]
-        parts = ((a, frames[a:a + chunk_frames]) for a in range(0, n, chunk_frames))
-        return TouchTable.concat(list(self.chunks(parts, baseline, pressure_kpa, n)))
+              size: int = CHUNK_FRAMES) -> TouchTable:
+        """All touches of frames (N, R, C) in memory, `size` at a time."""
+        return TouchTable.concat(list(self.chunks(lambda a, k: frames[a:a + k],
+                                                  frames.shape[0], baseline, pressure_kpa,
+                                                  size)))
+
+
+def _in_order(job: Callable, items: Iterable, workers: int) -> Iterator:
+    """job(item) for every item, run on `workers` threads, yielded in the items' order;
+    at most 2 * workers items are in flight, so finished results do not pile up."""
+    if workers <= 1:
+        yield from map(job, items)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        pending: deque[Future] = deque()
+        try:
+            for item in items:
+                pending.append(pool.submit(job, item))
+                if len(pending) >= 2 * workers:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
 
 
 class Stream:

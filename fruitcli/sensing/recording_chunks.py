@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import struct
+import threading
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -56,7 +57,8 @@ class ChunkedRecording:
 
     def read(self, start: int, count: int) -> np.ndarray:
         """Frames start .. start + count - 1 (clipped to the recording), checked, int64.
-        The array may be overwritten by the next `read`: use it before reading on."""
+        Safe from several threads; the array may be overwritten by the same thread's
+        next `read`: use it before reading on."""
         count = max(0, min(count, self.n_frames - start))
         if isinstance(self._source, np.ndarray):
             return self._source[start:start + count]
@@ -113,24 +115,27 @@ class _NpyMember:
             raise ValueError(f"the member holds fewer bytes than its shape {tuple(shape)} "
                              "needs (truncated)")
         self._next = 0  # the frame the file is at
-        self._buf = np.empty(0, np.uint8)  # reused by every read
+        self._lock = threading.Lock()  # one reader at a time: seek and read go together
+        self._local = threading.local()  # each thread's read buffer, reused
 
     def read(self, start: int, count: int) -> np.ndarray:
-        if start != self._next:  # (zipfile seeks in a compressed member by reading on)
-            self._fh.seek(self._data_at + start * self.frame_bytes)
         size = count * self.frame_bytes
-        if self._buf.size < size:
-            self._buf = np.empty(size, np.uint8)
-        buf = self._buf[:size]
-        view, got = memoryview(buf), 0
-        while got < buf.size:
-            n = self._fh.readinto(view[got:])
-            if not n:
-                raise FrameError(f"{self.path}: frames: the file ends inside frame "
-                                 f"{start + got // max(self.frame_bytes, 1)} (truncated)")
-            got += n
-        self._next = start + count
-        return buf.view(self.dtype).reshape((count, *self.shape[1:]))
+        buf = getattr(self._local, "buf", None)
+        if buf is None or buf.size < size:
+            buf = self._local.buf = np.empty(size, np.uint8)
+        view, got = memoryview(buf[:size]), 0
+        with self._lock:
+            if start != self._next:  # (zipfile seeks in a compressed member by reading on)
+                self._fh.seek(self._data_at + start * self.frame_bytes)
+            while got < size:
+                n = self._fh.readinto(view[got:])
+                if not n:
+                    self._next = -1
+                    raise FrameError(f"{self.path}: frames: the file ends inside frame "
+                                     f"{start + got // max(self.frame_bytes, 1)} (truncated)")
+                got += n
+            self._next = start + count
+        return buf[:size].view(self.dtype).reshape((count, *self.shape[1:]))
 
     def close(self) -> None:
         self._fh.close()

@@ -6,6 +6,7 @@ Units: mm, counts, kPa, s. Each stage reads its inputs, calls the pure functions
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from fruitcli.sensing.frames_io import Recording
 from fruitcli.sensing.locate import States, load_states, match_chambers
 from fruitcli.sensing.pipeline import CHUNK_FRAMES, Locator, Settings, TouchTable
 from fruitcli.sensing.recording_chunks import ChunkedRecording, open_recording
-from fruitcli.sensing.touch_csv import touch_csv
+from fruitcli.sensing.touch_csv import touch_bytes, touch_csv
 
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
@@ -65,9 +66,10 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
 def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
                threshold_counts: float | None = None, method: str | None = None,
-               chunk_frames: int = CHUNK_FRAMES) -> dict:
+               chunk_frames: int = CHUNK_FRAMES, workers: int | None = None) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
-    The recording is read, detected and written `chunk_frames` frames at a time."""
+    The recording is read, detected and written `chunk_frames` frames at a time, on
+    `workers` threads (default: the CPUs this process may use, at most 4)."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
@@ -80,21 +82,28 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
+    if workers is None:
+        workers = min(4, _usable_cpus())
     with open_recording(frames_path, board["rows"], board["cols"]) as rec:
         locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
         say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
         t0 = time.perf_counter()
         baseline = locator.baseline(rec.read(0, settings.baseline_frames), where, len(rec))
         sampled, done, shown = [], 0, t0
+
+        def rows(table: TouchTable):  # in the worker thread
+            keep = None if rec.sample is None else _sample_touches(table, rec.sample)
+            return touch_bytes(table, rec.t_s), len(table), keep
+
         with touch_csv(out_dir / "touches.csv",
                        [f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
                         "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"]) as out:
-            for table in locator.chunks(rec.chunks(chunk_frames), baseline, pressure,
-                                        len(rec)):
-                out.write(table, rec.t_s)
-                if rec.sample is not None:
-                    sampled.append(_sample_touches(table, rec.sample))
+            for data, count, keep in locator.chunks(rec.read, len(rec), baseline, pressure,
+                                                    chunk_frames, rows, workers):
+                out.write(data, count)
+                if keep is not None:
+                    sampled.append(keep)
                 done = min(done + chunk_frames, len(rec))
                 if time.perf_counter() - shown > 2.0:
                     shown = time.perf_counter()
@@ -113,6 +122,12 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                       samples_missed=n_samples - int(ids.size))
     say(f"{out.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
+
+
+def _usable_cpus() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
 
 
 def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:

@@ -36,15 +36,16 @@ class _Rows:
     def __init__(self, fh):
         self._fh, self.rows = fh, 0
 
-    def write(self, table: TouchTable, t_s: np.ndarray) -> None:
-        """Append the rows of one chunk's touches."""
-        self._fh.write(touch_bytes(table, t_s))
-        self.rows += len(table)
+    def write(self, data: bytes, rows: int) -> None:
+        """Append `rows` rows from `touch_bytes`."""
+        self._fh.write(data)
+        self.rows += rows
 
 
 @contextlib.contextmanager
 def touch_csv(path: str | os.PathLike, comments: list[str] = ()) -> Iterator[_Rows]:
-    """``with touch_csv(path, comments) as out: out.write(table, t_s)`` per chunk."""
+    """``with touch_csv(path, comments) as out: out.write(touch_bytes(table, t_s),
+    len(table))`` per chunk."""
     head = io.StringIO()
     for line in comments:
         head.write(f"# {line}\n")
