@@ -111,7 +111,8 @@ def format_rows(columns: list[np.ndarray], kinds: str) -> bytes:
     at = 0
     for k, (kind, negative, whole, frac, w) in enumerate(fields):
         end = _NEWLINE if k == len(fields) - 1 else _COMMA
-        table[:, at] = negative * np.uint8(_MINUS)
+        if negative.any():
+            table[:, at] = negative * np.uint8(_MINUS)
         _put_digits(table, at + 1, w, whole)
         at += 1 + w
         if kind == "f":

@@ -191,7 +191,7 @@ def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: floa
                   max_touches: int = MAX_TOUCHES) -> Touches:
     """The paper's multitouch: take the maximum, N9 centroid, zero N9, repeat while
     some v > threshold. `buf` from `Layout.activations` (modified in place); the N9
-    values are clipped at 0 as they are read."""
+    values are clipped at 0 as they are read, the centroids taken for all rounds at once."""
     if floor >= threshold:
         raise FrameError(f"noise floor {floor} counts must be below the threshold {threshold}")
     x = layout.width
@@ -199,11 +199,11 @@ def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: floa
     v = buf[:-1].reshape(n, x)
     dump = buf.size - 1
     alive = np.arange(n)
-    parts = []
-    for r in range(max_touches):
+    rounds = []  # (frames, cells, peaks, N9 values) of each round
+    for _ in range(max_touches):
         if alive.size == 0:
             break
-        if 3 * alive.size > n:  # most frames: one pass over all beats a copy of these
+        if 5 * alive.size > n:  # many frames: one pass over all beats copying these
             k = v.argmax(axis=1)[alive]
         else:
             k = v[alive].argmax(axis=1)
@@ -214,15 +214,24 @@ def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: floa
             break
         nb = layout.n9[k]
         at = np.where(nb >= 0, alive[:, None] * x + nb, dump)
-        win = buf[at]
-        win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
-        w = win / win.sum(axis=1, keepdims=True)
-        di, dj = n9_offsets(w)
-        i = (layout.ci[k] - 1) + di
-        j = (layout.cj[k] - 1) + dj
-        parts.append((alive, np.full(alive.size, r), i, j, peak, layout.n9_taxel[k], w))
+        rounds.append((alive, k, peak, buf[at]))
         buf[at] = 0.0
-    return _collect(parts)
+    if not rounds:
+        return _collect([])
+    frame = np.concatenate([f for f, *_ in rounds])
+    rank = np.concatenate([np.full(f.size, r) for r, (f, *_) in enumerate(rounds)])
+    count = np.bincount(frame, minlength=n)  # frame by frame, rank by rank:
+    order = np.empty(frame.size, np.int64)
+    order[(np.cumsum(count) - count)[frame] + rank] = np.arange(frame.size)
+    frame, rank = frame[order], rank[order]
+    k = np.concatenate([c for _, c, _, _ in rounds])[order]
+    peak = np.concatenate([p for _, _, p, _ in rounds])[order]
+    win = np.concatenate([w for *_, w in rounds])[order]
+    win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
+    w = win / win.sum(axis=1, keepdims=True)
+    di, dj = n9_offsets(w)
+    return Touches(frame, rank, (layout.ci[k] - 1) + di, (layout.cj[k] - 1) + dj, peak,
+                   layout.n9_taxel[k], w)
 
 
 def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndarray,
