@@ -110,15 +110,16 @@ def test_chunks_write_the_reference_bytes_for_every_method(tmp_path, method):
         assert res["touches"] == len(table[0])
 
 
-@pytest.mark.parametrize("board", [
-    {},  # frame cells in grid order: detection on the frames' own cells
-    {"offset_i": 2, "offset_j": 1},
-    {"flip_i": True},  # not in grid order: the taxels' counts are taken out
-    {"transpose": True, "flip_j": True},
+@pytest.mark.parametrize("size, board", [
+    ((21, 12), {}),  # most cells, in grid order: detection on the frames' own cells
+    ((19, 11), {"offset_i": 2, "offset_j": 1}),
+    ((12, 7), {}),  # fewer cells: the taxels' counts are taken out
+    ((12, 7), {"flip_i": True}),  # not in grid order: taken out
+    ((12, 7), {"transpose": True, "flip_j": True}),
 ])
-def test_holes_offsets_flips_and_transposes(tmp_path, board):
+def test_holes_offsets_flips_and_transposes(tmp_path, size, board):
     rng = np.random.default_rng(2)
-    ij = full_grid(12, 7, holes={(0, 0), (5, 3), (5, 4), (11, 6), (6, 0)})
+    ij = full_grid(*size, holes={(0, 0), (5, 3), (5, 4), (11, 6), (6, 0)})
     if board.get("transpose"):
         ij = [(j, i) for i, j in ij]  # i runs along the frame's columns
     frames = touch_frames(400, rng, max_touches=3)

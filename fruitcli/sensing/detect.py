@@ -23,6 +23,9 @@ import numpy as np
 from fruitcli.errors import FrameError
 
 MAX_TOUCHES = 10  # touches per frame at most (FT5316 reports up to 10 fingers)
+# taxels on at least this share of the frame's cells: detect on the frames' own cells
+# (no copy, but every cell is scanned); fewer: take the taxels' counts out first
+FRAME_LAYOUT_SHARE = 0.6
 _DI = np.repeat(np.arange(-1, 2), 3)  # N9 row offsets, row-major
 _DJ = np.tile(np.arange(-1, 2), 3)  # N9 column offsets
 
@@ -81,9 +84,10 @@ class Layout:
     """Where the batch N9 keeps each taxel's v in a row of X numbers.
 
     When the board keeps the grid's row-major order (frame index increasing with (i, j)
-    row-major, as the default board does), a row is the frame itself: X = rows * cols,
-    cells without a taxel hold v = -inf, and no copy of the frames is made. Otherwise the
-    taxels' counts are taken into X = T columns in row-major grid order. Either way the
+    row-major, as the default board does) and taxels cover most of the frame
+    (`FRAME_LAYOUT_SHARE`), a row is the frame itself: X = rows * cols, cells without a
+    taxel hold v = -inf, and no copy of the frames is made. Otherwise the taxels' counts
+    are taken into X = T columns in row-major grid order. Either way the
     first maximum of a row is the first in the grid's row-major order, as on the padded
     grid, and N9 cells without a taxel (or off the frame) read 0.
     """
@@ -102,7 +106,8 @@ class Layout:
         """`frame_cell` (T,): flat frame index of each taxel; `frame_size`: rows * cols."""
         frame_cell = np.asarray(frame_cell, dtype=np.int64)
         order = np.argsort(grid.cell, kind="stable")  # taxels in row-major grid order
-        if np.all(np.diff(frame_cell[order]) > 0):
+        in_order = bool(np.all(np.diff(frame_cell[order]) > 0))
+        if in_order and order.size >= FRAME_LAYOUT_SHARE * frame_size:
             take, width, column = None, frame_size, frame_cell
         else:
             take, width = frame_cell[order], order.size

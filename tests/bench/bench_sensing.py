@@ -127,18 +127,30 @@ def full_board_taxels(path: Path) -> Path:
     return path
 
 
+# Forks the command from this small process, so that the command's peak memory (which on
+# Linux counts what its parent held when it forked) is not the benchmark's own.
+_TRAMPOLINE = """
+import json, os, sys, time
+t0 = time.perf_counter()
+pid = os.fork()
+if pid == 0:
+    os.execv(sys.argv[1], sys.argv[1:])
+_, status, usage = os.wait4(pid, 0)
+print(json.dumps([time.perf_counter() - t0, usage.ru_utime + usage.ru_stime,
+                  usage.ru_maxrss / 1024, os.waitstatus_to_exitcode(status)]))
+"""
+
+
 def run_command(args: list[str]) -> tuple[float, float, float]:
-    """Run a command; (wall s, user + sys CPU s, peak resident memory MB) of the child."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
+    """Run a command; (wall s, user + sys CPU s, peak resident memory MB) of it alone."""
+    proc = subprocess.run([sys.executable, "-c", _TRAMPOLINE, *args], capture_output=True,
+                          text=True)
     if proc.returncode:
-        raise SystemExit(f"{' '.join(args)} failed: {err}")
-    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
+        raise SystemExit(f"{' '.join(args)}: {proc.stderr}")
+    wall, cpu, peak_mb, code = json.loads(proc.stdout.strip().splitlines()[-1])
+    if code:
+        raise SystemExit(f"{' '.join(args)} failed (exit {code}): {proc.stderr}")
+    return wall, cpu, peak_mb
 
 
 def recordings(repeats: int = 3) -> None:
