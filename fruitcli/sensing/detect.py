@@ -7,11 +7,10 @@ Activation v = C - C0 clipped at 0, on a padded taxel grid (H, W) = (I + 2, J + 
 border and cells without a taxel stay 0, so off-grid and missing cells count 0 in N9.
 Ties of the maximum go to the first cell in row-major order (lowest i, then lowest j).
 
-The batch N9 (`n9_sequential`) does not build that grid: it works on the frames' own
-cells (or the taxels' counts in grid order, `Layout`) and reads the N9 neighbours
-through a table, so a frame costs rows * cols (or T) numbers instead of H * W. The
-weighted offsets sum the N9 terms in one fixed order (`n9_offsets`), so a touch's
-i and j do not depend on how many frames are detected together.
+The batch N9 (`n9_sequential`) does not build that grid: a compiled loop reads each
+frame's taxel counts in row-major grid order (`Layout`) and their N9 neighbours through
+a table. The weighted offsets sum the N9 terms in one fixed order (`n9_offsets`), so a
+touch's i and j do not depend on how many frames are detected together.
 """
 
 from __future__ import annotations
@@ -23,9 +22,6 @@ import numpy as np
 from fruitcli.errors import FrameError
 
 MAX_TOUCHES = 10  # touches per frame at most (FT5316 reports up to 10 fingers)
-# taxels on at least this share of the frame's cells: detect on the frames' own cells
-# (no copy, but every cell is scanned); fewer: take the taxels' counts out first
-FRAME_LAYOUT_SHARE = 0.6
 _DI = np.repeat(np.arange(-1, 2), 3)  # N9 row offsets, row-major
 _DJ = np.tile(np.arange(-1, 2), 3)  # N9 column offsets
 
@@ -81,67 +77,32 @@ class Grid:
 
 @dataclass(frozen=True)
 class Layout:
-    """Where the batch N9 keeps each taxel's v in a row of X numbers.
+    """The taxels in row-major grid order ("positions"), where the batch N9 works: each
+    position's frame cell, N9 neighbours and padded grid cell. The first maximum over
+    positions is the first in the grid's row-major order, as on the padded grid."""
 
-    When the board keeps the grid's row-major order (frame index increasing with (i, j)
-    row-major, as the default board does) and taxels cover most of the frame
-    (`FRAME_LAYOUT_SHARE`), a row is the frame itself: X = rows * cols, cells without a
-    taxel hold v = -inf, and no copy of the frames is made. Otherwise the taxels' counts
-    are taken into X = T columns in row-major grid order. Either way the
-    first maximum of a row is the first in the grid's row-major order, as on the padded
-    grid, and N9 cells without a taxel (or off the frame) read 0.
-    """
-
-    frame_cell: np.ndarray  # (T,) flat frame index of each taxel
-    take: np.ndarray | None  # (X,) frame cells taken into a row, None: the frame's own
-    width: int  # X
-    column: np.ndarray  # (T,) row position of each taxel
-    n9: np.ndarray  # (X, 9) row position of each N9 cell (-1: no taxel there)
-    n9_taxel: np.ndarray  # (X, 9) taxel of each N9 cell (-1: none)
-    ci: np.ndarray  # (X,) padded grid row of the taxel at each position
-    cj: np.ndarray  # (X,) padded grid column
+    frame_cell: np.ndarray  # (T,) flat frame index of each taxel (file order)
+    taxel: np.ndarray  # (T,) taxel at each position
+    cell: np.ndarray  # (T,) flat frame index of each position
+    column: np.ndarray  # (T,) position of each taxel
+    n9: np.ndarray  # (T, 9) position of each N9 cell of a position (-1: no taxel there)
+    n9_taxel: np.ndarray  # (T, 9) taxel of each N9 cell (-1: none)
+    ci: np.ndarray  # (T,) padded grid row of each position
+    cj: np.ndarray  # (T,) padded grid column
 
     @classmethod
-    def build(cls, grid: Grid, frame_cell: np.ndarray, frame_size: int) -> Layout:
-        """`frame_cell` (T,): flat frame index of each taxel; `frame_size`: rows * cols."""
+    def build(cls, grid: Grid, frame_cell: np.ndarray) -> Layout:
+        """`frame_cell` (T,): flat frame index of each taxel."""
         frame_cell = np.asarray(frame_cell, dtype=np.int64)
         order = np.argsort(grid.cell, kind="stable")  # taxels in row-major grid order
-        in_order = bool(np.all(np.diff(frame_cell[order]) > 0))
-        if in_order and order.size >= FRAME_LAYOUT_SHARE * frame_size:
-            take, width, column = None, frame_size, frame_cell
-        else:
-            take, width = frame_cell[order], order.size
-            column = np.empty(order.size, np.int64)
-            column[order] = np.arange(order.size)
+        column = np.empty(order.size, np.int64)
+        column[order] = np.arange(order.size)
         pos_of_cell = np.full(grid.taxel_of_cell.size, -1, np.int64)
         pos_of_cell[grid.cell] = column
-        n9 = np.full((width, 9), -1, np.int64)
-        n9_taxel = np.full((width, 9), -1, np.int64)
-        ci, cj = np.zeros(width, np.int64), np.zeros(width, np.int64)
-        idx = grid.cell[:, None] + grid.offsets
-        n9[column] = pos_of_cell[idx]
-        n9_taxel[column] = grid.taxel_of_cell[idx]
-        ci[column], cj[column] = np.divmod(grid.cell, grid.shape[1])
-        return cls(frame_cell, take, width, column, n9, n9_taxel, ci, cj)
-
-    def baseline_row(self, baseline: np.ndarray) -> np.ndarray:
-        """C0 (T,) at the taxels' row positions, +inf elsewhere (X,)."""
-        base = np.full(self.width, np.inf)
-        base[self.column] = baseline
-        return base
-
-    def activations(self, frames: np.ndarray, base_row: np.ndarray,
-                    out: np.ndarray | None = None) -> np.ndarray:
-        """C - C0 (not clipped) of frames (N, rows * cols) in rows of X, as a flat
-        (N * X + 1,) array whose last element is 0 (what N9 cells without a taxel read).
-        `base_row` from `baseline_row`; `out`: a buffer of at least N * X + 1 to reuse."""
-        n = frames.shape[0]
-        size = n * self.width + 1
-        buf = np.empty(size) if out is None or out.size < size else out[:size]
-        src = frames if self.take is None else np.take(frames, self.take, axis=1)
-        np.subtract(src, base_row, out=buf[:-1].reshape(n, self.width))
-        buf[-1] = 0.0
-        return buf
+        idx = grid.cell[order][:, None] + grid.offsets
+        ci, cj = np.divmod(grid.cell[order], grid.shape[1])
+        return cls(frame_cell, order, frame_cell[order], column, pos_of_cell[idx],
+                   grid.taxel_of_cell[idx], ci, cj)
 
 
 def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -192,51 +153,33 @@ def _collect(parts: list[tuple]) -> Touches:
     return Touches(*(c[order] for c in cols))
 
 
-def n9_sequential(buf: np.ndarray, layout: Layout, threshold: float, floor: float = 0.0,
+def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
+                  threshold: float, floor: float = 0.0,
                   max_touches: int = MAX_TOUCHES) -> Touches:
-    """The paper's multitouch: take the maximum, N9 centroid, zero N9, repeat while
-    some v > threshold. `buf` from `Layout.activations` (modified in place); the N9
-    values are clipped at 0 as they are read, the centroids taken for all rounds at once."""
+    """The paper's multitouch on frames (N, rows * cols) counts against C0 (T,): take the
+    maximum, N9 centroid, zero N9, repeat while some v > threshold. The extraction runs
+    compiled frame by frame (`n9_kernel.n9_scan`), the centroids vectorized."""
+    from fruitcli.sensing.n9_kernel import n9_scan
+
     if floor >= threshold:
         raise FrameError(f"noise floor {floor} counts must be below the threshold {threshold}")
-    x = layout.width
-    n = (buf.size - 1) // x
-    v = buf[:-1].reshape(n, x)
-    dump = buf.size - 1
-    alive = np.arange(n)
-    rounds = []  # (frames, cells, peaks, N9 values) of each round
-    for _ in range(max_touches):
-        if alive.size == 0:
-            break
-        if 5 * alive.size > n:  # many frames: one pass over all beats copying these
-            k = v.argmax(axis=1)[alive]
-        else:
-            k = v[alive].argmax(axis=1)
-        peak = buf[alive * x + k]
-        hit = peak > threshold
-        alive, k, peak = alive[hit], k[hit], peak[hit]
-        if alive.size == 0:
-            break
-        nb = layout.n9[k]
-        at = np.where(nb >= 0, alive[:, None] * x + nb, dump)
-        rounds.append((alive, k, peak, buf[at]))
-        buf[at] = 0.0
-    if not rounds:
+    n = frames.shape[0]
+    cap = n * max_touches
+    frame, rank, pos = (np.empty(cap, np.int64) for _ in range(3))
+    peak, win = np.empty(cap), np.empty((cap, 9))
+    base = np.asarray(baseline, dtype=float)[layout.taxel]
+    count = n9_scan(np.ascontiguousarray(frames, dtype=np.int64), layout.cell, base,
+                    layout.n9, float(threshold), int(max_touches), frame, rank, pos, peak,
+                    win)
+    if count == 0:
         return _collect([])
-    frame = np.concatenate([f for f, *_ in rounds])
-    rank = np.concatenate([np.full(f.size, r) for r, (f, *_) in enumerate(rounds)])
-    count = np.bincount(frame, minlength=n)  # frame by frame, rank by rank:
-    order = np.empty(frame.size, np.int64)
-    order[(np.cumsum(count) - count)[frame] + rank] = np.arange(frame.size)
-    frame, rank = frame[order], rank[order]
-    k = np.concatenate([c for _, c, _, _ in rounds])[order]
-    peak = np.concatenate([p for _, _, p, _ in rounds])[order]
-    win = np.concatenate([w for *_, w in rounds])[order]
+    k = pos[:count]
+    win = win[:count]
     win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
     w = win / win.sum(axis=1, keepdims=True)
     di, dj = n9_offsets(w)
-    return Touches(frame, rank, (layout.ci[k] - 1) + di, (layout.cj[k] - 1) + dj, peak,
-                   layout.n9_taxel[k], w)
+    return Touches(frame[:count].copy(), rank[:count].copy(), (layout.ci[k] - 1) + di,
+                   (layout.cj[k] - 1) + dj, peak[:count].copy(), layout.n9_taxel[k], w)
 
 
 def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndarray,
@@ -279,15 +222,11 @@ def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
 
 def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
            threshold: float, method: str = "n9", floor: float = 0.0,
-           max_touches: int = MAX_TOUCHES, base_row: np.ndarray | None = None,
-           out: np.ndarray | None = None) -> Touches:
+           max_touches: int = MAX_TOUCHES) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
-    ``[detection].method``: n9 (paper), n9_floor or peaks. `base_row`
-    (`Layout.baseline_row` of C0) and `out` (a buffer to reuse) save work per chunk."""
+    ``[detection].method``: n9 (paper), n9_floor or peaks."""
     if method in ("n9", "n9_floor"):
-        if base_row is None:
-            base_row = layout.baseline_row(baseline)
-        return n9_sequential(layout.activations(frames, base_row, out), layout, threshold,
+        return n9_sequential(frames, baseline, layout, threshold,
                              floor if method == "n9_floor" else 0.0, max_touches)
     if method == "peaks":
         values = np.take(frames, layout.frame_cell, axis=1)

@@ -21,7 +21,6 @@ through `Stream` (also the live loop):
 
 from __future__ import annotations
 
-import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -111,8 +110,7 @@ class Locator:
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board["rows"], board["cols"])
-        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols,
-                                   board["rows"] * board["cols"])
+        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols)
         self.positions_mm = np.asarray(positions_mm, dtype=float)
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
@@ -146,8 +144,8 @@ class Locator:
         gives frames (count, R, C); frame indices count over the whole recording and
         `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
         ``then(table)`` computed in the worker. Stateless settings spread the chunks over
-        `workers` threads (numpy releases the GIL in its loops), in order; stateful ones
-        run through one `Stream` carried across the chunks."""
+        `workers` threads (the compiled N9 loop and numpy release the GIL), in order;
+        stateful ones run through one `Stream` carried across the chunks."""
         s = self.settings
         finish = then or (lambda table: table)
         starts = range(0, n_frames, size)
@@ -162,20 +160,13 @@ class Locator:
         seg = frac = None
         if self.positions_mm.ndim == 3:
             seg, frac = self._path(pressure_kpa, n_frames)
-        base_row = self.layout.baseline_row(baseline)
-        local = threading.local()  # each worker's activation buffer
-
         def job(start: int):
             frames = read(start, size)
             if tuple(frames.shape[1:]) != self.frame_shape:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
-            need = frames.shape[0] * self.layout.width + 1
-            if getattr(local, "buf", None) is None or local.buf.size < need:
-                local.buf = np.empty(need)
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches, base_row,
-                       local.buf)
+                       s.threshold_counts, s.method, s.floor, s.max_touches)
             end = start + frames.shape[0]
             xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
                              None if frac is None else frac[start:end])
