@@ -1,16 +1,17 @@
 """Touch detection on the taxel grid (paper Sec. III-B): baseline, N9 centroid, multitouch.
 
-Units: counts. Vectorized over frames: each round takes every frame's maximum at once;
-rounds loop over touches per frame, never over frames.
+Units: counts.
 
 Activation v = C - C0 clipped at 0, on a padded taxel grid (H, W) = (I + 2, J + 2) whose
 border and cells without a taxel stay 0, so off-grid and missing cells count 0 in N9.
 Ties of the maximum go to the first cell in row-major order (lowest i, then lowest j).
 
-The batch N9 (`n9_sequential`) does not build that grid: a compiled loop reads each
-frame's taxel counts in row-major grid order (`Layout`) and their N9 neighbours through
-a table. The weighted offsets sum the N9 terms in one fixed order (`n9_offsets`), so a
-touch's i and j do not depend on how many frames are detected together.
+The batch N9 (`n9_sequential`) does not build that grid: a compiled loop over the
+frames (`n9_kernel`) reads each frame's taxel counts in row-major grid order (`Layout`)
+and their N9 neighbours through a table; the centroids are vectorized over all touches,
+as is the `peaks` method over frames. The weighted offsets sum the N9 terms in one
+fixed order (`n9_offsets`), so a touch's i and j do not depend on how many frames are
+detected together.
 """
 
 from __future__ import annotations
@@ -75,6 +76,7 @@ class Grid:
         """(9,) flat offsets of the N9 cells."""
         return _DI * self.shape[1] + _DJ
 
+
 @dataclass(frozen=True)
 class Layout:
     """The taxels in row-major grid order ("positions"), where the batch N9 works: each
@@ -84,7 +86,6 @@ class Layout:
     frame_cell: np.ndarray  # (T,) flat frame index of each taxel (file order)
     taxel: np.ndarray  # (T,) taxel at each position
     cell: np.ndarray  # (T,) flat frame index of each position
-    column: np.ndarray  # (T,) position of each taxel
     n9: np.ndarray  # (T, 9) position of each N9 cell of a position (-1: no taxel there)
     n9_taxel: np.ndarray  # (T, 9) taxel of each N9 cell (-1: none)
     ci: np.ndarray  # (T,) padded grid row of each position
@@ -101,7 +102,7 @@ class Layout:
         pos_of_cell[grid.cell] = column
         idx = grid.cell[order][:, None] + grid.offsets
         ci, cj = np.divmod(grid.cell[order], grid.shape[1])
-        return cls(frame_cell, order, frame_cell[order], column, pos_of_cell[idx],
+        return cls(frame_cell, order, frame_cell[order], pos_of_cell[idx],
                    grid.taxel_of_cell[idx], ci, cj)
 
 
