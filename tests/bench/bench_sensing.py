@@ -153,7 +153,7 @@ def run_command(args: list[str]) -> tuple[float, float, float]:
     return wall, cpu, peak_mb
 
 
-def recordings(repeats: int = 3) -> None:
+def recordings(repeats: int = 5) -> None:
     """`fruit locate` end to end on 20,000, 200,000 and 1,000,000 frames (issue 14):
     frames/s = 180,000 / (median time of 200,000 - median time of 20,000), and peak
     memory on 1,000,000 frames."""
