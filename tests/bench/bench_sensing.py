@@ -155,8 +155,9 @@ def run_command(args: list[str]) -> tuple[float, float, float]:
 
 def recordings(repeats: int = 5) -> None:
     """`fruit locate` end to end on 20,000, 200,000 and 1,000,000 frames (issue 14):
-    frames/s = 180,000 / (median time of 200,000 - median time of 20,000), and peak
-    memory on 1,000,000 frames."""
+    frames/s = 180,000 / (time on 200,000 - time on 20,000), from the best and the median
+    of `repeats` runs each (a shared machine's load only adds time), and peak memory on
+    1,000,000 frames (one run; frames/s against the best 20,000-frame run)."""
     fruit = str(Path(sys.executable).with_name("fruit"))
     with tempfile.TemporaryDirectory(prefix="bench-locate-") as tmp:
         tmp = Path(tmp)
@@ -176,13 +177,14 @@ def recordings(repeats: int = 5) -> None:
                   f"{np.median([c for _, c, _ in runs[n]]):.2f} s, peak "
                   f"{max(m for _, _, m in runs[n]):.0f} MB")
         small, big = sizes[0], sizes[1]
-        wall = np.median([w for w, _, _ in runs[big]]) - np.median([w for w, _, _ in runs[small]])
-        cpu = np.median([c for _, c, _ in runs[big]]) - np.median([c for _, c, _ in runs[small]])
-        print(f"fruit locate end to end: ({big:,} - {small:,} frames) / (median wall "
-              f"difference {wall:.2f} s) -> {(big - small) / wall:,.0f} frames/s "
-              f"(target >= 200,000); by CPU time {(big - small) / cpu:,.0f} frames/s")
+        for name, pick in (("best", np.min), ("median", np.median)):
+            wall = pick([w for w, _, _ in runs[big]]) - pick([w for w, _, _ in runs[small]])
+            cpu = pick([c for _, c, _ in runs[big]]) - pick([c for _, c, _ in runs[small]])
+            print(f"fruit locate end to end, {name} of {repeats}: ({big:,} - {small:,} frames)"
+                  f" / (wall difference {wall:.2f} s) -> {(big - small) / wall:,.0f} frames/s "
+                  f"(target >= 200,000); by CPU time {(big - small) / cpu:,.0f} frames/s")
         huge = sizes[-1]
-        wall = runs[huge][0][0] - np.median([w for w, _, _ in runs[small]])
+        wall = runs[huge][0][0] - np.min([w for w, _, _ in runs[small]])
         print(f"fruit locate on {huge:,} frames: peak memory {runs[huge][0][2]:.0f} MB "
               f"(target < 2,048 MB), wall {runs[huge][0][0]:.1f} s; ({huge:,} - {small:,} "
               f"frames) / (wall difference {wall:.2f} s) -> {(huge - small) / wall:,.0f} "
