@@ -235,6 +235,15 @@ def test_a_truncated_npz_is_one_error_line(tmp_path):
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     with pytest.raises(FrameError, match=r"cut.npz: not a readable .npz recording"):
         run_locate(scene(), tmp_path / "cut.npz", taxels, None, tmp_path / "o")
+    rng = np.random.default_rng(8)
+    np.savez_compressed(tmp_path / "z.npz", frames=rng.integers(0, 900, (400, R, C)),
+                        t_s=np.arange(400) * 0.1)
+    data = bytearray((tmp_path / "z.npz").read_bytes())
+    data[len(data) // 3:len(data) // 3 + 64] = bytes(64)  # inside the compressed frames
+    (tmp_path / "z.npz").write_bytes(bytes(data))
+    with pytest.raises(FrameError, match=r"z\.npz: "):  # bad data, a bad CRC or zlib error
+        run_locate(scene(), tmp_path / "z.npz", taxels, None, tmp_path / "o", chunk_frames=16)
+    assert not (tmp_path / "o" / "touches.csv").exists()
     np.savez(tmp_path / "obj.npz", frames=np.array([None, 1], dtype=object),
              t_s=np.zeros(2))
     with pytest.raises(FrameError, match=r"obj.npz: not a readable .npz recording"):

@@ -17,6 +17,7 @@ import os
 import struct
 import threading
 import zipfile
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -128,7 +129,13 @@ class _NpyMember:
             if start != self._next:  # (zipfile seeks in a compressed member by reading on)
                 self._fh.seek(self._data_at + start * self.frame_bytes)
             while got < size:
-                n = self._fh.readinto(view[got:])
+                try:
+                    n = self._fh.readinto(view[got:])
+                except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+                    self._next = -1
+                    raise FrameError(f"{self.path}: frames: cannot read frame "
+                                     f"{start + got // max(self.frame_bytes, 1)}: "
+                                     f"{exc}") from None
                 if not n:
                     self._next = -1
                     raise FrameError(f"{self.path}: frames: the file ends inside frame "
@@ -155,7 +162,8 @@ def _open_npz(path: Path) -> ChunkedRecording:
             raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
         try:
             member = _NpyMember(path, zf, zf.getinfo(names["frames"]))
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:
+        except (ValueError, OSError, EOFError, NotImplementedError, zipfile.BadZipFile,
+                zlib.error) as exc:
             raise FrameError(f"{path}: not a readable .npz recording: frames: {exc}") from None
     except BaseException:
         zf.close()
