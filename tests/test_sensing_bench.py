@@ -315,6 +315,16 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
     # on its outer face (4 mm facets), not the inner one 3 mm below
     assert np.allclose(radius(tmp_path / "proj"), r + 1.5, atol=0.2)
     assert res["projected_to_surface"]["mean_mm"] > 0.3
+    # read in chunks of 7 frames on 2 threads: the same touches, the same figures
+    small = run_locate(proj, frames, taxels, states, tmp_path / "proj7", surface_path=surface,
+                       chunk_frames=7, workers=2)
+    assert (tmp_path / "proj7" / "touches.csv").read_bytes() == \
+        (tmp_path / "proj" / "touches.csv").read_bytes()
+    assert small["frames"] > 7 * 4
+    for key in ("touches", "max_mm"):
+        assert small["projected_to_surface"][key] == res["projected_to_surface"][key]
+    assert small["projected_to_surface"]["mean_mm"] == \
+        pytest.approx(res["projected_to_surface"]["mean_mm"], rel=1e-12)
     with pytest.raises(FrameError, match="project = surface needs the body's surface"):
         run_locate(proj, frames, taxels, states, tmp_path / "x")
     from fruitcli.errors import SceneError

@@ -32,7 +32,9 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
-    frames index from 0 including baseline frames; peak in counts).
+    frames index from 0 including baseline frames; peak in counts). An .npz recording is
+    read, detected and written in chunks of frames on the CPUs available, so memory stays
+    bounded however long it is; touches.csv appears only once complete.
     """
     from fruitcli.scene import load_scene
     from fruitcli.sensing.stage import run_locate

@@ -61,8 +61,9 @@ class Recording:
         return int(self.frames.shape[0])
 
 
-def check_frames(frames, where: str) -> np.ndarray:
-    """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64."""
+def check_frames(frames, where: str, first: int = 0) -> np.ndarray:
+    """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64.
+    `first`: index of frames[0] in its recording (a chunk's offset), for the messages."""
     arr = np.asarray(frames)
     if arr.ndim != 3:
         raise FrameError(f"{where}: frames: expected shape (N, rows, cols), got {arr.shape}")
@@ -70,16 +71,18 @@ def check_frames(frames, where: str) -> np.ndarray:
         raise FrameError(f"{where}: empty recording (no frames)")
     if arr.dtype.kind == "f":
         if not np.all(np.isfinite(arr)):
-            n = int(np.argwhere(~np.isfinite(arr))[0][0])
+            n = first + int(np.argwhere(~np.isfinite(arr))[0][0])
             raise FrameError(f"{where}: frame {n}: NaN or infinite count")
         if np.any(arr != np.round(arr)):
-            n = int(np.argwhere(arr != np.round(arr))[0][0])
+            n = first + int(np.argwhere(arr != np.round(arr))[0][0])
             raise FrameError(f"{where}: frame {n}: non-integer count")
     elif arr.dtype.kind not in "iu":
         raise FrameError(f"{where}: frames: expected integer counts, got dtype {arr.dtype}")
-    arr = arr.astype(np.int64)
-    if np.any(arr < 0):
-        n = int(np.argwhere(arr < 0)[0][0])
+    if arr.dtype.kind == "u" and arr.dtype.itemsize < 8:
+        return arr.astype(np.int64)  # never negative
+    arr = arr.astype(np.int64, copy=False)
+    if arr.min() < 0:
+        n = first + int(np.argwhere(arr < 0)[0][0])
         raise FrameError(f"{where}: frame {n}: negative count (expected counts >= 0)")
     return arr
 
@@ -91,7 +94,15 @@ def read_npz(path: str | os.PathLike) -> Recording:
     if "frames" not in data:
         raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
     frames = check_frames(data["frames"], str(path))
-    n = frames.shape[0]
+    t_s, pressure, names, sample, meta, pressure_t, printer = npz_extras(path, data,
+                                                                         frames.shape[0])
+    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t,
+                     printer_mm=printer)
+
+
+def npz_extras(path: Path, data, n: int) -> tuple:
+    """Checked t_s, pressure_kpa, chamber_names, sample, meta, pressure_t_s, printer_mm of
+    a recording's npz arrays `data` (a mapping) with `n` frames."""
     t_s = data.get("t_s")
     if t_s is None:
         raise FrameError(f"{path}: missing key 't_s' (N,) seconds")
@@ -131,8 +142,7 @@ def read_npz(path: str | os.PathLike) -> Recording:
         if printer.shape != (n, 3) or not np.all(np.isfinite(printer)):
             raise FrameError(f"{path}: printer_mm: expected ({n}, 3) finite mm, got "
                              f"shape {printer.shape}")
-    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t,
-                     printer_mm=printer)
+    return t_s, pressure, names, sample, meta, pressure_t, printer
 
 
 def write_npz(path: str | os.PathLike, rec: Recording) -> None:

@@ -6,6 +6,7 @@ Units: mm, counts, kPa, s. Each stage reads its inputs, calls the pure functions
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -14,11 +15,12 @@ import numpy as np
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.sensing.board import Taxels, check_frame_shape, load_taxels
-from fruitcli.sensing.frames_io import Recording, read_recording
+from fruitcli.sensing.frames_io import Recording
 from fruitcli.sensing.locate import States, load_states, match_chambers
-from fruitcli.sensing.pipeline import Locator, Settings, TouchTable
+from fruitcli.sensing.pipeline import CHUNK_FRAMES, Locator, Settings, TouchTable
+from fruitcli.sensing.recording_chunks import ChunkedRecording, open_recording
+from fruitcli.sensing.touch_csv import touch_bytes, touch_csv
 
-TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"]
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
@@ -30,12 +32,12 @@ def _section(scene, name: str) -> dict:
     return scene[name]
 
 
-def build_locator(scene, taxels: Taxels, states: States | None, rec: Recording,
+def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
                   settings: Settings, where: str) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
     or the state path when the recording carries chamber pressures. -> (locator, pressure)."""
     board = _section(scene, "board")
-    check_frame_shape(rec.frames, board, where)
+    check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if states is None:
         return Locator(taxels, board, taxels.xyz_mm, settings, where=where), None
     if rec.pressure_kpa is not None and states.n_states > 1:
@@ -47,15 +49,6 @@ def build_locator(scene, taxels: Taxels, states: States | None, rec: Recording,
         raise FrameError(f"{where}: meta state {state} not in the states "
                          f"(0..{states.n_states - 1})")
     return Locator(taxels, board, states.taxels_mm[state], settings, where=where), None
-
-
-def touch_rows(table: TouchTable, t_s: np.ndarray):
-    """Rows of touches.csv."""
-    for n in range(len(table)):
-        f = int(table.frame[n])
-        x, y, z = table.xyz_mm[n]
-        yield [f, float(t_s[f]), int(table.touch[n]), float(table.i[n]), float(table.j[n]),
-               float(x), float(y), float(z), float(table.peak[n])]
 
 
 def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndarray,
@@ -73,35 +66,64 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
 FACING_COS = 0.5  # a face "faces the same way" as a taxel's surface within 60 degrees
 
 
+class SurfaceProjector:
+    """Touch points moved to the nearest point of the body's surface (vertices, triangles
+    at rest, outward; carried by FEM state `state` when states are given) among the faces
+    that face the same way as the surface at the nearest taxel (`taxels_mm` (T, 3), in
+    that state), so a thin body is not crossed to its far side. The N9 average of 3D
+    taxels lies on a chord, inside a curved body. `project` may run on several threads."""
+
+    def __init__(self, surface, states, state: int | None, taxels_mm: np.ndarray):
+        import threading
+
+        from scipy.spatial import cKDTree
+
+        from fruitcli.geometry.distance import SurfaceDistance
+        from fruitcli.sensing.bench import carried_vertices
+
+        verts, tris = surface
+        if states is not None:
+            verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state),
+                                     verts)
+        t = verts[tris]
+        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True),
+                                          1e-300)
+        self.verts, self.tris = verts, tris
+        _, _, self.own = SurfaceDistance(verts, tris).closest(taxels_mm)
+        self.taxel_tree = cKDTree(taxels_mm)
+        self._facing: dict[int, SurfaceDistance] = {}  # per taxel, made when first needed
+        self._lock = threading.Lock()
+
+    def _faces_of(self, k: int):
+        from fruitcli.geometry.distance import SurfaceDistance
+
+        with self._lock:
+            if k not in self._facing:
+                facing = self.normal @ self.normal[self.own[k]] > FACING_COS
+                self._facing[k] = SurfaceDistance(self.verts, self.tris[facing])
+            return self._facing[k]
+
+    def project(self, xyz_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points (n, 3) mm -> (points on the surface (n, 3) mm, distances moved (n,) mm)."""
+        if len(xyz_mm) == 0:
+            return xyz_mm, np.zeros(0)
+        _, nearest = self.taxel_tree.query(xyz_mm)
+        points, dist = np.empty_like(xyz_mm), np.empty(len(xyz_mm))
+        for k in np.unique(nearest):
+            rows = np.flatnonzero(nearest == k)
+            q, d, _ = self._faces_of(int(k)).closest(xyz_mm[rows])
+            points[rows], dist[rows] = q, d
+        return points, dist
+
+
 def project_to_surface(xyz_mm: np.ndarray, surface, states, state: int | None,
                        taxels_mm: np.ndarray):
-    """Touch points (n, 3) mm moved to the nearest point of the body's surface (vertices,
-    triangles at rest, outward; carried by FEM state `state` when states are given) among
-    the faces that face the same way as the surface at the nearest taxel (`taxels_mm`
-    (T, 3), in that state), so a thin body is not crossed to its far side. The N9 average
-    of 3D taxels lies on a chord, inside a curved body. -> (points, distances (n,) mm)."""
-    from scipy.spatial import cKDTree
-
-    from fruitcli.geometry.distance import SurfaceDistance
-    from fruitcli.sensing.bench import carried_vertices
-
-    verts, tris = surface
-    if states is not None:
-        verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
+    """Touch points (n, 3) mm moved onto the body's surface (`SurfaceProjector`).
+    -> (points, distances (n,) mm)."""
     if len(xyz_mm) == 0:
         return xyz_mm, np.zeros(0)
-    t = verts[tris]
-    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    _, _, own = SurfaceDistance(verts, tris).closest(taxels_mm)
-    _, nearest = cKDTree(taxels_mm).query(xyz_mm)
-    points, dist = np.empty_like(xyz_mm), np.empty(len(xyz_mm))
-    for k in np.unique(nearest):
-        rows = np.flatnonzero(nearest == k)
-        facing = normal @ normal[own[k]] > FACING_COS
-        q, d, _ = SurfaceDistance(verts, tris[facing]).closest(xyz_mm[rows])
-        points[rows], dist[rows] = q, d
-    return points, dist
+    return SurfaceProjector(surface, states, state, taxels_mm).project(xyz_mm)
 
 
 def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
@@ -109,19 +131,39 @@ def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
     return taxels.xyz_mm if states is None else states.taxels_mm[state]
 
 
+def surface_projector(scene, rec, states, pressure, taxels, surface_path, surface_unit,
+                      where: str):
+    """The `SurfaceProjector` of ``[detection].project = "surface"`` (None otherwise)."""
+    if _section(scene, "detection").get("project", "none") != "surface":
+        return None
+    if surface_path is None:
+        raise FrameError(f"{where}: [detection].project = surface needs the body's surface "
+                         "(make-tracks' reduced.stl or [geometry].solid; `fruit locate "
+                         "--surface`)")
+    if pressure is not None:
+        raise FrameError(f"{where}: [detection].project = surface works on a recording at "
+                         "one FEM state; this one follows the states by its pressures "
+                         "(not supported)")
+    state = None if states is None else int(rec.meta.get("state", 0))
+    return SurfaceProjector(body_surface(surface_path, surface_unit), states, state,
+                            locator_taxels(states, state, taxels))
+
+
 def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
                threshold_counts: float | None = None, method: str | None = None,
-               surface_path=None, surface_unit: str = "mm") -> dict:
+               surface_path=None, surface_unit: str = "mm",
+               chunk_frames: int = CHUNK_FRAMES, workers: int | None = None) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
-    With ``[detection].project = "surface"`` the located points are moved to the nearest
+    The recording is read, detected and written `chunk_frames` frames at a time, on
+    `workers` threads (default: the CPUs this process may use, at most 4). With
+    ``[detection].project = "surface"`` the located points are moved to the nearest
     point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
     the recording's FEM state)."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
     board = _section(scene, "board")
-    rec = read_recording(frames_path, board["rows"], board["cols"], board.get("format", "auto"))
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
     settings = Settings.from_scene(_section(scene, "detection"),
@@ -130,56 +172,81 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
-    locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
-    say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
-    t0 = time.perf_counter()
-    baseline = locator.baseline(rec.frames, where)
-    table = locator.batch(rec.frames, baseline, pressure)
-    dt = time.perf_counter() - t0
-    projected = None
-    if _section(scene, "detection").get("project", "none") == "surface":
-        if surface_path is None:
-            raise FrameError(f"{where}: [detection].project = surface needs the body's surface "
-                             "(make-tracks' reduced.stl or [geometry].solid; `fruit locate "
-                             "--surface`)")
-        if pressure is not None:
-            raise FrameError(f"{where}: [detection].project = surface works on a recording at "
-                             "one FEM state; this one follows the states by its pressures "
-                             "(not supported)")
-        state = None if states is None else int(rec.meta.get("state", 0))
-        table.xyz_mm, dist = project_to_surface(table.xyz_mm, body_surface(surface_path,
-                                                                           surface_unit),
-                                                states, state, locator_taxels(states, state,
-                                                                              taxels))
-        projected = {"touches": int(len(dist)),
-                     "mean_mm": float(dist.mean()) if len(dist) else 0.0,
-                     "max_mm": float(dist.max()) if len(dist) else 0.0}
-        say(f"projected {len(dist)} touches onto the surface: moved "
-            f"{projected['mean_mm']:.2f} mm on average, {projected['max_mm']:.2f} mm at most")
-    write_csv(out_dir / "touches.csv", TOUCH_HEADER, touch_rows(table, rec.t_s),
-              comments=[f"touches of {Path(frames_path).name}: frame index from 0 "
+    if workers is None:
+        workers = min(4, _usable_cpus())
+    with open_recording(frames_path, board["rows"], board["cols"],
+                        board.get("format", "auto")) as rec:
+        locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
+        projector = surface_projector(scene, rec, states, pressure, taxels, surface_path,
+                                      surface_unit, where)
+        say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
+        t0 = time.perf_counter()
+        baseline = locator.baseline(rec.read(0, settings.baseline_frames), where, len(rec))
+        sampled, done, shown = [], 0, t0
+        moved = [0, 0.0, 0.0]  # touches projected, sum and max of the distances (mm)
+
+        def rows(table: TouchTable):  # in the worker thread
+            dist = None
+            if projector is not None:
+                table.xyz_mm, dist = projector.project(table.xyz_mm)
+            keep = None if rec.sample is None else _sample_touches(table, rec.sample)
+            return touch_bytes(table, rec.t_s), len(table), keep, dist
+
+        with touch_csv(out_dir / "touches.csv",
+                       [f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
-                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"])
-    result = {"frames": len(rec), "touches": len(table), "skipped_lines": rec.skipped_lines,
+                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"]) as out:
+            for data, count, keep, dist in locator.chunks(rec.read, len(rec), baseline,
+                                                          pressure, chunk_frames, rows,
+                                                          workers):
+                out.write(data, count)
+                if keep is not None:
+                    sampled.append(keep)
+                if dist is not None and len(dist):
+                    moved = [moved[0] + len(dist), moved[1] + float(dist.sum()),
+                             max(moved[2], float(dist.max()))]
+                done = min(done + chunk_frames, len(rec))
+                if time.perf_counter() - shown > 2.0:
+                    shown = time.perf_counter()
+                    say(f"{done} of {len(rec)} frames, {out.rows} touches")
+        dt = time.perf_counter() - t0
+    result = {"frames": len(rec), "touches": out.rows, "skipped_lines": rec.skipped_lines,
               "seconds": dt, "frames_per_s": len(rec) / max(dt, 1e-9),
               "touches_csv": str(out_dir / "touches.csv")}
-    if projected is not None:
+    if projector is not None:
+        projected = {"touches": moved[0], "mean_mm": moved[1] / max(moved[0], 1),
+                     "max_mm": moved[2]}
         result["projected_to_surface"] = projected
+        say(f"projected {moved[0]} touches onto the surface: moved "
+            f"{projected['mean_mm']:.2f} mm on average, {projected['max_mm']:.2f} mm at most")
     if pressure is not None:  # frames far from the simulated path: counted, not hidden
         from fruitcli.sensing.pressure_path import report_off_path
 
         result["pressure_path"] = report_off_path(rec, pressure, locator.state_pressure_kpa,
                                                   out_dir, say)
     if rec.sample is not None:
-        ids, pts = strongest_per_sample(table, rec.sample)
+        ids, pts = strongest_per_sample(TouchTable.concat(sampled), rec.sample)
         write_csv(out_dir / "measured.csv", POINT_HEADER,
                   ([int(k), *map(float, p)] for k, p in zip(ids, pts, strict=True)),
                   comments=["strongest touch of each bench sample's frame, mm"])
         n_samples = int(np.unique(rec.sample[rec.sample >= 0]).size)
         result.update(measured_csv=str(out_dir / "measured.csv"), samples=n_samples,
                       samples_missed=n_samples - int(ids.size))
-    say(f"{len(table)} touches, {result['frames_per_s']:.0f} frames/s")
+    say(f"{out.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
+
+
+def _usable_cpus() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
+    """The touches of `table` in bench sample frames (sample >= 0)."""
+    keep = sample[table.frame] >= 0
+    return TouchTable(table.frame[keep], table.touch[keep], table.i[keep], table.j[keep],
+                      table.xyz_mm[keep], table.peak[keep])
 
 
 def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
