@@ -43,6 +43,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
         "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m"),
+        "fit_mm": Key("num", None, "scale the artist mesh (after unit) so that its largest "
+                                   "extent is this (mm); chambers stay as given (mm)"),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
         "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
