@@ -205,9 +205,13 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces))
     split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)
     dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
-    inside = reduce.Inside(dv, df, all_faces_bound=surf.closed, holes=surf.holes > 0)
+    # one part, every edge shared by at most two faces: every face bounds the inside (the
+    # holes are closed by caps); overlapping parts or non-manifold edges: faces inside the
+    # union, or fins outside it, are found by the winding number on both their sides
+    one_sheet = surf.parts == 1 and surf.non_manifold_edges == 0
+    inside = reduce.Inside(dv, df, all_faces_bound=one_sheet, holes=surf.holes > 0)
     dropped = 0
-    if not surf.closed:
+    if not one_sheet:
         # faces inside the union of overlapping parts (or fins outside it) bound nothing
         bound = winding.boundary_faces(inside.wn, dv, df)
         dropped = int((~bound).sum())

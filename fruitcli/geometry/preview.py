@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-# triangles drawn in the perspective view at most (every k-th face beyond this)
-MAX_PREVIEW_FACES = 12000
-
 
 def write_preview(path, top_v: np.ndarray, top_f: np.ndarray, curves: list[np.ndarray],
                   taxel_xyz: np.ndarray, title: str = "") -> None:
@@ -52,24 +49,24 @@ def view_matrix(elev_deg: float = 35.0, azim_deg: float = -60.0) -> np.ndarray:
 
 
 def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=35.0,
-                     azim_deg=-60.0, color=(0.75, 0.75, 0.75)):
-    """Shaded orthographic view of a mesh on a 2D Axes (painter's order: far faces first;
-    much faster than mplot3d), with curves and numbered points on it."""
-    from matplotlib.collections import PolyCollection
-
+                     azim_deg=-60.0):
+    """Shaded orthographic view of a mesh on a 2D Axes (Gouraud-shaded triangles in
+    painter's order, far faces first: much faster than mplot3d), with curves and numbered
+    points on it."""
     r = view_matrix(elev_deg, azim_deg)
-    faces = f[:: max(1, len(f) // MAX_PREVIEW_FACES)]
-    tri = v[faces] @ r.T
+    q = v @ r.T
+    tri = q[f]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    front = n[:, 2] > 0
-    tri, n = tri[front], n[front]
-    order = np.argsort(tri[:, :, 2].mean(axis=1))
+    vn = np.zeros_like(q)
+    for k in range(3):
+        np.add.at(vn, f[:, k], n)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
+    front = f[n[:, 2] > 0]
+    front = front[np.argsort(q[front, 2].mean(axis=1))]      # far faces first
     light = np.array([0.3, 0.5, 0.81])
-    shade = 0.3 + 0.7 * np.clip(n[order] @ light, 0, 1)
-    rgb = np.clip(np.asarray(color)[None, :] * shade[:, None] * 1.2, 0, 1)
-    ax.add_collection(PolyCollection(tri[order, :, :2], facecolors=rgb, edgecolors=rgb,
-                                     linewidths=0.2))
+    shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
+    ax.tripcolor(q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15,
+                 shading="gouraud")
     for c in curves:
         q = c @ r.T
         ax.plot(q[:, 0], q[:, 1], color="tab:orange", lw=0.7)
