@@ -62,6 +62,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "count": Key("list", None, "[nx, ny] taxels on a flat pad"),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
     },
+    "mold": {
+        "wall_mm": Key("num", 4.0, "mold wall thickness (mm, at least 1)"),
+        "clearance_mm": Key("num", 0.3, "gap between keys and sockets, pins and holes (mm)"),
+        "key_radius_mm": Key("num", 3.0, "radius of the registration keys (mm)"),
+        "pour_diameter_mm": Key("num", 8.0, "pour hole diameter (mm)"),
+        "vent_diameter_mm": Key("num", 2.0, "vent diameter (mm)"),
+        "pin_diameter_mm": Key("num", 3.0, "diameter of the pins holding chamber cores (mm)"),
+        "vents": Key("int", 4, "vents at the cavity's highest points besides the pour hole"),
+    },
     "mesh": {
         "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)"),
         "min_size_mm": Key("num", None, "smallest edge near chambers and taxels (mm)"),

@@ -311,7 +311,7 @@ STAGES: list[Stage] = [
     Stage("make-tracks", ["make-artist"], "fruitcli.geometry.pipeline", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
-                     "report.json", "preview.png"]),
+                     "tracks.csv", "report.json", "preview.png"]),
     Stage("pad-grid", [], "fruitcli.padgrid", _pad_needed, _pad_inputs, _pad_run,
           lambda s: ["taxels.csv"]),
     Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,

@@ -42,6 +42,7 @@ SCENE_NAMES = {"cover_mm": "[tracks].cover_mm", "faces": "[tracks].faces",
                "unit_hint": load.SCENE_ARTIST_HINT}
 """The same for a scene's make-tracks stage (pass as `make_tracks(..., names=SCENE_NAMES)`)."""
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
+TRACK_COLUMNS = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
 
 
 def _surface_line(surf, dropped: int, w_range) -> str:
@@ -289,6 +290,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
 
     curves = [p.points for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
     closed = [p.closed for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
+    # each curve's axis (x: a plane x = const, index i; y: y = const, index j)
+    curve_ids = [(axis, k - k_min) for axis, d, k_min in (("x", x_pieces, k0), ("y", y_pieces, l0))
+                 for k in sorted(d) for _ in d[k]]
     tube_meshes = []
     for pts, cl in zip(curves, closed, strict=True):
         for line in tubes.track_polylines(pts, cl):
@@ -388,6 +392,13 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         offs = np.cumsum([0] + [len(v) for v, _ in tube_meshes[:-1]])
         tube_f = np.concatenate([f + o for (_, f), o in zip(tube_meshes, offs, strict=True)])
         export.write_stl(tmp / "tracks.stl", tube_v, tube_f)
+        track_rows = [[t, axis, idx, n, *map(float, q)]
+                      for t, ((axis, idx), pts) in enumerate(zip(curve_ids, curves, strict=True))
+                      for n, q in enumerate(pts)]
+        write_csv(tmp / "tracks.csv", TRACK_COLUMNS, track_rows, comments=[
+            f"yarn track centre lines of {Path(src).name} on the reduced surface (mm)",
+            "track: curve number; axis x: the section x = const of grid index i (index), "
+            "axis y: y = const of index j; point: order along the curve"])
         write_csv(tmp / "taxels.csv", TAXEL_COLUMNS, rows, comments=[
             f"taxels of {Path(src).name}: crossings of the track curves on the reduced surface",
             "x_mm, y_mm, z_mm in mm; nx, ny, nz: outward unit normal; i along x, j along y",

@@ -49,10 +49,11 @@ def view_matrix(elev_deg: float = 35.0, azim_deg: float = -60.0) -> np.ndarray:
 
 
 def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=35.0,
-                     azim_deg=-60.0):
+                     azim_deg=-60.0, flat: bool = False):
     """Shaded orthographic view of a mesh on a 2D Axes (Gouraud-shaded triangles in
     painter's order, far faces first: much faster than mplot3d), with curves and numbered
-    points on it."""
+    points on it. `flat`: one shade per face (for boxy parts, whose long thin faces smear
+    Gouraud shading)."""
     r = view_matrix(elev_deg, azim_deg)
     q = v @ r.T
     tri = q[f]
@@ -64,9 +65,16 @@ def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=
     front = f[n[:, 2] > 0]
     front = front[np.argsort(q[front, 2].mean(axis=1))]      # far faces first
     light = np.array([0.3, 0.5, 0.81])
-    shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
-    ax.tripcolor(q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15,
-                 shading="gouraud")
+    if flat:
+        fn = np.cross(q[front[:, 1]] - q[front[:, 0]], q[front[:, 2]] - q[front[:, 0]])
+        fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+        shade = 0.25 + 0.75 * np.clip(fn @ light, 0, 1)
+        ax.tripcolor(q[:, 0], q[:, 1], front, facecolors=shade, cmap="Greys_r", vmin=0.0,
+                     vmax=1.15, edgecolors="face", linewidth=0.1)
+    else:
+        shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
+        ax.tripcolor(q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15,
+                     shading="gouraud")
     for c in curves:
         q = c @ r.T
         ax.plot(q[:, 0], q[:, 1], color="tab:orange", lw=0.7)
