@@ -75,6 +75,7 @@ class Mold:
     vents_mm: list = field(default_factory=list)
     box_mm: list = field(default_factory=list)
     cores: list = field(default_factory=list)
+    channels: object = None                           # pour hole and vents (Manifold)
 
 
 def box(lo, hi):
@@ -91,10 +92,11 @@ def vertical_cylinder(x: float, y: float, z0: float, z1: float, r: float):
     return mf.Manifold.cylinder(z1 - z0, r, r, CIRCLE_SEGMENTS).translate((x, y, z0))
 
 
-def highest_points(piece, count: int, keep_off_mm: float):
+def highest_points(piece, count: int, keep_off_mm: float, avoid=()):
     """The cavity's highest points: [(x, y, z)] mm, the highest first, then local maxima of
     the piece's top height at least VENT_SEPARATION_MM apart, at most `count` in all, each
-    at least `keep_off_mm` inside the piece's outline (seen from above)."""
+    at least `keep_off_mm` inside the piece's outline (seen from above) and, for each
+    (points (k, 2), distance mm) of `avoid` (the tracks, the pins), that far from them."""
     from scipy import ndimage
 
     from fruitcli.geometry.columns import top_z
@@ -110,7 +112,15 @@ def highest_points(piece, count: int, keep_off_mm: float):
     margin = int(np.ceil(keep_off_mm / GRID_MM))
     if margin:
         inside = ndimage.binary_erosion(inside, iterations=margin)
-    hf = np.where(np.isfinite(h), h, -np.inf)
+    for pts_xy, dist_mm in avoid:
+        if len(pts_xy):
+            from scipy.spatial import cKDTree
+
+            d, _ = cKDTree(np.asarray(pts_xy)[:, :2]).query(np.c_[gx.ravel(), gy.ravel()])
+            inside &= d.reshape(gx.shape) >= dist_mm
+    # maxima of the height where a channel may go (next to a blocked summit, the highest
+    # allowed point beside it)
+    hf = np.where(inside, h, -np.inf)
     peak = inside & (hf >= ndimage.maximum_filter(hf, size=3) - 1e-9)
     idx = np.argwhere(peak)
     order = np.argsort(-hf[peak], kind="stable")
@@ -125,10 +135,11 @@ def highest_points(piece, count: int, keep_off_mm: float):
 
 
 def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: MoldOptions,
-              cover_top_mm: float | None = None) -> Mold:
+              tracks_xy=None, track_radius_mm: float = 0.0) -> Mold:
     """The mold of `piece` (Manifold whose flat face lies on z = zp; `side` +1 if the piece
     lies above the plane, -1 below), with a core for each chamber (name, Manifold) that
-    lies inside it."""
+    lies inside it. The pour hole and vents keep off the track centre points `tracks_xy`
+    (k, 2) mm (a channel through a ridge would cut its groove) and off the pins."""
     import manifold3d as mf
 
     w, c, kr = opts.wall_mm, opts.clearance_mm, opts.key_radius_mm
@@ -156,7 +167,7 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
                             "corners; use a thicker wall")
     mold = Mold(piece=name, box_mm=[float(x0), float(y0), float(min(far, near)), float(x1),
                                     float(y1), float(max(far, near))])
-    cores, pin_holes = [], []
+    cores, pin_holes, pin_xy = [], [], []
     for cname, whole in chambers:
         ch = whole ^ piece          # a chamber across the parting plane: a core in each half
         if ch.is_empty() or ch.volume() <= 1e-6 * whole.volume():
@@ -173,6 +184,7 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
                                 "mold's shell (the straight path to the parting plane leaves "
                                 "the piece)")
         cores.append((cname, core))
+        pin_xy.append((cx, cy))
         pin_holes.append(vertical_cylinder(cx, cy, min(zp, near) - 1, max(zp, near) + 1,
                                            r + c))
     shell = mf.Manifold.batch_boolean([shell_box, piece, *sockets], mf.OpType.Subtract)
@@ -192,7 +204,12 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
         plate = mf.Manifold.batch_boolean([plate, *pin_holes], mf.OpType.Subtract)
     silicone = mf.Manifold.batch_boolean([piece, *[k for _, k in cores]], mf.OpType.Subtract)
     # pour hole and vents: straight up from the cavity's highest points
-    pts = highest_points(piece, 1 + opts.vents, opts.pour_diameter_mm / 2 + 0.5)
+    reach = opts.pour_diameter_mm / 2 + 0.3           # the widest channel, and a little
+    avoid = [(np.zeros((0, 2)) if tracks_xy is None else np.asarray(tracks_xy)[:, :2],
+              reach + track_radius_mm),
+             (np.asarray(pin_xy).reshape(-1, 2),
+              reach + opts.pin_diameter_mm / 2 + opts.clearance_mm)]
+    pts = highest_points(piece, 1 + opts.vents, opts.pour_diameter_mm / 2 + 0.5, avoid)
     if not pts:
         raise GeometryError(f"{name}: no room for a pour hole in the piece's outline")
     top = max(far, near) + 1.0
@@ -200,6 +217,7 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
                                   (opts.pour_diameter_mm if k == 0 else
                                    opts.vent_diameter_mm) / 2)
                 for k, (x, y, z) in enumerate(pts)]
+    mold.channels = mf.Manifold.batch_boolean(channels, mf.OpType.Add)
     shell = mf.Manifold.batch_boolean([shell, *channels], mf.OpType.Subtract)
     plate = mf.Manifold.batch_boolean([plate, *channels], mf.OpType.Subtract)
     mold.parts = {f"{name}_shell": shell, f"{name}_plate": plate}
@@ -243,8 +261,11 @@ def undercut_area(piece, zp: float, side: int, pull: dict) -> dict:
 
 
 def assembled_cavity(mold: Mold):
-    """The empty space the assembled mold encloses (box - all parts), as a Manifold."""
+    """The empty space the assembled mold encloses (box - all parts - the pour and vent
+    channels), as a Manifold: what the silicone fills (plus the keys' and pins'
+    clearance)."""
     import manifold3d as mf
 
     outer = box(mold.box_mm[:3], mold.box_mm[3:])
-    return mf.Manifold.batch_boolean([outer, *mold.parts.values()], mf.OpType.Subtract)
+    return mf.Manifold.batch_boolean([outer, *mold.parts.values(), mold.channels],
+                                     mf.OpType.Subtract)

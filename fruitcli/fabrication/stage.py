@@ -73,9 +73,12 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
     if not rep_path.exists():
         raise GeometryError(f"{tracks_dir}: no report.json (run make-tracks first)")
     try:
-        zp = float(json.loads(rep_path.read_text())["split_z_mm"])
+        tr_rep = json.loads(rep_path.read_text())
+        zp, r_track = float(tr_rep["split_z_mm"]), float(tr_rep["track_radius_mm"])
     except (ValueError, KeyError, TypeError):
-        raise GeometryError(f"{rep_path}: no split_z_mm (expected make-tracks' report)") from None
+        raise GeometryError(f"{rep_path}: no split_z_mm or track_radius_mm (expected "
+                            "make-tracks' report)") from None
+    tracks_xy = _track_points(tracks_dir / "tracks.csv")
     t0 = time.perf_counter()
     top = load_solid(tracks_dir / "tracked_top.stl", "make-tracks")
     reduced = load_solid(tracks_dir / "reduced.stl", "make-tracks")
@@ -93,7 +96,8 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
     molds, entries = [], []
     for name, piece, side in (("top", top, +1), ("bottom", bottom, -1)):
         t0 = time.perf_counter()
-        mold = make_mold(name, piece, zp, side, chambers, opts)
+        mold = make_mold(name, piece, zp, side, chambers, opts,
+                         tracks_xy if name == "top" else None, r_track)
         cavity = assembled_cavity(mold)
         sil = mold.silicone.volume()
         extra = (cavity - mold.silicone).volume()
@@ -109,12 +113,14 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
                                   undercut_area(piece, zp, side, mold.pull).items()},
             "piece_volume_mm3": round(sil, 3),
             "cavity_volume_mm3": round(cavity.volume(), 3),
+            "channels_volume_mm3": round(mold.channels.volume(), 3),
             "cavity_outside_piece_mm3": round(extra, 3),
             "piece_outside_cavity_mm3": round(missing, 3),
             "cavity_vs_piece": round(cavity.volume() / sil, 5),
             "silicone_ml": round(sil / 1000.0, 2),
             "silicone_g": round(sil / 1000.0 * density_kg_m3 / 1000.0, 1),
             "pour_hole_mm": mold.pour_mm, "vents_mm": mold.vents_mm,
+            "pour_diameter_mm": opts.pour_diameter_mm, "vent_diameter_mm": opts.vent_diameter_mm,
             "parting_plane_z_mm": zp, "box_mm": [round(v, 3) for v in mold.box_mm],
         })
         molds.append(mold)
@@ -136,6 +142,16 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
         write_json(tmp / "mold.json", report)
     del mf
     return report
+
+
+def _track_points(path) -> np.ndarray:
+    """Track centre points (k, 3) mm from make-tracks' tracks.csv."""
+    from fruitcli.tables import read_table
+
+    if not Path(path).exists():
+        raise GeometryError(f"{path}: not found (make-tracks writes it; run it again)")
+    t = read_table(path, ["x_mm", "y_mm", "z_mm"], error=GeometryError)
+    return np.c_[t["x_mm"], t["y_mm"], t["z_mm"]]
 
 
 def _snap(piece, zp: float, side: int):
