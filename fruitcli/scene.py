@@ -54,6 +54,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "faces": Key("int", 5000, "target triangle count of the reduced surface"),
         "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
+        "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
+                                             "fraction (yarn limit 0.3 minus a 0.05 margin)"),
     },
     "grid": {
         "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),

@@ -1,5 +1,6 @@
 """Benchmark: make-tracks on the default artist mesh (each step's wall and CPU time, peak
-RSS), and the winding-number step alone on a 100,000-triangle scan-like mesh.
+RSS), make-mold on its output, and the winding-number step alone on a 100,000-triangle
+scan-like mesh.
 
 Run: .venv/bin/python tests/bench/bench_geometry.py
 (On a shared machine wall times follow the load; the CPU time of this process is the
@@ -61,6 +62,30 @@ def winding_step(v, f) -> None:
           f"({c3 - c2:.2f} s CPU)")
 
 
+def mold_step(tracks_dir: Path, out_dir: Path) -> None:
+    """make-mold on the default Fruit with the three chambers of fruit-breathing.toml."""
+    from fruitcli.fabrication.mold import MoldOptions
+    from fruitcli.fabrication.stage import run_make_mold, scene_chambers
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "pipelines" / "fruit-breathing.toml")
+    cpu = [time.process_time()]
+
+    def say(m):
+        now = time.process_time()
+        print(f"  {m}  ({now - cpu[0]:.2f} s CPU)")
+        cpu[0] = now
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    rep = run_make_mold(tracks_dir, out_dir, scene_chambers(scene), 1070.0, MoldOptions(),
+                        progress=say)
+    print(f"make-mold total: {time.perf_counter() - t0:.2f} s wall, "
+          f"{time.process_time() - c0:.2f} s CPU (target < 10 s), peak RSS {rss_mb():.0f} MB")
+    for m in rep["molds"]:
+        print(f"  {m['piece']}: {len(m['parts'])} parts, {m['silicone_ml']} ml, cavity / piece "
+              f"{m['cavity_vs_piece']:.4f}")
+
+
 def main() -> None:
     from fruitcli.geometry.artist import write_artist
     from fruitcli.geometry.pipeline import make_tracks
@@ -85,6 +110,7 @@ def main() -> None:
               f"peak RSS {rss_mb():.0f} MB (target <= 1024 MB)")
         print(f"taxels {report['taxels']}, reduced {report['triangles']['reduced']} triangles, "
               f"Hausdorff {report['offset_error']['hausdorff_mm']:.3f} mm")
+        mold_step(Path(tmp) / "out", Path(tmp) / "mold")
     winding_step(*scan_like())
 
 
