@@ -39,7 +39,7 @@ def test_outputs_and_report(ellipsoid_run):
     out, report = ellipsoid_run
     names = sorted(p.name for p in out.iterdir())
     assert names == ["preview.png", "reduced.stl", "report.json", "taxels.csv",
-                     "tracked_top.stl", "tracks.stl"]
+                     "tracked_top.stl", "tracks.csv", "tracks.stl"]
     saved = json.loads((out / "report.json").read_text())
     assert saved["taxels"] == report["taxels"] > 10
     assert set(saved["times_s"]) >= {"load", "reduce", "sections", "taxels", "tracks", "total"}
