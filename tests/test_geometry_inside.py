@@ -236,3 +236,18 @@ def test_sharp_edged_part_gives_tracks_and_names_its_thin_wall(tmp_path):
     with pytest.raises(GeometryError, match=r"consumes the whole body: it is at most 1[0-9.]+ "
                                             r"mm thick \(at \(.*\) mm\)"):
         make_tracks(path, tmp_path / "o2", cover_mm=7.5, faces=2000)
+
+
+def test_scene_fit_mm_is_named_in_errors(tmp_path):
+    from fruitcli.geometry.pipeline import SCENE_NAMES
+    from fruitcli.scene import load_scene
+
+    trimesh.creation.icosphere(3, 1.0).export(tmp_path / "head.stl")
+    (tmp_path / "s.toml").write_text('[geometry]\nartist = "head.stl"\nfit_mm = 120\n')
+    assert load_scene(tmp_path / "s.toml")["geometry"]["fit_mm"] == 120
+    with pytest.raises(GeometryError, match=r"^\[geometry\]\.fit_mm: expected a size > 0"):
+        make_tracks(tmp_path / "head.stl", tmp_path / "o", fit_mm=-1.0, names=SCENE_NAMES)
+    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
+                                            r'\[geometry\]\.fit_mm$'):
+        make_tracks(tmp_path / "head.stl", tmp_path / "o", names=SCENE_NAMES)
+    assert not (tmp_path / "o").exists()
