@@ -242,7 +242,7 @@ def test_scene_fit_mm_is_named_in_errors(tmp_path):
     from fruitcli.geometry.pipeline import SCENE_NAMES
     from fruitcli.scene import load_scene
 
-    trimesh.creation.icosphere(3, 1.0).export(tmp_path / "head.stl")
+    trimesh.creation.icosphere(3, 0.5).export(tmp_path / "head.stl")      # 1 mm across
     (tmp_path / "s.toml").write_text('[geometry]\nartist = "head.stl"\nfit_mm = 120\n')
     assert load_scene(tmp_path / "s.toml")["geometry"]["fit_mm"] == 120
     with pytest.raises(GeometryError, match=r"^\[geometry\]\.fit_mm: expected a size > 0"):
