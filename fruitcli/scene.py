@@ -44,6 +44,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
         "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m"),
+        "fit_mm": Key("num", None, "scale the artist mesh (after unit) so that its largest "
+                                   "extent is this (mm); chambers stay as given (mm)"),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
         "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
@@ -53,6 +55,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "faces": Key("int", 5000, "target triangle count of the reduced surface"),
         "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
+        "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
+                                             "fraction (yarn limit 0.3 minus a 0.05 margin)"),
     },
     "grid": {
         "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),
@@ -60,6 +64,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
         "count": Key("list", None, "[nx, ny] taxels on a flat pad"),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
+    },
+    "mold": {
+        "wall_mm": Key("num", 4.0, "mold wall thickness (mm, at least 1)"),
+        "clearance_mm": Key("num", 0.3, "gap between keys and sockets, pins and holes (mm)"),
+        "key_radius_mm": Key("num", 3.0, "radius of the registration keys (mm)"),
+        "pour_diameter_mm": Key("num", 8.0, "pour hole diameter (mm)"),
+        "vent_diameter_mm": Key("num", 2.0, "vent diameter (mm)"),
+        "pin_diameter_mm": Key("num", 3.0, "diameter of the pins holding chamber cores (mm)"),
+        "vents": Key("int", 4, "vents at the cavity's highest points besides the pour hole"),
     },
     "mesh": {
         "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)"),

@@ -88,8 +88,8 @@ def _tracks_needed(scene):
 
 def _tracks_inputs(scene, ctx):
     return {"artist": scene["geometry"]["artist"], "unit": scene["geometry"]["unit"],
-            "tracks": scene["tracks"], "grid": {k: scene["grid"][k] for k in
-                                                 ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
+            "fit_mm": scene["geometry"]["fit_mm"], "tracks": scene["tracks"],
+            "grid": {k: scene["grid"][k] for k in ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
 
 
 def _tracks_run(scene, ctx, out_dir):
@@ -100,7 +100,8 @@ def _tracks_run(scene, ctx, out_dir):
         geo["artist"], out_dir, unit=geo["unit"], cover_mm=tr["cover_mm"], faces=tr["faces"],
         spacing_x_mm=grid["spacing_x_mm"], spacing_y_mm=grid["spacing_y_mm"],
         origin_mm=grid["origin_mm"], track_radius_mm=tr["track_radius_mm"],
-        split_z_mm=tr["split_z_mm"], progress=ctx.progress, names=SCENE_NAMES)
+        split_z_mm=tr["split_z_mm"], fit_mm=geo["fit_mm"], progress=ctx.progress,
+        names=SCENE_NAMES)
     return {"taxels": report["taxels"],
             "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
 
@@ -319,7 +320,7 @@ STAGES: list[Stage] = [
     Stage("make-tracks", ["make-artist"], "fruitcli.geometry.pipeline", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
-                     "report.json", "preview.png"]),
+                     "tracks.csv", "report.json", "preview.png"]),
     Stage("pad-grid", [], "fruitcli.padgrid", _pad_needed, _pad_inputs, _pad_run,
           lambda s: ["taxels.csv"]),
     Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,

@@ -16,6 +16,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                     "Write the default artist mesh (the organic 'Fruit')."),
     "make-tracks": ("fruitcli.cli.make_tracks", "make_tracks",
                     "Reduce an artist mesh, carve yarn tracks, export taxels."),
+    "make-mold": ("fruitcli.cli.make_mold", "make_mold",
+                  "Printable molds for a scene's cast pieces (shells, plates, cores)."),
     "tetra": ("fruitcli.cli.tetra", "tetra", "Tetrahedralize a scene's body with its chambers."),
     "simulate": ("fruitcli.cli.simulate", "simulate",
                  "Quasi-static corotational FEM of a scene's states."),

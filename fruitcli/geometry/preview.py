@@ -4,43 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-PREVIEW_GRID_MM = 1.5  # spacing of the height field drawn in the perspective view
-PREVIEW_GRID_MAX = 120  # ... at most this many points along the longer side
-
-
-def height_field(verts: np.ndarray, up_faces: np.ndarray):
-    """The piece's top as a regular height field for drawing: (X, Y, Z) (ny, nx) mm, Z the
-    highest upward face over each grid point, NaN off the piece. A regular grid draws as
-    a readable shaded surface where matplotlib's depth sorting of long thin triangles
-    shows shards. Vectorized z-buffer: every (triangle, grid point in its box) pair once."""
-    tri = verts[up_faces]  # (F, 3, 3)
-    lo, hi = tri[..., :2].reshape(-1, 2).min(axis=0), tri[..., :2].reshape(-1, 2).max(axis=0)
-    step = max(PREVIEW_GRID_MM, float((hi - lo).max()) / PREVIEW_GRID_MAX)
-    nx, ny = int(np.ceil((hi[0] - lo[0]) / step)) + 1, int(np.ceil((hi[1] - lo[1]) / step)) + 1
-    i0 = np.ceil((tri[..., 0].min(axis=1) - lo[0]) / step).astype(int)
-    i1 = np.floor((tri[..., 0].max(axis=1) - lo[0]) / step).astype(int)
-    j0 = np.ceil((tri[..., 1].min(axis=1) - lo[1]) / step).astype(int)
-    j1 = np.floor((tri[..., 1].max(axis=1) - lo[1]) / step).astype(int)
-    wi, wj = np.maximum(i1 - i0 + 1, 0), np.maximum(j1 - j0 + 1, 0)
-    count = wi * wj
-    f = np.repeat(np.arange(len(tri)), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    gi, gj = i0[f] + k % wi[f], j0[f] + k // wi[f]
-    px, py = lo[0] + gi * step, lo[1] + gj * step
-    a, b, c = tri[f, 0], tri[f, 1], tri[f, 2]
-    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    ok = np.abs(det) > 1e-12
-    det = np.where(ok, det, 1.0)
-    u = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (py - a[:, 1])) / det
-    v = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (px - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
-    inside = ok & (u >= 0) & (v >= 0) & (u + v <= 1)
-    z = a[:, 2] + u * (b[:, 2] - a[:, 2]) + v * (c[:, 2] - a[:, 2])
-    zbuf = np.full(nx * ny, -np.inf)
-    np.maximum.at(zbuf, (gj * nx + gi)[inside], z[inside])
-    zbuf[~np.isfinite(zbuf)] = np.nan
-    x, y = np.meshgrid(lo[0] + np.arange(nx) * step, lo[1] + np.arange(ny) * step)
-    return x, y, zbuf.reshape(ny, nx)
-
 
 def write_preview(path, top_v: np.ndarray, top_f: np.ndarray, curves: list[np.ndarray],
                   taxel_xyz: np.ndarray, title: str = "") -> None:
@@ -66,38 +29,61 @@ def write_preview(path, top_v: np.ndarray, top_f: np.ndarray, curves: list[np.nd
     ax.set_ylabel("y (mm)")
     ax.set_title("top view")
 
-    ax3 = fig.add_subplot(1, 2, 2, projection="3d", computed_zorder=False)
-    x, y, z = height_field(top_v, top_f[facing_up])
-    from matplotlib.colors import LightSource
-
-    shaded = LightSource(azdeg=315, altdeg=50).shade(
-        np.nan_to_num(z, nan=float(np.nanmin(z))), cmap=plt.cm.Greys_r, vert_exag=1.0,
-        blend_mode="soft", vmin=float(np.nanmin(z)) - 0.5 * float(np.nanmax(z) - np.nanmin(z)),
-        vmax=float(np.nanmax(z)))
-    ax3.plot_surface(x, y, z, facecolors=shaded, rstride=1, cstride=1, linewidth=0,
-                     antialiased=False, shade=False, zorder=1)
-    lift = 0.4  # mm: curves and taxels drawn just above the surface so they stay visible
-    for c in curves:
-        ax3.plot(c[:, 0], c[:, 1], c[:, 2] + lift, color="tab:orange", lw=0.7, zorder=2)
-    ax3.scatter(*(taxel_xyz + [0, 0, lift]).T, s=8, color="tab:red", depthshade=False,
-                zorder=3)
-    for t, p in enumerate(taxel_xyz):
-        ax3.text(p[0], p[1], p[2] + 2.0, str(t), fontsize=5, zorder=4)
-    lo, hi = top_v.min(axis=0), top_v.max(axis=0)
-    ax3.set_xlim(lo[0], hi[0])
-    ax3.set_ylim(lo[1], hi[1])
-    ax3.set_zlim(lo[2], hi[2])
-    ax3.set_box_aspect(hi - lo)  # to scale
-    from matplotlib.ticker import MaxNLocator
-
-    ax3.zaxis.set_major_locator(MaxNLocator(2))
-    ax3.set_xlabel("x (mm)")
-    ax3.set_ylabel("y (mm)")
-    ax3.set_zlabel("z (mm)", labelpad=-2)
-    ax3.tick_params(labelsize=7)
-    ax3.view_init(elev=40, azim=-60)
-    ax3.set_title("perspective")
+    ax3 = fig.add_subplot(1, 2, 2)
+    draw_perspective(ax3, top_v, top_f, curves, taxel_xyz)
+    ax3.set_title("view from the front left, above (35 degrees)")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def view_matrix(elev_deg: float = 35.0, azim_deg: float = -60.0) -> np.ndarray:
+    """Rows: screen x, screen y, depth (towards the viewer) for a camera at elevation
+    `elev_deg` and azimuth `azim_deg` (matplotlib's 3D convention), orthographic."""
+    e, a = np.radians(elev_deg), np.radians(azim_deg)
+    toward = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    right = np.array([-np.sin(a), np.cos(a), 0.0])
+    up = np.cross(toward, right)
+    return np.stack([right, up, toward])
+
+
+def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=35.0,
+                     azim_deg=-60.0, flat: bool = False):
+    """Shaded orthographic view of a mesh on a 2D Axes (Gouraud-shaded triangles in
+    painter's order, far faces first: much faster than mplot3d), with curves and numbered
+    points on it. `flat`: one shade per face (for boxy parts, whose long thin faces smear
+    Gouraud shading)."""
+    r = view_matrix(elev_deg, azim_deg)
+    q = v @ r.T
+    tri = q[f]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    vn = np.zeros_like(q)
+    for k in range(3):
+        np.add.at(vn, f[:, k], n)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
+    front = f[n[:, 2] > 0]
+    front = front[np.argsort(q[front, 2].mean(axis=1))]      # far faces first
+    light = np.array([0.3, 0.5, 0.81])
+    if flat:
+        fn = np.cross(q[front[:, 1]] - q[front[:, 0]], q[front[:, 2]] - q[front[:, 0]])
+        fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+        shade = 0.25 + 0.75 * np.clip(fn @ light, 0, 1)
+        ax.tripcolor(q[:, 0], q[:, 1], front, facecolors=shade, cmap="Greys_r", vmin=0.0,
+                     vmax=1.15, edgecolors="face", linewidth=0.1)
+    else:
+        shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
+        ax.tripcolor(q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15,
+                     shading="gouraud")
+    for c in curves:
+        q = c @ r.T
+        ax.plot(q[:, 0], q[:, 1], color="tab:orange", lw=0.7)
+    if len(points):
+        q = np.asarray(points) @ r.T
+        ax.scatter(q[:, 0], q[:, 1], s=6, color="tab:red", zorder=3)
+        for t, p in enumerate(q):
+            ax.annotate(str(t), p[:2], fontsize=5, xytext=(1, 1), textcoords="offset points")
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    return ax
