@@ -268,8 +268,8 @@ def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) mm and triangles (F, 3) of the body's closed surface at rest."""
     from fruitcli.geometry.load import load_mesh
 
-    mesh, _ = load_mesh(path, unit)
-    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    surf = load_mesh(path, unit)
+    return np.asarray(surf.vertices, float), np.asarray(surf.faces, np.int64)
 
 
 def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
