@@ -225,3 +225,30 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
                                    "--out", str(tmp_path / "b")])
     assert res.exit_code == 1 and "bad.toml: expected only a [skin] table, found [bench]" \
         in res.output, res.output
+
+
+def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
+    """The emulated board under the printer's tip answers with the [skin] it is given
+    (calibrated gains, footprint, counts at contact, gap decay), in closed form."""
+    from fruitcli.bench.placement import Placement
+    from fruitcli.bench.skin_board import SkinBoard
+    from fruitcli.scene import SCHEMA
+    from fruitcli.sensing.board import load_taxels
+
+    taxels = load_taxels(pad_taxel_csv(tmp_path / "t.csv"))
+    write_csv(tmp_path / "gains.csv", ["id", "gain"], ([k, 0.9 + 0.01 * k] for k in range(16)))
+    (tmp_path / "skin.toml").write_text(
+        '[skin]\nfootprint_sigma_mm = { small = 5.0 }\ncontact_counts = 70.0\n'
+        'gap_decay_mm = 1.5\ntaxel_gain = "gains.csv"\nnoise_std_counts = 1.0\n')
+    from fruitcli.scene import load_skin_table
+
+    p = forward.SkinParams.from_table(load_skin_table(tmp_path / "skin.toml"))
+    board = {k: spec.default for k, spec in SCHEMA["board"].items()}
+    place = Placement([100.0, 100.0, 10.0])
+    tip = np.array([103.0, 98.0, 14.0])  # over model (3, -2), 1 mm above the pad's top
+    skin = SkinBoard(taxels, board, place, lambda: tip, params=p)
+    d = np.linalg.norm(taxels.xyz_mm - [3.0, -2.0, 3.0], axis=1)
+    want = (skin.skin.baseline_counts + (0.9 + 0.01 * np.arange(16)) * 70.0
+            * np.exp(-0.5 * (d / 5.0) ** 2) * np.exp(-1.0 / 1.5))
+    np.testing.assert_allclose(skin.mean_counts(tip), want, rtol=1e-12)
+    assert np.all(skin.skin.noise_std_counts == 1.0)
