@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,cluster]'
 	touch $(STAMP)
 
 lint: $(STAMP)
@@ -25,6 +25,7 @@ studies: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit study stability --out out/study-stability
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-deformed.toml --out out/study-runtime
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-breathing.toml --out out/study-runtime-breathing
+	MPLBACKEND=Agg $(BIN)/fruit study bench pipelines/fruit-rest.toml --out out/study-bench
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py

@@ -8,6 +8,7 @@ A stage is reused while that hash is unchanged and its outputs are all present.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import json
@@ -97,9 +98,13 @@ def fingerprint(stage: Stage, scene: Scene, ctx: Context) -> str:
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
 
 
+@functools.cache
 def _code_hash(module: str) -> str:
     """Hash of the stage's package sources and of the sibling packages and modules they
-    import (one level: `from <root>.x ...`), so a code change there reruns the stage."""
+    import (one level: `from <root>.x ...`), so a code change there reruns the stage.
+    Computed once per process: the code a process runs is the code it imported, so a
+    later edit of the files must not change the fingerprints it writes (and a sweep
+    fingerprints every stage of every variant)."""
     return file_hash_many(code_files(module))
 
 

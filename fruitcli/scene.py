@@ -23,7 +23,8 @@ NUM = (int, float)
 class Key:
     """One scene key: its accepted type, default (None: optional), and meaning."""
 
-    kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table"
+    kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table",
+    # "range" (a number or [lo, hi])
     default: Any = None
     doc: str = ""
     required: bool = False
@@ -43,6 +44,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
         "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m"),
+        "fit_mm": Key("num", None, "scale the artist mesh (after unit) so that its largest "
+                                   "extent is this (mm); chambers stay as given (mm)"),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
         "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
@@ -52,6 +55,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "faces": Key("int", 5000, "target triangle count of the reduced surface"),
         "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
+        "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
+                                             "fraction (yarn limit 0.3 minus a 0.05 margin)"),
     },
     "grid": {
         "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),
@@ -59,6 +64,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
         "count": Key("list", None, "[nx, ny] taxels on a flat pad"),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
+    },
+    "mold": {
+        "wall_mm": Key("num", 4.0, "mold wall thickness (mm, at least 1)"),
+        "clearance_mm": Key("num", 0.3, "gap between keys and sockets, pins and holes (mm)"),
+        "key_radius_mm": Key("num", 3.0, "radius of the registration keys (mm)"),
+        "pour_diameter_mm": Key("num", 8.0, "pour hole diameter (mm)"),
+        "vent_diameter_mm": Key("num", 2.0, "vent diameter (mm)"),
+        "pin_diameter_mm": Key("num", 3.0, "diameter of the pins holding chamber cores (mm)"),
+        "vents": Key("int", 4, "vents at the cavity's highest points besides the pour hole"),
     },
     "mesh": {
         "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)"),
@@ -109,6 +123,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
+        "format": Key("str", "auto", "frames on the port and in raw captures: auto, ascii "
+                      "(stock Muca_Raw) or binary (stock SendRawByte packets)"),
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
@@ -122,6 +138,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
         "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
         "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
+        "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
+                                      "surface (moved to the nearest point of the body)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
@@ -131,6 +149,36 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "seed": Key("int", 0, "seed of the noise"),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "registration of the bench rows: none, translation, "
+                                       "rigid or similarity (see [[evaluate]].register)"),
+    },
+    "skin": {  # the skin's forward model (fruitcli.sensing.forward); defaults: its assumptions
+        "footprint_sigma_mm": Key("table", None, "per indenter: lateral Gaussian width (mm); "
+                                                 "default small 6.18, medium 7.21"),
+        "contact_counts": Key("num", 60.0, "activation of the taxel under the indenter at "
+                                           "contact (counts)"),
+        "gap_decay_mm": Key("num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)"),
+        "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)"),
+        "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
+                                                      "[lo, hi] drawn per taxel (seeded)"),
+        "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
+                                        "calibrate's gains.csv (with gain_spread = 0)"),
+    },
+    "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
+        "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "
+                               "(mm; required with [printer])"),
+        "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)"),
+        "safe_height_mm": Key("num", 20.0, "tip height above the model's highest point "
+                              "between samples (mm)"),
+        "step_mm": Key("num", 0.1, "descent step (mm, 0 < step <= 1)"),
+        "feed_mm_min": Key("num", 600.0, "feed rate of every move (mm/min)"),
+        "max_press_mm": Key("num", 1.5, "deepest press below the expected surface before the "
+                            "sample is an error (mm)"),
+        "bed_mm": Key("box", [0.0, 0.0, 0.0, 220.0, 220.0, 250.0], "reachable volume "
+                      "[xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)"),
+        "baud": Key("int", 115200, "the printer's serial baud rate"),
+        "home": Key("bool", False, "send G28 (home all axes) first"),
+        "timeout_s": Key("num", 30.0, "longest wait for an 'ok' (s; busy lines extend it)"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -166,6 +214,8 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "register": Key("str", "none", "none, translation (the paper's protocol), rigid or "
+                                       "similarity: measurement mapped onto the truth first"),
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
@@ -251,6 +301,15 @@ def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_e
         if isinstance(value, bool) or not isinstance(value, NUM) or not math.isfinite(value):
             fail("a finite number")
         return float(value)
+    if k == "range":
+        if isinstance(value, NUM) and not isinstance(value, bool) and math.isfinite(value) \
+                and value >= 0:
+            return float(value)
+        ok = isinstance(value, list) and len(value) == 2 and all(
+            isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        if not ok or not 0 <= value[0] <= value[1]:
+            fail("a number >= 0 or [lo, hi] with 0 <= lo <= hi")
+        return [float(v) for v in value]
     if k in ("vec2", "vec3", "box"):
         n = {"vec2": 2, "vec3": 3, "box": 6}[k]
         ok = isinstance(value, list) and len(value) == n
@@ -447,12 +506,29 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                          f"got {count}")
     if grid["spacing_x_mm"] <= 0 or grid["spacing_y_mm"] <= 0:
         raise SceneError(f"{where}: [grid]: expected spacing_x_mm and spacing_y_mm > 0")
+    skin = scene["skin"]
+    for key in ("contact_counts", "gap_decay_mm"):
+        if skin[key] <= 0:
+            raise SceneError(f"{where}: [skin].{key}: expected > 0, got {skin[key]}")
+    if not 0 <= skin["gain_spread"] < 1:
+        raise SceneError(f"{where}: [skin].gain_spread: expected 0 <= spread < 1, "
+                         f"got {skin['gain_spread']}")
+    if skin["taxel_gain"] is not None and skin["gain_spread"] > 0:
+        raise SceneError(f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
+                         f"are measured, not drawn), got {skin['gain_spread']}")
+    feet = skin["footprint_sigma_mm"] or {}
+    for ind, sigma in feet.items():
+        if isinstance(sigma, bool) or not isinstance(sigma, NUM) or not sigma > 0 \
+                or not math.isfinite(sigma):
+            raise SceneError(f"{where}: [skin].footprint_sigma_mm.{ind}: expected a width > 0 "
+                             f"mm, got {sigma!r}")
     if scene.has("bench"):
         bench = scene["bench"]
-        names = ("small", "medium")  # the paper's indenters (fruitcli.sensing.forward)
+        # the paper's indenters (fruitcli.sensing.forward) and those [skin] gives a width
+        names = tuple(dict.fromkeys(["small", "medium", *feet]))
         if not bench["indenters"] or any(i not in names for i in bench["indenters"]):
             raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "
-                             f"{' and '.join(names)}, got {bench['indenters']}")
+                             f"{', '.join(names)}, got {bench['indenters']}")
         if bench["step_mm"] <= 0:
             raise SceneError(f"{where}: [bench].step_mm: expected > 0, got {bench['step_mm']}")
         ref = bench["reference_length_mm"]
@@ -460,22 +536,80 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
             raise SceneError(f"{where}: [bench].reference_length_mm: expected > 0, got {ref}")
         if bench["baseline_frames"] < 1:
             raise SceneError(f"{where}: [bench].baseline_frames: expected >= 1")
+    if scene.has("printer"):
+        _check_printer(scene["printer"], where)
     period = scene["actuation"]["period_s"]
     if period is not None and period <= 0:
         raise SceneError(f"{where}: [actuation].period_s: expected > 0, got {period}")
+    if scene["board"]["format"] not in ("auto", "ascii", "binary"):
+        raise SceneError(f"{where}: [board].format: expected auto, ascii or binary, got "
+                         f"{scene['board']['format']!r}")
     det = scene["detection"]
     if det["threshold_counts"] <= 0:
         raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
     if det["baseline_frames"] < 1:
         raise SceneError(f"{where}: [detection].baseline_frames: expected >= 1")
+    if det["project"] not in ("none", "surface"):
+        raise SceneError(f"{where}: [detection].project: expected none or surface, "
+                         f"got {det['project']!r}")
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")
+    from fruitcli.evaluation.register import METHODS
+
+    for what, reg in ([("[bench]", scene["bench"]["register"])]
+                      + [(f"[[evaluate]] '{ev['label']}'", ev["register"])
+                         for ev in scene["evaluate"]]):
+        if reg not in METHODS:
+            raise SceneError(f"{where}: {what}.register: expected one of {', '.join(METHODS)}, "
+                             f"got {reg!r}")
     for ev in scene["evaluate"]:
         ref = ev["reference_length_mm"]
         if ref is not None and ref <= 0:
             raise SceneError(f"{where}: [[evaluate]] '{ev['label']}'.reference_length_mm: "
                              "expected > 0")
+
+
+def _check_printer(pr: dict, where: str) -> None:
+    """[printer] values that cannot drive a bench: one line naming the key."""
+    def fail(key: str, expected: str):
+        raise SceneError(f"{where}: [printer].{key}: expected {expected}, got {pr[key]!r}")
+
+    if pr["model_origin_mm"] is None:
+        raise SceneError(f"{where}: [printer]: missing key 'model_origin_mm' (where the "
+                         "model's origin is, printer coordinates, mm)")
+    if pr["safe_height_mm"] <= 0:
+        fail("safe_height_mm", "> 0 (mm above the model's highest point; lower would "
+             "drag the tip through the model)")
+    if not 0 < pr["step_mm"] <= 1.0:
+        fail("step_mm", "0 < step <= 1 mm")
+    if pr["feed_mm_min"] <= 0:
+        fail("feed_mm_min", "> 0 mm/min")
+    if pr["max_press_mm"] <= 0:
+        fail("max_press_mm", "> 0 mm")
+    if pr["baud"] <= 0:
+        fail("baud", "> 0")
+    if pr["timeout_s"] <= 0:
+        fail("timeout_s", "> 0 s")
+    bed = pr["bed_mm"]
+    if any(bed[a] >= bed[a + 3] for a in range(3)):
+        fail("bed_mm", "[xmin, ymin, zmin, xmax, ymax, zmax] with min < max")
+
+
+def load_skin_table(path: str | Path) -> dict:
+    """The validated [skin] table of a file that holds only one (`fruit calibrate`'s
+    skin.toml); its paths are resolved against that file's folder."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read: {exc}") from None
+    skin = parse_scene(text, path)
+    other = sorted(skin.declared - {"skin"})
+    if "skin" not in skin.declared or other:
+        raise SceneError(f"{path.name}: expected only a [skin] table"
+                         + (f", found [{'], ['.join(other)}]" if other else ", found none"))
+    return skin["skin"]
 
 
 def n_states(scene: Scene) -> int:

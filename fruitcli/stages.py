@@ -88,8 +88,8 @@ def _tracks_needed(scene):
 
 def _tracks_inputs(scene, ctx):
     return {"artist": scene["geometry"]["artist"], "unit": scene["geometry"]["unit"],
-            "tracks": scene["tracks"], "grid": {k: scene["grid"][k] for k in
-                                                 ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
+            "fit_mm": scene["geometry"]["fit_mm"], "tracks": scene["tracks"],
+            "grid": {k: scene["grid"][k] for k in ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
 
 
 def _tracks_run(scene, ctx, out_dir):
@@ -100,7 +100,8 @@ def _tracks_run(scene, ctx, out_dir):
         geo["artist"], out_dir, unit=geo["unit"], cover_mm=tr["cover_mm"], faces=tr["faces"],
         spacing_x_mm=grid["spacing_x_mm"], spacing_y_mm=grid["spacing_y_mm"],
         origin_mm=grid["origin_mm"], track_radius_mm=tr["track_radius_mm"],
-        split_z_mm=tr["split_z_mm"], progress=ctx.progress, names=SCENE_NAMES)
+        split_z_mm=tr["split_z_mm"], fit_mm=geo["fit_mm"], progress=ctx.progress,
+        names=SCENE_NAMES)
     return {"taxels": report["taxels"],
             "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
 
@@ -205,14 +206,17 @@ def _bench_inputs(scene, ctx):
     samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
     return {"bench": scene["bench"], "samples": samples, "board": scene["board"],
             "detection": scene["detection"], "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "grid": scene["grid"]}
+            "states": states_path(scene, ctx), "grid": scene["grid"],
+            "surface": solid_path(scene, ctx), "skin": scene["skin"]}
 
 
 def _bench_run(scene, ctx, out_dir):
     from fruitcli.sensing.stage import run_bench
 
+    solid = solid_path(scene, ctx)
+    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
     return run_bench(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                     progress=ctx.progress)
+                     progress=ctx.progress, surface_path=solid, surface_unit=unit)
 
 
 def _frame_sources(scene, ctx) -> dict[str, Path]:
@@ -234,16 +238,20 @@ def _locate_needed(scene):
 def _locate_inputs(scene, ctx):
     return {"frames": _frame_sources(scene, ctx), "taxels": taxels_path(scene, ctx),
             "states": states_path(scene, ctx), "detection": scene["detection"],
-            "board": scene["board"]}
+            "board": scene["board"],
+            "surface": solid_path(scene, ctx) if scene["detection"]["project"] == "surface"
+            else None}
 
 
 def _locate_run(scene, ctx, out_dir):
     from fruitcli.sensing.stage import run_locate
 
     out = {}
+    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
     for name, frames in _frame_sources(scene, ctx).items():
         out[name] = run_locate(scene, frames, taxels_path(scene, ctx), states_path(scene, ctx),
-                               out_dir / name, progress=ctx.progress)
+                               out_dir / name, progress=ctx.progress,
+                               surface_path=solid_path(scene, ctx), surface_unit=unit)
     return out
 
 
@@ -262,7 +270,8 @@ def _eval_rows(scene, ctx) -> list[dict]:
             rows.append({"label": f"{config}, {ind}",
                          "truth": ctx.dir("bench") / ind / "truth.csv",
                          "measured": ctx.dir("locate") / ind / "measured.csv",
-                         "reference_length_mm": scene["bench"]["reference_length_mm"]})
+                         "reference_length_mm": scene["bench"]["reference_length_mm"],
+                         "register": scene["bench"]["register"]})
     return rows
 
 
@@ -277,7 +286,8 @@ def _eval_needed(scene):
 def _eval_run(scene, ctx, out_dir):
     from fruitcli.evaluation.report import evaluate_pair, write_many
 
-    results = [evaluate_pair(r["truth"], r["measured"], r["reference_length_mm"], r["label"])
+    results = [evaluate_pair(r["truth"], r["measured"], r["reference_length_mm"], r["label"],
+                             r["register"])
                for r in _eval_rows(scene, ctx)]
     summaries = write_many(out_dir, results)
     return {s["label"]: {k: round(v, 4) if isinstance(v, float) else v for k, v in s.items()
@@ -292,7 +302,7 @@ def _sens_needed(scene):
 
 
 def _sens_inputs(scene, ctx):
-    return {"sensitivity": scene["sensitivity"], "bench": scene["bench"],
+    return {"sensitivity": scene["sensitivity"], "bench": scene["bench"], "skin": scene["skin"],
             "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)}
 
 
@@ -310,7 +320,7 @@ STAGES: list[Stage] = [
     Stage("make-tracks", ["make-artist"], "fruitcli.geometry.pipeline", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
-                     "report.json", "preview.png"]),
+                     "tracks.csv", "report.json", "preview.png"]),
     Stage("pad-grid", [], "fruitcli.padgrid", _pad_needed, _pad_inputs, _pad_run,
           lambda s: ["taxels.csv"]),
     Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,

@@ -125,4 +125,4 @@ def test_paper_table_scene(fruit, tmp_path):
     res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--out", tmp_path / "pt")
     assert res.exit_code == 0, res.output
     table = (tmp_path / "pt" / "evaluate" / "table.md").read_text()
-    assert "| Rest, small | 29 | 3D | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table
+    assert "| Rest, small | 29 | 3D | none | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table

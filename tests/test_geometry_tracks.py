@@ -9,7 +9,6 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import GeometryError
-from fruitcli.geometry import load
 from fruitcli.geometry.columns import vertical_hits
 from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
 from fruitcli.geometry.pipeline import SCENE_NAMES, make_tracks, read_taxels
@@ -40,7 +39,7 @@ def test_outputs_and_report(ellipsoid_run):
     out, report = ellipsoid_run
     names = sorted(p.name for p in out.iterdir())
     assert names == ["preview.png", "reduced.stl", "report.json", "taxels.csv",
-                     "tracked_top.stl", "tracks.stl"]
+                     "tracked_top.stl", "tracks.csv", "tracks.stl"]
     saved = json.loads((out / "report.json").read_text())
     assert saved["taxels"] == report["taxels"] > 10
     assert set(saved["times_s"]) >= {"load", "reduce", "sections", "taxels", "tracks", "total"}
@@ -141,39 +140,31 @@ def test_cli_refuses_missing_file(tmp_path):
                     out, "nope.stl", "not found")
 
 
-def test_cli_refuses_open_mesh(tmp_path):
-    box = trimesh.creation.box(extents=(60, 50, 30))
+def test_cli_takes_a_sphere_with_many_holes(tmp_path):
+    """Faces at least 8 mm apart missing from a sphere: the level set closes the holes, and
+    the report counts them (the old loader refused such a mesh as open)."""
     sphere = trimesh.creation.icosphere(3, 30.0)
-    sphere.update_faces(np.arange(len(sphere.faces)) % 7 != 0)   # many holes
+    c = sphere.triangles_center
+    gone = []
+    for k in range(len(c)):
+        if all(np.linalg.norm(c[k] - c[g]) > 8.0 for g in gone):
+            gone.append(k)
+    tri = sphere.triangles[gone]
+    perimeter = np.linalg.norm(tri - tri[:, [1, 2, 0]], axis=2).sum(axis=1).max()
+    sphere.update_faces(~np.isin(np.arange(len(c)), gone))
     path = tmp_path / "open.stl"
     sphere.export(path)
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "open edges")
-    # a single missing triangle is a small hole: repaired and reported
-    del box
-    capsule = trimesh.creation.capsule(height=40.0, radius=20.0, count=[32, 32])
-    capsule.update_faces(np.arange(len(capsule.faces)) != 3)
-    capsule.export(tmp_path / "holed.obj")
-    res = _cli(["make-tracks", str(tmp_path / "holed.obj"), "--out", str(tmp_path / "o2")])
+    res = _cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500"])
     assert res.exit_code == 0, res.output
-    rep = json.loads((tmp_path / "o2" / "report.json").read_text())
-    assert any("small hole" in r for r in rep["repairs"])
-    assert "make-tracks: repaired: closed 1 small hole(s)\n" in res.output
-
-
-def test_cli_refuses_a_large_hole(tmp_path):
-    """A sphere of radius 40 with its cap above z = 35 cut off: a hole about 39 mm across,
-    with few enough edges to count as small, is an opening, not a defect to fill."""
-    s = trimesh.creation.icosphere(3, 40.0)
-    s.update_faces(s.vertices[s.faces][:, :, 2].max(axis=1) < 35.0)
-    s.remove_unreferenced_vertices()
-    rim = s.vertices[np.unique(s.edges_sorted[trimesh.grouping.group_rows(
-        s.edges_sorted, require_count=1)])]
-    assert len(rim) <= load.MAX_HOLE_EDGES and np.ptp(rim[:, 0]) > 35.0
-    s.export(tmp_path / "cut.obj")
-    out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(tmp_path / "cut.obj"), "--out", str(out)]), out,
-                    "cut.obj", "not closed", "open edges")
+    rep = json.loads((out / "report.json").read_text())
+    surf = rep["artist_surface"]
+    assert surf["holes"] == len(gone) > 40 and not surf["closed"]
+    assert surf["largest_hole_perimeter_mm"] == pytest.approx(perimeter, rel=1e-6)
+    assert f"{len(gone)} hole(s)" in res.output and "closed by the level set" in res.output
+    reduced = load_stl(out / "reduced.stl")
+    # a sphere of radius 30 (its icosphere facets are at 29.6-30 mm) reduced by 2 mm
+    assert np.allclose(np.linalg.norm(reduced.vertices, axis=1), 27.8, atol=0.4)
 
 
 def test_cli_refuses_two_bodies(tmp_path):
@@ -183,7 +174,8 @@ def test_cli_refuses_two_bodies(tmp_path):
     path = tmp_path / "two.ply"
     trimesh.util.concatenate([a, b]).export(path)
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out, "2 separate bodies")
+    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out,
+                    "encloses 2 separate bodies", "do not touch", "join them")
 
 
 def test_cli_metres_need_unit(tmp_path):
@@ -191,7 +183,7 @@ def test_cli_metres_need_unit(tmp_path):
     out = tmp_path / "out"
     _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out,
                     "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
-                    "give its unit (--unit m or --unit cm)")
+                    "give its unit (--unit m or --unit cm) or its size (--fit-mm)")
     res = _cli(["make-tracks", str(path), "--out", str(out), "--unit", "m", "--faces", "1500"])
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
@@ -209,17 +201,19 @@ def test_scene_artist_in_metres_is_refused(tmp_path):
     out = tmp_path / "out"
     _assert_refused(_cli(["run", str(tmp_path / "s.toml"), "--out", str(out)]), out,
                     "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
-                    'set [geometry].unit = "m" (or "cm")')
+                    'set [geometry].unit = "m" (or "cm") or [geometry].fit_mm')
 
 
 def test_scene_names_in_errors(tmp_path):
     """With SCENE_NAMES (the scene's make-tracks stage) hints name scene keys, not flags."""
     small = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
-    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\)$'):
+    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
+                                            r'\[geometry\]\.fit_mm$'):
         make_tracks(small, tmp_path / "o", unit="mm", names=SCENE_NAMES)
     big = ellipsoid(tmp_path / "e.stl")
-    with pytest.raises(GeometryError, match=r"consumes the whole body \(use a smaller "
-                                            r"\[tracks\]\.cover_mm\)$"):
+    with pytest.raises(GeometryError, match=r"consumes the whole body: it is at most 3[0-9.]+ "
+                                            r"mm thick \(at \(.*\) mm\), thinner than twice "
+                                            r"the cover; use a smaller \[tracks\]\.cover_mm$"):
         make_tracks(big, tmp_path / "o", unit="mm", cover_mm=25.0, faces=1500,
                     names=SCENE_NAMES)
     with pytest.raises(GeometryError, match=r"^\[tracks\]\.track_radius_mm: 7 mm"):
@@ -307,7 +301,7 @@ def test_cli_repairs_inconsistent_winding(tmp_path):
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert any("winding" in r for r in rep["repairs"])
-    assert "make-tracks: repaired: fixed inconsistent face winding" in res.output
+    assert "make-tracks: repaired: made the face winding consistent and outward" in res.output
 
 
 def test_tall_thin_column_gives_one_piece_quickly(tmp_path):
@@ -364,4 +358,5 @@ def test_coarse_reduction_warns_when_it_departs_from_the_offset(tmp_path):
     rep = json.loads((out / "report.json").read_text())
     assert rep["offset_error"]["hausdorff_mm"] > 1.0
     warn = [w for w in rep["warnings"] if "departs from the ideal 2 mm offset" in w]
-    assert warn and warn[0].endswith("raise --faces") and f"warning: {warn[0]}" in res.output
+    assert warn and warn[0].endswith("raise --faces or lower --cover-mm")
+    assert f"warning: {warn[0]}" in res.output

@@ -122,9 +122,15 @@ def test_orient_faces_without_networkx():
     s = trimesh.creation.icosphere(3, 10.0)
     f = s.faces.copy()
     f[::3] = f[::3, ::-1]
-    out = orient_faces(f)
+    out, conflicts = orient_faces(f)
+    assert conflicts == 0
     assert trimesh.Trimesh(s.vertices, out, process=False).is_winding_consistent
     assert (out[0] == f[0]).all()                        # the first face keeps its winding
+    # an open surface (a hemisphere) with every other face flipped: made consistent too
+    keep = s.triangles_center[:, 2] > 0
+    out, conflicts = orient_faces(f[keep])
+    assert conflicts == 0
+    assert trimesh.Trimesh(s.vertices, out, process=False).is_winding_consistent
 
 
 def test_densify_splits_long_triangles_only():

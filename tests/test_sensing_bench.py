@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.errors import FrameError
 from fruitcli.fem.barycentric import locate
 from fruitcli.fem.mesh_topology import boundary_faces
 from fruitcli.scene import parse_scene
@@ -154,7 +155,7 @@ def test_sensitivity_json_and_heatmaps(tmp_path):
     assert (model / fab).max() == pytest.approx(10.0, rel=1e-6)
     assert np.all(fab == 1.0) and model.max() <= 10.0 + 1e-9  # seed 3: no defective crossing
     assert out["summary"]["std"]["max"] <= 2.0
-    for name in ("noise_std.png", "max_shift.png"):
+    for name in ("noise_std.png", "max_shift.png", "noise_std_top.png", "max_shift_top.png"):
         assert (tmp_path / "sens" / name).read_bytes()[:4] == b"\x89PNG"
 
 
@@ -168,3 +169,165 @@ def test_bench_cli_bad_input(tmp_path):
     res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--taxels",
                                    str(taxels), "--out", str(tmp_path / "o")])
     assert res.exit_code == 1 and "[bench].state = 1 needs FEM states" in res.output
+
+
+def pad_surface_stl(path: Path):
+    """The pad's closed boundary at rest (the body the bench touches), as an STL in mm."""
+    import trimesh
+
+    nodes, tets = forward.pad_mesh()
+    trimesh.Trimesh(nodes, boundary_faces(nodes, tets), process=False).export(path)
+    return path
+
+
+def test_one_truth_a_state_with_zero_displacement_gives_the_rest_row(tmp_path):
+    """The truth lies on the body's surface in every configuration: a FEM state that does
+    not move the body (a jig rotated by 0 deg) gives the rest bench's truth, frames and
+    Table I row."""
+    from fruitcli.evaluation.report import evaluate_pair
+
+    sc = scene(tmp_path)
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    still = pad_states(tmp_path / "s.npz", angles_deg=(0.0,))
+    rest = run_bench(sc, taxels, None, tmp_path / "rest", surface_path=surface)
+    held = run_bench(sc, taxels, still, tmp_path / "held", surface_path=surface)
+    assert "at rest" in rest["truth_surface"] and "carried by FEM state 0" in held[
+        "truth_surface"]
+    # every quarter sample lies over the 80 x 80 mm body, also those past the taxels' hull
+    assert rest["off_surface"] == held["off_surface"] == 0
+    rows = {}
+    for name, states in (("rest", None), ("held", still)):
+        t = read_table(tmp_path / name / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
+                                                                 "z_mm"])
+        assert np.allclose(t["z_mm"], 3.0, atol=1e-9)  # the pad's top face
+        run_locate(sc, tmp_path / name / "small" / "frames.npz", taxels, states,
+                   tmp_path / f"loc-{name}")
+        rows[name], _, truth, _ = evaluate_pair(tmp_path / name / "small" / "truth.csv",
+                                                tmp_path / f"loc-{name}" / "measured.csv")
+        rows[name]["truth"] = truth
+    np.testing.assert_allclose(rows["held"]["truth"], rows["rest"]["truth"], atol=1e-9)
+    a = read_npz(tmp_path / "rest" / "small" / "frames.npz").frames
+    b = read_npz(tmp_path / "held" / "small" / "frames.npz").frames
+    assert np.array_equal(a, b)
+    for key in ("n", "mean_mm", "std_mm", "max_mm"):
+        assert rows["held"][key] == pytest.approx(rows["rest"][key], abs=1e-9)
+
+
+def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
+    sc = scene(tmp_path, "state = 1\n")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    res = run_bench(sc, pad_taxel_csv(tmp_path / "t.csv"),
+                    pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0)), tmp_path / "b",
+                    surface_path=surface)
+    truth = read_table(tmp_path / "b" / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
+                                                                "z_mm"])
+    assert res["indenters"]["small"]["samples"] > 0
+    r = 48 / np.pi  # the mid-plane's bend radius; the top face lies 1.5 mm outside it
+    rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
+    assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements
+
+
+def test_skin_table_defaults_are_the_models_assumptions(tmp_path):
+    p = forward.SkinParams.from_table(scene(tmp_path)["skin"])
+    assert p == forward.DEFAULT_PARAMS
+    assert p.footprint_sigma_mm == pytest.approx({"small": np.hypot(6, 1.5),
+                                                  "medium": np.hypot(6, 4)})
+    assert (p.contact_counts, p.gap_decay_mm, p.gain_spread) == (60.0, 2.0, 0.0)
+    assert p.noise_std_counts == (0.5, 1.85)
+
+
+def test_skin_table_sets_the_touch_response(tmp_path):
+    text = ("[skin]\nfootprint_sigma_mm = { small = 4.5 }\ncontact_counts = 80.0\n"
+            "gap_decay_mm = 1.0\ngain_spread = 0.2\nnoise_std_counts = 1.2\n")
+    p = forward.SkinParams.from_table(scene(tmp_path, text)["skin"])
+    assert p.footprint_sigma_mm["small"] == 4.5
+    assert p.footprint_sigma_mm["medium"] == pytest.approx(np.hypot(6, 4))  # default kept
+    plain = forward.make_skin(40, seed=5)
+    skin = forward.make_skin(40, seed=5, params=p)
+    # the other draws stay those of the default skin
+    assert np.array_equal(skin.baseline_counts, plain.baseline_counts)
+    assert np.array_equal(skin.fab, plain.fab) and np.all(skin.noise_std_counts == 1.2)
+    assert plain.gain is None and np.all(np.abs(skin.gain - 1) <= 0.2) and skin.gain.std() > 0
+    dist = np.stack([np.zeros(40), np.full(40, 4.5)])  # (2 steps, 40 taxels)
+    v = forward.activation_counts(dist, np.array([0.0, 1.0]), "small", skin)
+    g = skin.gain
+    np.testing.assert_allclose(v[0], 80 * g)  # at contact, under the taxel
+    np.testing.assert_allclose(v[1], 80 * np.exp(-0.5) * np.exp(-1.0) * g)  # 1 sigma, 1 decay
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("contact_counts = 0.0", "[skin].contact_counts: expected > 0"),
+    ("gap_decay_mm = -1.0", "[skin].gap_decay_mm: expected > 0"),
+    ("gain_spread = 1.5", "[skin].gain_spread: expected 0 <= spread < 1"),
+    ("noise_std_counts = [2.0, 1.0]", "[skin].noise_std_counts: expected a number >= 0 or "
+                                      "[lo, hi]"),
+    ("footprint_sigma_mm = { small = 0 }", "[skin].footprint_sigma_mm.small: expected a width"),
+    ("contact_count = 60.0", "unknown key 'contact_count' (did you mean 'contact_counts'?)"),
+])
+def test_bad_skin_table_is_one_line(tmp_path, text, expected):
+    from fruitcli.errors import SceneError
+
+    with pytest.raises(SceneError) as info:
+        scene(tmp_path, "[skin]\n" + text + "\n")
+    assert expected in str(info.value)
+
+
+def test_bench_reads_the_skin_table(tmp_path):
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    run_bench(scene(tmp_path), taxels, None, tmp_path / "a")
+    run_bench(scene(tmp_path, "[skin]\ncontact_counts = 120.0\n"), taxels, None, tmp_path / "b")
+    a = read_npz(tmp_path / "a" / "small" / "frames.npz")
+    b = read_npz(tmp_path / "b" / "small" / "frames.npz")
+    # a stronger touch crosses the threshold earlier: fewer approach frames
+    assert len(b.frames) < len(a.frames)
+
+
+def test_project_to_surface_moves_a_chord_point_onto_the_body(tmp_path):
+    from fruitcli.sensing.stage import body_surface, project_to_surface
+
+    surface = body_surface(pad_surface_stl(tmp_path / "pad.stl"))
+    pts, dist = project_to_surface(np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]), surface,
+                                   None, None, forward.pad_taxels_mm(z_mm=3.0))
+    np.testing.assert_allclose(pts, [[1.0, 2.0, 3.0], [0.0, 0.0, 3.0]], atol=1e-12)
+    np.testing.assert_allclose(dist, [0.5, 0.4], atol=1e-12)
+
+
+def test_locate_project_surface_on_the_bent_pad(tmp_path):
+    """On the pad bent 180 deg the N9 average of the taxels lies on a chord inside the
+    cylinder; projected, the located points are on the outer surface."""
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    surface = pad_surface_stl(tmp_path / "pad.stl")
+    states = pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0))
+    sc = scene(tmp_path, "state = 1\n")
+    run_bench(sc, taxels, states, tmp_path / "b", surface_path=surface)
+    frames = tmp_path / "b" / "small" / "frames.npz"
+    r = 48 / np.pi
+
+    def radius(folder):
+        m = read_table(folder / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
+        return np.hypot(m["x_mm"], m["z_mm"] - (1.5 - r))
+
+    run_locate(sc, frames, taxels, states, tmp_path / "plain")
+    proj = scene(tmp_path, "state = 1\n[detection]\nproject = \"surface\"\n")
+    res = run_locate(proj, frames, taxels, states, tmp_path / "proj", surface_path=surface)
+    assert np.all(radius(tmp_path / "plain") < r + 1.5 - 0.3)  # inside the body
+    # on its outer face (4 mm facets), not the inner one 3 mm below
+    assert np.allclose(radius(tmp_path / "proj"), r + 1.5, atol=0.2)
+    assert res["projected_to_surface"]["mean_mm"] > 0.3
+    # read in chunks of 7 frames on 2 threads: the same touches, the same figures
+    small = run_locate(proj, frames, taxels, states, tmp_path / "proj7", surface_path=surface,
+                       chunk_frames=7, workers=2)
+    assert (tmp_path / "proj7" / "touches.csv").read_bytes() == \
+        (tmp_path / "proj" / "touches.csv").read_bytes()
+    assert small["frames"] > 7 * 4
+    for key in ("touches", "max_mm"):
+        assert small["projected_to_surface"][key] == res["projected_to_surface"][key]
+    assert small["projected_to_surface"]["mean_mm"] == \
+        pytest.approx(res["projected_to_surface"]["mean_mm"], rel=1e-12)
+    with pytest.raises(FrameError, match="project = surface needs the body's surface"):
+        run_locate(proj, frames, taxels, states, tmp_path / "x")
+    from fruitcli.errors import SceneError
+
+    with pytest.raises(SceneError, match=r"\[detection\].project: expected none or surface"):
+        scene(tmp_path, "[detection]\nproject = \"nearest\"\n")

@@ -36,7 +36,7 @@ def test_record_npz_with_log_lines_and_a_cut_line(tmp_path):
     expected = np.delete(frames, 7, axis=0)[:30]
     assert np.array_equal(rec.frames, expected)
     assert np.all(np.diff(rec.t_s) >= 0) and rec.meta["port"] == em.path
-    assert "30 frames" in res.output and not (tmp_path / "rec.npz.partial.log").exists()
+    assert "30 ascii frames" in res.output and not (tmp_path / "rec.npz.partial.log").exists()
 
 
 def test_record_port_vanishing_keeps_every_whole_frame(tmp_path):
@@ -115,7 +115,7 @@ def test_live_matches_batch_locate(tmp_path):
     em = BoardEmulator(frames, fps=0, log_every=4, cut_at=[], wait_for_reader=True)
     th = em.start()
     res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                  str(taxels), "--frames", "30"])
+                  str(taxels), "--frames", "30", "--no-drift"])  # the batch has no drift
     th.join(5)
     assert res.exit_code == 0, res.output
     lines = live_lines(res.output)
@@ -311,3 +311,37 @@ def test_live_refuses_options_that_cannot_work(tmp_path, args, msg):
                   str(taxels), *args])
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert f"Error: {msg}" in res.output
+
+
+@pytest.mark.parametrize("out", ["old.npz", "old.log"])
+def test_record_refuses_an_existing_out_and_overwrite_keeps_it_until_frames_arrive(
+        tmp_path, out):
+    path = tmp_path / out
+    path.write_bytes(b"an earlier recording")
+    res = invoke(["record", "--port", str(tmp_path / "ttyNOPE"), "--out", str(path),
+                  "--frames", "3"])  # refused before the port is opened
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert f"--out {path}: exists; give --overwrite to replace it" in res.output
+    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out", str(path),
+                  "--overwrite"])  # no frame: the earlier recording stays
+    assert res.exit_code == 1 and f"{path} left as it was" in res.output, res.output
+    assert path.read_bytes() == b"an earlier recording"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out]
+    frames = synthetic_frames(20, seed=5)
+    em = BoardEmulator(frames, fps=0, vanish_after=8, wait_for_reader=True)
+    th = em.start()
+    res = invoke(["record", "--port", em.path, "--out", str(path), "--overwrite"])
+    th.join(5)
+    assert res.exit_code == 1 and "port closed after 8 frames" in res.output, res.output
+    assert np.array_equal(read_recording(path).frames, frames[:8])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out]
+
+
+def test_record_refuses_to_start_over_an_unfinished_recording(tmp_path):
+    partial = tmp_path / "r.npz.partial.log"
+    partial.write_text("1.5," + ",".join(["500"] * 252) + "\n")
+    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
+                  str(tmp_path / "r.npz")])
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert f"{partial}: left by a recording that did not finish" in res.output
+    assert len(read_recording(partial)) == 1

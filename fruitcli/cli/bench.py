@@ -7,6 +7,18 @@ import click
 from fruitcli.cli.options import Progress, fruit_errors, scene_products
 
 
+def scene_surface(scene):
+    """(path, unit) of the scene's body surface at rest in out/<scene name>, or (None, mm)."""
+    from pathlib import Path
+
+    from fruitcli.planner import Context
+    from fruitcli.stages import solid_path
+
+    path = solid_path(scene, Context(Path("out") / scene.name))
+    unit = scene["geometry"]["unit"] if scene["geometry"]["solid"] is not None else "mm"
+    return path, unit
+
+
 @click.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
@@ -15,29 +27,100 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products
 @click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
               help="states.npz from `fruit simulate`; without it the bench runs on the "
                    "taxels' own surface at rest.")
+@click.option("--surface", "surface", type=click.Path(dir_okay=False), default=None,
+              help="The body's closed surface at rest (mm), on which the truth lies; "
+                   "default: the scene's own (reduced.stl or its solid).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: <indenter>/frames.npz and <indenter>/truth.csv.")
-def bench(scene_path, taxels_csv, states_npz, out_dir):
-    """Replay the paper's bench protocol on the model for SCENE's [bench] section.
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
+                   "scene's: the virtual bench's skin.")
+@click.option("--printer", "printer_port", default=None,
+              help="Real bench: the Marlin printer's serial port (with --board; the "
+                   "scene's [printer] says where the model sits and how to move).")
+@click.option("--board", "board_port", default=None,
+              help="Real bench: the MuCa board's serial port (with --printer).")
+@click.option("--indenter", default=None,
+              help="Real bench: the indenter on the printer (output folder name; default: "
+                   "the first of [bench].indenters).")
+@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]),
+              default=None, help="Real bench: the board's frame format (default: the "
+              "scene's [board].format).")
+@click.option("--board-baud", type=click.IntRange(min=1), default=115200, show_default=True,
+              help="Real bench: the board's baud rate.")
+@click.option("--overwrite", is_flag=True,
+              help="Real bench: replace an existing <indenter>/frames.npz.")
+def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, printer_port,
+          board_port, indenter, fmt, board_baud, overwrite):
+    """Replay the paper's bench protocol on the model for SCENE's [bench] section, or run
+    it on a real printer and board (--printer, --board).
 
     For each sample point (a quarter taxel off each grid point, or given points) the
     indenter descends in [bench].step_mm steps until some taxel's activation exceeds
-    the threshold; that frame is recorded with the contact point as truth.
+    the threshold; that frame is recorded with the contact point as truth. On a real
+    printer: safe height, M400 after every move, the next whole frame after it, retract;
+    a bed limit, no touch, a printer error, a vanished port or Ctrl-C retracts, keeps
+    every frame recorded and stops with one line naming the sample.
     """
+    if printer_port or board_port:
+        if skin_toml:
+            raise click.UsageError("--skin models the virtual bench's skin; the real bench "
+                                   "(--printer, --board) measures the real one")
+        return real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port,
+                          board_port, indenter, fmt, board_baud, overwrite)
     from fruitcli.errors import FrameError
-    from fruitcli.scene import load_scene
+    from fruitcli.scene import load_scene, load_skin_table
     from fruitcli.sensing.stage import run_bench
 
     progress = Progress("[bench] ")
     with fruit_errors():
         scene = load_scene(scene_path)
+        if skin_toml:
+            scene.data["skin"] = load_skin_table(skin_toml)
         taxels = taxels_csv or scene["grid"]["taxels"]
+        unit = "mm"
         if taxels is None:
             taxels, states_npz = scene_products(scene, progress=progress)
+            if surface is None:
+                surface, unit = scene_surface(scene)
         if taxels is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
-        res = run_bench(scene, taxels, states_npz, out_dir, progress)
+        res = run_bench(scene, taxels, states_npz, out_dir, progress, surface, unit)
+    click.echo(f"truth on {res['truth_surface']}", err=True)
     for name, r in res["indenters"].items():
         click.echo(f"{name}: {r['samples']} samples recorded ({r['dropped']} never reached "
                    "the threshold), "
                    f"{r['frames']} frames -> {out_dir}/{name}", err=True)
+
+
+def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_port,
+               indenter, fmt, board_baud, overwrite):
+    """`fruit bench --printer --board`: the protocol on hardware (fruitcli.bench)."""
+    from fruitcli.bench.printer_bench import BenchInterrupted, run_printer_bench
+    from fruitcli.errors import SceneError
+    from fruitcli.scene import load_scene
+
+    progress = Progress("[bench] ")
+    with fruit_errors():
+        if not (printer_port and board_port):
+            raise click.UsageError("the real bench needs both --printer and --board")
+        scene = load_scene(scene_path)
+        if not scene.has("printer"):
+            raise SceneError(f"{scene_path}: no [printer] table (where the model sits on the "
+                             "bed, how to move): needed with --printer")
+        name = indenter or scene["bench"]["indenters"][0]
+        if not name or any(c in name for c in "/\\") or name in (".", ".."):
+            raise click.BadParameter(f"{name!r}: expected a plain name", param_hint="--indenter")
+        taxels = taxels_csv or scene["grid"]["taxels"]
+        if taxels is None:
+            taxels, found = scene_products(scene, progress=progress)
+            states_npz = states_npz or found
+        try:
+            res = run_printer_bench(scene, taxels, states_npz, printer_port, board_port,
+                                    out_dir, name, fmt or scene["board"]["format"],
+                                    board_baud, progress, overwrite)
+        except BenchInterrupted as exc:
+            click.echo(f"Interrupted: {exc}", err=True)
+            raise SystemExit(130) from None
+    click.echo(f"{name}: {res['samples']} samples, {res['frames']} frames "
+               f"({res['resends']} lines resent) -> {res['out']}", err=True)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from fruitcli.cli.options import fruit_errors
@@ -13,24 +15,37 @@ from fruitcli.cli.options import fruit_errors
 @click.option("--bench", "bench_dir", type=click.Path(), default=None,
               help="A scene (.toml: its bench runs first, into out/<scene name>) or the output "
                    "folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
-@click.option("--fps", type=click.FloatRange(min=0), default=30.0, show_default=True,
-              help="Frames per second (0: as fast as the reader takes them).")
+@click.option("--format", "fmt", type=click.Choice(["ascii", "binary"]), default="ascii",
+              show_default=True, help="ASCII lines (stock Muca_Raw) or binary packets "
+              "(stock SendRawByte: 2-byte big-endian minimum + one byte per cell).")
+@click.option("--baud", type=click.IntRange(min=0), default=115200, show_default=True,
+              help="Pace the bytes like a serial line at this baud, 8N1 (10 bits a byte; "
+                   "0: unpaced).")
+@click.option("--fps", type=click.FloatRange(min=0), default=0.0, show_default=True,
+              help="Cap on frames per second (0: no cap, the baud limits).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Play this many frames (default: the whole recording; 600 synthetic).")
 @click.option("--log-every", type=click.IntRange(min=0), default=0,
               help="Mix a board log line in after every N frames (0: never).")
 @click.option("--wait/--no-wait", default=True, show_default=True,
               help="Hold the stream until a reader opens the port.")
-def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
-    """Open a pseudo-terminal, print its path, and play frames on it like a MuCa board.
+def emulate_board(from_path, bench_dir, fmt, baud, fps, n_frames, log_every, wait):
+    """Open a pseudo-terminal, print its path, and play frames on it like a MuCa board
+    running the stock firmware.
 
-    Lines: 252 comma-separated counts, \\r\\n, after the board's '[Muca] ...' log lines.
+    ASCII: one line of rows x cols comma-separated counts per frame, \\r\\n; binary: one
+    2 + rows x cols byte packet per frame; both after the '[Muca] ...' start-up lines.
     Without --from or --bench, plays a synthetic touch sweeping over an idle board.
     """
     from pathlib import Path
 
     from fruitcli.errors import FrameError
-    from fruitcli.sensing.emulator import NO_READER_S, BoardEmulator, synthetic_frames
+    from fruitcli.sensing.emulator import (
+        NO_READER_S,
+        BoardEmulator,
+        pacing_line,
+        synthetic_frames,
+    )
     from fruitcli.sensing.frames_io import MUCA_COLS, MUCA_ROWS, read_recording
 
     with fruit_errors():
@@ -54,15 +69,24 @@ def emulate_board(from_path, bench_dir, fps, n_frames, log_every, wait):
             from_path = found[0]
         if from_path:
             frames = read_recording(from_path).frames
-            if frames.shape[1:] != (MUCA_ROWS, MUCA_COLS):
+            if frames.shape[1] > MUCA_ROWS or frames.shape[2] > MUCA_COLS:
                 raise FrameError(f"{from_path}: frames of {frames.shape[1]} x "
-                                 f"{frames.shape[2]}, expected {MUCA_ROWS} x {MUCA_COLS} "
-                                 "(the MuCa board's Tx x Rx)")
+                                 f"{frames.shape[2]}, expected at most {MUCA_ROWS} x "
+                                 f"{MUCA_COLS} (the MuCa board's Tx x Rx; skipLine gives "
+                                 "fewer)")
             frames = frames[:n_frames] if n_frames else frames
         else:
             frames = synthetic_frames(n_frames or 600)
-        em = BoardEmulator(frames, fps, log_every=log_every, wait_for_reader=wait)
+        if fmt == "binary" and log_every:
+            raise click.UsageError("--log-every: the binary firmware prints no lines "
+                                   "between packets")
+        em = BoardEmulator(frames, fps, log_every=log_every, wait_for_reader=wait, fmt=fmt,
+                           baud=baud)
         click.echo(em.path)
+        sys.stdout.flush()
+        click.echo(f"{len(frames)} {frames.shape[1]} x {frames.shape[2]} frames, {fmt}; "
+                   f"pacing: {pacing_line(fmt, baud, frames=frames)}"
+                   + (f", capped at {fps:g} frames/s" if fps else ""), err=True)
         try:
             sent = em.play()
         except KeyboardInterrupt:

@@ -26,22 +26,62 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames (baseline frames included).")
 @click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
+@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]), default=None,
+              help="The board's frame format (stock Muca_Raw ASCII or SendRawByte binary); "
+                   "default: the scene's [board].format (auto-detected).")
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
+@click.option("--osc", "osc_target", default=None, metavar="HOST:PORT",
+              help="Send touches over OSC/UDP: TUIO 1.1 /tuio/2Dcur, /tuio/3Dcur and "
+                   "/tuio/_sp (peak), and plain /fruit/frame, /fruit/down, /fruit/touch, "
+                   "/fruit/up (README: 'Touches out').")
+@click.option("--tuio-3d", "tuio_3d", type=click.Choice(["3Dcur", "25Dcur"]),
+              default="3Dcur", show_default=True,
+              help="TUIO profile of the 3D position on the body.")
+@click.option("--session-gate-mm", type=click.FloatRange(min=0), default=20.0,
+              show_default=True,
+              help="A touch keeps its session id when it moved at most this far since the "
+                   "previous frame, mm (0: every frame's touches are new).")
+@click.option("--drift-tau-s", type=click.FloatRange(min=0, min_open=True), default=60.0,
+              show_default=True,
+              help="Time constant of the baseline drift tracker, s (adapts only while no "
+                   "taxel is above half the threshold).")
+@click.option("--no-drift", is_flag=True,
+              help="Keep the baseline fixed (as the paper's bench replays do).")
+@click.option("--reconnect", is_flag=True,
+              help="When the port vanishes (cable pulled), wait for it, reopen it, take a "
+                   "new baseline and go on; also wait for it at start.")
+@click.option("--log", "log_path", type=click.Path(dir_okay=False), default=None,
+              help="Append touches and a status line per minute to this rotating log file.")
+@click.option("--log-max-kb", type=click.IntRange(min=1), default=1024, show_default=True,
+              help="Size of the log file before it rotates, kB.")
+@click.option("--log-backups", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Rotated log files kept (FILE.1 ...).")
+@click.option("--view", "view_target", default=None, metavar="[HOST:]PORT",
+              help="Serve the live view (heat map, touches, pressures, frames/s, baseline) "
+                   "at http://HOST:PORT/ (HOST default 127.0.0.1: this machine only).")
+@click.option("--time-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
+              help="Host time runs this many times faster, for compressed-time tests "
+                   "against an emulated board played as fast (tests/test_live_soak.py); "
+                   "scales t_s, the drift tracker and the status lines.")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
-         baseline_frames, threshold):
+         fmt, baseline_frames, threshold, osc_target, tuio_3d, session_gate_mm, drift_tau_s,
+         no_drift, reconnect, log_path, log_max_kb, log_backups, view_target, time_scale):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:
-    {"frame", "t_s", "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"}]}.
+    {"frame", "t_s", "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"}]}
+    (touch: the session id, kept by a finger across frames). The baseline follows slow
+    drift unless --no-drift.
     """
     import threading
 
     from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene
     from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.drift import DriftTracker
     from fruitcli.sensing.live import LiveLocator, pressure_thread
     from fruitcli.sensing.locate import load_states
     from fruitcli.sensing.pipeline import Locator, Settings
@@ -57,6 +97,11 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             raise FrameError(f"--frames {n_frames}: expected more than the "
                              f"{settings.baseline_frames} baseline frames (--baseline-frames "
                              "or the scene's [detection]); nothing could be located")
+        osc_address = None
+        if osc_target is not None:
+            from fruitcli.sensing.tuio import parse_host_port, resolve
+
+            osc_address = resolve(*parse_host_port(osc_target, "--osc"), "--osc")
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
         if online:  # the scene's mesh (tetra), not its states
             taxels_csv, mesh_npz = online_products(scene, scene_path, taxels_csv,
@@ -85,31 +130,63 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             pressure = PressureState(states.chamber_names)
         else:
             loc = Locator(taxels, board, states.taxels_mm[0], settings, where=str(taxels_csv))
-        ser = open_port(port, baud)
+        drift = None if no_drift else DriftTracker(drift_tau_s, settings.threshold_counts)
+        live_loc = LiveLocator(loc, pressure, solver, gate_mm=session_gate_mm, drift=drift,
+                               health=True)
+        outputs = Outputs(live_loc, taxels, progress, time_scale, pressure)
+        if osc_address is not None:
+            from fruitcli.sensing.tuio import Normalizer, TuioSender
+
+            outputs.tuio = TuioSender(osc_address, Normalizer.from_taxels(
+                taxels.i, taxels.j, taxels.xyz_mm), tuio_3d)
+            progress(f"TUIO/OSC to {osc_target} ({osc_address[0]})")
+        if log_path is not None:
+            from fruitcli.sensing.runlog import RunLog
+
+            outputs.log = RunLog(log_path, log_max_kb * 1024, log_backups)
+        if view_target is not None:
+            outputs.start_view(view_target)
+        if reconnect:
+            from fruitcli.sensing.reconnect import wait_for_port
+
+            try:
+                ser = wait_for_port(port, baud, on_wait=lambda why: progress(
+                    f"{why}; waiting for it (--reconnect)"))
+            except KeyboardInterrupt:
+                click.echo("Interrupted.", err=True)
+                raise SystemExit(130) from None
+        else:
+            ser = open_port(port, baud)
         pser = p_thread = fem_thread = None
         if pressure is not None:
             pser = open_port(pressure_port, baud)
             p_thread = pressure_thread(pser, pressure, stop, pressure_port)
         if solver is not None:  # nothing to solve until a pressure line arrived
             fem_thread = solver.run(lambda: pressure.kpa if pressure.received else None, stop)
-        reader = FrameReader(ser, board["rows"], board["cols"], name=port)
-        live_loc = LiveLocator(loc, pressure, solver)
+        frame_format = fmt or board["format"]
+        reader = FrameReader(ser, board["rows"], board["cols"], name=port, fmt=frame_format)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
         warned = False
         try:
             while n_frames is None or seen < n_frames:
-                got = reader.poll()
+                try:
+                    got = reader.poll()
+                except PortClosed:
+                    if not reconnect:
+                        raise
+                    outputs.skipped += reader.skipped
+                    ser.close()
+                    ser, reader = outputs.reconnect(port, baud, board, frame_format,
+                                                    wait_for_port)
+                    continue
                 if not seen and not warned and sum(reader.wrong_size.values()) >= 10:
                     warned = True  # the board's frames do not fit [board]: say it once
                     progress(f"no frame yet, {reader.skipped} lines skipped: "
                              f"{reader.skip_reasons()} ([board] rows x cols)")
                 for counts, t_s, _ in got:
-                    line = live_loc.push(counts, t_s)
+                    outputs.frame(counts, reader.t0 + t_s)
                     seen += 1
-                    if line is not None:
-                        sys.stdout.write(line + "\n")
-                        sys.stdout.flush()
                     if n_frames is not None and seen >= n_frames:
                         break
         except PortClosed:
@@ -123,6 +200,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         finally:
             stop.set()
             ser.close()
+            outputs.close()
             if fem_thread is not None:
                 fem_thread.join(0.5)  # an idle thread ends at once
             if fem_thread is not None and fem_thread.is_alive():
@@ -134,8 +212,176 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             if p_thread is not None:
                 p_thread.join(1.0)
                 pser.close()
-            for line in _summary(seen, reader, pressure, solver):
+            for line in _summary(seen, reader, pressure, solver) + outputs.summary():
                 progress(line)
+
+
+class Outputs:
+    """Where each located frame goes: stdout (JSON lines), TUIO/OSC, the run log; and
+    the run's counters (reconnects, frames per second, status)."""
+
+    def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0, pressure=None):
+        import time
+        from collections import deque
+
+        self.live, self.taxels, self.progress = live_loc, taxels, progress
+        self.pressure = pressure
+        self.view = None
+        self.last = None  # the latest LiveFrame (for the view)
+        self.recent = deque(maxlen=32)  # host times of the latest frames (frames/s)
+        self.scale = time_scale
+        self.t0 = time.monotonic()
+        self.tuio = None
+        self.log = None
+        self.reconnects = 0
+        self.skipped = 0  # lines skipped by earlier connections' readers
+        self.frames = 0
+        self.touches = 0  # sessions started
+        self.next_status = 60.0
+        self._status_frames, self._status_t = 0, 0.0
+
+    def now(self, monotonic_s: float) -> float:
+        """Host time of the run (s), scaled by --time-scale."""
+        return (monotonic_s - self.t0) * self.scale
+
+    def frame(self, counts, monotonic_s: float) -> None:
+        t = self.now(monotonic_s)
+        f = self.live.step(counts, t)
+        self.frames += 1
+        self.recent.append(t)
+        self.last = f
+        if f is not None:
+            tt = f.touches
+            if self.tuio is not None:  # first: a slow reader of stdout must not delay it
+                self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
+                               tt.xyz_mm, tt.peak)
+            line = self.live.json_line(f)
+            if line is not None:
+                sys.stdout.write(line + "\n")
+                sys.stdout.flush()
+            self.touches += int(f.sessions.new.sum())
+            if self.log is not None:
+                self.log.frame(t, f.sessions, tt.xyz_mm, f.ij, tt.peak)
+        if self.log is not None and t >= self.next_status:
+            self.log.status(self.status(t))
+            self.next_status = t + 60.0
+
+    def fps(self, t: float) -> float:
+        n, dt = self.frames - self._status_frames, t - self._status_t
+        self._status_frames, self._status_t = self.frames, t
+        return n / dt if dt > 0 else 0.0
+
+    def status(self, t: float) -> str:
+        import numpy as np
+
+        shift = self.live.baseline_shift()
+        h = self.live.health
+        return (f"t {t:.0f} s, {self.frames} frames, {self.fps(t):.1f} frames/s, "
+                f"{self.touches} touches, baseline {self.live.baseline_state} (shift mean "
+                f"{float(np.mean(shift)):+.1f}, max |{float(np.abs(shift).max()):.1f}| "
+                f"counts), {self.reconnects} reconnects, "
+                + (h.summary(self.taxels.ids) if h is not None else ""))
+
+    def reconnect(self, port, baud, board, fmt, wait_for_port):
+        """The port vanished: end the touches, wait for the port, start a new baseline."""
+        import time
+
+        from fruitcli.sensing.serial_io import FrameReader
+
+        t = self.now(time.monotonic())
+        ended, line = self.live.rebaseline(t)
+        self.last = None
+        if line is not None:
+            sys.stdout.write(line + "\n")
+            sys.stdout.flush()
+        self._ended(t, ended)
+        self.progress(f"{port}: port lost after {self.frames} frames; waiting for it")
+        if self.log is not None:
+            self.log.event(f"port {port} lost at t {t:.1f} s")
+        ser = wait_for_port(port, baud)
+        self.reconnects += 1
+        self.progress(f"{port}: reconnected ({self.reconnects}); collecting "
+                      f"{self.live.k} baseline frames")
+        if self.log is not None:
+            self.log.event(f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
+                           f"reconnect {self.reconnects}")
+        return ser, FrameReader(ser, board["rows"], board["cols"], name=port, fmt=fmt)
+
+    def start_view(self, target: str) -> None:
+        from fruitcli.sensing.tuio import parse_host_port
+        from fruitcli.sensing.view import ViewServer
+
+        host, port = parse_host_port(target, "--view", default_host="127.0.0.1")
+        tx = self.taxels
+        layout = {"taxels": [[int(tx.ids[k]), int(tx.i[k]), int(tx.j[k]),
+                              float(tx.xyz_mm[k, 0]), float(tx.xyz_mm[k, 1])]
+                             for k in range(len(tx))],
+                  "threshold_counts": self.live.loc.settings.threshold_counts}
+        self.view = ViewServer(host, port, layout, self.view_state)
+        self.progress(f"live view at {self.view.url}")
+
+    def view_state(self) -> dict:
+        """The live view's state (called from the view's threads)."""
+        f, recent = self.last, list(self.recent)
+        fps = (len(recent) - 1) / (recent[-1] - recent[0]) \
+            if len(recent) > 1 and recent[-1] > recent[0] else 0.0
+        touches = []
+        if f is not None:
+            tt = f.touches
+            touches = [{"id": int(tt.touch[n]), "x_mm": float(tt.xyz_mm[n, 0]),
+                        "y_mm": float(tt.xyz_mm[n, 1]), "z_mm": float(tt.xyz_mm[n, 2]),
+                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n])}
+                       for n in range(len(tt))]
+        act = f.activation if f is not None else [0.0] * len(self.taxels)
+        h = self.live.health
+        flags = {name: self.taxels.ids[idx].tolist() for name, idx in h.flags().items()} \
+            if h is not None else {}
+        p = self.pressure
+        return {"frame": self.live.frame, "t_s": round(self.now_s(), 3), "fps": fps,
+                "baseline": self.live.baseline_state, "reconnects": self.reconnects,
+                "activation": [round(float(v), 1) for v in act], "touches": touches,
+                "pressures": {} if p is None or not p.received else
+                dict(zip(p.chambers, (float(v) for v in p.kpa), strict=True)),
+                "flags": flags}
+
+    def now_s(self) -> float:
+        import time
+
+        return self.now(time.monotonic())
+
+    def _ended(self, t: float, ended: list[int]) -> None:
+        """Touches that ended without a frame (the board went away)."""
+        import numpy as np
+
+        e = np.zeros(0)
+        if self.tuio is not None:
+            self.tuio.send(t, e.astype(np.int64), e.astype(bool), ended, np.zeros((0, 2)),
+                           np.zeros((0, 3)), e)
+        if self.log is not None:
+            self.log.ended(t, ended)
+
+    def summary(self) -> list[str]:
+        lines = []
+        if self.reconnects:
+            lines.append(f"{self.reconnects} reconnect{'s' * (self.reconnects != 1)} "
+                         f"({self.skipped} lines skipped before the last one)")
+        if self.live.drift is not None:
+            lines.append(self.live.drift.state())
+        if self.live.health is not None:
+            lines.append(self.live.health.summary(self.taxels.ids))
+        if self.tuio is not None:
+            lines.append(f"OSC: {self.tuio.sent} bundles sent, {self.tuio.failed} failed")
+        if self.log is not None and self.log.failed:
+            lines.append(f"log: {self.log.failed} lines could not be written")
+        return lines
+
+    def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
+        if self.tuio is not None:
+            self.tuio.close()
+        if self.log is not None:
+            self.log.close()
 
 
 FEM_JOIN_S = 30.0

@@ -22,14 +22,19 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="Touch threshold on v = C - C0, counts (default 20).")
 @click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks"]), default=None,
               help="n9: the paper's sequential N9 (default); n9_floor; peaks.")
+@click.option("--surface", type=click.Path(dir_okay=False), default=None,
+              help="The body's closed surface at rest (mm), for the scene's "
+                   "[detection].project = surface.")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           out_dir):
+           surface, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
-    frames index from 0 including baseline frames; peak in counts).
+    frames index from 0 including baseline frames; peak in counts). An .npz recording is
+    read, detected and written in chunks of frames on the CPUs available, so memory stays
+    bounded however long it is; touches.csv appears only once complete.
     """
     from fruitcli.scene import load_scene
     from fruitcli.sensing.stage import run_locate
@@ -39,6 +44,6 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
         scene = load_scene(scene_path) if scene_path else None
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
-                         method=method)
+                         method=method, surface_path=surface)
     click.echo(f"{res['touches']} touches in {res['frames']} frames "
                f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}", err=True)

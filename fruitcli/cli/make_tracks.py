@@ -15,6 +15,9 @@ from fruitcli.cli.options import Progress, fruit_errors
 @click.option("--unit", type=click.Choice(["mm", "cm", "m"]), default=None,
               help="Unit of the mesh file (default: mm; read in mm, a mesh under 2 mm across "
                    "is refused as being in m or cm).")
+@click.option("--fit-mm", type=float, default=None, metavar="L",
+              help="Scale the mesh uniformly (after --unit) so that its largest extent is L "
+                   "mm: the size the piece will be cast at.")
 @click.option("--cover-mm", type=float, default=2.0, show_default=True,
               help="Inward offset left for the cover layer (mm).")
 @click.option("--faces", type=int, default=5000, show_default=True,
@@ -31,9 +34,13 @@ from fruitcli.cli.options import Progress, fruit_errors
 @click.option("--split-z-mm", type=float, default=None,
               help="Height of the casting split plane (mm; default: the body's widest "
                    "horizontal section).")
-def make_tracks(artist, out, unit, cover_mm, faces, spacing_x_mm, spacing_y_mm, origin_mm,
+def make_tracks(artist, out, unit, fit_mm, cover_mm, faces, spacing_x_mm, spacing_y_mm, origin_mm,
                 track_radius_mm, split_z_mm):
-    """Reduce an artist mesh (STL/OBJ/PLY, mm), carve yarn tracks, export the taxels.
+    """Reduce an artist mesh (STL/OBJ/PLY/OFF/glTF, mm), carve yarn tracks, export the taxels.
+
+    Any surface with an inside is taken: holes are closed by the level set, overlapping
+    parts become their union (generalized winding number); what was found is reported
+    on stderr and in report.json.
 
     Paper Section III-D: inward offset by the cover thickness with far fewer triangles,
     sections x = x0 + k*16 mm and y = y0 + k*12 mm on the top side, tubes subtracted in one
@@ -43,7 +50,7 @@ def make_tracks(artist, out, unit, cover_mm, faces, spacing_x_mm, spacing_y_mm, 
 
     progress = Progress()
     with fruit_errors():
-        report = run(artist, out, unit=unit, cover_mm=cover_mm, faces=faces,
+        report = run(artist, out, unit=unit, fit_mm=fit_mm, cover_mm=cover_mm, faces=faces,
                      spacing_x_mm=spacing_x_mm, spacing_y_mm=spacing_y_mm,
                      origin_mm=origin_mm, track_radius_mm=track_radius_mm,
                      split_z_mm=split_z_mm, progress=progress)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import click
 
 from fruitcli.cli.options import Progress, fruit_errors
@@ -23,13 +25,30 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="Frame rows (Tx lines).")
 @click.option("--cols", type=click.IntRange(min=1), default=12, show_default=True,
               help="Frame columns (Rx lines).")
-def record(port, out_path, n_frames, seconds, baud, rows, cols):
+@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]),
+              default="auto", show_default=True,
+              help="The board's frame format: stock Muca_Raw ASCII lines or SendRawByte "
+                   "binary packets (auto: whichever yields frames first).")
+@click.option("--pressure-port", default=None,
+              help="Serial source of chamber pressures, the `fruit live` line protocol "
+                   "'P c1=2.5 c2=0.0' (kPa): each frame gets the latest pressures received "
+                   "before it (pressure_kpa) and the time of that reading (pressure_t_s). "
+                   "Needs --chambers and an .npz --out.")
+@click.option("--chambers", default=None,
+              help="Chamber names of --pressure-port, comma-separated (e.g. c1,c2,c3): the "
+                   "columns of pressure_kpa; lines naming others are skipped and counted.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace an existing --out file (once the new recording has frames).")
+def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_port, chambers,
+           overwrite):
     """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
 
-    Every whole frame received is on disk as soon as it arrives; board log lines and
-    cut lines are skipped and counted. Without --frames or --seconds, stop with Ctrl-C.
+    Every whole frame received is on disk as soon as it arrives; board log lines, cut
+    lines and damaged binary packets are skipped and counted. Without --frames or
+    --seconds, stop with Ctrl-C.
     """
     from fruitcli.errors import FrameError
+    from fruitcli.sensing.live import pressure_thread
     from fruitcli.sensing.recorder import (
         LogSink,
         check_limits,
@@ -38,43 +57,80 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols):
         log_path_for,
         record_stream,
     )
-    from fruitcli.sensing.serial_io import FrameReader, open_port
+    from fruitcli.sensing.serial_io import FrameReader, PressureState, open_port
 
     progress = Progress("[record] ")
     interrupted = False
     with fruit_errors():
         check_limits(n_frames, seconds)
-        check_out_path(out_path)
+        names = tuple(c.strip() for c in chambers.split(",")) if chambers else ()
+        if pressure_port and not names:
+            raise FrameError(f"--pressure-port {pressure_port}: give --chambers, the names "
+                             "of the pressures' columns (e.g. --chambers c1,c2,c3)")
+        if names and not pressure_port:
+            raise FrameError("--chambers: needs --pressure-port, the source of the pressures")
+        if any(not c for c in names) or len(set(names)) != len(names):
+            raise FrameError(f"--chambers {chambers}: expected distinct non-empty names")
+        check_out_path(out_path, overwrite, pressures=bool(pressure_port))
+        from pathlib import Path
+
+        untouched = (f"{out_path} left as it was" if Path(out_path).exists()
+                     else f"nothing written to {out_path}")
         ser = open_port(port, baud)
-        reader = FrameReader(ser, rows, cols, name=port)
+        pser = p_thread = pressure = None
+        stop = threading.Event()
+        if pressure_port:
+            try:
+                pser = open_port(pressure_port, baud)
+            except FrameError:
+                ser.close()
+                raise
+            pressure = PressureState(names)
+        reader = FrameReader(ser, rows, cols, name=port, fmt=fmt)
+        if pressure is not None:
+            p_thread = pressure_thread(pser, pressure, stop, pressure_port)
         sink = LogSink(log_path_for(out_path),
                        header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
-                              f"{rows}x{cols} counts")
+                              f"{rows}x{cols} counts", pressure=pressure, t0=reader.t0)
         try:
             res = record_stream(reader, sink, n_frames, seconds, progress)
         except KeyboardInterrupt:
             interrupted = True
-            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.lines.cut,
+            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
                    "frames_per_s": 0.0, "closed": ""}
         finally:
             sink.close()
             ser.close()
-        meta = {"source": "fruit record", "port": port, "baud": baud}
-        frames = finalize(out_path, meta, rows, cols)
+            stop.set()
+            if p_thread is not None:
+                p_thread.join(1.0)
+                pser.close()
+        meta = {"source": "fruit record", "port": port, "baud": baud,
+                "format": reader.format}
+        if pressure is not None:
+            meta.update(pressure_port=pressure_port, pressure_lines=pressure.received,
+                        pressure_lines_skipped=pressure.skipped)
+        frames = finalize(out_path, meta, rows, cols, names)
         why = reader.skip_reasons()
-        skipped = f"{res['skipped']} lines skipped" + (f": {why}" if why else "")
+        unit = "damaged packets" if reader.format == "binary" else "lines"
+        skipped = f"{res['skipped']} {unit} skipped" + (f": {why}" if why else "")
         if frames == 0:
             how = ("port closed" if res["closed"] else "interrupted" if interrupted
                    else f"stopped after {seconds:g} s" if seconds else "stopped")
-            got = skipped if res["skipped"] else "no line received"
+            got = skipped if res["skipped"] or why else "nothing received"
             if interrupted:
-                click.echo(f"Interrupted: no frame received from {port}; nothing written "
-                           f"to {out_path} ({got})", err=True)
+                click.echo(f"Interrupted: no frame received from {port}; {untouched} "
+                           f"({got})", err=True)
                 raise SystemExit(130)
-            raise FrameError(f"{port}: no frame received ({how}; {got}); nothing written "
-                             f"to {out_path}")
-    summary = (f"{frames} frames ({res['frames_per_s']:.1f} frames/s), {skipped}, "
+            raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
+    summary = (f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
+               f"{skipped}, "
                f"{res['cut']} cut -> {out_path}")
+    if pressure is not None:
+        summary += (f"; pressure lines: {pressure.received} taken, {pressure.skipped} skipped "
+                    f"(not 'P name=kPa ...' with chambers {', '.join(names)})"
+                    + ("; the pressure port closed during the recording"
+                       if pressure.closed else ""))
     if res["closed"]:
         raise click.ClickException(f"{port}: port closed after {frames} frames; {out_path} "
                                    f"holds them ({skipped})")

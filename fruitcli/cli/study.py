@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import click
@@ -19,6 +20,20 @@ def _bar(label):
     return progress
 
 
+@contextlib.contextmanager
+def _cases_pool(jobs, scheduler, out):
+    """Local processes (--jobs) or a Dask cluster (--scheduler) whose workers see `out`."""
+    from fruitcli.studies.executors import open_executor
+
+    if jobs is not None and scheduler:
+        raise click.UsageError("give --jobs or --scheduler, not both")
+    pool = open_executor(jobs, scheduler, out)
+    try:
+        yield pool
+    finally:
+        pool.close()
+
+
 @click.group()
 def study():
     """Studies over many independent cases, run in parallel worker processes."""
@@ -29,7 +44,10 @@ def study():
               show_default=True, help="Output folder: stability.md, .csv, .json.")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes. [default: all cores]")
-def stability(out_dir, jobs):
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Run the cases on the workers of this Dask distributed scheduler "
+                   "(pip install 'fruitcli[cluster]'); see `fruit sweep --help`.")
+def stability(out_dir, jobs, scheduler):
     """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.499, pressure until elements
     would invert, jig stiffness 1e-3..1e6 N/mm, a sliver tet, an unsupported body.
 
@@ -48,7 +66,8 @@ def stability(out_dir, jobs):
 
     with fruit_errors():
         cases = default_cases()
-        rows = run_cases(run_case, cases, jobs, _bar("stability"))
+        with _cases_pool(jobs, scheduler, None) as pool:
+            rows = run_cases(run_case, cases, progress=_bar("stability"), pool=pool)
         add_scaling_columns(rows)
         text = table_markdown(rows)
         with staged_dir(out_dir) as tmp:
@@ -67,7 +86,11 @@ def stability(out_dir, jobs):
               show_default=True, help="Output folder: runtime.md, runtime.json, runtime.png.")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes. [default: all cores]")
-def runtime(scene_file, out_dir, jobs):
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Run the FEM settings on the workers of this Dask distributed scheduler "
+                   "(pip install 'fruitcli[cluster]'); --out must be on a file system they "
+                   "share.")
+def runtime(scene_file, out_dir, jobs, scheduler):
     """Error against run time on SCENE (default: the Fruit in its jig): FEM mesh size,
     Newton tolerance and iteration cap, linear solver, detection variant.
 
@@ -82,13 +105,14 @@ def runtime(scene_file, out_dir, jobs):
     from fruitcli.studies import runtime as rt
     from fruitcli.studies.parallel import run_cases
 
-    with fruit_errors():
+    with fruit_errors(), contextlib.ExitStack() as stack:
         scene = load_scene(scene_file)
         fem = planner.plan(scene, Path(out_dir) / "scene", until="simulate")[-1]
         if fem.action not in ("run", "reuse"):
             raise click.UsageError(f"{scene_file}: the scene has no FEM to study (no "
                                    "deformation or no geometry: see `fruit run --dry-run`)")
-        out = Path(out_dir)
+        out = Path(out_dir).resolve() if scheduler else Path(out_dir)  # same on workers
+        pool = stack.enter_context(_cases_pool(jobs, scheduler, out))
         base = out / "scene"
         # the scene's own stages: copied from the demo's out/<scene> when identical
         planner.run(scene, base, progress=Progress("   "), shared=out.resolve().parent)
@@ -105,9 +129,10 @@ def runtime(scene_file, out_dir, jobs):
         first = list(by_size.values())
         rest = [c for c in cases if c not in first]
         args = [(scene.path, work, solid, taxels, c) for c in first]
-        rows = run_cases(rt.run_fem_case, args, jobs, _bar("runtime: meshes"))
+        rows = run_cases(rt.run_fem_case, args, progress=_bar("runtime: meshes"), pool=pool)
         args = [(scene.path, work, solid, taxels, c) for c in rest]
-        rows += run_cases(rt.run_fem_case, args, jobs, _bar("runtime: solver settings"))
+        rows += run_cases(rt.run_fem_case, args, progress=_bar("runtime: solver settings"),
+                          pool=pool)
         order = {c.name: n for n, c in enumerate(cases)}
         rows.sort(key=lambda r: order[r["setting"]])
         rt.add_errors(rows)
@@ -117,3 +142,65 @@ def runtime(scene_file, out_dir, jobs):
                                             states_path(scene, ctx), work)
         rt.write_outputs(out, rows, det, f"size {default:g} mm")
     click.echo((out / "runtime.md").read_text(), nl=False)
+
+
+@study.command("bench")
+@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
+                default="pipelines/fruit-rest.toml")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-bench",
+              show_default=True, help="Output folder: bench.md, bench.csv, bench.json, "
+                                      "bench.png.")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes. [default: all cores]")
+def bench_study(scene_file, out_dir, jobs):
+    """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
+    parameters ([skin]: footprint width, counts at contact, gap decay, noise std, taxel
+    gain spread), one at a time off its default, same seed; and, with a body surface, the
+    default located with [detection].project = "surface".
+
+    For each setting and indenter: n, the mean and std of the error unregistered and
+    translation-registered (the paper's protocol, mm), and the registered mean's
+    bootstrap 95 % interval. The plot has one panel per parameter.
+    """
+    from fruitcli import planner
+    from fruitcli.cli.options import Progress
+    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    from fruitcli.report import PAPER_TABLE_I
+    from fruitcli.scene import load_scene
+    from fruitcli.stages import _geometry_kind, solid_path, states_path, taxels_path
+    from fruitcli.studies import bench_study as bs
+    from fruitcli.studies.parallel import run_cases
+
+    with fruit_errors():
+        scene = load_scene(scene_file)
+        if not scene.has("bench"):
+            raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
+        out = Path(out_dir)
+        base = out / "scene"
+        # the scene's own stages up to the bench: copied from the demo's out/<scene>
+        planner.run(scene, base, until="simulate", progress=Progress("   "),
+                    shared=out.resolve().parent)
+        ctx = planner.Context(base)
+        taxels = taxels_path(scene, ctx)
+        if taxels is None:
+            raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
+        unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+        work = out / "work"
+        work.mkdir(parents=True, exist_ok=True)
+        skin = dict(scene["skin"])
+        solid = solid_path(scene, ctx)
+        args = [(scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
+                for c in bs.cases(skin, list(scene["bench"]["indenters"]), solid is not None)]
+        results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
+        rows = [r for res in results for r in res["rows"]]
+        text = bs.table_markdown(rows, scene.name, PAPER_TABLE_I)
+        with staged_dir(out) as tmp:
+            write_text(tmp / "bench.md", text)
+            write_csv(tmp / "bench.csv", bs.HEADER, bs.csv_rows(rows),
+                      comments=[f"bench study of {scene.name}: errors in mm, registered = "
+                                "translation (the paper's protocol)"])
+            write_json(tmp / "bench.json", {"scene": scene.name, "skin_defaults": skin,
+                                            "rows": rows})
+            bs.plot(tmp / "bench.png", rows, skin, PAPER_TABLE_I)
+    click.echo(text, nl=False)
+    click.echo(f"written to {out}/")

@@ -82,21 +82,75 @@ def reference_length(truth_xyz: np.ndarray) -> float:
     return float(pdist(truth_xyz).max())
 
 
+BOOTSTRAP_RESAMPLES = 10000
+BOOTSTRAP_SEED = 0
+BOOTSTRAP_CHUNK = 2_000_000  # indices drawn per batch (16 MB)
+BOOTSTRAP_MAX_N = 2000
+"""Above this many samples the interval of the mean is the normal one, mean +- 1.96 std /
+sqrt(n): the bootstrap costs resamples x n draws and gives the same at that size."""
+STAT_KEYS = ("mean_mm", "std_mm", "rmse_mm", "median_mm", "p95_mm", "max_mm")
+
+
+def bootstrap_ci(values: np.ndarray, level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES,
+                 seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of `values` (n,): `resamples` draws of n
+    with replacement from a generator seeded with `seed` (same data, same interval)."""
+    rng = np.random.default_rng(seed)
+    n = len(values)
+    chunk = max(1, BOOTSTRAP_CHUNK // n)  # resamples drawn at once: memory stays bounded
+    means = np.concatenate([values[rng.integers(0, n, size=(min(chunk, resamples - k), n))]
+                            .mean(axis=1) for k in range(0, resamples, chunk)])
+    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+def error_stats(error_vectors: np.ndarray) -> dict:
+    """Statistics of error vectors (n, d) mm (measured - truth): of the norm the mean,
+    population std, RMSE, median, 95th percentile, max and the 95 % interval of the mean
+    (seeded bootstrap up to BOOTSTRAP_MAX_N samples, normal above); and the mean error
+    vector (bias per axis)."""
+    err = np.linalg.norm(error_vectors, axis=1)
+    if len(err) <= BOOTSTRAP_MAX_N:
+        ci, how = list(bootstrap_ci(err)), "bootstrap"
+    else:
+        half = 1.959964 * float(err.std()) / np.sqrt(len(err))
+        ci, how = [float(err.mean()) - half, float(err.mean()) + half], "normal"
+    return {"mean_mm": float(err.mean()), "std_mm": float(err.std()),
+            "rmse_mm": float(np.sqrt((err ** 2).mean())), "median_mm": float(np.median(err)),
+            "p95_mm": float(np.percentile(err, 95)), "max_mm": float(err.max()),
+            "bias_mm": [float(v) for v in error_vectors.mean(axis=0)],
+            "ci95_mean_mm": ci, "ci95_method": how}
+
+
 def summarize(truth_xyz: np.ndarray, measured_xyz: np.ndarray,
-              reference_length_mm: float | None = None) -> dict:
-    """Table I statistics: n, dims, mean/std of the error norm in mm and % of the reference."""
+              reference_length_mm: float | None = None, register: str = "none",
+              where: str = "measured") -> dict:
+    """Table I statistics of one row: n, dims, the statistics of `error_stats` after the
+    `register` transform (with mean and std also in % of the reference length), the
+    transform, and under "compare" the statistics unregistered ("none") and translation
+    registered (the paper's protocol). `where` names the measured data in errors."""
+    from fruitcli.evaluation.register import register as fit
+
+    if len(truth_xyz) < 1:
+        raise EvaluationError(f"{where}: no matched samples")
     if reference_length_mm is None:
         reference_length_mm = reference_length(truth_xyz)
     if not reference_length_mm > 0:
         raise EvaluationError(f"reference length must be > 0 mm, got {reference_length_mm}")
-    err = np.linalg.norm(measured_xyz - truth_xyz, axis=1)
-    mean, std = float(err.mean()), float(err.std())
+    transform = fit(truth_xyz, measured_xyz, register, where)
+    stats = error_stats(transform.apply(measured_xyz) - truth_xyz)
+    compare = {"none": error_stats(measured_xyz - truth_xyz)}
+    compare["translation"] = error_stats(
+        fit(truth_xyz, measured_xyz, "translation", where).apply(measured_xyz) - truth_xyz)
     return {
-        "n": int(len(err)),
+        "n": int(len(truth_xyz)),
         "dims": int(truth_xyz.shape[1]),
-        "mean_mm": mean,
-        "std_mm": std,
-        "mean_pct": 100.0 * mean / reference_length_mm,
-        "std_pct": 100.0 * std / reference_length_mm,
+        "register": register,
+        **stats,
+        "mean_pct": 100.0 * stats["mean_mm"] / reference_length_mm,
+        "std_pct": 100.0 * stats["std_mm"] / reference_length_mm,
         "reference_length_mm": float(reference_length_mm),
+        "transform": transform.as_dict(),
+        "transform_text": transform.describe(),
+        "compare": compare,
     }

@@ -7,6 +7,7 @@ each candidate triangle is then measured exactly. Points `(n, 3)` float64, mm.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 # points per vectorized batch (bounds the memory of the candidate arrays)
 CHUNK_POINTS = 20000
@@ -93,27 +94,93 @@ class SurfaceDistance:
 
     def _closest(self, points: np.ndarray):
         _, vi = self.tree.query(points, k=self.k)
-        vi = vi.reshape(len(points), -1)
-        n = len(points)
-        start = self.vf_start[vi].ravel()
-        count = self.vf_start[vi + 1].ravel() - start
-        rows = np.repeat(np.repeat(np.arange(n), vi.shape[1]), count)
-        offs = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-        fid = self.vf_faces[np.repeat(start, count) + offs]
         _, si = self.sample_tree.query(points, k=min(self.k, len(self.samples)))
-        si = si.reshape(n, -1)
-        rows = np.concatenate([rows, np.repeat(np.arange(n), si.shape[1])])
-        fid = np.concatenate([fid, self.sample_face[si.ravel()]])
-        tri = self.vertices[self.faces[fid]]
-        q = closest_on_triangles(points[rows], tri[:, 0], tri[:, 1], tri[:, 2])
-        d2 = ((q - points[rows]) ** 2).sum(axis=1)
-        best = np.full(n, np.inf)
-        np.minimum.at(best, rows, d2)
-        is_best = d2 <= best[rows]
-        first = np.full(n, -1, dtype=np.int64)
-        idx = np.nonzero(is_best)[0]
-        first[rows[idx[::-1]]] = idx[::-1]
-        return q[first], np.sqrt(best), fid[first]
+        n = len(points)
+        vi = np.ascontiguousarray(vi.reshape(n, -1), dtype=np.int64)
+        si = np.ascontiguousarray(self.sample_face[si.reshape(n, -1)], dtype=np.int64)
+        q = np.empty((n, 3))
+        d2 = np.empty(n)
+        fid = np.empty(n, dtype=np.int64)
+        _closest_kernel(np.ascontiguousarray(points, dtype=float), vi, si, self.vf_start,
+                        self.vf_faces, self.vertices, self.faces, q, d2, fid)
+        return q, np.sqrt(d2), fid
+
+
+@njit(cache=True, nogil=True)
+def _closest_point(p, a, b, c, out):
+    """Closest point on triangle (a, b, c) to p, written into out (Ericson, 5.1.5)."""
+    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+    if d1 <= 0.0 and d2 <= 0.0:
+        out[0], out[1], out[2] = a[0], a[1], a[2]
+        return
+    bp0, bp1, bp2 = p[0] - b[0], p[1] - b[1], p[2] - b[2]
+    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
+    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
+    if d3 >= 0.0 and d4 <= d3:
+        out[0], out[1], out[2] = b[0], b[1], b[2]
+        return
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0 and d1 - d3 != 0.0:
+        v = d1 / (d1 - d3)
+        out[0], out[1], out[2] = a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
+        return
+    cp0, cp1, cp2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
+    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
+    if d6 >= 0.0 and d5 <= d6:
+        out[0], out[1], out[2] = c[0], c[1], c[2]
+        return
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0 and d2 - d6 != 0.0:
+        w = d2 / (d2 - d6)
+        out[0], out[1], out[2] = a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
+        return
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0 and (d4 - d3) + (d5 - d6) != 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out[0] = b[0] + w * (c[0] - b[0])
+        out[1] = b[1] + w * (c[1] - b[1])
+        out[2] = b[2] + w * (c[2] - b[2])
+        return
+    denom = va + vb + vc
+    if denom == 0.0:                       # degenerate triangle
+        out[0], out[1], out[2] = a[0], a[1], a[2]
+        return
+    v = vb / denom
+    w = vc / denom
+    out[0] = a[0] + ab0 * v + ac0 * w
+    out[1] = a[1] + ab1 * v + ac1 * w
+    out[2] = a[2] + ab2 * v + ac2 * w
+
+
+@njit(cache=True, nogil=True)
+def _closest_kernel(points, vi, si, vf_start, vf_faces, vertices, faces, q, d2, fid):
+    """For each point, the closest point over the faces around its nearest vertices
+    (vi (n, k)) and the faces of its nearest face samples (si (n, k), face ids)."""
+    tmp = np.empty(3)
+    for i in range(points.shape[0]):
+        p = points[i]
+        best = np.inf
+        for kk in range(vi.shape[1] + si.shape[1]):
+            if kk < vi.shape[1]:
+                v = vi[i, kk]
+                lo, hi = vf_start[v], vf_start[v + 1]
+            else:
+                lo, hi = 0, 1
+            for t in range(lo, hi):
+                f = vf_faces[t] if kk < vi.shape[1] else si[i, kk - vi.shape[1]]
+                _closest_point(p, vertices[faces[f, 0]], vertices[faces[f, 1]],
+                               vertices[faces[f, 2]], tmp)
+                e = (tmp[0] - p[0]) ** 2 + (tmp[1] - p[1]) ** 2 + (tmp[2] - p[2]) ** 2
+                if e < best:
+                    best = e
+                    q[i, 0], q[i, 1], q[i, 2] = tmp[0], tmp[1], tmp[2]
+                    fid[i] = f
+        d2[i] = best
 
 
 def _face_samples(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

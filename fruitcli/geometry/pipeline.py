@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import GeometryError
-from fruitcli.geometry import load
+from fruitcli.geometry import load, winding
 
 # a face takes part in the track curves when its normal's z component exceeds this
 UP_NZ_MIN = 0.05
@@ -33,14 +33,32 @@ MAX_SLIVER_VOLUME_FRACTION = 1e-3
 CLI_NAMES = {"cover_mm": "--cover-mm", "faces": "--faces", "spacing_x_mm": "--spacing-x-mm",
              "spacing_y_mm": "--spacing-y-mm", "origin_mm": "--origin-mm",
              "track_radius_mm": "--track-radius-mm", "split_z_mm": "--split-z-mm",
-             "unit_hint": load.CLI_UNIT_HINT}
+             "fit_mm": "--fit-mm", "unit_hint": load.CLI_UNIT_HINT}
 """How a `fruit make-tracks` user sets each option (the names in error messages)."""
 SCENE_NAMES = {"cover_mm": "[tracks].cover_mm", "faces": "[tracks].faces",
                "spacing_x_mm": "[grid].spacing_x_mm", "spacing_y_mm": "[grid].spacing_y_mm",
                "origin_mm": "[grid].origin_mm", "track_radius_mm": "[tracks].track_radius_mm",
-               "split_z_mm": "[tracks].split_z_mm", "unit_hint": load.SCENE_UNIT_HINT}
+               "split_z_mm": "[tracks].split_z_mm", "fit_mm": "[geometry].fit_mm",
+               "unit_hint": load.SCENE_ARTIST_HINT}
 """The same for a scene's make-tracks stage (pass as `make_tracks(..., names=SCENE_NAMES)`)."""
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
+TRACK_COLUMNS = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
+
+
+def _surface_line(surf, dropped: int, w_range) -> str:
+    """One line on what the artist surface had and what was done about it."""
+    parts = []
+    if surf.holes:
+        parts.append(f"{surf.holes} hole(s) (largest {surf.largest_hole_perimeter_mm:.1f} mm "
+                     "around) closed by the level set")
+    if surf.parts > 1:
+        parts.append(f"{surf.parts} parts merged into their union")
+    if surf.non_manifold_edges:
+        parts.append(f"{surf.non_manifold_edges} non-manifold edges")
+    if dropped:
+        parts.append(f"{dropped} faces inside the union (or outside it) dropped")
+    return (f"the surface is not one closed body: {'; '.join(parts)}; winding number from "
+            f"{w_range[0]:.2f} to {w_range[1]:.2f}")
 
 
 def _change_tracks(opt: dict) -> str:
@@ -147,7 +165,7 @@ fraction of the cover thickness (the default Fruit: 0.81 mm against 2 mm)."""
 
 def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                 spacing_x_mm=16.0, spacing_y_mm=12.0, origin_mm=None, track_radius_mm=0.6,
-                split_z_mm=None, progress=None, names=None) -> dict:
+                split_z_mm=None, fit_mm=None, progress=None, names=None) -> dict:
     """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict.
     `names` (default CLI_NAMES; SCENE_NAMES from a scene) names the options in errors."""
     import manifold3d
@@ -173,23 +191,53 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         clock[0] = now
         say(f"{step}: {times[step]:.2f} s")
 
-    mesh, repairs = load.load_mesh(artist_path, unit, opt["unit_hint"])
+    surf = load.load_mesh(artist_path, unit, opt["unit_hint"], fit_mm, opt["fit_mm"])
+    repairs = surf.repairs
     for r in repairs:
         if r.startswith("merged") and Path(artist_path).suffix.lower() == ".stl":
             continue  # STL stores each triangle's corners apart: welding them is normal
         say(f"make-tracks: {r}" if r.startswith("scaled") else f"make-tracks: repaired: {r}")
-    av, af = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    for note in surf.notes:
+        say(f"make-tracks: {note}")
+    av, af = surf.vertices, surf.faces
     lap("load")
 
     # long triangles are split so that nearest-vertex distances bound the exact ones closely
     want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces))
     split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)
     dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
+    # one part, every edge shared by at most two faces: every face bounds the inside (the
+    # holes are closed by caps); overlapping parts or non-manifold edges: faces inside the
+    # union, or fins outside it, are found by the winding number on both their sides
+    one_sheet = surf.parts == 1 and surf.non_manifold_edges == 0
+    inside = reduce.Inside(dv, df, all_faces_bound=one_sheet, holes=surf.holes > 0)
+    dropped = 0
+    if not one_sheet:
+        # faces inside the union of overlapping parts (or fins outside it) bound nothing
+        bound = winding.boundary_faces(inside.wn, dv, df)
+        dropped = int((~bound).sum())
+        if not bound.any():
+            raise GeometryError(f"{src}: the mesh has no inside: no face has the inside on one "
+                                "side and the outside on the other (an open sheet or a plane); "
+                                "give it a closed body (close it, or give the sheet a "
+                                "thickness, in a modeller)")
+        used, kf_ = np.unique(df[bound], return_inverse=True)
+        dv, df = dv[used], kf_.reshape(-1, 3)
+    lap("winding")
     dist = SurfaceDistance(dv, df)
-    red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"])
+    red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"],
+                             inside)
     rv, rf = reduce.manifold_arrays(red.body)
+    surface = {**surf.facts(), "parts_merged": surf.parts if surf.parts > 1 else 0,
+               "faces_dropped_inside_or_outside": dropped,
+               "winding_number_min": round(red.winding_range[0], 4),
+               "winding_number_max": round(red.winding_range[1], 4),
+               "inside_volume_mm3": red.inside_volume_mm3}
+    if not surf.closed:
+        say(f"make-tracks: {_surface_line(surf, dropped, red.winding_range)}")
     lap("reduce")
-    offset = reduce.offset_error(rv, rf, dv, df, float(cover_mm), dist=dist)
+    offset = reduce.offset_error(rv, rf, dv, df, float(cover_mm), dist=dist,
+                                 caps=inside.cap_points)
     lap("hausdorff")
 
     zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
@@ -242,6 +290,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
 
     curves = [p.points for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
     closed = [p.closed for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
+    # each curve's axis (x: a plane x = const, index i; y: y = const, index j)
+    curve_ids = [(axis, k - k_min) for axis, d, k_min in (("x", x_pieces, k0), ("y", y_pieces, l0))
+                 for k in sorted(d) for _ in d[k]]
     tube_meshes = []
     for pts, cl in zip(curves, closed, strict=True):
         for line in tubes.track_polylines(pts, cl):
@@ -269,6 +320,12 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         warnings.append(f"long triangles were split to {split_edge:.2f} mm edges, not "
                         f"{want_edge:.2f} mm (at most {split_cap} triangles); the offset "
                         "may be less accurate (check offset_error)")
+    if red.islands:
+        big = max(red.islands, key=lambda i: i["volume_mm3"])
+        warnings.append(f"the {cover_mm:g} mm offset cut off {len(red.islands)} small piece(s) "
+                        f"of {sum(i['volume_mm3'] for i in red.islands):.3g} mm^3 (the largest "
+                        f"at {big['at_mm']} mm): a feature there is thinner than twice the "
+                        "cover; they are not in the reduced body")
     if slivers:
         warnings.append(f"dropped {len(slivers)} sliver(s) of {sum(slivers):.3g} mm^3 that "
                         "tracks along a sharp edge cut off the piece")
@@ -278,10 +335,12 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                         f"{top.genus()} -> {tracked.genus()}); try another {opt['origin_mm']} "
                         f"or a smaller {opt['track_radius_mm']}")
     if offset["hausdorff_mm"] > OFFSET_WARN_FRACTION * float(cover_mm):
+        at = ", ".join(f"{x:.1f}" for x in offset["worst_at_mm"])
         warnings.append(f"the reduced surface departs from the ideal {cover_mm:g} mm offset by "
                         f"up to {offset['hausdorff_mm']:.2f} mm (mean "
-                        f"{offset['reduced_to_ideal_mean_mm']:.2f} mm): thin features lose "
-                        f"detail; raise {opt['faces']}")
+                        f"{offset['reduced_to_ideal_mean_mm']:.2f} mm, worst at ({at}) mm): "
+                        f"a feature there is thinner than twice the cover or finer than the "
+                        f"reduced mesh; raise {opt['faces']} or lower {opt['cover_mm']}")
     for w in warnings:
         say(f"warning: {w}")
     lap("tracks")
@@ -292,14 +351,15 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         p, n = tx["xyz"][o], tx["normals"][o]
         rows.append([t, int(ii[o]), int(jj[o]), *map(float, p), *map(float, n)])
     report = {
-        "artist": src, "unit": unit or "mm", "repairs": repairs,
+        "artist": src, "unit": unit or "mm", "fit_mm": fit_mm, "repairs": repairs,
+        "notes": surf.notes, "artist_surface": surface,
         "triangles": {"artist": int(len(af)), "split": int(len(df)), "reduced": int(len(rf)),
                       "reduced_top": int(len(tf)), "tracked_top": int(len(kf)),
                       "tracks": int(sum(len(f) for _, f in tube_meshes))},
         "cover_mm": float(cover_mm), "faces_target": int(faces),
         "level_set_edge_mm": red.edge_mm, "distance_grid_mm": red.grid_mm,
-        "dropped_islands": red.dropped_islands, "split_long_triangles": split_edge is not None,
-        "split_edge_mm": split_edge,
+        "dropped_islands": red.dropped_islands, "islands": red.islands,
+        "split_long_triangles": split_edge is not None, "split_edge_mm": split_edge,
         "offset_error": offset,
         "split_z_mm": split, "split_z_automatic": split_z_mm is None,
         "grid": {"spacing_x_mm": float(spacing_x_mm), "spacing_y_mm": float(spacing_y_mm),
@@ -310,7 +370,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                   "tunnels": max(tunnels, 0)},
         "dropped_slivers_mm3": slivers, "warnings": warnings,
         "taxel_curve_mismatch_mm": tx["mismatch_mm"],
-        "volume_mm3": {"artist": float(mesh.volume), "reduced": float(red.body.volume()),
+        "volume_mm3": {"artist": red.inside_volume_mm3, "reduced": float(red.body.volume()),
                        "reduced_top": float(top.volume()), "tracked_top": float(tracked.volume())},
         "times_s": times,
     }
@@ -318,8 +378,9 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         tmp = Path(tmp)
         closed, bodies = export.write_stl(tmp / "reduced.stl", rv, rf)
         if not closed or bodies != 1:
-            raise GeometryError(f"{src}: reduced.stl does not reload as one closed mesh "
-                                f"({bodies} bodies)")
+            raise GeometryError(f"{src}: reduced.stl does not reload as one closed mesh ("
+                                f"{'closed' if closed else 'open'}, {bodies} edge-connected "
+                                f"bodies)")
         closed, bodies = export.write_stl(tmp / "tracked_top.stl", kv, kf)
         if not closed or bodies != 1:
             raise GeometryError(
@@ -331,6 +392,13 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         offs = np.cumsum([0] + [len(v) for v, _ in tube_meshes[:-1]])
         tube_f = np.concatenate([f + o for (_, f), o in zip(tube_meshes, offs, strict=True)])
         export.write_stl(tmp / "tracks.stl", tube_v, tube_f)
+        track_rows = [[t, axis, idx, n, *map(float, q)]
+                      for t, ((axis, idx), pts) in enumerate(zip(curve_ids, curves, strict=True))
+                      for n, q in enumerate(pts)]
+        write_csv(tmp / "tracks.csv", TRACK_COLUMNS, track_rows, comments=[
+            f"yarn track centre lines of {Path(src).name} on the reduced surface (mm)",
+            "track: curve number; axis x: the section x = const of grid index i (index), "
+            "axis y: y = const of index j; point: order along the curve"])
         write_csv(tmp / "taxels.csv", TAXEL_COLUMNS, rows, comments=[
             f"taxels of {Path(src).name}: crossings of the track curves on the reduced surface",
             "x_mm, y_mm, z_mm in mm; nx, ny, nz: outward unit normal; i along x, j along y",

@@ -8,12 +8,12 @@ at `level = cover_mm` with an edge length chosen for the requested triangle coun
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
-from fruitcli.geometry.columns import inside_columns
+from fruitcli.geometry import winding
 from fruitcli.geometry.distance import SurfaceDistance
 
 # level-set triangles per mm^2 of surface at edge length e: TRIANGLES_PER_AREA / e^2
@@ -44,33 +44,73 @@ class Reduced:
     grid_mm: float
     dropped_islands: int
     equator_z_mm: float
+    islands: list = field(default_factory=list)
+    winding_range: tuple[float, float] = (0.0, 1.0)
+    inside_volume_mm3: float = 0.0
 
 
 def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: float,
-                         level_mm: float, pad_mm: float, dist: SurfaceDistance | None = None):
-    """Signed distance (positive inside) on a grid; returns (axes (x, y, z), sdf (nx, ny, nz)).
+                         level_mm: float, pad_mm: float, dist: SurfaceDistance | None = None,
+                         inside: Inside | None = None):
+    """Signed distance (positive inside) on a grid; returns (axes (x, y, z), sdf (nx, ny, nz),
+    winding number (nx, ny, nz)).
 
-    Exact within `2 * spacing_mm` of `level_mm`, a nearest-vertex bound elsewhere,
-    clamped to `level_mm + 3 * spacing_mm` far from the surface.
+    The distance is to the surface (`vertices`, `faces`: the faces that bound the inside)
+    and to the caps that close its holes; exact within `2 * spacing_mm` of `level_mm`, a
+    nearest-vertex bound elsewhere, clamped to `level_mm + 3 * spacing_mm` far from the
+    surface. The sign is the winding number's (`inside`: the whole artist surface; default
+    these faces).
     """
+    from scipy.spatial import cKDTree
+
     lo = vertices.min(axis=0) - pad_mm
     hi = vertices.max(axis=0) + pad_mm
     axes = [lo[k] + spacing_mm * np.arange(int(np.ceil((hi[k] - lo[k]) / spacing_mm)) + 1)
             for k in range(3)]
-    gx, gy = np.meshgrid(axes[0], axes[1], indexing="ij")
-    cols = np.c_[gx.ravel(), gy.ravel()]
-    inside = inside_columns(vertices, faces, cols, axes[2]).reshape(len(axes[0]), len(axes[1]),
-                                                                     len(axes[2]))
+    shape = tuple(len(a) for a in axes)
+    inside = inside or Inside(vertices, faces)
     band = level_mm + 3.0 * spacing_mm
+    radius = winding.EXACT_BAND_SPACINGS * spacing_mm
     dist = dist or SurfaceDistance(vertices, faces)
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    d = np.minimum(dist.nearest_vertex_distance(pts, upper_mm=band), band)
-    sdf = np.where(inside.ravel(), d, -d)
+    d = dist.nearest_vertex_distance(pts, upper_mm=max(band, radius))
+    near = d < radius if inside.tree is None else \
+        inside.tree.query(pts, distance_upper_bound=radius)[0] < radius
+    w = winding.grid_winding(inside.wn, axes, near.reshape(shape))
+    d = np.minimum(d, band)
+    cap_tree = None
+    if inside.caps:
+        caps = winding.cap_points(axes, w, dist.nearest_vertex_distance)
+        inside.cap_points = caps
+        if len(caps):
+            cap_tree = cKDTree(caps, balanced_tree=False, compact_nodes=False)
+            d = np.minimum(d, cap_tree.query(pts, distance_upper_bound=band)[0])
+    is_in = w.ravel() > winding.INSIDE
+    sdf = np.where(is_in, d, -d)
     near = np.nonzero(np.abs(sdf - level_mm) < 2.0 * spacing_mm)[0]
     if len(near):
         _, exact, _ = dist.closest(pts[near])
-        sdf[near] = np.where(inside.ravel()[near], exact, -exact)
-    return axes, sdf.reshape(inside.shape)
+        if cap_tree is not None:
+            exact = np.minimum(exact, cap_tree.query(pts[near])[0])
+        sdf[near] = np.where(is_in[near], exact, -exact)
+    return axes, sdf.reshape(shape), w
+
+
+class Inside:
+    """What decides inside and outside: the winding number of the whole artist surface;
+    when only some of its faces bound the inside (overlapping parts, fins), a KD-tree over
+    all its vertices (the winding number jumps at every face); when it has holes, caps
+    (where the winding number crosses 1/2 away from the surface) join the distance."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, all_faces_bound: bool = True,
+                 holes: bool = False):
+        from scipy.spatial import cKDTree
+
+        self.wn = winding.Winding(vertices, faces)
+        self.tree = None if all_faces_bound else \
+            cKDTree(vertices, balanced_tree=False, compact_nodes=False)
+        self.caps = bool(holes)
+        self.cap_points = np.zeros((0, 3))
 
 
 def _trilinear(axes, sdf: np.ndarray):
@@ -277,18 +317,29 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
 
 def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target_faces: int,
                 source: str = "mesh", dist: SurfaceDistance | None = None,
-                cover_name: str = "--cover-mm") -> Reduced:
-    """Offset a closed mesh inward by `cover_mm` with about `target_faces` triangles
-    (`cover_name`: how the user sets cover_mm, named in errors)."""
+                cover_name: str = "--cover-mm", inside: Inside | None = None) -> Reduced:
+    """Offset a surface inward by `cover_mm` with about `target_faces` triangles
+    (`cover_name`: how the user sets cover_mm, named in errors). `vertices`, `faces`: the
+    faces that bound the inside; `inside`: what decides inside (default: these faces)."""
     import manifold3d
 
     edge = edge_for_faces(surface_area(vertices, faces), OVERSAMPLE * target_faces)
     h = GRID_PER_EDGE * edge
     pad = 2.0 * h
-    axes, sdf = signed_distance_grid(vertices, faces, h, cover_mm, pad, dist)
+    axes, sdf, w = signed_distance_grid(vertices, faces, h, cover_mm, pad, dist, inside)
+    deep = (sdf > h) & (w > winding.DEEP_INSIDE)
+    if not deep.any():
+        raise GeometryError(
+            f"{source}: the mesh has no inside: its winding number reaches only "
+            f"{float(w[sdf > h].max(initial=w.min())):.2f} away from the surface (a body "
+            f"reaches {winding.DEEP_INSIDE:g} to 1), as for an open sheet or a plane; give "
+            "it a closed body (close it, or give the sheet a thickness, in a modeller)")
     if not (sdf > cover_mm).any():
-        raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm consumes the whole "
-                            f"body (use a smaller {cover_name})")
+        where = _xyz(axes, int(np.argmax(sdf)))
+        raise GeometryError(
+            f"{source}: an inward offset of {cover_mm:g} mm consumes the whole body: it is "
+            f"at most {2 * float(sdf.max()):.2f} mm thick (at {where} mm), thinner than twice "
+            f"the cover; use a smaller {cover_name}")
     lo = [float(a[0]) for a in axes]
     hi = [float(a[-1]) for a in axes]
     body = manifold3d.Manifold.level_set(_trilinear(axes, sdf), lo + hi, edge, cover_mm)
@@ -299,15 +350,126 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
     big = pieces[0].volume()
     kept = [p for p in pieces if p.volume() >= ISLAND_VOLUME_FRACTION * big]
     if len(kept) > 1:
-        raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm pinches the body "
-                            f"apart into {len(kept)} pieces (use a smaller {cover_name})")
+        thick, where = neck(axes, sdf, cover_mm)
+        if thick is None:
+            raise GeometryError(
+                f"{source}: the mesh encloses {len(kept)} separate bodies (their insides do "
+                f"not touch; the two largest around {where} mm); expected one casting piece: "
+                "join them or delete the extra bodies")
+        raise GeometryError(
+            f"{source}: an inward offset of {cover_mm:g} mm pinches the body apart into "
+            f"{len(kept)} pieces: the feature joining them at {where} mm is only "
+            f"{thick:.2f} mm thick, thinner than twice the cover; use a smaller {cover_name} "
+            "(or thicken that feature)")
+    islands = [(float(p.volume()), _centre(p)) for p in pieces[1:]]
     body = simplify_to(pieces[0], target_faces, SIMPLIFY_MAX_PER_EDGE * edge)
+    body, cut_off = _drop_pinched_shells(body)
+    islands += cut_off
+    if sum(v for v, _ in cut_off) >= ISLAND_VOLUME_FRACTION * body.volume():
+        v, at = max(cut_off)
+        raise GeometryError(
+            f"{source}: an inward offset of {cover_mm:g} mm pinches off a piece of {v:.0f} "
+            f"mm^3 at {at} mm: the feature joining it is thinner than twice the cover; use a "
+            f"smaller {cover_name} (or thicken that feature)")
     # equator: the height of the largest horizontal cross-section of the reduced body
     area_z = (sdf > cover_mm).sum(axis=(0, 1)).astype(float)
     plateau = np.nonzero(area_z >= EQUATOR_AREA_FRACTION * area_z.max())[0]
     equator = float(np.median(axes[2][plateau]))
-    return Reduced(body=body, edge_mm=edge, grid_mm=h, dropped_islands=len(pieces) - 1,
-                   equator_z_mm=equator)
+    inside_w = w > winding.INSIDE
+    return Reduced(body=body, edge_mm=edge, grid_mm=h, dropped_islands=len(islands),
+                   islands=[{"volume_mm3": round(v, 3), "at_mm": at} for v, at in islands],
+                   equator_z_mm=equator,
+                   winding_range=(float(w.min()), float(w.max())),
+                   inside_volume_mm3=float(inside_w.sum()) * h ** 3)
+
+
+def _centre(m) -> str:
+    """'(x, y, z)' of a Manifold's bounding-box centre, in mm."""
+    b = m.bounding_box()
+    return "(" + ", ".join(f"{0.5 * (b[k] + b[k + 3]):.1f}" for k in range(3)) + ")"
+
+
+def _drop_pinched_shells(body):
+    """Split a Manifold into its edge-connected shells (manifold3d keeps shells that touch
+    at one vertex together; a mesh file reader does not) and keep the largest.
+    Returns (body, [(volume mm^3, centre) of each shell dropped])."""
+    from fruitcli.geometry.load import edge_shells
+
+    v, f = manifold_arrays(body)
+    labels = edge_shells(f, len(v))
+    if labels.max() == 0:
+        return body, []
+    tri = v[f]
+    vol = np.bincount(labels, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
+    vol /= 6.0
+    big = int(np.argmax(vol))
+    out = []
+    for k in range(len(vol)):
+        if k != big:
+            c = tri[labels == k].reshape(-1, 3)
+            mid = 0.5 * (c.min(axis=0) + c.max(axis=0))
+            out.append((float(vol[k]), "(" + ", ".join(f"{x:.1f}" for x in mid) + ")"))
+    keep = f[labels == big]
+    used, inv = np.unique(keep, return_inverse=True)
+    return to_manifold64(v[used], inv.reshape(-1, 3)), out
+
+
+def to_manifold64(vertices: np.ndarray, faces: np.ndarray):
+    """A manifold3d.Manifold from float64 arrays (no rounding to float32)."""
+    import manifold3d
+
+    return manifold3d.Manifold(manifold3d.Mesh64(np.ascontiguousarray(vertices, dtype=float),
+                                                 np.ascontiguousarray(faces, dtype=np.uint64)))
+
+
+def _xyz(axes, flat_index: int) -> str:
+    """'(x, y, z)' of a grid point, in mm."""
+    ijk = np.unravel_index(flat_index, tuple(len(a) for a in axes))
+    return "(" + ", ".join(f"{float(axes[k][ijk[k]]):.1f}" for k in range(3)) + ")"
+
+
+def neck(axes, sdf: np.ndarray, cover_mm: float, steps: int = 10):
+    """Where the offset pinches the body apart: the thickness (mm, twice the largest level
+    at which the two largest pieces of {sdf > level} are still joined) and the grid point
+    '(x, y, z)' at that level joining them. (None, 'A and B') when the pieces are not
+    joined even inside the body: separate bodies around A and B."""
+    from scipy import ndimage
+
+    def pieces(level):
+        lab, n = ndimage.label(sdf > level)
+        if n < 2:
+            return lab, None
+        size = np.bincount(lab.ravel())[1:]
+        return lab, 1 + np.argsort(-size)[:2]
+
+    lab, two = pieces(cover_mm)
+    if two is None:
+        return 2 * cover_mm, "(unknown)"
+    a_pts = np.argwhere(lab == two[0])
+    b_pts = np.argwhere(lab == two[1])
+    lab0, _ = pieces(0.0)
+    if lab0[tuple(a_pts[0])] != lab0[tuple(b_pts[0])]:
+        at = [_xyz(axes, int(np.ravel_multi_index(tuple(p.mean(axis=0).astype(int)),
+                                                  sdf.shape))) for p in (a_pts, b_pts)]
+        return None, " and ".join(at)
+    lo, hi = 0.0, cover_mm          # joined at lo (inside the body), apart at hi
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lab_m, _ = pieces(mid)
+        if lab_m[tuple(a_pts[0])] == lab_m[tuple(b_pts[0])]:
+            lo = mid
+        else:
+            hi = mid
+    from scipy.spatial import cKDTree
+
+    ring = np.argwhere((sdf > lo) & (sdf <= hi + 0.5 * (hi - lo) + 1e-9))
+    if len(ring) == 0:
+        return 2 * lo, "(unknown)"
+    da, _ = cKDTree(a_pts).query(ring)
+    db, _ = cKDTree(b_pts).query(ring)
+    k = ring[int(np.argmin(np.maximum(da, db)))]
+    flat = int(np.ravel_multi_index(tuple(k), sdf.shape))
+    return 2 * lo, _xyz(axes, flat)
 
 
 def simplify_to(body, target_faces: int, max_tol_mm: float):
@@ -337,18 +499,26 @@ def manifold_arrays(m) -> tuple[np.ndarray, np.ndarray]:
 
 def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndarray,
                  artist_f: np.ndarray, cover_mm: float, n_samples: int = 20000,
-                 dist: SurfaceDistance | None = None) -> dict:
+                 dist: SurfaceDistance | None = None, caps: np.ndarray | None = None) -> dict:
     """Hausdorff-type distance (mm) between the reduced surface and the ideal offset surface.
 
     reduced -> ideal: | distance to the artist surface - cover | at reduced vertices and
     face centres; ideal -> reduced: artist points moved inward by the cover along their
-    normal (where that is a true offset point) measured to the reduced surface.
+    normal (where that is a true offset point) measured to the reduced surface. `caps`
+    (k, 3): points on the caps closing the artist surface's holes, part of its surface.
     """
+    from scipy.spatial import cKDTree
+
     art = dist or SurfaceDistance(artist_v, artist_f)
+    cap_tree = cKDTree(caps) if caps is not None and len(caps) else None
+
+    def to_artist(p):
+        _, d, _ = art.closest(p)
+        return d if cap_tree is None else np.minimum(d, cap_tree.query(p)[0])
+
     tri = reduced_v[reduced_f]
     q = np.concatenate([reduced_v, tri.mean(axis=1)])
-    _, d, _ = art.closest(q)
-    fwd = np.abs(d - cover_mm)
+    fwd = np.abs(to_artist(q) - cover_mm)
     atri = artist_v[artist_f]
     step = max(1, len(artist_f) // n_samples)
     atri = atri[::step]
@@ -356,12 +526,15 @@ def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndar
     norm = np.linalg.norm(n, axis=1)
     ok = norm > 0
     ideal = atri[ok].mean(axis=1) - cover_mm * n[ok] / norm[ok, None]
-    _, d_ideal, _ = art.closest(ideal)
+    d_ideal = to_artist(ideal)
     ideal = ideal[np.abs(d_ideal - cover_mm) < 1e-3 * max(cover_mm, 1.0) + 1e-6]
     back = np.zeros(0)
     if len(ideal):
         _, back, _ = SurfaceDistance(reduced_v, reduced_f).closest(ideal)
     h_fwd = float(fwd.max()) if len(fwd) else 0.0
     h_back = float(back.max()) if len(back) else 0.0
+    worst = q[int(np.argmax(fwd))] if h_fwd >= h_back or not len(back) else \
+        ideal[int(np.argmax(back))]
     return {"hausdorff_mm": max(h_fwd, h_back), "reduced_to_ideal_max_mm": h_fwd,
-            "ideal_to_reduced_max_mm": h_back, "reduced_to_ideal_mean_mm": float(fwd.mean())}
+            "ideal_to_reduced_max_mm": h_back, "reduced_to_ideal_mean_mm": float(fwd.mean()),
+            "worst_at_mm": [round(float(x), 2) for x in worst]}

@@ -4,11 +4,16 @@ Units: mm, counts, s.
 
 Sample points: "quarter" puts one sample a quarter taxel off each taxel, +spacing_x/4 in
 x and +spacing_y/4 in y (the paper's rest truth points sit on a regular lattice; its
-sign cannot be read from the paper, we take +). The contact point is where a vertical
-line through the sample's (x, y) meets the surface from above: the FEM state's outer
-boundary (``surface_tris`` of the deformed nodes) when states are given, otherwise the
-taxels' own surface, interpolated linearly over a Delaunay triangulation of the taxels'
-(x, y) (samples outside it are dropped).
+sign cannot be read from the paper, we take +). The ground truth has one definition in
+every configuration: the contact point is where a vertical line through the sample's
+(x, y) first meets the body's surface from above, the body being the reduced surface the
+FEM body is made from (``make-tracks/reduced.stl`` or the scene's solid). At rest it is
+that surface as it is; in a FEM state its vertices are carried by the FEM's displacement
+(each mapped once into its rest tet, like the taxels), so a state with zero displacement
+gives exactly the rest truth. Samples whose vertical line misses the body are dropped.
+Without a body surface (taxels given directly) the bench falls back to the FEM state's
+outer boundary, or at rest to the taxels' own surface interpolated linearly over a
+Delaunay triangulation of their (x, y), and says so.
 
 The indenter starts ``START_GAP_MM`` above the contact point and descends by ``step_mm``;
 each step is one frame. The first frame in which some taxel's v = C - C0 exceeds the
@@ -53,6 +58,19 @@ def surface_heights(xy_mm: np.ndarray, nodes_mm: np.ndarray, tris: np.ndarray) -
     return np.where(np.isfinite(z), z, np.nan)
 
 
+def carried_vertices(rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray,
+                     vertices: np.ndarray) -> np.ndarray:
+    """Surface vertices (V, 3) mm at rest, moved with a FEM state: each vertex mapped
+    barycentrically into its rest tet (corner nodes of `tets`), placed by the same weights
+    on the deformed `nodes` (N, 3). Vertices just outside the tet mesh (its surface is a
+    remeshed copy of this one) are extrapolated from the nearest tet."""
+    from fruitcli.fem.barycentric import apply, locate
+
+    corners = np.asarray(tets)[:, :4]
+    tet, weights, _ = locate(rest_nodes, corners, vertices)
+    return apply(nodes, corners, tet, weights)
+
+
 def taxel_surface_heights(xy_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
     """z of the taxels' surface (linear over their xy Delaunay triangles) at (P, 2); NaN
     outside."""
@@ -87,7 +105,7 @@ def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarr
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
     for k, p in enumerate(contact_mm):
         dist = np.linalg.norm(taxels_mm - p, axis=1)
-        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter)
+        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter, skin)
         counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
         hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
         if hit.size == 0:

@@ -1,11 +1,17 @@
 """Touch detection on the taxel grid (paper Sec. III-B): baseline, N9 centroid, multitouch.
 
-Units: counts. Vectorized over frames: each round takes every frame's maximum at once;
-rounds loop over touches per frame, never over frames.
+Units: counts.
 
 Activation v = C - C0 clipped at 0, on a padded taxel grid (H, W) = (I + 2, J + 2) whose
 border and cells without a taxel stay 0, so off-grid and missing cells count 0 in N9.
 Ties of the maximum go to the first cell in row-major order (lowest i, then lowest j).
+
+The batch N9 (`n9_sequential`) does not build that grid: a compiled loop over the
+frames (`n9_kernel`) reads each frame's taxel counts in row-major grid order (`Layout`)
+and their N9 neighbours through a table; the centroids are vectorized over all touches,
+as is the `peaks` method over frames. The weighted offsets sum the N9 terms in one
+fixed order (`n9_offsets`), so a touch's i and j do not depend on how many frames are
+detected together.
 """
 
 from __future__ import annotations
@@ -37,13 +43,15 @@ class Touches:
         return int(self.frame.shape[0])
 
 
-def baseline_counts(frames: np.ndarray, k: int, where: str = "frames") -> np.ndarray:
-    """C0: mean of the first `k` frames (counts), shape of one frame."""
+def baseline_counts(frames: np.ndarray, k: int, where: str = "frames",
+                    n_frames: int | None = None) -> np.ndarray:
+    """C0: mean of the first `k` frames (counts), shape of one frame. `n_frames`: the
+    recording's length when `frames` holds only its first frames."""
+    n = frames.shape[0] if n_frames is None else n_frames
     if k < 1:
         raise FrameError(f"{where}: baseline frames: expected >= 1, got {k}")
-    if frames.shape[0] < k:
-        raise FrameError(f"{where}: {frames.shape[0]} frames, fewer than the {k} baseline "
-                         "frames")
+    if n < k:
+        raise FrameError(f"{where}: {n} frames, fewer than the {k} baseline frames")
     return frames[:k].mean(axis=0)
 
 
@@ -69,6 +77,48 @@ class Grid:
         return _DI * self.shape[1] + _DJ
 
 
+@dataclass(frozen=True)
+class Layout:
+    """The taxels in row-major grid order ("positions"), where the batch N9 works: each
+    position's frame cell, N9 neighbours and padded grid cell. The first maximum over
+    positions is the first in the grid's row-major order, as on the padded grid."""
+
+    frame_cell: np.ndarray  # (T,) flat frame index of each taxel (file order)
+    taxel: np.ndarray  # (T,) taxel at each position
+    cell: np.ndarray  # (T,) flat frame index of each position
+    n9: np.ndarray  # (T, 9) position of each N9 cell of a position (-1: no taxel there)
+    n9_taxel: np.ndarray  # (T, 9) taxel of each N9 cell (-1: none)
+    ci: np.ndarray  # (T,) padded grid row of each position
+    cj: np.ndarray  # (T,) padded grid column
+
+    @classmethod
+    def build(cls, grid: Grid, frame_cell: np.ndarray) -> Layout:
+        """`frame_cell` (T,): flat frame index of each taxel."""
+        frame_cell = np.asarray(frame_cell, dtype=np.int64)
+        order = np.argsort(grid.cell, kind="stable")  # taxels in row-major grid order
+        column = np.empty(order.size, np.int64)
+        column[order] = np.arange(order.size)
+        pos_of_cell = np.full(grid.taxel_of_cell.size, -1, np.int64)
+        pos_of_cell[grid.cell] = column
+        idx = grid.cell[order][:, None] + grid.offsets
+        ci, cj = np.divmod(grid.cell[order], grid.shape[1])
+        return cls(frame_cell, order, frame_cell[order], pos_of_cell[idx],
+                   grid.taxel_of_cell[idx], ci, cj)
+
+
+def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted N9 offsets (sum_k w_k di_k, sum_k w_k dj_k) of weights w (n, 9).
+
+    The terms are +-w_k or 0 (exact); they are summed in the order of the BLAS kernel
+    that ``w @ di`` ran on whole recordings before (lanes k and k + 4, lanes (0 + 2) +
+    (1 + 3), then term 8), the same for every row, however many are summed together.
+    """
+    c = [w[:, k] for k in range(9)]
+    di = (((c[6] - c[2]) - c[0]) + (c[7] - c[1])) + c[8]
+    dj = (((c[2] - c[6]) - c[0]) + (c[5] - c[3])) + c[8]
+    return di, dj
+
+
 def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid) -> np.ndarray:
     """v = max(C - C0, 0) per taxel (N, T) -> padded flat grid (N, H * W) float64."""
     v = np.asarray(values, dtype=float) - baseline
@@ -87,8 +137,9 @@ def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Gri
         win = np.maximum(win - floor, 0.0)
     w = win / win.sum(axis=1, keepdims=True)
     ci, cj = np.divmod(centre, grid.shape[1])
-    i = (ci - 1) + w @ _DI
-    j = (cj - 1) + w @ _DJ
+    di, dj = n9_offsets(w)
+    i = (ci - 1) + di
+    j = (cj - 1) + dj
     return i, j, grid.taxel_of_cell[idx], w, idx
 
 
@@ -103,28 +154,33 @@ def _collect(parts: list[tuple]) -> Touches:
     return Touches(*(c[order] for c in cols))
 
 
-def n9_sequential(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
+def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
+                  threshold: float, floor: float = 0.0,
                   max_touches: int = MAX_TOUCHES) -> Touches:
-    """The paper's multitouch: take the maximum, N9 centroid, zero N9, repeat while
-    some v > threshold. `flat` (N, H*W) padded activations (modified in place)."""
+    """The paper's multitouch on frames (N, rows * cols) counts against C0 (T,): take the
+    maximum, N9 centroid, zero N9, repeat while some v > threshold. The extraction runs
+    compiled frame by frame (`n9_kernel.n9_scan`), the centroids vectorized."""
+    from fruitcli.sensing.n9_kernel import n9_scan
+
     if floor >= threshold:
         raise FrameError(f"noise floor {floor} counts must be below the threshold {threshold}")
-    alive = np.arange(flat.shape[0])
-    parts = []
-    for r in range(max_touches):
-        if alive.size == 0:
-            break
-        sub = flat[alive]
-        k = sub.argmax(axis=1)
-        peak = sub[np.arange(alive.size), k]
-        hit = peak > threshold
-        alive, k, peak = alive[hit], k[hit], peak[hit]
-        if alive.size == 0:
-            break
-        i, j, tax, w, idx = _centroids(flat, alive, k, grid, floor)
-        parts.append((alive, np.full(alive.size, r), i, j, peak, tax, w))
-        flat[alive[:, None], idx] = 0.0
-    return _collect(parts)
+    n = frames.shape[0]
+    cap = n * max_touches
+    frame, rank, pos = (np.empty(cap, np.int64) for _ in range(3))
+    peak, win = np.empty(cap), np.empty((cap, 9))
+    base = np.asarray(baseline, dtype=float)[layout.taxel]
+    count = n9_scan(np.ascontiguousarray(frames, dtype=np.int64), layout.cell, base,
+                    layout.n9, float(threshold), int(max_touches), frame, rank, pos, peak,
+                    win)
+    if count == 0:
+        return _collect([])
+    k = pos[:count]
+    win = win[:count]
+    win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
+    w = win / win.sum(axis=1, keepdims=True)
+    di, dj = n9_offsets(w)
+    return Touches(frame[:count].copy(), rank[:count].copy(), (layout.ci[k] - 1) + di,
+                   (layout.cj[k] - 1) + dj, peak[:count].copy(), layout.n9_taxel[k], w)
 
 
 def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndarray,
@@ -165,13 +221,16 @@ def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
     return Touches(f, rank, i, j, peak, tax, w)
 
 
-def detect(flat: np.ndarray, grid: Grid, threshold: float, method: str = "n9",
-           floor: float = 0.0, max_touches: int = MAX_TOUCHES) -> Touches:
-    """Dispatch on the scene's ``[detection].method``: n9 (paper), n9_floor or peaks."""
-    if method == "n9":
-        return n9_sequential(flat, grid, threshold, 0.0, max_touches)
-    if method == "n9_floor":
-        return n9_sequential(flat, grid, threshold, floor, max_touches)
+def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
+           threshold: float, method: str = "n9", floor: float = 0.0,
+           max_touches: int = MAX_TOUCHES) -> Touches:
+    """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
+    ``[detection].method``: n9 (paper), n9_floor or peaks."""
+    if method in ("n9", "n9_floor"):
+        return n9_sequential(frames, baseline, layout, threshold,
+                             floor if method == "n9_floor" else 0.0, max_touches)
     if method == "peaks":
-        return n9_peaks(flat, grid, threshold, floor, max_touches)
+        values = np.take(frames, layout.frame_cell, axis=1)
+        return n9_peaks(activation_grid(values, baseline, grid), grid, threshold, floor,
+                        max_touches)
     raise FrameError(f"detection method: expected n9, n9_floor or peaks, got {method!r}")

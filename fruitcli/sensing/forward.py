@@ -1,28 +1,38 @@
 """The skin's forward model: raw CDC counts of every taxel for an indenter and a FEM state.
 
-Units: mm, counts. Each parameter, its value and its source (none is fitted to the
-paper's Table I):
+Units: mm, counts. The touch response's parameters (footprint width per indenter, counts
+at contact, gap decay, noise, taxel gain spread) are a scene's ``[skin]`` table
+(`SkinParams`); the values below are its defaults. Each parameter, its default and its
+source (none is fitted to the paper's Table I; `fruit study bench` shows how the bench's
+rows depend on the assumed ones):
 
 - ``THRESHOLD_COUNTS`` = 20: the paper's touch threshold, "very light touch or even
   pre-touch" (Sec. V-A).
 - ``CONTACT_COUNTS`` = 60: activation of a taxel right under an indenter at contact.
   Assumption: three times the threshold, so the threshold is crossed just before contact
-  (pre-touch, Sec. V-A); the MuCa visualizers show touches on a 0-200 scale
-  (research/touch-anchors.md), a light touch sits in its lower part.
+  (pre-touch, Sec. V-A). ``[skin].contact_counts``.
 - ``GAP_DECAY_MM`` = 2: activation falls as exp(-gap / 2 mm) with the indenter's gap to
   the surface. Assumption: the fringing field reaches about one cover thickness
   (``[tracks].cover_mm`` = 2 mm) beyond the electrodes (Sec. III-C, Fig. 5). With 60
   counts at contact, the threshold is crossed at a gap of 2 ln 3 = 2.2 mm.
+  ``[skin].gap_decay_mm``.
 - ``FIELD_SIGMA_MM`` = 6: the lateral reach of one crossing, a Gaussian in the 3D
   distance from the contact point to the (deformed) taxel. Assumption: half the 12 mm
   pitch, so a quarter-taxel offset activates more than one taxel, as the paper's bench
   protocol requires (Sec. V-B).
 - ``INDENTER_RADIUS_MM``: small rubber tip 1.5 mm, medium Allen key 4 mm (Fig. 15 (a),
-  (b): the Allen key is the wider one); the footprint is sigma = hypot(FIELD_SIGMA_MM, r).
+  (b): the Allen key is the wider one); the footprint is sigma = hypot(FIELD_SIGMA_MM, r):
+  6.18 mm small, 7.21 mm medium, ``[skin].footprint_sigma_mm`` per indenter. This width
+  sets the bench's error more than any other parameter (`fruit study bench`).
+- Taxel gain: activation times a per-taxel gain, 1 by default; ``[skin].gain_spread`` =
+  s draws gains uniformly in 1 +- s (seeded). Assumption: a uniform skin.
+  ``[skin].taxel_gain`` = a CSV (id, gain), e.g. `fruit calibrate`'s gains.csv, gives
+  measured gains instead.
 - ``BASELINE_COUNTS`` = 500 +- 30 (seeded per taxel): per-taxel baselines C0. Only
   differences matter; any level works (the FT5316 reports 16-bit counts).
 - Noise: Gaussian, per-taxel std drawn uniformly in [0.5, 1.85] counts (seeded), so the
-  measured std of the integer counts peaks near the paper's 1.9 counts (Fig. 10).
+  measured std of the integer counts peaks near the paper's 1.9 counts (Fig. 10);
+  ``[skin].noise_std_counts``: that range [lo, hi], or one std for every taxel.
 - Deformation baseline shift: ``gain * fab * strain``, strain = the area-weighted
   in-plane Green strain norm of the FEM surface within ``CROSSING_RADIUS_MM`` = 4 mm of
   the crossing (assumption: the yarns are sewn into the surface, so the crossing feels
@@ -44,6 +54,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -68,40 +79,117 @@ CROSSING_RADIUS_MM = 4.0  # surface around a crossing whose stretch shifts its b
 CROSSING_PLANE_MM = 1.0  # ... and how far off the crossing's tangent plane it may curve
 
 
+GAIN_STREAM = 7  # gains are drawn from their own seeded stream: spread 0 changes nothing
+
+
+def default_footprints_mm() -> dict[str, float]:
+    """Footprint sigma per indenter (mm): hypot(FIELD_SIGMA_MM, indenter radius)."""
+    return {k: float(np.hypot(FIELD_SIGMA_MM, r)) for k, r in INDENTER_RADIUS_MM.items()}
+
+
+@dataclass(frozen=True)
+class SkinParams:
+    """The touch response's parameters, a scene's [skin] table (mm, counts)."""
+
+    footprint_sigma_mm: dict  # indenter name -> lateral Gaussian width (mm)
+    contact_counts: float = CONTACT_COUNTS
+    gap_decay_mm: float = GAP_DECAY_MM
+    gain_spread: float = 0.0  # taxel gains uniform in 1 +- spread
+    noise_std_counts: float | tuple = NOISE_STD_RANGE_COUNTS  # one std, or (lo, hi) per taxel
+    taxel_gain: Path | None = None  # CSV (id, gain) of measured gains, instead of the spread
+
+    @classmethod
+    def from_table(cls, table: dict | None) -> SkinParams:
+        """From a validated [skin] table (None or missing keys: the defaults)."""
+        table = table or {}
+        feet = {**default_footprints_mm(), **(table.get("footprint_sigma_mm") or {})}
+        noise = table.get("noise_std_counts", NOISE_STD_RANGE_COUNTS)
+        return cls({k: float(v) for k, v in feet.items()},
+                   float(table.get("contact_counts", CONTACT_COUNTS)),
+                   float(table.get("gap_decay_mm", GAP_DECAY_MM)),
+                   float(table.get("gain_spread", 0.0)),
+                   tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
+                   table.get("taxel_gain"))
+
+
+DEFAULT_PARAMS = SkinParams(default_footprints_mm())
+
+
 @dataclass(frozen=True)
 class Skin:
-    """Per-taxel properties of one fabricated skin (seeded)."""
+    """Per-taxel properties of one fabricated skin (seeded) and its touch response."""
 
     baseline_counts: np.ndarray  # (T,)
     noise_std_counts: np.ndarray  # (T,)
     fab: np.ndarray  # (T,) fabrication factor of the strain shift
+    gain: np.ndarray | None = None  # (T,) activation gain, None: 1
+    params: SkinParams = DEFAULT_PARAMS
 
 
-def make_skin(n_taxels: int, seed: int = 0) -> Skin:
-    """Draw per-taxel baselines, noise std and fabrication factors from `seed`."""
+def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS,
+              taxel_ids=None) -> Skin:
+    """Draw per-taxel baselines, noise std, fabrication factors and gains from `seed`;
+    with ``params.taxel_gain`` the gains are read from it for `taxel_ids` (T,)."""
     rng = np.random.default_rng(seed)
     base = BASELINE_COUNTS + rng.uniform(-1, 1, n_taxels) * BASELINE_SPREAD_COUNTS
-    std = rng.uniform(*NOISE_STD_RANGE_COUNTS, n_taxels)
+    noise = params.noise_std_counts
+    lo, hi = noise if isinstance(noise, tuple) else NOISE_STD_RANGE_COUNTS
+    std = rng.uniform(lo, hi, n_taxels)  # drawn in any case: the later draws stay the same
+    if not isinstance(noise, tuple):
+        std = np.full(n_taxels, noise)
     defect = rng.random(n_taxels) < DEFECT_PROBABILITY
     fab = np.where(defect, rng.uniform(*DEFECT_FACTOR_RANGE, n_taxels), 1.0)
-    return Skin(np.round(base), std, fab)
+    gain = None
+    if params.gain_spread > 0:
+        g = np.random.default_rng([seed, GAIN_STREAM])
+        gain = 1.0 + g.uniform(-1, 1, n_taxels) * params.gain_spread
+    if params.taxel_gain is not None:
+        if taxel_ids is None or len(taxel_ids) != n_taxels:
+            raise ValueError("make_skin: [skin].taxel_gain needs the taxel ids")
+        gain = load_taxel_gains(params.taxel_gain, taxel_ids)
+    return Skin(np.round(base), std, fab, gain, params)
 
 
-def footprint_sigma_mm(indenter: str) -> float:
+def load_taxel_gains(path, taxel_ids) -> np.ndarray:
+    """Gains (T,) of the taxels `taxel_ids` (T,) from a CSV with columns id, gain (e.g.
+    `fruit calibrate`'s gains.csv); every taxel must be in it, each gain > 0."""
+    from fruitcli.tables import read_table
+
+    cols = read_table(path, ["id", "gain"], error=FrameError)
+    ids, gains = cols["id"].astype(np.int64), cols["gain"]
+    if len(np.unique(ids)) != len(ids):
+        raise FrameError(f"{path}: a taxel id appears twice")
+    bad = np.flatnonzero(gains <= 0)
+    if bad.size:
+        raise FrameError(f"{path}: taxel {ids[bad[0]]}: gain expected > 0, got "
+                         f"{gains[bad[0]]:g}")
+    row = dict(zip(ids.tolist(), range(len(ids)), strict=True))
+    missing = [int(t) for t in taxel_ids if int(t) not in row]
+    if missing:
+        raise FrameError(f"{path}: no gain for taxel(s) {', '.join(map(str, missing[:5]))} "
+                         f"({len(missing)} of {len(taxel_ids)} taxels missing; [skin].taxel_gain "
+                         "must be made for these taxels)")
+    return gains[[row[int(t)] for t in taxel_ids]]
+
+
+def footprint_sigma_mm(indenter: str, params: SkinParams = DEFAULT_PARAMS) -> float:
     """Lateral Gaussian width of an indenter's activation (mm)."""
-    if indenter not in INDENTER_RADIUS_MM:
-        raise FrameError(f"indenter: expected one of {', '.join(INDENTER_RADIUS_MM)}, "
+    if indenter not in params.footprint_sigma_mm:
+        raise FrameError(f"indenter: expected one of {', '.join(params.footprint_sigma_mm)}, "
                          f"got {indenter!r}")
-    return float(np.hypot(FIELD_SIGMA_MM, INDENTER_RADIUS_MM[indenter]))
+    return params.footprint_sigma_mm[indenter]
 
 
-def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str) -> np.ndarray:
+def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str,
+                      skin: Skin | None = None) -> np.ndarray:
     """Mean activation (counts) of taxels at 3D distance `dist_mm` (..., T) from the
     contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in)."""
-    sigma = footprint_sigma_mm(indenter)
+    p = DEFAULT_PARAMS if skin is None else skin.params
+    sigma = footprint_sigma_mm(indenter, p)
     lateral = np.exp(-0.5 * (np.asarray(dist_mm) / sigma) ** 2)
-    approach = np.exp(-np.asarray(gap_mm, dtype=float) / GAP_DECAY_MM)
-    return CONTACT_COUNTS * lateral * approach[..., None]
+    approach = np.exp(-np.asarray(gap_mm, dtype=float) / p.gap_decay_mm)
+    v = p.contact_counts * lateral * approach[..., None]
+    return v if skin is None or skin.gain is None else v * skin.gain
 
 
 def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray,

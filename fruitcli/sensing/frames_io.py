@@ -4,7 +4,10 @@ Units: counts (raw CDC values, not baseline-subtracted), seconds, kPa.
 
 npz keys (loaded with ``allow_pickle=False``): ``frames`` (N, R, C) integer counts,
 ``t_s`` (N,) host time, optional ``pressure_kpa`` (N, K) with ``chamber_names`` (K,),
-optional ``sample`` (N,) int (bench recordings), ``meta`` a JSON string.
+optional ``printer_mm`` (N, 3) the printer bench's tip position at each frame (mm,
+printer coordinates), optional ``pressure_t_s`` (N,) host time of the pressure reading
+each frame carries (NaN before the first reading), optional ``sample`` (N,) int (bench
+recordings), ``meta`` a JSON string.
 
 MuCa ASCII log: one frame per line, R*C comma-separated counts in the board's order
 (value k is Tx k // C, Rx k % C, so a line reshapes row-major to (R, C)); an empty
@@ -12,7 +15,12 @@ field is 0; a line may start with one extra field, the host timestamp in seconds
 Lines with another field count (board log lines such as ``[Muca] Set TEST mode``,
 a line cut in the middle) are skipped and counted; ``#`` comment lines are skipped. A line with the
 right field count but a non-integer, NaN or negative field is an error in a file
-(``strict=True``) and skipped-and-counted on a live port (``strict=False``).
+(``strict=True``) and skipped-and-counted on a live port (``strict=False``). A line with
+one field too many is a timestamp and counts only when the first field looks like a
+host time (a number with a decimal point, non-decreasing down the file); a trailing
+comma is dropped; anything else would shift every count onto its neighbour and is
+refused. Raw board captures (``.bin``/``.raw``) hold ASCII lines or the firmware's
+binary packets (`fruitcli.sensing.muca_formats`).
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from fruitcli.tables import read_npz_arrays
 MUCA_ROWS = 21  # Tx lines of the FocalTech FT5316 (MuCa)
 MUCA_COLS = 12  # Rx lines
 LOG_SUFFIXES = (".log", ".txt", ".csv", ".muca")
+CAPTURE_SUFFIXES = (".bin", ".raw")  # raw bytes from the board, either format
 
 
 @dataclass
@@ -43,14 +52,18 @@ class Recording:
     chamber_names: tuple[str, ...] = ()
     sample: np.ndarray | None = None  # (N,) int64, -1: not a sample frame
     meta: dict = field(default_factory=dict)
+    pressure_t_s: np.ndarray | None = None  # (N,) host time of each frame's pressure
+    # reading (s, same clock as t_s; NaN: no reading before that frame, 0 kPa assumed)
+    printer_mm: np.ndarray | None = None  # (N, 3) the bench printer's tip at each frame
     skipped_lines: int = 0  # log lines skipped while reading
 
     def __len__(self) -> int:
         return int(self.frames.shape[0])
 
 
-def check_frames(frames, where: str) -> np.ndarray:
-    """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64."""
+def check_frames(frames, where: str, first: int = 0) -> np.ndarray:
+    """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64.
+    `first`: index of frames[0] in its recording (a chunk's offset), for the messages."""
     arr = np.asarray(frames)
     if arr.ndim != 3:
         raise FrameError(f"{where}: frames: expected shape (N, rows, cols), got {arr.shape}")
@@ -58,16 +71,18 @@ def check_frames(frames, where: str) -> np.ndarray:
         raise FrameError(f"{where}: empty recording (no frames)")
     if arr.dtype.kind == "f":
         if not np.all(np.isfinite(arr)):
-            n = int(np.argwhere(~np.isfinite(arr))[0][0])
+            n = first + int(np.argwhere(~np.isfinite(arr))[0][0])
             raise FrameError(f"{where}: frame {n}: NaN or infinite count")
         if np.any(arr != np.round(arr)):
-            n = int(np.argwhere(arr != np.round(arr))[0][0])
+            n = first + int(np.argwhere(arr != np.round(arr))[0][0])
             raise FrameError(f"{where}: frame {n}: non-integer count")
     elif arr.dtype.kind not in "iu":
         raise FrameError(f"{where}: frames: expected integer counts, got dtype {arr.dtype}")
-    arr = arr.astype(np.int64)
-    if np.any(arr < 0):
-        n = int(np.argwhere(arr < 0)[0][0])
+    if arr.dtype.kind == "u" and arr.dtype.itemsize < 8:
+        return arr.astype(np.int64)  # never negative
+    arr = arr.astype(np.int64, copy=False)
+    if arr.min() < 0:
+        n = first + int(np.argwhere(arr < 0)[0][0])
         raise FrameError(f"{where}: frame {n}: negative count (expected counts >= 0)")
     return arr
 
@@ -79,7 +94,15 @@ def read_npz(path: str | os.PathLike) -> Recording:
     if "frames" not in data:
         raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
     frames = check_frames(data["frames"], str(path))
-    n = frames.shape[0]
+    t_s, pressure, names, sample, meta, pressure_t, printer = npz_extras(path, data,
+                                                                         frames.shape[0])
+    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t,
+                     printer_mm=printer)
+
+
+def npz_extras(path: Path, data, n: int) -> tuple:
+    """Checked t_s, pressure_kpa, chamber_names, sample, meta, pressure_t_s, printer_mm of
+    a recording's npz arrays `data` (a mapping) with `n` frames."""
     t_s = data.get("t_s")
     if t_s is None:
         raise FrameError(f"{path}: missing key 't_s' (N,) seconds")
@@ -101,13 +124,25 @@ def read_npz(path: str | os.PathLike) -> Recording:
         names = tuple(str(s) for s in data.get("chamber_names", []))
         if len(names) != pressure.shape[1]:
             names = tuple(f"c{k + 1}" for k in range(pressure.shape[1]))
+    pressure_t = None
+    if "pressure_t_s" in data:
+        pressure_t = np.asarray(data["pressure_t_s"], dtype=float)
+        if pressure is None or pressure_t.shape != (n,) or np.any(np.isinf(pressure_t)):
+            raise FrameError(f"{path}: pressure_t_s: expected ({n},) times (s, NaN before "
+                             f"the first reading) with pressure_kpa, got {pressure_t.shape}")
     sample = None
     if "sample" in data:
         sample = np.asarray(data["sample"])
         if sample.shape != (n,) or sample.dtype.kind not in "iu":
             raise FrameError(f"{path}: sample: expected ({n},) integers, got {sample.shape}")
         sample = sample.astype(np.int64)
-    return Recording(frames, t_s, pressure, names, sample, meta)
+    printer = None
+    if "printer_mm" in data:
+        printer = np.asarray(data["printer_mm"], dtype=float)
+        if printer.shape != (n, 3) or not np.all(np.isfinite(printer)):
+            raise FrameError(f"{path}: printer_mm: expected ({n}, 3) finite mm, got "
+                             f"shape {printer.shape}")
+    return t_s, pressure, names, sample, meta, pressure_t, printer
 
 
 def write_npz(path: str | os.PathLike, rec: Recording) -> None:
@@ -118,28 +153,53 @@ def write_npz(path: str | os.PathLike, rec: Recording) -> None:
     if rec.pressure_kpa is not None:
         arrays["pressure_kpa"] = np.asarray(rec.pressure_kpa, dtype=float)
         arrays["chamber_names"] = np.array(list(rec.chamber_names), dtype=str)
+        if rec.pressure_t_s is not None:
+            arrays["pressure_t_s"] = np.asarray(rec.pressure_t_s, dtype=float)
     if rec.sample is not None:
         arrays["sample"] = np.asarray(rec.sample, dtype=np.int64)
+    if rec.printer_mm is not None:
+        arrays["printer_mm"] = np.asarray(rec.printer_mm, dtype=float)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.savez(fh, **arrays)
+
+
+def looks_like_timestamp(field: str) -> bool:
+    """A host timestamp as `fruit record` writes it: a finite number >= 0 with a decimal
+    point or an exponent (``12.345``); a plain integer is a count, not a time."""
+    f = field.strip()
+    if not any(ch in f for ch in ".eE"):
+        return False
+    try:
+        t = float(f)
+    except ValueError:
+        return False
+    return bool(np.isfinite(t)) and t >= 0
 
 
 def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None, str]:
     """Parse one log line into (counts (n_cells,), host time or None, problem).
 
-    Returns (None, None, why) for a line to skip: wrong field count ("fields") or a bad
-    value ("value: ..."). Empty fields are 0 counts.
+    A line of n_cells + 1 fields is a host timestamp and the counts only when its first
+    field looks like a timestamp (`looks_like_timestamp`); otherwise, when its last field
+    is empty, the firmware's trailing comma is dropped; otherwise it is refused as
+    shifted (every count would read its neighbour's). Returns (None, None, why) for a
+    line to skip: wrong field count ("fields"), shifted ("shifted: ...") or a bad value
+    ("value: ..."). Empty fields are 0 counts.
     """
     fields = line.strip().split(",")
     t = None
+    if len(fields) == n_cells + 2 and not fields[-1].strip():
+        fields = fields[:-1]  # timestamp, counts, trailing comma
     if len(fields) == n_cells + 1:
-        try:
+        if looks_like_timestamp(fields[0]):
             t = float(fields[0])
-        except ValueError:
-            return None, None, f"value: timestamp {fields[0]!r} is not a number"
-        if not np.isfinite(t):
-            return None, None, f"value: timestamp {fields[0]!r} is not finite"
-        fields = fields[1:]
+            fields = fields[1:]
+        elif not fields[-1].strip():
+            fields = fields[:-1]  # the firmware's trailing comma
+        else:
+            return None, None, (f"shifted: {n_cells + 1} fields, one more than the "
+                                f"{n_cells} counts, and the first ({fields[0].strip()!r}) is "
+                                "not a host timestamp (a number with a decimal point)")
     elif len(fields) != n_cells:
         return None, None, "fields"
     if "" in fields:
@@ -161,7 +221,9 @@ def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None
 
 def read_muca_log(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MUCA_COLS,
                   strict: bool = True) -> Recording:
-    """Read a MuCa ASCII log. Lines with another field count are skipped and counted."""
+    """Read a MuCa ASCII log. Lines with another field count are skipped and counted; in a
+    file (`strict`) a bad value, a shifted line or host timestamps that go backwards are
+    errors naming the line."""
     path = Path(path)
     if not path.exists():
         raise FrameError(f"{path}: file not found")
@@ -170,15 +232,24 @@ def read_muca_log(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MU
     except OSError as exc:
         raise FrameError(f"{path}: cannot read: {exc}") from None
     frames, times, skipped = [], [], 0
+    last_t, last_t_line = None, 0
     for lineno, line in enumerate(text.splitlines(), start=1):
         if line.startswith("#"):
             continue  # our own header comments
         counts, t, why = parse_line(line, rows * cols)
         if counts is None:
-            if why.startswith("value") and strict:
+            if strict and why.startswith("value"):
                 raise FrameError(f"{path}: line {lineno}: {why[7:]}")
+            if strict and why.startswith("shifted"):
+                raise FrameError(f"{path}: line {lineno}: {why[9:]}; refusing shifted counts")
             skipped += 1
             continue
+        if strict and t is not None:
+            if last_t is not None and t < last_t:
+                raise FrameError(f"{path}: line {lineno}: host timestamp {t!r} is earlier "
+                                 f"than line {last_t_line}'s {last_t!r}: the first column is "
+                                 "not a timestamp column")
+            last_t, last_t_line = t, lineno
         frames.append(counts)
         times.append(t)
     if not frames:
@@ -193,6 +264,31 @@ def read_muca_log(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MU
         meta["t_s"] = "frame index (the log has no host timestamps on every line)"
     arr = np.stack(frames).reshape(-1, rows, cols)
     return Recording(arr, t_s, meta=meta, skipped_lines=skipped)
+
+
+def read_board_capture(path: str | os.PathLike, rows: int = MUCA_ROWS, cols: int = MUCA_COLS,
+                       fmt: str = "auto") -> Recording:
+    """Read raw bytes captured from a board (``cat /dev/ttyACM0 > capture.bin``): ASCII
+    lines or SendRawByte packets (`muca_formats`), detected unless `fmt` says. t_s is the
+    frame index (a capture has no host times)."""
+    from fruitcli.sensing.muca_formats import decode_bytes
+
+    path = Path(path)
+    if not path.exists():
+        raise FrameError(f"{path}: file not found")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise FrameError(f"{path}: cannot read: {exc}") from None
+    frames, dec = decode_bytes(data, fmt, rows, cols)
+    if not len(frames):
+        why = dec.skip_reasons() or "empty file"
+        raise FrameError(f"{path}: no {rows} x {cols} frame in the board's {fmt} format "
+                         f"({why})")
+    meta = {"source": "board capture", "format": dec.format,
+            "t_s": "frame index (a capture has no host timestamps)"}
+    return Recording(frames, np.arange(len(frames), dtype=float), meta=meta,
+                     skipped_lines=int(dec.skipped))
 
 
 def format_line(counts: np.ndarray, t_s: float | None = None) -> str:
@@ -216,8 +312,12 @@ def is_log_path(path: str | os.PathLike) -> bool:
 
 
 def read_recording(path: str | os.PathLike, rows: int = MUCA_ROWS,
-                   cols: int = MUCA_COLS) -> Recording:
-    """Read an `.npz` or a MuCa ASCII log (by suffix; anything but .npz is a log)."""
-    if Path(path).suffix.lower() == ".npz":
+                   cols: int = MUCA_COLS, fmt: str = "auto") -> Recording:
+    """Read an `.npz`, a MuCa ASCII log (.log/.txt/.csv/.muca, host timestamps allowed) or a
+    raw board capture (.bin/.raw, or anything else: ASCII or binary per `fmt`)."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".npz":
         return read_npz(path)
-    return read_muca_log(path, rows, cols)
+    if suffix in LOG_SUFFIXES and fmt in ("auto", "ascii"):
+        return read_muca_log(path, rows, cols)
+    return read_board_capture(path, rows, cols, fmt)

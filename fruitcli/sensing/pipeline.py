@@ -2,9 +2,11 @@
 
 Units: counts, mm, kPa.
 
-The batch path (`Locator.batch`) is vectorized over frames and used whenever no option
-needs state carried from frame to frame. Drift tracking, hysteresis, debounce and touch
-IDs carry state, so they run frame by frame through `Stream` (also the live loop):
+The batch path (`Locator.chunks`, `Locator.batch`) is vectorized over the frames of a
+chunk and used whenever no option needs state carried from frame to frame; a recording
+goes through it chunk by chunk, so its memory does not grow with its length. Drift
+tracking, hysteresis, debounce and touch IDs carry state, so they run frame by frame
+through `Stream` (also the live loop):
 
 - drift tracking (``drift_rate`` r > 0): C0 += r (C - C0) on frames whose every v is at
   most threshold - hysteresis and that are not in a touch (frozen while touched);
@@ -19,15 +21,26 @@ IDs carry state, so they run frame by frame through `Stream` (also the live loop
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.board import Taxels, taxel_cells
-from fruitcli.sensing.detect import MAX_TOUCHES, Grid, activation_grid, baseline_counts, detect
+from fruitcli.sensing.detect import (
+    MAX_TOUCHES,
+    Grid,
+    Layout,
+    baseline_counts,
+    detect,
+    n9_peaks,
+)
 from fruitcli.sensing.locate import StatePath, state_path_position, touches_3d
+
+CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
 
 
 @dataclass(frozen=True)
@@ -96,6 +109,8 @@ class Locator:
         self.taxels, self.board, self.settings = taxels, board, settings
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
+        self.frame_shape = (board["rows"], board["cols"])
+        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols)
         self.positions_mm = np.asarray(positions_mm, dtype=float)
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
@@ -103,11 +118,16 @@ class Locator:
 
     def values(self, frames: np.ndarray) -> np.ndarray:
         """Counts of the taxel cells (N, T) from frames (N, R, C)."""
-        return frames[:, self.rows, self.cols]
+        cell = self.rows * frames.shape[2] + self.cols
+        return np.take(frames.reshape(frames.shape[0], -1), cell, axis=1)
 
-    def baseline(self, frames: np.ndarray, where: str = "frames") -> np.ndarray:
-        """C0 per taxel (T,) from the first K frames."""
-        return baseline_counts(self.values(frames), self.settings.baseline_frames, where)
+    def baseline(self, frames: np.ndarray, where: str = "frames",
+                 n_frames: int | None = None) -> np.ndarray:
+        """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
+        `n_frames` the recording's length."""
+        k = self.settings.baseline_frames
+        return baseline_counts(self.values(frames[:max(k, 1)]), k, where,
+                               frames.shape[0] if n_frames is None else n_frames)
 
     def _path(self, pressure_kpa: np.ndarray | None, n: int):
         if self.positions_mm.ndim == 2:
@@ -116,20 +136,72 @@ class Locator:
             return np.zeros(n, np.int64), np.zeros(n)
         return state_path_position(pressure_kpa, self.state_pressure_kpa)
 
-    def batch(self, frames: np.ndarray, baseline: np.ndarray,
-              pressure_kpa: np.ndarray | None = None) -> TouchTable:
-        """All touches of frames (N, R, C), vectorized (stateless settings only)."""
+    def chunks(self, read: Callable[[int, int], np.ndarray], n_frames: int,
+               baseline: np.ndarray, pressure_kpa: np.ndarray | None = None,
+               size: int = CHUNK_FRAMES, then: Callable | None = None,
+               workers: int = 1) -> Iterator:
+        """Touches of frames 0 .. n_frames - 1, `size` at a time: ``read(start, count)``
+        gives frames (count, R, C); frame indices count over the whole recording and
+        `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
+        ``then(table)`` computed in the worker. Stateless settings spread the chunks over
+        `workers` threads (the compiled N9 loop and numpy release the GIL), in order;
+        stateful ones run through one `Stream` carried across the chunks."""
         s = self.settings
+        finish = then or (lambda table: table)
+        starts = range(0, n_frames, size)
         if s.stateful:
             stream = Stream(self, baseline)
-            return TouchTable.concat([stream.step(f, None if pressure_kpa is None
-                                                  else pressure_kpa[n], n)
-                                      for n, f in enumerate(self.values(frames))])
-        flat = activation_grid(self.values(frames), baseline, self.grid)
-        t = detect(flat, self.grid, s.threshold_counts, s.method, s.floor, s.max_touches)
-        seg, frac = self._path(pressure_kpa, frames.shape[0])
-        xyz = touches_3d(t, self.positions_mm, seg, frac)
-        return TouchTable(t.frame, t.rank, t.i, t.j, xyz, t.peak)
+            for start in starts:
+                frames = read(start, size)
+                yield finish(TouchTable.concat([
+                    stream.step(f, None if pressure_kpa is None else pressure_kpa[start + n],
+                                start + n) for n, f in enumerate(self.values(frames))]))
+            return
+        seg = frac = None
+        if self.positions_mm.ndim == 3:
+            seg, frac = self._path(pressure_kpa, n_frames)
+
+        def job(start: int):
+            frames = read(start, size)
+            if tuple(frames.shape[1:]) != self.frame_shape:
+                raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
+                                 f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
+            t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
+                       s.threshold_counts, s.method, s.floor, s.max_touches)
+            end = start + frames.shape[0]
+            xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
+                             None if frac is None else frac[start:end])
+            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak))
+
+        yield from _in_order(job, starts, workers)
+
+    def batch(self, frames: np.ndarray, baseline: np.ndarray,
+              pressure_kpa: np.ndarray | None = None,
+              size: int = CHUNK_FRAMES) -> TouchTable:
+        """All touches of frames (N, R, C) in memory, `size` at a time."""
+        return TouchTable.concat(list(self.chunks(lambda a, k: frames[a:a + k],
+                                                  frames.shape[0], baseline, pressure_kpa,
+                                                  size)))
+
+
+def _in_order(job: Callable, items: Iterable, workers: int) -> Iterator:
+    """job(item) for every item, run on `workers` threads, yielded in the items' order;
+    at most 2 * workers items are in flight, so finished results do not pile up."""
+    if workers <= 1:
+        yield from map(job, items)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        pending: deque[Future] = deque()
+        try:
+            for item in items:
+                pending.append(pool.submit(job, item))
+                if len(pending) >= 2 * workers:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
 
 
 class Stream:
@@ -178,7 +250,7 @@ class Stream:
             self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
             return self._empty
         if s.method == "peaks":
-            t = detect(flat[None, :].copy(), loc.grid, thr, s.method, s.floor, s.max_touches)
+            t = n9_peaks(flat[None, :].copy(), loc.grid, thr, s.floor, s.max_touches)
             rows = [(t.i[n], t.j[n], t.peak[n], t.taxel[n], t.weight[n]) for n in range(len(t))]
         else:
             rows = self._sequential(flat, thr, s.floor if s.method == "n9_floor" else 0.0)
@@ -233,6 +305,8 @@ class Stream:
         return self._pos
 
     def _ids(self, xyz: np.ndarray) -> np.ndarray:
+        from scipy.optimize import linear_sum_assignment  # slow to import: only for IDs
+
         ids = np.full(xyz.shape[0], -1, np.int64)
         if self.prev_xyz.shape[0] and xyz.shape[0]:
             cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz[None, :, :], axis=2)

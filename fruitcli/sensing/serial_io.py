@@ -4,7 +4,8 @@ Units: counts, kPa, s (host monotonic time since the port was opened).
 
 A port that does not exist, is busy, or vanishes (unplugged cable, closed pseudo-
 terminal) raises `FrameError` with one line naming the port. Lines that are not frames
-(board log lines, cut lines, bad values) are skipped and counted, never fatal.
+(board log lines, cut lines, bad values, shifted lines) and bytes outside binary packets
+are skipped and counted, never fatal.
 
 Pressure line protocol (``fruit live --pressure-port``): one ASCII line per reading,
 ``P <chamber>=<kPa> [<chamber>=<kPa> ...]`` terminated by ``\\n`` (``\\r\\n`` accepted),
@@ -17,12 +18,11 @@ from __future__ import annotations
 import errno
 import math
 import time
-from collections import Counter
+from collections import Counter  # noqa: F401 - annotations
 
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.frames_io import parse_line
 
 READ_TIMEOUT_S = 0.05  # a read returns after this long without data (deadline checks)
 MAX_LINE_BYTES = 65536  # a line longer than this is garbage: dropped and counted
@@ -51,6 +51,17 @@ def open_port(port: str, baud: int = 115200, timeout_s: float = READ_TIMEOUT_S):
         raise FrameError(f"{port}: cannot open serial port: {text}") from None
 
 
+def read_chunk(port, name: str) -> bytes:
+    """What the port has (b"" after a timeout); a vanished port raises PortClosed."""
+    import serial
+
+    try:
+        n = max(1, port.in_waiting)
+        return port.read(n)
+    except (serial.SerialException, OSError, TypeError) as exc:
+        raise PortClosed(f"{name}: port closed or unplugged ({exc})") from None
+
+
 class LineReader:
     """Complete text lines from a port; a partial line at the end is counted as cut."""
 
@@ -61,16 +72,13 @@ class LineReader:
 
     def poll(self) -> list[str]:
         """Lines completed since the last call ([] after a timeout without data)."""
-        import serial
-
         try:
-            n = max(1, self.port.in_waiting)
-            chunk = self.port.read(n)
-        except (serial.SerialException, OSError) as exc:
+            chunk = read_chunk(self.port, self.name)
+        except PortClosed:
             if self.buf:
                 self.cut += 1
                 self.buf.clear()
-            raise PortClosed(f"{self.name}: port closed or unplugged ({exc})") from None
+            raise
         if not chunk:
             return []
         self.buf += chunk
@@ -83,54 +91,64 @@ class LineReader:
 
 
 class FrameReader:
-    """MuCa frames (R, C) counts from a port, stamped with host time (s)."""
+    """MuCa frames (R, C) counts from a port, stamped with host time (s), in the firmware's
+    ASCII or binary format (`fmt`: auto, ascii, binary; `muca_formats`)."""
 
-    def __init__(self, port, rows: int = 21, cols: int = 12, name: str = "port"):
-        self.lines = LineReader(port, name)
+    def __init__(self, port, rows: int = 21, cols: int = 12, name: str = "port",
+                 fmt: str = "auto"):
+        from fruitcli.sensing.muca_formats import make_decoder
+
+        self.port, self.name = port, name
         self.rows, self.cols = rows, cols
-        self.skipped = 0
-        self.board_lines = 0  # skipped lines without a comma (board log lines)
-        self.wrong_size: Counter[int] = Counter()  # counts per line -> skipped lines
-        self.bad_values = 0  # skipped lines with the right size but a bad value
-        self.last_bad_value = ""
+        self.decoder = make_decoder(fmt, rows, cols)
+        self.decoder_bytes = 0
         self.t0 = time.monotonic()
 
-    def skip_reasons(self) -> str:
-        """Why lines were skipped, e.g. "252 lines of 252 counts, expected 240 = 20 x 12";
-        "" when none was."""
-        n_cells = self.rows * self.cols
-        parts = []
-        for n, k in self.wrong_size.most_common(2):
-            parts.append(f"{k} line{'s' * (k != 1)} of {n} counts, expected {n_cells} = "
-                         f"{self.rows} x {self.cols}")
-        rest = sum(self.wrong_size.values()) - sum(k for _, k in
-                                                   self.wrong_size.most_common(2))
-        if rest:
-            parts.append(f"{rest} other line{'s' * (rest != 1)} of another size")
-        if self.bad_values:
-            parts.append(f"{self.bad_values} with bad values ({self.last_bad_value})")
-        if self.board_lines:
-            parts.append(f"{self.board_lines} board log line{'s' * (self.board_lines != 1)}")
-        return "; ".join(parts)
+    @property
+    def format(self) -> str | None:
+        """"ascii" or "binary" once known (None while auto-detection waits)."""
+        return self.decoder.format
 
-    def poll(self) -> list[tuple[np.ndarray, float, str]]:
-        """Frames completed since the last call: (counts (R, C), t_s, raw line)."""
-        out = []
-        for line in self.lines.poll():
-            counts, _, why = parse_line(line, self.rows * self.cols)
-            if counts is None:
-                self.skipped += 1
-                if why.startswith("value"):
-                    self.bad_values += 1
-                    self.last_bad_value = why[7:]
-                elif "," not in line:
-                    self.board_lines += 1
-                else:
-                    self.wrong_size[len(line.strip().split(","))] += 1
-                continue
-            out.append((counts.reshape(self.rows, self.cols), time.monotonic() - self.t0,
-                        line))
-        return out
+    @property
+    def skipped(self) -> int:
+        """Lines (ASCII) or damaged packets (binary) skipped."""
+        return self.decoder.skipped
+
+    @property
+    def cut(self) -> int:
+        return self.decoder.cut
+
+    @property
+    def wrong_size(self) -> Counter:
+        """ASCII lines of another field count, per count (empty for binary)."""
+        return self.decoder.wrong_size
+
+    def skip_reasons(self) -> str:
+        """Why lines or bytes were skipped, e.g. "252 lines of 252 counts, expected 240 =
+        20 x 12"; "" when none was."""
+        return self.decoder.skip_reasons()
+
+    def _stamp(self, frames) -> list[tuple[np.ndarray, float, int]]:
+        t = time.monotonic() - self.t0
+        return list(zip(frames, [t] * len(frames), self.decoder.starts, strict=True))
+
+    @property
+    def bytes_read(self) -> int:
+        """Bytes taken from the port so far (the stream offset of the next byte)."""
+        return self.decoder_bytes
+
+    def poll(self) -> list[tuple[np.ndarray, float, int]]:
+        """Frames completed since the last call: (counts (R, C), t_s, stream offset of the
+        frame's first byte)."""
+        chunk = read_chunk(self.port, self.name)
+        if not chunk:
+            return []
+        self.decoder_bytes += len(chunk)
+        return self._stamp(self.decoder.feed(chunk))
+
+    def finish(self) -> list[tuple[np.ndarray, float, int]]:
+        """Frames still held when the stream ends (binary: the last packet)."""
+        return self._stamp(self.decoder.finish())
 
 
 def parse_pressure_line(line: str) -> dict[str, float] | None:
@@ -154,16 +172,18 @@ def parse_pressure_line(line: str) -> dict[str, float] | None:
 
 
 class PressureState:
-    """Latest chamber pressures (kPa) in a fixed chamber order, updated from lines."""
+    """Latest chamber pressures (kPa) in a fixed chamber order, updated from lines, with
+    the host monotonic time (s) of the line that set them (NaN before the first)."""
 
     def __init__(self, chambers: tuple[str, ...]):
         self.chambers = chambers
         self.kpa = np.zeros(len(chambers))
+        self.latest = (self.kpa, math.nan)  # (kPa, monotonic s): read as one tuple
         self.skipped = 0
         self.received = 0  # pressure lines taken
         self.closed = False  # the pressure port closed (the last pressures stay)
 
-    def update(self, line: str) -> None:
+    def update(self, line: str, t_monotonic: float | None = None) -> None:
         got = parse_pressure_line(line)
         if got is None or any(c not in self.chambers for c in got):
             self.skipped += 1
@@ -171,5 +191,7 @@ class PressureState:
         kpa = self.kpa.copy()
         for c, v in got.items():
             kpa[self.chambers.index(c)] = v
+        t = time.monotonic() if t_monotonic is None else t_monotonic
         self.kpa = kpa  # one assignment: readers see old or new, never half
+        self.latest = (kpa, t)
         self.received += 1

@@ -1,40 +1,43 @@
-"""Run independent study cases in worker processes, one progress callback, results in
-the order of the cases (identical to a serial run)."""
+"""Run independent study cases in worker processes or on a Dask cluster, one progress
+callback, results in the order of the cases (identical to a serial run)."""
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import os
 from typing import Callable, Sequence
 
+from fruitcli.studies.executors import Task, default_jobs, open_executor, run_graph
 
-def default_jobs() -> int:
-    return max(1, os.cpu_count() or 1)
+__all__ = ["default_jobs", "run_cases"]
 
 
 def run_cases(func: Callable, cases: Sequence, jobs: int | None = None,
-              progress: Callable[[int, int], None] | None = None) -> list:
-    """`[func(c) for c in cases]`, spread over `jobs` processes (1: in this process)."""
-    jobs = default_jobs() if jobs is None else max(1, int(jobs))
-    results = [None] * len(cases)
-    if jobs == 1 or len(cases) <= 1:
-        for n, case in enumerate(cases):
-            results[n] = func(case)
-            if progress:
-                progress(n + 1, len(cases))
-        return results
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(min(jobs, len(cases))) as pool:
-        done = 0
-        for n, value in pool.imap_unordered(_indexed, [(func, n, c) for n, c in
-                                                       enumerate(cases)]):
-            results[n] = value
-            done += 1
-            if progress:
-                progress(done, len(cases))
-    return results
+              progress: Callable[[int, int], None] | None = None,
+              scheduler: str | None = None, pool=None) -> list:
+    """`[func(c) for c in cases]`, spread over `jobs` processes (1: in this process), over
+    the workers of the Dask `scheduler` at that address, or over an open `pool` (see
+    `fruitcli.studies.executors.open_executor`). `func` is a module-level function."""
+    if not cases:
+        return []
+    own = pool is None
+    if own:
+        pool = open_executor(1 if len(cases) == 1 and not scheduler else jobs, scheduler)
+    tasks = {n: Task(_call, (func, case)) for n, case in enumerate(cases)}
+    done = 0
+
+    def on_done(key, result):
+        nonlocal done
+        done += 1
+        if progress:
+            progress(done, len(cases))
+
+    try:
+        results = run_graph(pool, tasks, on_done)
+    finally:
+        if own:
+            pool.close()
+    return [results[n] for n in range(len(cases))]
 
 
-def _indexed(args):
-    func, n, case = args
-    return n, func(case)
+def _call(arg, deps):
+    func, case = arg
+    return func(case)

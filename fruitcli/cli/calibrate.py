@@ -1,0 +1,35 @@
+"""`fruit calibrate`: fit the skin's forward model to a bench recording (mm, counts)."""
+
+from __future__ import annotations
+
+import click
+
+from fruitcli.cli.options import Progress, fruit_errors, scene_products
+
+
+@click.command()
+@click.argument("frames", type=click.Path(dir_okay=False))
+@click.option("--truth", "truth_csv", required=True, type=click.Path(dir_okay=False),
+              help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm).")
+@click.option("--scene", "scene_path", required=True, type=click.Path(dir_okay=False),
+              help="Scene whose [board] and taxels the recording used.")
+@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
+              help="Taxel CSV (default: the scene's own).")
+@click.option("--indenter", default=None, help="Indenter of the recording (default: its meta).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
+def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
+    """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
+    a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer)."""
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.calibrate import run_calibrate
+
+    progress = Progress("[calibrate] ")
+    with fruit_errors():
+        scene = load_scene(scene_path)
+        taxels = taxels_csv or scene["grid"]["taxels"] or scene_products(scene)[0]
+        res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress)
+    click.echo(f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm, "
+               f"contact {res['contact_counts']:.1f} counts, gap decay "
+               f"{res['gap_decay_mm']:.2f} mm, noise {res['noise_std_counts']:.2f} counts "
+               f"-> {out_dir}/skin.toml", err=True)

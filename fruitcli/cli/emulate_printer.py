@@ -1,0 +1,102 @@
+"""`fruit emulate-printer`: a Marlin-like printer and a MuCa-like board on two
+pseudo-terminals, the board's frames made by the skin's forward model at the tip."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from fruitcli.cli.options import fruit_errors, scene_products
+
+
+def parse_faults(specs) -> dict:
+    """``resend:5`` ``no-ok:12`` ``halt:20`` -> {"resend": [5], ...}."""
+    from fruitcli.bench.printer_emulator import FAULTS
+
+    out: dict[str, list[int]] = {}
+    for spec in specs:
+        kind, _, n = spec.partition(":")
+        if kind not in FAULTS or not n.isdigit() or int(n) < 1:
+            raise click.BadParameter(f"{spec!r}: expected KIND:N with KIND one of "
+                                     f"{', '.join(FAULTS)} and N >= 1 (the N-th command "
+                                     "line received)", param_hint="--fault")
+        out.setdefault(kind, []).append(int(n))
+    return out
+
+
+@click.command("emulate-printer")
+@click.option("--board-from", "scene_path", required=True, type=click.Path(dir_okay=False),
+              help="Scene whose [printer] placement, [board] and taxels make the board's "
+                   "frames (its stages run into out/<scene name> when needed).")
+@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
+              help="Taxel CSV (default: the scene's own).")
+@click.option("--indenter", default="small", show_default=True,
+              type=click.Choice(["small", "medium"]), help="The indenter the skin feels.")
+@click.option("--format", "fmt", type=click.Choice(["ascii", "binary"]), default="binary",
+              show_default=True, help="The board's frame format (stock firmware).")
+@click.option("--baud", type=click.IntRange(min=0), default=115200, show_default=True,
+              help="The board's bytes are paced at this baud, 8N1 (0: unpaced).")
+@click.option("--time-scale", type=click.FloatRange(min=0), default=1.0, show_default=True,
+              help="Moves take distance / feed rate times this (0: instantly).")
+@click.option("--fault", "faults", multiple=True,
+              help="Inject a fault at the N-th command line: resend:N (checksum mismatch, "
+                   "once), no-ok:N (never answered), halt:N (Error:Printer halted).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Skin and noise seed.")
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
+                   "scene's.")
+def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, faults, seed,
+                    skin_toml):
+    """Print the printer's and the board's pty paths, then answer on both until Ctrl-C
+    (or until 5 s after the bench has closed the board's port).
+
+    The printer answers the Marlin host protocol; the board sends frames of the skin
+    under the printer's tip, so `fruit bench SCENE --printer P --board B` runs whole.
+    """
+    import threading
+
+    from fruitcli.bench.placement import Placement
+    from fruitcli.bench.printer_emulator import PrinterEmulator
+    from fruitcli.bench.skin_board import SkinBoard
+    from fruitcli.errors import SceneError
+    from fruitcli.scene import load_scene, load_skin_table
+    from fruitcli.sensing import forward
+    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.emulator import BoardEmulator, pacing_line
+
+    fault_table = parse_faults(faults)
+    with fruit_errors():
+        scene = load_scene(scene_path)
+        if not scene.has("printer"):
+            raise SceneError(f"{scene_path}: no [printer] table (where the model sits on "
+                             "the bed)")
+        pr = scene["printer"]
+        taxels_csv = taxels_csv or scene["grid"]["taxels"] or scene_products(scene)[0]
+        taxels = load_taxels(taxels_csv)
+        bed = pr["bed_mm"]
+        printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, fault_table)
+        params = forward.SkinParams.from_table(load_skin_table(skin_toml) if skin_toml
+                                                else scene["skin"])
+        skin = SkinBoard(taxels, scene["board"], Placement.from_printer(pr), printer.tip_mm,
+                         indenter, seed, params)
+        board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt, baud=baud)
+        click.echo(f"printer: {printer.path}")
+        click.echo(f"board: {board.path}")
+        sys.stdout.flush()
+        click.echo(f"board: {fmt} frames of the skin under the {indenter} tip, pacing: "
+                   f"{pacing_line(fmt, baud, *skin.shape)}", err=True)
+        threads = [printer.start(), threading.Thread(target=board.play, daemon=True)]
+        threads[1].start()
+        try:
+            while all(th.is_alive() for th in threads):
+                threads[0].join(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            printer.stop.set()
+            board.stop.set()
+            for th in threads:
+                th.join(2.0)
+    click.echo(f"printer: {printer.received} command lines; board: {board.sent} frames",
+               err=True)

@@ -1,0 +1,1 @@
+"""Fabrication: the molds that cast the pieces of the touch skin."""

@@ -1,0 +1,288 @@
+"""Running a sweep's variants: one folder each under OUT/variants/, stages shared between
+variants run once, a failed variant is a row with its one-line error, a finished variant
+is reused by the next run of the same sweep.
+
+Stage sharing: before anything runs, every variant is planned; a stage that two or
+more variants would run with the same content hash is run once, as its own task, in the
+first such variant's folder, and the others copy it from there (the planner's reuse
+across sibling folders, `planner.run(shared=...)`). Each variant's own task waits for
+the shared stages it needs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import threading
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.studies.executors import Task, run_graph
+from fruitcli.studies.sweep import Variant, rebuild
+
+RESULT = "result.json"
+# One task at a time per process: a Dask worker with several threads would otherwise run
+# variants side by side in one process, and the stages plot with matplotlib, which is not
+# thread-safe. Give workers one thread each and more processes instead.
+ONE_AT_A_TIME = threading.Lock()
+TIMING = ("state_ms", "variant_s")  # columns that vary between runs of the same sweep
+
+
+def variant_figures(scene, folder: Path) -> dict:
+    """The figures of a finished variant's stages: taxel count, tets, FEM states (Newton
+    iterations, max displacement mm, median ms per state), Table I rows (n, mean and
+    std error mm) and sensitivity (noise std, baseline shift, counts)."""
+    from fruitcli.planner import Context
+    from fruitcli.stages import taxels_path
+
+    ctx = Context(Path(folder))
+    out: dict = {}
+    tax = taxels_path(scene, ctx)
+    if tax is not None and Path(tax).exists():
+        lines = [ln for ln in Path(tax).read_text().splitlines()
+                 if ln.strip() and not ln.startswith("#")]
+        out["taxels"] = max(len(lines) - 1, 0)  # less the header
+    quality = ctx.dir("tetra") / "quality.json"
+    if quality.exists():
+        out["tets"] = json.loads(quality.read_text())["n_tets"]
+    states = ctx.dir("simulate") / "states.npz"
+    if states.exists():
+        with np.load(states, allow_pickle=False) as st:
+            disp = np.linalg.norm(st["displacement_mm"], axis=-1)
+            out.update(states=int(len(st["solve_ms"])),
+                       newton_its=float(np.mean(st["iterations"])),
+                       max_disp_mm=float(disp.max()) if disp.size else 0.0,
+                       state_ms=float(np.median(st["solve_ms"])))
+    summary = ctx.dir("evaluate") / "summary.json"
+    if summary.exists():
+        for slug, row in json.loads(summary.read_text()).items():
+            out[f"{slug}_n"] = int(row["n"])
+            out[f"{slug}_mean_mm"] = float(row["mean_mm"])
+            out[f"{slug}_std_mm"] = float(row["std_mm"])
+    sens = ctx.dir("sensitivity") / "sensitivity.json"
+    if sens.exists():
+        s = json.loads(sens.read_text())["summary"]
+        out.update(noise_std_max_counts=float(s["std"]["max"]),
+                   shift_max_counts=float(s["max_shift"]["max"]),
+                   shift_mean_counts=float(s["max_shift"]["mean"]))
+    return out
+
+
+def error_line(exc: BaseException) -> str:
+    """One line for a failure: a FruitError's own text, else the exception's type too."""
+    from fruitcli.errors import FruitError
+
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    return text if isinstance(exc, FruitError) and text else \
+        f"{type(exc).__name__}: {text}".rstrip(": ")
+
+
+def _note_attempt(folder: Path, kind: str) -> None:
+    """Append who runs this task to folder/attempts.log (one line per start)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "attempts.log", "a") as f:
+        f.write(f"{kind} pid={os.getpid()} host={socket.gethostname()} "
+                f"t={time.time():.3f}\n")
+
+
+class _Log:
+    """The planner's progress lines into folder/log.txt; remembers the stage running."""
+
+    def __init__(self, folder: Path):
+        from fruitcli.stages import STAGES
+
+        self.path, self.stage = folder / "log.txt", ""
+        self._names = {s.name for s in STAGES}
+
+    def __call__(self, message: str) -> None:
+        head = message.split(":", 1)[0]
+        if head in self._names:
+            self.stage = head
+        with open(self.path, "a") as f:
+            f.write(message + "\n")
+
+    def where(self, exc: BaseException) -> str:
+        line = error_line(exc)
+        return f"{self.stage}: {line}" if self.stage and not line.startswith(self.stage) \
+            else line
+
+
+def _failed_dep(deps: dict) -> str | None:
+    return next((r["error"] for r in deps.values() if r.get("error")), None)
+
+
+def run_stage_task(arg, deps) -> dict:
+    """On a worker: run a variant's stages up to `stage` (shared with other variants)."""
+    text, scene_path, folder, stage, shared = arg
+    if (failed := _failed_dep(deps)) is not None:
+        return {"error": failed}
+    with ONE_AT_A_TIME:
+        return _run_stage(text, scene_path, Path(folder), stage, Path(shared))
+
+
+def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict:
+    from fruitcli import planner
+
+    _note_attempt(folder, f"stage {stage}")
+    log = _Log(folder)
+    try:
+        planner.run(rebuild(text, scene_path), folder, until=stage, shared=shared,
+                    progress=log)
+    except Exception as exc:  # noqa: BLE001 - any failure is this stage's row text
+        (folder / "error.log").write_text(traceback.format_exc())
+        return {"error": log.where(exc)}
+    return {"error": None}
+
+
+def run_variant_task(arg, deps) -> dict:
+    """On a worker: run every stage of one variant (copying the shared ones) and return
+    its row: figures, status ("ok" or "failed"), error line, wall time (s)."""
+    from fruitcli.fsutil import write_json
+
+    text, scene_path, folder, shared = arg
+    folder = Path(folder)
+    if (failed := _failed_dep(deps)) is not None:
+        row = {"status": "failed", "error": failed, "variant_s": 0.0}
+    else:
+        with ONE_AT_A_TIME:
+            row = _run_variant(text, scene_path, folder, Path(shared))
+    write_json(folder / RESULT, {"scene_text": text, "row": row})
+    return row
+
+
+def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
+    from fruitcli import planner
+
+    t0 = time.perf_counter()
+    _note_attempt(folder, "variant")
+    log = _Log(folder)
+    try:
+        scene = rebuild(text, scene_path)
+        planner.run(scene, folder, shared=shared, progress=log)
+        row = {**variant_figures(scene, folder), "status": "ok", "error": ""}
+    except Exception as exc:  # noqa: BLE001 - the row carries the error
+        (folder / "error.log").write_text(traceback.format_exc())
+        row = {"status": "failed", "error": log.where(exc)}
+    row["variant_s"] = time.perf_counter() - t0
+    return row
+
+
+def finished_row(variant: Variant, folder: Path) -> dict | None:
+    """A variant's row from a previous run when it finished with these values and every
+    stage would be reused now (no input or code changed); else None."""
+    from fruitcli import planner
+
+    try:
+        old = json.loads((folder / RESULT).read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    if old.get("scene_text") != variant.text or old.get("row", {}).get("status") != "ok":
+        return None
+    steps = planner.plan(variant.scene, folder)
+    if any(s.action not in ("reuse", "not needed") for s in steps):
+        return None
+    return {**old["row"], **variant_figures(variant.scene, folder)}
+
+
+def build_tasks(variants: list[Variant], variants_dir: Path, todo: list[int]) -> dict:
+    """The task graph: ("stage", name, hash) for each stage two or more of the variants
+    `todo` would run identically, ("variant", k) for each variant in `todo`."""
+    from fruitcli import planner
+    from fruitcli.stages import STAGES
+
+    deps_of = {s.name: s.deps for s in STAGES}
+    runs: dict[int, list[tuple[str, str]]] = {}
+    owner: dict[tuple[str, str], int] = {}
+    count: dict[tuple[str, str], int] = {}
+    for k in todo:
+        v = variants[k]
+        steps = planner.plan(v.scene, variants_dir / v.name, shared=variants_dir)
+        runs[k] = [(s.stage, s.hash) for s in steps if s.action == "run" and s.hash]
+        for key in runs[k]:
+            owner.setdefault(key, k)
+            count[key] = count.get(key, 0) + 1
+    shared = {key for key, n in count.items() if n >= 2}
+    scene_path = str(variants[todo[0]].scene.path) if todo else ""
+    tasks: dict = {}
+    for k in todo:  # stage tasks first, in pipeline order within each owner
+        for key in runs[k]:
+            if key in shared and owner[key] == k:
+                upstream = _closure(deps_of, key[0]) - {key[0]}
+                deps = tuple(("stage", *j) for j in runs[k] if j in shared and j[0] in upstream)
+                v = variants[k]
+                tasks[("stage", *key)] = Task(run_stage_task, (
+                    v.text, scene_path, str(variants_dir / v.name), key[0], str(variants_dir)),
+                    deps)
+    for k in todo:
+        v = variants[k]
+        deps = tuple(("stage", *key) for key in runs[k] if key in shared)
+        tasks[("variant", k)] = Task(run_variant_task, (
+            v.text, scene_path, str(variants_dir / v.name), str(variants_dir)), deps)
+    return tasks
+
+
+def _closure(deps_of: dict, name: str) -> set[str]:
+    out, todo = set(), [name]
+    while todo:
+        n = todo.pop()
+        if n not in out:
+            out.add(n)
+            todo.extend(deps_of[n])
+    return out
+
+
+def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
+              on_row=None) -> tuple[list[dict], dict]:
+    """Run (or reuse) every variant on `pool`; returns the rows in variant order and
+    counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
+    after each variant, and with {"stage", "error"} after each shared stage;
+    `on_row(rows)` with the rows so far (None: not yet done)."""
+    out_dir = Path(out_dir).resolve()
+    variants_dir = out_dir / "variants"
+    variants_dir.mkdir(parents=True, exist_ok=True)
+    rows: list[dict | None] = [None] * len(variants)
+    todo = []
+    for k, v in enumerate(variants):
+        old = finished_row(v, variants_dir / v.name)
+        if old is not None:
+            rows[k] = _with_values(v, old)
+        else:
+            todo.append(k)
+    reused = len(variants) - len(todo)
+    tasks = build_tasks(variants, variants_dir, todo)
+    done = reused
+    if progress and reused:
+        progress(done, len(variants), None)
+
+    def on_done(key, result):
+        nonlocal done
+        if key[0] != "variant":
+            if progress:
+                progress(done, len(variants), {"stage": key[1], "error": result["error"],
+                                               "variant": Path(tasks[key].arg[2]).name})
+            return
+        rows[key[1]] = _with_values(variants[key[1]], result)
+        done += 1
+        if on_row:
+            on_row(rows)
+        if progress:
+            progress(done, len(variants), rows[key[1]])
+
+    def on_lost(key, message):
+        if key[0] == "variant":
+            return {"status": "failed", "error": message, "variant_s": 0.0}
+        return {"error": f"{key[1]}: {message}"}
+
+    run_graph(pool, tasks, on_done, on_lost)
+    stats = {"run": len(todo), "reused": reused,
+             "failed": sum(r["status"] != "ok" for r in rows),
+             "shared_stages": sum(1 for key in tasks if key[0] == "stage")}
+    return rows, stats
+
+
+def _with_values(v: Variant, row: dict) -> dict:
+    return {"variant": v.name, **v.values, **row}
