@@ -48,6 +48,12 @@ class _Pardiso:
         x = self.solver.solve(self.a, b)
         return x.reshape(b.shape)
 
+    def __del__(self):
+        # MKL keeps the factor outside Python's heap until told (about 1 GB here)
+        solver = getattr(self, "solver", None)
+        if solver is not None:
+            solver.free_memory(everything=True)
+
 
 try:
     import pypardiso  # noqa: F401
@@ -67,7 +73,7 @@ def factorize(k):
             if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
                     <= 1e-6 * np.linalg.norm(probe):
                 return fac
-        except RuntimeError:
+        except Exception:  # noqa: BLE001 - PARDISO's own errors: fall back to Cholesky/LU
             pass
     if _cholesky is not None:
         try:
