@@ -417,7 +417,7 @@ def test_the_runtime_study_on_a_dask_cluster_gives_the_serial_rows(pad, tmp_path
         assert a.keys() == b.keys()
         for k in a:
             if isinstance(a[k], float):
-                assert a[k] == pytest.approx(b[k], rel=1e-6, abs=1e-12), k
+                assert a[k] == pytest.approx(b[k], rel=1e-6, abs=1e-6), k
             else:
                 assert a[k] == b[k], k
     assert len(rows["--jobs"]) >= 2 and all(r["status"] == "ok" for r in rows["--jobs"])
