@@ -25,7 +25,7 @@ from fruitcli.fem.elements.integrate import evaluate
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shape_gradients
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.model import pin_rigid_modes, prescribed_dofs
+from fruitcli.fem.model import Model, pin_rigid_modes, prescribed_dofs
 from fruitcli.fem.springs import Jig
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
@@ -260,26 +260,10 @@ class ContinuumModel:
                 for pk, w in zip(pressure_kpa, self.walls, strict=True) if pk)
         return sp.csr_matrix(h)[free][:, free]
 
-    def external_forces(self, x, pressure_kpa, load, h=None) -> np.ndarray:
-        """(n, 3) gravity + pressure (follower) + jig spring forces (mN) at x."""
-        f = load.gravity * self.body_force_mn
-        if self.walls:
-            h = self.chamber_gradients(x) if h is None else h
-            f = f + np.einsum("k,kni->ni", pressure_kpa, h)
-        for jig in self.jigs:
-            target = jig.targets(self.rest, load.jig)
-            np.add.at(f, jig.nodes, jig.stiffness_mn_per_mm * (target - x[jig.nodes]))
-        return f
-
-    def external_potential(self, x, pressure_kpa, load) -> float:
-        """Potential of the external loads at x (mN mm)."""
-        e = -load.gravity * float(np.einsum("ni,ni->", self.body_force_mn, x - self.rest))
-        if self.walls:
-            e -= float(pressure_kpa @ self.chamber_volumes(x))
-        for jig in self.jigs:
-            d = x[jig.nodes] - jig.targets(self.rest, load.jig)
-            e += 0.5 * jig.stiffness_mn_per_mm * float(np.einsum("ni,ni->", d, d))
-        return e
+    # the loads are written once, on the paper's model: they only use the rest
+    # positions, body force, jigs and the chamber volumes and gradients above
+    external_forces = Model.external_forces
+    external_potential = Model.external_potential
 
     def min_det_f(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x)[2]
