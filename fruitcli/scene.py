@@ -31,7 +31,7 @@ class Key:
 
 
 LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
-"""[solver].linear_solver values (see `fruitcli.fem.linsolve`)."""
+"""[solver].linear_solver values (see `fruitcli.fem.solver.linsolve`)."""
 
 # Sections that are tables (one per scene).
 SCHEMA: dict[str, dict[str, Key]] = {

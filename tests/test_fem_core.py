@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import MeshError, SolverError
-from fruitcli.fem import corotation, tet4
-from fruitcli.fem.grid import structured_box
-from fruitcli.fem.linsolve import TangentSolver
+from fruitcli.fem.elements import tet4
+from fruitcli.fem.loads.springs import rotation_matrix
+from fruitcli.fem.materials import corotation
+from fruitcli.fem.meshing.grid import structured_box
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.newton import SolverOptions, solve_state
-from fruitcli.fem.springs import rotation_matrix
+from fruitcli.fem.solver.linsolve import TangentSolver
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 RNG = np.random.default_rng(7)
 
@@ -137,7 +138,7 @@ def test_barycentric_inside_outside_and_affine_motion():
     """Points inside get weights in [0, 1] summing to 1; a point 0.1 mm outside maps to
     a boundary tet with a small negative weight; an affine motion moves mapped points
     affinely (1e-12)."""
-    from fruitcli.fem import barycentric
+    from fruitcli.fem.elements import barycentric
 
     nodes, tets = structured_box([0, 0, 0], [10, 10, 10], (3, 3, 3))
     pts = np.array([[1.0, 2.0, 3.0], [9.9, 0.1, 5.0], [5.0, 5.0, 10.1]])
@@ -200,7 +201,7 @@ def test_compiled_kernels_match_per_element_ones(project):
     consistent tangent blocks) to 1e-12 relative, at 30 % random strain with some
     elements inverted. The warm-started rotations equal the cold polar decomposition,
     also where the warm start is 179 degrees off and the element falls back to it."""
-    from fruitcli.fem import kernels
+    from fruitcli.fem.materials import corotation_kernels as kernels
 
     nodes, tets = bar((4, 2, 2), (12.0, 6.0, 6.0))
     m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=[0])
@@ -264,7 +265,7 @@ def test_rotation_term_closed_form_matches_eigendecomposition(project):
 def test_follower_pressure_stiffness_matches_the_pressure_force_derivative():
     """The load stiffness -p d^2V/dx^2 (the tangent's follower-pressure part) equals the
     central-difference derivative of -p H(x) (1e-7 rel.) on a randomly deformed cavity."""
-    from fruitcli.fem.grid import structured_box_with_cavity
+    from fruitcli.fem.meshing.grid import structured_box_with_cavity
 
     nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (4, 4, 4),
                                                   [3, 3, 3], [9, 9, 9])

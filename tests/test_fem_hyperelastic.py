@@ -19,12 +19,12 @@ from fruitcli.fem.elements.lagrange import (
     tri_shape,
 )
 from fruitcli.fem.elements.quadratic import project_onto_ellipsoid, quadratic_mesh
-from fruitcli.fem.grid import structured_box
 from fruitcli.fem.loads.cavity import Wall
+from fruitcli.fem.loads.springs import rotation_matrix
 from fruitcli.fem.materials.build import material
+from fruitcli.fem.meshing.grid import structured_box
 from fruitcli.fem.model import Load
-from fruitcli.fem.newton import SolverOptions, solve_state
-from fruitcli.fem.springs import rotation_matrix
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import body_force_mn_mm3
 
 RNG = np.random.default_rng(7)

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem import io
 from fruitcli.fem.model import Load
-from fruitcli.fem.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
 from fruitcli.scene import parse_scene
 
@@ -357,7 +357,7 @@ def test_split_into_two_disks():
     """The dome splits at its flat base (tagged); a ball, with no base, at mid height."""
     import manifold3d
 
-    from fruitcli.fem.patches import boundary_loops, is_disk, split_bottom_top, split_loop
+    from fruitcli.fem.meshing.patches import boundary_loops, is_disk, split_bottom_top, split_loop
 
     m = manifold3d.Manifold.sphere(1.0, 32).scale((30.0, 20.0, 15.0)).trim_by_plane(
         (0.0, 0.0, 1.0), 0.0).to_mesh64()
@@ -420,7 +420,7 @@ def test_patch_boundary_has_no_wedges():
     """The split of a ball and of a jagged selection on it leaves no corner narrower
     than MIN_CORNER_DEG on either patch (thin wedges made gmsh's remeshed patches
     cross on the default fruit at size 6.25)."""
-    from fruitcli.fem.patches import (
+    from fruitcli.fem.meshing.patches import (
         MIN_CORNER_DEG,
         boundary_loops,
         corner_angles,

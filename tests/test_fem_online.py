@@ -14,11 +14,11 @@ from test_sensing_serial import PressureSource, live_lines, touch_frames
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SolverError
-from fruitcli.fem import barycentric
-from fruitcli.fem.grid import structured_box_with_cavity
+from fruitcli.fem.elements import barycentric
+from fruitcli.fem.meshing.grid import structured_box_with_cavity
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.newton import SolverOptions, solve_state
 from fruitcli.fem.online import OnlineSolver
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 OPTS = SolverOptions(tolerance=1e-8)
 

@@ -5,12 +5,12 @@ continued from the previous states, and the SuperLU fallback without cholespy.""
 import numpy as np
 import pytest
 
-from fruitcli.fem import linsolve
-from fruitcli.fem.grid import structured_box, structured_box_with_cavity
-from fruitcli.fem.linsolve import TangentSolver
+from fruitcli.fem.loads.springs import Jig, nodes_in_box
+from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.newton import SolverOptions, solve_state
-from fruitcli.fem.springs import Jig, nodes_in_box
+from fruitcli.fem.solver import linsolve
+from fruitcli.fem.solver.linsolve import TangentSolver
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 
 def bent_pad(steps=8, solver="pcg"):
@@ -104,7 +104,7 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
     """Breathing-like loads (phase-shifted sinusoids: an ellipse in a plane of the
     pressure space): with 6 kept states the guess reproduces any response quadratic in
     the pressures; with 3 it falls back to the first-order weights."""
-    from fruitcli.fem.newton import HISTORY_STATES, _history_guess, _load_vector
+    from fruitcli.fem.solver.newton import HISTORY_STATES, _history_guess, _load_vector
 
     rng = np.random.default_rng(3)
     a, b, c = rng.standard_normal((4, 3, 3, 3)), rng.standard_normal((4, 3, 3)), \
@@ -128,7 +128,7 @@ def test_history_keeps_one_state_per_load():
     """A repeated load (an animation closing its cycle on its first state) replaces its
     earlier state in the kept history instead of taking a second slot; beyond
     HISTORY_STATES the oldest goes."""
-    from fruitcli.fem.newton import HISTORY_STATES, _load_vector, _remember
+    from fruitcli.fem.solver.newton import HISTORY_STATES, _load_vector, _remember
 
     hist = []
     for i, pk in enumerate((1.0, 2.0, 3.0, 1.0, 4.0)):

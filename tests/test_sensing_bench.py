@@ -9,8 +9,8 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
-from fruitcli.fem.barycentric import locate
-from fruitcli.fem.mesh_topology import boundary_faces
+from fruitcli.fem.elements.barycentric import locate
+from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.scene import parse_scene
 from fruitcli.sensing import forward
 from fruitcli.sensing.frames_io import read_npz

@@ -6,14 +6,14 @@ import math
 
 import numpy as np
 
-from fruitcli.fem.grid import structured_box, structured_box_with_cavity
-from fruitcli.fem.mesh_topology import boundary_faces
+from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
+from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.studies.parallel import run_cases
 from fruitcli.studies.stability import Case, default_cases, run_case
 
 
 def test_box_mesh_is_conforming_and_fills_the_box():
-    from fruitcli.fem.tet4 import signed_volumes
+    from fruitcli.fem.elements.tet4 import signed_volumes
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), (2.0, 3.0, 4.0), (2, 3, 4))
     vol = np.abs(signed_volumes(nodes, tets))

@@ -431,7 +431,8 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
 def online_solver(scene, mesh_npz, taxels_xyz, progress):
     """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
     mapped into it."""
-    from fruitcli.fem import barycentric, io
+    from fruitcli.fem import io
+    from fruitcli.fem.elements import barycentric
     from fruitcli.fem.online import OnlineSolver
     from fruitcli.fem.stage import build_model, solver_options
 

@@ -78,7 +78,7 @@ def yarn_stretch(tracks: list[Track], rest_nodes: np.ndarray, tets: np.ndarray,
     YARN_COLUMNS, stretch (tracks, s) fractions, warnings [str] for tracks whose largest
     stretch exceeds `max_stretch`).
     """
-    from fruitcli.fem.barycentric import apply, locate
+    from fruitcli.fem.elements.barycentric import apply, locate
 
     disp = np.asarray(displacement_mm, float)
     if disp.ndim != 3 or disp.shape[1:] != np.asarray(rest_nodes).shape:

@@ -2,7 +2,7 @@
 with any material of `fruitcli.fem.materials`: the same loads as the paper's
 corotational `Model` (chamber pressure or volume as a Lagrange multiplier per chamber,
 follower pressure on curved walls, jig springs, gravity, fixed and moved regions) and
-the same interface to Newton (`fruitcli.fem.newton`), so both are solved alike.
+the same interface to Newton (`fruitcli.fem.solver.newton`), so both are solved alike.
 
     from fruitcli.fem.continuum import ContinuumModel
     model = ContinuumModel.from_arrays(nodes2, tets10, material("neo-hookean", 100, 0.49),
@@ -19,14 +19,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from fruitcli.errors import MeshError, SceneError
-from fruitcli.fem import tet4
-from fruitcli.fem.assemble import CsrPattern
+from fruitcli.fem.elements import tet4
 from fruitcli.fem.elements.integrate import evaluate
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shape_gradients
 from fruitcli.fem.loads.cavity import Wall
+from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
 from fruitcli.fem.model import Model, pin_rigid_modes, prescribed_dofs
-from fruitcli.fem.springs import Jig
+from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
 
@@ -274,7 +274,7 @@ class ContinuumModel:
         return f"element {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"
 
     def make_solver(self, method: str = "pcg"):
-        from fruitcli.fem.continuum_solve import ContinuumSolver
+        from fruitcli.fem.solver.continuum_linsolve import ContinuumSolver
 
         return ContinuumSolver(self, method)
 

@@ -5,7 +5,7 @@ Lower-level API (no files), for studies that sweep E, nu, pressure, jig stiffnes
 mesh size, tolerance or linear solver::
 
     from fruitcli.fem.model import Model, Load
-    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.newton import SolverOptions, solve_state
     model = Model.from_arrays(nodes, tets, E_kpa=100.0, nu=0.45,
                               fixed_nodes=idx, chambers={"c0": tris})
     res = solve_state(model, Load.pressures([5.0]), options=SolverOptions(tolerance=1e-6))
@@ -21,9 +21,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fruitcli.errors import MeshError, SceneError, SolverError
-from fruitcli.fem import corotation, kernels, pressure, tet4
-from fruitcli.fem.assemble import CsrPattern
-from fruitcli.fem.springs import Jig
+from fruitcli.fem.elements import tet4
+from fruitcli.fem.loads import pressure
+from fruitcli.fem.loads.springs import Jig
+from fruitcli.fem.materials import corotation
+from fruitcli.fem.materials import corotation_kernels as kernels
+from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
 
@@ -396,7 +399,7 @@ class Model:
         return corotation.det3(corotation.deformation_gradients(x, self.tets, self.dm_inv))
 
     def make_solver(self, method: str = "pcg"):
-        from fruitcli.fem.linsolve import TangentSolver
+        from fruitcli.fem.solver.linsolve import TangentSolver
 
         return TangentSolver(self, method)
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 MIN_CHANGE_KPA = 0.05
 """Pressures that differ from the last solved ones by less than this in every chamber

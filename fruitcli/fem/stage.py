@@ -17,15 +17,18 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import MeshError, SceneError
-from fruitcli.fem import barycentric, io, pressure, shells, tet4, tetra
+from fruitcli.fem import io
 from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.elements import barycentric, tet4
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
-from fruitcli.fem.linsolve import LINEAR_SOLVERS
+from fruitcli.fem.loads import pressure
+from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
+from fruitcli.fem.meshing import shells, tetra
 from fruitcli.fem.model import Load, Model
-from fruitcli.fem.newton import SolverOptions, solve_state
-from fruitcli.fem.springs import Jig, nodes_in_box
+from fruitcli.fem.solver.linsolve import LINEAR_SOLVERS
+from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
 from fruitcli.geometry.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent
@@ -81,7 +84,7 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
 def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dict:
     """Tetrahedralize the scene's body with its chambers; write mesh files to out_dir.
     `taxels_xyz` (t, 3) mm, when given, tags the taxels' region of the surface and
-    refines the mesh there to [mesh].min_size_mm (see `fruitcli.fem.tetra`)."""
+    refines the mesh there to [mesh].min_size_mm (see `fruitcli.fem.meshing.tetra`)."""
     progress = progress or _noop
     outer, chambers = body_shells(scene, Path(solid_path) if solid_path else None)
     shells.check_layout(outer, chambers, scene.path.name)

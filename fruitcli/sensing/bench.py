@@ -64,7 +64,7 @@ def carried_vertices(rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray
     barycentrically into its rest tet (corner nodes of `tets`), placed by the same weights
     on the deformed `nodes` (N, 3). Vertices just outside the tet mesh (its surface is a
     remeshed copy of this one) are extrapolated from the nearest tet."""
-    from fruitcli.fem.barycentric import apply, locate
+    from fruitcli.fem.elements.barycentric import apply, locate
 
     corners = np.asarray(tets)[:, :4]
     tet, weights, _ = locate(rest_nodes, corners, vertices)

@@ -251,7 +251,7 @@ def taxel_strain(states, state_index=None) -> np.ndarray:
 def pad_mesh(size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4):
     """A flat pad of tets (`fem.grid.structured_box`): nodes (N, 3), tets (M, 4),
     x and y centred on 0, z in [0, t]."""
-    from fruitcli.fem.grid import structured_box
+    from fruitcli.fem.meshing.grid import structured_box
 
     sx, sy, t = size_mm
     cells = (int(round(sx / step_mm)), int(round(sy / step_mm)), layers)
@@ -277,7 +277,7 @@ def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0)
 @lru_cache(maxsize=1)
 def bent_pad_taxel_strain() -> np.ndarray:
     """Surface strain at each 4 x 4 pad taxel bent 180 deg over its active length (T,)."""
-    from fruitcli.fem.mesh_topology import boundary_faces
+    from fruitcli.fem.meshing.topology import boundary_faces
 
     nodes, tets = pad_mesh()
     tris = boundary_faces(nodes, tets)

@@ -95,13 +95,13 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
 
 
 def pressure_outward(nodes, tris):
-    from fruitcli.fem.pressure import orient_outward
+    from fruitcli.fem.loads.pressure import orient_outward
 
     return orient_outward(nodes, np.asarray(tris, np.int64))
 
 
 def _beam(case: Case):
-    from fruitcli.fem.grid import structured_box
+    from fruitcli.fem.meshing.grid import structured_box
     from fruitcli.fem.model import Load
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
@@ -111,7 +111,7 @@ def _beam(case: Case):
 
 
 def _hollow(case: Case, free: bool = False):
-    from fruitcli.fem.grid import structured_box_with_cavity
+    from fruitcli.fem.meshing.grid import structured_box_with_cavity
     from fruitcli.fem.model import Load
 
     nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS,
@@ -125,9 +125,9 @@ def _hollow(case: Case, free: bool = False):
 
 
 def _jig(case: Case):
-    from fruitcli.fem.grid import structured_box
+    from fruitcli.fem.loads.springs import Jig
+    from fruitcli.fem.meshing.grid import structured_box
     from fruitcli.fem.model import Load, Model
-    from fruitcli.fem.springs import Jig
     from fruitcli.fem.units import spring_mn_per_mm
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
@@ -154,7 +154,7 @@ BUILDERS = {"beam_gravity": _beam, "hollow_pressure": _hollow, "jig": _jig, "sli
 
 def run_case(case: Case) -> dict:
     """Solve one case; never raises: failures become a one-line `status`."""
-    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
     row = {"group": case.group, "case": case.name, "status": "converged", "iterations": 0,
            "subdivisions": 0, "residual": None, "max_disp_mm": None, "min_det_f": None,

@@ -90,7 +90,7 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
     with one reused solver; returns (model, solver, rows (ms, iterations, cg)[, the
     StateResults])."""
     from fruitcli.fem import io
-    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.newton import SolverOptions, solve_state
     from fruitcli.fem.stage import build_model
 
     model = build_model(scene, io.load_mesh(mesh_npz))
@@ -140,7 +140,8 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
 
     from scipy.interpolate import CubicSpline
 
-    from fruitcli.fem import barycentric, io
+    from fruitcli.fem import io
+    from fruitcli.fem.elements import barycentric
     from fruitcli.fem.online import OnlineSolver
     from fruitcli.fem.stage import build_model, solver_options, state_loads
     from fruitcli.sensing.board import load_taxels
@@ -199,7 +200,7 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
     """(assembly ms, scipy spsolve ms) of the rest tangent."""
     import scipy.sparse.linalg as spla
 
-    from fruitcli.fem import corotation
+    from fruitcli.fem.materials import corotation
 
     rot = np.tile(np.eye(3), (len(model.tets), 1, 1))
     t0 = time.perf_counter()
@@ -214,8 +215,8 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
 def bench_pad(tmp: Path, tolerance: float | None) -> None:
     """The touchpad bend: tetra, then the one jig state in the scene's jig_steps."""
     from fruitcli.fem import io
-    from fruitcli.fem.linsolve import TangentSolver
-    from fruitcli.fem.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.linsolve import TangentSolver
+    from fruitcli.fem.solver.newton import SolverOptions, solve_state
     from fruitcli.fem.stage import build_model, run_tetra, state_loads
     from fruitcli.scene import load_scene
 
@@ -350,7 +351,7 @@ def main() -> None:
     ap.add_argument("--pad-tolerance", type=float, default=None,
                     help="override the touchpad scene's [solver] tolerance")
     args = ap.parse_args()
-    from fruitcli.fem import linsolve
+    from fruitcli.fem.solver import linsolve
     from fruitcli.scene import load_scene
 
     if args.child_states is not None:  # peak memory of the simulation alone

@@ -1,5 +1,7 @@
-"""Finite elements: Lagrange shape functions and quadrature (`lagrange`), and the
-quadratic mesh built from a linear one (`quadratic`). An element is a `Family`: nodes
+"""Finite elements: Lagrange shape functions and quadrature (`lagrange`), the linear
+tet's geometry and Hooke stiffness (`tet4`), the quadratic mesh built from a linear one
+(`quadratic`), the compiled element loops for any element and material (`integrate`),
+and points (taxels) located in the mesh (`barycentric`). An element is a `Family`: nodes
 per tet, the surface triangle it induces and their quadrature rules."""
 
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, family

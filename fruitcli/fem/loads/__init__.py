@@ -1,2 +1,3 @@
-"""Loads on the body: chamber pressure on curved cavity walls (`cavity`); jig springs
-and gravity live in `fruitcli.fem.springs` and the models."""
+"""Loads on the body: chamber pressure on linear cavity walls (`pressure`, the paper's
+model) and on curved 3- or 6-node walls (`cavity`), and jig springs (`springs`).
+Gravity and prescribed clamps are assembled by the models (`fruitcli.fem.model`)."""

@@ -1,2 +1,3 @@
-"""Materials: strain energy density, first Piola-Kirchhoff stress and its tangent per
-quadrature point (`hyperelastic`), built from the scene's [material] (`build`)."""
+"""Materials: the paper's corotational Hooke model on linear tets (`corotation`, its
+compiled loops in `corotation_kernels`), hyperelastic strain energies with stress and
+tangent per quadrature point (`hyperelastic`), and the scene's [material] (`build`)."""

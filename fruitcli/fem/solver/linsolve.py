@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
-from fruitcli.fem import corotation
+from fruitcli.fem.materials import corotation
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,

@@ -132,7 +132,7 @@ def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
     the inverse is taken in closed form (no eigendecomposition) wherever tr S I - S is
     well conditioned; with `project`, also where Gershgorin's bound on the eigenvalues
     of tr S I - S shows that the clamp would change nothing (eigh only for the rest)."""
-    from fruitcli.fem import kernels
+    from fruitcli.fem.materials import corotation_kernels as kernels
 
     f = np.ascontiguousarray(f, dtype=float)
     rot = np.ascontiguousarray(rot, dtype=float)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fruitcli.fem.mesh_topology import shells
+from fruitcli.fem.meshing.topology import shells
 
 BASE_NORMAL_Z = -0.9
 """Faces whose outward normal has n_z below this (within 26 deg of straight down) and

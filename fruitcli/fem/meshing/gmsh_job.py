@@ -1,6 +1,6 @@
-"""Child process that runs gmsh (``python -m fruitcli.fem.gmsh_job JOB.npz OUT_DIR``).
+"""Child process that runs gmsh (``python -m fruitcli.fem.meshing.gmsh_job JOB.npz OUT_DIR``).
 
-gmsh can ignore polite signals for a long time, so the parent (`fruitcli.fem.tetra`)
+gmsh can ignore polite signals for a long time, so the parent (`fruitcli.fem.meshing.tetra`)
 runs this module in its own process group and kills it after the time limit.
 
 JOB.npz holds shells in order (the outer boundary first, then one per chamber), each
@@ -80,7 +80,7 @@ def _add_split(gmsh, tags: _Tags, v: np.ndarray, f: np.ndarray, bottom: np.ndarr
     """A closed shell as two discrete disk patches (top, bottom) bounded by two curves
     through the min-x and max-x vertices of their shared loop; returns the surface tags
     and the dimTags that `createGeometry` must parametrize."""
-    from fruitcli.fem.patches import boundary_loops, split_loop
+    from fruitcli.fem.meshing.patches import boundary_loops, split_loop
 
     f = np.asarray(f, np.int64)
     (loop,) = boundary_loops(f[bottom])

@@ -1,7 +1,7 @@
 """Tetrahedralize a body and its chambers with gmsh in a killable child process.
 
 The boundary is handed to gmsh by hand as discrete surfaces. A triangle surface (the
-solid, or a chamber file) is cut into two disk patches (`fruitcli.fem.patches`: the
+solid, or a chamber file) is cut into two disk patches (`fruitcli.fem.meshing.patches`: the
 flat base and the rest when the solid stands on one) that gmsh reparametrizes and
 remeshes at the target size, so `[mesh].size_mm` sets the element size whatever the
 input triangles are. Analytic chambers (ellipsoids) and the flat pad (box) are
@@ -44,9 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import MeshError
-from fruitcli.fem.mesh_topology import boundary_faces
-from fruitcli.fem.patches import split_bottom_top
-from fruitcli.fem.quality import min_dihedral_deg
+from fruitcli.fem.meshing.patches import split_bottom_top
+from fruitcli.fem.meshing.quality import min_dihedral_deg
+from fruitcli.fem.meshing.topology import boundary_faces
 
 BASE_NORMAL_COS = 0.999
 """A boundary face of an analytic box whose outward normal has n_z below -this, on the
@@ -128,7 +128,7 @@ def fallback_plan(size_mm: float) -> list[tuple[float, bool]]:
 
 def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
               taxels_xyz: np.ndarray | None = None, remesh: bool = True) -> dict:
-    """The arrays handed to the gmsh child (see `fruitcli.fem.gmsh_job`). With
+    """The arrays handed to the gmsh child (see `fruitcli.fem.meshing.gmsh_job`). With
     remesh=False the triangle surfaces are kept as they are (no patch split)."""
     wall = chamber_sizes(shells, min_size_mm)
     # gmsh clamps every size to MeshSizeMin: chamber files remeshed at their wall size
@@ -206,9 +206,10 @@ def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None)
     with tempfile.TemporaryDirectory(prefix="fruit-gmsh-", dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
-        cmd = [sys.executable, "-m", "fruitcli.fem.gmsh_job", str(tmp / "job.npz"), str(tmp)]
+        cmd = [sys.executable, "-m", "fruitcli.fem.meshing.gmsh_job",
+               str(tmp / "job.npz"), str(tmp)]
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(Path(__file__).resolve().parents[2]), os.environ.get("PYTHONPATH", "")]))
+            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]))
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 start_new_session=True, env=env, text=True)
         try:

@@ -52,7 +52,7 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
 def structured_box_with_cavity(lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm):
     """Structured box minus the cells whose centre lies in the cavity box. Returns nodes
     (n, 3), tets (m, 4) and the cavity wall triangles (t, 3), normals out of the cavity."""
-    from fruitcli.fem.mesh_topology import boundary_faces
+    from fruitcli.fem.meshing.topology import boundary_faces
 
     nodes, tets = structured_box(lo_mm, hi_mm, cells)
     c = nodes[tets].mean(axis=1)

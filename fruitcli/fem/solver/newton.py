@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.linsolve import TangentSolver
 from fruitcli.fem.model import Load, Model
+from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.tolerances import (
     ARMIJO,
     FORCE_FLOOR,

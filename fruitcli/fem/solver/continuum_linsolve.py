@@ -2,7 +2,7 @@
 tangent is assembled at every Newton step (its element blocks come from the compiled
 element loop); `pcg` (default) solves it by CG preconditioned with a sparse Cholesky
 factor kept across Newton steps and states and refreshed when CG slows down, `direct`
-factorizes it at every step. Same interface as `fruitcli.fem.linsolve.TangentSolver`."""
+factorizes it at every step. Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.linsolve import _cholesky, pcg
+from fruitcli.fem.solver.linsolve import _cholesky, pcg
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,

@@ -1,0 +1,3 @@
+"""Meshing: the closed shells that bound the body (`shells`), gmsh in a killable child
+process (`tetra`, `gmsh_job`, split into patches by `patches`), structured box meshes
+(`grid`), boundary topology (`topology`) and tet quality (`quality`)."""

@@ -1,0 +1,3 @@
+"""The solver: Newton iterations on one state (`newton`), linear solves with the
+tangents (`linsolve` for the corotational model, `continuum_linsolve` for the
+hyperelastic one) and sparse assembly with a fixed pattern (`assemble`)."""
