@@ -100,8 +100,9 @@ def fingerprint(stage: Stage, scene: Scene, ctx: Context) -> str:
 
 @functools.cache
 def _code_hash(module: str) -> str:
-    """Hash of the stage's package sources and of the sibling packages and modules they
-    import (one level: `from <root>.x ...`), so a code change there reruns the stage.
+    """Hash of the stage's package sources (subpackages included) and of the sibling
+    packages and modules they import (one level: `from <root>.x ...`), so a code
+    change there reruns the stage.
     Computed once per process: the code a process runs is the code it imported, so a
     later edit of the files must not change the fingerprints it writes (and a sweep
     fingerprints every stage of every variant)."""
@@ -115,11 +116,11 @@ def code_files(module: str) -> list[Path]:
     root = module.split(".")[0]
     pkg_dir = Path(importlib.import_module(module).__file__).parent
     top = Path(importlib.import_module(root).__file__).parent
-    files = set(pkg_dir.glob("*.py"))
+    files = set(pkg_dir.rglob("*.py"))  # with its subpackages (fem/elements, ...)
     pattern = re.compile(rf"^\s*(?:from|import)\s+{root}\.(\w+)", re.MULTILINE)
     for name in {m for f in list(files) for m in pattern.findall(f.read_text())}:
         if (top / name).is_dir():
-            files.update((top / name).glob("*.py"))
+            files.update((top / name).rglob("*.py"))
         elif (top / f"{name}.py").exists():
             files.add(top / f"{name}.py")
     return sorted(files)
