@@ -68,6 +68,14 @@ class ContinuumModel:
     """Newton keeps the full tangent after a damped step (it stays a descent direction
     for this energy; the clamped tangent would slow convergence to linear)."""
 
+    secant_while_rotating = False
+    """Load steps that turn a jig start from the last converged step, not from the
+    secant through the two before it: the secant extrapolates a rotation along straight
+    lines, which a nearly incompressible body resists with its bulk modulus, while
+    Newton's first iteration from the last step (the tangent predictor) keeps its
+    volume. On the default Fruit's jig state (nu = 0.49) the secant start inverted
+    elements and Newton crawled (over 8 min); without it, 4 iterations per step."""
+
     rest: np.ndarray  # (n, 3) mm, corners first then edge nodes
     conn: np.ndarray  # (m, nen)
     family: Family

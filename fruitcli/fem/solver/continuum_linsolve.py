@@ -52,7 +52,10 @@ class _Pardiso:
         # MKL keeps the factor outside Python's heap until told (about 1 GB here)
         solver = getattr(self, "solver", None)
         if solver is not None:
-            solver.free_memory(everything=True)
+            try:
+                solver.free_memory(everything=True)
+            except Exception:  # noqa: BLE001 - at interpreter exit MKL frees it anyway
+                pass
 
 
 try:

@@ -211,11 +211,13 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     last = None  # (t, x, p) of the load step before the last one, for the predictor
     retry = False
     guess = _history_guess(solver.history, x_start, load) if dt == 1.0 else None
+    rotating = load.jig != load_start.jig and any(j.rotate_deg for j in model.jigs)
+    secant = getattr(model, "secant_while_rotating", True) or not rotating
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
         x_try, p_try = x, p.copy()
-        if last is not None and not retry:  # secant predictor along the load path
+        if last is not None and not retry and secant:  # secant predictor along the path
             s = (t_new - t) / (t - last[0])
             x_try, p_try = x + s * (x - last[1]), p + s * (p - last[2])
         elif guess is not None and t_new == 1.0 and not retry:  # secant over the states
