@@ -3,10 +3,14 @@
 import numpy as np
 import pytest
 
+from fruitcli.errors import GeometryError
 from fruitcli.fabrication.yarn import (
     DEFAULT_MAX_STRETCH,
+    YARN_COLUMNS,
     Track,
+    local_stretch,
     read_tracks,
+    stretch_table,
     write_yarns_csv,
     yarn_stretch,
     zigzag_amplitude,
@@ -76,6 +80,51 @@ def test_yarns_csv_and_tracks_csv_round_trip(tmp_path):
               [[3, "x", 2, k, *map(float, p)] for k, p in enumerate(pts)], comments=["mm"])
     (t,) = read_tracks(tmp_path / "tracks.csv")
     assert (t.track, t.axis, t.index) == (3, "x", 2) and np.allclose(t.points, pts)
-    write_yarns_csv(tmp_path / "yarns.csv", [[3, "x", 2, 3.0, 12.5, 4]])
-    back = read_table(tmp_path / "yarns.csv", ["track", "rest_length_mm", "max_stretch_pct"])
+    write_yarns_csv(tmp_path / "yarns.csv", [[3, "x", 2, 3.0, 12.5, 4, 20.0, 1]])
+    back = read_table(tmp_path / "yarns.csv", [c for c in YARN_COLUMNS if c != "axis"])
     assert back["max_stretch_pct"][0] == pytest.approx(12.5)
+    assert back["max_local_stretch_pct"][0] == pytest.approx(20.0)
+
+
+def test_local_stretch_is_the_largest_over_one_pitch():
+    """A 20 mm track whose first half stretches 20 % and second half not at all: 10 %
+    over its length, 20 % over any 4 mm of the first half."""
+    xs = np.linspace(0.0, 20.0, 81)
+    rest = np.c_[xs, np.zeros_like(xs), np.zeros_like(xs)]
+    moved = rest.copy()
+    moved[:, 0] = np.where(xs <= 10, 1.2 * xs, 12.0 + (xs - 10))
+    (row,), s, warnings = stretch_table([Track(0, "x", 0, rest)], [moved[None]],
+                                        max_stretch=0.15, pitch_mm=4.0)
+    assert s[0, 0] == pytest.approx(0.10)
+    assert local_stretch(rest, moved[None], 4.0)[0] == pytest.approx(0.20)
+    assert row[6] == pytest.approx(20.0) and row[4] == pytest.approx(10.0)
+    assert len(warnings) == 1 and "20.0 % over 4 mm" in warnings[0]
+    assert f"{zigzag_amplitude(0.2, 4.0):.2f} mm at a 4 mm pitch" in warnings[0]
+    # a track shorter than the pitch: its whole length
+    assert local_stretch(rest[:5], moved[None, :5], 4.0)[0] == pytest.approx(0.20)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("track,axis,index,point,x_mm,y_mm\n0,x,0,0,1,2\n", "expected columns"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,zz\n0,x,0,1,1,2,3\n",
+     "line 2: expected integers"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,nan\n0,x,0,1,1,2,3\n",
+     "line 2: expected axis x or y and finite"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,q,0,0,1,2,3\n0,q,0,1,1,2,3\n",
+     "line 2: expected axis x or y"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n", "track 0: expected at "
+     "least 2 points"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1\n",
+     "line 3: expected integers"),
+    ("", "no tracks"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n", "no track points"),
+])
+def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
+    path = tmp_path / "tracks.csv"
+    path.write_text(text)
+    with pytest.raises(GeometryError) as err:
+        read_tracks(path)
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: ") and says in msg and "\n" not in msg
+    with pytest.raises(GeometryError, match="tracks file not found"):
+        read_tracks(tmp_path / "none.csv")
