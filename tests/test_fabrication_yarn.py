@@ -116,6 +116,8 @@ def test_local_stretch_is_the_largest_over_one_pitch():
      "least 2 points"),
     ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1\n",
      "line 3: expected integers"),
+    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1,2,3\n",
+     "track 0: zero length"),
     ("", "no tracks"),
     ("track,axis,index,point,x_mm,y_mm,z_mm\n", "no track points"),
 ])
@@ -134,7 +136,7 @@ def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
 BEND = {"length": 24.0, "clamp": 4.0, "width": 6.0, "thick": 2.0}
 
 
-def bent_plate_scene(folder, theta_deg=90.0, extra="", tracks=True):
+def bent_plate_scene(folder, theta_deg=90.0, extra="", tracks=True, size_mm=1.5):
     """A 32 x 6 x 2 mm p2 pad, its left 4 mm held and its right 4 mm carried by jig
     springs through `theta_deg` about an axis below it, so that the 24 mm between them
     bends downwards by that angle (a circular arc of radius R = 24 mm / theta when the
@@ -162,7 +164,7 @@ pad_size_mm = [{lx}, {width}, {t}]
 file = "tracks.csv"
 {extra}
 [mesh]
-size_mm = 1.5
+size_mm = {size_mm}
 [fem]
 element = "p2"
 [[fixed]]

@@ -95,6 +95,8 @@ def read_tracks(path) -> list[Track]:
         if len(pts) < 2 or len(np.unique(pts[:, 0])) < len(pts):
             raise GeometryError(f"{path}: track {t}: expected at least 2 points with distinct "
                                 "point numbers")
+        if polyline_lengths(pts[:, 1:]) <= 0:
+            raise GeometryError(f"{path}: track {t}: zero length (its points coincide)")
         out.append(Track(t, meta[t][0], meta[t][1], pts[:, 1:]))
     return out
 
@@ -128,8 +130,6 @@ def stretch_table(tracks: list[Track], moved: list[np.ndarray],
     rows, stretch, warnings = [], [], []
     for t, x in zip(tracks, moved, strict=True):
         rest = float(polyline_lengths(t.points))
-        if rest <= 0:
-            raise GeometryError(f"track {t.track}: zero length (its points coincide)")
         s = polyline_lengths(x) / rest - 1.0
         loc = local_stretch(t.points, x, pitch_mm)
         k, m = int(np.argmax(s)), int(np.argmax(loc))

@@ -302,6 +302,8 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
             for i, r in enumerate(results):
                 io.write_vtu(tmp / f"state_{i:03d}.vtu", r.x, out["elements"],
                              {"displacement_mm": r.displacement_mm})
+    if tracks is None:  # no tracks now: an older yarns.csv would not match these states
+        (Path(out_dir) / "yarns.csv").unlink(missing_ok=True)
     return {"states": len(results), "iterations": out["iterations"].tolist(),
             "solve_ms": out["solve_ms"].tolist(), "notes": model.notes,
             "linear_solver": solver.stats | {"method": solver.method}} | (
