@@ -8,6 +8,7 @@ from fruitcli.fabrication.yarn import (
     DEFAULT_MAX_STRETCH,
     YARN_COLUMNS,
     Track,
+    follow_tracks,
     local_stretch,
     read_tracks,
     stretch_table,
@@ -130,6 +131,25 @@ def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
     assert msg.startswith(f"{path}: ") and says in msg and "\n" not in msg
     with pytest.raises(GeometryError, match="tracks file not found"):
         read_tracks(tmp_path / "none.csv")
+
+
+def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
+    """On a model of linear tets at rest: no stretch; a track with a point 0.5 mm above a
+    plate of 0.5 mm elements is named in one warning line, the one inside is not."""
+    from fruitcli.fem.model import Model
+
+    nodes, tets = plate_tets(4.0, 2.0, 1.0, 0.5)
+    model = Model.from_arrays(nodes, tets, 100.0, 0.45)
+    xs = np.linspace(0.0, 4.0, 9)
+    inside = Track(0, "y", 0, np.c_[xs, np.full_like(xs, 1.0), np.full_like(xs, 0.5)])
+    above = Track(1, "y", 1, inside.points + [0.0, 0.0, 0.0])
+    above.points[4, 2] = 1.0
+    said = []
+    rows, summary = follow_tracks(model, [inside, above], model.rest[None], 0.25, 4.0, 0.1,
+                                  said.append)
+    assert [r[4] for r in rows] == pytest.approx([0.0, 0.0], abs=1e-9)
+    assert len(said) == 1 and "1 of 2 tracks (tracks 1) have points outside" in said[0]
+    assert summary["tracks_outside_mesh"] == [1] and summary["warnings"] == []
 
 
 # ------------------------------------------------------------------ through `fruit simulate`

@@ -175,20 +175,22 @@ def follow_tracks(model, tracks: list[Track], states_x: np.ndarray, max_stretch:
     """The tracks through a solved FEM: every point located in the model's corner tets
     at rest and moved with the model's own shape functions (`model.map_points`, quadratic
     on p2, as the taxels). states_x (s, n, 3) mm. Points outside the mesh by more than
-    `outside_warning` of an element's size are warned about, once per track, through
-    `progress`, and so are overstretched tracks. Returns (rows for YARN_COLUMNS, summary)."""
+    `outside_warning` of an element's size are warned about in one line through
+    `progress`, and overstretched tracks one line each. Returns (rows for YARN_COLUMNS, summary)."""
     from fruitcli.fem.elements.barycentric import locate
 
     pts = np.concatenate([t.points for t in tracks])
     tet, w, outside = locate(model.rest, model.tets, pts)
     xs = model.map_points(tet, w, states_x)                           # (s, p, 3)
     cut = np.cumsum([len(t.points) for t in tracks])[:-1]
-    for t, far in zip(tracks, np.split(outside, cut), strict=True):
-        if far.max() > outside_warning:
-            progress(f"simulate: warning: track {t.track}: {int((far > outside_warning).sum())}"
-                     f" of its {len(far)} points lie outside the mesh (up to {far.max():.2f} "
-                     "of the nearest element's size); they follow by extrapolation (check "
-                     "the tracks file or [mesh].size_mm)")
+    far = [t.track for t, d in zip(tracks, np.split(outside, cut), strict=True)
+           if d.max() > outside_warning]
+    if far:
+        progress(f"simulate: warning: {len(far)} of {len(tracks)} tracks (tracks "
+                 f"{', '.join(map(str, far))}) have points outside the mesh: "
+                 f"{int((outside > outside_warning).sum())} of {len(pts)} points, up to "
+                 f"{outside.max():.2f} of the nearest element's size; they follow by "
+                 "extrapolation (check the tracks file or [mesh].size_mm)")
     rows, _, warnings = stretch_table(tracks, np.split(xs, cut, axis=1), max_stretch,
                                       pitch_mm)
     for msg in warnings:
@@ -197,7 +199,8 @@ def follow_tracks(model, tracks: list[Track], states_x: np.ndarray, max_stretch:
     return rows, {"tracks": len(rows), "max_stretch_pct": round(max(r[4] for r in rows), 3),
                   "max_local_stretch_pct": round(worst[6], 3), "worst_track": worst[0],
                   "state_of_max": worst[7], "yarn_max_stretch": max_stretch,
-                  "zigzag_pitch_mm": pitch_mm, "warnings": warnings}
+                  "zigzag_pitch_mm": pitch_mm, "warnings": warnings,
+                  "tracks_outside_mesh": far, "outside_max": round(float(outside.max()), 3)}
 
 
 def zigzag_amplitude(stretch: float, pitch_mm: float) -> float:
@@ -216,6 +219,6 @@ def write_yarns_csv(path, rows) -> None:
         "yarn tracks: rest length on the rest surface (mm), largest stretch of the whole "
         "track over the simulated states (% of the rest length), the state where it "
         "occurs, and the largest stretch over any piece one zig-zag pitch long (%) with "
-        "its state",
+        "its state (states counted from 0, as in states.npz)",
         "a triangle-wave zig-zag of amplitude A at pitch p gives slack for a stretch of "
         "sqrt(1 + (4 A / p)^2) - 1"])
