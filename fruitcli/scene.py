@@ -57,6 +57,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
         "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
                                              "fraction (yarn limit 0.3 minus a 0.05 margin)"),
+        "zigzag_pitch_mm": Key("num", 4.0, "zig-zag pitch of the sewn yarn (mm): the warnings' "
+                                           "amplitude and the length of the local stretch"),
+        "file": Key("path", None, "track centre lines given directly (track,axis,index,point,"
+                                  "x_mm,y_mm,z_mm; default: make-tracks' tracks.csv)"),
     },
     "grid": {
         "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),
@@ -458,6 +462,13 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: [material].model = \"corotational\" is the paper's SOFA "
                          f"model on linear tets: set [fem].element = \"p1\" (got "
                          f"{element!r}), or use model = \"neo-hookean\"")
+    tr = scene["tracks"]
+    if not 0 < tr["yarn_max_stretch"] < 1:
+        raise SceneError(f"{where}: [tracks].yarn_max_stretch: expected a fraction 0 < value "
+                         f"< 1 (0.25 = 25 %), got {tr['yarn_max_stretch']}")
+    if tr["zigzag_pitch_mm"] <= 0:
+        raise SceneError(f"{where}: [tracks].zigzag_pitch_mm: expected > 0 (mm), got "
+                         f"{tr['zigzag_pitch_mm']}")
     if scene["mesh"]["size_mm"] <= 0:
         raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
     sol = scene["solver"]

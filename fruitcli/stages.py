@@ -46,6 +46,22 @@ def solid_path(scene: Scene, ctx: Context) -> Path | None:
     return None
 
 
+def _has_tracks(scene: Scene) -> bool:
+    return scene["tracks"]["file"] is not None or _geometry_kind(scene) == "artist"
+
+
+def tracks_path(scene: Scene, ctx: Context) -> Path | None:
+    """Where this scene's yarn track centre lines come from ([tracks] file, or the
+    tracks.csv of make-tracks), or None: no yarns.csv."""
+    if scene["tracks"]["file"] is not None:
+        return scene["tracks"]["file"]
+    return ctx.dir("make-tracks") / "tracks.csv" if _has_tracks(scene) else None
+
+
+YARN_KEYS = ("yarn_max_stretch", "zigzag_pitch_mm", "file")
+"""[tracks] keys read by simulate (yarns.csv), not by make-tracks."""
+
+
 def states_path(scene: Scene, ctx: Context) -> Path | None:
     return ctx.dir("simulate") / "states.npz" if has_deformation(scene) else None
 
@@ -88,7 +104,8 @@ def _tracks_needed(scene):
 
 def _tracks_inputs(scene, ctx):
     return {"artist": scene["geometry"]["artist"], "unit": scene["geometry"]["unit"],
-            "fit_mm": scene["geometry"]["fit_mm"], "tracks": scene["tracks"],
+            "fit_mm": scene["geometry"]["fit_mm"],
+            "tracks": {k: v for k, v in scene["tracks"].items() if k not in YARN_KEYS},
             "grid": {k: scene["grid"][k] for k in ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
 
 
@@ -176,7 +193,8 @@ def _tetra_run(scene, ctx, out_dir):
 def _simulate_inputs(scene, ctx):
     return {k: scene[k] for k in ("material", "gravity", "fixed", "jig", "actuation", "solver")
             } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
-                 "mesh": ctx.dir("tetra") / "mesh.npz"}
+                 "mesh": ctx.dir("tetra") / "mesh.npz", "tracks": tracks_path(scene, ctx),
+                 "yarn": {k: scene["tracks"][k] for k in YARN_KEYS[:2]}}
 
 
 def _simulate_run(scene, ctx, out_dir):
@@ -189,7 +207,7 @@ def _simulate_run(scene, ctx, out_dir):
         ctx.progress("simulate: no taxels to follow (a [geometry].solid scene takes them "
                      "from [grid].taxels, a CSV of id,i,j,x_mm,y_mm,z_mm)")
     return run_simulate(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
-                        progress=ctx.progress)
+                        progress=ctx.progress, tracks_csv=tracks_path(scene, ctx))
 
 
 # ----------------------------------------------------------------------------- sensing
@@ -326,7 +344,8 @@ STAGES: list[Stage] = [
     Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,
           _tetra_run, lambda s: ["mesh.npz", "quality.json"]),
     Stage("simulate", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed,
-          _simulate_inputs, _simulate_run, lambda s: ["states.npz"]),
+          _simulate_inputs, _simulate_run,
+          lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else [])),
     Stage("bench", ["simulate", "make-tracks", "pad-grid"], "fruitcli.sensing.stage",
           _bench_needed, _bench_inputs, _bench_run,
           lambda s: [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv"

@@ -25,7 +25,9 @@ def simulate(scene, out_dir, solid, taxels, vtu):
     Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,
     gravity from [material] density_kg_m3 when the scene has [gravity]. Writes
     OUT/states.npz: rest_nodes, tets, displacement_mm (S,N,3), pressure_kpa (S,K),
-    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms.
+    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms; and
+    OUT/yarns.csv (each track's rest length and largest stretch) when the scene has
+    tracks (make-tracks' tracks.csv or [tracks] file).
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
@@ -39,12 +41,18 @@ def simulate(scene, out_dir, solid, taxels, vtu):
         taxel_csv = taxels or sc["grid"]["taxels"]
         # given taxels are checked before any stage runs
         xyz = read_taxels(taxel_csv)["xyz"] if taxel_csv is not None else None
+        tracks_csv = sc["tracks"]["file"]
+        if tracks_csv is not None:
+            from fruitcli.fabrication.yarn import read_tracks
+
+            read_tracks(tracks_csv)
         if solid is None and geo["artist"] is not None:
             from fruitcli import planner
 
             planner.run(sc, out_dir, until="make-tracks", progress=log,
                         shared=shared_outputs(out_dir))
             solid = out_dir / "make-tracks" / "reduced.stl"
+            tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
             if xyz is None:
                 xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv")["xyz"]
         elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
@@ -58,6 +66,13 @@ def simulate(scene, out_dir, solid, taxels, vtu):
                     log(msg)
 
             info = run_simulate(sc, out_dir / "mesh.npz", xyz, out_dir, progress=progress,
-                                vtu=vtu)
+                                vtu=vtu, tracks_csv=tracks_csv)
     click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "
                f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}")
+    if "yarns" in info:
+        y = info["yarns"]
+        click.echo(f"{out_dir / 'yarns.csv'}: {y['tracks']} track(s), largest stretch "
+                   f"{y['max_stretch_pct']:.2f} % over a track, {y['max_local_stretch_pct']:.2f}"
+                   f" % over {y['zigzag_pitch_mm']:g} mm (track {y['worst_track']}, state "
+                   f"{y['state_of_max']}); {len(y['warnings'])} over [tracks] yarn_max_stretch "
+                   f"{100 * y['yarn_max_stretch']:g} %")

@@ -4,7 +4,7 @@ edge; see `fruitcli.fem.units`).
 - `run_tetra(scene, solid_path, out_dir)` -> out_dir/{mesh.npz, mesh.msh, mesh.vtu,
   quality.json}
 - `run_simulate(scene, mesh_npz, taxels_xyz, out_dir)` -> out_dir/states.npz (and one
-  VTU per state with vtu=True)
+  VTU per state with vtu=True; yarns.csv when the scene has tracks)
 
 `progress`, when given, is called with one-line messages; per state the message
 starts with "state i/S".
@@ -229,9 +229,17 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
                          cfg["linear_solver"], steps)
 
 
-def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False) -> dict:
-    """Solve every actuation state; write out_dir/states.npz (see module docstring)."""
+def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
+                 tracks_csv=None) -> dict:
+    """Solve every actuation state; write out_dir/states.npz (see module docstring), and
+    out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any."""
     progress = progress or _noop
+    tracks_csv = scene["tracks"]["file"] or tracks_csv
+    tracks = None
+    if tracks_csv is not None:  # read before solving: a bad file fails fast
+        from fruitcli.fabrication import yarn
+
+        tracks = yarn.read_tracks(tracks_csv)
     mesh = io.load_mesh(Path(mesh_npz))
     model = build_model(scene, mesh)
     for note in model.notes:
@@ -280,12 +288,23 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False)
         states_x = np.stack([r.x for r in results])
         out.update(taxel_tet=tet, taxel_bary=w, taxel_outside=outside,
                    taxels_mm=model.map_points(tet, w, states_x))
+    summary_yarns = None
+    if tracks is not None:
+        tr = scene["tracks"]
+        yarn_rows, summary_yarns = yarn.follow_tracks(
+            model, tracks, np.stack([r.x for r in results]), tr["yarn_max_stretch"],
+            tr["zigzag_pitch_mm"], OUTSIDE_WARNING, progress)
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", out)
+        if tracks is not None:
+            yarn.write_yarns_csv(tmp / "yarns.csv", yarn_rows)
         if vtu:
             for i, r in enumerate(results):
                 io.write_vtu(tmp / f"state_{i:03d}.vtu", r.x, out["elements"],
                              {"displacement_mm": r.displacement_mm})
+    if tracks is None:  # no tracks now: an older yarns.csv would not match these states
+        (Path(out_dir) / "yarns.csv").unlink(missing_ok=True)
     return {"states": len(results), "iterations": out["iterations"].tolist(),
             "solve_ms": out["solve_ms"].tolist(), "notes": model.notes,
-            "linear_solver": solver.stats | {"method": solver.method}}
+            "linear_solver": solver.stats | {"method": solver.method}} | (
+                {"yarns": summary_yarns} if summary_yarns else {})
