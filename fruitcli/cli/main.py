@@ -20,7 +20,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                   "Printable molds for a scene's cast pieces (shells, plates, cores)."),
     "tetra": ("fruitcli.cli.tetra", "tetra", "Tetrahedralize a scene's body with its chambers."),
     "simulate": ("fruitcli.cli.simulate", "simulate",
-                 "Quasi-static corotational FEM of a scene's states."),
+                 "Quasi-static FEM of a scene's states ([fem].element, [material].model)."),
     "bench": ("fruitcli.cli.bench", "bench", "Virtual 3D-printer bench: frames with ground truth."),
     "locate": ("fruitcli.cli.locate", "locate", "Detect touches in frames and map them to 3D."),
     "record": ("fruitcli.cli.record", "record", "Record frames from a MuCa board over serial."),

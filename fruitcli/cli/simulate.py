@@ -1,4 +1,5 @@
-"""`fruit simulate`: quasi-static corotational FEM of every actuation state (mm, kPa)."""
+"""`fruit simulate`: quasi-static FEM of every actuation state (mm, kPa) on the
+scene's [fem].element and [material].model."""
 
 from __future__ import annotations
 
