@@ -206,8 +206,9 @@ def wanting_reduced(scene: Scene) -> Scene:
 def _reduce_needed(scene):
     if not scene.chambers:
         return False, "no chambers: no pressures to reduce"
-    if _geometry_kind(scene) == "none":
-        return False, "no geometry to mesh"
+    meshed, why = _fem_needed(scene)
+    if not meshed:
+        return False, why
     if not scene.has("reduced"):
         return False, ("no [reduced]: built on demand (fruit live --online, fruit simulate "
                        "--model reduced)")

@@ -9,11 +9,13 @@ from pathlib import Path
 import numpy as np
 
 
-def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None):
+def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None):
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
-    stale). `taxels_csv` replaces the scene's [grid].taxels."""
+    stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
+    meshed, no chambers) is one FruitError line starting with `label`."""
     from fruitcli import planner
     from fruitcli.cli.options import shared_outputs
+    from fruitcli.errors import FruitError
     from fruitcli.fem import reduced
     from fruitcli.stages import reduced_path, wanting_reduced
 
@@ -40,11 +42,16 @@ def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None):
         log(msg)
 
     try:
-        planner.run(sc, out_root, until="reduce", progress=route,
-                    shared=shared_outputs(out_root))
+        steps = planner.run(sc, out_root, until="reduce", progress=route,
+                            shared=shared_outputs(out_root))
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
+    skipped = {st.stage: st.reason for st in steps if st.action == "not needed"}
+    if "reduce" in skipped:
+        label = label or scene.path.name
+        what = "not meshed" if "tetra" in skipped else "without a reduced model"
+        raise FruitError(f"{label}: the scene is {what} ({skipped['reduce']})")
     return reduced.load(reduced_path(sc, planner.Context(Path(out_root))))
 
 
