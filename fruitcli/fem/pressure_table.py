@@ -29,14 +29,13 @@ def read_pressures(path: str | Path, chambers: list[str]) -> tuple[np.ndarray, n
 
 
 def _read(path: Path, want: list[str]) -> dict:
+    table = read_table(path, want, error=FruitError)
     text_lines = _data_lines(path)
-    header = [h.strip() for h in text_lines[0][1].split(",")] if text_lines else []
-    extra = [h for h in header if h not in want]
-    if text_lines and extra:
+    extra = [h for h in table if h not in want]
+    if extra:
         raise FruitError(f"{path}: row {text_lines[0][0]}: unexpected column(s) "
                          f"{', '.join(extra)}: expected one column per chamber: "
                          f"{', '.join(want)} (kPa)")
-    table = read_table(path, want, error=FruitError)
     table["__line__"] = np.array([n for n, _ in text_lines[1:]], np.int64)
     return table
 
