@@ -227,3 +227,18 @@ def test_planner_rebuilds_the_reduced_model_when_its_range_changes(pad_run, tmp_
     assert action(PAD.replace("right = [0.0, 0.0, 3.0]", "right = [0.0, 0.0, 4.0]")) == "run"
     assert action(PAD.replace('model = "corotational"',
                               'model = "corotational"\nyoung_modulus_kpa = 150.0')) == "run"
+
+
+def test_one_vector_basis_equals_the_batch_basis():
+    """The live loop's one-vector path (Python floats) gives the batch basis."""
+    lo, hi = np.array([-1.2, 0.0, 3.0]), np.array([13.2, 5.0, 4.0])
+    e = rs.exponents(3, 4)
+    rng = np.random.default_rng(2)
+    m = reduced_mod.ReducedModel(["a", "b", "c"], lo, hi, e, rng.normal(size=(len(e), 6)),
+                                 np.zeros((len(e), 3)), np.zeros((len(e), 1)),
+                                 np.zeros((1, 3)), np.zeros((1, 3)), {})
+    p = lo + rng.random((20, 3)) * (hi - lo)
+    batch = m.taxels(p)
+    assert batch.shape == (20, 2, 3)
+    for row, want in zip(p, batch, strict=True):
+        assert np.abs(m.taxels(row) - want).max() < 1e-12
