@@ -31,7 +31,12 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
     Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,
     gravity from [material] density_kg_m3 when the scene has [gravity]. Writes
     OUT/states.npz: rest_nodes, tets, displacement_mm (S,N,3), pressure_kpa (S,K),
-    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms.
+    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms, model.
+
+    With --pressures P.csv the states are the rows of P.csv (one column <chamber>_kpa per
+    chamber). --model reduced evaluates the scene's reduced model instead of solving
+    (built into OUT/reduce on first use; rows outside its range are refused; solve_ms
+    is then the time of the evaluation).
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra

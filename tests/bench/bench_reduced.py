@@ -8,9 +8,10 @@ By default the model is built on the paper's element (p1, corotational; one stat
 tens of ms) so that `make bench` stays short; `--element p2` builds it on the scene's
 own p2 neo-Hookean element (175 full solves of 2-7 s each: about 10-20 min on a
 loaded 2-core machine). With `--reuse OUT`, a reduced model already built (OUT/reduce,
-e.g. `fruit run SCENE --until reduce`) is timed instead of building one.
+e.g. `fruit run SCENE --until reduce`, or `--keep OUT` of an earlier run) is timed
+instead of building one.
 
-Run: .venv/bin/python tests/bench/bench_reduced.py [--element p1|p2] [--reuse OUT]
+Run: .venv/bin/python tests/bench/bench_reduced.py [--element p1|p2] [--keep OUT | --reuse OUT]
 """
 
 import argparse
@@ -69,6 +70,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--element", choices=["p1", "p2"], default="p1")
     ap.add_argument("--reuse", type=Path, default=None)
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="build into this folder (kept, for --reuse) instead of a temporary one")
     args = ap.parse_args()
     from fruitcli import planner
     from fruitcli.cli.reduced import ensure_reduced
@@ -83,10 +86,11 @@ def main() -> None:
         scene = variant(load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
                                    must_exist=False), args.element)
         with tempfile.TemporaryDirectory() as tmp:
+            out = args.keep or Path(tmp) / "out"
             t0 = time.perf_counter()
-            planner.run(scene, Path(tmp) / "out", until="tetra")
+            planner.run(scene, out, until="tetra")
             print(f"default Fruit meshed in {time.perf_counter() - t0:.1f} s")
-            model = ensure_reduced(scene, Path(tmp) / "out")
+            model = ensure_reduced(scene, out)
         print(f"reduced model of the default Fruit on {args.element}:")
     a, v = model.arrays, model.validation()
     solve_ms = a["solve_ms"]
@@ -100,16 +104,16 @@ def main() -> None:
           + ", ".join(f"{int(d)}: {e:.3g} mm" for d, e in
                       zip(a["loo_degrees"], a["loo_taxel_max_mm"], strict=True)) + ")")
     print(f"  held-out at {v['vectors']} random pressure vectors: taxels max "
-          f"{v['taxel_max_mm']:.4f} mm, median {v['taxel_median_mm']:.5f} mm (bound "
-          f"{reduced.TAXEL_BOUND_MM} mm); volumes max {v['volume_max_pct']:.4f} %, median "
-          f"{v['volume_median_pct']:.4f} % (bound {reduced.VOLUME_BOUND_PCT} %); surface "
-          f"nodes max {v['surface_max_mm']:.4f} mm; "
+          f"{v['taxel_max_mm']:.2g} mm, median {v['taxel_median_mm']:.2g} mm (bound "
+          f"{reduced.TAXEL_BOUND_MM} mm); volumes max {v['volume_max_pct']:.2g} %, median "
+          f"{v['volume_median_pct']:.2g} % (bound {reduced.VOLUME_BOUND_PCT} %); surface "
+          f"nodes max {v['surface_max_mm']:.2g} mm; "
           + ("within the bound" if v["within_bound"] else "OUTSIDE THE BOUND"))
     print("  held-out error against samples and degree:")
     print(f"  {'per axis':>8} {'samples':>7} {'degree':>6} {'taxel max mm':>12} "
           f"{'volume max %':>12}")
     for m, d, s, e, ve in a["study"]:
-        print(f"  {m:8.0f} {s:7.0f} {d:6.0f} {e:12.4f} {ve:12.4f}")
+        print(f"  {m:8.0f} {s:7.0f} {d:6.0f} {e:12.2g} {ve:12.2g}")
     t = time_per_vector(model)
     print(f"  per pressure vector: taxels {t['taxels_one_us']:.1f} us one at a time "
           f"(bound 100 us), {t['taxels_batch_us']:.2f} us in a batch of 2000; live "
