@@ -242,3 +242,69 @@ def test_one_vector_basis_equals_the_batch_basis():
     assert batch.shape == (20, 2, 3)
     for row, want in zip(p, batch, strict=True):
         assert np.abs(m.taxels(row) - want).max() < 1e-12
+
+
+def translating_model(lo, hi, shift_per_kpa, rest_xyz):
+    """A degree-1 ReducedModel moving every taxel from rest_xyz (T, 3) by
+    shift_per_kpa (3, K) @ p (mm): fitted to that exactly linear map, so exact to
+    round-off."""
+    k = len(lo)
+    e = rs.exponents(k, 1)
+    grid = rs.lobatto_points(2)[rs.snake_grid(k, 2)]
+    p = lo + (grid + 1) / 2 * (hi - lo)
+    y = rest_xyz.ravel() + np.tile(p @ shift_per_kpa.T, len(rest_xyz))  # (n, 3T)
+    coef = rs.fit(rs.basis(grid, e), y)
+    return reduced_mod.ReducedModel(["left", "right"], lo, hi, e, coef, np.zeros((k + 1, k)),
+                                    np.zeros((k + 1, 1)), np.zeros((1, 3)), np.zeros((1, 3)),
+                                    {"validation_taxel_error_mm": np.zeros((1, 1)),
+                                     "validation_volume_error_pct": np.zeros((1, k)),
+                                     "validation_surface_error_mm": np.zeros((1, 1)),
+                                     "sample_kpa": p, "build_s": np.array(0.0),
+                                     "full_solves": np.array(len(p))})
+
+
+@pytest.mark.parametrize("detection", [{}, {"hysteresis_counts": 6.0, "drift_rate": 0.05,
+                                            "track_gate_mm": 30.0}])
+def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detection):
+    """With a reduced model, a recording's frames with pressures put their touches at
+    the taxels the model gives at those pressures (batch and stateful paths, chunked):
+    a model that translates every taxel by B p moves each touch by B p of its frame from
+    where it is located on the rest taxels plus the same translation at 0 kPa."""
+    import csv
+
+    from test_locate_chunks import full_grid, located, scene, touch_frames, write_taxels
+
+    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.frames_io import Recording, write_npz
+    from fruitcli.sensing.stage import run_locate
+
+    rng = np.random.default_rng(4)
+    frames = touch_frames(300, rng, noisy_base=True)
+    t_s = np.arange(300) / 30.0
+    kpa = np.column_stack([rng.uniform(-2, 11, 300), rng.uniform(-1, 7, 300)])
+    write_npz(tmp_path / "f.npz", Recording(frames, t_s, kpa[:, ::-1], ("right", "left")))
+    taxels = write_taxels(tmp_path / "t.csv", full_grid())
+    b = np.array([[0.3, -0.1], [0.0, 0.2], [1.0, 0.5]])
+    model = translating_model(np.array([-3.0, -3.0]), np.array([12.0, 12.0]), b,
+                              load_taxels(taxels).xyz_mm)
+    sc = scene(detection=detection)
+    # on the rest taxels: the same recording without its pressures
+    write_npz(tmp_path / "r.npz", Recording(frames, t_s))
+    _, res0 = located(tmp_path, sc, tmp_path / "r.npz", taxels, out="rest")
+    res = run_locate(sc, tmp_path / "f.npz", taxels, None, tmp_path / "red",
+                     chunk_frames=64, reduced=model)
+    assert res0["touches"] > 50 and res["model"] == "reduced"
+    assert res["frames_outside_reduced_range"] == 0
+
+    def rows(path):
+        with open(path) as fh:
+            return [r for r in csv.DictReader(line for line in fh if not line.startswith("#"))]
+
+    rest, red = rows(tmp_path / "rest" / "touches.csv"), rows(tmp_path / "red" / "touches.csv")
+    assert [(r["frame"], r["i"], r["j"]) for r in red] == [(r["frame"], r["i"], r["j"])
+                                                          for r in rest]
+    for r0, r1 in zip(rest, red, strict=True):
+        shift = b @ kpa[int(r0["frame"])]
+        got = np.array([float(r1[c]) for c in ("x_mm", "y_mm", "z_mm")])
+        want = np.array([float(r0[c]) for c in ("x_mm", "y_mm", "z_mm")]) + shift
+        assert np.abs(got - want).max() < 2e-6
