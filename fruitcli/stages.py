@@ -211,7 +211,7 @@ def _reduce_needed(scene):
         return False, why
     if not scene.has("reduced"):
         return False, ("no [reduced]: built on demand (fruit live --online, fruit simulate "
-                       "--model reduced)")
+                       "--model reduced, fruit locate --scene)")
     return True, (f"{len(scene.chambers)} chamber(s): response surfaces fitted to full "
                   "solves over the pressure range, held-out validation")
 

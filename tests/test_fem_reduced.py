@@ -308,3 +308,22 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
         got = np.array([float(r1[c]) for c in ("x_mm", "y_mm", "z_mm")])
         want = np.array([float(r0[c]) for c in ("x_mm", "y_mm", "z_mm")]) + shift
         assert np.abs(got - want).max() < 2e-6
+
+
+def test_reduced_online_clamps_to_the_range_and_skips_repeats():
+    """The live loop's ReducedOnline: taxels at the pressures, a repeat not evaluated
+    again, pressures outside the range evaluated at the nearest inside and counted."""
+    from fruitcli.fem.online import ReducedOnline
+
+    rest = np.array([[0.0, 0.0, 10.0], [16.0, 0.0, 10.0]])
+    b = np.array([[0.3, -0.1], [0.0, 0.2], [1.0, 0.5]])
+    live = ReducedOnline(translating_model(np.array([0.0, 0.0]), np.array([5.0, 5.0]), b,
+                                           rest))
+    assert np.allclose(live.taxels_mm, rest)
+    assert live.update(np.array([1.0, 2.0])) and not live.update([1.0, 2.0])
+    assert np.abs(live.taxels_mm - (rest + b @ [1.0, 2.0])).max() < 1e-12
+    assert live.update([9.0, -1.0]) and live.clamped == 1
+    assert np.abs(live.taxels_mm - (rest + b @ [5.0, 0.0])).max() < 1e-12
+    assert "2 pressure vectors" in live.summary() and "1 outside its range" in live.summary()
+    with pytest.raises(SolverError, match="expected 2 chamber pressures"):
+        live.update([1.0])

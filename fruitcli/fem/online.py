@@ -127,6 +127,8 @@ class ReducedOnline:
         self.taxels_mm = reduced.taxels(np.clip(np.zeros(len(reduced.lo)), reduced.lo,
                                                 reduced.hi))
         self.solved_kpa: np.ndarray | None = None
+        self._last: list[float] | None = None
+        self._lo, self._hi = reduced.lo.tolist(), reduced.hi.tolist()
         self.solve_ms: list[float] = []
         self.failures = 0
         self.clamped = 0
@@ -137,16 +139,17 @@ class ReducedOnline:
         positions were published."""
         if pressure_kpa is None:
             return False
-        p = np.array(pressure_kpa, float).reshape(-1)
-        if len(p) != len(self.reduced.lo):
-            raise SolverError(f"reduced model: expected {len(self.reduced.lo)} chamber "
-                              f"pressures ({', '.join(self.reduced.chamber_names)}), got {len(p)}")
-        if self.solved_kpa is not None and np.array_equal(p, self.solved_kpa):
-            return False
-        self.solved_kpa = p
         t0 = time.perf_counter()
-        inside = np.clip(p, self.reduced.lo, self.reduced.hi)
-        self.clamped += int(not np.array_equal(inside, p))
+        p = np.asarray(pressure_kpa, float).reshape(-1).tolist()  # a copy, in floats
+        if len(p) != len(self._lo):
+            raise SolverError(f"reduced model: expected {len(self._lo)} chamber "
+                              f"pressures ({', '.join(self.reduced.chamber_names)}), got {len(p)}")
+        if p == self._last:
+            return False
+        self._last = p
+        self.solved_kpa = np.array(p)
+        inside = [min(max(x, a), b) for x, a, b in zip(p, self._lo, self._hi, strict=True)]
+        self.clamped += inside != p
         self.taxels_mm = self.reduced.taxels(inside)  # one assignment, as OnlineSolver
         self.solve_ms.append(1e3 * (time.perf_counter() - t0))
         return True
