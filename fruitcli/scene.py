@@ -119,6 +119,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
                            "models)"),
     },
+    "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced_build)
+        "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "
+                                  "each chamber's [actuation] pressures plus the margin)"),
+        "margin": Key("num", 0.1, "fraction of each chamber's [actuation] span added on "
+                      "either side"),
+        "points_per_axis": Key("int", 5, "Chebyshev-Lobatto full solves per chamber"),
+        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)"),
+        "validation": Key("int", 50, "held-out random pressure vectors solved in full"),
+        "seed": Key("int", 0, "seed of the held-out pressure vectors"),
+    },
     "board": {
         "rows": Key("int", 21, "frame rows (Tx lines)"),
         "cols": Key("int", 12, "frame columns (Rx lines)"),
@@ -471,6 +481,15 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                          f"{tr['zigzag_pitch_mm']}")
     if scene["mesh"]["size_mm"] <= 0:
         raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
+    red = scene["reduced"]
+    rng = red["pressure_range_kpa"]
+    if rng is not None and not rng[0] < rng[1]:
+        raise SceneError(f"{where}: [reduced].pressure_range_kpa: expected [lo, hi] with "
+                         f"lo < hi, got {rng}")
+    if red["margin"] < 0 or red["points_per_axis"] < 2 or red["max_degree"] < 1 \
+            or red["validation"] < 1:
+        raise SceneError(f"{where}: [reduced]: expected margin >= 0, points_per_axis >= 2, "
+                         "max_degree >= 1, validation >= 1")
     sol = scene["solver"]
     if sol["linear_solver"] not in LINEAR_SOLVERS:
         raise SceneError(f"{where}: [solver].linear_solver: expected one of "

@@ -210,6 +210,61 @@ def _simulate_run(scene, ctx, out_dir):
                         progress=ctx.progress, tracks_csv=tracks_path(scene, ctx))
 
 
+# ----------------------------------------------------------------------------- reduce
+def wanting_reduced(scene: Scene) -> Scene:
+    """The scene as if it declared [reduced] (its defaults): the reduce stage is then
+    needed. `fruit live --online` and `fruit simulate --model reduced` build the
+    reduced model on demand this way; `fruit run` builds it for scenes that declare
+    [reduced]."""
+    from dataclasses import replace
+
+    return replace(scene, declared=scene.declared | {"reduced"})
+
+
+def _reduce_needed(scene):
+    if not scene.chambers:
+        return False, "no chambers: no pressures to reduce"
+    meshed, why = _fem_needed(scene)
+    if not meshed:
+        return False, why
+    if not scene.has("reduced"):
+        return False, ("no [reduced]: built on demand (fruit live --online, fruit simulate "
+                       "--model reduced, fruit locate --scene)")
+    return True, (f"{len(scene.chambers)} chamber(s): response surfaces fitted to full "
+                  "solves over the pressure range, held-out validation")
+
+
+def _reduce_range(scene) -> dict:
+    from fruitcli.fem.reduced_build import pressure_box
+
+    names = [c["name"] for c in scene.chambers]
+    lo, hi = pressure_box(scene, names)
+    return {n: [float(a), float(b)] for n, a, b in zip(names, lo, hi, strict=True)}
+
+
+def _reduce_inputs(scene, ctx):
+    cfg = {k: v for k, v in scene["reduced"].items() if k not in ("pressure_range_kpa",
+                                                                  "margin")}
+    return {k: scene[k] for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
+            } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
+                 "mesh": ctx.dir("tetra") / "mesh.npz", "range_kpa": _reduce_range(scene),
+                 "reduced": cfg}
+
+
+def _reduce_run(scene, ctx, out_dir):
+    from fruitcli.fem.reduced_build import run_reduce
+    from fruitcli.geometry.pipeline import read_taxels
+
+    tax = taxels_path(scene, ctx)
+    xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    return run_reduce(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
+                      progress=ctx.progress)
+
+
+def reduced_path(scene: Scene, ctx: Context) -> Path:
+    return ctx.dir("reduce") / "reduced.npz"
+
+
 # ----------------------------------------------------------------------------- sensing
 def _bench_needed(scene):
     if not scene.has("bench"):
@@ -346,6 +401,9 @@ STAGES: list[Stage] = [
     Stage("simulate", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed,
           _simulate_inputs, _simulate_run,
           lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else [])),
+    Stage("reduce", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.reduced_build",
+          _reduce_needed, _reduce_inputs, _reduce_run,
+          lambda s: ["reduced.npz", "validation.json"]),
     Stage("bench", ["simulate", "make-tracks", "pad-grid"], "fruitcli.sensing.stage",
           _bench_needed, _bench_inputs, _bench_run,
           lambda s: [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv"

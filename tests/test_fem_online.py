@@ -165,14 +165,14 @@ def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
     try:
         res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
                                        "--taxels", str(taxels), "--pressure-port", src.path,
-                                       "--online", "--frames", "60"])
+                                       "--online", "--model", "full", "--frames", "60"])
     finally:
         th.join(5)
         src.close()
     assert res.exit_code == 0, res.output
     assert (tmp_path / "out" / "online-pad" / "tetra" / "mesh.npz").exists()
     # solved once: at the first pressure line (3 kPa), not at rest before it
-    assert "online FEM: 1 state solved" in res.output and "0 failed" in res.output
+    assert "online FEM (full model): 1 state solved" in res.output and "0 failed" in res.output
     skipped = re.search(r"pressure lines: \d+ taken, (\d+) skipped", res.output)
     assert skipped and int(skipped.group(1)) > 0  # the source's 'noise' lines
     lines = live_lines(res.output)
@@ -202,3 +202,43 @@ def test_live_online_bad_inputs(tmp_path, monkeypatch):
                                        "--taxels", str(taxels), "--online", *extra])
         assert res.exit_code == 1 and message in res.output, res.output
         assert res.output.count("Error") == 1
+
+
+def test_live_online_uses_the_reduced_model_by_default(tmp_path, monkeypatch):
+    """`fruit live --online` without --model: the scene's reduced model (built into
+    out/<scene>/reduce on first use, here before the board emulator starts, which would
+    not wait for it) is reused, the touches come out on the inflated pad at once (no
+    Newton solve to wait for: every frame after the first pressure line is up), and
+    the summary names the reduced model."""
+    from fruitcli.cli.reduced import ensure_reduced
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.emulator import BoardEmulator
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(PAD_SCENE)
+    taxels = top_taxel_csv(tmp_path / "t.csv")
+    built = ensure_reduced(load_scene(tmp_path / "s.toml"), tmp_path / "out" / "online-pad",
+                           taxels)
+    assert built.validation()["within_bound"]
+    src = PressureSource(3.0)
+    frames = touch_frames(noise=False)
+    frames = np.concatenate([frames[:10]] * 3 + [frames])
+    em = BoardEmulator(frames, fps=50, wait_for_reader=True)
+    th = em.start()
+    try:
+        res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
+                                       "--taxels", str(taxels), "--pressure-port",
+                                       src.path, "--online", "--frames", "60"])
+    finally:
+        th.join(5)
+        src.close()
+    assert res.exit_code == 0, res.output
+    assert "reduce: reuse" in res.output
+    assert re.search(r"online reduced model \(degree \d.*\): \d+ pressure vectors, \d+ us "
+                     "median", res.output)
+    lines = live_lines(res.output)
+    assert [d["frame"] for d in lines] == list(range(40, 51))
+    z = np.array([d["touches"][0]["z_mm"] for d in lines[:-1]])
+    assert z.min() > 10.05  # the pressures arrived long before the touches
+    # at 3 kPa the reduced model's taxels, as the live loop used them
+    assert np.abs(built.taxels([3.0])[:, 2].max() - 10.0) > 0.05

@@ -23,6 +23,11 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Solve the FEM at every new measured pressure (in a background thread; "
                    "needs --pressure-port and the scene's mesh) instead of interpolating "
                    "the precomputed states.")
+@click.option("--model", "model_kind", type=click.Choice(["reduced", "full"]), default="reduced",
+              show_default=True,
+              help="With --online: reduced (the scene's reduced model, built into "
+                   "out/<scene name>/reduce on first use) or full (the FEM solved per "
+                   "pressure vector).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames (baseline frames included).")
 @click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
@@ -66,7 +71,8 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Host time runs this many times faster, for compressed-time tests "
                    "against an emulated board played as fast (tests/test_live_soak.py); "
                    "scales t_s, the drift tracker and the status lines.")
-def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_frames, baud,
+def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_kind, n_frames,
+         baud,
          fmt, baseline_frames, threshold, osc_target, tuio_3d, session_gate_mm, drift_tau_s,
          no_drift, reconnect, log_path, log_max_kb, log_backups, view_target, time_scale):
     """Stream touches of every frame from PORT as JSON lines on stdout.
@@ -103,7 +109,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
 
             osc_address = resolve(*parse_host_port(osc_target, "--osc"), "--osc")
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
-        if online:  # the scene's mesh (tetra), not its states
+        if online and model_kind == "reduced":  # the scene's reduced model
+            taxels_csv, reduced = online_reduced(scene, scene_path, taxels_csv,
+                                                 pressure_port, progress)
+        elif online:  # the scene's mesh (tetra), not its states
             taxels_csv, mesh_npz = online_products(scene, scene_path, taxels_csv,
                                                    pressure_port, progress)
         elif taxels_csv is None:
@@ -119,7 +128,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         states = load_states(states_npz, len(taxels)) if states_npz else None
         pressure = solver = None
         if online:
-            solver = online_solver(scene, mesh_npz, taxels.xyz_mm, progress)
+            solver = (online_solver(scene, mesh_npz, taxels.xyz_mm, progress)
+                      if model_kind == "full" else reduced_source(reduced, taxels, taxels_csv))
             loc = Locator(taxels, board, solver.taxels_mm, settings, where=str(taxels_csv))
             pressure = PressureState(tuple(solver.model.chamber_names))
         elif states is None:
@@ -426,6 +436,38 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
                          "give [actuation] pressures for its chambers")
     ctx = planner.Context(out)
     return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
+
+
+def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
+    """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
+    reduced model, built into out/<scene name>/reduce when missing or stale."""
+    from pathlib import Path
+
+    from fruitcli import planner
+    from fruitcli.cli.reduced import ensure_reduced
+    from fruitcli.errors import FrameError
+    from fruitcli.stages import taxels_path
+
+    if not pressure_port:
+        raise FrameError("--online: needs --pressure-port, the source of the pressures")
+    if not scene.chambers:
+        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
+    out = Path("out") / scene.name
+    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online")
+    progress(reduced.describe())
+    return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
+
+
+def reduced_source(reduced, taxels, taxels_csv):
+    """The live loop's ReducedOnline; FrameError when the model follows other taxels."""
+    from fruitcli.errors import FrameError
+    from fruitcli.fem.online import ReducedOnline
+
+    n = reduced.coef_taxels.shape[1] // 3
+    if n != len(taxels):
+        raise FrameError(f"{taxels_csv}: {len(taxels)} taxels, but the reduced model follows "
+                         f"{n}: rebuild it (fruit run SCENE --until reduce)")
+    return ReducedOnline(reduced)
 
 
 def online_solver(scene, mesh_npz, taxels_xyz, progress):

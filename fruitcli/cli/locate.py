@@ -25,10 +25,15 @@ from fruitcli.cli.options import Progress, fruit_errors
 @click.option("--surface", type=click.Path(dir_okay=False), default=None,
               help="The body's closed surface at rest (mm), for the scene's "
                    "[detection].project = surface.")
+@click.option("--model", "model_kind", type=click.Choice(["reduced", "full"]), default="reduced",
+              show_default=True,
+              help="For a recording with chamber pressures and a --scene: reduced (each "
+                   "frame's taxels from the scene's reduced model, built into "
+                   "out/<scene name>/reduce on first use) or full (the --states path).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           surface, out_dir):
+           surface, model_kind, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
@@ -42,8 +47,29 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
     progress = Progress("[locate] ")
     with fruit_errors():
         scene = load_scene(scene_path) if scene_path else None
+        reduced = None
+        if model_kind == "reduced" and scene is not None and scene.chambers \
+                and _has_pressures(frames, scene):
+            from pathlib import Path
+
+            from fruitcli.cli.reduced import ensure_reduced
+
+            reduced = ensure_reduced(scene, Path("out") / scene.name, taxels_csv, progress,
+                                     label=f"{scene_path}: --model reduced")
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
-                         method=method, surface_path=surface)
+                         method=method, surface_path=surface, reduced=reduced)
+    model = {"reduced": "taxels from the reduced model",
+             "full": "taxels along the simulated states"}.get(res.get("model"), "")
     click.echo(f"{res['touches']} touches in {res['frames']} frames "
-               f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}", err=True)
+               f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}"
+               + (f"; {model}" if model else ""), err=True)
+
+
+def _has_pressures(frames, scene) -> bool:
+    """Whether the recording carries chamber pressures (read from its header only)."""
+    from fruitcli.sensing.recording_chunks import open_recording
+
+    board = scene["board"]
+    with open_recording(frames, board["rows"], board["cols"], board["format"]) as rec:
+        return rec.pressure_kpa is not None

@@ -20,15 +20,26 @@ from fruitcli.cli.options import Progress, fruit_errors, progressbar, shared_out
 @click.option("--taxels", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: [grid] taxels of the scene.")
 @click.option("--vtu", is_flag=True, help="Also write one VTU per state for ParaView.")
-def simulate(scene, out_dir, solid, taxels, vtu):
+@click.option("--pressures", "pressures_csv", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="CSV of pressure vectors instead of [actuation]: one row per "
+              "state, one column <chamber>_kpa per chamber (kPa), # comment lines allowed.")
+@click.option("--model", "model_kind", type=click.Choice(["full", "reduced"]), default="full",
+              show_default=True, help="full: the FEM solved per state; reduced: the scene's "
+              "reduced model (built into OUT/reduce on first use, pressures within its range).")
+def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
     """Tetrahedralize SCENE's body, then solve each state of [actuation].
 
     Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,
     gravity from [material] density_kg_m3 when the scene has [gravity]. Writes
     OUT/states.npz: rest_nodes, tets, displacement_mm (S,N,3), pressure_kpa (S,K),
-    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms; and
-    OUT/yarns.csv (each track's rest length and largest stretch) when the scene has
+    chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms, model;
+    and OUT/yarns.csv (each track's rest length and largest stretch) when the scene has
     tracks (make-tracks' tracks.csv or [tracks] file).
+
+    With --pressures P.csv the states are the rows of P.csv (one column <chamber>_kpa per
+    chamber). --model reduced evaluates the scene's reduced model instead of solving
+    (built into OUT/reduce on first use; rows outside its range are refused; solve_ms
+    is then the time of the evaluation).
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
@@ -38,6 +49,22 @@ def simulate(scene, out_dir, solid, taxels, vtu):
     log = Progress("simulate ")
     with fruit_errors():
         sc = load_scene(scene)
+        names = [c["name"] for c in sc.chambers]
+        table = rows = None
+        if pressures_csv is not None:
+            from fruitcli.fem.pressure_table import read_pressures
+
+            if not names:
+                raise SceneError(f"{scene}: --pressures: the scene has no [[geometry.chamber]]")
+            table, rows = read_pressures(pressures_csv, names)
+        if model_kind == "reduced":
+            from fruitcli.cli.reduced import simulate_reduced
+
+            info = simulate_reduced(sc, out_dir, taxels, table, rows, pressures_csv, log,
+                                    vtu=vtu)
+            click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
+                       f"model, {info['us_per_state']:.1f} us per state; {info['describe']}")
+            return
         geo = sc["geometry"]
         taxel_csv = taxels or sc["grid"]["taxels"]
         # given taxels are checked before any stage runs
@@ -59,7 +86,8 @@ def simulate(scene, out_dir, solid, taxels, vtu):
         elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
-        with progressbar(length=n_states(sc), label="states") as bar:
+        with progressbar(length=n_states(sc) if table is None else len(table),
+                         label="states") as bar:
             def progress(msg: str) -> None:
                 if msg.startswith("state "):
                     bar.update(1)
@@ -67,7 +95,9 @@ def simulate(scene, out_dir, solid, taxels, vtu):
                     log(msg)
 
             info = run_simulate(sc, out_dir / "mesh.npz", xyz, out_dir, progress=progress,
-                                vtu=vtu, tracks_csv=tracks_csv)
+                                vtu=vtu, tracks_csv=tracks_csv,
+                                pressures=None if table is None else
+                                dict(zip(names, table.T, strict=True)))
     click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "
                f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}")
     if "yarns" in info:

@@ -111,4 +111,60 @@ class OnlineSolver:
                 f"{ms.max():.1f} ms max, {self.failures} failed")
         if self.stopped:
             text += f"; the FEM thread stopped early ({self.stopped})"
-        return text + (f" (last: {self.last_error})" if self.last_error else "")
+        return text.replace("online FEM:", "online FEM (full model):", 1) + (
+            f" (last: {self.last_error})" if self.last_error else "")
+
+
+class ReducedOnline:
+    """The live loop's taxels from the reduced model (`fruitcli.fem.reduced`): the same
+    interface as OnlineSolver, but each pressure vector costs a matrix product (tens of
+    us) instead of a Newton solve. A pressure vector outside the model's range is
+    evaluated at the nearest pressures inside it (the fit does not extrapolate) and
+    counted in `clamped`."""
+
+    def __init__(self, reduced):
+        self.reduced, self.model = reduced, reduced  # .model.chamber_names, as OnlineSolver
+        self.taxels_mm = reduced.taxels(np.clip(np.zeros(len(reduced.lo)), reduced.lo,
+                                                reduced.hi))
+        self.solved_kpa: np.ndarray | None = None
+        self._last: list[float] | None = None
+        self._lo, self._hi = reduced.lo.tolist(), reduced.hi.tolist()
+        self.solve_ms: list[float] = []
+        self.failures = 0
+        self.clamped = 0
+        self.stopped: str | None = None
+
+    def update(self, pressure_kpa) -> bool:
+        """Evaluate at pressure_kpa (K,) unless None or unchanged; returns whether new
+        positions were published."""
+        if pressure_kpa is None:
+            return False
+        t0 = time.perf_counter()
+        p = np.asarray(pressure_kpa, float).reshape(-1).tolist()  # a copy, in floats
+        if len(p) != len(self._lo):
+            raise SolverError(f"reduced model: expected {len(self._lo)} chamber "
+                              f"pressures ({', '.join(self.reduced.chamber_names)}), got {len(p)}")
+        if p == self._last:
+            return False
+        self._last = p
+        self.solved_kpa = np.array(p)
+        inside = [min(max(x, a), b) for x, a, b in zip(p, self._lo, self._hi, strict=True)]
+        self.clamped += inside != p
+        self.taxels_mm = self.reduced.taxels(inside)  # one assignment, as OnlineSolver
+        self.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        return True
+
+    run = OnlineSolver.run
+
+    def summary(self) -> str:
+        """One line: the model used, vectors evaluated, time per vector, clamped ones."""
+        v = self.reduced.validation()
+        head = (f"online reduced model (degree {v['degree']}, held-out taxel error max "
+                f"{v['taxel_max_mm']:.2g} mm{'' if v['within_bound'] else ', OUTSIDE ITS BOUND'})")
+        if not self.solve_ms:
+            text = f"{head}: no pressure vector evaluated"
+        else:
+            us = 1e3 * np.array(self.solve_ms)
+            text = (f"{head}: {len(us)} pressure vectors, {np.median(us):.0f} us median, "
+                    f"{us.max():.0f} us max, {self.clamped} outside its range (clamped)")
+        return text + (f"; the thread stopped early ({self.stopped})" if self.stopped else "")

@@ -230,8 +230,9 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
 
 
 def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
-                 tracks_csv=None) -> dict:
-    """Solve every actuation state; write out_dir/states.npz (see module docstring), and
+                 tracks_csv=None, pressures=None) -> dict:
+    """Solve every actuation state, or with `pressures` {chamber: (S,) kPa} those
+    pressure vectors; write out_dir/states.npz (see module docstring), and
     out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any."""
     progress = progress or _noop
     tracks_csv = scene["tracks"]["file"] or tracks_csv
@@ -250,7 +251,11 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
                          f"got {cfg['linear_solver']!r}")
     if cfg["tolerance"] <= 0 or cfg["max_iterations"] < 1 or cfg["jig_steps"] < 1:
         raise SceneError("[solver]: expected tolerance > 0, max_iterations >= 1, jig_steps >= 1")
-    loads = state_loads(scene, model.chamber_names)
+    if pressures is None:
+        loads = state_loads(scene, model.chamber_names)
+    else:
+        table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
+        loads = [Load.pressures(row) for row in table]
     solver = model.make_solver(cfg["linear_solver"])
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
@@ -262,7 +267,8 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
         progress(f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "
                  f"{res.solve_ms:.0f} ms, residual {res.residual:.1e}")
     out = {
-        "rest_nodes": model.rest, "tets": model.tets, "surface_tris": mesh["surface_tris"],
+        "model": np.array("full"), "rest_nodes": model.rest, "tets": model.tets,
+        "surface_tris": mesh["surface_tris"],
         "element": np.array(element_name(model)), "material_model": np.array(
             model.material.model if hasattr(model, "material") else "corotational"),
         "elements": getattr(model, "conn", model.tets),

@@ -100,12 +100,15 @@ class Locator:
     """Detection and 3D location for one taxel layout, board and set of positions.
 
     `positions_mm` is (T, 3) (one state) or (S, T, 3) with `state_pressure_kpa` (S, K):
-    then each frame's pressures pick its place on the state path.
+    then each frame's pressures pick its place on the state path. With `reduced` (a
+    `fruitcli.fem.reduced.ReducedModel` of these taxels), each frame's pressures give
+    its taxels' positions through the reduced model instead (clamped to its range).
     """
 
     def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
                  settings: Settings, state_pressure_kpa: np.ndarray | None = None,
-                 where: str = "taxels"):
+                 where: str = "taxels", reduced=None):
+        self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
@@ -115,6 +118,12 @@ class Locator:
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
             raise FrameError("per-state positions need the states' pressures")
+
+    def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
+        the pressures clamped to its range."""
+        r = self.reduced
+        return r.taxels(np.clip(np.asarray(pressure_kpa, float), r.lo, r.hi))
 
     def values(self, frames: np.ndarray) -> np.ndarray:
         """Counts of the taxel cells (N, T) from frames (N, R, C)."""
@@ -169,8 +178,14 @@ class Locator:
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
                        s.threshold_counts, s.method, s.floor, s.max_touches)
             end = start + frames.shape[0]
-            xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
-                             None if frac is None else frac[start:end])
+            if self.reduced is not None and pressure_kpa is not None:
+                pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
+                tax = np.where(t.taxel < 0, 0, t.taxel)
+                xyz = np.einsum("nk,nkd->nd", t.weight,
+                                pos[np.arange(len(tax))[:, None], tax])
+            else:
+                xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
+                                 None if frac is None else frac[start:end])
             return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak))
 
         yield from _in_order(job, starts, workers)
@@ -289,6 +304,11 @@ class Stream:
     def _positions(self, pressure_kpa) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
         pos = self.loc.positions_mm
+        if self.loc.reduced is not None and pressure_kpa is not None:
+            key = tuple(np.asarray(pressure_kpa, float).tolist())
+            if key != self._pos_key or self._pos is None:
+                self._pos, self._pos_key = self.loc.reduced_positions(np.array(key)), key
+            return self._pos
         if pos.ndim == 2:
             return pos
         key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())

@@ -33,11 +33,27 @@ def _section(scene, name: str) -> dict:
 
 
 def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
-                  settings: Settings, where: str) -> tuple[Locator, np.ndarray | None]:
+                  settings: Settings, where: str, reduced=None
+                  ) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
-    or the state path when the recording carries chamber pressures. -> (locator, pressure)."""
+    or the state path when the recording carries chamber pressures; with `reduced` (a
+    ReducedModel of these taxels) and pressures in the recording, each frame's taxels
+    from the reduced model at its pressures. -> (locator, pressure)."""
     board = _section(scene, "board")
     check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
+    if reduced is not None and rec.pressure_kpa is not None:
+        names = tuple(rec.chamber_names)
+        missing = [c for c in reduced.chamber_names if c not in names]
+        if missing:
+            raise FrameError(f"{where}: no pressure for chamber {missing[0]!r} (recording has "
+                             f"{', '.join(names) or 'none'})")
+        cols = np.array([names.index(c) for c in reduced.chamber_names], np.int64)
+        if reduced.coef_taxels.shape[1] != 3 * len(taxels):
+            raise FrameError(f"{where}: {len(taxels)} taxels, but the reduced model follows "
+                             f"{reduced.coef_taxels.shape[1] // 3}")
+        rest = reduced.taxels(np.clip(np.zeros(len(cols)), reduced.lo, reduced.hi))
+        return (Locator(taxels, board, rest, settings, where=where, reduced=reduced),
+                rec.pressure_kpa[:, cols])
     if states is None:
         return Locator(taxels, board, taxels.xyz_mm, settings, where=where), None
     if rec.pressure_kpa is not None and states.n_states > 1:
@@ -153,13 +169,15 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                progress=None, baseline_frames: int | None = None,
                threshold_counts: float | None = None, method: str | None = None,
                surface_path=None, surface_unit: str = "mm",
-               chunk_frames: int = CHUNK_FRAMES, workers: int | None = None) -> dict:
+               chunk_frames: int = CHUNK_FRAMES, workers: int | None = None,
+               reduced=None) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
     The recording is read, detected and written `chunk_frames` frames at a time, on
     `workers` threads (default: the CPUs this process may use, at most 4). With
     ``[detection].project = "surface"`` the located points are moved to the nearest
     point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
-    the recording's FEM state)."""
+    the recording's FEM state). With `reduced` (a ReducedModel), a recording with
+    chamber pressures takes each frame's taxels from it (`build_locator`)."""
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
@@ -176,7 +194,8 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
         workers = min(4, _usable_cpus())
     with open_recording(frames_path, board["rows"], board["cols"],
                         board.get("format", "auto")) as rec:
-        locator, pressure = build_locator(scene, taxels, states, rec, settings, where)
+        locator, pressure = build_locator(scene, taxels, states, rec, settings, where,
+                                          reduced)
         projector = surface_projector(scene, rec, states, pressure, taxels, surface_path,
                                       surface_unit, where)
         say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
@@ -219,8 +238,17 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
         result["projected_to_surface"] = projected
         say(f"projected {moved[0]} touches onto the surface: moved "
             f"{projected['mean_mm']:.2f} mm on average, {projected['max_mm']:.2f} mm at most")
-    if pressure is not None:  # frames far from the simulated path: counted, not hidden
+    if pressure is not None and locator.reduced is not None:
+        outside = int(locator.reduced.outside(pressure).sum())
+        result["model"] = "reduced"
+        result["frames_outside_reduced_range"] = outside
+        say(f"taxels from the reduced model at each frame's pressures "
+            f"({locator.reduced.describe()}); {outside} of {len(rec)} frames outside its "
+            "range (clamped to it)")
+    elif pressure is not None:  # frames far from the simulated path: counted, not hidden
         from fruitcli.sensing.pressure_path import report_off_path
+
+        result["model"] = "full"
 
         result["pressure_path"] = report_off_path(rec, pressure, locator.state_pressure_kpa,
                                                   out_dir, say)
