@@ -13,7 +13,8 @@ deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by n
   assembly per iteration: assembling costs about 40 ms here, a product 0.7 ms). CG
   stops at the relative tolerance Newton asks for (`rtol`); the factorization is
   refreshed at the current configuration when CG needs more than
-  PCG_REFRESH_ITERATIONS, or fails;
+  PCG_REFRESH_ITERATIONS, or fails. Newton's last step of a state, once within
+  NEAR_TOLERANCE of the tolerance, keeps the tangent (a chord step);
 - ``direct``: K_t assembled and factorized at every Newton iteration (reference);
 - ``jacobi``: CG with a Jacobi preconditioner, no factorization (low memory).
 """
@@ -70,8 +71,10 @@ except ImportError:  # optional: SuperLU in symmetric mode instead
 
 class TangentSolver:
     """Solves with the tangent at the rotations given to `update`. Counts its work in
-    `stats` (factorizations, cg_iterations, assembly_s, factor_s). `rtol` is the relative
-    residual the iterative strategies stop at (Newton sets it per step)."""
+    `stats`: factorizations, cg_iterations, and wall seconds in assembly_s, factor_s,
+    update_s (each `update`, with the refreshes it makes), product_s (CG's tangent
+    products) and precond_s (CG's triangular solves). `rtol` is the relative residual the
+    iterative strategies stop at (Newton sets it per step)."""
 
     def __init__(self, model, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
