@@ -140,3 +140,49 @@ def test_history_keeps_one_state_per_load():
         hist = _remember(hist, _load_vector(Load.pressures([pk])), np.zeros((2, 3)),
                          np.array([float(pk)]))
     assert [h[2][0] for h in hist] == [float(pk) for pk in range(5, 5 + HISTORY_STATES)]
+
+
+def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(monkeypatch):
+    """A pressure cycle solved from state to state with the kept factorization (nu =
+    0.49, tolerance 1e-6): with the chord steps near the tolerance (the TangentSolver's
+    default) chord steps are taken, no state needs more Newton iterations than on the
+    reference path (no chord step), and every state
+    equals a fresh direct solve at tolerance 1e-11 to 1e-6 of the largest displacement
+    on both paths."""
+    from fruitcli.fem.solver import newton
+
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
+                                                  [4, 4, 4], [8, 8, 8])
+    m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
+                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    pressures = [2.0, 5.0, 8.0, 10.0, 8.0, 5.0, 2.0, 0.5, 3.0, 7.0]
+    ref = [solve_state(m, Load.pressures([pk]),
+                       options=SolverOptions(tolerance=1e-11, linear_solver="direct"))
+           for pk in pressures]
+    scale = max(np.abs(r.displacement_mm).max() for r in ref)
+    chords = []
+    direction = newton._Step.direction
+
+    def spy(self, *args, keep_tangent=False):
+        chords.append(keep_tangent)
+        return direction(self, *args, keep_tangent=keep_tangent)
+
+    monkeypatch.setattr(newton._Step, "direction", spy)
+    iterations = {}
+    for near in (TangentSolver(m).near_tolerance, 0.0):
+        solver = TangentSolver(m)
+        solver.near_tolerance = near
+        chords.clear()
+        x = p = prev = None
+        its = []
+        for pk, fresh in zip(pressures, ref, strict=True):
+            load = Load.pressures([pk])
+            res = solve_state(m, load, x_start=x, load_start=prev, pressure_start=p,
+                              options=SolverOptions(tolerance=1e-6), solver=solver)
+            assert res.residual <= 1e-6
+            assert np.abs(res.x - fresh.x).max() <= 1e-6 * scale
+            its.append(res.iterations)
+            x, p, prev = res.x, res.pressure_kpa, load
+        iterations[near > 0] = its
+        assert any(chords) == (near > 0)
+    assert all(a <= b for a, b in zip(iterations[True], iterations[False], strict=True))

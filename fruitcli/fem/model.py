@@ -267,6 +267,27 @@ class Model:
                                        np.ascontiguousarray(rot), t, t_world is not None,
                                        np.ascontiguousarray(v, dtype=float))
 
+    def apply_tangent_free(self, rot: np.ndarray, t_world: np.ndarray | None,
+                           v_free: np.ndarray) -> np.ndarray:
+        """`apply_tangent` over the free dofs: v_free (n_free,) -> (n_free,) mN (the
+        held dofs' components zero, their rows dropped), without full-size copies."""
+        lam, mu = self.lame_kpa
+        t = np.empty((0, 3, 3)) if t_world is None else np.ascontiguousarray(t_world)
+        return kernels.tangent_product_dofs(
+            self.tets, self.grads, self.volumes_mm3, lam, mu, np.ascontiguousarray(rot), t,
+            t_world is not None, self.free_dof_map,
+            np.ascontiguousarray(v_free, dtype=float), len(self.pattern.free))
+
+    @property
+    def free_dof_map(self) -> np.ndarray:
+        """(n, 3) int64: each node component's index among the free dofs, -1 if held."""
+        d = self.__dict__.get("_free_dof_map")
+        if d is None:
+            d = np.full(3 * self.n_nodes, -1, np.int64)
+            d[self.pattern.free] = np.arange(len(self.pattern.free))
+            d = self.__dict__["_free_dof_map"] = d.reshape(self.n_nodes, 3)
+        return d
+
     @property
     def lame_kpa(self) -> tuple[float, float]:
         return tet4.lame_parameters(self.young_modulus_kpa, self.poisson_ratio)

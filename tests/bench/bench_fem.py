@@ -17,7 +17,7 @@ as SOFA); `bench_elements` then times every element and material of [fem] / [mat
 on the default mesh, and the default scenes' own (p2, neo-Hookean).
 
 Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [--no-pad]
-     [--lame-sizes 3 2 1.5]
+     [--lame-sizes 3 2 1.5] [--p1-only]
 """
 
 import argparse
@@ -85,10 +85,11 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
 
 
 def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
-                keep_states: bool = False):
+                keep_states: bool = False, stats_log: list | None = None):
     """Solve the scene's states (or `loads`, a function of the chamber names) in order
-    with one reused solver; returns (model, solver, rows (ms, iterations, cg)[, the
-    StateResults])."""
+    with one reused solver; returns (model, solver, rows (ms, iterations, cg, cpu ms)[,
+    the StateResults]); a copy of the solver's stats after each state goes to
+    `stats_log`."""
     from fruitcli.fem import io
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
     from fruitcli.fem.stage import build_model
@@ -103,9 +104,13 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
     rows, states = [], []
     for load in loads:
         cg0 = solver.stats["cg_iterations"]
+        cpu0 = time.process_time()
         res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
                           options=opts, solver=solver)
-        rows.append((res.solve_ms, res.iterations, solver.stats["cg_iterations"] - cg0))
+        rows.append((res.solve_ms, res.iterations, solver.stats["cg_iterations"] - cg0,
+                     1e3 * (time.process_time() - cpu0)))
+        if stats_log is not None:
+            stats_log.append(dict(solver.stats))
         states.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
     return (model, solver, rows, states) if keep_states else (model, solver, rows)
@@ -302,6 +307,68 @@ def paper_model(scene):
     return scene
 
 
+PHASES = [("precond_s", "triangular solves (CG's preconditioner)"),
+          ("product_s", "tangent products"),
+          ("update_s", "tangent updates (rotation term, pressure stiffness)"),
+          ("factor_s", "factorizations")]
+
+
+def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, float]:
+    """The paper's model (p1, corotational) on the default fruit's breathing: the
+    scene's states in order from rest with one solver, as `fruit simulate` solves them.
+    Prints the median wall and CPU time per state from the previous state, the first
+    state's from rest, the machine's load, and where the time goes. Returns (median ms
+    from the previous state, ms from rest)."""
+    import os
+
+    import numba
+
+    scene = paper_model(scene0)
+    load0 = os.getloadavg()[0]
+    log = []
+    model, solver, rows = time_states(scene, mesh_npz, "pcg", n_states, stats_log=log)
+    load1 = os.getloadavg()[0]
+    later = rows[1:]
+    wall = np.median([r[0] for r in later])
+    cpu = np.median([r[3] for r in later])
+    st = {key: log[-1][key] - log[0][key] for key in log[0]}  # after the first state
+    st["update_s"] -= st["factor_s"]  # refreshes happen in updates or on a CG retry
+    later_s = sum(r[0] for r in later) / 1e3
+    print(f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
+          f"tets, nu = {model.poisson_ratio:g}, tolerance {scene['solver']['tolerance']:g}, "
+          f"numba threads {numba.get_num_threads()} (kernels serial), load average "
+          f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):")
+    print(f"  per state from the previous one: wall {wall:.1f} ms median "
+          f"(range {min(r[0] for r in later):.1f}-{max(r[0] for r in later):.1f}), CPU "
+          f"{cpu:.1f} ms median; {np.mean([r[1] for r in later]):.2f} Newton and "
+          f"{np.mean([r[2] for r in later]):.1f} CG iterations per state")
+    print(f"  from rest: wall {rows[0][0]:.0f} ms, CPU {rows[0][3]:.0f} ms "
+          f"({log[0]['factorizations']} factorizations, {log[0]['factor_s']:.2f} s)")
+    print(f"  wall time of the {len(later)} states from the previous one ({later_s:.2f} s): "
+          + ", ".join(f"{label} {100 * st[key] / later_s:.0f} %" for key, label in PHASES)
+          + f" ({st['factorizations']}), the rest (element kernels for the residual, "
+          "line search, predictor) "
+          f"{100 * (1 - sum(st[k] for k, _ in PHASES) / later_s):.0f} %")
+    print(f"p1 breathing state: median {wall:.1f} ms (from previous state), "
+          f"{rows[0][0]:.0f} ms (from rest); CPU {cpu:.1f} ms median (target <= 10 ms)",
+          flush=True)
+    loose = copy.deepcopy(scene)  # what a tolerance nearer the model's error would give
+    loose.data["solver"]["tolerance"] = LOOSE_TOLERANCE
+    _, _, rows_l, states_l = time_states(loose, mesh_npz, "pcg", n_states, keep_states=True)
+    _, _, _, states = time_states(scene, mesh_npz, "pcg", n_states, keep_states=True)
+    moved = max(float(np.abs(a.x - b.x).max()) for a, b in zip(states, states_l, strict=True))
+    print(f"  with [solver] tolerance = {LOOSE_TOLERANCE:g} instead: wall "
+          f"{np.median([r[0] for r in rows_l[1:]]):.1f} ms, CPU "
+          f"{np.median([r[3] for r in rows_l[1:]]):.1f} ms median, "
+          f"{np.mean([r[1] for r in rows_l[1:]]):.2f} Newton and "
+          f"{np.mean([r[2] for r in rows_l[1:]]):.1f} CG iterations per state; nodes within "
+          f"{moved:.1e} mm of the {scene['solver']['tolerance']:g} solution", flush=True)
+    return wall, rows[0][0]
+
+
+LOOSE_TOLERANCE = 1e-5
+
+
 ELEMENT_SETTINGS = [("p1", "corotational"), ("p1", "neo-hookean"), ("p2-pure", "neo-hookean"),
                     ("p2", "neo-hookean")]
 
@@ -310,11 +377,12 @@ def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
     """Time per breathing state for each element and material on the default mesh: the
     first state from rest, the median of the others from the previous one, and the
     chambers' volume growth at the state with c1 at its peak relative to the default
-    element's (what the paper's model costs in accuracy)."""
+    element's (what the paper's model costs in accuracy). Returns {(element, material):
+    (median ms from the previous state, ms from rest)}."""
     print(f"\nelements on the default fruit's breathing ({n_states} states, pcg):")
     print(f"{'element':>8} {'material':>12} {'dofs':>6} {'rest_ms':>8} {'median_ms':>9} "
           f"{'iters':>5} {'factor':>6} {'dV c1/c2/c3 vs p2':>20}")
-    growth = {}
+    growth, times = {}, {}
     for element, material in ELEMENT_SETTINGS:
         scene = copy.deepcopy(scene0)
         scene.data["fem"]["element"] = element
@@ -325,6 +393,7 @@ def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
         growth[(element, material)] = (states[peak].chamber_volume_mm3
                                        - model.chamber_rest_volume_mm3)
         later = np.array([r[0] for r in rows[1:]])
+        times[(element, material)] = (float(np.median(later)), rows[0][0])
         dofs = len(model.pattern.free)
         print(f"{element:>8} {material:>12} {dofs:6d} {rows[0][0]:8.0f} {np.median(later):9.1f} "
               f"{np.mean([r[1] for r in rows[1:]]):5.1f} {solver.stats['factorizations']:6d}",
@@ -334,6 +403,7 @@ def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
     for key, g in growth.items():
         print(f"  {key[0]:>8} {key[1]:>12}: chamber growth / default element's = "
               + " / ".join(f"{v:.2f}" for v in g / ref))
+    return times
 
 
 def main() -> None:
@@ -347,6 +417,8 @@ def main() -> None:
                     help="mesh sizes of Lame's sphere (1.5 adds about 70 s); none to skip")
     ap.add_argument("--lame-p2-sizes", type=float, nargs="*", default=[6.0, 5.0, 4.0],
                     help="mesh sizes of Lame's sphere for the default element")
+    ap.add_argument("--p1-only", action="store_true",
+                    help="only the paper's model on the default fruit's breathing")
     ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--pad-tolerance", type=float, default=None,
                     help="override the touchpad scene's [solver] tolerance")
@@ -362,6 +434,14 @@ def main() -> None:
         return
     from fruitcli.fem.stage import run_tetra
 
+    if args.p1_only:  # the default fruit's mesh, then the p1 breathing alone
+        scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
+                                   must_exist=False)
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = Path(tmp)
+            run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
+            bench_p1_breathing(scene_default, tmp / "mesh" / "mesh.npz", args.states)
+        return
     scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
     scene0 = paper_model(scene_default)  # the tables below: the paper's model, as before
     with tempfile.TemporaryDirectory() as tmp:
@@ -420,7 +500,12 @@ def main() -> None:
               f"build, solve) {child_rss} MB, median state there {child_med} ms "
               f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
         bench_online(scene0, default_mesh, tmp / "tracks" / "taxels.csv")
-        bench_elements(scene_default, default_mesh, args.states)
+        p1 = bench_p1_breathing(scene_default, default_mesh, args.states)
+        times = bench_elements(scene_default, default_mesh, args.states)
+        p2 = times[("p2", "neo-hookean")]
+        print(f"\np1 breathing state: median {p1[0]:.1f} ms (from previous state), "
+              f"{p1[1]:.0f} ms (from rest); p2 (the default, neo-Hookean): median "
+              f"{p2[0]:.0f} ms (from previous state), {p2[1]:.0f} ms (from rest)")
         if not args.no_pad:
             bench_pad(tmp, args.pad_tolerance)
         if args.lame_sizes:

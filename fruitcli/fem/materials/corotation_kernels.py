@@ -132,25 +132,40 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, n_nodes):
     return out, energy
 
 
-@njit(cache=True, nogil=True)
 def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
-    """Consistent tangent times v (n, 3) (mN): per element G = (sum_b v_b g_b^T) R^T,
-    M = V (lam tr G I + mu (G + G^T) + [T' w / 2]x), w = vee(G - G^T), and node a gets
-    M R g_a. t_world (m, 3, 3): the rotation-derivative term T' of
-    `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped R K0 R^T)."""
-    out = np.zeros_like(v)
+    """Consistent tangent times v (n, 3) (mN) over every dof (`tangent_product_dofs`)."""
+    n = v.shape[0]
+    dof = np.arange(3 * n).reshape(n, 3)
+    out = tangent_product_dofs(tets, grads, volumes, lam, mu, rot, t_world, with_t, dof,
+                               np.ascontiguousarray(v).reshape(-1), 3 * n)
+    return out.reshape(n, 3)
+
+
+@njit(cache=True, nogil=True)
+def tangent_product_dofs(tets, grads, volumes, lam, mu, rot, t_world, with_t, dof, v, n_out):
+    """Consistent tangent times v (mN), over the dofs numbered by dof (n, 3) (-1: held,
+    its component of v is zero and its row dropped), v (n_out,): per element
+    G = (sum_b v_b g_b^T) R^T, M = V (lam tr G I + mu (G + G^T) + [T' w / 2]x),
+    w = vee(G - G^T), and node a gets M R g_a. t_world (m, 3, 3): the rotation-derivative
+    term T' of `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped
+    R K0 R^T). Gathers and scatters through dof directly (CG's product over the free
+    dofs without the full-size copies)."""
+    out = np.zeros(n_out)
     gr = np.empty((3, 3))
     g = np.empty((3, 3))
     mm = np.empty((3, 3))
     mr = np.empty((3, 3))
+    ve = np.empty((4, 3))
     for e in range(tets.shape[0]):
         r = rot[e]
+        for b in range(4):
+            for i in range(3):
+                k = dof[tets[e, b], i]
+                ve[b, i] = v[k] if k >= 0 else 0.0
         for i in range(3):
             for j in range(3):
-                s = 0.0
-                for b in range(4):
-                    s += v[tets[e, b], i] * grads[e, b, j]
-                gr[i, j] = s
+                gr[i, j] = (ve[0, i] * grads[e, 0, j] + ve[1, i] * grads[e, 1, j]
+                            + ve[2, i] * grads[e, 2, j] + ve[3, i] * grads[e, 3, j])
         for i in range(3):
             for k in range(3):
                 g[i, k] = gr[i, 0] * r[k, 0] + gr[i, 1] * r[k, 1] + gr[i, 2] * r[k, 2]
@@ -178,8 +193,10 @@ def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
         for a in range(4):
             na = tets[e, a]
             for i in range(3):
-                out[na, i] += mr[i, 0] * grads[e, a, 0] + mr[i, 1] * grads[e, a, 1] \
-                    + mr[i, 2] * grads[e, a, 2]
+                k = dof[na, i]
+                if k >= 0:
+                    out[k] += (mr[i, 0] * grads[e, a, 0] + mr[i, 1] * grads[e, a, 1]
+                               + mr[i, 2] * grads[e, a, 2])
     return out
 
 

@@ -13,7 +13,8 @@ deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by n
   assembly per iteration: assembling costs about 40 ms here, a product 0.7 ms). CG
   stops at the relative tolerance Newton asks for (`rtol`); the factorization is
   refreshed at the current configuration when CG needs more than
-  PCG_REFRESH_ITERATIONS, or fails;
+  PCG_REFRESH_ITERATIONS, or fails. Newton's last step of a state, once within
+  NEAR_TOLERANCE of the tolerance, keeps the tangent (a chord step);
 - ``direct``: K_t assembled and factorized at every Newton iteration (reference);
 - ``jacobi``: CG with a Jacobi preconditioner, no factorization (low memory).
 """
@@ -33,6 +34,13 @@ from fruitcli.fem.tolerances import (
     PCG_RELATIVE_TOLERANCE,
 )
 from fruitcli.scene import LINEAR_SOLVERS
+
+NEAR_TOLERANCE = 30.0
+"""Newton's last step, once the residual is within this factor of the tolerance, keeps
+the tangent (a chord step: no rotation term or pressure stiffness recomputed) and solves
+only as far as crossing the tolerance needs (PCG_TARGET * tolerance / residual): the
+tangent moved by about the previous step, 1e-2 relative or less, so the step still
+leaves the residual well below the tolerance."""
 
 
 def _cholesky(k):
@@ -63,8 +71,10 @@ except ImportError:  # optional: SuperLU in symmetric mode instead
 
 class TangentSolver:
     """Solves with the tangent at the rotations given to `update`. Counts its work in
-    `stats` (factorizations, cg_iterations, assembly_s, factor_s). `rtol` is the relative
-    residual the iterative strategies stop at (Newton sets it per step)."""
+    `stats`: factorizations, cg_iterations, and wall seconds in assembly_s, factor_s,
+    update_s (each `update`, with the refreshes it makes), product_s (CG's tangent
+    products) and precond_s (CG's triangular solves). `rtol` is the relative residual the
+    iterative strategies stop at (Newton sets it per step)."""
 
     def __init__(self, model, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
@@ -83,10 +93,13 @@ class TangentSolver:
         self.refresh = False
         self.fresh = False  # the factorization is of the current configuration
         self.rtol = PCG_RELATIVE_TOLERANCE
+        # read by Newton (`newton._newton`, 0.0 there without it: no chord steps)
+        self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
         self.history = []  # converged (load vector, x, p) for the next state's predictor
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
-                      "factor_s": 0.0}
+                      "factor_s": 0.0, "update_s": 0.0, "product_s": 0.0,
+                      "precond_s": 0.0}
 
     def update(self, rot: np.ndarray, f: np.ndarray | None = None, load_stiffness=None,
                project: bool = False) -> None:
@@ -94,6 +107,7 @@ class TangentSolver:
         (without f, the tangent is the warped R K0 R^T), the follower-pressure stiffness
         over the free dofs (anything with `@`, or None) and whether the rotation term is
         projected to positive semi-definite per element."""
+        t0 = time.perf_counter()
         self.rot, self.f, self.load_k = rot, f, load_stiffness
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
@@ -109,6 +123,7 @@ class TangentSolver:
             self.diag = self._assemble().diagonal()
         elif self.factor is None or self.refresh:
             self._refresh()
+        self.stats["update_s"] += time.perf_counter() - t0
 
     def _refresh(self) -> None:
         """Factorize the positive definite (projected) tangent at the current rotations."""
@@ -154,14 +169,21 @@ class TangentSolver:
 
     def matvec(self, v_free: np.ndarray) -> np.ndarray:
         """K_t v (matrix-free) for v over the free dofs."""
+        t0 = time.perf_counter()
         m = self.model
-        full = np.zeros(3 * m.n_nodes)
-        full[m.pattern.free] = v_free
-        out = m.apply_tangent(self.rot, self.t_world, full.reshape(-1, 3))
-        out = out.reshape(-1)[m.pattern.free] + m.spring_diag * v_free
+        out = m.apply_tangent_free(self.rot, self.t_world, v_free)
+        out += m.spring_diag * v_free
         if self.f is not None and self.load_k is not None:
             out = out + self.load_k @ v_free
+        self.stats["product_s"] += time.perf_counter() - t0
         return out
+
+    def precondition(self, r: np.ndarray) -> np.ndarray:
+        """The kept factorization's solve of r (two triangular solves), timed."""
+        t0 = time.perf_counter()
+        z = self.factor.solve(r)
+        self.stats["precond_s"] += time.perf_counter() - t0
+        return z
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
@@ -182,7 +204,7 @@ class TangentSolver:
                                   "(try [solver].linear_solver = \"pcg\")")
             return x
         limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
-        x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, limit)
+        x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, limit)
         self.stats["cg_iterations"] += its
         if ok:
             # slow but done: keep x, refresh the factorization at the next update
@@ -190,7 +212,7 @@ class TangentSolver:
             return x
         if not self.fresh:  # stale preconditioner: refresh it here and retry
             self._refresh()
-            x, its, ok = pcg(self.matvec, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
+            x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, PCG_MAX_ITERATIONS)
             self.stats["cg_iterations"] += its
         if not ok:
             self.refresh = True

@@ -93,10 +93,13 @@ class _Step:
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
         return rot, det_f, h, r, g, merit, energy, f
 
-    def direction(self, x, p, rot, h, r, g, f, level):
-        """Newton direction with the tangent of `level` (see TANGENTS)."""
+    def direction(self, x, p, rot, h, r, g, f, level, keep_tangent=False):
+        """Newton direction with the tangent of `level` (see TANGENTS), or with the
+        solver's current tangent when `keep_tangent` (a chord step)."""
         m = self.m
-        if TANGENTS[level] == "warped":
+        if keep_tangent:
+            pass  # chord step: the solver keeps the tangent of the previous step
+        elif TANGENTS[level] == "warped":
             self.solver.update(rot)
         else:
             exact = TANGENTS[level] == "exact"
@@ -144,8 +147,14 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         goal = PCG_TARGET * options.tolerance
         if it == 0:
             goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
-        step.solver.rtol = min(PCG_RELATIVE_TOLERANCE, max(goal / max(merit, 1e-300), 1e-12))
-        dx_free, dp = step.direction(x, p, rot, h, r, g, f, level)
+        # near the tolerance (within the solver's `near_tolerance` factor, 0 = never) the
+        # last step only has to cross it: the linear solve may be as loose as the goal
+        # asks, and the tangent of the previous step is kept (chord step)
+        near = it > 0 and level == 0 and merit <= getattr(
+            step.solver, "near_tolerance", 0.0) * options.tolerance
+        cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
+        step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
+        dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
         if (merit <= STALL_RESIDUAL_FACTOR * options.tolerance
                 and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size):
             return True, x, p, it, merit, det_f  # round-off stall: the correction is nil
