@@ -25,10 +25,16 @@ from fruitcli.cli.options import Progress, fruit_errors
 @click.option("--surface", type=click.Path(dir_okay=False), default=None,
               help="The body's closed surface at rest (mm), for the scene's "
                    "[detection].project = surface.")
+@click.option("--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
+              metavar="GAINS.csv",
+              help="Divide each taxel's activation by its gain from this CSV (id, gain: "
+                   "fruit calibrate's gains.csv) before detection; the threshold applies to "
+                   "the divided activations. Default: the scene's [detection].divide_by_gain "
+                   "(off).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           surface, out_dir):
+           surface, gains_csv, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
@@ -44,6 +50,6 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
         scene = load_scene(scene_path) if scene_path else None
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
-                         method=method, surface_path=surface)
+                         method=method, surface_path=surface, gains_csv=gains_csv)
     click.echo(f"{res['touches']} touches in {res['frames']} frames "
                f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}", err=True)

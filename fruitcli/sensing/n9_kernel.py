@@ -14,13 +14,15 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def n9_scan(frames, cell, base, n9, threshold, max_touches, frame, rank, pos, peak, win):
+def n9_scan(frames, cell, base, gain, divide, n9, threshold, max_touches, frame, rank, pos,
+            peak, win):
     """Multitouch N9 extraction on frames (n, S) counts; taxel p (in row-major grid order)
     is frame cell cell[p] with baseline base[p], its N9 neighbours n9[p] (-1: none).
-    v = C - C0; while the first maximum of v is > threshold (and fewer than
-    `max_touches`): record frame, rank, position, peak and the 9 values of v in its N9
-    (0 where there is no taxel), then zero them. Writes rows 0 .. count - 1 of the
-    output arrays (capacity n * max_touches), frame by frame, rank by rank; returns count."""
+    v = C - C0, divided by gain[p] when `divide`; while the first maximum of v is >
+    threshold (and fewer than `max_touches`): record frame, rank, position, peak and the
+    9 values of v in its N9 (0 where there is no taxel), then zero them. Writes rows
+    0 .. count - 1 of the output arrays (capacity n * max_touches), frame by frame, rank
+    by rank; returns count."""
     n = frames.shape[0]
     t = cell.shape[0]
     v = np.empty(t)
@@ -31,6 +33,8 @@ def n9_scan(frames, cell, base, n9, threshold, max_touches, frame, rank, pos, pe
         above = 0  # values > threshold left: none, and no later maximum can exceed it
         for p in range(t):
             x = np.float64(frames[f, cell[p]]) - base[p]
+            if divide:
+                x = x / gain[p]
             v[p] = x
             if x > best:
                 best = x

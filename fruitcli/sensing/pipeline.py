@@ -100,13 +100,16 @@ class Locator:
     """Detection and 3D location for one taxel layout, board and set of positions.
 
     `positions_mm` is (T, 3) (one state) or (S, T, 3) with `state_pressure_kpa` (S, K):
-    then each frame's pressures pick its place on the state path.
+    then each frame's pressures pick its place on the state path. `gain` (T,): divide
+    each taxel's activation by it before detection (`fruitcli.sensing.detect`; None: off,
+    the paper).
     """
 
     def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
                  settings: Settings, state_pressure_kpa: np.ndarray | None = None,
-                 where: str = "taxels"):
+                 where: str = "taxels", gain: np.ndarray | None = None):
         self.taxels, self.board, self.settings = taxels, board, settings
+        self.gain = None if gain is None else np.asarray(gain, dtype=float)
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board["rows"], board["cols"])
@@ -167,7 +170,7 @@ class Locator:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches)
+                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain)
             end = start + frames.shape[0]
             xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
                              None if frac is None else frac[start:end])
@@ -233,6 +236,8 @@ class Stream:
         flat = self._flat
         v = values - self.baseline
         np.maximum(v, 0.0, out=v)
+        if loc.gain is not None:
+            v /= loc.gain
         flat[loc.grid.cell] = v
         vmax = float(v.max())
         low = s.threshold_counts - s.hysteresis_counts
