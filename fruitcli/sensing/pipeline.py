@@ -218,14 +218,17 @@ class Stream:
         self.above = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
-        g = locator.grid
-        self._flat = np.zeros(g.shape[0] * g.shape[1])
-        self._offs = g.offsets
-        self._di = np.repeat(np.arange(-1.0, 2.0), 3)
-        self._dj = np.tile(np.arange(-1.0, 2.0), 3)
+        self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
         self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
+        from fruitcli.sensing.n9_kernel import n9_frame
+
+        self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
+        m = self.s.max_touches
+        self._scratch = np.empty(len(locator.rows))
+        self._k, self._peak = np.empty(m, np.int64), np.empty(m)
+        self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
 
     def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
              frame: int = 0) -> TouchTable:
@@ -233,12 +236,10 @@ class Stream:
         loc, s = self.loc, self.s
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
-        flat = self._flat
         v = values - self.baseline
         np.maximum(v, 0.0, out=v)
         if loc.gain is not None:
             v /= loc.gain
-        flat[loc.grid.cell] = v
         vmax = float(v.max())
         low = s.threshold_counts - s.hysteresis_counts
         if self.touched:
@@ -255,41 +256,22 @@ class Stream:
             self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
             return self._empty
         if s.method == "peaks":
-            t = n9_peaks(flat[None, :].copy(), loc.grid, thr, s.floor, s.max_touches)
-            rows = [(t.i[n], t.j[n], t.peak[n], t.taxel[n], t.weight[n]) for n in range(len(t))]
+            flat = np.zeros((1, self._cells))
+            flat[0, loc.grid.cell] = v
+            t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            i, j, peak, tax, w = t.i, t.j, t.peak, t.taxel, t.weight
         else:
-            rows = self._sequential(flat, thr, s.floor if s.method == "n9_floor" else 0.0)
+            n = self._n9_frame(v, loc.layout.taxel, loc.layout.n9, loc.layout.ci, loc.layout.cj,
+                         thr, s.floor if s.method == "n9_floor" else 0.0, s.max_touches,
+                         self._scratch, self._k, self._peak, self._i, self._j, self._w)
+            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
+            tax, w = loc.layout.n9_taxel[self._k[:n]], self._w[:n]
         pos = self._positions(pressure_kpa)
-        n = len(rows)
-        xyz = np.empty((n, 3))
-        for k, (_, _, _, tax, w) in enumerate(rows):
-            xyz[k] = w @ pos[np.where(tax < 0, 0, tax)]
+        n = len(i)
+        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
+        xyz = (w[:, None, :] @ pos[np.where(tax < 0, 0, tax)])[:, 0, :]
         ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
-        return TouchTable(np.full(n, frame, np.int64), ids,
-                          np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                          xyz, np.array([r[2] for r in rows]))
-
-    def _sequential(self, flat: np.ndarray, thr: float, floor: float) -> list:
-        """The paper's N9 loop on one padded flat frame (zeroed in place)."""
-        grid, offs = self.loc.grid, self._offs
-        width = grid.shape[1]
-        rows = []
-        for _ in range(self.s.max_touches):
-            k = int(flat.argmax())
-            peak = float(flat[k])
-            if peak <= thr:
-                break
-            idx = offs + k
-            win = flat[idx]
-            if floor > 0:
-                win = np.maximum(win - floor, 0.0)
-            w = win / win.sum()
-            ci, cj = divmod(k, width)
-            rows.append((ci - 1 + float(w @ self._di), cj - 1 + float(w @ self._dj), peak,
-                         grid.taxel_of_cell[idx], w))
-            flat[idx] = 0.0
-        flat[:] = 0.0
-        return rows
+        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
 
     def _positions(self, pressure_kpa) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
