@@ -129,3 +129,43 @@ def test_ascii_fast_path_reads_what_parse_line_reads():
     # read besides the 300 plain lines: 18 and 19 digits, 007, trailing comma, timestamp,
     # spaces, empty field, +1, all fields empty, \r\r
     assert len(want) == 300 + 10
+
+
+def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
+    """`TuioSender.bundles` (numpy over the touches) against the per-touch Python encoder
+    it replaced (tests/tuio_reference.py), on random sessions that start, move, end and
+    come back, with repeated and backwards frame times (dt <= 0)."""
+    from tuio_reference import ReferenceTuioSender
+
+    from fruitcli.sensing.tuio import Normalizer, TuioSender
+
+    rng = np.random.default_rng(4)
+    tx = full_board()
+    norm = Normalizer.from_taxels(tx.i, tx.j, tx.xyz_mm)
+    for profile in ("3Dcur", "25Dcur"):
+        new = TuioSender(("127.0.0.1", 9), norm, profile, source="fruit@test")
+        old = ReferenceTuioSender(("127.0.0.1", 9), norm, profile, source="fruit@test")
+        alive: list[int] = []
+        next_id, t = 0, 0.0
+        for _ in range(400):
+            t += float(rng.choice([0.0, -0.01, 0.0333, 0.1 * rng.random()], p=[.1, .05, .6, .25]))
+            keep = [s for s in alive if rng.random() < 0.85]
+            ended = sorted(set(alive) - set(keep))
+            born = int(rng.integers(0, 3)) if len(keep) < 10 else 0
+            ids = np.array(keep + list(range(next_id, next_id + born)), np.int64)
+            next_id += born
+            is_new = np.array([s >= next_id - born for s in ids], bool)
+            n = len(ids)
+            ij = np.column_stack([rng.uniform(-1, 21, n), rng.uniform(-1, 12, n)])
+            xyz = rng.normal(0, 80, (n, 3))
+            peak = rng.uniform(20, 300, n)
+            a = new.bundles(t, ids, is_new, ended, ij, xyz, peak)
+            b = old.bundles(t, ids, is_new, ended, ij, xyz, peak)
+            assert a == b
+            alive = ids.tolist()
+        assert new.fseq == 400
+    empty = np.zeros(0)
+    assert new.bundles(t, empty.astype(np.int64), empty.astype(bool), [3], np.zeros((0, 2)),
+                       np.zeros((0, 3)), empty) == old.bundles(
+        t, empty.astype(np.int64), empty.astype(bool), [3], np.zeros((0, 2)),
+        np.zeros((0, 3)), empty)
