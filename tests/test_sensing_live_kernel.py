@@ -169,3 +169,30 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
                        np.zeros((0, 3)), empty) == old.bundles(
         t, empty.astype(np.int64), empty.astype(bool), [3], np.zeros((0, 2)),
         np.zeros((0, 3)), empty)
+
+
+def test_nearest_partner_sessions_equal_the_assignment_solver():
+    """`SessionTracker` with its compiled nearest-partner path against the solver alone,
+    on random fingers that move, appear, vanish and come close to each other (where the
+    solver must decide): the same ids, new flags and ended sessions every frame."""
+    from fruitcli.sensing.sessions import SessionTracker
+
+    rng = np.random.default_rng(8)
+    fast, slow = SessionTracker(20.0), SessionTracker(20.0)
+    slow.fast = False
+    decided = []
+    nearest = fast._nearest
+    fast._nearest = lambda *a: decided.append(nearest(*a)) or decided[-1]
+    fingers = rng.uniform(0, 200, (6, 3))
+    for _ in range(3000):
+        fingers += rng.normal(0, 4.0, fingers.shape)
+        if rng.random() < 0.05:  # two fingers almost on top of each other
+            fingers[1] = fingers[0] + rng.normal(0, 0.5, 3)
+        if rng.random() < 0.03:
+            fingers[rng.integers(6)] = rng.uniform(0, 200, 3)  # a jump: a new session
+        on = rng.random(6) < 0.8
+        xyz = fingers[on][rng.permutation(int(on.sum()))]
+        a, b = fast.update(xyz), slow.update(xyz)
+        assert np.array_equal(a.ids, b.ids) and np.array_equal(a.new, b.new)
+        assert a.ended == b.ended
+    assert 0 < decided.count(False) < decided.count(True)  # both paths ran

@@ -1,10 +1,11 @@
 """Session ids for live touches: a finger keeps its id across frames; ids are never reused.
 
 Units: mm, s. Consecutive frames' touch points (3D, mm) are matched by
-``scipy.optimize.linear_sum_assignment`` on their distance; a pair farther apart than the
-gate, and every unmatched touch, starts a new session with the next unused id (TUIO's
-session ids, which a client takes as a new cursor). With a gate of 0 every touch of
-every frame is a new session.
+``scipy.optimize.linear_sum_assignment`` on their distance (or, when each touch's
+nearest partner decides it, the compiled `session_kernel`, which gives the same
+assignment); a pair farther apart than the gate, and every unmatched touch, starts a
+new session with the next unused id (TUIO's session ids, which a client takes as a new
+cursor). With a gate of 0 every touch of every frame is a new session.
 """
 
 from __future__ import annotations
@@ -35,14 +36,25 @@ class SessionTracker:
         self.next_id = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
+        self.fast = True  # the compiled nearest-partner path when it decides (tests: off)
+        from fruitcli.sensing.session_kernel import nearest_match
+
+        self._nearest = nearest_match
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]
         ids = np.full(n, -1, np.int64)
-        if self.gate_mm > 0 and n and self.prev_xyz.shape[0]:
-            d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
-            cost = np.sqrt((d * d).sum(axis=2))
-            r, c = linear_sum_assignment(cost)
+        m = self.prev_xyz.shape[0]
+        if self.gate_mm > 0 and n and m:
+            cost, match = np.empty((m, n)), np.empty(m, np.int64)
+            xyz = np.ascontiguousarray(xyz_mm, dtype=float)
+            if self.fast and self._nearest(self.prev_xyz, xyz, cost, match):
+                r = np.flatnonzero(match >= 0)
+                c = match[r]
+            else:
+                d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
+                cost = np.sqrt((d * d).sum(axis=2))
+                r, c = linear_sum_assignment(cost)
             ok = cost[r, c] <= self.gate_mm
             ids[c[ok]] = self.prev_ids[r[ok]]
         new = ids < 0
