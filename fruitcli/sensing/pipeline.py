@@ -219,6 +219,7 @@ class Stream:
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
         self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
+        self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
         self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
@@ -238,8 +239,9 @@ class Stream:
             values = values[loc.rows, loc.cols]
         v = values - self.baseline
         np.maximum(v, 0.0, out=v)
+        self.activation = v  # (T,) counts, for the live view
         if loc.gain is not None:
-            v /= loc.gain
+            v = v / loc.gain
         vmax = float(v.max())
         low = s.threshold_counts - s.hysteresis_counts
         if self.touched:
