@@ -90,6 +90,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
     from fruitcli.sensing.board import load_taxels
     from fruitcli.sensing.drift import DriftTracker
     from fruitcli.sensing.gain_division import detection_gain
+    from fruitcli.sensing.idle_gc import FrameGC
     from fruitcli.sensing.live import LiveLocator, pressure_thread
     from fruitcli.sensing.locate import load_states
     from fruitcli.sensing.pipeline import Locator, Settings
@@ -180,6 +181,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
         warned = False
+        frame_gc = FrameGC().__enter__()  # garbage collection between frames, not in one
         try:
             while n_frames is None or seen < n_frames:
                 try:
@@ -201,6 +203,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
                     seen += 1
                     if n_frames is not None and seen >= n_frames:
                         break
+                frame_gc.after_frame()
         except PortClosed:
             why = reader.skip_reasons()
             raise FrameError(f"{port}: port closed after {seen} frames "
@@ -210,6 +213,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, n_fram
             click.echo("Interrupted.", err=True)
             raise SystemExit(130) from None
         finally:
+            frame_gc.__exit__()
             stop.set()
             ser.close()
             outputs.close()

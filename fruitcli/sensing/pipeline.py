@@ -226,6 +226,8 @@ class Stream:
         from fruitcli.sensing.n9_kernel import n9_frame
 
         self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
+        # taxel of each N9 cell of each position, 0 where none (its weight is 0)
+        self._n9_taxel = np.where(locator.layout.n9_taxel < 0, 0, locator.layout.n9_taxel)
         m = self.s.max_touches
         self._scratch = np.empty(len(locator.rows))
         self._k, self._peak = np.empty(m, np.int64), np.empty(m)
@@ -261,17 +263,17 @@ class Stream:
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
             t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
-            i, j, peak, tax, w = t.i, t.j, t.peak, t.taxel, t.weight
+            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             n = self._n9_frame(v, loc.layout.taxel, loc.layout.n9, loc.layout.ci, loc.layout.cj,
                          thr, s.floor if s.method == "n9_floor" else 0.0, s.max_touches,
                          self._scratch, self._k, self._peak, self._i, self._j, self._w)
             i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
-            tax, w = loc.layout.n9_taxel[self._k[:n]], self._w[:n]
+            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
         pos = self._positions(pressure_kpa)
         n = len(i)
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
-        xyz = (w[:, None, :] @ pos[np.where(tax < 0, 0, tax)])[:, 0, :]
+        xyz = (w[:, None, :] @ pos[tax])[:, 0, :]
         ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
         return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
 

@@ -20,10 +20,12 @@ MARGIN = 1e-9  # relative: nearest vs second nearest, far above the solver's rou
 
 
 @njit(cache=True, nogil=True)
-def nearest_match(prev_xyz, xyz, cost, match) -> bool:
+def nearest_match(prev_xyz, xyz, prev_ids, gate, next_id, cost, ids, new) -> int:
     """Distances cost (m, n) = |prev_xyz[a] - xyz[b]| (as numpy sums them: dx^2 + dy^2,
-    then + dz^2); match (m,) = the current point assigned to each previous one (-1: none)
-    when the nearest-partner rule above decides; -> whether it did."""
+    then + dz^2). When the nearest-partner rule above decides the assignment: ids (n,)
+    = the previous id of each current point matched within `gate` (mm), else a new id
+    from next_id on, new (n,) = which are new; -> how many are new. -1 when it does
+    not decide (ids, new untouched)."""
     m, n = prev_xyz.shape[0], xyz.shape[0]
     for a in range(m):
         for b in range(n):
@@ -34,9 +36,8 @@ def nearest_match(prev_xyz, xyz, cost, match) -> bool:
     rows = m <= n  # the smaller side is fully assigned
     count = m if rows else n
     other = n if rows else m
+    partner = np.full(count, -1, np.int64)
     taken = np.zeros(other, np.bool_)
-    for a in range(m):
-        match[a] = -1
     for x in range(count):
         best = np.inf
         second = np.inf
@@ -50,12 +51,21 @@ def nearest_match(prev_xyz, xyz, cost, match) -> bool:
             elif c < second:
                 second = c
         if other > 1 and not second - best > MARGIN * (second + 1.0):
-            return False
+            return -1
         if at < 0 or taken[at]:  # NaN points, or two nearest to one partner
-            return False
+            return -1
         taken[at] = True
-        if rows:
-            match[x] = at
-        else:
-            match[at] = x
-    return True
+        partner[x] = at
+    for b in range(n):
+        ids[b] = -1
+    for x in range(count):
+        a, b = (x, partner[x]) if rows else (partner[x], x)
+        if cost[a, b] <= gate:
+            ids[b] = prev_ids[a]
+    k = 0
+    for b in range(n):
+        new[b] = ids[b] < 0
+        if new[b]:
+            ids[b] = next_id + k
+            k += 1
+    return k

@@ -43,24 +43,29 @@ class SessionTracker:
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]
-        ids = np.full(n, -1, np.int64)
         m = self.prev_xyz.shape[0]
         if self.gate_mm > 0 and n and m:
-            cost, match = np.empty((m, n)), np.empty(m, np.int64)
             xyz = np.ascontiguousarray(xyz_mm, dtype=float)
-            if self.fast and self._nearest(self.prev_xyz, xyz, cost, match):
-                r = np.flatnonzero(match >= 0)
-                c = match[r]
-            else:
-                d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
-                cost = np.sqrt((d * d).sum(axis=2))
-                r, c = linear_sum_assignment(cost)
+            cost, ids, new = np.empty((m, n)), np.empty(n, np.int64), np.empty(n, bool)
+            k = self._nearest(self.prev_xyz, xyz, self.prev_ids, self.gate_mm, self.next_id,
+                              cost, ids, new) if self.fast else -1
+            if k >= 0:
+                self.next_id += k
+                return self._step(xyz_mm, ids, new)
+        ids = np.full(n, -1, np.int64)
+        if self.gate_mm > 0 and n and m:
+            d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
+            cost = np.sqrt((d * d).sum(axis=2))
+            r, c = linear_sum_assignment(cost)
             ok = cost[r, c] <= self.gate_mm
             ids[c[ok]] = self.prev_ids[r[ok]]
         new = ids < 0
         k = int(new.sum())
         ids[new] = np.arange(self.next_id, self.next_id + k)
         self.next_id += k
+        return self._step(xyz_mm, ids, new)
+
+    def _step(self, xyz_mm: np.ndarray, ids: np.ndarray, new: np.ndarray) -> SessionStep:
         ended = sorted(set(self.prev_ids.tolist()) - set(ids.tolist()))
         self.prev_xyz, self.prev_ids = np.array(xyz_mm, dtype=float), ids
         return SessionStep(ids, new, ended)
