@@ -102,6 +102,9 @@ class Kinematics:
     the kernel's libm hypot may round otherwise)."""
 
     def __init__(self):
+        from fruitcli.sensing.tuio_kernel import motion
+
+        self._motion = motion
         self.t_s: float | None = None  # time of the previous update (s)
         self.ids = np.zeros(0, np.int64)  # the previous update's sessions
         self.g, self.vel = np.zeros((0, 5)), np.zeros((0, 5))
@@ -114,12 +117,10 @@ class Kinematics:
         velocity (n, 5), acceleration (n, 2) = (m2, m3)): v = (p - p_prev) / dt,
         m = (|v| - |v_prev|) / dt over the 2D and the 3D part; 0 for a new session (and
         v kept, m 0, when dt <= 0)."""
-        from fruitcli.sensing.tuio_kernel import motion
-
         n = ids.shape[0]
         dt = 0.0 if self.t_s is None else t_s - self.t_s
         g, vel, rows = np.empty((n, 5)), np.empty((n, 5)), np.empty(n, np.int64)
-        motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows)
+        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows)
         hypot, prev = math.hypot, self.speed
         speed, acc = [], []
         for r, (a, b, c, d, e) in zip(rows.tolist(), vel.tolist(), strict=True):
@@ -173,6 +174,9 @@ class TuioSender:
         self._touch = osc.Template("/fruit/touch", (), "iffffff")
         self._up = osc.Template("/fruit/up", (), "i")
         self._consts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        from fruitcli.sensing.tuio_kernel import pack_frame
+
+        self._pack = pack_frame
         self._out = np.empty(1 << 16, np.uint8)
         self._ends = np.empty(4, np.int64)
 
@@ -199,8 +203,6 @@ class TuioSender:
         Positions and kinematics in float64 (`Kinematics`), the datagrams packed by the
         compiled `tuio_kernel.pack_frame`: the bytes of the per-touch Python encoder this
         replaced (tests/test_sensing_live_kernel.py)."""
-        from fruitcli.sensing.tuio_kernel import pack_frame
-
         self.fseq += 1
         sid = np.array(ids, dtype=np.int64)
         n = sid.shape[0]
@@ -211,7 +213,7 @@ class TuioSender:
         need = (consts.size + 200) * (n + 2) + 8 * len(ended)
         if self._out.size < need:
             self._out = np.empty(need, np.uint8)
-        pack_frame(self._out, consts, seg, sid,
+        self._pack(self._out, consts, seg, sid,
                    np.asarray(new, dtype=bool).reshape(n), np.asarray(ended, np.int64),
                    g, vel, acc, xyz, ij, np.asarray(peak, dtype=float).reshape(n),
                    self.fseq, float(t_s), self._ends)
