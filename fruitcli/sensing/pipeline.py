@@ -232,6 +232,9 @@ class Stream:
         self._scratch = np.empty(len(locator.rows))
         self._k, self._peak = np.empty(m, np.int64), np.empty(m)
         self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
+        self._n9_frame(self.activation, locator.layout.taxel, locator.layout.n9,
+                       locator.layout.ci, locator.layout.cj, np.inf, 0.0, m, self._scratch,
+                       self._k, self._peak, self._i, self._j, self._w)  # load it now
 
     def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
              frame: int = 0) -> TouchTable:
@@ -266,7 +269,8 @@ class Stream:
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             n = self._n9_frame(v, loc.layout.taxel, loc.layout.n9, loc.layout.ci, loc.layout.cj,
-                         thr, s.floor if s.method == "n9_floor" else 0.0, s.max_touches,
+                         float(thr), float(s.floor if s.method == "n9_floor" else 0.0),
+                         int(s.max_touches),
                          self._scratch, self._k, self._peak, self._i, self._j, self._w)
             i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
             tax, w = self._n9_taxel[self._k[:n]], self._w[:n]

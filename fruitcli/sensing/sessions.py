@@ -40,6 +40,9 @@ class SessionTracker:
         from fruitcli.sensing.session_kernel import nearest_match
 
         self._nearest = nearest_match
+        one = np.zeros((1, 3))  # compiled (or loaded from the cache) now, not on a frame
+        nearest_match(one, one, np.zeros(1, np.int64), 0.0, 0, np.empty((1, 1)),
+                      np.empty(1, np.int64), np.empty(1, bool))
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]

@@ -154,9 +154,13 @@ class TuioSender:
         self.profiles = ("/tuio/2Dcur", f"/tuio/{profile_3d}", "/tuio/_sp")
         self.source = source or f"fruit@{socket.gethostname()}"
         self.kin = Kinematics()
+        self.fseq = 0
         self._norm = np.array([norm.i_min, norm.i_span, norm.j_min, norm.j_span,
                                *np.asarray(norm.origin_mm, dtype=float), norm.scale_mm])
         self._templates()
+        self.bundles(0.0, np.zeros(0, np.int64), np.zeros(0, bool), [], np.zeros((0, 2)),
+                     np.zeros((0, 3)), np.zeros(0))  # the kernels loaded now, not on a frame
+        self.kin = Kinematics()
         self.fseq = 0
         self.sent = 0  # datagrams sent
         self.failed = 0  # datagrams the OS refused (counted, never fatal)
