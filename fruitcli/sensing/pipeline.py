@@ -268,10 +268,11 @@ class Stream:
             t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
-            n = self._n9_frame(v, loc.layout.taxel, loc.layout.n9, loc.layout.ci, loc.layout.cj,
-                         float(thr), float(s.floor if s.method == "n9_floor" else 0.0),
-                         int(s.max_touches),
-                         self._scratch, self._k, self._peak, self._i, self._j, self._w)
+            lay = loc.layout
+            n = self._n9_frame(v, lay.taxel, lay.n9, lay.ci, lay.cj, float(thr),
+                               float(s.floor if s.method == "n9_floor" else 0.0),
+                               int(s.max_touches), self._scratch, self._k, self._peak,
+                               self._i, self._j, self._w)
             i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
             tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
         pos = self._positions(pressure_kpa)
