@@ -154,6 +154,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
         "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
                                       "surface (moved to the nearest point of the body)"),
+        "divide_by_gain": Key("bool", False, "divide each taxel's activation by its gain in "
+                              "[skin].taxel_gain before detection (threshold, maxima and N9 "
+                              "weights on the divided v; off: the paper)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
@@ -582,6 +585,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if det["project"] not in ("none", "surface"):
         raise SceneError(f"{where}: [detection].project: expected none or surface, "
                          f"got {det['project']!r}")
+    if det["divide_by_gain"] and skin["taxel_gain"] is None:
+        raise SceneError(f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
+                         "taxel_gain = \"gains.csv\" (written by fruit calibrate)")
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")

@@ -38,6 +38,12 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
+@click.option("--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
+              metavar="GAINS.csv",
+              help="Divide each taxel's activation by its gain from this CSV (id, gain: "
+                   "fruit calibrate's gains.csv) before detection; the threshold applies to "
+                   "the divided activations. Default: the scene's [detection].divide_by_gain "
+                   "(off).")
 @click.option("--osc", "osc_target", default=None, metavar="HOST:PORT",
               help="Send touches over OSC/UDP: TUIO 1.1 /tuio/2Dcur, /tuio/3Dcur and "
                    "/tuio/_sp (peak), and plain /fruit/frame, /fruit/down, /fruit/touch, "
@@ -72,9 +78,9 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
                    "against an emulated board played as fast (tests/test_live_soak.py); "
                    "scales t_s, the drift tracker and the status lines.")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_kind, n_frames,
-         baud,
-         fmt, baseline_frames, threshold, osc_target, tuio_3d, session_gate_mm, drift_tau_s,
-         no_drift, reconnect, log_path, log_max_kb, log_backups, view_target, time_scale):
+         baud, fmt, baseline_frames, threshold, gains_csv, osc_target, tuio_3d,
+         session_gate_mm, drift_tau_s, no_drift, reconnect, log_path, log_max_kb,
+         log_backups, view_target, time_scale):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:
@@ -88,6 +94,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
     from fruitcli.scene import load_scene
     from fruitcli.sensing.board import load_taxels
     from fruitcli.sensing.drift import DriftTracker
+    from fruitcli.sensing.gain_division import detection_gain
+    from fruitcli.sensing.idle_gc import FrameGC
     from fruitcli.sensing.live import LiveLocator, pressure_thread
     from fruitcli.sensing.locate import load_states
     from fruitcli.sensing.pipeline import Locator, Settings
@@ -126,20 +134,24 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
         taxels = load_taxels(taxels_csv)
         board = scene["board"]
         states = load_states(states_npz, len(taxels)) if states_npz else None
+        gain = detection_gain(scene, taxels, gains_csv)
         pressure = solver = None
         if online:
             solver = (online_solver(scene, mesh_npz, taxels.xyz_mm, progress)
                       if model_kind == "full" else reduced_source(reduced, taxels, taxels_csv))
-            loc = Locator(taxels, board, solver.taxels_mm, settings, where=str(taxels_csv))
+            loc = Locator(taxels, board, solver.taxels_mm, settings,
+                          where=str(taxels_csv), gain=gain)
             pressure = PressureState(tuple(solver.model.chamber_names))
         elif states is None:
-            loc = Locator(taxels, board, taxels.xyz_mm, settings, where=str(taxels_csv))
+            loc = Locator(taxels, board, taxels.xyz_mm, settings,
+                          where=str(taxels_csv), gain=gain)
         elif pressure_port:
             loc = Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa,
-                          where=str(taxels_csv))
+                          where=str(taxels_csv), gain=gain)
             pressure = PressureState(states.chamber_names)
         else:
-            loc = Locator(taxels, board, states.taxels_mm[0], settings, where=str(taxels_csv))
+            loc = Locator(taxels, board, states.taxels_mm[0], settings,
+                          where=str(taxels_csv), gain=gain)
         drift = None if no_drift else DriftTracker(drift_tau_s, settings.threshold_counts)
         live_loc = LiveLocator(loc, pressure, solver, gate_mm=session_gate_mm, drift=drift,
                                health=True)
@@ -178,6 +190,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
         warned = False
+        frame_gc = FrameGC().__enter__()  # garbage collection between frames, not in one
         try:
             while n_frames is None or seen < n_frames:
                 try:
@@ -199,6 +212,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
                     seen += 1
                     if n_frames is not None and seen >= n_frames:
                         break
+                frame_gc.after_frame()
         except PortClosed:
             why = reader.skip_reasons()
             raise FrameError(f"{port}: port closed after {seen} frames "
@@ -208,6 +222,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
             click.echo("Interrupted.", err=True)
             raise SystemExit(130) from None
         finally:
+            frame_gc.__exit__()
             stop.set()
             ser.close()
             outputs.close()

@@ -30,10 +30,16 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="For a recording with chamber pressures and a --scene: reduced (each "
                    "frame's taxels from the scene's reduced model, built into "
                    "out/<scene name>/reduce on first use) or full (the --states path).")
+@click.option("--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
+              metavar="GAINS.csv",
+              help="Divide each taxel's activation by its gain from this CSV (id, gain: "
+                   "fruit calibrate's gains.csv) before detection; the threshold applies to "
+                   "the divided activations. Default: the scene's [detection].divide_by_gain "
+                   "(off).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           surface, model_kind, out_dir):
+           surface, model_kind, gains_csv, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
@@ -58,7 +64,8 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
                                      label=f"{scene_path}: --model reduced")
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
-                         method=method, surface_path=surface, reduced=reduced)
+                         method=method, surface_path=surface, reduced=reduced,
+                         gains_csv=gains_csv)
     model = {"reduced": "taxels from the reduced model",
              "full": "taxels along the simulated states"}.get(res.get("model"), "")
     click.echo(f"{res['touches']} touches in {res['frames']} frames "

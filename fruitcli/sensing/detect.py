@@ -6,6 +6,12 @@ Activation v = C - C0 clipped at 0, on a padded taxel grid (H, W) = (I + 2, J + 
 border and cells without a taxel stay 0, so off-grid and missing cells count 0 in N9.
 Ties of the maximum go to the first cell in row-major order (lowest i, then lowest j).
 
+Gain division (``gain`` (T,), off by default): v = max(C - C0, 0) / g per taxel, with g
+its calibrated gain (`fruit calibrate`'s gains.csv). Everything after that works on the
+divided v: the threshold, the maxima, the N9 weights and the reported peak, all in
+counts of a taxel of gain 1 (a taxel at half gain is detected and weighted as if at
+full gain; its noise is doubled too).
+
 The batch N9 (`n9_sequential`) does not build that grid: a compiled loop over the
 frames (`n9_kernel`) reads each frame's taxel counts in row-major grid order (`Layout`)
 and their N9 neighbours through a table; the centroids are vectorized over all touches,
@@ -119,10 +125,13 @@ def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return di, dj
 
 
-def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid) -> np.ndarray:
-    """v = max(C - C0, 0) per taxel (N, T) -> padded flat grid (N, H * W) float64."""
+def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid,
+                    gain: np.ndarray | None = None) -> np.ndarray:
+    """v = max(C - C0, 0) (/ gain) per taxel (N, T) -> padded flat grid (N, H * W) float64."""
     v = np.asarray(values, dtype=float) - baseline
     np.maximum(v, 0.0, out=v)
+    if gain is not None:
+        v /= gain
     out = np.zeros((v.shape[0], grid.shape[0] * grid.shape[1]))
     out[:, grid.cell] = v
     return out
@@ -156,10 +165,11 @@ def _collect(parts: list[tuple]) -> Touches:
 
 def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
                   threshold: float, floor: float = 0.0,
-                  max_touches: int = MAX_TOUCHES) -> Touches:
+                  max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None) -> Touches:
     """The paper's multitouch on frames (N, rows * cols) counts against C0 (T,): take the
-    maximum, N9 centroid, zero N9, repeat while some v > threshold. The extraction runs
-    compiled frame by frame (`n9_kernel.n9_scan`), the centroids vectorized."""
+    maximum, N9 centroid, zero N9, repeat while some v > threshold (v divided by `gain`
+    (T,) when given). The extraction runs compiled frame by frame
+    (`n9_kernel.n9_scan`), the centroids vectorized."""
     from fruitcli.sensing.n9_kernel import n9_scan
 
     if floor >= threshold:
@@ -169,9 +179,10 @@ def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
     frame, rank, pos = (np.empty(cap, np.int64) for _ in range(3))
     peak, win = np.empty(cap), np.empty((cap, 9))
     base = np.asarray(baseline, dtype=float)[layout.taxel]
-    count = n9_scan(np.ascontiguousarray(frames, dtype=np.int64), layout.cell, base,
-                    layout.n9, float(threshold), int(max_touches), frame, rank, pos, peak,
-                    win)
+    g = np.ones(base.size) if gain is None else np.asarray(gain, dtype=float)[layout.taxel]
+    count = n9_scan(np.ascontiguousarray(frames, dtype=np.int64), layout.cell, base, g,
+                    gain is not None, layout.n9, float(threshold), int(max_touches), frame,
+                    rank, pos, peak, win)
     if count == 0:
         return _collect([])
     k = pos[:count]
@@ -223,14 +234,15 @@ def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
 
 def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
            threshold: float, method: str = "n9", floor: float = 0.0,
-           max_touches: int = MAX_TOUCHES) -> Touches:
+           max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
-    ``[detection].method``: n9 (paper), n9_floor or peaks."""
+    ``[detection].method``: n9 (paper), n9_floor or peaks; activations divided by
+    `gain` (T,) when given."""
     if method in ("n9", "n9_floor"):
         return n9_sequential(frames, baseline, layout, threshold,
-                             floor if method == "n9_floor" else 0.0, max_touches)
+                             floor if method == "n9_floor" else 0.0, max_touches, gain)
     if method == "peaks":
         values = np.take(frames, layout.frame_cell, axis=1)
-        return n9_peaks(activation_grid(values, baseline, grid), grid, threshold, floor,
-                        max_touches)
+        return n9_peaks(activation_grid(values, baseline, grid, gain), grid, threshold,
+                        floor, max_touches)
     raise FrameError(f"detection method: expected n9, n9_floor or peaks, got {method!r}")

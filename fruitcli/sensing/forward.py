@@ -150,9 +150,10 @@ def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS,
     return Skin(np.round(base), std, fab, gain, params)
 
 
-def load_taxel_gains(path, taxel_ids) -> np.ndarray:
+def load_taxel_gains(path, taxel_ids, only_these: bool = False) -> np.ndarray:
     """Gains (T,) of the taxels `taxel_ids` (T,) from a CSV with columns id, gain (e.g.
-    `fruit calibrate`'s gains.csv); every taxel must be in it, each gain > 0."""
+    `fruit calibrate`'s gains.csv); every taxel must be in it, each gain > 0 and finite;
+    with `only_these`, no other taxel either (a file made for another skin)."""
     from fruitcli.tables import read_table
 
     cols = read_table(path, ["id", "gain"], error=FrameError)
@@ -169,6 +170,13 @@ def load_taxel_gains(path, taxel_ids) -> np.ndarray:
         raise FrameError(f"{path}: no gain for taxel(s) {', '.join(map(str, missing[:5]))} "
                          f"({len(missing)} of {len(taxel_ids)} taxels missing; [skin].taxel_gain "
                          "must be made for these taxels)")
+    if only_these:
+        known = set(int(t) for t in taxel_ids)
+        extra = [int(t) for t in ids if int(t) not in known]
+        if extra:
+            raise FrameError(f"{path}: id: gains for taxel(s) {', '.join(map(str, extra[:5]))}"
+                             f" that the taxel file does not have ({len(ids)} gains for "
+                             f"{len(taxel_ids)} taxels; made for another skin?)")
     return gains[[row[int(t)] for t in taxel_ids]]
 
 

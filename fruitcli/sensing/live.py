@@ -57,6 +57,7 @@ class LiveLocator:
             # one tracker: the per-frame rate of the bench replays gives way to this one
             locator.settings = replace(locator.settings, drift_rate=0.0)
         self.loc = locator
+        self._cells = locator.rows * locator.frame_shape[1] + locator.cols  # flat frame
         self.pressure = pressure
         self.online = online
         self.k = locator.settings.baseline_frames
@@ -93,7 +94,7 @@ class LiveLocator:
     def step(self, counts: np.ndarray, t_s: float) -> LiveFrame | None:
         """One frame (R, C) counts at host time `t_s` (s)."""
         self.frame += 1
-        values = counts[self.loc.rows, self.loc.cols].astype(float)
+        values = counts.take(self._cells).astype(float)
         if self.stream is None:
             self._base.append(values)
             if len(self._base) == self.k:
@@ -106,8 +107,8 @@ class LiveLocator:
         if self.online is not None:
             self.loc.positions_mm, p = self.online.taxels_mm, None
         base = self.stream.baseline
-        activation = np.maximum(values - base, 0.0)
         t = self.stream.step(values, p, self.frame)
+        activation = self.stream.activation  # v = C - C0 clipped, before any gain division
         s = self.sessions.update(t.xyz_mm)
         t.touch = s.ids
         if self.health is not None:

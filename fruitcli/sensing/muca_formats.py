@@ -104,6 +104,7 @@ class AsciiDecoder:
         self.shifted = 0  # one field too many and no host timestamp in front
         self.bytes = 0  # fed so far
         self.starts: list[int] = []  # stream offsets of the frames last returned
+        self._plain = None  # the compiled fast path, loaded on the first line
 
     def feed(self, chunk: bytes) -> list[np.ndarray]:
         """Frames completed by `chunk`; `self.starts` gets their stream offsets."""
@@ -117,12 +118,25 @@ class AsciiDecoder:
             self.cut += 1
         out, self.starts = [], []
         for p in parts:
-            got = self.line(p.decode("ascii", errors="replace").rstrip("\r"))
+            got = self.plain(p)
+            if got is None:
+                got = self.line(p.decode("ascii", errors="replace").rstrip("\r"))
             if got is not None:
                 out.append(got)
                 self.starts.append(at)
             at += len(p) + 1
         return out
+
+    def plain(self, raw: bytes) -> np.ndarray | None:
+        """The frame of a line of digits and commas only (`ascii_kernel`), else None."""
+        if self._plain is None:
+            from fruitcli.sensing.ascii_kernel import plain_counts
+
+            self._plain = plain_counts
+        counts = np.empty(self.rows * self.cols, np.int64)
+        if len(raw) < counts.size or not self._plain(np.frombuffer(raw, np.uint8), counts):
+            return None
+        return counts.reshape(self.rows, self.cols)
 
     def line(self, line: str) -> np.ndarray | None:
         counts, _, why = parse_line(line, self.rows * self.cols)

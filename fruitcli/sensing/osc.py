@@ -4,8 +4,9 @@ for the live loop's hot path.
 python-osc's builders re-parse every message they build; with 10 touches (44 messages
 per frame) they took 4.5 ms per frame on this machine, over the 1 ms budget from board
 line to bundle. Here a `Template` encodes its address, type tags and leading strings
-once, and packs the numbers with one precompiled `struct.Struct`. The tests decode the
-output with python-osc, an independent implementation.
+once, and packs the numbers with one precompiled `struct.Struct` (or hands its bytes to
+the compiled `tuio_kernel`). The tests decode the output with python-osc, an
+independent implementation.
 """
 
 from __future__ import annotations
@@ -40,6 +41,11 @@ class Template:
     def element(self, *numbers) -> bytes:
         """The message as an element of a bundle."""
         return self._sized + self._struct.pack(*numbers)
+
+    @property
+    def head(self) -> bytes:
+        """What precedes the numbers in `element`: the int32 size, then the prefix."""
+        return self._sized
 
 
 def bundle(elements: list[bytes]) -> bytes:

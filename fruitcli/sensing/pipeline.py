@@ -103,13 +103,16 @@ class Locator:
     then each frame's pressures pick its place on the state path. With `reduced` (a
     `fruitcli.fem.reduced.ReducedModel` of these taxels), each frame's pressures give
     its taxels' positions through the reduced model instead (clamped to its range).
+    `gain` (T,): divide each taxel's activation by it before detection
+    (`fruitcli.sensing.detect`; None: off, the paper).
     """
 
     def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
                  settings: Settings, state_pressure_kpa: np.ndarray | None = None,
-                 where: str = "taxels", reduced=None):
+                 where: str = "taxels", reduced=None, gain: np.ndarray | None = None):
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
+        self.gain = None if gain is None else np.asarray(gain, dtype=float)
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board["rows"], board["cols"])
@@ -176,7 +179,7 @@ class Locator:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches)
+                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain)
             end = start + frames.shape[0]
             if self.reduced is not None and pressure_kpa is not None:
                 pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
@@ -230,14 +233,23 @@ class Stream:
         self.above = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
-        g = locator.grid
-        self._flat = np.zeros(g.shape[0] * g.shape[1])
-        self._offs = g.offsets
-        self._di = np.repeat(np.arange(-1.0, 2.0), 3)
-        self._dj = np.tile(np.arange(-1.0, 2.0), 3)
+        self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
+        self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
         self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
+        from fruitcli.sensing.n9_kernel import n9_frame
+
+        self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
+        # taxel of each N9 cell of each position, 0 where none (its weight is 0)
+        self._n9_taxel = np.where(locator.layout.n9_taxel < 0, 0, locator.layout.n9_taxel)
+        m = self.s.max_touches
+        self._scratch = np.empty(len(locator.rows))
+        self._k, self._peak = np.empty(m, np.int64), np.empty(m)
+        self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
+        self._n9_frame(self.activation, locator.layout.taxel, locator.layout.n9,
+                       locator.layout.ci, locator.layout.cj, np.inf, 0.0, m, self._scratch,
+                       self._k, self._peak, self._i, self._j, self._w)  # load it now
 
     def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
              frame: int = 0) -> TouchTable:
@@ -245,10 +257,11 @@ class Stream:
         loc, s = self.loc, self.s
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
-        flat = self._flat
         v = values - self.baseline
         np.maximum(v, 0.0, out=v)
-        flat[loc.grid.cell] = v
+        self.activation = v  # (T,) counts, for the live view
+        if loc.gain is not None:
+            v = v / loc.gain
         vmax = float(v.max())
         low = s.threshold_counts - s.hysteresis_counts
         if self.touched:
@@ -265,41 +278,24 @@ class Stream:
             self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
             return self._empty
         if s.method == "peaks":
-            t = n9_peaks(flat[None, :].copy(), loc.grid, thr, s.floor, s.max_touches)
-            rows = [(t.i[n], t.j[n], t.peak[n], t.taxel[n], t.weight[n]) for n in range(len(t))]
+            flat = np.zeros((1, self._cells))
+            flat[0, loc.grid.cell] = v
+            t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
-            rows = self._sequential(flat, thr, s.floor if s.method == "n9_floor" else 0.0)
+            lay = loc.layout
+            n = self._n9_frame(v, lay.taxel, lay.n9, lay.ci, lay.cj, float(thr),
+                               float(s.floor if s.method == "n9_floor" else 0.0),
+                               int(s.max_touches), self._scratch, self._k, self._peak,
+                               self._i, self._j, self._w)
+            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
+            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
         pos = self._positions(pressure_kpa)
-        n = len(rows)
-        xyz = np.empty((n, 3))
-        for k, (_, _, _, tax, w) in enumerate(rows):
-            xyz[k] = w @ pos[np.where(tax < 0, 0, tax)]
+        n = len(i)
+        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
+        xyz = (w[:, None, :] @ pos[tax])[:, 0, :]
         ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
-        return TouchTable(np.full(n, frame, np.int64), ids,
-                          np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                          xyz, np.array([r[2] for r in rows]))
-
-    def _sequential(self, flat: np.ndarray, thr: float, floor: float) -> list:
-        """The paper's N9 loop on one padded flat frame (zeroed in place)."""
-        grid, offs = self.loc.grid, self._offs
-        width = grid.shape[1]
-        rows = []
-        for _ in range(self.s.max_touches):
-            k = int(flat.argmax())
-            peak = float(flat[k])
-            if peak <= thr:
-                break
-            idx = offs + k
-            win = flat[idx]
-            if floor > 0:
-                win = np.maximum(win - floor, 0.0)
-            w = win / win.sum()
-            ci, cj = divmod(k, width)
-            rows.append((ci - 1 + float(w @ self._di), cj - 1 + float(w @ self._dj), peak,
-                         grid.taxel_of_cell[idx], w))
-            flat[idx] = 0.0
-        flat[:] = 0.0
-        return rows
+        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
 
     def _positions(self, pressure_kpa) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""

@@ -1,10 +1,11 @@
 """Session ids for live touches: a finger keeps its id across frames; ids are never reused.
 
 Units: mm, s. Consecutive frames' touch points (3D, mm) are matched by
-``scipy.optimize.linear_sum_assignment`` on their distance; a pair farther apart than the
-gate, and every unmatched touch, starts a new session with the next unused id (TUIO's
-session ids, which a client takes as a new cursor). With a gate of 0 every touch of
-every frame is a new session.
+``scipy.optimize.linear_sum_assignment`` on their distance (or, when each touch's
+nearest partner decides it, the compiled `session_kernel`, which gives the same
+assignment); a pair farther apart than the gate, and every unmatched touch, starts a
+new session with the next unused id (TUIO's session ids, which a client takes as a new
+cursor). With a gate of 0 every touch of every frame is a new session.
 """
 
 from __future__ import annotations
@@ -35,11 +36,27 @@ class SessionTracker:
         self.next_id = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
+        self.fast = True  # the compiled nearest-partner path when it decides (tests: off)
+        from fruitcli.sensing.session_kernel import nearest_match
+
+        self._nearest = nearest_match
+        one = np.zeros((1, 3))  # compiled (or loaded from the cache) now, not on a frame
+        nearest_match(one, one, np.zeros(1, np.int64), 0.0, 0, np.empty((1, 1)),
+                      np.empty(1, np.int64), np.empty(1, bool))
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]
+        m = self.prev_xyz.shape[0]
+        if self.gate_mm > 0 and n and m:
+            xyz = np.ascontiguousarray(xyz_mm, dtype=float)
+            cost, ids, new = np.empty((m, n)), np.empty(n, np.int64), np.empty(n, bool)
+            k = self._nearest(self.prev_xyz, xyz, self.prev_ids, self.gate_mm, self.next_id,
+                              cost, ids, new) if self.fast else -1
+            if k >= 0:
+                self.next_id += k
+                return self._step(xyz_mm, ids, new)
         ids = np.full(n, -1, np.int64)
-        if self.gate_mm > 0 and n and self.prev_xyz.shape[0]:
+        if self.gate_mm > 0 and n and m:
             d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
             cost = np.sqrt((d * d).sum(axis=2))
             r, c = linear_sum_assignment(cost)
@@ -49,6 +66,9 @@ class SessionTracker:
         k = int(new.sum())
         ids[new] = np.arange(self.next_id, self.next_id + k)
         self.next_id += k
+        return self._step(xyz_mm, ids, new)
+
+    def _step(self, xyz_mm: np.ndarray, ids: np.ndarray, new: np.ndarray) -> SessionStep:
         ended = sorted(set(self.prev_ids.tolist()) - set(ids.tolist()))
         self.prev_xyz, self.prev_ids = np.array(xyz_mm, dtype=float), ids
         return SessionStep(ids, new, ended)

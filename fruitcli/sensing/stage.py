@@ -33,12 +33,13 @@ def _section(scene, name: str) -> dict:
 
 
 def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
-                  settings: Settings, where: str, reduced=None
-                  ) -> tuple[Locator, np.ndarray | None]:
+                  settings: Settings, where: str, reduced=None,
+                  gain: np.ndarray | None = None) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
     or the state path when the recording carries chamber pressures; with `reduced` (a
     ReducedModel of these taxels) and pressures in the recording, each frame's taxels
-    from the reduced model at its pressures. -> (locator, pressure)."""
+    from the reduced model at its pressures; `gain` (T,): the gains detection divides
+    by (None: off). -> (locator, pressure)."""
     board = _section(scene, "board")
     check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if reduced is not None and rec.pressure_kpa is not None:
@@ -52,19 +53,21 @@ def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedReco
             raise FrameError(f"{where}: {len(taxels)} taxels, but the reduced model follows "
                              f"{reduced.coef_taxels.shape[1] // 3}")
         rest = reduced.taxels(np.clip(np.zeros(len(cols)), reduced.lo, reduced.hi))
-        return (Locator(taxels, board, rest, settings, where=where, reduced=reduced),
+        return (Locator(taxels, board, rest, settings, where=where, reduced=reduced,
+                        gain=gain),
                 rec.pressure_kpa[:, cols])
     if states is None:
-        return Locator(taxels, board, taxels.xyz_mm, settings, where=where), None
+        return Locator(taxels, board, taxels.xyz_mm, settings, where=where, gain=gain), None
     if rec.pressure_kpa is not None and states.n_states > 1:
         cols = match_chambers(rec.chamber_names, states, where)
-        return (Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa, where),
-                rec.pressure_kpa[:, cols])
+        return (Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa, where,
+                        gain), rec.pressure_kpa[:, cols])
     state = int(rec.meta.get("state", 0))
     if not 0 <= state < states.n_states:
         raise FrameError(f"{where}: meta state {state} not in the states "
                          f"(0..{states.n_states - 1})")
-    return Locator(taxels, board, states.taxels_mm[state], settings, where=where), None
+    return Locator(taxels, board, states.taxels_mm[state], settings, where=where,
+                   gain=gain), None
 
 
 def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndarray,
@@ -170,14 +173,18 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                threshold_counts: float | None = None, method: str | None = None,
                surface_path=None, surface_unit: str = "mm",
                chunk_frames: int = CHUNK_FRAMES, workers: int | None = None,
-               reduced=None) -> dict:
+               reduced=None, gains_csv=None) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
     The recording is read, detected and written `chunk_frames` frames at a time, on
     `workers` threads (default: the CPUs this process may use, at most 4). With
     ``[detection].project = "surface"`` the located points are moved to the nearest
     point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
     the recording's FEM state). With `reduced` (a ReducedModel), a recording with
-    chamber pressures takes each frame's taxels from it (`build_locator`)."""
+    chamber pressures takes each frame's taxels from it (`build_locator`). Activations
+    are divided by the taxels' gains with `gains_csv` or the scene's
+    ``[detection].divide_by_gain`` (`gain_division`)."""
+    from fruitcli.sensing.gain_division import detection_gain
+
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = load_taxels(taxels_csv)
@@ -190,15 +197,18 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
+    gain = detection_gain(scene, taxels, gains_csv)
     if workers is None:
         workers = min(4, _usable_cpus())
     with open_recording(frames_path, board["rows"], board["cols"],
                         board.get("format", "auto")) as rec:
         locator, pressure = build_locator(scene, taxels, states, rec, settings, where,
-                                          reduced)
+                                          reduced, gain)
         projector = surface_projector(scene, rec, states, pressure, taxels, surface_path,
                                       surface_unit, where)
-        say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped")
+        say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped"
+            + ("" if gain is None else f"; activations divided by the taxel gains "
+               f"({gain.min():.3f}-{gain.max():.3f})"))
         t0 = time.perf_counter()
         baseline = locator.baseline(rec.read(0, settings.baseline_frames), where, len(rec))
         sampled, done, shown = [], 0, t0

@@ -97,37 +97,45 @@ class Normalizer:
 
 class Kinematics:
     """Velocity and motion acceleration per session from successive positions, for the
-    2D and the 3D profile at once (plain Python: a frame has at most 10 touches, too
-    few for numpy to pay)."""
+    2D and the 3D profile at once: positions and velocities compiled
+    (`tuio_kernel.motion`), the speeds by `math.hypot` per touch (CPython's, as before:
+    the kernel's libm hypot may round otherwise)."""
 
     def __init__(self):
-        self.last: dict[int, tuple[float, list[float], list[float], float, float]] = {}
+        from fruitcli.sensing.tuio_kernel import motion
 
-    def update(self, ids: list[int], pos: list[list[float]], t_s: float
-               ) -> list[tuple[list[float], float, float]]:
-        """Positions (x2, y2, x3, y3, z3) of sessions `ids` -> [(velocity (5 values), m2,
-        m3)]: v = (p - p_prev) / dt, m = (|v| - |v_prev|) / dt over the 2D and the 3D
-        part; 0 for a new session (and v kept, m 0, when dt <= 0)."""
-        out, now = [], {}
-        hypot = math.hypot
-        for s, p in zip(ids, pos, strict=True):
-            prev = self.last.get(s)
-            if prev is None:
-                v, m2, m3 = [0.0] * 5, 0.0, 0.0
-                s2 = s3 = 0.0
+        self._motion = motion
+        self.t_s: float | None = None  # time of the previous update (s)
+        self.ids = np.zeros(0, np.int64)  # the previous update's sessions
+        self.g, self.vel = np.zeros((0, 5)), np.zeros((0, 5))
+        self.speed: list[tuple[float, float]] = []  # |v| of the 2D and of the 3D part
+
+    def update(self, ids: np.ndarray, ij: np.ndarray, xyz_mm: np.ndarray, norm: np.ndarray,
+               t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sessions `ids` (n,) at grid positions ij (n, 2) and points xyz_mm (n, 3) ->
+        (positions g (n, 5) = (x2, y2, x3, y3, z3) normalized by `norm` (see `motion`),
+        velocity (n, 5), acceleration (n, 2) = (m2, m3)): v = (p - p_prev) / dt,
+        m = (|v| - |v_prev|) / dt over the 2D and the 3D part; 0 for a new session (and
+        v kept, m 0, when dt <= 0)."""
+        n = ids.shape[0]
+        dt = 0.0 if self.t_s is None else t_s - self.t_s
+        g, vel, rows = np.empty((n, 5)), np.empty((n, 5)), np.empty(n, np.int64)
+        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows)
+        hypot, prev = math.hypot, self.speed
+        speed, acc = [], []
+        for r, (a, b, c, d, e) in zip(rows.tolist(), vel.tolist(), strict=True):
+            if r < 0:
+                speed.append((0.0, 0.0))
+                acc.append((0.0, 0.0))
+            elif dt > 0:
+                s2, s3 = hypot(a, b), hypot(c, d, e)
+                speed.append((s2, s3))
+                acc.append(((s2 - prev[r][0]) / dt, (s3 - prev[r][1]) / dt))
             else:
-                t0, p0, v0, s20, s30 = prev
-                dt = t_s - t0
-                if dt > 0:
-                    v = [(a - b) / dt for a, b in zip(p, p0, strict=True)]
-                    s2, s3 = hypot(v[0], v[1]), hypot(v[2], v[3], v[4])
-                    m2, m3 = (s2 - s20) / dt, (s3 - s30) / dt
-                else:
-                    v, m2, m3, s2, s3 = v0, 0.0, 0.0, s20, s30
-            now[s] = (t_s, p, v, s2, s3)
-            out.append((v, m2, m3))
-        self.last = now
-        return out
+                speed.append(prev[r])
+                acc.append((0.0, 0.0))
+        self.t_s, self.ids, self.g, self.vel, self.speed = t_s, ids, g, vel, speed
+        return g, vel, np.array(acc, dtype=float).reshape(n, 2)
 
 
 class TuioSender:
@@ -146,7 +154,13 @@ class TuioSender:
         self.profiles = ("/tuio/2Dcur", f"/tuio/{profile_3d}", "/tuio/_sp")
         self.source = source or f"fruit@{socket.gethostname()}"
         self.kin = Kinematics()
+        self.fseq = 0
+        self._norm = np.array([norm.i_min, norm.i_span, norm.j_min, norm.j_span,
+                               *np.asarray(norm.origin_mm, dtype=float), norm.scale_mm])
         self._templates()
+        self.bundles(0.0, np.zeros(0, np.int64), np.zeros(0, bool), [], np.zeros((0, 2)),
+                     np.zeros((0, 3)), np.zeros(0))  # the kernels loaded now, not on a frame
+        self.kin = Kinematics()
         self.fseq = 0
         self.sent = 0  # datagrams sent
         self.failed = 0  # datagrams the OS refused (counted, never fatal)
@@ -159,48 +173,57 @@ class TuioSender:
                      p3: osc.Template(p3, ("set",), "ifffffff"),
                      pp: osc.Template(pp, ("set",), "if")}
         self._fseq = {p: osc.Template(p, ("fseq",), "i") for p in self.profiles}
-        self._alive: dict[tuple[str, int], osc.Template] = {}
         self._frame = osc.Template("/fruit/frame", (), "iif")
         self._down = osc.Template("/fruit/down", (), "iffffff")
         self._touch = osc.Template("/fruit/touch", (), "iffffff")
         self._up = osc.Template("/fruit/up", (), "i")
+        self._consts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        from fruitcli.sensing.tuio_kernel import pack_frame
 
-    def _profile(self, profile: str, ids: list[int], rows: list[list]) -> bytes:
-        alive = self._alive.get((profile, len(ids)))
-        if alive is None:
-            alive = self._alive[(profile, len(ids))] = osc.Template(profile, ("alive",),
-                                                                     "i" * len(ids))
-        st = self._set[profile]
-        msgs = [self._source[profile], alive.element(*ids)]
-        msgs += [st.element(s, *row) for s, row in zip(ids, rows, strict=True)]
-        msgs.append(self._fseq[profile].element(self.fseq))
-        return osc.bundle(msgs)
+        self._pack = pack_frame
+        self._out = np.empty(1 << 16, np.uint8)
+        self._ends = np.empty(4, np.int64)
+
+    def _pieces(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The constant bytes of a frame of n touches and their (start, length) rows, in
+        `tuio_kernel`'s order (made once per n)."""
+        got = self._consts.get(n)
+        if got is None:
+            pieces = [osc.BUNDLE_HEAD + self._source[p]
+                      + osc.Template(p, ("alive",), "i" * n).head for p in self.profiles]
+            pieces += [self._set[p].head for p in self.profiles]
+            pieces += [self._fseq[p].head for p in self.profiles]
+            pieces += [osc.BUNDLE_HEAD + self._frame.head, self._down.head,
+                       self._touch.head, self._up.head]
+            length = np.array([len(x) for x in pieces], np.int64)
+            seg = np.column_stack([np.cumsum(length) - length, length])
+            got = self._consts[n] = (np.frombuffer(b"".join(pieces), np.uint8), seg)
+        return got
 
     def bundles(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
                 ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray) -> list[bytes]:
         """The frame's four datagrams (and advance fseq). `ij` (n, 2) grid position,
-        `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool."""
+        `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool.
+        Positions and kinematics in float64 (`Kinematics`), the datagrams packed by the
+        compiled `tuio_kernel.pack_frame`: the bytes of the per-touch Python encoder this
+        replaced (tests/test_sensing_live_kernel.py)."""
         self.fseq += 1
-        sid = [int(s) for s in ids]
-        ijl, xyzl, peaks = ij.tolist(), xyz_mm.tolist(), np.asarray(peak, float).tolist()
-        nm = self.norm
-        g2 = [[(i - nm.i_min) / nm.i_span, 1.0 - (j - nm.j_min) / nm.j_span] for i, j in ijl]
-        o, sc = nm.origin_mm.tolist(), nm.scale_mm
-        g3 = [[(p[0] - o[0]) / sc, (p[1] - o[1]) / sc, (p[2] - o[2]) / sc] for p in xyzl]
-        kin = self.kin.update(sid, [a + b for a, b in zip(g2, g3, strict=True)], t_s)
-        rows = [(s, *p, *q, pk) for s, p, q, pk in zip(sid, xyzl, ijl, peaks, strict=True)]
-        plain = [self._frame.element(self.fseq, len(sid), float(t_s))]
-        plain += [self._down.element(*r) for r, is_new in zip(rows, new.tolist(), strict=True)
-                  if is_new]
-        plain += [self._touch.element(*r) for r in rows]
-        plain += [self._up.element(int(s)) for s in ended]
-        p2, p3, pp = self.profiles
-        return [self._profile(p2, sid, [(*g, *v[:2], m2) for g, (v, m2, _) in
-                                        zip(g2, kin, strict=True)]),
-                self._profile(p3, sid, [(*g, *v[2:], m3) for g, (v, _, m3) in
-                                        zip(g3, kin, strict=True)]),
-                self._profile(pp, sid, [(pk,) for pk in peaks]),
-                osc.bundle(plain)]
+        sid = np.array(ids, dtype=np.int64)
+        n = sid.shape[0]
+        ij = np.ascontiguousarray(ij, dtype=float).reshape(n, 2)
+        xyz = np.ascontiguousarray(xyz_mm, dtype=float).reshape(n, 3)
+        g, vel, acc = self.kin.update(sid, ij, xyz, self._norm, t_s)
+        consts, seg = self._pieces(n)
+        need = (consts.size + 200) * (n + 2) + 8 * len(ended)
+        if self._out.size < need:
+            self._out = np.empty(need, np.uint8)
+        self._pack(self._out, consts, seg, sid,
+                   np.asarray(new, dtype=bool).reshape(n), np.asarray(ended, np.int64),
+                   g, vel, acc, xyz, ij, np.asarray(peak, dtype=float).reshape(n),
+                   self.fseq, float(t_s), self._ends)
+        data = self._out[:self._ends[3]].tobytes()
+        e = self._ends.tolist()
+        return [data[:e[0]], data[e[0]:e[1]], data[e[1]:e[2]], data[e[2]:e[3]]]
 
     def send(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
              ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray) -> None:

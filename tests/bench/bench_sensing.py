@@ -7,7 +7,8 @@ frame in the live loop. 47 taxels on a 12 x 7 taxel grid, half the frames touche
 Targets (issue 14): `fruit locate` >= 200,000 frames/s end to end (the whole command on
 200,000 frames minus the whole command on 20,000; 252 taxels on the full 21 x 12 board,
 a touch in every frame) and < 2 GB peak memory on 1,000,000 frames.
-`python tests/bench/bench_sensing.py recordings` runs only the latter.
+`python tests/bench/bench_sensing.py recordings` runs only the latter,
+`python tests/bench/bench_sensing.py latency` only the OSC latency (issue 15).
 """
 
 from __future__ import annotations
@@ -87,7 +88,17 @@ def main():
     for line in lines:
         parse_line(line, 252)
     dt = (time.perf_counter() - t0) / len(lines)
-    print(f"live loop line parsing (252 counts): {dt * 1e3:.4f} ms per frame")
+    from fruitcli.sensing.muca_formats import AsciiDecoder
+
+    dec = AsciiDecoder(21, 12)
+    raw = [(line + "\r\n").encode() for line in lines]
+    dec.feed(raw[0])
+    t0 = time.perf_counter()
+    for line in raw:
+        dec.feed(line)
+    fast = (time.perf_counter() - t0) / len(raw)
+    print(f"live loop line parsing (252 counts): {fast * 1e3:.4f} ms per frame through the "
+          f"board decoder (compiled fast path), {dt * 1e3:.4f} ms by parse_line (odd lines)")
     recordings()
 
 
@@ -212,17 +223,18 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
     return text.encode() == (out_dir / "touches.csv").read_bytes()
 
 
-def bench_osc_latency(n_frames: int = 3000):
+def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
     """Issue 15: board line arriving -> last TUIO/OSC bundle of the frame leaving, with 10
     simultaneous touches (target p99 <= 1 ms). Each frame's line is written to a pty; the
     clock starts when the pty has it for the reader (select), then the live loop's own
     objects read, parse, locate, give session ids and send 4 bundles to 127.0.0.1, in
-    one thread."""
+    one thread. `live_defaults`: with `fruit live`'s drift tracker and taxel flags."""
     import os
     import select
     import socket
     import tty
 
+    from fruitcli.sensing.idle_gc import FrameGC
     from fruitcli.sensing.live import LiveLocator
     from fruitcli.sensing.serial_io import FrameReader, open_port
     from fruitcli.sensing.tuio import Normalizer, TuioSender
@@ -230,7 +242,10 @@ def bench_osc_latency(n_frames: int = 3000):
     i, j = np.divmod(np.arange(21 * 12), 12)
     taxels = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], axis=1))
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10))
-    live = LiveLocator(loc)
+    from fruitcli.sensing.drift import DriftTracker
+
+    live = LiveLocator(loc, drift=DriftTracker(60.0, 20.0), health=True) if live_defaults \
+        else LiveLocator(loc)
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
     sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
@@ -243,14 +258,18 @@ def bench_osc_latency(n_frames: int = 3000):
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
     centres = [(a, b) for a in (2, 7, 12, 17) for b in (2, 6, 10)][:10]
     lat, cpu, counts = [], [], []
+    lines = []  # made beforehand: the loop's thread does only what `fruit live` does
+    for k in range(n_frames + 10):
+        f = 500 + rng.normal(0, 1.0, (21, 12))
+        if k >= 10:
+            for a, b in centres:
+                d = 0.3 * np.sin(k / 20)  # the fingers move a little
+                f += 60 * np.exp(-((r - a - d) ** 2 + (c - b + d) ** 2) / (2 * 0.6 ** 2))
+        lines.append((format_line(np.round(f).astype(np.int64)) + "\r\n").encode())
+    load = os.getloadavg()
+    frame_gc = FrameGC().__enter__()  # as `fruit live` does
     try:
-        for k in range(n_frames + 10):
-            f = 500 + rng.normal(0, 1.0, (21, 12))
-            if k >= 10:
-                for a, b in centres:
-                    d = 0.3 * np.sin(k / 20)  # the fingers move a little
-                    f += 60 * np.exp(-((r - a - d) ** 2 + (c - b + d) ** 2) / (2 * 0.6 ** 2))
-            line = (format_line(np.round(f).astype(np.int64)) + "\r\n").encode()
+        for line in lines:
             while os.read(sink.fileno(), 65536) if _readable(sink) else False:
                 pass  # drain what the previous frames sent
             os.write(master, line)
@@ -266,18 +285,26 @@ def bench_osc_latency(n_frames: int = 3000):
                 lat.append(time.perf_counter() - t0)
                 cpu.append(time.thread_time() - c0)
                 counts.append(len(lf.touches))
+            frame_gc.after_frame()
     finally:
+        frame_gc.__exit__()
         port.close()
         os.close(master)
         os.close(slave)
         sink.close()
         tuio.close()
     ms = np.array(lat) * 1e3
-    print(f"OSC latency, board line -> TUIO bundles sent, {int(np.median(counts))} touches "
+    what = "with fruit live's drift tracker and taxel flags" if live_defaults else \
+        "detection, sessions and TUIO only"
+    print(f"OSC latency ({what}), board line -> TUIO bundles sent, "
+          f"{int(np.median(counts))} touches "
           f"({min(counts)}-{max(counts)}), {len(ms)} frames: median {np.median(ms):.3f} ms, "
           f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms (target p99 <= 1 ms); "
           f"CPU time of the loop's thread: median {np.median(cpu) * 1e3:.3f} ms, p99 "
-          f"{np.percentile(cpu, 99) * 1e3:.3f} ms (wall minus CPU: waiting for a core)")
+          f"{np.percentile(cpu, 99) * 1e3:.3f} ms (wall minus CPU: waiting for a core); "
+          f"load average {load[0]:.1f} before, {os.getloadavg()[0]:.1f} after "
+          f"({os.cpu_count()} CPUs); garbage collections between frames (generation 0, 1, "
+          f"2): {', '.join(map(str, frame_gc.collections))}")
 
 
 def _readable(sock) -> bool:
@@ -290,6 +317,10 @@ def _readable(sock) -> bool:
 if __name__ == "__main__":
     if sys.argv[1:] == ["recordings"]:
         recordings()
+    elif sys.argv[1:] == ["latency"]:
+        bench_osc_latency()
+        bench_osc_latency(live_defaults=True)
     else:
         main()
         bench_osc_latency()
+        bench_osc_latency(live_defaults=True)
