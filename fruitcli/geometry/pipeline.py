@@ -172,7 +172,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json
     from fruitcli.geometry import export, reduce, sections, taxels, tubes
-    from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.geometry.distance import TreeDistance
     from fruitcli.geometry.preview import write_preview
 
     say = progress or (lambda msg: None)
@@ -226,7 +226,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         used, kf_ = np.unique(df[bound], return_inverse=True)
         dv, df = dv[used], kf_.reshape(-1, 3)
     lap("winding")
-    dist = SurfaceDistance(dv, df)
+    dist = TreeDistance(dv, df)
     red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"],
                              inside)
     rv, rf = reduce.manifold_arrays(red.body)

@@ -103,11 +103,11 @@ def column_winding(wn: Winding, axes) -> np.ndarray:
     return np.ascontiguousarray(w)
 
 
-def grid_winding(wn: Winding, axes, near: np.ndarray) -> np.ndarray:
+def grid_winding(wn: Winding, axes, near: np.ndarray | None) -> np.ndarray:
     """Winding number on the grid `axes` (x, y, z, uniform spacing), shape (nx, ny, nz).
 
-    A closed surface's is exact along vertical lines (`column_winding`). Otherwise points
-    where `near` (same shape) is true are evaluated; the others are interpolated
+    A closed surface's is exact along vertical lines (`column_winding`; `near` unused).
+    Otherwise points where `near` (same shape) is true are evaluated; the others are interpolated
     trilinearly from a grid of twice the spacing.
     """
     if wn.closed:
