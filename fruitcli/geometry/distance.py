@@ -313,3 +313,45 @@ def _tree_closest(points, t, perm, start, end, child, lo, hi, q, d2, fid):
             top += 2
         d2[i] = best
         fid[i] = best_f
+
+
+def grid_vertex_distance(vertices: np.ndarray, axes, upper_mm: float) -> np.ndarray:
+    """Distance (nx * ny * nz,) from each point of the grid `axes` (x, y, z; uniform
+    spacing, C order) to the nearest of `vertices` (n, 3), inf where none is nearer than
+    `upper_mm`: what a KD-tree query bounded by `upper_mm` gives, found by visiting, for
+    each vertex, the grid points within `upper_mm` of it."""
+    ax = [np.ascontiguousarray(a, dtype=float) for a in axes]
+    d2 = np.full(len(ax[0]) * len(ax[1]) * len(ax[2]), np.inf)
+    _splat_nearest(np.ascontiguousarray(vertices, dtype=float), ax[0], ax[1], ax[2],
+                   float(upper_mm), d2)
+    d = np.sqrt(d2)
+    d[d >= upper_mm] = np.inf
+    return d
+
+
+@njit(cache=True, nogil=True)
+def _splat_nearest(vertices, xs, ys, zs, upper, d2):
+    nx, ny, nz = xs.shape[0], ys.shape[0], zs.shape[0]
+    hx, hy, hz = xs[1] - xs[0], ys[1] - ys[0], zs[1] - zs[0]
+    u2 = upper * upper
+    for v in range(vertices.shape[0]):
+        px, py, pz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
+        i0 = max(int(np.floor((px - upper - xs[0]) / hx)), 0)
+        i1 = min(int(np.ceil((px + upper - xs[0]) / hx)), nx - 1)
+        j0 = max(int(np.floor((py - upper - ys[0]) / hy)), 0)
+        j1 = min(int(np.ceil((py + upper - ys[0]) / hy)), ny - 1)
+        k0 = max(int(np.floor((pz - upper - zs[0]) / hz)), 0)
+        k1 = min(int(np.ceil((pz + upper - zs[0]) / hz)), nz - 1)
+        for i in range(i0, i1 + 1):
+            dx = xs[i] - px
+            for j in range(j0, j1 + 1):
+                dy = ys[j] - py
+                dxy = dx * dx + dy * dy
+                if dxy >= u2:
+                    continue
+                base = (i * ny + j) * nz
+                for k in range(k0, k1 + 1):
+                    dz = zs[k] - pz
+                    e = dxy + dz * dz
+                    if e < d2[base + k]:
+                        d2[base + k] = e

@@ -14,7 +14,7 @@ import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry import winding
-from fruitcli.geometry.distance import TreeDistance
+from fruitcli.geometry.distance import TreeDistance, grid_vertex_distance
 
 # level-set triangles per mm^2 of surface at edge length e: TRIANGLES_PER_AREA / e^2
 TRIANGLES_PER_AREA = 3.4
@@ -75,11 +75,11 @@ def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: fl
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     # a closed surface's winding number is counted exactly along lines: no band needed
     closed = inside.wn.closed
-    d = dist.nearest_vertex_distance(pts, upper_mm=band if closed else max(band, radius))
+    d = grid_vertex_distance(dist.vertices, axes, band if closed else max(band, radius))
     near = None
     if not closed:
         near = d < radius if inside.tree is None else \
-            inside.tree.query(pts, distance_upper_bound=radius)[0] < radius
+            grid_vertex_distance(inside.wn.vertices, axes, radius) < radius
         near = near.reshape(shape)
     w = winding.grid_winding(inside.wn, axes, near)
     d = np.minimum(d, band)
