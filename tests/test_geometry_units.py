@@ -5,7 +5,12 @@ import pytest
 import trimesh
 
 from fruitcli.geometry.columns import inside_columns, top_z, vertical_hits
-from fruitcli.geometry.distance import SurfaceDistance, TreeDistance, closest_on_triangles
+from fruitcli.geometry.distance import (
+    SurfaceDistance,
+    TreeDistance,
+    closest_on_triangles,
+    grid_vertex_distance,
+)
 from fruitcli.geometry.sections import section_pieces
 from fruitcli.geometry.taxels import piece_crossings
 from fruitcli.geometry.tubes import resample, track_polylines, tube_arrays
@@ -53,6 +58,21 @@ def test_tree_distance_is_the_brute_force_minimum():
         assert best[np.arange(len(p)), face].all()
     _, d, face = TreeDistance(v, f).closest(np.zeros((0, 3)))
     assert len(d) == 0 and len(face) == 0
+
+
+def test_grid_vertex_distance_is_the_bounded_kd_tree_query():
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(500, 3)) * (10.0, 6.0, 4.0)
+    axes = [np.arange(-30.0, 30.0, 1.3), np.arange(-20.0, 21.0, 1.3), np.arange(-12.0, 12.0, 1.3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    for upper in (2.5, 6.0):
+        want = cKDTree(v).query(pts, distance_upper_bound=upper)[0]
+        got = grid_vertex_distance(v, axes, upper)
+        assert np.isinf(want).any() and np.isfinite(want).any()
+        assert np.array_equal(np.isinf(got), np.isinf(want))
+        assert np.allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=0, atol=1e-12)
 
 
 def test_top_z_and_parity_on_a_box():
