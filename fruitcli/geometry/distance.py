@@ -15,9 +15,6 @@ from numba import njit
 CHUNK_POINTS = 20000
 # at most this many subdivisions per edge when sampling a large face
 MAX_SAMPLE_LEVEL = 24
-# faces whose longest edge exceeds this many median edges get a grid of samples (the
-# others are found through their corners and their centroid)
-LONG_FACE_MEDIANS = 2.0
 
 
 def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
@@ -194,9 +191,7 @@ def _face_samples(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     tri = vertices[faces]
     edges = np.linalg.norm(tri - tri[:, [1, 2, 0]], axis=2)
     spacing = max(float(np.median(edges)), 1e-9)
-    longest = edges.max(axis=1)
-    level = np.where(longest > LONG_FACE_MEDIANS * spacing,
-                     np.clip(np.ceil(longest / spacing), 1, MAX_SAMPLE_LEVEL), 1).astype(int)
+    level = np.clip(np.ceil(edges.max(axis=1) / spacing), 1, MAX_SAMPLE_LEVEL).astype(int)
     pts = [tri.mean(axis=1)]
     fids = [np.arange(len(faces))]
     for lv in np.unique(level[level > 1]):
