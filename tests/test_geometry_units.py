@@ -5,7 +5,12 @@ import pytest
 import trimesh
 
 from fruitcli.geometry.columns import inside_columns, top_z, vertical_hits
-from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
+from fruitcli.geometry.distance import (
+    SurfaceDistance,
+    TreeDistance,
+    closest_on_triangles,
+    grid_vertex_distance,
+)
 from fruitcli.geometry.sections import section_pieces
 from fruitcli.geometry.taxels import piece_crossings
 from fruitcli.geometry.tubes import resample, track_polylines, tube_arrays
@@ -30,6 +35,44 @@ def test_surface_distance_sphere():
     _, d, _ = SurfaceDistance(sphere.vertices, sphere.faces).closest(pts)
     # the polyhedron lies inside the sphere by at most its sagitta (~0.04 mm here)
     assert np.allclose(d, [10, 5, 5, 10], atol=0.05)
+
+
+def test_tree_distance_is_the_brute_force_minimum():
+    """Exact whatever the triangles: a sphere, and a long box of 12 triangles (points
+    far from every corner of its long faces), against the minimum over all triangles;
+    the face returned is one of the nearest."""
+    rng = np.random.default_rng(5)
+    for mesh in (trimesh.creation.icosphere(3, 10.0),
+                 trimesh.creation.box(extents=(200.0, 4.0, 3.0))):
+        v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        lo, hi = v.min(axis=0) - 5, v.max(axis=0) + 5
+        p = lo + (hi - lo) * rng.random((400, 3))
+        tri = v[f]
+        q_all = np.stack([closest_on_triangles(np.tile(x, (len(f), 1)), tri[:, 0], tri[:, 1],
+                                               tri[:, 2]) for x in p])
+        d_all = np.linalg.norm(q_all - p[:, None, :], axis=2)
+        q, d, face = TreeDistance(v, f).closest(p)
+        assert np.allclose(d, d_all.min(axis=1), rtol=0, atol=1e-9)
+        assert np.allclose(np.linalg.norm(q - p, axis=1), d, atol=1e-9)
+        best = d_all <= d_all.min(axis=1, keepdims=True) + 1e-9
+        assert best[np.arange(len(p)), face].all()
+    _, d, face = TreeDistance(v, f).closest(np.zeros((0, 3)))
+    assert len(d) == 0 and len(face) == 0
+
+
+def test_grid_vertex_distance_is_the_bounded_kd_tree_query():
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(500, 3)) * (10.0, 6.0, 4.0)
+    axes = [np.arange(-30.0, 30.0, 1.3), np.arange(-20.0, 21.0, 1.3), np.arange(-12.0, 12.0, 1.3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    for upper in (2.5, 6.0):
+        want = cKDTree(v).query(pts, distance_upper_bound=upper)[0]
+        got = grid_vertex_distance(v, axes, upper)
+        assert np.isinf(want).any() and np.isfinite(want).any()
+        assert np.array_equal(np.isinf(got), np.isinf(want))
+        assert np.allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=0, atol=1e-12)
 
 
 def test_top_z_and_parity_on_a_box():

@@ -14,17 +14,19 @@ RAY_JITTER_MM = np.array([3.1e-7, 1.7e-7])
 
 
 def vertical_hits(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
-                  cell_mm: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  cell_mm: float | None = None, upward: bool = False):
     """All crossings of vertical lines through `xy` (n, 2) with the triangles.
 
-    Returns (point_index (h,) int, z_mm (h,) float), sorted by point then z.
+    Returns (point_index (h,) int, z_mm (h,) float), sorted by point then z; with
+    `upward`, also (h,) bool: the crossed face's normal points up (+z).
     Triangles and points are matched through a uniform grid of `cell_mm` cells
     (default: the median triangle extent), so the cost is about linear.
     """
     xy = np.asarray(xy, dtype=float)[:, :2] + RAY_JITTER_MM
     tri = np.asarray(vertices, dtype=float)[np.asarray(faces)]
     if len(xy) == 0 or len(tri) == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
+        none = np.zeros(0, dtype=np.int64), np.zeros(0)
+        return (*none, np.zeros(0, dtype=bool)) if upward else none
     lo, hi = tri[:, :, :2].min(axis=1), tri[:, :, :2].max(axis=1)
     if cell_mm is None:
         cell_mm = float(max(np.median(hi - lo), 1e-3))
@@ -65,6 +67,8 @@ def vertical_hits(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
         z = u * a[:, 2] + v * b[:, 2] + w * c[:, 2]
     pi, zi = pair_p[hit], z[hit]
     o = np.lexsort((zi, pi))
+    if upward:
+        return pi[o], zi[o], (d[hit] > 0)[o]
     return pi[o], zi[o]
 
 

@@ -1,7 +1,9 @@
 """Exact point-to-surface distances on triangle meshes, without rtree.
 
-Candidates come from a KD-tree over vertices (the faces around the k nearest vertices);
-each candidate triangle is then measured exactly. Points `(n, 3)` float64, mm.
+`SurfaceDistance`: candidates come from a KD-tree over vertices (the faces around the k
+nearest vertices) and over samples on the faces; each candidate triangle is then
+measured exactly. `TreeDistance`: a bounding-box hierarchy over the triangles searched
+branch and bound, exact whatever the triangles' sizes. Points `(n, 3)` float64, mm.
 """
 
 from __future__ import annotations
@@ -202,3 +204,149 @@ def _face_samples(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
         pts.append(p.reshape(-1, 3))
         fids.append(np.repeat(sel, len(w)))
     return np.concatenate(pts), np.concatenate(fids)
+
+
+class TreeDistance:
+    """Exact distance queries to one triangle mesh (vertices (n, 3), faces (m, 3)), in mm,
+    through a bounding-box hierarchy (of faces exactly equally near, the lower index)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        from scipy.spatial import cKDTree
+
+        from fruitcli.geometry.solid_angle import LEAF_TRIANGLES, _build_tree
+
+        self.vertices = np.asarray(vertices, dtype=float)
+        self.faces = np.asarray(faces, dtype=np.int64)
+        self.tree = cKDTree(self.vertices, balanced_tree=False, compact_nodes=False)
+        tri = self.vertices[self.faces]
+        self.perm, self.start, self.end, self.child = _build_tree(
+            np.ascontiguousarray(tri.mean(axis=1)), LEAF_TRIANGLES)
+        self.tri = np.ascontiguousarray(tri[self.perm].reshape(-1, 9))
+        self.lo, self.hi = _node_boxes(self.tri, self.start, self.end, self.child)
+
+    def nearest_vertex_distance(self, points: np.ndarray,
+                                upper_mm: float = np.inf) -> np.ndarray:
+        """Distance (n,) to the nearest vertex (an upper bound of the surface distance)."""
+        d, _ = self.tree.query(points, k=1, distance_upper_bound=upper_mm)
+        return d
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest surface points (n, 3), distances (n,), face indices (n,)."""
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+        q = np.zeros((len(pts), 3))
+        d2 = np.zeros(len(pts))
+        fid = np.zeros(len(pts), dtype=np.int64)
+        if len(pts):
+            _tree_closest(pts, self.tri, self.perm, self.start, self.end, self.child,
+                          self.lo, self.hi, q, d2, fid)
+        return q, np.sqrt(d2), fid
+
+
+@njit(cache=True, nogil=True)
+def _node_boxes(t, start, end, child):
+    """Each node's bounding box (lo (n, 3), hi (n, 3)) over its triangles' corners."""
+    n = start.shape[0]
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    for nd in range(n - 1, -1, -1):
+        if child[nd] < 0:
+            for k in range(start[nd], end[nd]):
+                for v in range(3):
+                    for d in range(3):
+                        lo[nd, d] = min(lo[nd, d], t[k, 3 * v + d])
+                        hi[nd, d] = max(hi[nd, d], t[k, 3 * v + d])
+        else:
+            for c in (child[nd], child[nd] + 1):
+                for d in range(3):
+                    lo[nd, d] = min(lo[nd, d], lo[c, d])
+                    hi[nd, d] = max(hi[nd, d], hi[c, d])
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _box_d2(p, lo, hi, nd):
+    """Squared distance from p to node nd's box (0 inside)."""
+    s = 0.0
+    for d in range(3):
+        if p[d] < lo[nd, d]:
+            s += (lo[nd, d] - p[d]) ** 2
+        elif p[d] > hi[nd, d]:
+            s += (p[d] - hi[nd, d]) ** 2
+    return s
+
+
+@njit(cache=True, nogil=True)
+def _tree_closest(points, t, perm, start, end, child, lo, hi, q, d2, fid):
+    """Branch and bound: the nearer child first, boxes farther than the best skipped."""
+    stack = np.empty(256, np.int64)
+    tmp = np.empty(3)
+    for i in range(points.shape[0]):
+        p = points[i]
+        best = np.inf
+        best_f = -1
+        stack[0] = 0
+        top = 1
+        while top > 0:
+            top -= 1
+            nd = stack[top]
+            if _box_d2(p, lo, hi, nd) > best:
+                continue
+            if child[nd] < 0:
+                for k in range(start[nd], end[nd]):
+                    _closest_point(p, t[k, 0:3], t[k, 3:6], t[k, 6:9], tmp)
+                    e = (tmp[0] - p[0]) ** 2 + (tmp[1] - p[1]) ** 2 + (tmp[2] - p[2]) ** 2
+                    f = perm[k]
+                    if e < best or (e == best and f < best_f):
+                        best, best_f = e, f
+                        q[i, 0], q[i, 1], q[i, 2] = tmp[0], tmp[1], tmp[2]
+                continue
+            a, b = child[nd], child[nd] + 1
+            if _box_d2(p, lo, hi, a) < _box_d2(p, lo, hi, b):
+                a, b = b, a
+            stack[top] = a              # the farther child waits
+            stack[top + 1] = b
+            top += 2
+        d2[i] = best
+        fid[i] = best_f
+
+
+def grid_vertex_distance(vertices: np.ndarray, axes, upper_mm: float) -> np.ndarray:
+    """Distance (nx * ny * nz,) from each point of the grid `axes` (x, y, z; uniform
+    spacing, C order) to the nearest of `vertices` (n, 3), inf where none is nearer than
+    `upper_mm`: what a KD-tree query bounded by `upper_mm` gives, found by visiting, for
+    each vertex, the grid points within `upper_mm` of it."""
+    ax = [np.ascontiguousarray(a, dtype=float) for a in axes]
+    d2 = np.full(len(ax[0]) * len(ax[1]) * len(ax[2]), np.inf)
+    _splat_nearest(np.ascontiguousarray(vertices, dtype=float), ax[0], ax[1], ax[2],
+                   float(upper_mm), d2)
+    d = np.sqrt(d2)
+    d[d >= upper_mm] = np.inf
+    return d
+
+
+@njit(cache=True, nogil=True)
+def _splat_nearest(vertices, xs, ys, zs, upper, d2):
+    nx, ny, nz = xs.shape[0], ys.shape[0], zs.shape[0]
+    hx, hy, hz = xs[1] - xs[0], ys[1] - ys[0], zs[1] - zs[0]
+    u2 = upper * upper
+    for v in range(vertices.shape[0]):
+        px, py, pz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
+        i0 = max(int(np.floor((px - upper - xs[0]) / hx)), 0)
+        i1 = min(int(np.ceil((px + upper - xs[0]) / hx)), nx - 1)
+        j0 = max(int(np.floor((py - upper - ys[0]) / hy)), 0)
+        j1 = min(int(np.ceil((py + upper - ys[0]) / hy)), ny - 1)
+        k0 = max(int(np.floor((pz - upper - zs[0]) / hz)), 0)
+        k1 = min(int(np.ceil((pz + upper - zs[0]) / hz)), nz - 1)
+        for i in range(i0, i1 + 1):
+            dx = xs[i] - px
+            for j in range(j0, j1 + 1):
+                dy = ys[j] - py
+                dxy = dx * dx + dy * dy
+                if dxy >= u2:
+                    continue
+                base = (i * ny + j) * nz
+                for k in range(k0, k1 + 1):
+                    dz = zs[k] - pz
+                    e = dxy + dz * dz
+                    if e < d2[base + k]:
+                        d2[base + k] = e

@@ -172,7 +172,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json
     from fruitcli.geometry import export, reduce, sections, taxels, tubes
-    from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.geometry.distance import TreeDistance
     from fruitcli.geometry.preview import write_preview
 
     say = progress or (lambda msg: None)
@@ -183,13 +183,15 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         raise GeometryError(f"{opt['origin_mm']}: expected two finite numbers (mm), "
                             f"got {list(origin_mm)}")
     times: dict[str, float] = {}
-    clock = [time.perf_counter()]
+    cpu_times: dict[str, float] = {}
+    clock = [time.perf_counter(), time.process_time()]
 
     def lap(step):
-        now = time.perf_counter()
+        now, cpu = time.perf_counter(), time.process_time()
         times[step] = round(now - clock[0], 4)
-        clock[0] = now
-        say(f"{step}: {times[step]:.2f} s")
+        cpu_times[step] = round(cpu - clock[1], 4)
+        clock[:] = [now, cpu]
+        say(f"{step}: {times[step]:.2f} s ({cpu_times[step]:.2f} s CPU)")
 
     surf = load.load_mesh(artist_path, unit, opt["unit_hint"], fit_mm, opt["fit_mm"])
     repairs = surf.repairs
@@ -224,7 +226,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         used, kf_ = np.unique(df[bound], return_inverse=True)
         dv, df = dv[used], kf_.reshape(-1, 3)
     lap("winding")
-    dist = SurfaceDistance(dv, df)
+    dist = TreeDistance(dv, df)
     red = reduce.reduce_body(dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"],
                              inside)
     rv, rf = reduce.manifold_arrays(red.body)
@@ -372,7 +374,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         "taxel_curve_mismatch_mm": tx["mismatch_mm"],
         "volume_mm3": {"artist": red.inside_volume_mm3, "reduced": float(red.body.volume()),
                        "reduced_top": float(top.volume()), "tracked_top": float(tracked.volume())},
-        "times_s": times,
+        "times_s": times, "cpu_times_s": cpu_times,
     }
     with staged_dir(out_dir) as tmp:
         tmp = Path(tmp)
@@ -410,6 +412,7 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
                       f"tracks r = {track_radius_mm:g} mm")
         lap("preview")
         report["times_s"]["total"] = round(sum(times.values()), 4)
+        report["cpu_times_s"]["total"] = round(sum(cpu_times.values()), 4)
         write_json(tmp / "report.json", report)
     return report
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry import winding
-from fruitcli.geometry.distance import SurfaceDistance
+from fruitcli.geometry.distance import TreeDistance, grid_vertex_distance
 
 # level-set triangles per mm^2 of surface at edge length e: TRIANGLES_PER_AREA / e^2
 TRIANGLES_PER_AREA = 3.4
@@ -50,7 +50,7 @@ class Reduced:
 
 
 def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: float,
-                         level_mm: float, pad_mm: float, dist: SurfaceDistance | None = None,
+                         level_mm: float, pad_mm: float, dist: TreeDistance | None = None,
                          inside: Inside | None = None):
     """Signed distance (positive inside) on a grid; returns (axes (x, y, z), sdf (nx, ny, nz),
     winding number (nx, ny, nz)).
@@ -71,12 +71,17 @@ def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: fl
     inside = inside or Inside(vertices, faces)
     band = level_mm + 3.0 * spacing_mm
     radius = winding.EXACT_BAND_SPACINGS * spacing_mm
-    dist = dist or SurfaceDistance(vertices, faces)
+    dist = dist or TreeDistance(vertices, faces)
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    d = dist.nearest_vertex_distance(pts, upper_mm=max(band, radius))
-    near = d < radius if inside.tree is None else \
-        inside.tree.query(pts, distance_upper_bound=radius)[0] < radius
-    w = winding.grid_winding(inside.wn, axes, near.reshape(shape))
+    # a closed surface's winding number is counted exactly along lines: no band needed
+    closed = inside.wn.closed
+    d = grid_vertex_distance(dist.vertices, axes, band if closed else max(band, radius))
+    near = None
+    if not closed:
+        near = d < radius if inside.tree is None else \
+            grid_vertex_distance(inside.wn.vertices, axes, radius) < radius
+        near = near.reshape(shape)
+    w = winding.grid_winding(inside.wn, axes, near)
     d = np.minimum(d, band)
     cap_tree = None
     if inside.caps:
@@ -316,7 +321,7 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
 
 
 def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target_faces: int,
-                source: str = "mesh", dist: SurfaceDistance | None = None,
+                source: str = "mesh", dist: TreeDistance | None = None,
                 cover_name: str = "--cover-mm", inside: Inside | None = None) -> Reduced:
     """Offset a surface inward by `cover_mm` with about `target_faces` triangles
     (`cover_name`: how the user sets cover_mm, named in errors). `vertices`, `faces`: the
@@ -499,7 +504,7 @@ def manifold_arrays(m) -> tuple[np.ndarray, np.ndarray]:
 
 def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndarray,
                  artist_f: np.ndarray, cover_mm: float, n_samples: int = 20000,
-                 dist: SurfaceDistance | None = None, caps: np.ndarray | None = None) -> dict:
+                 dist: TreeDistance | None = None, caps: np.ndarray | None = None) -> dict:
     """Hausdorff-type distance (mm) between the reduced surface and the ideal offset surface.
 
     reduced -> ideal: | distance to the artist surface - cover | at reduced vertices and
@@ -509,7 +514,7 @@ def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndar
     """
     from scipy.spatial import cKDTree
 
-    art = dist or SurfaceDistance(artist_v, artist_f)
+    art = dist or TreeDistance(artist_v, artist_f)
     cap_tree = cKDTree(caps) if caps is not None and len(caps) else None
 
     def to_artist(p):
@@ -530,7 +535,7 @@ def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndar
     ideal = ideal[np.abs(d_ideal - cover_mm) < 1e-3 * max(cover_mm, 1.0) + 1e-6]
     back = np.zeros(0)
     if len(ideal):
-        _, back, _ = SurfaceDistance(reduced_v, reduced_f).closest(ideal)
+        _, back, _ = TreeDistance(reduced_v, reduced_f).closest(ideal)
     h_fwd = float(fwd.max()) if len(fwd) else 0.0
     h_back = float(back.max()) if len(back) else 0.0
     worst = q[int(np.argmax(fwd))] if h_fwd >= h_back or not len(back) else \

@@ -6,8 +6,11 @@ farther than 1 mm from the surface, each candidate's answer is compared with the
 solid (the analytic shape the mesh was cut from); prints the wrong fraction and the time:
 
 - ray parity (vertical rays, what make-tracks used before; exact for closed meshes),
-- libigl's fast winding number (Barnes-Hut, what make-tracks uses now),
-- libigl's exact winding number (every triangle for every point; the reference),
+- fruit's fast winding number (Barnes-Hut tree, what make-tracks uses on open meshes),
+- fruit's exact winding number (every triangle for every point; the reference),
+- libigl's fast and exact ones, only if the `libigl` wheel happens to be installed (it
+  is not a dependency: the wheel also carries GPL and non-commercial code), with the
+  largest difference from fruit's exact one,
 - manifold3d (the boolean kernel): whether it accepts the mesh at all.
 
 pymeshfix is not measured: it wraps MeshFix, which is GPL, so it cannot be a dependency.
@@ -59,12 +62,27 @@ def _parity(v, f, p):
     return above % 2 == 1
 
 
-def main() -> None:
-    import igl
+def _libigl():
+    """The libigl module if installed, else None (an optional comparison only)."""
+    try:
+        import igl
+    except ImportError:
+        return None
+    return igl
 
+
+def main() -> None:
     from fruitcli.geometry import load
     from fruitcli.geometry.distance import SurfaceDistance
+    from fruitcli.geometry.solid_angle import exact_winding
     from fruitcli.geometry.winding import Winding
+
+    igl = _libigl()
+    if igl is None:
+        print("(libigl not installed: fruit's own evaluations only)")
+    one = (np.eye(3), np.array([[0, 1, 2]]))
+    Winding(*one)(np.zeros((1, 3)))                # load the compiled kernels first
+    exact_winding(*one, np.zeros((1, 3)))
 
     rng = np.random.default_rng(0)
     print(f"{'mesh':24s} {'faces':>6s}  {'parity wrong':>12s}  {'fast WN wrong':>13s} "
@@ -82,8 +100,21 @@ def main() -> None:
         fast = Winding(v, f)(p)
         t_fast = time.perf_counter() - t0
         t0 = time.perf_counter()
-        exact = igl.winding_number(v, f, p)
+        exact = exact_winding(v, f, p)
         t_exact = time.perf_counter() - t0
+        if igl is not None:
+            t0 = time.perf_counter()
+            bvh = igl.FastWindingNumberBVH()
+            bvh.init(v, f)
+            igl_fast = bvh.winding_number(p, 2.0)
+            t_igl = time.perf_counter() - t0
+            igl_exact = igl.winding_number(v, f, p)
+            igl_note = (f"  libigl fast {t_igl:.3f} s, |fruit fast - exact| max "
+                        f"{np.abs(fast - exact).max():.4f}, |libigl fast - exact| max "
+                        f"{np.abs(igl_fast - exact).max():.4f}, |libigl exact - fruit exact| "
+                        f"max {np.abs(igl_exact - exact).max():.1e}")
+        else:
+            igl_note = f"  |fast - exact| max {np.abs(fast - exact).max():.4f}"
         par = _parity(v, f, p)
         status = load.to_manifold(v, f).status().name
         if want is None:
@@ -94,7 +125,7 @@ def main() -> None:
             note = ""
         print(f"{name:24s} {len(f):6d}  {rates[0]:>12s}  {rates[1]:>13s} {rates[2]:>14s}  "
               f"{t_fast:9.3f} {t_exact:10.3f}  {status}{note}  w in "
-              f"[{fast.min():.2f}, {fast.max():.2f}]")
+              f"[{fast.min():.2f}, {fast.max():.2f}]{igl_note}")
 
 
 if __name__ == "__main__":
