@@ -142,6 +142,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
+        "model": Key("str", "reduced", "a recording with chamber pressures: reduced (taxels "
+                     "from the reduced model at each frame's pressures) or full (along the "
+                     "simulated states)"),
     },
     "detection": {
         "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)"),
@@ -588,6 +591,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if det["divide_by_gain"] and skin["taxel_gain"] is None:
         raise SceneError(f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
                          "taxel_gain = \"gains.csv\" (written by fruit calibrate)")
+    if scene["frames"]["model"] not in ("reduced", "full"):
+        raise SceneError(f"{where}: [frames].model: expected reduced or full, "
+                         f"got {scene['frames']['model']!r}")
     if det["method"] not in ("n9", "n9_floor", "peaks"):
         raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
                          f"got {det['method']!r}")

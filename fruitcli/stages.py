@@ -228,10 +228,29 @@ def _reduce_needed(scene):
     if not meshed:
         return False, why
     if not scene.has("reduced"):
+        if locate_uses_reduced(scene):
+            return True, ("the recording carries chamber pressures: its taxels come from "
+                          "the reduced model ([frames].model = \"full\": the states)")
         return False, ("no [reduced]: built on demand (fruit live --online, fruit simulate "
                        "--model reduced, fruit locate --scene)")
     return True, (f"{len(scene.chambers)} chamber(s): response surfaces fitted to full "
                   "solves over the pressure range, held-out validation")
+
+
+def locate_uses_reduced(scene) -> bool:
+    """Whether the locate stage takes the recording's taxels from the reduced model: a
+    scene with chambers whose [frames].recording carries chamber pressures, unless
+    [frames].model = "full" (then along the simulated states, as bench frames are)."""
+    from fruitcli.sensing.recording_chunks import has_pressures
+
+    rec = scene["frames"]["recording"]
+    if rec is None or scene.has("bench") or not scene.chambers \
+            or scene["frames"]["model"] != "reduced":
+        return False
+    try:
+        return has_pressures(rec, scene["board"])
+    except (OSError, ValueError):
+        return False  # the locate stage reports the unreadable recording itself
 
 
 def _reduce_range(scene) -> dict:
@@ -313,7 +332,8 @@ def _locate_inputs(scene, ctx):
             "states": states_path(scene, ctx), "detection": scene["detection"],
             "board": scene["board"],
             "surface": solid_path(scene, ctx) if scene["detection"]["project"] == "surface"
-            else None}
+            else None,
+            "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None}
 
 
 def _locate_run(scene, ctx, out_dir):
@@ -321,10 +341,16 @@ def _locate_run(scene, ctx, out_dir):
 
     out = {}
     unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+    reduced = None
+    if locate_uses_reduced(scene):
+        from fruitcli.fem.reduced import load
+
+        reduced = load(reduced_path(scene, ctx))
     for name, frames in _frame_sources(scene, ctx).items():
         out[name] = run_locate(scene, frames, taxels_path(scene, ctx), states_path(scene, ctx),
                                out_dir / name, progress=ctx.progress,
-                               surface_path=solid_path(scene, ctx), surface_unit=unit)
+                               surface_path=solid_path(scene, ctx), surface_unit=unit,
+                               reduced=reduced)
     return out
 
 
@@ -408,7 +434,7 @@ STAGES: list[Stage] = [
           _bench_needed, _bench_inputs, _bench_run,
           lambda s: [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv"
                                                                   for i in indenters(s)]),
-    Stage("locate", ["bench", "simulate"], "fruitcli.sensing.stage", _locate_needed,
+    Stage("locate", ["bench", "simulate", "reduce"], "fruitcli.sensing.stage", _locate_needed,
           _locate_inputs, _locate_run, _locate_outputs),
     Stage("evaluate", ["locate"], "fruitcli.evaluation.report", _eval_needed,
           lambda s, c: {"rows": _eval_rows(s, c)}, _eval_run,

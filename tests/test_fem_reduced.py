@@ -229,6 +229,44 @@ def test_planner_rebuilds_the_reduced_model_when_its_range_changes(pad_run, tmp_
                               'model = "corotational"\nyoung_modulus_kpa = 150.0')) == "run"
 
 
+def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_run, tmp_path):
+    """`fruit run` on a scene whose [frames].recording carries chamber pressures: the
+    locate stage takes each frame's taxels from the scene's reduced model (touches.csv
+    equals run_locate's with that model, byte for byte); [frames].model = "full" takes
+    them along the simulated states; without [reduced] the reduce stage is then needed."""
+    from test_locate_chunks import touch_frames
+
+    from fruitcli.sensing.frames_io import Recording, write_npz
+    from fruitcli.sensing.stage import run_locate
+
+    root, out, _, _ = pad_run
+    rng = np.random.default_rng(5)
+    n = 200
+    kpa = rng.uniform(0.0, 3.0, (n, 2))
+    write_npz(root / "rec.npz", Recording(touch_frames(n, rng), np.arange(n) / 30.0, kpa,
+                                          ("left", "right")))
+    text = PAD + '[frames]\nrecording = "rec.npz"\n'
+    got = {}
+    for kind, scene_text in (("reduced", text),
+                             ("full", text.replace('"rec.npz"\n', '"rec.npz"\nmodel = "full"\n'))):
+        (root / "rec.toml").write_text(scene_text)
+        res = CliRunner().invoke(cli, ["run", str(root / "rec.toml"), "--out", str(out)])
+        assert res.exit_code == 0, res.output
+        got[kind] = (out / "locate" / "recording" / "touches.csv").read_bytes()
+    sc = parse_scene(text, root / "rec.toml")
+    taxels, states = out / "pad-grid" / "taxels.csv", out / "simulate" / "states.npz"
+    model = reduced_mod.load(out / "reduce" / "reduced.npz")
+    for kind, reduced in (("reduced", model), ("full", None)):
+        res = run_locate(sc, root / "rec.npz", taxels, states, tmp_path / kind, reduced=reduced)
+        assert res["model"] == kind and res["touches"] > 20
+        assert (tmp_path / kind / "touches.csv").read_bytes() == got[kind]
+    assert got["reduced"] != got["full"]  # the pressures move the taxels
+    bare = text.replace("[reduced]\nvalidation = 20\n", "")
+    (root / "bare.toml").write_text(bare)
+    steps = {s.stage: s for s in planner.plan(parse_scene(bare, root / "bare.toml"), out)}
+    assert steps["reduce"].action == "run" and "carries chamber pressures" in steps["reduce"].reason
+
+
 def test_one_vector_basis_equals_the_batch_basis():
     """The live loop's one-vector path (Python floats) gives the batch basis."""
     lo, hi = np.array([-1.2, 0.0, 3.0]), np.array([13.2, 5.0, 4.0])

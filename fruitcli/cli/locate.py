@@ -48,6 +48,7 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
     bounded however long it is; touches.csv appears only once complete.
     """
     from fruitcli.scene import load_scene
+    from fruitcli.sensing.recording_chunks import has_pressures
     from fruitcli.sensing.stage import run_locate
 
     progress = Progress("[locate] ")
@@ -55,7 +56,7 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
         scene = load_scene(scene_path) if scene_path else None
         reduced = None
         if model_kind == "reduced" and scene is not None and scene.chambers \
-                and _has_pressures(frames, scene):
+                and has_pressures(frames, scene["board"]):
             from pathlib import Path
 
             from fruitcli.cli.reduced import ensure_reduced
@@ -72,11 +73,3 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
                f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}"
                + (f"; {model}" if model else ""), err=True)
 
-
-def _has_pressures(frames, scene) -> bool:
-    """Whether the recording carries chamber pressures (read from its header only)."""
-    from fruitcli.sensing.recording_chunks import open_recording
-
-    board = scene["board"]
-    with open_recording(frames, board["rows"], board["cols"], board["format"]) as rec:
-        return rec.pressure_kpa is not None

@@ -202,6 +202,13 @@ def in_memory(rec: Recording, path: str | os.PathLike = "frames") -> ChunkedReco
                             rec.skipped_lines, frames, rec.pressure_t_s, rec.printer_mm)
 
 
+def has_pressures(path: str | os.PathLike, board: dict) -> bool:
+    """Whether the recording at `path` carries chamber pressures (`board`: the scene's
+    [board]; an .npz is read from its header only)."""
+    with open_recording(path, board["rows"], board["cols"], board.get("format", "auto")) as rec:
+        return rec.pressure_kpa is not None
+
+
 def open_recording(path: str | os.PathLike, rows: int = MUCA_ROWS,
                    cols: int = MUCA_COLS, fmt: str = "auto") -> ChunkedRecording:
     """An `.npz` (frames read chunk by chunk), or a MuCa ASCII log or raw board capture
