@@ -6,7 +6,13 @@ import sys
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_outputs
+from fruitcli.cli.options import (
+    Progress,
+    divide_by_gain_option,
+    fruit_errors,
+    scene_products,
+    shared_outputs,
+)
 
 
 @click.command()
@@ -38,12 +44,7 @@ from fruitcli.cli.options import Progress, fruit_errors, scene_products, shared_
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
-@click.option("--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
-              metavar="GAINS.csv",
-              help="Divide each taxel's activation by its gain from this CSV (id, gain: "
-                   "fruit calibrate's gains.csv) before detection; the threshold applies to "
-                   "the divided activations. Default: the scene's [detection].divide_by_gain "
-                   "(off).")
+@divide_by_gain_option
 @click.option("--osc", "osc_target", default=None, metavar="HOST:PORT",
               help="Send touches over OSC/UDP: TUIO 1.1 /tuio/2Dcur, /tuio/3Dcur and "
                    "/tuio/_sp (peak), and plain /fruit/frame, /fruit/down, /fruit/touch, "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, divide_by_gain_option, fruit_errors
 
 
 @click.command()
@@ -30,12 +30,7 @@ from fruitcli.cli.options import Progress, fruit_errors
               help="For a recording with chamber pressures and a --scene: reduced (each "
                    "frame's taxels from the scene's reduced model, built into "
                    "out/<scene name>/reduce on first use) or full (the --states path).")
-@click.option("--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
-              metavar="GAINS.csv",
-              help="Divide each taxel's activation by its gain from this CSV (id, gain: "
-                   "fruit calibrate's gains.csv) before detection; the threshold applies to "
-                   "the divided activations. Default: the scene's [detection].divide_by_gain "
-                   "(off).")
+@divide_by_gain_option
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,

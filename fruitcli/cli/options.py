@@ -83,3 +83,12 @@ def scene_products(scene, out_root=None, progress=None):
     planner.run(scene, out, until="simulate", progress=progress, shared=shared_outputs(out))
     ctx = planner.Context(out)
     return taxels_path(scene, ctx), states_path(scene, ctx)
+
+
+divide_by_gain_option = click.option(
+    "--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
+    metavar="GAINS.csv",
+    help="Divide each taxel's activation by its gain from this CSV (id, gain: fruit "
+         "calibrate's gains.csv) before detection; the threshold applies to the divided "
+         "activations. Default: the scene's [detection].divide_by_gain (off).")
+"""`fruit locate` and `fruit live`: detection divides by the taxels' calibrated gains."""
