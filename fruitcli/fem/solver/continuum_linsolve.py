@@ -1,8 +1,9 @@
 """Linear solves with the hyperelastic model's tangent (`ContinuumModel.tangent`): the
 tangent is assembled at every Newton step (its element blocks come from the compiled
 element loop); `pcg` (default) solves it by CG preconditioned with a sparse Cholesky
-factor kept across Newton steps and states and refreshed when CG slows down, `direct`
-factorizes it at every step. Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
+factor kept across Newton steps and states and refreshed when CG on it costs more than
+a fraction of a factorization (both timed), `direct` factorizes it at every step.
+Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
+    REFRESH_COST_FRACTION,
 )
 from fruitcli.scene import LINEAR_SOLVERS
 
@@ -27,14 +29,20 @@ class _Pardiso:
     On the quadratic default Fruit it factorizes about 8x faster than cholespy's
     simplicial Cholesky (`tests/bench/bench_fem.py --factor`)."""
 
-    def __init__(self, k):
+    def __init__(self, k, previous=None):
         import pypardiso
         import scipy.sparse as sp
 
         self.a = sp.triu(k, format="csr")
         self.a.sort_indices()
+        # the previous factor's PARDISO handle is taken over: a new PyPardisoSolver
+        # searches the install for MKL's library (0.35 s of glob per factorization here)
+        kept = {} if previous is None or previous.solver is None else \
+            {previous.solver.mtype: previous.solver}
+        if previous is not None:
+            previous.solver = None
         for mtype in (2, -2):
-            self.solver = pypardiso.PyPardisoSolver(mtype=mtype)
+            self.solver = kept.get(mtype) or pypardiso.PyPardisoSolver(mtype=mtype)
             self.solver.set_phase(12)
             try:
                 self.solver.factorize(self.a)
@@ -64,13 +72,14 @@ except ImportError:  # optional: cholespy or SuperLU instead (slower on quadrati
     _Pardiso = None  # noqa: F811
 
 
-def factorize(k):
-    """A factor of the sparse symmetric k with `.solve`: PARDISO when installed,
+def factorize(k, previous=None):
+    """A factor of the sparse symmetric k with `.solve`: PARDISO when installed (reusing
+    the handle of `previous`, a factor this returned before, which is then spent),
     otherwise Cholesky when k is positive definite (checked on a solve), otherwise LU."""
     k = k.tocsc()
     if _Pardiso is not None:
         try:
-            fac = _Pardiso(k.tocsr())
+            fac = _Pardiso(k.tocsr(), previous if isinstance(previous, _Pardiso) else None)
             probe = np.ones(k.shape[0])
             sol = fac.solve(probe)
             if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
@@ -112,6 +121,9 @@ class ContinuumSolver:
         self.history = []
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
+        self.factor_wall_s = None  # the last factorization's time (s)
+        self.iteration_s = None  # one CG iteration's time on the kept factor (s)
+        self.step_cg_s = 0.0  # CG time since the last update (s)
 
     def update(self, rot, f=None, load_stiffness=None, project: bool = False) -> None:
         """Tangent at the configuration `rot` (= the model's state x, n x 3): the full
@@ -125,13 +137,18 @@ class ContinuumSolver:
         self.k = k.tocsr()
         self.stats["assembly_s"] += time.perf_counter() - t0
         self.fresh = False
+        if self.factor_wall_s is not None \
+                and self.step_cg_s > REFRESH_COST_FRACTION * self.factor_wall_s:
+            self.refresh = True
+        self.step_cg_s = 0.0
         if self.method != "pcg" or self.factor is None or self.refresh:
             self._factorize()
 
     def _factorize(self) -> None:
         t0 = time.perf_counter()
-        self.factor = factorize(self.k)
-        self.stats["factor_s"] += time.perf_counter() - t0
+        self.factor = factorize(self.k, self.factor)
+        self.factor_wall_s = time.perf_counter() - t0
+        self.stats["factor_s"] += self.factor_wall_s
         self.stats["factorizations"] += 1
         self.refresh, self.fresh = False, True
 
@@ -142,14 +159,24 @@ class ContinuumSolver:
         out = np.column_stack([self._solve_one(c) for c in cols.T])
         return out.reshape(rhs.shape)
 
+    def _iteration_budget(self) -> int:
+        """CG iterations worth one factorization (at least 2 PCG_REFRESH_ITERATIONS)."""
+        floor = 2 * PCG_REFRESH_ITERATIONS
+        if self.factor_wall_s is None or not self.iteration_s:
+            return floor
+        return int(min(max(floor, self.factor_wall_s / self.iteration_s), 1000))
+
     def _solve_one(self, b: np.ndarray) -> np.ndarray:
         if self.fresh:
             return self.factor.solve(b)
+        t0 = time.perf_counter()
         x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
-                         2 * PCG_REFRESH_ITERATIONS)
+                         self._iteration_budget())
+        spent = time.perf_counter() - t0
+        self.step_cg_s += spent
+        self.iteration_s = spent / max(its, 1)
         self.stats["cg_iterations"] += its
         if ok:
-            self.refresh = self.refresh or its > PCG_REFRESH_ITERATIONS
             return x
         self._factorize()
         x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
