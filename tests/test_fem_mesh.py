@@ -1,4 +1,5 @@
-"""gmsh meshes and the stages: Lamé's thick sphere, a pad with chambers and taxels,
+"""gmsh meshes and the stages: Lamé's thick sphere, its large inflation (also on a
+structured octant), a pad with chambers and taxels,
 refused inputs (chamber poking out, open surface, timeout, empty boxes), the CLI."""
 
 import numpy as np
@@ -8,6 +9,11 @@ from click.testing import CliRunner
 
 from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem import io
+from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
+from fruitcli.fem.materials.build import material
+from fruitcli.fem.meshing.grid import shell_octant
+from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.fem.model import Load
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
@@ -115,32 +121,83 @@ def test_lame_thick_sphere_default_element_is_locking_free(ball_mesh_4mm, nu):
     assert model.chamber_rest_volume_mm3[0] == pytest.approx(4000 / 3 * np.pi, rel=1e-3)
 
 
-def test_thick_sphere_large_inflation_matches_incompressible_closed_form(tmp_path):
-    """Neo-Hookean, nu = 0.499, pressure control: at the pressures the incompressible
-    closed form P(la) = mu [(2/lb + 1/(2 lb^4)) - (2/la + 1/(2 la^4))], lb^3 = 1 +
-    (la^3 - 1)(A/B)^3, gives for inner stretches la = 1.2 and 1.5: the cavity volume is
-    V0 la^3 within 3 % at la = 1.2; at la = 1.5, on the steep part of P(la), it comes out
-    3.3 % large (measured 3.486 against 3.375), so there the inner stretch is asserted
-    within 3 % (measured +1.1 %) and the volume within 4 %. The default element at size
-    6 mm: at 4 mm this test took minutes, each Newton step refactorizing the tangent."""
+def inflation_pressure(mu, la, ratio=0.5):
+    """Incompressible neo-Hookean thick sphere (inner/outer radius `ratio`): the cavity
+    pressure (units of mu) at inner stretch la, P = mu [(2/lb + 1/(2 lb^4)) - (2/la +
+    1/(2 la^4))], lb^3 = 1 + (la^3 - 1) ratio^3 (lb: the outer stretch)."""
+    lb = (1 + (la**3 - 1) * ratio**3) ** (1 / 3)
+    return mu * ((2 / lb + 1 / (2 * lb**4)) - (2 / la + 1 / (2 * la**4)))
+
+
+def test_thick_sphere_large_inflation_gmsh_ball(tmp_path):
+    """The meshing pipeline's ball (gmsh at size 6 mm on the icosphere STL, default
+    element, nu = 0.499), pressure control at the closed form's pressure for la = 1.2
+    (`inflation_pressure`): cavity volume V0 la^3 within 3 % (measured +0.4 %). The
+    la = 1.5 demand is `test_thick_sphere_large_inflation_octant`: on this mesh the
+    outer surface is faceted (the STL's facets, then straight 6 mm chords: the solid's
+    volume is that of a 19.84 mm ball) and on the steep part of P(la) the volume moves
+    by 17 % per mm of outer radius, so la = 1.5 comes out +3.3 % (+0.4 % with the
+    outer nodes moved onto the sphere)."""
     scene = ball_scene(tmp_path, size=6.0, nu=0.499)
     run_tetra(scene, None, tmp_path / "mesh")
     model = build_model(scene, io.load_mesh(tmp_path / "mesh" / "mesh.npz"))
+    la = 1.2
+    load = Load.pressures([inflation_pressure(model.material.shear_modulus_kpa, la)])
+    res = solve_state(model, load, options=SolverOptions(load_steps=4))
+    ratio = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0]
+    assert ratio == pytest.approx(la**3, rel=0.03)
+
+
+def octant_ball(cells=4, layers=4, nu=0.499, a=10.0, b=20.0):
+    """The octant x, y, z >= 0 of the hollow ball (`grid.shell_octant`, every node on
+    its sphere, the walls' edge nodes curved onto them) on rollers on the three
+    symmetry planes; default element, neo-Hookean, E = 100 kPa."""
+    nodes, tets, wall = shell_octant(a, b, cells, layers)
+    faces = boundary_faces(nodes, tets)
+    r = np.linalg.norm(nodes[faces], axis=2)
+    on_plane = np.any(np.all(np.abs(nodes[faces]) < 1e-9, axis=1), axis=1)
+    on_inner, on_outer = np.all(np.isclose(r, a), 1), np.all(np.isclose(r, b), 1)
+    assert np.all(on_plane | on_inner | on_outer)  # conforming: no inner boundary faces
+    assert on_inner.sum() == len(wall)
+    outer = faces[on_outer]
+    nodes, tets, (wall, outer) = quadratic_mesh(nodes, tets, [wall, outer])
+    for tris, r in ((wall, a), (outer, b)):
+        assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0],
+                                    [r] * 3) == 0
+    rollers = [(np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
+               for d in range(3)]
+    return ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", 100.0, nu), "p2",
+                                      chambers={"c": wall}, prescribed=rollers)
+
+
+def test_thick_sphere_large_inflation_octant():
+    """Large inflation of the hollow ball (a = 10, b = 20 mm, free), neo-Hookean, nu =
+    0.499, on its octant (`octant_ball`, 4 cells per patch edge, 4 layers: 1152 tets,
+    9216 for the whole ball): under the closed form's pressure for la = 1.2 and 1.5
+    (`inflation_pressure`) the cavity volume is V0 la^3 within 3 % (measured +0.03 %
+    and +0.44 %; the octant's cavity volume is V/8: its cut faces, through the centre,
+    add nothing to 1/3 int x.n dA). Converged: 6 cells and layers give +0.04 %, +0.40 %;
+    nu = 0.4999 gives +0.00 %, +0.14 % (the rest is compressibility). Then volume
+    control (from that state) at V0 1.5^3: the pressure is the closed form's within 1 %
+    (measured -0.13 %; -0.05 % at la = 1.2)."""
+    model = octant_ball()
     mu = model.material.shear_modulus_kpa
+    v0 = model.chamber_rest_volume_mm3[0]
+    assert 8 * v0 == pytest.approx(4000 / 3 * np.pi, rel=1e-4)
     x, prev = None, None
     for la in (1.2, 1.5):
-        lb = (1 + (la**3 - 1) / 8.0) ** (1 / 3)
-        p = mu * ((2 / lb + 1 / (2 * lb**4)) - (2 / la + 1 / (2 * la**4)))
-        load = Load.pressures([p])
+        load = Load.pressures([inflation_pressure(mu, la)])
         res = solve_state(model, load, x_start=x, load_start=prev,
                           options=SolverOptions(load_steps=4))
-        ratio = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0]
-        if la < 1.3:
-            assert ratio == pytest.approx(la**3, rel=0.03)
-        else:
-            assert ratio ** (1 / 3) == pytest.approx(la, rel=0.03)
-            assert ratio == pytest.approx(la**3, rel=0.04)
+        assert res.chamber_volume_mm3[0] / v0 == pytest.approx(la**3, rel=0.03)
         x, prev = res.x, load
+    # volume control from there: the cavity held at V0 1.5^3, its pressure comes back
+    reached = Load(np.zeros(1), res.chamber_volume_mm3 - v0, np.array([True]))
+    held = Load(np.zeros(1), np.array([v0 * (1.5**3 - 1)]), np.array([True]))
+    res = solve_state(model, held, x_start=res.x, load_start=reached,
+                      pressure_start=res.pressure_kpa)
+    assert res.chamber_volume_mm3[0] == pytest.approx(v0 * 1.5**3, rel=1e-6)
+    assert res.pressure_kpa[0] == pytest.approx(inflation_pressure(mu, 1.5), rel=0.01)
 
 
 def test_pad_with_chamber_taxels_and_states(tmp_path):

@@ -67,3 +67,50 @@ def structured_box_with_cavity(lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm):
     on_outer = np.any(np.isclose(nodes[faces], lo) | np.isclose(nodes[faces], hi), axis=2)
     cavity = faces[~np.all(on_outer, axis=1)]
     return nodes, tets, cavity[:, [0, 2, 1]]
+
+
+def shell_octant(inner_mm: float, outer_mm: float, cells: int, layers: int):
+    """The octant x, y, z >= 0 of a spherical shell inner_mm <= r <= outer_mm as tets:
+    three cubed-sphere patches (the cube faces x = 1, y = 1, z = 1 seen from the centre,
+    equiangular), `cells` cells along each patch edge and `layers` radially, each cell
+    split like `structured_box` (mirrored Kuhn). Every corner node lies on its sphere
+    and the symmetry planes. Returns nodes (n, 3) mm, tets (m, 4) positive, and the
+    inner wall's triangles (t, 3), normals out of the cavity (toward +r)."""
+    from fruitcli.fem.meshing.topology import boundary_faces
+
+    n, nl = int(cells), int(layers)
+    if n < 1 or nl < 1 or not 0 < inner_mm < outer_mm:
+        raise ValueError("shell_octant: expected 0 < inner_mm < outer_mm, cells, layers >= 1")
+    t = np.tan(np.pi / 4 * np.arange(n + 1) / n)  # cube coordinate per index
+    t[-1] = 1.0
+    keys, tets = {}, []
+    points = []
+
+    def node(cube, k):  # cube: integer cube coordinates (one of them n)
+        key = (*cube, k)
+        if key not in keys:
+            c = t[list(cube)]
+            r = inner_mm + (outer_mm - inner_mm) * k / nl
+            keys[key] = len(points)
+            points.append(r * c / np.linalg.norm(c))
+        return keys[key]
+
+    for face in range(3):
+        a, b = [d for d in range(3) if d != face]
+        for i, j, k in itertools.product(range(n), range(n), range(nl)):
+            p = (i % 2, j % 2, k % 2)
+            for path in _KUHN:
+                ids = []
+                for c in path:
+                    cube = [0, 0, 0]
+                    cube[face], cube[a], cube[b] = n, i + (c[0] ^ p[0]), j + (c[1] ^ p[1])
+                    ids.append(node(tuple(cube), k + (c[2] ^ p[2])))
+                tets.append(ids)
+    nodes, tets = np.array(points), np.array(tets, np.int64)
+    q = nodes[tets]
+    vol = np.einsum("mi,mi->m", q[:, 1] - q[:, 0], np.cross(q[:, 2] - q[:, 0], q[:, 3] - q[:, 0]))
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    faces = boundary_faces(nodes, tets)
+    r = np.linalg.norm(nodes, axis=1)
+    inner = np.all(np.isclose(r[faces], inner_mm), axis=1)
+    return nodes, tets, faces[inner][:, [0, 2, 1]]
