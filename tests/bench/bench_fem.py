@@ -220,7 +220,6 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
 def bench_pad(tmp: Path, tolerance: float | None) -> None:
     """The touchpad bend: tetra, then the one jig state in the scene's jig_steps."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.linsolve import TangentSolver
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
     from fruitcli.fem.stage import build_model, run_tetra, state_loads
     from fruitcli.scene import load_scene
@@ -231,7 +230,7 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
     q = run_tetra(scene, None, tmp / "pad-mesh")
     model = build_model(scene, io.load_mesh(tmp / "pad-mesh" / "mesh.npz"))
     load = state_loads(scene, model.chamber_names)[0]
-    solver = TangentSolver(model, cfg["linear_solver"])
+    solver = model.make_solver(cfg["linear_solver"])
     opts = SolverOptions(tol, cfg["max_iterations"], cfg["max_subdivisions"],
                          cfg["linear_solver"], cfg["jig_steps"])
     res = solve_state(model, load, options=opts, solver=solver)

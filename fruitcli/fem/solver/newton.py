@@ -165,9 +165,14 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         dx[m.pattern.free] = dx_free
         dx = dx.reshape(-1, 3)
         alpha, accepted = 1.0, False
+        j_limit = getattr(m, "dilatation_step", 0.0)
+        j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
         for _ in range(LINE_SEARCH_STEPS):
             xt, pt = x + alpha * dx, p.copy()
             pt[step.vc] += alpha * dp
+            if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
+                alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
+                continue
             trial = step.evaluate(xt, pt)
             if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
                 alpha *= 0.5
