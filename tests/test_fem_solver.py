@@ -124,6 +124,29 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
     assert np.abs(x3 - response(loads[7].pressure_kpa)).max() > 1e-3
 
 
+def test_history_guess_is_exact_for_a_cubic_response_given_enough_states():
+    """The same path with a response cubic in the pressures: 8 kept states leave weights
+    free after the first and second moments, and matching the third makes the guess
+    exact (1e-8); 6 kept states only reach the second order (off by more than 1e-3)."""
+    from fruitcli.fem.solver.newton import _history_guess, _load_vector
+
+    rng = np.random.default_rng(5)
+    a, b = rng.standard_normal((4, 3, 3, 3, 3)), rng.standard_normal((4, 3, 3))
+
+    def response(pk):  # (4, 3), cubic in the 3 pressures (scaled to stay O(1))
+        q = pk / 12.0
+        return b @ q + np.einsum("nkijl,i,j,l->nk", a, q, q, q)
+
+    theta = 2 * np.pi * np.arange(9) / 12
+    loads = [Load.pressures(6 - 6 * np.cos(t + np.array([0.0, 2.1, 4.2]))) for t in theta]
+    hist = [(_load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:8]]
+    exact = response(loads[8].pressure_kpa)
+    x, _ = _history_guess(hist, hist[-1][1], loads[8])
+    np.testing.assert_allclose(x, exact, atol=1e-8)
+    x6, _ = _history_guess(hist[-6:], hist[-1][1], loads[8])
+    assert np.abs(x6 - exact).max() > 1e-3
+
+
 def test_history_keeps_one_state_per_load():
     """A repeated load (an animation closing its cycle on its first state) replaces its
     earlier state in the kept history instead of taking a second slot; beyond

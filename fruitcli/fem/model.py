@@ -268,15 +268,18 @@ class Model:
                                        np.ascontiguousarray(v, dtype=float))
 
     def apply_tangent_free(self, rot: np.ndarray, t_world: np.ndarray | None,
-                           v_free: np.ndarray) -> np.ndarray:
+                           v_free: np.ndarray, rg: np.ndarray | None = None) -> np.ndarray:
         """`apply_tangent` over the free dofs: v_free (n_free,) -> (n_free,) mN (the
-        held dofs' components zero, their rows dropped), without full-size copies."""
+        held dofs' components zero, their rows dropped), without full-size copies. rg:
+        the rotated gradients of rot (`kernels.rotated_gradients`), if already at hand."""
         lam, mu = self.lame_kpa
         t = np.empty((0, 3, 3)) if t_world is None else np.ascontiguousarray(t_world)
+        if rg is None:
+            rg = kernels.rotated_gradients(self.grads, np.ascontiguousarray(rot))
         return kernels.tangent_product_dofs(
-            self.tets, self.grads, self.volumes_mm3, lam, mu, np.ascontiguousarray(rot), t,
-            t_world is not None, self.free_dof_map,
-            np.ascontiguousarray(v_free, dtype=float), len(self.pattern.free))
+            self.tets, rg, self.volumes_mm3, lam, mu, t, t_world is not None,
+            self.free_dof_map, np.ascontiguousarray(v_free, dtype=float),
+            len(self.pattern.free))
 
     @property
     def free_dof_map(self) -> np.ndarray:

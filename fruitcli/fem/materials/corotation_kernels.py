@@ -136,67 +136,78 @@ def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
     """Consistent tangent times v (n, 3) (mN) over every dof (`tangent_product_dofs`)."""
     n = v.shape[0]
     dof = np.arange(3 * n).reshape(n, 3)
-    out = tangent_product_dofs(tets, grads, volumes, lam, mu, rot, t_world, with_t, dof,
-                               np.ascontiguousarray(v).reshape(-1), 3 * n)
+    out = tangent_product_dofs(tets, rotated_gradients(grads, rot), volumes, lam, mu,
+                               t_world, with_t, dof, np.ascontiguousarray(v).reshape(-1),
+                               3 * n)
     return out.reshape(n, 3)
 
 
 @njit(cache=True, nogil=True)
-def tangent_product_dofs(tets, grads, volumes, lam, mu, rot, t_world, with_t, dof, v, n_out):
+def rotated_gradients(grads, rot):
+    """(m, 4, 3) R g_b: each element's shape-function gradients turned by its rotation
+    (computed once per tangent, read by every product)."""
+    m = grads.shape[0]
+    rg = np.empty((m, 4, 3))
+    for e in range(m):
+        r = rot[e]
+        for b in range(4):
+            for i in range(3):
+                rg[e, b, i] = (r[i, 0] * grads[e, b, 0] + r[i, 1] * grads[e, b, 1]
+                               + r[i, 2] * grads[e, b, 2])
+    return rg
+
+
+@njit(cache=True, nogil=True)
+def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out):
     """Consistent tangent times v (mN), over the dofs numbered by dof (n, 3) (-1: held,
-    its component of v is zero and its row dropped), v (n_out,): per element
-    G = (sum_b v_b g_b^T) R^T, M = V (lam tr G I + mu (G + G^T) + [T' w / 2]x),
-    w = vee(G - G^T), and node a gets M R g_a. t_world (m, 3, 3): the rotation-derivative
-    term T' of `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped
-    R K0 R^T). Gathers and scatters through dof directly (CG's product over the free
-    dofs without the full-size copies)."""
+    its component of v is zero and its row dropped), v (n_out,): per element, with
+    the rotated gradients rg = R g_b (`rotated_gradients`),
+    G = sum_b v_b (R g_b)^T (= (sum_b v_b g_b^T) R^T),
+    M = V (lam tr G I + mu (G + G^T) + [T' w / 2]x), w = vee(G - G^T), and node a gets
+    M R g_a. t_world (m, 3, 3): the rotation-derivative term T' of
+    `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped R K0 R^T).
+    Gathers and scatters through dof directly (CG's product over the free dofs without
+    the full-size copies)."""
     out = np.zeros(n_out)
-    gr = np.empty((3, 3))
     g = np.empty((3, 3))
     mm = np.empty((3, 3))
-    mr = np.empty((3, 3))
     ve = np.empty((4, 3))
     for e in range(tets.shape[0]):
-        r = rot[e]
         for b in range(4):
             for i in range(3):
                 k = dof[tets[e, b], i]
                 ve[b, i] = v[k] if k >= 0 else 0.0
         for i in range(3):
             for j in range(3):
-                gr[i, j] = (ve[0, i] * grads[e, 0, j] + ve[1, i] * grads[e, 1, j]
-                            + ve[2, i] * grads[e, 2, j] + ve[3, i] * grads[e, 3, j])
+                g[i, j] = (ve[0, i] * rg[e, 0, j] + ve[1, i] * rg[e, 1, j]
+                           + ve[2, i] * rg[e, 2, j] + ve[3, i] * rg[e, 3, j])
+        vol = volumes[e]
+        tr = vol * lam * (g[0, 0] + g[1, 1] + g[2, 2])
+        vm = vol * mu
         for i in range(3):
             for k in range(3):
-                g[i, k] = gr[i, 0] * r[k, 0] + gr[i, 1] * r[k, 1] + gr[i, 2] * r[k, 2]
-        tr = lam * (g[0, 0] + g[1, 1] + g[2, 2])
-        for i in range(3):
-            for k in range(3):
-                mm[i, k] = mu * (g[i, k] + g[k, i])
+                mm[i, k] = vm * (g[i, k] + g[k, i])
             mm[i, i] += tr
         if with_t:
             t = t_world[e]
             w0, w1, w2 = g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]
-            t0 = 0.5 * (t[0, 0] * w0 + t[0, 1] * w1 + t[0, 2] * w2)
-            t1 = 0.5 * (t[1, 0] * w0 + t[1, 1] * w1 + t[1, 2] * w2)
-            t2 = 0.5 * (t[2, 0] * w0 + t[2, 1] * w1 + t[2, 2] * w2)
+            h = 0.5 * vol
+            t0 = h * (t[0, 0] * w0 + t[0, 1] * w1 + t[0, 2] * w2)
+            t1 = h * (t[1, 0] * w0 + t[1, 1] * w1 + t[1, 2] * w2)
+            t2 = h * (t[2, 0] * w0 + t[2, 1] * w1 + t[2, 2] * w2)
             mm[0, 1] -= t2
             mm[0, 2] += t1
             mm[1, 0] += t2
             mm[1, 2] -= t0
             mm[2, 0] -= t1
             mm[2, 1] += t0
-        vol = volumes[e]
-        for i in range(3):
-            for j in range(3):
-                mr[i, j] = vol * (mm[i, 0] * r[0, j] + mm[i, 1] * r[1, j] + mm[i, 2] * r[2, j])
         for a in range(4):
             na = tets[e, a]
             for i in range(3):
                 k = dof[na, i]
                 if k >= 0:
-                    out[k] += (mr[i, 0] * grads[e, a, 0] + mr[i, 1] * grads[e, a, 1]
-                               + mr[i, 2] * grads[e, a, 2])
+                    out[k] += (mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1]
+                               + mm[i, 2] * rg[e, a, 2])
     return out
 
 

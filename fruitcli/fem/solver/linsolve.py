@@ -28,6 +28,7 @@ import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.materials import corotation
+from fruitcli.fem.materials import corotation_kernels as kernels
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
@@ -86,6 +87,7 @@ class TangentSolver:
         self.f = None
         self.load_k = None
         self.t_world = None
+        self.rg = None
         self.factor = None
         self.kind = "warped"
         self.project = False
@@ -112,6 +114,7 @@ class TangentSolver:
         self.project = project
         self.kind = "warped" if f is None else ("projected" if project else "exact")
         self.t_world = None
+        self.rg = kernels.rotated_gradients(self.model.grads, np.ascontiguousarray(rot))
         if f is not None:
             lam, mu = self.model.lame_kpa
             self.t_world = np.ascontiguousarray(
@@ -171,7 +174,7 @@ class TangentSolver:
         """K_t v (matrix-free) for v over the free dofs."""
         t0 = time.perf_counter()
         m = self.model
-        out = m.apply_tangent_free(self.rot, self.t_world, v_free)
+        out = m.apply_tangent_free(self.rot, self.t_world, v_free, self.rg)
         out += m.spring_diag * v_free
         if self.f is not None and self.load_k is not None:
             out = out + self.load_k @ v_free

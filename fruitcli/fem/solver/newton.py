@@ -13,6 +13,7 @@ system [K  -H^T; H  0] is solved by the Schur complement W = H K^-1 H^T (mm^3/kP
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -278,21 +279,26 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
-HISTORY_STATES = 6
-"""Converged states kept (on the TangentSolver) for the predictor of the next: with 6,
-a load path in a plane (e.g. phase-shifted sinusoids) is predicted to second order."""
+HISTORY_STATES = 10
+"""Converged states kept (on the TangentSolver) for the predictor of the next: with 10,
+a load path in a plane (e.g. phase-shifted sinusoids) is predicted to third order and
+beyond (the weights' moments up to PREDICTOR_ORDER)."""
+
+PREDICTOR_ORDER = 4
+"""Highest order of the load moments sum_j c_j dq_j^(x k) the predictor's weights match
+(each order within the weights left free by the lower ones, see `_moment_weights`)."""
 
 PREDICTOR_MAX_WEIGHT = 4.0
 """Largest sum |c_j| of the affine (first-order) secant weights over the kept states."""
 
 QUADRATIC_MAX_WEIGHT = 20.0
-"""Largest sum |c_j| of the second-order weights (they extrapolate further, so they are
-larger: about 9 on the default fruit's breathing); beyond it the first-order ones."""
+"""Largest sum |c_j| of the weights of second and higher order (they extrapolate
+further, so they are larger: 6-17 on the default fruit's breathing); beyond it the
+weights of the highest order within it."""
 
-QUADRATIC_MISFIT = 1e-6
-"""The second-order weights are used when they reproduce dq and dq dq^T to this
-relative misfit (a least-squares compromise between the two can be worse than the
-first-order weights alone)."""
+PREDICTOR_RCOND = 1e-8
+"""Singular values of a moment system below this fraction of its largest count as zero:
+those combinations of the weights are left to the next order."""
 
 
 def _remember(history: list, q: np.ndarray, x: np.ndarray, p: np.ndarray) -> list:
@@ -317,12 +323,12 @@ def _history_guess(history, x_start, load: Load):
     """Start of the next state from the previous converged ones: with q the load vector,
     dq = q_new - q_last and dq_j = q_j - q_last over the kept states j, weights c with
     sum_j c_j dq_j = dq give x = x_last + sum_j c_j (x_j - x_last) (likewise the
-    pressures), exact for a response linear in the load. When the kept states allow,
-    the weights also match sum_j c_j dq_j dq_j^T = dq dq^T (to QUADRATIC_MISFIT), which
-    makes the guess exact for a quadratic response too (about 10x closer on the default
-    fruit's breathing: one Newton step then mostly suffices). Used only when x_start
-    is the last state kept, for loads changing like before (bounded weights); None
-    otherwise."""
+    pressures), exact for a response linear in the load. The weights left free also
+    match sum_j c_j dq_j^(x k) = dq^(x k) for k = 2 .. PREDICTOR_ORDER as far as the kept
+    states allow (`_moment_weights`), which makes the guess exact for a response
+    polynomial of that order (on the default fruit's breathing one Newton step then
+    mostly suffices). Used only when x_start is the last state kept, for loads changing
+    like before (bounded weights); None otherwise."""
     if len(history) < 2 or x_start is None or not np.array_equal(x_start, history[-1][1]):
         return None
     q_last, x_last, p_last = history[-1]
@@ -332,34 +338,47 @@ def _history_guess(history, x_start, load: Load):
         return None
     prev = history[-2::-1]
     d = np.column_stack([h[0] - q_last for h in prev])
-    c = _quadratic_weights(d, dq) if len(prev) >= 3 else None
+    c = _moment_weights(d, dq)
     if c is None:
-        c = np.linalg.lstsq(d, dq, rcond=1e-10)[0]
-        if not np.all(np.isfinite(c)) or np.abs(c).sum() > PREDICTOR_MAX_WEIGHT \
-                or np.linalg.norm(d @ c - dq) > 1e-6 * np.linalg.norm(dq):
-            return None
+        return None
     x = x_last + sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
     p = p_last + sum(cj * (h[2] - p_last) for cj, h in zip(c, prev, strict=True))
     return x, p
 
 
-def _quadratic_weights(d: np.ndarray, dq: np.ndarray):
-    """Weights c (see `_history_guess`) with d c = dq and sum_j c_j d_j d_j^T = dq dq^T
-    (d_j the columns of d) to QUADRATIC_MISFIT, or None."""
+def _moments(d: np.ndarray, order: int) -> np.ndarray:
+    """(monomials, columns): every degree-`order` monomial of each column of d."""
+    rows = itertools.combinations_with_replacement(range(d.shape[0]), order)
+    return np.array([np.prod(d[list(r)], axis=0) for r in rows])
+
+
+def _moment_weights(d: np.ndarray, dq: np.ndarray):
+    """Weights c (see `_history_guess`) with d c = dq (to 1e-6 relative), then, order by
+    order up to PREDICTOR_ORDER, the least-squares match of sum_j c_j d_j^(x k) =
+    dq^(x k) (d_j the columns of d) among the weights the lower orders leave free; the
+    highest order whose weights stay bounded (PREDICTOR_MAX_WEIGHT for the first,
+    QUADRATIC_MAX_WEIGHT above), or None."""
     live = np.flatnonzero(np.any(d, axis=1) | (dq != 0))  # load components that vary
-    d, dq = d[live], dq[live]
-    iu = np.triu_indices(len(live))
-    quad = np.stack([np.outer(dj, dj)[iu] for dj in d.T], axis=1)
-    target = np.outer(dq, dq)[iu]
     scale = float(np.linalg.norm(dq))
-    a = np.vstack([d / scale, quad / scale**2])
-    c = np.linalg.lstsq(a, np.concatenate([dq / scale, target / scale**2]), rcond=1e-10)[0]
-    if not np.all(np.isfinite(c)) or np.abs(c).sum() > QUADRATIC_MAX_WEIGHT:
-        return None
-    if np.linalg.norm(d @ c - dq) > QUADRATIC_MISFIT * scale \
-            or np.linalg.norm(quad @ c - target) > QUADRATIC_MISFIT * scale**2:
-        return None
-    return c
+    d, dq = d[live] / scale, dq[live] / scale
+    c, free, best = np.zeros(d.shape[1]), np.eye(d.shape[1]), None
+    for order in range(1, PREDICTOR_ORDER + 1):
+        if free.shape[1] == 0:
+            break
+        a = _moments(d, order)
+        target = _moments(dq[:, None], order)[:, 0]
+        u, sv, vt = np.linalg.svd(a @ free)
+        rank = int(np.sum(sv > PREDICTOR_RCOND * sv[0])) if len(sv) and sv[0] > 0 else 0
+        y = vt[:rank].T @ ((u[:, :rank].T @ (target - a @ c)) / sv[:rank])
+        c, free = c + free @ y, free @ vt[rank:].T
+        if order == 1 and np.linalg.norm(d @ c - dq) > 1e-6:
+            return None
+        bound = PREDICTOR_MAX_WEIGHT if order == 1 else QUADRATIC_MAX_WEIGHT
+        if np.all(np.isfinite(c)) and np.abs(c).sum() <= bound:
+            best = c
+        elif order > 1:
+            break
+    return best
 
 
 def impose_prescribed(model, x: np.ndarray, load: Load) -> np.ndarray:
