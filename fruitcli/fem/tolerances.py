@@ -23,14 +23,6 @@ PCG_REFRESH_ITERATIONS = 12
 """A linear solve that needs more CG iterations than this says the kept factorization
 is stale: it is refreshed at the current configuration."""
 
-REFRESH_COST_FRACTION = 0.5
-"""The hyperelastic model's kept factor is refreshed once the CG iterations of one
-Newton step on it took more than this fraction of a factorization's measured time, and
-one CG solve may run as long as a factorization takes before the factor is refreshed
-and the solve retried (on the quadratic default Fruit one factorization costs about a
-hundred CG iterations, so a count-based rule like PCG_REFRESH_ITERATIONS refactorizes
-far too often)."""
-
 PCG_RELATIVE_TOLERANCE = 1e-2
 """Inexact Newton: a linear solve never needs to reduce the residual more than this
 far from equilibrium; near it Newton asks for PCG_TARGET * tolerance / merit."""
