@@ -213,11 +213,18 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
     write_text(out / "runtime.md", "\n".join(lines) + "\n")
     write_json(out / "runtime.json", {"fem": fem_rows, "detection": det_rows})
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for r in ok:
+    placed: list[tuple[float, float]] = []  # label anchors, log10 (ms, mm)
+    for r in sorted(ok, key=lambda r: (-r["taxel_err_mean_mm"], r["state_ms"])):
         color = "tab:red" if r.get("pareto") else "tab:blue"
-        ax.scatter(r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4), color=color)
-        ax.annotate(r["setting"], (r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4)),
-                    fontsize=7, xytext=(3, 3), textcoords="offset points")
+        xy = (r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4))
+        ax.scatter(*xy, color=color)
+        lx, ly = np.log10(xy)
+        # labels of nearby points are stacked downwards instead of printed over each other
+        near = sum(abs(lx - px) < 0.6 and abs(ly - py) < 0.2 for px, py in placed)
+        placed.append((lx, ly))
+        ax.annotate(r["setting"], xy, fontsize=7, xytext=(4, 3 - 9 * near),
+                    textcoords="offset points",
+                    arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5} if near else None)
     pts = sorted((r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4)) for r in ok
                  if r.get("pareto"))
     if pts:
