@@ -14,6 +14,7 @@ capture is read whole and served in chunks.
 
 from __future__ import annotations
 
+import functools
 import os
 import struct
 import threading
@@ -204,8 +205,17 @@ def in_memory(rec: Recording, path: str | os.PathLike = "frames") -> ChunkedReco
 
 def has_pressures(path: str | os.PathLike, board: dict) -> bool:
     """Whether the recording at `path` carries chamber pressures (`board`: the scene's
-    [board]; an .npz is read from its header only)."""
-    with open_recording(path, board["rows"], board["cols"], board.get("format", "auto")) as rec:
+    [board]; an .npz is read from its header only, a MuCa log whole, so the answer is
+    kept per file version: the planner asks several times for one run)."""
+    st = os.stat(path)
+    return _has_pressures(str(Path(path).resolve()), st.st_size, st.st_mtime_ns,
+                          board["rows"], board["cols"], board.get("format", "auto"))
+
+
+@functools.lru_cache(maxsize=16)
+def _has_pressures(path: str, size: int, mtime_ns: int, rows: int, cols: int,
+                   fmt: str) -> bool:
+    with open_recording(path, rows, cols, fmt) as rec:
         return rec.pressure_kpa is not None
 
 
