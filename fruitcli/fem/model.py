@@ -254,7 +254,7 @@ class Model:
         gradients and rotations (m, 3, 3) of `kinematics`."""
         lam, mu = self.lame_kpa
         return kernels.forces_and_energy(self.tets, self.grads, self.volumes_mm3, lam, mu,
-                                         f, rot, self.n_nodes)
+                                         f, rot, *self.node_incidence)
 
     def apply_tangent(self, rot: np.ndarray, t_world: np.ndarray | None,
                       v: np.ndarray) -> np.ndarray:
@@ -279,7 +279,16 @@ class Model:
         return kernels.tangent_product_dofs(
             self.tets, rg, self.volumes_mm3, lam, mu, t, t_world is not None,
             self.free_dof_map, np.ascontiguousarray(v_free, dtype=float),
-            len(self.pattern.free))
+            len(self.pattern.free), *self.node_incidence)
+
+    @property
+    def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ptr, rows) of `kernels.node_incidence`: each node's element rows, in order."""
+        inc = self.__dict__.get("_node_incidence")
+        if inc is None:
+            inc = self.__dict__["_node_incidence"] = kernels.node_incidence(self.tets,
+                                                                             self.n_nodes)
+        return inc
 
     @property
     def free_dof_map(self) -> np.ndarray:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import threading
 import time
 
+import numba
 import numpy as np
 
 from fruitcli.errors import SolverError
@@ -85,6 +86,9 @@ class OnlineSolver:
         `stop` is set; it sleeps `idle_s` whenever nothing changed."""
 
         def loop():
+            # numba's thread count is per thread: one here, so that the element loops'
+            # worker threads do not take the core the live loop runs on
+            numba.set_num_threads(1)
             while not stop.is_set():
                 try:
                     solved = self.update(source())

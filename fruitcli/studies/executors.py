@@ -41,6 +41,15 @@ def default_jobs() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+def _share_cores(jobs: int) -> None:
+    """A worker's share of the cores for numba's parallel element loops (jobs workers
+    each running as many threads as there are cores would spin against each other)."""
+    import numba
+
+    numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS,
+                                     (os.cpu_count() or 1) // jobs)))
+
+
 class Serial:
     """Run tasks here, one after the other."""
 
@@ -62,7 +71,8 @@ class LocalPool:
         self.pool = self._new()
 
     def _new(self):
-        return cf.ProcessPoolExecutor(self.jobs, mp_context=self._ctx)
+        return cf.ProcessPoolExecutor(self.jobs, mp_context=self._ctx,
+                                      initializer=_share_cores, initargs=(self.jobs,))
 
     def submit(self, func, *args):
         return self.pool.submit(func, *args)

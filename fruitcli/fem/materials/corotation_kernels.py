@@ -6,6 +6,13 @@ One pass over the elements each, without the temporaries numpy would allocate: a
 2x faster than the vectorized versions on the default fruit. They release the GIL, so
 the online FEM thread of `fruit live --online` does not hold up the detection loop.
 
+The element loops run over every core (numba `prange` over blocks of elements). Sums
+into nodes are gathered, not scattered: each element writes its nodal rows, then each
+node adds its elements' rows in element order (`node_incidence`), which is the order
+the serial loop added them in, so the results are the same bits whatever the number of
+threads (a timing-dependent summation order made a sweep's parallel rows differ from
+its serial ones before).
+
 Arrays are element-major: tets (m, 4), grads (m, 4, 3) rest shape-function gradients
 (1/mm), volumes (m,) mm^3, F and R (m, 3, 3), nodal vectors (n, 3). Lame parameters and
 stresses in kPa, forces in mN, energy in mN mm. Compiled (or loaded from numba's disk
@@ -15,10 +22,35 @@ cache) by `warm_up` when a `Model` is built.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+BLOCKS = 64
+"""Blocks of elements the parallel loops share among the threads (each block allocates
+its 3x3 scratch once; more blocks than threads balance uneven elements)."""
+
+
+def node_incidence(tets: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """(ptr (n + 1,), rows (4 m,)): node a's element rows e * 4 + b (tets[e, b] == a) are
+    rows[ptr[a]:ptr[a + 1]], in increasing e (the serial scatter's order)."""
+    flat = np.ascontiguousarray(tets, dtype=np.int64).ravel()
+    rows = np.argsort(flat, kind="stable").astype(np.int64)
+    ptr = np.zeros(n_nodes + 1, np.int64)
+    ptr[1:] = np.cumsum(np.bincount(flat, minlength=n_nodes))
+    return ptr, rows
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _block(c, nblocks, m):
+    """Element range [lo, hi) of block c of nblocks over m elements."""
+    return c * m // nblocks, (c + 1) * m // nblocks
 
 
 @njit(cache=True, nogil=True)
+def _n_blocks(m):
+    return max(1, min(m, BLOCKS))
+
+
+@njit(cache=True, nogil=True, parallel=True)
 def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
     """(f, rot, det, cold) at points x (n, 3): F = sum_b x_b g_b^T, det F, and R of F = R S
     by Newton on skew(R^T F) = 0 from the rotations `guess` (m, 3, 3) of a nearby
@@ -32,103 +64,124 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
     rot = np.empty((m, 3, 3))
     det = np.empty(m)
     cold = np.zeros(m, dtype=np.bool_)
-    a = np.empty((3, 3))
-    r = np.empty((3, 3))
-    c = np.empty((3, 3))
-    for e in range(m):
-        for i in range(3):
-            for j in range(3):
-                s = 0.0
-                for b in range(4):
-                    s += x[tets[e, b], i] * grads[e, b, j]
-                f[e, i, j] = s
-        fe = f[e]
-        det[e] = (fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
-                  - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
-                  + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0]))
-        if not use_guess or det[e] <= 0.0:  # inverted or flat: the cold path's SVD
-            cold[e] = True
-            continue
-        r[:, :] = guess[e]
-        done = False
-        for _ in range(iterations):
+    nblocks = _n_blocks(m)
+    for blk in prange(nblocks):
+        a = np.empty((3, 3))
+        r = np.empty((3, 3))
+        c = np.empty((3, 3))
+        lo, hi = _block(blk, nblocks, m)
+        for e in range(lo, hi):
             for i in range(3):
                 for j in range(3):
-                    a[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
-            tr = a[0, 0] + a[1, 1] + a[2, 2]
-            q00, q11, q22 = tr - a[0, 0], tr - a[1, 1], tr - a[2, 2]
-            q01 = -0.5 * (a[0, 1] + a[1, 0])
-            q02 = -0.5 * (a[0, 2] + a[2, 0])
-            q12 = -0.5 * (a[1, 2] + a[2, 1])
-            c00 = q11 * q22 - q12 * q12
-            c11 = q00 * q22 - q02 * q02
-            c22 = q00 * q11 - q01 * q01
-            c01 = q02 * q12 - q01 * q22
-            c02 = q01 * q12 - q02 * q11
-            c12 = q01 * q02 - q00 * q12
-            det_q = q00 * c00 + q01 * c01 + q02 * c02
-            # tr S I - S positive definite (Sylvester: leading minors q00, c22, det_q)
-            if not (det_q > 1e-9 * abs(tr) ** 3 and q00 > 0.0 and c22 > 0.0 and tr > 0.0):
-                break
-            b0, b1, b2 = a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]
-            u0 = 0.5 * (c00 * b0 + c01 * b1 + c02 * b2) / det_q
-            u1 = 0.5 * (c01 * b0 + c11 * b1 + c12 * b2) / det_q
-            u2 = 0.5 * (c02 * b0 + c12 * b1 + c22 * b2) / det_q
-            # cay(u) = I + k ([u]x + u u^T - |u|^2 I), k = 2 / (1 + |u|^2)
-            uu = u0 * u0 + u1 * u1 + u2 * u2
-            k = 2.0 / (1.0 + uu)
-            d = 1.0 - k * uu
-            c[0, 0], c[1, 1], c[2, 2] = d + k * u0 * u0, d + k * u1 * u1, d + k * u2 * u2
-            c[0, 1], c[1, 0] = k * (u0 * u1 - u2), k * (u0 * u1 + u2)
-            c[0, 2], c[2, 0] = k * (u0 * u2 + u1), k * (u0 * u2 - u1)
-            c[1, 2], c[2, 1] = k * (u1 * u2 - u0), k * (u1 * u2 + u0)
-            for i in range(3):
-                r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
-                for j in range(3):
-                    r[i, j] = r0 * c[0, j] + r1 * c[1, j] + r2 * c[2, j]
-            if 2.0 * max(abs(u0), abs(u1), abs(u2)) <= stop:
-                done = True
-                break
-        rot[e] = r
-        cold[e] = not done
+                    s = 0.0
+                    for b in range(4):
+                        s += x[tets[e, b], i] * grads[e, b, j]
+                    f[e, i, j] = s
+            fe = f[e]
+            det[e] = (fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
+                      - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
+                      + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0]))
+            if not use_guess or det[e] <= 0.0:  # inverted or flat: the cold path's SVD
+                cold[e] = True
+                continue
+            r[:, :] = guess[e]
+            done = False
+            for _ in range(iterations):
+                for i in range(3):
+                    for j in range(3):
+                        a[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+                tr = a[0, 0] + a[1, 1] + a[2, 2]
+                q00, q11, q22 = tr - a[0, 0], tr - a[1, 1], tr - a[2, 2]
+                q01 = -0.5 * (a[0, 1] + a[1, 0])
+                q02 = -0.5 * (a[0, 2] + a[2, 0])
+                q12 = -0.5 * (a[1, 2] + a[2, 1])
+                c00 = q11 * q22 - q12 * q12
+                c11 = q00 * q22 - q02 * q02
+                c22 = q00 * q11 - q01 * q01
+                c01 = q02 * q12 - q01 * q22
+                c02 = q01 * q12 - q02 * q11
+                c12 = q01 * q02 - q00 * q12
+                det_q = q00 * c00 + q01 * c01 + q02 * c02
+                # tr S I - S positive definite (Sylvester: leading minors q00, c22, det_q)
+                if not (det_q > 1e-9 * abs(tr) ** 3 and q00 > 0.0 and c22 > 0.0 and tr > 0.0):
+                    break
+                b0, b1, b2 = a[2, 1] - a[1, 2], a[0, 2] - a[2, 0], a[1, 0] - a[0, 1]
+                u0 = 0.5 * (c00 * b0 + c01 * b1 + c02 * b2) / det_q
+                u1 = 0.5 * (c01 * b0 + c11 * b1 + c12 * b2) / det_q
+                u2 = 0.5 * (c02 * b0 + c12 * b1 + c22 * b2) / det_q
+                # cay(u) = I + k ([u]x + u u^T - |u|^2 I), k = 2 / (1 + |u|^2)
+                uu = u0 * u0 + u1 * u1 + u2 * u2
+                k = 2.0 / (1.0 + uu)
+                d = 1.0 - k * uu
+                c[0, 0], c[1, 1], c[2, 2] = d + k * u0 * u0, d + k * u1 * u1, d + k * u2 * u2
+                c[0, 1], c[1, 0] = k * (u0 * u1 - u2), k * (u0 * u1 + u2)
+                c[0, 2], c[2, 0] = k * (u0 * u2 + u1), k * (u0 * u2 - u1)
+                c[1, 2], c[2, 1] = k * (u1 * u2 - u0), k * (u1 * u2 + u0)
+                for i in range(3):
+                    r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+                    for j in range(3):
+                        r[i, j] = r0 * c[0, j] + r1 * c[1, j] + r2 * c[2, j]
+                if 2.0 * max(abs(u0), abs(u1), abs(u2)) <= stop:
+                    done = True
+                    break
+            rot[e] = r
+            cold[e] = not done
     return f, rot, det, cold
 
 
-@njit(cache=True, nogil=True)
-def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, n_nodes):
+@njit(cache=True, nogil=True, parallel=True)
+def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
     """Elastic forces (n, 3) mN and strain energy (mN mm): with H = R^T F - I and
     sigma = lam tr H I + mu (H + H^T), node a of element e gets V R sigma g_a and the
-    energy sums V sigma : H / 2 (R K0 (R^T x - X) of the isotropic Hooke K0)."""
-    out = np.zeros((n_nodes, 3))
-    h = np.empty((3, 3))
-    sig = np.empty((3, 3))
-    p = np.empty((3, 3))
-    energy = 0.0
-    for e in range(tets.shape[0]):
-        r, fe = rot[e], f[e]
-        for i in range(3):
-            for j in range(3):
-                h[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
-        for i in range(3):
-            h[i, i] -= 1.0
-        tr = lam * (h[0, 0] + h[1, 1] + h[2, 2])
-        en = 0.0
-        for i in range(3):
-            for j in range(3):
-                sig[i, j] = mu * (h[i, j] + h[j, i])
-            sig[i, i] += tr
-            for j in range(3):
-                en += sig[i, j] * h[i, j]
-        v = volumes[e]
-        for i in range(3):
-            for j in range(3):
-                p[i, j] = v * (r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j])
-        energy += 0.5 * v * en
-        for b in range(4):
-            nb = tets[e, b]
+    energy sums V sigma : H / 2 (R K0 (R^T x - X) of the isotropic Hooke K0). ptr, rows:
+    `node_incidence` (the nodes' sums in element order)."""
+    m = tets.shape[0]
+    fe_rows = np.empty((4 * m, 3))
+    energies = np.empty(m)
+    nblocks = _n_blocks(m)
+    for blk in prange(nblocks):
+        h = np.empty((3, 3))
+        sig = np.empty((3, 3))
+        p = np.empty((3, 3))
+        lo, hi = _block(blk, nblocks, m)
+        for e in range(lo, hi):
+            r, fe = rot[e], f[e]
             for i in range(3):
-                out[nb, i] += p[i, 0] * grads[e, b, 0] + p[i, 1] * grads[e, b, 1] \
-                    + p[i, 2] * grads[e, b, 2]
+                for j in range(3):
+                    h[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+            for i in range(3):
+                h[i, i] -= 1.0
+            tr = lam * (h[0, 0] + h[1, 1] + h[2, 2])
+            en = 0.0
+            for i in range(3):
+                for j in range(3):
+                    sig[i, j] = mu * (h[i, j] + h[j, i])
+                sig[i, i] += tr
+                for j in range(3):
+                    en += sig[i, j] * h[i, j]
+            v = volumes[e]
+            for i in range(3):
+                for j in range(3):
+                    p[i, j] = v * (r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j]
+                                   + r[i, 2] * sig[2, j])
+            energies[e] = 0.5 * v * en
+            for b in range(4):
+                for i in range(3):
+                    fe_rows[4 * e + b, i] = (p[i, 0] * grads[e, b, 0] + p[i, 1] * grads[e, b, 1]
+                                             + p[i, 2] * grads[e, b, 2])
+    n_nodes = ptr.shape[0] - 1
+    out = np.empty((n_nodes, 3))
+    for a in prange(n_nodes):
+        s0 = s1 = s2 = 0.0
+        for k in range(ptr[a], ptr[a + 1]):
+            j = rows[k]
+            s0 += fe_rows[j, 0]
+            s1 += fe_rows[j, 1]
+            s2 += fe_rows[j, 2]
+        out[a, 0], out[a, 1], out[a, 2] = s0, s1, s2
+    energy = 0.0
+    for e in range(m):
+        energy += energies[e]
     return out, energy
 
 
@@ -136,19 +189,20 @@ def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
     """Consistent tangent times v (n, 3) (mN) over every dof (`tangent_product_dofs`)."""
     n = v.shape[0]
     dof = np.arange(3 * n).reshape(n, 3)
+    ptr, rows = node_incidence(tets, n)
     out = tangent_product_dofs(tets, rotated_gradients(grads, rot), volumes, lam, mu,
                                t_world, with_t, dof, np.ascontiguousarray(v).reshape(-1),
-                               3 * n)
+                               3 * n, ptr, rows)
     return out.reshape(n, 3)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def rotated_gradients(grads, rot):
     """(m, 4, 3) R g_b: each element's shape-function gradients turned by its rotation
     (computed once per tangent, read by every product)."""
     m = grads.shape[0]
     rg = np.empty((m, 4, 3))
-    for e in range(m):
+    for e in prange(m):
         r = rot[e]
         for b in range(4):
             for i in range(3):
@@ -157,8 +211,9 @@ def rotated_gradients(grads, rot):
     return rg
 
 
-@njit(cache=True, nogil=True)
-def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out):
+@njit(cache=True, nogil=True, parallel=True)
+def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out, ptr,
+                         rows):
     """Consistent tangent times v (mN), over the dofs numbered by dof (n, 3) (-1: held,
     its component of v is zero and its row dropped), v (n_out,): per element, with
     the rotated gradients rg = R g_b (`rotated_gradients`),
@@ -167,51 +222,62 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
     M R g_a. t_world (m, 3, 3): the rotation-derivative term T' of
     `corotation.skew_stiffness`, used when `with_t` (else SOFA's warped R K0 R^T).
     Gathers and scatters through dof directly (CG's product over the free dofs without
-    the full-size copies)."""
+    the full-size copies); ptr, rows: `node_incidence`."""
+    m = tets.shape[0]
+    e_rows = np.empty((4 * m, 3))
+    nblocks = _n_blocks(m)
+    for blk in prange(nblocks):
+        g = np.empty((3, 3))
+        mm = np.empty((3, 3))
+        ve = np.empty((4, 3))
+        lo, hi = _block(blk, nblocks, m)
+        for e in range(lo, hi):
+            for b in range(4):
+                for i in range(3):
+                    k = dof[tets[e, b], i]
+                    ve[b, i] = v[k] if k >= 0 else 0.0
+            for i in range(3):
+                for j in range(3):
+                    g[i, j] = (ve[0, i] * rg[e, 0, j] + ve[1, i] * rg[e, 1, j]
+                               + ve[2, i] * rg[e, 2, j] + ve[3, i] * rg[e, 3, j])
+            vol = volumes[e]
+            tr = vol * lam * (g[0, 0] + g[1, 1] + g[2, 2])
+            vm = vol * mu
+            for i in range(3):
+                for k in range(3):
+                    mm[i, k] = vm * (g[i, k] + g[k, i])
+                mm[i, i] += tr
+            if with_t:
+                t = t_world[e]
+                w0, w1, w2 = g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]
+                h = 0.5 * vol
+                t0 = h * (t[0, 0] * w0 + t[0, 1] * w1 + t[0, 2] * w2)
+                t1 = h * (t[1, 0] * w0 + t[1, 1] * w1 + t[1, 2] * w2)
+                t2 = h * (t[2, 0] * w0 + t[2, 1] * w1 + t[2, 2] * w2)
+                mm[0, 1] -= t2
+                mm[0, 2] += t1
+                mm[1, 0] += t2
+                mm[1, 2] -= t0
+                mm[2, 0] -= t1
+                mm[2, 1] += t0
+            for a in range(4):
+                for i in range(3):
+                    e_rows[4 * e + a, i] = (mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1]
+                                            + mm[i, 2] * rg[e, a, 2])
     out = np.zeros(n_out)
-    g = np.empty((3, 3))
-    mm = np.empty((3, 3))
-    ve = np.empty((4, 3))
-    for e in range(tets.shape[0]):
-        for b in range(4):
-            for i in range(3):
-                k = dof[tets[e, b], i]
-                ve[b, i] = v[k] if k >= 0 else 0.0
+    n_nodes = ptr.shape[0] - 1
+    for a in prange(n_nodes):
         for i in range(3):
-            for j in range(3):
-                g[i, j] = (ve[0, i] * rg[e, 0, j] + ve[1, i] * rg[e, 1, j]
-                           + ve[2, i] * rg[e, 2, j] + ve[3, i] * rg[e, 3, j])
-        vol = volumes[e]
-        tr = vol * lam * (g[0, 0] + g[1, 1] + g[2, 2])
-        vm = vol * mu
-        for i in range(3):
-            for k in range(3):
-                mm[i, k] = vm * (g[i, k] + g[k, i])
-            mm[i, i] += tr
-        if with_t:
-            t = t_world[e]
-            w0, w1, w2 = g[2, 1] - g[1, 2], g[0, 2] - g[2, 0], g[1, 0] - g[0, 1]
-            h = 0.5 * vol
-            t0 = h * (t[0, 0] * w0 + t[0, 1] * w1 + t[0, 2] * w2)
-            t1 = h * (t[1, 0] * w0 + t[1, 1] * w1 + t[1, 2] * w2)
-            t2 = h * (t[2, 0] * w0 + t[2, 1] * w1 + t[2, 2] * w2)
-            mm[0, 1] -= t2
-            mm[0, 2] += t1
-            mm[1, 0] += t2
-            mm[1, 2] -= t0
-            mm[2, 0] -= t1
-            mm[2, 1] += t0
-        for a in range(4):
-            na = tets[e, a]
-            for i in range(3):
-                k = dof[na, i]
-                if k >= 0:
-                    out[k] += (mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1]
-                               + mm[i, 2] * rg[e, a, 2])
+            k = dof[a, i]
+            if k >= 0:
+                s = 0.0
+                for q in range(ptr[a], ptr[a + 1]):
+                    s += e_rows[rows[q], i]
+                out[k] = s
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def skew_stiffness_closed_form(f, rot, lam, mu, project):
     """(t, easy): the rotation-derivative term T' = R (2 mu I + 2 c Q^-1) R^T (m, 3, 3)
     of `corotation.skew_stiffness` (Q = tr S I - S, S = sym(R^T F), c = lam tr(S - I) -
@@ -221,54 +287,57 @@ def skew_stiffness_closed_form(f, rot, lam, mu, project):
     m = f.shape[0]
     t = np.zeros((m, 3, 3))
     easy = np.zeros(m, dtype=np.bool_)
-    s = np.empty((3, 3))
-    q = np.empty((3, 3))
-    adj = np.empty((3, 3))
-    te = np.empty((3, 3))
-    for e in range(m):
-        r, fe = rot[e], f[e]
-        for i in range(3):
-            for j in range(3):
-                s[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
-        for i in range(3):
-            for j in range(i + 1, 3):
-                v = 0.5 * (s[i, j] + s[j, i])
-                s[i, j] = v
-                s[j, i] = v
-        tr = s[0, 0] + s[1, 1] + s[2, 2]
-        c = lam * (tr - 3.0) - 2.0 * mu
-        for i in range(3):
-            for j in range(3):
-                q[i, j] = -s[i, j]
-            q[i, i] += tr
-        for i in range(3):
-            i1, i2 = (i + 1) % 3, (i + 2) % 3
-            for j in range(3):
-                j1, j2 = (j + 1) % 3, (j + 2) % 3
-                adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
-        det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
-        ok = det_q > 1e-6 * abs(tr) ** 3
-        if ok and project:
-            q_low = min(q[0, 0] - abs(q[0, 1]) - abs(q[0, 2]),
-                        q[1, 1] - abs(q[1, 2]) - abs(q[1, 0]),
-                        q[2, 2] - abs(q[2, 0]) - abs(q[2, 1]))
-            ok = q_low > 0.0 and (c >= 0.0 or mu * q_low + c >= 0.0)
-        if not ok:
-            continue
-        easy[e] = True
-        k = 2.0 * c / det_q
-        for i in range(3):
-            for j in range(3):
-                te[i, j] = k * adj[i, j]
-            te[i, i] += 2.0 * mu
-        for i in range(3):  # R te R^T
-            for j in range(3):
-                acc = 0.0
-                for a in range(3):
-                    ra = r[i, a]
-                    for b in range(3):
-                        acc += ra * te[a, b] * r[j, b]
-                t[e, i, j] = acc
+    nblocks = _n_blocks(m)
+    for blk in prange(nblocks):
+        s = np.empty((3, 3))
+        q = np.empty((3, 3))
+        adj = np.empty((3, 3))
+        te = np.empty((3, 3))
+        lo, hi = _block(blk, nblocks, m)
+        for e in range(lo, hi):
+            r, fe = rot[e], f[e]
+            for i in range(3):
+                for j in range(3):
+                    s[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+            for i in range(3):
+                for j in range(i + 1, 3):
+                    v = 0.5 * (s[i, j] + s[j, i])
+                    s[i, j] = v
+                    s[j, i] = v
+            tr = s[0, 0] + s[1, 1] + s[2, 2]
+            c = lam * (tr - 3.0) - 2.0 * mu
+            for i in range(3):
+                for j in range(3):
+                    q[i, j] = -s[i, j]
+                q[i, i] += tr
+            for i in range(3):
+                i1, i2 = (i + 1) % 3, (i + 2) % 3
+                for j in range(3):
+                    j1, j2 = (j + 1) % 3, (j + 2) % 3
+                    adj[j, i] = q[i1, j1] * q[i2, j2] - q[i1, j2] * q[i2, j1]
+            det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
+            ok = det_q > 1e-6 * abs(tr) ** 3
+            if ok and project:
+                q_low = min(q[0, 0] - abs(q[0, 1]) - abs(q[0, 2]),
+                            q[1, 1] - abs(q[1, 2]) - abs(q[1, 0]),
+                            q[2, 2] - abs(q[2, 0]) - abs(q[2, 1]))
+                ok = q_low > 0.0 and (c >= 0.0 or mu * q_low + c >= 0.0)
+            if not ok:
+                continue
+            easy[e] = True
+            k = 2.0 * c / det_q
+            for i in range(3):
+                for j in range(3):
+                    te[i, j] = k * adj[i, j]
+                te[i, i] += 2.0 * mu
+            for i in range(3):  # R te R^T
+                for j in range(3):
+                    acc = 0.0
+                    for a in range(3):
+                        ra = r[i, a]
+                        for b in range(3):
+                            acc += ra * te[a, b] * r[j, b]
+                    t[e, i, j] = acc
     return t, easy
 
 
@@ -281,7 +350,8 @@ def warm_up() -> None:
     eye = np.eye(3).reshape(1, 3, 3)
     f, rot, _, _ = kinematics(x, tets, grads, eye, True, 4, 1e-7)
     kinematics(x, tets, grads, np.empty((0, 3, 3)), False, 4, 1e-7)
-    forces_and_energy(tets, grads, np.ones(1), 1.0, 1.0, f, rot, 4)
+    forces_and_energy(tets, grads, np.ones(1), 1.0, 1.0, f, rot,
+                      *node_incidence(tets, 4))
     tangent_product(tets, grads, np.ones(1), 1.0, 1.0, rot, eye.copy(), True, x)
     tangent_product(tets, grads, np.ones(1), 1.0, 1.0, rot, np.empty((0, 3, 3)), False, x)
     for project in (True, False):
