@@ -118,6 +118,7 @@ class ContinuumSolver:
         self.rtol = PCG_RELATIVE_TOLERANCE
         self.newton_c = 0.0
         self.history = []
+        self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 

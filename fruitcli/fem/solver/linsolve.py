@@ -99,6 +99,7 @@ class TangentSolver:
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
         self.history = []  # converged (load vector, x, p) for the next state's predictor
+        self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0, "update_s": 0.0, "product_s": 0.0,
                       "precond_s": 0.0}

@@ -230,7 +230,11 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     last = None  # (t, x, p) of the load step before the last one, for the predictor
     retry = False
-    guess = _history_guess(solver.history, x_start, load) if dt == 1.0 else None
+    guess = None
+    if dt == 1.0:
+        guess = _history_guess(solver.history, x_start, load)
+        if guess is None:
+            guess = _sensitivity_guess(solver, x_start, load)
     rotating = load.jig != load_start.jig and any(j.rotate_deg for j in model.jigs)
     secant = getattr(model, "secant_while_rotating", True) or not rotating
     while t < 1.0:
@@ -275,7 +279,10 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
                 f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}")
         dt *= 0.5
+    first = not solver.history
     solver.history = _remember(solver.history, _load_vector(load), x, p)
+    if first:
+        _remember_sensitivity(model, solver, x, load)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
@@ -343,6 +350,71 @@ def _history_guess(history, x_start, load: Load):
         return None
     x = x_last + sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
     p = p_last + sum(cj * (h[2] - p_last) for cj, h in zip(c, prev, strict=True))
+    return x, p
+
+
+SENSITIVITY_RTOL = 1e-2
+"""Relative residual of the solves K dx/dp_k = dH_k^T of `_remember_sensitivity`: they
+only start Newton, which the tangent's own staleness already limits to first order."""
+
+
+def _remember_sensitivity(model, solver, x: np.ndarray, load: Load) -> None:
+    """Keep on the solver dx/dp (n, 3, K) at the first converged state x: the nodes'
+    response to each pressure-controlled chamber's pressure, K^-1 H_k^T with the solver's
+    current tangent (the precomputed K^-1 H^T columns). `_sensitivity_guess` starts the
+    next states with it while the history is too short to span the load changes (a new
+    animation's first states took 2-3 Newton steps instead of 1). Nothing is kept
+    without pressure-controlled chambers."""
+    k = len(model.chamber_tris)
+    pressure = ~np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
+    if not pressure.any():
+        return
+    free = model.pattern.free
+    h = model.chamber_gradients(x).reshape(k, -1)[:, free]
+    rtol = solver.rtol
+    solver.rtol = SENSITIVITY_RTOL
+    try:
+        cols = solver.solve(np.ascontiguousarray(h[pressure].T))
+    except SolverError:
+        return
+    finally:
+        solver.rtol = rtol
+    sens = np.zeros((3 * model.n_nodes, k))
+    sens[np.ix_(free, np.flatnonzero(pressure))] = cols.reshape(len(free), -1)
+    solver.sensitivity = sens.reshape(model.n_nodes, 3, k)
+
+
+def _sensitivity_guess(solver, x_start, load: Load):
+    """Start of the next state when `_history_guess` has none: the kept states' secant as
+    far as they span the load change (least squares, bounded weights), the rest of the
+    change in pressure through the first state's dx/dp (`_remember_sensitivity`).
+    Only when x_start is the last state kept and nothing but pressure-controlled
+    chambers' pressures changed; None otherwise."""
+    sens = getattr(solver, "sensitivity", None)
+    history = solver.history
+    if (sens is None or not history or x_start is None
+            or not np.array_equal(x_start, history[-1][1])):
+        return None
+    q_last, x_last, p_last = history[-1]
+    dq = _load_vector(load) - q_last
+    k = len(load.volume_controlled)
+    if len(dq) != len(q_last) or k != sens.shape[2] or not np.any(dq):
+        return None
+    pressure = np.zeros(len(dq), bool)
+    pressure[:k] = ~np.asarray(load.volume_controlled, bool)
+    if np.any(dq[~pressure]):
+        return None
+    prev = history[-2::-1]
+    x, p = x_last.copy(), p_last.copy()
+    if prev:
+        d = np.column_stack([h[0] - q_last for h in prev])
+        c = np.linalg.lstsq(d, dq, rcond=PREDICTOR_RCOND)[0]
+        if not (np.all(np.isfinite(c)) and np.abs(c).sum() <= PREDICTOR_MAX_WEIGHT):
+            c = np.zeros(len(prev))
+        x += sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
+        p += sum(cj * (h[2] - p_last) for cj, h in zip(c, prev, strict=True))
+        dq = dq - d @ c
+    x += sens @ dq[:k]
     return x, p
 
 
