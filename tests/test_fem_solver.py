@@ -125,10 +125,14 @@ def test_first_state_sensitivity_starts_the_next_state_to_first_order():
     assert np.abs(results[0].x - results[1].x).max() < 1e-6 * scale
 
 
-def test_superlu_fallback_without_cholespy(monkeypatch):
-    """With cholespy missing the kept factorization is SuperLU's: same bend result."""
+@pytest.mark.parametrize("fallback", ["cholespy", "superlu"])
+def test_fallbacks_without_pardiso(monkeypatch, fallback):
+    """Without MKL PARDISO the kept factorization is cholespy's, and without cholespy
+    SuperLU's: the same bend result."""
     _, _, _, ref = bent_pad(steps=6)
-    monkeypatch.setattr(linsolve, "_cholesky", None)
+    monkeypatch.setattr(linsolve, "USE_PARDISO", False)
+    if fallback == "superlu":
+        monkeypatch.setattr(linsolve, "_cholesky", None)
     _, _, _, res = bent_pad(steps=6)
     assert res.residual <= 1e-6
     assert np.abs(res.x - ref.x).max() < 1e-4

@@ -316,8 +316,10 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     """The paper's model (p1, corotational) on the default fruit's breathing: the
     scene's states in order from rest with one solver, as `fruit simulate` solves them.
     Prints the median wall and CPU time per state from the previous state, the first
-    state's from rest, the machine's load, and where the time goes. Returns (median ms
-    from the previous state, ms from rest)."""
+    state's from rest, the machine's load, and where the time goes (first run); then the
+    median of P1_RUNS such runs with the spread of their medians, and the same with the
+    element loops on one thread. Returns (median ms from the previous state over the
+    runs, ms from rest)."""
     import os
 
     import numba
@@ -326,6 +328,12 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     load0 = os.getloadavg()[0]
     log = []
     model, solver, rows = time_states(scene, mesh_npz, "pcg", n_states, stats_log=log)
+    runs = [rows] + [time_states(scene, mesh_npz, "pcg", n_states)[2]
+                     for _ in range(P1_RUNS - 1)]
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    serial = [time_states(scene, mesh_npz, "pcg", n_states)[2] for _ in range(P1_RUNS)]
+    numba.set_num_threads(threads)
     load1 = os.getloadavg()[0]
     later = rows[1:]
     wall = np.median([r[0] for r in later])
@@ -335,7 +343,7 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     later_s = sum(r[0] for r in later) / 1e3
     print(f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
           f"tets, nu = {model.poisson_ratio:g}, tolerance {scene['solver']['tolerance']:g}, "
-          f"numba threads {numba.get_num_threads()} (kernels serial), load average "
+          f"numba threads {numba.get_num_threads()} (element loops parallel), load average "
           f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):")
     print(f"  per state from the previous one: wall {wall:.1f} ms median "
           f"(range {min(r[0] for r in later):.1f}-{max(r[0] for r in later):.1f}), CPU "
@@ -348,8 +356,18 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
           + f" ({st['factorizations']}), the rest (element kernels for the residual, "
           "line search, predictor) "
           f"{100 * (1 - sum(st[k] for k, _ in PHASES) / later_s):.0f} %")
-    print(f"p1 breathing state: median {wall:.1f} ms (from previous state), "
-          f"{rows[0][0]:.0f} ms (from rest); CPU {cpu:.1f} ms median (target <= 10 ms)",
+    medians = [float(np.median([r[0] for r in run[1:]])) for run in runs]
+    cpus = [float(np.median([r[3] for r in run[1:]])) for run in runs]
+    serial_medians = [float(np.median([r[0] for r in run[1:]])) for run in serial]
+    print(f"  {P1_RUNS} runs of the {len(later)} states: medians "
+          + " ".join(f"{m:.1f}" for m in medians) + " ms wall, "
+          + " ".join(f"{c:.1f}" for c in cpus) + " ms CPU (both cores' time); with the "
+          "element loops on one thread (numba.set_num_threads(1)): "
+          + " ".join(f"{m:.1f}" for m in serial_medians) + " ms wall")
+    wall = float(np.median(medians))
+    print(f"p1 breathing state: median {wall:.1f} ms (from previous state; runs "
+          f"{min(medians):.1f}-{max(medians):.1f}), {rows[0][0]:.0f} ms (from rest); "
+          f"element loops on one thread {np.median(serial_medians):.1f} ms (target <= 10 ms)",
           flush=True)
     loose = copy.deepcopy(scene)  # what a tolerance nearer the model's error would give
     loose.data["solver"]["tolerance"] = LOOSE_TOLERANCE
@@ -366,6 +384,10 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
 
 
 LOOSE_TOLERANCE = 1e-5
+
+P1_RUNS = 5
+"""Runs of the breathing in `bench_p1_breathing` (each a fresh solver, as `fruit
+simulate`): their medians show how much one run's figure varies on this machine."""
 
 
 ELEMENT_SETTINGS = [("p1", "corotational"), ("p1", "neo-hookean"), ("p2-pure", "neo-hookean"),

@@ -13,7 +13,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.solver.linsolve import _cholesky, pcg
+from fruitcli.fem.solver import linsolve, pardiso
+from fruitcli.fem.solver.linsolve import _cholesky, pcg, upper_triangle
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
@@ -22,69 +23,23 @@ from fruitcli.fem.tolerances import (
 from fruitcli.scene import LINEAR_SOLVERS
 
 
-class _Pardiso:
-    """MKL PARDISO (supernodal, multithreaded; through pypardiso) on the upper triangle
-    of a symmetric k: positive definite first (mtype 2), indefinite otherwise (-2).
-    On the quadratic default Fruit it factorizes about 8x faster than cholespy's
-    simplicial Cholesky (`tests/bench/bench_fem.py --factor`)."""
-
-    def __init__(self, k, previous=None):
-        import pypardiso
-        import scipy.sparse as sp
-
-        self.a = sp.triu(k, format="csr")
-        self.a.sort_indices()
-        # the previous factor's PARDISO handle is taken over: a new PyPardisoSolver
-        # searches the install for MKL's library (0.35 s of glob per factorization here)
-        kept = {} if previous is None or previous.solver is None else \
-            {previous.solver.mtype: previous.solver}
-        if previous is not None:
-            previous.solver = None
-        for mtype in (2, -2):
-            self.solver = kept.get(mtype) or pypardiso.PyPardisoSolver(mtype=mtype)
-            self.solver.set_phase(12)
-            try:
-                self.solver.factorize(self.a)
-                return
-            except Exception:  # noqa: BLE001 - pypardiso raises its own error type
-                continue
-        raise RuntimeError("PARDISO could not factorize the tangent")
-
-    def solve(self, b):
-        b = np.asarray(b, float)
-        x = self.solver.solve(self.a, b)
-        return x.reshape(b.shape)
-
-    def __del__(self):
-        # MKL keeps the factor outside Python's heap until told (about 1 GB here)
-        solver = getattr(self, "solver", None)
-        if solver is not None:
-            try:
-                solver.free_memory(everything=True)
-            except Exception:  # noqa: BLE001 - at interpreter exit MKL frees it anyway
-                pass
-
-
-try:
-    import pypardiso  # noqa: F401
-except ImportError:  # optional: cholespy or SuperLU instead (slower on quadratic tets)
-    _Pardiso = None  # noqa: F811
-
-
 def factorize(k, previous=None):
-    """A factor of the sparse symmetric k with `.solve`: PARDISO when installed (reusing
-    the handle of `previous`, a factor this returned before, which is then spent),
-    otherwise Cholesky when k is positive definite (checked on a solve), otherwise LU."""
+    """A factor of the sparse symmetric k with `.solve`: MKL PARDISO when installed
+    (`pardiso.py`; the numerical refactorization of `previous`, a factor this returned
+    before, when the pattern is the same), otherwise Cholesky when k is positive
+    definite (checked on a solve), otherwise LU."""
     k = k.tocsc()
-    if _Pardiso is not None:
+    if linsolve.USE_PARDISO and pardiso.available():
         try:
-            fac = _Pardiso(k.tocsr(), previous if isinstance(previous, _Pardiso) else None)
+            fac = pardiso.factorize_upper(upper_triangle(k.tocsr()),
+                                          previous if isinstance(previous, pardiso.Pardiso)
+                                          else None)
             probe = np.ones(k.shape[0])
             sol = fac.solve(probe)
             if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
                     <= 1e-6 * np.linalg.norm(probe):
                 return fac
-        except Exception:  # noqa: BLE001 - PARDISO's own errors: fall back to Cholesky/LU
+        except pardiso.PardisoError:  # fall back to Cholesky / LU
             pass
     if _cholesky is not None:
         try:
@@ -119,6 +74,7 @@ class ContinuumSolver:
         self.newton_c = 0.0
         self.history = []
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
+        pardiso.available()  # MKL loaded here, not inside the first state's time
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
