@@ -1,3 +1,4 @@
 """The solver: Newton iterations on one state (`newton`), linear solves with the
 tangents (`linsolve` for the corotational model, `continuum_linsolve` for the
-hyperelastic one) and sparse assembly with a fixed pattern (`assemble`)."""
+hyperelastic one), the kept factor through MKL PARDISO (`pardiso`) and sparse assembly
+with a fixed pattern (`assemble`)."""

@@ -1,8 +1,9 @@
 """Linear solves with the hyperelastic model's tangent (`ContinuumModel.tangent`): the
 tangent is assembled at every Newton step (its element blocks come from the compiled
-element loop); `pcg` (default) solves it by CG preconditioned with a sparse Cholesky
-factor kept across Newton steps and states and refreshed when CG slows down, `direct`
-factorizes it at every step.
+element loop); `pcg` (default) solves it by CG preconditioned with a sparse factor
+(MKL PARDISO, `pardiso.py`, refactorized numerically on its kept analysis; cholespy or
+SuperLU without it) kept across Newton steps and states and refreshed when CG slows
+down, `direct` factorizes it at every step.
 Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
