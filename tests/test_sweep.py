@@ -410,8 +410,8 @@ def test_the_runtime_study_on_a_dask_cluster_gives_the_serial_rows(pad, tmp_path
         fem = json.loads((out / "runtime.json").read_text())["fem"]
         rows[where[0]] = [{k: v for k, v in r.items() if k not in ("state_ms", "simulate_s",
                                                                     "pareto")} for r in fem]
-    # equal, floats to 1e-6 relative: the default element's direct solver (MKL PARDISO)
-    # sums in a thread-dependent order, so residuals differ in their 8th digit
+    # equal, floats to 1e-6 relative (kept from when MKL PARDISO's threads summed in a
+    # run-dependent order; it runs on one thread now)
     assert len(rows["--jobs"]) == len(rows["--scheduler"])
     for a, b in zip(rows["--jobs"], rows["--scheduler"], strict=True):
         assert a.keys() == b.keys()

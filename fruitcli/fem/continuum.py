@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from fruitcli.errors import MeshError, SceneError
-from fruitcli.fem.elements import tet4
+from fruitcli.fem.elements import integrate, tet4
 from fruitcli.fem.elements.integrate import evaluate
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shape_gradients
 from fruitcli.fem.loads.cavity import Wall
@@ -286,8 +286,8 @@ class ContinuumModel:
 
     def mean_dilatation(self, x: np.ndarray) -> np.ndarray:
         """(m,) volume ratio of each element, det F averaged over its volume."""
-        f = np.einsum("mai,mqaj->mqij", x[self.conn], self.dn)
-        return np.einsum("mq,mq->m", np.linalg.det(f), self.wq) / self.volumes_mm3
+        return integrate.mean_dilatation(np.ascontiguousarray(x, dtype=float), self.conn,
+                                         self.dn, self.wq, self.volumes_mm3)
 
     @property
     def dilatation_step(self) -> float:

@@ -17,7 +17,7 @@ as SOFA); `bench_elements` then times every element and material of [fem] / [mat
 on the default mesh, and the default scenes' own (p2, neo-Hookean).
 
 Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [--no-pad]
-     [--lame-sizes 3 2 1.5] [--p1-only]
+     [--lame-sizes 3 2 1.5] [--p1-only] [--factor]
 """
 
 import argparse
@@ -385,6 +385,48 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
 
 LOOSE_TOLERANCE = 1e-5
 
+
+def bench_factor(scene0, mesh_npz: Path) -> None:
+    """The kept factor on the default Fruit's rest tangent, p1 (paper's model) and p2
+    (default): PARDISO's analysis + factorization, numerical refactorization and one
+    solve (`fruitcli/fem/solver/pardiso.py`), beside cholespy's for p1."""
+    from fruitcli.fem import io
+    from fruitcli.fem.solver import linsolve, pardiso
+    from fruitcli.fem.stage import build_model
+
+    def timed(fn, *args, n=1):
+        """(fn(*args), ms per call over n calls)."""
+        t0 = time.perf_counter()
+        for _ in range(n):
+            out = fn(*args)
+        return out, 1e3 * (time.perf_counter() - t0) / n
+
+    print("\nkept factor of the rest tangent (MKL PARDISO on one thread, no refinement):")
+    for label, scene in (("p1", paper_model(scene0)), ("p2", scene0)):
+        model = build_model(scene, io.load_mesh(mesh_npz))
+        if label == "p1":
+            solver = model.make_solver("pcg")
+            solver.update(np.tile(np.eye(3), (len(model.tets), 1, 1)))
+            k = solver._assemble(False).tocsr()
+        else:
+            k = model.tangent(model.rest.copy(), project=True).tocsr()
+        upper = linsolve.upper_triangle(k)
+        fac, t_fac = timed(pardiso.factorize_upper, upper)
+        _, t_re = timed(pardiso.factorize_upper, upper, fac)
+        b = np.random.default_rng(0).standard_normal(k.shape[0])
+        fac.solve(b)
+        reps = 50 if label == "p1" else 10
+        _, t_solve = timed(fac.solve, b, n=reps)
+        line = (f"  {label}, {k.shape[0]} dofs, factor {fac.iparm[17]:,} entries: analysis + "
+                f"factorization {t_fac:.0f} ms, refactorization {t_re:.0f} ms, one solve "
+                f"{t_solve:.2f} ms")
+        if label == "p1" and linsolve._cholesky is not None:
+            chol, t_chol = timed(linsolve._cholesky, k.tocsc())
+            chol.solve(b)
+            _, t_csolve = timed(chol.solve, b, n=reps)
+            line += f"; cholespy: factorization {t_chol:.0f} ms, one solve {t_csolve:.2f} ms"
+        print(line, flush=True)
+
 P1_RUNS = 5
 """Runs of the breathing in `bench_p1_breathing` (each a fresh solver, as `fruit
 simulate`): their medians show how much one run's figure varies on this machine."""
@@ -440,11 +482,13 @@ def main() -> None:
                     help="mesh sizes of Lame's sphere for the default element")
     ap.add_argument("--p1-only", action="store_true",
                     help="only the paper's model on the default fruit's breathing")
+    ap.add_argument("--factor", action="store_true",
+                    help="only the kept factor's times on the default fruit (p1 and p2)")
     ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--pad-tolerance", type=float, default=None,
                     help="override the touchpad scene's [solver] tolerance")
     args = ap.parse_args()
-    from fruitcli.fem.solver import linsolve
+    from fruitcli.fem.solver import linsolve, pardiso
     from fruitcli.scene import load_scene
 
     if args.child_states is not None:  # peak memory of the simulation alone
@@ -455,6 +499,14 @@ def main() -> None:
         return
     from fruitcli.fem.stage import run_tetra
 
+    if args.factor:  # the default fruit's mesh, then the kept factor's times alone
+        scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
+                                   must_exist=False)
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = Path(tmp)
+            run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
+            bench_factor(scene_default, tmp / "mesh" / "mesh.npz")
+        return
     if args.p1_only:  # the default fruit's mesh, then the p1 breathing alone
         scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
                                    must_exist=False)
@@ -473,7 +525,8 @@ def main() -> None:
               f"-> {solid.name}")
         default_size = scene0["mesh"]["size_mm"]
         sizes = sorted(set(args.sizes) | {default_size}, reverse=True)
-        backend = "SuperLU" if linsolve._cholesky is None else "cholespy"
+        backend = ("MKL PARDISO" if linsolve.USE_PARDISO and pardiso.available() else
+                   "SuperLU" if linsolve._cholesky is None else "cholespy")
         print(f"kept factorization: {backend}; iters and cg: means per state after the first; "
               "factor: factorizations in all")
         print(f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
@@ -521,6 +574,7 @@ def main() -> None:
               f"build, solve) {child_rss} MB, median state there {child_med} ms "
               f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
         bench_online(scene0, default_mesh, tmp / "tracks" / "taxels.csv")
+        bench_factor(scene_default, default_mesh)
         p1 = bench_p1_breathing(scene_default, default_mesh, args.states)
         times = bench_elements(scene_default, default_mesh, args.states)
         p2 = times[("p2", "neo-hookean")]

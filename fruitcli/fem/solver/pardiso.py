@@ -4,11 +4,15 @@ preconditioner; the library is the one pip's `mkl` installs with pypardiso.
 Why not pypardiso's `solve`: on every call it compares the whole matrix with the one it
 factorized and converts its index arrays to one-based int32, and MKL's default of two
 iterative-refinement steps per solve triples the cost of a solve that only
-preconditions CG. Measured on the default Fruit, one solve with the kept factor:
-quadratic (44,403 dofs, 18 M factor entries) 26 ms with refinement, 10 ms without;
-linear (6,762 dofs) 1.0 ms and 0.29 ms (cholespy: 0.45 ms). The symbolic analysis is
-kept: `refactor` redoes only the numerical factorization of a matrix with the same
-pattern (quadratic 0.32 s instead of 0.52 s, linear 7 ms instead of cholespy's 67 ms).
+preconditions CG. The symbolic analysis is kept: `refactor` redoes only the numerical
+factorization of a matrix with the same pattern. MKL runs on one thread (see
+`_functions`). On the default Fruit (`python tests/bench/bench_fem.py --factor`):
+
+| | linear tets, 6,762 dofs | quadratic, 44,403 dofs |
+|---|---|---|
+| analysis + factorization | 31 ms (cholespy 74 ms) | 0.87 s |
+| numerical refactorization | 13 ms | 0.50 s |
+| one solve | 0.44 ms (cholespy 0.47 ms) | 19 ms (pypardiso's, refining, 2 threads: 26 ms) |
 
 Matrices are the upper triangle of a symmetric matrix in CSR with sorted indices,
 zero-based (iparm[34] = 1), float64.
@@ -24,7 +28,7 @@ import sys
 import numpy as np
 
 SPD, SYMMETRIC_INDEFINITE = 2, -2  # PARDISO's mtype
-MKL_THREADING_GNU = 1  # mkl_set_threading_layer's MKL_THREADING_GNU
+MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, GNU 3
 
 
 class PardisoError(RuntimeError):
@@ -55,11 +59,13 @@ def _functions():
     global _FUNCTIONS
     if _FUNCTIONS is None:
         lib = _library()
-        # MKL's threads from GNU OpenMP, the runtime of numba's parallel element loops:
-        # one pool of threads, not two runtimes' spinning threads taking each other's
-        # cores (p1 breathing: the tangent products took 60 % longer beside Intel's)
+        # MKL on one thread: numba's parallel element loops own the cores. Beside them,
+        # MKL's OpenMP threads (Intel's runtime, or GNU's shared with numba) spinning
+        # between calls made the p1 tangent products about 60 % slower and a p2 state
+        # 15-20 % slower on this 2-core machine; one thread also makes the factor's sums
+        # the same from run to run
         try:
-            lib.MKL_Set_Threading_Layer(ctypes.c_int(MKL_THREADING_GNU))
+            lib.MKL_Set_Threading_Layer(ctypes.c_int(MKL_THREADING_SEQUENTIAL))
         except AttributeError:
             pass
         i32 = ctypes.POINTER(ctypes.c_int32)
