@@ -25,6 +25,7 @@ from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shap
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
+from fruitcli.fem.materials.corotation_kernels import node_incidence
 from fruitcli.fem.model import Model, pin_rigid_modes, prescribed_dofs
 from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
@@ -226,10 +227,19 @@ class ContinuumModel:
         blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
         jmin = np.empty(len(self.conn))
         energy = evaluate(x, self.conn, self.dn, self.wq, self.material.constants(),
-                          self.family.mean_dilatation, tangent, forces, blocks, jmin)
+                          self.family.mean_dilatation, tangent, forces, blocks, jmin,
+                          *self.node_incidence)
         if energy == -1.0:
             energy = np.nan
         return forces, energy, jmin, (blocks if tangent else None)
+
+    @property
+    def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
+        inc = self.__dict__.get("_node_incidence")
+        if inc is None:
+            inc = self.__dict__["_node_incidence"] = node_incidence(self.conn, self.n_nodes)
+        return inc
 
     def kinematics(self, x: np.ndarray):
         """(state, state, smallest det F per element): the state is x itself, evaluated

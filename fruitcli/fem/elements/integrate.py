@@ -13,9 +13,12 @@ Units: mm, kPa, mN.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from fruitcli.fem.materials.hyperelastic import isochoric, volumetric
+
+BLOCKS = 64
+"""Blocks of elements the parallel loop shares among the threads."""
 
 
 @njit(cache=True, nogil=True)
@@ -40,113 +43,133 @@ def _inverse(f, out):
     return det
 
 
-@njit(cache=True, nogil=True)
-def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blocks, jmin):
-    """Strain energy (mN mm) at node positions x (n, 3); adds the internal forces dPsi/dx
-    (n, 3, mN) into `forces`, writes element tangents (m, 3 nen, 3 nen, mN/mm) into `blocks` when
-    want_tangent, and each element's smallest det F into jmin (m,). Returns -1.0 and
-    leaves the outputs partial when some det F <= 0 (energy undefined)."""
+@njit(cache=True, nogil=True, parallel=True)
+def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blocks, jmin,
+             ptr, rows):
+    """Strain energy (mN mm) at node positions x (n, 3); writes the internal forces
+    dPsi/dx (n, 3, mN) into `forces`, element tangents (m, 3 nen, 3 nen, mN/mm) into
+    `blocks` when want_tangent, and each element's smallest det F into jmin (m,).
+    Returns -1.0 when some det F <= 0 (energy undefined). The elements run over every
+    core in blocks; each node sums its elements' force rows in element order (ptr,
+    rows: `corotation_kernels.node_incidence`) and the energy sums the elements' in
+    element order, so the result does not depend on the number of threads."""
     m, nq, nen = dn.shape[0], dn.shape[1], dn.shape[2]
     c10, c20, c30, kappa = consts[0], consts[1], consts[2], consts[3]
-    energy = 0.0
-    fq = np.empty((nq, 3, 3))
-    finv = np.empty((nq, 3, 3))
-    det = np.empty(nq)
-    p_iso = np.empty((3, 3))
-    a = np.empty((9, 9))
-    fe = np.empty((nen, 3))
-    b = np.empty((nen, 3))
-    ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
-    inverted = False
-    for e in range(m):
-        lo = 1e300
-        ve = 0.0
-        theta = 0.0
-        for q in range(nq):
-            for i in range(3):
-                for jj in range(3):
-                    s = 0.0
-                    for n in range(nen):
-                        s += x[conn[e, n], i] * dn[e, q, n, jj]
-                    fq[q, i, jj] = s
-            det[q] = _inverse(fq[q], finv[q])
-            lo = min(lo, det[q])
-            ve += wq[e, q]
-            theta += wq[e, q] * det[q]
-        jmin[e] = lo
-        if lo <= 0.0:
-            inverted = True
-            continue
-        theta /= ve
-        u_e, u1_e, u2_e = volumetric(theta, kappa)
-        if mean_dilatation:
-            energy += ve * u_e
-        fe[:, :] = 0.0
-        b[:, :] = 0.0
-        if want_tangent:
-            blocks[e, :, :] = 0.0
-        for q in range(nq):
-            w = wq[e, q]
-            jq = det[q]
-            energy += w * isochoric(fq[q], finv[q], jq, c10, c20, c30, want_tangent, p_iso, a)
+    e_rows = np.zeros((m * nen, 3))
+    e_energy = np.zeros(m)
+    nblocks = max(1, min(m, BLOCKS))
+    for blk in prange(nblocks):
+        fq = np.empty((nq, 3, 3))
+        finv = np.empty((nq, 3, 3))
+        det = np.empty(nq)
+        p_iso = np.empty((3, 3))
+        d_iso = np.empty((3, 3))
+        a = np.empty((9, 9))
+        fe = np.empty((nen, 3))
+        b = np.empty((nen, 3))
+        ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
+        for e in range(blk * m // nblocks, (blk + 1) * m // nblocks):
+            lo = 1e300
+            ve = 0.0
+            theta = 0.0
+            for q in range(nq):
+                for i in range(3):
+                    for jj in range(3):
+                        s = 0.0
+                        for n in range(nen):
+                            s += x[conn[e, n], i] * dn[e, q, n, jj]
+                        fq[q, i, jj] = s
+                det[q] = _inverse(fq[q], finv[q])
+                lo = min(lo, det[q])
+                ve += wq[e, q]
+                theta += wq[e, q] * det[q]
+            jmin[e] = lo
+            if lo <= 0.0:
+                continue
+            theta /= ve
+            energy = 0.0
+            u_e, u1_e, u2_e = volumetric(theta, kappa)
             if mean_dilatation:
-                u1, u2 = u1_e, 0.0
-            else:
-                u_q, u1, u2 = volumetric(jq, kappa)
-                energy += w * u_q
-            # P = P_iso + U'(.) J F^-T ; cof = J F^-T
+                energy = ve * u_e
+            fe[:, :] = 0.0
+            b[:, :] = 0.0
+            if want_tangent:
+                blocks[e, :, :] = 0.0
+            for q in range(nq):
+                w = wq[e, q]
+                jq = det[q]
+                energy += w * isochoric(fq[q], finv[q], jq, c10, c20, c30,
+                                       want_tangent, p_iso, a, d_iso)
+                if mean_dilatation:
+                    u1, u2 = u1_e, 0.0
+                else:
+                    u_q, u1, u2 = volumetric(jq, kappa)
+                    energy += w * u_q
+                # P = P_iso + U'(.) J F^-T ; cof = J F^-T
+                for n in range(nen):
+                    for i in range(3):
+                        s = 0.0
+                        g = 0.0
+                        for jj in range(3):
+                            cof = jq * finv[q, jj, i]
+                            s += (p_iso[i, jj] + u1 * cof) * dn[e, q, n, jj]
+                            g += cof * dn[e, q, n, jj]
+                        fe[n, i] += w * s
+                        b[n, i] += w * g
+                if not want_tangent:
+                    continue
+                # A = A_iso + U' d2J/dF2 (+ U'' cof cof per point without mean dilatation)
+                for i in range(3):
+                    for jj in range(3):
+                        r = 3 * i + jj
+                        for k in range(3):
+                            for ll in range(3):
+                                c = 3 * k + ll
+                                a[r, c] += u1 * jq * (finv[q, jj, i] * finv[q, ll, k]
+                                                      - finv[q, ll, i] * finv[q, jj, k])
+                                if not mean_dilatation:
+                                    a[r, c] += u2 * jq * jq * finv[q, jj, i] * finv[q, ll, k]
+                for i in range(3):
+                    for jj in range(3):
+                        for k in range(3):
+                            for n in range(nen):
+                                s = 0.0
+                                for ll in range(3):
+                                    s += a[3 * i + jj, 3 * k + ll] * dn[e, q, n, ll]
+                                ad[i, jj, k, n] = s
+                for na in range(nen):
+                    for i in range(3):
+                        for nb in range(nen):
+                            for k in range(3):
+                                s = 0.0
+                                for jj in range(3):
+                                    s += dn[e, q, na, jj] * ad[i, jj, k, nb]
+                                blocks[e, 3 * na + i, 3 * nb + k] += w * s
+            if mean_dilatation and want_tangent:
+                scale = u2_e / ve
+                for na in range(nen):
+                    for i in range(3):
+                        for nb in range(nen):
+                            for k in range(3):
+                                blocks[e, 3 * na + i, 3 * nb + k] += scale * b[na, i] * b[nb, k]
             for n in range(nen):
                 for i in range(3):
-                    s = 0.0
-                    g = 0.0
-                    for jj in range(3):
-                        cof = jq * finv[q, jj, i]
-                        s += (p_iso[i, jj] + u1 * cof) * dn[e, q, n, jj]
-                        g += cof * dn[e, q, n, jj]
-                    fe[n, i] += w * s
-                    b[n, i] += w * g
-            if not want_tangent:
-                continue
-            # A = A_iso + U' d2J/dF2 (+ U'' cof cof per point without mean dilatation)
-            for i in range(3):
-                for jj in range(3):
-                    r = 3 * i + jj
-                    for k in range(3):
-                        for ll in range(3):
-                            c = 3 * k + ll
-                            a[r, c] += u1 * jq * (finv[q, jj, i] * finv[q, ll, k]
-                                                  - finv[q, ll, i] * finv[q, jj, k])
-                            if not mean_dilatation:
-                                a[r, c] += u2 * jq * jq * finv[q, jj, i] * finv[q, ll, k]
-            for i in range(3):
-                for jj in range(3):
-                    for k in range(3):
-                        for n in range(nen):
-                            s = 0.0
-                            for ll in range(3):
-                                s += a[3 * i + jj, 3 * k + ll] * dn[e, q, n, ll]
-                            ad[i, jj, k, n] = s
-            for na in range(nen):
-                for i in range(3):
-                    for nb in range(nen):
-                        for k in range(3):
-                            s = 0.0
-                            for jj in range(3):
-                                s += dn[e, q, na, jj] * ad[i, jj, k, nb]
-                            blocks[e, 3 * na + i, 3 * nb + k] += w * s
-        if mean_dilatation and want_tangent:
-            scale = u2_e / ve
-            for na in range(nen):
-                for i in range(3):
-                    for nb in range(nen):
-                        for k in range(3):
-                            blocks[e, 3 * na + i, 3 * nb + k] += scale * b[na, i] * b[nb, k]
-        for n in range(nen):
-            for i in range(3):
-                forces[conn[e, n], i] += fe[n, i]
+                    e_rows[e * nen + n, i] = fe[n, i]
+            e_energy[e] = energy
+    total = 0.0
+    inverted = False
+    for e in range(m):
+        total += e_energy[e]
+        inverted = inverted or jmin[e] <= 0.0
+    for nd in prange(ptr.shape[0] - 1):
+        for i in range(3):
+            s = 0.0
+            for k in range(ptr[nd], ptr[nd + 1]):
+                s += e_rows[rows[k], i]
+            forces[nd, i] = s
     if inverted:
         return -1.0
-    return energy
+    return total
 
 
 @njit(cache=True, nogil=True)

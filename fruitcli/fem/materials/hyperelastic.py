@@ -18,9 +18,10 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out):
+def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d):
     """W(I1bar) (kPa) at F (3, 3) with F^-1 `finv` and det F `det`; writes P (3, 3) into
-    p_out and, when want_tangent, dP/dF (9, 9) into a_out."""
+    p_out and, when want_tangent, dP/dF (9, 9) into a_out; d (3, 3): scratch (the
+    element loop runs on several threads, where an allocation per call is slow)."""
     i1 = 0.0
     for i in range(3):
         for j in range(3):
@@ -30,7 +31,7 @@ def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out):
     w = c10 * t + c20 * t * t + c30 * t * t * t
     w1 = c10 + 2.0 * c20 * t + 3.0 * c30 * t * t
     w2 = 2.0 * c20 + 6.0 * c30 * t
-    d = np.empty((3, 3))  # dI1bar/dF
+    # d: dI1bar/dF
     for i in range(3):
         for jj in range(3):
             d[i, jj] = 2.0 * c * (f[i, jj] - i1 / 3.0 * finv[jj, i])

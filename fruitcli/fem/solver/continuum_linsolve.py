@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
+from fruitcli.fem import threads
 from fruitcli.fem.solver import linsolve, pardiso
 from fruitcli.fem.solver.linsolve import _cholesky, pcg, upper_triangle
 from fruitcli.fem.tolerances import (
@@ -76,6 +77,7 @@ class ContinuumSolver:
         self.history = []
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         pardiso.available()  # MKL loaded here, not inside the first state's time
+        threads.one_blas_thread()
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 

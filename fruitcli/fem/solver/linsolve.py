@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
+from fruitcli.fem import threads
 from fruitcli.fem.materials import corotation
 from fruitcli.fem.materials import corotation_kernels as kernels
 from fruitcli.fem.solver import pardiso
@@ -118,6 +119,7 @@ class TangentSolver:
         self.history = []  # converged (load vector, x, p) for the next state's predictor
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         pardiso.available()  # MKL loaded here, not inside the first state's time
+        threads.one_blas_thread()
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0, "update_s": 0.0, "product_s": 0.0,
                       "precond_s": 0.0}
