@@ -328,12 +328,17 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     load0 = os.getloadavg()[0]
     log = []
     model, solver, rows = time_states(scene, mesh_npz, "pcg", n_states, stats_log=log)
+    threads_chosen = numba.get_num_threads()  # by the solver, from the load average
     runs = [rows] + [time_states(scene, mesh_npz, "pcg", n_states)[2]
                      for _ in range(P1_RUNS - 1)]
+    from fruitcli.fem import threads as fem_threads
+
+    fem_threads.AUTO = False  # the runs below on a fixed number of threads
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     serial = [time_states(scene, mesh_npz, "pcg", n_states)[2] for _ in range(P1_RUNS)]
     numba.set_num_threads(threads)
+    fem_threads.AUTO = True
     load1 = os.getloadavg()[0]
     later = rows[1:]
     wall = np.median([r[0] for r in later])
@@ -343,7 +348,7 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     later_s = sum(r[0] for r in later) / 1e3
     print(f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
           f"tets, nu = {model.poisson_ratio:g}, tolerance {scene['solver']['tolerance']:g}, "
-          f"numba threads {numba.get_num_threads()} (element loops parallel), load average "
+          f"element loops on {threads_chosen} threads (chosen from the load), load average "
           f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):")
     print(f"  per state from the previous one: wall {wall:.1f} ms median "
           f"(range {min(r[0] for r in later):.1f}-{max(r[0] for r in later):.1f}), CPU "

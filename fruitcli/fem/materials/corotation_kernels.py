@@ -45,6 +45,14 @@ def _block(c, nblocks, m):
     return c * m // nblocks, (c + 1) * m // nblocks
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rt_f(r, f, out):
+    """out = R^T F for 3 x 3 R and F."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+
+
 @njit(cache=True, nogil=True)
 def _n_blocks(m):
     return max(1, min(m, BLOCKS))
@@ -87,9 +95,7 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
             r[:, :] = guess[e]
             done = False
             for _ in range(iterations):
-                for i in range(3):
-                    for j in range(3):
-                        a[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+                _rt_f(r, fe, a)
                 tr = a[0, 0] + a[1, 1] + a[2, 2]
                 q00, q11, q22 = tr - a[0, 0], tr - a[1, 1], tr - a[2, 2]
                 q01 = -0.5 * (a[0, 1] + a[1, 0])
@@ -145,10 +151,8 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
         p = np.empty((3, 3))
         lo, hi = _block(blk, nblocks, m)
         for e in range(lo, hi):
-            r, fe = rot[e], f[e]
-            for i in range(3):
-                for j in range(3):
-                    h[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+            r = rot[e]
+            _rt_f(r, f[e], h)
             for i in range(3):
                 h[i, i] -= 1.0
             tr = lam * (h[0, 0] + h[1, 1] + h[2, 2])
@@ -295,10 +299,8 @@ def skew_stiffness_closed_form(f, rot, lam, mu, project):
         te = np.empty((3, 3))
         lo, hi = _block(blk, nblocks, m)
         for e in range(lo, hi):
-            r, fe = rot[e], f[e]
-            for i in range(3):
-                for j in range(3):
-                    s[i, j] = r[0, i] * fe[0, j] + r[1, i] * fe[1, j] + r[2, i] * fe[2, j]
+            r = rot[e]
+            _rt_f(r, f[e], s)
             for i in range(3):
                 for j in range(i + 1, 3):
                     v = 0.5 * (s[i, j] + s[j, i])

@@ -78,6 +78,7 @@ class ContinuumSolver:
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
+        threads.choose_element_threads()
         self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
                       "factor_s": 0.0}
 
