@@ -43,11 +43,15 @@ def default_jobs() -> int:
 
 def _share_cores(jobs: int) -> None:
     """A worker's share of the cores for numba's parallel element loops (jobs workers
-    each running as many threads as there are cores would spin against each other)."""
+    each running as many threads as there are cores would spin against each other;
+    `fruitcli.fem.threads`)."""
     import numba
+
+    from fruitcli.fem import threads
 
     numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS,
                                      (os.cpu_count() or 1) // jobs)))
+    threads.AUTO = False  # the share holds; the solvers do not pick from the load
 
 
 class Serial:
