@@ -71,3 +71,19 @@ def test_singular_matrix_is_a_pardiso_error():
     k[:, 5] = 0.0
     with pytest.raises(pardiso.PardisoError):
         pardiso.factorize_upper(upper_triangle(k.tocsr()))
+
+
+def test_a_failed_refactorization_spends_the_previous_factor():
+    """A matrix of the same pattern that cannot be factorized (a row and column of
+    explicit zeros) raises PardisoError naming the singular matrix, and the previous
+    factor is freed, not left holding a half-written factorization."""
+    k = laplacian(4)
+    fac = pardiso.factorize_upper(upper_triangle(k))
+    bad = upper_triangle(k)
+    rows = np.repeat(np.arange(bad.shape[0]), np.diff(bad.indptr))
+    bad.data[(rows == 5) | (bad.indices == 5)] = 0.0
+    assert bad.nnz == upper_triangle(k).nnz  # the same pattern: a refactorization
+    with pytest.raises(pardiso.PardisoError) as err:
+        pardiso.factorize_upper(bad, fac)
+    assert err.value.singular and "singular" in str(err.value)
+    assert not fac._alive

@@ -247,3 +247,20 @@ def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(m
         iterations[near > 0] = its
         assert any(chords) == (near > 0)
     assert all(a <= b for a, b in zip(iterations[True], iterations[False], strict=True))
+
+
+def test_first_state_at_rest_keeps_no_sensitivity_and_the_next_solves():
+    """A first state that needs no Newton step (zero pressure from the rest positions,
+    as a scene starting at rest twice) leaves no dx/dp (the solver has no tangent yet)
+    and no error; the next state converges."""
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
+                                                  [4, 4, 4], [8, 8, 8])
+    m = Model.from_arrays(nodes, tets, 100.0, 0.45, chambers={"c": cav},
+                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    solver = TangentSolver(m)
+    rest = solve_state(m, Load.pressures([0.0]), x_start=m.rest.copy(), solver=solver)
+    assert rest.iterations == 0 and solver.sensitivity is None
+    res = solve_state(m, Load.pressures([3.0]), x_start=rest.x,
+                      load_start=Load.pressures([0.0]), pressure_start=rest.pressure_kpa,
+                      solver=solver)
+    assert res.residual <= 1e-6

@@ -76,15 +76,18 @@ def test_hyperelastic_loop_gives_the_same_bits_on_one_thread_and_two(fixed_threa
 
 def test_threads_chosen_from_what_else_runs(monkeypatch):
     """One thread when other processes keep more than BUSY_CORES busy, every core when
-    the machine is free, and the caller's choice when AUTO is off; the measurement
-    itself is a number of cores between 0 and the machine's."""
+    the machine is free (a choice holds for KEEP_S), and the caller's choice when AUTO
+    is off; the measurement itself is a number of cores between 0 and the machine's."""
     before = numba.get_num_threads()
     try:
         busy = threads.others_busy_cores(0.05)
         assert busy is None or 0.0 <= busy <= (numba.config.NUMBA_NUM_THREADS + 1)
         monkeypatch.setattr(threads, "others_busy_cores", lambda window_s=0.1: 1.0)
+        monkeypatch.setattr(threads, "_CHOICE", (-1e9, 0))
         assert threads.choose_element_threads() == 1 == numba.get_num_threads()
         monkeypatch.setattr(threads, "others_busy_cores", lambda window_s=0.1: 0.0)
+        assert threads.choose_element_threads() == 1  # the choice holds for KEEP_S
+        monkeypatch.setattr(threads, "_CHOICE", (-1e9, 0))
         assert threads.choose_element_threads() == numba.config.NUMBA_NUM_THREADS
         numba.set_num_threads(1)
         monkeypatch.setattr(threads, "AUTO", False)

@@ -14,8 +14,11 @@ _DONE = False
 
 
 def one_blas_thread() -> None:
-    """Limit the BLAS libraries loaded in this process to one thread (once; threadpoolctl,
-    so it holds whether numpy was imported before fruit or not)."""
+    """Limit the BLAS libraries loaded in this process to one thread, from the first
+    solver on and for the rest of the process (threadpoolctl, so it holds whether numpy
+    was imported before fruit or not). fruit's other numpy work is small vectors and
+    matrices (the reduced model's fit and products, the sensing's arrays), which BLAS
+    threads do not speed up."""
     global _DONE
     if _DONE:
         return
@@ -35,8 +38,14 @@ BUSY_CORES = 0.5
 """Other processes using more than this many cores (over SAMPLE_S) make the element
 loops run on one thread."""
 
-SAMPLE_S = 0.1
+SAMPLE_S = 0.05
 """How long `others_busy_cores` watches the machine (s)."""
+
+KEEP_S = 30.0
+"""How long a choice of threads holds before the machine is watched again (s): a study
+or a sweep makes many solvers, and each watch sleeps SAMPLE_S."""
+
+_CHOICE = (-1e9, 0)  # (time.monotonic() of the last watch, threads chosen)
 
 
 def others_busy_cores(window_s: float = SAMPLE_S) -> float | None:
@@ -64,17 +73,22 @@ def others_busy_cores(window_s: float = SAMPLE_S) -> float | None:
 
 def choose_element_threads() -> int:
     """Set numba's threads for the element loops on this thread: every core when no
-    other process keeps one busy, else one; return the number. numba's workers
+    other process keeps one busy, else one (watched at most every KEEP_S); return the
+    number. numba's workers
     busy-wait between loops; with another process on a core they wait for it instead:
     a p1 breathing state took 37-56 ms on two threads against 16-22 ms on one beside a
     test run (on the idle machine two threads were 18-28 % faster). The threads never
     change the results (the loops sum in element order)."""
+    import time
+
     import numba
 
+    global _CHOICE
     if not AUTO:
         return numba.get_num_threads()
-    others = others_busy_cores()
-    chosen = 1 if others is not None and others > BUSY_CORES else \
-        numba.config.NUMBA_NUM_THREADS
-    numba.set_num_threads(chosen)
-    return chosen
+    if time.monotonic() - _CHOICE[0] > KEEP_S:
+        others = others_busy_cores()
+        busy = others is not None and others > BUSY_CORES
+        _CHOICE = (time.monotonic(), 1 if busy else numba.config.NUMBA_NUM_THREADS)
+    numba.set_num_threads(_CHOICE[1])
+    return _CHOICE[1]

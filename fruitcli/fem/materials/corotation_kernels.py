@@ -30,8 +30,9 @@ its 3x3 scratch once; more blocks than threads balance uneven elements)."""
 
 
 def node_incidence(tets: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """(ptr (n + 1,), rows (4 m,)): node a's element rows e * 4 + b (tets[e, b] == a) are
-    rows[ptr[a]:ptr[a + 1]], in increasing e (the serial scatter's order)."""
+    """(ptr (n + 1,), rows (nen m,)) for elements tets (m, nen): node a's element rows
+    e * nen + b (tets[e, b] == a) are rows[ptr[a]:ptr[a + 1]], in increasing e (the
+    serial scatter's order)."""
     flat = np.ascontiguousarray(tets, dtype=np.int64).ravel()
     rows = np.argsort(flat, kind="stable").astype(np.int64)
     ptr = np.zeros(n_nodes + 1, np.int64)

@@ -99,12 +99,23 @@ class ContinuumSolver:
 
     def _factorize(self) -> None:
         t0 = time.perf_counter()
-        self.factor = factorize(self.k, self.factor)
+        try:
+            self.factor = factorize(self.k, self.factor)
+        except SolverError:
+            self.factor = None  # spent: the next update factorizes afresh
+            raise
         self.stats["factor_s"] += time.perf_counter() - t0
         self.stats["factorizations"] += 1
         self.refresh, self.fresh = False, True
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
+        try:
+            return self._solve(rhs)
+        except pardiso.PardisoError as exc:
+            raise SolverError(f"linear solve failed ({exc})") from None
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.method != "pcg":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)

@@ -48,9 +48,10 @@ leaves the residual well below the tolerance."""
 
 
 USE_PARDISO = True
-"""The kept factor is MKL PARDISO's when pypardiso is installed (`pardiso.py`: its solve
-0.29 ms against cholespy's 0.45 ms on the default Fruit, its numerical refactorization
-7 ms against 67 ms); False (the tests' switch) takes cholespy, then SuperLU."""
+"""The kept factor is MKL PARDISO's when MKL's library loads (`pardiso.py`; pypardiso
+brings it: a solve 0.44 ms against cholespy's 0.47 ms on the default Fruit, a numerical
+refactorization 13 ms against cholespy's 74 ms factorization); False (the tests'
+switch) takes cholespy, then SuperLU."""
 
 
 def upper_triangle(k):
@@ -188,6 +189,9 @@ class TangentSolver:
                 self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                         options={"SymmetricMode": True})
         except RuntimeError as exc:  # SuperLU's, and PardisoError
+            self.factor = None  # spent: the next update factorizes afresh
+            if isinstance(exc, pardiso.PardisoError) and not exc.singular:
+                raise SolverError(f"the tangent could not be factorized ({exc})") from None
             raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
                               "[[fixed]], [[jig]] or its rigid modes pinned?") from None
         if not np.isfinite(self.factor.solve(np.ones(k.shape[0]))).all():
@@ -215,6 +219,12 @@ class TangentSolver:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
+        try:
+            return self._solve(rhs)
+        except pardiso.PardisoError as exc:
+            raise SolverError(f"linear solve failed ({exc})") from None
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.method == "direct":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)

@@ -282,7 +282,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     first = not solver.history
     solver.history = _remember(solver.history, _load_vector(load), x, p)
     if first:
-        _remember_sensitivity(model, solver, x, load)
+        _remember_sensitivity(model, solver, x, load, iterations)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
@@ -358,13 +358,20 @@ SENSITIVITY_RTOL = 1e-2
 only start Newton, which the tangent's own staleness already limits to first order."""
 
 
-def _remember_sensitivity(model, solver, x: np.ndarray, load: Load) -> None:
+def _remember_sensitivity(model, solver, x: np.ndarray, load: Load,
+                          iterations: int) -> None:
     """Keep on the solver dx/dp (n, 3, K) at the first converged state x: the nodes'
     response to each pressure-controlled chamber's pressure, K^-1 H_k^T with the solver's
-    current tangent (the precomputed K^-1 H^T columns). `_sensitivity_guess` starts the
-    next states with it while the history is too short to span the load changes (a new
-    animation's first states took 2-3 Newton steps instead of 1). Nothing is kept
-    without pressure-controlled chambers."""
+    current tangent (one CG solve per chamber, counted in this state's time and the
+    solver's stats). `_sensitivity_guess` starts the next states with it while the
+    history is too short to span the load changes (a new animation's first states took
+    2-3 Newton steps instead of 1). Nothing is kept without pressure-controlled
+    chambers, or when the state needed no Newton step (the solver has no tangent yet).
+    A volume-controlled chamber is held at its pressure here, not at its volume: a
+    rougher start, which Newton corrects (or retries from the plain start)."""
+    solver.sensitivity = None
+    if iterations == 0:
+        return
     k = len(model.chamber_tris)
     pressure = ~np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
     if not pressure.any():

@@ -32,11 +32,29 @@ MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, 
 
 
 class PardisoError(RuntimeError):
-    """PARDISO returned an error code (-4: zero pivot, e.g. not positive definite) or
-    perturbed a pivot (a singular matrix)."""
+    """PARDISO returned an error code (`code`, see ERRORS) or perturbed a pivot (a
+    singular matrix: `singular` is True for that and for zero pivots)."""
+
+    def __init__(self, message: str, code: int = 0):
+        super().__init__(message)
+        self.code = code
+
+    @property
+    def singular(self) -> bool:
+        return self.code in (0, -4, -7)
+
+
+ERRORS = {-1: "inconsistent input", -2: "not enough memory", -3: "reordering problem",
+          -4: "zero pivot (the matrix is not positive definite or is singular)",
+          -5: "unclassified internal error", -6: "reordering failed",
+          -7: "the diagonal matrix is singular", -8: "32-bit integer overflow",
+          -9: "not enough memory for out-of-core", -10: "out-of-core files",
+          -11: "out-of-core read/write", -12: "wrong library (pardiso_64)"}
+"""PARDISO's error codes (MKL's documentation of `pardiso`)."""
 
 
 _FUNCTIONS = None
+_MISSING = False  # the library could not be loaded (asked once)
 
 
 def _library():
@@ -82,10 +100,14 @@ def _functions():
 
 
 def available() -> bool:
-    """True when pypardiso and MKL's library can be loaded."""
+    """True when MKL's library can be loaded (the answer is kept)."""
+    global _MISSING
+    if _MISSING:
+        return False
     try:
         _functions()
     except (ImportError, OSError, AttributeError):
+        _MISSING = True
         return False
     return True
 
@@ -109,7 +131,11 @@ class Pardiso:
         self.iparm[7] = 0  # no iterative refinement: the solves precondition CG
         self.iparm[34] = 1  # zero-based indices
         self._alive = True
-        self._factor(12)
+        try:
+            self._factor(12)
+        except PardisoError:
+            self.free()  # a failed factor's memory now, not when collected
+            raise
 
     def same_pattern(self, upper) -> bool:
         """True when `upper` has this factor's sparsity pattern (then `refactor` applies)."""
@@ -128,7 +154,7 @@ class Pardiso:
         self._call(phase, self.data, np.zeros(self.n), np.zeros(self.n))
         if self.iparm[13] > 0:
             raise PardisoError(f"PARDISO: the matrix is singular ({self.iparm[13]} "
-                               "perturbed pivots)")
+                               "perturbed pivots)", 0)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x with A x = b for b (n,) or (n, k)."""
@@ -165,22 +191,28 @@ class Pardiso:
                       ctypes.byref(ctypes.c_int32(0)), b.ctypes.data, x.ctypes.data,
                       ctypes.byref(err))
         if err.value != 0:
-            raise PardisoError(f"PARDISO phase {phase} failed with error {err.value}")
+            meaning = ERRORS.get(err.value, "unknown error")
+            raise PardisoError(f"PARDISO phase {phase}: {meaning} (error {err.value})",
+                               err.value)
 
 
 def factorize_upper(upper, previous: Pardiso | None = None) -> Pardiso:
     """A Pardiso factor of the symmetric matrix with upper triangle `upper`: the
     numerical refactorization of `previous` (as its type) when it has the same pattern;
-    otherwise a new one, positive definite first, then indefinite. Raises PardisoError."""
+    otherwise a new one, positive definite first, then indefinite. `previous` is spent
+    either way (freed unless returned). Raises PardisoError."""
     if previous is not None and previous.same_pattern(upper):
         try:
             previous.refactor(upper)
             return previous
         except PardisoError:
             pass
+    if previous is not None:
+        previous.free()  # before the new analysis: two p2 factors would double the peak
+    message, code = "", 0
     for mtype in (SPD, SYMMETRIC_INDEFINITE):
         try:
             return Pardiso(upper, mtype)
-        except PardisoError as exc:
-            last = exc
-    raise last
+        except PardisoError as exc:  # its message only: the exception would keep the
+            message, code = str(exc), exc.code  # failed factor alive through its frame
+    raise PardisoError(message, code)
