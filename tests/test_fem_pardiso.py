@@ -65,7 +65,7 @@ def test_indefinite_matrix_falls_back_to_the_symmetric_indefinite_type():
 
 def test_singular_matrix_is_a_pardiso_error():
     """A matrix with a zero row and column cannot be factorized: PardisoError (a
-    RuntimeError, which the solvers turn into their one-line SolverError)."""
+    SolverError, so the user sees its one line)."""
     k = laplacian(4).tolil()
     k[5, :] = 0.0
     k[:, 5] = 0.0

@@ -110,12 +110,6 @@ class ContinuumSolver:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        try:
-            return self._solve(rhs)
-        except pardiso.PardisoError as exc:
-            raise SolverError(f"linear solve failed ({exc})") from None
-
-    def _solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.method != "pcg":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)

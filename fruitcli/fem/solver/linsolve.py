@@ -188,7 +188,7 @@ class TangentSolver:
             else:  # positive definite: symmetric mode, diagonal pivots (about 5x faster)
                 self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                         options={"SymmetricMode": True})
-        except RuntimeError as exc:  # SuperLU's, and PardisoError
+        except (RuntimeError, pardiso.PardisoError) as exc:  # SuperLU's, PARDISO's
             self.factor = None  # spent: the next update factorizes afresh
             if isinstance(exc, pardiso.PardisoError) and not exc.singular:
                 raise SolverError(f"the tangent could not be factorized ({exc})") from None
@@ -219,12 +219,6 @@ class TangentSolver:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        try:
-            return self._solve(rhs)
-        except pardiso.PardisoError as exc:
-            raise SolverError(f"linear solve failed ({exc})") from None
-
-    def _solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.method == "direct":
             return self.factor.solve(rhs)
         cols = rhs.reshape(len(rhs), -1)

@@ -27,13 +27,16 @@ import sys
 
 import numpy as np
 
+from fruitcli.errors import SolverError
+
 SPD, SYMMETRIC_INDEFINITE = 2, -2  # PARDISO's mtype
 MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, GNU 3
 
 
-class PardisoError(RuntimeError):
+class PardisoError(SolverError):
     """PARDISO returned an error code (`code`, see ERRORS) or perturbed a pivot (a
-    singular matrix: `singular` is True for that and for zero pivots)."""
+    singular matrix: `singular` is True for that and for zero pivots). A SolverError:
+    what reaches the user is its one line."""
 
     def __init__(self, message: str, code: int = 0):
         super().__init__(message)
