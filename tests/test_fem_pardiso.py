@@ -87,3 +87,25 @@ def test_a_failed_refactorization_spends_the_previous_factor():
         pardiso.factorize_upper(bad, fac)
     assert err.value.singular and "singular" in str(err.value)
     assert not fac._alive
+
+
+def test_single_precision_factor_solves_to_single_precision_and_refactors_in_kind():
+    """A single-precision factor (iparm[27] = 1) solves the Laplacian to within 1e-5
+    relative (float32's 6e-8 times the factor's condition), returns float64, keeps its
+    analysis for a matrix of the same pattern in the same precision and is replaced by
+    a new factor when double precision is asked."""
+    k = laplacian(8)
+    fac = pardiso.factorize_upper(upper_triangle(k), single=True)
+    assert fac.single and fac.iparm[27] == 1 and fac.data.dtype == np.float32
+    b = np.random.default_rng(3).standard_normal(k.shape[0])
+    x = fac.solve(b)
+    assert x.dtype == np.float64
+    residual = np.linalg.norm(k @ x - b) / np.linalg.norm(b)
+    assert 1e-12 < residual < 1e-5  # not exact: the arithmetic is single precision
+    k2 = (3.0 * k).tocsr()
+    again = pardiso.factorize_upper(upper_triangle(k2), fac, single=True)
+    assert again is fac
+    assert np.linalg.norm(k2 @ again.solve(b) - b) < 1e-5 * np.linalg.norm(b)
+    double = pardiso.factorize_upper(upper_triangle(k2), again)
+    assert double is not again and not double.single and not again._alive
+    assert np.linalg.norm(k2 @ double.solve(b) - b) < 1e-10 * np.linalg.norm(b)

@@ -13,6 +13,7 @@ Units: mm, kPa, mN (see `fruitcli.fem.units`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -233,13 +234,10 @@ class ContinuumModel:
             energy = np.nan
         return forces, energy, jmin, (blocks if tangent else None)
 
-    @property
+    @functools.cached_property
     def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
         """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
-        inc = self.__dict__.get("_node_incidence")
-        if inc is None:
-            inc = self.__dict__["_node_incidence"] = node_incidence(self.conn, self.n_nodes)
-        return inc
+        return node_incidence(self.conn, self.n_nodes)
 
     def kinematics(self, x: np.ndarray):
         """(state, state, smallest det F per element): the state is x itself, evaluated

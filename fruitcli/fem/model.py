@@ -16,6 +16,7 @@ Units: mm, kPa, mN (see `fruitcli.fem.units`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -281,14 +282,10 @@ class Model:
             self.free_dof_map, np.ascontiguousarray(v_free, dtype=float),
             len(self.pattern.free), *self.node_incidence)
 
-    @property
+    @functools.cached_property
     def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
         """(ptr, rows) of `kernels.node_incidence`: each node's element rows, in order."""
-        inc = self.__dict__.get("_node_incidence")
-        if inc is None:
-            inc = self.__dict__["_node_incidence"] = kernels.node_incidence(self.tets,
-                                                                             self.n_nodes)
-        return inc
+        return kernels.node_incidence(self.tets, self.n_nodes)
 
     @property
     def free_dof_map(self) -> np.ndarray:

@@ -1,9 +1,9 @@
 """Linear solves with the hyperelastic model's tangent (`ContinuumModel.tangent`): the
 tangent is assembled at every Newton step (its element blocks come from the compiled
 element loop); `pcg` (default) solves it by CG preconditioned with a sparse factor
-(MKL PARDISO, `pardiso.py`, refactorized numerically on its kept analysis; cholespy or
-SuperLU without it) kept across Newton steps and states and refreshed when CG slows
-down, `direct` factorizes it at every step.
+(MKL PARDISO in single precision, `pardiso.py`, refactorized numerically on its kept
+analysis; cholespy or SuperLU without it) kept across Newton steps and states and
+refreshed when CG slows down, `direct` factorizes it (double precision) at every step.
 Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
@@ -24,25 +24,45 @@ from fruitcli.fem.tolerances import (
 )
 from fruitcli.scene import LINEAR_SOLVERS
 
+SINGLE_PRECISION = True
+"""CG's kept PARDISO factor (`pcg`) is single precision: on the quadratic default Fruit
+a solve takes 13 ms instead of 20 and a refactorization 0.32 s instead of 0.55 s
+(`python tests/bench/bench_fem.py --factor`), and the solve's error (relative
+residual 5e-4 on a random vector, 2e-2 on the smooth probe below, at rest) costs CG
+one or two iterations after a refresh. A factor whose probe solve misses by more than
+SINGLE_PROBE falls back to double precision. False (the tests' switch) keeps double
+precision."""
 
-def factorize(k, previous=None):
-    """A factor of the sparse symmetric k with `.solve`: MKL PARDISO when installed
-    (`pardiso.py`; the numerical refactorization of `previous`, a factor this returned
-    before, when the pattern is the same), otherwise Cholesky when k is positive
-    definite (checked on a solve), otherwise LU."""
+SINGLE_PROBE = 0.1
+"""Largest relative residual of a single-precision factor's solve of the probe (a
+vector of ones: the smoothest load, where the factor's relative error is largest) for
+it to precondition CG; a double-precision factor must reach 1e-6."""
+
+
+def factorize(k, previous=None, single: bool = False):
+    """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
+    solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
+    precision with `single` when it passes its probe, else double; the numerical
+    refactorization of `previous`, a factor this returned before, when the pattern and
+    precision are the same), otherwise Cholesky when k is positive definite (checked on
+    a solve), otherwise LU."""
     k = k.tocsc()
     if linsolve.USE_PARDISO and pardiso.available():
-        try:
-            fac = pardiso.factorize_upper(upper_triangle(k.tocsr()),
-                                          previous if isinstance(previous, pardiso.Pardiso)
-                                          else None)
+        previous = previous if isinstance(previous, pardiso.Pardiso) else None
+        for precision in ((True, False) if single else (False,)):
+            try:
+                fac = pardiso.factorize_upper(upper_triangle(k.tocsr()), previous, precision)
+            except pardiso.PardisoError:  # the next precision, then Cholesky / LU
+                previous = None
+                continue
+            previous = None  # spent by factorize_upper
             probe = np.ones(k.shape[0])
             sol = fac.solve(probe)
+            bound = SINGLE_PROBE if precision else 1e-6
             if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
-                    <= 1e-6 * np.linalg.norm(probe):
+                    <= bound * np.linalg.norm(probe):
                 return fac
-        except pardiso.PardisoError:  # fall back to Cholesky / LU
-            pass
+            fac.free()
     if _cholesky is not None:
         try:
             fac = _cholesky(k)
@@ -54,10 +74,20 @@ def factorize(k, previous=None):
         except (RuntimeError, ValueError):
             pass
     try:
-        return spla.splu(k, permc_spec="MMD_AT_PLUS_A")
+        lu = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
     except RuntimeError as exc:
         raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
                           "[[fixed]], [[jig]] or its rigid modes pinned?") from None
+    return _Exact(lu)
+
+
+class _Exact:
+    """SuperLU's factor with the `single` flag of the others (False: an exact solve)."""
+
+    single = False
+
+    def __init__(self, lu):
+        self.solve = lu.solve
 
 
 class ContinuumSolver:
@@ -70,6 +100,7 @@ class ContinuumSolver:
         self.model, self.method = model, method
         self.k = None
         self.factor = None
+        self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
         self.refresh = False
         self.fresh = False
         self.rtol = PCG_RELATIVE_TOLERANCE
@@ -100,7 +131,10 @@ class ContinuumSolver:
     def _factorize(self) -> None:
         t0 = time.perf_counter()
         try:
-            self.factor = factorize(self.k, self.factor)
+            self.factor = factorize(self.k, self.factor, self.single)
+            # a tangent too ill-conditioned for single precision stays so: later
+            # refreshes go to double precision at once
+            self.single = self.single and self.factor.single
         except SolverError:
             self.factor = None  # spent: the next update factorizes afresh
             raise
@@ -117,7 +151,7 @@ class ContinuumSolver:
         return out.reshape(rhs.shape)
 
     def _solve_one(self, b: np.ndarray) -> np.ndarray:
-        if self.fresh:
+        if self.fresh and not self.factor.single:
             return self.factor.solve(b)
         x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
                          2 * PCG_REFRESH_ITERATIONS)

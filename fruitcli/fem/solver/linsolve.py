@@ -73,6 +73,8 @@ def _cholesky(k):
                           c.data, MatrixType.COO)
 
     class _Factor:
+        single = False  # exact solves (see continuum_linsolve.factorize)
+
         @staticmethod
         def solve(b):
             b = np.ascontiguousarray(b, dtype=float)

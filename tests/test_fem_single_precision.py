@@ -1,0 +1,105 @@
+"""The hyperelastic solver's single-precision preconditioner
+(`continuum_linsolve.SINGLE_PRECISION`): CG still solves to the asked tolerance,
+an ill-conditioned tangent falls back to double precision for good, and a state's
+nodes agree with the double-precision factor's to the solver's tolerance."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from fruitcli.fem.solver import continuum_linsolve, pardiso
+
+pytestmark = pytest.mark.skipif(not pardiso.available(), reason="MKL PARDISO not installed")
+
+
+def chain(n: int):
+    """A 1D chain of unit springs fixed at one end (condition number about n^2)."""
+    k = np.ones(n)
+    main = k + np.append(k[1:], 0.0)
+    return sp.diags([-k[1:], main, -k[1:]], [-1, 0, 1]).tocsr()
+
+
+class _Model:
+    """The solver only asks its model for the tangent."""
+
+    def __init__(self, k):
+        self.k = k
+
+    def tangent(self, x, project=False):
+        return self.k
+
+
+def test_fresh_single_factor_still_solves_to_the_asked_tolerance():
+    """A fresh single-precision factor is not taken as exact: CG on the tangent reaches
+    the asked relative residual (1e-10), beyond what the factor's solve alone gives."""
+    k = chain(400) + 1e-3 * sp.identity(400)
+    solver = continuum_linsolve.ContinuumSolver(_Model(k.tocsr()))
+    solver.update(np.zeros((1, 3)))
+    assert solver.factor.single and solver.fresh
+    b = np.cos(np.arange(400.0))
+    only_factor = np.linalg.norm(k @ solver.factor.solve(b) - b) / np.linalg.norm(b)
+    solver.rtol = 1e-10
+    x = solver.solve(b)
+    assert only_factor > 1e-8
+    assert np.linalg.norm(k @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def pairs(m: int, soft: float):
+    """m uncoupled pairs [[1, soft - 1], [soft - 1, 1]]: the vector of ones is the soft
+    eigenvector (eigenvalue `soft`), so the factor's probe meets the worst conditioning."""
+    block = np.array([[1.0, soft - 1.0], [soft - 1.0, 1.0]])
+    return sp.kron(sp.identity(m), block).tocsr()
+
+
+@pytest.mark.parametrize("soft", [1e-7, 1e-9])
+def test_ill_conditioned_tangent_falls_back_to_double_precision_for_good(soft):
+    """A tangent single precision cannot factorize well gets a double-precision factor,
+    and later refreshes ask for double precision at once: with soft = 1e-7, 1 - soft is
+    rounded by 19 % of soft in float32, so the probe's residual misses SINGLE_PROBE; with
+    1e-9 it rounds to 1 and the single-precision matrix is singular (PardisoError)."""
+    k = pairs(100, soft)
+    solver = continuum_linsolve.ContinuumSolver(_Model(k))
+    solver.update(np.zeros((1, 3)))
+    assert not solver.factor.single and not solver.single
+    b = np.ones(200)
+    assert np.linalg.norm(k @ solver.solve(b) - b) <= 1e-6 * np.linalg.norm(b)
+    solver.refresh = True
+    solver.update(np.zeros((1, 3)))
+    assert not solver.factor.single
+
+
+def hollow_cube_states(monkeypatch, single: bool):
+    """A quadratic neo-Hookean hollow cube (nu = 0.49) under 6 kPa, then 9 kPa from there,
+    with the kept factor in single or double precision; (nodes of both states, whether
+    the last factor was single precision)."""
+    from fruitcli.fem.continuum import ContinuumModel
+    from fruitcli.fem.elements.quadratic import quadratic_mesh
+    from fruitcli.fem.materials.build import material
+    from fruitcli.fem.meshing.grid import structured_box_with_cavity
+    from fruitcli.fem.model import Load
+    from fruitcli.fem.solver.newton import SolverOptions, solve_state
+
+    monkeypatch.setattr(continuum_linsolve, "SINGLE_PRECISION", single)
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 3),
+                                                  [3, 3, 3], [9, 9, 9])
+    nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
+    m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49), "p2",
+                                   chambers={"c": walls[0]},
+                                   fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    solver = m.make_solver("pcg")
+    options = SolverOptions(tolerance=1e-8)
+    a = solve_state(m, Load.pressures([6.0]), solver=solver, options=options)
+    b = solve_state(m, Load.pressures([9.0]), x_start=a.x, load_start=Load.pressures([6.0]),
+                    pressure_start=a.pressure_kpa, solver=solver, options=options)
+    return (a.x, b.x), solver.factor.single
+
+
+def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypatch):
+    """The preconditioner's precision changes CG's path, not the equilibrium: two
+    inflation states of a hollow cube agree to 1e-6 mm (tolerance 1e-8 on a 12 mm cube)."""
+    single, was_single = hollow_cube_states(monkeypatch, True)
+    double, was_double = hollow_cube_states(monkeypatch, False)
+    assert was_single and not was_double
+    for xs, xd in zip(single, double, strict=True):
+        assert np.abs(xs - xd).max() < 1e-6
+    assert np.abs(single[1] - single[0]).max() > 0.1  # the states did move
