@@ -1,7 +1,7 @@
-"""The hyperelastic solver's single-precision preconditioner
-(`continuum_linsolve.SINGLE_PRECISION`): CG still solves to the asked tolerance,
-an ill-conditioned tangent falls back to double precision for good, and a state's
-nodes agree with the double-precision factor's to the solver's tolerance."""
+"""The single-precision preconditioner (`pardiso.factorize_probed`, used by both
+solvers): CG still solves to the asked tolerance, an ill-conditioned tangent falls back
+to double precision for good, and a state's nodes agree with the double-precision
+factor's to the solver's tolerance."""
 
 import numpy as np
 import pytest
@@ -68,24 +68,30 @@ def test_ill_conditioned_tangent_falls_back_to_double_precision_for_good(soft):
     assert not solver.factor.single
 
 
-def hollow_cube_states(monkeypatch, single: bool):
-    """A quadratic neo-Hookean hollow cube (nu = 0.49) under 6 kPa, then 9 kPa from there,
-    with the kept factor in single or double precision; (nodes of both states, whether
-    the last factor was single precision)."""
+def hollow_cube_states(monkeypatch, element: str, single: bool):
+    """A hollow cube (linear corotational, or quadratic neo-Hookean; nu = 0.49) under
+    6 kPa, then 9 kPa from there, with the kept factor in single or double precision;
+    (nodes of both states, whether the last factor was single precision)."""
     from fruitcli.fem.continuum import ContinuumModel
     from fruitcli.fem.elements.quadratic import quadratic_mesh
     from fruitcli.fem.materials.build import material
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
-    from fruitcli.fem.model import Load
+    from fruitcli.fem.model import Load, Model
+    from fruitcli.fem.solver import linsolve
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
     monkeypatch.setattr(continuum_linsolve, "SINGLE_PRECISION", single)
+    monkeypatch.setattr(linsolve, "SINGLE_PRECISION", single)
     nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 3),
                                                   [3, 3, 3], [9, 9, 9])
-    nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
-    m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49), "p2",
-                                   chambers={"c": walls[0]},
-                                   fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    fixed = np.flatnonzero(nodes[:, 2] == 0.0)
+    if element == "p1":
+        m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
+                              fixed_nodes=fixed)
+    else:
+        nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
+        m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49),
+                                       "p2", chambers={"c": walls[0]}, fixed_nodes=fixed)
     solver = m.make_solver("pcg")
     options = SolverOptions(tolerance=1e-8)
     a = solve_state(m, Load.pressures([6.0]), solver=solver, options=options)
@@ -94,11 +100,14 @@ def hollow_cube_states(monkeypatch, single: bool):
     return (a.x, b.x), solver.factor.single
 
 
-def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypatch):
+@pytest.mark.parametrize("element", ["p1", "p2"])
+def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypatch,
+                                                                        element):
     """The preconditioner's precision changes CG's path, not the equilibrium: two
-    inflation states of a hollow cube agree to 1e-6 mm (tolerance 1e-8 on a 12 mm cube)."""
-    single, was_single = hollow_cube_states(monkeypatch, True)
-    double, was_double = hollow_cube_states(monkeypatch, False)
+    inflation states of a hollow cube agree to 1e-6 mm (tolerance 1e-8 on a 12 mm cube),
+    on both solvers."""
+    single, was_single = hollow_cube_states(monkeypatch, element, True)
+    double, was_double = hollow_cube_states(monkeypatch, element, False)
     assert was_single and not was_double
     for xs, xd in zip(single, double, strict=True):
         assert np.abs(xs - xd).max() < 1e-6

@@ -25,18 +25,11 @@ from fruitcli.fem.tolerances import (
 from fruitcli.scene import LINEAR_SOLVERS
 
 SINGLE_PRECISION = True
-"""CG's kept PARDISO factor (`pcg`) is single precision: on the quadratic default Fruit
-a solve takes 13 ms instead of 20 and a refactorization 0.32 s instead of 0.55 s
-(`python tests/bench/bench_fem.py --factor`), and the solve's error (relative
-residual 5e-4 on a random vector, 2e-2 on the smooth probe below, at rest) costs CG
-one or two iterations after a refresh. A factor whose probe solve misses by more than
-SINGLE_PROBE falls back to double precision. False (the tests' switch) keeps double
-precision."""
-
-SINGLE_PROBE = 0.1
-"""Largest relative residual of a single-precision factor's solve of the probe (a
-vector of ones: the smoothest load, where the factor's relative error is largest) for
-it to precondition CG; a double-precision factor must reach 1e-6."""
+"""CG's kept PARDISO factor (`pcg`) is single precision when it passes its probe
+(`pardiso.factorize_probed`): on the quadratic default Fruit a solve takes 13 ms
+instead of 20 and a refactorization 0.32 s instead of 0.55 s (`python
+tests/bench/bench_fem.py --factor`), at the same number of CG iterations. False (the
+tests' switch) keeps double precision."""
 
 
 def factorize(k, previous=None, single: bool = False):
@@ -49,27 +42,19 @@ def factorize(k, previous=None, single: bool = False):
     k = k.tocsc()
     if linsolve.USE_PARDISO and pardiso.available():
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
-        for precision in ((True, False) if single else (False,)):
-            try:
-                fac = pardiso.factorize_upper(upper_triangle(k.tocsr()), previous, precision)
-            except pardiso.PardisoError:  # the next precision, then Cholesky / LU
-                previous = None
-                continue
-            previous = None  # spent by factorize_upper
-            probe = np.ones(k.shape[0])
-            sol = fac.solve(probe)
-            bound = SINGLE_PROBE if precision else 1e-6
-            if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
-                    <= bound * np.linalg.norm(probe):
+        try:
+            fac = pardiso.factorize_probed(k, upper_triangle(k.tocsr()), previous, single)
+            if fac is not None:
                 return fac
-            fac.free()
+        except pardiso.PardisoError:  # fall back to Cholesky / LU
+            pass
     if _cholesky is not None:
         try:
             fac = _cholesky(k)
             probe = np.ones(k.shape[0])
             sol = fac.solve(probe)
             if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
-                    <= 1e-6 * np.linalg.norm(probe):
+                    <= pardiso.DOUBLE_PROBE * np.linalg.norm(probe):
                 return fac
         except (RuntimeError, ValueError):
             pass
