@@ -68,10 +68,12 @@ def test_ill_conditioned_tangent_falls_back_to_double_precision_for_good(soft):
     assert not solver.factor.single
 
 
-def hollow_cube_states(monkeypatch, element: str, single: bool):
+def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = True,
+                       tolerance: float = 1e-8):
     """A hollow cube (linear corotational, or quadratic neo-Hookean; nu = 0.49) under
-    6 kPa, then 9 kPa from there, with the kept factor in single or double precision;
-    (nodes of both states, whether the last factor was single precision)."""
+    6 kPa, then 9 kPa from there, with the kept factor in single or double precision,
+    with or without Newton's chord steps; (nodes of both states, whether the last factor
+    was single precision, tangent updates over Newton steps)."""
     from fruitcli.fem.continuum import ContinuumModel
     from fruitcli.fem.elements.quadratic import quadratic_mesh
     from fruitcli.fem.materials.build import material
@@ -93,11 +95,16 @@ def hollow_cube_states(monkeypatch, element: str, single: bool):
         m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49),
                                        "p2", chambers={"c": walls[0]}, fixed_nodes=fixed)
     solver = m.make_solver("pcg")
-    options = SolverOptions(tolerance=1e-8)
+    if not chord:
+        solver.near_tolerance = 0.0
+    updates = []
+    update = solver.update
+    solver.update = lambda *args, **kwargs: updates.append(1) or update(*args, **kwargs)
+    options = SolverOptions(tolerance=tolerance)
     a = solve_state(m, Load.pressures([6.0]), solver=solver, options=options)
     b = solve_state(m, Load.pressures([9.0]), x_start=a.x, load_start=Load.pressures([6.0]),
                     pressure_start=a.pressure_kpa, solver=solver, options=options)
-    return (a.x, b.x), solver.factor.single
+    return (a.x, b.x), solver.factor.single, len(updates) / (a.iterations + b.iterations)
 
 
 @pytest.mark.parametrize("element", ["p1", "p2"])
@@ -106,9 +113,22 @@ def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypa
     """The preconditioner's precision changes CG's path, not the equilibrium: two
     inflation states of a hollow cube agree to 1e-6 mm (tolerance 1e-8 on a 12 mm cube),
     on both solvers."""
-    single, was_single = hollow_cube_states(monkeypatch, element, True)
-    double, was_double = hollow_cube_states(monkeypatch, element, False)
+    single, was_single, _ = hollow_cube_states(monkeypatch, element, True)
+    double, was_double, _ = hollow_cube_states(monkeypatch, element, False)
     assert was_single and not was_double
     for xs, xd in zip(single, double, strict=True):
         assert np.abs(xs - xd).max() < 1e-6
     assert np.abs(single[1] - single[0]).max() > 0.1  # the states did move
+
+
+def test_hyperelastic_chord_steps_reach_the_same_states(monkeypatch):
+    """Near the tolerance Newton keeps the quadratic element's tangent (a chord step,
+    `near_tolerance`; tolerance 1e-6, so that a step ends within 30 times it): fewer
+    tangent updates than Newton steps, and the same two states as without chord steps
+    to 1e-6 mm."""
+    chord, _, updates_chord = hollow_cube_states(monkeypatch, "p2", True, tolerance=1e-6)
+    plain, _, updates_plain = hollow_cube_states(monkeypatch, "p2", True, chord=False,
+                                                 tolerance=1e-6)
+    assert updates_chord < 1.0 <= updates_plain
+    for xc, xp in zip(chord, plain, strict=True):
+        assert np.abs(xc - xp).max() < 1e-6

@@ -24,6 +24,7 @@ from fruitcli.fem.model import Load, Model
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.tolerances import (
     ARMIJO,
+    CHORD_CONTRACTION,
     FORCE_FLOOR,
     LINE_SEARCH_STEPS,
     LINEAR_MARGIN,
@@ -135,6 +136,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
     size = float(np.ptp(m.rest, axis=0).max())
     level = 0  # index into TANGENTS; raised for one step when a step fails
+    chord, last_merit = False, np.inf  # whether the last step kept the tangent; its merit
     for it in range(options.max_iterations + 1):
         if merit <= options.tolerance:
             return True, x, p, it, merit, det_f
@@ -150,9 +152,13 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
         # near the tolerance (within the solver's `near_tolerance` factor, 0 = never) the
         # last step only has to cross it: the linear solve may be as loose as the goal
-        # asks, and the tangent of the previous step is kept (chord step)
-        near = it > 0 and level == 0 and merit <= getattr(
-            step.solver, "near_tolerance", 0.0) * options.tolerance
+        # asks, and the tangent of the previous step is kept (chord step); only right
+        # after a step in Newton's quadratic regime (CHORD_CONTRACTION) and never twice
+        # in a row (see CHORD_CONTRACTION)
+        near = (it > 0 and level == 0 and not chord
+                and merit <= CHORD_CONTRACTION * last_merit
+                and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance)
+        chord, last_merit = near, merit
         cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
         step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
         dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
