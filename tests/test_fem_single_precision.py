@@ -132,3 +132,19 @@ def test_hyperelastic_chord_steps_reach_the_same_states(monkeypatch):
     assert updates_chord < 1.0 <= updates_plain
     for xc, xp in zip(chord, plain, strict=True):
         assert np.abs(xc - xp).max() < 1e-6
+
+
+def test_fresh_single_factor_that_fails_cg_is_replaced_by_double(monkeypatch):
+    """When CG on a fresh single-precision factor does not converge within its limit
+    (forced here: no iteration allowed), the solver refactorizes in double precision,
+    keeps double precision for later factors, and the solve is exact."""
+    monkeypatch.setattr(continuum_linsolve, "PCG_REFRESH_ITERATIONS", 0)
+    k = chain(300) + 1e-3 * sp.identity(300)
+    solver = continuum_linsolve.ContinuumSolver(_Model(k.tocsr()))
+    solver.update(np.zeros((1, 3)))
+    assert solver.factor.single and solver.fresh
+    b = np.sin(np.arange(300.0))
+    solver.rtol = 1e-10
+    x = solver.solve(b)
+    assert not solver.single and not solver.factor.single
+    assert np.linalg.norm(k @ x - b) <= 1e-10 * np.linalg.norm(b)

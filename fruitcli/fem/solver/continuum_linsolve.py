@@ -148,6 +148,8 @@ class ContinuumSolver:
         if ok:
             self.refresh = self.refresh or its > PCG_REFRESH_ITERATIONS
             return x
+        if self.fresh:  # a fresh single-precision factor that failed: double from now on
+            self.single = False
         self._factorize()
         x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
                          PCG_MAX_ITERATIONS)

@@ -266,6 +266,7 @@ class TangentSolver:
             self.stats["cg_iterations"] += its
         if not ok:
             self.refresh = True
+            self.single = self.single and not self.fresh  # a fresh factor failed: double
         return x
 
 
