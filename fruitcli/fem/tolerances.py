@@ -37,7 +37,7 @@ CHORD_CONTRACTION = 0.01
 `linsolve.NEAR_TOLERANCE`) only when the step before cut the residual at least this
 much (the quadratic regime, where the tangent barely moves), and never twice in a row.
 The touchpad's jig turn, whose last steps contract by 0.01-0.3, took 106 Newton steps
-and 21-23 s with chord steps allowed anywhere near the tolerance, 80 and 17 s without;
+and 20-23 s with chord steps allowed anywhere near the tolerance, 80 and 17 s without;
 a first version that allowed them in a row stalled at 10 times the tolerance."""
 
 LINEAR_MARGIN = 0.1
