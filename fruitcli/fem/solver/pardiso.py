@@ -16,8 +16,9 @@ factorization of a matrix with the same pattern. MKL runs on one thread (see
 | the same in single precision | | 0.66 s, 0.32 s, 13 ms |
 
 Matrices are the upper triangle of a symmetric matrix in CSR with sorted indices,
-zero-based (iparm[34] = 1); the factor is float64, or float32 with `single` (the
-hyperelastic solver's CG preconditioner, `continuum_linsolve.SINGLE_PRECISION`).
+zero-based (iparm[34] = 1); the factor is float64, or float32 with `single` (both
+solvers' CG preconditioner, `factorize_probed`; `linsolve.SINGLE_PRECISION` and
+`continuum_linsolve.SINGLE_PRECISION`).
 """
 
 from __future__ import annotations
@@ -120,9 +121,9 @@ def available() -> bool:
 class Pardiso:
     """A PARDISO factorization of the symmetric matrix whose upper triangle (CSR) is
     `upper`, of type `mtype` (SPD or SYMMETRIC_INDEFINITE), in double precision or, with
-    `single`, in single precision (half the memory to read per solve; the solves are
-    then accurate to about 1e-4 relative on the quadratic default Fruit: a
-    preconditioner, not a solver). Raises PardisoError."""
+    `single`, in single precision (half the memory to read per solve; a solve then
+    leaves a relative residual of about 1e-4 on the default Fruit's linear tets and 5e-4
+    on its quadratic ones: a preconditioner, not a solver). Raises PardisoError."""
 
     def __init__(self, upper, mtype: int = SPD, single: bool = False):
         self._pardiso, init = _functions()
