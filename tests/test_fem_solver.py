@@ -264,3 +264,30 @@ def test_first_state_at_rest_keeps_no_sensitivity_and_the_next_solves():
                       load_start=Load.pressures([0.0]), pressure_start=rest.pressure_kpa,
                       solver=solver)
     assert res.residual <= 1e-6
+
+
+def test_a_repeated_load_within_the_kept_states_starts_at_its_own_state():
+    """A cycle of 13 distinct pressures (the breathing's length) solved twice with one
+    solver: the history holds all 13 (HISTORY_STATES >= 13), and each state of the
+    second cycle starts at its own state of the first, so it needs no Newton step and
+    returns those nodes."""
+    from fruitcli.fem.solver.newton import HISTORY_STATES
+
+    assert HISTORY_STATES >= 13
+    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (5, 5, 5),
+                                                  [4, 4, 4], [8, 8, 8])
+    m = Model.from_arrays(nodes, tets, 100.0, 0.45, chambers={"c": cav},
+                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    solver = TangentSolver(m)
+    cycle = [Load.pressures([1.0 + 0.8 * k]) for k in range(13)]
+    x = p = prev = None
+    first = []
+    for i, load in enumerate(cycle + cycle[1:]):
+        res = solve_state(m, load, x_start=x, load_start=prev, pressure_start=p,
+                          solver=solver, options=SolverOptions(tolerance=1e-8))
+        if i < 13:
+            first.append(res.x)
+        else:
+            assert res.iterations == 0
+            assert np.array_equal(res.x, first[i - 13 + 1])
+        x, p, prev = res.x, res.pressure_kpa, load

@@ -296,7 +296,7 @@ HISTORY_STATES = 16
 """Converged states kept (on the TangentSolver) for the predictor of the next: with 10,
 a load path in a plane (e.g. phase-shifted sinusoids) is predicted to third order and
 beyond (the weights' moments up to PREDICTOR_ORDER); 16 hold a whole cycle of the
-breathing's 13 states, so that a repeated load starts at its own earlier state (cycles
+breathing's 13 states, so that a repeated load finds its own earlier state (cycles
 2-3: no Newton step, 1.7-2.2 ms per state instead of 7.7 ms with 10) and the first
 cycle's later states have more to fit (1.33 Newton steps and 5.3 CG iterations per
 state instead of 1.42 and 5.5 on p1, 2.00 and 13.7 instead of 2.08 and 14.4 on p2)."""
@@ -344,12 +344,18 @@ def _history_guess(history, x_start, load: Load):
     match sum_j c_j dq_j^(x k) = dq^(x k) for k = 2 .. PREDICTOR_ORDER as far as the kept
     states allow (`_moment_weights`), which makes the guess exact for a response
     polynomial of that order (on the default fruit's breathing one Newton step then
-    mostly suffices). Used only when x_start is the last state kept, for loads changing
-    like before (bounded weights); None otherwise."""
+    mostly suffices). A load equal to a kept state's starts at that state (an
+    equilibrium of the same load: an animation's next cycle). Used only when x_start is
+    the last state kept, for loads changing like before (bounded weights); None
+    otherwise."""
     if len(history) < 2 or x_start is None or not np.array_equal(x_start, history[-1][1]):
         return None
     q_last, x_last, p_last = history[-1]
-    dq = _load_vector(load) - q_last
+    q = _load_vector(load)
+    for q_j, x_j, p_j in history[:-1]:
+        if np.array_equal(q_j, q):
+            return x_j.copy(), p_j.copy()
+    dq = q - q_last
     k = len(load.volume_controlled)
     if len(dq) != len(q_last) or not np.any(dq) or (k and np.any(dq[-k:])):
         return None
