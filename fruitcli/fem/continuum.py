@@ -20,13 +20,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from fruitcli.errors import MeshError, SceneError
+from fruitcli.fem.element_sums import node_incidence
 from fruitcli.fem.elements import integrate, tet4
 from fruitcli.fem.elements.integrate import evaluate
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shape_gradients
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.materials.corotation_kernels import node_incidence
 from fruitcli.fem.model import Model, pin_rigid_modes, prescribed_dofs
 from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fruitcli.errors import MeshError, SceneError, SolverError
+from fruitcli.fem.element_sums import node_incidence
 from fruitcli.fem.elements import tet4
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig
@@ -284,8 +285,8 @@ class Model:
 
     @functools.cached_property
     def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
-        """(ptr, rows) of `kernels.node_incidence`: each node's element rows, in order."""
-        return kernels.node_incidence(self.tets, self.n_nodes)
+        """(ptr, rows) of `element_sums.node_incidence`: each node's element rows, in order."""
+        return node_incidence(self.tets, self.n_nodes)
 
     @property
     def free_dof_map(self) -> np.ndarray:

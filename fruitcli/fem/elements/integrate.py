@@ -15,10 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from fruitcli.fem.element_sums import block_range, gather_rows, n_blocks
 from fruitcli.fem.materials.hyperelastic import isochoric, volumetric
-
-BLOCKS = 64
-"""Blocks of elements the parallel loop shares among the threads."""
 
 
 @njit(cache=True, nogil=True)
@@ -51,13 +49,13 @@ def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blo
     `blocks` when want_tangent, and each element's smallest det F into jmin (m,).
     Returns -1.0 when some det F <= 0 (energy undefined). The elements run over every
     core in blocks; each node sums its elements' force rows in element order (ptr,
-    rows: `corotation_kernels.node_incidence`) and the energy sums the elements' in
+    rows: `element_sums.node_incidence`) and the energy sums the elements' in
     element order, so the result does not depend on the number of threads."""
     m, nq, nen = dn.shape[0], dn.shape[1], dn.shape[2]
     c10, c20, c30, kappa = consts[0], consts[1], consts[2], consts[3]
     e_rows = np.zeros((m * nen, 3))
     e_energy = np.zeros(m)
-    nblocks = max(1, min(m, BLOCKS))
+    nblocks = n_blocks(m)
     for blk in prange(nblocks):
         fq = np.empty((nq, 3, 3))
         finv = np.empty((nq, 3, 3))
@@ -68,7 +66,8 @@ def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blo
         fe = np.empty((nen, 3))
         b = np.empty((nen, 3))
         ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
-        for e in range(blk * m // nblocks, (blk + 1) * m // nblocks):
+        lo_e, hi_e = block_range(blk, nblocks, m)
+        for e in range(lo_e, hi_e):
             lo = 1e300
             ve = 0.0
             theta = 0.0
@@ -161,12 +160,7 @@ def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blo
     for e in range(m):
         total += e_energy[e]
         inverted = inverted or jmin[e] <= 0.0
-    for nd in prange(ptr.shape[0] - 1):
-        for i in range(3):
-            s = 0.0
-            for k in range(ptr[nd], ptr[nd + 1]):
-                s += e_rows[rows[k], i]
-            forces[nd, i] = s
+    gather_rows(e_rows, ptr, rows, forces)
     if inverted:
         return -1.0
     return total

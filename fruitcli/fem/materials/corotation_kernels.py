@@ -6,12 +6,8 @@ One pass over the elements each, without the temporaries numpy would allocate: a
 2x faster than the vectorized versions on the default fruit. They release the GIL, so
 the online FEM thread of `fruit live --online` does not hold up the detection loop.
 
-The element loops run over every core (numba `prange` over blocks of elements). Sums
-into nodes are gathered, not scattered: each element writes its nodal rows, then each
-node adds its elements' rows in element order (`node_incidence`), which is the order
-the serial loop added them in, so the results are the same bits whatever the number of
-threads (a timing-dependent summation order made a sweep's parallel rows differ from
-its serial ones before).
+The element loops run over every core, their nodal sums gathered in element order
+(`fruitcli.fem.element_sums`): the same bits whatever the number of threads.
 
 Arrays are element-major: tets (m, 4), grads (m, 4, 3) rest shape-function gradients
 (1/mm), volumes (m,) mm^3, F and R (m, 3, 3), nodal vectors (n, 3). Lame parameters and
@@ -24,26 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-BLOCKS = 64
-"""Blocks of elements the parallel loops share among the threads (each block allocates
-its 3x3 scratch once; more blocks than threads balance uneven elements)."""
-
-
-def node_incidence(tets: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """(ptr (n + 1,), rows (nen m,)) for elements tets (m, nen): node a's element rows
-    e * nen + b (tets[e, b] == a) are rows[ptr[a]:ptr[a + 1]], in increasing e (the
-    serial scatter's order)."""
-    flat = np.ascontiguousarray(tets, dtype=np.int64).ravel()
-    rows = np.argsort(flat, kind="stable").astype(np.int64)
-    ptr = np.zeros(n_nodes + 1, np.int64)
-    ptr[1:] = np.cumsum(np.bincount(flat, minlength=n_nodes))
-    return ptr, rows
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _block(c, nblocks, m):
-    """Element range [lo, hi) of block c of nblocks over m elements."""
-    return c * m // nblocks, (c + 1) * m // nblocks
+from fruitcli.fem.element_sums import block_range, gather_rows, n_blocks, node_incidence
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -52,11 +29,6 @@ def _rt_f(r, f, out):
     for i in range(3):
         for j in range(3):
             out[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
-
-
-@njit(cache=True, nogil=True)
-def _n_blocks(m):
-    return max(1, min(m, BLOCKS))
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -73,12 +45,12 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
     rot = np.empty((m, 3, 3))
     det = np.empty(m)
     cold = np.zeros(m, dtype=np.bool_)
-    nblocks = _n_blocks(m)
+    nblocks = n_blocks(m)
     for blk in prange(nblocks):
         a = np.empty((3, 3))
         r = np.empty((3, 3))
         c = np.empty((3, 3))
-        lo, hi = _block(blk, nblocks, m)
+        lo, hi = block_range(blk, nblocks, m)
         for e in range(lo, hi):
             for i in range(3):
                 for j in range(3):
@@ -145,12 +117,12 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
     m = tets.shape[0]
     fe_rows = np.empty((4 * m, 3))
     energies = np.empty(m)
-    nblocks = _n_blocks(m)
+    nblocks = n_blocks(m)
     for blk in prange(nblocks):
         h = np.empty((3, 3))
         sig = np.empty((3, 3))
         p = np.empty((3, 3))
-        lo, hi = _block(blk, nblocks, m)
+        lo, hi = block_range(blk, nblocks, m)
         for e in range(lo, hi):
             r = rot[e]
             _rt_f(r, f[e], h)
@@ -174,16 +146,8 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
                 for i in range(3):
                     fe_rows[4 * e + b, i] = (p[i, 0] * grads[e, b, 0] + p[i, 1] * grads[e, b, 1]
                                              + p[i, 2] * grads[e, b, 2])
-    n_nodes = ptr.shape[0] - 1
-    out = np.empty((n_nodes, 3))
-    for a in prange(n_nodes):
-        s0 = s1 = s2 = 0.0
-        for k in range(ptr[a], ptr[a + 1]):
-            j = rows[k]
-            s0 += fe_rows[j, 0]
-            s1 += fe_rows[j, 1]
-            s2 += fe_rows[j, 2]
-        out[a, 0], out[a, 1], out[a, 2] = s0, s1, s2
+    out = np.empty((ptr.shape[0] - 1, 3))
+    gather_rows(fe_rows, ptr, rows, out)
     energy = 0.0
     for e in range(m):
         energy += energies[e]
@@ -230,12 +194,12 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
     the full-size copies); ptr, rows: `node_incidence`."""
     m = tets.shape[0]
     e_rows = np.empty((4 * m, 3))
-    nblocks = _n_blocks(m)
+    nblocks = n_blocks(m)
     for blk in prange(nblocks):
         g = np.empty((3, 3))
         mm = np.empty((3, 3))
         ve = np.empty((4, 3))
-        lo, hi = _block(blk, nblocks, m)
+        lo, hi = block_range(blk, nblocks, m)
         for e in range(lo, hi):
             for b in range(4):
                 for i in range(3):
@@ -269,16 +233,14 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
                 for i in range(3):
                     e_rows[4 * e + a, i] = (mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1]
                                             + mm[i, 2] * rg[e, a, 2])
+    sums = np.empty((ptr.shape[0] - 1, 3))
+    gather_rows(e_rows, ptr, rows, sums)
     out = np.zeros(n_out)
-    n_nodes = ptr.shape[0] - 1
-    for a in prange(n_nodes):
+    for a in range(sums.shape[0]):
         for i in range(3):
             k = dof[a, i]
             if k >= 0:
-                s = 0.0
-                for q in range(ptr[a], ptr[a + 1]):
-                    s += e_rows[rows[q], i]
-                out[k] = s
+                out[k] = sums[a, i]
     return out
 
 
@@ -292,13 +254,13 @@ def skew_stiffness_closed_form(f, rot, lam, mu, project):
     m = f.shape[0]
     t = np.zeros((m, 3, 3))
     easy = np.zeros(m, dtype=np.bool_)
-    nblocks = _n_blocks(m)
+    nblocks = n_blocks(m)
     for blk in prange(nblocks):
         s = np.empty((3, 3))
         q = np.empty((3, 3))
         adj = np.empty((3, 3))
         te = np.empty((3, 3))
-        lo, hi = _block(blk, nblocks, m)
+        lo, hi = block_range(blk, nblocks, m)
         for e in range(lo, hi):
             r = rot[e]
             _rt_f(r, f[e], s)
