@@ -52,10 +52,7 @@ def factorize(k, previous=None, single: bool = False):
     if _cholesky is not None:
         try:
             fac = _cholesky(k)
-            probe = np.ones(k.shape[0])
-            sol = fac.solve(probe)
-            if np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) \
-                    <= pardiso.DOUBLE_PROBE * np.linalg.norm(probe):
+            if pardiso.passes_probe(k, fac, pardiso.DOUBLE_PROBE):
                 return fac
         except (RuntimeError, ValueError):
             pass

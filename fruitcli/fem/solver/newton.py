@@ -364,6 +364,12 @@ def _history_guess(history, x_start, load: Load):
     c = _moment_weights(d, dq)
     if c is None:
         return None
+    return _secant(prev, c, x_last, p_last)
+
+
+def _secant(prev, c, x_last, p_last):
+    """(x_last + sum_j c_j (x_j - x_last), the same of the pressures) over the kept states
+    prev (load vector, x, p) with weights c."""
     x = x_last + sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
     p = p_last + sum(cj * (h[2] - p_last) for cj, h in zip(c, prev, strict=True))
     return x, p
@@ -428,17 +434,15 @@ def _sensitivity_guess(solver, x_start, load: Load):
     if np.any(dq[~pressure]):
         return None
     prev = history[-2::-1]
-    x, p = x_last.copy(), p_last.copy()
+    x, p = x_last, p_last.copy()
     if prev:
         d = np.column_stack([h[0] - q_last for h in prev])
         c = np.linalg.lstsq(d, dq, rcond=PREDICTOR_RCOND)[0]
         if not (np.all(np.isfinite(c)) and np.abs(c).sum() <= PREDICTOR_MAX_WEIGHT):
             c = np.zeros(len(prev))
-        x += sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
-        p += sum(cj * (h[2] - p_last) for cj, h in zip(c, prev, strict=True))
+        x, p = _secant(prev, c, x_last, p_last)
         dq = dq - d @ c
-    x += sens @ dq[:k]
-    return x, p
+    return x + sens @ dq[:k], p
 
 
 def _moments(d: np.ndarray, order: int) -> np.ndarray:

@@ -241,13 +241,21 @@ tets); a double-precision factor must reach DOUBLE_PROBE."""
 DOUBLE_PROBE = 1e-6
 
 
+def passes_probe(k, fac, bound: float) -> bool:
+    """True when fac's solve of a vector of ones is finite and leaves a relative residual
+    of at most `bound` on the sparse k (any factor with `.solve`)."""
+    probe = np.ones(k.shape[0])
+    sol = fac.solve(probe)
+    return bool(np.isfinite(sol).all()
+                and np.linalg.norm(k @ sol - probe) <= bound * np.linalg.norm(probe))
+
+
 def factorize_probed(k, upper, previous: Pardiso | None = None, single: bool = False):
     """A factor of the symmetric k (sparse, upper its upper triangle) that passes its
     probe solve: single precision first when `single`, then double. None when the
     double-precision factor misses its probe (the caller's fallback takes over); a
     PardisoError of the double-precision factorization propagates. `previous` is spent
     (see `factorize_upper`)."""
-    probe = np.ones(k.shape[0])
     for precision in ((True, False) if single else (False,)):
         try:
             fac = factorize_upper(upper, previous, precision)
@@ -257,10 +265,7 @@ def factorize_probed(k, upper, previous: Pardiso | None = None, single: bool = F
             previous = None  # spent; double precision next
             continue
         previous = None
-        sol = fac.solve(probe)
-        bound = SINGLE_PROBE if precision else DOUBLE_PROBE
-        miss = np.linalg.norm(k @ sol - probe) / np.linalg.norm(probe)
-        if np.isfinite(sol).all() and miss <= bound:
+        if passes_probe(k, fac, SINGLE_PROBE if precision else DOUBLE_PROBE):
             return fac
         fac.free()
     return None
