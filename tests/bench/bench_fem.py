@@ -420,30 +420,30 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
         else:
             k = model.tangent(model.rest.copy(), project=True).tocsr()
         upper = linsolve.upper_triangle(k)
-        fac, t_fac = timed(pardiso.factorize_upper, upper)
-        _, t_re = timed(pardiso.factorize_upper, upper, fac)
         b = np.random.default_rng(0).standard_normal(k.shape[0])
-        fac.solve(b)
         reps = 50 if label == "p1" else 10
-        _, t_solve = timed(fac.solve, b, n=reps)
-        line = (f"  {label}, {k.shape[0]} dofs, factor {fac.iparm[17]:,} entries: analysis + "
-                f"factorization {t_fac:.0f} ms, refactorization {t_re:.0f} ms, one solve "
-                f"{t_solve:.2f} ms")
+        parts = []
+        for single in (False, True):  # single precision: the default of both solvers' CG
+            fac, t_fac = timed(pardiso.factorize_upper, upper, None, single)
+            _, t_re = timed(pardiso.factorize_upper, upper, fac, single)
+            x = fac.solve(b)
+            _, t_solve = timed(fac.solve, b, n=reps)
+            miss = np.linalg.norm(k @ x - b) / np.linalg.norm(b)
+            entries = fac.iparm[17]
+            fac.free()
+            kind = "single precision (CG's default)" if single else "double precision"
+            parts.append(f"{kind}: "
+                         f"analysis + factorization {t_fac:.0f} ms, refactorization "
+                         f"{t_re:.0f} ms, one solve {t_solve:.2f} ms, relative residual of a "
+                         f"solve {miss:.0e}")
         if label == "p1" and linsolve._cholesky is not None:
             chol, t_chol = timed(linsolve._cholesky, k.tocsc())
             chol.solve(b)
             _, t_csolve = timed(chol.solve, b, n=reps)
-            line += f"; cholespy: factorization {t_chol:.0f} ms, one solve {t_csolve:.2f} ms"
-        fac.free()  # then single precision, the default of both solvers' CG
-        one, t_fac = timed(pardiso.factorize_upper, upper, None, True)
-        _, t_re = timed(pardiso.factorize_upper, upper, one, True)
-        x = one.solve(b)
-        _, t_solve = timed(one.solve, b, n=reps)
-        miss = np.linalg.norm(k @ x - b) / np.linalg.norm(b)
-        line += (f"; single precision (CG's default): {t_fac:.0f} ms, {t_re:.0f} ms, "
-                 f"{t_solve:.2f} ms, relative residual of a solve {miss:.0e}")
-        one.free()
-        print(line, flush=True)
+            parts.append(f"cholespy: factorization {t_chol:.0f} ms, one solve "
+                         f"{t_csolve:.2f} ms")
+        print(f"  {label}, {k.shape[0]} dofs, factor {entries:,} entries; " + "; ".join(parts),
+              flush=True)
 
 P1_RUNS = 5
 """Runs of the breathing in `bench_p1_breathing` (each a fresh solver, as `fruit
@@ -517,21 +517,16 @@ def main() -> None:
         return
     from fruitcli.fem.stage import run_tetra
 
-    if args.factor:  # the default fruit's mesh, then the kept factor's times alone
+    if args.factor or args.p1_only:  # the default fruit's mesh, then that part alone
         scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
                                    must_exist=False)
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
             run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
-            bench_factor(scene_default, tmp / "mesh" / "mesh.npz")
-        return
-    if args.p1_only:  # the default fruit's mesh, then the p1 breathing alone
-        scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
-                                   must_exist=False)
-        with tempfile.TemporaryDirectory() as tmp:
-            tmp = Path(tmp)
-            run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
-            bench_p1_breathing(scene_default, tmp / "mesh" / "mesh.npz", args.states)
+            if args.factor:
+                bench_factor(scene_default, tmp / "mesh" / "mesh.npz")
+            else:
+                bench_p1_breathing(scene_default, tmp / "mesh" / "mesh.npz", args.states)
         return
     scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
     scene0 = paper_model(scene_default)  # the tables below: the paper's model, as before
