@@ -82,7 +82,6 @@ def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = Tr
     from fruitcli.fem.solver import linsolve
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
-    monkeypatch.setattr(continuum_linsolve, "SINGLE_PRECISION", single)
     monkeypatch.setattr(linsolve, "SINGLE_PRECISION", single)
     nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 3),
                                                   [3, 3, 3], [9, 9, 9])

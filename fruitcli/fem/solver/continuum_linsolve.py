@@ -24,13 +24,6 @@ from fruitcli.fem.tolerances import (
 )
 from fruitcli.scene import LINEAR_SOLVERS
 
-SINGLE_PRECISION = True
-"""CG's kept PARDISO factor (`pcg`) is single precision when it passes its probe
-(`pardiso.factorize_probed`): on the quadratic default Fruit a solve takes 13 ms
-instead of 20 and a refactorization 0.32 s instead of 0.55 s (`python
-tests/bench/bench_fem.py --factor`), at the same number of CG iterations. False (the
-tests' switch) keeps double precision."""
-
 
 def factorize(k, previous=None, single: bool = False):
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
@@ -83,7 +76,7 @@ class ContinuumSolver:
         self.model, self.method = model, method
         self.k = None
         self.factor = None
-        self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
+        self.single = method == "pcg" and linsolve.SINGLE_PRECISION  # of the next factor
         self.refresh = False
         self.fresh = False
         self.rtol = PCG_RELATIVE_TOLERANCE

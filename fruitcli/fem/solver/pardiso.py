@@ -17,8 +17,7 @@ factorization of a matrix with the same pattern. MKL runs on one thread (see
 
 Matrices are the upper triangle of a symmetric matrix in CSR with sorted indices,
 zero-based (iparm[34] = 1); the factor is float64, or float32 with `single` (both
-solvers' CG preconditioner, `factorize_probed`; `linsolve.SINGLE_PRECISION` and
-`continuum_linsolve.SINGLE_PRECISION`).
+solvers' CG preconditioner, `factorize_probed`; `linsolve.SINGLE_PRECISION`).
 """
 
 from __future__ import annotations
