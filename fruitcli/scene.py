@@ -112,6 +112,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "solver": {
         "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|"),
+        "displacement_tolerance_mm": Key("num", 1e-4, "... or when the kept factor estimates "
+                                         "the correction left below this (mm; 0 = off)"),
         "max_iterations": Key("int", 25, "Newton iterations per load step"),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
         "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi"),
@@ -501,9 +503,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: [solver].linear_solver: expected one of "
                          f"{', '.join(LINEAR_SOLVERS)}, got {sol['linear_solver']!r}")
     if sol["tolerance"] <= 0 or sol["max_iterations"] < 1 or sol["jig_steps"] < 1 \
-            or sol["first_steps"] < 1:
+            or sol["first_steps"] < 1 or not sol["displacement_tolerance_mm"] >= 0:
         raise SceneError(f"{where}: [solver]: expected tolerance > 0, max_iterations >= 1, "
-                         "jig_steps >= 1, first_steps >= 1")
+                         "jig_steps >= 1, first_steps >= 1, displacement_tolerance_mm >= 0")
     act = scene["actuation"]
     lengths = set()
     for key in ("pressure_kpa", "volume_growth_mm3"):

@@ -17,6 +17,7 @@ from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.fem.model import Load
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
+from fruitcli.fem.tolerances import ESTIMATE_WINDOW
 from fruitcli.scene import parse_scene
 
 PAD = """
@@ -237,7 +238,8 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
     assert st["taxels_mm"][2, 0, 2] > st["taxels_mm"][1, 0, 2] > 10.0
     for key in ("iterations", "residual", "solve_ms", "subdivisions", "min_det_f"):
         assert st[key].shape == (s,)
-    assert (st["residual"] <= 1e-6).all()
+    # the residual tolerance, or near it the displacement tolerance (newton._close_enough)
+    assert (st["residual"] <= 1e-6 * ESTIMATE_WINDOW).all()
     assert (tmp_path / "s" / "state_002.vtu").exists()
 
 

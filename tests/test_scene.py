@@ -60,6 +60,7 @@ def test_minimal_keys_and_defaults():
      "stiffness_n_per_mm: expected > 0"),
     ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),
     ("x = [", "not valid TOML"),
+    ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm >= 0"),
 ])
 def test_bad_scenes_name_the_field(text, expected):
     with pytest.raises(SceneError) as err:

@@ -234,6 +234,8 @@ class ContinuumModel:
             energy = np.nan
         return forces, energy, jmin, (blocks if tangent else None)
 
+    extent_mm = Model.extent_mm  # the same cached rest extent (mm)
+
     @functools.cached_property
     def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
         """(ptr, rows): each node's element rows in element order (`node_incidence`)."""

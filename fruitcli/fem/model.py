@@ -284,6 +284,11 @@ class Model:
             len(self.pattern.free), *self.node_incidence)
 
     @functools.cached_property
+    def extent_mm(self) -> float:
+        """The rest body's largest side of its bounding box (mm)."""
+        return float(np.ptp(self.rest, axis=0).max())
+
+    @functools.cached_property
     def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
         """(ptr, rows) of `element_sums.node_incidence`: each node's element rows, in order."""
         return node_incidence(self.tets, self.n_nodes)

@@ -226,7 +226,7 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
         if materials.from_scene(scene["material"]).model != "corotational":
             steps = max(steps, cfg["first_steps"])
     return SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
-                         cfg["linear_solver"], steps)
+                         cfg["linear_solver"], steps, cfg["displacement_tolerance_mm"])
 
 
 def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,

@@ -40,6 +40,20 @@ The touchpad's jig turn, whose last steps contract by 0.01-0.3, took 106 Newton 
 and 20-23 s with chord steps allowed anywhere near the tolerance, 80 and 17 s without;
 a first version that allowed them in a row stalled at 10 times the tolerance."""
 
+ESTIMATE_WINDOW = 1e3
+"""Newton estimates the correction left at an iterate (`[solver]
+displacement_tolerance_mm`, one solve with the kept factor) only once the relative
+residual is within this factor of the tolerance; farther away the correction is far
+above any useful displacement tolerance (on the default Fruit's breathing a relative
+residual of 1e-5 meant nodes within 3e-5 mm; on the touchpad's jig bend 0.09 mm)."""
+
+ESTIMATE_SAFETY = 2.0
+"""The kept factor's estimate of the correction left must be within the displacement
+tolerance divided by this: the factor is that of an earlier tangent (and single
+precision), and on the default Fruit's breathing its estimate fell short of the
+remaining correction by up to 1.4x (nodes 7e-5 mm from the converged solution when
+the estimate alone was asked to be within 5e-5 mm)."""
+
 LINEAR_MARGIN = 0.1
 """Inexact Newton: a linear solve aims at this fraction of the residual the Newton step
 is expected to leave from the nonlinearity (C merit^2, C observed on earlier steps);

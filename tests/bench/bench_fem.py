@@ -22,6 +22,7 @@ Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [
 
 import argparse
 import copy
+import dataclasses
 import resource
 import subprocess
 import sys
@@ -91,15 +92,13 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
     the StateResults]); a copy of the solver's stats after each state goes to
     `stats_log`."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
-    from fruitcli.fem.stage import build_model
+    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.stage import build_model, solver_options
 
     model = build_model(scene, io.load_mesh(mesh_npz))
     loads = (loads or (lambda names: scene_loads(scene, names, n_states)))(model.chamber_names)
     solver = model.make_solver(solver_name)
-    cfg = scene["solver"]
-    opts = SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
-                         solver_name)
+    opts = dataclasses.replace(solver_options(scene), linear_solver=solver_name)
     x = p = prev = None
     rows, states = [], []
     for load in loads:
@@ -220,8 +219,8 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
 def bench_pad(tmp: Path, tolerance: float | None) -> None:
     """The touchpad bend: tetra, then the one jig state in the scene's jig_steps."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
-    from fruitcli.fem.stage import build_model, run_tetra, state_loads
+    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.stage import build_model, run_tetra, solver_options, state_loads
     from fruitcli.scene import load_scene
 
     scene = load_scene(ROOT / "pipelines" / "touchpad-4x4.toml", must_exist=False)
@@ -231,8 +230,7 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
     model = build_model(scene, io.load_mesh(tmp / "pad-mesh" / "mesh.npz"))
     load = state_loads(scene, model.chamber_names)[0]
     solver = model.make_solver(cfg["linear_solver"])
-    opts = SolverOptions(tol, cfg["max_iterations"], cfg["max_subdivisions"],
-                         cfg["linear_solver"], cfg["jig_steps"])
+    opts = dataclasses.replace(solver_options(scene, first_state=True), tolerance=tol)
     res = solve_state(model, load, options=opts, solver=solver)
     st = solver.stats
     print(f"\ntouchpad bend: {q['n_tets']} tets, {cfg['jig_steps']} jig steps, tolerance {tol:g}: "

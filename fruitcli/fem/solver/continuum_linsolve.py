@@ -16,7 +16,7 @@ import scipy.sparse.linalg as spla
 from fruitcli.errors import SolverError
 from fruitcli.fem import threads
 from fruitcli.fem.solver import linsolve, pardiso
-from fruitcli.fem.solver.linsolve import _cholesky, pcg, upper_triangle
+from fruitcli.fem.solver.linsolve import _cholesky, kept_estimate, pcg, upper_triangle
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
@@ -86,6 +86,7 @@ class ContinuumSolver:
         self.newton_c = 0.0
         self.history = []
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
+        self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
@@ -121,19 +122,31 @@ class ContinuumSolver:
         self.stats["factorizations"] += 1
         self.refresh, self.fresh = False, True
 
+    def estimate(self, r: np.ndarray) -> np.ndarray | None:
+        """The kept factor's solve of r (n_free,): an estimate of K_t^-1 r (mm for r in
+        mN), or None before the first update."""
+        if self.factor is None:
+            return None
+        z = self.factor.solve(r)
+        self.estimated = (r, self.stats["factorizations"], z)
+        return z
+
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
+        z0 = kept_estimate(self.estimated, rhs, self.stats["factorizations"])
         if self.method != "pcg":
-            return self.factor.solve(rhs)
+            return self.factor.solve(rhs) if z0 is None else z0
+        if z0 is not None:
+            return self._solve_one(rhs, z0)
         cols = rhs.reshape(len(rhs), -1)
         out = np.column_stack([self._solve_one(c) for c in cols.T])
         return out.reshape(rhs.shape)
 
-    def _solve_one(self, b: np.ndarray) -> np.ndarray:
+    def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.fresh and not self.factor.single:
-            return self.factor.solve(b)
+            return self.factor.solve(b) if z0 is None else z0
         x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
-                         2 * PCG_REFRESH_ITERATIONS)
+                         2 * PCG_REFRESH_ITERATIONS, z0)
         self.stats["cg_iterations"] += its
         if ok:
             self.refresh = self.refresh or its > PCG_REFRESH_ITERATIONS

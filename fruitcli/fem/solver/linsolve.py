@@ -133,6 +133,7 @@ class TangentSolver:
         self.history = []  # converged (load vector, x, p) for the next state's predictor
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
+        self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
@@ -237,15 +238,27 @@ class TangentSolver:
         self.stats["precond_s"] += time.perf_counter() - t0
         return z
 
+    def estimate(self, r: np.ndarray) -> np.ndarray | None:
+        """The kept factor's solve of r (n_free,): an estimate of K_t^-1 r (mm for r in
+        mN), or None without a factor (Jacobi CG, or before the first update)."""
+        if self.method == "jacobi" or self.factor is None:
+            return None
+        z = self.precondition(r)
+        self.estimated = (r, self.stats["factorizations"], z)
+        return z
+
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
+        z0 = kept_estimate(self.estimated, rhs, self.stats["factorizations"])
         if self.method == "direct":
-            return self.factor.solve(rhs)
+            return self.factor.solve(rhs) if z0 is None else z0
+        if z0 is not None:
+            return self._solve_one(rhs, z0)
         cols = rhs.reshape(len(rhs), -1)
         out = np.column_stack([self._solve_one(c) for c in cols.T])
         return out.reshape(rhs.shape)
 
-    def _solve_one(self, b: np.ndarray) -> np.ndarray:
+    def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.method == "jacobi":
             inv_d = 1.0 / self.diag
             x, its, ok = pcg(self.matvec, lambda v: inv_d * v, b, self.rtol,
@@ -256,7 +269,7 @@ class TangentSolver:
                                   "(try [solver].linear_solver = \"pcg\")")
             return x
         limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
-        x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, limit)
+        x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, limit, z0)
         self.stats["cg_iterations"] += its
         if ok:
             # slow but done: keep x, refresh the factorization at the next update
@@ -272,17 +285,28 @@ class TangentSolver:
         return x
 
 
-def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int):
+def kept_estimate(estimated, b: np.ndarray, factorizations: int):
+    """The solve kept by a solver's `estimate` (r, factorizations then, its solve) when b
+    is that same r and no factorization happened since (CG then starts from it instead
+    of solving again), else None."""
+    if estimated is not None and estimated[0] is b and estimated[1] == factorizations:
+        return estimated[2]
+    return None
+
+
+def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int,
+        z0: np.ndarray | None = None):
     """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|,
     after `maxiter` iterations or on negative curvature (an indefinite tangent); then it
     returns the last iterate, or the preconditioned residual if there is none, which
-    is still a descent direction. Returns (x, iterations, converged)."""
+    is still a descent direction. z0: precond(b) if already at hand. Returns (x,
+    iterations, converged)."""
     x = np.zeros_like(b)
     r = b.copy()
     nb = float(np.linalg.norm(b))
     if nb == 0.0:
         return x, 0, True
-    z = precond(r)
+    z = precond(r) if z0 is None else z0
     p = z.copy()
     rz = float(r @ z)
     for it in range(1, maxiter + 1):

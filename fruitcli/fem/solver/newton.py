@@ -13,6 +13,7 @@ system [K  -H^T; H  0] is solved by the Schur complement W = H K^-1 H^T (mm^3/kP
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
 from dataclasses import dataclass
@@ -25,6 +26,8 @@ from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.tolerances import (
     ARMIJO,
     CHORD_CONTRACTION,
+    ESTIMATE_SAFETY,
+    ESTIMATE_WINDOW,
     FORCE_FLOOR,
     LINE_SEARCH_STEPS,
     LINEAR_MARGIN,
@@ -41,6 +44,10 @@ class SolverOptions:
     """`tolerance`: |r| <= tolerance * reference force; `max_iterations` per load step;
     `max_subdivisions`: halvings of a failing step; `load_steps`: initial steps.
 
+    `displacement_tolerance_mm` (0: off): Newton also stops once the solver's kept
+    factor estimates that the remaining correction moves no node by more than this
+    (mm; pressure-controlled loads only, see `_close_enough`).
+
     A state also counts as converged when round-off keeps the residual from reaching
     the tolerance: the residual is within STALL_RESIDUAL_FACTOR of it and the full
     Newton correction moves no node by more than STEP_TOLERANCE times the body size
@@ -51,6 +58,7 @@ class SolverOptions:
     max_subdivisions: int = 6
     linear_solver: str = "pcg"
     load_steps: int = 1
+    displacement_tolerance_mm: float = 0.0
 
 
 @dataclass
@@ -134,11 +142,11 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     if not np.isfinite(energy):  # an element inverted at the start (hyperelastic model)
         return False, x, p, 0, np.inf, det_f
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
-    size = float(np.ptp(m.rest, axis=0).max())
+    size = m.extent_mm
     level = 0  # index into TANGENTS; raised for one step when a step fails
     chord, last_merit = False, np.inf  # whether the last step kept the tangent; its merit
     for it in range(options.max_iterations + 1):
-        if merit <= options.tolerance:
+        if merit <= options.tolerance or _close_enough(step, r, merit, options):
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
@@ -211,6 +219,20 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     return False, x, p, options.max_iterations, merit, det_f
 
 
+def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptions) -> bool:
+    """True when the solver's kept factor K_0 estimates the Newton correction left at this
+    iterate, K_0^-1 r, to move no node by more than options.displacement_tolerance_mm
+    (with the margin ESTIMATE_SAFETY: K_0 is a stale, single-precision factor).
+    Only for loads without volume-controlled chambers (their volume error would need a
+    bound of its own) and once the residual is within ESTIMATE_WINDOW of the tolerance
+    (each estimate costs one solve with the factor)."""
+    dtol = options.displacement_tolerance_mm
+    if not (dtol > 0.0 and not len(step.vc) and merit <= ESTIMATE_WINDOW * options.tolerance):
+        return False
+    z = step.solver.estimate(r)
+    return z is not None and ESTIMATE_SAFETY * float(np.abs(z).max(initial=0.0)) <= dtol
+
+
 def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 load_start: Load | None = None, pressure_start: np.ndarray | None = None,
                 options: SolverOptions = SolverOptions(), solver: TangentSolver | None = None,
@@ -231,7 +253,7 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     if k:
         p[~vc] = load_start.pressure_kpa[~vc]
     solver = solver or model.make_solver(options.linear_solver)
-    scale = FORCE_FLOOR * model.young_modulus_kpa * float(np.ptp(model.rest, axis=0).max()) ** 2
+    scale = FORCE_FLOOR * model.young_modulus_kpa * model.extent_mm**2
     t, dt, det_ok = 0.0, 1.0 / max(1, options.load_steps), None
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     last = None  # (t, x, p) of the load step before the last one, for the predictor
@@ -447,8 +469,14 @@ def _sensitivity_guess(solver, x_start, load: Load):
 
 def _moments(d: np.ndarray, order: int) -> np.ndarray:
     """(monomials, columns): every degree-`order` monomial of each column of d."""
-    rows = itertools.combinations_with_replacement(range(d.shape[0]), order)
-    return np.array([np.prod(d[list(r)], axis=0) for r in rows])
+    return np.prod(d[_monomial_rows(d.shape[0], order)], axis=1)
+
+
+@functools.lru_cache(maxsize=64)
+def _monomial_rows(n: int, order: int) -> np.ndarray:
+    """(monomials, order) row indices of every degree-`order` monomial of n variables."""
+    return np.array(list(itertools.combinations_with_replacement(range(n), order)),
+                    np.int64).reshape(-1, order)
 
 
 def _moment_weights(d: np.ndarray, dq: np.ndarray):
