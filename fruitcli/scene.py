@@ -113,7 +113,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "solver": {
         "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|"),
         "displacement_tolerance_mm": Key("num", 1e-4, "... or when the kept factor estimates "
-                                         "the correction left below this (mm; 0 = off)"),
+                                         "the correction left within half this (mm; 0 = "
+                                         "off)"),
         "max_iterations": Key("int", 25, "Newton iterations per load step"),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
         "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi"),

@@ -133,8 +133,8 @@ def default_reason(rows: list[dict], default_name: str) -> str:
     if row is None:
         return f"The default setting ({default_name}) did not run."
     err, ms = row["taxel_err_mean_mm"], row["state_ms"]
-    head = (f"Default ({default_name}, the scene's tolerances, pcg): mean taxel error {err:.3f} mm "
-            f"against the finest setting, at {ms:.0f} ms per state")
+    head = (f"Default ({default_name}, the scene's tolerances, pcg): mean taxel error "
+            f"{err:.3f} mm against the finest setting, at {ms:.0f} ms per state")
     if err < PRINTER_ACCURACY_MM:
         return (f"{head}: below the bench's {PRINTER_ACCURACY_MM} mm positioning accuracy, "
                 "so finer settings cost time for no difference the bench can measure.")

@@ -375,8 +375,9 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
           f"element loops on one thread {np.median(serial_medians):.1f} ms (target <= 10 ms); "
           f"the machine's speed now: one SciPy direct solve of the rest stiffness "
           f"{direct:.0f} ms, a state {wall / direct:.3f} of it", flush=True)
-    plain = copy.deepcopy(scene)  # the residual tolerance alone (before [solver]
-    plain.data["solver"]["displacement_tolerance_mm"] = 0.0  # displacement_tolerance_mm)
+    # the residual tolerance alone, as before [solver] displacement_tolerance_mm
+    plain = copy.deepcopy(scene)
+    plain.data["solver"]["displacement_tolerance_mm"] = 0.0
     _, _, rows_p, states_p = time_states(plain, mesh_npz, "pcg", n_states, keep_states=True)
     _, _, _, states = time_states(scene, mesh_npz, "pcg", n_states, keep_states=True)
     moved = max(float(np.abs(a.x - b.x).max()) for a, b in zip(states, states_p, strict=True))
