@@ -218,19 +218,25 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
         lines.append("No detection variants: the scene has no [bench].")
     write_text(out / "runtime.md", "\n".join(lines) + "\n")
     write_json(out / "runtime.json", {"fem": fem_rows, "detection": det_rows})
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, ax = plt.subplots(figsize=(10, 4.8))
     placed: list[tuple[float, float]] = []  # label anchors, log10 (ms, mm)
-    for r in sorted(ok, key=lambda r: (-r["taxel_err_mean_mm"], r["state_ms"])):
+    key = []
+    for i, r in enumerate(sorted(ok, key=lambda r: (-r["taxel_err_mean_mm"], r["state_ms"])), 1):
         color = "tab:red" if r.get("pareto") else "tab:blue"
         xy = (r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4))
         ax.scatter(*xy, color=color)
         lx, ly = np.log10(xy)
-        # labels of nearby points are stacked downwards instead of printed over each other
-        near = sum(abs(lx - px) < 0.6 and abs(ly - py) < 0.2 for px, py in placed)
+        # each point carries a number (its setting in the key beside the axes); numbers
+        # of nearby points are stacked downwards instead of printed over each other
+        near = sum(abs(lx - px) < 0.25 and abs(ly - py) < 0.15 for px, py in placed)
         placed.append((lx, ly))
-        ax.annotate(r["setting"], xy, fontsize=7, xytext=(4, 3 - 9 * near),
+        ax.annotate(str(i), xy, fontsize=8, color=color, xytext=(5, 3 - 10 * near),
                     textcoords="offset points",
                     arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5} if near else None)
+        zero = " (the reference: error 0, drawn at 1e-4)" if r["taxel_err_mean_mm"] == 0 else ""
+        key.append(f"{i:2d}  {r['setting']}{zero}")
+    ax.text(1.03, 1.0, "\n".join(key), transform=ax.transAxes, fontsize=8, va="top",
+            family="monospace")
     pts = sorted((r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4)) for r in ok
                  if r.get("pareto"))
     if pts:
@@ -240,8 +246,9 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
     ax.set_xlabel("time per FEM state (ms)")
     ax.set_ylabel("taxel position error, mean (mm)")
     ax.grid(True, which="both", color="0.85")
-    ax.legend()
+    ax.legend(loc="lower left")
     fig.tight_layout()
+    fig.subplots_adjust(right=0.55)
     with atomic_path(out / "runtime.png") as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
