@@ -77,7 +77,10 @@ def test_marlin_line_checksum():
 
 
 def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
-    scene = make_scene(tmp_path)
+    # a skin without noise: each touch is then at one gap, the closed form's to within a
+    # step (with noise the first frame over the threshold came up to 0.5 mm early, about
+    # once in a hundred runs, as which frames took which draws depends on timing)
+    scene = make_scene(tmp_path, extra="[skin]\nnoise_std_counts = 0.0")
     proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
                              "emulate-printer", "--board-from", str(scene), "--baud",
                              "2000000", "--time-scale", "0.1", "--fault", "resend:6"],
@@ -101,7 +104,11 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
         p = place.to_printer([*SAMPLES[k], 3.0])
         assert rec.printer_mm[f, :2] == pytest.approx(p[:2], abs=1e-3)  # above the sample
         gap = rec.printer_mm[f, 2] - p[2]
-        assert abs(gap - expected_touch_gap_mm(SAMPLES[k])) < 0.45, (k, gap)
+        # counts are whole numbers and a touch needs v > 20: the activation must reach
+        # 20.5, 2 ln(20.5 / 20) = 0.049 mm below the closed form's gap, then the
+        # descent's next step (0.1 mm) at most
+        below = expected_touch_gap_mm(SAMPLES[k]) - gap
+        assert 0.049 < below < 0.15, (k, gap)
     truth = read_table(tmp_path / "out" / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
                                                                   "z_mm"])
     assert truth["x_mm"].tolist() == [s[0] for s in SAMPLES] and np.all(truth["z_mm"] == 3.0)
