@@ -40,7 +40,7 @@ def fem_cases(default_size: float) -> list[FemCase]:
     # the residual tolerance alone (the displacement tolerance would stop the tight ones)
     cases += [FemCase(f"tol {t:g}, residual alone", default_size, t, 25, "pcg",
                       displacement_tolerance_mm=0.0) for t in (1e-2, 1e-4, 1e-6, 1e-8)]
-    cases += [FemCase("tol 1e-3, cap 3 its", default_size, 1e-3, 3, "pcg",
+    cases += [FemCase("tol 1e-3, cap 3 its, residual alone", default_size, 1e-3, 3, "pcg",
                       displacement_tolerance_mm=0.0),
               FemCase("solver direct", default_size, 1e-6, 25, "direct")]
     cases += [FemCase("element p1, corotational (the paper's model)", default_size, 1e-6, 25,
