@@ -77,15 +77,15 @@ def test_eight_hours_compressed(tmp_path):
     assert growth_mb < 2.0, f"RSS grew {growth_mb:.1f} MB"
     # without the drift tracker the same day gives false touches once the drift passes
     # the threshold (20 counts after about 4 hours): see test_drift_is_needed below
-    # a status line a minute, from the first minute to the last hour: a minute is 60 ms
+    # a status line a minute, from the first frame into the last hour: a minute is 60 ms
     # of wall time here, and a frame that arrives late on a busy machine pushes the next
     # lines back, so the count is not exact (461 of 480 in a loaded CI run, 402-462 with
-    # a CPU hog beside the test)
+    # a CPU hog beside the test); the clock starts with the process, before the board
     log = (tmp_path / "run.log").read_text()
     t_status = np.array([float(t) for t in re.findall(r" status t (\d+) s,", log)])
-    assert 0.75 * 8 * 60 <= len(t_status) <= 8 * 60
+    assert 0.75 * 8 * 60 <= len(t_status) <= 8 * 60 + 1
     assert np.all(np.diff(t_status) >= 59.0)  # printed to the second
-    assert t_status[0] <= 120.0 and t_status[-1] >= 7 * 3600.0
+    assert t_status[-1] - t_status[0] >= 7 * 3600.0
 
 
 def test_a_fixed_baseline_fails_the_soak_day_and_the_tracker_does_not():
