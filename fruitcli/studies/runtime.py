@@ -124,6 +124,7 @@ def pareto(points: list[tuple[float, float]]) -> list[bool]:
 
 
 PRINTER_ACCURACY_MM = 0.1  # the paper's bench positions to 0.1 mm (Sec. V-B)
+PLOT_FLOOR_MM = 1e-4  # where the log plot draws an error of 0 (the reference setting)
 
 
 def default_reason(rows: list[dict], default_name: str) -> str:
@@ -223,7 +224,7 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
     key = []
     for i, r in enumerate(sorted(ok, key=lambda r: (-r["taxel_err_mean_mm"], r["state_ms"])), 1):
         color = "tab:red" if r.get("pareto") else "tab:blue"
-        xy = (r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4))
+        xy = (r["state_ms"], max(r["taxel_err_mean_mm"], PLOT_FLOOR_MM))
         ax.scatter(*xy, color=color)
         lx, ly = np.log10(xy)
         # each point carries a number (its setting in the key beside the axes); numbers
@@ -233,11 +234,12 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
         ax.annotate(str(i), xy, fontsize=8, color=color, xytext=(5, 3 - 10 * near),
                     textcoords="offset points",
                     arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5} if near else None)
-        zero = " (the reference: error 0, drawn at 1e-4)" if r["taxel_err_mean_mm"] == 0 else ""
+        zero = (f" (the reference: error 0, drawn at {PLOT_FLOOR_MM:g})"
+                if r["taxel_err_mean_mm"] == 0 else "")
         key.append(f"{i:2d}  {r['setting']}{zero}")
     ax.text(1.03, 1.0, "\n".join(key), transform=ax.transAxes, fontsize=8, va="top",
             family="monospace")
-    pts = sorted((r["state_ms"], max(r["taxel_err_mean_mm"], 1e-4)) for r in ok
+    pts = sorted((r["state_ms"], max(r["taxel_err_mean_mm"], PLOT_FLOOR_MM)) for r in ok
                  if r.get("pareto"))
     if pts:
         ax.plot(*zip(*pts, strict=True), color="tab:red", lw=1, label="Pareto front")
