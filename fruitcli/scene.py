@@ -175,7 +175,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "register": Key("str", "none", "registration of the bench rows: none, translation, "
                                        "rigid or similarity (see [[evaluate]].register)"),
     },
-    "skin": {  # the skin's forward model (fruitcli.sensing.forward); defaults: its assumptions
+    "skin": {  # the skin's forward model (fruitcli.sensing.skin.forward); defaults: its assumptions
         "footprint_sigma_mm": Key("table", None, "per indenter: lateral Gaussian width (mm); "
                                                  "default small 6.18, medium 7.21"),
         "contact_counts": Key("num", 60.0, "activation of the taxel under the indenter at "
@@ -563,7 +563,7 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                              f"mm, got {sigma!r}")
     if scene.has("bench"):
         bench = scene["bench"]
-        # the paper's indenters (fruitcli.sensing.forward) and those [skin] gives a width
+        # the paper's indenters (fruitcli.sensing.skin.forward) and those [skin] gives a width
         names = tuple(dict.fromkeys(["small", "medium", *feet]))
         if not bench["indenters"] or any(i not in names for i in bench["indenters"]):
             raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "

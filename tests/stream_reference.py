@@ -3,14 +3,14 @@ path bit for bit by tests/test_sensing_live_kernel.py)."""
 
 import numpy as np
 
-from fruitcli.sensing.detect import n9_peaks
-from fruitcli.sensing.locate import StatePath
-from fruitcli.sensing.pipeline import Locator, TouchTable
+from fruitcli.sensing.detection.detect import n9_peaks
+from fruitcli.sensing.detection.frames_to_touches import Locator, TouchTable
+from fruitcli.sensing.detection.locate import StatePath
 
 
 class ReferenceStream:
-    """`fruitcli.sensing.pipeline.Stream` as of 91dc0f6 (numpy per touch), verbatim but
-    for the gain division added since."""
+    """`fruitcli.sensing.detection.frames_to_touches.Stream` as of 91dc0f6 (numpy per
+    touch), verbatim but for the gain division added since."""
 
     def __init__(self, locator: Locator, baseline: np.ndarray):
         self.loc = locator

@@ -8,10 +8,10 @@ from test_sensing_bench import pad_taxel_csv
 
 from fruitcli.cli.main import cli
 from fruitcli.fsutil import write_csv
-from fruitcli.sensing import forward
-from fruitcli.sensing.bench import START_GAP_MM
-from fruitcli.sensing.calibrate import descent_gaps
-from fruitcli.sensing.frames_io import Recording, write_npz
+from fruitcli.sensing.frames.recording import Recording, write_npz
+from fruitcli.sensing.skin import forward
+from fruitcli.sensing.skin.calibrate import descent_gaps
+from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
 from fruitcli.tables import read_table
 
 HIDDEN = {"sigma_mm": 4.5, "contact_counts": 80.0, "gap_decay_mm": 2.0, "noise": 1.2}
@@ -201,7 +201,7 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
     missing from it, or a drawn spread with it, is one line."""
     from fruitcli.errors import FrameError, SceneError
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.frames.board import load_taxels
 
     write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0 + 0.01 * k] for k in range(16)))
     path = virtual_bench_scene(tmp_path, '[skin]\ntaxel_gain = "g.csv"\n')
@@ -230,10 +230,10 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
 def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     """The emulated board under the printer's tip answers with the [skin] it is given
     (calibrated gains, footprint, counts at contact, gap decay), in closed form."""
-    from fruitcli.bench.placement import Placement
-    from fruitcli.bench.skin_board import SkinBoard
+    from fruitcli.printer.placement import Placement
+    from fruitcli.printer.skin_board import SkinBoard
     from fruitcli.scene import SCHEMA
-    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.frames.board import load_taxels
 
     taxels = load_taxels(pad_taxel_csv(tmp_path / "t.csv"))
     write_csv(tmp_path / "gains.csv", ["id", "gain"], ([k, 0.9 + 0.01 * k] for k in range(16)))

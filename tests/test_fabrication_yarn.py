@@ -136,7 +136,7 @@ def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
 def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
     """On a model of linear tets at rest: no stretch; a track with a point 0.5 mm above a
     plate of 0.5 mm elements is named in one warning line, the one inside is not."""
-    from fruitcli.fem.model import Model
+    from fruitcli.fem.corotational_model import Model
 
     nodes, tets = plate_tets(4.0, 2.0, 1.0, 0.5)
     model = Model.from_arrays(nodes, tets, 100.0, 0.45)
@@ -302,9 +302,9 @@ def test_simulate_refuses_a_missing_or_malformed_tracks_file(tmp_path, fruit):
 def test_planner_reruns_simulate_for_new_tracks_or_limits(tmp_path):
     """The simulate stage hashes the tracks file and the yarn settings and declares
     yarns.csv; make-tracks does not depend on the yarn settings."""
-    from fruitcli.planner import Context, fingerprint
     from fruitcli.scene import load_scene
-    from fruitcli.stages import STAGES
+    from fruitcli.workflow.planner import Context, fingerprint
+    from fruitcli.workflow.stages import STAGES
 
     stage = {s.name: s for s in STAGES}
     scene_path = bent_plate_scene(tmp_path)

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import MeshError, SolverError
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements import tet4
 from fruitcli.fem.loads.springs import rotation_matrix
 from fruitcli.fem.materials import corotation
 from fruitcli.fem.meshing.grid import structured_box
-from fruitcli.fem.model import Load, Model
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements.quadratic import quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box_with_cavity
-from fruitcli.fem.model import Load, Model
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 

@@ -11,6 +11,7 @@ import pytest
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import continuum
 from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.elements.lagrange import (
     ELEMENTS,
     tet_rule,
@@ -24,7 +25,6 @@ from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig, nodes_in_box, rotation_matrix
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box
-from fruitcli.fem.model import Load
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import body_force_mn_mm3
 

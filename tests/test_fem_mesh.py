@@ -10,11 +10,11 @@ from click.testing import CliRunner
 from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem import io
 from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import shell_octant
 from fruitcli.fem.meshing.topology import boundary_faces
-from fruitcli.fem.model import Load
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
 from fruitcli.fem.tolerances import ESTIMATE_WINDOW

@@ -14,9 +14,9 @@ from test_sensing_serial import PressureSource, live_lines, touch_frames
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SolverError
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements import barycentric
 from fruitcli.fem.meshing.grid import structured_box_with_cavity
-from fruitcli.fem.model import Load, Model
 from fruitcli.fem.online import OnlineSolver
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
@@ -152,7 +152,7 @@ def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
     """`fruit live --online` with a pressure port: the FEM thread solves the measured
     pressure on the scene's mesh (meshed into out/<scene> on first use) and the touches
     come out on the inflated pad; the summary line counts the solves."""
-    from fruitcli.sensing.emulator import BoardEmulator
+    from fruitcli.sensing.live.board_emulator import BoardEmulator
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "s.toml").write_text(PAD_SCENE)
@@ -213,9 +213,9 @@ def test_live_online_uses_the_reduced_model_by_default(tmp_path, monkeypatch):
     not wait for it) is reused, the touches come out on the inflated pad at once (no
     Newton solve to wait for: every frame after the first pressure line is up), and
     the summary names the reduced model."""
-    from fruitcli.cli.reduced import ensure_reduced
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.emulator import BoardEmulator
+    from fruitcli.sensing.live.board_emulator import BoardEmulator
+    from fruitcli.workflow.reduced_model import ensure_reduced
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "s.toml").write_text(PAD_SCENE)

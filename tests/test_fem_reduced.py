@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from fruitcli import planner
 from fruitcli.cli.main import cli
 from fruitcli.errors import FruitError, SolverError
 from fruitcli.fem import reduced as reduced_mod
@@ -17,6 +16,7 @@ from fruitcli.fem import response_surface as rs
 from fruitcli.fem.pressure_table import read_pressures, write_pressures
 from fruitcli.fem.reduced_build import pressure_box
 from fruitcli.scene import parse_scene
+from fruitcli.workflow import planner
 
 PAD = """
 [scene]
@@ -236,8 +236,8 @@ def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_r
     them along the simulated states; without [reduced] the reduce stage is then needed."""
     from test_locate_chunks import touch_frames
 
-    from fruitcli.sensing.frames_io import Recording, write_npz
-    from fruitcli.sensing.stage import run_locate
+    from fruitcli.sensing.frames.recording import Recording, write_npz
+    from fruitcli.sensing.stages import run_locate
 
     root, out, _, _ = pad_run
     rng = np.random.default_rng(5)
@@ -312,9 +312,9 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
 
     from test_locate_chunks import full_grid, located, scene, touch_frames, write_taxels
 
-    from fruitcli.sensing.board import load_taxels
-    from fruitcli.sensing.frames_io import Recording, write_npz
-    from fruitcli.sensing.stage import run_locate
+    from fruitcli.sensing.frames.board import load_taxels
+    from fruitcli.sensing.frames.recording import Recording, write_npz
+    from fruitcli.sensing.stages import run_locate
 
     rng = np.random.default_rng(4)
     frames = touch_frames(300, rng, noisy_base=True)

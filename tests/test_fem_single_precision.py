@@ -75,10 +75,10 @@ def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = Tr
     with or without Newton's chord steps; (nodes of both states, whether the last factor
     was single precision, tangent updates over Newton steps)."""
     from fruitcli.fem.continuum import ContinuumModel
+    from fruitcli.fem.corotational_model import Load, Model
     from fruitcli.fem.elements.quadratic import quadratic_mesh
     from fruitcli.fem.materials.build import material
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
-    from fruitcli.fem.model import Load, Model
     from fruitcli.fem.solver import linsolve
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 

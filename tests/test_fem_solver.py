@@ -5,9 +5,9 @@ continued from the previous states, and the SuperLU fallback without cholespy.""
 import numpy as np
 import pytest
 
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
-from fruitcli.fem.model import Load, Model
 from fruitcli.fem.solver import linsolve
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.newton import SolverOptions, solve_state

@@ -11,7 +11,7 @@ from fruitcli.cli.main import cli
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.columns import vertical_hits
 from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
-from fruitcli.geometry.pipeline import SCENE_NAMES, make_tracks, read_taxels
+from fruitcli.geometry.make_tracks import SCENE_NAMES, make_tracks, read_taxels
 
 ON_SURFACE_MM = 0.01
 

@@ -9,15 +9,15 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from soak_board import SoakBoard, SoakPlan
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
-from fruitcli.sensing.board import Taxels, default_board
-from fruitcli.sensing.drift import DriftTracker
-from fruitcli.sensing.health import TaxelHealth
-from fruitcli.sensing.pipeline import Locator, Settings, Stream
-from fruitcli.sensing.runlog import RunLog
-from fruitcli.sensing.soak import SoakBoard, SoakPlan
+from fruitcli.sensing.detection.drift import DriftTracker
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.health import TaxelHealth
+from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.live.run_log import RunLog
 
 
 def test_drift_follows_a_ramp_with_the_first_order_lag():
@@ -203,7 +203,7 @@ def test_frames_while_reconnecting_and_a_drift_tau_of_zero(tmp_path):
 def test_rebaseline_ends_the_touches_and_collects_a_new_baseline():
     import json
 
-    from fruitcli.sensing.live import LiveLocator
+    from fruitcli.sensing.live.loop import LiveLocator
 
     i, j = np.divmod(np.arange(16), 4)
     taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))
@@ -254,7 +254,7 @@ def test_a_noisy_taxel_is_flagged_and_does_not_freeze_the_drift_tracker():
     guard (10 counts) on about 10 % of the frames, which alone would hold the tracker
     frozen; once flagged noisy it no longer does, and the others follow a ramp of
     0.1 counts/s with their first-order lag."""
-    from fruitcli.sensing.live import LiveLocator
+    from fruitcli.sensing.live.loop import LiveLocator
 
     i, j = np.divmod(np.arange(16), 4)
     taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))

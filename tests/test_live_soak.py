@@ -11,9 +11,8 @@ import time
 
 import numpy as np
 import pytest
+from soak_board import SoakBoard, SoakPlan
 from test_live_drift import check_touches, live_command, sessions_of
-
-from fruitcli.sensing.soak import SoakBoard, SoakPlan
 
 SCALE = 1000.0
 
@@ -91,10 +90,10 @@ def test_eight_hours_compressed(tmp_path):
 def test_a_fixed_baseline_fails_the_soak_day_and_the_tracker_does_not():
     """The first connection (5 h) of the soak plan in process: with a fixed baseline the
     drift (past 20 counts after about 4 h) makes false touches; with the tracker none."""
-    from fruitcli.sensing.board import Taxels, default_board
-    from fruitcli.sensing.drift import DriftTracker
-    from fruitcli.sensing.live import LiveLocator
-    from fruitcli.sensing.pipeline import Locator, Settings
+    from fruitcli.sensing.detection.drift import DriftTracker
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.frames.board import Taxels, default_board
+    from fruitcli.sensing.live.loop import LiveLocator
 
     plan = SoakPlan(seed=11)
     a, b = plan.connected()[0]

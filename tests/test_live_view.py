@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from test_live_drift import board_taxel_csv
 
-from fruitcli.sensing.emulator import BoardEmulator
+from fruitcli.sensing.live.board_emulator import BoardEmulator
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -239,11 +239,11 @@ def test_view_port_in_use_is_one_line(tmp_path):
 
 def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
     from fruitcli.cli.live import Outputs
-    from fruitcli.sensing.board import default_board, load_taxels
-    from fruitcli.sensing.drift import DriftTracker
-    from fruitcli.sensing.live import LiveLocator
-    from fruitcli.sensing.pipeline import Locator, Settings
-    from fruitcli.sensing.serial_io import PressureState
+    from fruitcli.sensing.detection.drift import DriftTracker
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.frames.board import default_board, load_taxels
+    from fruitcli.sensing.live.loop import LiveLocator
+    from fruitcli.sensing.live.serial_ports import PressureState
 
     taxels = load_taxels(board_taxel_csv(tmp_path / "t.csv"))
     live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,

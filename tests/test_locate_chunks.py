@@ -12,10 +12,10 @@ from locate_reference import touches_csv_text
 
 from fruitcli.errors import FrameError
 from fruitcli.scene import SCHEMA
-from fruitcli.sensing.board import load_taxels, taxel_cells
-from fruitcli.sensing.csv_rows import format_rows
-from fruitcli.sensing.frames_io import Recording, write_muca_log, write_npz
-from fruitcli.sensing.stage import run_locate
+from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+from fruitcli.sensing.frames.recording import Recording, write_muca_log, write_npz
+from fruitcli.sensing.outputs.csv_rows import format_rows
+from fruitcli.sensing.stages import run_locate
 
 R, C = 21, 12
 BASE = 500

@@ -7,15 +7,21 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
-from fruitcli.sensing.emulator import BANNER, BoardEmulator, pacing_line, synthetic_frames
-from fruitcli.sensing.frames_io import parse_line, read_muca_log, read_recording
-from fruitcli.sensing.muca_formats import (
+from fruitcli.sensing.frames.muca import (
     AsciiDecoder,
     BinaryDecoder,
     decode_bytes,
     encode_packet,
     format_ascii_line,
     packet_counts,
+)
+from fruitcli.sensing.frames.muca_line import parse_line
+from fruitcli.sensing.frames.recording import read_muca_log, read_recording
+from fruitcli.sensing.live.board_emulator import (
+    BANNER,
+    BoardEmulator,
+    pacing_line,
+    synthetic_frames,
 )
 
 START = b"".join(line.encode() + b"\r\n" for line in BANNER)

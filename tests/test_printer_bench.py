@@ -13,18 +13,18 @@ import pytest
 from click.testing import CliRunner
 from test_sensing_bench import pad_taxel_csv
 
-from fruitcli.bench.marlin import checksum, numbered
-from fruitcli.bench.placement import Placement
-from fruitcli.bench.printer_bench import BenchInterrupted, BenchStopped, run_printer_bench
-from fruitcli.bench.printer_emulator import PrinterEmulator
-from fruitcli.bench.skin_board import SkinBoard
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError
+from fruitcli.printer.emulator import PrinterEmulator
+from fruitcli.printer.indentation import BenchInterrupted, BenchStopped, run_printer_bench
+from fruitcli.printer.marlin import checksum, numbered
+from fruitcli.printer.placement import Placement
+from fruitcli.printer.skin_board import SkinBoard
 from fruitcli.scene import load_scene
-from fruitcli.sensing import forward
-from fruitcli.sensing.board import load_taxels
-from fruitcli.sensing.emulator import BoardEmulator
-from fruitcli.sensing.frames_io import read_npz
+from fruitcli.sensing.frames.board import load_taxels
+from fruitcli.sensing.frames.recording import read_npz
+from fruitcli.sensing.live.board_emulator import BoardEmulator
+from fruitcli.sensing.skin import forward
 from fruitcli.tables import read_table
 
 SAMPLES = [(-20.0, -20.0), (0.0, 4.0), (12.0, -6.0)]
@@ -314,8 +314,8 @@ def test_busy_lines_while_homing_extend_the_time_out():
     the host waiting, and the ok arrives."""
     import serial
 
-    from fruitcli.bench.marlin import Marlin, PrinterError
-    from fruitcli.bench.printer_emulator import HOME_S
+    from fruitcli.printer.emulator import HOME_S
+    from fruitcli.printer.marlin import Marlin, PrinterError
 
     em = PrinterEmulator(time_scale=1.0, faults={"no-ok": [4]})  # M110, G28, M114, G21
     th = em.start()

@@ -13,9 +13,9 @@ from click.testing import CliRunner
 from test_sensing_bench import pad_states, pad_taxel_csv
 
 from fruitcli.cli.main import cli
-from fruitcli.sensing.emulator import BoardEmulator, synthetic_frames
-from fruitcli.sensing.frames_io import Recording, read_npz, read_recording, write_npz
-from fruitcli.sensing.pressure_path import path_distance_kpa
+from fruitcli.sensing.detection.pressure_path import path_distance_kpa
+from fruitcli.sensing.frames.recording import Recording, read_npz, read_recording, write_npz
+from fruitcli.sensing.live.board_emulator import BoardEmulator, synthetic_frames
 from fruitcli.tables import read_table
 
 

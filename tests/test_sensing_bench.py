@@ -12,11 +12,11 @@ from fruitcli.errors import FrameError
 from fruitcli.fem.elements.barycentric import locate
 from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.scene import parse_scene
-from fruitcli.sensing import forward
-from fruitcli.sensing.frames_io import read_npz
-from fruitcli.sensing.locate import load_states
-from fruitcli.sensing.sensitivity import animation_shift, noise_std_counts
-from fruitcli.sensing.stage import run_bench, run_locate, run_sensitivity
+from fruitcli.sensing.detection.locate import load_states
+from fruitcli.sensing.frames.recording import read_npz
+from fruitcli.sensing.skin import forward
+from fruitcli.sensing.skin.sensitivity import animation_shift, noise_std_counts
+from fruitcli.sensing.stages import run_bench, run_locate, run_sensitivity
 from fruitcli.tables import read_table
 
 PAD_SCENE = """
@@ -284,7 +284,7 @@ def test_bench_reads_the_skin_table(tmp_path):
 
 
 def test_project_to_surface_moves_a_chord_point_onto_the_body(tmp_path):
-    from fruitcli.sensing.stage import body_surface, project_to_surface
+    from fruitcli.sensing.stages import body_surface, project_to_surface
 
     surface = body_surface(pad_surface_stl(tmp_path / "pad.stl"))
     pts, dist = project_to_surface(np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]), surface,

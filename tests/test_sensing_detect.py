@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.board import Taxels, default_board, taxel_cells
-from fruitcli.sensing.detect import Grid, activation_grid, local_peaks
-from fruitcli.sensing.pipeline import Locator, Settings, Stream
+from fruitcli.sensing.detection.detect import Grid, activation_grid, local_peaks
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.frames.board import Taxels, default_board, taxel_cells
 
 BASE = 500  # counts at rest in every cell
 
@@ -193,7 +193,7 @@ def test_pressure_interpolates_between_states():
 
 
 def test_stream_matches_batch_and_state_path_matches_vectorized():
-    from fruitcli.sensing.locate import StatePath, state_path_position
+    from fruitcli.sensing.detection.locate import StatePath, state_path_position
 
     rng = np.random.default_rng(5)
     tx = make_taxels()

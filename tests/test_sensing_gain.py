@@ -9,9 +9,9 @@ from test_sensing_detect import BASE, frame_with, make_taxels
 
 from fruitcli.cli.main import cli
 from fruitcli.fsutil import write_csv
-from fruitcli.sensing.board import default_board, load_taxels
-from fruitcli.sensing.forward import load_taxel_gains
-from fruitcli.sensing.pipeline import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.frames.board import default_board, load_taxels
+from fruitcli.sensing.skin.forward import load_taxel_gains
 
 
 def locator(taxels, gain, **kw):
@@ -99,7 +99,7 @@ def test_round_trip_from_a_calibrate_run(tmp_path):
     """`fruit calibrate`'s gains.csv divides the activations of `fruit locate`, by the
     option or by the scene's [detection].divide_by_gain with [skin].taxel_gain: the same
     touches.csv, that of the batch path with those gains; without either, the paper's."""
-    from fruitcli.sensing.frames_io import read_npz
+    from fruitcli.sensing.frames.recording import read_npz
 
     hidden_bench(tmp_path)
     assert calibrate(tmp_path).exit_code == 0

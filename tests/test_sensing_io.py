@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
-from fruitcli.sensing.frames_io import (
+from fruitcli.sensing.frames.recording import (
     Recording,
     parse_line,
     read_muca_log,
@@ -206,7 +206,7 @@ def test_meta_is_json(tmp_path):
 
 
 def test_taxels_with_a_duplicate_id_are_refused(tmp_path):
-    from fruitcli.sensing.board import load_taxels
+    from fruitcli.sensing.frames.board import load_taxels
 
     path = tmp_path / "t.csv"
     path.write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,0,1,0,1,0\n0,1,0,1,0,0\n")

@@ -7,8 +7,8 @@ import pytest
 from stream_reference import ReferenceStream
 from test_sensing_detect import BASE, make_taxels
 
-from fruitcli.sensing.board import Taxels, default_board
-from fruitcli.sensing.pipeline import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.frames.board import Taxels, default_board
 
 FIELDS = ("frame", "touch", "i", "j", "xyz_mm", "peak")
 
@@ -78,8 +78,8 @@ def test_compiled_stream_equals_the_numpy_stream_bit_for_bit(kw, board):
 def test_ascii_fast_path_reads_what_parse_line_reads():
     """Lines through `AsciiDecoder` (compiled fast path for plain digit lines) give the
     frames `parse_line` gives, and the same lines skipped, for plain and odd lines."""
-    from fruitcli.sensing.frames_io import parse_line
-    from fruitcli.sensing.muca_formats import AsciiDecoder
+    from fruitcli.sensing.frames.muca import AsciiDecoder
+    from fruitcli.sensing.frames.muca_line import parse_line
 
     rng = np.random.default_rng(11)
     rows, cols = 3, 4
@@ -137,7 +137,7 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
     come back, with repeated and backwards frame times (dt <= 0)."""
     from tuio_reference import ReferenceTuioSender
 
-    from fruitcli.sensing.tuio import Normalizer, TuioSender
+    from fruitcli.sensing.outputs.tuio import Normalizer, TuioSender
 
     rng = np.random.default_rng(4)
     tx = full_board()
@@ -175,7 +175,7 @@ def test_nearest_partner_sessions_equal_the_assignment_solver():
     """`SessionTracker` with its compiled nearest-partner path against the solver alone,
     on random fingers that move, appear, vanish and come close to each other (where the
     solver must decide): the same ids, new flags and ended sessions every frame."""
-    from fruitcli.sensing.sessions import SessionTracker
+    from fruitcli.sensing.detection.sessions import SessionTracker
 
     rng = np.random.default_rng(8)
     fast, slow = SessionTracker(20.0), SessionTracker(20.0)

@@ -12,10 +12,10 @@ from click.testing import CliRunner
 from test_sensing_bench import pad_states, pad_taxel_csv
 
 from fruitcli.cli.main import cli
-from fruitcli.sensing.emulator import BoardEmulator, synthetic_frames
-from fruitcli.sensing.frames_io import Recording, read_recording, write_npz
-from fruitcli.sensing.serial_io import PressureState, parse_pressure_line
-from fruitcli.sensing.stage import run_locate
+from fruitcli.sensing.frames.recording import Recording, read_recording, write_npz
+from fruitcli.sensing.live.board_emulator import BoardEmulator, synthetic_frames
+from fruitcli.sensing.live.serial_ports import PressureState, parse_pressure_line
+from fruitcli.sensing.stages import run_locate
 from fruitcli.tables import read_table
 
 
@@ -240,7 +240,7 @@ def test_emulator_stops_when_its_reader_has_gone(monkeypatch):
     full for NO_READER_S, stops instead of blocking forever, and says why."""
     import serial
 
-    from fruitcli.sensing import emulator
+    from fruitcli.sensing.live.loop import board_emulator as emulator
 
     monkeypatch.setattr(emulator, "NO_READER_S", 0.5)
     em = BoardEmulator(synthetic_frames(5000), fps=0, wait_for_reader=True)

@@ -10,7 +10,7 @@ from test_sensing_bench import pad_taxel_csv
 
 from fruitcli.evaluation.report import evaluate_pair
 from fruitcli.scene import load_scene
-from fruitcli.sensing.stage import run_bench, run_locate
+from fruitcli.sensing.stages import run_bench, run_locate
 from fruitcli.studies import bench_study as bs
 
 

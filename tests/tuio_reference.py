@@ -7,8 +7,8 @@ import socket
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing import osc
-from fruitcli.sensing.tuio import PROFILES_3D, Normalizer
+from fruitcli.sensing.outputs import osc
+from fruitcli.sensing.outputs.tuio import PROFILES_3D, Normalizer
 
 
 class Kinematics:
@@ -47,7 +47,7 @@ class Kinematics:
 
 
 class ReferenceTuioSender:
-    """`fruitcli.sensing.tuio.TuioSender` as of 91dc0f6 (plain Python per touch): its
+    """`fruitcli.sensing.outputs.tuio.TuioSender` as of 91dc0f6 (plain Python per touch): its
     datagrams, without a socket."""
 
     def __init__(self, address: tuple, norm: Normalizer, profile_3d: str = "3Dcur",

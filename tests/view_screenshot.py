@@ -23,8 +23,8 @@ from test_live_view import Chromium, free_port  # noqa: E402
 
 from fruitcli.cli.options import scene_products  # noqa: E402
 from fruitcli.scene import load_scene  # noqa: E402
-from fruitcli.sensing.board import load_taxels  # noqa: E402
-from fruitcli.sensing.emulator import BoardEmulator  # noqa: E402
+from fruitcli.sensing.frames.board import load_taxels  # noqa: E402
+from fruitcli.sensing.live.board_emulator import BoardEmulator  # noqa: E402
 
 SCENE = "pipelines/fruit-breathing.toml"
 

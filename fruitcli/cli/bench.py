@@ -11,8 +11,8 @@ def scene_surface(scene):
     """(path, unit) of the scene's body surface at rest in out/<scene name>, or (None, mm)."""
     from pathlib import Path
 
-    from fruitcli.planner import Context
-    from fruitcli.stages import solid_path
+    from fruitcli.workflow.planner import Context
+    from fruitcli.workflow.stages import solid_path
 
     path = solid_path(scene, Context(Path("out") / scene.name))
     unit = scene["geometry"]["unit"] if scene["geometry"]["solid"] is not None else "mm"
@@ -70,7 +70,7 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, print
                           board_port, indenter, fmt, board_baud, overwrite)
     from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene, load_skin_table
-    from fruitcli.sensing.stage import run_bench
+    from fruitcli.sensing.stages import run_bench
 
     progress = Progress("[bench] ")
     with fruit_errors():
@@ -96,8 +96,8 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, print
 def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_port,
                indenter, fmt, board_baud, overwrite):
     """`fruit bench --printer --board`: the protocol on hardware (fruitcli.bench)."""
-    from fruitcli.bench.printer_bench import BenchInterrupted, run_printer_bench
     from fruitcli.errors import SceneError
+    from fruitcli.printer.indentation import BenchInterrupted, run_printer_bench
     from fruitcli.scene import load_scene
 
     progress = Progress("[bench] ")

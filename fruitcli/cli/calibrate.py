@@ -22,7 +22,7 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
     """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
     a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer)."""
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.calibrate import run_calibrate
+    from fruitcli.sensing.skin.calibrate import run_calibrate
 
     progress = Progress("[calibrate] ")
     with fruit_errors():

@@ -31,9 +31,9 @@ def demo(out_dir, scenes):
 
     Unchanged stages are reused, so a second run finishes in seconds.
     """
-    from fruitcli import planner
-    from fruitcli.report import write_report
     from fruitcli.scene import load_scene
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.report import write_report
 
     out = Path(out_dir)
     plans, seconds = {}, {}
@@ -45,13 +45,6 @@ def demo(out_dir, scenes):
         for name, scene in zip(names, loaded, strict=True):
             click.echo(f"== {name} ==", err=True)
             t0 = time.perf_counter()
-            steps = planner.plan(scene, out / scene.name)
-            missing = [s for s in steps if s.action == "not implemented"]
-            if missing:
-                plans[scene.name] = planner.format_plan(steps)
-                click.echo(f"   skipped: {missing[0].stage}: {missing[0].reason}", err=True)
-                seconds[scene.name] = (0.0, 0, 0)
-                continue
             steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
             plans[scene.name] = planner.format_plan(steps)
             seconds[scene.name] = (time.perf_counter() - t0,

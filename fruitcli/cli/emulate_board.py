@@ -40,20 +40,21 @@ def emulate_board(from_path, bench_dir, fmt, baud, fps, n_frames, log_every, wai
     from pathlib import Path
 
     from fruitcli.errors import FrameError
-    from fruitcli.sensing.emulator import (
+    from fruitcli.sensing.frames.board import BOARD_COLS, BOARD_ROWS
+    from fruitcli.sensing.frames.recording import read_recording
+    from fruitcli.sensing.live.board_emulator import (
         NO_READER_S,
         BoardEmulator,
         pacing_line,
         synthetic_frames,
     )
-    from fruitcli.sensing.frames_io import MUCA_COLS, MUCA_ROWS, read_recording
 
     with fruit_errors():
         if from_path and bench_dir:
             raise click.UsageError("give --from or --bench, not both")
         if bench_dir and str(bench_dir).endswith(".toml"):
-            from fruitcli import planner
             from fruitcli.scene import load_scene
+            from fruitcli.workflow import planner
 
             scene = load_scene(bench_dir)
             if not scene.has("bench"):
@@ -69,10 +70,10 @@ def emulate_board(from_path, bench_dir, fmt, baud, fps, n_frames, log_every, wai
             from_path = found[0]
         if from_path:
             frames = read_recording(from_path).frames
-            if frames.shape[1] > MUCA_ROWS or frames.shape[2] > MUCA_COLS:
+            if frames.shape[1] > BOARD_ROWS or frames.shape[2] > BOARD_COLS:
                 raise FrameError(f"{from_path}: frames of {frames.shape[1]} x "
-                                 f"{frames.shape[2]}, expected at most {MUCA_ROWS} x "
-                                 f"{MUCA_COLS} (the MuCa board's Tx x Rx; skipLine gives "
+                                 f"{frames.shape[2]}, expected at most {BOARD_ROWS} x "
+                                 f"{BOARD_COLS} (the MuCa board's Tx x Rx; skipLine gives "
                                  "fewer)")
             frames = frames[:n_frames] if n_frames else frames
         else:

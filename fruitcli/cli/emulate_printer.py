@@ -12,7 +12,7 @@ from fruitcli.cli.options import fruit_errors, scene_products
 
 def parse_faults(specs) -> dict:
     """``resend:5`` ``no-ok:12`` ``halt:20`` -> {"resend": [5], ...}."""
-    from fruitcli.bench.printer_emulator import FAULTS
+    from fruitcli.printer.emulator import FAULTS
 
     out: dict[str, list[int]] = {}
     for spec in specs:
@@ -56,14 +56,14 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
     """
     import threading
 
-    from fruitcli.bench.placement import Placement
-    from fruitcli.bench.printer_emulator import PrinterEmulator
-    from fruitcli.bench.skin_board import SkinBoard
     from fruitcli.errors import SceneError
+    from fruitcli.printer.emulator import PrinterEmulator
+    from fruitcli.printer.placement import Placement
+    from fruitcli.printer.skin_board import SkinBoard
     from fruitcli.scene import load_scene, load_skin_table
-    from fruitcli.sensing import forward
-    from fruitcli.sensing.board import load_taxels
-    from fruitcli.sensing.emulator import BoardEmulator, pacing_line
+    from fruitcli.sensing.frames.board import load_taxels
+    from fruitcli.sensing.live.board_emulator import BoardEmulator, pacing_line
+    from fruitcli.sensing.skin import forward
 
     fault_table = parse_faults(faults)
     with fruit_errors():

@@ -93,14 +93,14 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
 
     from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.board import load_taxels
-    from fruitcli.sensing.drift import DriftTracker
-    from fruitcli.sensing.gain_division import detection_gain
-    from fruitcli.sensing.idle_gc import FrameGC
-    from fruitcli.sensing.live import LiveLocator, pressure_thread
-    from fruitcli.sensing.locate import load_states
-    from fruitcli.sensing.pipeline import Locator, Settings
-    from fruitcli.sensing.serial_io import FrameReader, PortClosed, PressureState, open_port
+    from fruitcli.sensing.detection.drift import DriftTracker
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.detection.gain_division import detection_gain
+    from fruitcli.sensing.detection.locate import load_states
+    from fruitcli.sensing.frames.board import load_taxels
+    from fruitcli.sensing.live.idle_gc import FrameGC
+    from fruitcli.sensing.live.loop import LiveLocator, pressure_thread
+    from fruitcli.sensing.live.serial_ports import FrameReader, PortClosed, PressureState, open_port
 
     progress = Progress("[live] ")
     stop = threading.Event()
@@ -114,7 +114,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
                              "or the scene's [detection]); nothing could be located")
         osc_address = None
         if osc_target is not None:
-            from fruitcli.sensing.tuio import parse_host_port, resolve
+            from fruitcli.sensing.outputs.tuio import parse_host_port, resolve
 
             osc_address = resolve(*parse_host_port(osc_target, "--osc"), "--osc")
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
@@ -158,19 +158,19 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
                                health=True)
         outputs = Outputs(live_loc, taxels, progress, time_scale, pressure)
         if osc_address is not None:
-            from fruitcli.sensing.tuio import Normalizer, TuioSender
+            from fruitcli.sensing.outputs.tuio import Normalizer, TuioSender
 
             outputs.tuio = TuioSender(osc_address, Normalizer.from_taxels(
                 taxels.i, taxels.j, taxels.xyz_mm), tuio_3d)
             progress(f"TUIO/OSC to {osc_target} ({osc_address[0]})")
         if log_path is not None:
-            from fruitcli.sensing.runlog import RunLog
+            from fruitcli.sensing.live.run_log import RunLog
 
             outputs.log = RunLog(log_path, log_max_kb * 1024, log_backups)
         if view_target is not None:
             outputs.start_view(view_target)
         if reconnect:
-            from fruitcli.sensing.reconnect import wait_for_port
+            from fruitcli.sensing.live.reconnect import wait_for_port
 
             try:
                 ser = wait_for_port(port, baud, on_wait=lambda why: progress(
@@ -312,7 +312,7 @@ class Outputs:
         """The port vanished: end the touches, wait for the port, start a new baseline."""
         import time
 
-        from fruitcli.sensing.serial_io import FrameReader
+        from fruitcli.sensing.live.serial_ports import FrameReader
 
         t = self.now(time.monotonic())
         ended, line = self.live.rebaseline(t)
@@ -334,8 +334,8 @@ class Outputs:
         return ser, FrameReader(ser, board["rows"], board["cols"], name=port, fmt=fmt)
 
     def start_view(self, target: str) -> None:
-        from fruitcli.sensing.tuio import parse_host_port
-        from fruitcli.sensing.view import ViewServer
+        from fruitcli.sensing.outputs.live_view import ViewServer
+        from fruitcli.sensing.outputs.tuio import parse_host_port
 
         host, port = parse_host_port(target, "--view", default_host="127.0.0.1")
         tx = self.taxels
@@ -436,9 +436,9 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
     run into out/<scene name> when needed (one planner run); given taxels are kept."""
     from pathlib import Path
 
-    from fruitcli import planner
     from fruitcli.errors import FrameError
-    from fruitcli.stages import taxels_path
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import taxels_path
 
     if not pressure_port:
         raise FrameError("--online: needs --pressure-port, the source of the pressures")
@@ -459,10 +459,10 @@ def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
     reduced model, built into out/<scene name>/reduce when missing or stale."""
     from pathlib import Path
 
-    from fruitcli import planner
-    from fruitcli.cli.reduced import ensure_reduced
     from fruitcli.errors import FrameError
-    from fruitcli.stages import taxels_path
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.reduced_model import ensure_reduced
+    from fruitcli.workflow.stages import taxels_path
 
     if not pressure_port:
         raise FrameError("--online: needs --pressure-port, the source of the pressures")

@@ -43,8 +43,8 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
     bounded however long it is; touches.csv appears only once complete.
     """
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.recording_chunks import has_pressures
-    from fruitcli.sensing.stage import run_locate
+    from fruitcli.sensing.frames.recording_chunks import has_pressures
+    from fruitcli.sensing.stages import run_locate
 
     progress = Progress("[locate] ")
     with fruit_errors():
@@ -54,7 +54,7 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
                 and has_pressures(frames, scene["board"]):
             from pathlib import Path
 
-            from fruitcli.cli.reduced import ensure_reduced
+            from fruitcli.workflow.reduced_model import ensure_reduced
 
             reduced = ensure_reduced(scene, Path("out") / scene.name, taxels_csv, progress,
                                      label=f"{scene_path}: --model reduced")

@@ -49,19 +49,8 @@ class LazyGroup(click.Group):
     def get_command(self, ctx, name):
         if name not in COMMANDS:
             return None
-        module, attr, short = COMMANDS[name]
-        try:
-            return getattr(importlib.import_module(module), attr)
-        except ModuleNotFoundError as exc:
-            if exc.name != module:
-                raise
-
-            @click.command(name=name, help=f"{short} (not implemented yet)")
-            def missing():
-                raise click.ClickException(f"'fruit {name}' is not implemented yet")
-
-            missing.short_help = f"{short} [not implemented yet]"
-            return missing
+        module, attr, _ = COMMANDS[name]
+        return getattr(importlib.import_module(module), attr)
 
     def format_commands(self, ctx, formatter):
         rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]

@@ -54,7 +54,7 @@ def make_mold(scene, out_dir, tracks_dir, **given):
             if sc["geometry"]["artist"] is None:
                 raise SceneError(f"{scene}: [geometry]: make-mold needs an artist mesh (its "
                                  "tracked top and reduced body), or --tracks")
-            from fruitcli import planner
+            from fruitcli.workflow import planner
 
             planner.run(sc, out_dir, until="make-tracks", progress=log,
                         shared=shared_outputs(out_dir))

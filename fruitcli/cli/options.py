@@ -75,8 +75,8 @@ def scene_products(scene, out_root=None, progress=None):
     (into `out_root`, default out/<scene name>) and reusing what is already there."""
     from pathlib import Path
 
-    from fruitcli import planner
-    from fruitcli.stages import states_path, taxels_path
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import states_path, taxels_path
 
     out = Path(out_root) if out_root else Path("out") / scene.name
     # simulate's upstream makes the taxels; stages the scene does not need are skipped

@@ -48,8 +48,8 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
     --seconds, stop with Ctrl-C.
     """
     from fruitcli.errors import FrameError
-    from fruitcli.sensing.live import pressure_thread
-    from fruitcli.sensing.recorder import (
+    from fruitcli.sensing.live.loop import pressure_thread
+    from fruitcli.sensing.live.recorder import (
         LogSink,
         check_limits,
         check_out_path,
@@ -57,7 +57,7 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         log_path_for,
         record_stream,
     )
-    from fruitcli.sensing.serial_io import FrameReader, PressureState, open_port
+    from fruitcli.sensing.live.serial_ports import FrameReader, PressureState, open_port
 
     progress = Progress("[record] ")
     interrupted = False

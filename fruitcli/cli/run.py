@@ -28,8 +28,8 @@ def run(scene_file, out_dir, dry_run, until, force):
     manifest.json with a content hash of what went in). Stages a scene does not need
     (no chambers, no deformation, no artist mesh, ...) are left out and the plan says why.
     """
-    from fruitcli import planner
     from fruitcli.scene import load_scene
+    from fruitcli.workflow import planner
 
     with fruit_errors():
         scene = load_scene(scene_file)

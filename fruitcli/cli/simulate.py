@@ -43,7 +43,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
-    from fruitcli.geometry.pipeline import read_taxels
+    from fruitcli.geometry.make_tracks import read_taxels
     from fruitcli.scene import load_scene, n_states
 
     log = Progress("simulate ")
@@ -58,7 +58,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
                 raise SceneError(f"{scene}: --pressures: the scene has no [[geometry.chamber]]")
             table, rows = read_pressures(pressures_csv, names)
         if model_kind == "reduced":
-            from fruitcli.cli.reduced import simulate_reduced
+            from fruitcli.workflow.reduced_model import simulate_reduced
 
             info = simulate_reduced(sc, out_dir, taxels, table, rows, pressures_csv, log,
                                     vtu=vtu)
@@ -75,7 +75,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
 
             read_tracks(tracks_csv)
         if solid is None and geo["artist"] is not None:
-            from fruitcli import planner
+            from fruitcli.workflow import planner
 
             planner.run(sc, out_dir, until="make-tracks", progress=log,
                         shared=shared_outputs(out_dir))

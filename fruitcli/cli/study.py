@@ -98,12 +98,12 @@ def runtime(scene_file, out_dir, jobs, scheduler):
     error in the deformed state against the finest setting (mm), and the localization
     error on the bench (mm). The plot marks the Pareto front.
     """
-    from fruitcli import planner
     from fruitcli.cli.options import Progress
     from fruitcli.scene import load_scene
-    from fruitcli.stages import solid_path, states_path, taxels_path
     from fruitcli.studies import runtime as rt
     from fruitcli.studies.parallel import run_cases
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import solid_path, states_path, taxels_path
 
     with fruit_errors(), contextlib.ExitStack() as stack:
         scene = load_scene(scene_file)
@@ -162,14 +162,14 @@ def bench_study(scene_file, out_dir, jobs):
     translation-registered (the paper's protocol, mm), and the registered mean's
     bootstrap 95 % interval. The plot has one panel per parameter.
     """
-    from fruitcli import planner
     from fruitcli.cli.options import Progress
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
-    from fruitcli.report import PAPER_TABLE_I
     from fruitcli.scene import load_scene
-    from fruitcli.stages import _geometry_kind, solid_path, states_path, taxels_path
     from fruitcli.studies import bench_study as bs
     from fruitcli.studies.parallel import run_cases
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.report import PAPER_TABLE_I
+    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
 
     with fruit_errors():
         scene = load_scene(scene_file)

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from fruitcli.errors import MeshError, SceneError
+from fruitcli.fem.corotational_model import Model, pin_rigid_modes, prescribed_dofs
 from fruitcli.fem.element_sums import node_incidence
 from fruitcli.fem.elements import integrate, tet4
 from fruitcli.fem.elements.integrate import evaluate
@@ -27,7 +28,6 @@ from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shap
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.model import Model, pin_rigid_modes, prescribed_dofs
 from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
@@ -135,7 +135,7 @@ class ContinuumModel:
         """Validate and precompute. nodes (n, 3) mm, conn (m, nen) of `element`'s
         family, chambers {name: (t, 3 or 6) wall triangles, normals out of the cavity},
         prescribed [(node indices, (3,) displacement mm[, (3,) components held])]
-        (moved clamps, rollers; `fruitcli.fem.model.prescribed_dofs`)."""
+        (moved clamps, rollers; `fruitcli.fem.corotational_model.prescribed_dofs`)."""
         fam = ELEMENTS[element]
         rest = np.ascontiguousarray(nodes, dtype=float)
         conn = np.ascontiguousarray(conn, dtype=np.int64)

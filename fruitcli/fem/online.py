@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.model import Load, Model
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 MIN_CHANGE_KPA = 0.05

@@ -20,7 +20,7 @@ import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import response_surface as rs
-from fruitcli.fem.model import Load
+from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.reduced import ReducedModel
 from fruitcli.fem.solver.newton import solve_state
 

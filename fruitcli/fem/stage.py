@@ -19,6 +19,7 @@ import numpy as np
 from fruitcli.errors import MeshError, SceneError
 from fruitcli.fem import io
 from fruitcli.fem.continuum import ContinuumModel
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements import barycentric, tet4
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
@@ -26,7 +27,6 @@ from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
 from fruitcli.fem.meshing import shells, tetra
-from fruitcli.fem.model import Load, Model
 from fruitcli.fem.solver.linsolve import LINEAR_SOLVERS
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm

@@ -1,0 +1,18 @@
+"""Sensing: from raw CDC frames to touches in 3D, and the skin model behind the virtual bench.
+
+Sub-packages, by concept (each may import only those listed before it, plus
+`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`, `fruitcli.geometry` and
+`fruitcli.fem`):
+
+- `frames`: the board (21 x 12 cells, taxel <-> cell), its stock firmware's formats and
+  recordings of frames (`.npz`, MuCa ASCII logs), read whole or chunk by chunk.
+- `detection`: baseline, threshold, N9 centroid, multitouch (paper Sec. III-B), 3D
+  location (eq. 7), baseline drift, touch sessions, taxel health, gain division.
+- `skin`: the skin's forward model, the virtual 3D-printer bench, its calibration,
+  sensitivity analysis and heat maps.
+- `outputs`: where touches go: touches CSV, TUIO 1.1 and plain OSC, the live view.
+- `live`: the live loop on a board over serial: ports, reconnecting, recording, the run
+  log, an emulated board on a pseudo-terminal.
+
+`stages` holds the sensing stages as file-to-file functions (locate, bench, sensitivity).
+"""

@@ -49,9 +49,9 @@ class Case:
 
 def cases(skin_table: dict, indenters: list[str], surface: bool = False) -> list[Case]:
     """The default, then each parameter moved alone. The footprint of an indenter of
-    radius r is hypot(field sigma, r), as in `fruitcli.sensing.forward`. With the body's
+    radius r is hypot(field sigma, r), as in `fruitcli.sensing.skin.forward`. With the body's
     `surface`, also the default skin located with ``[detection].project = "surface"``."""
-    from fruitcli.sensing import forward
+    from fruitcli.sensing.skin import forward
 
     out = [Case("default", float("nan"))]
     for f in FIELD_SIGMAS_MM:
@@ -77,7 +77,7 @@ def run_case(args) -> dict:
     """Bench, locate and evaluate one case; a row per indenter with the Table I figures."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.stage import run_bench, run_locate
+    from fruitcli.sensing.stages import run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, case = args
     scene = copy.deepcopy(load_scene(scene_path))
@@ -155,7 +155,7 @@ def table_markdown(rows: list[dict], scene_name: str, paper: dict) -> str:
 
 def default_value(parameter: str, skin_table: dict) -> float:
     """The default's x position in the plot."""
-    from fruitcli.sensing import forward
+    from fruitcli.sensing.skin import forward
 
     if parameter == "footprint":
         return forward.FIELD_SIGMA_MM

@@ -69,7 +69,7 @@ def run_fem_case(args) -> dict:
     """Mesh (cached per size) and simulate one setting; returns timings and taxels."""
     from fruitcli.errors import FruitError
     from fruitcli.fem.stage import run_simulate, run_tetra
-    from fruitcli.geometry.pipeline import read_taxels
+    from fruitcli.geometry.make_tracks import read_taxels
 
     scene_path, work, solid, taxels_csv, case = args
     scene = _scene_variant(load_scene(scene_path), case)
@@ -157,7 +157,7 @@ DETECTION_VARIANTS = {
 def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Path) -> list[dict]:
     """Locate the bench frames with each detection variant; error and time per frame."""
     from fruitcli.evaluation.report import evaluate_pair
-    from fruitcli.sensing.stage import run_locate
+    from fruitcli.sensing.stages import run_locate
 
     rows = []
     for name, params in DETECTION_VARIANTS.items():

@@ -72,7 +72,7 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
     """The case's model: the paper's `Model` (p1, corotational) or the hyperelastic one
     on the case's element (quadratic meshes built from the linear one here). Nodes with
     coordinate `fixed_where` = (axis, value) are held."""
-    from fruitcli.fem.model import Model
+    from fruitcli.fem.corotational_model import Model
 
     def held(x):
         return None if fixed_where is None else np.flatnonzero(
@@ -101,8 +101,8 @@ def pressure_outward(nodes, tris):
 
 
 def _beam(case: Case):
+    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.meshing.grid import structured_box
-    from fruitcli.fem.model import Load
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
     model = _build(case, nodes, tets, density_kg_m3=DENSITY, gravity_m_s2=GRAVITY,
@@ -111,8 +111,8 @@ def _beam(case: Case):
 
 
 def _hollow(case: Case, free: bool = False):
+    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
-    from fruitcli.fem.model import Load
 
     nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS,
                                                      CAVITY_LO_MM, CAVITY_HI_MM)
@@ -125,9 +125,9 @@ def _hollow(case: Case, free: bool = False):
 
 
 def _jig(case: Case):
+    from fruitcli.fem.corotational_model import Load, Model
     from fruitcli.fem.loads.springs import Jig
     from fruitcli.fem.meshing.grid import structured_box
-    from fruitcli.fem.model import Load, Model
     from fruitcli.fem.units import spring_mn_per_mm
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
@@ -140,7 +140,7 @@ def _jig(case: Case):
 
 
 def _sliver(case: Case):
-    from fruitcli.fem.model import Load, Model
+    from fruitcli.fem.corotational_model import Load, Model
 
     nodes = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1e-4]], float)
     tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4], [0, 1, 2, 4]])

@@ -36,8 +36,8 @@ def variant_figures(scene, folder: Path) -> dict:
     """The figures of a finished variant's stages: taxel count, tets, FEM states (Newton
     iterations, max displacement mm, median ms per state), Table I rows (n, mean and
     std error mm) and sensitivity (noise std, baseline shift, counts)."""
-    from fruitcli.planner import Context
-    from fruitcli.stages import taxels_path
+    from fruitcli.workflow.planner import Context
+    from fruitcli.workflow.stages import taxels_path
 
     ctx = Context(Path(folder))
     out: dict = {}
@@ -93,7 +93,7 @@ class _Log:
     """The planner's progress lines into folder/log.txt; remembers the stage running."""
 
     def __init__(self, folder: Path):
-        from fruitcli.stages import STAGES
+        from fruitcli.workflow.stages import STAGES
 
         self.path, self.stage = folder / "log.txt", ""
         self._names = {s.name for s in STAGES}
@@ -125,7 +125,7 @@ def run_stage_task(arg, deps) -> dict:
 
 
 def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict:
-    from fruitcli import planner
+    from fruitcli.workflow import planner
 
     _note_attempt(folder, f"stage {stage}")
     log = _Log(folder)
@@ -155,7 +155,7 @@ def run_variant_task(arg, deps) -> dict:
 
 
 def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
-    from fruitcli import planner
+    from fruitcli.workflow import planner
 
     t0 = time.perf_counter()
     _note_attempt(folder, "variant")
@@ -174,7 +174,7 @@ def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
 def finished_row(variant: Variant, folder: Path) -> dict | None:
     """A variant's row from a previous run when it finished with these values and every
     stage would be reused now (no input or code changed); else None."""
-    from fruitcli import planner
+    from fruitcli.workflow import planner
 
     try:
         old = json.loads((folder / RESULT).read_text())
@@ -191,8 +191,8 @@ def finished_row(variant: Variant, folder: Path) -> dict | None:
 def build_tasks(variants: list[Variant], variants_dir: Path, todo: list[int]) -> dict:
     """The task graph: ("stage", name, hash) for each stage two or more of the variants
     `todo` would run identically, ("variant", k) for each variant in `todo`."""
-    from fruitcli import planner
-    from fruitcli.stages import STAGES
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import STAGES
 
     deps_of = {s.name: s.deps for s in STAGES}
     runs: dict[int, list[tuple[str, str]]] = {}

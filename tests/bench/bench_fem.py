@@ -50,7 +50,7 @@ def hwm_mb() -> float:
 
 def fruit_solid(tmp: Path) -> Path:
     from fruitcli.geometry.artist import write_artist
-    from fruitcli.geometry.pipeline import make_tracks
+    from fruitcli.geometry.make_tracks import make_tracks
 
     art = tmp / "fruit.stl"
     write_artist(art)
@@ -75,7 +75,7 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
     its states spread evenly over [actuation].period_s (the last state closes the cycle)."""
     from scipy.interpolate import CubicSpline
 
-    from fruitcli.fem.model import Load
+    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.stage import state_loads
 
     table = np.array([ld.pressure_kpa for ld in state_loads(scene, names)])
@@ -148,10 +148,10 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     from fruitcli.fem.elements import barycentric
     from fruitcli.fem.online import OnlineSolver
     from fruitcli.fem.stage import build_model, solver_options, state_loads
-    from fruitcli.sensing.board import load_taxels
-    from fruitcli.sensing.emulator import synthetic_frames
-    from fruitcli.sensing.live import LiveLocator
-    from fruitcli.sensing.pipeline import Locator, Settings
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.frames.board import load_taxels
+    from fruitcli.sensing.live.board_emulator import synthetic_frames
+    from fruitcli.sensing.live.loop import LiveLocator
 
     model = build_model(scene, io.load_mesh(mesh_npz))
     taxels = load_taxels(taxels_csv)

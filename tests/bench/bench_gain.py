@@ -25,9 +25,9 @@ from test_calibrate import HIDDEN_SKIN, virtual_bench_scene  # noqa: E402
 
 from fruitcli.fsutil import write_csv  # noqa: E402
 from fruitcli.scene import load_scene  # noqa: E402
-from fruitcli.sensing import forward  # noqa: E402
-from fruitcli.sensing.calibrate import run_calibrate  # noqa: E402
-from fruitcli.sensing.stage import run_bench, run_locate  # noqa: E402
+from fruitcli.sensing.skin import forward  # noqa: E402
+from fruitcli.sensing.skin.calibrate import run_calibrate  # noqa: E402
+from fruitcli.sensing.stages import run_bench, run_locate  # noqa: E402
 from fruitcli.tables import read_table  # noqa: E402
 
 

@@ -162,7 +162,7 @@ def mold_step(tracks_dir: Path, out_dir: Path) -> None:
 
 def main() -> None:
     from fruitcli.geometry.artist import write_artist
-    from fruitcli.geometry.pipeline import make_tracks
+    from fruitcli.geometry.make_tracks import make_tracks
 
     with tempfile.TemporaryDirectory() as tmp:
         art = Path(tmp) / "fruit.stl"

@@ -14,8 +14,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from test_muca_formats import START, binary_stream, board_frames  # noqa: E402
 
-from fruitcli.sensing.emulator import pacing_line  # noqa: E402
-from fruitcli.sensing.muca_formats import decode_bytes, format_ascii_line  # noqa: E402
+from fruitcli.sensing.frames.muca import decode_bytes, format_ascii_line  # noqa: E402
+from fruitcli.sensing.live.board_emulator import pacing_line  # noqa: E402
 
 
 def timed(data: bytes, fmt: str, repeats: int = 3) -> tuple[float, int]:

@@ -15,7 +15,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from test_printer_bench import Rig, make_scene  # noqa: E402
 
-from fruitcli.sensing.frames_io import read_npz  # noqa: E402
+from fruitcli.sensing.frames.recording import read_npz  # noqa: E402
 
 
 def main() -> None:

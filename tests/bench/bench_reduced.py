@@ -76,10 +76,10 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None,
                     help="build into this folder (kept, for --reuse) instead of a temporary one")
     args = ap.parse_args()
-    from fruitcli import planner
-    from fruitcli.cli.reduced import ensure_reduced
     from fruitcli.fem import reduced
     from fruitcli.scene import load_scene
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.reduced_model import ensure_reduced
 
     print(f"load average {os.getloadavg()[0]:.1f} (2 cores)")
     if args.reuse is not None:

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fruitcli.sensing.board import Taxels, default_board
-from fruitcli.sensing.frames_io import format_line, parse_line
-from fruitcli.sensing.pipeline import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.frames.muca_line import format_line, parse_line
 
 
 def fruit_like_taxels() -> Taxels:
@@ -88,7 +88,7 @@ def main():
     for line in lines:
         parse_line(line, 252)
     dt = (time.perf_counter() - t0) / len(lines)
-    from fruitcli.sensing.muca_formats import AsciiDecoder
+    from fruitcli.sensing.frames.muca import AsciiDecoder
 
     dec = AsciiDecoder(21, 12)
     raw = [(line + "\r\n").encode() for line in lines]
@@ -226,8 +226,8 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from locate_reference import locate, touches_csv_text
 
-    from fruitcli.sensing.board import load_taxels, taxel_cells
-    from fruitcli.sensing.frames_io import read_npz
+    from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+    from fruitcli.sensing.frames.recording import read_npz
 
     rec = read_npz(frames_npz)
     tx = load_taxels(taxels_csv)
@@ -250,15 +250,15 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
     import socket
     import tty
 
-    from fruitcli.sensing.idle_gc import FrameGC
-    from fruitcli.sensing.live import LiveLocator
-    from fruitcli.sensing.serial_io import FrameReader, open_port
-    from fruitcli.sensing.tuio import Normalizer, TuioSender
+    from fruitcli.sensing.live.idle_gc import FrameGC
+    from fruitcli.sensing.live.loop import LiveLocator
+    from fruitcli.sensing.live.serial_ports import FrameReader, open_port
+    from fruitcli.sensing.outputs.tuio import Normalizer, TuioSender
 
     i, j = np.divmod(np.arange(21 * 12), 12)
     taxels = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], axis=1))
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10))
-    from fruitcli.sensing.drift import DriftTracker
+    from fruitcli.sensing.detection.drift import DriftTracker
 
     live = LiveLocator(loc, drift=DriftTracker(60.0, 20.0), health=True) if live_defaults \
         else LiveLocator(loc)

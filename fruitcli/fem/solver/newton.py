@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.model import Load, Model
+from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.tolerances import (
     ARMIJO,

@@ -1,1 +1,0 @@
-"""The real 3D-printer bench: a Marlin printer with an indenter and a MuCa board."""

@@ -1,0 +1,5 @@
+"""The printer bench: a Marlin 3D printer carrying an indenter over the skin while a MuCa
+board records (the paper's protocol, Sec. V-B, on real hardware), and an emulated printer.
+
+May import: `fruitcli.sensing`, `fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
+"""

@@ -1,0 +1,78 @@
+"""Baseline drift tracking for weeks of unattended running (`fruit live`).
+
+Units: counts, s. Temperature and humidity move every taxel's rest count slowly; the
+tracker follows with a first-order filter of time constant tau (s),
+
+    C0 += a (C - C0),  a = 1 - exp(-dt / tau)  (dt: time since the previous frame),
+
+but only on quiet frames: no taxel's activation C - C0 above the guard (half the touch
+threshold by default), and at least `hold_s` since the last frame that had one (the
+silicone relaxes after a press). So a hand hovering just below the threshold freezes the
+baseline instead of being absorbed into it, as Infineon CAPSENSE and Microchip QTouch do
+(update only below a noise threshold; QTouch's 4 s drift hold time). Counts falling
+below the baseline (C - C0 < 0) are never a touch and are always followed. Taxels
+flagged broken (`fruitcli.sensing.detection.health`) do not freeze it: a taxel stuck high would
+otherwise stop the tracking of all the others for the rest of the run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+
+DEFAULT_TAU_S = 60.0  # thermal drift takes minutes to hours; a visitor's hover seconds
+GUARD_FRACTION = 0.5  # of the threshold: CAPSENSE's noise threshold is 40 % of a touch
+HOLD_S = 4.0  # QTouch DEF_DRIFT_HOLD_TIME
+
+
+class DriftTracker:
+    """Adapt a baseline (T,) counts in place on quiet frames (see the module docstring)."""
+
+    def __init__(self, tau_s: float, threshold_counts: float,
+                 guard_counts: float | None = None, hold_s: float = HOLD_S):
+        if not (tau_s > 0 and math.isfinite(tau_s)):
+            raise FrameError(f"drift time constant: expected a finite number of seconds "
+                             f"> 0, got {tau_s:g}")
+        self.tau_s = float(tau_s)
+        self.guard = GUARD_FRACTION * threshold_counts if guard_counts is None \
+            else float(guard_counts)
+        self.hold_s = float(hold_s)
+        self.last_t: float | None = None
+        self.last_active = -math.inf  # host time of the last frame above the guard
+        self.adapted = 0  # frames that moved the baseline
+        self.frozen = 0  # frames that did not (above the guard or in the hold time)
+
+    def reset(self) -> None:
+        """After a new baseline (reconnect): no history."""
+        self.last_t, self.last_active = None, -math.inf
+
+    def update(self, baseline: np.ndarray, values: np.ndarray, t_s: float,
+               ignore: np.ndarray | None = None) -> bool:
+        """One frame's taxel counts (T,) at host time t_s; -> True if it adapted.
+        `ignore` (T,) bool: taxels that cannot freeze the tracker (flagged stuck,
+        saturated, dead or noisy: not a hand; they are still tracked)."""
+        dt = 0.0 if self.last_t is None else max(t_s - self.last_t, 0.0)
+        self.last_t = t_s
+        d = values - baseline
+        near = d > self.guard
+        if ignore is not None:
+            near &= ~ignore
+        if near.any():
+            self.last_active = t_s
+        if t_s - self.last_active < self.hold_s:
+            low = d < 0  # below the baseline: follow it even while frozen
+            if low.any() and dt > 0:
+                baseline[low] += -math.expm1(-dt / self.tau_s) * d[low]
+            self.frozen += 1
+            return False
+        if dt > 0:
+            baseline += -math.expm1(-dt / self.tau_s) * d
+        self.adapted += 1
+        return True
+
+    def state(self) -> str:
+        return (f"drift tracking tau {self.tau_s:g} s, guard {self.guard:g} counts: "
+                f"{self.adapted} frames adapted, {self.frozen} frozen")

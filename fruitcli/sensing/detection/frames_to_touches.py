@@ -1,0 +1,340 @@
+"""Frames -> touches in 3D: the detection settings, a batch path and a per-frame stream.
+
+Units: counts, mm, kPa.
+
+The batch path (`Locator.chunks`, `Locator.batch`) is vectorized over the frames of a
+chunk and used whenever no option needs state carried from frame to frame; a recording
+goes through it chunk by chunk, so its memory does not grow with its length. Drift
+tracking, hysteresis, debounce and touch IDs carry state, so they run frame by frame
+through `Stream` (also the live loop):
+
+- drift tracking (``drift_rate`` r > 0): C0 += r (C - C0) on frames whose every v is at
+  most threshold - hysteresis and that are not in a touch (frozen while touched);
+- debounce (``debounce_frames`` d): a touch starts on the d-th consecutive frame whose
+  maximum v exceeds the threshold (0 and 1: at once);
+- hysteresis (``hysteresis_counts`` h): once touched, touches are extracted above
+  threshold - h and the touch ends when no v exceeds threshold - h (frame-level state);
+- touch IDs (``track_gate_mm`` g > 0): previous and current 3D touch points are matched
+  by ``scipy.optimize.linear_sum_assignment`` on their distance; pairs farther than g,
+  and unmatched touches, get the lowest ID not in use. Without IDs, ``touch`` is the rank.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.detection.detect import (
+    MAX_TOUCHES,
+    Grid,
+    Layout,
+    baseline_counts,
+    detect,
+    n9_peaks,
+)
+from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
+from fruitcli.sensing.frames.board import Taxels, taxel_cells
+
+CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Detection settings, as the scene's ``[detection]`` section names them."""
+
+    threshold_counts: float = 20.0
+    baseline_frames: int = 10
+    method: str = "n9"
+    noise_floor_counts: float = 0.0
+    hysteresis_counts: float = 0.0
+    debounce_frames: int = 0
+    drift_rate: float = 0.0
+    track_gate_mm: float = 0.0
+    max_touches: int = MAX_TOUCHES
+
+    @classmethod
+    def from_scene(cls, detection: dict, **overrides) -> Settings:
+        keys = {k: detection[k] for k in cls.__dataclass_fields__ if k in detection}
+        keys.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**keys)
+
+    @property
+    def stateful(self) -> bool:
+        return bool(self.drift_rate > 0 or self.hysteresis_counts > 0
+                    or self.debounce_frames > 1 or self.track_gate_mm > 0)
+
+    @property
+    def floor(self) -> float:
+        return self.noise_floor_counts if self.method != "n9" else 0.0
+
+
+@dataclass
+class TouchTable:
+    """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak."""
+
+    frame: np.ndarray
+    touch: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    xyz_mm: np.ndarray  # (n, 3)
+    peak: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.frame.shape[0])
+
+    @classmethod
+    def concat(cls, tables: list[TouchTable]) -> TouchTable:
+        if not tables:
+            e = np.zeros(0)
+            return cls(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
+        return cls(*(np.concatenate([getattr(t, f) for t in tables])
+                     for f in ("frame", "touch", "i", "j", "xyz_mm", "peak")))
+
+
+class Locator:
+    """Detection and 3D location for one taxel layout, board and set of positions.
+
+    `positions_mm` is (T, 3) (one state) or (S, T, 3) with `state_pressure_kpa` (S, K):
+    then each frame's pressures pick its place on the state path. With `reduced` (a
+    `fruitcli.fem.reduced.ReducedModel` of these taxels), each frame's pressures give
+    its taxels' positions through the reduced model instead (clamped to its range).
+    `gain` (T,): divide each taxel's activation by it before detection
+    (`fruitcli.sensing.detection.detect`; None: off, the paper).
+    """
+
+    def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
+                 settings: Settings, state_pressure_kpa: np.ndarray | None = None,
+                 where: str = "taxels", reduced=None, gain: np.ndarray | None = None):
+        self.reduced = reduced
+        self.taxels, self.board, self.settings = taxels, board, settings
+        self.gain = None if gain is None else np.asarray(gain, dtype=float)
+        self.rows, self.cols = taxel_cells(taxels, board, where)
+        self.grid = Grid.from_ij(taxels.i, taxels.j)
+        self.frame_shape = (board["rows"], board["cols"])
+        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols)
+        self.positions_mm = np.asarray(positions_mm, dtype=float)
+        self.state_pressure_kpa = state_pressure_kpa
+        if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
+            raise FrameError("per-state positions need the states' pressures")
+
+    def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray:
+        """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
+        the pressures clamped to its range."""
+        r = self.reduced
+        return r.taxels(np.clip(np.asarray(pressure_kpa, float), r.lo, r.hi))
+
+    def values(self, frames: np.ndarray) -> np.ndarray:
+        """Counts of the taxel cells (N, T) from frames (N, R, C)."""
+        cell = self.rows * frames.shape[2] + self.cols
+        return np.take(frames.reshape(frames.shape[0], -1), cell, axis=1)
+
+    def baseline(self, frames: np.ndarray, where: str = "frames",
+                 n_frames: int | None = None) -> np.ndarray:
+        """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
+        `n_frames` the recording's length."""
+        k = self.settings.baseline_frames
+        return baseline_counts(self.values(frames[:max(k, 1)]), k, where,
+                               frames.shape[0] if n_frames is None else n_frames)
+
+    def _path(self, pressure_kpa: np.ndarray | None, n: int):
+        if self.positions_mm.ndim == 2:
+            return None, None
+        if pressure_kpa is None:
+            return np.zeros(n, np.int64), np.zeros(n)
+        return state_path_position(pressure_kpa, self.state_pressure_kpa)
+
+    def chunks(self, read: Callable[[int, int], np.ndarray], n_frames: int,
+               baseline: np.ndarray, pressure_kpa: np.ndarray | None = None,
+               size: int = CHUNK_FRAMES, then: Callable | None = None,
+               workers: int = 1) -> Iterator:
+        """Touches of frames 0 .. n_frames - 1, `size` at a time: ``read(start, count)``
+        gives frames (count, R, C); frame indices count over the whole recording and
+        `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
+        ``then(table)`` computed in the worker. Stateless settings spread the chunks over
+        `workers` threads (the compiled N9 loop and numpy release the GIL), in order;
+        stateful ones run through one `Stream` carried across the chunks."""
+        s = self.settings
+        finish = then or (lambda table: table)
+        starts = range(0, n_frames, size)
+        if s.stateful:
+            stream = Stream(self, baseline)
+            for start in starts:
+                frames = read(start, size)
+                yield finish(TouchTable.concat([
+                    stream.step(f, None if pressure_kpa is None else pressure_kpa[start + n],
+                                start + n) for n, f in enumerate(self.values(frames))]))
+            return
+        seg = frac = None
+        if self.positions_mm.ndim == 3:
+            seg, frac = self._path(pressure_kpa, n_frames)
+
+        def job(start: int):
+            frames = read(start, size)
+            if tuple(frames.shape[1:]) != self.frame_shape:
+                raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
+                                 f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
+            t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
+                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain)
+            end = start + frames.shape[0]
+            if self.reduced is not None and pressure_kpa is not None:
+                pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
+                tax = np.where(t.taxel < 0, 0, t.taxel)
+                xyz = np.einsum("nk,nkd->nd", t.weight,
+                                pos[np.arange(len(tax))[:, None], tax])
+            else:
+                xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
+                                 None if frac is None else frac[start:end])
+            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak))
+
+        yield from _in_order(job, starts, workers)
+
+    def batch(self, frames: np.ndarray, baseline: np.ndarray,
+              pressure_kpa: np.ndarray | None = None,
+              size: int = CHUNK_FRAMES) -> TouchTable:
+        """All touches of frames (N, R, C) in memory, `size` at a time."""
+        return TouchTable.concat(list(self.chunks(lambda a, k: frames[a:a + k],
+                                                  frames.shape[0], baseline, pressure_kpa,
+                                                  size)))
+
+
+def _in_order(job: Callable, items: Iterable, workers: int) -> Iterator:
+    """job(item) for every item, run on `workers` threads, yielded in the items' order;
+    at most 2 * workers items are in flight, so finished results do not pile up."""
+    if workers <= 1:
+        yield from map(job, items)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        pending: deque[Future] = deque()
+        try:
+            for item in items:
+                pending.append(pool.submit(job, item))
+                if len(pending) >= 2 * workers:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+class Stream:
+    """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
+
+    def __init__(self, locator: Locator, baseline: np.ndarray):
+        self.loc = locator
+        self.s = locator.settings
+        self.baseline = np.asarray(baseline, dtype=float).copy()
+        self.touched = False
+        self.above = 0
+        self.prev_xyz = np.zeros((0, 3))
+        self.prev_ids = np.zeros(0, np.int64)
+        self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
+        self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
+        self._pos, self._pos_key, self._path = None, None, None
+        self._empty = TouchTable.concat([])
+        self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
+        from fruitcli.sensing.detection.n9_kernel import n9_frame
+
+        self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
+        # taxel of each N9 cell of each position, 0 where none (its weight is 0)
+        self._n9_taxel = np.where(locator.layout.n9_taxel < 0, 0, locator.layout.n9_taxel)
+        m = self.s.max_touches
+        self._scratch = np.empty(len(locator.rows))
+        self._k, self._peak = np.empty(m, np.int64), np.empty(m)
+        self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
+        self._n9_frame(self.activation, locator.layout.taxel, locator.layout.n9,
+                       locator.layout.ci, locator.layout.cj, np.inf, 0.0, m, self._scratch,
+                       self._k, self._peak, self._i, self._j, self._w)  # load it now
+
+    def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
+             frame: int = 0) -> TouchTable:
+        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
+        loc, s = self.loc, self.s
+        if values.ndim == 2:
+            values = values[loc.rows, loc.cols]
+        v = values - self.baseline
+        np.maximum(v, 0.0, out=v)
+        self.activation = v  # (T,) counts, for the live view
+        if loc.gain is not None:
+            v = v / loc.gain
+        vmax = float(v.max())
+        low = s.threshold_counts - s.hysteresis_counts
+        if self.touched:
+            on = vmax > low
+            thr = low
+        else:
+            self.above = self.above + 1 if vmax > s.threshold_counts else 0
+            on = self.above >= max(s.debounce_frames, 1)
+            thr = s.threshold_counts
+        self.touched = on
+        if not on:
+            if s.drift_rate > 0 and vmax <= low:
+                self.baseline += s.drift_rate * (values - self.baseline)
+            self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
+            return self._empty
+        if s.method == "peaks":
+            flat = np.zeros((1, self._cells))
+            flat[0, loc.grid.cell] = v
+            t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
+        else:
+            lay = loc.layout
+            n = self._n9_frame(v, lay.taxel, lay.n9, lay.ci, lay.cj, float(thr),
+                               float(s.floor if s.method == "n9_floor" else 0.0),
+                               int(s.max_touches), self._scratch, self._k, self._peak,
+                               self._i, self._j, self._w)
+            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
+            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
+        pos = self._positions(pressure_kpa)
+        n = len(i)
+        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
+        xyz = (w[:, None, :] @ pos[tax])[:, 0, :]
+        ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
+        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
+
+    def _positions(self, pressure_kpa) -> np.ndarray:
+        """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
+        pos = self.loc.positions_mm
+        if self.loc.reduced is not None and pressure_kpa is not None:
+            key = tuple(np.asarray(pressure_kpa, float).tolist())
+            if key != self._pos_key or self._pos is None:
+                self._pos, self._pos_key = self.loc.reduced_positions(np.array(key)), key
+            return self._pos
+        if pos.ndim == 2:
+            return pos
+        key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())
+        if key != self._pos_key or self._pos is None:
+            if key is None:
+                self._pos = pos[0]
+            else:
+                if self._path is None:
+                    self._path = StatePath(self.loc.state_pressure_kpa)
+                s0, t = self._path.locate(np.asarray(key))
+                s1 = min(s0 + 1, pos.shape[0] - 1)
+                self._pos = (1 - t) * pos[s0] + t * pos[s1]
+            self._pos_key = key
+        return self._pos
+
+    def _ids(self, xyz: np.ndarray) -> np.ndarray:
+        from scipy.optimize import linear_sum_assignment  # slow to import: only for IDs
+
+        ids = np.full(xyz.shape[0], -1, np.int64)
+        if self.prev_xyz.shape[0] and xyz.shape[0]:
+            cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz[None, :, :], axis=2)
+            r, c = linear_sum_assignment(cost)
+            ok = cost[r, c] <= self.s.track_gate_mm
+            ids[c[ok]] = self.prev_ids[r[ok]]
+        used = set(ids[ids >= 0].tolist())
+        nxt = 0
+        for k in np.flatnonzero(ids < 0):
+            while nxt in used:
+                nxt += 1
+            ids[k] = nxt
+            used.add(nxt)
+        self.prev_xyz, self.prev_ids = xyz, ids
+        return ids

@@ -1,0 +1,4 @@
+"""Raw CDC frames: the board's geometry, its stock firmware's formats and recordings.
+
+May import: `fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
+"""

@@ -1,0 +1,56 @@
+"""touches.csv written chunk by chunk: the rows of each chunk's touches formatted in bulk.
+
+Units: s, mm, counts. The bytes are those `fruitcli.fsutil.write_csv` writes for the same
+rows (``# `` comment lines, the header, ints as ``str``, floats as ``"%.6f"``); the file
+appears only when complete (`atomic_path`), so an error half way leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import os
+from collections.abc import Iterator
+
+import numpy as np
+
+from fruitcli.fsutil import atomic_path
+from fruitcli.sensing.detection.frames_to_touches import TouchTable
+from fruitcli.sensing.outputs.csv_rows import format_rows
+
+TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"]
+_KINDS = "dfdffffff"
+
+
+def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
+    """The data rows of touches.csv for `table`; `t_s` (N,) s of every frame."""
+    if len(table) == 0:
+        return b""
+    xyz = table.xyz_mm
+    return format_rows([table.frame, t_s[table.frame], table.touch, table.i, table.j,
+                        xyz[:, 0], xyz[:, 1], xyz[:, 2], table.peak], _KINDS)
+
+
+class _Rows:
+    def __init__(self, fh):
+        self._fh, self.rows = fh, 0
+
+    def write(self, data: bytes, rows: int) -> None:
+        """Append `rows` rows from `touch_bytes`."""
+        self._fh.write(data)
+        self.rows += rows
+
+
+@contextlib.contextmanager
+def touch_csv(path: str | os.PathLike, comments: list[str] = ()) -> Iterator[_Rows]:
+    """``with touch_csv(path, comments) as out: out.write(touch_bytes(table, t_s),
+    len(table))`` per chunk."""
+    head = io.StringIO()
+    for line in comments:
+        head.write(f"# {line}\n")
+    csv.writer(head, lineterminator="\n").writerow(TOUCH_HEADER)
+    with atomic_path(path) as tmp, open(tmp, "w") as fh:  # text, as write_csv writes
+        fh.write(head.getvalue())
+        fh.flush()
+        yield _Rows(fh.buffer)

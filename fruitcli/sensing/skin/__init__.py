@@ -1,0 +1,7 @@
+"""The skin model: raw counts of every taxel for an indenter and a FEM state (forward
+model), the virtual 3D-printer bench built on it, its calibration from a bench recording,
+sensitivity analysis and per-taxel heat maps.
+
+May import: `fruitcli.sensing.frames`, `fruitcli.fem`, `fruitcli.geometry`, and
+`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
+"""

@@ -1,0 +1,209 @@
+"""Calibrating the skin's forward model from a bench recording (real or virtual).
+
+Units: mm, counts. The model fitted is the virtual bench's (`fruitcli.sensing.skin.forward`),
+with a gain per taxel:
+
+    v(frame, taxel) = gain_t * contact_counts * exp(-d^2 / (2 sigma^2)) * exp(-gap / gap_decay_mm)
+
+v = C - C0 (C0: the mean of the recording's idle frames), d the 3D distance from the
+sample's contact point (truth.csv) to the taxel at rest, gap the tip's height above the
+contact point. Frames used: every frame of every sample's descent (from the first frame
+after the previous sample's frame to the sample's own frame). The gap of a frame is
+``printer_mm`` z minus the model origin's z (meta ``model_origin_mm``) minus the contact
+z for a printer-bench recording; for a virtual-bench recording (no ``printer_mm``) it is
+``START_GAP_MM - j * step_mm`` for the j-th frame of the descent, as the virtual bench
+moves. Least squares over log-parameters (scipy), the gains normalized to mean 1 (their
+common factor is contact_counts). The noise std is that of the idle frames, less the
+rounding of integer counts (1/12 count^2). Taxels whose fitted activation never reaches
+``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
+
+MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
+ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
+GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts trade off)
+
+
+def descent_gaps(rec, truth_z: dict[int, float], n_idle: int, where: str):
+    """(frame indices (M,), sample id per frame (M,), gap mm (M,)) of every descent frame."""
+    if rec.sample is None:
+        raise FrameError(f"{where}: no 'sample' key: not a bench recording")
+    frames, samples, gaps = [], [], []
+    start = n_idle
+    origin_z = None
+    if rec.printer_mm is not None:
+        origin = rec.meta.get("model_origin_mm")
+        if origin is None:
+            raise FrameError(f"{where}: printer_mm without meta model_origin_mm")
+        origin_z = float(origin[2])
+    step = rec.meta.get("step_mm")
+    if origin_z is None and step is None:
+        raise FrameError(f"{where}: meta has no step_mm (virtual bench) and no printer_mm")
+    for f in np.flatnonzero(rec.sample >= 0):
+        k = int(rec.sample[f])
+        idx = np.arange(start, f + 1)
+        start = f + 1
+        if k not in truth_z:
+            continue
+        if origin_z is not None:
+            gap = rec.printer_mm[idx, 2] - origin_z - truth_z[k]
+        else:
+            gap = START_GAP_MM - np.arange(idx.size) * float(step)
+        frames.append(idx)
+        samples.append(np.full(idx.size, k))
+        gaps.append(gap)
+    if not frames:
+        raise FrameError(f"{where}: no sample frame to calibrate on")
+    return np.concatenate(frames), np.concatenate(samples), np.concatenate(gaps)
+
+
+def check_samples(rec_samples: np.ndarray, truth_ids: np.ndarray, frames_where: str,
+                  truth_where: str) -> None:
+    """The truth file and the recording must name the same samples."""
+    have = set(int(k) for k in rec_samples[rec_samples >= 0])
+    want = set(int(k) for k in truth_ids)
+    if len(truth_ids) != len(want):
+        raise FrameError(f"{truth_where}: a sample appears twice")
+    missing, extra = sorted(want - have), sorted(have - want)
+    if missing or extra:
+        parts = []
+        if missing:
+            parts.append(f"samples {', '.join(map(str, missing[:5]))} have no frame in "
+                         f"{frames_where}")
+        if extra:
+            parts.append(f"{frames_where} has frames of samples "
+                         f"{', '.join(map(str, extra[:5]))} that are not in it")
+        raise FrameError(f"{truth_where}: does not match the recording: {'; '.join(parts)}")
+
+
+def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
+    """Fit v (M, T) counts = g_t A exp(-d^2/2s^2) exp(-gap/l) for d (M, T) mm, gap (M,) mm.
+    -> {contact_counts, sigma_mm, gap_decay_mm, gain (T,), measured (T,), rms_counts}."""
+    from scipy.optimize import least_squares
+
+    t = v.shape[1]
+
+    def model(x):
+        a, s, lam = np.exp(x[:3])
+        g = np.exp(x[3:])
+        return (g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2)
+                * np.exp(-gap_mm / lam)[:, None])
+
+    def residual(x):
+        return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
+
+    def jacobian(x):
+        """d residual / d log-parameters: m, m d^2/s^2, m gap/l, and m in taxel t's
+        column for log g_t; the gauge row last."""
+        m = model(x)
+        s, lam = np.exp(x[1]), np.exp(x[2])
+        jac = np.zeros((m.size + 1, 3 + t))
+        jac[:-1, 0] = m.ravel()
+        jac[:-1, 1] = (m * (dist_mm / s) ** 2).ravel()
+        jac[:-1, 2] = (m * (gap_mm / lam)[:, None]).ravel()
+        rows = np.arange(m.size)
+        jac[rows, 3 + rows % t] = m.ravel()
+        jac[-1, 3:] = GAUGE_WEIGHT / t
+        return jac
+
+    peak = max(float(v.max()), 1.0)
+    x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), np.zeros(t)]
+    res = least_squares(residual, x0, jac=jacobian, method="trf", x_scale="jac")
+    a, s, lam = np.exp(res.x[:3])
+    g = np.exp(res.x[3:])
+    pred = model(res.x)
+    measured = pred.max(axis=0) >= MEASURED_MIN_COUNTS
+    g = np.where(measured, g, np.nan)
+    scale = float(np.nanmean(g)) if measured.any() else 1.0
+    gain = np.where(measured, g / scale, 1.0)
+    return {"contact_counts": float(a * scale), "sigma_mm": float(s),
+            "gap_decay_mm": float(lam), "gain": gain, "measured": measured,
+            "rms_counts": float(np.sqrt(np.mean((pred - v) ** 2)))}
+
+
+def noise_std_counts(idle: np.ndarray) -> tuple[float, np.ndarray]:
+    """(overall, per taxel (T,)) noise std of idle counts (K, T), rounding removed."""
+    var = np.var(idle, axis=0, ddof=1) if idle.shape[0] > 1 else np.zeros(idle.shape[1])
+    per = np.sqrt(np.maximum(var - ROUNDING_VAR, 0.0))
+    return float(np.sqrt(max(var.mean() - ROUNDING_VAR, 0.0))), per
+
+
+def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.csv") -> str:
+    """The ``[skin]`` table of a calibration."""
+    return ("# fruit calibrate: the skin's forward model fitted to a bench recording\n"
+            "[skin]\n"
+            f"footprint_sigma_mm = {{ {indenter} = {fit['sigma_mm']:.4f} }}\n"
+            f"contact_counts = {fit['contact_counts']:.4f}\n"
+            f"gap_decay_mm = {fit['gap_decay_mm']:.4f}\n"
+            "gain_spread = 0.0\n"
+            f"taxel_gain = \"{gains_name}\"\n"
+            f"noise_std_counts = {noise:.4f}\n")
+
+
+def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None,
+                  progress=None) -> dict:
+    """Fit the skin to a bench recording; write DIR/skin.toml, DIR/gains.csv and
+    DIR/calibration.json. -> the summary."""
+    from pathlib import Path
+
+    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+    from fruitcli.sensing.frames.recording import read_recording
+    from fruitcli.tables import read_table
+
+    say = progress or (lambda msg: None)
+    board = scene["board"]
+    taxels = load_taxels(taxels_csv)
+    rows, cols = taxel_cells(taxels, board, str(taxels_csv))
+    rec = read_recording(frames_path, board["rows"], board["cols"], board["format"])
+    where = str(frames_path)
+    truth = read_table(Path(truth_csv), ["sample", "x_mm", "y_mm", "z_mm"], error=FrameError)
+    ids = truth["sample"].astype(np.int64)
+    if rec.sample is None:
+        raise FrameError(f"{where}: no 'sample' key: not a bench recording")
+    check_samples(rec.sample, ids, where, str(truth_csv))
+    name = indenter or rec.meta.get("indenter")
+    if not name:
+        raise FrameError(f"{where}: meta names no indenter: give --indenter")
+    n_idle = int(rec.meta.get("baseline_frames", scene["detection"]["baseline_frames"]))
+    if not 1 < n_idle < len(rec):
+        raise FrameError(f"{where}: {n_idle} idle frames (meta baseline_frames): expected "
+                         f"2 .. {len(rec) - 1}")
+    counts = rec.frames[:, rows, cols].astype(float)
+    idle = counts[:n_idle]
+    c0 = idle.mean(axis=0)
+    pts = np.stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]], axis=1)
+    point = dict(zip(ids.tolist(), pts, strict=True))
+    frames, samples, gaps = descent_gaps(rec, {k: p[2] for k, p in point.items()}, n_idle,
+                                         where)
+    contact = np.stack([point[int(k)] for k in samples])
+    dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - contact[:, None, :], axis=2)
+    say(f"fitting {len(frames)} descent frames of {len(ids)} samples x {len(taxels)} taxels")
+    fit = fit_skin(counts[frames] - c0, dist, gaps)
+    noise, noise_per = noise_std_counts(idle)
+    summary = {"indenter": name, "footprint_sigma_mm": fit["sigma_mm"],
+               "contact_counts": fit["contact_counts"], "gap_decay_mm": fit["gap_decay_mm"],
+               "noise_std_counts": noise, "rms_residual_counts": fit["rms_counts"],
+               "frames": int(len(frames)), "samples": int(len(ids)),
+               "taxels_measured": int(fit["measured"].sum()), "taxels": len(taxels),
+               "idle_frames": n_idle, "recording": where, "truth": str(truth_csv)}
+    with staged_dir(out_dir) as tmp:
+        write_text(tmp / "skin.toml", skin_toml(name, fit, noise))
+        write_csv(tmp / "gains.csv", ["id", "i", "j", "gain", "noise_std_counts", "measured"],
+                  ([int(taxels.ids[k]), int(taxels.i[k]), int(taxels.j[k]),
+                    float(fit["gain"][k]), float(noise_per[k]), int(fit["measured"][k])]
+                   for k in range(len(taxels))),
+                  comments=["per-taxel gain (mean 1 over measured taxels; 1 where not "
+                            "measured) and noise std (counts) from fruit calibrate"])
+        write_json(tmp / "calibration.json", summary)
+    say(f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
+        f"decay {fit['gap_decay_mm']:.2f} mm, noise {noise:.2f} counts, "
+        f"{int(fit['measured'].sum())}/{len(taxels)} gains measured, rms residual "
+        f"{fit['rms_counts']:.2f} counts")
+    return summary

@@ -1,0 +1,131 @@
+"""The virtual 3D-printer bench (paper Sec. V-B): indenters come down until the threshold.
+
+Units: mm, counts, s.
+
+Sample points: "quarter" puts one sample a quarter taxel off each taxel, +spacing_x/4 in
+x and +spacing_y/4 in y (the paper's rest truth points sit on a regular lattice; its
+sign cannot be read from the paper, we take +). The ground truth has one definition in
+every configuration: the contact point is where a vertical line through the sample's
+(x, y) first meets the body's surface from above, the body being the reduced surface the
+FEM body is made from (``make-tracks/reduced.stl`` or the scene's solid). At rest it is
+that surface as it is; in a FEM state its vertices are carried by the FEM's displacement
+(each mapped once into its rest tet, like the taxels), so a state with zero displacement
+gives exactly the rest truth. Samples whose vertical line misses the body are dropped.
+Without a body surface (taxels given directly) the bench falls back to the FEM state's
+outer boundary, or at rest to the taxels' own surface interpolated linearly over a
+Delaunay triangulation of their (x, y), and says so.
+
+The indenter starts ``START_GAP_MM`` above the contact point and descends by ``step_mm``;
+each step is one frame. The first frame in which some taxel's v = C - C0 exceeds the
+threshold (C0: the mean of the bench's idle frames) is the sample's frame; the indenter
+then lifts for the next sample. A sample that does not cross the threshold even
+``PRESS_MM`` into the skin is dropped and counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.skin import forward
+
+START_GAP_MM = 5.0  # indenter start above the contact point
+PRESS_MM = 2.0  # deepest press into the skin before a sample is given up
+BENCH_FPS = 60.0  # frame rate of the virtual board (frames/s)
+_INSIDE_EPS = 1e-9  # barycentric tolerance of the vertical ray test
+
+
+def quarter_samples(taxels_xy_mm: np.ndarray, spacing_x_mm: float, spacing_y_mm: float):
+    """(x, y) of one sample a quarter taxel off each taxel (T, 2) mm."""
+    return taxels_xy_mm + np.array([spacing_x_mm, spacing_y_mm]) / 4.0
+
+
+def surface_heights(xy_mm: np.ndarray, nodes_mm: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Highest z where vertical lines at (x, y) (P, 2) meet triangles (F, 3); NaN: miss."""
+    a, b, c = (nodes_mm[tris[:, k]] for k in range(3))
+    e1, e2 = (b - a)[:, :2], (c - a)[:, :2]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    ok = np.abs(det) > _INSIDE_EPS
+    a, b, c, e1, e2, det = a[ok], b[ok], c[ok], e1[ok], e2[ok], det[ok]
+    r = xy_mm[:, None, :] - a[None, :, :2]  # (P, F, 2)
+    u = (r[..., 0] * e2[:, 1] - r[..., 1] * e2[:, 0]) / det
+    v = (e1[:, 0] * r[..., 1] - e1[:, 1] * r[..., 0]) / det
+    inside = (u >= -_INSIDE_EPS) & (v >= -_INSIDE_EPS) & (u + v <= 1 + _INSIDE_EPS)
+    z = a[:, 2] + u * (b[:, 2] - a[:, 2]) + v * (c[:, 2] - a[:, 2])
+    z = np.where(inside, z, -np.inf).max(axis=1)
+    return np.where(np.isfinite(z), z, np.nan)
+
+
+def carried_vertices(rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray,
+                     vertices: np.ndarray) -> np.ndarray:
+    """Surface vertices (V, 3) mm at rest, moved with a FEM state: each vertex mapped
+    barycentrically into its rest tet (corner nodes of `tets`), placed by the same weights
+    on the deformed `nodes` (N, 3). Vertices just outside the tet mesh (its surface is a
+    remeshed copy of this one) are extrapolated from the nearest tet."""
+    from fruitcli.fem.elements.barycentric import apply, locate
+
+    corners = np.asarray(tets)[:, :4]
+    tet, weights, _ = locate(rest_nodes, corners, vertices)
+    return apply(nodes, corners, tet, weights)
+
+
+def taxel_surface_heights(xy_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
+    """z of the taxels' surface (linear over their xy Delaunay triangles) at (P, 2); NaN
+    outside."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    f = LinearNDInterpolator(taxels_mm[:, :2], taxels_mm[:, 2])
+    return np.asarray(f(xy_mm), dtype=float)
+
+
+@dataclass
+class BenchRun:
+    """One indenter's bench recording: taxel counts per frame and the samples' truth."""
+
+    counts: np.ndarray  # (N, T) int counts of the taxels
+    sample: np.ndarray  # (N,) int, -1 for idle and approach frames
+    truth_mm: np.ndarray  # (m, 3) contact points of the crossed samples
+    truth_ids: np.ndarray  # (m,) sample ids (index in the sample list)
+    dropped: int  # samples that never crossed the threshold
+
+
+def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarray,
+            skin: forward.Skin, indenter: str, step_mm: float, idle_frames: int,
+            threshold: float, rng) -> BenchRun:
+    """Replay the bench over contact points (P, 3) on taxels at `taxels_mm` (T, 3) whose
+    mean counts without touch are `rest_counts` (T,) (baseline + deformation shift)."""
+    if step_mm <= 0:
+        raise FrameError(f"[bench].step_mm: expected > 0, got {step_mm}")
+    idle = forward.frame_counts(np.broadcast_to(rest_counts, (idle_frames, len(rest_counts))),
+                                skin.noise_std_counts, rng)
+    c0 = idle.mean(axis=0)
+    gaps = np.arange(START_GAP_MM, -PRESS_MM - step_mm / 2, -step_mm)
+    blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
+    for k, p in enumerate(contact_mm):
+        dist = np.linalg.norm(taxels_mm - p, axis=1)
+        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter, skin)
+        counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
+        hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
+        if hit.size == 0:
+            dropped += 1
+            continue
+        n = hit[0] + 1
+        blocks.append(counts[:n])
+        s = np.full(n, -1)
+        s[-1] = k
+        samples.append(s)
+        truth.append(p)
+        ids.append(k)
+    return BenchRun(np.concatenate(blocks), np.concatenate(samples),
+                    np.reshape(truth, (-1, 3)), np.asarray(ids, np.int64), dropped)
+
+
+def cell_counts(taxel_counts: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+                shape: tuple[int, int], fill_counts: np.ndarray) -> np.ndarray:
+    """Whole frames (N, R, C): taxel cells from `taxel_counts` (N, T), others `fill_counts`
+    (N, R, C) (the board reports every crossing, wired or not)."""
+    frames = fill_counts.copy()
+    frames[:, rows, cols] = taxel_counts
+    return frames

@@ -1,0 +1,98 @@
+"""The reduced model as the commands use it: built on demand through the planner (into
+OUT/reduce, reused while the mesh, material, taxels and range are unchanged), then
+evaluated at pressure vectors (kPa) instead of solving the FEM."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None):
+    """The scene's ReducedModel, from OUT/reduce (built there first when missing or
+    stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
+    meshed, no chambers) is one FruitError line starting with `label`."""
+    from fruitcli.cli.options import shared_outputs
+    from fruitcli.errors import FruitError
+    from fruitcli.fem import reduced
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import reduced_path, wanting_reduced
+
+    sc = wanting_reduced(scene)
+    if taxels_csv is not None:
+        sc.data = {**sc.data, "grid": {**sc.data["grid"], "taxels": Path(taxels_csv)}}
+    log = progress or (lambda msg: None)
+    bar = None
+
+    def route(msg: str) -> None:  # the build's full solves on a bar, the rest as lines
+        nonlocal bar
+        if msg.startswith("state ") and "/" in msg.split(":")[0]:
+            if bar is None:
+                from fruitcli.cli.options import progressbar
+
+                total = int(msg.split(":")[0].split("/")[1])
+                bar = progressbar(length=total, label="reduced-model full solves")
+                bar.__enter__()
+            bar.update(1)
+            return
+        if bar is not None:
+            bar.__exit__(None, None, None)
+            bar = None
+        log(msg)
+
+    try:
+        steps = planner.run(sc, out_root, until="reduce", progress=route,
+                            shared=shared_outputs(out_root))
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    skipped = {st.stage: st.reason for st in steps if st.action == "not needed"}
+    if "reduce" in skipped:
+        label = label or scene.path.name
+        what = "not meshed" if "tetra" in skipped else "without a reduced model"
+        raise FruitError(f"{label}: the scene is {what} ({skipped['reduce']})")
+    return reduced.load(reduced_path(sc, planner.Context(Path(out_root))))
+
+
+def actuation_table(scene, names: list[str]) -> np.ndarray:
+    """(S, K) kPa of the scene's [actuation] states in `names` order."""
+    from fruitcli.errors import SceneError
+    from fruitcli.scene import n_states
+
+    act = scene["actuation"]
+    if act["volume_growth_mm3"]:
+        raise SceneError("[actuation].volume_growth_mm3: the reduced model maps pressures; "
+                         "use --model full or --pressures")
+    table = act["pressure_kpa"] or {}
+    return np.stack([np.asarray(table.get(n, [0.0] * n_states(scene)), float)
+                     for n in names], axis=1)
+
+
+def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_csv,
+                     progress, vtu: bool = False) -> dict:
+    """`fruit simulate --model reduced`: states.npz at the rows of `table` (S, K) kPa
+    (in the scene's chamber order; default its [actuation] states). Rows outside the
+    model's range are one error naming the first (file line `rows`)."""
+    from fruitcli.fem import io
+    from fruitcli.fem.reduced import states_arrays
+    from fruitcli.fsutil import staged_dir
+
+    model = ensure_reduced(scene, out_dir, taxels_csv, progress)
+    names = [c["name"] for c in scene.chambers]
+    where = str(pressures_csv) if pressures_csv is not None else f"{scene.path.name}: " \
+        "[actuation]"
+    if table is None:
+        table, rows = actuation_table(scene, names), None
+    order = [names.index(n) for n in model.chamber_names]
+    kpa = table[:, order]
+    model.check_range(kpa, where, rows)
+    arrays = states_arrays(model, kpa)
+    with staged_dir(out_dir) as tmp:
+        io.save_npz(tmp / "states.npz", arrays)
+        if vtu:
+            for i, u in enumerate(arrays["displacement_mm"]):
+                io.write_vtu(tmp / f"state_{i:03d}.vtu", model.rest_nodes + u,
+                             arrays["elements"], {"displacement_mm": u})
+    return {"states": len(kpa), "us_per_state": 1e3 * float(np.median(arrays["solve_ms"])),
+            "describe": model.describe()}

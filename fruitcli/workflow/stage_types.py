@@ -1,0 +1,49 @@
+"""The types the planner and the stage table share: a stage, a planned step, and the
+context stages run in. Both `planner` and `stages` import this module; it imports
+neither.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+
+@dataclass
+class Stage:
+    """One pipeline stage. `needed(scene)` -> (bool, reason); `inputs(scene, ctx)` -> what is
+    hashed; `run(scene, ctx, out_dir)` -> summary dict; `outputs(scene)` -> file names."""
+
+    name: str
+    deps: list[str]
+    module: str
+    needed: Callable
+    inputs: Callable
+    run: Callable
+    outputs: Callable
+
+
+@dataclass
+class Step:
+    """A planned stage: action is 'run', 'reuse' or 'not needed'."""
+
+    stage: str
+    action: str
+    reason: str
+    hash: str = ""
+
+
+@dataclass
+class Context:
+    """What stages share while running: the output root and a progress callback."""
+
+    out_root: Path
+    progress: Callable[[str], None] = lambda msg: None
+    hashes: dict[str, str] = field(default_factory=dict)
+    shared: Path | None = None  # a folder whose scenes may lend identical stage outputs
+    lent: dict[str, Path] = field(default_factory=dict)  # plan only: stage -> its lender
+
+    def dir(self, stage: str) -> Path:
+        """The stage's folder (for a plan, the sibling's it would be copied from)."""
+        return self.lent.get(stage, self.out_root / stage)
