@@ -1,5 +1,5 @@
-"""Reading the project's tables: CSV (`#` comment lines, a header, numeric columns) and
-npz arrays.
+"""Reading the project's tables: CSV (`#` comment lines, a header, numeric columns), npz
+arrays, and the taxel CSV every stage shares.
 
 Every error names the file, the row (1-based line number in the file) and the column.
 """
@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import csv
 import math
+import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -74,3 +76,57 @@ def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint:
         why = ("it holds Python objects, not plain arrays" if "allow_pickle" in str(exc)
                else str(exc))
         raise error(f"{path}: not a readable {what}: {why}") from None
+
+
+TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm"]
+
+
+@dataclass(frozen=True)
+class Taxels:
+    """Taxels in file order: ids, integer grid indices and rest positions (mm)."""
+
+    ids: np.ndarray  # (T,) int
+    i: np.ndarray  # (T,) int grid index
+    j: np.ndarray  # (T,) int grid index
+    xyz_mm: np.ndarray  # (T, 3) float
+    normals: np.ndarray | None = None  # (T, 3) outward unit normals, when the file has them
+
+    def __len__(self) -> int:
+        return int(self.ids.shape[0])
+
+
+def read_taxels(path: str | os.PathLike, error=FruitError) -> Taxels:
+    """Read a taxel CSV (``#`` comments, header with at least id,i,j,x_mm,y_mm,z_mm, and
+    optionally nx,ny,nz): integer grid indices >= 0, unique ids and grid indices. Every
+    problem is one `error` naming the file and the data row."""
+    path = Path(path)
+    cols = read_table(path, TAXEL_COLUMNS, error=error)
+    for name in ("id", "i", "j"):
+        bad = np.nonzero(cols[name] != np.round(cols[name]))[0]
+        if bad.size:
+            raise error(f"{path}: data row {bad[0] + 1}: column {name}: expected an "
+                             f"integer, got {cols[name][bad[0]]}")
+    i, j = cols["i"].astype(np.int64), cols["j"].astype(np.int64)
+    bad = np.nonzero((i < 0) | (j < 0))[0]
+    if bad.size:
+        raise error(f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
+                         f"got ({i[bad[0]]}, {j[bad[0]]})")
+    ids = cols["id"].astype(np.int64)
+    _, first = np.unique(ids, return_index=True)
+    if first.size < ids.size:
+        k = int(np.setdiff1d(np.arange(ids.size), first)[0])
+        raise error(f"{path}: data row {k + 1}: duplicate taxel id {ids[k]} (also on "
+                         f"data row {int(np.nonzero(ids == ids[k])[0][0]) + 1})")
+    key = i * (j.max() + 1) + j
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        k = first[np.argmax(counts > 1)]
+        raise error(f"{path}: two taxels share grid index ({i[k]}, {j[k]})")
+    xyz = np.stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]], axis=1)
+    normals = None
+    if all(c in cols for c in ("nx", "ny", "nz")):
+        try:
+            normals = np.c_[cols["nx"], cols["ny"], cols["nz"]].astype(float)
+        except ValueError:
+            raise error(f"{path}: columns nx, ny, nz: expected numbers") from None
+    return Taxels(ids, i, j, xyz, normals)

@@ -12,7 +12,7 @@ from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import descent_gaps
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
-from fruitcli.tables import read_table
+from fruitcli.tables import read_table, read_taxels
 
 HIDDEN = {"sigma_mm": 4.5, "contact_counts": 80.0, "gap_decay_mm": 2.0, "noise": 1.2}
 
@@ -201,12 +201,11 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
     missing from it, or a drawn spread with it, is one line."""
     from fruitcli.errors import FrameError, SceneError
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.frames.board import load_taxels
 
     write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0 + 0.01 * k] for k in range(16)))
     path = virtual_bench_scene(tmp_path, '[skin]\ntaxel_gain = "g.csv"\n')
     scene = load_scene(path)
-    ids = load_taxels(tmp_path / "t.csv").ids
+    ids = read_taxels(tmp_path / "t.csv").ids
     skin = forward.make_skin(16, 0, forward.SkinParams.from_table(scene["skin"]), ids[::-1])
     np.testing.assert_allclose(skin.gain, 1.0 + 0.01 * np.arange(16)[::-1])
     write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0] for k in range(15)))
@@ -233,9 +232,8 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     from fruitcli.printer.placement import Placement
     from fruitcli.printer.skin_board import SkinBoard
     from fruitcli.scene import SCHEMA
-    from fruitcli.sensing.frames.board import load_taxels
 
-    taxels = load_taxels(pad_taxel_csv(tmp_path / "t.csv"))
+    taxels = read_taxels(pad_taxel_csv(tmp_path / "t.csv"))
     write_csv(tmp_path / "gains.csv", ["id", "gain"], ([k, 0.9 + 0.01 * k] for k in range(16)))
     (tmp_path / "skin.toml").write_text(
         '[skin]\nfootprint_sigma_mm = { small = 5.0 }\ncontact_counts = 70.0\n'

@@ -57,8 +57,11 @@ def test_make_tracks_garbage_and_nan_origin(tmp_path):
     garbage.write_bytes(np.random.default_rng(0).bytes(3000))
     res = run("make-tracks", garbage, "--out", tmp_path / "o")
     assert res.exit_code == 1
-    assert last_line(res) == f"Error: {garbage}: cannot read as a STL mesh; is it a triangle " \
-        "mesh file?"
+    # trimesh versions differ: some raise on these bytes, others read no triangle from them:
+    # either way one line naming the file
+    assert last_line(res) in (f"Error: {garbage}: cannot read as a STL mesh; is it a triangle "
+                              "mesh file?",
+                              f"Error: {garbage}: no triangles found; expected a triangle mesh")
     res = run("make-tracks", garbage, "--out", tmp_path / "o", "--origin-mm", "nan", "0")
     assert res.exit_code == 1
     assert last_line(res) == "Error: --origin-mm: expected two finite numbers (mm), got " \

@@ -16,6 +16,7 @@ from fruitcli.fem import response_surface as rs
 from fruitcli.fem.pressure_table import read_pressures, write_pressures
 from fruitcli.fem.reduced_build import pressure_box
 from fruitcli.scene import parse_scene
+from fruitcli.tables import read_taxels
 from fruitcli.workflow import planner
 
 PAD = """
@@ -312,7 +313,6 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
 
     from test_locate_chunks import full_grid, located, scene, touch_frames, write_taxels
 
-    from fruitcli.sensing.frames.board import load_taxels
     from fruitcli.sensing.frames.recording import Recording, write_npz
     from fruitcli.sensing.stages import run_locate
 
@@ -324,7 +324,7 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     b = np.array([[0.3, -0.1], [0.0, 0.2], [1.0, 0.5]])
     model = translating_model(np.array([-3.0, -3.0]), np.array([12.0, 12.0]), b,
-                              load_taxels(taxels).xyz_mm)
+                              read_taxels(taxels).xyz_mm)
     sc = scene(detection=detection)
     # on the rest taxels: the same recording without its pressures
     write_npz(tmp_path / "r.npz", Recording(frames, t_s))

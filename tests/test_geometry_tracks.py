@@ -11,7 +11,8 @@ from fruitcli.cli.main import cli
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.columns import vertical_hits
 from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
-from fruitcli.geometry.make_tracks import SCENE_NAMES, make_tracks, read_taxels
+from fruitcli.geometry.make_tracks import SCENE_NAMES, make_tracks
+from fruitcli.tables import read_taxels
 
 ON_SURFACE_MM = 0.01
 
@@ -57,21 +58,21 @@ def test_outputs_and_report(ellipsoid_run):
 def test_taxels_on_surface_and_planes(ellipsoid_run):
     out, report = ellipsoid_run
     tx = read_taxels(out / "taxels.csv")
-    assert np.array_equal(tx["id"], np.arange(len(tx["id"])))
-    assert tx["i"].min() == 0 and tx["j"].min() == 0
+    assert np.array_equal(tx.ids, np.arange(len(tx.ids)))
+    assert tx.i.min() == 0 and tx.j.min() == 0
     x0, y0 = report["grid"]["origin_mm"]
-    assert np.allclose(tx["xyz"][:, 0], x0 + 16.0 * tx["i"], atol=1e-5)
-    assert np.allclose(tx["xyz"][:, 1], y0 + 12.0 * tx["j"], atol=1e-5)
+    assert np.allclose(tx.xyz_mm[:, 0], x0 + 16.0 * tx.i, atol=1e-5)
+    assert np.allclose(tx.xyz_mm[:, 1], y0 + 12.0 * tx.j, atol=1e-5)
     reduced = load_stl(out / "reduced.stl")
-    _, d, _ = SurfaceDistance(reduced.vertices, reduced.faces).closest(tx["xyz"])
+    _, d, _ = SurfaceDistance(reduced.vertices, reduced.faces).closest(tx.xyz_mm)
     assert d.max() <= ON_SURFACE_MM
-    assert np.allclose(np.linalg.norm(tx["normals"], axis=1), 1.0, atol=1e-5)
-    assert (tx["normals"][:, 2] > 0).all()
+    assert np.allclose(np.linalg.norm(tx.normals, axis=1), 1.0, atol=1e-5)
+    assert (tx.normals[:, 2] > 0).all()
     # the outward normal of the ellipsoid (x/a^2, y/b^2, z/c^2), a..c reduced by 2 mm
-    p = tx["xyz"]
+    p = tx.xyz_mm
     n = p / np.array([38.0, 28.0, 18.0]) ** 2
     n /= np.linalg.norm(n, axis=1, keepdims=True)
-    assert np.degrees(np.arccos(np.clip((n * tx["normals"]).sum(1), -1, 1))).max() < 5.0
+    assert np.degrees(np.arccos(np.clip((n * tx.normals).sum(1), -1, 1))).max() < 5.0
     # centred grid: about symmetric about x = 0 and y = 0 (the reduced mesh is not exactly)
     assert abs(p[:, 0].min() + p[:, 0].max()) < 0.5 and abs(p[:, 1].min() + p[:, 1].max()) < 0.5
 
@@ -279,11 +280,11 @@ def test_other_shapes_give_one_piece_without_tunnels(tmp_path, make, extents):
     assert len(piece.split(only_watertight=False)) == 1
     reduced = load_stl(tmp_path / "out" / "reduced.stl")
     tx = read_taxels(tmp_path / "out" / "taxels.csv")
-    assert len(tx["id"]) >= 10
+    assert len(tx.ids) >= 10
     # brute force over all triangles: the reduced cylinder has long strips along its axis
     t = reduced.triangles
     d = [np.linalg.norm(closest_on_triangles(np.tile(p, (len(t), 1)), t[:, 0], t[:, 1], t[:, 2])
-                        - p, axis=1).min() for p in tx["xyz"]]
+                        - p, axis=1).min() for p in tx.xyz_mm]
     assert max(d) <= ON_SURFACE_MM
     if extents is not None:
         assert np.allclose(reduced.extents, extents, atol=0.3)
@@ -326,9 +327,9 @@ def test_tall_thin_column_gives_one_piece_quickly(tmp_path):
     # the grid fits one x- and one y-line on the 12 mm top: one taxel at its centre, facing
     # up; the tracks stay on the top (they ran down to z = 1.8 mm)
     tx = read_taxels(out / "taxels.csv")
-    assert len(tx["id"]) == 1
-    assert np.allclose(tx["xyz"], [[0.0, 0.0, 73.0]], atol=0.1)
-    assert tx["normals"][0, 2] > 0.99
+    assert len(tx.ids) == 1
+    assert np.allclose(tx.xyz_mm, [[0.0, 0.0, 73.0]], atol=0.1)
+    assert tx.normals[0, 2] > 0.99
     assert load_stl(out / "tracks.stl").bounds[0, 2] > 73.0 - 4.0
 
 

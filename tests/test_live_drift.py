@@ -16,8 +16,9 @@ from fruitcli.errors import FrameError
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
 from fruitcli.sensing.detection.health import TaxelHealth
-from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.live.run_log import RunLog
+from fruitcli.tables import Taxels
 
 
 def test_drift_follows_a_ramp_with_the_first_order_lag():

@@ -12,10 +12,11 @@ from pythonosc.osc_bundle import OscBundle
 
 from fruitcli.cli.main import cli
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
-from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.live.board_emulator import BoardEmulator, synthetic_frames
 from fruitcli.sensing.live.loop import LiveLocator
 from fruitcli.sensing.outputs.tuio import Normalizer, TuioSender
+from fruitcli.tables import Taxels
 
 F32 = dict(rel=1e-6, abs=1e-6)  # OSC floats are float32
 

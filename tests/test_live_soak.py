@@ -92,8 +92,9 @@ def test_a_fixed_baseline_fails_the_soak_day_and_the_tracker_does_not():
     drift (past 20 counts after about 4 h) makes false touches; with the tracker none."""
     from fruitcli.sensing.detection.drift import DriftTracker
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
-    from fruitcli.sensing.frames.board import Taxels, default_board
+    from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.live.loop import LiveLocator
+    from fruitcli.tables import Taxels
 
     plan = SoakPlan(seed=11)
     a, b = plan.connected()[0]

@@ -16,6 +16,7 @@ import pytest
 from test_live_drift import board_taxel_csv
 
 from fruitcli.sensing.live.board_emulator import BoardEmulator
+from fruitcli.tables import read_taxels
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -241,11 +242,11 @@ def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
     from fruitcli.cli.live import Outputs
     from fruitcli.sensing.detection.drift import DriftTracker
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
-    from fruitcli.sensing.frames.board import default_board, load_taxels
+    from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.sensing.live.serial_ports import PressureState
 
-    taxels = load_taxels(board_taxel_csv(tmp_path / "t.csv"))
+    taxels = read_taxels(board_taxel_csv(tmp_path / "t.csv"))
     live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
                                Settings(baseline_frames=10)), drift=DriftTracker(60, 20),
                         health=True)

@@ -12,10 +12,11 @@ from locate_reference import touches_csv_text
 
 from fruitcli.errors import FrameError
 from fruitcli.scene import SCHEMA
-from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_muca_log, write_npz
 from fruitcli.sensing.outputs.csv_rows import format_rows
 from fruitcli.sensing.stages import run_locate
+from fruitcli.tables import read_taxels
 
 R, C = 21, 12
 BASE = 500
@@ -76,7 +77,7 @@ def touch_frames(n, rng, max_touches=4, n_base=10, amp=(10, 90), noisy_base=Fals
 
 def reference_csv(frames, t_s, taxels_csv, board, det, positions=None, pressure=None,
                   state_pressure=None, name="f.npz"):
-    tx = load_taxels(taxels_csv)
+    tx = read_taxels(taxels_csv)
     rows, cols = taxel_cells(tx, board)
     table = reference_locate(frames, t_s, tx.i, tx.j, rows, cols,
                              tx.xyz_mm if positions is None else positions,
@@ -170,7 +171,7 @@ def test_pressures_move_the_taxels_along_the_states_as_before(tmp_path):
     # the recording names its chambers in another order than the states
     write_npz(tmp_path / "f.npz", Recording(frames, t_s, kpa[:, ::-1], ("right", "left")))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
-    tx = load_taxels(taxels)
+    tx = read_taxels(taxels)
     states, positions = states_npz(tmp_path / "s.npz", tx.xyz_mm)
     sc = scene()
     want, _ = reference_csv(frames, t_s, taxels, sc["board"], sc["detection"], positions,

@@ -21,11 +21,10 @@ from fruitcli.printer.marlin import checksum, numbered
 from fruitcli.printer.placement import Placement
 from fruitcli.printer.skin_board import SkinBoard
 from fruitcli.scene import load_scene
-from fruitcli.sensing.frames.board import load_taxels
 from fruitcli.sensing.frames.recording import read_npz
 from fruitcli.sensing.live.board_emulator import BoardEmulator
 from fruitcli.sensing.skin import forward
-from fruitcli.tables import read_table
+from fruitcli.tables import read_table, read_taxels
 
 SAMPLES = [(-20.0, -20.0), (0.0, 4.0), (12.0, -6.0)]
 PRINTER = """
@@ -131,7 +130,7 @@ class Rig:
         pr = self.scene["printer"]
         bed = printer_bed or pr["bed_mm"]
         self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, faults)
-        skin = SkinBoard(load_taxels(scene_path.parent / "t.csv"), self.scene["board"],
+        skin = SkinBoard(read_taxels(scene_path.parent / "t.csv"), self.scene["board"],
                          Placement.from_printer(pr), self.printer.tip_mm)
         self.board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt,
                                    baud=baud, vanish_after=vanish_after)

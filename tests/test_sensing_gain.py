@@ -10,8 +10,9 @@ from test_sensing_detect import BASE, frame_with, make_taxels
 from fruitcli.cli.main import cli
 from fruitcli.fsutil import write_csv
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
-from fruitcli.sensing.frames.board import default_board, load_taxels
+from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.skin.forward import load_taxel_gains
+from fruitcli.tables import read_taxels
 
 
 def locator(taxels, gain, **kw):
@@ -116,7 +117,7 @@ def test_round_trip_from_a_calibrate_run(tmp_path):
     assert (tmp_path / "scene" / "touches.csv").read_bytes() == divided
     assert (tmp_path / "plain" / "touches.csv").read_bytes() != divided
 
-    taxels = load_taxels(tmp_path / "t.csv")
+    taxels = read_taxels(tmp_path / "t.csv")
     gain = load_taxel_gains(gains_csv, taxels.ids)
     assert gain.std() > 0.05  # the hidden skin's gains, ±20 %
     rec = read_npz(tmp_path / "frames.npz")

@@ -17,7 +17,7 @@ from fruitcli.sensing.frames.recording import (
     write_muca_log,
     write_npz,
 )
-from fruitcli.tables import read_table
+from fruitcli.tables import read_table, read_taxels
 
 
 def rec(n=12, seed=0, pressure=False, sample=False):
@@ -206,13 +206,11 @@ def test_meta_is_json(tmp_path):
 
 
 def test_taxels_with_a_duplicate_id_are_refused(tmp_path):
-    from fruitcli.sensing.frames.board import load_taxels
-
     path = tmp_path / "t.csv"
     path.write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,0,1,0,1,0\n0,1,0,1,0,0\n")
     with pytest.raises(FrameError, match=r"t\.csv: data row 3: duplicate taxel id 0 "
                                          r"\(also on data row 1\)"):
-        load_taxels(path)
+        read_taxels(path, FrameError)
 
 
 def test_emulate_board_refuses_frames_larger_than_21_by_12(tmp_path):

@@ -8,7 +8,8 @@ from stream_reference import ReferenceStream
 from test_sensing_detect import BASE, make_taxels
 
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
-from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.frames.board import default_board
+from fruitcli.tables import Taxels
 
 FIELDS = ("frame", "touch", "i", "j", "xyz_mm", "peak")
 

@@ -23,8 +23,8 @@ from test_live_view import Chromium, free_port  # noqa: E402
 
 from fruitcli.cli.options import scene_products  # noqa: E402
 from fruitcli.scene import load_scene  # noqa: E402
-from fruitcli.sensing.frames.board import load_taxels  # noqa: E402
 from fruitcli.sensing.live.board_emulator import BoardEmulator  # noqa: E402
+from fruitcli.tables import read_taxels  # noqa: E402
 
 SCENE = "pipelines/fruit-breathing.toml"
 
@@ -47,7 +47,7 @@ def pressure_pty(line: str, stop: threading.Event) -> str:
 
 def main(out: str) -> None:
     taxels_csv, states = scene_products(load_scene(SCENE))
-    tx = load_taxels(taxels_csv)
+    tx = read_taxels(taxels_csv)
     rng = np.random.default_rng(2)
     f = 500 + rng.normal(0, 0.8, (6000, 21, 12))
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")

@@ -56,14 +56,14 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
     """
     import threading
 
-    from fruitcli.errors import SceneError
+    from fruitcli.errors import FrameError, SceneError
     from fruitcli.printer.emulator import PrinterEmulator
     from fruitcli.printer.placement import Placement
     from fruitcli.printer.skin_board import SkinBoard
     from fruitcli.scene import load_scene, load_skin_table
-    from fruitcli.sensing.frames.board import load_taxels
     from fruitcli.sensing.live.board_emulator import BoardEmulator, pacing_line
     from fruitcli.sensing.skin import forward
+    from fruitcli.tables import read_taxels
 
     fault_table = parse_faults(faults)
     with fruit_errors():
@@ -73,7 +73,7 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
                              "the bed)")
         pr = scene["printer"]
         taxels_csv = taxels_csv or scene["grid"]["taxels"] or scene_products(scene)[0]
-        taxels = load_taxels(taxels_csv)
+        taxels = read_taxels(taxels_csv, FrameError)
         bed = pr["bed_mm"]
         printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, fault_table)
         params = forward.SkinParams.from_table(load_skin_table(skin_toml) if skin_toml

@@ -97,10 +97,10 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
     from fruitcli.sensing.detection.gain_division import detection_gain
     from fruitcli.sensing.detection.locate import load_states
-    from fruitcli.sensing.frames.board import load_taxels
     from fruitcli.sensing.live.idle_gc import FrameGC
     from fruitcli.sensing.live.loop import LiveLocator, pressure_thread
     from fruitcli.sensing.live.serial_ports import FrameReader, PortClosed, PressureState, open_port
+    from fruitcli.tables import read_taxels
 
     progress = Progress("[live] ")
     stop = threading.Event()
@@ -132,7 +132,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
         if pressure_port and not online and not states_npz:
             raise FrameError(f"--pressure-port {pressure_port}: nothing uses the pressures; "
                              "it needs --states or --online, or the scene's states")
-        taxels = load_taxels(taxels_csv)
+        taxels = read_taxels(taxels_csv, FrameError)
         board = scene["board"]
         states = load_states(states_npz, len(taxels)) if states_npz else None
         gain = detection_gain(scene, taxels, gains_csv)

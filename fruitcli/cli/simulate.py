@@ -43,8 +43,8 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
     """
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
-    from fruitcli.geometry.make_tracks import read_taxels
     from fruitcli.scene import load_scene, n_states
+    from fruitcli.tables import read_taxels
 
     log = Progress("simulate ")
     with fruit_errors():
@@ -68,7 +68,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
         geo = sc["geometry"]
         taxel_csv = taxels or sc["grid"]["taxels"]
         # given taxels are checked before any stage runs
-        xyz = read_taxels(taxel_csv)["xyz"] if taxel_csv is not None else None
+        xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
         tracks_csv = sc["tracks"]["file"]
         if tracks_csv is not None:
             from fruitcli.fabrication.yarn import read_tracks
@@ -82,7 +82,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
             solid = out_dir / "make-tracks" / "reduced.stl"
             tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
             if xyz is None:
-                xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv")["xyz"]
+                xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv").xyz_mm
         elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)

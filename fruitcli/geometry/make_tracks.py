@@ -415,22 +415,3 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
         report["cpu_times_s"]["total"] = round(sum(cpu_times.values()), 4)
         write_json(tmp / "report.json", report)
     return report
-
-
-def read_taxels(path) -> dict:
-    """Read a taxels.csv: {"id", "i", "j": (T,) int, "xyz": (T, 3) mm, "normals": (T, 3)}."""
-    from fruitcli.tables import read_table
-
-    need = ["id", "i", "j", "x_mm", "y_mm", "z_mm"]
-    t = read_table(path, need, error=GeometryError)
-    out = {k: t[k].astype(np.int64) for k in ("id", "i", "j")}
-    for k in ("id", "i", "j"):
-        if not np.array_equal(out[k], t[k]) or (out[k] < 0).any():
-            raise GeometryError(f"{path}: column {k}: expected integers >= 0")
-    out["xyz"] = np.c_[t["x_mm"], t["y_mm"], t["z_mm"]]
-    if all(c in t for c in ("nx", "ny", "nz")):
-        try:
-            out["normals"] = np.c_[t["nx"], t["ny"], t["nz"]].astype(float)
-        except ValueError:
-            raise GeometryError(f"{path}: columns nx, ny, nz: expected numbers") from None
-    return out

@@ -31,9 +31,10 @@ from fruitcli.errors import FrameError, FruitError
 from fruitcli.fsutil import write_csv
 from fruitcli.printer.marlin import Marlin, PrinterError, PrinterGone, PrinterHalted
 from fruitcli.printer.placement import Placement
-from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM, surface_heights, taxel_surface_heights
+from fruitcli.tables import read_taxels
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position
 FRAME_TIMEOUT_S = 5.0  # longest wait for a board frame after a move
@@ -192,7 +193,7 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
     if (out / "frames.npz").exists() and not overwrite:
         raise BenchStopped(f"{out / 'frames.npz'}: exists; give --overwrite to replace it "
                            "(it is replaced once the new run has frames)")
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv, FrameError)
     board = scene["board"]
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     threshold = scene["detection"]["threshold_counts"]

@@ -14,9 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from fruitcli.printer.placement import Placement
-from fruitcli.sensing.frames.board import Taxels, taxel_cells
+from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.virtual_bench import cell_counts
+from fruitcli.tables import Taxels
 
 
 class SkinBoard:

@@ -16,10 +16,11 @@ from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Locator, Settings, TouchTable
 from fruitcli.sensing.detection.locate import States, load_states, match_chambers
-from fruitcli.sensing.frames.board import Taxels, check_frame_shape, load_taxels
+from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording, open_recording
 from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
+from fruitcli.tables import Taxels, read_taxels
 
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
@@ -187,7 +188,7 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv, FrameError)
     board = _section(scene, "board")
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
@@ -346,7 +347,7 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv, FrameError)
     board, bench = scene["board"], scene["bench"]
     threshold = scene["detection"]["threshold_counts"]
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
@@ -411,7 +412,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv, FrameError)
     states = load_states(states_npz, len(taxels))
     sens = scene["sensitivity"]
     skin = forward.make_skin(len(taxels), scene["bench"]["seed"],

@@ -69,7 +69,7 @@ def run_fem_case(args) -> dict:
     """Mesh (cached per size) and simulate one setting; returns timings and taxels."""
     from fruitcli.errors import FruitError
     from fruitcli.fem.stage import run_simulate, run_tetra
-    from fruitcli.geometry.make_tracks import read_taxels
+    from fruitcli.tables import read_taxels
 
     scene_path, work, solid, taxels_csv, case = args
     scene = _scene_variant(load_scene(scene_path), case)
@@ -81,7 +81,7 @@ def run_fem_case(args) -> dict:
             run_tetra(scene, solid, mesh_dir)
         out = Path(work) / ("sim-" + case.name.replace(" ", "_").replace("(", "")
                             .replace(")", ""))
-        xyz = read_taxels(taxels_csv)["xyz"]
+        xyz = read_taxels(taxels_csv).xyz_mm
         t0 = time.perf_counter()
         run_simulate(scene, mesh_dir / "mesh.npz", xyz, out)
         wall = time.perf_counter() - t0

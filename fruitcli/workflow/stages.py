@@ -182,10 +182,10 @@ def _tetra_inputs(scene, ctx):
 
 def _tetra_run(scene, ctx, out_dir):
     from fruitcli.fem.stage import run_tetra
-    from fruitcli.geometry.make_tracks import read_taxels
+    from fruitcli.tables import read_taxels
 
     tax = taxels_path(scene, ctx)
-    xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    xyz = read_taxels(tax).xyz_mm if tax is not None else None
     return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress,
                      taxels_xyz=xyz)
 
@@ -199,10 +199,10 @@ def _simulate_inputs(scene, ctx):
 
 def _simulate_run(scene, ctx, out_dir):
     from fruitcli.fem.stage import run_simulate
-    from fruitcli.geometry.make_tracks import read_taxels
+    from fruitcli.tables import read_taxels
 
     tax = taxels_path(scene, ctx)
-    xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    xyz = read_taxels(tax).xyz_mm if tax is not None else None
     if tax is None:
         ctx.progress("simulate: no taxels to follow (a [geometry].solid scene takes them "
                      "from [grid].taxels, a CSV of id,i,j,x_mm,y_mm,z_mm)")
@@ -272,10 +272,10 @@ def _reduce_inputs(scene, ctx):
 
 def _reduce_run(scene, ctx, out_dir):
     from fruitcli.fem.reduced_build import run_reduce
-    from fruitcli.geometry.make_tracks import read_taxels
+    from fruitcli.tables import read_taxels
 
     tax = taxels_path(scene, ctx)
-    xyz = read_taxels(tax)["xyz"] if tax is not None else None
+    xyz = read_taxels(tax).xyz_mm if tax is not None else None
     return run_reduce(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
                       progress=ctx.progress)
 

@@ -149,12 +149,12 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     from fruitcli.fem.online import OnlineSolver
     from fruitcli.fem.stage import build_model, solver_options, state_loads
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
-    from fruitcli.sensing.frames.board import load_taxels
     from fruitcli.sensing.live.board_emulator import synthetic_frames
     from fruitcli.sensing.live.loop import LiveLocator
+    from fruitcli.tables import read_taxels
 
     model = build_model(scene, io.load_mesh(mesh_npz))
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv)
     tet, w, _ = barycentric.locate(model.rest, model.tets, taxels.xyz_mm)
     online = OnlineSolver(model, tet, w, solver_options(scene))
     table = np.array([ld.pressure_kpa for ld in state_loads(scene, model.chamber_names)])

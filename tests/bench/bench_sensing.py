@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
-from fruitcli.sensing.frames.board import Taxels, default_board
+from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.frames.muca_line import format_line, parse_line
+from fruitcli.tables import Taxels, read_taxels
 
 
 def fruit_like_taxels() -> Taxels:
@@ -226,11 +227,11 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from locate_reference import locate, touches_csv_text
 
-    from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+    from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import read_npz
 
     rec = read_npz(frames_npz)
-    tx = load_taxels(taxels_csv)
+    tx = read_taxels(taxels_csv)
     rows, cols = taxel_cells(tx, default_board())
     text = touches_csv_text(locate(rec.frames, rec.t_s, tx.i, tx.j, rows, cols, tx.xyz_mm),
                             rec.t_s, f"touches of {frames_npz.name}: frame index from 0 "

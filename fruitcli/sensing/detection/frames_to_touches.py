@@ -38,7 +38,8 @@ from fruitcli.sensing.detection.detect import (
     n9_peaks,
 )
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
-from fruitcli.sensing.frames.board import Taxels, taxel_cells
+from fruitcli.sensing.frames.board import taxel_cells
+from fruitcli.tables import Taxels
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fruitcli.sensing.frames.board import Taxels
+from fruitcli.tables import Taxels
 
 
 def detection_gain(scene, taxels: Taxels, gains_csv=None) -> np.ndarray | None:

@@ -10,62 +10,14 @@ Tx in reverse) and ``flip_j`` the columns. By default frame[i, j] is taxel (i, j
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
-from pathlib import Path
-
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.tables import read_table
+from fruitcli.tables import Taxels
 
 BOARD_ROWS = 21  # Tx lines of the FocalTech FT5316 (MuCa): frame rows
 BOARD_COLS = 12  # Rx lines: frame columns
 FORMATS = ("ascii", "binary")  # the stock firmware's two frame formats (Muca_Raw, SendRawByte)
-
-TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm"]
-
-
-@dataclass(frozen=True)
-class Taxels:
-    """Taxels in file order: ids, integer grid indices and rest positions (mm)."""
-
-    ids: np.ndarray  # (T,) int
-    i: np.ndarray  # (T,) int grid index
-    j: np.ndarray  # (T,) int grid index
-    xyz_mm: np.ndarray  # (T, 3) float
-
-    def __len__(self) -> int:
-        return int(self.ids.shape[0])
-
-
-def load_taxels(path: str | os.PathLike) -> Taxels:
-    """Read a taxel CSV (``#`` comments, header with at least id,i,j,x_mm,y_mm,z_mm)."""
-    path = Path(path)
-    cols = read_table(path, TAXEL_COLUMNS, error=FrameError)
-    for name in ("id", "i", "j"):
-        bad = np.nonzero(cols[name] != np.round(cols[name]))[0]
-        if bad.size:
-            raise FrameError(f"{path}: data row {bad[0] + 1}: column {name}: expected an "
-                             f"integer, got {cols[name][bad[0]]}")
-    i, j = cols["i"].astype(np.int64), cols["j"].astype(np.int64)
-    bad = np.nonzero((i < 0) | (j < 0))[0]
-    if bad.size:
-        raise FrameError(f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
-                         f"got ({i[bad[0]]}, {j[bad[0]]})")
-    ids = cols["id"].astype(np.int64)
-    _, first = np.unique(ids, return_index=True)
-    if first.size < ids.size:
-        k = int(np.setdiff1d(np.arange(ids.size), first)[0])
-        raise FrameError(f"{path}: data row {k + 1}: duplicate taxel id {ids[k]} (also on "
-                         f"data row {int(np.nonzero(ids == ids[k])[0][0]) + 1})")
-    key = i * (j.max() + 1) + j
-    _, first, counts = np.unique(key, return_index=True, return_counts=True)
-    if np.any(counts > 1):
-        k = first[np.argmax(counts > 1)]
-        raise FrameError(f"{path}: two taxels share grid index ({i[k]}, {j[k]})")
-    xyz = np.stack([cols["x_mm"], cols["y_mm"], cols["z_mm"]], axis=1)
-    return Taxels(ids, i, j, xyz)
 
 
 def taxel_cells(taxels: Taxels, board: dict, where: str = "taxels") -> tuple[np.ndarray,

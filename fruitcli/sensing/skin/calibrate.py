@@ -24,6 +24,7 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
+from fruitcli.tables import read_taxels
 
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
@@ -153,13 +154,13 @@ def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=N
     from pathlib import Path
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
-    from fruitcli.sensing.frames.board import load_taxels, taxel_cells
+    from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import read_recording
     from fruitcli.tables import read_table
 
     say = progress or (lambda msg: None)
     board = scene["board"]
-    taxels = load_taxels(taxels_csv)
+    taxels = read_taxels(taxels_csv, FrameError)
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     rec = read_recording(frames_path, board["rows"], board["cols"], board["format"])
     where = str(frames_path)
