@@ -240,7 +240,7 @@ def test_emulator_stops_when_its_reader_has_gone(monkeypatch):
     full for NO_READER_S, stops instead of blocking forever, and says why."""
     import serial
 
-    from fruitcli.sensing.live.loop import board_emulator as emulator
+    from fruitcli.sensing.live import board_emulator as emulator
 
     monkeypatch.setattr(emulator, "NO_READER_S", 0.5)
     em = BoardEmulator(synthetic_frames(5000), fps=0, wait_for_reader=True)

@@ -21,10 +21,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_live_view import Chromium, free_port  # noqa: E402
 
-from fruitcli.cli.options import scene_products  # noqa: E402
 from fruitcli.scene import load_scene  # noqa: E402
 from fruitcli.sensing.live.board_emulator import BoardEmulator  # noqa: E402
 from fruitcli.tables import read_taxels  # noqa: E402
+from fruitcli.workflow.scene_outputs import scene_products  # noqa: E402
 
 SCENE = "pipelines/fruit-breathing.toml"
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, scene_products
+from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.workflow.scene_outputs import scene_products
 
 
 def scene_surface(scene):

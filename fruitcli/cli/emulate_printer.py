@@ -7,7 +7,8 @@ import sys
 
 import click
 
-from fruitcli.cli.options import fruit_errors, scene_products
+from fruitcli.cli.options import fruit_errors
+from fruitcli.workflow.scene_outputs import scene_products
 
 
 def parse_faults(specs) -> dict:

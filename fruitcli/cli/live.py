@@ -2,17 +2,11 @@
 
 from __future__ import annotations
 
-import sys
-
 import click
 
-from fruitcli.cli.options import (
-    Progress,
-    divide_by_gain_option,
-    fruit_errors,
-    scene_products,
-    shared_outputs,
-)
+from fruitcli.cli.options import Progress, divide_by_gain_option, fruit_errors
+from fruitcli.sensing.detection.drift import DEFAULT_TAU_S
+from fruitcli.workflow.scene_outputs import scene_products
 
 
 @click.command()
@@ -56,7 +50,7 @@ from fruitcli.cli.options import (
               show_default=True,
               help="A touch keeps its session id when it moved at most this far since the "
                    "previous frame, mm (0: every frame's touches are new).")
-@click.option("--drift-tau-s", type=click.FloatRange(min=0, min_open=True), default=60.0,
+@click.option("--drift-tau-s", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_TAU_S,
               show_default=True,
               help="Time constant of the baseline drift tracker, s (adapts only while no "
                    "taxel is above half the threshold).")
@@ -99,8 +93,15 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
     from fruitcli.sensing.detection.locate import load_states
     from fruitcli.sensing.live.idle_gc import FrameGC
     from fruitcli.sensing.live.loop import LiveLocator, pressure_thread
+    from fruitcli.sensing.live.outputs import Outputs
     from fruitcli.sensing.live.serial_ports import FrameReader, PortClosed, PressureState, open_port
     from fruitcli.tables import read_taxels
+    from fruitcli.workflow.online_model import (
+        online_products,
+        online_reduced,
+        online_solver,
+        reduced_source,
+    )
 
     progress = Progress("[live] ")
     stop = threading.Event()
@@ -242,174 +243,6 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
                 progress(line)
 
 
-class Outputs:
-    """Where each located frame goes: stdout (JSON lines), TUIO/OSC, the run log; and
-    the run's counters (reconnects, frames per second, status)."""
-
-    def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0, pressure=None):
-        import time
-        from collections import deque
-
-        self.live, self.taxels, self.progress = live_loc, taxels, progress
-        self.pressure = pressure
-        self.view = None
-        self.last = None  # the latest LiveFrame (for the view)
-        self.recent = deque(maxlen=32)  # host times of the latest frames (frames/s)
-        self.scale = time_scale
-        self.t0 = time.monotonic()
-        self.tuio = None
-        self.log = None
-        self.reconnects = 0
-        self.skipped = 0  # lines skipped by earlier connections' readers
-        self.frames = 0
-        self.touches = 0  # sessions started
-        self.next_status = 60.0
-        self._status_frames, self._status_t = 0, 0.0
-
-    def now(self, monotonic_s: float) -> float:
-        """Host time of the run (s), scaled by --time-scale."""
-        return (monotonic_s - self.t0) * self.scale
-
-    def frame(self, counts, monotonic_s: float) -> None:
-        t = self.now(monotonic_s)
-        f = self.live.step(counts, t)
-        self.frames += 1
-        self.recent.append(t)
-        self.last = f
-        if f is not None:
-            tt = f.touches
-            if self.tuio is not None:  # first: a slow reader of stdout must not delay it
-                self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
-                               tt.xyz_mm, tt.peak)
-            line = self.live.json_line(f)
-            if line is not None:
-                sys.stdout.write(line + "\n")
-                sys.stdout.flush()
-            self.touches += int(f.sessions.new.sum())
-            if self.log is not None:
-                self.log.frame(t, f.sessions, tt.xyz_mm, f.ij, tt.peak)
-        if self.log is not None and t >= self.next_status:
-            self.log.status(self.status(t))
-            self.next_status = t + 60.0
-
-    def fps(self, t: float) -> float:
-        n, dt = self.frames - self._status_frames, t - self._status_t
-        self._status_frames, self._status_t = self.frames, t
-        return n / dt if dt > 0 else 0.0
-
-    def status(self, t: float) -> str:
-        import numpy as np
-
-        shift = self.live.baseline_shift()
-        h = self.live.health
-        return (f"t {t:.0f} s, {self.frames} frames, {self.fps(t):.1f} frames/s, "
-                f"{self.touches} touches, baseline {self.live.baseline_state} (shift mean "
-                f"{float(np.mean(shift)):+.1f}, max |{float(np.abs(shift).max()):.1f}| "
-                f"counts), {self.reconnects} reconnects, "
-                + (h.summary(self.taxels.ids) if h is not None else ""))
-
-    def reconnect(self, port, baud, board, fmt, wait_for_port):
-        """The port vanished: end the touches, wait for the port, start a new baseline."""
-        import time
-
-        from fruitcli.sensing.live.serial_ports import FrameReader
-
-        t = self.now(time.monotonic())
-        ended, line = self.live.rebaseline(t)
-        self.last = None
-        if line is not None:
-            sys.stdout.write(line + "\n")
-            sys.stdout.flush()
-        self._ended(t, ended)
-        self.progress(f"{port}: port lost after {self.frames} frames; waiting for it")
-        if self.log is not None:
-            self.log.event(f"port {port} lost at t {t:.1f} s")
-        ser = wait_for_port(port, baud)
-        self.reconnects += 1
-        self.progress(f"{port}: reconnected ({self.reconnects}); collecting "
-                      f"{self.live.k} baseline frames")
-        if self.log is not None:
-            self.log.event(f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
-                           f"reconnect {self.reconnects}")
-        return ser, FrameReader(ser, board["rows"], board["cols"], name=port, fmt=fmt)
-
-    def start_view(self, target: str) -> None:
-        from fruitcli.sensing.outputs.live_view import ViewServer
-        from fruitcli.sensing.outputs.tuio import parse_host_port
-
-        host, port = parse_host_port(target, "--view", default_host="127.0.0.1")
-        tx = self.taxels
-        layout = {"taxels": [[int(tx.ids[k]), int(tx.i[k]), int(tx.j[k]),
-                              float(tx.xyz_mm[k, 0]), float(tx.xyz_mm[k, 1])]
-                             for k in range(len(tx))],
-                  "threshold_counts": self.live.loc.settings.threshold_counts}
-        self.view = ViewServer(host, port, layout, self.view_state)
-        self.progress(f"live view at {self.view.url}")
-
-    def view_state(self) -> dict:
-        """The live view's state (called from the view's threads)."""
-        f, recent = self.last, list(self.recent)
-        fps = (len(recent) - 1) / (recent[-1] - recent[0]) \
-            if len(recent) > 1 and recent[-1] > recent[0] else 0.0
-        touches = []
-        if f is not None:
-            tt = f.touches
-            touches = [{"id": int(tt.touch[n]), "x_mm": float(tt.xyz_mm[n, 0]),
-                        "y_mm": float(tt.xyz_mm[n, 1]), "z_mm": float(tt.xyz_mm[n, 2]),
-                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n])}
-                       for n in range(len(tt))]
-        act = f.activation if f is not None else [0.0] * len(self.taxels)
-        h = self.live.health
-        flags = {name: self.taxels.ids[idx].tolist() for name, idx in h.flags().items()} \
-            if h is not None else {}
-        p = self.pressure
-        return {"frame": self.live.frame, "t_s": round(self.now_s(), 3), "fps": fps,
-                "baseline": self.live.baseline_state, "reconnects": self.reconnects,
-                "activation": [round(float(v), 1) for v in act], "touches": touches,
-                "pressures": {} if p is None or not p.received else
-                dict(zip(p.chambers, (float(v) for v in p.kpa), strict=True)),
-                "flags": flags}
-
-    def now_s(self) -> float:
-        import time
-
-        return self.now(time.monotonic())
-
-    def _ended(self, t: float, ended: list[int]) -> None:
-        """Touches that ended without a frame (the board went away)."""
-        import numpy as np
-
-        e = np.zeros(0)
-        if self.tuio is not None:
-            self.tuio.send(t, e.astype(np.int64), e.astype(bool), ended, np.zeros((0, 2)),
-                           np.zeros((0, 3)), e)
-        if self.log is not None:
-            self.log.ended(t, ended)
-
-    def summary(self) -> list[str]:
-        lines = []
-        if self.reconnects:
-            lines.append(f"{self.reconnects} reconnect{'s' * (self.reconnects != 1)} "
-                         f"({self.skipped} lines skipped before the last one)")
-        if self.live.drift is not None:
-            lines.append(self.live.drift.state())
-        if self.live.health is not None:
-            lines.append(self.live.health.summary(self.taxels.ids))
-        if self.tuio is not None:
-            lines.append(f"OSC: {self.tuio.sent} bundles sent, {self.tuio.failed} failed")
-        if self.log is not None and self.log.failed:
-            lines.append(f"log: {self.log.failed} lines could not be written")
-        return lines
-
-    def close(self) -> None:
-        if self.view is not None:
-            self.view.close()
-        if self.tuio is not None:
-            self.tuio.close()
-        if self.log is not None:
-            self.log.close()
-
-
 FEM_JOIN_S = 30.0
 """How long `fruit live` waits at exit for the online FEM's current state (a state takes
 tens of ms; a hard one with load subdivisions a few seconds)."""
@@ -429,73 +262,3 @@ def _summary(seen, reader, pressure, solver) -> list[str]:
     if solver is not None:
         lines.append(solver.summary())
     return lines
-
-
-def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
-    """(taxels CSV, mesh.npz) for `fruit live --online`: the scene's stages up to tetra,
-    run into out/<scene name> when needed (one planner run); given taxels are kept."""
-    from pathlib import Path
-
-    from fruitcli.errors import FrameError
-    from fruitcli.workflow import planner
-    from fruitcli.workflow.stages import taxels_path
-
-    if not pressure_port:
-        raise FrameError("--online: needs --pressure-port, the source of the pressures")
-    if not scene.chambers:
-        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
-    out = Path("out") / scene.name
-    steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs(out))
-    skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
-    if skipped:
-        raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
-                         "give [actuation] pressures for its chambers")
-    ctx = planner.Context(out)
-    return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
-
-
-def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
-    """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
-    reduced model, built into out/<scene name>/reduce when missing or stale."""
-    from pathlib import Path
-
-    from fruitcli.errors import FrameError
-    from fruitcli.workflow import planner
-    from fruitcli.workflow.reduced_model import ensure_reduced
-    from fruitcli.workflow.stages import taxels_path
-
-    if not pressure_port:
-        raise FrameError("--online: needs --pressure-port, the source of the pressures")
-    if not scene.chambers:
-        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
-    out = Path("out") / scene.name
-    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online")
-    progress(reduced.describe())
-    return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
-
-
-def reduced_source(reduced, taxels, taxels_csv):
-    """The live loop's ReducedOnline; FrameError when the model follows other taxels."""
-    from fruitcli.errors import FrameError
-    from fruitcli.fem.online import ReducedOnline
-
-    n = reduced.coef_taxels.shape[1] // 3
-    if n != len(taxels):
-        raise FrameError(f"{taxels_csv}: {len(taxels)} taxels, but the reduced model follows "
-                         f"{n}: rebuild it (fruit run SCENE --until reduce)")
-    return ReducedOnline(reduced)
-
-
-def online_solver(scene, mesh_npz, taxels_xyz, progress):
-    """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
-    mapped into it."""
-    from fruitcli.fem import io
-    from fruitcli.fem.elements import barycentric
-    from fruitcli.fem.online import OnlineSolver
-    from fruitcli.fem.stage import build_model, solver_options
-
-    model = build_model(scene, io.load_mesh(mesh_npz))
-    tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
-    progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
-    return OnlineSolver(model, tet, w, solver_options(scene),
-                        solver_options(scene, first_state=True, jig=bool(model.jigs)))

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, shared_outputs
+from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.workflow.scene_outputs import shared_outputs
 
 
 def default_out(scene) -> Path:

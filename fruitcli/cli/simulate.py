@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, progressbar, shared_outputs
+from fruitcli.cli.options import Progress, fruit_errors, progressbar
+from fruitcli.workflow.scene_outputs import shared_outputs
 
 
 @click.command(name="simulate")

@@ -13,10 +13,10 @@ def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
     stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
     meshed, no chambers) is one FruitError line starting with `label`."""
-    from fruitcli.cli.options import shared_outputs
     from fruitcli.errors import FruitError
     from fruitcli.fem import reduced
     from fruitcli.workflow import planner
+    from fruitcli.workflow.scene_outputs import shared_outputs
     from fruitcli.workflow.stages import reduced_path, wanting_reduced
 
     sc = wanting_reduced(scene)

@@ -8,15 +8,17 @@ goes through it chunk by chunk, so its memory does not grow with its length. Dri
 tracking, hysteresis, debounce and touch IDs carry state, so they run frame by frame
 through `Stream` (also the live loop):
 
-- drift tracking (``drift_rate`` r > 0): C0 += r (C - C0) on frames whose every v is at
-  most threshold - hysteresis and that are not in a touch (frozen while touched);
+- drift tracking (``drift_rate`` r > 0, `drift.DriftTracker.per_frame`): C0 += r (C - C0)
+  on frames whose every v is at most threshold - hysteresis and that are not in a touch
+  (frozen while touched);
 - debounce (``debounce_frames`` d): a touch starts on the d-th consecutive frame whose
   maximum v exceeds the threshold (0 and 1: at once);
 - hysteresis (``hysteresis_counts`` h): once touched, touches are extracted above
   threshold - h and the touch ends when no v exceeds threshold - h (frame-level state);
-- touch IDs (``track_gate_mm`` g > 0): previous and current 3D touch points are matched
-  by ``scipy.optimize.linear_sum_assignment`` on their distance; pairs farther than g,
-  and unmatched touches, get the lowest ID not in use. Without IDs, ``touch`` is the rank.
+- touch IDs (``track_gate_mm`` g > 0, `sessions.SessionTracker` with ``reuse_ids``):
+  previous and current 3D touch points are matched by
+  ``scipy.optimize.linear_sum_assignment`` on their distance; pairs farther than g, and
+  unmatched touches, get the lowest ID not in use. Without IDs, ``touch`` is the rank.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from fruitcli.sensing.detection.detect import (
     detect,
     n9_peaks,
 )
+from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.tables import Taxels
@@ -232,13 +235,17 @@ class Stream:
         self.baseline = np.asarray(baseline, dtype=float).copy()
         self.touched = False
         self.above = 0
-        self.prev_xyz = np.zeros((0, 3))
-        self.prev_ids = np.zeros(0, np.int64)
+        self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 \
+            else None
+        self.tracker = None
+        if self.s.track_gate_mm > 0:
+            from fruitcli.sensing.detection.sessions import SessionTracker
+
+            self.tracker = SessionTracker(self.s.track_gate_mm, reuse_ids=True)
         self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
         self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
-        self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
         from fruitcli.sensing.detection.n9_kernel import n9_frame
 
         self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
@@ -274,9 +281,10 @@ class Stream:
             thr = s.threshold_counts
         self.touched = on
         if not on:
-            if s.drift_rate > 0 and vmax <= low:
-                self.baseline += s.drift_rate * (values - self.baseline)
-            self.prev_xyz, self.prev_ids = self._none_xyz, self._none_ids
+            if self.drift is not None:
+                self.drift.update(self.baseline, values, 0.0, active=vmax > low)
+            if self.tracker is not None and len(self.tracker.prev_ids):
+                self.tracker.end_all()
             return self._empty
         if s.method == "peaks":
             flat = np.zeros((1, self._cells))
@@ -295,7 +303,7 @@ class Stream:
         n = len(i)
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
         xyz = (w[:, None, :] @ pos[tax])[:, 0, :]
-        ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
+        ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
 
     def _positions(self, pressure_kpa) -> np.ndarray:
@@ -320,22 +328,3 @@ class Stream:
                 self._pos = (1 - t) * pos[s0] + t * pos[s1]
             self._pos_key = key
         return self._pos
-
-    def _ids(self, xyz: np.ndarray) -> np.ndarray:
-        from scipy.optimize import linear_sum_assignment  # slow to import: only for IDs
-
-        ids = np.full(xyz.shape[0], -1, np.int64)
-        if self.prev_xyz.shape[0] and xyz.shape[0]:
-            cost = np.linalg.norm(self.prev_xyz[:, None, :] - xyz[None, :, :], axis=2)
-            r, c = linear_sum_assignment(cost)
-            ok = cost[r, c] <= self.s.track_gate_mm
-            ids[c[ok]] = self.prev_ids[r[ok]]
-        used = set(ids[ids >= 0].tolist())
-        nxt = 0
-        for k in np.flatnonzero(ids < 0):
-            while nxt in used:
-                nxt += 1
-            ids[k] = nxt
-            used.add(nxt)
-        self.prev_xyz, self.prev_ids = xyz, ids
-        return ids

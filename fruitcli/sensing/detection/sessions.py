@@ -1,11 +1,14 @@
-"""Session ids for live touches: a finger keeps its id across frames; ids are never reused.
+"""Touch ids across frames: a finger keeps its id from frame to frame. The one tracker
+behind `fruit live`'s session ids (never reused, as TUIO wants) and
+``[detection].track_gate_mm`` (the lowest id not in use, as a replay's touch rank).
 
 Units: mm, s. Consecutive frames' touch points (3D, mm) are matched by
 ``scipy.optimize.linear_sum_assignment`` on their distance (or, when each touch's
 nearest partner decides it, the compiled `session_kernel`, which gives the same
 assignment); a pair farther apart than the gate, and every unmatched touch, starts a
 new session with the next unused id (TUIO's session ids, which a client takes as a new
-cursor). With a gate of 0 every touch of every frame is a new session.
+cursor), or with ``reuse_ids`` the lowest id no touch of the frame holds. With a gate of 0
+every touch of every frame is a new session.
 """
 
 from __future__ import annotations
@@ -13,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 DEFAULT_GATE_MM = 20.0  # a finger moving 0.6 m/s at 30 frames/s; pitch 12-16 mm
 
@@ -31,18 +33,22 @@ class SessionStep:
 class SessionTracker:
     """Assign session ids to each frame's touch points (n, 3) mm."""
 
-    def __init__(self, gate_mm: float = DEFAULT_GATE_MM):
+    def __init__(self, gate_mm: float = DEFAULT_GATE_MM, reuse_ids: bool = False):
         self.gate_mm = float(gate_mm)
+        self.reuse_ids = reuse_ids
         self.next_id = 0
         self.prev_xyz = np.zeros((0, 3))
         self.prev_ids = np.zeros(0, np.int64)
-        self.fast = True  # the compiled nearest-partner path when it decides (tests: off)
-        from fruitcli.sensing.detection.session_kernel import nearest_match
+        # the compiled nearest-partner path when it decides (tests: off); it numbers new
+        # sessions from next_id, so not with reuse_ids
+        self.fast = not reuse_ids
+        if self.fast:
+            from fruitcli.sensing.detection.session_kernel import nearest_match
 
-        self._nearest = nearest_match
-        one = np.zeros((1, 3))  # compiled (or loaded from the cache) now, not on a frame
-        nearest_match(one, one, np.zeros(1, np.int64), 0.0, 0, np.empty((1, 1)),
-                      np.empty(1, np.int64), np.empty(1, bool))
+            self._nearest = nearest_match
+            one = np.zeros((1, 3))  # compiled (or loaded from the cache) now, not on a frame
+            nearest_match(one, one, np.zeros(1, np.int64), 0.0, 0, np.empty((1, 1)),
+                          np.empty(1, np.int64), np.empty(1, bool))
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]
@@ -57,12 +63,22 @@ class SessionTracker:
                 return self._step(xyz_mm, ids, new)
         ids = np.full(n, -1, np.int64)
         if self.gate_mm > 0 and n and m:
+            from scipy.optimize import linear_sum_assignment  # slow to import: when needed
+
             d = self.prev_xyz[:, None, :] - xyz_mm[None, :, :]
             cost = np.sqrt((d * d).sum(axis=2))
             r, c = linear_sum_assignment(cost)
             ok = cost[r, c] <= self.gate_mm
             ids[c[ok]] = self.prev_ids[r[ok]]
         new = ids < 0
+        if self.reuse_ids:
+            used, nxt = set(ids[~new].tolist()), 0
+            for k in np.flatnonzero(new):
+                while nxt in used:
+                    nxt += 1
+                ids[k] = nxt
+                used.add(nxt)
+            return self._step(xyz_mm, ids, new)
         k = int(new.sum())
         ids[new] = np.arange(self.next_id, self.next_id + k)
         self.next_id += k

@@ -1,0 +1,72 @@
+"""The FEM behind `fruit live --online`: the scene's mesh or reduced model, built through
+the planner into ``out/<scene name>`` when needed, and the solver that follows the measured
+chamber pressures (mm, kPa).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fruitcli.errors import FrameError
+from fruitcli.workflow import planner
+from fruitcli.workflow.scene_outputs import shared_outputs
+from fruitcli.workflow.stages import taxels_path
+
+
+def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
+    """(taxels CSV, mesh.npz) for `fruit live --online`: the scene's stages up to tetra,
+    run into out/<scene name> when needed (one planner run); given taxels are kept."""
+
+    if not pressure_port:
+        raise FrameError("--online: needs --pressure-port, the source of the pressures")
+    if not scene.chambers:
+        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
+    out = Path("out") / scene.name
+    steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs(out))
+    skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
+    if skipped:
+        raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
+                         "give [actuation] pressures for its chambers")
+    ctx = planner.Context(out)
+    return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
+
+
+def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
+    """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
+    reduced model, built into out/<scene name>/reduce when missing or stale."""
+    from fruitcli.workflow.reduced_model import ensure_reduced
+
+    if not pressure_port:
+        raise FrameError("--online: needs --pressure-port, the source of the pressures")
+    if not scene.chambers:
+        raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
+    out = Path("out") / scene.name
+    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online")
+    progress(reduced.describe())
+    return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
+
+
+def reduced_source(reduced, taxels, taxels_csv):
+    """The live loop's ReducedOnline; FrameError when the model follows other taxels."""
+    from fruitcli.fem.online import ReducedOnline
+
+    n = reduced.coef_taxels.shape[1] // 3
+    if n != len(taxels):
+        raise FrameError(f"{taxels_csv}: {len(taxels)} taxels, but the reduced model follows "
+                         f"{n}: rebuild it (fruit run SCENE --until reduce)")
+    return ReducedOnline(reduced)
+
+
+def online_solver(scene, mesh_npz, taxels_xyz, progress):
+    """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
+    mapped into it."""
+    from fruitcli.fem import io
+    from fruitcli.fem.elements import barycentric
+    from fruitcli.fem.online import OnlineSolver
+    from fruitcli.fem.stage import build_model, solver_options
+
+    model = build_model(scene, io.load_mesh(mesh_npz))
+    tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
+    progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
+    return OnlineSolver(model, tet, w, solver_options(scene),
+                        solver_options(scene, first_state=True, jig=bool(model.jigs)))

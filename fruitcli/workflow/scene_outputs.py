@@ -1,0 +1,28 @@
+"""A scene's output folder as the commands use it: the sibling scenes' folders that may
+lend a stage's outputs, and the taxels and states a command needs, made on demand.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fruitcli.workflow import planner
+from fruitcli.workflow.stages import states_path, taxels_path
+
+
+def shared_outputs(out_dir):
+    """The folder holding the scene output folder `out_dir` and its siblings (out/ for
+    out/<scene>), when it exists: a stage whose inputs equal a sibling's is copied from
+    there instead of run again (`planner.run(shared=...)`)."""
+    parent = Path(out_dir).resolve().parent
+    return parent if parent.is_dir() else None
+
+
+def scene_products(scene, out_root=None, progress=None):
+    """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
+    (into `out_root`, default out/<scene name>) and reusing what is already there."""
+    out = Path(out_root) if out_root else Path("out") / scene.name
+    # simulate's upstream makes the taxels; stages the scene does not need are skipped
+    planner.run(scene, out, until="simulate", progress=progress, shared=shared_outputs(out))
+    ctx = planner.Context(out)
+    return taxels_path(scene, ctx), states_path(scene, ctx)
