@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import (
+    Progress,
+    baud_option,
+    format_option,
+    fruit_errors,
+    out_option,
+    states_option,
+    taxels_option,
+)
 from fruitcli.workflow.scene_outputs import scene_products
 
 
@@ -22,17 +30,12 @@ def scene_surface(scene):
 
 @click.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
-@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's own (its stages "
-                   "run into out/<scene name> when needed).")
-@click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
-              help="states.npz from `fruit simulate`; without it the bench runs on the "
-                   "taxels' own surface at rest.")
+@taxels_option()
+@states_option("without it the bench runs on the taxels' own surface at rest.")
 @click.option("--surface", "surface", type=click.Path(dir_okay=False), default=None,
               help="The body's closed surface at rest (mm), on which the truth lies; "
                    "default: the scene's own (reduced.stl or its solid).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder: <indenter>/frames.npz and <indenter>/truth.csv.")
+@out_option("Output folder: <indenter>/frames.npz and <indenter>/truth.csv.")
 @click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
               help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
                    "scene's: the virtual bench's skin.")
@@ -44,11 +47,8 @@ def scene_surface(scene):
 @click.option("--indenter", default=None,
               help="Real bench: the indenter on the printer (output folder name; default: "
                    "the first of [bench].indenters).")
-@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]),
-              default=None, help="Real bench: the board's frame format (default: the "
-              "scene's [board].format).")
-@click.option("--board-baud", type=click.IntRange(min=1), default=115200, show_default=True,
-              help="Real bench: the board's baud rate.")
+@format_option(default=None, what="Real bench: ")
+@baud_option(name="--board-baud", what="Real bench: the board's line. ")
 @click.option("--overwrite", is_flag=True,
               help="Real bench: replace an existing <indenter>/frames.npz.")
 def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, printer_port,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option, taxels_option
 from fruitcli.workflow.scene_outputs import scene_products
 
 
@@ -14,11 +14,9 @@ from fruitcli.workflow.scene_outputs import scene_products
               help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm).")
 @click.option("--scene", "scene_path", required=True, type=click.Path(dir_okay=False),
               help="Scene whose [board] and taxels the recording used.")
-@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (default: the scene's own).")
+@taxels_option()
 @click.option("--indenter", default=None, help="Indenter of the recording (default: its meta).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
+@out_option("Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
 def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
     """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
     a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer)."""

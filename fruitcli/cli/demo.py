@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 
 DEMO_SCENES = ["paper-table", "fruit-rest", "fruit-deformed", "fruit-breathing", "touchpad-4x4"]
 
@@ -21,8 +21,7 @@ def _pipelines_dir() -> Path:
 
 
 @click.command()
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out",
-              show_default=True, help="Output folder: one sub-folder per scene, report.md.")
+@out_option("Output folder: one sub-folder per scene, report.md.", required=False, default="out")
 @click.option("--scenes", default=",".join(DEMO_SCENES), show_default=True,
               help="Comma-separated scene names from pipelines/.")
 def demo(out_dir, scenes):

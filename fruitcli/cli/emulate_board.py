@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from fruitcli.cli.options import fruit_errors
+from fruitcli.cli.options import baud_option, format_option, fruit_errors
 
 
 @click.command("emulate-board")
@@ -15,12 +15,8 @@ from fruitcli.cli.options import fruit_errors
 @click.option("--bench", "bench_dir", type=click.Path(), default=None,
               help="A scene (.toml: its bench runs first, into out/<scene name>) or the output "
                    "folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
-@click.option("--format", "fmt", type=click.Choice(["ascii", "binary"]), default="ascii",
-              show_default=True, help="ASCII lines (stock Muca_Raw) or binary packets "
-              "(stock SendRawByte: 2-byte big-endian minimum + one byte per cell).")
-@click.option("--baud", type=click.IntRange(min=0), default=115200, show_default=True,
-              help="Pace the bytes like a serial line at this baud, 8N1 (10 bits a byte; "
-                   "0: unpaced).")
+@format_option(default="ascii", auto=False)
+@baud_option(pace=True)
 @click.option("--fps", type=click.FloatRange(min=0), default=0.0, show_default=True,
               help="Cap on frames per second (0: no cap, the baud limits).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,

@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from fruitcli.cli.options import fruit_errors
+from fruitcli.cli.options import baud_option, format_option, fruit_errors, taxels_option
 from fruitcli.workflow.scene_outputs import scene_products
 
 
@@ -30,14 +30,11 @@ def parse_faults(specs) -> dict:
 @click.option("--board-from", "scene_path", required=True, type=click.Path(dir_okay=False),
               help="Scene whose [printer] placement, [board] and taxels make the board's "
                    "frames (its stages run into out/<scene name> when needed).")
-@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (default: the scene's own).")
+@taxels_option()
 @click.option("--indenter", default="small", show_default=True,
               type=click.Choice(["small", "medium"]), help="The indenter the skin feels.")
-@click.option("--format", "fmt", type=click.Choice(["ascii", "binary"]), default="binary",
-              show_default=True, help="The board's frame format (stock firmware).")
-@click.option("--baud", type=click.IntRange(min=0), default=115200, show_default=True,
-              help="The board's bytes are paced at this baud, 8N1 (0: unpaced).")
+@format_option(default="binary", auto=False)
+@baud_option(pace=True, what="The board's bytes. ")
 @click.option("--time-scale", type=click.FloatRange(min=0), default=1.0, show_default=True,
               help="Moves take distance / feed rate times this (0: instantly).")
 @click.option("--fault", "faults", multiple=True,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import fruit_errors
+from fruitcli.cli.options import fruit_errors, out_option
 
 
 @click.command()
@@ -12,8 +12,7 @@ from fruitcli.cli.options import fruit_errors
               help="Ground-truth CSV: sample,x_mm,y_mm[,z_mm].")
 @click.option("--measured", required=True, type=click.Path(dir_okay=False),
               help="Measured CSV with the same samples: sample,x_mm,y_mm[,z_mm].")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (errors.csv, table.md, table.csv, summary.json, plots).")
+@out_option("Output folder (errors.csv, table.md, table.csv, summary.json, plots).")
 @click.option("--reference-length-mm", type=float, default=None,
               help="Length for % errors in mm. [default: largest distance between two "
                    "truth samples; the paper uses 152]")

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, divide_by_gain_option, fruit_errors
+from fruitcli.cli.options import (
+    Progress,
+    baud_option,
+    divide_by_gain_option,
+    format_option,
+    fruit_errors,
+    states_option,
+    taxels_option,
+)
 from fruitcli.sensing.detection.drift import DEFAULT_TAU_S
 from fruitcli.workflow.scene_outputs import scene_products
 
@@ -12,11 +20,8 @@ from fruitcli.workflow.scene_outputs import scene_products
 @click.command()
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @click.option("--port", required=True, help="Serial port of the board.")
-@click.option("--taxels", "taxels_csv", type=click.Path(dir_okay=False), default=None,
-              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: the scene's own (its stages "
-                   "run into out/<scene name> when needed).")
-@click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
-              help="states.npz: taxels follow the FEM states (state 0 without pressures).")
+@taxels_option()
+@states_option("taxels follow the FEM states (state 0 without pressures).")
 @click.option("--pressure-port", default=None,
               help="Serial source of chamber pressures: lines 'P c1=2.5 c2=0.0' in kPa.")
 @click.option("--online", is_flag=True,
@@ -30,10 +35,8 @@ from fruitcli.workflow.scene_outputs import scene_products
                    "pressure vector).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames (baseline frames included).")
-@click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True)
-@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]), default=None,
-              help="The board's frame format (stock Muca_Raw ASCII or SendRawByte binary); "
-                   "default: the scene's [board].format (auto-detected).")
+@baud_option()
+@format_option(default=None)
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
               help="Frames averaged into the baseline C0 (default: the scene's).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,

@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, divide_by_gain_option, fruit_errors
+from fruitcli.cli.options import (
+    Progress,
+    divide_by_gain_option,
+    fruit_errors,
+    out_option,
+    states_option,
+    taxels_option,
+)
 
 
 @click.command()
 @click.argument("frames", type=click.Path(dir_okay=False))
-@click.option("--taxels", "taxels_csv", required=True, type=click.Path(dir_okay=False),
-              help="Taxel CSV: id,i,j,x_mm,y_mm,z_mm (mm, rest positions).")
-@click.option("--states", "states_npz", type=click.Path(dir_okay=False), default=None,
-              help="states.npz from `fruit simulate`: taxels follow the deformation "
-                   "(the recording's chamber pressures, or its meta state).")
+@taxels_option(required=True)
+@states_option("taxels follow the deformation (the recording's chamber pressures, or its meta "
+               "state).")
 @click.option("--scene", "scene_path", type=click.Path(dir_okay=False), default=None,
               help="Scene whose [board] and [detection] sections to use.")
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
@@ -31,8 +36,7 @@ from fruitcli.cli.options import Progress, divide_by_gain_option, fruit_errors
                    "frame's taxels from the scene's reduced model, built into "
                    "out/<scene name>/reduce on first use) or full (the --states path).")
 @divide_by_gain_option
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder: touches.csv (and measured.csv for bench recordings).")
+@out_option("Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
            surface, model_kind, gains_csv, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 
 
 @click.command("make-artist")
-@click.option("--out", "out", required=True, type=click.Path(dir_okay=False),
-              help="Output mesh file: .stl, .obj or .ply (mm).")
+@out_option("Output mesh file: .stl, .obj or .ply (mm).", file=True, dest="out")
 def make_artist(out):
     """Write the default artist mesh, a procedural 'Fruit' about 150 mm across (mm units,
     >= 100,000 triangles, closed), its top under the paper's 29 rest sample positions."""

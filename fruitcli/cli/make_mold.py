@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
@@ -17,8 +17,7 @@ def _opt(name, kind, help_):
 
 @click.command("make-mold")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output folder: one STL per mold part, mold.json, preview.png.")
+@out_option("Output folder: one STL per mold part, mold.json, preview.png.", path_type=Path)
 @click.option("--tracks", "tracks_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="A make-tracks output folder; default: make-tracks runs "
                                  "first (into OUT/make-tracks).")

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 
 
 @click.command("make-tracks")
 @click.argument("artist", type=click.Path(dir_okay=False))
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False),
-              help="Output folder (reduced.stl, tracked_top.stl, tracks.stl, taxels.csv, "
-                   "report.json, preview.png).")
+@out_option("Output folder (reduced.stl, tracked_top.stl, tracks.stl, taxels.csv, report.json, "
+            "preview.png).", dest="out")
 @click.option("--unit", type=click.Choice(["mm", "cm", "m"]), default=None,
               help="Unit of the mesh file (default: mm; read in mm, a mesh under 2 mm across "
                    "is refused as being in m or cm).")

@@ -6,29 +6,24 @@ import threading
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, baud_option, format_option, fruit_errors, out_option
 
 
 @click.command()
 @click.option("--port", required=True, help="Serial port of the board (device path or "
               "pyserial URL).")
-@click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False),
-              help="Recording: .npz, or a MuCa ASCII log (.log/.txt/.csv) with host "
-                   "timestamps.")
+@out_option("Recording: .npz, or a MuCa ASCII log (.log/.txt/.csv) with host "
+            "timestamps.", file=True, dest="out_path")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames.")
 @click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Stop after this many seconds.")
-@click.option("--baud", type=click.IntRange(min=1), default=115200, show_default=True,
-              help="Baud rate (8N1).")
+@baud_option()
 @click.option("--rows", type=click.IntRange(min=1), default=21, show_default=True,
               help="Frame rows (Tx lines).")
 @click.option("--cols", type=click.IntRange(min=1), default=12, show_default=True,
               help="Frame columns (Rx lines).")
-@click.option("--format", "fmt", type=click.Choice(["auto", "ascii", "binary"]),
-              default="auto", show_default=True,
-              help="The board's frame format: stock Muca_Raw ASCII lines or SendRawByte "
-                   "binary packets (auto: whichever yields frames first).")
+@format_option(default="auto")
 @click.option("--pressure-port", default=None,
               help="Serial source of chamber pressures, the `fruit live` line protocol "
                    "'P c1=2.5 c2=0.0' (kPa): each frame gets the latest pressures received "

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
@@ -16,8 +16,7 @@ def default_out(scene) -> Path:
 
 @click.command()
 @click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output folder; one sub-folder per stage. [default: out/<scene name>]")
+@out_option("Output folder; one sub-folder per stage. [default: out/<scene name>]", required=False)
 @click.option("--dry-run", is_flag=True,
               help="Print each stage as run, reuse or not needed, with the reason; run nothing.")
 @click.option("--until", default=None, help="Stop after this stage (and what it needs).")

@@ -7,19 +7,17 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, progressbar
+from fruitcli.cli.options import Progress, fruit_errors, out_option, progressbar, taxels_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
 @click.command(name="simulate")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output folder: mesh files and states.npz.")
+@out_option("Output folder: mesh files and states.npz.", path_type=Path)
 @click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
                    "without it, make-tracks runs first (into OUT/make-tracks).")
-@click.option("--taxels", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Taxel CSV (id,i,j,x_mm,y_mm,z_mm); default: [grid] taxels of the scene.")
+@taxels_option(path_type=Path)
 @click.option("--vtu", is_flag=True, help="Also write one VTU per state for ParaView.")
 @click.option("--pressures", "pressures_csv", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="CSV of pressure vectors instead of [actuation]: one row per "
@@ -27,7 +25,7 @@ from fruitcli.workflow.scene_outputs import shared_outputs
 @click.option("--model", "model_kind", type=click.Choice(["full", "reduced"]), default="full",
               show_default=True, help="full: the FEM solved per state; reduced: the scene's "
               "reduced model (built into OUT/reduce on first use, pressures within its range).")
-def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
+def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
     """Tetrahedralize SCENE's body, then solve each state of [actuation].
 
     Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,
@@ -61,13 +59,13 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
         if model_kind == "reduced":
             from fruitcli.workflow.reduced_model import simulate_reduced
 
-            info = simulate_reduced(sc, out_dir, taxels, table, rows, pressures_csv, log,
+            info = simulate_reduced(sc, out_dir, taxels_csv, table, rows, pressures_csv, log,
                                     vtu=vtu)
             click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
                        f"model, {info['us_per_state']:.1f} us per state; {info['describe']}")
             return
         geo = sc["geometry"]
-        taxel_csv = taxels or sc["grid"]["taxels"]
+        taxel_csv = taxels_csv or sc["grid"]["taxels"]
         # given taxels are checked before any stage runs
         xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
         tracks_csv = sc["tracks"]["file"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import fruit_errors, quiet
+from fruitcli.cli.options import fruit_errors, jobs_option, out_option, quiet, scheduler_option
 
 
 def _bar(label):
@@ -40,13 +40,10 @@ def study():
 
 
 @study.command()
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-stability",
-              show_default=True, help="Output folder: stability.md, .csv, .json.")
-@click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Worker processes. [default: all cores]")
-@click.option("--scheduler", metavar="ADDRESS", default=None,
-              help="Run the cases on the workers of this Dask distributed scheduler "
-                   "(pip install 'fruitcli[cluster]'); see `fruit sweep --help`.")
+@out_option("Output folder: stability.md, .csv, "
+            ".json.", required=False, default="out/study-stability")
+@jobs_option()
+@scheduler_option("the cases")
 def stability(out_dir, jobs, scheduler):
     """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.499, pressure until elements
     would invert, jig stiffness 1e-3..1e6 N/mm, a sliver tet, an unsupported body.
@@ -82,14 +79,10 @@ def stability(out_dir, jobs, scheduler):
 @study.command()
 @click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
                 default="pipelines/fruit-deformed.toml")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-runtime",
-              show_default=True, help="Output folder: runtime.md, runtime.json, runtime.png.")
-@click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Worker processes. [default: all cores]")
-@click.option("--scheduler", metavar="ADDRESS", default=None,
-              help="Run the FEM settings on the workers of this Dask distributed scheduler "
-                   "(pip install 'fruitcli[cluster]'); --out must be on a file system they "
-                   "share.")
+@out_option("Output folder: runtime.md, runtime.json, "
+            "runtime.png.", required=False, default="out/study-runtime")
+@jobs_option()
+@scheduler_option("the FEM settings")
 def runtime(scene_file, out_dir, jobs, scheduler):
     """Error against run time on SCENE (default: the Fruit in its jig): FEM mesh size,
     Newton tolerance and iteration cap, linear solver, detection variant.
@@ -147,11 +140,9 @@ def runtime(scene_file, out_dir, jobs, scheduler):
 @study.command("bench")
 @click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
                 default="pipelines/fruit-rest.toml")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/study-bench",
-              show_default=True, help="Output folder: bench.md, bench.csv, bench.json, "
-                                      "bench.png.")
-@click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Worker processes. [default: all cores]")
+@out_option("Output folder: bench.md, bench.csv, bench.json, "
+            "bench.png.", required=False, default="out/study-bench")
+@jobs_option()
 def bench_study(scene_file, out_dir, jobs):
     """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
     parameters ([skin]: footprint width, counts at contact, gap decay, noise std, taxel

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import fruit_errors, quiet
+from fruitcli.cli.options import fruit_errors, jobs_option, out_option, quiet, scheduler_option
 
 FIGURES = ("taxels", "tets", "states", "newton_its", "max_disp_mm", "state_ms",
            "noise_std_max_counts", "shift_max_counts", "shift_mean_counts", "variant_s")
@@ -22,16 +22,10 @@ TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$")
 @click.option("--grid/--zip", "grid", default=True,
               help="Every combination of the lists (default), or the i-th value of each "
                    "list together (lists of one length).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output folder: sweep.csv, sweep.md, sweep.png, variants/<name>/. "
-                   "With --scheduler it must be on a file system the workers share. "
-                   "[default: out/sweep-<scene name>]")
-@click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Local worker processes. [default: all cores]")
-@click.option("--scheduler", metavar="ADDRESS", default=None,
-              help="Run the variants on the workers of this Dask distributed scheduler "
-                   "(tcp://host:8786), e.g. one started by dask-jobqueue on SLURM or PBS. "
-                   "Needs pip install 'fruitcli[cluster]'.")
+@out_option("Output folder: sweep.csv, sweep.md, sweep.png, variants/<name>/. [default: "
+            "out/sweep-<scene name>]", required=False)
+@jobs_option("Local worker processes")
+@scheduler_option("the variants")
 @click.option("--connect-timeout", type=click.FloatRange(min=0.1), default=10.0,
               show_default=True, help="Seconds to wait for the scheduler and a worker.")
 @click.option("--plot", "figure", default=None,

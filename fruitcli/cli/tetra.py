@@ -6,13 +6,12 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 
 
 @click.command(name="tetra")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output folder: mesh.npz, mesh.msh, mesh.vtu, quality.json.")
+@out_option("Output folder: mesh.npz, mesh.msh, mesh.vtu, quality.json.", path_type=Path)
 @click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Closed surface of the body (mm), e.g. reduced.stl from make-tracks; "
                    "default: the scene's geometry.solid or pad_size_mm.")
