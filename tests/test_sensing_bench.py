@@ -284,7 +284,7 @@ def test_bench_reads_the_skin_table(tmp_path):
 
 
 def test_project_to_surface_moves_a_chord_point_onto_the_body(tmp_path):
-    from fruitcli.sensing.stages import body_surface, project_to_surface
+    from fruitcli.geometry.body_surface import body_surface, project_to_surface
 
     surface = body_surface(pad_surface_stl(tmp_path / "pad.stl"))
     pts, dist = project_to_surface(np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]), surface,

@@ -29,11 +29,12 @@ import numpy as np
 
 from fruitcli.errors import FrameError, FruitError
 from fruitcli.fsutil import write_csv
+from fruitcli.geometry.body_surface import surface_heights, taxel_surface_heights
 from fruitcli.printer.marlin import Marlin, PrinterError, PrinterGone, PrinterHalted
 from fruitcli.printer.placement import Placement
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_npz
-from fruitcli.sensing.skin.virtual_bench import START_GAP_MM, surface_heights, taxel_surface_heights
+from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
 from fruitcli.tables import read_taxels
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position

@@ -14,6 +14,7 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
+from fruitcli.geometry.body_surface import SurfaceProjector, body_surface, contact_heights
 from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Locator, Settings, TouchTable
 from fruitcli.sensing.detection.locate import States, load_states, match_chambers
 from fruitcli.sensing.frames.board import check_frame_shape
@@ -81,69 +82,6 @@ def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndar
     first = np.r_[True, fs[1:] != fs[:-1]] if fs.size else np.zeros(0, bool)
     ids, pts = fs[first], xyz[first]
     return ids, pts
-
-
-FACING_COS = 0.5  # a face "faces the same way" as a taxel's surface within 60 degrees
-
-
-class SurfaceProjector:
-    """Touch points moved to the nearest point of the body's surface (vertices, triangles
-    at rest, outward; carried by FEM state `state` when states are given) among the faces
-    that face the same way as the surface at the nearest taxel (`taxels_mm` (T, 3), in
-    that state), so a thin body is not crossed to its far side. The N9 average of 3D
-    taxels lies on a chord, inside a curved body. `project` may run on several threads."""
-
-    def __init__(self, surface, states, state: int | None, taxels_mm: np.ndarray):
-        import threading
-
-        from scipy.spatial import cKDTree
-
-        from fruitcli.geometry.distance import SurfaceDistance
-        from fruitcli.sensing.skin.virtual_bench import carried_vertices
-
-        verts, tris = surface
-        if states is not None:
-            verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state),
-                                     verts)
-        t = verts[tris]
-        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True),
-                                          1e-300)
-        self.verts, self.tris = verts, tris
-        _, _, self.own = SurfaceDistance(verts, tris).closest(taxels_mm)
-        self.taxel_tree = cKDTree(taxels_mm)
-        self._facing: dict[int, SurfaceDistance] = {}  # per taxel, made when first needed
-        self._lock = threading.Lock()
-
-    def _faces_of(self, k: int):
-        from fruitcli.geometry.distance import SurfaceDistance
-
-        with self._lock:
-            if k not in self._facing:
-                facing = self.normal @ self.normal[self.own[k]] > FACING_COS
-                self._facing[k] = SurfaceDistance(self.verts, self.tris[facing])
-            return self._facing[k]
-
-    def project(self, xyz_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Points (n, 3) mm -> (points on the surface (n, 3) mm, distances moved (n,) mm)."""
-        if len(xyz_mm) == 0:
-            return xyz_mm, np.zeros(0)
-        _, nearest = self.taxel_tree.query(xyz_mm)
-        points, dist = np.empty_like(xyz_mm), np.empty(len(xyz_mm))
-        for k in np.unique(nearest):
-            rows = np.flatnonzero(nearest == k)
-            q, d, _ = self._faces_of(int(k)).closest(xyz_mm[rows])
-            points[rows], dist[rows] = q, d
-        return points, dist
-
-
-def project_to_surface(xyz_mm: np.ndarray, surface, states, state: int | None,
-                       taxels_mm: np.ndarray):
-    """Touch points (n, 3) mm moved onto the body's surface (`SurfaceProjector`).
-    -> (points, distances (n,) mm)."""
-    if len(xyz_mm) == 0:
-        return xyz_mm, np.zeros(0)
-    return SurfaceProjector(surface, states, state, taxels_mm).project(xyz_mm)
 
 
 def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
@@ -301,38 +239,6 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
 
     cols = read_table(resolve_path(scene.path, spec), ["x_mm", "y_mm"], error=FrameError)
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
-
-
-def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (V, 3) mm and triangles (F, 3) of the body's closed surface at rest."""
-    from fruitcli.geometry.load import load_mesh
-
-    surf = load_mesh(path, unit)
-    return np.asarray(surf.vertices, float), np.asarray(surf.faces, np.int64)
-
-
-def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
-                    surface) -> tuple[np.ndarray, str]:
-    """z (P,) mm where vertical lines at `xy` (P, 2) meet the body from above (NaN: miss),
-    and what the surface was. `surface`: (vertices, triangles) of the body at rest or None."""
-    from fruitcli.sensing.skin.virtual_bench import (
-        carried_vertices,
-        surface_heights,
-        taxel_surface_heights,
-    )
-
-    if surface is not None:
-        verts, tris = surface
-        if states is None:
-            return surface_heights(xy, verts, tris), "the body's reduced surface at rest"
-        moved = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
-        return (surface_heights(xy, moved, tris),
-                f"the body's reduced surface carried by FEM state {state}")
-    if states is not None:
-        return (surface_heights(xy, states.nodes_mm(state), states.surface_tris),
-                f"the FEM boundary of state {state} (no body surface given)")
-    return (taxel_surface_heights(xy, taxels_mm),
-            "the taxels' interpolated surface (no body surface given)")
 
 
 def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,

@@ -34,50 +34,11 @@ from fruitcli.sensing.skin import forward
 START_GAP_MM = 5.0  # indenter start above the contact point
 PRESS_MM = 2.0  # deepest press into the skin before a sample is given up
 BENCH_FPS = 60.0  # frame rate of the virtual board (frames/s)
-_INSIDE_EPS = 1e-9  # barycentric tolerance of the vertical ray test
 
 
 def quarter_samples(taxels_xy_mm: np.ndarray, spacing_x_mm: float, spacing_y_mm: float):
     """(x, y) of one sample a quarter taxel off each taxel (T, 2) mm."""
     return taxels_xy_mm + np.array([spacing_x_mm, spacing_y_mm]) / 4.0
-
-
-def surface_heights(xy_mm: np.ndarray, nodes_mm: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """Highest z where vertical lines at (x, y) (P, 2) meet triangles (F, 3); NaN: miss."""
-    a, b, c = (nodes_mm[tris[:, k]] for k in range(3))
-    e1, e2 = (b - a)[:, :2], (c - a)[:, :2]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    ok = np.abs(det) > _INSIDE_EPS
-    a, b, c, e1, e2, det = a[ok], b[ok], c[ok], e1[ok], e2[ok], det[ok]
-    r = xy_mm[:, None, :] - a[None, :, :2]  # (P, F, 2)
-    u = (r[..., 0] * e2[:, 1] - r[..., 1] * e2[:, 0]) / det
-    v = (e1[:, 0] * r[..., 1] - e1[:, 1] * r[..., 0]) / det
-    inside = (u >= -_INSIDE_EPS) & (v >= -_INSIDE_EPS) & (u + v <= 1 + _INSIDE_EPS)
-    z = a[:, 2] + u * (b[:, 2] - a[:, 2]) + v * (c[:, 2] - a[:, 2])
-    z = np.where(inside, z, -np.inf).max(axis=1)
-    return np.where(np.isfinite(z), z, np.nan)
-
-
-def carried_vertices(rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray,
-                     vertices: np.ndarray) -> np.ndarray:
-    """Surface vertices (V, 3) mm at rest, moved with a FEM state: each vertex mapped
-    barycentrically into its rest tet (corner nodes of `tets`), placed by the same weights
-    on the deformed `nodes` (N, 3). Vertices just outside the tet mesh (its surface is a
-    remeshed copy of this one) are extrapolated from the nearest tet."""
-    from fruitcli.fem.elements.barycentric import apply, locate
-
-    corners = np.asarray(tets)[:, :4]
-    tet, weights, _ = locate(rest_nodes, corners, vertices)
-    return apply(nodes, corners, tet, weights)
-
-
-def taxel_surface_heights(xy_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
-    """z of the taxels' surface (linear over their xy Delaunay triangles) at (P, 2); NaN
-    outside."""
-    from scipy.interpolate import LinearNDInterpolator
-
-    f = LinearNDInterpolator(taxels_mm[:, :2], taxels_mm[:, 2])
-    return np.asarray(f(xy_mm), dtype=float)
 
 
 @dataclass
