@@ -122,7 +122,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
                            "models)"),
     },
-    "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced_build)
+    "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced.build)
         "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "
                                   "each chamber's [actuation] pressures plus the margin)"),
         "margin": Key("num", 0.1, "fraction of each chamber's [actuation] span added on "

@@ -11,9 +11,9 @@ import trimesh
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
-from fruitcli.geometry.distance import SurfaceDistance
-from fruitcli.geometry.reduce import to_manifold64
-from fruitcli.geometry.winding import Winding
+from fruitcli.geometry.mesh.distance import SurfaceDistance
+from fruitcli.geometry.mesh.winding import Winding
+from fruitcli.geometry.tracks.reduce import to_manifold64
 
 SCENE = """[geometry]
 artist = "ell.stl"

@@ -11,10 +11,10 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FruitError, SolverError
-from fruitcli.fem import reduced as reduced_mod
-from fruitcli.fem import response_surface as rs
 from fruitcli.fem.pressure_table import read_pressures, write_pressures
-from fruitcli.fem.reduced_build import pressure_box
+from fruitcli.fem.reduced import model as reduced_mod
+from fruitcli.fem.reduced import response_surface as rs
+from fruitcli.fem.reduced.build import pressure_box
 from fruitcli.scene import parse_scene
 from fruitcli.tables import read_taxels
 from fruitcli.workflow import planner

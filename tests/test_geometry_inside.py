@@ -19,8 +19,8 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import GeometryError
-from fruitcli.geometry import load, winding
-from fruitcli.geometry.make_tracks import make_tracks
+from fruitcli.geometry.mesh import load, winding
+from fruitcli.geometry.tracks.make_tracks import make_tracks
 
 
 def _cli(args):
@@ -239,7 +239,7 @@ def test_sharp_edged_part_gives_tracks_and_names_its_thin_wall(tmp_path):
 
 
 def test_scene_fit_mm_is_named_in_errors(tmp_path):
-    from fruitcli.geometry.make_tracks import SCENE_NAMES
+    from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES
     from fruitcli.scene import load_scene
 
     trimesh.creation.icosphere(3, 0.5).export(tmp_path / "head.stl")      # 1 mm across

@@ -9,9 +9,9 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import GeometryError
-from fruitcli.geometry.columns import vertical_hits
-from fruitcli.geometry.distance import SurfaceDistance, closest_on_triangles
-from fruitcli.geometry.make_tracks import SCENE_NAMES, make_tracks
+from fruitcli.geometry.mesh.columns import vertical_hits
+from fruitcli.geometry.mesh.distance import SurfaceDistance, closest_on_triangles
+from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 from fruitcli.tables import read_taxels
 
 ON_SURFACE_MM = 0.01

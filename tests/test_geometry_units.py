@@ -4,16 +4,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from fruitcli.geometry.columns import inside_columns, top_z, vertical_hits
-from fruitcli.geometry.distance import (
+from fruitcli.geometry.mesh.columns import inside_columns, top_z, vertical_hits
+from fruitcli.geometry.mesh.distance import (
     SurfaceDistance,
     TreeDistance,
     closest_on_triangles,
     grid_vertex_distance,
 )
-from fruitcli.geometry.sections import section_pieces
-from fruitcli.geometry.taxels import piece_crossings
-from fruitcli.geometry.tubes import resample, track_polylines, tube_arrays
+from fruitcli.geometry.tracks.sections import section_pieces
+from fruitcli.geometry.tracks.taxels import piece_crossings
+from fruitcli.geometry.tracks.tubes import resample, track_polylines, tube_arrays
 
 
 def test_closest_on_triangle_regions():
@@ -135,7 +135,7 @@ def test_closed_loop_becomes_two_overlapping_tubes():
 
 
 def test_masked_runs_bridges_short_gaps_and_drops_short_parts():
-    from fruitcli.geometry.sections import Piece, masked_runs
+    from fruitcli.geometry.tracks.sections import Piece, masked_runs
 
     x = np.arange(21, dtype=float)                      # 20 segments of 1 mm along x
     piece = Piece(np.c_[x, 0 * x, 0 * x], np.arange(20), False)
@@ -160,7 +160,7 @@ def test_masked_runs_bridges_short_gaps_and_drops_short_parts():
 
 
 def test_orient_faces_without_networkx():
-    from fruitcli.geometry.load import orient_faces
+    from fruitcli.geometry.mesh.load import orient_faces
 
     s = trimesh.creation.icosphere(3, 10.0)
     f = s.faces.copy()
@@ -177,7 +177,7 @@ def test_orient_faces_without_networkx():
 
 
 def test_densify_splits_long_triangles_only():
-    from fruitcli.geometry.reduce import densify
+    from fruitcli.geometry.tracks.reduce import densify
 
     box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
     v, f, edge = densify(box.vertices, box.faces, 5.0)
@@ -188,7 +188,7 @@ def test_densify_splits_long_triangles_only():
 
 
 def test_densify_cuts_long_strips_along_their_length_only():
-    from fruitcli.geometry.reduce import densify
+    from fruitcli.geometry.tracks.reduce import densify
 
     # a column's side: 128 strips 150 mm x 0.79 mm; cutting each face in four until the
     # 150 mm edges were short cut the strips across as well (281k faces, 0.006 mm edges)
@@ -209,7 +209,7 @@ def test_densify_cuts_long_strips_along_their_length_only():
 
 
 def test_weld_merges_what_a_reader_merges(tmp_path):
-    from fruitcli.geometry.export import weld_float32, write_stl
+    from fruitcli.geometry.mesh.export import weld_float32, write_stl
 
     # a tetrahedron whose fourth corner appears twice, 2e-9 mm apart, joined by two needle
     # faces (as a boolean left them where a tube ended on a wall): an STL reader merges the

@@ -13,9 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from artist_meshes import overlapping_figure, sphere_with_holes, teapot_with_open_lid  # noqa: E402
 
-from fruitcli.geometry import winding  # noqa: E402
-from fruitcli.geometry.columns import RAY_JITTER_MM  # noqa: E402
-from fruitcli.geometry.solid_angle import SolidAngleTree, exact_winding  # noqa: E402
+from fruitcli.geometry.mesh import winding  # noqa: E402
+from fruitcli.geometry.mesh.columns import RAY_JITTER_MM  # noqa: E402
+from fruitcli.geometry.mesh.solid_angle import SolidAngleTree, exact_winding  # noqa: E402
 
 TREE_TOLERANCE = 0.01
 """The tree at beta = 2 stays within this of the exact sum (measured: at most 0.0077

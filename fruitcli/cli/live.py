@@ -10,6 +10,7 @@ from fruitcli.cli.options import (
     divide_by_gain_option,
     format_option,
     fruit_errors,
+    reduced_build_bar,
     states_option,
     taxels_option,
 )
@@ -124,7 +125,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
         taxels_csv = taxels_csv or scene["grid"]["taxels"]
         if online and model_kind == "reduced":  # the scene's reduced model
             taxels_csv, reduced = online_reduced(scene, scene_path, taxels_csv,
-                                                 pressure_port, progress)
+                                                 pressure_port, progress, reduced_build_bar)
         elif online:  # the scene's mesh (tetra), not its states
             taxels_csv, mesh_npz = online_products(scene, scene_path, taxels_csv,
                                                    pressure_port, progress)

@@ -9,6 +9,7 @@ from fruitcli.cli.options import (
     divide_by_gain_option,
     fruit_errors,
     out_option,
+    reduced_build_bar,
     states_option,
     taxels_option,
 )
@@ -61,7 +62,8 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
             from fruitcli.workflow.reduced_model import ensure_reduced
 
             reduced = ensure_reduced(scene, Path("out") / scene.name, taxels_csv, progress,
-                                     label=f"{scene_path}: --model reduced")
+                                     label=f"{scene_path}: --model reduced",
+                                     bar=reduced_build_bar)
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
                          method=method, surface_path=surface, reduced=reduced,

@@ -45,7 +45,7 @@ def make_tracks(artist, out, unit, fit_mm, cover_mm, faces, spacing_x_mm, spacin
     sections x = x0 + k*16 mm and y = y0 + k*12 mm on the top side, tubes subtracted in one
     batch boolean, taxels at the crossings (i along x, j along y).
     """
-    from fruitcli.geometry.make_tracks import make_tracks as run
+    from fruitcli.geometry.tracks.make_tracks import make_tracks as run
 
     progress = Progress()
     with fruit_errors():

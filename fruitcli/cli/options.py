@@ -60,6 +60,11 @@ def progressbar(iterable=None, length=None, label=""):
                              show_pos=True, show_eta=True)
 
 
+def reduced_build_bar(total: int):
+    """The progress bar of the reduced model's full solves (`ensure_reduced(bar=...)`)."""
+    return progressbar(length=total, label="reduced-model full solves")
+
+
 divide_by_gain_option = click.option(
     "--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
     metavar="GAINS.csv",

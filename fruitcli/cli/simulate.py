@@ -7,7 +7,14 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, out_option, progressbar, taxels_option
+from fruitcli.cli.options import (
+    Progress,
+    fruit_errors,
+    out_option,
+    progressbar,
+    reduced_build_bar,
+    taxels_option,
+)
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
@@ -60,7 +67,7 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
             from fruitcli.workflow.reduced_model import simulate_reduced
 
             info = simulate_reduced(sc, out_dir, taxels_csv, table, rows, pressures_csv, log,
-                                    vtu=vtu)
+                                    vtu=vtu, bar=reduced_build_bar)
             click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
                        f"model, {info['us_per_state']:.1f} us per state; {info['describe']}")
             return

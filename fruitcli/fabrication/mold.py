@@ -99,8 +99,8 @@ def highest_points(piece, count: int, keep_off_mm: float, avoid=()):
     (points (k, 2), distance mm) of `avoid` (the tracks, the pins), that far from them."""
     from scipy import ndimage
 
-    from fruitcli.geometry.columns import top_z
-    from fruitcli.geometry.reduce import manifold_arrays
+    from fruitcli.geometry.mesh.columns import top_z
+    from fruitcli.geometry.tracks.reduce import manifold_arrays
 
     v, f = manifold_arrays(piece)
     lo, hi = v.min(axis=0), v.max(axis=0)
@@ -242,7 +242,7 @@ def undercut_area(piece, zp: float, side: int, pull: dict) -> dict:
     """Per part with a pull direction, the area (mm^2) of the piece's surface that part
     touches and that faces away from its pull (an undercut that locks the part): the shell
     touches what lies off the parting plane, the plate the flat face on it."""
-    from fruitcli.geometry.reduce import manifold_arrays
+    from fruitcli.geometry.tracks.reduce import manifold_arrays
 
     v, f = manifold_arrays(piece)
     tri = v[f]

@@ -23,8 +23,8 @@ ELLIPSOID_SEGMENTS = 64
 
 def load_solid(path, what: str):
     """A closed surface file in mm as a float64 Manifold."""
-    from fruitcli.geometry import load
-    from fruitcli.geometry.reduce import to_manifold64
+    from fruitcli.geometry.mesh import load
+    from fruitcli.geometry.tracks.reduce import to_manifold64
 
     surf = load.load_mesh(path)
     if not surf.closed:
@@ -41,7 +41,7 @@ def scene_chambers(scene) -> list:
     """[(name, Manifold)] of the scene's chambers (mm)."""
     import manifold3d as mf
 
-    from fruitcli.geometry.load import UNIT_TO_MM
+    from fruitcli.geometry.mesh.load import UNIT_TO_MM
 
     out = []
     for ch in scene.chambers:
@@ -63,8 +63,8 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
     import manifold3d as mf
 
     from fruitcli.fsutil import staged_dir, write_json
-    from fruitcli.geometry import export
-    from fruitcli.geometry.reduce import manifold_arrays
+    from fruitcli.geometry.mesh import export
+    from fruitcli.geometry.tracks.reduce import manifold_arrays
 
     say = progress or (lambda msg: None)
     opts.check(names or CLI_NAMES)
@@ -173,8 +173,8 @@ def _preview(path, molds, zp: float) -> None:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from fruitcli.geometry.preview import draw_perspective
-    from fruitcli.geometry.reduce import manifold_arrays
+    from fruitcli.geometry.tracks.preview import draw_perspective
+    from fruitcli.geometry.tracks.reduce import manifold_arrays
 
     fig = Figure(figsize=(14, 5.0 * len(molds)), dpi=110)
     for k, mold in enumerate(molds):

@@ -120,7 +120,7 @@ class OnlineSolver:
 
 
 class ReducedOnline:
-    """The live loop's taxels from the reduced model (`fruitcli.fem.reduced`): the same
+    """The live loop's taxels from the reduced model (`fruitcli.fem.reduced.model`): the same
     interface as OnlineSolver, but each pressure vector costs a matrix product (tens of
     us) instead of a Newton solve. A pressure vector outside the model's range is
     evaluated at the nearest pressures inside it (the fit does not extrapolate) and

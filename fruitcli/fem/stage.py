@@ -31,7 +31,7 @@ from fruitcli.fem.solver.linsolve import LINEAR_SOLVERS
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
-from fruitcli.geometry.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent
+from fruitcli.geometry.mesh.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent
 from fruitcli.scene import n_states
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fruitcli.geometry.columns import top_z
+from fruitcli.geometry.mesh.columns import top_z
 
 # centreline: trunk from (15, -66) along +y to (15, 5); arc of radius 45 about (-30, 5)
 # turning left by 90 degrees to (-30, 50); tip straight along -x to (-95, 50)

@@ -9,8 +9,8 @@ import threading
 
 import numpy as np
 
-from fruitcli.geometry.distance import SurfaceDistance
-from fruitcli.geometry.load import load_mesh
+from fruitcli.geometry.mesh.distance import SurfaceDistance
+from fruitcli.geometry.mesh.load import load_mesh
 
 _INSIDE_EPS = 1e-9  # barycentric tolerance of the vertical ray test
 

@@ -31,7 +31,7 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
     return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
 
 
-def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
+def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress, bar=None):
     """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
     reduced model, built into out/<scene name>/reduce when missing or stale."""
     from fruitcli.workflow.reduced_model import ensure_reduced
@@ -41,7 +41,8 @@ def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress):
     if not scene.chambers:
         raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
     out = Path("out") / scene.name
-    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online")
+    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online",
+                             bar=bar)
     progress(reduced.describe())
     return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
 

@@ -9,12 +9,15 @@ from pathlib import Path
 import numpy as np
 
 
-def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None):
+def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None,
+                   bar=None):
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
     stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
-    meshed, no chambers) is one FruitError line starting with `label`."""
+    meshed, no chambers) is one FruitError line starting with `label`. `bar(total)`, when
+    given, makes a progress bar (a context manager with `update(n)`) for the build's
+    full solves; without it they are progress lines too."""
     from fruitcli.errors import FruitError
-    from fruitcli.fem import reduced
+    from fruitcli.fem.reduced import model as reduced
     from fruitcli.workflow import planner
     from fruitcli.workflow.scene_outputs import shared_outputs
     from fruitcli.workflow.stages import reduced_path, wanting_reduced
@@ -23,30 +26,27 @@ def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=
     if taxels_csv is not None:
         sc.data = {**sc.data, "grid": {**sc.data["grid"], "taxels": Path(taxels_csv)}}
     log = progress or (lambda msg: None)
-    bar = None
+    shown = None  # the open bar of the build's full solves
 
     def route(msg: str) -> None:  # the build's full solves on a bar, the rest as lines
-        nonlocal bar
-        if msg.startswith("state ") and "/" in msg.split(":")[0]:
-            if bar is None:
-                from fruitcli.cli.options import progressbar
-
-                total = int(msg.split(":")[0].split("/")[1])
-                bar = progressbar(length=total, label="reduced-model full solves")
-                bar.__enter__()
-            bar.update(1)
+        nonlocal shown
+        if bar is not None and msg.startswith("state ") and "/" in msg.split(":")[0]:
+            if shown is None:
+                shown = bar(int(msg.split(":")[0].split("/")[1]))
+                shown.__enter__()
+            shown.update(1)
             return
-        if bar is not None:
-            bar.__exit__(None, None, None)
-            bar = None
+        if shown is not None:
+            shown.__exit__(None, None, None)
+            shown = None
         log(msg)
 
     try:
         steps = planner.run(sc, out_root, until="reduce", progress=route,
                             shared=shared_outputs(out_root))
     finally:
-        if bar is not None:
-            bar.__exit__(None, None, None)
+        if shown is not None:
+            shown.__exit__(None, None, None)
     skipped = {st.stage: st.reason for st in steps if st.action == "not needed"}
     if "reduce" in skipped:
         label = label or scene.path.name
@@ -70,15 +70,15 @@ def actuation_table(scene, names: list[str]) -> np.ndarray:
 
 
 def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_csv,
-                     progress, vtu: bool = False) -> dict:
+                     progress, vtu: bool = False, bar=None) -> dict:
     """`fruit simulate --model reduced`: states.npz at the rows of `table` (S, K) kPa
     (in the scene's chamber order; default its [actuation] states). Rows outside the
     model's range are one error naming the first (file line `rows`)."""
     from fruitcli.fem import io
-    from fruitcli.fem.reduced import states_arrays
+    from fruitcli.fem.reduced.model import states_arrays
     from fruitcli.fsutil import staged_dir
 
-    model = ensure_reduced(scene, out_dir, taxels_csv, progress)
+    model = ensure_reduced(scene, out_dir, taxels_csv, progress, bar=bar)
     names = [c["name"] for c in scene.chambers]
     where = str(pressures_csv) if pressures_csv is not None else f"{scene.path.name}: " \
         "[actuation]"

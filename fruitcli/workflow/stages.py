@@ -110,7 +110,7 @@ def _tracks_inputs(scene, ctx):
 
 
 def _tracks_run(scene, ctx, out_dir):
-    from fruitcli.geometry.make_tracks import SCENE_NAMES, make_tracks
+    from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 
     geo, tr, grid = scene["geometry"], scene["tracks"], scene["grid"]
     report = make_tracks(
@@ -254,7 +254,7 @@ def locate_uses_reduced(scene) -> bool:
 
 
 def _reduce_range(scene) -> dict:
-    from fruitcli.fem.reduced_build import pressure_box
+    from fruitcli.fem.reduced.build import pressure_box
 
     names = [c["name"] for c in scene.chambers]
     lo, hi = pressure_box(scene, names)
@@ -271,7 +271,7 @@ def _reduce_inputs(scene, ctx):
 
 
 def _reduce_run(scene, ctx, out_dir):
-    from fruitcli.fem.reduced_build import run_reduce
+    from fruitcli.fem.reduced.build import run_reduce
     from fruitcli.tables import read_taxels
 
     tax = taxels_path(scene, ctx)
@@ -343,7 +343,7 @@ def _locate_run(scene, ctx, out_dir):
     unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
     reduced = None
     if locate_uses_reduced(scene):
-        from fruitcli.fem.reduced import load
+        from fruitcli.fem.reduced.model import load
 
         reduced = load(reduced_path(scene, ctx))
     for name, frames in _frame_sources(scene, ctx).items():
@@ -416,7 +416,7 @@ STAGES: list[Stage] = [
     Stage("make-artist", [], "fruitcli.geometry.artist", _artist_needed,
           lambda s, c: {"artist": str(s["geometry"]["artist"])}, _artist_run,
           lambda s: [str(s["geometry"]["artist"])]),
-    Stage("make-tracks", ["make-artist"], "fruitcli.geometry.make_tracks", _tracks_needed,
+    Stage("make-tracks", ["make-artist"], "fruitcli.geometry.tracks.make_tracks", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
                      "tracks.csv", "report.json", "preview.png"]),
@@ -427,7 +427,7 @@ STAGES: list[Stage] = [
     Stage("simulate", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed,
           _simulate_inputs, _simulate_run,
           lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else [])),
-    Stage("reduce", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.reduced_build",
+    Stage("reduce", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.reduced.build",
           _reduce_needed, _reduce_inputs, _reduce_run,
           lambda s: ["reduced.npz", "validation.json"]),
     Stage("bench", ["simulate", "make-tracks", "pad-grid"], "fruitcli.sensing.stages",

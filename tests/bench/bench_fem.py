@@ -50,7 +50,7 @@ def hwm_mb() -> float:
 
 def fruit_solid(tmp: Path) -> Path:
     from fruitcli.geometry.artist import write_artist
-    from fruitcli.geometry.make_tracks import make_tracks
+    from fruitcli.geometry.tracks.make_tracks import make_tracks
 
     art = tmp / "fruit.stl"
     write_artist(art)

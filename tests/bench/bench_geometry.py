@@ -45,8 +45,9 @@ def fruit_grid_step(art: Path) -> None:
     crossing count (a closed mesh) against the tree at the same points (the near band
     evaluated, the rest interpolated, as for an open mesh), and the exact sum at a
     sample of the band's points."""
-    from fruitcli.geometry import load, reduce, winding
-    from fruitcli.geometry.solid_angle import exact_winding
+    from fruitcli.geometry.mesh import load, winding
+    from fruitcli.geometry.mesh.solid_angle import exact_winding
+    from fruitcli.geometry.tracks import reduce
 
     s = load.load_mesh(art)
     h = reduce.grid_for_faces(s.vertices, s.faces, 5000)
@@ -102,7 +103,8 @@ def fruit_grid_step(art: Path) -> None:
 
 def winding_step(v, f) -> None:
     """Time what make-tracks does for the inside on a mesh that is not closed."""
-    from fruitcli.geometry import load, reduce, winding
+    from fruitcli.geometry.mesh import load, winding
+    from fruitcli.geometry.tracks import reduce
 
     t0, c0 = time.perf_counter(), time.process_time()
     s = load.clean(v, f)
@@ -162,7 +164,7 @@ def mold_step(tracks_dir: Path, out_dir: Path) -> None:
 
 def main() -> None:
     from fruitcli.geometry.artist import write_artist
-    from fruitcli.geometry.make_tracks import make_tracks
+    from fruitcli.geometry.tracks.make_tracks import make_tracks
 
     with tempfile.TemporaryDirectory() as tmp:
         art = Path(tmp) / "fruit.stl"

@@ -55,7 +55,7 @@ def truth(name, p):
 
 
 def _parity(v, f, p):
-    from fruitcli.geometry.columns import vertical_hits
+    from fruitcli.geometry.mesh.columns import vertical_hits
 
     pi, zh = vertical_hits(v, f, p)
     above = np.bincount(pi[zh > p[pi, 2]], minlength=len(p))
@@ -72,10 +72,10 @@ def _libigl():
 
 
 def main() -> None:
-    from fruitcli.geometry import load
-    from fruitcli.geometry.distance import SurfaceDistance
-    from fruitcli.geometry.solid_angle import exact_winding
-    from fruitcli.geometry.winding import Winding
+    from fruitcli.geometry.mesh import load
+    from fruitcli.geometry.mesh.distance import SurfaceDistance
+    from fruitcli.geometry.mesh.solid_angle import exact_winding
+    from fruitcli.geometry.mesh.winding import Winding
 
     igl = _libigl()
     if igl is None:

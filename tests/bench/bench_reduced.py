@@ -76,7 +76,7 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None,
                     help="build into this folder (kept, for --reuse) instead of a temporary one")
     args = ap.parse_args()
-    from fruitcli.fem import reduced
+    from fruitcli.fem.reduced import model as reduced
     from fruitcli.scene import load_scene
     from fruitcli.workflow import planner
     from fruitcli.workflow.reduced_model import ensure_reduced

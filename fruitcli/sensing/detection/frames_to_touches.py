@@ -105,7 +105,7 @@ class Locator:
 
     `positions_mm` is (T, 3) (one state) or (S, T, 3) with `state_pressure_kpa` (S, K):
     then each frame's pressures pick its place on the state path. With `reduced` (a
-    `fruitcli.fem.reduced.ReducedModel` of these taxels), each frame's pressures give
+    `fruitcli.fem.reduced.model.ReducedModel` of these taxels), each frame's pressures give
     its taxels' positions through the reduced model instead (clamped to its range).
     `gain` (T,): divide each taxel's activation by it before detection
     (`fruitcli.sensing.detection.detect`; None: off, the paper).

@@ -1,4 +1,4 @@
-"""Building the reduced model (`fruitcli.fem.reduced`) from full solves, once per mesh,
+"""Building the reduced model (`fruitcli.fem.reduced.model`) from full solves, once per mesh,
 material and pressure range (kPa, mm).
 
 1. Full solves at a Chebyshev-Lobatto tensor grid of `points_per_axis` pressures per
@@ -19,9 +19,9 @@ import time
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem import response_surface as rs
 from fruitcli.fem.corotational_model import Load
-from fruitcli.fem.reduced import ReducedModel
+from fruitcli.fem.reduced import response_surface as rs
+from fruitcli.fem.reduced.model import ReducedModel
 from fruitcli.fem.solver.newton import solve_state
 
 POD_TOLERANCE_MM = 1e-4

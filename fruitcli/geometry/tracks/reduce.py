@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fruitcli.errors import GeometryError
-from fruitcli.geometry import winding
-from fruitcli.geometry.distance import TreeDistance, grid_vertex_distance
+from fruitcli.geometry.mesh import winding
+from fruitcli.geometry.mesh.distance import TreeDistance, grid_vertex_distance
 
 # level-set triangles per mm^2 of surface at edge length e: TRIANGLES_PER_AREA / e^2
 TRIANGLES_PER_AREA = 3.4
@@ -398,7 +398,7 @@ def _drop_pinched_shells(body):
     """Split a Manifold into its edge-connected shells (manifold3d keeps shells that touch
     at one vertex together; a mesh file reader does not) and keep the largest.
     Returns (body, [(volume mm^3, centre) of each shell dropped])."""
-    from fruitcli.geometry.load import edge_shells
+    from fruitcli.geometry.mesh.load import edge_shells
 
     v, f = manifold_arrays(body)
     labels = edge_shells(f, len(v))

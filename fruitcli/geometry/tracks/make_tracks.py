@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import GeometryError
-from fruitcli.geometry import load, winding
+from fruitcli.geometry.mesh import load, winding
 
 # a face takes part in the track curves when its normal's z component exceeds this
 UP_NZ_MIN = 0.05
@@ -171,9 +171,10 @@ def make_tracks(artist_path, out_dir, *, unit=None, cover_mm=2.0, faces=5000,
     import manifold3d
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json
-    from fruitcli.geometry import export, reduce, sections, taxels, tubes
-    from fruitcli.geometry.distance import TreeDistance
-    from fruitcli.geometry.preview import write_preview
+    from fruitcli.geometry.mesh import export
+    from fruitcli.geometry.mesh.distance import TreeDistance
+    from fruitcli.geometry.tracks import reduce, sections, taxels, tubes
+    from fruitcli.geometry.tracks.preview import write_preview
 
     say = progress or (lambda msg: None)
     opt = names or CLI_NAMES

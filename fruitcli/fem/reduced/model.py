@@ -1,6 +1,6 @@
 """The reduced model: chamber pressures (kPa) -> taxel positions, node positions and
 chamber volumes (mm, mm^3) without solving the FEM, from polynomial response surfaces
-fitted to full solves (`fruitcli.fem.reduced_build`).
+fitted to full solves (`fruitcli.fem.reduced.build`).
 
 The taxels and the chamber volumes are fitted directly (the live loop's path: one
 small matrix product per pressure vector). Every node follows through a POD of the
@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import FruitError, SolverError
-from fruitcli.fem import io, response_surface
+from fruitcli.fem import io
+from fruitcli.fem.reduced import response_surface
 from fruitcli.tables import read_npz_arrays
 
 TAXEL_BOUND_MM = 0.05

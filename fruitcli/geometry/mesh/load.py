@@ -5,7 +5,7 @@ mm (its unit, then optionally to a given largest extent), and cleaned only in wa
 do not change the surface: duplicate vertices merged, degenerate and duplicate faces
 dropped, face winding made consistent and outward. Holes, several parts, overlaps and
 non-manifold edges are kept and counted: the inside is decided later by the winding number
-(`fruitcli.geometry.winding`). Only what is not a mesh at all is refused here.
+(`fruitcli.geometry.mesh.winding`). Only what is not a mesh at all is refused here.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 w(p) is the signed solid angle the surface subtends at p over 4 pi (Jacobson, Kavan and
 Sorkine-Hornung 2013), evaluated by fruit's own Barnes-Hut tree (Barill et al. 2018;
-`fruitcli.geometry.solid_angle`), or, on a closed surface's grid, exactly by counting
+`fruitcli.geometry.mesh.solid_angle`), or, on a closed surface's grid, exactly by counting
 crossings along vertical lines. For a closed, outward-oriented surface w is 1 inside and
 0 outside; across a hole it falls smoothly from 1 to 0, so the region w > 1/2 closes the
 hole with a smooth cap; overlapping parts add up (w = 2 where two overlap), so w > 1/2
@@ -54,7 +54,7 @@ class Winding:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Winding numbers (k,) at `points` (k, 3)."""
         if self._tree is None:
-            from fruitcli.geometry.solid_angle import SolidAngleTree
+            from fruitcli.geometry.mesh.solid_angle import SolidAngleTree
 
             self._tree = SolidAngleTree(self.vertices, self.faces, ACCURACY)
         return self._tree(points)
@@ -81,7 +81,7 @@ def column_winding(wn: Winding, axes) -> np.ndarray:
     each vertical line, w at z is the number of crossings above z through faces facing
     up minus those facing down. A line whose crossings do not add up to zero (it grazed
     an edge) is evaluated point by point instead."""
-    from fruitcli.geometry.columns import vertical_hits
+    from fruitcli.geometry.mesh.columns import vertical_hits
 
     shape = tuple(len(a) for a in axes)
     xy = np.stack(np.meshgrid(axes[0], axes[1], indexing="ij"), axis=-1).reshape(-1, 2)

@@ -213,7 +213,7 @@ class TreeDistance:
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         from scipy.spatial import cKDTree
 
-        from fruitcli.geometry.solid_angle import LEAF_TRIANGLES, _build_tree
+        from fruitcli.geometry.mesh.solid_angle import LEAF_TRIANGLES, _build_tree
 
         self.vertices = np.asarray(vertices, dtype=float)
         self.faces = np.asarray(faces, dtype=np.int64)

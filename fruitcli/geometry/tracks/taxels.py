@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fruitcli.geometry.sections import Piece
+from fruitcli.geometry.tracks.sections import Piece
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

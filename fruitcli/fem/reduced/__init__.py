@@ -1,0 +1,4 @@
+"""The reduced model for live use: chamber pressures (kPa) -> taxel and node positions (mm)
+by polynomial response surfaces (`response_surface`) fitted to full solves (`build`), and
+the model itself (`model`).
+"""
