@@ -11,7 +11,7 @@ from test_sensing_bench import pad_taxel_csv
 from fruitcli.evaluation.report import evaluate_pair
 from fruitcli.scene import load_scene
 from fruitcli.sensing.stages import run_bench, run_locate
-from fruitcli.studies import bench_study as bs
+from fruitcli.studies import virtual_bench_study as bs
 
 
 def pad_scene(tmp_path):

@@ -156,7 +156,7 @@ def bench_study(scene_file, out_dir, jobs):
     from fruitcli.cli.options import Progress
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
     from fruitcli.scene import load_scene
-    from fruitcli.studies import bench_study as bs
+    from fruitcli.studies import virtual_bench_study as bs
     from fruitcli.studies.parallel import run_cases
     from fruitcli.workflow import planner
     from fruitcli.workflow.report import PAPER_TABLE_I
