@@ -49,7 +49,7 @@ def simulate(scene, out_dir, solid, taxels, vtu, pressures_csv, model_kind):
     log = Progress("simulate ")
     with fruit_errors():
         sc = load_scene(scene)
-        names = [c["name"] for c in sc.chambers]
+        names = [c.name for c in sc.chambers]
         table = rows = None
         if pressures_csv is not None:
             from fruitcli.fem.pressure_table import read_pressures
