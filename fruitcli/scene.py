@@ -3,6 +3,14 @@
 Every user-facing key carries its unit in its name (`young_modulus_kpa`,
 `spacing_x_mm`). Relative paths are resolved against the scene file's folder,
 then against the project root (the nearest parent holding `pyproject.toml`).
+
+The schema is the one definition of the keys: their kinds, defaults, and the choices,
+ranges or conditions a value must meet (checked by one validator; `_cross_checks` holds
+only the checks across keys). Each section becomes a frozen record generated from it
+(`scene.fem.element`, `scene.skin.contact_counts`), each array of tables a tuple of
+records (`scene.fixed`, `scene.chambers[0].name`); a key the schema lacks is an
+AttributeError naming the closest one. `Scene.values` gives a section as plain data (stage
+hashes), `Scene.with_values` a checked copy with values changed (studies).
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Units: mm, counts. The touch response's parameters (footprint width per indenter, counts
 at contact, gap decay, noise, taxel gain spread) are a scene's ``[skin]`` table
-(`SkinParams`); the values below are its defaults. Each parameter, its default and its
+(`SkinParams`); its defaults are declared once, in the scene schema (`fruitcli.scene`),
+and named here (``CONTACT_COUNTS`` ...). Each parameter, its default and its
 source (none is fitted to the paper's Table I; `fruit study bench` shows how the bench's
 rows depend on the assumed ones):
 
