@@ -27,7 +27,7 @@ from typing import Any
 from fruitcli.errors import SceneError
 from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
 from fruitcli.fem.elements.lagrange import ELEMENTS
-from fruitcli.fem.materials.build import MATERIAL_MODELS
+from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
 from fruitcli.geometry.load import UNIT_TO_MM
 
 NUM = (int, float)
@@ -720,8 +720,6 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         if ch.name in names:
             raise SceneError(f"{where}: [[geometry.chamber]]: duplicate name '{ch.name}'")
         names.append(ch.name)
-    from fruitcli.fem.materials.build import from_scene
-
     try:
         material = from_scene(scene.material)
     except SceneError as exc:
