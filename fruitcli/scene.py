@@ -3,32 +3,109 @@
 Every user-facing key carries its unit in its name (`young_modulus_kpa`,
 `spacing_x_mm`). Relative paths are resolved against the scene file's folder,
 then against the project root (the nearest parent holding `pyproject.toml`).
+
+The schema is the one definition of the keys: their kinds, defaults, and the choices,
+ranges or conditions a value must meet (checked by one validator; `_cross_checks` holds
+only the checks across keys). Each section becomes a frozen record generated from it
+(`scene.fem.element`, `scene.skin.contact_counts`), each array of tables a tuple of
+records (`scene.fixed`, `scene.chambers[0].name`); a key the schema lacks is an
+AttributeError naming the closest one. `Scene.values` gives a section as plain data (stage
+hashes), `Scene.with_values` a checked copy with values changed (studies).
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 import tomllib
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from fruitcli.errors import SceneError
+from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
+from fruitcli.fem.elements.lagrange import ELEMENTS
+from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
+from fruitcli.geometry.mesh.load import UNIT_TO_MM
 
 NUM = (int, float)
 
 
 @dataclass(frozen=True)
 class Key:
-    """One scene key: its accepted type, default (None: optional), and meaning."""
+    """One scene key: its accepted type, default (None: optional), meaning, and the
+    values it accepts beyond its type (`choices`, a range [`min`, `max`], `valid`).
+
+    `expected` is the error's "expected ..." text when the derived one ("one of a, b",
+    "> 0", "0 <= value < 1") says too little. A range applies to a number, to each
+    number of a vector, and to each value of a table."""
 
     kind: str  # "str", "path", "num", "int", "bool", "vec2", "vec3", "box", "list", "table",
     # "range" (a number or [lo, hi])
     default: Any = None
     doc: str = ""
     required: bool = False
+    choices: tuple[str, ...] | None = None
+    min: float | None = None
+    max: float | None = None
+    min_exclusive: bool = False
+    max_exclusive: bool = False
+    valid: Callable[[Any], bool] | None = None
+    expected: str | None = None
 
+    def in_range(self, value: float) -> bool:
+        """True when `value` lies in [min, max] (ends excluded as declared)."""
+        if self.min is not None and (value <= self.min if self.min_exclusive
+                                     else value < self.min):
+            return False
+        return self.max is None or (value < self.max if self.max_exclusive
+                                    else value <= self.max)
+
+    def expectation(self) -> str:
+        """What a valid value is, for error messages."""
+        if self.expected is not None:
+            return self.expected
+        if self.choices is not None:
+            return f"one of {', '.join(self.choices)}"
+        lo = "" if self.min is None else f"{self.min:g} {'<' if self.min_exclusive else '<='} "
+        hi = "" if self.max is None else f" {'<' if self.max_exclusive else '<='} {self.max:g}"
+        if lo and hi:
+            return f"{lo}value{hi}"
+        if lo:
+            return f"{'>' if self.min_exclusive else '>='} {self.min:g}"
+        return f"{'<' if self.max_exclusive else '<='} {self.max:g}"
+
+
+POSITIVE = {"min": 0.0, "min_exclusive": True}
+OPEN_FRACTION = {"min": 0.0, "max": 1.0, "min_exclusive": True, "max_exclusive": True}
+
+
+def _plain_folder_name(name: str) -> bool:
+    return bool(name.strip()) and name not in (".", "..") and not any(c in name for c in "/\\")
+
+
+def _two_positive_ints(count: list) -> bool:
+    return len(count) == 2 and all(isinstance(c, int) and not isinstance(c, bool) and c > 0
+                                   for c in count)
+
+
+def _increasing_pair(pair: list[float]) -> bool:
+    return pair[0] < pair[1]
+
+
+def _nonzero_vector(v: list[float]) -> bool:
+    return math.hypot(*v) != 0
+
+
+def _nonempty_box(box: list[float]) -> bool:
+    return all(box[a] < box[a + 3] for a in range(3))
+
+
+BOARD_FORMATS = ("ascii", "binary")
+"""The stock MuCa firmware's two frame formats: Muca_Raw's ASCII lines and SendRawByte's
+binary packets (`fruitcli.sensing.frames.muca`); readers also take "auto"."""
 
 LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
 """[solver].linear_solver values (see `fruitcli.fem.solver.linsolve`)."""
@@ -36,14 +113,16 @@ LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
 # Sections that are tables (one per scene).
 SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
-        "name": Key("str", None, "scene name (default: file stem)"),
+        "name": Key("str", None, "scene name (default: file stem)", valid=_plain_folder_name,
+                    expected="a plain folder name (it names out/<name>)"),
         "description": Key("str", "", "free text"),
         "configuration": Key("str", "Rest", "configuration label in tables (Rest, Deformed, ...)"),
     },
     "geometry": {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
-        "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m"),
+        "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m",
+                    choices=tuple(UNIT_TO_MM)),
         "fit_mm": Key("num", None, "scale the artist mesh (after unit) so that its largest "
                                    "extent is this (mm); chambers stay as given (mm)"),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
@@ -56,17 +135,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
         "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
-                                             "fraction (yarn limit 0.3 minus a 0.05 margin)"),
+                                             "fraction (yarn limit 0.3 minus a 0.05 margin)",
+                                **OPEN_FRACTION,
+                                expected="a fraction 0 < value < 1 (0.25 = 25 %)"),
         "zigzag_pitch_mm": Key("num", 4.0, "zig-zag pitch of the sewn yarn (mm): the warnings' "
-                                           "amplitude and the length of the local stretch"),
+                                           "amplitude and the length of the local stretch",
+                               **POSITIVE, expected="> 0 (mm)"),
         "file": Key("path", None, "track centre lines given directly (track,axis,index,point,"
                                   "x_mm,y_mm,z_mm; default: make-tracks' tracks.csv)"),
     },
     "grid": {
-        "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)"),
-        "spacing_y_mm": Key("num", 12.0, "distance between y = const planes (mm)"),
+        "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)", **POSITIVE),
+        "spacing_y_mm": Key("num", 12.0, "distance between y = const planes (mm)", **POSITIVE),
         "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
-        "count": Key("list", None, "[nx, ny] taxels on a flat pad"),
+        "count": Key("list", None, "[nx, ny] taxels on a flat pad", valid=_two_positive_ints,
+                     expected="two positive integers [nx, ny]"),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
     },
     "mold": {
@@ -79,7 +162,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "vents": Key("int", 4, "vents at the cavity's highest points besides the pour hole"),
     },
     "mesh": {
-        "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)"),
+        "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)", **POSITIVE),
         "min_size_mm": Key("num", None, "smallest edge near chambers and taxels (mm)"),
         "time_limit_s": Key("num", 120.0, "gmsh is killed after this many seconds"),
         "min_quality": Key("num", 0.05, "refuse meshes whose worst SICN is below this"),
@@ -87,18 +170,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "fem": {
         "element": Key("str", "p2", "p2 (quadratic tets, P2/P0 mean dilatation: no locking), "
                        "p2-pure (quadratic, displacement only) or p1 (linear tets, the "
-                       "paper's SOFA element)"),
+                       "paper's SOFA element)", choices=tuple(ELEMENTS)),
     },
     "material": {
         "model": Key("str", "neo-hookean", "neo-hookean (from E and nu), yeoh (c10_kpa, "
-                     "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)"),
+                     "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)",
+                     choices=MATERIAL_MODELS),
         "c10_kpa": Key("num", None, "yeoh: C10 (kPa; the shear modulus is 2 C10)"),
         "c20_kpa": Key("num", 0.0, "yeoh: C20 (kPa)"),
         "c30_kpa": Key("num", 0.0, "yeoh: C30 (kPa)"),
         "bulk_modulus_kpa": Key("num", None, "bulk modulus kappa (kPa; default from E, nu)"),
-        "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)"),
-        "poisson_ratio": Key("num", 0.45, "Poisson's ratio nu (-1 < nu < 0.5)"),
-        "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)"),
+        "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)", **POSITIVE),
+        "poisson_ratio": Key("num", 0.45, "Poisson's ratio nu (-1 < nu < 0.5)", min=-1.0,
+                             max=0.5, min_exclusive=True, max_exclusive=True,
+                             expected="-1 < nu < 0.5"),
+        "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)", min=0.0),
     },
     "gravity": {
         "vector_m_s2": Key("vec3", [0.0, 0.0, -9.81], "gravity acceleration (m/s^2)"),
@@ -108,32 +194,37 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "actuation": {
         "pressure_kpa": Key("table", None, "per chamber: one pressure per state (kPa)"),
         "volume_growth_mm3": Key("table", None, "per chamber: one volume growth per state (mm^3)"),
-        "period_s": Key("num", None, "duration of one cycle of the states (s), for animations"),
+        "period_s": Key("num", None, "duration of one cycle of the states (s), for animations",
+                        **POSITIVE),
     },
     "solver": {
-        "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|"),
+        "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|",
+                         **POSITIVE),
         "displacement_tolerance_mm": Key("num", 1e-4, "... or when the kept factor estimates "
                                          "the correction left within half this (mm; 0 = "
-                                         "off)"),
-        "max_iterations": Key("int", 25, "Newton iterations per load step"),
+                                         "off)", min=0.0),
+        "max_iterations": Key("int", 25, "Newton iterations per load step", min=1),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
-        "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi"),
-        "jig_steps": Key("int", 1, "load steps to apply the jig rotation"),
+        "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi",
+                             choices=LINEAR_SOLVERS),
+        "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1),
         "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
-                           "models)"),
+                           "models)", min=1),
     },
     "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced.build)
         "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "
-                                  "each chamber's [actuation] pressures plus the margin)"),
+                                  "each chamber's [actuation] pressures plus the margin)",
+                                  valid=_increasing_pair, expected="[lo, hi] with lo < hi"),
         "margin": Key("num", 0.1, "fraction of each chamber's [actuation] span added on "
-                      "either side"),
-        "points_per_axis": Key("int", 5, "Chebyshev-Lobatto full solves per chamber"),
-        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)"),
-        "validation": Key("int", 50, "held-out random pressure vectors solved in full"),
+                      "either side", min=0.0),
+        "points_per_axis": Key("int", 5, "Chebyshev-Lobatto full solves per chamber", min=2),
+        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)",
+                          min=1),
+        "validation": Key("int", 50, "held-out random pressure vectors solved in full", min=1),
         "seed": Key("int", 0, "seed of the held-out pressure vectors"),
     },
     "board": {
-        "rows": Key("int", 21, "frame rows (Tx lines)"),
+        "rows": Key("int", 21, "frame rows (Tx lines of the FocalTech FT5316, MuCa)"),
         "cols": Key("int", 12, "frame columns (Rx lines)"),
         "offset_i": Key("int", 0, "frame row of taxel i = 0"),
         "offset_j": Key("int", 0, "frame column of taxel j = 0"),
@@ -141,25 +232,29 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
         "format": Key("str", "auto", "frames on the port and in raw captures: auto, ascii "
-                      "(stock Muca_Raw) or binary (stock SendRawByte packets)"),
+                      "(stock Muca_Raw) or binary (stock SendRawByte packets)",
+                      choices=("auto", *BOARD_FORMATS)),
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
         "model": Key("str", "reduced", "a recording with chamber pressures: reduced (taxels "
                      "from the reduced model at each frame's pressures) or full (along the "
-                     "simulated states)"),
+                     "simulated states)", choices=("reduced", "full")),
     },
     "detection": {
-        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)"),
-        "baseline_frames": Key("int", 10, "frames averaged into the baseline C0"),
-        "method": Key("str", "n9", "n9 (paper), n9_floor or peaks"),
+        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)",
+                                **POSITIVE),
+        "baseline_frames": Key("int", 10, "frames averaged into the baseline C0", min=1),
+        "method": Key("str", "n9", "n9 (paper), n9_floor or peaks",
+                      choices=("n9", "n9_floor", "peaks")),
         "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)"),
         "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis"),
         "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
         "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
         "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
         "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
-                                      "surface (moved to the nearest point of the body)"),
+                                      "surface (moved to the nearest point of the body)",
+                       choices=("none", "surface")),
         "divide_by_gain": Key("bool", False, "divide each taxel's activation by its gain in "
                               "[skin].taxel_gain before detection (threshold, maxima and N9 "
                               "weights on the divided v; off: the paper)"),
@@ -168,20 +263,26 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
         "samples": Key("str", "quarter", "quarter (a quarter taxel off the grid) or a CSV path"),
         "state": Key("int", 0, "FEM state the bench runs on"),
-        "step_mm": Key("num", 0.1, "indenter descent step (mm)"),
+        "step_mm": Key("num", 0.1, "indenter descent step (mm)", **POSITIVE),
         "seed": Key("int", 0, "seed of the noise"),
-        "baseline_frames": Key("int", 10, "idle frames recorded before each descent"),
-        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "baseline_frames": Key("int", 10, "idle frames recorded before each descent", min=1),
+        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)",
+                                   **POSITIVE),
         "register": Key("str", "none", "registration of the bench rows: none, translation, "
-                                       "rigid or similarity (see [[evaluate]].register)"),
+                                       "rigid or similarity (see [[evaluate]].register)",
+                        choices=REGISTER_METHODS),
     },
     "skin": {  # the skin's forward model (fruitcli.sensing.skin.forward); defaults: its assumptions
         "footprint_sigma_mm": Key("table", None, "per indenter: lateral Gaussian width (mm); "
-                                                 "default small 6.18, medium 7.21"),
+                                                 "default small 6.18, medium 7.21",
+                                  **POSITIVE, expected="a width > 0 mm"),
         "contact_counts": Key("num", 60.0, "activation of the taxel under the indenter at "
-                                           "contact (counts)"),
-        "gap_decay_mm": Key("num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)"),
-        "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)"),
+                                           "contact (counts)", **POSITIVE),
+        "gap_decay_mm": Key("num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)",
+                            **POSITIVE),
+        "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)",
+                           min=0.0, max=1.0, max_exclusive=True,
+                           expected="0 <= spread < 1"),
         "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
                                                       "[lo, hi] drawn per taxel (seeded)"),
         "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
@@ -192,16 +293,24 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                "(mm; required with [printer])"),
         "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)"),
         "safe_height_mm": Key("num", 20.0, "tip height above the model's highest point "
-                              "between samples (mm)"),
-        "step_mm": Key("num", 0.1, "descent step (mm, 0 < step <= 1)"),
-        "feed_mm_min": Key("num", 600.0, "feed rate of every move (mm/min)"),
+                              "between samples (mm)", **POSITIVE,
+                              expected="> 0 (mm above the model's highest point; lower "
+                                       "would drag the tip through the model)"),
+        "step_mm": Key("num", 0.1, "descent step (mm, 0 < step <= 1)", **POSITIVE, max=1.0,
+                       expected="0 < step <= 1 mm"),
+        "feed_mm_min": Key("num", 600.0, "feed rate of every move (mm/min)", **POSITIVE,
+                           expected="> 0 mm/min"),
         "max_press_mm": Key("num", 1.5, "deepest press below the expected surface before the "
-                            "sample is an error (mm)"),
+                            "sample is an error (mm)", **POSITIVE,
+                            expected="> 0 mm"),
         "bed_mm": Key("box", [0.0, 0.0, 0.0, 220.0, 220.0, 250.0], "reachable volume "
-                      "[xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)"),
-        "baud": Key("int", 115200, "the printer's serial baud rate"),
+                      "[xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)",
+                      valid=_nonempty_box,
+                      expected="[xmin, ymin, zmin, xmax, ymax, zmax] with min < max"),
+        "baud": Key("int", 115200, "the printer's serial baud rate", **POSITIVE),
         "home": Key("bool", False, "send G28 (home all axes) first"),
-        "timeout_s": Key("num", 30.0, "longest wait for an 'ok' (s; busy lines extend it)"),
+        "timeout_s": Key("num", 30.0, "longest wait for an 'ok' (s; busy lines extend it)",
+                         **POSITIVE, expected="> 0 s"),
     },
     "sensitivity": {
         "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
@@ -227,47 +336,171 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
     "jig": {
         "region_box_mm": Key("box", None, "nodes pulled by the springs (mm)", required=True),
         "rotate_deg": Key("num", 0.0, "rotation of the target about `axis` (degrees)"),
-        "axis": Key("vec3", [0.0, 0.0, 1.0], "rotation axis"),
+        "axis": Key("vec3", [0.0, 0.0, 1.0], "rotation axis", valid=_nonzero_vector,
+                    expected="a non-zero vector"),
         "pivot_mm": Key("vec3", [0.0, 0.0, 0.0], "point on the rotation axis (mm)"),
         "translate_mm": Key("vec3", [0.0, 0.0, 0.0], "translation after the rotation (mm)"),
-        "stiffness_n_per_mm": Key("num", 10.0, "spring stiffness per node (N/mm)"),
+        "stiffness_n_per_mm": Key("num", 10.0, "spring stiffness per node (N/mm)", **POSITIVE),
     },
     "evaluate": {
         "label": Key("str", None, "row label, e.g. 'Rest, small'", required=True),
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
-        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)"),
+        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)",
+                                   **POSITIVE),
         "register": Key("str", "none", "none, translation (the paper's protocol), rigid or "
-                                       "similarity: measurement mapped onto the truth first"),
+                                       "similarity: measurement mapped onto the truth first",
+                        choices=REGISTER_METHODS),
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
 SUBTABLES = {"ellipsoid": {"center_mm": Key("vec3", required=True),
-                          "radii_mm": Key("vec3", required=True)}}
+                          "radii_mm": Key("vec3", required=True, **POSITIVE,
+                                          expected="positive radii")}}
+ITEM_LABELS = {"geometry.chamber": "name", "evaluate": "label"}
+"""Arrays whose items' value errors name them by this key ('c1') rather than by number."""
+
+_KIND_TYPES = {"str": "str", "path": "Path", "num": "float", "int": "int", "bool": "bool",
+               "vec2": "list[float]", "vec3": "list[float]", "box": "list[float]",
+               "list": "list", "table": "dict", "range": "float | list[float]"}
 
 
-@dataclass
+class Record:
+    """Base of the typed scene tables: reading a key the schema lacks fails loudly,
+    naming the closest key."""
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        keys = [f.name for f in fields(self)]
+        raise AttributeError(f"{type(self).__name__} has no key '{name}'{_closest(name, keys)}")
+
+
+def _record_type(name: str, spec: dict[str, Key], nested: dict[str, str]) -> type:
+    """A frozen dataclass with one field per key of `spec`, defaulting as the schema
+    says; `nested`: keys holding typed records (annotation given)."""
+    def default(value):
+        if isinstance(value, (list, dict)):
+            return field(default_factory=lambda: _copy_plain(value))
+        return field(default=value)
+
+    cls = make_dataclass(name, [(key, nested.get(key) or _KIND_TYPES[k.kind]
+                                 + (" | None" if k.default is None else ""),
+                                 default(() if key in nested and k.default == [] else k.default))
+                                for key, k in spec.items()],
+                         bases=(Record,), frozen=True)
+    cls.__module__, cls.__qualname__ = __name__, name
+    cls.__doc__ = f"Typed scene table ({', '.join(spec) or 'no keys'})."
+    globals()[name] = cls  # importable and picklable as fruitcli.scene.<name>
+    return cls
+
+
+def _copy_plain(value):
+    if isinstance(value, list):
+        return [_copy_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _copy_plain(v) for k, v in value.items()}
+    return value
+
+
+def _camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.replace(".", "_").split("_"))
+
+
+SUBTABLE_TYPES = {key: _record_type(f"{_camel(key)}Table", spec, {})
+                  for key, spec in SUBTABLES.items()}
+ITEM_TYPES = {name: _record_type(f"{_camel(name.split('.')[-1])}Table", spec,
+                                 {k: f"{SUBTABLE_TYPES[k].__name__} | None"
+                                  for k in spec if k in SUBTABLES})
+              for name, spec in ARRAY_SCHEMA.items()}
+"""The typed record of one item of each array of tables ([[fixed]], [[geometry.chamber]])."""
+SECTION_TYPES = {name: _record_type(f"{_camel(name)}Section", spec,
+                                    {"chamber": "tuple[ChamberTable, ...]"}
+                                    if name == "geometry" else {})
+                 for name, spec in SCHEMA.items() if name not in ARRAY_SECTIONS}
+"""The typed record of each table section ([fem] -> FemSection)."""
+
+
+def _plain(value):
+    """Typed records back to the plain dicts and lists the TOML gave (for hashing)."""
+    if is_dataclass(value):
+        return {f.name: _plain(getattr(value, f.name)) for f in fields(value)}
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+@dataclass(frozen=True)
 class Scene:
-    """A validated scene: `data[section][key]` with defaults filled in."""
+    """A validated scene: each section a typed record with defaults filled in
+    (`scene.fem.element`), each array of tables a tuple of records (`scene.fixed`,
+    `scene.chambers`)."""
 
     path: Path
-    data: dict[str, Any]
-    declared: set[str] = field(default_factory=set)  # sections present in the file
+    sections: dict[str, Any]
+    declared: frozenset[str] = frozenset()  # sections present in the file
+
+    def __getattr__(self, name: str):
+        sections = self.__dict__.get("sections")
+        if sections is not None and name in sections:
+            return sections[name]
+        if name.startswith("__") or sections is None:
+            raise AttributeError(name)
+        raise AttributeError(f"a scene has no section [{name}]{_closest(name, sections)}")
 
     @property
     def name(self) -> str:
-        return self.data["scene"]["name"] or self.path.stem
+        return self.sections["scene"].name or self.path.stem
 
     def has(self, section: str) -> bool:
         """True when the file declares `section` (or a non-empty array of it)."""
         return section in self.declared
 
-    def __getitem__(self, section: str) -> Any:
-        return self.data[section]
-
     @property
-    def chambers(self) -> list[dict]:
-        return self.data["geometry"]["chamber"]
+    def chambers(self) -> tuple:
+        """The [[geometry.chamber]] records."""
+        return self.sections["geometry"].chamber
+
+    def values(self, section: str) -> Any:
+        """A section's values as plain data, as the TOML gave them with defaults filled
+        in: a dict for a table, a list of dicts for an array of tables (stage hashes)."""
+        if section not in self.sections:
+            raise SceneError(f"{self.path.name}: unknown section [{section}]"
+                             f"{_closest(section, self.sections)}")
+        return _plain(self.sections[section])
+
+    def with_values(self, changes: dict[str, Any]) -> Scene:
+        """A copy with `{"section.key": value}` changed (the value as the typed table
+        holds it) or `{"section": record}` replaced; each value is checked against the
+        schema's choices and ranges, then the checks across keys run again."""
+        where = self.path.name
+        sections = dict(self.sections)
+        for dotted, value in changes.items():
+            section, _, key = dotted.partition(".")
+            if section not in SECTION_TYPES:
+                raise SceneError(f"{where}: cannot set [{section}]"
+                                 f"{_closest(section, SECTION_TYPES)}")
+            if not key:
+                if not isinstance(value, SECTION_TYPES[section]):
+                    raise SceneError(f"{where}: [{section}]: expected a "
+                                     f"{SECTION_TYPES[section].__name__}, got {value!r}")
+                sections[section] = value
+                continue
+            spec = SCHEMA[section]
+            if key not in spec or key == "chamber":
+                raise SceneError(f"{where}: [{section}]: unknown key '{key}'"
+                                 f"{_closest(key, spec)}")
+            _check_value(f"{where}: [{section}]", key, spec[key], value)
+            sections[section] = replace(sections[section], **{key: value})
+        scene = replace(self, sections=sections)
+        _cross_checks(scene, where, must_exist=False)
+        return scene
+
+
+@functools.cache
+def default_scene() -> Scene:
+    """A scene declaring nothing: every section at the schema's defaults."""
+    return parse_scene("", Path("defaults.toml"), must_exist=False)
 
 
 def _closest(name: str, options) -> str:
@@ -354,6 +587,39 @@ def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_e
     raise AssertionError(k)
 
 
+def _check_value(where: str, key: str, spec: Key, value: Any) -> None:
+    """The declared choices, range and condition of a typed value (None: unset, fine)."""
+    if value is None:
+        return
+
+    def fail(name: str = key, got: Any = value, hint: str = ""):
+        raise SceneError(f"{where}.{name}: expected {spec.expectation()}, got {got!r}{hint}")
+
+    if spec.choices is not None and value not in spec.choices:
+        fail(hint=_closest(str(value), spec.choices))
+    if spec.min is not None or spec.max is not None:
+        if isinstance(value, dict):
+            for entry, v in value.items():
+                if isinstance(v, bool) or not isinstance(v, NUM) or not math.isfinite(v) \
+                        or not spec.in_range(v):
+                    fail(f"{key}.{entry}", v)
+        elif isinstance(value, list):
+            if not all(spec.in_range(v) for v in value):
+                fail()
+        elif not spec.in_range(value):
+            fail()
+    if spec.valid is not None and not spec.valid(value):
+        fail()
+
+
+def _check_values(where: str, values: dict, spec: dict[str, Key]) -> None:
+    for key, kspec in spec.items():
+        if key in SUBTABLES and isinstance(values[key], dict):
+            _check_values(f"{where}.{key}", values[key], SUBTABLES[key])
+        else:
+            _check_value(where, key, kspec, values[key])
+
+
 def _validate_table(where, table, spec, scene_path, must_exist):
     if not isinstance(table, dict):
         raise SceneError(f"{where}: expected a table, got {type(table).__name__}")
@@ -374,8 +640,24 @@ def _validate_table(where, table, spec, scene_path, must_exist):
         if key not in out:
             if kspec.required:
                 raise SceneError(f"{where}: missing key '{key}' ({kspec.doc})")
-            out[key] = kspec.default
+            out[key] = _copy_plain(kspec.default)
     return out
+
+
+def _items(where0: str, array: str, items: list, scene_path: Path, must_exist: bool) -> tuple:
+    """Validate an array of tables into a tuple of typed records."""
+    spec, label = ARRAY_SCHEMA[array], ITEM_LABELS.get(array)
+    records = []
+    for n, item in enumerate(items):
+        out = _validate_table(f"{where0}: [[{array}]] #{n + 1}", item, spec, scene_path,
+                              must_exist)
+        named = f"'{out[label]}'" if label else f"#{n + 1}"
+        _check_values(f"{where0}: [[{array}]] {named}", out, spec)
+        for key in SUBTABLES:
+            if key in out and out[key] is not None:
+                out[key] = SUBTABLE_TYPES[key](**out[key])
+        records.append(ITEM_TYPES[array](**out))
+    return tuple(records)
 
 
 def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
@@ -385,7 +667,7 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
     where0 = path.name
-    data: dict[str, Any] = {}
+    sections: dict[str, Any] = {}
     for section in raw:
         if section not in SCHEMA:
             raise SceneError(f"{where0}: unknown section [{section}]{_closest(section, SCHEMA)}")
@@ -398,119 +680,63 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
                 items = [items]
             if not isinstance(items, list):
                 raise SceneError(f"{where}: expected [[{section}]] tables")
-            data[section] = [
-                _validate_table(f"{where0}: [[{section}]] #{n + 1}", item,
-                                ARRAY_SCHEMA[section], path, must_exist)
-                for n, item in enumerate(items)
-            ]
+            sections[section] = _items(where0, section, items, path, must_exist)
             continue
         table = dict(value or {})
         chambers = table.pop("chamber", []) if section == "geometry" else None
         # the artist mesh may be generated by the make-artist stage: checked below
-        data[section] = _validate_table(where, table, spec, path,
-                                        must_exist and section != "geometry")
-        if section == "geometry" and data[section]["solid"] is not None and must_exist \
-                and not data[section]["solid"].exists():
+        values = _validate_table(where, table, spec, path, must_exist and section != "geometry")
+        if section == "geometry" and values["solid"] is not None and must_exist \
+                and not values["solid"].exists():
             raise SceneError(f"{where}.solid: file not found: {table['solid']}")
+        _check_values(where, values, spec)
         if section == "geometry":
             if isinstance(chambers, dict):
                 chambers = [chambers]
             if not isinstance(chambers, list):
                 raise SceneError(f"{where}.chamber: expected [[geometry.chamber]] tables")
-            data[section]["chamber"] = [
-                _validate_table(f"{where0}: [[geometry.chamber]] #{n + 1}", c,
-                                ARRAY_SCHEMA["geometry.chamber"], path, must_exist)
-                for n, c in enumerate(chambers)
-            ]
-    scene = Scene(path=path, data=data, declared={s for s, v in raw.items() if v not in ([], {})})
+            values["chamber"] = _items(where0, "geometry.chamber", chambers, path, must_exist)
+        sections[section] = SECTION_TYPES[section](**values)
+    scene = Scene(path=path, sections=sections,
+                  declared=frozenset(s for s, v in raw.items() if v not in ([], {})))
     _cross_checks(scene, where0, must_exist)
     return scene
 
 
 def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
-    name = scene["scene"]["name"]
-    if name is not None and (not name.strip() or name in (".", "..")
-                             or any(c in name for c in "/\\")):
-        raise SceneError(f"{where}: [scene].name: expected a plain folder name (it names "
-                         f"out/<name>), got {name!r}")
-    geo = scene["geometry"]
-    sources = [k for k in ("artist", "solid", "pad_size_mm") if geo[k] is not None]
+    """The checks that involve several keys (one key's choices and range are the schema's)."""
+    geo = scene.geometry
+    given = {"artist": geo.artist, "solid": geo.solid, "pad_size_mm": geo.pad_size_mm}
+    sources = [k for k, v in given.items() if v is not None]
     if len(sources) > 1:
         raise SceneError(f"{where}: [geometry] give one of artist, solid, pad_size_mm, "
                          f"not {sources}")
-    if geo["artist"] is not None and geo["generate_artist"]:
+    if geo.artist is not None and geo.generate_artist:
         pass  # the make-artist stage writes it
-    elif geo["artist"] is not None and must_exist and not Path(geo["artist"]).exists():
-        raise SceneError(f"{where}: [geometry].artist: file not found: {geo['artist']}")
-    if geo["unit"] not in ("mm", "cm", "m"):
-        raise SceneError(f"{where}: [geometry].unit: expected mm, cm or m, got {geo['unit']!r}")
+    elif geo.artist is not None and must_exist and not Path(geo.artist).exists():
+        raise SceneError(f"{where}: [geometry].artist: file not found: {geo.artist}")
     names = []
     for n, ch in enumerate(scene.chambers):
-        if (ch["ellipsoid"] is None) == (ch["surface"] is None):
+        if (ch.ellipsoid is None) == (ch.surface is None):
             raise SceneError(
-                f"{where}: [[geometry.chamber]] #{n + 1} '{ch['name']}': give exactly one of "
+                f"{where}: [[geometry.chamber]] #{n + 1} '{ch.name}': give exactly one of "
                 "ellipsoid or surface")
-        if ch["ellipsoid"] is not None and min(ch["ellipsoid"]["radii_mm"]) <= 0:
-            raise SceneError(f"{where}: [[geometry.chamber]] '{ch['name']}'.ellipsoid.radii_mm: "
-                             "expected positive radii")
-        if ch["name"] in names:
-            raise SceneError(f"{where}: [[geometry.chamber]]: duplicate name '{ch['name']}'")
-        names.append(ch["name"])
-    mat = scene["material"]
-    if mat["young_modulus_kpa"] <= 0:
-        raise SceneError(f"{where}: [material].young_modulus_kpa: expected > 0, "
-                         f"got {mat['young_modulus_kpa']}")
-    if not -1.0 < mat["poisson_ratio"] < 0.5:
-        raise SceneError(f"{where}: [material].poisson_ratio: expected -1 < nu < 0.5, "
-                         f"got {mat['poisson_ratio']}")
-    if mat["density_kg_m3"] < 0:
-        raise SceneError(f"{where}: [material].density_kg_m3: expected >= 0")
-    from fruitcli.fem.elements.lagrange import ELEMENTS
-    from fruitcli.fem.materials.build import from_scene
-
-    element = scene["fem"]["element"]
-    if element not in ELEMENTS:
-        near = _closest(element, ELEMENTS)
-        raise SceneError(f"{where}: [fem].element: expected one of {', '.join(ELEMENTS)}, "
-                         f"got {element!r}{near}")
+        if ch.name in names:
+            raise SceneError(f"{where}: [[geometry.chamber]]: duplicate name '{ch.name}'")
+        names.append(ch.name)
     try:
-        material = from_scene(mat)
+        material = from_scene(scene.material)
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
+    element = scene.fem.element
     if material.model == "corotational" and element != "p1":
         raise SceneError(f"{where}: [material].model = \"corotational\" is the paper's SOFA "
                          f"model on linear tets: set [fem].element = \"p1\" (got "
                          f"{element!r}), or use model = \"neo-hookean\"")
-    tr = scene["tracks"]
-    if not 0 < tr["yarn_max_stretch"] < 1:
-        raise SceneError(f"{where}: [tracks].yarn_max_stretch: expected a fraction 0 < value "
-                         f"< 1 (0.25 = 25 %), got {tr['yarn_max_stretch']}")
-    if tr["zigzag_pitch_mm"] <= 0:
-        raise SceneError(f"{where}: [tracks].zigzag_pitch_mm: expected > 0 (mm), got "
-                         f"{tr['zigzag_pitch_mm']}")
-    if scene["mesh"]["size_mm"] <= 0:
-        raise SceneError(f"{where}: [mesh].size_mm: expected > 0")
-    red = scene["reduced"]
-    rng = red["pressure_range_kpa"]
-    if rng is not None and not rng[0] < rng[1]:
-        raise SceneError(f"{where}: [reduced].pressure_range_kpa: expected [lo, hi] with "
-                         f"lo < hi, got {rng}")
-    if red["margin"] < 0 or red["points_per_axis"] < 2 or red["max_degree"] < 1 \
-            or red["validation"] < 1:
-        raise SceneError(f"{where}: [reduced]: expected margin >= 0, points_per_axis >= 2, "
-                         "max_degree >= 1, validation >= 1")
-    sol = scene["solver"]
-    if sol["linear_solver"] not in LINEAR_SOLVERS:
-        raise SceneError(f"{where}: [solver].linear_solver: expected one of "
-                         f"{', '.join(LINEAR_SOLVERS)}, got {sol['linear_solver']!r}")
-    if sol["tolerance"] <= 0 or sol["max_iterations"] < 1 or sol["jig_steps"] < 1 \
-            or sol["first_steps"] < 1 or not sol["displacement_tolerance_mm"] >= 0:
-        raise SceneError(f"{where}: [solver]: expected tolerance > 0, max_iterations >= 1, "
-                         "jig_steps >= 1, first_steps >= 1, displacement_tolerance_mm >= 0")
-    act = scene["actuation"]
+    act = scene.actuation
     lengths = set()
-    for key in ("pressure_kpa", "volume_growth_mm3"):
-        table = act[key]
+    for key, table in (("pressure_kpa", act.pressure_kpa),
+                       ("volume_growth_mm3", act.volume_growth_mm3)):
         if table is None:
             continue
         for cname, values in table.items():
@@ -527,123 +753,33 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if len(lengths) > 1:
         raise SceneError(f"{where}: [actuation]: every chamber needs the same number of states, "
                          f"got {sorted(lengths)}")
-    if act["pressure_kpa"] and act["volume_growth_mm3"]:
-        both = set(act["pressure_kpa"]) & set(act["volume_growth_mm3"])
+    if act.pressure_kpa and act.volume_growth_mm3:
+        both = set(act.pressure_kpa) & set(act.volume_growth_mm3)
         if both:
             raise SceneError(f"{where}: [actuation]: chamber {sorted(both)[0]} is controlled by "
                              "both pressure_kpa and volume_growth_mm3")
-    for n, jig in enumerate(scene["jig"]):
-        if jig["stiffness_n_per_mm"] <= 0:
-            raise SceneError(f"{where}: [[jig]] #{n + 1}.stiffness_n_per_mm: expected > 0")
-        if math.hypot(*jig["axis"]) == 0:
-            raise SceneError(f"{where}: [[jig]] #{n + 1}.axis: expected a non-zero vector")
-    grid = scene["grid"]
-    count = grid["count"]
-    if count is not None and not (len(count) == 2 and all(
-            isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in count)):
-        raise SceneError(f"{where}: [grid].count: expected two positive integers [nx, ny], "
-                         f"got {count}")
-    if grid["spacing_x_mm"] <= 0 or grid["spacing_y_mm"] <= 0:
-        raise SceneError(f"{where}: [grid]: expected spacing_x_mm and spacing_y_mm > 0")
-    skin = scene["skin"]
-    for key in ("contact_counts", "gap_decay_mm"):
-        if skin[key] <= 0:
-            raise SceneError(f"{where}: [skin].{key}: expected > 0, got {skin[key]}")
-    if not 0 <= skin["gain_spread"] < 1:
-        raise SceneError(f"{where}: [skin].gain_spread: expected 0 <= spread < 1, "
-                         f"got {skin['gain_spread']}")
-    if skin["taxel_gain"] is not None and skin["gain_spread"] > 0:
+    skin = scene.skin
+    if skin.taxel_gain is not None and skin.gain_spread > 0:
         raise SceneError(f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
-                         f"are measured, not drawn), got {skin['gain_spread']}")
-    feet = skin["footprint_sigma_mm"] or {}
-    for ind, sigma in feet.items():
-        if isinstance(sigma, bool) or not isinstance(sigma, NUM) or not sigma > 0 \
-                or not math.isfinite(sigma):
-            raise SceneError(f"{where}: [skin].footprint_sigma_mm.{ind}: expected a width > 0 "
-                             f"mm, got {sigma!r}")
+                         f"are measured, not drawn), got {skin.gain_spread}")
     if scene.has("bench"):
-        bench = scene["bench"]
+        bench = scene.bench
         # the paper's indenters (fruitcli.sensing.skin.forward) and those [skin] gives a width
-        names = tuple(dict.fromkeys(["small", "medium", *feet]))
-        if not bench["indenters"] or any(i not in names for i in bench["indenters"]):
+        known = tuple(dict.fromkeys(["small", "medium", *(skin.footprint_sigma_mm or {})]))
+        if not bench.indenters or any(i not in known for i in bench.indenters):
             raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "
-                             f"{', '.join(names)}, got {bench['indenters']}")
-        if bench["step_mm"] <= 0:
-            raise SceneError(f"{where}: [bench].step_mm: expected > 0, got {bench['step_mm']}")
-        ref = bench["reference_length_mm"]
-        if ref is not None and ref <= 0:
-            raise SceneError(f"{where}: [bench].reference_length_mm: expected > 0, got {ref}")
-        if bench["baseline_frames"] < 1:
-            raise SceneError(f"{where}: [bench].baseline_frames: expected >= 1")
-    if scene.has("printer"):
-        _check_printer(scene["printer"], where)
-    period = scene["actuation"]["period_s"]
-    if period is not None and period <= 0:
-        raise SceneError(f"{where}: [actuation].period_s: expected > 0, got {period}")
-    if scene["board"]["format"] not in ("auto", "ascii", "binary"):
-        raise SceneError(f"{where}: [board].format: expected auto, ascii or binary, got "
-                         f"{scene['board']['format']!r}")
-    det = scene["detection"]
-    if det["threshold_counts"] <= 0:
-        raise SceneError(f"{where}: [detection].threshold_counts: expected > 0")
-    if det["baseline_frames"] < 1:
-        raise SceneError(f"{where}: [detection].baseline_frames: expected >= 1")
-    if det["project"] not in ("none", "surface"):
-        raise SceneError(f"{where}: [detection].project: expected none or surface, "
-                         f"got {det['project']!r}")
-    if det["divide_by_gain"] and skin["taxel_gain"] is None:
-        raise SceneError(f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
-                         "taxel_gain = \"gains.csv\" (written by fruit calibrate)")
-    if scene["frames"]["model"] not in ("reduced", "full"):
-        raise SceneError(f"{where}: [frames].model: expected reduced or full, "
-                         f"got {scene['frames']['model']!r}")
-    if det["method"] not in ("n9", "n9_floor", "peaks"):
-        raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
-                         f"got {det['method']!r}")
-    from fruitcli.evaluation.register import METHODS
-
-    for what, reg in ([("[bench]", scene["bench"]["register"])]
-                      + [(f"[[evaluate]] '{ev['label']}'", ev["register"])
-                         for ev in scene["evaluate"]]):
-        if reg not in METHODS:
-            raise SceneError(f"{where}: {what}.register: expected one of {', '.join(METHODS)}, "
-                             f"got {reg!r}")
-    for ev in scene["evaluate"]:
-        ref = ev["reference_length_mm"]
-        if ref is not None and ref <= 0:
-            raise SceneError(f"{where}: [[evaluate]] '{ev['label']}'.reference_length_mm: "
-                             "expected > 0")
-
-
-def _check_printer(pr: dict, where: str) -> None:
-    """[printer] values that cannot drive a bench: one line naming the key."""
-    def fail(key: str, expected: str):
-        raise SceneError(f"{where}: [printer].{key}: expected {expected}, got {pr[key]!r}")
-
-    if pr["model_origin_mm"] is None:
+                             f"{', '.join(known)}, got {bench.indenters}")
+    if scene.has("printer") and scene.printer.model_origin_mm is None:
         raise SceneError(f"{where}: [printer]: missing key 'model_origin_mm' (where the "
                          "model's origin is, printer coordinates, mm)")
-    if pr["safe_height_mm"] <= 0:
-        fail("safe_height_mm", "> 0 (mm above the model's highest point; lower would "
-             "drag the tip through the model)")
-    if not 0 < pr["step_mm"] <= 1.0:
-        fail("step_mm", "0 < step <= 1 mm")
-    if pr["feed_mm_min"] <= 0:
-        fail("feed_mm_min", "> 0 mm/min")
-    if pr["max_press_mm"] <= 0:
-        fail("max_press_mm", "> 0 mm")
-    if pr["baud"] <= 0:
-        fail("baud", "> 0")
-    if pr["timeout_s"] <= 0:
-        fail("timeout_s", "> 0 s")
-    bed = pr["bed_mm"]
-    if any(bed[a] >= bed[a + 3] for a in range(3)):
-        fail("bed_mm", "[xmin, ymin, zmin, xmax, ymax, zmax] with min < max")
+    if scene.detection.divide_by_gain and skin.taxel_gain is None:
+        raise SceneError(f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
+                         "taxel_gain = \"gains.csv\" (written by fruit calibrate)")
 
 
-def load_skin_table(path: str | Path) -> dict:
-    """The validated [skin] table of a file that holds only one (`fruit calibrate`'s
-    skin.toml); its paths are resolved against that file's folder."""
+def load_skin_table(path: str | Path) -> Any:
+    """The validated [skin] table (a `SkinSection`) of a file that holds only one (`fruit
+    calibrate`'s skin.toml); its paths are resolved against that file's folder."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -654,25 +790,25 @@ def load_skin_table(path: str | Path) -> dict:
     if "skin" not in skin.declared or other:
         raise SceneError(f"{path.name}: expected only a [skin] table"
                          + (f", found [{'], ['.join(other)}]" if other else ", found none"))
-    return skin["skin"]
+    return skin.skin
 
 
 def n_states(scene: Scene) -> int:
     """Number of actuation states (1 when the scene has no [actuation])."""
-    act = scene["actuation"]
-    for key in ("pressure_kpa", "volume_growth_mm3"):
-        if act[key]:
-            return len(next(iter(act[key].values())))
+    act = scene.actuation
+    for table in (act.pressure_kpa, act.volume_growth_mm3):
+        if table:
+            return len(next(iter(table.values())))
     return 1
 
 
 def has_deformation(scene: Scene) -> bool:
     """True when something moves the body: non-zero actuation or a jig."""
-    act = scene["actuation"]
-    for key in ("pressure_kpa", "volume_growth_mm3"):
-        if act[key] and any(v != 0 for vals in act[key].values() for v in vals):
+    act = scene.actuation
+    for table in (act.pressure_kpa, act.volume_growth_mm3):
+        if table and any(v != 0 for vals in table.values() for v in vals):
             return True
-    return bool(scene["jig"])
+    return bool(scene.jig)
 
 
 def load_scene(path: str | Path, must_exist: bool = True) -> Scene:

@@ -12,7 +12,7 @@ from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import descent_gaps
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
-from fruitcli.tables import read_table, read_taxels
+from fruitcli.tables import read_table
 
 HIDDEN = {"sigma_mm": 4.5, "contact_counts": 80.0, "gap_decay_mm": 2.0, "noise": 1.2}
 
@@ -173,7 +173,7 @@ def test_a_virtual_bench_with_a_hidden_skin_calibrates_back_and_replays(tmp_path
     from fruitcli.scene import load_scene, load_skin_table
 
     virtual_bench_scene(tmp_path)
-    hidden = forward.SkinParams.from_table(load_scene(tmp_path / "s.toml")["skin"])
+    hidden = forward.SkinParams.from_table(load_scene(tmp_path / "s.toml").skin)
     gains = forward.make_skin(16, 4, hidden).gain
     assert gains.std() > 0.05  # the hidden skin is not uniform
     cal = bench_and_calibrate(tmp_path, "hidden")
@@ -201,12 +201,13 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
     missing from it, or a drawn spread with it, is one line."""
     from fruitcli.errors import FrameError, SceneError
     from fruitcli.scene import load_scene
+    from fruitcli.tables import read_taxels
 
     write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0 + 0.01 * k] for k in range(16)))
     path = virtual_bench_scene(tmp_path, '[skin]\ntaxel_gain = "g.csv"\n')
     scene = load_scene(path)
     ids = read_taxels(tmp_path / "t.csv").ids
-    skin = forward.make_skin(16, 0, forward.SkinParams.from_table(scene["skin"]), ids[::-1])
+    skin = forward.make_skin(16, 0, forward.SkinParams.from_table(scene.skin), ids[::-1])
     np.testing.assert_allclose(skin.gain, 1.0 + 0.01 * np.arange(16)[::-1])
     write_csv(tmp_path / "g.csv", ["id", "gain"], ([k, 1.0] for k in range(15)))
     res = CliRunner().invoke(cli, ["bench", str(path), "--out", str(tmp_path / "b")])
@@ -231,7 +232,8 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     (calibrated gains, footprint, counts at contact, gap decay), in closed form."""
     from fruitcli.printer.placement import Placement
     from fruitcli.printer.skin_board import SkinBoard
-    from fruitcli.scene import SCHEMA
+    from fruitcli.scene import default_scene
+    from fruitcli.tables import read_taxels
 
     taxels = read_taxels(pad_taxel_csv(tmp_path / "t.csv"))
     write_csv(tmp_path / "gains.csv", ["id", "gain"], ([k, 0.9 + 0.01 * k] for k in range(16)))
@@ -241,7 +243,7 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     from fruitcli.scene import load_skin_table
 
     p = forward.SkinParams.from_table(load_skin_table(tmp_path / "skin.toml"))
-    board = {k: spec.default for k, spec in SCHEMA["board"].items()}
+    board = default_scene().board
     place = Placement([100.0, 100.0, 10.0])
     tip = np.array([103.0, 98.0, 14.0])  # over model (3, -2), 1 mm above the pad's top
     skin = SkinBoard(taxels, board, place, lambda: tip, params=p)

@@ -281,7 +281,7 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
         'in millimetres; set [geometry].unit = "m" (or "cm")')
     assert not (tmp_path / "o" / "tetra").exists()
     scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
-    outer, (chamber,) = body_shells(scene, scene["geometry"]["solid"])
+    outer, (chamber,) = body_shells(scene, scene.geometry.solid)
     assert np.ptp(outer["vertices"], axis=0) == pytest.approx([80.0] * 3, rel=1e-6)
     assert np.ptp(chamber["vertices"], axis=0) == pytest.approx([16.0] * 3, rel=1e-6)
     assert outer["name"] == "sphere_m.stl"
@@ -289,11 +289,11 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
     scene = parse_scene(SPHERE_M.format(unit=""), tmp_path / "s.toml")
     with pytest.raises(GeometryError, match=r"^s.toml: \[\[geometry.chamber\]\] 'c1'.surface: "
                                          r"chamber_m.stl is only 0.016 mm across"):
-        body_shells(scene, scene["geometry"]["solid"])
+        body_shells(scene, scene.geometry.solid)
     scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
     with pytest.raises(GeometryError, match=r"^s.toml: \[geometry\].solid: sphere_m.stl is "
                                          r"8e\+04 mm across in m, more than 5000 mm"):
-        body_shells(scene, scene["geometry"]["solid"])  # a mm solid read as metres
+        body_shells(scene, scene.geometry.solid)  # a mm solid read as metres
 
 
 def test_open_chamber_surface_is_refused(tmp_path):
@@ -314,7 +314,7 @@ surface = "open.stl"
 
 def test_gmsh_timeout_kills_child(tmp_path):
     scene = pad_scene(tmp_path, extra="")
-    scene.data["mesh"]["time_limit_s"] = 0.05
+    scene = scene.with_values({"mesh.time_limit_s": 0.05})
     with pytest.raises(MeshError, match="did not finish within .*time_limit_s"):
         run_tetra(scene, None, tmp_path / "m")
 

@@ -244,7 +244,7 @@ def test_scene_fit_mm_is_named_in_errors(tmp_path):
 
     trimesh.creation.icosphere(3, 0.5).export(tmp_path / "head.stl")      # 1 mm across
     (tmp_path / "s.toml").write_text('[geometry]\nartist = "head.stl"\nfit_mm = 120\n')
-    assert load_scene(tmp_path / "s.toml")["geometry"]["fit_mm"] == 120
+    assert load_scene(tmp_path / "s.toml").geometry.fit_mm == 120
     with pytest.raises(GeometryError, match=r"^\[geometry\]\.fit_mm: expected a size > 0"):
         make_tracks(tmp_path / "head.stl", tmp_path / "o", fit_mm=-1.0, names=SCENE_NAMES)
     with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '

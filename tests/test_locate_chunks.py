@@ -11,7 +11,7 @@ from locate_reference import locate as reference_locate
 from locate_reference import touches_csv_text
 
 from fruitcli.errors import FrameError
-from fruitcli.scene import SCHEMA
+from fruitcli.scene import default_scene
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_muca_log, write_npz
 from fruitcli.sensing.outputs.csv_rows import format_rows
@@ -22,13 +22,11 @@ R, C = 21, 12
 BASE = 500
 
 
-def scene(board=None, detection=None) -> dict:
-    """A scene-like mapping with the schema's [board] and [detection] defaults."""
-    out = {name: {k: spec.default for k, spec in SCHEMA[name].items()}
-           for name in ("board", "detection")}
-    out["board"].update(board or {})
-    out["detection"].update(detection or {})
-    return out
+def scene(board=None, detection=None):
+    """A scene at the schema's defaults with these [board] and [detection] values."""
+    return default_scene().with_values({f"board.{k}": v for k, v in (board or {}).items()}
+                                       | {f"detection.{k}": v
+                                          for k, v in (detection or {}).items()})
 
 
 def write_taxels(path, ij, seed=0):
@@ -81,8 +79,8 @@ def reference_csv(frames, t_s, taxels_csv, board, det, positions=None, pressure=
     rows, cols = taxel_cells(tx, board)
     table = reference_locate(frames, t_s, tx.i, tx.j, rows, cols,
                              tx.xyz_mm if positions is None else positions,
-                             det["threshold_counts"], det["baseline_frames"], det["method"],
-                             det["noise_floor_counts"], det.get("max_touches", 10), pressure,
+                             det.threshold_counts, det.baseline_frames, det.method,
+                             det.noise_floor_counts, 10, pressure,
                              state_pressure)
     comment = (f"touches of {name}: frame index from 0 (baseline frames included), t_s in s, "
                "i, j fractional grid coordinates, x_mm, y_mm, z_mm in mm, peak in counts")
@@ -103,7 +101,7 @@ def test_chunks_write_the_reference_bytes_for_every_method(tmp_path, method):
     write_npz(tmp_path / "f.npz", Recording(frames, t_s))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     sc = scene(detection={"method": method, "noise_floor_counts": 4.0})
-    want, table = reference_csv(frames, t_s, taxels, sc["board"], sc["detection"])
+    want, table = reference_csv(frames, t_s, taxels, sc.board, sc.detection)
     assert len(table[0]) > 700  # multitouch: more touches than frames
     for chunk in (1, 7, 64, 5000):
         got, res = located(tmp_path, sc, tmp_path / "f.npz", taxels, chunk=chunk)
@@ -128,7 +126,7 @@ def test_holes_offsets_flips_and_transposes(tmp_path, size, board):
     write_npz(tmp_path / "f.npz", Recording(frames, t_s))
     taxels = write_taxels(tmp_path / "t.csv", ij, seed=3)
     sc = scene(board=board)
-    want, _ = reference_csv(frames, t_s, taxels, sc["board"], sc["detection"])
+    want, _ = reference_csv(frames, t_s, taxels, sc.board, sc.detection)
     for chunk in (3, 4096):
         got, _ = located(tmp_path, sc, tmp_path / "f.npz", taxels, chunk=chunk)
         assert got == want
@@ -141,8 +139,8 @@ def test_no_touch_gives_the_header_only(tmp_path):
     write_npz(tmp_path / "f.npz", Recording(frames, np.arange(50) * 0.1))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     sc = scene()
-    want, table = reference_csv(frames, np.arange(50) * 0.1, taxels, sc["board"],
-                                sc["detection"])
+    want, table = reference_csv(frames, np.arange(50) * 0.1, taxels, sc.board,
+                                sc.detection)
     got, res = located(tmp_path, sc, tmp_path / "f.npz", taxels, chunk=16)
     assert got == want and res["touches"] == 0 and len(table[0]) == 0
     assert got.count(b"\n") == 2  # the comment and the header
@@ -174,7 +172,7 @@ def test_pressures_move_the_taxels_along_the_states_as_before(tmp_path):
     tx = read_taxels(taxels)
     states, positions = states_npz(tmp_path / "s.npz", tx.xyz_mm)
     sc = scene()
-    want, _ = reference_csv(frames, t_s, taxels, sc["board"], sc["detection"], positions,
+    want, _ = reference_csv(frames, t_s, taxels, sc.board, sc.detection, positions,
                             kpa, np.array([[0, 0], [5.0, 0], [5.0, 3.0], [9.0, 6.0]]))
     for chunk in (5, 256):
         got, _ = located(tmp_path, sc, tmp_path / "f.npz", taxels, states, chunk=chunk)

@@ -168,10 +168,10 @@ def test_bench_samples_csv_is_hashed_by_content(tmp_path):
 
 def test_stage_code_hash_covers_the_packages_it_imports():
     """The FEM stages' hash covers fruitcli/fem with its subpackages and what it
-    imports (geometry/load.py for the unit check, scene.py), so a change there reruns
+    imports (geometry/mesh/load.py for the unit check, scene.py), so a change there reruns
     them; evaluation's does not cover the FEM."""
     files = {f"{p.parent.name}/{p.name}" for p in planner.code_files("fruitcli.fem.stage")}
     assert {"fem/stage.py", "materials/corotation_kernels.py", "elements/integrate.py",
-            "solver/newton.py", "geometry/load.py", "fruitcli/scene.py"} <= files
+            "solver/newton.py", "mesh/load.py", "fruitcli/scene.py"} <= files
     files = {p.parent.name for p in planner.code_files("fruitcli.evaluation.report")}
     assert "fem" not in files and "evaluation" in files

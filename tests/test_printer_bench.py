@@ -127,10 +127,10 @@ class Rig:
     def __init__(self, scene_path, faults=None, vanish_after=None, printer_bed=None,
                  fmt="binary", baud=2000000, time_scale=0.1):
         self.scene = load_scene(scene_path)
-        pr = self.scene["printer"]
-        bed = printer_bed or pr["bed_mm"]
+        pr = self.scene.printer
+        bed = printer_bed or pr.bed_mm
         self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, faults)
-        skin = SkinBoard(read_taxels(scene_path.parent / "t.csv"), self.scene["board"],
+        skin = SkinBoard(read_taxels(scene_path.parent / "t.csv"), self.scene.board,
                          Placement.from_printer(pr), self.printer.tip_mm)
         self.board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt,
                                    baud=baud, vanish_after=vanish_after)

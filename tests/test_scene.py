@@ -36,10 +36,10 @@ def scene(text, must_exist=False):
 
 def test_minimal_keys_and_defaults():
     s = scene(MINIMAL)
-    assert s["material"]["young_modulus_kpa"] == 100.0
-    assert s["grid"]["spacing_x_mm"] == 16.0 and s["grid"]["spacing_y_mm"] == 12.0
-    assert s["detection"]["threshold_counts"] == 20.0
-    assert s.chambers[0]["ellipsoid"]["radii_mm"] == [10.0, 10.0, 10.0]
+    assert s.material.young_modulus_kpa == 100.0
+    assert s.grid.spacing_x_mm == 16.0 and s.grid.spacing_y_mm == 12.0
+    assert s.detection.threshold_counts == 20.0
+    assert s.chambers[0].ellipsoid.radii_mm == [10.0, 10.0, 10.0]
     assert n_states(s) == 3 and has_deformation(s)
     assert s.has("gravity") and not s.has("bench")
 
@@ -55,12 +55,12 @@ def test_minimal_keys_and_defaults():
     ("[[fixed]]\nbox_mm = [2, 0, 0, 1, 1, 1]", "with min <= max"),
     ("[actuation]\npressure_kpa = { c1 = [1.0] }", "no such chamber (the scene has no chambers)"),
     ("[geometry]\nsolid = 'a.stl'\npad_size_mm = [1, 1, 1]", "give one of artist, solid"),
-    ("[detection]\nmethod = 'fancy'", "expected n9, n9_floor or peaks"),
+    ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, got 'fancy'"),
     ("[[jig]]\nregion_box_mm = [0, 0, 0, 1, 1, 1]\nstiffness_n_per_mm = 0",
      "stiffness_n_per_mm: expected > 0"),
     ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),
     ("x = [", "not valid TOML"),
-    ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm >= 0"),
+    ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm: expected >= 0"),
 ])
 def test_bad_scenes_name_the_field(text, expected):
     with pytest.raises(SceneError) as err:
@@ -95,7 +95,7 @@ def test_paths_resolve_against_scene_folder_then_project_root(tmp_path):
     (tmp_path / "pipelines").mkdir()
     s = parse_scene("[[evaluate]]\nlabel='a'\ntruth='data/t.csv'\nmeasured='data/t.csv'",
                     tmp_path / "pipelines" / "s.toml")
-    assert s["evaluate"][0]["truth"] == tmp_path / "data" / "t.csv"
+    assert s.evaluate[0].truth == tmp_path / "data" / "t.csv"
 
 
 def test_every_bundled_scene_validates():
@@ -122,7 +122,7 @@ def test_readme_scene_example_is_valid():
 @pytest.mark.parametrize("text, match", [
     ("[grid]\ncount = [4]", r"\[grid\].count: expected two positive integers"),
     ("[grid]\ncount = [4, 0]", r"\[grid\].count: expected two positive integers"),
-    ("[grid]\nspacing_x_mm = 0.0", r"\[grid\]: expected spacing_x_mm and spacing_y_mm > 0"),
+    ("[grid]\nspacing_x_mm = 0.0", r"\[grid\].spacing_x_mm: expected > 0, got 0.0"),
     ("[bench]\nindenters = []", r"\[bench\].indenters: expected a non-empty list"),
     ("[bench]\nindenters = ['huge']", r"\[bench\].indenters: .* got \['huge'\]"),
     ("[bench]\nstep_mm = 0.0", r"\[bench\].step_mm: expected > 0"),
@@ -135,3 +135,190 @@ def test_values_checked_when_the_scene_is_read(tmp_path, text, match):
     (tmp_path / "s.toml").write_text(text + "\n")
     with pytest.raises(SceneError, match="^s.toml: " + match):
         load_scene(tmp_path / "s.toml")
+
+
+# ----------------------------------------------------------------------------- typed sections
+def test_typed_sections_agree_with_the_schema():
+    """One frozen record type per table section and per array item, with the schema's
+    keys in its order and its defaults; a scene declaring nothing holds exactly them."""
+    from dataclasses import FrozenInstanceError, fields
+
+    from fruitcli.scene import (
+        ARRAY_SCHEMA,
+        ARRAY_SECTIONS,
+        ITEM_TYPES,
+        SCHEMA,
+        SECTION_TYPES,
+        SUBTABLE_TYPES,
+        SUBTABLES,
+        default_scene,
+    )
+
+    assert set(SECTION_TYPES) == set(SCHEMA) - ARRAY_SECTIONS
+    assert set(ITEM_TYPES) == set(ARRAY_SCHEMA) and set(SUBTABLE_TYPES) == set(SUBTABLES)
+    pairs = ([(SECTION_TYPES[n], SCHEMA[n]) for n in SECTION_TYPES]
+             + [(ITEM_TYPES[n], ARRAY_SCHEMA[n]) for n in ITEM_TYPES]
+             + [(SUBTABLE_TYPES[n], SUBTABLES[n]) for n in SUBTABLE_TYPES])
+    for record, spec in pairs:
+        assert [f.name for f in fields(record)] == list(spec)
+    defaults = default_scene()
+    for name in SECTION_TYPES:
+        section = getattr(defaults, name)
+        assert isinstance(section, SECTION_TYPES[name])
+        assert defaults.values(name) == {k: spec.default for k, spec in SCHEMA[name].items()}
+    for name in ARRAY_SECTIONS:
+        assert getattr(defaults, name) == ()
+    assert defaults.chambers == () and not defaults.declared
+    with pytest.raises(FrozenInstanceError):
+        defaults.fem.element = "p1"
+
+
+def test_arrays_are_tuples_of_typed_records():
+    s = scene(MINIMAL)
+    (chamber,) = s.chambers
+    assert type(chamber).__name__ == "ChamberTable" and chamber.name == "c1"
+    assert chamber.ellipsoid.center_mm == [0.0, 0.0, 0.0] and chamber.surface is None
+    (fixed,) = s.fixed
+    assert fixed.box_mm == [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0] and fixed.displacement_mm is None
+    assert s.jig == () and s.evaluate == ()
+    assert s.values("fixed") == [{"box_mm": [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0],
+                                  "displacement_mm": None}]
+    assert s.values("geometry")["chamber"] == [
+        {"name": "c1", "ellipsoid": {"center_mm": [0.0, 0.0, 0.0],
+                                     "radii_mm": [10.0, 10.0, 10.0]}, "surface": None}]
+
+
+def test_an_unknown_section_or_key_fails_loudly():
+    s = scene(MINIMAL)
+    with pytest.raises(AttributeError, match=r"FemSection has no key 'elemnt' \(did you mean "
+                                             r"'element'\?\)"):
+        s.fem.elemnt  # noqa: B018
+    with pytest.raises(AttributeError, match=r"no section \[materal\] \(did you mean "
+                                             r"'material'\?\)"):
+        s.materal  # noqa: B018
+    with pytest.raises(AttributeError, match="no key 'radius'"):
+        s.chambers[0].radius  # noqa: B018
+    with pytest.raises(TypeError):
+        s["fem"]  # noqa: B018
+    with pytest.raises(SceneError, match=r"unknown section \[femm\]"):
+        s.values("femm")
+
+
+def test_with_values_checks_and_leaves_the_scene_as_it_was():
+    s = scene(MINIMAL)
+    t = s.with_values({"fem.element": "p1", "material.model": "corotational",
+                       "mesh.size_mm": 2.0})
+    assert (t.fem.element, t.material.model, t.mesh.size_mm) == ("p1", "corotational", 2.0)
+    assert (s.fem.element, s.material.model, s.mesh.size_mm) == ("p2", "neo-hookean", 3.0)
+    assert t.chambers == s.chambers and t.declared == s.declared
+    with pytest.raises(SceneError, match=r"^scene.toml: \[mesh\].size_mm: expected > 0, got "
+                                         r"-1.0$"):
+        s.with_values({"mesh.size_mm": -1.0})
+    with pytest.raises(SceneError, match=r"\[fem\].element: expected one of p2, p2-pure, p1, "
+                                         r"got 'p3'"):
+        s.with_values({"fem.element": "p3"})
+    with pytest.raises(SceneError, match=r"corotational.*linear tets"):  # across keys
+        s.with_values({"material.model": "corotational"})
+    with pytest.raises(SceneError, match=r"\[mesh\]: unknown key 'size' \(did you mean "
+                                         r"'size_mm'\?\)"):
+        s.with_values({"mesh.size": 1.0})
+    skin = s.skin.__class__(contact_counts=80.0)
+    assert s.with_values({"skin": skin}).skin.contact_counts == 80.0
+    with pytest.raises(SceneError, match=r"\[skin\]: expected a SkinSection"):
+        s.with_values({"skin": {"contact_counts": 80.0}})
+
+
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    return repr(value)
+
+
+BAD_FOR_CONDITION = {  # a value each key's own `valid` condition refuses
+    ("scene", "name"): "a/b",
+    ("grid", "count"): [4],
+    ("reduced", "pressure_range_kpa"): [5.0, 1.0],
+    ("printer", "bed_mm"): [0.0, 0.0, 0.0, 0.0, 220.0, 250.0],
+    ("jig", "axis"): [0.0, 0.0, 0.0],
+}
+REQUIRED = {"box": [0, 0, 0, 1, 1, 1], "str": "x", "path": "t.csv"}
+
+
+def _bad_values(where: tuple, spec):
+    """Values the key's declared choices, range or condition refuse."""
+    if spec.choices is not None:
+        yield "not-a-choice"
+    for bound, exclusive, step in ((spec.min, spec.min_exclusive, -1),
+                                   (spec.max, spec.max_exclusive, 1)):
+        if bound is None:
+            continue
+        v = bound if exclusive else bound + step
+        v = int(v) if spec.kind == "int" else float(v)
+        yield ({"small": v} if spec.kind == "table" else [1.0, 1.0, v]
+               if spec.kind.startswith("vec") else v)
+    if spec.valid is not None:
+        yield BAD_FOR_CONDITION[where]
+
+
+def _declared_keys():
+    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, SUBTABLES
+
+    out = []
+    for section, keys in SCHEMA.items():
+        out += [(section, key, spec) for key, spec in keys.items()]
+    for array, keys in ARRAY_SCHEMA.items():
+        out += [(array, key, spec) for key, spec in keys.items()]
+    out += [("ellipsoid", key, spec) for key, spec in SUBTABLES["ellipsoid"].items()]
+    return [(s, k, spec, bad) for s, k, spec in out for bad in _bad_values((s, k), spec)]
+
+
+def _scene_with(section: str, key: str, value) -> str:
+    from fruitcli.scene import ARRAY_SCHEMA
+
+    if section == "ellipsoid":
+        sub = {"center_mm": [0, 0, 0], "radii_mm": [1, 1, 1], key: value}
+        return f"[[geometry.chamber]]\nname = 'c'\nellipsoid = {_toml(sub)}\n"
+    if section not in ARRAY_SCHEMA:
+        return f"[{section}]\n{key} = {_toml(value)}\n"
+    item = {k: REQUIRED[s.kind] for k, s in ARRAY_SCHEMA[section].items() if s.required}
+    item[key] = value
+    return f"[[{section}]]\n" + "".join(f"{k} = {_toml(v)}\n" for k, v in item.items())
+
+
+CHECKED_KEYS = {
+    "actuation": "period_s", "bench": "baseline_frames reference_length_mm register step_mm",
+    "board": "format", "detection": "baseline_frames method project threshold_counts",
+    "ellipsoid": "radii_mm", "evaluate": "reference_length_mm register", "fem": "element",
+    "frames": "model", "geometry": "unit", "grid": "count spacing_x_mm spacing_y_mm",
+    "jig": "axis stiffness_n_per_mm",
+    "material": "density_kg_m3 model poisson_ratio young_modulus_kpa", "mesh": "size_mm",
+    "printer": "baud bed_mm feed_mm_min max_press_mm safe_height_mm step_mm timeout_s",
+    "reduced": "margin max_degree points_per_axis pressure_range_kpa validation",
+    "scene": "name", "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm",
+    "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
+              "tolerance",
+    "tracks": "yarn_max_stretch zigzag_pitch_mm",
+}
+
+
+def test_the_schema_declares_the_checks_of_these_keys():
+    declared = {(s, k) for s, k, *_ in _declared_keys()}
+    assert declared == {(s, k) for s, keys in CHECKED_KEYS.items() for k in keys.split()}
+
+
+@pytest.mark.parametrize("section, key, spec, bad", _declared_keys(),
+                         ids=lambda v: v if isinstance(v, str) else None)
+def test_every_declared_range_and_choice_refuses_a_bad_value(section, key, spec, bad):
+    """One line naming the file and the key, what was expected and what was given."""
+    with pytest.raises(SceneError) as err:
+        parse_scene(_scene_with(section, key, bad), Path("/tmp/s.toml"), must_exist=False)
+    msg = str(err.value)
+    assert msg.startswith("s.toml: ") and "\n" not in msg
+    assert f".{key}: expected {spec.expectation()}, got " in msg \
+        or f".{key}.small: expected {spec.expectation()}, got 0.0" in msg

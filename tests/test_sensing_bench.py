@@ -229,7 +229,7 @@ def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
 
 
 def test_skin_table_defaults_are_the_models_assumptions(tmp_path):
-    p = forward.SkinParams.from_table(scene(tmp_path)["skin"])
+    p = forward.SkinParams.from_table(scene(tmp_path).skin)
     assert p == forward.DEFAULT_PARAMS
     assert p.footprint_sigma_mm == pytest.approx({"small": np.hypot(6, 1.5),
                                                   "medium": np.hypot(6, 4)})
@@ -240,7 +240,7 @@ def test_skin_table_defaults_are_the_models_assumptions(tmp_path):
 def test_skin_table_sets_the_touch_response(tmp_path):
     text = ("[skin]\nfootprint_sigma_mm = { small = 4.5 }\ncontact_counts = 80.0\n"
             "gap_decay_mm = 1.0\ngain_spread = 0.2\nnoise_std_counts = 1.2\n")
-    p = forward.SkinParams.from_table(scene(tmp_path, text)["skin"])
+    p = forward.SkinParams.from_table(scene(tmp_path, text).skin)
     assert p.footprint_sigma_mm["small"] == 4.5
     assert p.footprint_sigma_mm["medium"] == pytest.approx(np.hypot(6, 4))  # default kept
     plain = forward.make_skin(40, seed=5)
@@ -329,5 +329,5 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
         run_locate(proj, frames, taxels, states, tmp_path / "x")
     from fruitcli.errors import SceneError
 
-    with pytest.raises(SceneError, match=r"\[detection\].project: expected none or surface"):
+    with pytest.raises(SceneError, match=r"\[detection\].project: expected one of none, surface"):
         scene(tmp_path, "[detection]\nproject = \"nearest\"\n")

@@ -1,5 +1,7 @@
 """Exact N9 centroid and multitouch outputs on hand-made frames (paper Sec. III-B)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -124,14 +126,14 @@ def test_batch_is_vectorized_over_frames_and_matches_frame_by_frame():
 
 def test_board_mapping_flip_transpose_and_outside():
     tx = make_taxels(2, 3, missing=())
-    board = dict(default_board(), flip_i=True, offset_j=2)
+    board = replace(default_board(), flip_i=True, offset_j=2)
     r, c = taxel_cells(tx, board)
     assert r.tolist() == [20, 20, 20, 19, 19, 19] and c.tolist() == [2, 3, 4, 2, 3, 4]
-    r, c = taxel_cells(tx, dict(default_board(), transpose=True))
+    r, c = taxel_cells(tx, replace(default_board(), transpose=True))
     assert r.tolist() == [0, 1, 2, 0, 1, 2] and c.tolist() == [0, 0, 0, 1, 1, 1]
     with pytest.raises(FrameError, match=r"taxel id 2 \(i=0, j=2\) maps to frame cell "
                                          r"\(0, 12\), outside the 21 x 12 frame"):
-        taxel_cells(tx, dict(default_board(), offset_j=10), "t.csv")
+        taxel_cells(tx, replace(default_board(), offset_j=10), "t.csv")
 
 
 def _stream(frames, **kw):

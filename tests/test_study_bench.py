@@ -24,7 +24,7 @@ def pad_scene(tmp_path):
 
 def test_cases_move_one_parameter_at_a_time(tmp_path):
     path, _ = pad_scene(tmp_path)
-    skin = dict(load_scene(path)["skin"])
+    skin = load_scene(path).skin
     cases = bs.cases(skin, ["small", "medium"])
     assert cases[0].parameter == "default" and cases[0].skin == {}
     assert all(len(c.skin) == 1 for c in cases[1:])
@@ -43,7 +43,7 @@ def test_study_bench_table_plot_and_the_default_row(fruit, tmp_path):
     res = fruit("study", "bench", path, "--out", out, "--jobs", "1")
     assert res.exit_code == 0, res.output
     data = json.loads((out / "bench.json").read_text())
-    n_cases = len(bs.cases(dict(load_scene(path)["skin"]), ["small", "medium"]))
+    n_cases = len(bs.cases(load_scene(path).skin, ["small", "medium"]))
     assert len(data["rows"]) == 2 * n_cases
     assert (out / "bench.png").read_bytes()[:4] == b"\x89PNG"
     assert "| default | small |" in (out / "bench.md").read_text()

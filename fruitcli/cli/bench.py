@@ -24,7 +24,7 @@ def scene_surface(scene):
     from fruitcli.workflow.stages import solid_path
 
     path = solid_path(scene, Context(Path("out") / scene.name))
-    unit = scene["geometry"]["unit"] if scene["geometry"]["solid"] is not None else "mm"
+    unit = scene.geometry.unit if scene.geometry.solid is not None else "mm"
     return path, unit
 
 
@@ -77,8 +77,8 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, print
     with fruit_errors():
         scene = load_scene(scene_path)
         if skin_toml:
-            scene.data["skin"] = load_skin_table(skin_toml)
-        taxels = taxels_csv or scene["grid"]["taxels"]
+            scene = scene.with_values({"skin": load_skin_table(skin_toml)})
+        taxels = taxels_csv or scene.grid.taxels
         unit = "mm"
         if taxels is None:
             taxels, states_npz = scene_products(scene, progress=progress)
@@ -109,16 +109,16 @@ def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_
         if not scene.has("printer"):
             raise SceneError(f"{scene_path}: no [printer] table (where the model sits on the "
                              "bed, how to move): needed with --printer")
-        name = indenter or scene["bench"]["indenters"][0]
+        name = indenter or scene.bench.indenters[0]
         if not name or any(c in name for c in "/\\") or name in (".", ".."):
             raise click.BadParameter(f"{name!r}: expected a plain name", param_hint="--indenter")
-        taxels = taxels_csv or scene["grid"]["taxels"]
+        taxels = taxels_csv or scene.grid.taxels
         if taxels is None:
             taxels, found = scene_products(scene, progress=progress)
             states_npz = states_npz or found
         try:
             res = run_printer_bench(scene, taxels, states_npz, printer_port, board_port,
-                                    out_dir, name, fmt or scene["board"]["format"],
+                                    out_dir, name, fmt or scene.board.format,
                                     board_baud, progress, overwrite)
         except BenchInterrupted as exc:
             click.echo(f"Interrupted: {exc}", err=True)

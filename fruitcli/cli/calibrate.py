@@ -26,7 +26,7 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
     progress = Progress("[calibrate] ")
     with fruit_errors():
         scene = load_scene(scene_path)
-        taxels = taxels_csv or scene["grid"]["taxels"] or scene_products(scene)[0]
+        taxels = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
         res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress)
     click.echo(f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm, "
                f"contact {res['contact_counts']:.1f} counts, gap decay "

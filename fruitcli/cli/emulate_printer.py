@@ -69,14 +69,14 @@ def emulate_printer(scene_path, taxels_csv, indenter, fmt, baud, time_scale, fau
         if not scene.has("printer"):
             raise SceneError(f"{scene_path}: no [printer] table (where the model sits on "
                              "the bed)")
-        pr = scene["printer"]
-        taxels_csv = taxels_csv or scene["grid"]["taxels"] or scene_products(scene)[0]
+        pr = scene.printer
+        taxels_csv = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
         taxels = read_taxels(taxels_csv, FrameError)
-        bed = pr["bed_mm"]
+        bed = pr.bed_mm
         printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, fault_table)
         params = forward.SkinParams.from_table(load_skin_table(skin_toml) if skin_toml
-                                                else scene["skin"])
-        skin = SkinBoard(taxels, scene["board"], Placement.from_printer(pr), printer.tip_mm,
+                                                else scene.skin)
+        skin = SkinBoard(taxels, scene.board, Placement.from_printer(pr), printer.tip_mm,
                          indenter, seed, params)
         board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt, baud=baud)
         click.echo(f"printer: {printer.path}")

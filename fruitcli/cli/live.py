@@ -111,7 +111,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
     stop = threading.Event()
     with fruit_errors():
         scene = load_scene(scene_path)
-        settings = Settings.from_scene(scene["detection"], baseline_frames=baseline_frames,
+        settings = Settings.from_scene(scene.detection, baseline_frames=baseline_frames,
                                        threshold_counts=threshold)
         if n_frames is not None and n_frames <= settings.baseline_frames:
             raise FrameError(f"--frames {n_frames}: expected more than the "
@@ -122,7 +122,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
             from fruitcli.sensing.outputs.tuio import parse_host_port, resolve
 
             osc_address = resolve(*parse_host_port(osc_target, "--osc"), "--osc")
-        taxels_csv = taxels_csv or scene["grid"]["taxels"]
+        taxels_csv = taxels_csv or scene.grid.taxels
         if online and model_kind == "reduced":  # the scene's reduced model
             taxels_csv, reduced = online_reduced(scene, scene_path, taxels_csv,
                                                  pressure_port, progress, reduced_build_bar)
@@ -138,7 +138,7 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
             raise FrameError(f"--pressure-port {pressure_port}: nothing uses the pressures; "
                              "it needs --states or --online, or the scene's states")
         taxels = read_taxels(taxels_csv, FrameError)
-        board = scene["board"]
+        board = scene.board
         states = load_states(states_npz, len(taxels)) if states_npz else None
         gain = detection_gain(scene, taxels, gains_csv)
         pressure = solver = None
@@ -191,8 +191,8 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
             p_thread = pressure_thread(pser, pressure, stop, pressure_port)
         if solver is not None:  # nothing to solve until a pressure line arrived
             fem_thread = solver.run(lambda: pressure.kpa if pressure.received else None, stop)
-        frame_format = fmt or board["format"]
-        reader = FrameReader(ser, board["rows"], board["cols"], name=port, fmt=frame_format)
+        frame_format = fmt or board.format
+        reader = FrameReader(ser, board.rows, board.cols, name=port, fmt=frame_format)
         progress(f"collecting {settings.baseline_frames} baseline frames from {port}")
         seen = 0
         warned = False

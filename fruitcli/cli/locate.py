@@ -56,7 +56,7 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
         scene = load_scene(scene_path) if scene_path else None
         reduced = None
         if model_kind == "reduced" and scene is not None and scene.chambers \
-                and has_pressures(frames, scene["board"]):
+                and has_pressures(frames, scene.board):
             from pathlib import Path
 
             from fruitcli.workflow.reduced_model import ensure_reduced

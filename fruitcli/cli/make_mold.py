@@ -44,14 +44,13 @@ def make_mold(scene, out_dir, tracks_dir, **given):
     log = Progress("make-mold ")
     with fruit_errors():
         sc = load_scene(scene)
-        section = sc["mold"]
-        values = {k: (given[k] if given[k] is not None else section[k])
+        values = {k: (given[k] if given[k] is not None else getattr(sc.mold, k))
                   for k in MoldOptions.__dataclass_fields__}
         names = {k: CLI_NAMES[k] if given[k] is not None else SCENE_NAMES[k] for k in values}
         opts = MoldOptions(**values)
         opts.check(names)
         if tracks_dir is None:
-            if sc["geometry"]["artist"] is None:
+            if sc.geometry.artist is None:
                 raise SceneError(f"{scene}: [geometry]: make-mold needs an artist mesh (its "
                                  "tracked top and reduced body), or --tracks")
             from fruitcli.workflow import planner
@@ -60,7 +59,7 @@ def make_mold(scene, out_dir, tracks_dir, **given):
                         shared=shared_outputs(out_dir))
             tracks_dir = out_dir / "make-tracks"
         report = run_make_mold(tracks_dir, out_dir, scene_chambers(sc),
-                               sc["material"]["density_kg_m3"], opts, names, progress=log)
+                               sc.material.density_kg_m3, opts, names, progress=log)
     for m in report["molds"]:
         click.echo(f"{m['piece']}: {', '.join(m['parts'])}; {m['silicone_ml']} ml "
                    f"({m['silicone_g']} g) of silicone; cavity / piece "

@@ -104,9 +104,9 @@ def states_option(follows: str):
 def format_option(*, default: str | None, auto: bool = True, what: str = ""):
     """``--format``: the board's frame format (stock Muca_Raw ASCII lines or SendRawByte
     binary packets); `auto` adds auto-detection; `what` says what it applies to."""
-    from fruitcli.sensing.frames.board import FORMATS
+    from fruitcli.scene import BOARD_FORMATS
 
-    choices = (["auto"] if auto else []) + list(FORMATS)
+    choices = (["auto"] if auto else []) + list(BOARD_FORMATS)
     if default is None:
         tail = " Default: the scene's [board].format."
     elif default == "auto":

@@ -55,7 +55,7 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
     log = Progress("simulate ")
     with fruit_errors():
         sc = load_scene(scene)
-        names = [c["name"] for c in sc.chambers]
+        names = [c.name for c in sc.chambers]
         table = rows = None
         if pressures_csv is not None:
             from fruitcli.fem.pressure_table import read_pressures
@@ -71,16 +71,16 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
             click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
                        f"model, {info['us_per_state']:.1f} us per state; {info['describe']}")
             return
-        geo = sc["geometry"]
-        taxel_csv = taxels_csv or sc["grid"]["taxels"]
+        geo = sc.geometry
+        taxel_csv = taxels_csv or sc.grid.taxels
         # given taxels are checked before any stage runs
         xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
-        tracks_csv = sc["tracks"]["file"]
+        tracks_csv = sc.tracks.file
         if tracks_csv is not None:
             from fruitcli.fabrication.yarn import read_tracks
 
             read_tracks(tracks_csv)
-        if solid is None and geo["artist"] is not None:
+        if solid is None and geo.artist is not None:
             from fruitcli.workflow import planner
 
             planner.run(sc, out_dir, until="make-tracks", progress=log,
@@ -89,7 +89,7 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
             tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
             if xyz is None:
                 xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv").xyz_mm
-        elif solid is None and geo["solid"] is None and geo["pad_size_mm"] is None:
+        elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
         with progressbar(length=n_states(sc) if table is None else len(table),

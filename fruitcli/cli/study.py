@@ -113,7 +113,7 @@ def runtime(scene_file, out_dir, jobs, scheduler):
         solid, taxels = solid_path(scene, ctx), taxels_path(scene, ctx)
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
-        default = scene["mesh"]["size_mm"]
+        default = scene.mesh.size_mm
         cases = rt.fem_cases(default)
         # meshes first (one per size, in parallel), then the solver variants reuse them
         by_size = {}
@@ -175,13 +175,12 @@ def bench_study(scene_file, out_dir, jobs):
         taxels = taxels_path(scene, ctx)
         if taxels is None:
             raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
-        unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+        unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
-        skin = dict(scene["skin"])
         solid = solid_path(scene, ctx)
         args = [(scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
-                for c in bs.cases(skin, list(scene["bench"]["indenters"]), solid is not None)]
+                for c in bs.cases(scene.skin, list(scene.bench.indenters), solid is not None)]
         results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
         rows = [r for res in results for r in res["rows"]]
         text = bs.table_markdown(rows, scene.name, PAPER_TABLE_I)
@@ -190,8 +189,8 @@ def bench_study(scene_file, out_dir, jobs):
             write_csv(tmp / "bench.csv", bs.HEADER, bs.csv_rows(rows),
                       comments=[f"bench study of {scene.name}: errors in mm, registered = "
                                 "translation (the paper's protocol)"])
-            write_json(tmp / "bench.json", {"scene": scene.name, "skin_defaults": skin,
-                                            "rows": rows})
-            bs.plot(tmp / "bench.png", rows, skin, PAPER_TABLE_I)
+            write_json(tmp / "bench.json", {"scene": scene.name,
+                                            "skin_defaults": scene.values("skin"), "rows": rows})
+            bs.plot(tmp / "bench.png", rows, scene.skin, PAPER_TABLE_I)
     click.echo(text, nl=False)
     click.echo(f"written to {out}/")

@@ -45,15 +45,15 @@ def scene_chambers(scene) -> list:
 
     out = []
     for ch in scene.chambers:
-        if ch["ellipsoid"] is not None:
-            e = ch["ellipsoid"]
+        if ch.ellipsoid is not None:
+            e = ch.ellipsoid
             m = mf.Manifold.sphere(1.0, ELLIPSOID_SEGMENTS).scale(
-                tuple(float(r) for r in e["radii_mm"])).translate(
-                tuple(float(c) for c in e["center_mm"]))
+                tuple(float(r) for r in e.radii_mm)).translate(
+                tuple(float(c) for c in e.center_mm))
         else:
-            m = load_solid(ch["surface"], f"[[geometry.chamber]] '{ch['name']}'.surface")
-            m = m.scale((UNIT_TO_MM[scene["geometry"]["unit"]],) * 3)
-        out.append((ch["name"], m))
+            m = load_solid(ch.surface, f"[[geometry.chamber]] '{ch.name}'.surface")
+            m = m.scale((UNIT_TO_MM[scene.geometry.unit],) * 3)
+        out.append((ch.name, m))
     return out
 
 

@@ -27,7 +27,6 @@ from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
 from fruitcli.fem.meshing import shells, tetra
-from fruitcli.fem.solver.linsolve import LINEAR_SOLVERS
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
@@ -46,23 +45,23 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     and their size must fit it (`geometry.load.check_extent`). Any other `solid_path`
     (reduced.stl from make-tracks) is in mm.
     """
-    geo, where = scene["geometry"], scene.path.name
+    geo, where = scene.geometry, scene.path.name
 
     def scene_surface(path, what):  # a file of the scene's, in [geometry].unit
-        v, f = shells.load_surface(path, what, scale=UNIT_TO_MM[geo["unit"]])
-        check_extent(v, geo["unit"], f"{what}: {Path(path).name}", SCENE_UNIT_HINT)
+        v, f = shells.load_surface(path, what, scale=UNIT_TO_MM[geo.unit])
+        check_extent(v, geo.unit, f"{what}: {Path(path).name}", SCENE_UNIT_HINT)
         return v, f
 
-    own = geo["solid"] is not None and (
-        solid_path is None or Path(solid_path).resolve() == Path(geo["solid"]).resolve())
+    own = geo.solid is not None and (
+        solid_path is None or Path(solid_path).resolve() == Path(geo.solid).resolve())
     if not own and solid_path is not None:
         v, f = shells.load_surface(solid_path, "solid")
         outer = shells.surface_shell(solid_path.name, v, f)
-    elif geo["solid"] is not None:
-        v, f = scene_surface(geo["solid"], f"{where}: [geometry].solid")
-        outer = shells.surface_shell(geo["solid"].name, v, f)
-    elif geo["pad_size_mm"] is not None:
-        x, y, t = geo["pad_size_mm"]
+    elif geo.solid is not None:
+        v, f = scene_surface(geo.solid, f"{where}: [geometry].solid")
+        outer = shells.surface_shell(geo.solid.name, v, f)
+    elif geo.pad_size_mm is not None:
+        x, y, t = geo.pad_size_mm
         if min(x, y, t) <= 0:
             raise SceneError("[geometry].pad_size_mm: expected positive [x, y, thickness]")
         outer = shells.box_shell("pad", [-x / 2, -y / 2, 0.0], [x / 2, y / 2, t])
@@ -71,12 +70,12 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
                          "surface from make-tracks (--solid)")
     chambers = []
     for ch in scene.chambers:
-        name = ch["name"]
-        if ch["ellipsoid"] is not None:
-            e = ch["ellipsoid"]
-            chambers.append(shells.ellipsoid_shell(name, e["center_mm"], e["radii_mm"]))
+        name = ch.name
+        if ch.ellipsoid is not None:
+            e = ch.ellipsoid
+            chambers.append(shells.ellipsoid_shell(name, e.center_mm, e.radii_mm))
         else:
-            v, f = scene_surface(ch["surface"], f"{where}: [[geometry.chamber]] '{name}'.surface")
+            v, f = scene_surface(ch.surface, f"{where}: [[geometry.chamber]] '{name}'.surface")
             chambers.append(shells.surface_shell(name, v, f))
     return outer, chambers
 
@@ -88,25 +87,25 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     progress = progress or _noop
     outer, chambers = body_shells(scene, Path(solid_path) if solid_path else None)
     shells.check_layout(outer, chambers, scene.path.name)
-    mesh_cfg = scene["mesh"]
-    size = float(mesh_cfg["size_mm"])
-    min_size = float(mesh_cfg["min_size_mm"] or size)
+    mesh_cfg = scene.mesh
+    size = float(mesh_cfg.size_mm)
+    min_size = float(mesh_cfg.min_size_mm or size)
     if not 0 < min_size <= size:
         raise SceneError(f"[mesh].min_size_mm: expected 0 < min_size_mm <= size_mm = {size}")
     progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), "
              f"{len(chambers)} chamber(s)")
-    raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg["time_limit_s"],
+    raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg.time_limit_s,
                          label=outer["name"], work_dir=None, taxels_xyz=taxels_xyz,
                          progress=progress)
     mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size, taxels_xyz)
-    report = tetra.quality_report(mesh, mesh_cfg["min_quality"])
+    report = tetra.quality_report(mesh, mesh_cfg.min_quality)
     for k, ch in enumerate(chambers):
         if not np.any(mesh["chamber_tri_owner"] == k):
             raise MeshError(f"[[geometry.chamber]] '{ch['name']}': no cavity wall in the mesh "
                             f"of {outer['name']}")
-    if report["sicn_min"] < mesh_cfg["min_quality"]:
+    if report["sicn_min"] < mesh_cfg.min_quality:
         raise MeshError(f"{outer['name']}: mesh too poor: worst SICN {report['sicn_min']:.3f} "
-                        f"< [mesh].min_quality {mesh_cfg['min_quality']:g} "
+                        f"< [mesh].min_quality {mesh_cfg.min_quality:g} "
                         f"({report['poor_tets']} poor tets); check the surface or size_mm")
     progress(f"tetra: {report['n_tets']} tets, {report['n_nodes']} nodes, "
              f"SICN min {report['sicn_min']:.2f}")
@@ -120,25 +119,25 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
 
 def _jigs(scene, nodes: np.ndarray) -> list[Jig]:
     out = []
-    for n, jig in enumerate(scene["jig"]):
-        idx = nodes_in_box(nodes, jig["region_box_mm"])
+    for n, jig in enumerate(scene.jig):
+        idx = nodes_in_box(nodes, jig.region_box_mm)
         if len(idx) == 0:
             raise SceneError(f"[[jig]] #{n + 1}.region_box_mm: no mesh node inside "
-                             f"{jig['region_box_mm']}")
-        out.append(Jig(idx, spring_mn_per_mm(jig["stiffness_n_per_mm"]), jig["rotate_deg"],
-                       tuple(jig["axis"]), tuple(jig["pivot_mm"]), tuple(jig["translate_mm"])))
+                             f"{jig.region_box_mm}")
+        out.append(Jig(idx, spring_mn_per_mm(jig.stiffness_n_per_mm), jig.rotate_deg,
+                       tuple(jig.axis), tuple(jig.pivot_mm), tuple(jig.translate_mm)))
     return out
 
 
 def _fixed(scene, nodes: np.ndarray) -> tuple[np.ndarray, list]:
     """(held node indices, [(moved node indices, displacement mm)]) of [[fixed]]."""
     idx, moved = [], []
-    for n, fx in enumerate(scene["fixed"]):
-        inside = nodes_in_box(nodes, fx["box_mm"])
+    for n, fx in enumerate(scene.fixed):
+        inside = nodes_in_box(nodes, fx.box_mm)
         if len(inside) == 0:
-            raise SceneError(f"[[fixed]] #{n + 1}.box_mm: no mesh node inside {fx['box_mm']}")
-        if fx.get("displacement_mm") is not None:
-            moved.append((inside, np.asarray(fx["displacement_mm"], float)))
+            raise SceneError(f"[[fixed]] #{n + 1}.box_mm: no mesh node inside {fx.box_mm}")
+        if fx.displacement_mm is not None:
+            moved.append((inside, np.asarray(fx.displacement_mm, float)))
         else:
             idx.append(inside)
     return (np.unique(np.concatenate(idx)) if idx else np.zeros(0, np.int64)), moved
@@ -146,12 +145,13 @@ def _fixed(scene, nodes: np.ndarray) -> tuple[np.ndarray, list]:
 
 def state_loads(scene, names: list[str]) -> list[Load]:
     """One Load per actuation state (pressure or volume growth per chamber)."""
-    act, s = scene["actuation"], n_states(scene)
+    act, s = scene.actuation, n_states(scene)
     k = len(names)
     pressure, growth = np.zeros((s, k)), np.zeros((s, k))
     vc = np.zeros(k, bool)
-    for key, target in (("pressure_kpa", pressure), ("volume_growth_mm3", growth)):
-        for cname, values in (act[key] or {}).items():
+    for key, table, target in (("pressure_kpa", act.pressure_kpa, pressure),
+                               ("volume_growth_mm3", act.volume_growth_mm3, growth)):
+        for cname, values in (table or {}).items():
             if cname not in names:
                 raise SceneError(f"[actuation].{key}.{cname}: no such chamber in the mesh "
                                  f"(chambers: {', '.join(names) or 'none'})")
@@ -166,19 +166,19 @@ def build_model(scene, mesh: dict):
     tets built here from the linear mesh, edge nodes on ellipsoid chambers moved onto
     the ellipsoid)."""
     names = [str(n) for n in mesh["chamber_names"]]
-    wanted = [c["name"] for c in scene.chambers]
+    wanted = [c.name for c in scene.chambers]
     if sorted(names) != sorted(wanted):
         raise MeshError(f"mesh chambers {names} do not match the scene's {wanted}; "
                         "rerun `fruit tetra`")
-    mat = scene["material"]
+    mat = scene.material
     material = materials.from_scene(mat)
-    element = scene["fem"]["element"]
-    gravity = scene["gravity"]["vector_m_s2"] if scene.has("gravity") else None
+    element = scene.fem.element
+    gravity = scene.gravity.vector_m_s2 if scene.has("gravity") else None
     if material.model == "corotational":
         nodes = mesh["nodes"]
         fixed, moved = _fixed(scene, nodes)
-        return Model.from_arrays(nodes, mesh["tets"], mat["young_modulus_kpa"],
-                                 mat["poisson_ratio"], density_kg_m3=mat["density_kg_m3"],
+        return Model.from_arrays(nodes, mesh["tets"], mat.young_modulus_kpa,
+                                 mat.poisson_ratio, density_kg_m3=mat.density_kg_m3,
                                  gravity_m_s2=gravity, fixed_nodes=fixed,
                                  chambers=io.chamber_dict(mesh), jigs=_jigs(scene, nodes),
                                  prescribed=moved)
@@ -191,14 +191,14 @@ def build_model(scene, mesh: dict):
     walls = [pressure.orient_outward(nodes, t) for t in chambers.values()]
     if ELEMENTS[element].order == 2:
         nodes, tets, walls = quadratic_mesh(nodes, tets, walls)
-        spec = {c["name"]: c["ellipsoid"] for c in scene.chambers}
+        spec = {c.name: c.ellipsoid for c in scene.chambers}
         for name, wall in zip(chambers, walls, strict=True):
             if spec.get(name) is not None:
                 curve_onto_ellipsoid(nodes, tets, np.unique(wall[:, 3:]),
-                                     spec[name]["center_mm"], spec[name]["radii_mm"])
+                                     spec[name].center_mm, spec[name].radii_mm)
     fixed, moved = _fixed(scene, nodes)
     return ContinuumModel.from_arrays(
-        nodes, tets, material, element, density_kg_m3=mat["density_kg_m3"],
+        nodes, tets, material, element, density_kg_m3=mat.density_kg_m3,
         gravity_m_s2=gravity, fixed_nodes=fixed, chambers=dict(zip(chambers, walls,
                                                                    strict=True)),
         jigs=_jigs(scene, nodes), prescribed=moved)
@@ -219,14 +219,14 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
     `jig_steps` load steps under a jig, and at least `first_steps` with the hyperelastic
     model (a nearly incompressible body loaded from rest in one step needs about four
     times the Newton iterations: 65 against 15 on the default Fruit at 8 mm)."""
-    cfg = scene["solver"]
+    cfg = scene.solver
     steps = 1
     if first_state:
-        steps = cfg["jig_steps"] if jig else 1
-        if materials.from_scene(scene["material"]).model != "corotational":
-            steps = max(steps, cfg["first_steps"])
-    return SolverOptions(cfg["tolerance"], cfg["max_iterations"], cfg["max_subdivisions"],
-                         cfg["linear_solver"], steps, cfg["displacement_tolerance_mm"])
+        steps = cfg.jig_steps if jig else 1
+        if materials.from_scene(scene.material).model != "corotational":
+            steps = max(steps, cfg.first_steps)
+    return SolverOptions(cfg.tolerance, cfg.max_iterations, cfg.max_subdivisions,
+                         cfg.linear_solver, steps, cfg.displacement_tolerance_mm)
 
 
 def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
@@ -235,7 +235,7 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
     pressure vectors; write out_dir/states.npz (see module docstring), and
     out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any."""
     progress = progress or _noop
-    tracks_csv = scene["tracks"]["file"] or tracks_csv
+    tracks_csv = scene.tracks.file or tracks_csv
     tracks = None
     if tracks_csv is not None:  # read before solving: a bad file fails fast
         from fruitcli.fabrication import yarn
@@ -245,18 +245,12 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
     model = build_model(scene, mesh)
     for note in model.notes:
         progress(f"simulate: {note}")
-    cfg = scene["solver"]
-    if cfg["linear_solver"] not in LINEAR_SOLVERS:
-        raise SceneError(f"[solver].linear_solver: expected one of {', '.join(LINEAR_SOLVERS)}, "
-                         f"got {cfg['linear_solver']!r}")
-    if cfg["tolerance"] <= 0 or cfg["max_iterations"] < 1 or cfg["jig_steps"] < 1:
-        raise SceneError("[solver]: expected tolerance > 0, max_iterations >= 1, jig_steps >= 1")
     if pressures is None:
         loads = state_loads(scene, model.chamber_names)
     else:
         table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
         loads = [Load.pressures(row) for row in table]
-    solver = model.make_solver(cfg["linear_solver"])
+    solver = model.make_solver(scene.solver.linear_solver)
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
@@ -296,10 +290,10 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
                    taxels_mm=model.map_points(tet, w, states_x))
     summary_yarns = None
     if tracks is not None:
-        tr = scene["tracks"]
+        tr = scene.tracks
         yarn_rows, summary_yarns = yarn.follow_tracks(
-            model, tracks, np.stack([r.x for r in results]), tr["yarn_max_stretch"],
-            tr["zigzag_pitch_mm"], OUTSIDE_WARNING, progress)
+            model, tracks, np.stack([r.x for r in results]), tr.yarn_max_stretch,
+            tr.zigzag_pitch_mm, OUTSIDE_WARNING, progress)
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", out)
         if tracks is not None:

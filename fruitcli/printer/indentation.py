@@ -56,7 +56,7 @@ def bench_samples(scene, taxels, states_npz):
 
     if states_npz is not None:
         states = load_states(states_npz, len(taxels))
-        state = scene["bench"]["state"]
+        state = scene.bench.state
         taxels_mm = states.taxels_mm[state]
         xy = _sample_points(scene, taxels_mm)
         nodes = states.nodes_mm(state)
@@ -164,13 +164,13 @@ class BoardStream:
 def check_reach(pr: dict, placement: Placement, contact_mm: np.ndarray, top_z: float,
                 where: str) -> float:
     """The safe height in printer z (mm); it must be reachable."""
-    z_safe = float(placement.origin[2] + top_z + pr["safe_height_mm"])
-    bed = pr["bed_mm"]
+    z_safe = float(placement.origin[2] + top_z + pr.safe_height_mm)
+    bed = pr.bed_mm
     if z_safe > bed[5]:
         raise BenchStopped(f"{where}: [printer].safe_height_mm: the safe height, printer z = "
-                           f"{z_safe:.2f} mm ({pr['safe_height_mm']:g} mm above the model's "
+                           f"{z_safe:.2f} mm ({pr.safe_height_mm:g} mm above the model's "
                            f"top), is above the bed's reachable z max {bed[5]:g} mm")
-    if placement.origin[2] + contact_mm[:, 2].min() - pr["max_press_mm"] < bed[2] - 1e-9:
+    if placement.origin[2] + contact_mm[:, 2].min() - pr.max_press_mm < bed[2] - 1e-9:
         raise BenchStopped(f"{where}: [printer].model_origin_mm: the model's surface minus "
                            f"max_press_mm lies below the bed's z min {bed[2]:g} mm")
     return z_safe
@@ -189,38 +189,38 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
     from fruitcli.sensing.live.serial_ports import FrameReader, open_port
 
     say = progress or (lambda msg: None)
-    pr = scene["printer"]
+    pr = scene.printer
     out = Path(out_dir) / indenter
     if (out / "frames.npz").exists() and not overwrite:
         raise BenchStopped(f"{out / 'frames.npz'}: exists; give --overwrite to replace it "
                            "(it is replaced once the new run has frames)")
     taxels = read_taxels(taxels_csv, FrameError)
-    board = scene["board"]
+    board = scene.board
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
-    threshold = scene["detection"]["threshold_counts"]
+    threshold = scene.detection.threshold_counts
     # idle frames first: enough for the bench's C0 and for `fruit locate`'s baseline
-    n_base = max(scene["bench"]["baseline_frames"], scene["detection"]["baseline_frames"])
+    n_base = max(scene.bench.baseline_frames, scene.detection.baseline_frames)
     placement = Placement.from_printer(pr)
     ids, contact, top, n_all = bench_samples(scene, taxels, states_npz)
     if not len(ids):
         raise BenchStopped(f"{scene.path.name}: no sample point over the taxels' surface")
     z_safe = check_reach(pr, placement, contact, top, scene.path.name)
-    feed, step = pr["feed_mm_min"], pr["step_mm"]
+    feed, step = pr.feed_mm_min, pr.step_mm
     say(f"{len(ids)} samples ({n_all - len(ids)} off the surface left out), safe height "
         f"z = {z_safe:.2f} mm, {indenter} indenter")
-    ser = open_port(printer_port, pr["baud"])
+    ser = open_port(printer_port, pr.baud)
     try:
         bser = open_port(board_port, board_baud)
     except FrameError:
         ser.close()
         raise
-    printer = Marlin(ser, printer_port, pr["timeout_s"], log=say)
-    stream = BoardStream(FrameReader(bser, board["rows"], board["cols"], board_port, fmt))
+    printer = Marlin(ser, printer_port, pr.timeout_s, log=say)
+    stream = BoardStream(FrameReader(bser, board.rows, board.cols, board_port, fmt))
     log = BenchLog()
     meta = {"source": "printer bench", "scene": scene.name, "indenter": indenter,
             "printer_port": printer_port, "board_port": board_port,
             "step_mm": step, "threshold_counts": threshold, "baseline_frames": n_base,
-            "model_origin_mm": list(placement.origin), "rotate_z_deg": pr["rotate_z_deg"],
+            "model_origin_mm": list(placement.origin), "rotate_z_deg": pr.rotate_z_deg,
             "stopped": ""}
     where = "start-up"
     tip = None
@@ -228,7 +228,7 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
         printer.wait_ready()
         printer.command("G21")
         printer.command("G90")
-        if pr["home"]:
+        if pr.home:
             say("homing (G28)")
             printer.command("G28")
         x0, y0, _ = printer.position()
@@ -243,11 +243,11 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
         for n, (k, p_model) in enumerate(zip(ids, contact, strict=True)):
             where = f"sample {k} (model x {p_model[0]:.2f}, y {p_model[1]:.2f} mm)"
             p = placement.to_printer(p_model)
-            z_low = p[2] - pr["max_press_mm"]
-            if outside_bed(p, z_low, z_safe, pr["bed_mm"]):
+            z_low = p[2] - pr.max_press_mm
+            if outside_bed(p, z_low, z_safe, pr.bed_mm):
                 raise BenchStopped(f"{where}: printer x {p[0]:.2f}, y {p[1]:.2f}, z "
                                    f"{z_low:.2f}..{z_safe:.2f} mm is outside [printer].bed_mm "
-                                   f"{pr['bed_mm']}")
+                                   f"{pr.bed_mm}")
             tip = np.array([p[0], p[1], z_safe])
             printer.move(*tip, feed)
             tip = np.array([p[0], p[1], p[2] + START_GAP_MM])
@@ -265,7 +265,7 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
                 z = tip[2] - step
                 if z < z_low - 1e-9:
                     raise BenchStopped(f"{where}: no touch registered down to "
-                                       f"[printer].max_press_mm = {pr['max_press_mm']:g} mm "
+                                       f"[printer].max_press_mm = {pr.max_press_mm:g} mm "
                                        "below the expected surface")
                 tip = np.array([p[0], p[1], z])
                 printer.move(*tip, feed)

@@ -18,8 +18,9 @@ class Placement:
                              [0.0, 0.0, 1.0]])
 
     @classmethod
-    def from_printer(cls, printer: dict) -> Placement:
-        return cls(printer["model_origin_mm"], printer["rotate_z_deg"])
+    def from_printer(cls, printer) -> Placement:
+        """From a scene's [printer] (a `fruitcli.scene.PrinterSection`)."""
+        return cls(printer.model_origin_mm, printer.rotate_z_deg)
 
     def to_printer(self, p_model) -> np.ndarray:
         """(..., 3) model mm -> printer mm."""

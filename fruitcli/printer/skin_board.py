@@ -23,7 +23,7 @@ from fruitcli.tables import Taxels
 class SkinBoard:
     """`frame(k)` -> (rows, cols) counts for the tip where `tip_mm()` says it is now."""
 
-    def __init__(self, taxels: Taxels, board: dict, placement: Placement, tip_mm,
+    def __init__(self, taxels: Taxels, board, placement: Placement, tip_mm,
                  indenter: str = "small", seed: int = 0,
                  params: forward.SkinParams = forward.DEFAULT_PARAMS):
         from scipy.interpolate import LinearNDInterpolator
@@ -31,7 +31,7 @@ class SkinBoard:
         forward.footprint_sigma_mm(indenter, params)  # validates the name
         self.taxels_mm = taxels.xyz_mm
         self.rows, self.cols = taxel_cells(taxels, board, "taxels")
-        self.shape = (board["rows"], board["cols"])
+        self.shape = (board.rows, board.cols)
         self.placement, self.tip_mm, self.indenter = placement, tip_mm, indenter
         self.skin = forward.make_skin(len(taxels), seed, params, taxels.ids)
         self.rng = np.random.default_rng([seed, 7])

@@ -1,8 +1,8 @@
 """Sensing: from raw CDC frames to touches in 3D, and the skin model behind the virtual bench.
 
 Sub-packages, by concept (each may import only those listed before it, plus
-`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`, `fruitcli.geometry` and
-`fruitcli.fem`):
+`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`, `fruitcli.geometry`,
+`fruitcli.fem` and `fruitcli.scene`, whose typed sections they read):
 
 - `frames`: the board (21 x 12 cells, taxel <-> cell), its stock firmware's formats and
   recordings of frames (`.npz`, MuCa ASCII logs), read whole or chunk by chunk.

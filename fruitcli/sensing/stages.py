@@ -15,6 +15,7 @@ import numpy as np
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.geometry.body_surface import SurfaceProjector, body_surface, contact_heights
+from fruitcli.scene import Scene, default_scene
 from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Locator, Settings, TouchTable
 from fruitcli.sensing.detection.locate import States, load_states, match_chambers
 from fruitcli.sensing.frames.board import check_frame_shape
@@ -26,12 +27,9 @@ from fruitcli.tables import Taxels, read_taxels
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
-def _section(scene, name: str) -> dict:
-    if scene is None:
-        from fruitcli.scene import SCHEMA
-
-        return {k: spec.default for k, spec in SCHEMA[name].items()}
-    return scene[name]
+def _or_defaults(scene: Scene | None) -> Scene:
+    """The scene, or without one a scene at the schema's defaults."""
+    return default_scene() if scene is None else scene
 
 
 def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
@@ -42,7 +40,7 @@ def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedReco
     ReducedModel of these taxels) and pressures in the recording, each frame's taxels
     from the reduced model at its pressures; `gain` (T,): the gains detection divides
     by (None: off). -> (locator, pressure)."""
-    board = _section(scene, "board")
+    board = _or_defaults(scene).board
     check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if reduced is not None and rec.pressure_kpa is not None:
         names = tuple(rec.chamber_names)
@@ -92,7 +90,7 @@ def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
 def surface_projector(scene, rec, states, pressure, taxels, surface_path, surface_unit,
                       where: str):
     """The `SurfaceProjector` of ``[detection].project = "surface"`` (None otherwise)."""
-    if _section(scene, "detection").get("project", "none") != "surface":
+    if _or_defaults(scene).detection.project != "surface":
         return None
     if surface_path is None:
         raise FrameError(f"{where}: [detection].project = surface needs the body's surface "
@@ -127,10 +125,10 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = read_taxels(taxels_csv, FrameError)
-    board = _section(scene, "board")
+    board = _or_defaults(scene).board
     states = None if states_npz_or_none is None else load_states(states_npz_or_none,
                                                                  len(taxels))
-    settings = Settings.from_scene(_section(scene, "detection"),
+    settings = Settings.from_scene(_or_defaults(scene).detection,
                                    baseline_frames=baseline_frames,
                                    threshold_counts=threshold_counts, method=method)
     if settings.threshold_counts <= 0:
@@ -139,8 +137,8 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     gain = detection_gain(scene, taxels, gains_csv)
     if workers is None:
         workers = min(4, _usable_cpus())
-    with open_recording(frames_path, board["rows"], board["cols"],
-                        board.get("format", "auto")) as rec:
+    with open_recording(frames_path, board.rows, board.cols,
+                        board.format) as rec:
         locator, pressure = build_locator(scene, taxels, states, rec, settings, where,
                                           reduced, gain)
         projector = surface_projector(scene, rec, states, pressure, taxels, surface_path,
@@ -231,10 +229,10 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
     from fruitcli.sensing.skin.virtual_bench import quarter_samples
     from fruitcli.tables import read_table
 
-    spec = scene["bench"]["samples"]
+    spec = scene.bench.samples
     if spec == "quarter":
-        g = scene["grid"]
-        return quarter_samples(taxels_mm[:, :2], g["spacing_x_mm"], g["spacing_y_mm"])
+        g = scene.grid
+        return quarter_samples(taxels_mm[:, :2], g.spacing_x_mm, g.spacing_y_mm)
     from fruitcli.scene import resolve_path
 
     cols = read_table(resolve_path(scene.path, spec), ["x_mm", "y_mm"], error=FrameError)
@@ -254,12 +252,12 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = read_taxels(taxels_csv, FrameError)
-    board, bench = scene["board"], scene["bench"]
-    threshold = scene["detection"]["threshold_counts"]
+    board, bench = scene.board, scene.bench
+    threshold = scene.detection.threshold_counts
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
-    state = bench["state"]
-    skin = forward.make_skin(len(taxels), bench["seed"], forward.SkinParams.from_table(
-        _section(scene, "skin")), taxels.ids)
+    state = bench.state
+    skin = forward.make_skin(len(taxels), bench.seed, forward.SkinParams.from_table(
+        _or_defaults(scene).skin), taxels.ids)
     surface = None if surface_path is None else body_surface(surface_path, surface_unit)
     states = None
     if states_npz_or_none is not None:
@@ -282,19 +280,19 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
         f"({len(xy) - len(contact)} outside it are left out)")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "truth_surface": truth_surface, "indenters": {}}
-    for n, name in enumerate(bench["indenters"]):
+    for n, name in enumerate(bench.indenters):
         forward.footprint_sigma_mm(name, skin.params)  # validates the name
-        rng = np.random.default_rng([bench["seed"], n])
+        rng = np.random.default_rng([bench.seed, n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
-                      bench["step_mm"], bench["baseline_frames"], threshold, rng)
+                      bench.step_mm, bench.baseline_frames, threshold, rng)
         n_frames = run.counts.shape[0]
-        fill = forward.frame_counts(np.full((n_frames, board["rows"], board["cols"]),
+        fill = forward.frame_counts(np.full((n_frames, board.rows, board.cols),
                                             forward.BASELINE_COUNTS),
                                     np.median(skin.noise_std_counts), rng)
-        frames = cell_counts(run.counts, rows, cols, (board["rows"], board["cols"]), fill)
+        frames = cell_counts(run.counts, rows, cols, (board.rows, board.cols), fill)
         meta = {"source": "bench", "scene": scene.name, "indenter": name, "state": state,
-                "seed": bench["seed"], "step_mm": bench["step_mm"],
-                "threshold_counts": threshold, "baseline_frames": bench["baseline_frames"],
+                "seed": bench.seed, "step_mm": bench.step_mm,
+                "threshold_counts": threshold, "baseline_frames": bench.baseline_frames,
                 "fps": BENCH_FPS}
         rec = Recording(frames, np.arange(n_frames) / BENCH_FPS, sample=run.sample, meta=meta)
         write_npz(out_dir / name / "frames.npz", rec)
@@ -320,42 +318,42 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     out_dir = Path(out_dir)
     taxels = read_taxels(taxels_csv, FrameError)
     states = load_states(states_npz, len(taxels))
-    sens = scene["sensitivity"]
-    skin = forward.make_skin(len(taxels), scene["bench"]["seed"],
-                             forward.SkinParams.from_table(_section(scene, "skin")),
+    sens = scene.sensitivity
+    skin = forward.make_skin(len(taxels), scene.bench.seed,
+                             forward.SkinParams.from_table(_or_defaults(scene).skin),
                              taxels.ids)
-    rng = np.random.default_rng([scene["bench"]["seed"], 99])
+    rng = np.random.default_rng([scene.bench.seed, 99])
     rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts,
-                                                (sens["noise_frames"], len(taxels))),
+                                                (sens.noise_frames, len(taxels))),
                                 skin.noise_std_counts, rng)
     std = sensitivity.noise_std_counts(rest)
     strain = forward.taxel_strain(states)  # (S, T)
     gain = forward.calibrate_strain_gain()
     shift_model = forward.strain_shift_counts(strain, skin, gain)
-    anim = sensitivity.animation_shift(shift_model, sens["animation_frames"])
+    anim = sensitivity.animation_shift(shift_model, sens.animation_frames)
     played = forward.frame_counts(skin.baseline_counts + anim, skin.noise_std_counts, rng)
     shift = sensitivity.max_shift_counts(played, rest.mean(axis=0))
     model_max = shift_model.max(axis=0)
-    threshold = scene["detection"]["threshold_counts"]
+    threshold = scene.detection.threshold_counts
     taxel_rows = [{"id": int(taxels.ids[k]), "i": int(taxels.i[k]), "j": int(taxels.j[k]),
                    "std": float(std[k]), "max_shift": float(shift[k]),
                    "max_shift_model": float(model_max[k]), "strain_max": float(strain[:, k].max()),
                    "fab": float(skin.fab[k])} for k in range(len(taxels))]
     out = {"units": "counts (strain: Green-Lagrange norm, -)", "threshold_counts": threshold,
-           "noise_frames": sens["noise_frames"], "animation_frames": sens["animation_frames"],
+           "noise_frames": sens.noise_frames, "animation_frames": sens.animation_frames,
            "states": states.n_states, "strain_gain_counts": gain,
            "summary": {"std": sensitivity.summary(std), "max_shift": sensitivity.summary(shift),
                        "max_shift_model": sensitivity.summary(model_max)},
            "taxels": taxel_rows}
     write_json(out_dir / "sensitivity.json", out)
     save_heatmap(out_dir / "noise_std.png", taxels.i, taxels.j, std,
-                 f"noise std over {sens['noise_frames']} frames at rest", threshold / 2)
+                 f"noise std over {sens.noise_frames} frames at rest", threshold / 2)
     save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
                  "max baseline shift over the animation", threshold)
     outline = states.rest_nodes[states.surface_tris][:, :, :2]
     xy = taxels.xyz_mm[:, :2]
     save_topview(out_dir / "noise_std_top.png", xy, std, outline,
-                 f"noise std over {sens['noise_frames']} frames at rest (top view, counts)",
+                 f"noise std over {sens.noise_frames} frames at rest (top view, counts)",
                  threshold / 2)
     save_topview(out_dir / "max_shift_top.png", xy, shift, outline,
                  "max baseline shift over the animation (top view, counts)", threshold)

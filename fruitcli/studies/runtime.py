@@ -8,7 +8,6 @@ taxels' position error in the last (most deformed) state against the finest sett
 
 from __future__ import annotations
 
-import copy
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,16 +52,14 @@ def fem_cases(default_size: float) -> list[FemCase]:
 
 
 def _scene_variant(scene, case: FemCase):
-    variant = copy.deepcopy(scene)
-    variant.data["mesh"]["size_mm"] = case.size_mm
-    variant.data["solver"].update(tolerance=case.tolerance, max_iterations=case.max_iterations,
-                                  linear_solver=case.linear_solver)
+    changes = {"mesh.size_mm": case.size_mm, "solver.tolerance": case.tolerance,
+               "solver.max_iterations": case.max_iterations,
+               "solver.linear_solver": case.linear_solver}
     if case.displacement_tolerance_mm is not None:
-        variant.data["solver"]["displacement_tolerance_mm"] = case.displacement_tolerance_mm
+        changes["solver.displacement_tolerance_mm"] = case.displacement_tolerance_mm
     if case.element is not None:
-        variant.data["fem"]["element"] = case.element
-        variant.data["material"]["model"] = case.material
-    return variant
+        changes |= {"fem.element": case.element, "material.model": case.material}
+    return scene.with_values(changes)
 
 
 def run_fem_case(args) -> dict:
@@ -161,8 +158,7 @@ def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Pat
 
     rows = []
     for name, params in DETECTION_VARIANTS.items():
-        variant = copy.deepcopy(scene)
-        variant.data["detection"].update(params)
+        variant = scene.with_values({f"detection.{k}": v for k, v in params.items()})
         errs, frames, seconds = [], 0, 0.0
         for ind_dir in sorted(p for p in bench_dir.iterdir() if (p / "frames.npz").exists()):
             out = work / "detect" / name.split()[0] / ind_dir.name

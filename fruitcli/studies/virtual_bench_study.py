@@ -8,7 +8,6 @@ protocol). Units: mm, counts.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,15 +46,16 @@ class Case:
         return f"{self.parameter} {self.value:g}"
 
 
-def cases(skin_table: dict, indenters: list[str], surface: bool = False) -> list[Case]:
+def cases(skin, indenters: list[str], surface: bool = False) -> list[Case]:
     """The default, then each parameter moved alone. The footprint of an indenter of
     radius r is hypot(field sigma, r), as in `fruitcli.sensing.skin.forward`. With the body's
-    `surface`, also the default skin located with ``[detection].project = "surface"``."""
+    `surface`, also the default skin located with ``[detection].project = "surface"``.
+    `skin`: the scene's [skin] (a `fruitcli.scene.SkinSection`)."""
     from fruitcli.sensing.skin import forward
 
     out = [Case("default", float("nan"))]
     for f in FIELD_SIGMAS_MM:
-        if f == forward.FIELD_SIGMA_MM and not skin_table.get("footprint_sigma_mm"):
+        if f == forward.FIELD_SIGMA_MM and not skin.footprint_sigma_mm:
             continue  # that is the default
         feet = {i: float(np.hypot(f, forward.INDENTER_RADIUS_MM[i])) for i in indenters
                 if i in forward.INDENTER_RADIUS_MM}
@@ -63,10 +63,10 @@ def cases(skin_table: dict, indenters: list[str], surface: bool = False) -> list
     for key, values in (("contact_counts", CONTACT_COUNTS), ("gap_decay_mm", GAP_DECAYS_MM),
                         ("noise_std_counts", NOISE_STDS), ("gain_spread", GAIN_SPREADS)):
         for v in values:
-            if skin_table.get(key) != v:
+            if getattr(skin, key) != v:
                 # drawn gains replace measured ones
                 extra = {"taxel_gain": None} if key == "gain_spread" and \
-                    skin_table.get("taxel_gain") else {}
+                    skin.taxel_gain else {}
                 out.append(Case(key, v, {key: v, **extra}))
     if surface:
         out.append(Case("project", float("nan"), detection={"project": "surface"}))
@@ -80,19 +80,19 @@ def run_case(args) -> dict:
     from fruitcli.sensing.stages import run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, case = args
-    scene = copy.deepcopy(load_scene(scene_path))
-    scene.data["skin"].update(case.skin)
-    scene.data["detection"].update(case.detection)
+    scene = load_scene(scene_path).with_values(
+        {f"skin.{k}": v for k, v in case.skin.items()}
+        | {f"detection.{k}": v for k, v in case.detection.items()})
     base = Path(work) / case.name.replace(" ", "_").replace(",", "")
     bench = run_bench(scene, taxels, states, base / "bench", surface_path=surface,
                       surface_unit=unit)
-    config = scene["scene"]["configuration"]
+    config = scene.scene.configuration
     rows = []
-    for ind in scene["bench"]["indenters"]:
+    for ind in scene.bench.indenters:
         run_locate(scene, base / "bench" / ind / "frames.npz", taxels, states, base / ind,
                    surface_path=surface, surface_unit=unit)
         s, *_ = evaluate_pair(base / "bench" / ind / "truth.csv", base / ind / "measured.csv",
-                              scene["bench"]["reference_length_mm"], f"{config}, {ind}")
+                              scene.bench.reference_length_mm, f"{config}, {ind}")
         c = s["compare"]
         rows.append({"setting": case.name, "parameter": case.parameter, "value": case.value,
                      "indenter": ind, "label": s["label"], "n": s["n"],
@@ -153,19 +153,19 @@ def table_markdown(rows: list[dict], scene_name: str, paper: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def default_value(parameter: str, skin_table: dict) -> float:
+def default_value(parameter: str, skin) -> float:
     """The default's x position in the plot."""
     from fruitcli.sensing.skin import forward
 
     if parameter == "footprint":
         return forward.FIELD_SIGMA_MM
-    v = skin_table.get(parameter)
+    v = getattr(skin, parameter)
     if parameter == "noise_std_counts" and isinstance(v, list):
         return float(np.mean(v))  # a per-taxel range: drawn at its middle
     return float(v)
 
 
-def plot(path: Path, rows: list[dict], skin_table: dict, paper: dict) -> None:
+def plot(path: Path, rows: list[dict], skin, paper: dict) -> None:
     """bench.png: one panel per parameter, mean error against its value per indenter,
     registered (solid) and unregistered (dashed); the default as a ring, the paper's
     Table I value as a dotted line."""
@@ -181,7 +181,7 @@ def plot(path: Path, rows: list[dict], skin_table: dict, paper: dict) -> None:
                       strict=False))
     fig, axes = plt.subplots(1, len(PARAMETERS), figsize=(17, 4.2), sharey=True)
     for ax, par in zip(axes, PARAMETERS, strict=True):
-        x0 = default_value(par, skin_table)
+        x0 = default_value(par, skin)
         for ind in indenters:
             mine = [r for r in rows if r["indenter"] == ind and r["parameter"] == par]
             base = next(r for r in rows if r["indenter"] == ind and r["parameter"] == "default")

@@ -24,7 +24,7 @@ def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=
 
     sc = wanting_reduced(scene)
     if taxels_csv is not None:
-        sc.data = {**sc.data, "grid": {**sc.data["grid"], "taxels": Path(taxels_csv)}}
+        sc = sc.with_values({"grid.taxels": Path(taxels_csv)})
     log = progress or (lambda msg: None)
     shown = None  # the open bar of the build's full solves
 
@@ -60,11 +60,11 @@ def actuation_table(scene, names: list[str]) -> np.ndarray:
     from fruitcli.errors import SceneError
     from fruitcli.scene import n_states
 
-    act = scene["actuation"]
-    if act["volume_growth_mm3"]:
+    act = scene.actuation
+    if act.volume_growth_mm3:
         raise SceneError("[actuation].volume_growth_mm3: the reduced model maps pressures; "
                          "use --model full or --pressures")
-    table = act["pressure_kpa"] or {}
+    table = act.pressure_kpa or {}
     return np.stack([np.asarray(table.get(n, [0.0] * n_states(scene)), float)
                      for n in names], axis=1)
 
@@ -79,7 +79,7 @@ def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_cs
     from fruitcli.fsutil import staged_dir
 
     model = ensure_reduced(scene, out_dir, taxels_csv, progress, bar=bar)
-    names = [c["name"] for c in scene.chambers]
+    names = [c.name for c in scene.chambers]
     where = str(pressures_csv) if pressures_csv is not None else f"{scene.path.name}: " \
         "[actuation]"
     if table is None:

@@ -15,20 +15,20 @@ from fruitcli.workflow.stage_types import Context, Stage
 
 # ----------------------------------------------------------------------------- helpers
 def _geometry_kind(scene: Scene) -> str:
-    geo = scene["geometry"]
-    if geo["artist"] is not None:
+    geo = scene.geometry
+    if geo.artist is not None:
         return "artist"
-    if geo["solid"] is not None:
+    if geo.solid is not None:
         return "solid"
-    if geo["pad_size_mm"] is not None:
+    if geo.pad_size_mm is not None:
         return "pad"
     return "none"
 
 
 def taxels_path(scene: Scene, ctx: Context) -> Path | None:
     """Where this scene's taxel table comes from."""
-    if scene["grid"]["taxels"] is not None:
-        return scene["grid"]["taxels"]
+    if scene.grid.taxels is not None:
+        return scene.grid.taxels
     kind = _geometry_kind(scene)
     if kind == "artist":
         return ctx.dir("make-tracks") / "taxels.csv"
@@ -42,19 +42,19 @@ def solid_path(scene: Scene, ctx: Context) -> Path | None:
     if kind == "artist":
         return ctx.dir("make-tracks") / "reduced.stl"
     if kind == "solid":
-        return scene["geometry"]["solid"]
+        return scene.geometry.solid
     return None
 
 
 def _has_tracks(scene: Scene) -> bool:
-    return scene["tracks"]["file"] is not None or _geometry_kind(scene) == "artist"
+    return scene.tracks.file is not None or _geometry_kind(scene) == "artist"
 
 
 def tracks_path(scene: Scene, ctx: Context) -> Path | None:
     """Where this scene's yarn track centre lines come from ([tracks] file, or the
     tracks.csv of make-tracks), or None: no yarns.csv."""
-    if scene["tracks"]["file"] is not None:
-        return scene["tracks"]["file"]
+    if scene.tracks.file is not None:
+        return scene.tracks.file
     return ctx.dir("make-tracks") / "tracks.csv" if _has_tracks(scene) else None
 
 
@@ -67,17 +67,17 @@ def states_path(scene: Scene, ctx: Context) -> Path | None:
 
 
 def indenters(scene: Scene) -> list[str]:
-    return list(scene["bench"]["indenters"])
+    return list(scene.bench.indenters)
 
 
 # ----------------------------------------------------------------------------- make-artist
 def _artist_needed(scene):
-    geo = scene["geometry"]
-    if geo["artist"] is None:
+    geo = scene.geometry
+    if geo.artist is None:
         kind = _geometry_kind(scene)
         return False, ("no geometry: evaluation only" if kind == "none"
                        else f"no artist mesh: {kind} geometry")
-    if not geo["generate_artist"]:
+    if not geo.generate_artist:
         return False, "artist mesh given"
     return True, "default fruit generated on first use"
 
@@ -86,8 +86,8 @@ def _artist_run(scene, ctx, out_dir):
     from fruitcli.geometry.artist import write_artist
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_artist(scene["geometry"]["artist"])
-    return {"artist": str(scene["geometry"]["artist"])}
+    write_artist(scene.geometry.artist)
+    return {"artist": str(scene.geometry.artist)}
 
 
 # ----------------------------------------------------------------------------- make-tracks
@@ -103,21 +103,23 @@ def _tracks_needed(scene):
 
 
 def _tracks_inputs(scene, ctx):
-    return {"artist": scene["geometry"]["artist"], "unit": scene["geometry"]["unit"],
-            "fit_mm": scene["geometry"]["fit_mm"],
-            "tracks": {k: v for k, v in scene["tracks"].items() if k not in YARN_KEYS},
-            "grid": {k: scene["grid"][k] for k in ("spacing_x_mm", "spacing_y_mm", "origin_mm")}}
+    grid = scene.grid
+    return {"artist": scene.geometry.artist, "unit": scene.geometry.unit,
+            "fit_mm": scene.geometry.fit_mm,
+            "tracks": {k: v for k, v in scene.values("tracks").items() if k not in YARN_KEYS},
+            "grid": {"spacing_x_mm": grid.spacing_x_mm, "spacing_y_mm": grid.spacing_y_mm,
+                     "origin_mm": grid.origin_mm}}
 
 
 def _tracks_run(scene, ctx, out_dir):
     from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 
-    geo, tr, grid = scene["geometry"], scene["tracks"], scene["grid"]
+    geo, tr, grid = scene.geometry, scene.tracks, scene.grid
     report = make_tracks(
-        geo["artist"], out_dir, unit=geo["unit"], cover_mm=tr["cover_mm"], faces=tr["faces"],
-        spacing_x_mm=grid["spacing_x_mm"], spacing_y_mm=grid["spacing_y_mm"],
-        origin_mm=grid["origin_mm"], track_radius_mm=tr["track_radius_mm"],
-        split_z_mm=tr["split_z_mm"], fit_mm=geo["fit_mm"], progress=ctx.progress,
+        geo.artist, out_dir, unit=geo.unit, cover_mm=tr.cover_mm, faces=tr.faces,
+        spacing_x_mm=grid.spacing_x_mm, spacing_y_mm=grid.spacing_y_mm,
+        origin_mm=grid.origin_mm, track_radius_mm=tr.track_radius_mm,
+        split_z_mm=tr.split_z_mm, fit_mm=geo.fit_mm, progress=ctx.progress,
         names=SCENE_NAMES)
     return {"taxels": report["taxels"],
             "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
@@ -127,21 +129,21 @@ def _tracks_run(scene, ctx, out_dir):
 def _pad_needed(scene):
     if _geometry_kind(scene) != "pad":
         return False, "not a flat pad"
-    if scene["grid"]["taxels"] is not None:
+    if scene.grid.taxels is not None:
         return False, "taxels given"
     return True, "flat pad: taxels on a regular grid on its top face"
 
 
 def _pad_inputs(scene, ctx):
-    return {"pad": scene["geometry"]["pad_size_mm"], "grid": scene["grid"]}
+    return {"pad": scene.geometry.pad_size_mm, "grid": scene.values("grid")}
 
 
 def _pad_run(scene, ctx, out_dir):
     from fruitcli.geometry.padgrid import write_pad_taxels
 
-    n = write_pad_taxels(out_dir / "taxels.csv", scene["geometry"]["pad_size_mm"],
-                         scene["grid"]["count"] or [4, 4], scene["grid"]["spacing_x_mm"],
-                         scene["grid"]["spacing_y_mm"])
+    grid = scene.grid
+    n = write_pad_taxels(out_dir / "taxels.csv", scene.geometry.pad_size_mm,
+                         grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
     return {"taxels": n}
 
 
@@ -157,17 +159,17 @@ def _fem_needed(scene):
 def _fem_reason(scene):
     parts = []
     k = len(scene.chambers)
-    act = scene["actuation"]
-    if k and (act["pressure_kpa"] or act["volume_growth_mm3"]):
+    act = scene.actuation
+    if k and (act.pressure_kpa or act.volume_growth_mm3):
         parts.append(f"{k} chamber(s), pressure as Lagrange multipliers over {n_states(scene)} "
                      "state(s)")
     elif k:
         parts.append(f"{k} chamber(s) as empty cavities, no actuation: no pressure constraint")
     else:
         parts.append("no chambers: no pressure constraint")
-    if scene["jig"]:
-        parts.append(f"{len(scene['jig'])} jig spring region(s)")
-    if not scene["fixed"]:
+    if scene.jig:
+        parts.append(f"{len(scene.jig)} jig spring region(s)")
+    if not scene.fixed:
         parts.append("no fixed region: rigid modes removed")
     if not scene.has("gravity"):
         parts.append("no gravity")
@@ -175,9 +177,9 @@ def _fem_reason(scene):
 
 
 def _tetra_inputs(scene, ctx):
-    return {"solid": solid_path(scene, ctx), "unit": scene["geometry"]["unit"],
-            "pad": scene["geometry"]["pad_size_mm"], "chambers": scene.chambers,
-            "mesh": scene["mesh"], "taxels": taxels_path(scene, ctx)}
+    return {"solid": solid_path(scene, ctx), "unit": scene.geometry.unit,
+            "pad": scene.geometry.pad_size_mm, "chambers": scene.values("geometry")["chamber"],
+            "mesh": scene.values("mesh"), "taxels": taxels_path(scene, ctx)}
 
 
 def _tetra_run(scene, ctx, out_dir):
@@ -191,10 +193,12 @@ def _tetra_run(scene, ctx, out_dir):
 
 
 def _simulate_inputs(scene, ctx):
-    return {k: scene[k] for k in ("material", "gravity", "fixed", "jig", "actuation", "solver")
+    tracks = scene.values("tracks")
+    return {k: scene.values(k) for k in ("material", "gravity", "fixed", "jig", "actuation",
+                                         "solver")
             } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
                  "mesh": ctx.dir("tetra") / "mesh.npz", "tracks": tracks_path(scene, ctx),
-                 "yarn": {k: scene["tracks"][k] for k in YARN_KEYS[:2]}}
+                 "yarn": {k: tracks[k] for k in YARN_KEYS[:2]}}
 
 
 def _simulate_run(scene, ctx, out_dir):
@@ -243,12 +247,12 @@ def locate_uses_reduced(scene) -> bool:
     [frames].model = "full" (then along the simulated states, as bench frames are)."""
     from fruitcli.sensing.frames.recording_chunks import has_pressures
 
-    rec = scene["frames"]["recording"]
+    rec = scene.frames.recording
     if rec is None or scene.has("bench") or not scene.chambers \
-            or scene["frames"]["model"] != "reduced":
+            or scene.frames.model != "reduced":
         return False
     try:
-        return has_pressures(rec, scene["board"])
+        return has_pressures(rec, scene.board)
     except (OSError, ValueError):
         return False  # the locate stage reports the unreadable recording itself
 
@@ -256,15 +260,15 @@ def locate_uses_reduced(scene) -> bool:
 def _reduce_range(scene) -> dict:
     from fruitcli.fem.reduced.build import pressure_box
 
-    names = [c["name"] for c in scene.chambers]
+    names = [c.name for c in scene.chambers]
     lo, hi = pressure_box(scene, names)
     return {n: [float(a), float(b)] for n, a, b in zip(names, lo, hi, strict=True)}
 
 
 def _reduce_inputs(scene, ctx):
-    cfg = {k: v for k, v in scene["reduced"].items() if k not in ("pressure_range_kpa",
-                                                                  "margin")}
-    return {k: scene[k] for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
+    cfg = {k: v for k, v in scene.values("reduced").items() if k not in ("pressure_range_kpa",
+                                                                         "margin")}
+    return {k: scene.values(k) for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
             } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
                  "mesh": ctx.dir("tetra") / "mesh.npz", "range_kpa": _reduce_range(scene),
                  "reduced": cfg}
@@ -294,19 +298,19 @@ def _bench_needed(scene):
 def _bench_inputs(scene, ctx):
     from fruitcli.scene import resolve_path
 
-    spec = scene["bench"]["samples"]  # "quarter" or a CSV, hashed by its content
+    spec = scene.bench.samples  # "quarter" or a CSV, hashed by its content
     samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
-    return {"bench": scene["bench"], "samples": samples, "board": scene["board"],
-            "detection": scene["detection"], "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "grid": scene["grid"],
-            "surface": solid_path(scene, ctx), "skin": scene["skin"]}
+    return {"bench": scene.values("bench"), "samples": samples, "board": scene.values("board"),
+            "detection": scene.values("detection"), "taxels": taxels_path(scene, ctx),
+            "states": states_path(scene, ctx), "grid": scene.values("grid"),
+            "surface": solid_path(scene, ctx), "skin": scene.values("skin")}
 
 
 def _bench_run(scene, ctx, out_dir):
     from fruitcli.sensing.stages import run_bench
 
     solid = solid_path(scene, ctx)
-    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+    unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
     return run_bench(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
                      progress=ctx.progress, surface_path=solid, surface_unit=unit)
 
@@ -314,24 +318,24 @@ def _bench_run(scene, ctx, out_dir):
 def _frame_sources(scene, ctx) -> dict[str, Path]:
     if scene.has("bench"):
         return {ind: ctx.dir("bench") / ind / "frames.npz" for ind in indenters(scene)}
-    if scene["frames"]["recording"] is not None:
-        return {"recording": scene["frames"]["recording"]}
+    if scene.frames.recording is not None:
+        return {"recording": scene.frames.recording}
     return {}
 
 
 def _locate_needed(scene):
     if scene.has("bench"):
         return True, "detect touches in the bench frames, map them to 3D"
-    if scene["frames"]["recording"] is not None:
+    if scene.frames.recording is not None:
         return True, "detect touches in the recording, map them to 3D"
     return False, "no frames: no recording and no bench"
 
 
 def _locate_inputs(scene, ctx):
     return {"frames": _frame_sources(scene, ctx), "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "detection": scene["detection"],
-            "board": scene["board"],
-            "surface": solid_path(scene, ctx) if scene["detection"]["project"] == "surface"
+            "states": states_path(scene, ctx), "detection": scene.values("detection"),
+            "board": scene.values("board"),
+            "surface": solid_path(scene, ctx) if scene.detection.project == "surface"
             else None,
             "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None}
 
@@ -340,7 +344,7 @@ def _locate_run(scene, ctx, out_dir):
     from fruitcli.sensing.stages import run_locate
 
     out = {}
-    unit = scene["geometry"]["unit"] if _geometry_kind(scene) == "solid" else "mm"
+    unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
     reduced = None
     if locate_uses_reduced(scene):
         from fruitcli.fem.reduced.model import load
@@ -362,22 +366,22 @@ def _locate_outputs(scene):
 
 # ----------------------------------------------------------------------------- evaluate
 def _eval_rows(scene, ctx) -> list[dict]:
-    rows = [dict(r) for r in scene["evaluate"]]
+    rows = scene.values("evaluate")
     if scene.has("bench"):
-        config = scene["scene"]["configuration"]
+        config = scene.scene.configuration
         for ind in indenters(scene):
             rows.append({"label": f"{config}, {ind}",
                          "truth": ctx.dir("bench") / ind / "truth.csv",
                          "measured": ctx.dir("locate") / ind / "measured.csv",
-                         "reference_length_mm": scene["bench"]["reference_length_mm"],
-                         "register": scene["bench"]["register"]})
+                         "reference_length_mm": scene.bench.reference_length_mm,
+                         "register": scene.bench.register})
     return rows
 
 
 def _eval_needed(scene):
     if scene.has("bench"):
         return True, "bench ground truth against located touches"
-    if scene["evaluate"]:
+    if scene.evaluate:
         return True, "evaluation only: measured points given"
     return False, "no ground truth"
 
@@ -401,7 +405,8 @@ def _sens_needed(scene):
 
 
 def _sens_inputs(scene, ctx):
-    return {"sensitivity": scene["sensitivity"], "bench": scene["bench"], "skin": scene["skin"],
+    return {"sensitivity": scene.values("sensitivity"), "bench": scene.values("bench"),
+            "skin": scene.values("skin"),
             "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)}
 
 
@@ -414,8 +419,8 @@ def _sens_run(scene, ctx, out_dir):
 
 STAGES: list[Stage] = [
     Stage("make-artist", [], "fruitcli.geometry.artist", _artist_needed,
-          lambda s, c: {"artist": str(s["geometry"]["artist"])}, _artist_run,
-          lambda s: [str(s["geometry"]["artist"])]),
+          lambda s, c: {"artist": str(s.geometry.artist)}, _artist_run,
+          lambda s: [str(s.geometry.artist)]),
     Stage("make-tracks", ["make-artist"], "fruitcli.geometry.tracks.make_tracks", _tracks_needed,
           _tracks_inputs, _tracks_run,
           lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",

@@ -21,7 +21,6 @@ Run: .venv/bin/python tests/bench/bench_fem.py [--sizes 8 6 5 4] [--states 13] [
 """
 
 import argparse
-import copy
 import dataclasses
 import resource
 import subprocess
@@ -79,7 +78,7 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
     from fruitcli.fem.stage import state_loads
 
     table = np.array([ld.pressure_kpa for ld in state_loads(scene, names)])
-    period = scene["actuation"]["period_s"]
+    period = scene.actuation.period_s
     spline = CubicSpline(np.linspace(0.0, period, len(table)), table, bc_type="periodic")
     t = np.arange(0.0, cycles * period, 1.0 / rate_hz) % period
     return [Load.pressures(row) for row in spline(t)]
@@ -158,14 +157,14 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     tet, w, _ = barycentric.locate(model.rest, model.tets, taxels.xyz_mm)
     online = OnlineSolver(model, tet, w, solver_options(scene))
     table = np.array([ld.pressure_kpa for ld in state_loads(scene, model.chamber_names)])
-    period = scene["actuation"]["period_s"]
+    period = scene.actuation.period_s
     spline = CubicSpline(np.linspace(0.0, period, len(table)), table, bc_type="periodic")
     online.update(spline(0.0))  # the first state, from rest, before the clock starts
-    settings = Settings.from_scene(scene["detection"])
+    settings = Settings.from_scene(scene.detection)
     frames = synthetic_frames(2000, seed=4)
 
     def frame_times(follower):
-        loc = Locator(taxels, scene["board"], online.taxels_mm, settings)
+        loc = Locator(taxels, scene.board, online.taxels_mm, settings)
         live = LiveLocator(loc, None, follower)
         ms = []
         t_end = time.perf_counter() + seconds
@@ -224,7 +223,7 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
     from fruitcli.scene import load_scene
 
     scene = load_scene(ROOT / "pipelines" / "touchpad-4x4.toml", must_exist=False)
-    cfg = scene["solver"]
+    cfg = scene.solver
     tol = cfg["tolerance"] if tolerance is None else tolerance
     q = run_tetra(scene, None, tmp / "pad-mesh")
     model = build_model(scene, io.load_mesh(tmp / "pad-mesh" / "mesh.npz"))
@@ -298,10 +297,7 @@ def bench_lame(tmp: Path, sizes: list[float], p2_sizes: list[float]) -> None:
 
 def paper_model(scene):
     """The scene with the paper's SOFA model: linear tets, corotational Hooke."""
-    scene = copy.deepcopy(scene)
-    scene.data["fem"]["element"] = "p1"
-    scene.data["material"]["model"] = "corotational"
-    return scene
+    return scene.with_values({"fem.element": "p1", "material.model": "corotational"})
 
 
 PHASES = [("precond_s", "triangular solves (CG's preconditioner)"),
@@ -345,8 +341,8 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     st["update_s"] -= st["factor_s"]  # refreshes happen in updates or on a CG retry
     later_s = sum(r[0] for r in later) / 1e3
     print(f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
-          f"tets, nu = {model.poisson_ratio:g}, tolerance {scene['solver']['tolerance']:g} or "
-          f"{scene['solver']['displacement_tolerance_mm']:g} mm, "
+          f"tets, nu = {model.poisson_ratio:g}, tolerance {scene.solver.tolerance:g} or "
+          f"{scene.solver.displacement_tolerance_mm:g} mm, "
           f"element loops on {threads_chosen} threads (chosen from the load), load average "
           f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):")
     print(f"  per state from the previous one: wall {wall:.1f} ms median "
@@ -376,13 +372,12 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
           f"the machine's speed now: one SciPy direct solve of the rest stiffness "
           f"{direct:.0f} ms, a state {wall / direct:.3f} of it", flush=True)
     # the residual tolerance alone, as before [solver] displacement_tolerance_mm
-    plain = copy.deepcopy(scene)
-    plain.data["solver"]["displacement_tolerance_mm"] = 0.0
+    plain = scene.with_values({"solver.displacement_tolerance_mm": 0.0})
     _, _, rows_p, states_p = time_states(plain, mesh_npz, "pcg", n_states, keep_states=True)
     _, _, _, states = time_states(scene, mesh_npz, "pcg", n_states, keep_states=True)
     moved = max(float(np.abs(a.x - b.x).max()) for a, b in zip(states, states_p, strict=True))
     print(f"  with the residual tolerance alone ([solver] displacement_tolerance_mm = 0 "
-          f"instead of {scene['solver']['displacement_tolerance_mm']:g}): wall "
+          f"instead of {scene.solver.displacement_tolerance_mm:g}): wall "
           f"{np.median([r[0] for r in rows_p[1:]]):.1f} ms, CPU "
           f"{np.median([r[3] for r in rows_p[1:]]):.1f} ms median, "
           f"{np.mean([r[1] for r in rows_p[1:]]):.2f} Newton and "
@@ -464,9 +459,7 @@ def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
           f"{'iters':>5} {'factor':>6} {'dV c1/c2/c3 vs p2':>20}")
     growth, times = {}, {}
     for element, material in ELEMENT_SETTINGS:
-        scene = copy.deepcopy(scene0)
-        scene.data["fem"]["element"] = element
-        scene.data["material"]["model"] = material
+        scene = scene0.with_values({"fem.element": element, "material.model": material})
         model, solver, rows, states = time_states(scene, mesh_npz, "pcg", n_states,
                                                   keep_states=True)
         peak = int(np.argmax([s.pressure_kpa[0] for s in states]))
@@ -544,8 +537,7 @@ def main() -> None:
         print(f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
               f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'cg':>5} {'factor':>6}")
         for size in sizes:
-            scene = copy.deepcopy(scene0)
-            scene.data["mesh"]["size_mm"] = size
+            scene = scene0.with_values({"mesh.size_mm": size})
             out = tmp / f"mesh-{size:g}"
             t0 = time.perf_counter()
             q = run_tetra(scene, solid, out)

@@ -49,7 +49,7 @@ def one_seed(tmp: Path, seed: int) -> dict:
     run_bench(scene, tmp / "t.csv", None, tmp / "bench")
     rec = tmp / "bench" / "small"
     run_calibrate(scene, rec / "frames.npz", rec / "truth.csv", tmp / "t.csv", tmp / "cal")
-    hidden = forward.make_skin(16, seed, forward.SkinParams.from_table(scene["skin"])).gain
+    hidden = forward.make_skin(16, seed, forward.SkinParams.from_table(scene.skin)).gain
     write_csv(tmp / "hidden.csv", ["id", "gain"], ([k, float(g)] for k, g in enumerate(hidden)))
     out = {}
     for name, gains in (("plain", None), ("calibrated", tmp / "cal" / "gains.csv"),

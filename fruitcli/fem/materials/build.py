@@ -77,8 +77,7 @@ def material(model: str = "neo-hookean", young_modulus_kpa: float = 100.0,
                     0.0, kappa)
 
 
-def from_scene(mat: dict) -> Material:
-    """The Material of a scene's [material] table."""
-    return material(mat.get("model", "neo-hookean"), mat["young_modulus_kpa"],
-                    mat["poisson_ratio"], mat.get("c10_kpa"), mat.get("c20_kpa") or 0.0,
-                    mat.get("c30_kpa") or 0.0, mat.get("bulk_modulus_kpa"))
+def from_scene(mat) -> Material:
+    """The Material of a scene's [material] table (a `fruitcli.scene.MaterialSection`)."""
+    return material(mat.model, mat.young_modulus_kpa, mat.poisson_ratio, mat.c10_kpa,
+                    mat.c20_kpa or 0.0, mat.c30_kpa or 0.0, mat.bulk_modulus_kpa)

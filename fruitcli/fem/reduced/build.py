@@ -37,16 +37,16 @@ def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) (K,) kPa: [reduced].pressure_range_kpa for every chamber, else each
     chamber's [actuation] pressures widened by [reduced].margin of their span (of the
     largest chamber's span for a chamber held at one pressure)."""
-    cfg = scene["reduced"]
+    cfg = scene.reduced
     k = len(names)
-    if cfg["pressure_range_kpa"] is not None:
-        lo, hi = cfg["pressure_range_kpa"]
+    if cfg.pressure_range_kpa is not None:
+        lo, hi = cfg.pressure_range_kpa
         return np.full(k, float(lo)), np.full(k, float(hi))
-    act = scene["actuation"]
-    if act["volume_growth_mm3"]:
+    act = scene.actuation
+    if act.volume_growth_mm3:
         raise SceneError("[actuation].volume_growth_mm3: the reduced model maps pressures; "
                          "give [reduced].pressure_range_kpa = [lo, hi] (kPa)")
-    table = act["pressure_kpa"] or {}
+    table = act.pressure_kpa or {}
     if not table:
         raise SceneError("[reduced]: no pressure range: give [reduced].pressure_range_kpa = "
                          "[lo, hi] (kPa) or [actuation].pressure_kpa")
@@ -58,7 +58,7 @@ def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
     if span.max() <= 0:
         raise SceneError("[actuation].pressure_kpa: every chamber at one pressure: give "
                          "[reduced].pressure_range_kpa = [lo, hi] (kPa)")
-    m = cfg["margin"]
+    m = cfg.margin
     return lo - m * span, hi + m * span
 
 
@@ -238,12 +238,12 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
     mesh = io.load_mesh(Path(mesh_npz))
     model = build_model(scene, mesh)
     lo, hi = pressure_box(scene, model.chamber_names)
-    cfg = scene["reduced"]
+    cfg = scene.reduced
     taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
     tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
     box = ", ".join(f"{c} {a:g}..{b:g}" for c, a, b in zip(model.chamber_names, lo, hi,
                                                             strict=True))
-    progress(f"reduce: {cfg['points_per_axis']}^{len(lo)} samples + {cfg['validation']} "
+    progress(f"reduce: {cfg.points_per_axis}^{len(lo)} samples + {cfg.validation} "
              f"held-out full solves over {box} kPa")
     extra = {"tets": model.tets, "elements": getattr(model, "conn", model.tets),
              "surface_tris": mesh["surface_tris"], "element": np.array(element_name(model)),
@@ -253,8 +253,8 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
              "taxel_outside": outside}
     reduced = build(model, tet, w, lo, hi, solver_options(scene),
                     solver_options(scene, first_state=True, jig=bool(model.jigs)),
-                    points_per_axis=cfg["points_per_axis"], max_degree=cfg["max_degree"],
-                    validation=cfg["validation"], seed=cfg["seed"],
+                    points_per_axis=cfg.points_per_axis, max_degree=cfg.max_degree,
+                    validation=cfg.validation, seed=cfg.seed,
                     surface_nodes=np.unique(mesh["surface_tris"]), extra=extra,
                     progress=progress)
     figures = reduced.validation()

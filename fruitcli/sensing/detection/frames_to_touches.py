@@ -62,8 +62,11 @@ class Settings:
     max_touches: int = MAX_TOUCHES
 
     @classmethod
-    def from_scene(cls, detection: dict, **overrides) -> Settings:
-        keys = {k: detection[k] for k in cls.__dataclass_fields__ if k in detection}
+    def from_scene(cls, detection, **overrides) -> Settings:
+        """From a scene's [detection] (a `fruitcli.scene.DetectionSection`); `overrides`
+        that are not None win."""
+        keys = {k: getattr(detection, k) for k in cls.__dataclass_fields__
+                if k in type(detection).__dataclass_fields__}
         keys.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**keys)
 
@@ -111,7 +114,7 @@ class Locator:
     (`fruitcli.sensing.detection.detect`; None: off, the paper).
     """
 
-    def __init__(self, taxels: Taxels, board: dict, positions_mm: np.ndarray,
+    def __init__(self, taxels: Taxels, board, positions_mm: np.ndarray,
                  settings: Settings, state_pressure_kpa: np.ndarray | None = None,
                  where: str = "taxels", reduced=None, gain: np.ndarray | None = None):
         self.reduced = reduced
@@ -119,8 +122,8 @@ class Locator:
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
-        self.frame_shape = (board["rows"], board["cols"])
-        self.layout = Layout.build(self.grid, self.rows * board["cols"] + self.cols)
+        self.frame_shape = (board.rows, board.cols)
+        self.layout = Layout.build(self.grid, self.rows * board.cols + self.cols)
         self.positions_mm = np.asarray(positions_mm, dtype=float)
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:

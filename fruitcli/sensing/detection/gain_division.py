@@ -22,7 +22,7 @@ def detection_gain(scene, taxels: Taxels, gains_csv=None) -> np.ndarray | None:
     from fruitcli.sensing.skin.forward import load_taxel_gains
 
     if gains_csv is None:
-        if scene is None or not scene["detection"]["divide_by_gain"]:
+        if scene is None or not scene.detection.divide_by_gain:
             return None
-        gains_csv = scene["skin"]["taxel_gain"]  # the scene's check made sure it is set
+        gains_csv = scene.skin.taxel_gain  # the scene's check made sure it is set
     return load_taxel_gains(gains_csv, taxels.ids, only_these=True)

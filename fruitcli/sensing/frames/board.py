@@ -10,44 +10,46 @@ Tx in reverse) and ``flip_j`` the columns. By default frame[i, j] is taxel (i, j
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from fruitcli.errors import FrameError
+from fruitcli.scene import default_scene
 from fruitcli.tables import Taxels
 
-BOARD_ROWS = 21  # Tx lines of the FocalTech FT5316 (MuCa): frame rows
-BOARD_COLS = 12  # Rx lines: frame columns
-FORMATS = ("ascii", "binary")  # the stock firmware's two frame formats (Muca_Raw, SendRawByte)
+BOARD_ROWS = default_scene().board.rows  # Tx lines of the FocalTech FT5316 (MuCa): frame rows
+BOARD_COLS = default_scene().board.cols  # Rx lines: frame columns
 
 
-def taxel_cells(taxels: Taxels, board: dict, where: str = "taxels") -> tuple[np.ndarray,
-                                                                          np.ndarray]:
-    """Frame (rows, cols) of every taxel per the ``[board]`` table; outside -> FrameError."""
-    a, b = (taxels.j, taxels.i) if board["transpose"] else (taxels.i, taxels.j)
-    rows = board["offset_i"] + a
-    cols = board["offset_j"] + b
-    if board["flip_i"]:
-        rows = board["rows"] - 1 - rows
-    if board["flip_j"]:
-        cols = board["cols"] - 1 - cols
-    bad = np.nonzero((rows < 0) | (rows >= board["rows"]) | (cols < 0) | (cols >= board["cols"]))[0]
+def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarray, np.ndarray]:
+    """Frame (rows, cols) of every taxel per the scene's ``[board]`` (a
+    `fruitcli.scene.BoardSection`); outside -> FrameError."""
+    a, b = (taxels.j, taxels.i) if board.transpose else (taxels.i, taxels.j)
+    rows = board.offset_i + a
+    cols = board.offset_j + b
+    if board.flip_i:
+        rows = board.rows - 1 - rows
+    if board.flip_j:
+        cols = board.cols - 1 - cols
+    bad = np.nonzero((rows < 0) | (rows >= board.rows) | (cols < 0) | (cols >= board.cols))[0]
     if bad.size:
         k = bad[0]
         raise FrameError(f"{where}: taxel id {taxels.ids[k]} (i={taxels.i[k]}, j={taxels.j[k]}) "
                          f"maps to frame cell ({rows[k]}, {cols[k]}), outside the "
-                         f"{board['rows']} x {board['cols']} frame")
+                         f"{board.rows} x {board.cols} frame")
     return rows.astype(np.int64), cols.astype(np.int64)
 
 
-def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS) -> dict:
-    """The ``[board]`` defaults: frame[i, j] is taxel (i, j)."""
-    return {"rows": rows, "cols": cols, "offset_i": 0, "offset_j": 0,
-            "flip_i": False, "flip_j": False, "transpose": False}
+def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS):
+    """The ``[board]`` defaults (a `fruitcli.scene.BoardSection`): frame[i, j] is taxel
+    (i, j)."""
+    return replace(default_scene().board, rows=rows, cols=cols)
 
 
-def check_frame_shape(frames: np.ndarray, board: dict, where: str) -> None:
+def check_frame_shape(frames: np.ndarray, board, where: str) -> None:
     """Frames must be (N, rows, cols) as the board says."""
-    want = (board["rows"], board["cols"])
+    want = (board.rows, board.cols)
     if tuple(frames.shape[1:]) != want:
         raise FrameError(f"{where}: frames of shape {tuple(frames.shape[1:])}, expected "
                          f"{want[0]} x {want[1]} per [board]")

@@ -47,10 +47,10 @@ from collections import Counter
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.frames.board import FORMATS as WRITE_FORMATS
+from fruitcli.scene import BOARD_FORMATS
 from fruitcli.sensing.frames.muca_line import format_line, parse_line
 
-FORMATS = ("auto", *WRITE_FORMATS)  # what a reader accepts: auto-detected or named
+FORMATS = ("auto", *BOARD_FORMATS)  # what a reader accepts: auto-detected or named
 HEADER_BYTES = 2
 MAX_MEDIAN_STEP_COUNTS = 8  # (b): median |count change| between consecutive packets
 MAX_MIN_STEP_COUNTS = 16  # (b): change of the minimum between consecutive packets

@@ -202,13 +202,13 @@ def in_memory(rec: Recording, path: str | os.PathLike = "frames") -> ChunkedReco
                             rec.skipped_lines, frames, rec.pressure_t_s, rec.printer_mm)
 
 
-def has_pressures(path: str | os.PathLike, board: dict) -> bool:
+def has_pressures(path: str | os.PathLike, board) -> bool:
     """Whether the recording at `path` carries chamber pressures (`board`: the scene's
     [board]; an .npz is read from its header only, a MuCa log whole, so the answer is
     kept per file version: the planner asks several times for one run)."""
     st = os.stat(path)
     return _has_pressures(str(Path(path).resolve()), st.st_size, st.st_mtime_ns,
-                          board["rows"], board["cols"], board.get("format", "auto"))
+                          board.rows, board.cols, board.format)
 
 
 @functools.lru_cache(maxsize=16)

@@ -97,7 +97,7 @@ class Outputs:
         if self.log is not None:
             self.log.event(f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
                            f"reconnect {self.reconnects}")
-        return ser, FrameReader(ser, board["rows"], board["cols"], name=port, fmt=fmt)
+        return ser, FrameReader(ser, board.rows, board.cols, name=port, fmt=fmt)
 
     def start_view(self, target: str) -> None:
         from fruitcli.sensing.outputs.live_view import ViewServer

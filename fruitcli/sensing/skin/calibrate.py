@@ -159,10 +159,10 @@ def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=N
     from fruitcli.tables import read_table
 
     say = progress or (lambda msg: None)
-    board = scene["board"]
+    board = scene.board
     taxels = read_taxels(taxels_csv, FrameError)
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
-    rec = read_recording(frames_path, board["rows"], board["cols"], board["format"])
+    rec = read_recording(frames_path, board.rows, board.cols, board.format)
     where = str(frames_path)
     truth = read_table(Path(truth_csv), ["sample", "x_mm", "y_mm", "z_mm"], error=FrameError)
     ids = truth["sample"].astype(np.int64)
@@ -172,7 +172,7 @@ def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=N
     name = indenter or rec.meta.get("indenter")
     if not name:
         raise FrameError(f"{where}: meta names no indenter: give --indenter")
-    n_idle = int(rec.meta.get("baseline_frames", scene["detection"]["baseline_frames"]))
+    n_idle = int(rec.meta.get("baseline_frames", scene.detection.baseline_frames))
     if not 1 < n_idle < len(rec):
         raise FrameError(f"{where}: {n_idle} idle frames (meta baseline_frames): expected "
                          f"2 .. {len(rec) - 1}")

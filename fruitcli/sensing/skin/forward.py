@@ -2,7 +2,8 @@
 
 Units: mm, counts. The touch response's parameters (footprint width per indenter, counts
 at contact, gap decay, noise, taxel gain spread) are a scene's ``[skin]`` table
-(`SkinParams`); the values below are its defaults. Each parameter, its default and its
+(`SkinParams`); its defaults are declared once, in the scene schema (`fruitcli.scene`),
+and named here (``CONTACT_COUNTS`` ...). Each parameter, its default and its
 source (none is fitted to the paper's Table I; `fruit study bench` shows how the bench's
 rows depend on the assumed ones):
 
@@ -59,15 +60,17 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import FrameError
+from fruitcli.scene import default_scene
 
+_SKIN = default_scene().skin  # the [skin] defaults, declared in the scene schema
 THRESHOLD_COUNTS = 20.0
-CONTACT_COUNTS = 60.0
-GAP_DECAY_MM = 2.0
+CONTACT_COUNTS = _SKIN.contact_counts
+GAP_DECAY_MM = _SKIN.gap_decay_mm
 FIELD_SIGMA_MM = 6.0
 INDENTER_RADIUS_MM = {"small": 1.5, "medium": 4.0}
 BASELINE_COUNTS = 500.0
 BASELINE_SPREAD_COUNTS = 30.0
-NOISE_STD_RANGE_COUNTS = (0.5, 1.85)
+NOISE_STD_RANGE_COUNTS = tuple(_SKIN.noise_std_counts)
 DEFECT_PROBABILITY = 0.05  # share of crossings that deform more than intended
 DEFECT_FACTOR_RANGE = (1.5, 2.5)
 BEND_SHIFT_COUNTS = 10.0  # Fig. 9: 4 x 4 pad bent 180 deg
@@ -94,22 +97,20 @@ class SkinParams:
     footprint_sigma_mm: dict  # indenter name -> lateral Gaussian width (mm)
     contact_counts: float = CONTACT_COUNTS
     gap_decay_mm: float = GAP_DECAY_MM
-    gain_spread: float = 0.0  # taxel gains uniform in 1 +- spread
+    gain_spread: float = _SKIN.gain_spread  # taxel gains uniform in 1 +- spread
     noise_std_counts: float | tuple = NOISE_STD_RANGE_COUNTS  # one std, or (lo, hi) per taxel
-    taxel_gain: Path | None = None  # CSV (id, gain) of measured gains, instead of the spread
+    taxel_gain: Path | None = _SKIN.taxel_gain  # CSV (id, gain) of measured gains
 
     @classmethod
-    def from_table(cls, table: dict | None) -> SkinParams:
-        """From a validated [skin] table (None or missing keys: the defaults)."""
-        table = table or {}
-        feet = {**default_footprints_mm(), **(table.get("footprint_sigma_mm") or {})}
-        noise = table.get("noise_std_counts", NOISE_STD_RANGE_COUNTS)
-        return cls({k: float(v) for k, v in feet.items()},
-                   float(table.get("contact_counts", CONTACT_COUNTS)),
-                   float(table.get("gap_decay_mm", GAP_DECAY_MM)),
-                   float(table.get("gain_spread", 0.0)),
+    def from_table(cls, skin=None) -> SkinParams:
+        """From a scene's [skin] (a `fruitcli.scene.SkinSection`; None: the defaults)."""
+        skin = _SKIN if skin is None else skin
+        feet = {**default_footprints_mm(), **(skin.footprint_sigma_mm or {})}
+        noise = skin.noise_std_counts
+        return cls({k: float(v) for k, v in feet.items()}, float(skin.contact_counts),
+                   float(skin.gap_decay_mm), float(skin.gain_spread),
                    tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
-                   table.get("taxel_gain"))
+                   skin.taxel_gain)
 
 
 DEFAULT_PARAMS = SkinParams(default_footprints_mm())
