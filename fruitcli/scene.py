@@ -186,6 +186,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                                       "[lo, hi] drawn per taxel (seeded)"),
         "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
                                         "calibrate's gains.csv (with gain_spread = 0)"),
+        # the electrostatic crossing (fruitcli.electrostatics.crossing, `fruit skin`)
+        "model": Key("str", "gaussian", "gaussian (the assumed footprint, gap decay and strain "
+                                        "gain above) or electrostatic (the crossing's field)"),
+        "permittivity": Key("num", 2.8, "relative permittivity of the silicone (Ecoflex: about "
+                                        "2.8, as quoted for platinum-cure silicones at low "
+                                        "frequency, 2.5-3)"),
+        "yarn_radius_mm": Key("num", None, "radius of the conductive yarn (mm; default "
+                                           "[tracks].track_radius_mm)"),
+        "insulation_mm": Key("num", 0.1, "insulating layer between Tx and Rx where they cross "
+                                         "(mm)"),
+        "gaps_mm": Key("list", [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0],
+                       "object gaps of the crossing's table (mm, increasing from 0: contact)"),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
         "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "
@@ -555,6 +567,7 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if skin["taxel_gain"] is not None and skin["gain_spread"] > 0:
         raise SceneError(f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
                          f"are measured, not drawn), got {skin['gain_spread']}")
+    _check_skin_cell(skin, where)
     feet = skin["footprint_sigma_mm"] or {}
     for ind, sigma in feet.items():
         if isinstance(sigma, bool) or not isinstance(sigma, NUM) or not sigma > 0 \
@@ -613,6 +626,33 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         if ref is not None and ref <= 0:
             raise SceneError(f"{where}: [[evaluate]] '{ev['label']}'.reference_length_mm: "
                              "expected > 0")
+
+
+SKIN_MODELS = ("gaussian", "electrostatic")
+"""[skin].model values."""
+
+
+def _check_skin_cell(skin: dict, where: str) -> None:
+    """The electrostatic crossing's own [skin] keys (the design's geometry is checked
+    against them where the cell is built, `fruitcli.electrostatics.design`)."""
+    if skin["model"] not in SKIN_MODELS:
+        raise SceneError(f"{where}: [skin].model: expected one of {', '.join(SKIN_MODELS)}, "
+                         f"got {skin['model']!r}{_closest(skin['model'], SKIN_MODELS)}")
+    if not skin["permittivity"] >= 1.0:
+        raise SceneError(f"{where}: [skin].permittivity: expected a relative permittivity "
+                         f">= 1 (Ecoflex: about 2.8), got {skin['permittivity']:g}")
+    if not skin["insulation_mm"] > 0:
+        raise SceneError(f"{where}: [skin].insulation_mm: expected > 0 (mm; the yarns must "
+                         f"not touch), got {skin['insulation_mm']:g}")
+    radius = skin["yarn_radius_mm"]
+    if radius is not None and not radius > 0:
+        raise SceneError(f"{where}: [skin].yarn_radius_mm: expected > 0 (mm), got {radius:g}")
+    gaps = skin["gaps_mm"]
+    ok = isinstance(gaps, list) and len(gaps) >= 2 and all(
+        isinstance(g, NUM) and not isinstance(g, bool) and math.isfinite(g) for g in gaps)
+    if not ok or gaps[0] != 0 or any(b <= a for a, b in zip(gaps[:-1], gaps[1:], strict=True)):
+        raise SceneError(f"{where}: [skin].gaps_mm: expected at least two gaps in mm, "
+                         f"increasing and starting at 0 (contact), got {gaps!r}")
 
 
 def _check_printer(pr: dict, where: str) -> None:
