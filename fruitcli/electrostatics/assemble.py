@@ -13,7 +13,8 @@ scipy only) was measured on the same gmsh meshes with its `BilinearForm` and a
 per-element permittivity, giving the same matrices (to 6e-16 relative). Fruit's kernel
 (batched matmuls over the reference gradients `fruitcli.fem.elements` already has)
 assembled a linear 82,835-tet mesh (15,969 dofs) in 0.45 s against 0.71 s, and a
-quadratic 18,164-tet mesh (28,001 dofs) in 0.56 s against 1.03 s (2 shared cores;
+quadratic 18,164-tet mesh (28,001 dofs) in 0.56 s against 1.03 s (2 shared cores; a
+run beside other jobs gave 1.33 s against 1.76 s and 0.52 s against 1.15 s;
 `python tests/bench/bench_skin.py --assembly` prints both when scikit-fem is installed).
 A library would add a dependency and a second node layout ((3, n) points) for a slower
 result; nothing beyond the scalar Laplacian is needed.
