@@ -1,0 +1,92 @@
+"""The crossing's parts without a field solve: deformation maps, objects, the derived
+equivalents and the table's offsets (mm)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fruitcli.electrostatics import crossing, deform, equivalents
+from fruitcli.electrostatics.touch_objects import OBJECTS
+
+
+def _cloud(n=200, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform([-8, -6, -4], [8, 6, 3], (n, 3))
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_stretch_keeps_volume_and_stretches_the_axis(axis):
+    """lambda along the axis, lambda^-1/2 across: det F = 1."""
+    pts = np.eye(3)
+    moved = deform.stretched(pts, axis, 0.3)
+    a = deform.AXES[axis]
+    assert moved[a, a] == pytest.approx(1.3)
+    assert np.prod(np.diag(moved)) == pytest.approx(1.0)
+
+
+def test_bend_keeps_the_neutral_plane_and_stretches_the_surface():
+    """Along x at curvature k, neutral plane 1.5 mm under the surface: arc lengths on the
+    neutral plane are kept, on the surface they grow by 1.5 k; y is untouched."""
+    k, zn = np.pi / 48, 1.5
+    x = np.linspace(-10, 10, 2001)
+    for depth, strain in ((-zn, 0.0), (0.0, zn * k)):
+        pts = np.stack([x, np.full_like(x, 2.0), np.full_like(x, depth)], axis=1)
+        bent = deform.bent(pts, "x", k, zn)
+        length = np.linalg.norm(np.diff(bent, axis=0), axis=1).sum()
+        assert length == pytest.approx(20.0 * (1 + strain), rel=1e-6)
+        assert np.allclose(bent[:, 1], 2.0)
+    assert np.array_equal(deform.bent(_cloud(), "y", 0.0, zn), _cloud())
+
+
+def test_glue_blend_keeps_the_crossing_and_moves_the_far_cell():
+    pts = np.array([[0.0, 0.0, -2.0], [0.5, 0.5, 0.0], [10.0, 0.0, 0.0]])
+    target = pts + 1.0
+    moved = deform.deformed(pts, target, glue_mm=1.3, ramp_mm=6.0)
+    assert np.allclose(moved[:2], pts[:2])
+    assert np.allclose(moved[2], target[2])
+    w = deform.blend(np.array([[1.3 + 3.0, 0, 0]]), 1.3, 6.0)
+    assert w[0] == pytest.approx(0.5)
+
+
+def test_objects_hold_their_shapes():
+    """The small tip's hemisphere, the Allen key's flat end, placed at (dx, dy, gap)."""
+    small, medium = OBJECTS["small"], OBJECTS["medium"]
+    p = np.array([[1.0, 2.0, 0.5],  # the tip's lowest point
+                  [1.0 + 1.4, 2.0, 0.5 + 1.5],  # on the cap's equator, inside
+                  [1.0 + 1.0, 2.0, 0.6],  # beside the tip, under the cap
+                  [1.0, 2.0, 0.49]])  # just under it
+    assert small.contains(p, 1.0, 2.0, 0.5).tolist() == [True, True, False, False]
+    q = np.array([[4.0, 0.0, 1.0], [4.1, 0.0, 1.0], [0.0, 0.0, 0.99], [0.0, 0.0, 9.0]])
+    assert medium.contains(q, 0.0, 0.0, 1.0).tolist() == [True, False, False, True]
+
+
+def test_offsets_cover_the_cell_with_both_signs():
+    assert np.allclose(crossing.offsets_mm(16.0), [-8, -4, 0, 4, 8])
+
+
+def test_footprint_fit_recovers_a_gaussian():
+    dx, dy = np.array([0.0, 4.0, 8.0]), np.array([0.0, 3.0, 6.0])
+    gx, gy = np.meshgrid(dx, dy, indexing="ij")
+    drop = 50.0 * np.exp(-0.5 * (gx ** 2 + gy ** 2) / 6.5 ** 2)
+    assert equivalents.footprint_sigma_mm(dx, dy, drop) == pytest.approx(6.5, rel=1e-6)
+
+
+def test_decay_gap_interpolates_and_extrapolates_an_exponential():
+    gaps = np.array([0.0, 0.5, 1.0, 2.0, 4.0])
+    drop = 80.0 * np.exp(-gaps / 1.7)
+    assert equivalents.decay_gap_mm(gaps, drop, 80.0 / np.e) == pytest.approx(1.7, rel=1e-9)
+    # 20 counts from 80 at decay 1.7: 1.7 ln 4 = 2.36 mm (inside); 2 counts: beyond the table
+    assert equivalents.decay_gap_mm(gaps, drop, 20.0) == pytest.approx(1.7 * np.log(4))
+    assert equivalents.decay_gap_mm(gaps, drop, 2.0) == pytest.approx(1.7 * np.log(40))
+    assert equivalents.decay_gap_mm(gaps, drop, 100.0) == 0.0
+
+
+def test_mesh_sizes_follow_the_insulation_within_their_range():
+    gaps = [0.0, 1.0]
+    thin = crossing.cell_spec(16, 12, 2.0, 0.6, 0.01, gaps)
+    thick = crossing.cell_spec(16, 12, 2.0, 0.6, 0.5, gaps)
+    assert thin.crossing_size_mm == pytest.approx(0.06)
+    assert thick.crossing_size_mm == pytest.approx(0.1)
+    assert thin.levels_mm == (1.0,)
+    assert len(thin.points_mm) == 2 * 3 * 3  # gaps x offsets >= 0 in x and y
