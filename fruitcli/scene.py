@@ -196,7 +196,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                            "[tracks].track_radius_mm)"),
         "insulation_mm": Key("num", 0.1, "insulating layer between Tx and Rx where they cross "
                                          "(mm)"),
-        "gaps_mm": Key("list", [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0],
+        "gaps_mm": Key("list", [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],
                        "object gaps of the crossing's table (mm, increasing from 0: contact)"),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)

@@ -5,7 +5,8 @@ Units: mm, fF, counts. For each object: the footprint sigma of a Gaussian
 A exp(-(dx^2 + dy^2) / (2 sigma^2)) fitted (least squares) to -dC at contact; the gap at
 which -dC under the crossing falls to 1/e of its contact value (log-linear between the
 table's gaps; beyond the table, the exponential through its last two gaps); the
-activation at contact in counts; the gap at which it falls to the threshold.
+activation at contact in counts; the gap at which it falls to the threshold. A gap
+found beyond the table's last one is named under `extrapolated`.
 """
 
 from __future__ import annotations
@@ -90,6 +91,8 @@ def summarize(table: CrossingTable) -> dict:
             "contact_dc_ff": float(-under[0]),
             "threshold_gap_mm": decay_gap_mm(table.gap_mm, counts, THRESHOLD_COUNTS),
         }
+        objects[name]["extrapolated"] = [k for k in ("gap_decay_mm", "threshold_gap_mm")
+                                         if objects[name][k] > table.gap_mm[-1]]
     shifts = {}
     for a, axis in enumerate(("x", "y")):
         shifts[f"stretch_{axis}"] = (-scale * (table.c_stretch_ff[a] - table.c0_ff)).tolist()
