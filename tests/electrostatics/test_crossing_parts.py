@@ -90,3 +90,49 @@ def test_mesh_sizes_follow_the_insulation_within_their_range():
     assert thick.crossing_size_mm == pytest.approx(0.1)
     assert thin.levels_mm == (1.0,)
     assert len(thin.points_mm) == 2 * 3 * 3  # gaps x offsets >= 0 in x and y
+
+
+@pytest.fixture(scope="module")
+def small_cell():
+    """A small crossing (pitch 6 x 5 mm, cover 1.5 mm, yarn 0.4 mm) and its solver."""
+    from fruitcli.electrostatics.cell_mesh import mesh_cell
+
+    spec = crossing.cell_spec(6.0, 5.0, 1.5, 0.4, 0.1, [0.0, 1.0])
+    return crossing.CellSolver(mesh_cell(spec, 1, 60.0), 2.8)
+
+
+def test_kept_pattern_solve_matches_a_plain_dirichlet_solve(small_cell):
+    """C with an object's nodes held on the kept sparsity pattern equals the plain solve
+    with those nodes removed, and the charges on all conductors sum to 0 (every outer
+    face insulating)."""
+    from fruitcli.electrostatics import capacitance
+
+    s = small_cell
+    obj = np.flatnonzero(OBJECTS["medium"].contains(s.mesh.nodes, 1.5, 0.0, 0.0) & s.air)
+    assert obj.size > 0
+    sides = np.concatenate([s.mesh.surfaces["tx_side"], s.mesh.surfaces["rx_side"]])
+    plain = capacitance.mutual_capacitance(s.k, s.tx, s.rx, np.concatenate([sides, obj]))
+    assert s.with_object("medium", 1.5, 0.0, 0.0) == pytest.approx(plain, rel=1e-9)
+    c0 = s.capacitance()
+    assert c0 == pytest.approx(capacitance.mutual_capacitance(s.k, s.tx, s.rx, sides),
+                               rel=1e-9)
+    low = np.concatenate([s.rx, sides, obj])
+    u = capacitance.solve_potential(s.k, np.concatenate([s.tx, low]),
+                                    np.concatenate([np.ones(len(s.tx)), np.zeros(len(low))]))
+    charges = [capacitance.conductor_charge(s.k, u, n) for n in (s.tx, s.rx, sides, obj)]
+    assert abs(sum(charges)) < 1e-8 * charges[0]
+    assert 0 < plain < c0  # the grounded object takes field from Rx
+
+
+def test_deformed_cell_is_solved_and_restored(small_cell):
+    """C of a moved cell, then the cell at rest again gives C0 back; no motion, no change."""
+    s = small_cell
+    c0 = s.capacitance()
+    nodes = s.mesh.nodes
+    moved = deform.deformed(nodes, deform.stretched(nodes, "y", 0.2), 0.9, 2.5)
+    c_moved = s.capacitance(nodes=moved)
+    assert c_moved != pytest.approx(c0, rel=1e-6)
+    assert s.capacitance(nodes=nodes) == pytest.approx(c0, rel=1e-12)
+    assert s.capacitance(nodes=deform.deformed(nodes, nodes, 0.9, 2.5)) == pytest.approx(
+        c0, rel=1e-12)
+    s.capacitance(nodes=nodes)
