@@ -14,7 +14,9 @@ Counts: v = -counts_per_ff * dC (a touch takes field from Rx: dC < 0, v > 0) and
 baseline shift -counts_per_ff * (C_delta - C0) (positive: towards a false touch).
 counts_per_ff is the one calibrated number, fitted so that this crossing bent as the
 paper's 4 x 4 pad (Fig. 9: 180 deg over its 48 mm active length, neutral plane half its
-3 mm thickness under the surface) shifts by 10 counts; everything else is predicted.
+3 mm thickness under the surface) shifts by at most 10 counts (the larger of the shifts
+bent along either yarn: the paper does not say which; `equivalents.counts_per_ff`);
+everything else is predicted.
 """
 
 from __future__ import annotations

@@ -56,18 +56,23 @@ def decay_gap_mm(gaps: np.ndarray, drop: np.ndarray, level: float) -> float:
 
 
 def counts_per_ff(table: CrossingTable) -> tuple[float, dict]:
-    """Counts per fF so the crossing bent as the paper's pad shifts BEND_SHIFT_COUNTS,
-    and what it was fitted to."""
+    """Counts per fF so the crossing bent as the paper's pad shifts BEND_SHIFT_COUNTS, and
+    what it was fitted to. The paper does not say along which yarn its pad was bent, and
+    10 counts is its largest shift: the larger of the two bends' shifts is set to it."""
     i = int(np.argmin(np.abs(table.curvature_per_mm - PAD_BEND_CURVATURE_PER_MM)))
-    shift = float(table.c_bend_ff[0, i] - table.c0_ff)
+    shifts = table.c_bend_ff[:, i] - table.c0_ff
+    axis = int(np.argmax(np.abs(shifts)))
+    shift = float(shifts[axis])
     if shift == 0 or not np.isfinite(shift):
         raise SolverError("crossing cell: bending does not change C0; counts per fF cannot "
                           "be fitted to the bent pad")
     scale = BEND_SHIFT_COUNTS / abs(shift)
     return scale, {"observation": "paper Fig. 9: the 4 x 4 pad bent 180 deg over its 48 mm "
                                   "active length shifts its baseline by at most 10 counts",
-                   "deformation": "bend_x", "curvature_per_mm": float(table.curvature_per_mm[i]),
-                   "shift_ff": shift, "counts": BEND_SHIFT_COUNTS}
+                   "deformation": table.deformations[2 + axis],
+                   "curvature_per_mm": float(table.curvature_per_mm[i]),
+                   "shift_ff": shift, "counts": BEND_SHIFT_COUNTS,
+                   "other_bend_shift_ff": float(shifts[1 - axis])}
 
 
 def summarize(table: CrossingTable) -> dict:

@@ -136,3 +136,40 @@ def test_deformed_cell_is_solved_and_restored(small_cell):
     assert s.capacitance(nodes=deform.deformed(nodes, nodes, 0.9, 2.5)) == pytest.approx(
         c0, rel=1e-12)
     s.capacitance(nodes=nodes)
+
+
+def _table(c_bend_ff):
+    gaps = np.array([0.0, 1.0, 2.0])
+    dx, dy = crossing.offsets_mm(16.0), crossing.offsets_mm(12.0)
+    gx, gy = np.meshgrid(dx, dy, indexing="ij")
+    dc = -40.0 * np.exp(-gaps / 2.0)[:, None, None] * np.exp(-0.5 * (gx ** 2 + gy ** 2) / 36)
+    return crossing.CrossingTable(
+        800.0, ["small"], gaps, dx, dy, dc[None], ["stretch_x", "stretch_y", "bend_x", "bend_y"],
+        np.array([0.0, 0.1]), np.array([0.0, crossing.PAD_BEND_CURVATURE_PER_MM]),
+        np.full((2, 2), 800.0), np.asarray(c_bend_ff, float))
+
+
+def test_counts_per_ff_sets_the_larger_bend_shift_to_ten_counts():
+    """Bent as the pad, +2 fF along x and -5 fF along y: 10 counts / 5 fF = 2 counts/fF;
+    then the contact activation is 2 * 40 = 80 counts, the footprint sigma 6 mm, the gap
+    decay 2 mm and the threshold of 20 counts is crossed at 2 ln 4 mm."""
+    table = _table([[800.0, 802.0], [800.0, 795.0]])
+    scale, fit = equivalents.counts_per_ff(table)
+    assert scale == pytest.approx(2.0)
+    assert fit["deformation"] == "bend_y" and fit["shift_ff"] == pytest.approx(-5.0)
+    summary = equivalents.summarize(table)
+    small = summary["objects"]["small"]
+    assert small["contact_counts"] == pytest.approx(80.0)
+    assert small["footprint_sigma_mm"] == pytest.approx(6.0, rel=1e-6)
+    assert small["gap_decay_mm"] == pytest.approx(2.0)
+    assert small["threshold_gap_mm"] == pytest.approx(2 * np.log(4))
+    assert small["extrapolated"] == ["threshold_gap_mm"]
+    assert summary["deformation_shift_counts"]["bend_y"] == pytest.approx([0.0, 10.0])
+    assert summary["deformation_shift_counts"]["bend_x"] == pytest.approx([0.0, -4.0])
+
+
+def test_counts_per_ff_refuses_a_bend_without_shift():
+    from fruitcli.errors import SolverError
+
+    with pytest.raises(SolverError, match="bent pad"):
+        equivalents.counts_per_ff(_table([[800.0, 800.0], [800.0, 800.0]]))
