@@ -99,6 +99,19 @@ def _nonzero_vector(v: list[float]) -> bool:
     return math.hypot(*v) != 0
 
 
+SKIN_MODELS = ("gaussian", "electrostatic")
+"""[skin].model values: the assumed skin (`fruitcli.sensing.skin.forward`) or the computed
+crossing (`fruitcli.electrostatics`)."""
+
+
+def _gap_table(gaps) -> bool:
+    """At least two finite gaps (mm), increasing from 0 (contact)."""
+    return (isinstance(gaps, (list, tuple)) and len(gaps) >= 2
+            and all(isinstance(g, NUM) and not isinstance(g, bool) and math.isfinite(g)
+                    for g in gaps)
+            and gaps[0] == 0 and all(b > a for a, b in zip(gaps[:-1], gaps[1:], strict=False)))
+
+
 def _nonempty_box(box: list[float]) -> bool:
     return all(box[a] < box[a + 3] for a in range(3))
 
@@ -287,6 +300,25 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                                       "[lo, hi] drawn per taxel (seeded)"),
         "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
                                         "calibrate's gains.csv (with gain_spread = 0)"),
+        # the electrostatic crossing (fruitcli.electrostatics.crossing, `fruit skin`)
+        "model": Key("str", "gaussian", "gaussian (the assumed footprint, gap decay and strain "
+                                        "gain above) or electrostatic (the crossing's field)",
+                     choices=SKIN_MODELS),
+        "permittivity": Key("num", 2.8, "relative permittivity of the silicone (Ecoflex: about "
+                                        "2.8, as quoted for platinum-cure silicones at low "
+                                        "frequency, 2.5-3)", min=1.0,
+                            expected="a relative permittivity >= 1 (Ecoflex: about 2.8)"),
+        "yarn_radius_mm": Key("num", None, "radius of the conductive yarn (mm; default "
+                                           "[tracks].track_radius_mm)", **POSITIVE,
+                              expected="> 0 (mm)"),
+        "insulation_mm": Key("num", 0.1, "insulating layer between Tx and Rx where they cross "
+                                         "(mm)", **POSITIVE,
+                             expected="> 0 (mm; the yarns must not touch)"),
+        "gaps_mm": Key("list", [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],
+                       "object gaps of the crossing's table (mm, increasing from 0: contact)",
+                       valid=_gap_table,
+                       expected="at least two gaps in mm, increasing and starting at 0 "
+                                "(contact)"),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
         "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "

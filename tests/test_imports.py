@@ -105,6 +105,8 @@ FORBIDDEN = {
     "fruitcli.sensing": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.printer",
                          "fruitcli.studies"],
     "fruitcli.printer": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.studies"],
+    "fruitcli.electrostatics": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.printer",
+                                "fruitcli.studies", "fruitcli.sensing.live"],
     "fruitcli.workflow": ["fruitcli.cli"],
     "fruitcli.studies": ["fruitcli.cli"],
 }

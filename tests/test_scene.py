@@ -246,6 +246,7 @@ BAD_FOR_CONDITION = {  # a value each key's own `valid` condition refuses
     ("reduced", "pressure_range_kpa"): [5.0, 1.0],
     ("printer", "bed_mm"): [0.0, 0.0, 0.0, 0.0, 220.0, 250.0],
     ("jig", "axis"): [0.0, 0.0, 0.0],
+    ("skin", "gaps_mm"): [0.5, 1.0],
 }
 REQUIRED = {"box": [0, 0, 0, 1, 1, 1], "str": "x", "path": "t.csv"}
 
@@ -300,7 +301,8 @@ CHECKED_KEYS = {
     "material": "density_kg_m3 model poisson_ratio young_modulus_kpa", "mesh": "size_mm",
     "printer": "baud bed_mm feed_mm_min max_press_mm safe_height_mm step_mm timeout_s",
     "reduced": "margin max_degree points_per_axis pressure_range_kpa validation",
-    "scene": "name", "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm",
+    "scene": "name", "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
+            "insulation_mm model permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
               "tolerance",
     "tracks": "yarn_max_stretch zigzag_pitch_mm",

@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "simulate": ("fruitcli.cli.simulate", "simulate",
                  "Quasi-static FEM of a scene's states ([fem].element, [material].model)."),
     "bench": ("fruitcli.cli.bench", "bench", "Virtual 3D-printer bench: frames with ground truth."),
+    "skin": ("fruitcli.cli.skin", "skin", "Electrostatics of a yarn crossing: C0, dC, C_delta."),
     "locate": ("fruitcli.cli.locate", "locate", "Detect touches in frames and map them to 3D."),
     "record": ("fruitcli.cli.record", "record", "Record frames from a MuCa board over serial."),
     "live": ("fruitcli.cli.live", "live", "Localize touches live from a MuCa board."),

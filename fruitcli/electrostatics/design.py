@@ -1,0 +1,122 @@
+"""A scene's crossing: the cell's inputs read from its keys, checked, and the outputs of
+`fruit skin` (crossing.npz, summary.json).
+
+Units: mm, fF, counts. Inputs: the pitch ([grid].spacing_x_mm across the Tx yarns,
+spacing_y_mm across the Rx yarns), the cover ([tracks].cover_mm: the depth where the
+yarns cross), the yarn radius ([skin].yarn_radius_mm, default [tracks].track_radius_mm),
+the insulation, permittivity and gap table ([skin]), gmsh's time limit
+([mesh].time_limit_s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import SceneError
+
+
+@dataclass(frozen=True)
+class CrossingInputs:
+    """Everything the crossing's table depends on (mm; permittivity relative)."""
+
+    pitch_x_mm: float
+    pitch_y_mm: float
+    cover_mm: float
+    yarn_radius_mm: float
+    insulation_mm: float
+    permittivity: float
+    gaps_mm: tuple
+    time_limit_s: float
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["gaps_mm"] = list(self.gaps_mm)
+        return d
+
+
+def crossing_inputs(scene) -> CrossingInputs:
+    """The cell's inputs from a validated scene; SceneError naming the key when the
+    yarns do not fit the design."""
+    where = scene.path.name
+    skin, tracks, grid = scene.skin, scene.tracks, scene.grid
+    radius_key = "[skin].yarn_radius_mm"
+    radius = skin.yarn_radius_mm
+    if radius is None:
+        radius_key, radius = "[tracks].track_radius_mm", tracks.track_radius_mm
+    ins, cover = skin.insulation_mm, tracks.cover_mm
+    pitch = min(grid.spacing_x_mm, grid.spacing_y_mm)
+    if not radius > 0:
+        raise SceneError(f"{where}: {radius_key}: expected > 0 (mm), got {radius:g}")
+    if radius >= pitch / 2:
+        raise SceneError(f"{where}: {radius_key}: expected less than half the pitch "
+                         f"({pitch / 2:g} mm, [grid].spacing_x_mm / spacing_y_mm), got "
+                         f"{radius:g}")
+    if radius >= cover:
+        raise SceneError(f"{where}: {radius_key}: expected less than the cover "
+                         f"([tracks].cover_mm = {cover:g} mm), got {radius:g}")
+    if 2 * radius + ins / 2 >= cover:
+        raise SceneError(f"{where}: {radius_key}: the upper yarn reaches the surface (two "
+                         f"radii plus half the insulation, {2 * radius + ins / 2:g} mm, "
+                         f"against [tracks].cover_mm = {cover:g} mm); expected a radius "
+                         f"below {(cover - ins / 2) / 2:g} mm")
+    limit = scene.mesh.time_limit_s
+    if not limit > 0:
+        raise SceneError(f"{where}: [mesh].time_limit_s: expected > 0 (s), got {limit:g}")
+    return CrossingInputs(float(grid.spacing_x_mm), float(grid.spacing_y_mm),
+                          float(cover), float(radius), float(ins), float(skin.permittivity),
+                          tuple(float(g) for g in skin.gaps_mm), float(limit))
+
+
+def run_crossing(inputs: CrossingInputs, progress=None):
+    """(CrossingTable, summary dict) of a design."""
+    from fruitcli.electrostatics import crossing, equivalents
+
+    spec = crossing.cell_spec(inputs.pitch_x_mm, inputs.pitch_y_mm, inputs.cover_mm,
+                              inputs.yarn_radius_mm, inputs.insulation_mm, inputs.gaps_mm)
+    table = crossing.compute(spec, inputs.permittivity, inputs.gaps_mm,
+                             time_limit_s=inputs.time_limit_s, progress=progress)
+    summary = equivalents.summarize(table)
+    summary["assumed"] = assumed_model()
+    summary["inputs"] = inputs.to_dict()
+    return table, _finite(summary)
+
+
+def assumed_model() -> dict:
+    """The phenomenological skin's defaults (`fruitcli.sensing.skin.forward`), for comparison."""
+    from fruitcli.sensing.skin import forward
+
+    return {"footprint_sigma_mm": forward.default_footprints_mm(),
+            "gap_decay_mm": forward.GAP_DECAY_MM, "contact_counts": forward.CONTACT_COUNTS}
+
+
+def _finite(obj):
+    """JSON-safe: non-finite floats become None."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
+def table_arrays(table) -> dict[str, np.ndarray]:
+    """crossing.npz's arrays."""
+    return {"c0_ff": np.array(table.c0_ff), "objects": np.array(table.objects),
+            "gap_mm": table.gap_mm, "dx_mm": table.dx_mm, "dy_mm": table.dy_mm,
+            "dc_ff": table.dc_ff, "deformations": np.array(table.deformations),
+            "strain": table.strain, "curvature_per_mm": table.curvature_per_mm,
+            "c_stretch_ff": table.c_stretch_ff, "c_bend_ff": table.c_bend_ff}
+
+
+def write_outputs(out_dir: Path, table, summary: dict) -> None:
+    """crossing.npz and summary.json into `out_dir`, together or not at all."""
+    from fruitcli.fsutil import staged_dir, write_json
+
+    with staged_dir(out_dir) as tmp:
+        np.savez(tmp / "crossing.npz", **table_arrays(table))
+        write_json(tmp / "summary.json", summary)

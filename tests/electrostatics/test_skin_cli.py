@@ -1,0 +1,116 @@
+"""`fruit skin`: the crossing's outputs on a small cell, and bad inputs as one line naming
+the scene key, exit 1, nothing written."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+SMALL_CELL = """
+[grid]
+spacing_x_mm = 6.0
+spacing_y_mm = 5.0
+
+[tracks]
+cover_mm = 1.5
+track_radius_mm = 0.6
+
+[skin]
+yarn_radius_mm = 0.4
+insulation_mm = 0.1
+gaps_mm = [0.0, 1.0]
+"""
+
+
+def _scene(tmp_path, text: str = SMALL_CELL):
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.slow
+def test_skin_writes_the_table_and_summary(tmp_path, fruit):
+    out = tmp_path / "out"
+    result = fruit("-q", "skin", _scene(tmp_path), "--out", out)
+    assert result.exit_code == 0, result.output
+    with np.load(out / "crossing.npz") as data:
+        assert float(data["c0_ff"]) > 0
+        assert list(data["objects"]) == ["small", "medium", "finger"]
+        assert np.array_equal(data["gap_mm"], [0.0, 1.0])
+        assert np.allclose(data["dx_mm"], [-3.0, -1.5, 0.0, 1.5, 3.0])
+        assert np.allclose(data["dy_mm"], [-2.5, -1.25, 0.0, 1.25, 2.5])
+        dc = data["dc_ff"]
+        assert dc.shape == (3, 2, 5, 5)
+        assert np.all(dc < 0)  # a grounded object takes field from Rx
+        assert np.allclose(dc, dc[:, :, ::-1, :]) and np.allclose(dc, dc[:, :, :, ::-1])
+        assert np.all(np.abs(dc[:, 1]) < np.abs(dc[:, 0]))  # weaker further away
+        assert np.abs(dc[:, 0, 2, 2]).min() >= np.abs(dc[:, 0]).min()
+        assert data["c_stretch_ff"].shape == (2, len(data["strain"]))
+        assert data["c_bend_ff"].shape == (2, len(data["curvature_per_mm"]))
+        assert data["c_stretch_ff"][0, 0] == pytest.approx(float(data["c0_ff"]))
+        assert list(data["deformations"]) == ["stretch_x", "stretch_y", "bend_x", "bend_y"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["c0_ff"] == pytest.approx(float(np.load(out / "crossing.npz")["c0_ff"]))
+    fit = summary["counts_fit"]
+    assert abs(fit["shift_ff"]) * summary["counts_per_ff"] == pytest.approx(10.0)
+    for name in ("small", "medium", "finger"):
+        obj = summary["objects"][name]
+        assert obj["footprint_sigma_mm"] > 0 and obj["gap_decay_mm"] > 0
+        assert obj["contact_counts"] == pytest.approx(
+            -summary["counts_per_ff"] * obj["contact_dc_ff"])
+    assert summary["mesh_s"] > 0 and summary["solve_s"] > 0
+    assert summary["inputs"]["yarn_radius_mm"] == 0.4
+
+
+@pytest.mark.parametrize("edit, key", [
+    ("permittivity = 0.0", "[skin].permittivity"),
+    ("permittivity = -2.8", "[skin].permittivity"),
+    ("insulation_mm = 0.0", "[skin].insulation_mm"),
+    ("gaps_mm = [0.5, 1.0]", "[skin].gaps_mm"),
+    ("gaps_mm = [0.0, 1.0, 1.0]", "[skin].gaps_mm"),
+    ("yarn_radius_mm = 2.6", "[skin].yarn_radius_mm"),
+    ("yarn_radius_mm = 1.6", "[skin].yarn_radius_mm"),
+    ("yarn_radius_mm = 0.74", "[skin].yarn_radius_mm"),
+    ("model = \"electrostatics\"", "[skin].model"),
+])
+def test_bad_skin_inputs_are_one_line_naming_the_key(tmp_path, fruit, edit, key):
+    """Permittivity <= 0, no insulation, a gap table not from contact or not increasing,
+    a yarn wider than half the pitch (2.5 mm), than the cover (1.5 mm) or reaching the
+    surface, an unknown model."""
+    text = SMALL_CELL.replace("[skin]\n", f"[skin]\n{edit}\n")
+    text = "\n".join(line for line in text.splitlines()
+                     if not (line.split("=")[0].strip() == edit.split("=")[0].strip()
+                             and line != edit))
+    out = tmp_path / "out"
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and key in lines[0], result.output
+    assert not out.exists()
+
+
+def test_track_radius_is_named_when_it_is_the_yarn(tmp_path, fruit):
+    """Without [skin].yarn_radius_mm the yarn is [tracks].track_radius_mm: that key is named."""
+    text = SMALL_CELL.replace("yarn_radius_mm = 0.4\n", "").replace(
+        "track_radius_mm = 0.6", "track_radius_mm = 0.8")
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", tmp_path / "out")
+    assert result.exit_code == 1
+    assert "[tracks].track_radius_mm" in result.output
+
+
+def test_mesh_time_limit_is_named_and_nothing_is_written(tmp_path, fruit):
+    """gmsh killed at [mesh].time_limit_s: one line naming it; an existing table stays as
+    it was (complete, with its own inputs) and no temporary file is left."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text("{}\n")
+    text = SMALL_CELL + "\n[mesh]\ntime_limit_s = 0.05\n"
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "[mesh].time_limit_s" in lines[0]
+    assert sorted(p.name for p in out.iterdir()) == ["summary.json"]
+    assert (out / "summary.json").read_text() == "{}\n"
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
