@@ -121,6 +121,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation"),
         "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
                            "models)"),
+        "max_seconds": Key("num", 300.0, "time budget of one state (s); past it the state "
+                           "fails, saying how far its load got"),
     },
     "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced_build)
         "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "
@@ -507,6 +509,9 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
             or sol["first_steps"] < 1 or not sol["displacement_tolerance_mm"] >= 0:
         raise SceneError(f"{where}: [solver]: expected tolerance > 0, max_iterations >= 1, "
                          "jig_steps >= 1, first_steps >= 1, displacement_tolerance_mm >= 0")
+    if not (isinstance(sol["max_seconds"], NUM) and sol["max_seconds"] > 0):
+        raise SceneError(f"{where}: [solver].max_seconds: expected a time budget > 0 s, "
+                         f"got {sol['max_seconds']!r}")
     act = scene["actuation"]
     lengths = set()
     for key in ("pressure_kpa", "volume_growth_mm3"):

@@ -2,15 +2,22 @@
 curve against its closed form (incompressible) and the radial solution of the
 compressible material the FEM uses; suction down to the collapse."""
 
+import os
+
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 from test_fem_mesh import inflation_pressure, octant_ball
 
+from fruitcli.errors import SceneError
 from fruitcli.fem import limits
 from fruitcli.fem.model import Load
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver import linsolve, newton
+from fruitcli.fem.solver.c_output import captured_output
+from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.scene import parse_scene
 
 LIMIT_B_OVER_A_2 = 0.8164  # max P / mu of the incompressible sphere, B / A = 2
 STRETCH_AT_LIMIT = 1.828
@@ -104,3 +111,89 @@ def test_stop_beyond_a_reachable_pressure():
     curve = limits.follow(model, 0, stop_beyond_kpa=10.0)
     assert curve.pressure_kpa[-1] >= 10.0 > curve.pressure_kpa[-2]
     assert curve.limit_pressure_kpa is None and curve.end.startswith("the pressure asked")
+
+
+def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
+    """`check_pressures` on the octant (nu = 0.49): 100 kPa is past the limit (one line
+    with the key, the pressure and the limit), -500 kPa past the collapse; 10 kPa and
+    -10 kPa are reachable, and pressures too small to come near a limit (linearized
+    growth under SCREEN_GROWTH V0) are not followed at all."""
+    model = octant_ball(1, 1, nu=0.49)
+    options = SolverOptions()
+    key = ["[actuation].pressure_kpa.c"]
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(model, np.array([[5.0], [100.0]]), key,
+                               model.make_solver(), options)
+    line = str(info.value)
+    assert "\n" not in line
+    lim = float(line.split("limit pressure of ")[1].split(" kPa")[0])
+    assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
+    assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
+                    f"pressure of {lim:.3g} kPa (no equilibrium above it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
+                                         r"this chamber's collapse pressure of -\d"):
+        limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(),
+                               options)
+    limits.check_pressures(model, np.array([[10.0], [-10.0], [np.nan]]), key,
+                           model.make_solver(), options)
+    told = []
+    limits.check_pressures(model, np.array([[0.5]]), key, model.make_solver(), options,
+                           progress=told.append)
+    assert told == []  # screened out: no sample followed
+
+
+def test_time_budget_names_the_load_fraction():
+    """A state past [solver].max_seconds fails with OutOfTime: one line with the load
+    fraction reached and the chamber pressures there."""
+    model = octant_ball(1, 1, nu=0.49)
+    with pytest.raises(OutOfTime) as info:
+        solve_state(model, Load.pressures([20.0]), options=SolverOptions(max_seconds=1e-9),
+                    label="state 0")
+    assert str(info.value) == (
+        "state 0: stopped after 1e-09 s ([solver].max_seconds) at 0.000 of the load step "
+        "(chambers: c 0 kPa); a chamber may be past its limit pressure (`fruit limits` "
+        "computes it), or raise [solver].max_seconds")
+    assert info.value.fraction == 0.0
+
+
+def test_progress_of_a_long_state(monkeypatch):
+    """A state running past PROGRESS_SECONDS reports load fraction, Newton step and
+    residual through `progress` (here every Newton step: PROGRESS_SECONDS = 0)."""
+    monkeypatch.setattr(newton, "PROGRESS_SECONDS", 0.0)
+    model = octant_ball(1, 1, nu=0.49)
+    told = []
+    solve_state(model, Load.pressures([10.0]), options=SolverOptions(load_steps=2),
+                label="state 3", progress=told.append)
+    assert told[0].startswith("state 3: load 0.500, Newton step 0, residual ")
+    assert any(t.startswith("state 3: load 1.000, Newton step 1, ") for t in told)
+
+
+def test_c_library_output_is_caught(capfd):
+    """What a C library writes to fd 1 or 2 inside `captured_output` is handed back, not
+    shown."""
+    with captured_output() as said:
+        os.write(2, b"CHOLMOD warning: not positive definite\n")
+        os.write(1, b"and on stdout\n")
+    assert said.text == "CHOLMOD warning: not positive definite\nand on stdout\n"
+    assert capfd.readouterr() == ("", "")
+
+
+def test_cholmod_refusal_is_our_error_not_its_warning(capfd):
+    """An indefinite matrix: cholespy's CHOLMOD warning never reaches fd 2; the
+    factorization raises (the callers' fallback takes it)."""
+    if linsolve._cholesky is None:
+        pytest.skip("cholespy not installed")
+    k = sp.csc_matrix(np.diag([1.0, -1.0, 2.0]))
+    with pytest.raises(RuntimeError, match="not positive definite"):
+        linsolve._cholesky(k)
+    out = capfd.readouterr()
+    assert "CHOLMOD" not in out.err + out.out
+
+
+@pytest.mark.parametrize("value", ["0", "-1.5"])
+def test_max_seconds_must_be_positive(tmp_path, value):
+    text = f"[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n[solver]\nmax_seconds = {value}\n"
+    with pytest.raises(SceneError, match=r"^s.toml: \[solver\].max_seconds: expected a time "
+                                         r"budget > 0 s, got "):
+        parse_scene(text, tmp_path / "s.toml")

@@ -20,13 +20,13 @@ of a spherical cavity). Units: mm, mm^3, kPa.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fruitcli.errors import SolverError
+from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.model import Load
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
 
 STRETCH_STEP = 0.1
 """Step of the mean stretch (V / V0)^(1/3) between samples of a curve: the thick
@@ -92,11 +92,13 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
 def follow(model, k: int, direction: int = 1, *, solver=None,
            options: SolverOptions | None = None, stop_beyond_kpa: float | None = None,
            step: float = STRETCH_STEP, deadline: float | None = None,
-           progress=None) -> ChamberCurve:
+           fall_steps: int = FALL_STEPS, progress=None) -> ChamberCurve:
     """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
     the limit, suction (direction -1) down to MIN_STRETCH or the collapse. With
     `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
-    neither a limit nor a collapse before it). `deadline` (time.monotonic()) ends the
+    neither a limit nor a collapse before it). `fall_steps`: samples past the peak
+    (inflation) or past the lowest pressure (suction) that end the curve.
+    `deadline` (time.monotonic()) ends the
     curve where it is. `progress(msg)` is told each sample."""
     name = model.chamber_names[k]
     v0 = float(model.chamber_rest_volume_mm3[k])
@@ -104,6 +106,7 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
     options = options or SolverOptions(load_steps=1)
     stretches = [1.0]
+    last = None  # s: the time of the sample before (the next one's budget, STEP_BUDGET)
     x, prev, p_start = None, None, None
     s = 1.0
     while True:
@@ -115,15 +118,21 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
             curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
             break
         load = chamber_load(model, k, v0 * (s**3 - 1.0))
+        budget = options
+        if last is not None:
+            budget = replace(options, max_seconds=max(STEP_BUDGET[0] * last, STEP_BUDGET[1]))
         try:
             res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p_start,
-                              options=options, solver=solver, label=f"chamber {name}")
+                              options=budget, solver=solver, label=f"chamber {name}")
         except SolverError as exc:
-            curve.end = f"no equilibrium at mean stretch {s:.2f} ({exc})"
+            why = "no equilibrium found within the time" if isinstance(exc, OutOfTime) \
+                else "no equilibrium"
+            curve.end = f"{why} at mean stretch {s:.2f}"
             if direction < 0:
                 curve.collapse_pressure_kpa = min(curve.pressure_kpa)
             break
         x, prev, p_start = res.x, load, res.pressure_kpa
+        last = res.solve_ms / 1e3
         p = float(res.pressure_kpa[k])
         stretches.append(s)
         curve.growth_mm3.append(float(res.chamber_volume_mm3[k] - v0))
@@ -137,7 +146,7 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
         pr = np.array(curve.pressure_kpa)
         if direction > 0:
             top = int(np.argmax(pr))
-            if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= FALL_STEPS:
+            if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
                 s_top, p_top = peak(np.array(stretches), pr, top)
                 curve.limit_pressure_kpa = p_top
                 curve.limit_growth_mm3 = v0 * (s_top**3 - 1.0)
@@ -150,10 +159,69 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
                 why = "the cavity's volume is gone"
             elif res.min_det_f <= COLLAPSE_DET_F:
                 why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
-            elif low < len(pr) - 1 and len(pr) - 1 - low >= FALL_STEPS:
+            elif low < len(pr) - 1 and len(pr) - 1 - low >= fall_steps:
                 why = "the wall buckles in (the suction falls off)"
             if why:
                 curve.collapse_pressure_kpa = float(pr[low])
                 curve.end = why
                 break
     return curve
+
+
+SCREEN_GROWTH = 0.1
+"""Pressures whose linearized volume growth p dV/dp (the rest tangent's compliance) stays
+under this fraction of the chamber's rest volume are not checked further: at its limit
+pressure a neo-Hookean sphere has grown 0.31 V0 by that linear measure when thin, 0.70
+V0 when its outer radius is twice the inner."""
+
+CHECK_TOLERANCE = 1e-4
+"""Newton's relative residual on the samples of `check_pressures` (the pressure to three
+digits is all it needs)."""
+
+STEP_BUDGET = (4.0, 5.0)
+"""Time budget of one sample of a curve: this many times the sample before it, and at
+least this many seconds (a sample that fails, e.g. as the walls buckle in, costs little
+more than one that converges; the first sample, from rest, has the scene's budget)."""
+
+
+def rest_compliance(model, solver) -> np.ndarray:
+    """(K,) dV_k/dp_k (mm^3/kPa) of each chamber at rest, from the solver's tangent there
+    (its factor is then the one the first state starts with)."""
+    free = model.pattern.free
+    x = model.rest
+    kin = model.kinematics(x)
+    solver.update(kin[1], kin[0], None, True)
+    h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
+    return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
+
+
+def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
+                    options: SolverOptions, progress=None) -> None:
+    """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
+    chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
+    K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
+    control (`follow`, the others at rest) only as far as its largest or smallest
+    pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH."""
+    if not np.any(np.nan_to_num(pressures)):
+        return
+    w = rest_compliance(model, solver)
+    check = replace(options, tolerance=max(options.tolerance, CHECK_TOLERANCE), load_steps=1)
+    v0 = model.chamber_rest_volume_mm3
+    for k, key in enumerate(keys):
+        col = pressures[:, k][np.isfinite(pressures[:, k])]
+        for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
+            if direction * asked <= 0 or abs(asked) * w[k] < SCREEN_GROWTH * v0[k]:
+                continue
+            curve = follow(model, k, direction, options=check, stop_beyond_kpa=asked,
+                           fall_steps=1, progress=progress)
+            if direction > 0 and curve.limit_pressure_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
+                    f"{curve.limit_pressure_kpa:.3g} kPa (no equilibrium above it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
+            if direction < 0 and curve.collapse_pressure_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's collapse pressure of "
+                    f"{curve.collapse_pressure_kpa:.3g} kPa ({curve.end}: its walls would "
+                    "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
+                    "follow the suction")
