@@ -2,21 +2,26 @@
 curve against its closed form (incompressible) and the radial solution of the
 compressible material the FEM uses; suction down to the collapse."""
 
+import json
 import os
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
-from test_fem_mesh import inflation_pressure, octant_ball
+from test_fem_mesh import ball_scene, inflation_pressure, octant_ball
 
+from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError
 from fruitcli.fem import limits
+from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.model import Load
 from fruitcli.fem.solver import linsolve, newton
 from fruitcli.fem.solver.c_output import captured_output
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.fem.stage import run_simulate, run_tetra
 from fruitcli.scene import parse_scene
 
 LIMIT_B_OVER_A_2 = 0.8164  # max P / mu of the incompressible sphere, B / A = 2
@@ -197,3 +202,46 @@ def test_max_seconds_must_be_positive(tmp_path, value):
     with pytest.raises(SceneError, match=r"^s.toml: \[solver\].max_seconds: expected a time "
                                          r"budget > 0 s, got "):
         parse_scene(text, tmp_path / "s.toml")
+
+
+@pytest.mark.slow
+def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
+    """`fruit limits` on a gmsh ball (cavity 10 mm, outer 20 mm, size 8 mm, E = 100 kPa,
+    nu = 0.45, default element, free): limits.json, pv.csv and pv.png; the limit
+    pressure near the compressible radial solution's (nu = 0.45: 0.762 mu = 26.3 kPa;
+    the coarse faceted ball within 5 %), a collapse under suction. Then `run_simulate`
+    at 2000 kPa is refused in one line quoting the same limit, nothing written."""
+    scene = ball_scene(tmp_path, size=8.0, nu=0.45, p=2000.0)
+    out = tmp_path / "lim"
+    run_tetra(scene, None, out)
+    info = run_limits(scene, out / "mesh.npz", out)
+    saved = json.loads((out / "limits.json").read_text())
+    assert saved == json.loads(json.dumps(info))
+    cav = saved["chambers"]["c"]
+    mu = 100 / (2 * 1.45)
+    assert cav["limit_pressure_kpa"] == pytest.approx(radial_pressure(mu, 100 / 0.3, 1.83),
+                                                      rel=0.05)
+    assert cav["collapse_pressure_kpa"] < 0 and cav["limit_volume_growth_mm3"] > 0
+    assert saved["element"] == "p2" and saved["mesh"]["elements"] > 0
+    rows = (out / "pv.csv").read_text().splitlines()
+    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 10
+    growth = [float(r.split(",")[1]) for r in rows[1:]]
+    assert growth == sorted(growth) and 0.0 in growth
+    assert (out / "pv.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(SceneError) as refused:
+        run_simulate(scene, out / "mesh.npz", None, tmp_path / "sim")
+    assert str(refused.value) == (
+        f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure of "
+        f"{cav['limit_pressure_kpa']:.3g} kPa (no equilibrium above it); give "
+        "`volume_growth_mm3` to follow the inflation past it")
+    assert not (tmp_path / "sim" / "states.npz").exists()
+
+
+def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):
+    (tmp_path / "s.toml").write_text("[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n")
+    res = CliRunner().invoke(cli, ["limits", str(tmp_path / "s.toml"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert res.output == (f"Error: {tmp_path / 's.toml'}: [[geometry.chamber]]: the scene "
+                          "has no chamber\n")
+    assert not (tmp_path / "o").exists()

@@ -16,6 +16,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
+
 from fruitcli.fem import io, limits
 from fruitcli.fem.stage import build_model, element_name, solver_options
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
@@ -85,21 +87,22 @@ def plot_curves(path, curves) -> None:
         if up.limit_pressure_kpa is not None:
             ax.plot([up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10,
                     color=line.get_color())
-            ax.annotate(f"limit {up.limit_pressure_kpa:.3g} kPa",
+            ax.annotate(f"limit {up.limit_pressure_kpa:.4g} kPa",
                         (up.limit_growth_mm3, up.limit_pressure_kpa),
-                        textcoords="offset points", xytext=(6, 8))
+                        textcoords="offset points", xytext=(0, -22), ha="center")
         if down.collapse_pressure_kpa is not None:
-            i = down.pressure_kpa.index(down.collapse_pressure_kpa)
+            i = int(np.argmin(np.abs(np.array(down.pressure_kpa) - down.collapse_pressure_kpa)))
             ax.plot([down.growth_mm3[i]], [down.collapse_pressure_kpa], "x", ms=10,
                     color=line.get_color())
-            ax.annotate(f"collapse {down.collapse_pressure_kpa:.3g} kPa",
+            ax.annotate(f"collapse {down.collapse_pressure_kpa:.4g} kPa",
                         (down.growth_mm3[i], down.collapse_pressure_kpa),
-                        textcoords="offset points", xytext=(6, -14))
+                        textcoords="offset points", xytext=(10, -4))
     ax.axhline(0.0, color="0.7", lw=0.8)
     ax.axvline(0.0, color="0.7", lw=0.8)
     ax.set_xlabel("chamber volume growth (mm³)")
     ax.set_ylabel("chamber pressure (kPa)")
     ax.set_title("Pressure against volume (volume control)")
+    ax.margins(x=0.05, y=0.12)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
     fig.tight_layout()
