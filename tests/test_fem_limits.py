@@ -119,23 +119,37 @@ def test_stop_beyond_a_reachable_pressure():
 
 
 def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
-    """`check_pressures` on the octant (nu = 0.49): 100 kPa is past the limit (one line
-    with the key, the pressure and the limit), -500 kPa past the collapse; 10 kPa and
-    -10 kPa are reachable, and pressures too small to come near a limit (linearized
-    growth under SCREEN_GROWTH V0) are not followed at all."""
+    """`check_pressures` on the octant (nu = 0.49, limit 27.0 kPa): 28 kPa is past the
+    limit (one line with the key, the pressure and the limit, found by following the
+    curve to its peak); 100 kPa is refused sooner, once the curve is concave, with a
+    bound of the limit (`levels_off_below`: a pressure no equilibrium reaches up to 27
+    V0); -500 kPa is past the collapse; 10 kPa and -10 kPa are reachable, and pressures
+    too small to come near a limit (linearized growth under SCREEN_GROWTH V0) are not
+    followed at all."""
     model = octant_ball(1, 1, nu=0.49)
     options = SolverOptions()
     key = ["[actuation].pressure_kpa.c"]
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(model, np.array([[5.0], [100.0]]), key,
+        limits.check_pressures(model, np.array([[5.0], [28.0]]), key,
                                model.make_solver(), options)
     line = str(info.value)
-    assert "\n" not in line
     lim = float(line.split("limit pressure of ")[1].split(" kPa")[0])
     assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
-    assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
+    assert line == (f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
                     f"pressure of {lim:.3g} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it")
+    told = []
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(model, np.array([[100.0]]), key, model.make_solver(),
+                               options, progress=told.append)
+    line = str(info.value)
+    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    assert lim < bound < 100.0
+    assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
+                    f"pressure, which is below {bound:.3g} kPa (its pressure-volume curve "
+                    "levels off: no equilibrium above its peak; `fruit limits` computes it); "
+                    "give `volume_growth_mm3` to follow the inflation past it")
+    assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
     with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
                                          r"this chamber's collapse pressure of -\d"):
         limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(),

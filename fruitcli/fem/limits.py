@@ -40,8 +40,9 @@ rises there has no limit in the range (limit null)."""
 FALL_STEPS = 2
 """Samples below the largest pressure that end an inflation curve (past its peak)."""
 
-MIN_STRETCH = 0.3
-"""Suction is followed down to this mean stretch (2.7 % of the rest volume)."""
+MIN_STRETCH = 0.45
+"""Suction is followed down to this mean stretch (9.1 % of the rest volume: the walls of
+a flat chamber are about to meet)."""
 
 COLLAPSE_VOLUME = MIN_STRETCH**3
 """A cavity under this fraction of its rest volume counts as collapsed."""
@@ -65,6 +66,7 @@ class ChamberCurve:
     limit_growth_mm3: float | None = None
     collapse_pressure_kpa: float | None = None
     end: str = ""
+    limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_below`)
 
 
 def chamber_load(model, k: int, growth_mm3: float) -> Load:
@@ -87,6 +89,23 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
         return float(stretch[i]), float(pressure[i])
     s_top = float(np.clip(-b / (2 * a), s[0], s[-1]))
     return s_top, float(np.polyval([a, b, c], s_top))
+
+
+def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -> float:
+    """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
+    MAX_STRETCH, from its samples so far (the last at mean stretch `stretch`, `step`
+    apart): once its increments shrink (the curve is concave in the stretch, as before a
+    neo-Hookean chamber's limit point), the secant of the last step overestimates the
+    slope from there on, so the curve stays below the secant continued to MAX_STRETCH.
+    Infinite with fewer than three samples, increments that do not shrink, or another
+    material (Yeoh's stiffening can bend the curve up again)."""
+    material = getattr(model, "material", None)
+    if material is None or material.model != "neo-hookean" or len(pressure) < 3:
+        return np.inf
+    d1, d2 = pressure[-2] - pressure[-3], pressure[-1] - pressure[-2]
+    if not 0 < d2 < d1:
+        return np.inf
+    return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
 
 
 def follow(model, k: int, direction: int = 1, *, solver=None,
@@ -139,11 +158,17 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
         curve.pressure_kpa.append(p)
         if progress:
             progress(f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
-                     f"pressure {p:.4g} kPa ({res.solve_ms / 1e3:.1f} s)")
+                     f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
+                     f"{res.solve_ms / 1e3:.1f} s)")
         if stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
             curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
             break
         pr = np.array(curve.pressure_kpa)
+        bound = levels_off_below(model, pr, s, step)
+        if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
+            curve.limit_bound_kpa = bound
+            curve.end = f"the pressure levels off below {bound:.3g} kPa"
+            break
         if direction > 0:
             top = int(np.argmax(pr))
             if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
@@ -195,13 +220,23 @@ def rest_compliance(model, solver) -> np.ndarray:
     return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
 
 
+def forget(solver) -> None:
+    """Clear what the curve's states left on the solver for the next state's predictor
+    (`newton._history_guess`, `_sensitivity_guess`), and have its next tangent factored
+    afresh (the kept factor is of a deformed state); its analysis stays."""
+    solver.history, solver.sensitivity, solver.estimated = [], None, None
+    if hasattr(solver, "refresh"):
+        solver.refresh = True
+
+
 def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
                     options: SolverOptions, progress=None) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
     K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
     control (`follow`, the others at rest) only as far as its largest or smallest
-    pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH."""
+    pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH; on
+    `solver` (the states' own: its analysis is kept, see `forget`)."""
     if not np.any(np.nan_to_num(pressures)):
         return
     w = rest_compliance(model, solver)
@@ -212,8 +247,15 @@ def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
         for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
             if direction * asked <= 0 or abs(asked) * w[k] < SCREEN_GROWTH * v0[k]:
                 continue
-            curve = follow(model, k, direction, options=check, stop_beyond_kpa=asked,
-                           fall_steps=1, progress=progress)
+            curve = follow(model, k, direction, solver=solver, options=check,
+                           stop_beyond_kpa=asked, fall_steps=1, progress=progress)
+            forget(solver)
+            if direction > 0 and curve.limit_bound_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
+                    f"below {curve.limit_bound_kpa:.3g} kPa (its pressure-volume curve levels "
+                    "off: no equilibrium above its peak; `fruit limits` computes it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
             if direction > 0 and curve.limit_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
