@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 from test_fem_mesh import ball_scene, inflation_pressure, octant_ball
 
 from fruitcli.cli.main import cli
-from fruitcli.errors import SceneError
+from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import limits
 from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.model import Load
@@ -121,7 +121,8 @@ def test_stop_beyond_a_reachable_pressure():
 def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     """`check_pressures` on the octant (nu = 0.49, limit 27.0 kPa): 28 kPa is past the
     limit (one line with the key, the pressure and the limit, found by following the
-    curve to its peak); 100 kPa is refused sooner, once the curve is concave, with a
+    curve to its peak; without the screen, which lets it through to Newton and
+    `explain_failure`, see below); 100 kPa is refused sooner, once the curve is concave, with a
     bound of the limit (`levels_off_below`: a pressure no equilibrium reaches up to 27
     V0); -500 kPa is past the collapse; 10 kPa and -10 kPa are reachable, and pressures
     too small to come near a limit (linearized growth under SCREEN_GROWTH V0) are not
@@ -131,12 +132,12 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     key = ["[actuation].pressure_kpa.c"]
     with pytest.raises(SceneError) as info:
         limits.check_pressures(model, np.array([[5.0], [28.0]]), key,
-                               model.make_solver(), options)
+                               model.make_solver(), options, screen=0.0)
     line = str(info.value)
     lim = float(line.split("limit pressure of ")[1].split(" kPa")[0])
     assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
     assert line == (f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
-                    f"pressure of {lim:.3g} kPa (no equilibrium above it); give "
+                    f"pressure of {limits.kpa(lim)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it")
     told = []
     with pytest.raises(SceneError) as info:
@@ -146,7 +147,7 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     bound = float(line.split("which is below ")[1].split(" kPa")[0])
     assert lim < bound < 100.0
     assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
-                    f"pressure, which is below {bound:.3g} kPa (its pressure-volume curve "
+                    f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
                     "levels off: no equilibrium above its peak; `fruit limits` computes it); "
                     "give `volume_growth_mm3` to follow the inflation past it")
     assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
@@ -160,6 +161,26 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     limits.check_pressures(model, np.array([[0.5]]), key, model.make_solver(), options,
                            progress=told.append)
     assert told == []  # screened out: no sample followed
+
+
+def test_a_failed_state_past_the_limit_is_named():
+    """28 kPa on the octant (limit 27.0 kPa) passes the screen (linearized growth 0.7 V0)
+    and Newton finds no equilibrium; `explain_failure` then names the limit in the
+    check's line. Below the limit, the original error stands."""
+    model = octant_ball(1, 1, nu=0.49)
+    key = ["[actuation].pressure_kpa.c"]
+    solver = model.make_solver()
+    limits.check_pressures(model, np.array([[28.0]]), key, solver, SolverOptions())
+    load = Load.pressures([28.0])
+    with pytest.raises(SolverError) as failed:
+        solve_state(model, load, options=SolverOptions(load_steps=4), solver=solver)
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 28 kPa is past "
+                                         r"this chamber's limit pressure of 27.0 kPa "):
+        limits.explain_failure(model, load, key, solver, SolverOptions(), failed.value)
+    original = SolverError("state 0: no equilibrium")
+    with pytest.raises(SolverError, match="^state 0: no equilibrium$"):
+        limits.explain_failure(model, Load.pressures([10.0]), key, solver, SolverOptions(),
+                               original)
 
 
 def test_time_budget_names_the_load_fraction():
@@ -246,7 +267,7 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
         run_simulate(scene, out / "mesh.npz", None, tmp_path / "sim")
     assert str(refused.value) == (
         f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure of "
-        f"{cav['limit_pressure_kpa']:.3g} kPa (no equilibrium above it); give "
+        f"{limits.kpa(cav['limit_pressure_kpa'])} kPa (no equilibrium above it); give "
         "`volume_growth_mm3` to follow the inflation past it")
     assert not (tmp_path / "sim" / "states.npz").exists()
 

@@ -193,11 +193,14 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
     return curve
 
 
-SCREEN_GROWTH = 0.1
+SCREEN_GROWTH = 1.0
 """Pressures whose linearized volume growth p dV/dp (the rest tangent's compliance) stays
-under this fraction of the chamber's rest volume are not checked further: at its limit
-pressure a neo-Hookean sphere has grown 0.31 V0 by that linear measure when thin, 0.70
-V0 when its outer radius is twice the inner."""
+under this fraction of the chamber's rest volume are not checked before solving: at its
+limit pressure a neo-Hookean sphere has grown 0.31 V0 by that linear measure when thin,
+0.70 V0 when its outer radius is twice the inner, so what passes is far past a limit or
+(a stiff chamber) far from one. The default Fruit's breathing (12 kPa) stays under it:
+following its chambers would cost every run minutes. A pressure screened out that is
+past a limit all the same fails in Newton, and `explain_failure` then names the limit."""
 
 CHECK_TOLERANCE = 1e-4
 """Newton's relative residual on the samples of `check_pressures` (the pressure to three
@@ -220,6 +223,11 @@ def rest_compliance(model, solver) -> np.ndarray:
     return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
 
 
+def kpa(value: float) -> str:
+    """A pressure for a message: one decimal from 10 kPa up, three digits below."""
+    return f"{value:.1f}" if abs(value) >= 10 else f"{value:.3g}"
+
+
 def forget(solver) -> None:
     """Clear what the curve's states left on the solver for the next state's predictor
     (`newton._history_guess`, `_sensitivity_guess`), and have its next tangent factored
@@ -230,7 +238,8 @@ def forget(solver) -> None:
 
 
 def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
-                    options: SolverOptions, progress=None) -> None:
+                    options: SolverOptions, progress=None,
+                    screen: float = SCREEN_GROWTH) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
     K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
@@ -245,7 +254,7 @@ def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
     for k, key in enumerate(keys):
         col = pressures[:, k][np.isfinite(pressures[:, k])]
         for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
-            if direction * asked <= 0 or abs(asked) * w[k] < SCREEN_GROWTH * v0[k]:
+            if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
                 continue
             curve = follow(model, k, direction, solver=solver, options=check,
                            stop_beyond_kpa=asked, fall_steps=1, progress=progress)
@@ -253,17 +262,30 @@ def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
             if direction > 0 and curve.limit_bound_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
-                    f"below {curve.limit_bound_kpa:.3g} kPa (its pressure-volume curve levels "
+                    f"below {kpa(curve.limit_bound_kpa)} kPa (its pressure-volume curve levels "
                     "off: no equilibrium above its peak; `fruit limits` computes it); give "
                     "`volume_growth_mm3` to follow the inflation past it")
             if direction > 0 and curve.limit_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
-                    f"{curve.limit_pressure_kpa:.3g} kPa (no equilibrium above it); give "
+                    f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it")
             if direction < 0 and curve.collapse_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's collapse pressure of "
-                    f"{curve.collapse_pressure_kpa:.3g} kPa ({curve.end}: its walls would "
+                    f"{kpa(curve.collapse_pressure_kpa)} kPa ({curve.end}: its walls would "
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
                     "follow the suction")
+
+
+def explain_failure(model, load: Load, keys: list[str], solver, options: SolverOptions,
+                    error: SolverError, progress=None) -> None:
+    """After `error` (a state under `load` found no equilibrium): raise the one line of
+    `check_pressures` when a chamber's pressure in `load` is past its limit or collapse
+    (followed without the screen), else `error` itself."""
+    vc = np.asarray(load.volume_controlled, bool)
+    asked = np.where(vc, np.nan, load.pressure_kpa)[None, :]
+    if np.any(np.nan_to_num(asked)):
+        forget(solver)
+        check_pressures(model, asked, keys, solver, options, progress, screen=0.0)
+    raise error
