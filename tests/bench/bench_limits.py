@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 
 def sphere_refinement() -> None:
-    from test_fem_limits import LIMIT_B_OVER_A_2, STRETCH_AT_LIMIT, radial_pressure
+    from test_fem_limits import LIMIT_B_OVER_A_2, radial_pressure
     from test_fem_mesh import octant_ball
 
     from fruitcli.fem import limits
@@ -36,10 +36,14 @@ def sphere_refinement() -> None:
     for cells in (1, 2, 3, 4):
         model = octant_ball(cells, cells, nu=0.49)
         mu, kappa = model.material.shear_modulus_kpa, model.material.bulk_modulus_kpa
-        if reference is None:
-            reference = max(radial_pressure(mu, kappa, la)
-                            for la in (STRETCH_AT_LIMIT - 0.02, STRETCH_AT_LIMIT,
-                                       STRETCH_AT_LIMIT + 0.02))
+        if reference is None:  # the radial solution's own peak
+            from scipy.optimize import minimize_scalar
+
+            top = minimize_scalar(lambda la, mu=mu, kappa=kappa: -radial_pressure(mu, kappa, la),
+                                  bounds=(1.6, 2.0), method="bounded",
+                                  options={"xatol": 1e-5})
+            reference = -top.fun
+            print(f"radial solution's peak: {reference / mu:.5f} mu at la = {top.x:.4f}")
         t0 = time.perf_counter()
         curve = limits.follow(model, 0)
         dt = time.perf_counter() - t0
