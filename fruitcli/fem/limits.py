@@ -218,7 +218,7 @@ def rest_compliance(model, solver) -> np.ndarray:
     free = model.pattern.free
     x = model.rest
     kin = model.kinematics(x)
-    solver.update(kin[1], kin[0], None, True)
+    solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
     h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
     return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
 
