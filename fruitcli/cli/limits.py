@@ -28,6 +28,7 @@ def limits(scene, out_dir, solid):
     volume_growth_mm3, pressure_kpa) and OUT/pv.png.
     """
     from fruitcli.errors import SceneError
+    from fruitcli.fem.limits import MAX_STRETCH
     from fruitcli.fem.limits_stage import run_limits
     from fruitcli.fem.stage import run_tetra
     from fruitcli.scene import load_scene
@@ -51,7 +52,7 @@ def limits(scene, out_dir, solid):
     for name, ch in info["chambers"].items():
         lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
         click.echo(f"chamber {name}: limit pressure "
-                   + ("none up to 27 V0" if lim is None else
+                   + (f"none up to {MAX_STRETCH**3:g} V0" if lim is None else
                       f"{lim:.4g} kPa at {ch['limit_volume_growth_mm3']:.4g} mm^3 growth")
                    + ", collapse " + ("none" if col is None else f"{col:.4g} kPa"))
     click.echo(f"{out_dir / 'limits.json'}: {len(info['chambers'])} chamber(s), "
