@@ -285,3 +285,15 @@ def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):
     assert res.output == (f"Error: {tmp_path / 's.toml'}: [[geometry.chamber]]: the scene "
                           "has no chamber\n")
     assert not (tmp_path / "o").exists()
+
+
+def test_volume_growth_below_minus_the_rest_volume_is_refused():
+    model = octant_ball(1, 1, nu=0.49)
+    v0 = model.chamber_rest_volume_mm3[0]
+    ok = Load(np.zeros(1), np.array([-0.5 * v0]), np.array([True]))
+    limits.check_growth(model, [ok])
+    bad = Load(np.zeros(1), np.array([-2 * v0]), np.array([True]))
+    with pytest.raises(SceneError, match=r"^\[actuation\].volume_growth_mm3.c: -\d+(\.\d+)? "
+                                         r"mm\^3 would leave the chamber no volume \(its rest "
+                                         r"volume is \d+(\.\d+)? mm\^3\): expected more than "):
+        limits.check_growth(model, [ok, bad])

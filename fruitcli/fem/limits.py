@@ -289,3 +289,17 @@ def explain_failure(model, load: Load, keys: list[str], solver, options: SolverO
         forget(solver)
         check_pressures(model, asked, keys, solver, options, progress, screen=0.0)
     raise error
+
+
+def check_growth(model, loads: list[Load]) -> None:
+    """Refuse, with one SceneError line, a volume growth that would take a chamber to no
+    volume or less (growth <= -V0)."""
+    v0 = model.chamber_rest_volume_mm3
+    for load in loads:
+        vc = np.asarray(load.volume_controlled, bool)
+        for k in np.flatnonzero(vc & (np.asarray(load.volume_growth_mm3) <= -v0)):
+            name = model.chamber_names[k]
+            raise SceneError(f"[actuation].volume_growth_mm3.{name}: "
+                             f"{load.volume_growth_mm3[k]:g} mm^3 would leave the chamber no "
+                             f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
+                             f"than {-v0[k]:.4g}")

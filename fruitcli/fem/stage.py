@@ -261,6 +261,7 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
     keys = [f"--pressures {c}_kpa" if pressures is not None else
             f"[actuation].pressure_kpa.{c}" for c in model.chamber_names]
     if model.chamber_tris:
+        limits.check_growth(model, loads)
         asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa)
                           for ld in loads])
         limits.check_pressures(model, asked, keys, solver, solver_options(scene),
