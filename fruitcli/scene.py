@@ -223,6 +223,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1),
         "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
                            "models)", min=1),
+        "max_seconds": Key("num", 300.0, "time budget of one state (s); past it the state "
+                           "fails, saying how far its load got", **POSITIVE,
+                           expected="a time budget > 0 s"),
     },
     "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced.build)
         "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "

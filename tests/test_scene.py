@@ -304,6 +304,7 @@ CHECKED_KEYS = {
     "scene": "name", "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
             "insulation_mm model permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
+              "max_seconds "
               "tolerance",
     "tracks": "yarn_max_stretch zigzag_pitch_mm",
 }

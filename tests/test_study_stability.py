@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.meshing.topology import boundary_faces
@@ -60,3 +61,14 @@ def test_parallel_equals_serial():
     for s, p in zip(serial, parallel, strict=True):
         for key in ("status", "iterations", "residual", "max_disp_mm", "min_det_f"):
             assert s[key] == p[key]
+
+
+@pytest.mark.slow
+def test_realistic_sphere_past_its_limit_is_a_named_failure():
+    """The gmsh thick sphere at 2000 kPa: a failed row naming the limit (not a Newton
+    failure after minutes)."""
+    case = next(c for c in default_cases() if c.name == "p = 2000 kPa (sphere)")
+    row = run_case(case)
+    assert row["status"].startswith("failed: cavity: 2000 kPa is past this chamber's limit "
+                                    "pressure")
+    assert "\n" not in row["status"]

@@ -21,6 +21,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "tetra": ("fruitcli.cli.tetra", "tetra", "Tetrahedralize a scene's body with its chambers."),
     "simulate": ("fruitcli.cli.simulate", "simulate",
                  "Quasi-static FEM of a scene's states ([fem].element, [material].model)."),
+    "limits": ("fruitcli.cli.limits", "limits",
+               "Each chamber's limit pressure, followed past it by volume control."),
     "bench": ("fruitcli.cli.bench", "bench", "Virtual 3D-printer bench: frames with ground truth."),
     "skin": ("fruitcli.cli.skin", "skin", "Electrostatics of a yarn crossing: C0, dC, C_delta."),
     "locate": ("fruitcli.cli.locate", "locate", "Detect touches in frames and map them to 3D."),

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fruitcli.errors import MeshError, SceneError
-from fruitcli.fem import io
+from fruitcli.errors import MeshError, SceneError, SolverError
+from fruitcli.fem import io, limits
 from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements import barycentric, tet4
@@ -226,7 +226,8 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
         if materials.from_scene(scene.material).model != "corotational":
             steps = max(steps, cfg.first_steps)
     return SolverOptions(cfg.tolerance, cfg.max_iterations, cfg.max_subdivisions,
-                         cfg.linear_solver, steps, cfg.displacement_tolerance_mm)
+                         cfg.linear_solver, steps, cfg.displacement_tolerance_mm,
+                         cfg.max_seconds)
 
 
 def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
@@ -251,11 +252,24 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
         table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
         loads = [Load.pressures(row) for row in table]
     solver = model.make_solver(scene.solver.linear_solver)
+    keys = [f"--pressures {c}_kpa" if pressures is not None else
+            f"[actuation].pressure_kpa.{c}" for c in model.chamber_names]
+    if model.chamber_tris:
+        limits.check_growth(model, loads)
+        asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa)
+                          for ld in loads])
+        limits.check_pressures(model, asked, keys, solver, solver_options(scene),
+                               progress=progress)
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
-        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
-                          options=opts, solver=solver, label=f"state {i}")
+        try:
+            res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
+                              options=opts, solver=solver, label=f"state {i}",
+                              progress=lambda msg: progress(f"simulate: {msg}"))
+        except SolverError as exc:  # past a limit the check screened out? name it
+            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc,
+                                   progress)
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
         progress(f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "

@@ -6,7 +6,11 @@ elements would invert, jig stiffness from 1e-3 to 1e6 N/mm, a sliver tet, a body
 support (the paper's model); and with the default element and material (p2,
 neo-Hookean): nu up to 0.4999, a chamber pressure past the inflation's limit point
 (pressure control fails there, naming it) and the same inflation followed under volume
-control. Each row says whether it converged or names the failure in one line, with
+control. A realistic body (a gmsh thick sphere: cavity 10 mm, outer 20 mm, size 3 mm,
+free, default element, nu = 0.45) is pressurised from 5 kPa to 2000 kPa and down to
+-500 kPa, each state checked against the cavity's limit and collapse pressures first
+(`fruitcli.fem.limits`) and given [solver] max_seconds = 60. Each row says whether it
+converged or names the failure in one line, with
 Newton iterations, load-step subdivisions, final residual, max displacement, min det F
 and time. No NaN reaches a row: a non-finite result is itself a named failure.
 """
@@ -45,6 +49,7 @@ class Case:
     element: str = "p1"
     material: str = "corotational"
     volume_growth: float = 0.0  # times the cavity's rest volume (volume control)
+    size_mm: float = 3.0  # gmsh mesh size of the realistic bodies
 
 
 def default_cases() -> list[Case]:
@@ -63,6 +68,8 @@ def default_cases() -> list[Case]:
               for p in (5.0, 20.0, 50.0, 100.0)]
     cases += [Case("volume, p2", f"growth {g:g} V0 (p2)", "hollow_pressure", volume_growth=g,
                    **p2) for g in (0.5, 1.0, 2.0)]
+    cases += [Case("sphere, gmsh", f"p = {p:g} kPa (sphere)", "gmsh_sphere", pressure_kpa=p,
+                   nu=0.45, **p2) for p in (5.0, 20.0, 2000.0, -20.0, -500.0)]
     cases += [Case("sliver", "one sliver tet", "sliver"),
               Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0)]
     return cases
@@ -148,8 +155,48 @@ def _sliver(case: Case):
     return model, Load.pressures([])
 
 
-BUILDERS = {"beam_gravity": _beam, "hollow_pressure": _hollow, "jig": _jig, "sliver": _sliver,
-            "free_pressure": lambda c: _hollow(c, free=True)}
+SPHERE_SCENE = """
+[geometry]
+solid = "ball.stl"
+[[geometry.chamber]]
+name = "cavity"
+ellipsoid = {{center_mm = [0.0, 0.0, 0.0], radii_mm = [10.0, 10.0, 10.0]}}
+[mesh]
+size_mm = {size}
+[material]
+young_modulus_kpa = {e}
+poisson_ratio = {nu}
+"""
+
+
+SPHERE_SECONDS = 60.0
+"""[solver] max_seconds of the realistic bodies' states."""
+
+
+def _gmsh_sphere(case: Case):
+    """The thick sphere meshed by gmsh (`fruitcli.fem.stage.run_tetra`) in a temporary
+    folder, its model on the default element and material."""
+    import tempfile
+    from pathlib import Path
+
+    import trimesh
+
+    from fruitcli.fem import io
+    from fruitcli.fem.corotational_model import Load
+    from fruitcli.fem.stage import build_model, run_tetra
+    from fruitcli.scene import parse_scene
+
+    with tempfile.TemporaryDirectory() as tmp:
+        trimesh.creation.icosphere(3, 20.0).export(Path(tmp) / "ball.stl")
+        text = SPHERE_SCENE.format(size=case.size_mm, e=case.E_kpa, nu=case.nu)
+        scene = parse_scene(text, Path(tmp) / "sphere.toml")
+        run_tetra(scene, None, Path(tmp) / "mesh")
+        model = build_model(scene, io.load_mesh(Path(tmp) / "mesh" / "mesh.npz"))
+    return model, Load.pressures([case.pressure_kpa])
+
+
+BUILDERS = {"beam_gravity": _beam, "gmsh_sphere": _gmsh_sphere, "hollow_pressure": _hollow,
+            "jig": _jig, "sliver": _sliver, "free_pressure": lambda c: _hollow(c, free=True)}
 
 
 def run_case(case: Case) -> dict:
@@ -163,7 +210,20 @@ def run_case(case: Case) -> dict:
     try:
         model, load = BUILDERS[case.kind](case)
         row["note"] = "; ".join(model.notes)
-        res = solve_state(model, load, options=SolverOptions(), label=case.name)
+        options = SolverOptions()
+        if case.kind == "gmsh_sphere":
+            from dataclasses import replace
+
+            from fruitcli.fem import limits
+
+            options = replace(options, load_steps=4, max_seconds=SPHERE_SECONDS)
+            solver = model.make_solver()
+            limits.check_pressures(model, load.pressure_kpa[None, :], ["cavity"], solver,
+                                   SolverOptions())
+            row["note"] = ""
+        else:
+            solver = None
+        res = solve_state(model, load, options=options, label=case.name, solver=solver)
         disp = float(np.abs(res.displacement_mm).max())
         values = [res.residual, disp, res.min_det_f]
         if not all(math.isfinite(v) for v in values):
@@ -174,7 +234,7 @@ def run_case(case: Case) -> dict:
                    min_det_f=float(res.min_det_f))
         if case.kind == "beam_gravity":
             row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
-        if case.kind == "hollow_pressure" and len(res.pressure_kpa):
+        if case.kind in ("hollow_pressure", "gmsh_sphere") and len(res.pressure_kpa):
             growth = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0] - 1.0
             row["note"] = (row["note"] + "; " if row["note"] else "") + \
                 f"pressure {res.pressure_kpa[0]:.4g} kPa, volume growth {growth:.3g} V0"

@@ -4,6 +4,8 @@ element loop); `pcg` (default) solves it by CG preconditioned with a sparse fact
 (MKL PARDISO in single precision, `pardiso.py`, refactorized numerically on its kept
 analysis; cholespy or SuperLU without it) kept across Newton steps and states and
 refreshed when CG slows down, `direct` factorizes it (double precision) at every step.
+With PARDISO there is no other factorization: a tangent it cannot factor (singular)
+fails the Newton step, which then takes the next tangent (`newton.TANGENTS`).
 Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
@@ -30,17 +32,24 @@ def factorize(k, previous=None, single: bool = False):
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical
     refactorization of `previous`, a factor this returned before, when the pattern and
-    precision are the same), otherwise Cholesky when k is positive definite (checked on
-    a solve), otherwise LU."""
+    precision are the same; SolverError when it fails), otherwise Cholesky when k is
+    positive definite (checked on a solve), otherwise LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
         try:
             fac = pardiso.factorize_probed(k, upper_triangle(k), previous, single)
-            if fac is not None:
-                return fac
-        except pardiso.PardisoError:  # fall back to Cholesky / LU
-            pass
+        except pardiso.PardisoError as exc:
+            fac, why = None, str(exc)
+        else:
+            why = "its solve misses the probe"
+        if fac is not None:
+            return fac
+        # PARDISO tried positive definite and symmetric indefinite: a general LU would
+        # cost minutes and gigabytes here (SuperLU on the quadratic system) for a
+        # tangent that is singular anyway; Newton takes its next, safer tangent
+        raise SolverError(f"tangent stiffness has no factor ({why}); is the body held by "
+                          "[[fixed]], [[jig]] or its rigid modes pinned?")
     k = k.tocsc()
     if _cholesky is not None:
         try:

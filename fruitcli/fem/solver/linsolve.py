@@ -79,9 +79,16 @@ def _cholesky(k):
     (cholespy, whose solves are about twice as fast as SuperLU's here)."""
     from cholespy import CholeskySolverD, MatrixType
 
+    from fruitcli.fem.solver.c_output import captured_output
+
     c = k.tocoo()
-    fac = CholeskySolverD(k.shape[0], c.row.astype(np.int32), c.col.astype(np.int32),
-                          c.data, MatrixType.COO)
+    # CHOLMOD prints "not positive definite" with C's stdio before cholespy raises
+    with captured_output():
+        try:
+            fac = CholeskySolverD(k.shape[0], c.row.astype(np.int32),
+                                  c.col.astype(np.int32), c.data, MatrixType.COO)
+        except ValueError:
+            raise RuntimeError("CHOLMOD: the matrix is not positive definite") from None
 
     class _Factor:
         single = False  # exact solves (see continuum_linsolve.factorize)

@@ -44,6 +44,9 @@ class SolverOptions:
     """`tolerance`: |r| <= tolerance * reference force; `max_iterations` per load step;
     `max_subdivisions`: halvings of a failing step; `load_steps`: initial steps.
 
+    `max_seconds` (0: none): the time budget of one state (s); past it the state
+    fails with `OutOfTime`.
+
     `displacement_tolerance_mm` (0: off): Newton also stops once the solver's kept
     factor estimates that the remaining correction moves no node by more than this
     (mm; pressure-controlled loads only, see `_close_enough`).
@@ -59,6 +62,21 @@ class SolverOptions:
     linear_solver: str = "pcg"
     load_steps: int = 1
     displacement_tolerance_mm: float = 0.0
+    max_seconds: float = 0.0
+
+
+class OutOfTime(SolverError):
+    """A state stopped at its time budget (`SolverOptions.max_seconds`); `fraction` is
+    the part of the load step it had reached."""
+
+    def __init__(self, message: str, fraction: float):
+        super().__init__(message)
+        self.fraction = fraction
+
+
+PROGRESS_SECONDS = 2.0
+"""A state running longer than this reports where it is (load fraction, Newton step,
+residual) this often through `solve_state`'s `progress`."""
 
 
 @dataclass
@@ -83,6 +101,8 @@ class _Step:
         self.v_target = model.chamber_rest_volume_mm3 + load.volume_growth_mm3
         self.v_ref = np.maximum(model.chamber_rest_volume_mm3, 1.0)
         self.f_int_norm = 0.0
+        self.deadline = None  # time.perf_counter() past which Newton stops (OutOfTime)
+        self.report = None  # report(iteration, merit) when progress is asked for
 
     def evaluate(self, x, p):
         """(rot, det_f, h, r, g, merit, energy, f) at x with chamber pressures p."""
@@ -150,6 +170,10 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
+        if step.deadline is not None and time.perf_counter() > step.deadline:
+            raise OutOfTime("time budget", 0.0)
+        if step.report is not None:
+            step.report(it, merit)
         if level == 0 and det_f.min() <= MIN_DET_F:
             level = 2
         # inexact Newton (Eisenstat-Walker): solve no more exactly than the nonlinear
@@ -169,7 +193,13 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         chord, last_merit = near, merit
         cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
         step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
-        dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
+        try:
+            dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
+        except SolverError:
+            if level < 2:  # no factor of this tangent (singular): the next, safer one
+                level += 1
+                continue
+            raise
         if (merit <= STALL_RESIDUAL_FACTOR * options.tolerance
                 and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size):
             return True, x, p, it, merit, det_f  # round-off stall: the correction is nil
@@ -236,12 +266,16 @@ def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptio
 def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
                 load_start: Load | None = None, pressure_start: np.ndarray | None = None,
                 options: SolverOptions = SolverOptions(), solver: TangentSolver | None = None,
-                label: str = "state") -> StateResult:
+                label: str = "state", progress=None) -> StateResult:
     """Equilibrium under `load`, continuing from `x_start` (default: rest) reached under
     `load_start` (default: zero load) with chamber pressures `pressure_start`. Pass the
     same `solver` across states to reuse its factorization. Raises SolverError naming
-    `label`, the residual and the worst element when subdivision does not help."""
+    `label`, the residual and the worst element when subdivision does not help, and
+    OutOfTime past options.max_seconds. `progress(msg)`, when given, hears where a state
+    running longer than PROGRESS_SECONDS is (load fraction, Newton step, residual)."""
     t0 = time.perf_counter()
+    deadline = t0 + options.max_seconds if options.max_seconds > 0 else None
+    told = [t0]
     k = len(model.chamber_tris)
     vc = np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
     if load_start is None:
@@ -282,7 +316,14 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         lifted = x_try is not x
         ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
         step = _Step(model, solver, step_load, ref)
-        ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
+        step.deadline = deadline
+        if progress is not None:
+            step.report = functools.partial(_report, progress, told, label, t_new)
+        try:
+            ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
+        except OutOfTime:
+            raise OutOfTime(_out_of_time(model, label, options.max_seconds, t, p, load,
+                                         load_start), t) from None
         iterations += its
         if ok:
             last = (t, x, p)
@@ -312,6 +353,30 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     if first:
         _remember_sensitivity(model, solver, x, load, iterations)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
+
+
+def _report(progress, told: list, label: str, fraction: float, iteration: int,
+            merit: float) -> None:
+    """Tell `progress` where the state is, at most every PROGRESS_SECONDS."""
+    now = time.perf_counter()
+    if now - told[0] >= PROGRESS_SECONDS:
+        told[0] = now
+        progress(f"{label}: load {fraction:.3f}, Newton step {iteration}, "
+                 f"residual {merit:.1e}")
+
+
+def _out_of_time(model, label: str, seconds: float, t: float, p: np.ndarray, load: Load,
+                 load_start: Load) -> str:
+    """The one line of a state stopped at its time budget."""
+    reached = load_start.lerp(load, t)
+    vc = np.asarray(reached.volume_controlled, bool)
+    where = ", ".join(f"{name} {reached.volume_growth_mm3[i]:.4g} mm^3 at {p[i]:.4g} kPa"
+                      if vc[i] else f"{name} {reached.pressure_kpa[i]:.4g} kPa"
+                      for i, name in enumerate(model.chamber_names))
+    return (f"{label}: stopped after {seconds:g} s ([solver].max_seconds) at {t:.3f} of the "
+            f"load step" + (f" (chambers: {where})" if where else "")
+            + "; a chamber may be past its limit pressure (`fruit limits` computes it), or "
+            "raise [solver].max_seconds")
 
 
 HISTORY_STATES = 16

@@ -1,0 +1,305 @@
+"""Limit pressures of a body's chambers: each chamber's pressure-volume curve followed
+under volume control (the chamber's volume is the load, its pressure the unknown Lagrange
+multiplier, as `[actuation].volume_growth_mm3` does), one chamber at a time with the
+others at rest (pressure 0).
+
+- Inflation: the pressure rises, peaks at the limit pressure (the largest pressure the
+  chamber holds: pressure control has no equilibrium above it) and falls; the curve is
+  followed until it has fallen for FALL_STEPS steps, and the peak is the vertex of the
+  parabola through the largest sample and its neighbours.
+- Suction: the pressure falls (below 0) while the cavity shrinks, until its walls would
+  meet (self-contact is not modelled): the volume under COLLAPSE_VOLUME of its rest
+  volume, an element at the wall about to invert (det F under COLLAPSE_DET_F), the
+  pressure turning back towards 0 (the wall buckling in) or no equilibrium; the
+  collapse pressure is the lowest pressure reached.
+
+Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
+of a spherical cavity). Units: mm, mm^3, kPa.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fruitcli.errors import SceneError, SolverError
+from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+
+STRETCH_STEP = 0.1
+"""Step of the mean stretch (V / V0)^(1/3) between samples of a curve: the thick
+sphere's peak (at stretch 1.83) comes out of the parabola within 0.1 % of the densely
+sampled curve's."""
+
+MAX_STRETCH = 3.0
+"""Inflation is followed up to this mean stretch (27 V0); a chamber whose pressure still
+rises there has no limit in the range (limit null)."""
+
+FALL_STEPS = 2
+"""Samples below the largest pressure that end an inflation curve (past its peak)."""
+
+MIN_STRETCH = 0.45
+"""Suction is followed down to this mean stretch (9.1 % of the rest volume: the walls of
+a flat chamber are about to meet)."""
+
+COLLAPSE_VOLUME = MIN_STRETCH**3
+"""A cavity under this fraction of its rest volume counts as collapsed."""
+
+COLLAPSE_DET_F = 0.2
+"""An element compressed under this volume ratio counts as the walls meeting."""
+
+
+@dataclass
+class ChamberCurve:
+    """One chamber's pressure-volume samples (growth over the rest volume, mm^3; kPa)
+    and what they give: the limit pressure and the growth there (inflation), the
+    collapse pressure (suction), each None when the range followed does not reach it;
+    `end` says why the curve stopped."""
+
+    name: str
+    rest_volume_mm3: float
+    growth_mm3: list[float] = field(default_factory=list)
+    pressure_kpa: list[float] = field(default_factory=list)
+    limit_pressure_kpa: float | None = None
+    limit_growth_mm3: float | None = None
+    collapse_pressure_kpa: float | None = None
+    end: str = ""
+    limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_below`)
+
+
+def chamber_load(model, k: int, growth_mm3: float) -> Load:
+    """Chamber k held at rest volume + growth_mm3, the other chambers at pressure 0;
+    gravity and jigs as in the scene's states (full)."""
+    n = len(model.chamber_tris)
+    growth = np.zeros(n)
+    growth[k] = growth_mm3
+    vc = np.zeros(n, bool)
+    vc[k] = True
+    return Load(np.zeros(n), growth, vc, 1.0, 1.0)
+
+
+def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, float]:
+    """(stretch, pressure) at the vertex of the parabola through samples i - 1, i, i + 1
+    (sample i the largest); sample i itself when the parabola opens upward."""
+    s, p = stretch[i - 1:i + 2], pressure[i - 1:i + 2]
+    a, b, c = np.polyfit(s, p, 2)
+    if a >= 0:
+        return float(stretch[i]), float(pressure[i])
+    s_top = float(np.clip(-b / (2 * a), s[0], s[-1]))
+    return s_top, float(np.polyval([a, b, c], s_top))
+
+
+def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -> float:
+    """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
+    MAX_STRETCH, from its samples so far (the last at mean stretch `stretch`, `step`
+    apart): once its increments shrink (the curve is concave in the stretch, as before a
+    neo-Hookean chamber's limit point), the secant of the last step overestimates the
+    slope from there on, so the curve stays below the secant continued to MAX_STRETCH.
+    Infinite with fewer than three samples, increments that do not shrink, or another
+    material (Yeoh's stiffening can bend the curve up again)."""
+    material = getattr(model, "material", None)
+    if material is None or material.model != "neo-hookean" or len(pressure) < 3:
+        return np.inf
+    d1, d2 = pressure[-2] - pressure[-3], pressure[-1] - pressure[-2]
+    if not 0 < d2 < d1:
+        return np.inf
+    return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
+
+
+def follow(model, k: int, direction: int = 1, *, solver=None,
+           options: SolverOptions | None = None, stop_beyond_kpa: float | None = None,
+           step: float = STRETCH_STEP, deadline: float | None = None,
+           fall_steps: int = FALL_STEPS, progress=None) -> ChamberCurve:
+    """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
+    the limit, suction (direction -1) down to MIN_STRETCH or the collapse. With
+    `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
+    neither a limit nor a collapse before it). `fall_steps`: samples past the peak
+    (inflation) or past the lowest pressure (suction) that end the curve.
+    `deadline` (time.monotonic()) ends the
+    curve where it is. `progress(msg)` is told each sample."""
+    name = model.chamber_names[k]
+    v0 = float(model.chamber_rest_volume_mm3[k])
+    curve = ChamberCurve(name, v0, [0.0], [0.0])
+    solver = solver or model.make_solver(options.linear_solver if options else "pcg")
+    options = options or SolverOptions(load_steps=1)
+    stretches = [1.0]
+    last = None  # s: the time of the sample before (the next one's budget, STEP_BUDGET)
+    x, prev, p_start = None, None, None
+    s = 1.0
+    while True:
+        s = s + direction * step
+        if (direction > 0 and s > MAX_STRETCH + 1e-9) or (direction < 0 and s < MIN_STRETCH - 1e-9):
+            curve.end = f"the range followed (mean stretch {s - direction * step:.2f})"
+            break
+        if deadline is not None and time.monotonic() > deadline:
+            curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
+            break
+        load = chamber_load(model, k, v0 * (s**3 - 1.0))
+        budget = options
+        if last is not None:
+            budget = replace(options, max_seconds=max(STEP_BUDGET[0] * last, STEP_BUDGET[1]))
+        try:
+            res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p_start,
+                              options=budget, solver=solver, label=f"chamber {name}")
+        except SolverError as exc:
+            why = "no equilibrium found within the time" if isinstance(exc, OutOfTime) \
+                else "no equilibrium"
+            curve.end = f"{why} at mean stretch {s:.2f}"
+            if direction < 0:
+                curve.collapse_pressure_kpa = min(curve.pressure_kpa)
+            break
+        x, prev, p_start = res.x, load, res.pressure_kpa
+        last = res.solve_ms / 1e3
+        p = float(res.pressure_kpa[k])
+        stretches.append(s)
+        curve.growth_mm3.append(float(res.chamber_volume_mm3[k] - v0))
+        curve.pressure_kpa.append(p)
+        if progress:
+            progress(f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
+                     f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
+                     f"{res.solve_ms / 1e3:.1f} s)")
+        if stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
+            curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
+            break
+        pr = np.array(curve.pressure_kpa)
+        bound = levels_off_below(model, pr, s, step)
+        if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
+            curve.limit_bound_kpa = bound
+            curve.end = f"the pressure levels off below {bound:.3g} kPa"
+            break
+        if direction > 0:
+            top = int(np.argmax(pr))
+            if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
+                s_top, p_top = peak(np.array(stretches), pr, top)
+                curve.limit_pressure_kpa = p_top
+                curve.limit_growth_mm3 = v0 * (s_top**3 - 1.0)
+                curve.end = "past the limit point"
+                break
+        else:
+            low = int(np.argmin(pr))
+            why = None
+            if res.chamber_volume_mm3[k] <= COLLAPSE_VOLUME * v0:
+                why = "the cavity's volume is gone"
+            elif res.min_det_f <= COLLAPSE_DET_F:
+                why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
+            elif low < len(pr) - 1 and len(pr) - 1 - low >= fall_steps:
+                why = "the wall buckles in (the suction falls off)"
+            if why:
+                curve.collapse_pressure_kpa = float(pr[low])
+                curve.end = why
+                break
+    return curve
+
+
+SCREEN_GROWTH = 1.0
+"""Pressures whose linearized volume growth p dV/dp (the rest tangent's compliance) stays
+under this fraction of the chamber's rest volume are not checked before solving: at its
+limit pressure a neo-Hookean sphere has grown 0.31 V0 by that linear measure when thin,
+0.70 V0 when its outer radius is twice the inner, so what passes is far past a limit or
+(a stiff chamber) far from one. The default Fruit's breathing (12 kPa) stays under it:
+following its chambers would cost every run minutes. A pressure screened out that is
+past a limit all the same fails in Newton, and `explain_failure` then names the limit."""
+
+CHECK_TOLERANCE = 1e-4
+"""Newton's relative residual on the samples of `check_pressures` (the pressure to three
+digits is all it needs)."""
+
+STEP_BUDGET = (4.0, 5.0)
+"""Time budget of one sample of a curve: this many times the sample before it, and at
+least this many seconds (a sample that fails, e.g. as the walls buckle in, costs little
+more than one that converges; the first sample, from rest, has the scene's budget)."""
+
+
+def rest_compliance(model, solver) -> np.ndarray:
+    """(K,) dV_k/dp_k (mm^3/kPa) of each chamber at rest, from the solver's tangent there
+    (its factor is then the one the first state starts with)."""
+    free = model.pattern.free
+    x = model.rest
+    kin = model.kinematics(x)
+    solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
+    h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
+    return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
+
+
+def kpa(value: float) -> str:
+    """A pressure for a message: one decimal from 10 kPa up, three digits below."""
+    return f"{value:.1f}" if abs(value) >= 10 else f"{value:.3g}"
+
+
+def forget(solver) -> None:
+    """Clear what the curve's states left on the solver for the next state's predictor
+    (`newton._history_guess`, `_sensitivity_guess`), and have its next tangent factored
+    afresh (the kept factor is of a deformed state); its analysis stays."""
+    solver.history, solver.sensitivity, solver.estimated = [], None, None
+    if hasattr(solver, "refresh"):
+        solver.refresh = True
+
+
+def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
+                    options: SolverOptions, progress=None,
+                    screen: float = SCREEN_GROWTH) -> None:
+    """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
+    chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
+    K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
+    control (`follow`, the others at rest) only as far as its largest or smallest
+    pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH; on
+    `solver` (the states' own: its analysis is kept, see `forget`)."""
+    if not np.any(np.nan_to_num(pressures)):
+        return
+    w = rest_compliance(model, solver)
+    check = replace(options, tolerance=max(options.tolerance, CHECK_TOLERANCE), load_steps=1)
+    v0 = model.chamber_rest_volume_mm3
+    for k, key in enumerate(keys):
+        col = pressures[:, k][np.isfinite(pressures[:, k])]
+        for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
+            if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
+                continue
+            curve = follow(model, k, direction, solver=solver, options=check,
+                           stop_beyond_kpa=asked, fall_steps=1, progress=progress)
+            forget(solver)
+            if direction > 0 and curve.limit_bound_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
+                    f"below {kpa(curve.limit_bound_kpa)} kPa (its pressure-volume curve levels "
+                    "off: no equilibrium above its peak; `fruit limits` computes it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
+            if direction > 0 and curve.limit_pressure_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
+                    f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
+            if direction < 0 and curve.collapse_pressure_kpa is not None:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's collapse pressure of "
+                    f"{kpa(curve.collapse_pressure_kpa)} kPa ({curve.end}: its walls would "
+                    "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
+                    "follow the suction")
+
+
+def explain_failure(model, load: Load, keys: list[str], solver, options: SolverOptions,
+                    error: SolverError, progress=None) -> None:
+    """After `error` (a state under `load` found no equilibrium): raise the one line of
+    `check_pressures` when a chamber's pressure in `load` is past its limit or collapse
+    (followed without the screen), else `error` itself."""
+    vc = np.asarray(load.volume_controlled, bool)
+    asked = np.where(vc, np.nan, load.pressure_kpa)[None, :]
+    if np.any(np.nan_to_num(asked)):
+        forget(solver)
+        check_pressures(model, asked, keys, solver, options, progress, screen=0.0)
+    raise error
+
+
+def check_growth(model, loads: list[Load]) -> None:
+    """Refuse, with one SceneError line, a volume growth that would take a chamber to no
+    volume or less (growth <= -V0)."""
+    v0 = model.chamber_rest_volume_mm3
+    for load in loads:
+        vc = np.asarray(load.volume_controlled, bool)
+        for k in np.flatnonzero(vc & (np.asarray(load.volume_growth_mm3) <= -v0)):
+            name = model.chamber_names[k]
+            raise SceneError(f"[actuation].volume_growth_mm3.{name}: "
+                             f"{load.volume_growth_mm3[k]:g} mm^3 would leave the chamber no "
+                             f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
+                             f"than {-v0[k]:.4g}")
