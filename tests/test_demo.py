@@ -20,4 +20,7 @@ def test_demo_report_from_paper_table(fruit, tmp_path):
 def test_demo_unknown_scene_is_one_line(fruit, tmp_path):
     res = fruit("demo", "--out", tmp_path, "--scenes", "no-such-scene")
     assert res.exit_code == 1
-    assert "no-such-scene.toml: scene file not found" in res.output
+    assert res.output.strip().splitlines() == [
+        "Error: unknown scene 'no-such-scene' (bundled scenes: fruit-breathing, fruit-deformed, "
+        "fruit-rest, paper-table, touchpad-4x4)"]
+    assert not any(tmp_path.iterdir())
