@@ -96,3 +96,20 @@ def test_installed_bad_input_is_one_line(fruit_bin, tmp_path):
     assert res.stderr.strip().splitlines() == [
         f"Error: unknown scene 'no-such' (bundled scenes: {', '.join(NAMES)})"]
     assert not (tmp_path / "x").exists()
+
+
+def test_lower_bounds_are_the_tested_versions():
+    """Every `name>=X` in pyproject.toml is pinned to X in requirements/constraints.txt."""
+    import re
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    wanted = list(project["dependencies"])
+    for extra in project["optional-dependencies"].values():
+        wanted += extra
+    pins = dict(line.strip().lower().split("==") for line in
+                (ROOT / "requirements" / "constraints.txt").read_text().splitlines()
+                if "==" in line and not line.startswith("#"))
+    for spec in wanted:
+        name, bound = re.fullmatch(r"([A-Za-z0-9_.-]+)>=([0-9.]+)", spec).groups()
+        assert pins[name.lower().replace("_", "-")] == bound, spec
