@@ -5,6 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 CONSTRAINTS := requirements/constraints.txt
+BENCH_RUNS ?= 3
 
 .PHONY: test demo bench studies lint docs constraints clean distclean
 
@@ -36,9 +37,10 @@ studies: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-breathing.toml --out out/study-runtime-breathing
 	MPLBACKEND=Agg $(BIN)/fruit study bench pipelines/fruit-rest.toml --out out/study-bench
 
-# Every benchmark; the figures go to build/bench/bench.json (read by `make docs`).
+# Every benchmark, BENCH_RUNS times; the figures (min/median/max over the runs) go to
+# build/bench/bench.json, from which `make docs` makes the performance page.
 bench: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py --json build/bench/bench.json
+	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py --runs $(BENCH_RUNS) --json build/bench/bench.json
 
 # Rewrite the tested versions from the venv as it is now (after installing what you tested).
 constraints: $(STAMP)
