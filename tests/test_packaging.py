@@ -9,6 +9,7 @@ not downloaded again), while `fruitcli` itself comes from the wheel only.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -23,9 +24,17 @@ NAMES = ["fruit-breathing", "fruit-deformed", "fruit-rest", "paper-table", "touc
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
+    """The wheel, built from a copy of the sources (nothing is written into the checkout,
+    and no earlier build's leftovers get in)."""
+    src = tmp_path_factory.mktemp("src")
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(ROOT / name, src / name)
+    skip = shutil.ignore_patterns("__pycache__", "generated")
+    for name in ("fruitcli", "pipelines", "data"):
+        shutil.copytree(ROOT / name, src / name, ignore=skip)
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps",
-                    "--no-build-isolation", "--wheel-dir", str(out), str(ROOT)],
+                    "--no-build-isolation", "--wheel-dir", str(out), str(src)],
                    check=True, capture_output=True, cwd=out)
     (found,) = out.glob("fruitcli-*.whl")
     return found
