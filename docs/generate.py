@@ -39,9 +39,11 @@ KINDS = {
 
 
 def escape(text: str) -> str:
-    """Plain text made safe for Markdown (MyST): no markup, no raw HTML."""
-    text = text.replace("\\", "\\\\")
-    return re.sub(r"([*_<>\[\]`|#])", r"\\\1", text)
+    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept."""
+    parts = re.split(r"(`[^`]+`)", text)
+    for k in range(0, len(parts), 2):  # outside code spans
+        parts[k] = re.sub(r"([\\*_<>\[\]|#])", r"\\\1", parts[k])
+    return "".join(parts)
 
 
 def unit_of(key: str) -> str:

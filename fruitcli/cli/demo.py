@@ -21,8 +21,9 @@ def demo(out_dir, scenes):
     breathing, and the bent 4x4 pad) and write OUT/report.md.
 
     The scenes run from copies written to OUT/scenes/ (with the data they read), so
-    the demo works from any folder. Unchanged stages are reused, so a second run
-    finishes in seconds.
+    the demo works from any folder; they are rewritten on every run (start an
+    experiment of your own with `fruit scenes copy`). Unchanged stages are reused, so a
+    second run finishes in seconds.
     """
     from fruitcli import bundled
     from fruitcli.scene import load_scene
@@ -34,7 +35,8 @@ def demo(out_dir, scenes):
     with fruit_errors():
         names = [s.strip() for s in scenes.split(",") if s.strip()]
         if not names:
-            raise click.UsageError("--scenes: expected at least one bundled scene name")
+            raise click.UsageError("--scenes: expected at least one scene name (see `fruit "
+                                   "scenes`)")
         for name in names:  # every name checked before anything is written
             bundled.scene_path(name)
         loaded = [load_scene(bundled.export_scene(name, out / "scenes")) for name in names]
