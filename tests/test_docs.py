@@ -194,3 +194,16 @@ def test_tutorial_commands_run(name, tmp_path):
     if name == "installation":
         assert '"touches": [{"touch": 0' in (work / "touches.jsonl").read_text()
         assert " down 0 " in (work / "fruit.log").read_text()
+
+
+def test_every_file_path_the_docs_name_exists():
+    """Paths in `code spans` that name a source file or folder (fruitcli/..., tests/...,
+    docs/..., a .py file) exist, so a moved module is noticed here."""
+    pattern = re.compile(r"`((?:fruitcli|tests|docs)/[\w/.-]*|[\w/-]+\.py)`")
+    named = set()
+    for page in [*DOCS.rglob("*.md"), ROOT / "README.md"]:
+        if "_generated" not in page.parts:
+            named.update(pattern.findall(page.read_text()))
+    assert len(named) >= 10
+    missing = sorted(p for p in named if not (ROOT / p).exists())
+    assert missing == []
