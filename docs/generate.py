@@ -112,10 +112,24 @@ def _default(key) -> str:
     return json.dumps(key.default)
 
 
+def _type(key) -> str:
+    """The key's kind, with the choices or the range the schema declares."""
+    text = escape(KINDS[key.kind])
+    choices = getattr(key, "choices", None)
+    if choices:
+        text += ": one of " + ", ".join(f"`{c}`" for c in choices)
+    low, high = getattr(key, "min", None), getattr(key, "max", None)
+    if low is not None or high is not None:
+        left = f"{low:g} {'<' if key.min_exclusive else '≤'} " if low is not None else ""
+        right = f" {'<' if key.max_exclusive else '≤'} {high:g}" if high is not None else ""
+        text += f", {left}value{right}"
+    return text
+
+
 def key_table(keys: dict, lines: list[str]) -> None:
     lines += ["| key | type | default | unit | meaning |", "|---|---|---|---|---|"]
     for name, key in keys.items():
-        lines.append(f"| `{name}` | {escape(KINDS[key.kind])} | `{_default(key)}` | "
+        lines.append(f"| `{name}` | {_type(key)} | `{_default(key)}` | "
                      f"{unit_of(name)} | {escape(key.doc)} |")
     lines.append("")
 
