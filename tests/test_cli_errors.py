@@ -38,7 +38,7 @@ def test_outputs_have_the_usual_permissions(tmp_path):
 
 def test_demo_checks_every_scene_name_before_running(tmp_path):
     res = run("demo", "--scenes", "paper-table,nosuch", "--out", tmp_path / "o")
-    assert res.exit_code == 1 and "nosuch.toml: scene file not found" in last_line(res)
+    assert res.exit_code == 1 and "unknown scene 'nosuch' (bundled scenes: " in last_line(res)
     assert not (tmp_path / "o").exists()
     res = run("demo", "--scenes", ",,", "--out", tmp_path / "o")
     assert res.exit_code == 2 and "--scenes: expected at least one scene name" in res.output

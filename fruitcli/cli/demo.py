@@ -12,24 +12,20 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
 DEMO_SCENES = ["paper-table", "fruit-rest", "fruit-deformed", "fruit-breathing", "touchpad-4x4"]
 
 
-def _pipelines_dir() -> Path:
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        if (parent / "pipelines").is_dir():
-            return parent / "pipelines"
-    return Path("pipelines")
-
-
 @click.command()
 @out_option("Output folder: one sub-folder per scene, report.md.", required=False, default="out")
 @click.option("--scenes", default=",".join(DEMO_SCENES), show_default=True,
-              help="Comma-separated scene names from pipelines/.")
+              help="Comma-separated names of bundled scenes (see `fruit scenes`).")
 def demo(out_dir, scenes):
     """Run the default experiments (the paper's Table I, the Fruit at rest, in its jig,
     breathing, and the bent 4x4 pad) and write OUT/report.md.
 
-    Unchanged stages are reused, so a second run finishes in seconds.
+    The scenes run from copies written to OUT/scenes/ (with the data they read), so
+    the demo works from any folder; they are rewritten on every run (start an
+    experiment of your own with `fruit scenes copy`). Unchanged stages are reused, so a
+    second run finishes in seconds.
     """
+    from fruitcli import bundled
     from fruitcli.scene import load_scene
     from fruitcli.workflow import planner
     from fruitcli.workflow.report import write_report
@@ -39,8 +35,11 @@ def demo(out_dir, scenes):
     with fruit_errors():
         names = [s.strip() for s in scenes.split(",") if s.strip()]
         if not names:
-            raise click.UsageError("--scenes: expected at least one scene name from pipelines/")
-        loaded = [load_scene(_pipelines_dir() / f"{name}.toml") for name in names]  # all first
+            raise click.UsageError("--scenes: expected at least one scene name (see `fruit "
+                                   "scenes`)")
+        for name in names:  # every name checked before anything is written
+            bundled.scene_path(name)
+        loaded = [load_scene(bundled.export_scene(name, out / "scenes")) for name in names]
         for name, scene in zip(names, loaded, strict=True):
             click.echo(f"== {name} ==", err=True)
             t0 = time.perf_counter()

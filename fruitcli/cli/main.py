@@ -40,6 +40,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "sweep": ("fruitcli.cli.sweep", "sweep",
               "Run a scene for many values of its keys (local or on a Dask cluster)."),
     "demo": ("fruitcli.cli.demo", "demo", "Run the default experiments and write out/report.md."),
+    "scenes": ("fruitcli.cli.scenes", "scenes",
+               "List the bundled example scenes; copy one to start your own."),
 }
 
 
@@ -64,7 +66,7 @@ class LazyGroup(click.Group):
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output; -vv shows tracebacks.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress output on stderr.")
-@click.version_option(package_name="fruitcli")
+@click.version_option(package_name="fruitcli", prog_name="fruit")
 @click.pass_context
 def cli(ctx, verbose, quiet):
     """fruit: model-based capacitive touch sensing on soft robots.

@@ -1,0 +1,252 @@
+"""Write the documentation pages that come from the code into docs/_generated/:
+
+- cli.md: every `fruit` subcommand with its usage, help and options (from click itself);
+- scene-keys.md: every scene key with its type, default, unit and meaning (from
+  `fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`);
+- performance.md: the figures of `make bench` (build/bench/bench.json when present, else
+  the small sample docs/bench-sample.json).
+
+Run by `make docs` before Sphinx; `python docs/generate.py [--bench FILE]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+import click
+
+DOCS = Path(__file__).resolve().parent
+ROOT = DOCS.parent
+OUT = DOCS / "_generated"
+BENCH = ROOT / "build" / "bench" / "bench.json"
+BENCH_SAMPLE = DOCS / "bench-sample.json"
+
+UNITS = [  # key-name suffix -> unit (longest first)
+    ("_n_per_mm", "N/mm"), ("_mm_min", "mm/min"), ("_kg_m3", "kg/m³"), ("_m_s2", "m/s²"),
+    ("_mm3", "mm³"), ("_mm", "mm"), ("_kpa", "kPa"), ("_deg", "degrees"), ("_s", "s"),
+    ("_counts", "counts"),
+]
+KINDS = {
+    "str": "text", "path": "file path", "num": "number", "int": "integer",
+    "bool": "true / false", "vec2": "[x, y]", "vec3": "[x, y, z]",
+    "box": "[xmin, ymin, zmin, xmax, ymax, zmax]", "list": "list", "table": "table",
+    "range": "number or [lo, hi]",
+}
+
+
+def escape(text: str) -> str:
+    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept."""
+    parts = re.split(r"(`[^`]+`)", text)
+    for k in range(0, len(parts), 2):  # outside code spans
+        parts[k] = re.sub(r"([\\*_<>\[\]|#])", r"\\\1", parts[k])
+    return "".join(parts)
+
+
+def unit_of(key: str) -> str:
+    for suffix, unit in UNITS:
+        if key.endswith(suffix):
+            return unit
+    return ""
+
+
+# ------------------------------------------------------------------------------ CLI
+def _paragraphs(text: str) -> list[str]:
+    import inspect
+
+    text = inspect.cleandoc(text or "")
+    return [" ".join(p.split()) for p in text.split("\n\n") if p.strip()]
+
+
+def command_section(cmd: click.Command, path: list[str], parent: click.Context | None,
+                    lines: list[str]) -> None:
+    ctx = click.Context(cmd, info_name=path[-1], parent=parent)
+    name = " ".join(path)
+    lines += [f"## {name}", "", "```text", cmd.get_usage(ctx).strip(), "```", ""]
+    lines += [escape(p) + "\n" for p in _paragraphs(cmd.help)]
+    args = [p for p in cmd.params if isinstance(p, click.Argument)]
+    opts = [p.get_help_record(ctx) for p in cmd.params if isinstance(p, click.Option)]
+    if args:
+        lines += ["Arguments:", ""]
+        lines += [f"- `{a.make_metavar(ctx)}`" + (" (optional)" if not a.required else "")
+                  for a in args]
+        lines.append("")
+    rows = [r for r in opts if r is not None]
+    if rows:
+        lines += ["Options:", ""]
+        for names, help_text in rows:
+            lines.append(f"- `{names}`: {escape(' '.join(help_text.split()))}".rstrip(": "))
+        lines.append("")
+    if isinstance(cmd, click.Group):
+        for sub in cmd.list_commands(ctx):
+            command_section(cmd.get_command(ctx, sub), [*path, sub], ctx, lines)
+
+
+def cli_page() -> str:
+    from fruitcli.cli.main import cli
+
+    lines = ["# Command line", "",
+             "Generated from the `fruit` command group itself (`docs/generate.py`): every "
+             "subcommand with its usage, help and options, as `fruit COMMAND --help` prints "
+             "them.", ""]
+    ctx = click.Context(cli, info_name="fruit")
+    lines += ["```text", cli.get_help(ctx), "```", ""]
+    for name in cli.list_commands(ctx):
+        command_section(cli.get_command(ctx, name), ["fruit", name], ctx, lines)
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------- scene keys
+def _default(key) -> str:
+    if key.required:
+        return "required"
+    if key.default is None:
+        return "none"
+    if isinstance(key.default, bool):
+        return "true" if key.default else "false"
+    if isinstance(key.default, str):
+        return f'"{key.default}"' if key.default else '""'
+    return json.dumps(key.default)
+
+
+def _type(key) -> str:
+    """The key's kind, with the choices or the range the schema declares."""
+    text = escape(KINDS[key.kind])
+    choices = getattr(key, "choices", None)
+    if choices:
+        text += ": one of " + ", ".join(f"`{c}`" for c in choices)
+    low, high = getattr(key, "min", None), getattr(key, "max", None)
+    if low is not None or high is not None:
+        left = f"{low:g} {'<' if key.min_exclusive else '≤'} " if low is not None else ""
+        right = f" {'<' if key.max_exclusive else '≤'} {high:g}" if high is not None else ""
+        text += f", {left}value{right}"
+    return text
+
+
+def key_table(keys: dict, lines: list[str]) -> None:
+    lines += ["| key | type | default | unit | meaning |", "|---|---|---|---|---|"]
+    for name, key in keys.items():
+        lines.append(f"| `{name}` | {_type(key)} | `{_default(key)}` | "
+                     f"{unit_of(name)} | {escape(key.doc)} |")
+    lines.append("")
+
+
+def scene_page() -> str:
+    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, SUBTABLES
+
+    lines = ["# Scene keys", "",
+             "Generated from the scene schema (`fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`) by "
+             "`docs/generate.py`. A scene file is TOML; a key the schema does not have is an "
+             "error naming the closest valid one. The unit is the key name's suffix "
+             "(`_mm`, `_kpa`, `_deg`, `_s`, `_counts`, ...). Relative file paths are resolved "
+             "against the scene file's folder, then against the project root (the nearest "
+             "folder above holding `pyproject.toml`). `none` means optional: the stage that "
+             "reads the key then does without it or computes a default (the meaning says "
+             "which).", ""]
+    for section, keys in SCHEMA.items():
+        if section in ARRAY_SCHEMA:
+            lines += [f"## \\[\\[{section}\\]\\] (any number of tables)", ""]
+            key_table(ARRAY_SCHEMA[section], lines)
+            continue
+        lines += [f"## \\[{section}\\]", ""]
+        key_table(keys, lines)
+        nested = f"{section}.chamber"
+        if nested in ARRAY_SCHEMA:
+            lines += [f"### \\[\\[{nested}\\]\\] (any number of tables)", ""]
+            key_table(ARRAY_SCHEMA[nested], lines)
+            for sub, subkeys in SUBTABLES.items():
+                if sub in ARRAY_SCHEMA[nested]:
+                    lines += [f"`{sub}` is an inline table with these keys:", ""]
+                    key_table(subkeys, lines)
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------- performance
+def _fmt(x: float) -> str:
+    if x == 0:
+        return "0"
+    if abs(x) >= 1000:
+        return f"{x:,.0f}"
+    return f"{x:.3g}"
+
+
+def performance_page(result: dict, source: str) -> str:
+    load0 = ", ".join(f"{v:.2f}" for v in result["load_average_before"])
+    load1 = ", ".join(f"{v:.2f}" for v in result.get("load_average_after", []))
+    lines = ["# Performance", "",
+             f"Generated by `docs/generate.py` from `{source}`, the result file "
+             "`make bench` writes (`tests/bench/run_all.py --json`). Every speed figure in "
+             "this documentation is here; run `make bench` on your machine and `make docs` "
+             "to see yours. Each line is printed as a benchmark printed it, with every "
+             "number replaced by its median over the runs; the table under it gives the "
+             "numbers that differed between runs (min / median / max).", "",
+             "| | |", "|---|---|",
+             f"| date | {result['date']} |", f"| commit | `{result['commit']}` |",
+             f"| cores | {result['cores']} |", f"| processor | {escape(result['processor'])} |",
+             f"| Python | {result.get('python', '')} |",
+             f"| runs of each benchmark | {result['runs']} |",
+             f"| load average before (1, 5, 15 min) | {load0} |",
+             f"| load average after | {load1} |", ""]
+    if "sample" in source:
+        lines += ["This is the small sample shipped with the sources (two benchmarks, "
+                  "`python tests/bench/run_all.py --only bench_evaluate,bench_muca_formats "
+                  "--runs 2 --json docs/bench-sample.json`); `make bench` runs them all.", ""]
+    for script in result["scripts"]:
+        wall = script["wall_s"]
+        lines += [f"## {script['name']}", "",
+                  f"`python tests/bench/{script['name']}.py`: wall time {_fmt(wall['median'])} s "
+                  f"(min {_fmt(wall['min'])}, max {_fmt(wall['max'])}); exit codes "
+                  f"{', '.join(map(str, script['exit_codes']))}.", "", "```text"]
+        varying = []
+        for fig in script["figures"]:
+            medians = [_fmt(n["median"]) for n in fig["numbers"]]
+            count = fig["line"].count("{}")
+            medians += ["?"] * (count - len(medians))
+            text = fig["line"].replace("{{", "\0").replace("}}", "\1")
+            text = text.format(*medians[:count]).replace("\0", "{").replace("\1", "}")
+            lines.append(text)
+            for k, n in enumerate(fig["numbers"]):
+                if n["min"] != n["max"]:
+                    varying.append((fig["line"], k, n))
+        lines += ["```", ""]
+        if varying:
+            lines += ["| line | number | min | median | max |", "|---|---|---|---|---|"]
+            for line, k, n in varying:
+                excerpt = line.strip().replace("{}", "#").replace("{{", "{").replace("}}", "}")
+                lines.append(f"| {escape(' '.join(excerpt.split())[:70])} | {k + 1} | "
+                             f"{_fmt(n['min'])} | "
+                             f"{_fmt(n['median'])} | {_fmt(n['max'])} |")
+            lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Write docs/_generated/*.md from the code.")
+    parser.add_argument("--bench", type=Path, default=None,
+                        help=f"bench result (default: {BENCH.relative_to(ROOT)} if present, "
+                             f"else {BENCH_SAMPLE.relative_to(ROOT)})")
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(ROOT))
+    bench = args.bench or (BENCH if BENCH.exists() else BENCH_SAMPLE)
+    try:
+        result = json.loads(bench.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        print(f"Error: {bench}: cannot read the bench result: {exc}", file=sys.stderr)
+        return 1
+    source = bench.relative_to(ROOT).as_posix() if bench.is_relative_to(ROOT) else str(bench)
+    OUT.mkdir(exist_ok=True)
+    pages = {"cli.md": cli_page(), "scene-keys.md": scene_page(),
+             "performance.md": performance_page(result, source)}
+    from fruitcli.fsutil import write_text
+
+    for name, text in pages.items():
+        write_text(OUT / name, text.rstrip() + "\n")
+    print(f"wrote {', '.join(pages)} into {OUT.relative_to(ROOT)}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

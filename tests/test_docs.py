@@ -1,0 +1,211 @@
+"""The documentation against the code: the generated reference covers every command and
+scene key, the performance page shows a bench result's figures, every TOML example is a
+valid scene, and every tutorial's command list runs on the bundled data (at smaller mesh
+sizes where a step would take minutes). The site's build itself (warnings as errors,
+internal links checked) is `make docs`, a step of .ci/run."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fruitcli.cli.main import COMMANDS
+from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, parse_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+
+def load(path: Path, name: str):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+generate = load(DOCS / "generate.py", "docs_generate")
+run_all = load(ROOT / "tests" / "bench" / "run_all.py", "bench_run_all")
+
+
+def test_cli_page_has_every_command_and_option():
+    page = generate.cli_page()
+    for name in COMMANDS:
+        assert f"\n## fruit {name}\n" in page
+    for sub in ("fruit scenes copy", "fruit study runtime", "fruit study stability",
+                "fruit study bench"):
+        assert f"\n## {sub}\n" in page
+    run_section = page.split("\n## fruit run\n")[1].split("\n## ")[0]
+    for option in ("--out DIRECTORY", "--dry-run", "--until TEXT", "--force"):
+        assert f"- `{option}`" in run_section
+    assert "- `SCENE`" in run_section
+
+
+def test_scene_page_has_every_key_with_its_unit_and_default():
+    page = generate.scene_page()
+    rows = {}
+    for line in page.splitlines():
+        cells = [c.strip() for c in line.split(" | ")]
+        if line.startswith("| `") and len(cells) == 5:
+            rows.setdefault(cells[0].strip("|` "), []).append(cells)
+    for spec in [*SCHEMA.values(), *ARRAY_SCHEMA.values()]:
+        for key in spec:
+            assert key in rows, key
+    young = rows["young_modulus_kpa"][0]
+    assert young[1:4] == ["number, 0 < value", "`100.0`", "kPa"]
+    assert rows["vector_m_s2"][0][2:4] == ["`[0.0, 0.0, -9.81]`", "m/s²"]
+    assert rows["stiffness_n_per_mm"][0][3] == "N/mm"
+    assert rows["box_mm"][0][2] == "`required`"
+    assert rows["element"][0][1] == "text: one of `p2`, `p2-pure`, `p1`"
+    assert rows["poisson_ratio"][0][1] == "number, -1 < value < 0.5"
+    assert "## \\[\\[evaluate\\]\\] (any number of tables)" in page
+
+
+def test_bench_lines_split_into_template_and_numbers():
+    assert run_all.split_line("p1 state: median 7.6 ms (runs 7.4-8.1), 1,520,000 frames/s") \
+        == ("p1 state: median {} ms (runs {}-{}), {} frames/s", [7.6, 7.4, 8.1, 1520000.0])
+    assert run_all.split_line("bench_fem p2 4x4 8N1 100k {x}") == \
+        ("bench_fem p2 4x4 8N1 100k {{x}}", [])
+
+
+def test_bench_figures_are_min_median_max_over_runs():
+    outputs = ["a: 1.0 ms, 5 MB\nb: 2\nb: 7\n", "a: 3.0 ms, 5 MB\nb: 4\nb: 9\n",
+               "a: 8.0 ms, 5 MB\nb: 3\n"]
+    figures = run_all.figures(outputs)
+    assert [(f["line"], f["occurrence"], f["runs"]) for f in figures] == [
+        ("a: {} ms, {} MB", 0, 3), ("b: {}", 0, 3), ("b: {}", 1, 2)]
+    a_ms = figures[0]["numbers"][0]
+    assert (a_ms["min"], a_ms["median"], a_ms["max"]) == (1.0, 3.0, 8.0)
+    assert figures[2]["numbers"][0]["median"] == 8.0
+    result = {"date": "2026-01-01T00:00:00+00:00", "commit": "abc", "cores": 2,
+              "processor": "CPU <x>", "runs": 3, "load_average_before": [1.0, 0.5, 0.25],
+              "load_average_after": [2.0, 1.0, 0.5],
+              "scripts": [{"name": "bench_x", "exit_codes": [0, 0, 0], "figures": figures,
+                           "wall_s": {"min": 1.0, "median": 2.0, "max": 4.0}}]}
+    page = generate.performance_page(result, "build/bench/bench.json")
+    assert "a: 3 ms, 5 MB\nb: 3\nb: 8\n" in page
+    assert "| a: \\# ms, \\# MB | 1 | 1 | 3 | 8 |" in page
+    assert "| processor | CPU \\<x\\> |" in page and "| load average before (1, 5, 15 min) | " \
+        "1.00, 0.50, 0.25 |" in page
+    assert "wall time 2 s (min 1, max 4)" in page
+
+
+def test_run_all_writes_a_result_file(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    res = subprocess.run([sys.executable, str(ROOT / "tests" / "bench" / "run_all.py"), "--only",
+                          "bench_evaluate", "--json", str(tmp_path / "r.json")], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    import json
+
+    result = json.loads((tmp_path / "r.json").read_text())
+    assert result["cores"] == os.cpu_count() and result["runs"] == 1
+    assert len(result["load_average_before"]) == 3
+    (script,) = result["scripts"]
+    assert script["name"] == "bench_evaluate" and script["exit_codes"] == [0]
+    assert script["figures"][0]["line"].startswith("summarize 100k samples: {} ms")
+    page = generate.performance_page(result, str(tmp_path / "r.json"))
+    assert "## bench_evaluate" in page
+    res = subprocess.run([sys.executable, str(ROOT / "tests" / "bench" / "run_all.py"), "--only",
+                          "bench_nothing"], env=env, capture_output=True, text=True)
+    assert res.returncode == 2 and "--only: no script bench_nothing" in res.stderr
+
+
+def test_every_toml_example_in_the_docs_is_a_valid_scene():
+    pages = sorted(DOCS.rglob("*.md")) + [ROOT / "README.md"]
+    checked = 0
+    for page in pages:
+        if "_generated" in page.parts:
+            continue
+        for block in re.findall(r"```toml\n(.*?)```", page.read_text(), re.S):
+            parse_scene(block, ROOT / "pipelines" / "example.toml", must_exist=False)
+            checked += 1
+    assert checked >= 3
+
+
+# ------------------------------------------------------------------------------ tutorials
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# Per tutorial: (text in its command list, what the test runs instead). Each text must be
+# there, so a tutorial that changes is noticed here.
+SMALLER = {
+    "fruit-to-table-1": [
+        ("fruit scenes copy fruit-deformed deformed\n",
+         "fruit scenes copy fruit-deformed deformed\n"
+         "sed -i 's/^size_mm = 5.0/size_mm = 8.0/' deformed/fruit-deformed.toml\n"),
+        ("--scenes paper-table,fruit-rest,fruit-deformed", "--scenes paper-table,fruit-rest"),
+    ],
+    "own-sculpture": [("[mesh]\nsize_mm = 6.0", "[mesh]\nsize_mm = 8.0")],
+    "lab": [],
+    "installation": [("--view 8765", "--view {port}")],
+}
+EXPECTED = {  # files the tutorial's page says its commands make
+    "fruit-to-table-1": ["out/paper-table/evaluate/table.md", "out/fruit-rest/evaluate/table.md",
+                         "out/fruit-deformed/evaluate/deformed-small/top.png", "out/report.md"],
+    "own-sculpture": ["tracks/taxels.csv", "tracks/preview.png",
+                      "out/sculpture/simulate/yarns.csv", "out/sculpture/evaluate/table.md",
+                      "molds/mold.json"],
+    "lab": ["out/lab-bench/small/frames.npz", "out/lab-evaluate/table.md",
+            "out/calibration/skin.toml", "out/bench-calibrated/small/frames.npz",
+            "recording.npz", "out/recording-locate/touches.csv"],
+    "installation": ["touches.jsonl", "fruit.log"],
+}
+
+
+def tutorial_script(name: str) -> str:
+    text = (DOCS / "tutorials" / f"{name}.md").read_text()
+    script = "\n".join(re.findall(r"```shell\n(.*?)```", text, re.S))
+    assert script.strip(), f"{name}: no shell block"
+    for old, new in SMALLER[name]:
+        assert old in script, (name, old)
+        script = script.replace(old, new.format(port=free_port()))
+    return "set -euo pipefail\n" + script
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(SMALLER))
+def test_tutorial_commands_run(name, tmp_path):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    shim = bin_dir / "fruit"  # this checkout's fruit, whatever the venv has installed
+    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -c "
+                    "'import sys; from fruitcli.cli.main import main; sys.exit(main())' \"$@\"\n")
+    shim.chmod(0o755)
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "PYTHONPATH": str(ROOT),
+           "MPLBACKEND": "Agg"}
+    res = subprocess.run(["bash", "-c", tutorial_script(name)], cwd=work, env=env,
+                         capture_output=True, text=True, timeout=1200)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    for rel in EXPECTED[name]:
+        assert (work / rel).is_file() and (work / rel).stat().st_size > 0, rel
+    if name == "fruit-to-table-1":
+        table = (work / "out" / "paper-table" / "evaluate" / "table.md").read_text()
+        assert "| Rest, small | 29 | 3D | none | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table
+    if name == "installation":
+        assert '"touches": [{"touch": 0' in (work / "touches.jsonl").read_text()
+        assert " down 0 " in (work / "fruit.log").read_text()
+
+
+def test_every_file_path_the_docs_name_exists():
+    """Paths in `code spans` that name a source file or folder (fruitcli/..., tests/...,
+    docs/..., a .py file) exist, so a moved module is noticed here."""
+    pattern = re.compile(r"`((?:fruitcli|tests|docs)/[\w/.-]*|[\w/-]+\.py)`")
+    named = set()
+    for page in [*DOCS.rglob("*.md"), ROOT / "README.md"]:
+        if "_generated" not in page.parts:
+            named.update(pattern.findall(page.read_text()))
+    assert len(named) >= 10
+    missing = sorted(p for p in named if not (ROOT / p).exists())
+    assert missing == []

@@ -1,0 +1,124 @@
+"""The wheel as a user installs it: every module and the bundled scenes inside it, `fruit
+demo` from an empty folder, `fruit scenes copy` then `fruit run`, bad input in one line.
+
+The wheel is installed into a fresh virtual environment with `--no-deps`; that
+environment sees this one's site-packages through a .pth file (so the dependencies are
+not downloaded again), while `fruitcli` itself comes from the wheel only.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+NAMES = ["fruit-breathing", "fruit-deformed", "fruit-rest", "paper-table", "touchpad-4x4"]
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    """The wheel, built from a copy of the sources (nothing is written into the checkout,
+    and no earlier build's leftovers get in)."""
+    src = tmp_path_factory.mktemp("src")
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(ROOT / name, src / name)
+    skip = shutil.ignore_patterns("__pycache__", "generated")
+    for name in ("fruitcli", "pipelines", "data"):
+        shutil.copytree(ROOT / name, src / name, ignore=skip)
+    out = tmp_path_factory.mktemp("wheel")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps",
+                    "--no-build-isolation", "--wheel-dir", str(out), str(src)],
+                   check=True, capture_output=True, cwd=out)
+    (found,) = out.glob("fruitcli-*.whl")
+    return found
+
+
+@pytest.fixture(scope="module")
+def fruit_bin(wheel, tmp_path_factory) -> Path:
+    venv = tmp_path_factory.mktemp("venv")
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    site = subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()"
+                           "['purelib'])"], check=True, capture_output=True, text=True)
+    Path(site.stdout.strip(), "project_deps.pth").write_text(
+        sysconfig.get_paths()["purelib"] + "\n")
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet",
+                    "--ignore-installed", "--no-deps", str(wheel)], check=True, capture_output=True)
+    # --ignore-installed: this environment's own (editable) fruitcli is visible through the
+    # .pth file and must be neither taken as the install nor uninstalled
+    return venv / "bin" / "fruit"
+
+
+def run(fruit_bin: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the wheel's code only
+    env["MPLBACKEND"] = "Agg"
+    return subprocess.run([str(fruit_bin), *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_wheel_holds_every_module_and_the_bundled_files(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    sources = {p.relative_to(ROOT).as_posix() for p in (ROOT / "fruitcli").rglob("*.py")}
+    assert sources - names == set()  # a package missing from pyproject's list fails here
+    bundled = {n for n in names if n.startswith("fruitcli/_bundled/")}
+    assert bundled == ({f"fruitcli/_bundled/pipelines/{n}.toml" for n in NAMES}
+                       | {f"fruitcli/_bundled/data/paper/{p.name}"
+                          for p in (ROOT / "data" / "paper").glob("*.csv")})
+
+
+def test_installed_demo_runs_from_an_empty_folder(fruit_bin, tmp_path):
+    res = run(fruit_bin, "--version", cwd=tmp_path)
+    assert res.stdout.strip().startswith("fruit, version ")
+    res = run(fruit_bin, "demo", "--out", "out", "--scenes", "paper-table", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "| Rest, small (the paper's figure data) | 29 | already registered: 2.56" in report
+    assert (tmp_path / "out" / "scenes" / "paper-table.toml").is_file()
+
+
+def test_installed_scenes_copy_then_run(fruit_bin, tmp_path):
+    res = run(fruit_bin, "scenes", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert [line.split()[0] for line in lines] == NAMES
+    assert lines[3].endswith("[stages: evaluate]")
+    res = run(fruit_bin, "scenes", "copy", "paper-table", "mine", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    scene = tmp_path / "mine" / "paper-table.toml"
+    assert 'truth = "data/paper/paper_rest_truth.csv"' in scene.read_text()
+    res = run(fruit_bin, "run", scene, "--out", "out", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    summary = (tmp_path / "out" / "evaluate" / "summary.json").read_text()
+    assert '"Rest, small"' in summary
+
+
+def test_installed_bad_input_is_one_line(fruit_bin, tmp_path):
+    res = run(fruit_bin, "scenes", "copy", "no-such", "x", cwd=tmp_path)
+    assert res.returncode == 1
+    assert res.stderr.strip().splitlines() == [
+        f"Error: unknown scene 'no-such' (bundled scenes: {', '.join(NAMES)})"]
+    assert not (tmp_path / "x").exists()
+
+
+def test_lower_bounds_are_the_tested_versions():
+    """Every `name>=X` in pyproject.toml is pinned to X in requirements/constraints.txt."""
+    import re
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    wanted = list(project["dependencies"])
+    for extra in project["optional-dependencies"].values():
+        wanted += extra
+    pins = dict(line.strip().lower().split("==") for line in
+                (ROOT / "requirements" / "constraints.txt").read_text().splitlines()
+                if "==" in line and not line.startswith("#"))
+    for spec in wanted:
+        name, bound = re.fullmatch(r"([A-Za-z0-9_.-]+)>=([0-9.]+)", spec).groups()
+        assert pins[name.lower().replace("_", "-")] == bound, spec
