@@ -428,6 +428,9 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
 
 
 def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
+    from fruitcli.scene_ranges import check_ranges
+
+    check_ranges(scene, where)
     name = scene["scene"]["name"]
     if name is not None and (not name.strip() or name in (".", "..")
                              or any(c in name for c in "/\\")):

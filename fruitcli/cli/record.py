@@ -6,7 +6,14 @@ import threading
 
 import click
 
-from fruitcli.cli.options import Progress, baud_option, format_option, fruit_errors, out_option
+from fruitcli.cli.options import (
+    FiniteFloat,
+    Progress,
+    baud_option,
+    format_option,
+    fruit_errors,
+    out_option,
+)
 
 
 @click.command()
@@ -16,7 +23,7 @@ from fruitcli.cli.options import Progress, baud_option, format_option, fruit_err
             "timestamps.", file=True, dest="out_path")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames.")
-@click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--seconds", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Stop after this many seconds.")
 @baud_option()
 @click.option("--rows", type=click.IntRange(min=1), default=21, show_default=True,

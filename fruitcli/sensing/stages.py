@@ -403,6 +403,12 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     return result
 
 
+def _box_outline(xy_mm: np.ndarray, pad_mm: float = 8.0) -> np.ndarray:
+    """Two triangles (2, 3, 2) covering the taxels' bounding box grown by `pad_mm` (mm)."""
+    (x0, y0), (x1, y1) = xy_mm.min(axis=0) - pad_mm, xy_mm.max(axis=0) + pad_mm
+    return np.array([[[x0, y0], [x1, y0], [x1, y1]], [[x0, y0], [x1, y1], [x0, y1]]])
+
+
 def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> dict:
     """Noise std per taxel at rest and max baseline shift per taxel over the states' animation
     (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
@@ -413,7 +419,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = read_taxels(taxels_csv, FrameError)
-    states = load_states(states_npz, len(taxels))
+    states = None if states_npz is None else load_states(states_npz, len(taxels))
     sens = scene["sensitivity"]
     skin = forward.make_skin(len(taxels), scene["bench"]["seed"],
                              forward.SkinParams.from_table(_section(scene, "skin")),
@@ -423,7 +429,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                                                 (sens["noise_frames"], len(taxels))),
                                 skin.noise_std_counts, rng)
     std = sensitivity.noise_std_counts(rest)
-    strain = forward.taxel_strain(states)  # (S, T)
+    # no deformation (no FEM): one state, the taxels at rest, no strain
+    strain = np.zeros((1, len(taxels))) if states is None else forward.taxel_strain(states)
     gain = forward.calibrate_strain_gain()
     shift_model = forward.strain_shift_counts(strain, skin, gain)
     anim = sensitivity.animation_shift(shift_model, sens["animation_frames"])
@@ -437,7 +444,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                    "fab": float(skin.fab[k])} for k in range(len(taxels))]
     out = {"units": "counts (strain: Green-Lagrange norm, -)", "threshold_counts": threshold,
            "noise_frames": sens["noise_frames"], "animation_frames": sens["animation_frames"],
-           "states": states.n_states, "strain_gain_counts": gain,
+           "states": len(strain), "strain_gain_counts": gain,
            "summary": {"std": sensitivity.summary(std), "max_shift": sensitivity.summary(shift),
                        "max_shift_model": sensitivity.summary(model_max)},
            "taxels": taxel_rows}
@@ -446,7 +453,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                  f"noise std over {sens['noise_frames']} frames at rest", threshold / 2)
     save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
                  "max baseline shift over the animation", threshold)
-    outline = states.rest_nodes[states.surface_tris][:, :, :2]
+    outline = (_box_outline(taxels.xyz_mm[:, :2]) if states is None
+               else states.rest_nodes[states.surface_tris][:, :, :2])
     xy = taxels.xyz_mm[:, :2]
     save_topview(out_dir / "noise_std_top.png", xy, std, outline,
                  f"noise std over {sens['noise_frames']} frames at rest (top view, counts)",

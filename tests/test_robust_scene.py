@@ -1,0 +1,94 @@
+"""Scene keys out of range and options that are not finite: one line naming the key, before
+anything runs; a scene with [sensitivity] but no FEM runs with the taxels at rest."""
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from fruitcli.cli.main import cli
+from fruitcli.errors import SceneError
+from fruitcli.scene import load_scene
+
+TAXELS = "id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,1,0,16,0,0\n2,0,1,0,12,0\n3,1,1,16,12,0\n"
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def scene_file(tmp_path, body):
+    (tmp_path / "taxels.csv").write_text(TAXELS)
+    path = tmp_path / "s.toml"
+    path.write_text('[scene]\nname = "s"\n[grid]\ntaxels = "taxels.csv"\n' + body)
+    return path
+
+
+@pytest.mark.parametrize("body, message", [
+    ("[bench]\nseed = -1\n", "[bench].seed: expected a seed >= 0, got -1"),
+    ("[sensitivity]\nanimation_frames = 0\n",
+     "[sensitivity].animation_frames: expected frames >= 1, got 0"),
+    ("[sensitivity]\nnoise_frames = -1\n",
+     "[sensitivity].noise_frames: expected frames >= 2 (a standard deviation needs two), "
+     "got -1"),
+    ("[sensitivity]\nnoise_frames = 0\n",
+     "[sensitivity].noise_frames: expected frames >= 2 (a standard deviation needs two), "
+     "got 0"),
+    ("[detection]\ndrift_rate = 5.0\n",
+     "[detection].drift_rate: expected a rate per frame 0 <= rate <= 1, got 5.0"),
+    ("[tracks]\nfaces = 10000000000000000000000\n", None),  # TOML: beyond a 64-bit integer
+    ("[tracks]\nfaces = 1000000000000000000\n",
+     "[tracks].faces: expected a triangle count 4 <= faces <= 10,000,000, got "
+     "1000000000000000000"),
+])
+def test_keys_out_of_range_are_one_line(tmp_path, body, message):
+    path = scene_file(tmp_path, body)
+    with pytest.raises(SceneError) as err:
+        load_scene(path)
+    if message is not None:
+        assert str(err.value) == f"s.toml: {message}"
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1 and res.output.strip().splitlines()[-1].startswith("Error: ")
+    assert "Traceback" not in res.output and not (tmp_path / "o").exists()
+
+
+def test_an_empty_scene_is_refused(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_text("# nothing\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: empty.toml: the scene declares no section; expected at least [scene] and what "
+        "to run ([geometry], [[evaluate]], ...)")
+    assert not (tmp_path / "o").exists()
+
+
+def test_sensitivity_without_fem_has_no_shift(tmp_path):
+    path = scene_file(tmp_path, "[sensitivity]\nnoise_frames = 400\nanimation_frames = 3\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 0, res.output
+    out = json.loads((tmp_path / "o" / "sensitivity" / "sensitivity.json").read_text())
+    assert out["states"] == 1 and out["noise_frames"] == 400
+    assert all(t["max_shift_model"] == 0.0 and t["strain_max"] == 0.0 for t in out["taxels"])
+    # the noise std of 400 frames is within 15 % of the skin's noise (0.5 to 1.85 counts)
+    assert all(0.5 * 0.85 < t["std"] < 1.85 * 1.15 for t in out["taxels"])
+
+
+@pytest.mark.parametrize("args, option", [
+    (["make-tracks", "x.stl", "--spacing-x-mm", "inf"], "--spacing-x-mm"),
+    (["locate", "x.log", "--taxels", "t.csv", "--threshold", "nan"], "--threshold"),
+    (["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--reference-length-mm", "inf"],
+     "--reference-length-mm"),
+])
+def test_options_that_are_not_finite_are_refused(tmp_path, args, option):
+    res = run(*args, "--out", tmp_path / "o")
+    assert res.exit_code == 2, res.output
+    assert f"Invalid value for '{option}'" in res.output and "expected a finite number" \
+        in res.output
+
+
+def test_make_tracks_faces_beyond_the_limit_are_refused(tmp_path):
+    res = run("make-tracks", "x.stl", "--faces", "10000000000000000000000", "--out",
+              tmp_path / "o")
+    assert res.exit_code == 2 and "'--faces': 10000000000000000000000 is not in the range " \
+        "4<=x<=10000000" in res.output
