@@ -31,3 +31,25 @@ def test_make_artist_refuses_an_existing_file(tmp_path):
     assert res.output.strip().splitlines()[-1] == (
         f"Error: --out {out}: exists; give --overwrite to replace it")
     assert out.read_text() == "the user's mesh"
+
+
+def test_locate_removes_a_measured_csv_of_another_run(tmp_path):
+    import numpy as np
+
+    from fruitcli.sensing.frames.recording import Recording, write_muca_log
+
+    taxels = tmp_path / "t.csv"
+    taxels.write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,1,0,16,0,0\n")
+    frames = np.full((20, 21, 12), 1000, np.uint16)
+    frames[15:, 0, 0] += 200
+    log = tmp_path / "f.log"
+    write_muca_log(log, Recording(frames, np.arange(20) / 10.0))
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "measured.csv").write_text("sample,x_mm,y_mm,z_mm\n0,1,2,3\n")
+    res = run("locate", log, "--taxels", taxels, "--out", out)
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in out.iterdir()) == ["touches.csv"]
+    rows = [line for line in (out / "touches.csv").read_text().splitlines()
+            if line and not line.startswith("#")]
+    assert len(rows) == 1 + 5  # header, one touch in each of frames 15-19

@@ -271,6 +271,10 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
         n_samples = int(np.unique(rec.sample[rec.sample >= 0]).size)
         result.update(measured_csv=str(out_dir / "measured.csv"), samples=n_samples,
                       samples_missed=n_samples - int(ids.size))
+    elif (out_dir / "measured.csv").exists():  # a bench run's, not of these frames
+        (out_dir / "measured.csv").unlink()
+        say(f"removed {out_dir / 'measured.csv'}: left by an earlier run (these frames have "
+            "no bench samples)")
     say(f"{out.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
 
