@@ -203,13 +203,18 @@ def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_
 
 def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None) -> dict:
     """One gmsh child on `job`: its raw arrays and the .msh text."""
-    with tempfile.TemporaryDirectory(prefix="fruit-gmsh-", dir=work_dir) as tmp:
+    from fruitcli.fem.meshing.gmsh_job import PARENT_ENV
+    from fruitcli.fsutil import owned_prefix, sweep_orphans
+
+    sweep_orphans(Path(work_dir or tempfile.gettempdir()), "fruit-gmsh-")
+    with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
         cmd = [sys.executable, "-m", "fruitcli.fem.meshing.gmsh_job",
                str(tmp / "job.npz"), str(tmp)]
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]))
+            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]),
+            **{PARENT_ENV: str(os.getpid())})
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 start_new_session=True, env=env, text=True)
         try:
