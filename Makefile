@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo bench studies lint clean
+.PHONY: test demo bench studies lint clean fuzz
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -26,6 +26,11 @@ studies: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-deformed.toml --out out/study-runtime
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-breathing.toml --out out/study-runtime-breathing
 	MPLBACKEND=Agg $(BIN)/fruit study bench pipelines/fruit-rest.toml --out out/study-bench
+
+# every reader and parser fuzzed for FUZZ_SECONDS in all: cases tried and failures per target
+FUZZ_SECONDS ?= 600
+fuzz: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python tests/fuzz_run.py --seconds $(FUZZ_SECONDS)
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py
