@@ -28,11 +28,17 @@ OPEN_LOW = {("tracks", "track_radius_mm")}  # the lowest value itself is refused
 
 
 def check_ranges(scene, where: str) -> None:
-    """Raise SceneError for the first key of `RANGES` outside its range, and for a scene
-    file that declares no section at all (it would run nothing)."""
+    """Raise SceneError for the first key of `RANGES` outside its range, for a scene
+    file that declares no section at all (it would run nothing), and for an [[evaluate]]
+    label given twice."""
     if not scene.declared:
         raise SceneError(f"{where}: the scene declares no section; expected at least [scene] "
                          "and what to run ([geometry], [[evaluate]], ...)")
+    labels = [ev["label"] for ev in scene["evaluate"]]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise SceneError(f"{where}: [[evaluate]].label: {twice[0]!r} is given twice; expected "
+                         "one label per row (it names the row's folder and table line)")
     for (section, key), (lo, hi, what) in RANGES.items():
         value = scene[section][key]
         low_ok = value > lo if (section, key) in OPEN_LOW else value >= lo

@@ -92,3 +92,38 @@ def test_make_tracks_faces_beyond_the_limit_are_refused(tmp_path):
               tmp_path / "o")
     assert res.exit_code == 2 and "'--faces': 10000000000000000000000 is not in the range " \
         "4<=x<=10000000" in res.output
+
+
+def test_a_duplicate_evaluate_label_is_one_line(tmp_path):
+    from conftest import PAPER
+
+    row = (f'[[evaluate]]\nlabel = "Rest"\ntruth = "{PAPER / "paper_rest_truth.csv"}"\n'
+           f'measured = "{PAPER / "paper_rest_measured.csv"}"\n')
+    path = tmp_path / "e.toml"
+    path.write_text('[scene]\nname = "e"\n' + row + row)
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: e.toml: [[evaluate]].label: 'Rest' is given twice; expected one label per row "
+        "(it names the row's folder and table line)")
+
+
+def test_a_bench_too_large_for_memory_is_one_line(tmp_path, monkeypatch):
+    from fruitcli import memory
+
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1024**3)  # 1 GiB
+    path = scene_file(tmp_path, "[bench]\nbaseline_frames = 10000000\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: s.toml: [bench].baseline_frames = 10000000 needs about 24.4 GiB of memory, "
+        "1.0 GiB is available")
+
+
+def test_record_into_a_missing_folder_creates_nothing(tmp_path):
+    out = tmp_path / "nodir" / "x.npz"
+    res = run("record", "--port", "loop://", "--out", out, "--seconds", "0.2")
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        f"Error: --out {out}: folder {out.parent} does not exist; create it first")
+    assert list(tmp_path.iterdir()) == []

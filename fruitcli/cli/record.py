@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import click
 
@@ -94,12 +95,14 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         sink = LogSink(log_path_for(out_path),
                        header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
                               f"{rows}x{cols} counts", pressure=pressure, t0=reader.t0)
+        started = time.monotonic()
         try:
             res = record_stream(reader, sink, n_frames, seconds, progress)
         except KeyboardInterrupt:
             interrupted = True
+            took = time.monotonic() - started
             res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
-                   "frames_per_s": 0.0, "closed": ""}
+                   "frames_per_s": sink.frames / took if took > 0 else 0.0, "closed": ""}
         finally:
             sink.close()
             ser.close()

@@ -355,6 +355,13 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     board, bench = scene["board"], scene["bench"]
     threshold = scene["detection"]["threshold_counts"]
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
+    from fruitcli.memory import require
+
+    # idle frames: counts and their noise per taxel (float), then board frames (float, uint16)
+    require(bench["baseline_frames"] * (3 * 8 * len(taxels) + 10 * board["rows"] *
+                                        board["cols"]),
+            f"{scene.path.name}: [bench].baseline_frames = {bench['baseline_frames']}",
+            FrameError)
     state = bench["state"]
     skin = forward.make_skin(len(taxels), bench["seed"], forward.SkinParams.from_table(
         _section(scene, "skin")), taxels.ids)
