@@ -127,3 +127,14 @@ def test_record_into_a_missing_folder_creates_nothing(tmp_path):
     assert res.output.strip().splitlines()[-1] == (
         f"Error: --out {out}: folder {out.parent} does not exist; create it first")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bench_whose_samples_all_miss_the_body_is_one_line(tmp_path):
+    (tmp_path / "far.csv").write_text("sample,x_mm,y_mm\n0,500,500\n1,600,600\n")
+    path = scene_file(tmp_path, '[bench]\nsamples = "far.csv"\n')
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: s.toml: [bench].samples: none of the 2 sample points lies over the taxels' "
+        "interpolated surface (no body surface given); expected points (x, y) over the body")
+    assert not (tmp_path / "o" / "bench" / "manifest.json").exists()

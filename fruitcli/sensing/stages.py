@@ -385,6 +385,10 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     contact = np.column_stack([xy, z])[on_surface]
     say(f"{len(xy)} sample points, {len(contact)} of them over {truth_surface} "
         f"({len(xy) - len(contact)} outside it are left out)")
+    if len(contact) == 0:
+        raise FrameError(f"{scene.path.name}: [bench].samples: none of the {len(xy)} sample "
+                         f"points lies over {truth_surface}; expected points (x, y) over the "
+                         "body")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench["indenters"]):
@@ -392,6 +396,10 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
         rng = np.random.default_rng([bench["seed"], n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
                       bench["step_mm"], bench["baseline_frames"], threshold, rng)
+        if len(run.truth_ids) == 0:
+            raise FrameError(f"{scene.path.name}: [bench]: no sample of the {name} indenter "
+                             f"reached [detection].threshold_counts = {threshold:g} counts; "
+                             "the bench has no touch to record")
         n_frames = run.counts.shape[0]
         fill = forward.frame_counts(np.full((n_frames, board["rows"], board["cols"]),
                                             forward.BASELINE_COUNTS),
