@@ -30,7 +30,8 @@ studies: $(STAMP)
 # every reader and parser fuzzed for FUZZ_SECONDS in all: cases tried and failures per target
 FUZZ_SECONDS ?= 600
 fuzz: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python tests/fuzz_run.py --seconds $(FUZZ_SECONDS)
+	MPLBACKEND=Agg $(BIN)/python tests/fuzz_run.py --seconds $(FUZZ_SECONDS) \
+		--markdown docs/reliability.md
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py

@@ -670,12 +670,14 @@ def n_states(scene: Scene) -> int:
 
 
 def has_deformation(scene: Scene) -> bool:
-    """True when something moves the body: non-zero actuation or a jig."""
+    """True when something moves the body: non-zero actuation, a jig or a moved clamp."""
     act = scene["actuation"]
     for key in ("pressure_kpa", "volume_growth_mm3"):
         if act[key] and any(v != 0 for vals in act[key].values() for v in vals):
             return True
-    return bool(scene["jig"])
+    moved = any(f["displacement_mm"] is not None and any(f["displacement_mm"])
+                for f in scene["fixed"])
+    return bool(scene["jig"]) or moved
 
 
 def load_scene(path: str | Path, must_exist: bool = True) -> Scene:

@@ -138,3 +138,15 @@ def test_a_bench_whose_samples_all_miss_the_body_is_one_line(tmp_path):
         "Error: s.toml: [bench].samples: none of the 2 sample points lies over the taxels' "
         "interpolated surface (no body surface given); expected points (x, y) over the body")
     assert not (tmp_path / "o" / "bench" / "manifest.json").exists()
+
+
+def test_a_moved_clamp_is_a_deformation(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text('[scene]\nname = "c"\n[geometry]\npad_size_mm = [40.0, 40.0, 3.0]\n'
+                    "[grid]\ncount = [2, 2]\n[[fixed]]\nbox_mm = [-21, -21, -1, -15, 21, 4]\n"
+                    "displacement_mm = [0.0, 0.0, 2.0]\n[sensitivity]\nnoise_frames = 50\n")
+    res = run("run", path, "--out", tmp_path / "o", "--dry-run")
+    assert res.exit_code == 0, res.output
+    plan = {line.split()[0]: line.split()[1] for line in res.output.splitlines()
+            if line.split() and line.split()[0] in ("tetra", "simulate", "sensitivity")}
+    assert plan == {"tetra": "run", "simulate": "run", "sensitivity": "run"}
