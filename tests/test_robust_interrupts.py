@@ -32,3 +32,36 @@ def test_other_errors_still_show_their_traceback(monkeypatch, tmp_path):
     with pytest.raises(SystemError, match="a real bug"):
         main(["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out",
               str(tmp_path / "o")])
+
+
+def test_ctrl_c_inside_a_deferred_block_comes_after_it():
+    import os
+    import signal
+
+    from fruitcli.interrupts import deferred_sigint
+
+    finished = []
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_sigint():
+            os.kill(os.getpid(), signal.SIGINT)
+            finished.append(sum(range(100_000)))  # the block runs to its end
+    assert finished == [sum(range(100_000))]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_check_layout_defers_ctrl_c(monkeypatch):
+    import os
+    import signal
+
+    from fruitcli.fem.meshing import shells
+
+    done = []
+
+    def layout(outer, chambers, where):
+        os.kill(os.getpid(), signal.SIGINT)
+        done.append(True)
+
+    monkeypatch.setattr(shells, "_check_layout", layout)
+    with pytest.raises(KeyboardInterrupt):
+        shells.check_layout({}, [], "s.toml")
+    assert done == [True]
