@@ -62,3 +62,15 @@ def test_a_body_far_from_the_origin_is_one_line(tmp_path):
     assert res.output.strip().splitlines()[-1] == (
         f"Error: {path}: the mesh lies up to 1e+09 mm from the origin, more than 5000 mm; "
         "move it near the origin (the outputs are in the mesh's own coordinates)")
+
+
+def test_a_thin_closed_plate_is_not_called_an_open_sheet(tmp_path):
+    import trimesh
+
+    path = tmp_path / "plate.stl"
+    trimesh.creation.box(extents=(200.0, 200.0, 2.0)).export(path)
+    res = run("make-tracks", path, "--out", tmp_path / "o", "--cover-mm", "0.5")
+    assert res.exit_code == 1
+    line = res.output.strip().splitlines()[-1]
+    assert line.startswith(f"Error: {path}: the mesh has no inside")
+    assert "or a closed body thinner than about" in line and "--faces" in line
