@@ -74,3 +74,17 @@ def test_a_thin_closed_plate_is_not_called_an_open_sheet(tmp_path):
     line = res.output.strip().splitlines()[-1]
     assert line.startswith(f"Error: {path}: the mesh has no inside")
     assert "or a closed body thinner than about" in line and "--faces" in line
+
+
+def test_a_garbage_text_mesh_is_one_line(tmp_path):
+    from fruitcli.errors import GeometryError
+    from fruitcli.geometry.load import load_mesh
+
+    path = tmp_path / "chamber.obj"
+    path.write_bytes(np.random.default_rng(3).bytes(4000))
+    try:
+        load_mesh(path)
+    except GeometryError as exc:
+        assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
+    else:
+        raise AssertionError("garbage read as a mesh")
