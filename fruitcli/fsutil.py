@@ -107,8 +107,10 @@ def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
     except OSError:
         return removed
     for entry in entries:
-        pid = entry.name[len(prefix):].split("-", 1)[0] if entry.name.startswith(prefix) else ""
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) \
+        if not entry.name.startswith(prefix):
+            continue
+        pid, dash, _ = entry.name[len(prefix):].partition("-")  # "<pid>-<random>"
+        if dash and pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) \
                 and entry.is_dir() and not entry.is_symlink():
             shutil.rmtree(entry, ignore_errors=True)
             removed.append(entry)
