@@ -92,3 +92,11 @@ def test_concurrent_copies_of_a_borrowed_stage_do_not_collide(tmp_path):
         list(pool.map(lambda _: _copy_in(source, target), range(8)))
     assert (target / "mesh.npz").read_bytes() == (source / "mesh.npz").read_bytes()
     assert sorted(p.name for p in target.parent.iterdir()) == ["tetra"]
+
+
+def test_killing_an_ended_gmsh_group_is_no_error():
+    from fruitcli.fem.meshing.tetra import _kill_group
+
+    proc = subprocess.Popen([sys.executable, "-c", "pass"], start_new_session=True)
+    proc.wait()
+    _kill_group(proc.pid)  # "No such process" before

@@ -201,6 +201,14 @@ def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_
         f"repair {label} (facets that cross or touch)")
 
 
+def _kill_group(pid: int) -> None:
+    """SIGKILL the gmsh child's process group; one that has just ended is no error."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None) -> dict:
     """One gmsh child on `job`: its raw arrays and the .msh text."""
     from fruitcli.fem.meshing.gmsh_job import PARENT_ENV
@@ -220,12 +228,12 @@ def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None)
         try:
             _, err = proc.communicate(timeout=time_limit_s)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
+            _kill_group(proc.pid)
             proc.communicate()
             raise MeshError(f"{label}: gmsh did not finish within [mesh].time_limit_s = "
                             f"{time_limit_s:g} s (killed); try a larger size_mm") from None
         except BaseException:  # Ctrl-C or any error here: the child (own session) goes too
-            os.killpg(proc.pid, signal.SIGKILL)
+            _kill_group(proc.pid)
             proc.communicate()
             raise
         if proc.returncode != 0 or not (tmp / "raw.npz").exists():
