@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 CONSTRAINTS := requirements/constraints.txt
 BENCH_RUNS ?= 3
 
-.PHONY: test demo bench studies lint docs constraints clean distclean
+.PHONY: test demo bench studies lint docs constraints fuzz clean distclean
 
 $(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,13 @@ studies: $(STAMP)
 # build/bench/bench.json, from which `make docs` makes the performance page.
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py --runs $(BENCH_RUNS) --json build/bench/bench.json
+
+# Every reader and parser fuzzed for FUZZ_SECONDS in all: cases tried and failures per target,
+# written to the documentation's reliability page.
+FUZZ_SECONDS ?= 600
+fuzz: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python tests/fuzz_run.py --seconds $(FUZZ_SECONDS) \
+		--markdown docs/reliability.md
 
 # Rewrite the tested versions from the venv as it is now (after installing what you tested).
 constraints: $(STAMP)

@@ -82,6 +82,41 @@ def _fmt(value) -> str:
     return str(value)
 
 
+def owned_prefix(prefix: str) -> str:
+    """A temporary name prefix carrying this process's id: `prefix` + "<pid>-"."""
+    return f"{prefix}{os.getpid()}-"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
+    """Remove the temporary folders `prefix` + "<pid>-..." in `folder` whose process has
+    ended (a run killed with SIGKILL leaves them); a live run's are left alone. Returns
+    the folders removed."""
+    removed = []
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        if not entry.name.startswith(prefix):
+            continue
+        pid, dash, _ = entry.name[len(prefix):].partition("-")  # "<pid>-<random>"
+        if dash and pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) \
+                and entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+            removed.append(entry)
+    return removed
+
+
 @contextlib.contextmanager
 def staged_dir(final: str | os.PathLike):
     """Yield a fresh temporary folder; on success move its files into `final`.
@@ -91,7 +126,8 @@ def staged_dir(final: str | os.PathLike):
     """
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    sweep_orphans(final.parent, f".{final.name}.")
+    tmp = Path(tempfile.mkdtemp(prefix=owned_prefix(f".{final.name}."), dir=final.parent))
     try:
         yield tmp
         final.mkdir(parents=True, exist_ok=True)

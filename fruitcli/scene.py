@@ -79,6 +79,9 @@ class Key:
 
 
 POSITIVE = {"min": 0.0, "min_exclusive": True}
+SEED = {"min": 0, "max": 2**63 - 1, "expected": "a seed >= 0"}
+MAX_FACES = 10_000_000
+"""Most triangles a reduced surface may ask for (a 10 M triangle surface is ~1 GB)."""
 OPEN_FRACTION = {"min": 0.0, "max": 1.0, "min_exclusive": True, "max_exclusive": True}
 
 
@@ -143,9 +146,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
     },
     "tracks": {
-        "cover_mm": Key("num", 2.0, "inward offset for the cover layer (mm)"),
-        "faces": Key("int", 5000, "target triangle count of the reduced surface"),
-        "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)"),
+        "cover_mm": Key("num", 2.0, "inward offset for the cover layer (mm)", min=0.0,
+                         expected="a thickness >= 0 mm"),
+        "faces": Key("int", 5000, "target triangle count of the reduced surface", min=4,
+                      max=MAX_FACES, expected=f"a triangle count 4 <= faces <= {MAX_FACES:,}"),
+        "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)", **POSITIVE,
+                                expected="a radius > 0 mm"),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
         "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
                                              "fraction (yarn limit 0.3 minus a 0.05 margin)",
@@ -237,7 +243,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)",
                           min=1),
         "validation": Key("int", 50, "held-out random pressure vectors solved in full", min=1),
-        "seed": Key("int", 0, "seed of the held-out pressure vectors"),
+        "seed": Key("int", 0, "seed of the held-out pressure vectors", **SEED),
     },
     "board": {
         "rows": Key("int", 21, "frame rows (Tx lines of the FocalTech FT5316, MuCa)"),
@@ -263,11 +269,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "baseline_frames": Key("int", 10, "frames averaged into the baseline C0", min=1),
         "method": Key("str", "n9", "n9 (paper), n9_floor or peaks",
                       choices=("n9", "n9_floor", "peaks")),
-        "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)"),
-        "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis"),
-        "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
-        "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)"),
-        "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)"),
+        "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)",
+                                   min=0.0, expected="counts >= 0"),
+        "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis", min=0.0,
+                                  expected="counts >= 0"),
+        "debounce_frames": Key("int", 0, "frames above threshold before a touch starts", min=0,
+                                expected="frames >= 0"),
+        "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)",
+                           min=0.0, max=1.0, expected="a rate per frame 0 <= rate <= 1"),
+        "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)",
+                              min=0.0, expected="a distance >= 0 mm"),
         "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
                                       "surface (moved to the nearest point of the body)",
                        choices=("none", "surface")),
@@ -280,7 +291,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "samples": Key("str", "quarter", "quarter (a quarter taxel off the grid) or a CSV path"),
         "state": Key("int", 0, "FEM state the bench runs on"),
         "step_mm": Key("num", 0.1, "indenter descent step (mm)", **POSITIVE),
-        "seed": Key("int", 0, "seed of the noise"),
+        "seed": Key("int", 0, "seed of the noise", **SEED),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent", min=1),
         "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)",
                                    **POSITIVE),
@@ -348,8 +359,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          **POSITIVE, expected="> 0 s"),
     },
     "sensitivity": {
-        "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std"),
-        "animation_frames": Key("int", 60, "frames over one animation cycle"),
+        "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std", min=2,
+                             expected="frames >= 2 (a standard deviation needs two)"),
+        "animation_frames": Key("int", 60, "frames over one animation cycle", min=1,
+                                 expected="frames >= 1"),
     },
     "report": {
         "paper_rows": Key("list", [], "paper Table I rows to show next to ours"),
@@ -740,6 +753,11 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
 
 def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     """The checks that involve several keys (one key's choices and range are the schema's)."""
+    labels = [ev.label for ev in scene.evaluate]
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise SceneError(f"{where}: [[evaluate]].label: {twice[0]!r} is given twice; expected "
+                         "one label per row (it names the row's folder and table line)")
     geo = scene.geometry
     given = {"artist": geo.artist, "solid": geo.solid, "pad_size_mm": geo.pad_size_mm}
     sources = [k for k, v in given.items() if v is not None]
@@ -838,12 +856,13 @@ def n_states(scene: Scene) -> int:
 
 
 def has_deformation(scene: Scene) -> bool:
-    """True when something moves the body: non-zero actuation or a jig."""
+    """True when something moves the body: non-zero actuation, a jig or a moved clamp."""
     act = scene.actuation
     for table in (act.pressure_kpa, act.volume_growth_mm3):
         if table and any(v != 0 for vals in table.values() for v in vals):
             return True
-    return bool(scene.jig)
+    moved = any(f.displacement_mm is not None and any(f.displacement_mm) for f in scene.fixed)
+    return bool(scene.jig) or moved
 
 
 def load_scene(path: str | Path, must_exist: bool = True) -> Scene:
@@ -855,4 +874,8 @@ def load_scene(path: str | Path, must_exist: bool = True) -> Scene:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: cannot read scene: {exc}") from None
-    return parse_scene(text, path.resolve(), must_exist=must_exist)
+    scene = parse_scene(text, path.resolve(), must_exist=must_exist)
+    if not scene.declared:
+        raise SceneError(f"{path.name}: the scene declares no section; expected at least "
+                         "[scene] and what to run ([geometry], [[evaluate]], ...)")
+    return scene

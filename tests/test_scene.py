@@ -293,20 +293,24 @@ def _scene_with(section: str, key: str, value) -> str:
 
 
 CHECKED_KEYS = {
-    "actuation": "period_s", "bench": "baseline_frames reference_length_mm register step_mm",
-    "board": "format", "detection": "baseline_frames method project threshold_counts",
+    "actuation": "period_s",
+    "bench": "baseline_frames reference_length_mm register seed step_mm",
+    "board": "format",
+    "detection": "baseline_frames debounce_frames drift_rate hysteresis_counts method "
+                 "noise_floor_counts project threshold_counts track_gate_mm",
     "ellipsoid": "radii_mm", "evaluate": "reference_length_mm register", "fem": "element",
     "frames": "model", "geometry": "unit", "grid": "count spacing_x_mm spacing_y_mm",
     "jig": "axis stiffness_n_per_mm",
     "material": "density_kg_m3 model poisson_ratio young_modulus_kpa", "mesh": "size_mm",
     "printer": "baud bed_mm feed_mm_min max_press_mm safe_height_mm step_mm timeout_s",
-    "reduced": "margin max_degree points_per_axis pressure_range_kpa validation",
-    "scene": "name", "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
+    "reduced": "margin max_degree points_per_axis pressure_range_kpa seed validation",
+    "scene": "name",
+    "sensitivity": "animation_frames noise_frames",
+    "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
             "insulation_mm model permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
-              "max_seconds "
-              "tolerance",
-    "tracks": "yarn_max_stretch zigzag_pitch_mm",
+              "max_seconds tolerance",
+    "tracks": "cover_mm faces track_radius_mm yarn_max_stretch zigzag_pitch_mm",
 }
 
 

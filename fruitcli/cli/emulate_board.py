@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from fruitcli.cli.options import baud_option, format_option, fruit_errors
+from fruitcli.cli.options import FiniteFloat, baud_option, format_option, fruit_errors
 
 
 @click.command("emulate-board")
@@ -17,7 +17,7 @@ from fruitcli.cli.options import baud_option, format_option, fruit_errors
                    "folder of `fruit bench`: plays <indenter>/frames.npz (the first).")
 @format_option(default="ascii", auto=False)
 @baud_option(pace=True)
-@click.option("--fps", type=click.FloatRange(min=0), default=0.0, show_default=True,
+@click.option("--fps", type=FiniteFloat(min=0), default=0.0, show_default=True,
               help="Cap on frames per second (0: no cap, the baud limits).")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Play this many frames (default: the whole recording; 600 synthetic).")

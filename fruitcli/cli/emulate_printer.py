@@ -7,7 +7,13 @@ import sys
 
 import click
 
-from fruitcli.cli.options import baud_option, format_option, fruit_errors, taxels_option
+from fruitcli.cli.options import (
+    FiniteFloat,
+    baud_option,
+    format_option,
+    fruit_errors,
+    taxels_option,
+)
 from fruitcli.workflow.scene_outputs import scene_products
 
 
@@ -35,7 +41,7 @@ def parse_faults(specs) -> dict:
               type=click.Choice(["small", "medium"]), help="The indenter the skin feels.")
 @format_option(default="binary", auto=False)
 @baud_option(pace=True, what="The board's bytes. ")
-@click.option("--time-scale", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--time-scale", type=FiniteFloat(min=0), default=1.0, show_default=True,
               help="Moves take distance / feed rate times this (0: instantly).")
 @click.option("--fault", "faults", multiple=True,
               help="Inject a fault at the N-th command line: resend:N (checksum mismatch, "

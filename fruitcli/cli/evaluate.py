@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import fruit_errors, out_option
+from fruitcli.cli.options import FiniteFloat, fruit_errors, out_option
 
 
 @click.command()
@@ -13,7 +13,7 @@ from fruitcli.cli.options import fruit_errors, out_option
 @click.option("--measured", required=True, type=click.Path(dir_okay=False),
               help="Measured CSV with the same samples: sample,x_mm,y_mm[,z_mm].")
 @out_option("Output folder (errors.csv, table.md, table.csv, summary.json, plots).")
-@click.option("--reference-length-mm", type=float, default=None,
+@click.option("--reference-length-mm", type=FiniteFloat(), default=None,
               help="Length for % errors in mm. [default: largest distance between two "
                    "truth samples; the paper uses 152]")
 @click.option("--label", default="result", show_default=True,

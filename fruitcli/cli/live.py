@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from fruitcli.cli.options import (
+    FiniteFloat,
     Progress,
     baud_option,
     divide_by_gain_option,
@@ -40,7 +41,7 @@ from fruitcli.workflow.scene_outputs import scene_products
 @format_option(default=None)
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
               help="Frames averaged into the baseline C0 (default: the scene's).")
-@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--threshold", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
 @divide_by_gain_option
 @click.option("--osc", "osc_target", default=None, metavar="HOST:PORT",
@@ -50,11 +51,11 @@ from fruitcli.workflow.scene_outputs import scene_products
 @click.option("--tuio-3d", "tuio_3d", type=click.Choice(["3Dcur", "25Dcur"]),
               default="3Dcur", show_default=True,
               help="TUIO profile of the 3D position on the body.")
-@click.option("--session-gate-mm", type=click.FloatRange(min=0), default=20.0,
+@click.option("--session-gate-mm", type=FiniteFloat(min=0), default=20.0,
               show_default=True,
               help="A touch keeps its session id when it moved at most this far since the "
                    "previous frame, mm (0: every frame's touches are new).")
-@click.option("--drift-tau-s", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_TAU_S,
+@click.option("--drift-tau-s", type=FiniteFloat(min=0, min_open=True), default=DEFAULT_TAU_S,
               show_default=True,
               help="Time constant of the baseline drift tracker, s (adapts only while no "
                    "taxel is above half the threshold).")
@@ -72,7 +73,7 @@ from fruitcli.workflow.scene_outputs import scene_products
 @click.option("--view", "view_target", default=None, metavar="[HOST:]PORT",
               help="Serve the live view (heat map, touches, pressures, frames/s, baseline) "
                    "at http://HOST:PORT/ (HOST default 127.0.0.1: this machine only).")
-@click.option("--time-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
+@click.option("--time-scale", type=FiniteFloat(min=0, min_open=True), default=1.0,
               help="Host time runs this many times faster, for compressed-time tests "
                    "against an emulated board played as fast (tests/test_live_soak.py); "
                    "scales t_s, the drift tracker and the status lines.")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from fruitcli.cli.options import (
+    FiniteFloat,
     Progress,
     divide_by_gain_option,
     fruit_errors,
@@ -24,7 +25,7 @@ from fruitcli.cli.options import (
               help="Scene whose [board] and [detection] sections to use.")
 @click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
               help="Frames averaged into the baseline C0 (default 10).")
-@click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--threshold", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Touch threshold on v = C - C0, counts (default 20).")
 @click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks"]), default=None,
               help="n9: the paper's sequential N9 (default); n9_floor; peaks.")

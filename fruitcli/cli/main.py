@@ -110,3 +110,21 @@ def main(argv=None):
     except KeyboardInterrupt:
         click.echo("Interrupted.", err=True)
         sys.exit(130)
+    except Exception as exc:
+        if not _interrupted(exc) or "-vv" in (argv or sys.argv):
+            raise
+        click.echo("Interrupted.", err=True)
+        sys.exit(130)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """True when Ctrl-C caused `exc`: a compiled kernel (numba, a C extension) that was
+    running when SIGINT came raises SystemError "returned a result with an exception set"
+    with the KeyboardInterrupt as its cause or context."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, out_option
+from fruitcli.cli.options import FiniteFloat, Progress, fruit_errors, out_option
+from fruitcli.scene import MAX_FACES
 
 
 @click.command("make-tracks")
@@ -14,23 +15,23 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
 @click.option("--unit", type=click.Choice(["mm", "cm", "m"]), default=None,
               help="Unit of the mesh file (default: mm; read in mm, a mesh under 2 mm across "
                    "is refused as being in m or cm).")
-@click.option("--fit-mm", type=float, default=None, metavar="L",
+@click.option("--fit-mm", type=FiniteFloat(), default=None, metavar="L",
               help="Scale the mesh uniformly (after --unit) so that its largest extent is L "
                    "mm: the size the piece will be cast at.")
-@click.option("--cover-mm", type=float, default=2.0, show_default=True,
+@click.option("--cover-mm", type=FiniteFloat(), default=2.0, show_default=True,
               help="Inward offset left for the cover layer (mm).")
-@click.option("--faces", type=int, default=5000, show_default=True,
+@click.option("--faces", type=click.IntRange(4, MAX_FACES), default=5000, show_default=True,
               help="Target triangle count of the reduced surface.")
-@click.option("--spacing-x-mm", type=float, default=16.0, show_default=True,
+@click.option("--spacing-x-mm", type=FiniteFloat(), default=16.0, show_default=True,
               help="Distance between the x = const cutting planes (mm).")
-@click.option("--spacing-y-mm", type=float, default=12.0, show_default=True,
+@click.option("--spacing-y-mm", type=FiniteFloat(), default=12.0, show_default=True,
               help="Distance between the y = const cutting planes (mm).")
 @click.option("--origin-mm", type=(float, float), default=None, metavar="X Y",
               help="A point the grid planes pass through (mm; default: grid centred on the "
                    "top surface).")
-@click.option("--track-radius-mm", type=float, default=0.6, show_default=True,
+@click.option("--track-radius-mm", type=FiniteFloat(), default=0.6, show_default=True,
               help="Radius of the yarn tubes carved into the surface (mm).")
-@click.option("--split-z-mm", type=float, default=None,
+@click.option("--split-z-mm", type=FiniteFloat(), default=None,
               help="Height of the casting split plane (mm; default: the body's widest "
                    "horizontal section).")
 def make_tracks(artist, out, unit, fit_mm, cover_mm, faces, spacing_x_mm, spacing_y_mm, origin_mm,

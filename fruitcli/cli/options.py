@@ -11,6 +11,21 @@ import click
 from fruitcli.errors import FruitError
 
 
+class FiniteFloat(click.FloatRange):
+    """A float option that refuses nan and inf (click's FloatRange lets nan through every
+    bound), with optional bounds as click.FloatRange."""
+
+    name = "finite float"
+
+    def convert(self, value, param, ctx):
+        import math
+
+        number = click.types.FloatParamType.convert(self, value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"expected a finite number, got {value!r}", param, ctx)
+        return super().convert(number, param, ctx)
+
+
 @contextlib.contextmanager
 def fruit_errors():
     """Turn library errors, and operating-system errors such as an unwritable output

@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import click
 
-from fruitcli.cli.options import Progress, baud_option, format_option, fruit_errors, out_option
+from fruitcli.cli.options import (
+    FiniteFloat,
+    Progress,
+    baud_option,
+    format_option,
+    fruit_errors,
+    out_option,
+)
 
 
 @click.command()
@@ -16,7 +24,7 @@ from fruitcli.cli.options import Progress, baud_option, format_option, fruit_err
             "timestamps.", file=True, dest="out_path")
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
               help="Stop after this many frames.")
-@click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--seconds", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Stop after this many seconds.")
 @baud_option()
 @click.option("--rows", type=click.IntRange(min=1), default=21, show_default=True,
@@ -87,12 +95,14 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         sink = LogSink(log_path_for(out_path),
                        header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
                               f"{rows}x{cols} counts", pressure=pressure, t0=reader.t0)
+        started = time.monotonic()
         try:
             res = record_stream(reader, sink, n_frames, seconds, progress)
         except KeyboardInterrupt:
             interrupted = True
+            took = time.monotonic() - started
             res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
-                   "frames_per_s": 0.0, "closed": ""}
+                   "frames_per_s": sink.frames / took if took > 0 else 0.0, "closed": ""}
         finally:
             sink.close()
             ser.close()

@@ -7,7 +7,14 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import fruit_errors, jobs_option, out_option, quiet, scheduler_option
+from fruitcli.cli.options import (
+    FiniteFloat,
+    fruit_errors,
+    jobs_option,
+    out_option,
+    quiet,
+    scheduler_option,
+)
 
 FIGURES = ("taxels", "tets", "states", "newton_its", "max_disp_mm", "state_ms",
            "noise_std_max_counts", "shift_max_counts", "shift_mean_counts", "variant_s")
@@ -26,7 +33,7 @@ TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$")
             "out/sweep-<scene name>]", required=False)
 @jobs_option("Local worker processes")
 @scheduler_option("the variants")
-@click.option("--connect-timeout", type=click.FloatRange(min=0.1), default=10.0,
+@click.option("--connect-timeout", type=FiniteFloat(min=0.1), default=10.0,
               show_default=True, help="Seconds to wait for the scheduler and a worker.")
 @click.option("--plot", "figure", default=None,
               help="The figure sweep.png shows against the swept keys, a sweep.csv column "

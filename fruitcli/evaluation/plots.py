@@ -5,13 +5,22 @@ from __future__ import annotations
 
 import numpy as np
 
+PLOT_MAX_PAIRS = 5000
+"""Pairs drawn at most; larger sets are shown by an evenly spaced subset."""
+
 
 def pairs(ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x", "y"),
           title: str = ""):
     """Draw matched pairs projected on two coordinate `axes` (0=x, 1=y, 2=z)."""
+    from matplotlib.collections import LineCollection
+
     a, b = axes
-    for t, m in zip(truth, measured, strict=True):
-        ax.plot([t[a], m[a]], [t[b], m[b]], color="black", lw=0.8, zorder=1)
+    if len(truth) > PLOT_MAX_PAIRS:  # evenly spaced pairs: a readable plot, drawn in seconds
+        keep = np.linspace(0, len(truth) - 1, PLOT_MAX_PAIRS).astype(int)
+        title = f"{title} ({PLOT_MAX_PAIRS} of {len(truth)} pairs)" if title else title
+        truth, measured = truth[keep], measured[keep]
+    segments = np.stack([truth[:, [a, b]], measured[:, [a, b]]], axis=1)
+    ax.add_collection(LineCollection(segments, colors="black", linewidths=0.8, zorder=1))
     ax.scatter(truth[:, a], truth[:, b], marker="s", color="red", s=22, label="Ground truth",
                zorder=2)
     ax.scatter(measured[:, a], measured[:, b], marker="o", color="blue", s=18,

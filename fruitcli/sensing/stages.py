@@ -207,6 +207,10 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
         n_samples = int(np.unique(rec.sample[rec.sample >= 0]).size)
         result.update(measured_csv=str(out_dir / "measured.csv"), samples=n_samples,
                       samples_missed=n_samples - int(ids.size))
+    elif (out_dir / "measured.csv").exists():  # a bench run's, not of these frames
+        (out_dir / "measured.csv").unlink()
+        say(f"removed {out_dir / 'measured.csv'}: left by an earlier run (these frames have "
+            "no bench samples)")
     say(f"{out.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
 
@@ -255,6 +259,13 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     board, bench = scene.board, scene.bench
     threshold = scene.detection.threshold_counts
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
+    from fruitcli.memory import require
+
+    # idle frames: counts and their noise per taxel (float), then board frames (float, uint16)
+    require(bench.baseline_frames * (3 * 8 * len(taxels) + 10 * board.rows *
+                                        board.cols),
+            f"{scene.path.name}: [bench].baseline_frames = {bench.baseline_frames}",
+            FrameError)
     state = bench.state
     skin = forward.make_skin(len(taxels), bench.seed, forward.SkinParams.from_table(
         _or_defaults(scene).skin), taxels.ids)
@@ -278,6 +289,10 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     contact = np.column_stack([xy, z])[on_surface]
     say(f"{len(xy)} sample points, {len(contact)} of them over {truth_surface} "
         f"({len(xy) - len(contact)} outside it are left out)")
+    if len(contact) == 0:
+        raise FrameError(f"{scene.path.name}: [bench].samples: none of the {len(xy)} sample "
+                         f"points lies over {truth_surface}; expected points (x, y) over the "
+                         "body")
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench.indenters):
@@ -285,6 +300,10 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
         rng = np.random.default_rng([bench.seed, n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
                       bench.step_mm, bench.baseline_frames, threshold, rng)
+        if len(run.truth_ids) == 0:
+            raise FrameError(f"{scene.path.name}: [bench]: no sample of the {name} indenter "
+                             f"reached [detection].threshold_counts = {threshold:g} counts; "
+                             "the bench has no touch to record")
         n_frames = run.counts.shape[0]
         fill = forward.frame_counts(np.full((n_frames, board.rows, board.cols),
                                             forward.BASELINE_COUNTS),
@@ -307,6 +326,12 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     return result
 
 
+def _box_outline(xy_mm: np.ndarray, pad_mm: float = 8.0) -> np.ndarray:
+    """Two triangles (2, 3, 2) covering the taxels' bounding box grown by `pad_mm` (mm)."""
+    (x0, y0), (x1, y1) = xy_mm.min(axis=0) - pad_mm, xy_mm.max(axis=0) + pad_mm
+    return np.array([[[x0, y0], [x1, y0], [x1, y1]], [[x0, y0], [x1, y1], [x0, y1]]])
+
+
 def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> dict:
     """Noise std per taxel at rest and max baseline shift per taxel over the states' animation
     (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
@@ -317,7 +342,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
     taxels = read_taxels(taxels_csv, FrameError)
-    states = load_states(states_npz, len(taxels))
+    states = None if states_npz is None else load_states(states_npz, len(taxels))
     sens = scene.sensitivity
     skin = forward.make_skin(len(taxels), scene.bench.seed,
                              forward.SkinParams.from_table(_or_defaults(scene).skin),
@@ -327,7 +352,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                                                 (sens.noise_frames, len(taxels))),
                                 skin.noise_std_counts, rng)
     std = sensitivity.noise_std_counts(rest)
-    strain = forward.taxel_strain(states)  # (S, T)
+    # no deformation (no FEM): one state, the taxels at rest, no strain
+    strain = np.zeros((1, len(taxels))) if states is None else forward.taxel_strain(states)
     gain = forward.calibrate_strain_gain()
     shift_model = forward.strain_shift_counts(strain, skin, gain)
     anim = sensitivity.animation_shift(shift_model, sens.animation_frames)
@@ -341,7 +367,7 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                    "fab": float(skin.fab[k])} for k in range(len(taxels))]
     out = {"units": "counts (strain: Green-Lagrange norm, -)", "threshold_counts": threshold,
            "noise_frames": sens.noise_frames, "animation_frames": sens.animation_frames,
-           "states": states.n_states, "strain_gain_counts": gain,
+           "states": len(strain), "strain_gain_counts": gain,
            "summary": {"std": sensitivity.summary(std), "max_shift": sensitivity.summary(shift),
                        "max_shift_model": sensitivity.summary(model_max)},
            "taxels": taxel_rows}
@@ -350,7 +376,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
                  f"noise std over {sens.noise_frames} frames at rest", threshold / 2)
     save_heatmap(out_dir / "max_shift.png", taxels.i, taxels.j, shift,
                  "max baseline shift over the animation", threshold)
-    outline = states.rest_nodes[states.surface_tris][:, :, :2]
+    outline = (_box_outline(taxels.xyz_mm[:, :2]) if states is None
+               else states.rest_nodes[states.surface_tris][:, :, :2])
     xy = taxels.xyz_mm[:, :2]
     save_topview(out_dir / "noise_std_top.png", xy, std, outline,
                  f"noise std over {sens.noise_frames} frames at rest (top view, counts)",

@@ -12,6 +12,8 @@ import functools
 import hashlib
 import importlib
 import json
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
@@ -107,6 +109,34 @@ def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
     return _holds(ctx.dir(stage.name), stage, scene, digest)
 
 
+def _copy_in(source: Path, folder: Path) -> None:
+    """Copy the stage folder `source` whole beside `folder` under a name of this process
+    (concurrent runs never share it), then swap it in. A run that swapped in the same
+    stage meanwhile wins: its copy has the same inputs."""
+    from fruitcli.fsutil import owned_prefix, sweep_orphans
+
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    sweep_orphans(folder.parent, f".{folder.name}.copying.")
+    holder = Path(tempfile.mkdtemp(prefix=owned_prefix(f".{folder.name}.copying."),
+                                   dir=folder.parent))
+    try:
+        shutil.copytree(source, holder / folder.name)
+        for attempt in range(10):
+            try:  # the old folder moved aside whole, then the copy moved in whole
+                folder.rename(holder / f"old{attempt}")
+            except FileNotFoundError:
+                pass
+            try:
+                (holder / folder.name).rename(folder)
+                return
+            except OSError:  # another run's copy moved in meanwhile: the same inputs
+                if (folder / MANIFEST).exists():
+                    return
+        raise FruitError(f"{folder}: another run keeps replacing it; run again")
+    finally:
+        shutil.rmtree(holder, ignore_errors=True)
+
+
 def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
          until: str | None = None, shared: Path | None = None) -> list[Step]:
     """Decide run / reuse / not needed for every stage (up to and including `until`),
@@ -157,9 +187,6 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
     """Run the needed stages (up to and including `until`), reusing unchanged ones.
     With `shared`, a stage whose identical inputs already ran for another scene under
     that folder is copied from there instead of run again."""
-    import shutil
-
-
     stages = STAGES if stages is None else stages
     wanted = _wanted(stages, until)
     ctx = Context(Path(out_root), progress or (lambda msg: None), shared=shared)
@@ -181,12 +208,7 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
         folder = ctx.dir(stage.name)
         source = None if force else _borrow(stage, scene, ctx, digest)
         if source is not None:  # copied whole beside it, then swapped in: never half
-            tmp = folder.with_name(folder.name + ".copying")
-            shutil.rmtree(tmp, ignore_errors=True)
-            shutil.copytree(source, tmp)
-            if folder.exists():
-                shutil.rmtree(folder)
-            tmp.rename(folder)
+            _copy_in(source, folder)
             done.append(Step(stage.name, "reuse", f"{reason} (same inputs as "
                              f"{source.parent.name})", digest))
             ctx.progress(f"{stage.name}: reuse (same inputs as {source.parent.name})")

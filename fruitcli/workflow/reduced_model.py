@@ -87,6 +87,11 @@ def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_cs
     order = [names.index(n) for n in model.chamber_names]
     kpa = table[:, order]
     model.check_range(kpa, where, rows)
+    from fruitcli.memory import require
+
+    # displacements (S, N, 3) float64, built and then written (twice)
+    require(2 * 8 * 3 * len(kpa) * len(model.rest_nodes),
+            f"{where}: {len(kpa)} states of {len(model.rest_nodes)} nodes")
     arrays = states_arrays(model, kpa)
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", arrays)

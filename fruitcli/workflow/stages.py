@@ -86,8 +86,12 @@ def _artist_run(scene, ctx, out_dir):
     from fruitcli.geometry.artist import write_artist
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_artist(scene.geometry.artist)
-    return {"artist": str(scene.geometry.artist)}
+    artist = scene.geometry.artist
+    if Path(artist).exists():  # "if missing": a mesh at `artist` is the user's, kept
+        ctx.progress(f"{artist}: exists, kept (generate_artist writes it only when missing)")
+        return {"artist": str(artist), "generated": False}
+    write_artist(artist)
+    return {"artist": str(artist), "generated": True}
 
 
 # ----------------------------------------------------------------------------- make-tracks

@@ -77,7 +77,14 @@ def _manifold(shell: dict):
 
 def check_layout(outer: dict, chambers: list[dict], where: str = "scene") -> None:
     """Refuse chambers that poke out of the solid or overlap each other (MeshError
-    naming the scene file `where` and the chamber)."""
+    naming the scene file `where` and the chamber). Ctrl-C waits for manifold3d's calls."""
+    from fruitcli.interrupts import deferred_sigint
+
+    with deferred_sigint():
+        _check_layout(outer, chambers, where)
+
+
+def _check_layout(outer: dict, chambers: list[dict], where: str) -> None:
     body = _manifold(outer)
     mans = []
     for ch in chambers:

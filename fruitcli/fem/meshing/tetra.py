@@ -201,26 +201,39 @@ def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_
         f"repair {label} (facets that cross or touch)")
 
 
+def _kill_group(pid: int) -> None:
+    """SIGKILL the gmsh child's process group; one that has just ended is no error."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None) -> dict:
     """One gmsh child on `job`: its raw arrays and the .msh text."""
-    with tempfile.TemporaryDirectory(prefix="fruit-gmsh-", dir=work_dir) as tmp:
+    from fruitcli.fem.meshing.gmsh_job import PARENT_ENV
+    from fruitcli.fsutil import owned_prefix, sweep_orphans
+
+    sweep_orphans(Path(work_dir or tempfile.gettempdir()), "fruit-gmsh-")
+    with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
         cmd = [sys.executable, "-m", "fruitcli.fem.meshing.gmsh_job",
                str(tmp / "job.npz"), str(tmp)]
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]))
+            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]),
+            **{PARENT_ENV: str(os.getpid())})
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 start_new_session=True, env=env, text=True)
         try:
             _, err = proc.communicate(timeout=time_limit_s)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
+            _kill_group(proc.pid)
             proc.communicate()
             raise MeshError(f"{label}: gmsh did not finish within [mesh].time_limit_s = "
                             f"{time_limit_s:g} s (killed); try a larger size_mm") from None
         except BaseException:  # Ctrl-C or any error here: the child (own session) goes too
-            os.killpg(proc.pid, signal.SIGKILL)
+            _kill_group(proc.pid)
             proc.communicate()
             raise
         if proc.returncode != 0 or not (tmp / "raw.npz").exists():

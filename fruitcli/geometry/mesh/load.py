@@ -68,6 +68,11 @@ def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
     if extent > MAX_EXTENT_MM:
         raise GeometryError(f"{what} is {extent:.4g} mm across in {unit}, more than "
                             f"{MAX_EXTENT_MM:g} mm: is that its unit?")
+    far = float(np.abs(verts_mm).max())
+    if far > MAX_EXTENT_MM:  # 1e9 mm away, a float's step is 1e-7 mm: the carving fails
+        raise GeometryError(f"{what} lies up to {far:.4g} mm from the origin, more than "
+                            f"{MAX_EXTENT_MM:g} mm; move it near the origin (the outputs "
+                            "are in the mesh's own coordinates)")
 
 
 def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -268,6 +273,8 @@ def orient_faces(faces: np.ndarray) -> tuple[np.ndarray, int]:
         visit, pred = breadth_first_order(graph, root, directed=False)
         seen[visit] = True
         f = visit[1:]
+        if f.size == 0:  # an isolated face: nothing to orient it against
+            continue
         p = pred[f]
         r = (np.asarray(rel[f, p]).ravel() % 2 == 0).tolist()   # 2 (or 4): same way
         fl = flip.tolist()

@@ -337,8 +337,10 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
         raise GeometryError(
             f"{source}: the mesh has no inside: its winding number reaches only "
             f"{float(w[sdf > h].max(initial=w.min())):.2f} away from the surface (a body "
-            f"reaches {winding.DEEP_INSIDE:g} to 1), as for an open sheet or a plane; give "
-            "it a closed body (close it, or give the sheet a thickness, in a modeller)")
+            f"reaches {winding.DEEP_INSIDE:g} to 1) on a grid of {h:.2g} mm, as for an open "
+            "sheet or a plane, or a closed body thinner than about "
+            f"{2 * h:.2g} mm; give a sheet a thickness in a modeller, or ask for more "
+            "triangles (--faces, [tracks].faces) for a finer grid")
     if not (sdf > cover_mm).any():
         where = _xyz(axes, int(np.argmax(sdf)))
         raise GeometryError(

@@ -34,6 +34,7 @@ from fruitcli.sensing.frames.recording import (
     npz_extras,
     read_recording,
 )
+from fruitcli.tables import check_zip
 
 _LOCAL_HEADER = struct.Struct("<4s5H3L2H")  # zip local file header (30 bytes)
 _LOCAL_MAGIC = b"PK\x03\x04"
@@ -155,6 +156,7 @@ class _NpyMember:
 def _open_npz(path: Path) -> ChunkedRecording:
     if not path.exists():
         raise FrameError(f"{path}: file not found")
+    check_zip(path, ".npz recording", FrameError)
     try:
         zf = zipfile.ZipFile(path)
     except (OSError, zipfile.BadZipFile) as exc:

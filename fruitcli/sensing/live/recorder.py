@@ -185,6 +185,9 @@ def check_out_path(out: str | os.PathLike, overwrite: bool = False,
                          "(a MuCa log has no place for them)")
     if Path(out).is_dir():
         raise FrameError(f"--out {out}: is a folder, expected a file")
+    if not Path(out).absolute().parent.is_dir():
+        raise FrameError(f"--out {out}: folder {Path(out).parent} does not exist; create it "
+                         "first")
     if Path(out).exists() and not overwrite:
         raise FrameError(f"--out {out}: exists; give --overwrite to replace it (it is "
                          "replaced only once the new recording has frames)")

@@ -1,0 +1,27 @@
+"""Ctrl-C held back while a C++ extension runs: a KeyboardInterrupt raised inside a
+nanobind call (manifold3d) aborts the whole process ("terminate called after throwing
+an instance of 'nanobind::python_error'", exit -6). Inside `deferred_sigint()` SIGINT is
+noted and raised as KeyboardInterrupt once the block ends."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+
+@contextlib.contextmanager
+def deferred_sigint():
+    """Hold SIGINT back for the block (main thread only; elsewhere a no-op), then raise
+    KeyboardInterrupt if one came."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if came:
+        raise KeyboardInterrupt
