@@ -163,6 +163,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "divide_by_gain": Key("bool", False, "divide each taxel's activation by its gain in "
                               "[skin].taxel_gain before detection (threshold, maxima and N9 "
                               "weights on the divided v; off: the paper)"),
+        "hovers": Key("bool", False, "report hovers (below the touch threshold) as kind hover"),
+        "hover_threshold_counts": Key("num", None, "hover threshold (counts; default 8 x the "
+                                      "[skin] noise std); below threshold_counts"),
+        "hover_hysteresis_counts": Key("num", None, "a hover ends below its threshold minus "
+                                       "this (counts; default 3 x the [skin] noise std)"),
+        "footprint": Key("str", None, "[skin].footprint_sigma_mm entry heights and strengths "
+                         "assume (default: the only one, else small)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
