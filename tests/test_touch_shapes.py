@@ -122,3 +122,34 @@ def test_touches_csv_round_trips_every_new_column(tmp_path):
         got = np.array([float(r[name]) for r in rows])
         np.testing.assert_allclose(got, getattr(table, name), atol=5e-7)
     assert [int(r["touch"]) for r in rows] == table.touch.tolist()
+
+
+class _PlainLaw(GapLaw):
+    """The same law, through the generic (numpy) path of `touch_shapes`."""
+
+
+def test_compiled_gap_law_shapes_equal_the_generic_path():
+    """Noisy frames with touches anywhere, some hovering, at the board's edges too."""
+    rng = np.random.default_rng(11)
+    taxels = grid_taxels()
+    frames = np.stack([model_frame(taxels, (rng.uniform(-8, 330), rng.uniform(-6, 140), 0.0),
+                                   rng.uniform(-0.5, 3.0)).ravel()
+                       + rng.normal(0, 1.2, 252) for _ in range(300)])
+    t = locate_frames(frames.reshape(-1, 21, 12))
+    assert len(t) > 250
+    law = GapLaw(60.0, 2.0, 6.2, 1.3, gain=rng.uniform(0.8, 1.2, 252))
+    plain = _PlainLaw(60.0, 2.0, 6.2, 1.3, gain=law.gain)
+    tax = np.arange(252).reshape(21, 12)
+    ti, tj = np.rint(t.i).astype(int), np.rint(t.j).astype(int)
+    di, dj = np.repeat(np.arange(-1, 2), 3), np.tile(np.arange(-1, 2), 3)
+    ii, jj = ti[:, None] + di, tj[:, None] + dj
+    inside = (ii >= 0) & (ii < 21) & (jj >= 0) & (jj < 12)
+    tax9 = np.where(inside, tax[np.clip(ii, 0, 20), np.clip(jj, 0, 11)], -1)
+    v = np.maximum(frames - 500.0, 0.0)
+    v9 = v[t.frame[:, None], np.maximum(tax9, 0)] * inside
+    pos9 = taxels.xyz_mm[np.maximum(tax9, 0)]
+    a = touch_shapes(v9, tax9, pos9, t.xyz_mm, law)
+    b = touch_shapes(v9, tax9, pos9, t.xyz_mm, plain)
+    assert np.isnan(a.size_mm).any() and not np.isnan(a.size_mm).all()
+    for name in ("strength", "size_mm", "height_mm", "height_err_mm"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12)

@@ -298,7 +298,8 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
             lf = live.step(got[0][0], got[0][1])
             if lf is not None:
                 tuio.send(lf.t_s, lf.sessions.ids, lf.sessions.new, lf.sessions.ended,
-                          lf.ij, lf.touches.xyz_mm, lf.touches.peak)
+                          lf.ij, lf.touches.xyz_mm, lf.touches.peak, lf.shape,
+                          lf.touches.kind)
                 lat.append(time.perf_counter() - t0)
                 cpu.append(time.thread_time() - c0)
                 counts.append(len(lf.touches))

@@ -79,6 +79,31 @@ def footprint_fit(v9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, sigma_mm: f
     return centre, size
 
 
+def gap_law_shapes(v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray,
+                   law) -> Shapes:
+    """`touch_shapes` for a `heights.GapLaw`, compiled (`shape_kernel`)."""
+    from fruitcli.sensing.detection.shape_kernel import gap_law_shapes as kernel
+
+    gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
+    out = np.empty((len(v9), 4))
+    kernel(np.ascontiguousarray(v9, dtype=float), np.ascontiguousarray(taxel9, np.int64),
+           np.ascontiguousarray(pos9, dtype=float), np.ascontiguousarray(xyz, dtype=float),
+           float(law.contact), float(law.gap_decay_mm), float(law.sigma_mm),
+           float(law.noise_std_counts), np.asarray(gain, dtype=float), MIN_COUNTS, out)
+    return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
+
+
+_ONES = np.ones(0)
+
+
+def _ones(n: int) -> np.ndarray:
+    """Unit gains for taxels 0 .. n - 1 (one array, grown when needed)."""
+    global _ONES
+    if _ONES.size < n:
+        _ONES = np.ones(max(n, 1024))
+    return _ONES
+
+
 def touch_shapes(v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray,
                  model) -> Shapes:
     """Shapes of touches from their N9 activations v9 (n, 9) counts (0 where no taxel),
@@ -88,6 +113,10 @@ def touch_shapes(v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.n
     if n == 0:
         e = np.zeros(0)
         return Shapes(e, e, e, e)
+    from fruitcli.sensing.skin.heights import GapLaw
+
+    if type(model) is GapLaw:
+        return gap_law_shapes(v9, taxel9, pos9, xyz, model)
     centre, size = footprint_fit(v9, pos9, xyz, model.sigma_mm)
     dist = np.linalg.norm(pos9 - centre[:, None, :], axis=2)
     m = model.contact_counts(np.maximum(taxel9, 0), dist) * (taxel9 >= 0)
