@@ -152,7 +152,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "detection": {
         "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)"),
         "baseline_frames": Key("int", 10, "frames averaged into the baseline C0"),
-        "method": Key("str", "n9", "n9 (paper), n9_floor or peaks"),
+        "method": Key("str", "n9", "n9 (paper), n9_floor, peaks or fit2 (two footprints "
+                      "of the [skin] fitted around each peak: fingers close together)"),
         "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)"),
         "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis"),
         "debounce_frames": Key("int", 0, "frames above threshold before a touch starts"),
@@ -604,8 +605,8 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     if scene["frames"]["model"] not in ("reduced", "full"):
         raise SceneError(f"{where}: [frames].model: expected reduced or full, "
                          f"got {scene['frames']['model']!r}")
-    if det["method"] not in ("n9", "n9_floor", "peaks"):
-        raise SceneError(f"{where}: [detection].method: expected n9, n9_floor or peaks, "
+    if det["method"] not in ("n9", "n9_floor", "peaks", "fit2"):
+        raise SceneError(f"{where}: [detection].method: expected n9, n9_floor, peaks or fit2, "
                          f"got {det['method']!r}")
     from fruitcli.evaluation.register import METHODS
 

@@ -25,8 +25,9 @@ from fruitcli.cli.options import (
               help="Frames averaged into the baseline C0 (default 10).")
 @click.option("--threshold", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Touch threshold on v = C - C0, counts (default 20).")
-@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks"]), default=None,
-              help="n9: the paper's sequential N9 (default); n9_floor; peaks.")
+@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]), default=None,
+              help="n9: the paper's sequential N9 (default); n9_floor; peaks; fit2 (two "
+                   "footprints of the skin fitted around each peak).")
 @click.option("--surface", type=click.Path(dir_okay=False), default=None,
               help="The body's closed surface at rest (mm), for the scene's "
                    "[detection].project = surface.")

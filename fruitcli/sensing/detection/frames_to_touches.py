@@ -186,6 +186,12 @@ class Locator:
         self.heights = heights
         self.hover_levels = settings.hover_levels(heights.noise_std_counts) \
             if settings.hovers else None
+        self.footprint = None
+        if settings.method == "fit2":
+            from fruitcli.sensing.detection.two_footprints import Footprint
+
+            self.footprint = Footprint.from_taxels(heights.sigma_mm, heights.noise_std_counts,
+                                                   taxels.i, taxels.j, taxels.xyz_mm)
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
@@ -255,7 +261,8 @@ class Locator:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain)
+                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain,
+                       self.footprint)
             end = start + frames.shape[0]
             tax = np.where(t.taxel < 0, 0, t.taxel)
             if self.reduced is not None and pressure_kpa is not None:
@@ -386,10 +393,15 @@ class Stream:
             if self.tracker is not None and len(self.tracker.prev_ids):
                 self.tracker.end_all()
             return self._empty
-        if s.method == "peaks":
+        if s.method in ("peaks", "fit2"):
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
-            t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            if s.method == "fit2":
+                from fruitcli.sensing.detection.two_footprints import fit2_touches
+
+                t = fit2_touches(flat, loc.grid, thr, loc.footprint, s.max_touches)
+            else:
+                t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             lay = loc.layout
@@ -404,7 +416,7 @@ class Stream:
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
         pos9 = pos[tax]
         xyz = (w[:, None, :] @ pos9)[:, 0, :]
-        tax9 = loc.layout.n9_taxel[self._k[:n]] if s.method != "peaks" else t.taxel
+        tax9 = t.taxel if s.method in ("peaks", "fit2") else loc.layout.n9_taxel[self._k[:n]]
         sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
