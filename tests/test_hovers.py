@@ -197,3 +197,25 @@ def test_cli_locate_with_a_skin_gives_its_heights(tmp_path):
     assert [int(r[0]) for r in body] == [10, 11, 12, 13]
     np.testing.assert_allclose(h, gaps, atol=0.15)
     assert {r[head.index("kind")] for r in body} == {"touch"}
+
+
+def test_json_lines_carry_heights_strengths_sizes_and_kinds():
+    import json
+
+    from fruitcli.sensing.live.loop import LiveLocator
+
+    taxels = grid_taxels()
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True,
+                                                                   baseline_frames=2),
+                  heights=LAW)
+    live = LiveLocator(loc)
+    lines = [live.push(np.round(finger(taxels, g)).reshape(21, 12).astype(np.int64), k / 60)
+             for k, g in enumerate([20.0, 20.0, 3.0, 0.5])]
+    hover, touch = (json.loads(x)["touches"][0] for x in lines[2:])
+    assert (hover["kind"], touch["kind"]) == ("hover", "touch")
+    assert hover["touch"] == touch["touch"]
+    assert hover["height_mm"] == pytest.approx(3.0, abs=0.2)
+    assert touch["height_mm"] == pytest.approx(0.5, abs=0.1)
+    assert touch["strength"] == pytest.approx(np.exp(-0.25), abs=0.02)
+    assert hover["size_mm"] is None or hover["size_mm"] > 0
+    assert set(touch) >= {"height_err_mm", "size_mm"}

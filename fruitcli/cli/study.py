@@ -218,3 +218,22 @@ def two_fingers(out_dir, trials, seed):
         click.echo(f"single fingers, {m}: {rate:.1%} of {n} one touch, error median "
                    f"{med:.2f} mm, p95 {p95:.2f} mm", err=True)
     click.echo(f"-> {out_dir}/two_fingers.md", err=True)
+
+
+@study.command("heights")
+@out_option("Output folder: hover_heights.md, hover_heights.csv.", required=False,
+            default="out/study-heights")
+def heights(out_dir):
+    """Hover heights on virtual-bench descents the skin was not calibrated on (another
+    run, other points, the other indenter, a skin whose gains spread): height error per
+    band of true height, the largest height still detected, and the position error of
+    hovers against touches (mm)."""
+    from fruitcli.studies.hover_heights import write
+
+    with fruit_errors():
+        res = write(out_dir)
+    for name, e in res["extras"].items():
+        click.echo(f"{name}: detected up to {e['largest_hover_mm']:.2f} mm (median), "
+                   f"position error hovers {e['hover_position_error_mm']:.2f} mm, touches "
+                   f"{e['touch_position_error_mm']:.2f} mm", err=True)
+    click.echo(f"-> {out_dir}/hover_heights.md", err=True)
