@@ -267,8 +267,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)",
                                 **POSITIVE),
         "baseline_frames": Key("int", 10, "frames averaged into the baseline C0", min=1),
-        "method": Key("str", "n9", "n9 (paper), n9_floor or peaks",
-                      choices=("n9", "n9_floor", "peaks")),
+        "method": Key("str", "n9", "n9 (paper), n9_floor, peaks or fit2 (two footprints "
+                      "of the [skin] fitted around each peak: fingers close together)",
+                      choices=("n9", "n9_floor", "peaks", "fit2")),
         "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)",
                                    min=0.0, expected="counts >= 0"),
         "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis", min=0.0,
@@ -285,6 +286,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "divide_by_gain": Key("bool", False, "divide each taxel's activation by its gain in "
                               "[skin].taxel_gain before detection (threshold, maxima and N9 "
                               "weights on the divided v; off: the paper)"),
+        "hovers": Key("bool", False, "report hovers (below the touch threshold) as kind hover"),
+        "hover_threshold_counts": Key("num", None, "hover threshold (counts; default 8 x the "
+                                      "[skin] noise std); below threshold_counts"),
+        "hover_hysteresis_counts": Key("num", None, "a hover ends below its threshold minus "
+                                       "this (counts; default 3 x the [skin] noise std)"),
+        "footprint": Key("str", None, "[skin].footprint_sigma_mm entry heights and strengths "
+                         "assume (default: the only one, else small)"),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),

@@ -136,13 +136,16 @@ def test_tuio_bundles_carry_every_field_in_closed_form():
         touch_rows = [p for a, p in plain if a == "/fruit/touch"]
         for n, s in enumerate(ids):
             i, j = ij[n]
-            assert touch_rows[n] == pytest.approx([s, 16 * i, 12 * j, 0.5 * i, i, j,
-                                                   peaks[n]], **F32)
+            assert touch_rows[n][:7] == pytest.approx([s, 16 * i, 12 * j, 0.5 * i, i, j,
+                                                       peaks[n]], **F32)
+            assert np.isnan(touch_rows[n][7:10]).all() and touch_rows[n][10] == 0
         assert [p[0] for a, p in plain if a == "/fruit/down"] == downs
         assert [p for a, p in plain if a == "/fruit/up"] == [[s] for s in ups]
 
 
 def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
+    """2.5D: x, y the 2D cursor's, z the height / L; the plain messages carry height,
+    strength, size and kind (1: a hover)."""
     taxels = grid_taxels()
     seen = []
     disp = dispatcher.Dispatcher()
@@ -154,7 +157,8 @@ def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
         tuio = TuioSender(server.server_address, Normalizer.from_taxels(
             taxels.i, taxels.j, taxels.xyz_mm), "25Dcur")
         tuio.send(1.5, np.array([7]), np.array([True]), [3], np.array([[2.0, 1.0]]),
-                  np.array([[32.0, 12.0, 1.0]]), np.array([44.0]))
+                  np.array([[32.0, 12.0, 1.0]]), np.array([44.0]),
+                  np.array([[1.5, 0.47, 6.2]]), np.array([1]))
         tuio.close()
         import time
 
@@ -170,10 +174,11 @@ def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
     src, alive, st, fseq = by["/tuio/25Dcur"]
     assert src[0] == "source" and alive == ["alive", 7] and fseq == ["fseq", 1]
     assert st[:2] == ["set", 7]
-    assert st[2:] == pytest.approx([32 / 80, 12 / 80, 1 / 80, 0, 0, 0, 0], **F32)
+    assert st[2:] == pytest.approx([2 / 5, 1 - 1 / 4, 1.5 / 80, 0, 0, 0, 0], **F32)
     assert by["/fruit/frame"] == [[1, 1, 1.5]]
     assert by["/fruit/down"] == by["/fruit/touch"]
-    assert by["/fruit/down"][0] == pytest.approx([7, 32, 12, 1, 2, 1, 44], **F32)
+    assert by["/fruit/down"][0] == pytest.approx([7, 32, 12, 1, 2, 1, 44, 1.5, 0.47, 6.2, 1],
+                                                 **F32)
     assert by["/fruit/up"] == [[3]]
 
 

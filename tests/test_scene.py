@@ -55,7 +55,7 @@ def test_minimal_keys_and_defaults():
     ("[[fixed]]\nbox_mm = [2, 0, 0, 1, 1, 1]", "with min <= max"),
     ("[actuation]\npressure_kpa = { c1 = [1.0] }", "no such chamber (the scene has no chambers)"),
     ("[geometry]\nsolid = 'a.stl'\npad_size_mm = [1, 1, 1]", "give one of artist, solid"),
-    ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, got 'fancy'"),
+    ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, fit2, got 'fancy'"),
     ("[[jig]]\nregion_box_mm = [0, 0, 0, 1, 1, 1]\nstiffness_n_per_mm = 0",
      "stiffness_n_per_mm: expected > 0"),
     ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),

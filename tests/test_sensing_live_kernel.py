@@ -135,7 +135,8 @@ def test_ascii_fast_path_reads_what_parse_line_reads():
 def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
     """`TuioSender.bundles` (numpy over the touches) against the per-touch Python encoder
     it replaced (tests/tuio_reference.py), on random sessions that start, move, end and
-    come back, with repeated and backwards frame times (dt <= 0)."""
+    come back, with repeated and backwards frame times (dt <= 0), heights, strengths,
+    sizes and kinds."""
     from tuio_reference import ReferenceTuioSender
 
     from fruitcli.sensing.outputs.tuio import Normalizer, TuioSender
@@ -160,8 +161,11 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
             ij = np.column_stack([rng.uniform(-1, 21, n), rng.uniform(-1, 12, n)])
             xyz = rng.normal(0, 80, (n, 3))
             peak = rng.uniform(20, 300, n)
-            a = new.bundles(t, ids, is_new, ended, ij, xyz, peak)
-            b = old.bundles(t, ids, is_new, ended, ij, xyz, peak)
+            shape = np.column_stack([rng.uniform(0, 4, n), rng.uniform(0, 1.5, n),
+                                     rng.uniform(4, 9, n)])
+            kind = rng.integers(0, 2, n)
+            a = new.bundles(t, ids, is_new, ended, ij, xyz, peak, shape, kind)
+            b = old.bundles(t, ids, is_new, ended, ij, xyz, peak, shape, kind)
             assert a == b
             alive = ids.tolist()
         assert new.fseq == 400

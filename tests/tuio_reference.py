@@ -74,8 +74,8 @@ class ReferenceTuioSender:
         self._fseq = {p: osc.Template(p, ("fseq",), "i") for p in self.profiles}
         self._alive: dict[tuple[str, int], osc.Template] = {}
         self._frame = osc.Template("/fruit/frame", (), "iif")
-        self._down = osc.Template("/fruit/down", (), "iffffff")
-        self._touch = osc.Template("/fruit/touch", (), "iffffff")
+        self._down = osc.Template("/fruit/down", (), "i" + "f" * 9 + "i")
+        self._touch = osc.Template("/fruit/touch", (), "i" + "f" * 9 + "i")
         self._up = osc.Template("/fruit/up", (), "i")
 
     def _profile(self, profile: str, ids: list[int], rows: list[list]) -> bytes:
@@ -90,7 +90,9 @@ class ReferenceTuioSender:
         return osc.bundle(msgs)
 
     def bundles(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
-                ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray) -> list[bytes]:
+                ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray,
+                shape: np.ndarray | None = None, kind: np.ndarray | None = None
+                ) -> list[bytes]:
         """The frame's four datagrams (and advance fseq). `ij` (n, 2) grid position,
         `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool."""
         self.fseq += 1
@@ -99,9 +101,16 @@ class ReferenceTuioSender:
         nm = self.norm
         g2 = [[(i - nm.i_min) / nm.i_span, 1.0 - (j - nm.j_min) / nm.j_span] for i, j in ijl]
         o, sc = nm.origin_mm.tolist(), nm.scale_mm
-        g3 = [[(p[0] - o[0]) / sc, (p[1] - o[1]) / sc, (p[2] - o[2]) / sc] for p in xyzl]
+        n = len(sid)
+        shape = np.full((n, 3), np.nan) if shape is None else np.asarray(shape, float)
+        kinds = [0] * n if kind is None else [int(k) for k in kind]
+        if self.profiles[1] == "/tuio/25Dcur":  # the 2D cursor, z the height
+            g3 = [[a, b, h / sc] for (a, b), h in zip(g2, shape[:, 0].tolist(), strict=True)]
+        else:
+            g3 = [[(p[0] - o[0]) / sc, (p[1] - o[1]) / sc, (p[2] - o[2]) / sc] for p in xyzl]
         kin = self.kin.update(sid, [a + b for a, b in zip(g2, g3, strict=True)], t_s)
-        rows = [(s, *p, *q, pk) for s, p, q, pk in zip(sid, xyzl, ijl, peaks, strict=True)]
+        rows = [(s, *p, *q, pk, *sh, k) for s, p, q, pk, sh, k in
+                zip(sid, xyzl, ijl, peaks, shape.tolist(), kinds, strict=True)]
         plain = [self._frame.element(self.fseq, len(sid), float(t_s))]
         plain += [self._down.element(*r) for r, is_new in zip(rows, new.tolist(), strict=True)
                   if is_new]

@@ -44,6 +44,12 @@ from fruitcli.workflow.scene_outputs import scene_products
 @click.option("--threshold", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Touch threshold, counts (default: the scene's).")
 @divide_by_gain_option
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
+                   "heights and strengths (default: the scene's [skin]).")
+@click.option("--hovers", is_flag=True, default=None,
+              help="Report hovers below the touch threshold (kind hover; default: the "
+                   "scene's [detection].hovers).")
 @click.option("--osc", "osc_target", default=None, metavar="HOST:PORT",
               help="Send touches over OSC/UDP: TUIO 1.1 /tuio/2Dcur, /tuio/3Dcur and "
                    "/tuio/_sp (peak), and plain /fruit/frame, /fruit/down, /fruit/touch, "
@@ -78,15 +84,17 @@ from fruitcli.workflow.scene_outputs import scene_products
                    "against an emulated board played as fast (tests/test_live_soak.py); "
                    "scales t_s, the drift tracker and the status lines.")
 def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_kind, n_frames,
-         baud, fmt, baseline_frames, threshold, gains_csv, osc_target, tuio_3d,
+         baud, fmt, baseline_frames, threshold, gains_csv, skin_toml, hovers, osc_target,
+         tuio_3d,
          session_gate_mm, drift_tau_s, no_drift, reconnect, log_path, log_max_kb,
          log_backups, view_target, time_scale):
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:
-    {"frame", "t_s", "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"}]}
-    (touch: the session id, kept by a finger across frames). The baseline follows slow
-    drift unless --no-drift.
+    {"frame", "t_s", "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak",
+    "height_mm", "height_err_mm", "strength", "size_mm", "kind"}]} (touch: the session
+    id, kept by a finger across frames, from hover to touch; kind touch or hover). The
+    baseline follows slow drift unless --no-drift.
     """
     import threading
 
@@ -113,7 +121,12 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
     with fruit_errors():
         scene = load_scene(scene_path)
         settings = Settings.from_scene(scene.detection, baseline_frames=baseline_frames,
-                                       threshold_counts=threshold)
+                                       threshold_counts=threshold, hovers=hovers)
+        skin_table = scene.skin
+        if skin_toml is not None:
+            from fruitcli.sensing.skin.heights import skin_with_gap_law
+
+            skin_table = skin_with_gap_law(skin_toml)
         if n_frames is not None and n_frames <= settings.baseline_frames:
             raise FrameError(f"--frames {n_frames}: expected more than the "
                              f"{settings.baseline_frames} baseline frames (--baseline-frames "
@@ -142,23 +155,26 @@ def live(scene_path, port, taxels_csv, states_npz, pressure_port, online, model_
         board = scene.board
         states = load_states(states_npz, len(taxels)) if states_npz else None
         gain = detection_gain(scene, taxels, gains_csv)
+        from fruitcli.sensing.stages import skin_heights
+
+        heights = skin_heights(skin_table, taxels, settings, gain is not None)
         pressure = solver = None
         if online:
             solver = (online_solver(scene, mesh_npz, taxels.xyz_mm, progress)
                       if model_kind == "full" else reduced_source(reduced, taxels, taxels_csv))
             loc = Locator(taxels, board, solver.taxels_mm, settings,
-                          where=str(taxels_csv), gain=gain)
+                          where=str(taxels_csv), gain=gain, heights=heights)
             pressure = PressureState(tuple(solver.model.chamber_names))
         elif states is None:
             loc = Locator(taxels, board, taxels.xyz_mm, settings,
-                          where=str(taxels_csv), gain=gain)
+                          where=str(taxels_csv), gain=gain, heights=heights)
         elif pressure_port:
             loc = Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa,
-                          where=str(taxels_csv), gain=gain)
+                          where=str(taxels_csv), gain=gain, heights=heights)
             pressure = PressureState(states.chamber_names)
         else:
             loc = Locator(taxels, board, states.taxels_mm[0], settings,
-                          where=str(taxels_csv), gain=gain)
+                          where=str(taxels_csv), gain=gain, heights=heights)
         drift = None if no_drift else DriftTracker(drift_tau_s, settings.threshold_counts)
         live_loc = LiveLocator(loc, pressure, solver, gate_mm=session_gate_mm, drift=drift,
                                health=True)

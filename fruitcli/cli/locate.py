@@ -27,8 +27,9 @@ from fruitcli.cli.options import (
               help="Frames averaged into the baseline C0 (default 10).")
 @click.option("--threshold", type=FiniteFloat(min=0, min_open=True), default=None,
               help="Touch threshold on v = C - C0, counts (default 20).")
-@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks"]), default=None,
-              help="n9: the paper's sequential N9 (default); n9_floor; peaks.")
+@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]), default=None,
+              help="n9: the paper's sequential N9 (default); n9_floor; peaks; fit2 (two "
+                   "footprints of the skin fitted around each peak).")
 @click.option("--surface", type=click.Path(dir_okay=False), default=None,
               help="The body's closed surface at rest (mm), for the scene's "
                    "[detection].project = surface.")
@@ -37,14 +38,22 @@ from fruitcli.cli.options import (
               help="For a recording with chamber pressures and a --scene: reduced (each "
                    "frame's taxels from the scene's reduced model, built into "
                    "out/<scene name>/reduce on first use) or full (the --states path).")
+@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
+              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
+                   "the touches' heights and strengths (default: the scene's [skin]).")
+@click.option("--hovers", is_flag=True, default=None,
+              help="Report hovers (below the touch threshold) as rows of kind hover "
+                   "(default: the scene's [detection].hovers).")
 @divide_by_gain_option
 @out_option("Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           surface, model_kind, gains_csv, out_dir):
+           surface, model_kind, skin_toml, hovers, gains_csv, out_dir):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
-    Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak (one row per touch;
-    frames index from 0 including baseline frames; peak in counts). An .npz recording is
+    Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak,height_mm,
+    height_err_mm,strength,size_mm,kind (one row per touch or hover; frames index from 0
+    including baseline frames; peak in counts; height above the surface in mm from the
+    skin's gap law; strength 1 at contact; size the footprint's sigma in mm). An .npz recording is
     read, detected and written in chunks of frames on the CPUs available, so memory stays
     bounded however long it is; touches.csv appears only once complete.
     """
@@ -55,6 +64,11 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
     progress = Progress("[locate] ")
     with fruit_errors():
         scene = load_scene(scene_path) if scene_path else None
+        skin_table = None
+        if skin_toml is not None:
+            from fruitcli.sensing.skin.heights import skin_with_gap_law
+
+            skin_table = skin_with_gap_law(skin_toml)
         reduced = None
         if model_kind == "reduced" and scene is not None and scene.chambers \
                 and has_pressures(frames, scene.board):
@@ -68,7 +82,7 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
         res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
                          baseline_frames=baseline_frames, threshold_counts=threshold,
                          method=method, surface_path=surface, reduced=reduced,
-                         gains_csv=gains_csv)
+                         gains_csv=gains_csv, skin_table=skin_table, hovers=hovers)
     model = {"reduced": "taxels from the reduced model",
              "full": "taxels along the simulated states"}.get(res.get("model"), "")
     click.echo(f"{res['touches']} touches in {res['frames']} frames "

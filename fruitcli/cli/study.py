@@ -1,4 +1,4 @@
-"""`fruit study`: the error-against-run-time and stability studies."""
+"""`fruit study`: the error-against-run-time, stability, bench and two-finger studies."""
 
 from __future__ import annotations
 
@@ -194,3 +194,45 @@ def bench_study(scene_file, out_dir, jobs):
             bs.plot(tmp / "bench.png", rows, scene.skin, PAPER_TABLE_I)
     click.echo(text, nl=False)
     click.echo(f"written to {out}/")
+
+
+@study.command("two-fingers")
+@out_option("Output folder: two_fingers.md, two_fingers.csv, single_fingers.csv, "
+            "two_fingers.png.", required=False, default="out/study-two-fingers")
+@click.option("--trials", type=click.IntRange(min=2), default=40, show_default=True,
+              help="Frames per axis and distance.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the skin and "
+              "the noise.")
+def two_fingers(out_dir, trials, seed):
+    """Two fingers close together on the virtual bench: how often the paper's N9
+    multitouch and the two-footprint fit ([detection].method = "fit2") report two touches,
+    at 0.5-3 pitches along i, j and the diagonal, and their errors (mm); single fingers
+    to check that fit2 does not make them worse. Writes a table and a plot of the
+    separation rate against distance."""
+    from fruitcli.studies.two_fingers import write
+
+    with fruit_errors():
+        res = write(out_dir, seed, trials)
+    for m, n, rate, med, p95 in res["singles"]:
+        click.echo(f"single fingers, {m}: {rate:.1%} of {n} one touch, error median "
+                   f"{med:.2f} mm, p95 {p95:.2f} mm", err=True)
+    click.echo(f"-> {out_dir}/two_fingers.md", err=True)
+
+
+@study.command("heights")
+@out_option("Output folder: hover_heights.md, hover_heights.csv.", required=False,
+            default="out/study-heights")
+def heights(out_dir):
+    """Hover heights on virtual-bench descents the skin was not calibrated on (another
+    run, other points, the other indenter, a skin whose gains spread): height error per
+    band of true height, the largest height still detected, and the position error of
+    hovers against touches (mm)."""
+    from fruitcli.studies.hover_heights import write
+
+    with fruit_errors():
+        res = write(out_dir)
+    for name, e in res["extras"].items():
+        click.echo(f"{name}: detected up to {e['largest_hover_mm']:.2f} mm (median), "
+                   f"position error hovers {e['hover_position_error_mm']:.2f} mm, touches "
+                   f"{e['touch_position_error_mm']:.2f} mm", err=True)
+    click.echo(f"-> {out_dir}/hover_heights.md", err=True)

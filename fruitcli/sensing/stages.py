@@ -16,7 +16,13 @@ from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.geometry.body_surface import SurfaceProjector, body_surface, contact_heights
 from fruitcli.scene import Scene, default_scene
-from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Locator, Settings, TouchTable
+from fruitcli.sensing.detection.frames_to_touches import (
+    CHUNK_FRAMES,
+    TOUCH,
+    Locator,
+    Settings,
+    TouchTable,
+)
 from fruitcli.sensing.detection.locate import States, load_states, match_chambers
 from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording import Recording
@@ -34,12 +40,14 @@ def _or_defaults(scene: Scene | None) -> Scene:
 
 def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedRecording,
                   settings: Settings, where: str, reduced=None,
-                  gain: np.ndarray | None = None) -> tuple[Locator, np.ndarray | None]:
+                  gain: np.ndarray | None = None,
+                  heights=None) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
     or the state path when the recording carries chamber pressures; with `reduced` (a
     ReducedModel of these taxels) and pressures in the recording, each frame's taxels
     from the reduced model at its pressures; `gain` (T,): the gains detection divides
-    by (None: off). -> (locator, pressure)."""
+    by (None: off); `heights`: the skin's height model (`Locator`). -> (locator,
+    pressure)."""
     board = _or_defaults(scene).board
     check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if reduced is not None and rec.pressure_kpa is not None:
@@ -54,20 +62,21 @@ def build_locator(scene, taxels: Taxels, states: States | None, rec: ChunkedReco
                              f"{reduced.coef_taxels.shape[1] // 3}")
         rest = reduced.taxels(np.clip(np.zeros(len(cols)), reduced.lo, reduced.hi))
         return (Locator(taxels, board, rest, settings, where=where, reduced=reduced,
-                        gain=gain),
+                        gain=gain, heights=heights),
                 rec.pressure_kpa[:, cols])
     if states is None:
-        return Locator(taxels, board, taxels.xyz_mm, settings, where=where, gain=gain), None
+        return Locator(taxels, board, taxels.xyz_mm, settings, where=where, gain=gain,
+                       heights=heights), None
     if rec.pressure_kpa is not None and states.n_states > 1:
         cols = match_chambers(rec.chamber_names, states, where)
         return (Locator(taxels, board, states.taxels_mm, settings, states.pressure_kpa, where,
-                        gain), rec.pressure_kpa[:, cols])
+                        gain, heights=heights), rec.pressure_kpa[:, cols])
     state = int(rec.meta.get("state", 0))
     if not 0 <= state < states.n_states:
         raise FrameError(f"{where}: meta state {state} not in the states "
                          f"(0..{states.n_states - 1})")
     return Locator(taxels, board, states.taxels_mm[state], settings, where=where,
-                   gain=gain), None
+                   gain=gain, heights=heights), None
 
 
 def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndarray,
@@ -110,7 +119,8 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                threshold_counts: float | None = None, method: str | None = None,
                surface_path=None, surface_unit: str = "mm",
                chunk_frames: int = CHUNK_FRAMES, workers: int | None = None,
-               reduced=None, gains_csv=None) -> dict:
+               reduced=None, gains_csv=None, skin_table: dict | None = None,
+               hovers: bool | None = None) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
     The recording is read, detected and written `chunk_frames` frames at a time, on
     `workers` threads (default: the CPUs this process may use, at most 4). With
@@ -119,7 +129,10 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
     the recording's FEM state). With `reduced` (a ReducedModel), a recording with
     chamber pressures takes each frame's taxels from it (`build_locator`). Activations
     are divided by the taxels' gains with `gains_csv` or the scene's
-    ``[detection].divide_by_gain`` (`gain_division`)."""
+    ``[detection].divide_by_gain`` (`gain_division`). Heights, strengths and sizes
+    come from `skin_table` (a [skin] table, e.g. `fruit calibrate`'s) or the scene's
+    [skin] (`fruitcli.sensing.skin.heights.gap_law`); hovers are written with kind hover
+    and are never bench samples."""
     from fruitcli.sensing.detection.gain_division import detection_gain
 
     say = progress or (lambda msg: None)
@@ -130,17 +143,21 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
                                                                  len(taxels))
     settings = Settings.from_scene(_or_defaults(scene).detection,
                                    baseline_frames=baseline_frames,
-                                   threshold_counts=threshold_counts, method=method)
+                                   threshold_counts=threshold_counts, method=method,
+                                   hovers=hovers)
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
     gain = detection_gain(scene, taxels, gains_csv)
+    if skin_table is None and scene is not None:
+        skin_table = scene.skin
+    heights = skin_heights(skin_table, taxels, settings, gain is not None)
     if workers is None:
         workers = min(4, _usable_cpus())
     with open_recording(frames_path, board.rows, board.cols,
                         board.format) as rec:
         locator, pressure = build_locator(scene, taxels, states, rec, settings, where,
-                                          reduced, gain)
+                                          reduced, gain, heights)
         projector = surface_projector(scene, rec, states, pressure, taxels, surface_path,
                                       surface_unit, where)
         say(f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped"
@@ -161,7 +178,9 @@ def run_locate(scene, frames_path, taxels_csv, states_npz_or_none, out_dir,
         with touch_csv(out_dir / "touches.csv",
                        [f"touches of {Path(frames_path).name}: frame index from 0 "
                         "(baseline frames included), t_s in s, i, j fractional grid "
-                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts"]) as out:
+                        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts, height_mm "
+                        "above the surface and height_err_mm its uncertainty in mm, strength "
+                        "(1: contact), size_mm footprint sigma in mm, kind touch or hover"]) as out:
             for data, count, keep, dist in locator.chunks(rec.read, len(rec), baseline,
                                                           pressure, chunk_frames, rows,
                                                           workers):
@@ -223,9 +242,16 @@ def _usable_cpus() -> int:
 
 def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
     """The touches of `table` in bench sample frames (sample >= 0)."""
-    keep = sample[table.frame] >= 0
-    return TouchTable(table.frame[keep], table.touch[keep], table.i[keep], table.j[keep],
-                      table.xyz_mm[keep], table.peak[keep])
+    return table.rows((sample[table.frame] >= 0) & (table.kind == TOUCH))
+
+
+def skin_heights(skin: dict | None, taxels: Taxels, settings: Settings, divided: bool):
+    """The height model of a [skin] table (None: the defaults) for these taxels
+    (`heights.gap_law`)."""
+    from fruitcli.sensing.skin.forward import SkinParams
+    from fruitcli.sensing.skin.heights import gap_law
+
+    return gap_law(SkinParams.from_table(skin), taxels.ids, settings.footprint, divided)
 
 
 def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:

@@ -240,12 +240,15 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
     return text.encode() == (out_dir / "touches.csv").read_bytes()
 
 
-def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
+def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
+                      hovers: bool = False):
     """Issue 15: board line arriving -> last TUIO/OSC bundle of the frame leaving, with 10
     simultaneous touches (target p99 <= 1 ms). Each frame's line is written to a pty; the
     clock starts when the pty has it for the reader (select), then the live loop's own
     objects read, parse, locate, give session ids and send 4 bundles to 127.0.0.1, in
-    one thread. `live_defaults`: with `fruit live`'s drift tracker and taxel flags."""
+    one thread. `live_defaults`: with `fruit live`'s drift tracker and taxel flags;
+    `hovers`: with [detection].hovers (every touch's height, strength and size are
+    computed and sent in any case)."""
     import os
     import select
     import socket
@@ -258,7 +261,8 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
 
     i, j = np.divmod(np.arange(21 * 12), 12)
     taxels = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], axis=1))
-    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10))
+    loc = Locator(taxels, default_board(), taxels.xyz_mm,
+                  Settings(baseline_frames=10, hovers=hovers))
     from fruitcli.sensing.detection.drift import DriftTracker
 
     live = LiveLocator(loc, drift=DriftTracker(60.0, 20.0), health=True) if live_defaults \
@@ -298,7 +302,8 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
             lf = live.step(got[0][0], got[0][1])
             if lf is not None:
                 tuio.send(lf.t_s, lf.sessions.ids, lf.sessions.new, lf.sessions.ended,
-                          lf.ij, lf.touches.xyz_mm, lf.touches.peak)
+                          lf.ij, lf.touches.xyz_mm, lf.touches.peak, lf.shape,
+                          lf.touches.kind)
                 lat.append(time.perf_counter() - t0)
                 cpu.append(time.thread_time() - c0)
                 counts.append(len(lf.touches))
@@ -313,6 +318,7 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False):
     ms = np.array(lat) * 1e3
     what = "with fruit live's drift tracker and taxel flags" if live_defaults else \
         "detection, sessions and TUIO only"
+    what += ", hovers on" if hovers else ""
     print(f"OSC latency ({what}), board line -> TUIO bundles sent, "
           f"{int(np.median(counts))} touches "
           f"({min(counts)}-{max(counts)}), {len(ms)} frames: median {np.median(ms):.3f} ms, "
@@ -337,6 +343,7 @@ if __name__ == "__main__":
     elif sys.argv[1:] == ["latency"]:
         bench_osc_latency()
         bench_osc_latency(live_defaults=True)
+        bench_osc_latency(live_defaults=True, hovers=True)
     else:
         main()
         bench_osc_latency()

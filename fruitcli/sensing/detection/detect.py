@@ -230,19 +230,3 @@ def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
     f, cell, peak, rank = f[keep], cell[keep], peak[keep], rank[keep]
     i, j, tax, w, _ = _centroids(flat, f, cell, grid, floor)
     return Touches(f, rank, i, j, peak, tax, w)
-
-
-def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
-           threshold: float, method: str = "n9", floor: float = 0.0,
-           max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None) -> Touches:
-    """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
-    ``[detection].method``: n9 (paper), n9_floor or peaks; activations divided by
-    `gain` (T,) when given."""
-    if method in ("n9", "n9_floor"):
-        return n9_sequential(frames, baseline, layout, threshold,
-                             floor if method == "n9_floor" else 0.0, max_touches, gain)
-    if method == "peaks":
-        values = np.take(frames, layout.frame_cell, axis=1)
-        return n9_peaks(activation_grid(values, baseline, grid, gain), grid, threshold,
-                        floor, max_touches)
-    raise FrameError(f"detection method: expected n9, n9_floor or peaks, got {method!r}")

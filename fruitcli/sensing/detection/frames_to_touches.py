@@ -15,6 +15,13 @@ through `Stream` (also the live loop):
   maximum v exceeds the threshold (0 and 1: at once);
 - hysteresis (``hysteresis_counts`` h): once touched, touches are extracted above
   threshold - h and the touch ends when no v exceeds threshold - h (frame-level state);
+- hovers (``hovers``): while no touch is on, a frame whose maximum v exceeds the hover
+  threshold (default ``HOVER_NOISE_SIGMAS`` noise std of the skin) starts a hover, which
+  lasts while the maximum stays above the hover threshold minus its hysteresis (default
+  ``HOVER_HYSTERESIS_SIGMAS`` noise std); its peaks are extracted as touches are, at that
+  level, with ``kind`` hover. During a touch, peaks between the hover level and the
+  touch level are hovers too. A touch's rows never change (its peaks are extracted
+  first, strongest first);
 - touch IDs (``track_gate_mm`` g > 0, `sessions.SessionTracker` with ``reuse_ids``):
   previous and current 3D touch points are matched by
   ``scipy.optimize.linear_sum_assignment`` on their distance; pairs farther than g, and
@@ -35,17 +42,44 @@ from fruitcli.sensing.detection.detect import (
     MAX_TOUCHES,
     Grid,
     Layout,
+    Touches,
+    activation_grid,
     baseline_counts,
-    detect,
     n9_peaks,
+    n9_sequential,
 )
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
+from fruitcli.sensing.detection.touch_shape import touch_shapes
+from fruitcli.sensing.detection.two_footprints import fit2_touches
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.tables import Taxels
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
+HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 taxels: ~3)
+HOVER_HYSTERESIS_SIGMAS = 3.0  # default hover hysteresis: ends 5 std up, above the noise
+TOUCH, HOVER = 0, 1  # TouchTable.kind
+KIND_NAMES = ("touch", "hover")
 
+
+
+def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
+           threshold: float, method: str = "n9", floor: float = 0.0,
+           max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None,
+           footprint=None) -> Touches:
+    """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
+    ``[detection].method``: n9 (paper), n9_floor, peaks or fit2 (with the skin's
+    `two_footprints.Footprint`); activations divided by `gain` (T,) when given."""
+    if method in ("n9", "n9_floor"):
+        return n9_sequential(frames, baseline, layout, threshold,
+                             floor if method == "n9_floor" else 0.0, max_touches, gain)
+    if method in ("peaks", "fit2"):
+        values = np.take(frames, layout.frame_cell, axis=1)
+        flat = activation_grid(values, baseline, grid, gain)
+        if method == "fit2":
+            return fit2_touches(flat, grid, threshold, footprint, max_touches)
+        return n9_peaks(flat, grid, threshold, floor, max_touches)
+    raise FrameError(f"detection method: expected n9, n9_floor, peaks or fit2, got {method!r}")
 
 @dataclass(frozen=True)
 class Settings:
@@ -60,6 +94,10 @@ class Settings:
     drift_rate: float = 0.0
     track_gate_mm: float = 0.0
     max_touches: int = MAX_TOUCHES
+    hovers: bool = False
+    hover_threshold_counts: float | None = None  # None: from the skin's noise
+    hover_hysteresis_counts: float | None = None  # None: from the skin's noise
+    footprint: str | None = None  # [skin] footprint heights assume (None: see heights)
 
     @classmethod
     def from_scene(cls, detection, **overrides) -> Settings:
@@ -72,17 +110,42 @@ class Settings:
 
     @property
     def stateful(self) -> bool:
-        return bool(self.drift_rate > 0 or self.hysteresis_counts > 0
+        return bool(self.drift_rate > 0 or self.hysteresis_counts > 0 or self.hovers
                     or self.debounce_frames > 1 or self.track_gate_mm > 0)
+
+    def hover_levels(self, noise_std_counts: float) -> tuple[float, float]:
+        """(on, off) hover levels (counts): the threshold and threshold - hysteresis,
+        defaults from the skin's noise std; FrameError when not below the touch threshold."""
+        on = self.hover_threshold_counts
+        on = HOVER_NOISE_SIGMAS * noise_std_counts if on is None else float(on)
+        hyst = self.hover_hysteresis_counts
+        hyst = HOVER_HYSTERESIS_SIGMAS * noise_std_counts if hyst is None else float(hyst)
+        if not 0 < on < self.threshold_counts:
+            how = "" if self.hover_threshold_counts is not None else \
+                f" ({HOVER_NOISE_SIGMAS:g} x the skin's noise std {noise_std_counts:g})"
+            raise FrameError(f"[detection].hover_threshold_counts: expected > 0 and below the "
+                             f"touch threshold {self.threshold_counts:g} counts, got {on:g}"
+                             + how)
+        if not 0 <= hyst < on:
+            raise FrameError(f"[detection].hover_hysteresis_counts: expected >= 0 and below "
+                             f"the hover threshold {on:g} counts, got {hyst:g}")
+        return on, on - hyst
 
     @property
     def floor(self) -> float:
         return self.noise_floor_counts if self.method != "n9" else 0.0
 
 
+FIELDS = ("frame", "touch", "i", "j", "xyz_mm", "peak", "height_mm", "height_err_mm",
+          "strength", "size_mm", "kind")
+
+
 @dataclass
 class TouchTable:
-    """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak."""
+    """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak
+    (counts), height above the surface and its 1-sigma uncertainty (mm), strength
+    (1: contact), footprint size (mm,
+    see `touch_shape`) and kind (TOUCH or HOVER). Shapes not given are NaN, kinds TOUCH."""
 
     frame: np.ndarray
     touch: np.ndarray
@@ -90,17 +153,37 @@ class TouchTable:
     j: np.ndarray
     xyz_mm: np.ndarray  # (n, 3)
     peak: np.ndarray
+    height_mm: np.ndarray | None = None
+    height_err_mm: np.ndarray | None = None
+    strength: np.ndarray | None = None
+    size_mm: np.ndarray | None = None
+    kind: np.ndarray | None = None  # (n,) int8
+
+    def __post_init__(self):
+        n = len(self.frame)
+        for name in ("height_mm", "height_err_mm", "strength", "size_mm"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(n, np.nan))
+        if self.kind is None:
+            self.kind = np.full(n, TOUCH, np.int8)
 
     def __len__(self) -> int:
         return int(self.frame.shape[0])
+
+    def rows(self, keep: np.ndarray) -> TouchTable:
+        """The rows `keep` (a mask or indices)."""
+        return TouchTable(*(getattr(self, f)[keep] for f in FIELDS))
+
+    def touches_only(self) -> TouchTable:
+        """The touches, without the hovers."""
+        return self if not (self.kind == HOVER).any() else self.rows(self.kind == TOUCH)
 
     @classmethod
     def concat(cls, tables: list[TouchTable]) -> TouchTable:
         if not tables:
             e = np.zeros(0)
             return cls(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
-        return cls(*(np.concatenate([getattr(t, f) for t in tables])
-                     for f in ("frame", "touch", "i", "j", "xyz_mm", "peak")))
+        return cls(*(np.concatenate([getattr(t, f) for t in tables]) for f in FIELDS))
 
 
 class Locator:
@@ -111,12 +194,29 @@ class Locator:
     `fruitcli.fem.reduced.model.ReducedModel` of these taxels), each frame's pressures give
     its taxels' positions through the reduced model instead (clamped to its range).
     `gain` (T,): divide each taxel's activation by it before detection
-    (`fruitcli.sensing.detection.detect`; None: off, the paper).
+    (`fruitcli.sensing.detection.detect`; None: off, the paper). `heights`: the skin's
+    `fruitcli.sensing.skin.heights.HeightModel` for strengths, sizes and heights
+    (default: the default skin's gap law).
     """
 
     def __init__(self, taxels: Taxels, board, positions_mm: np.ndarray,
                  settings: Settings, state_pressure_kpa: np.ndarray | None = None,
-                 where: str = "taxels", reduced=None, gain: np.ndarray | None = None):
+                 where: str = "taxels", reduced=None, gain: np.ndarray | None = None,
+                 heights=None):
+        if heights is None:
+            from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
+            from fruitcli.sensing.skin.heights import gap_law
+
+            heights = gap_law(DEFAULT_PARAMS, footprint=settings.footprint)
+        self.heights = heights
+        self.hover_levels = settings.hover_levels(heights.noise_std_counts) \
+            if settings.hovers else None
+        self.footprint = None
+        if settings.method == "fit2":
+            from fruitcli.sensing.detection.two_footprints import Footprint
+
+            self.footprint = Footprint.from_taxels(heights.sigma_mm, heights.noise_std_counts,
+                                                   taxels.i, taxels.j, taxels.xyz_mm)
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
@@ -186,19 +286,40 @@ class Locator:
                 raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
                                  f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
             t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain)
+                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain,
+                       self.footprint)
             end = start + frames.shape[0]
+            tax = np.where(t.taxel < 0, 0, t.taxel)
             if self.reduced is not None and pressure_kpa is not None:
                 pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
-                tax = np.where(t.taxel < 0, 0, t.taxel)
-                xyz = np.einsum("nk,nkd->nd", t.weight,
-                                pos[np.arange(len(tax))[:, None], tax])
+                pos9 = pos[np.arange(len(tax))[:, None], tax]
+                xyz = np.einsum("nk,nkd->nd", t.weight, pos9)
             else:
-                xyz = touches_3d(t, self.positions_mm, None if seg is None else seg[start:end],
-                                 None if frac is None else frac[start:end])
-            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak))
+                s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
+                xyz = touches_3d(t, self.positions_mm, s0, f0)
+                pos9 = self._taxel_points(tax, t.frame, s0, f0)
+            counts = frames.reshape(frames.shape[0], -1)[t.frame[:, None],
+                                                         self.layout.frame_cell[tax]]
+            v9 = np.maximum(counts - np.asarray(baseline, float)[tax], 0.0) * (t.taxel >= 0)
+            if self.gain is not None:
+                v9 = v9 / self.gain[tax]
+            sh = touch_shapes(v9, t.taxel, pos9, xyz, self.heights)
+            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak,
+                                     sh.height_mm, sh.height_err_mm, sh.strength,
+                                     sh.size_mm))
 
         yield from _in_order(job, starts, workers)
+
+    def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
+        """Positions (n, 9, 3) mm of the N9 taxels `tax` (n, 9) of touches in frames
+        `frame` (n,) (on the state path `seg`, `frac` when positions are per state)."""
+        pos = self.positions_mm
+        if pos.ndim == 2:
+            return pos[tax]
+        s0 = seg[frame]
+        s1 = np.minimum(s0 + 1, pos.shape[0] - 1)
+        t = frac[frame][:, None, None]
+        return (1.0 - t) * pos[s0[:, None], tax] + t * pos[s1[:, None], tax]
 
     def batch(self, frames: np.ndarray, baseline: np.ndarray,
               pressure_kpa: np.ndarray | None = None,
@@ -237,6 +358,7 @@ class Stream:
         self.s = locator.settings
         self.baseline = np.asarray(baseline, dtype=float).copy()
         self.touched = False
+        self.hovering = False
         self.above = 0
         self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 \
             else None
@@ -283,16 +405,28 @@ class Stream:
             on = self.above >= max(s.debounce_frames, 1)
             thr = s.threshold_counts
         self.touched = on
+        touch_thr = thr if on else np.inf
+        if loc.hover_levels is not None:
+            hover_on, hover_off = loc.hover_levels
+            self.hovering = vmax > (hover_off if self.hovering else hover_on)
+            if self.hovering:
+                thr = min(thr, hover_off)
+            on = on or self.hovering
         if not on:
             if self.drift is not None:
                 self.drift.update(self.baseline, values, 0.0, active=vmax > low)
             if self.tracker is not None and len(self.tracker.prev_ids):
                 self.tracker.end_all()
             return self._empty
-        if s.method == "peaks":
+        if s.method in ("peaks", "fit2"):
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
-            t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            if s.method == "fit2":
+                from fruitcli.sensing.detection.two_footprints import fit2_touches
+
+                t = fit2_touches(flat, loc.grid, thr, loc.footprint, s.max_touches)
+            else:
+                t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             lay = loc.layout
@@ -305,9 +439,14 @@ class Stream:
         pos = self._positions(pressure_kpa)
         n = len(i)
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
-        xyz = (w[:, None, :] @ pos[tax])[:, 0, :]
+        pos9 = pos[tax]
+        xyz = (w[:, None, :] @ pos9)[:, 0, :]
+        tax9 = t.taxel if s.method in ("peaks", "fit2") else loc.layout.n9_taxel[self._k[:n]]
+        sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
-        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak)
+        kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
+        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak, sh.height_mm,
+                          sh.height_err_mm, sh.strength, sh.size_mm, kind)
 
     def _positions(self, pressure_kpa) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""

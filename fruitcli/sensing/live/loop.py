@@ -3,8 +3,10 @@
 Units: counts, mm, kPa, s. Output: one JSON object per frame that has touches, and one
 with ``"touches": []`` on the frame where the last touch ends:
 ``{"frame": n, "t_s": t, "touches": [{"touch", "i", "j", "x_mm", "y_mm", "z_mm",
-"peak"}]}`` (frame counts from 0 including the baseline frames; ``touch`` is the
-session id: a finger keeps it across frames, ids are never reused, see `sessions`).
+"peak", "height_mm", "height_err_mm", "strength", "size_mm", "kind"}]}`` (frame counts
+from 0 including the baseline frames; ``touch`` is the session id: a finger keeps it
+across frames, also from hovering to touching; ids are never reused, see `sessions`;
+kind "touch" or "hover"; a size not measured is null).
 
 Optional per-run state: a `DriftTracker` (the baseline follows slow drift on quiet
 frames) and `TaxelHealth` flags. `rebaseline()` (after the board reconnected) collects K
@@ -20,7 +22,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fruitcli.sensing.detection.drift import DriftTracker
-from fruitcli.sensing.detection.frames_to_touches import Locator, Stream, TouchTable
+from fruitcli.sensing.detection.frames_to_touches import (
+    KIND_NAMES,
+    Locator,
+    Stream,
+    TouchTable,
+)
 from fruitcli.sensing.detection.health import TaxelHealth
 from fruitcli.sensing.detection.sessions import DEFAULT_GATE_MM, SessionStep, SessionTracker
 from fruitcli.sensing.live.serial_ports import LineReader, PortClosed, PressureState
@@ -42,6 +49,12 @@ class LiveFrame:
     @property
     def ij(self) -> np.ndarray:
         return np.column_stack([self.touches.i, self.touches.j])
+
+    @property
+    def shape(self) -> np.ndarray:
+        """(n, 3) height mm, strength, size mm of the touches."""
+        t = self.touches
+        return np.column_stack([t.height_mm, t.strength, t.size_mm])
 
 
 class LiveLocator:
@@ -134,7 +147,7 @@ class LiveLocator:
                     "j": round(float(t.j[n]), 4),
                     **{k: round(float(v), 4) for k, v in zip(("x_mm", "y_mm", "z_mm"),
                                                             t.xyz_mm[n], strict=True)},
-                    "peak": float(t.peak[n])} for n in range(len(t))]
+                    "peak": float(t.peak[n]), **_shape(t, n)} for n in range(len(t))]
         return json.dumps({"frame": f.frame, "t_s": round(float(f.t_s), 6),
                            "touches": touches})
 
@@ -143,6 +156,15 @@ class LiveLocator:
         if self.stream is None or self.initial_baseline is None:
             return np.zeros(len(self.loc.rows))
         return self.stream.baseline - self.initial_baseline
+
+
+def _shape(t: TouchTable, n: int) -> dict:
+    """Height, strength, size and kind of touch n, for its JSON line (NaN: null)."""
+    out = {k: (None if np.isnan(v) else round(float(v), 4)) for k, v in (
+        ("height_mm", t.height_mm[n]), ("height_err_mm", t.height_err_mm[n]),
+        ("strength", t.strength[n]), ("size_mm", t.size_mm[n]))}
+    out["kind"] = KIND_NAMES[int(t.kind[n])]
+    return out
 
 
 def pressure_thread(port, state: PressureState, stop: threading.Event,

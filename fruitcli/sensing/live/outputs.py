@@ -12,7 +12,13 @@ from collections import deque
 
 import numpy as np
 
+from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES
 from fruitcli.sensing.live.run_log import STATUS_EVERY_S
+
+
+def _finite(x) -> float | None:
+    """x as a float, None when NaN (JSON has no NaN)."""
+    return None if np.isnan(x) else float(x)
 
 
 class Outputs:
@@ -32,7 +38,8 @@ class Outputs:
         self.reconnects = 0
         self.skipped = 0  # lines skipped by earlier connections' readers
         self.frames = 0
-        self.touches = 0  # sessions started
+        self.touches = 0  # sessions that touched (hovers alone are not counted)
+        self._touching: set[int] = set()  # alive sessions already counted
         self.next_status = STATUS_EVERY_S
         self._status_frames, self._status_t = 0, 0.0
 
@@ -50,17 +57,24 @@ class Outputs:
             tt = f.touches
             if self.tuio is not None:  # first: a slow reader of stdout must not delay it
                 self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
-                               tt.xyz_mm, tt.peak)
+                               tt.xyz_mm, tt.peak, f.shape, tt.kind)
             line = self.live.json_line(f)
             if line is not None:
                 sys.stdout.write(line + "\n")
                 sys.stdout.flush()
-            self.touches += int(f.sessions.new.sum())
+            self._count_touches(f)
             if self.log is not None:
                 self.log.frame(t, f.sessions, tt.xyz_mm, f.ij, tt.peak)
         if self.log is not None and t >= self.next_status:
             self.log.status(self.status(t))
             self.next_status = t + STATUS_EVERY_S
+
+    def _count_touches(self, f) -> None:
+        """Count each session once, on its first frame of kind touch."""
+        ids = f.sessions.ids.tolist()
+        touched = {s for s, k in zip(ids, f.touches.kind.tolist(), strict=True) if k == 0}
+        self.touches += len(touched - self._touching)
+        self._touching = (self._touching | touched) & set(ids)
 
     def fps(self, t: float) -> float:
         n, dt = self.frames - self._status_frames, t - self._status_t
@@ -122,7 +136,9 @@ class Outputs:
             tt = f.touches
             touches = [{"id": int(tt.touch[n]), "x_mm": float(tt.xyz_mm[n, 0]),
                         "y_mm": float(tt.xyz_mm[n, 1]), "z_mm": float(tt.xyz_mm[n, 2]),
-                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n])}
+                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n]),
+                        "kind": KIND_NAMES[int(tt.kind[n])],
+                        "height_mm": _finite(tt.height_mm[n])}
                        for n in range(len(tt))]
         act = f.activation if f is not None else [0.0] * len(self.taxels)
         h = self.live.health

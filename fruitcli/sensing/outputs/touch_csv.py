@@ -1,7 +1,10 @@
 """touches.csv written chunk by chunk: the rows of each chunk's touches formatted in bulk.
 
-Units: s, mm, counts. The bytes are those `fruitcli.fsutil.write_csv` writes for the same
-rows (``# `` comment lines, the header, ints as ``str``, floats as ``"%.6f"``); the file
+Units: s, mm, counts. Columns: frame, t_s, touch, i, j, x_mm, y_mm, z_mm, peak (counts),
+height_mm (above the surface) and height_err_mm (its 1-sigma uncertainty), strength
+(1: contact), size_mm (footprint sigma) and kind (touch or hover, written as its name).
+The numbers' bytes are those `fruitcli.fsutil.write_csv` writes for the same rows
+(``# `` comment lines, the header, ints as ``str``, floats as ``"%.6f"``); the file
 appears only when complete (`atomic_path`), so an error half way leaves nothing behind.
 """
 
@@ -16,11 +19,13 @@ from collections.abc import Iterator
 import numpy as np
 
 from fruitcli.fsutil import atomic_path
-from fruitcli.sensing.detection.frames_to_touches import TouchTable
+from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES, TouchTable
 from fruitcli.sensing.outputs.csv_rows import format_rows
 
-TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"]
-_KINDS = "dfdffffff"
+TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak", "height_mm",
+                "height_err_mm", "strength", "size_mm", "kind"]
+_KINDS = "dfdffffffffff"  # every column but kind, written as its name
+_KIND_ENDS = [f",{name}\n".encode() for name in KIND_NAMES]
 
 
 def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
@@ -28,8 +33,11 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
     if len(table) == 0:
         return b""
     xyz = table.xyz_mm
-    return format_rows([table.frame, t_s[table.frame], table.touch, table.i, table.j,
-                        xyz[:, 0], xyz[:, 1], xyz[:, 2], table.peak], _KINDS)
+    data = format_rows([table.frame, t_s[table.frame], table.touch, table.i, table.j,
+                        xyz[:, 0], xyz[:, 1], xyz[:, 2], table.peak, table.height_mm,
+                        table.height_err_mm, table.strength, table.size_mm], _KINDS)
+    ends = [_KIND_ENDS[k] for k in table.kind.tolist()]
+    return b"".join(line + end for line, end in zip(data.split(b"\n")[:-1], ends, strict=True))
 
 
 class _Rows:

@@ -7,13 +7,20 @@ Per frame (the baseline frames excepted) four OSC bundles leave, in this order:
 
 1. ``/tuio/2Dcur``: ``source fruit@<host>``, ``alive s...``, one ``set s x y X Y m`` per
    touch, ``fseq f``: the touch's grid position (i, j) normalized to 0-1.
-2. ``/tuio/3Dcur`` (or ``/tuio/25Dcur``): ``source``, ``alive``, one
-   ``set s x y z X Y Z m`` per touch, ``fseq``: the 3D point on the (deformed) body.
+2. ``/tuio/3Dcur``: ``source``, ``alive``, one ``set s x y z X Y Z m`` per touch,
+   ``fseq``: the 3D point on the (deformed) body; or ``/tuio/25Dcur``: the same
+   messages with x, y the 2D cursor's and z the height above the surface (mm / L, the
+   3D scale), 0 at contact.
 3. ``/tuio/_sp`` (a TUIO 1.1 custom profile): ``source``, ``alive``, one ``set s p`` per
    touch with p the touch's peak activation (counts), ``fseq``.
-4. plain messages: ``/fruit/frame f n t_s``, then ``/fruit/down id x y z i j peak`` for
-   each touch that starts, ``/fruit/touch id x y z i j peak`` for every touch,
-   ``/fruit/up id`` for each that ended (x y z mm, i j grid, peak counts).
+4. plain messages: ``/fruit/frame f n t_s``, then ``/fruit/down id x y z i j peak h s w
+   kind`` for each touch that starts, ``/fruit/touch id x y z i j peak h s w kind`` for
+   every touch, ``/fruit/up id`` for each that ended (x y z mm, i j grid, peak counts,
+   h height above the surface mm, s strength (1: contact), w footprint size mm, kind 0
+   touch or 1 hover).
+
+Hovers are sent as touches are (a session that starts hovering keeps its id when it
+comes down); the plain messages' kind tells them apart.
 
 s and id are session ids (a finger keeps its id; ids are never reused), f counts the
 frames sent (fseq). X, Y (Z) are velocities (normalized units per s) from the previous
@@ -111,7 +118,8 @@ class Kinematics:
         self.speed: list[tuple[float, float]] = []  # |v| of the 2D and of the 3D part
 
     def update(self, ids: np.ndarray, ij: np.ndarray, xyz_mm: np.ndarray, norm: np.ndarray,
-               t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               t_s: float, height_mm: np.ndarray | None = None,
+               plane: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sessions `ids` (n,) at grid positions ij (n, 2) and points xyz_mm (n, 3) ->
         (positions g (n, 5) = (x2, y2, x3, y3, z3) normalized by `norm` (see `motion`),
         velocity (n, 5), acceleration (n, 2) = (m2, m3)): v = (p - p_prev) / dt,
@@ -120,7 +128,9 @@ class Kinematics:
         n = ids.shape[0]
         dt = 0.0 if self.t_s is None else t_s - self.t_s
         g, vel, rows = np.empty((n, 5)), np.empty((n, 5)), np.empty(n, np.int64)
-        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows)
+        h = np.zeros(n) if height_mm is None else np.ascontiguousarray(height_mm, dtype=float)
+        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows, h,
+                     plane)
         hypot, prev = math.hypot, self.speed
         speed, acc = [], []
         for r, (a, b, c, d, e) in zip(rows.tolist(), vel.tolist(), strict=True):
@@ -174,8 +184,8 @@ class TuioSender:
                      pp: osc.Template(pp, ("set",), "if")}
         self._fseq = {p: osc.Template(p, ("fseq",), "i") for p in self.profiles}
         self._frame = osc.Template("/fruit/frame", (), "iif")
-        self._down = osc.Template("/fruit/down", (), "iffffff")
-        self._touch = osc.Template("/fruit/touch", (), "iffffff")
+        self._down = osc.Template("/fruit/down", (), "i" + "f" * 9 + "i")
+        self._touch = osc.Template("/fruit/touch", (), "i" + "f" * 9 + "i")
         self._up = osc.Template("/fruit/up", (), "i")
         self._consts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         from fruitcli.sensing.outputs.tuio_kernel import pack_frame
@@ -201,9 +211,13 @@ class TuioSender:
         return got
 
     def bundles(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
-                ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray) -> list[bytes]:
+                ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray,
+                shape: np.ndarray | None = None, kind: np.ndarray | None = None
+                ) -> list[bytes]:
         """The frame's four datagrams (and advance fseq). `ij` (n, 2) grid position,
-        `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool.
+        `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool,
+        `shape` (n, 3) height mm, strength, size mm (None: NaN), `kind` (n,) 0 touch,
+        1 hover (None: touches).
         Positions and kinematics in float64 (`Kinematics`), the datagrams packed by the
         compiled `tuio_kernel.pack_frame`: the bytes of the per-touch Python encoder this
         replaced (tests/test_sensing_live_kernel.py)."""
@@ -212,23 +226,28 @@ class TuioSender:
         n = sid.shape[0]
         ij = np.ascontiguousarray(ij, dtype=float).reshape(n, 2)
         xyz = np.ascontiguousarray(xyz_mm, dtype=float).reshape(n, 3)
-        g, vel, acc = self.kin.update(sid, ij, xyz, self._norm, t_s)
+        shape = np.full((n, 3), np.nan) if shape is None else \
+            np.ascontiguousarray(shape, dtype=float).reshape(n, 3)
+        kind = np.zeros(n, np.int64) if kind is None else np.asarray(kind, np.int64)
+        g, vel, acc = self.kin.update(sid, ij, xyz, self._norm, t_s, shape[:, 0],
+                                      self.profiles[1] == "/tuio/25Dcur")
         consts, seg = self._pieces(n)
         need = (consts.size + 200) * (n + 2) + 8 * len(ended)
         if self._out.size < need:
             self._out = np.empty(need, np.uint8)
         self._pack(self._out, consts, seg, sid,
                    np.asarray(new, dtype=bool).reshape(n), np.asarray(ended, np.int64),
-                   g, vel, acc, xyz, ij, np.asarray(peak, dtype=float).reshape(n),
-                   self.fseq, float(t_s), self._ends)
+                   g, vel, acc, xyz, ij, np.asarray(peak, dtype=float).reshape(n), shape,
+                   kind, self.fseq, float(t_s), self._ends)
         data = self._out[:self._ends[3]].tobytes()
         e = self._ends.tolist()
         return [data[:e[0]], data[e[0]:e[1]], data[e[1]:e[2]], data[e[2]:e[3]]]
 
     def send(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
-             ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray) -> None:
+             ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray,
+             shape: np.ndarray | None = None, kind: np.ndarray | None = None) -> None:
         """Send the frame's bundles; an OS error (no route, full buffer) is counted."""
-        for dgram in self.bundles(t_s, ids, new, ended, ij, xyz_mm, peak):
+        for dgram in self.bundles(t_s, ids, new, ended, ij, xyz_mm, peak, shape, kind):
             try:
                 self.sock.sendto(dgram, self.address)
                 self.sent += 1

@@ -43,12 +43,12 @@ def _float(out, at, x, f32, u32):
 
 
 @njit(cache=True, nogil=True)
-def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, fseq, t_s,
-               ends):
+def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, shape, kind,
+               fseq, t_s, ends):
     """Write the 2D, 3D, peak and plain datagrams one after the other into `out` (uint8);
     ends[0..3] = the offset after each. ids (n,), new (n,) bool, ended (m,), g (n, 5)
     positions (x2, y2, x3, y3, z3), vel (n, 5), acc (n, 2) (m2, m3), xyz (n, 3) mm,
-    ij (n, 2), peak (n,)."""
+    ij (n, 2), peak (n,), shape (n, 3) (height mm, strength, size mm), kind (n,)."""
     f32 = np.empty(1, np.float32)
     u32 = f32.view(np.uint32)
     n = ids.shape[0]
@@ -91,6 +91,9 @@ def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, fs
                 at = _float(out, at, ij[k, 0], f32, u32)
                 at = _float(out, at, ij[k, 1], f32, u32)
                 at = _float(out, at, peak[k], f32, u32)
+                for q in range(3):
+                    at = _float(out, at, shape[k, q], f32, u32)
+                at = _int(out, at, kind[k])
     for k in range(ended.shape[0]):
         at = _copy(out, at, consts, seg, UP)
         at = _int(out, at, ended[k])
@@ -99,17 +102,24 @@ def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, fs
 
 
 @njit(cache=True, nogil=True)
-def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows):
+def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows, height,
+           plane):
     """Normalized positions and velocities of a frame's sessions (float64, elementwise
     as the per-touch code computed them). norm = (i_min, i_span, j_min, j_span, ox, oy,
-    oz, scale); g (n, 5) = (x2, y2, x3, y3, z3); rows[k] = the row of session ids[k] in
+    oz, scale); g (n, 5) = (x2, y2, x3, y3, z3), or with `plane` (TUIO 2.5D) (x2, y2, x2,
+    y2, height / scale) for heights (n,) mm; rows[k] = the row of session ids[k] in
     the previous frame's `prev_ids` (-1: new), vel[k] = (g - prev_g) / dt (dt > 0),
     prev_vel (dt <= 0) or 0 (new)."""
     for k in range(ids.shape[0]):
         g[k, 0] = (ij[k, 0] - norm[0]) / norm[1]
         g[k, 1] = 1.0 - (ij[k, 1] - norm[2]) / norm[3]
-        for q in range(3):
-            g[k, 2 + q] = (xyz[k, q] - norm[4 + q]) / norm[7]
+        if plane:
+            g[k, 2] = g[k, 0]
+            g[k, 3] = g[k, 1]
+            g[k, 4] = height[k] / norm[7]
+        else:
+            for q in range(3):
+                g[k, 2 + q] = (xyz[k, q] - norm[4 + q]) / norm[7]
         r = -1
         for m in range(prev_ids.shape[0]):
             if prev_ids[m] == ids[k]:

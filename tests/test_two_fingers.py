@@ -1,0 +1,76 @@
+"""fit2: two footprints of the skin fitted around each peak separate fingers that the
+paper's N9 multitouch merges, and leaves single touches where N9 puts them."""
+
+import numpy as np
+import pytest
+
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.two_footprints import Footprint, bilinear_window
+from fruitcli.sensing.frames.board import default_board
+from fruitcli.sensing.skin import forward
+from fruitcli.sensing.skin.heights import GapLaw
+from fruitcli.tables import Taxels
+
+SIGMA = forward.default_footprints_mm()["small"]
+LAW = GapLaw(60.0, 2.0, SIGMA, 1.0)
+
+
+def grid_taxels() -> Taxels:
+    i, j = np.divmod(np.arange(21 * 12), 12)
+    return Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0.0 * i], axis=1))
+
+
+def frame(taxels, points) -> np.ndarray:
+    v = sum(forward.activation_counts(np.linalg.norm(taxels.xyz_mm - np.asarray(p), axis=1)
+                                      [None], np.zeros(1), "small")[0] for p in points)
+    return np.round(500.0 + v).astype(np.int64).reshape(1, 21, 12)  # counts, as boards give
+
+
+def located(points, method):
+    taxels = grid_taxels()
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=method),
+                  heights=LAW)
+    return loc.batch(frame(taxels, points), np.full(252, 500.0))
+
+
+def test_footprint_widths_in_pitches():
+    tx = grid_taxels()
+    fp = Footprint.from_taxels(SIGMA, 1.0, tx.i, tx.j, tx.xyz_mm)
+    assert (fp.sigma_i, fp.sigma_j) == pytest.approx((SIGMA / 16.0, SIGMA / 12.0), rel=1e-12)
+
+
+def test_bilinear_window_places_a_grid_point_exactly():
+    tx = grid_taxels()
+    from fruitcli.sensing.detection.detect import Grid
+
+    grid = Grid.from_ij(tx.i, tx.j)
+    tax, w, _ = bilinear_window(7.3, 4.6, grid)
+    assert w.sum() == pytest.approx(1.0)
+    p = w @ tx.xyz_mm[np.maximum(tax, 0)]
+    assert p == pytest.approx([16.0 * 7.3, 12.0 * 4.6, 0.0], abs=1e-12)
+
+
+@pytest.mark.parametrize("offset", [(16.0, 12.0), (16.0, 0.0), (0.0, 12.0)])
+def test_fingers_one_pitch_apart_two_touches_near_their_truth(offset):
+    """One pitch apart along i, j or the diagonal: N9 gives one touch (half the
+    separation from each finger), fit2 two, each within a quarter of the separation of
+    its finger (counts rounded, no noise; along i the footprint is 0.39 pitches wide, the
+    narrowest, and the fit least sure)."""
+    c = np.array([160.0 + 3.0, 66.0 - 2.0, 0.0])
+    d = np.array([*offset, 0.0]) / 2
+    truth = np.stack([c - d, c + d])
+    assert len(located(truth, "n9")) == 1
+    t = located(truth, "fit2")
+    assert len(t) == 2
+    err = np.linalg.norm(t.xyz_mm[:, None] - truth[None], axis=2).min(axis=1)
+    assert err.max() < 0.25 * np.linalg.norm(2 * d)
+
+
+def test_a_single_finger_is_where_n9_puts_it():
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        p = [rng.uniform(40, 280), rng.uniform(20, 110), 0.0]
+        a, b = located([p], "n9"), located([p], "fit2")
+        assert len(a) == len(b) == 1
+        assert (a.i[0], a.j[0], a.peak[0]) == (b.i[0], b.j[0], b.peak[0])
+        np.testing.assert_allclose(a.xyz_mm, b.xyz_mm, rtol=0, atol=1e-9)
