@@ -40,13 +40,13 @@ studies: $(STAMP)
 # Every benchmark, BENCH_RUNS times; the figures (min/median/max over the runs) go to
 # build/bench/bench.json, from which `make docs` makes the performance page.
 bench: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python tests/bench/run_all.py --runs $(BENCH_RUNS) --json build/bench/bench.json
+	MPLBACKEND=Agg $(BIN)/python tests/performance/run_all.py --runs $(BENCH_RUNS) --json build/bench/bench.json
 
 # Every reader and parser fuzzed for FUZZ_SECONDS in all: cases tried and failures per target,
 # written to the documentation's reliability page.
 FUZZ_SECONDS ?= 600
 fuzz: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python tests/fuzz_run.py --seconds $(FUZZ_SECONDS) \
+	MPLBACKEND=Agg $(BIN)/python tests/robustness/fuzz_run.py --seconds $(FUZZ_SECONDS) \
 		--markdown docs/reliability.md
 
 # Rewrite the tested versions from the venv as it is now (after installing what you tested).

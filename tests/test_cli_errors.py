@@ -5,9 +5,9 @@ import os
 
 import numpy as np
 from click.testing import CliRunner
-from conftest import PAPER, ROOT
 
 from fruitcli.cli.main import cli
+from tests.conftest import PAPER, ROOT
 
 
 def run(*args):

@@ -31,7 +31,8 @@ def load(path: Path, name: str):
 
 
 generate = load(DOCS / "generate.py", "docs_generate")
-run_all = load(ROOT / "tests" / "bench" / "run_all.py", "bench_run_all")
+RUN_ALL = ROOT / "tests" / "performance" / "run_all.py"
+run_all = load(RUN_ALL, "bench_run_all")
 
 
 def test_cli_page_has_every_command_and_option():
@@ -98,7 +99,7 @@ def test_bench_figures_are_min_median_max_over_runs():
 
 def test_run_all_writes_a_result_file(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    res = subprocess.run([sys.executable, str(ROOT / "tests" / "bench" / "run_all.py"), "--only",
+    res = subprocess.run([sys.executable, str(RUN_ALL), "--only",
                           "bench_evaluate", "--json", str(tmp_path / "r.json")], env=env,
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
@@ -112,7 +113,7 @@ def test_run_all_writes_a_result_file(tmp_path):
     assert script["figures"][0]["line"].startswith("summarize 100k samples: {} ms")
     page = generate.performance_page(result, str(tmp_path / "r.json"))
     assert "## bench_evaluate" in page
-    res = subprocess.run([sys.executable, str(ROOT / "tests" / "bench" / "run_all.py"), "--only",
+    res = subprocess.run([sys.executable, str(RUN_ALL), "--only",
                           "bench_nothing"], env=env, capture_output=True, text=True)
     assert res.returncode == 2 and "--only: no script bench_nothing" in res.stderr
 

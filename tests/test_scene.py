@@ -99,9 +99,8 @@ def test_paths_resolve_against_scene_folder_then_project_root(tmp_path):
 
 
 def test_every_bundled_scene_validates():
-    from conftest import ROOT
-
     from fruitcli.scene import load_scene
+    from tests.conftest import ROOT
 
     for path in sorted((ROOT / "pipelines").glob("*.toml")):
         load_scene(path, must_exist=False)
@@ -110,7 +109,7 @@ def test_every_bundled_scene_validates():
 def test_readme_scene_example_is_valid():
     import re
 
-    from conftest import ROOT
+    from tests.conftest import ROOT
 
     text = (ROOT / "README.md").read_text()
     blocks = re.findall(r"```toml\n(.*?)```", text, re.S)

@@ -3,12 +3,12 @@ charge over a dielectric, and the error's rate under refinement (mm, fF)."""
 
 from __future__ import annotations
 
-import es_shapes as shapes
 import numpy as np
 import pytest
 
 from fruitcli.electrostatics import assemble, capacitance
 from fruitcli.electrostatics import closed_forms as cf
+from tests.electrostatics import es_shapes as shapes
 
 
 def _eps(mesh, values: dict) -> np.ndarray:

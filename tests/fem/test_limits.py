@@ -1,0 +1,299 @@
+"""Limit pressures (`fruitcli.fem.limits`): the neo-Hookean thick sphere's pressure-volume
+curve against its closed form (incompressible) and the radial solution of the
+compressible material the FEM uses; suction down to the collapse."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from click.testing import CliRunner
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from fruitcli.cli.main import cli
+from fruitcli.errors import SceneError, SolverError
+from fruitcli.fem import limits
+from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.limits_stage import run_limits
+from fruitcli.fem.solver import linsolve, newton
+from fruitcli.fem.solver.c_output import captured_output
+from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.fem.stage import run_simulate, run_tetra
+from fruitcli.scene import parse_scene
+from tests.fem.test_mesh import ball_scene, inflation_pressure, octant_ball
+
+LIMIT_B_OVER_A_2 = 0.8164  # max P / mu of the incompressible sphere, B / A = 2
+STRETCH_AT_LIMIT = 1.828
+
+
+def radial_pressure(mu, kappa, la, a=10.0, b=20.0):
+    """Cavity pressure (kPa) at inner stretch la of the compressible neo-Hookean sphere
+    (psi = mu/2 (I1bar - 3) + kappa/4 (J^2 - 1 - 2 ln J), the FEM's material), inner
+    radius a, outer b (mm), outer surface free: the radial equilibrium dP1/dR + 2 (P1 -
+    P2) / R = 0 (nominal stresses P1 radial, P2 hoop) shot from r(a) = la a to P1(b) = 0;
+    the Cauchy pressure is -P1(a) / la^2."""
+
+    def nominal(l1, l2, radial):
+        j, i1 = l1 * l2 * l2, l1 * l1 + 2 * l2 * l2
+        li = l1 if radial else l2
+        return mu * j ** (-2 / 3) * (li - i1 / (3 * li)) + 0.5 * kappa * (j * j - 1) / li
+
+    def rhs(r_ref, y):
+        r, p1 = y
+        l2 = r / r_ref
+        l1 = brentq(lambda v: nominal(v, l2, True) - p1, 1e-3, 50.0, xtol=1e-14)
+        return [l1, -2 * (p1 - nominal(l1, l2, False)) / r_ref]
+
+    def outer_traction(p1_inner):
+        return solve_ivp(rhs, (a, b), [la * a, p1_inner], rtol=1e-10, atol=1e-12).y[1, -1]
+
+    return -brentq(outer_traction, -50 * mu, 0.0, xtol=1e-12) / la**2
+
+
+def test_radial_reference_is_the_closed_form_when_incompressible():
+    """nu = 0.4999: the shooting solution is the closed form within 0.1 % (the closed
+    form's peak 0.8164 mu at la = 1.828); at nu = 0.49 the peak is 1.5 % lower."""
+    for nu in (0.4999, 0.49):
+        mu, kappa = 100 / (2 * (1 + nu)), 100 / (3 * (1 - 2 * nu))
+        for la in (1.2, STRETCH_AT_LIMIT, 2.2):
+            if nu == 0.4999:
+                assert radial_pressure(mu, kappa, la) == pytest.approx(
+                    inflation_pressure(mu, la), rel=1e-3)
+    assert inflation_pressure(1.0, STRETCH_AT_LIMIT) == pytest.approx(LIMIT_B_OVER_A_2,
+                                                                      abs=1e-4)
+    assert radial_pressure(mu, kappa, STRETCH_AT_LIMIT) / mu == pytest.approx(0.8043, abs=1e-3)
+
+
+def test_thick_sphere_limit_pressure_and_descending_branch():
+    """The hollow ball (A = 10, B = 20 mm, E = 100 kPa, nu = 0.49) on its octant, 2 cells
+    per patch edge and 2 layers (144 quadratic tets), default element: the limit
+    pressure that `limits.follow` finds by volume control is the incompressible closed
+    form's 0.8164 mu within 3 % (measured -1.5 %, all of it compressibility: within 0.5
+    % of the compressible radial solution), at a mean stretch within 0.1 of 1.828; on
+    the branch past it (la = 2.2) the pressure held is within 3 % of the closed form
+    (measured -2.3 %) and 1 % of the radial solution."""
+    model = octant_ball(2, 2, nu=0.49)
+    mat = model.material
+    mu, kappa = mat.shear_modulus_kpa, mat.bulk_modulus_kpa
+    curve = limits.follow(model, 0)
+    assert curve.end == "past the limit point"
+    assert curve.limit_pressure_kpa == pytest.approx(LIMIT_B_OVER_A_2 * mu, rel=0.03)
+    assert curve.limit_pressure_kpa == pytest.approx(
+        radial_pressure(mu, kappa, STRETCH_AT_LIMIT), rel=0.005)
+    v0 = model.chamber_rest_volume_mm3[0]
+    stretch = (1 + curve.limit_growth_mm3 / v0) ** (1 / 3)
+    assert stretch == pytest.approx(STRETCH_AT_LIMIT, abs=0.1)
+    assert max(curve.pressure_kpa) <= curve.limit_pressure_kpa
+    # the descending branch: volume control on to la = 2.2
+    x, prev, p = None, None, None
+    for la in np.arange(1.1, 2.25, 0.1):
+        load = Load(np.zeros(1), np.array([v0 * (la**3 - 1)]), np.array([True]))
+        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
+                          options=SolverOptions())
+        x, prev, p = res.x, load, res.pressure_kpa
+    assert la == pytest.approx(2.2)
+    assert p[0] == pytest.approx(inflation_pressure(mu, 2.2), rel=0.03)
+    assert p[0] == pytest.approx(radial_pressure(mu, kappa, 2.2), rel=0.01)
+    assert p[0] < curve.limit_pressure_kpa
+
+
+def test_thick_sphere_suction_collapses():
+    """The same octant under suction: the pressure falls below 0 as the cavity shrinks,
+    and the curve ends at a named collapse, its pressure the lowest reached."""
+    model = octant_ball(2, 2, nu=0.49)
+    curve = limits.follow(model, 0, -1)
+    assert curve.collapse_pressure_kpa is not None
+    assert curve.collapse_pressure_kpa == min(curve.pressure_kpa) < 0
+    assert np.all(np.diff(curve.growth_mm3) < 0)
+    assert curve.limit_pressure_kpa is None
+
+
+def test_stop_beyond_a_reachable_pressure():
+    """Asked whether 10 kPa is reachable, inflation stops at the first sample past it."""
+    model = octant_ball(1, 1, nu=0.49)
+    curve = limits.follow(model, 0, stop_beyond_kpa=10.0)
+    assert curve.pressure_kpa[-1] >= 10.0 > curve.pressure_kpa[-2]
+    assert curve.limit_pressure_kpa is None and curve.end.startswith("the pressure asked")
+
+
+def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
+    """`check_pressures` on the octant (nu = 0.49, limit 27.0 kPa): 28 kPa is past the
+    limit (one line with the key, the pressure and the limit, found by following the
+    curve to its peak; without the screen, which lets it through to Newton and
+    `explain_failure`, see below); 100 kPa is refused sooner, once the curve is concave, with a
+    bound of the limit (`levels_off_below`: a pressure no equilibrium reaches up to 27
+    V0); -500 kPa is past the collapse; 10 kPa and -10 kPa are reachable, and pressures
+    too small to come near a limit (linearized growth under SCREEN_GROWTH V0) are not
+    followed at all."""
+    model = octant_ball(1, 1, nu=0.49)
+    options = SolverOptions()
+    key = ["[actuation].pressure_kpa.c"]
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(model, np.array([[5.0], [28.0]]), key,
+                               model.make_solver(), options, screen=0.0)
+    line = str(info.value)
+    lim = float(line.split("limit pressure of ")[1].split(" kPa")[0])
+    assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
+    assert line == (f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
+                    f"pressure of {limits.kpa(lim)} kPa (no equilibrium above it); give "
+                    "`volume_growth_mm3` to follow the inflation past it")
+    told = []
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(model, np.array([[100.0]]), key, model.make_solver(),
+                               options, progress=told.append)
+    line = str(info.value)
+    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    assert lim < bound < 100.0
+    assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
+                    f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
+                    "levels off: no equilibrium above its peak; `fruit limits` computes it); "
+                    "give `volume_growth_mm3` to follow the inflation past it")
+    assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
+                                         r"this chamber's collapse pressure of -\d"):
+        limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(),
+                               options)
+    limits.check_pressures(model, np.array([[10.0], [-10.0], [np.nan]]), key,
+                           model.make_solver(), options)
+    told = []
+    limits.check_pressures(model, np.array([[0.5]]), key, model.make_solver(), options,
+                           progress=told.append)
+    assert told == []  # screened out: no sample followed
+
+
+def test_a_failed_state_past_the_limit_is_named():
+    """28 kPa on the octant (limit 27.0 kPa) passes the screen (linearized growth 0.7 V0)
+    and Newton finds no equilibrium; `explain_failure` then names the limit in the
+    check's line. Below the limit, the original error stands."""
+    model = octant_ball(1, 1, nu=0.49)
+    key = ["[actuation].pressure_kpa.c"]
+    solver = model.make_solver()
+    limits.check_pressures(model, np.array([[28.0]]), key, solver, SolverOptions())
+    load = Load.pressures([28.0])
+    with pytest.raises(SolverError) as failed:
+        solve_state(model, load, options=SolverOptions(load_steps=4), solver=solver)
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 28 kPa is past "
+                                         r"this chamber's limit pressure of 27.0 kPa "):
+        limits.explain_failure(model, load, key, solver, SolverOptions(), failed.value)
+    original = SolverError("state 0: no equilibrium")
+    with pytest.raises(SolverError, match="^state 0: no equilibrium$"):
+        limits.explain_failure(model, Load.pressures([10.0]), key, solver, SolverOptions(),
+                               original)
+
+
+def test_time_budget_names_the_load_fraction():
+    """A state past [solver].max_seconds fails with OutOfTime: one line with the load
+    fraction reached and the chamber pressures there."""
+    model = octant_ball(1, 1, nu=0.49)
+    with pytest.raises(OutOfTime) as info:
+        solve_state(model, Load.pressures([20.0]), options=SolverOptions(max_seconds=1e-9),
+                    label="state 0")
+    assert str(info.value) == (
+        "state 0: stopped after 1e-09 s ([solver].max_seconds) at 0.000 of the load step "
+        "(chambers: c 0 kPa); a chamber may be past its limit pressure (`fruit limits` "
+        "computes it), or raise [solver].max_seconds")
+    assert info.value.fraction == 0.0
+
+
+def test_progress_of_a_long_state(monkeypatch):
+    """A state running past PROGRESS_SECONDS reports load fraction, Newton step and
+    residual through `progress` (here every Newton step: PROGRESS_SECONDS = 0)."""
+    monkeypatch.setattr(newton, "PROGRESS_SECONDS", 0.0)
+    model = octant_ball(1, 1, nu=0.49)
+    told = []
+    solve_state(model, Load.pressures([10.0]), options=SolverOptions(load_steps=2),
+                label="state 3", progress=told.append)
+    assert told[0].startswith("state 3: load 0.500, Newton step 0, residual ")
+    assert any(t.startswith("state 3: load 1.000, Newton step 1, ") for t in told)
+
+
+def test_c_library_output_is_caught(capfd):
+    """What a C library writes to fd 1 or 2 inside `captured_output` is handed back, not
+    shown."""
+    with captured_output() as said:
+        os.write(2, b"CHOLMOD warning: not positive definite\n")
+        os.write(1, b"and on stdout\n")
+    assert said.text == "CHOLMOD warning: not positive definite\nand on stdout\n"
+    assert capfd.readouterr() == ("", "")
+
+
+def test_cholmod_refusal_is_our_error_not_its_warning(capfd):
+    """An indefinite matrix: cholespy's CHOLMOD warning never reaches fd 2; the
+    factorization raises (the callers' fallback takes it)."""
+    if linsolve._cholesky is None:
+        pytest.skip("cholespy not installed")
+    k = sp.csc_matrix(np.diag([1.0, -1.0, 2.0]))
+    with pytest.raises(RuntimeError, match="not positive definite"):
+        linsolve._cholesky(k)
+    out = capfd.readouterr()
+    assert "CHOLMOD" not in out.err + out.out
+
+
+@pytest.mark.parametrize("value", ["0", "-1.5"])
+def test_max_seconds_must_be_positive(tmp_path, value):
+    text = f"[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n[solver]\nmax_seconds = {value}\n"
+    with pytest.raises(SceneError, match=r"^s.toml: \[solver\].max_seconds: expected a time "
+                                         r"budget > 0 s, got "):
+        parse_scene(text, tmp_path / "s.toml")
+
+
+@pytest.mark.slow
+def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
+    """`fruit limits` on a gmsh ball (cavity 10 mm, outer 20 mm, size 8 mm, E = 100 kPa,
+    nu = 0.45, default element, free): limits.json, pv.csv and pv.png; the limit
+    pressure near the compressible radial solution's (nu = 0.45: 0.762 mu = 26.3 kPa;
+    the coarse faceted ball within 5 %), a collapse under suction. Then `run_simulate`
+    at 2000 kPa is refused in one line as soon as the curve levels off below it (a bound
+    above the limit), nothing written."""
+    scene = ball_scene(tmp_path, size=8.0, nu=0.45, p=2000.0)
+    out = tmp_path / "lim"
+    run_tetra(scene, None, out)
+    info = run_limits(scene, out / "mesh.npz", out)
+    saved = json.loads((out / "limits.json").read_text())
+    assert saved == json.loads(json.dumps(info))
+    cav = saved["chambers"]["c"]
+    mu = 100 / (2 * 1.45)
+    assert cav["limit_pressure_kpa"] == pytest.approx(radial_pressure(mu, 100 / 0.3, 1.83),
+                                                      rel=0.05)
+    assert cav["collapse_pressure_kpa"] < 0 and cav["limit_volume_growth_mm3"] > 0
+    assert saved["element"] == "p2" and saved["mesh"]["elements"] > 0
+    rows = (out / "pv.csv").read_text().splitlines()
+    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 10
+    growth = [float(r.split(",")[1]) for r in rows[1:]]
+    assert growth == sorted(growth) and 0.0 in growth
+    assert (out / "pv.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(SceneError) as refused:
+        run_simulate(scene, out / "mesh.npz", None, tmp_path / "sim")
+    line = str(refused.value)
+    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    assert cav["limit_pressure_kpa"] < bound < 2000.0
+    assert line == (
+        f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure, which "
+        f"is below {limits.kpa(bound)} kPa (its pressure-volume curve levels off: no "
+        "equilibrium above its peak; `fruit limits` computes it); give `volume_growth_mm3` "
+        "to follow the inflation past it")
+    assert not (tmp_path / "sim" / "states.npz").exists()
+
+
+def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):
+    (tmp_path / "s.toml").write_text("[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n")
+    res = CliRunner().invoke(cli, ["limits", str(tmp_path / "s.toml"), "--out",
+                                   str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert res.output == (f"Error: {tmp_path / 's.toml'}: [[geometry.chamber]]: the scene "
+                          "has no chamber\n")
+    assert not (tmp_path / "o").exists()
+
+
+def test_volume_growth_below_minus_the_rest_volume_is_refused():
+    model = octant_ball(1, 1, nu=0.49)
+    v0 = model.chamber_rest_volume_mm3[0]
+    ok = Load(np.zeros(1), np.array([-0.5 * v0]), np.array([True]))
+    limits.check_growth(model, [ok])
+    bad = Load(np.zeros(1), np.array([-2 * v0]), np.array([True]))
+    with pytest.raises(SceneError, match=r"^\[actuation\].volume_growth_mm3.c: -\d+(\.\d+)? "
+                                         r"mm\^3 would leave the chamber no volume \(its rest "
+                                         r"volume is \d+(\.\d+)? mm\^3\): expected more than "):
+        limits.check_growth(model, [ok, bad])

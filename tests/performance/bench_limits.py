@@ -1,0 +1,93 @@
+"""Benchmark: limit pressures (`fruitcli.fem.limits`).
+
+1. The thick sphere's limit pressure (A = 10, B = 20 mm, E = 100 kPa, nu = 0.49, default
+   element) on its octant at growing refinement: error against the incompressible
+   closed form (0.8164 mu; the rest is compressibility) and against the compressible
+   radial solution of the FEM's material (the discretization error), and the time.
+2. `fruit limits` on the default Fruit (pipelines/fruit-breathing.toml: 3 chambers) with
+   its wall time (skip with --no-fruit), and how far the breathing's largest pressure
+   is from each limit.
+
+Run: .venv/bin/python tests/performance/bench_limits.py [--no-fruit] [--out DIR]
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests"))
+
+
+def sphere_refinement() -> None:
+    from fruitcli.fem import limits
+    from tests.fem.test_limits import LIMIT_B_OVER_A_2, radial_pressure
+    from tests.fem.test_mesh import octant_ball
+
+    print("thick sphere B/A = 2, nu = 0.49, p2 octant: limit pressure by volume control")
+    print("cells  layers  tets  limit/mu  err vs closed form  err vs radial  s")
+    reference = None
+    for cells in (1, 2, 3, 4):
+        model = octant_ball(cells, cells, nu=0.49)
+        mu, kappa = model.material.shear_modulus_kpa, model.material.bulk_modulus_kpa
+        if reference is None:  # the radial solution's own peak
+            from scipy.optimize import minimize_scalar
+
+            top = minimize_scalar(lambda la, mu=mu, kappa=kappa: -radial_pressure(mu, kappa, la),
+                                  bounds=(1.6, 2.0), method="bounded",
+                                  options={"xatol": 1e-5})
+            reference = -top.fun
+            print(f"radial solution's peak: {reference / mu:.5f} mu at la = {top.x:.4f}")
+        t0 = time.perf_counter()
+        curve = limits.follow(model, 0)
+        dt = time.perf_counter() - t0
+        p = curve.limit_pressure_kpa
+        print(f"{cells:5d}  {cells:6d}  {len(model.conn):4d}  {p / mu:8.4f}  "
+              f"{100 * (p / (LIMIT_B_OVER_A_2 * mu) - 1):+17.2f} %  "
+              f"{100 * (p / reference - 1):+12.3f} %  {dt:5.1f}")
+
+
+def fruit_limits(out: Path) -> None:
+    scene = ROOT / "pipelines" / "fruit-breathing.toml"
+    t0 = time.perf_counter()
+    fruit = Path(sys.executable).parent / "fruit"
+    code = subprocess.call([str(fruit), "-q", "limits",
+                            str(scene), "--out", str(out)], cwd=ROOT,
+                           env=os.environ | {"MPLBACKEND": "Agg"})
+    wall = time.perf_counter() - t0
+    if code:
+        print(f"fruit limits: exit {code}")
+        return
+    info = json.loads((out / "limits.json").read_text())
+    print(f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
+          f"tets): {wall:.1f} s wall (make-tracks and tetra included), {info['seconds']:.1f} s "
+          "following the curves")
+    import tomllib
+
+    asked = tomllib.loads(scene.read_text())["actuation"]["pressure_kpa"]
+    for name, ch in info["chambers"].items():
+        lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
+        top = max(asked.get(name, [0.0]))
+        far = "" if lim is None else f", the breathing's {top:g} kPa is {100 * top / lim:.0f} %"
+        print(f"  chamber {name}: limit {'none up to 27 V0' if lim is None else f'{lim:.4g} kPa'}"
+              f"{far}; collapse {'none' if col is None else f'{col:.4g} kPa'}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--no-fruit", action="store_true")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    sphere_refinement()
+    if not args.no_fruit:
+        with tempfile.TemporaryDirectory() as tmp:
+            fruit_limits(args.out or Path(tmp) / "limits")
+
+
+if __name__ == "__main__":
+    main()
