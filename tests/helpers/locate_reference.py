@@ -1,4 +1,4 @@
-"""The batch `fruit locate` of commit 589909f (before recordings were read and detected in
+"""The batch `fruit locate` in its first form (before recordings were read and detected in
 chunks), frozen here as the reference that the fast path must reproduce byte for byte.
 
 Copied from fruitcli/sensing/{detect,pipeline,locate,stage}.py and fruitcli/fsutil.py

@@ -9,7 +9,7 @@ from fruitcli.sensing.detection.locate import StatePath
 
 
 class ReferenceStream:
-    """`fruitcli.sensing.detection.frames_to_touches.Stream` as of 91dc0f6 (numpy per
+    """`fruitcli.sensing.detection.frames_to_touches.Stream` in its plain numpy form (per
     touch), verbatim but for the gain division added since."""
 
     def __init__(self, locator: Locator, baseline: np.ndarray):

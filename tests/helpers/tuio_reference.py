@@ -47,7 +47,7 @@ class Kinematics:
 
 
 class ReferenceTuioSender:
-    """`fruitcli.sensing.outputs.tuio.TuioSender` as of 91dc0f6 (plain Python per touch): its
+    """`fruitcli.sensing.outputs.tuio.TuioSender` in its plain-Python form (per touch): its
     datagrams, without a socket."""
 
     def __init__(self, address: tuple, norm: Normalizer, profile_3d: str = "3Dcur",

@@ -1,14 +1,14 @@
 """Sensing speed: detection + 3D location in batch (replay) and per frame (live loop),
 and `fruit locate` end to end on long recordings.
 
-Targets (issue 5): >= 100,000 frames/s in batch on 21 x 12 frames; <= 0.1 ms median per
+Targets: >= 100,000 frames/s in batch on 21 x 12 frames; <= 0.1 ms median per
 frame in the live loop. 47 taxels on a 12 x 7 taxel grid, half the frames touched
 (one or two touches), taxels moving through 5 FEM states by chamber pressure.
-Targets (issue 14): `fruit locate` >= 200,000 frames/s end to end (the whole command on
+Targets: `fruit locate` >= 200,000 frames/s end to end (the whole command on
 200,000 frames minus the whole command on 20,000; 252 taxels on the full 21 x 12 board,
 a touch in every frame) and < 2 GB peak memory on 1,000,000 frames.
 `python tests/performance/bench_sensing.py recordings` runs only the latter,
-`python tests/performance/bench_sensing.py latency` only the OSC latency (issue 15).
+`python tests/performance/bench_sensing.py latency` only the OSC latency.
 """
 
 from __future__ import annotations
@@ -166,7 +166,7 @@ def run_command(args: list[str]) -> tuple[float, float, float]:
 
 
 def recordings(repeats: int = 5) -> None:
-    """`fruit locate` end to end on 20,000, 200,000 and 1,000,000 frames (issue 14):
+    """`fruit locate` end to end on 20,000, 200,000 and 1,000,000 frames:
     frames/s = 180,000 / (time on 200,000 - time on 20,000), from the best and the median
     of `repeats` runs each (a shared machine's load only adds time), and peak memory on
     1,000,000 frames (one run; frames/s against the best 20,000-frame run)."""
@@ -241,7 +241,7 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
 
 def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
                       hovers: bool = False):
-    """Issue 15: board line arriving -> last TUIO/OSC bundle of the frame leaving, with 10
+    """Board line arriving -> last TUIO/OSC bundle of the frame leaving, with 10
     simultaneous touches (target p99 <= 1 ms). Each frame's line is written to a pty; the
     clock starts when the pty has it for the reader (select), then the live loop's own
     objects read, parse, locate, give session ids and send 4 bundles to 127.0.0.1, in

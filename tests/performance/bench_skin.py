@@ -1,7 +1,7 @@
 """The electrostatic skin's speed: the default crossing's table, and assembly against
 scikit-fem.
 
-Target (issue 27): the default cell's table (both indenters, a finger, the strains and
+Target: the default cell's table (both indenters, a finger, the strains and
 bends) in at most 2 minutes on a 2-core machine: the default Fruit's design (pitch 16 x
 12 mm, cover 2 mm, yarn radius 0.6 mm, insulation 0.1 mm, eps_r 2.8, 10 gaps to 8 mm). Prints
 the mesh and solve times, C0, counts per fF and the derived equivalents.

@@ -1,4 +1,4 @@
-"""Gain division in detection (issue 12): activations divided by each taxel's calibrated
+"""Gain division in detection: activations divided by each taxel's calibrated
 gain before the threshold, the maxima and the N9 weights; off by default."""
 
 import numpy as np

@@ -1,5 +1,5 @@
 """`fruit locate` in chunks writes touches.csv byte for byte as the whole-recording batch
-path of commit 589909f did (tests/helpers/locate_reference.py), on varied recordings: multitouch,
+path in its first form did (tests/helpers/locate_reference.py), on varied recordings: multitouch,
 no touch, ties, edges and holes in the taxel grid, boards that flip or transpose,
 pressures along FEM states, every detection method and chunk sizes down to one frame."""
 
