@@ -130,6 +130,7 @@ def _synthetic_table() -> CrossingSkin:
     lateral = np.exp(-(gx ** 2 + gy ** 2) / 18.0)
     drop = 40.0 * np.exp(-gap / 2.0)[:, None, None] * lateral[None]
     return CrossingSkin(("small",), gap, d, d, drop[None], np.array([3.0]), np.array([2.0]),
+                        np.array([2.0]),
                         np.array([0.0, 0.1, 0.2]), np.array([0.0, 0.05]),
                         np.array([[0.0, 1.0, 3.0], [0.0, -1.0, -2.0]]),
                         np.array([[0.0, 4.0], [0.0, 10.0]]), 1.5, 0.5)
@@ -140,7 +141,7 @@ def test_offsets_and_gaps_beyond_the_table_continue_it():
     edge = t.drop("small", 4.0, 0.0, 0.0)
     assert t.drop("small", 6.0, 0.0, 0.0) == pytest.approx(edge * np.exp(-0.5 * 20 / 9.0))
     assert t.drop("small", 0.0, 0.0, 3.0) == pytest.approx(40.0 * np.exp(-1.5))
-    assert t.drop("small", 0.0, 0.0, -1.0) == pytest.approx(40.0)  # pressing in: contact
+    assert t.drop("small", 0.0, 0.0, -1.0) == pytest.approx(40.0 * np.exp(0.5))  # pressed
     assert t.drop("small", 1.0, 0.0, 0.0) == pytest.approx(
         40.0 * (1 + np.exp(-4 / 18)) / 2)
     with pytest.raises(Exception, match="indenter"):

@@ -8,9 +8,10 @@ a touch gives positive counts) and ``-counts_per_ff * (C_delta - C0)``.
 - Activation of a taxel at ``t`` for an object whose tip is ``gap`` above the contact
   point ``p``: the table's drop at the lateral offset (p - t)[:2] and the gap
   ``gap + p_z - t_z`` (the indenter comes down vertically), linear in (gap, dx, dy)
-  between the table's nodes. A gap below 0 (pressing in) gives the contact value (the
-  table does not model the indented surface); beyond the table's last gap the drop
-  falls exponentially with the decay of its last two gaps under the crossing; beyond
+  between the table's nodes. Below 0 (pressing in: the tip nearer the yarns by as much)
+  the drop grows exponentially with the decay of the table's first two gaps under the
+  crossing (the indented surface is not modelled); beyond the table's last gap it falls
+  exponentially with the decay of its last two gaps; beyond
   the table's offsets (half a pitch) as the Gaussian fitted to the contact row
   (summary ``footprint_sigma_mm``), continuous at the table's edge.
 - Baseline shift: per taxel, from the FEM surface around it (the triangles `forward`
@@ -48,6 +49,7 @@ class CrossingSkin:
     drop_counts: np.ndarray  # (k, g, x, y): -counts_per_ff * dC
     sigma_mm: np.ndarray  # (k,) Gaussian footprint fitted at contact
     tail_decay_mm: np.ndarray  # (k,) exponential decay beyond the last gap
+    press_decay_mm: np.ndarray  # (k,) exponential growth below contact
     strain: np.ndarray  # (s,) from 0
     curvature_per_mm: np.ndarray  # (c,) from 0
     stretch_counts: np.ndarray  # (2, s) shift stretched along x, y
@@ -68,14 +70,14 @@ class CrossingSkin:
         drop = -scale * np.asarray(arrays["dc_ff"], float)
         dx, dy = np.asarray(arrays["dx_mm"], float), np.asarray(arrays["dy_mm"], float)
         cx, cy = int(np.argmin(np.abs(dx))), int(np.argmin(np.abs(dy)))
-        tail = []
+        tail, press = [], []
         for k, name in enumerate(objects):
             under = drop[k, :, cx, cy]
-            rate = np.log(max(under[-2], 1e-12) / max(under[-1], 1e-12)) / (gap[-1] - gap[-2])
-            fallback = summary["objects"][name].get("gap_decay_mm") or 1.0
-            tail.append(1.0 / rate if rate > 0 else float(fallback))
+            fallback = float(summary["objects"][name].get("gap_decay_mm") or 1.0)
+            tail.append(_decay_mm(gap[-2:], under[-2:], fallback))
+            press.append(_decay_mm(gap[:2], under[:2], fallback))
         sigma = [float(summary["objects"][n]["footprint_sigma_mm"]) for n in objects]
-        return cls(objects, gap, dx, dy, drop, np.array(sigma), np.array(tail),
+        return cls(objects, gap, dx, dy, drop, np.array(sigma), np.array(tail), np.array(press),
                    np.asarray(arrays["strain"], float),
                    np.asarray(arrays["curvature_per_mm"], float),
                    -scale * (np.asarray(arrays["c_stretch_ff"], float) - c0),
@@ -116,6 +118,7 @@ class CrossingSkin:
         v = grid(np.stack([cg, cx, cy], axis=-1))
         lateral = (dx ** 2 - cx ** 2) + (dy ** 2 - cy ** 2)
         v = v * np.exp(-0.5 * lateral / self.sigma_mm[k] ** 2)
+        v = v * np.exp(np.maximum(-gap, 0.0) / self.press_decay_mm[k])
         return v * np.exp(-np.maximum(gap - self.gap_mm[-1], 0.0) / self.tail_decay_mm[k])
 
     def activation(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray,
@@ -140,6 +143,13 @@ class CrossingSkin:
                                         self.bend_counts[a])
             total = total + _odd_interp(rest, self.strain, self.stretch_counts[a])
         return total
+
+
+def _decay_mm(gaps: np.ndarray, drops: np.ndarray, fallback: float) -> float:
+    """Length (mm) over which `drops` (2,) at `gaps` (2,) fall by 1/e; `fallback` when
+    they do not fall."""
+    rate = np.log(max(drops[0], 1e-12) / max(drops[1], 1e-12)) / (gaps[1] - gaps[0])
+    return float(1.0 / rate) if rate > 0 else fallback
 
 
 def _odd_interp(x: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
