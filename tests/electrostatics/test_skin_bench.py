@@ -212,3 +212,21 @@ def test_gaussian_outputs_do_not_depend_on_the_electrostatic_keys(tmp_path):
         assert np.array_equal(a.frames, b.frames) and np.array_equal(a.sample, b.sample)
         assert (tmp_path / "a" / ind / "truth.csv").read_bytes() == \
             (tmp_path / "b" / ind / "truth.csv").read_bytes()
+
+
+def test_a_yarn_that_does_not_fit_stops_the_run_naming_the_key(tmp_path, fruit):
+    scene = _pad_scene(tmp_path, PAD + "yarn_radius_mm = 2.5\n")
+    out = tmp_path / "out"
+    result = fruit("run", scene, "--out", out)
+    assert result.exit_code != 0
+    lines = result.output.strip().splitlines()
+    assert "[skin].yarn_radius_mm" in lines[-1] and "Traceback" not in result.output
+    assert not (out / "skin" / "crossing.npz").exists() and not (out / "bench").exists()
+
+
+def test_gaussian_scene_plans_no_skin_stage(tmp_path, fruit):
+    scene = _pad_scene(tmp_path, PAD.replace('model = "electrostatic"', 'model = "gaussian"'))
+    result = fruit("run", scene, "--out", tmp_path / "out", "--dry-run")
+    assert result.exit_code == 0, result.output
+    skin = [line for line in result.output.splitlines() if line.startswith("skin ")]
+    assert skin and "not needed" in skin[0]
