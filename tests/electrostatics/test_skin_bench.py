@@ -171,6 +171,31 @@ def test_bent_pad_surface_stretch_and_curvature(tmp_path):
     assert np.abs(curv[1, :, 1]).max() < 1e-6 and np.abs(stretch[1, :, 1]).max() < 1e-6
 
 
+def test_a_body_curved_at_rest_has_no_shift_at_rest(tmp_path):
+    # the pad bent at rest: its C0 is that of the bent crossing; bending it back flat
+    # shifts by minus the bend's counts
+    from types import SimpleNamespace
+
+    from fruitcli.fem.elements.barycentric import locate
+    from fruitcli.fem.meshing.topology import boundary_faces
+    from fruitcli.sensing.skin.crossing_skin import shift_counts
+
+    flat, tets = forward.pad_mesh()
+    radius = 48.0 / np.pi
+    bent = forward.bend_nodes(flat, radius, 3.0)
+    k, bary, _ = locate(flat, tets, forward.pad_taxels_mm(z_mm=3.0 - 1e-6))
+    states = SimpleNamespace(rest_nodes=bent, tets=tets, surface_tris=boundary_faces(flat, tets),
+                             displacement_mm=np.array([bent - bent, flat - bent]),
+                             taxel_tet=k, taxel_bary=bary)
+    table = _synthetic_table()
+    shift = shift_counts(states, table, np.ones(16))
+    assert np.abs(shift[0]).max() < 1e-9
+    # back to flat: the bend's shift at the pad's curvature (0.065 per mm, beyond the
+    # table's 0.05: its last two points' slope), less the stretch left over
+    kappa = 1 / radius
+    assert shift[1] == pytest.approx(np.full(16, -4.0 * kappa / 0.05), abs=0.3)
+
+
 def test_bent_pad_shift_is_the_tables_bend(tmp_path):
     table = _synthetic_table()
     tables = tmp_path / "skin"

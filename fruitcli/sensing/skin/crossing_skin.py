@@ -17,9 +17,11 @@ a touch gives positive counts) and ``-counts_per_ff * (C_delta - C0)``.
 - Baseline shift: per taxel, from the FEM surface around it (the triangles `forward`
   weighs for its strain), the stretch along each yarn (x, y: the grid's axes carried
   onto the surface) and the surface's curvature along it, taken to the neutral plane
-  ``NEUTRAL_MM`` under the surface where the table's curvature is. The table's bend of curvature k
-  stretches the surface by ``NEUTRAL_MM * k``; so the shift is that of the bend at k
-  plus that of the stretch left over (surface stretch - NEUTRAL_MM * k), per yarn.
+  ``NEUTRAL_MM`` under the surface where the table's curvature is. The table's bend of
+  curvature k stretches the surface by ``NEUTRAL_MM * k``; so, per yarn, the shift is
+  that of the bend at the deformed k less that at the rest k0 (a body curved at rest,
+  as the Fruit, has its C0 there) plus that of the stretch left over (surface stretch -
+  NEUTRAL_MM * (k - k0)).
   Between the table's strains and curvatures linear, beyond its largest linear from
   its last two, below 0 (compression, concave) the odd extension. Times the taxel's
   fabrication factor (``forward.Skin.fab``), as in the assumed model.
@@ -129,20 +131,28 @@ class CrossingSkin:
         gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
         return self.drop(indenter, off[None, :, 0], off[None, :, 1], gap)
 
-    def deformation_shift(self, stretch: np.ndarray, curvature_per_mm: np.ndarray):
+    def deformation_shift(self, stretch: np.ndarray, curvature_per_mm: np.ndarray,
+                          rest_curvature_per_mm=0.0):
         """Baseline shift (counts) for the surface's stretches and curvatures (..., 2)
-        along x, y. The table's curvature is its neutral plane's, ``neutral_mm`` under the
-        surface: k = k_s / (1 - neutral_mm k_s) from the surface's k_s."""
+        along x, y, from its curvatures at rest (..., 2) (0: flat). The table's curvature
+        is its neutral plane's, ``neutral_mm`` under the surface: k = k_s / (1 -
+        neutral_mm k_s) from the surface's k_s."""
         stretch = np.asarray(stretch, float)
-        surface = np.asarray(curvature_per_mm, float)
-        kappa = surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
+        kappa = self._neutral(curvature_per_mm)
+        kappa0 = np.broadcast_to(self._neutral(rest_curvature_per_mm), kappa.shape)
         total = 0.0
         for a in range(2):
-            rest = stretch[..., a] - self.neutral_mm * kappa[..., a]
-            total = total + _odd_interp(kappa[..., a], self.curvature_per_mm,
-                                        self.bend_counts[a])
-            total = total + _odd_interp(rest, self.strain, self.stretch_counts[a])
+            left = stretch[..., a] - self.neutral_mm * (kappa[..., a] - kappa0[..., a])
+            total = total + (_odd_interp(kappa[..., a], self.curvature_per_mm,
+                                         self.bend_counts[a])
+                             - _odd_interp(kappa0[..., a], self.curvature_per_mm,
+                                           self.bend_counts[a]))
+            total = total + _odd_interp(left, self.strain, self.stretch_counts[a])
         return total
+
+    def _neutral(self, surface_curvature_per_mm) -> np.ndarray:
+        surface = np.asarray(surface_curvature_per_mm, float)
+        return surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
 
 
 def _decay_mm(gaps: np.ndarray, drops: np.ndarray, fallback: float) -> float:
@@ -169,13 +179,19 @@ def yarn_deformation(states, state_index=None) -> tuple[np.ndarray, np.ndarray]:
     rest direction in its plane); curvature: the weighted least-squares slope of the
     outward normal's component along the deformed yarn direction against the position
     along it (positive: convex, the surface outside)."""
+    idx = slice(None) if state_index is None else state_index
+    moved = states.rest_nodes + np.asarray(states.displacement_mm[idx])
+    single = moved.ndim == 2
+    stretch, curv = surface_deformation(states, moved[None] if single else moved)
+    return (stretch[0], curv[0]) if single else (stretch, curv)
+
+
+def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`yarn_deformation` of the states' surface with its nodes at `moved` (S, N, 3):
+    (stretch, curvature_per_mm), each (S, T, 2)."""
     from fruitcli.sensing.skin import forward
 
-    idx = slice(None) if state_index is None else state_index
     rest = states.rest_nodes
-    moved = rest + np.asarray(states.displacement_mm[idx])
-    single = moved.ndim == 2
-    moved = moved[None] if single else moved
     tris = states.surface_tris
     rest_taxels = np.einsum("tk,tkd->td", states.taxel_bary, rest[states.tets[states.taxel_tet]])
     w_all = forward.taxel_surface_weights(rest, tris, rest_taxels)
@@ -217,7 +233,7 @@ def yarn_deformation(states, state_index=None) -> tuple[np.ndarray, np.ndarray]:
             var = (pos ** 2) @ wv
             surface = np.where(var > 1e-9, ((pos * nrm) @ wv) / np.maximum(var, 1e-9), 0.0)
             curv[:, t, a] = surface
-    return (stretch[0], curv[0]) if single else (stretch, curv)
+    return stretch, curv
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -225,9 +241,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=None):
-    """Baseline shift (counts) of each taxel: (S, T) (or (T,) for one state)."""
+    """Baseline shift (counts) of each taxel from the rest shape: (S, T) (or (T,) for
+    one state)."""
     stretch, curv = yarn_deformation(states, state_index)
-    return response.deformation_shift(stretch, curv) * fab
+    _, rest_curv = surface_deformation(states, states.rest_nodes[None])
+    return response.deformation_shift(stretch, curv, rest_curv[0]) * fab
 
 
 def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
