@@ -14,7 +14,7 @@ Units: mm, counts. Prints, for both ``[skin].model`` values:
 Each scene runs through the planner in OUT/<scene>-<model> with OUT as the shared
 folder, so the stages the two models have in common run once.
 
-    python -m fruitcli.sensing.skin.compare_models --out OUT [--breathing]
+    python tests/bench/compare_skins.py --out OUT [--breathing]
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from types import SimpleNamespace
 import numpy as np
 
 MODELS = ("gaussian", "electrostatic")
-PIPELINES = Path(__file__).resolve().parents[3] / "pipelines"
+PIPELINES = Path(__file__).resolve().parents[2] / "pipelines"
 
 
 def variant(name: str, model: str, out: Path, extra_bench: str = "") -> Path:
