@@ -269,11 +269,23 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
 
 
+def electrostatic_skin(scene, crossing_dir, progress=None):
+    """The crossing's table in counts with ``[skin].model = "electrostatic"`` (from
+    `crossing_dir`, the skin stage's folder, or computed now without one), else None."""
+    if _or_defaults(scene).skin.model != "electrostatic":
+        return None
+    from fruitcli.sensing.skin.crossing_skin import crossing_skin
+
+    return crossing_skin(scene, crossing_dir, progress)
+
+
 def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
-              surface_path=None, surface_unit: str = "mm") -> dict:
+              surface_path=None, surface_unit: str = "mm", crossing_dir=None) -> dict:
     """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv.
     `surface_path`: the body's closed surface at rest (the ground truth's surface; see
-    `fruitcli.sensing.skin.virtual_bench`), in `surface_unit`."""
+    `fruitcli.sensing.skin.virtual_bench`), in `surface_unit`. With ``[skin].model =
+    "electrostatic"`` the taxels' activation and baseline shift come from the crossing's
+    table in `crossing_dir` (`electrostatic_skin`)."""
     from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import write_npz
     from fruitcli.sensing.skin import forward
@@ -296,6 +308,7 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     skin = forward.make_skin(len(taxels), bench.seed, forward.SkinParams.from_table(
         _or_defaults(scene).skin), taxels.ids)
     surface = None if surface_path is None else body_surface(surface_path, surface_unit)
+    response = electrostatic_skin(scene, crossing_dir, progress)
     states = None
     if states_npz_or_none is not None:
         states = load_states(states_npz_or_none, len(taxels))
@@ -303,7 +316,12 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
             raise FrameError(f"{scene.path.name}: [bench].state: {state} not in the states "
                              f"(0..{states.n_states - 1})")
         taxels_mm = states.taxels_mm[state]
-        shift = forward.strain_shift_counts(forward.taxel_strain(states, state), skin)
+        if response is None:
+            shift = forward.strain_shift_counts(forward.taxel_strain(states, state), skin)
+        else:
+            from fruitcli.sensing.skin.crossing_skin import shift_counts
+
+            shift = shift_counts(states, response, skin.fab, state)
     else:
         if state != 0:
             raise FrameError(f"{scene.path.name}: [bench].state = {state} needs FEM states")
@@ -322,10 +340,13 @@ def run_bench(scene, taxels_csv, states_npz_or_none, out_dir, progress=None,
     result = {"samples": int(len(xy)), "off_surface": int(len(xy) - len(contact)),
               "truth_surface": truth_surface, "indenters": {}}
     for n, name in enumerate(bench.indenters):
-        forward.footprint_sigma_mm(name, skin.params)  # validates the name
+        if response is None:
+            forward.footprint_sigma_mm(name, skin.params)  # validates the name
+        else:
+            response.object_index(name)
         rng = np.random.default_rng([bench.seed, n])
         run = descend(contact, taxels_mm, skin.baseline_counts + shift, skin, name,
-                      bench.step_mm, bench.baseline_frames, threshold, rng)
+                      bench.step_mm, bench.baseline_frames, threshold, rng, response)
         if len(run.truth_ids) == 0:
             raise FrameError(f"{scene.path.name}: [bench]: no sample of the {name} indenter "
                              f"reached [detection].threshold_counts = {threshold:g} counts; "
@@ -358,9 +379,12 @@ def _box_outline(xy_mm: np.ndarray, pad_mm: float = 8.0) -> np.ndarray:
     return np.array([[[x0, y0], [x1, y0], [x1, y1]], [[x0, y0], [x1, y1], [x0, y1]]])
 
 
-def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> dict:
+def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None,
+                    crossing_dir=None) -> dict:
     """Noise std per taxel at rest and max baseline shift per taxel over the states' animation
-    (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png."""
+    (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png.
+    With ``[skin].model = "electrostatic"`` the shifts come from the crossing's table in
+    `crossing_dir` (`electrostatic_skin`)."""
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.skin import forward, sensitivity
     from fruitcli.sensing.skin.heat_maps import save_heatmap, save_topview
@@ -380,8 +404,16 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     std = sensitivity.noise_std_counts(rest)
     # no deformation (no FEM): one state, the taxels at rest, no strain
     strain = np.zeros((1, len(taxels))) if states is None else forward.taxel_strain(states)
-    gain = forward.calibrate_strain_gain()
-    shift_model = forward.strain_shift_counts(strain, skin, gain)
+    response = electrostatic_skin(scene, crossing_dir, progress)
+    if response is None:
+        gain = forward.calibrate_strain_gain()
+        shift_model = forward.strain_shift_counts(strain, skin, gain)
+    else:
+        from fruitcli.sensing.skin.crossing_skin import shift_counts
+
+        gain = None
+        shift_model = (np.zeros_like(strain) if states is None
+                       else shift_counts(states, response, skin.fab))
     anim = sensitivity.animation_shift(shift_model, sens.animation_frames)
     played = forward.frame_counts(skin.baseline_counts + anim, skin.noise_std_counts, rng)
     shift = sensitivity.max_shift_counts(played, rest.mean(axis=0))
@@ -394,6 +426,8 @@ def run_sensitivity(scene, taxels_csv, states_npz, out_dir, progress=None) -> di
     out = {"units": "counts (strain: Green-Lagrange norm, -)", "threshold_counts": threshold,
            "noise_frames": sens.noise_frames, "animation_frames": sens.animation_frames,
            "states": len(strain), "strain_gain_counts": gain,
+           **({} if response is None else {"skin_model": "electrostatic",
+                                           "counts_per_ff": response.counts_per_ff}),
            "summary": {"std": sensitivity.summary(std), "max_shift": sensitivity.summary(shift),
                        "max_shift_model": sensitivity.summary(model_max)},
            "taxels": taxel_rows}

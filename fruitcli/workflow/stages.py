@@ -292,6 +292,40 @@ def reduced_path(scene: Scene, ctx: Context) -> Path:
     return ctx.dir("reduce") / "reduced.npz"
 
 
+# ----------------------------------------------------------------------------- skin
+def electrostatic(scene: Scene) -> bool:
+    return scene.skin.model == "electrostatic"
+
+
+def _skin_needed(scene):
+    if not electrostatic(scene):
+        return False, f"[skin].model = {scene.skin.model!r}: no crossing table"
+    users = [s for s in ("bench", "sensitivity") if scene.has(s)]
+    if not users:
+        return False, "no [bench] or [sensitivity] to use the crossing's table"
+    return True, f"electrostatic skin for the {' and '.join(users)}: the crossing's table"
+
+
+def _skin_inputs(scene, ctx):
+    from fruitcli.electrostatics.design import crossing_inputs
+
+    return crossing_inputs(scene).to_dict()
+
+
+def _skin_run(scene, ctx, out_dir):
+    from fruitcli.electrostatics import design
+
+    table, summary = design.run_crossing(design.crossing_inputs(scene), progress=ctx.progress)
+    design.write_outputs(out_dir, table, summary)
+    return {"c0_ff": summary["c0_ff"], "counts_per_ff": summary["counts_per_ff"],
+            "contact_counts": {k: v["contact_counts"] for k, v in summary["objects"].items()}}
+
+
+def crossing_dir(scene: Scene, ctx: Context) -> Path | None:
+    """The skin stage's folder (crossing.npz, summary.json) for an electrostatic skin."""
+    return ctx.dir("skin") if electrostatic(scene) else None
+
+
 # ----------------------------------------------------------------------------- sensing
 def _bench_needed(scene):
     if not scene.has("bench"):
@@ -307,7 +341,8 @@ def _bench_inputs(scene, ctx):
     return {"bench": scene.values("bench"), "samples": samples, "board": scene.values("board"),
             "detection": scene.values("detection"), "taxels": taxels_path(scene, ctx),
             "states": states_path(scene, ctx), "grid": scene.values("grid"),
-            "surface": solid_path(scene, ctx), "skin": scene.values("skin")}
+            "surface": solid_path(scene, ctx), "skin": scene.values("skin")
+            } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
 
 
 def _bench_run(scene, ctx, out_dir):
@@ -316,7 +351,8 @@ def _bench_run(scene, ctx, out_dir):
     solid = solid_path(scene, ctx)
     unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
     return run_bench(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                     progress=ctx.progress, surface_path=solid, surface_unit=unit)
+                     progress=ctx.progress, surface_path=solid, surface_unit=unit,
+                     crossing_dir=crossing_dir(scene, ctx))
 
 
 def _frame_sources(scene, ctx) -> dict[str, Path]:
@@ -411,14 +447,15 @@ def _sens_needed(scene):
 def _sens_inputs(scene, ctx):
     return {"sensitivity": scene.values("sensitivity"), "bench": scene.values("bench"),
             "skin": scene.values("skin"),
-            "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)}
+            "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)
+            } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
 
 
 def _sens_run(scene, ctx, out_dir):
     from fruitcli.sensing.stages import run_sensitivity
 
     return run_sensitivity(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                           progress=ctx.progress)
+                           progress=ctx.progress, crossing_dir=crossing_dir(scene, ctx))
 
 
 STAGES: list[Stage] = [
@@ -439,7 +476,9 @@ STAGES: list[Stage] = [
     Stage("reduce", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.reduced.build",
           _reduce_needed, _reduce_inputs, _reduce_run,
           lambda s: ["reduced.npz", "validation.json"]),
-    Stage("bench", ["simulate", "make-tracks", "pad-grid"], "fruitcli.sensing.stages",
+    Stage("skin", [], "fruitcli.electrostatics", _skin_needed, _skin_inputs, _skin_run,
+          lambda s: ["crossing.npz", "summary.json"]),
+    Stage("bench", ["simulate", "make-tracks", "pad-grid", "skin"], "fruitcli.sensing.stages",
           _bench_needed, _bench_inputs, _bench_run,
           lambda s: [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv"
                                                                   for i in indenters(s)]),
@@ -448,6 +487,7 @@ STAGES: list[Stage] = [
     Stage("evaluate", ["locate"], "fruitcli.evaluation.report", _eval_needed,
           lambda s, c: {"rows": _eval_rows(s, c)}, _eval_run,
           lambda s: ["table.md", "table.csv", "summary.json"]),
-    Stage("sensitivity", ["simulate", "make-tracks", "pad-grid"], "fruitcli.sensing.stages",
+    Stage("sensitivity", ["simulate", "make-tracks", "pad-grid", "skin"],
+          "fruitcli.sensing.stages",
           _sens_needed, _sens_inputs, _sens_run, lambda s: ["sensitivity.json"]),
 ]

@@ -54,9 +54,11 @@ class BenchRun:
 
 def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarray,
             skin: forward.Skin, indenter: str, step_mm: float, idle_frames: int,
-            threshold: float, rng) -> BenchRun:
+            threshold: float, rng, response=None) -> BenchRun:
     """Replay the bench over contact points (P, 3) on taxels at `taxels_mm` (T, 3) whose
-    mean counts without touch are `rest_counts` (T,) (baseline + deformation shift)."""
+    mean counts without touch are `rest_counts` (T,) (baseline + deformation shift).
+    `response`: the electrostatic skin (`crossing_skin.CrossingSkin`) for the activation,
+    None: the assumed Gaussian (`forward.activation_counts`)."""
     if step_mm <= 0:
         raise FrameError(f"[bench].step_mm: expected > 0, got {step_mm}")
     idle = forward.frame_counts(np.broadcast_to(rest_counts, (idle_frames, len(rest_counts))),
@@ -65,8 +67,13 @@ def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarr
     gaps = np.arange(START_GAP_MM, -PRESS_MM - step_mm / 2, -step_mm)
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
     for k, p in enumerate(contact_mm):
-        dist = np.linalg.norm(taxels_mm - p, axis=1)
-        mean = rest_counts + forward.activation_counts(dist[None, :], gaps, indenter, skin)
+        if response is None:
+            dist = np.linalg.norm(taxels_mm - p, axis=1)
+            touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
+        else:
+            touch = response.activation(indenter, p, taxels_mm, gaps)
+            touch = touch if skin.gain is None else touch * skin.gain
+        mean = rest_counts + touch
         counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
         hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
         if hit.size == 0:

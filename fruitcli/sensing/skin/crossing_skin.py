@@ -1,0 +1,259 @@
+"""The electrostatic skin (``[skin].model = "electrostatic"``): each taxel's activation and
+baseline shift from the crossing's table (`fruitcli.electrostatics`, `fruit skin`)
+instead of the assumed footprint, gap decay and strain gain of `forward`.
+
+Units: mm, counts. Counts are ``-counts_per_ff * dC`` (a touch takes field from Rx, so
+a touch gives positive counts) and ``-counts_per_ff * (C_delta - C0)``.
+
+- Activation of a taxel at ``t`` for an object whose tip is ``gap`` above the contact
+  point ``p``: the table's drop at the lateral offset (p - t)[:2] and the gap
+  ``gap + p_z - t_z`` (the indenter comes down vertically), linear in (gap, dx, dy)
+  between the table's nodes. Below 0 (pressing in: the tip nearer the yarns by as much)
+  the drop grows exponentially with the decay of the table's first two gaps under the
+  crossing (the indented surface is not modelled); beyond the table's last gap it falls
+  exponentially with the decay of its last two gaps; beyond
+  the table's offsets (half a pitch) as the Gaussian fitted to the contact row
+  (summary ``footprint_sigma_mm``), continuous at the table's edge.
+- Baseline shift: per taxel, from the FEM surface around it (the triangles `forward`
+  weighs for its strain), the stretch along each yarn (x, y: the grid's axes carried
+  onto the surface) and the surface's curvature along it, taken to the neutral plane
+  ``NEUTRAL_MM`` under the surface where the table's curvature is. The table's bend of
+  curvature k stretches the surface by ``NEUTRAL_MM * k``; so, per yarn, the shift is
+  that of the bend at the deformed k less that at the rest k0 (a body curved at rest,
+  as the Fruit, has its C0 there) plus that of the stretch left over (surface stretch -
+  NEUTRAL_MM * (k - k0)).
+  Between the table's strains and curvatures linear, beyond its largest linear from
+  its last two, below 0 (compression, concave) the odd extension. Times the taxel's
+  fabrication factor (``forward.Skin.fab``), as in the assumed model.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+
+AXES = ("x", "y")
+
+
+@dataclass(frozen=True)
+class CrossingSkin:
+    """The crossing's table in counts."""
+
+    objects: tuple[str, ...]
+    gap_mm: np.ndarray  # (g,) from 0
+    dx_mm: np.ndarray  # (x,) increasing, both signs
+    dy_mm: np.ndarray  # (y,)
+    drop_counts: np.ndarray  # (k, g, x, y): -counts_per_ff * dC
+    sigma_mm: np.ndarray  # (k,) Gaussian footprint fitted at contact
+    tail_decay_mm: np.ndarray  # (k,) exponential decay beyond the last gap
+    press_decay_mm: np.ndarray  # (k,) exponential growth below contact
+    strain: np.ndarray  # (s,) from 0
+    curvature_per_mm: np.ndarray  # (c,) from 0
+    stretch_counts: np.ndarray  # (2, s) shift stretched along x, y
+    bend_counts: np.ndarray  # (2, c) shift bent along x, y
+    neutral_mm: float
+    counts_per_ff: float
+
+    @classmethod
+    def from_table(cls, arrays: dict, summary: dict) -> CrossingSkin:
+        """From crossing.npz's arrays and summary.json's dict (`fruitcli.electrostatics.
+        design`)."""
+        from fruitcli.electrostatics.crossing import NEUTRAL_MM
+
+        scale = float(summary["counts_per_ff"])
+        c0 = float(arrays["c0_ff"])
+        objects = tuple(str(o) for o in arrays["objects"])
+        gap = np.asarray(arrays["gap_mm"], float)
+        drop = -scale * np.asarray(arrays["dc_ff"], float)
+        dx, dy = np.asarray(arrays["dx_mm"], float), np.asarray(arrays["dy_mm"], float)
+        cx, cy = int(np.argmin(np.abs(dx))), int(np.argmin(np.abs(dy)))
+        tail, press = [], []
+        for k, name in enumerate(objects):
+            under = drop[k, :, cx, cy]
+            fallback = float(summary["objects"][name].get("gap_decay_mm") or 1.0)
+            tail.append(_decay_mm(gap[-2:], under[-2:], fallback))
+            press.append(_decay_mm(gap[:2], under[:2], fallback))
+        sigma = [float(summary["objects"][n]["footprint_sigma_mm"]) for n in objects]
+        return cls(objects, gap, dx, dy, drop, np.array(sigma), np.array(tail), np.array(press),
+                   np.asarray(arrays["strain"], float),
+                   np.asarray(arrays["curvature_per_mm"], float),
+                   -scale * (np.asarray(arrays["c_stretch_ff"], float) - c0),
+                   -scale * (np.asarray(arrays["c_bend_ff"], float) - c0),
+                   float(NEUTRAL_MM), scale)
+
+    @classmethod
+    def load(cls, folder: Path) -> CrossingSkin:
+        """From `fruit skin`'s folder (crossing.npz, summary.json)."""
+        folder = Path(folder)
+        try:
+            with np.load(folder / "crossing.npz", allow_pickle=False) as data:
+                arrays = {k: data[k] for k in data.files}
+            summary = json.loads((folder / "summary.json").read_text())
+        except (OSError, ValueError, KeyError) as exc:
+            raise FrameError(f"{folder}: the crossing's table (crossing.npz, summary.json) "
+                             f"cannot be read: {exc}") from None
+        return cls.from_table(arrays, summary)
+
+    def object_index(self, indenter: str) -> int:
+        if indenter not in self.objects:
+            raise FrameError(f"indenter: expected one of the crossing table's objects "
+                             f"({', '.join(self.objects)}), got {indenter!r}")
+        return self.objects.index(indenter)
+
+    def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
+        """Activation (counts) at lateral offsets dx, dy and gaps (broadcast together)."""
+        from scipy.interpolate import RegularGridInterpolator
+
+        k = self.object_index(indenter)
+        dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm,
+                                                                           gap_mm)))
+        cx = np.clip(dx, self.dx_mm[0], self.dx_mm[-1])
+        cy = np.clip(dy, self.dy_mm[0], self.dy_mm[-1])
+        cg = np.clip(gap, 0.0, self.gap_mm[-1])
+        grid = RegularGridInterpolator((self.gap_mm, self.dx_mm, self.dy_mm),
+                                       self.drop_counts[k])
+        v = grid(np.stack([cg, cx, cy], axis=-1))
+        lateral = (dx ** 2 - cx ** 2) + (dy ** 2 - cy ** 2)
+        v = v * np.exp(-0.5 * lateral / self.sigma_mm[k] ** 2)
+        v = v * np.exp(np.maximum(-gap, 0.0) / self.press_decay_mm[k])
+        return v * np.exp(-np.maximum(gap - self.gap_mm[-1], 0.0) / self.tail_decay_mm[k])
+
+    def activation(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray,
+                   gaps_mm: np.ndarray) -> np.ndarray:
+        """(G, T) counts of taxels (T, 3) with the indenter `gaps_mm` (G,) above the
+        contact point (3,)."""
+        off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
+        gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
+        return self.drop(indenter, off[None, :, 0], off[None, :, 1], gap)
+
+    def deformation_shift(self, stretch: np.ndarray, curvature_per_mm: np.ndarray,
+                          rest_curvature_per_mm=0.0):
+        """Baseline shift (counts) for the surface's stretches and curvatures (..., 2)
+        along x, y, from its curvatures at rest (..., 2) (0: flat). The table's curvature
+        is its neutral plane's, ``neutral_mm`` under the surface: k = k_s / (1 -
+        neutral_mm k_s) from the surface's k_s."""
+        stretch = np.asarray(stretch, float)
+        kappa = self._neutral(curvature_per_mm)
+        kappa0 = np.broadcast_to(self._neutral(rest_curvature_per_mm), kappa.shape)
+        total = 0.0
+        for a in range(2):
+            left = stretch[..., a] - self.neutral_mm * (kappa[..., a] - kappa0[..., a])
+            total = total + (_odd_interp(kappa[..., a], self.curvature_per_mm,
+                                         self.bend_counts[a])
+                             - _odd_interp(kappa0[..., a], self.curvature_per_mm,
+                                           self.bend_counts[a]))
+            total = total + _odd_interp(left, self.strain, self.stretch_counts[a])
+        return total
+
+    def _neutral(self, surface_curvature_per_mm) -> np.ndarray:
+        surface = np.asarray(surface_curvature_per_mm, float)
+        return surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
+
+
+def _decay_mm(gaps: np.ndarray, drops: np.ndarray, fallback: float) -> float:
+    """Length (mm) over which `drops` (2,) at `gaps` (2,) fall by 1/e; `fallback` when
+    they do not fall."""
+    rate = np.log(max(drops[0], 1e-12) / max(drops[1], 1e-12)) / (gaps[1] - gaps[0])
+    return float(1.0 / rate) if rate > 0 else fallback
+
+
+def _odd_interp(x: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """ys over xs (from 0) at |x|, linear between, extrapolated from the last two points
+    beyond, sign(x) times (the odd extension below 0)."""
+    ax = np.abs(x)
+    slope = (ys[-1] - ys[-2]) / (xs[-1] - xs[-2])
+    v = np.where(ax <= xs[-1], np.interp(ax, xs, ys), ys[-1] + slope * (ax - xs[-1]))
+    return np.sign(x) * (v - ys[0])
+
+
+def yarn_deformation(states, state_index=None) -> tuple[np.ndarray, np.ndarray]:
+    """(stretch, curvature_per_mm), each (S, T, 2) (or (T, 2) for one state): the surface
+    around each taxel (`forward.taxel_surface_weights`) stretched and curved along the
+    yarns (the grid's x and y carried onto the surface). Stretch: the weighted mean of
+    |F t| - 1 over the triangles (F the triangle's in-plane deformation, t the yarn's
+    rest direction in its plane); curvature: the weighted least-squares slope of the
+    outward normal's component along the deformed yarn direction against the position
+    along it (positive: convex, the surface outside)."""
+    idx = slice(None) if state_index is None else state_index
+    moved = states.rest_nodes + np.asarray(states.displacement_mm[idx])
+    single = moved.ndim == 2
+    stretch, curv = surface_deformation(states, moved[None] if single else moved)
+    return (stretch[0], curv[0]) if single else (stretch, curv)
+
+
+def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`yarn_deformation` of the states' surface with its nodes at `moved` (S, N, 3):
+    (stretch, curvature_per_mm), each (S, T, 2)."""
+    from fruitcli.sensing.skin import forward
+
+    rest = states.rest_nodes
+    tris = states.surface_tris
+    rest_taxels = np.einsum("tk,tkd->td", states.taxel_bary, rest[states.tets[states.taxel_tet]])
+    w_all = forward.taxel_surface_weights(rest, tris, rest_taxels)
+    x0 = rest[tris]  # (F, 3, 3)
+    a_edges = np.stack([x0[:, 1] - x0[:, 0], x0[:, 2] - x0[:, 0]], axis=-1)  # (F, 3, 2)
+    x = moved[:, tris]  # (S, F, 3, 3)
+    b_edges = np.stack([x[:, :, 1] - x[:, :, 0], x[:, :, 2] - x[:, :, 0]], axis=-1)
+    n_rest = _unit(np.cross(a_edges[..., 0], a_edges[..., 1]))
+    area_normal = np.cross(b_edges[..., 0], b_edges[..., 1])  # (S, F, 3)
+    vertex_normal = np.zeros(moved.shape)
+    for c in range(3):
+        np.add.at(vertex_normal, (slice(None), tris[:, c]), area_normal)
+    vertex_normal = _unit(vertex_normal)  # (S, N, 3)
+    n_states, n_taxels = moved.shape[0], len(rest_taxels)
+    stretch = np.zeros((n_states, n_taxels, 2))
+    curv = np.zeros((n_states, n_taxels, 2))
+    for t in range(n_taxels):
+        f = np.flatnonzero(w_all[t] > 1e-9)
+        w = w_all[t, f] / w_all[t, f].sum()
+        n0 = _unit(w @ n_rest[f])
+        tx = np.array([1.0, 0.0, 0.0]) - n0[0] * n0
+        tx = _unit(tx if np.linalg.norm(tx) > 1e-6 else np.cross(np.array([0.0, 1.0, 0.0]),
+                                                                  n0))
+        for a, axis_dir in enumerate((tx, np.cross(n0, tx))):
+            tf = axis_dir - (n_rest[f] @ axis_dir)[:, None] * n_rest[f]
+            tf = _unit(tf)
+            a_f = a_edges[f]
+            gram = np.einsum("fdi,fdj->fij", a_f, a_f)
+            coef = np.linalg.solve(gram, np.einsum("fdi,fd->fi", a_f, tf)[..., None])[..., 0]
+            ft = np.einsum("sfdi,fi->sfd", b_edges[:, f], coef)  # (S, f, 3)
+            stretch[:, t, a] = np.linalg.norm(ft, axis=-1) @ w - 1.0
+            t_def = _unit(np.einsum("sfd,f->sd", ft, w))  # (S, 3)
+            verts = tris[f].ravel()
+            wv = np.repeat(w, 3) / 3.0
+            pos = np.einsum("svd,sd->sv", moved[:, verts], t_def)
+            nrm = np.einsum("svd,sd->sv", vertex_normal[:, verts], t_def)
+            pos = pos - (pos @ wv)[:, None]
+            nrm = nrm - (nrm @ wv)[:, None]
+            var = (pos ** 2) @ wv
+            surface = np.where(var > 1e-9, ((pos * nrm) @ wv) / np.maximum(var, 1e-9), 0.0)
+            curv[:, t, a] = surface
+    return stretch, curv
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=None):
+    """Baseline shift (counts) of each taxel from the rest shape: (S, T) (or (T,) for
+    one state)."""
+    stretch, curv = yarn_deformation(states, state_index)
+    _, rest_curv = surface_deformation(states, states.rest_nodes[None])
+    return response.deformation_shift(stretch, curv, rest_curv[0]) * fab
+
+
+def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
+    """The scene's electrostatic skin: from `folder` (the skin stage's crossing.npz and
+    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`)."""
+    if folder is not None:
+        return CrossingSkin.load(folder)
+    from fruitcli.electrostatics import design
+
+    table, summary = design.run_crossing(design.crossing_inputs(scene), progress=progress)
+    return CrossingSkin.from_table(design.table_arrays(table), summary)
