@@ -18,6 +18,7 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check fruitcli tests docs
+	$(BIN)/ruff format --check fruitcli tests docs
 
 test: $(STAMP) lint
 	MPLBACKEND=Agg $(BIN)/python -m pytest

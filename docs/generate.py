@@ -26,14 +26,28 @@ BENCH = ROOT / "build" / "bench" / "bench.json"
 BENCH_SAMPLE = DOCS / "bench-sample.json"
 
 UNITS = [  # key-name suffix -> unit (longest first)
-    ("_n_per_mm", "N/mm"), ("_mm_min", "mm/min"), ("_kg_m3", "kg/m³"), ("_m_s2", "m/s²"),
-    ("_mm3", "mm³"), ("_mm", "mm"), ("_kpa", "kPa"), ("_deg", "degrees"), ("_s", "s"),
+    ("_n_per_mm", "N/mm"),
+    ("_mm_min", "mm/min"),
+    ("_kg_m3", "kg/m³"),
+    ("_m_s2", "m/s²"),
+    ("_mm3", "mm³"),
+    ("_mm", "mm"),
+    ("_kpa", "kPa"),
+    ("_deg", "degrees"),
+    ("_s", "s"),
     ("_counts", "counts"),
 ]
 KINDS = {
-    "str": "text", "path": "file path", "num": "number", "int": "integer",
-    "bool": "true / false", "vec2": "[x, y]", "vec3": "[x, y, z]",
-    "box": "[xmin, ymin, zmin, xmax, ymax, zmax]", "list": "list", "table": "table",
+    "str": "text",
+    "path": "file path",
+    "num": "number",
+    "int": "integer",
+    "bool": "true / false",
+    "vec2": "[x, y]",
+    "vec3": "[x, y, z]",
+    "box": "[xmin, ymin, zmin, xmax, ymax, zmax]",
+    "list": "list",
+    "table": "table",
     "range": "number or [lo, hi]",
 }
 
@@ -61,8 +75,9 @@ def _paragraphs(text: str) -> list[str]:
     return [" ".join(p.split()) for p in text.split("\n\n") if p.strip()]
 
 
-def command_section(cmd: click.Command, path: list[str], parent: click.Context | None,
-                    lines: list[str]) -> None:
+def command_section(
+    cmd: click.Command, path: list[str], parent: click.Context | None, lines: list[str]
+) -> None:
     ctx = click.Context(cmd, info_name=path[-1], parent=parent)
     name = " ".join(path)
     lines += [f"## {name}", "", "```text", cmd.get_usage(ctx).strip(), "```", ""]
@@ -71,8 +86,9 @@ def command_section(cmd: click.Command, path: list[str], parent: click.Context |
     opts = [p.get_help_record(ctx) for p in cmd.params if isinstance(p, click.Option)]
     if args:
         lines += ["Arguments:", ""]
-        lines += [f"- `{a.make_metavar(ctx)}`" + (" (optional)" if not a.required else "")
-                  for a in args]
+        lines += [
+            f"- `{a.make_metavar(ctx)}`" + (" (optional)" if not a.required else "") for a in args
+        ]
         lines.append("")
     rows = [r for r in opts if r is not None]
     if rows:
@@ -88,10 +104,14 @@ def command_section(cmd: click.Command, path: list[str], parent: click.Context |
 def cli_page() -> str:
     from fruitcli.cli.main import cli
 
-    lines = ["# Command line", "",
-             "Generated from the `fruit` command group itself (`docs/generate.py`): every "
-             "subcommand with its usage, help and options, as `fruit COMMAND --help` prints "
-             "them.", ""]
+    lines = [
+        "# Command line",
+        "",
+        "Generated from the `fruit` command group itself (`docs/generate.py`): every "
+        "subcommand with its usage, help and options, as `fruit COMMAND --help` prints "
+        "them.",
+        "",
+    ]
     ctx = click.Context(cli, info_name="fruit")
     lines += ["```text", cli.get_help(ctx), "```", ""]
     for name in cli.list_commands(ctx):
@@ -129,23 +149,28 @@ def _type(key) -> str:
 def key_table(keys: dict, lines: list[str]) -> None:
     lines += ["| key | type | default | unit | meaning |", "|---|---|---|---|---|"]
     for name, key in keys.items():
-        lines.append(f"| `{name}` | {_type(key)} | `{_default(key)}` | "
-                     f"{unit_of(name)} | {escape(key.doc)} |")
+        lines.append(
+            f"| `{name}` | {_type(key)} | `{_default(key)}` | {unit_of(name)} | {escape(key.doc)} |"
+        )
     lines.append("")
 
 
 def scene_page() -> str:
     from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, SUBTABLES
 
-    lines = ["# Scene keys", "",
-             "Generated from the scene schema (`fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`) by "
-             "`docs/generate.py`. A scene file is TOML; a key the schema does not have is an "
-             "error naming the closest valid one. The unit is the key name's suffix "
-             "(`_mm`, `_kpa`, `_deg`, `_s`, `_counts`, ...). Relative file paths are resolved "
-             "against the scene file's folder, then against the project root (the nearest "
-             "folder above holding `pyproject.toml`). `none` means optional: the stage that "
-             "reads the key then does without it or computes a default (the meaning says "
-             "which).", ""]
+    lines = [
+        "# Scene keys",
+        "",
+        "Generated from the scene schema (`fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`) by "
+        "`docs/generate.py`. A scene file is TOML; a key the schema does not have is an "
+        "error naming the closest valid one. The unit is the key name's suffix "
+        "(`_mm`, `_kpa`, `_deg`, `_s`, `_counts`, ...). Relative file paths are resolved "
+        "against the scene file's folder, then against the project root (the nearest "
+        "folder above holding `pyproject.toml`). `none` means optional: the stage that "
+        "reads the key then does without it or computes a default (the meaning says "
+        "which).",
+        "",
+    ]
     for section, keys in SCHEMA.items():
         if section in ARRAY_SCHEMA:
             lines += [f"## \\[\\[{section}\\]\\] (any number of tables)", ""]
@@ -176,31 +201,47 @@ def _fmt(x: float) -> str:
 def performance_page(result: dict, source: str) -> str:
     load0 = ", ".join(f"{v:.2f}" for v in result["load_average_before"])
     load1 = ", ".join(f"{v:.2f}" for v in result.get("load_average_after", []))
-    lines = ["# Performance", "",
-             f"Generated by `docs/generate.py` from `{source}`, the result file "
-             "`make bench` writes (`tests/performance/run_all.py --json`). Every speed figure in "
-             "this documentation is here; run `make bench` on your machine and `make docs` "
-             "to see yours. Each line is printed as a benchmark printed it, with every "
-             "number replaced by its median over the runs; the table under it gives the "
-             "numbers that differed between runs (min / median / max).", "",
-             "| | |", "|---|---|",
-             f"| date | {result['date']} |", f"| commit | `{result['commit']}` |",
-             f"| cores | {result['cores']} |", f"| processor | {escape(result['processor'])} |",
-             f"| Python | {result.get('python', '')} |",
-             f"| runs of each benchmark | {result['runs']} |",
-             f"| load average before (1, 5, 15 min) | {load0} |",
-             f"| load average after | {load1} |", ""]
+    lines = [
+        "# Performance",
+        "",
+        f"Generated by `docs/generate.py` from `{source}`, the result file "
+        "`make bench` writes (`tests/performance/run_all.py --json`). Every speed figure in "
+        "this documentation is here; run `make bench` on your machine and `make docs` "
+        "to see yours. Each line is printed as a benchmark printed it, with every "
+        "number replaced by its median over the runs; the table under it gives the "
+        "numbers that differed between runs (min / median / max).",
+        "",
+        "| | |",
+        "|---|---|",
+        f"| date | {result['date']} |",
+        f"| commit | `{result['commit']}` |",
+        f"| cores | {result['cores']} |",
+        f"| processor | {escape(result['processor'])} |",
+        f"| Python | {result.get('python', '')} |",
+        f"| runs of each benchmark | {result['runs']} |",
+        f"| load average before (1, 5, 15 min) | {load0} |",
+        f"| load average after | {load1} |",
+        "",
+    ]
     if "sample" in source:
-        lines += ["This is the small sample shipped with the sources (two benchmarks, "
-                  "`python tests/performance/run_all.py --only bench_evaluate,bench_muca_formats "
-                  "--runs 2 --json docs/bench-sample.json`); `make bench` runs them all.", ""]
+        lines += [
+            "This is the small sample shipped with the sources (two benchmarks, "
+            "`python tests/performance/run_all.py --only bench_evaluate,bench_muca_formats "
+            "--runs 2 --json docs/bench-sample.json`); `make bench` runs them all.",
+            "",
+        ]
     for script in result["scripts"]:
         wall = script["wall_s"]
-        lines += [f"## {script['name']}", "",
-                  f"`python tests/performance/{script['name']}.py`: wall time "
-                  f"{_fmt(wall['median'])} s "
-                  f"(min {_fmt(wall['min'])}, max {_fmt(wall['max'])}); exit codes "
-                  f"{', '.join(map(str, script['exit_codes']))}.", "", "```text"]
+        lines += [
+            f"## {script['name']}",
+            "",
+            f"`python tests/performance/{script['name']}.py`: wall time "
+            f"{_fmt(wall['median'])} s "
+            f"(min {_fmt(wall['min'])}, max {_fmt(wall['max'])}); exit codes "
+            f"{', '.join(map(str, script['exit_codes']))}.",
+            "",
+            "```text",
+        ]
         varying = []
         for fig in script["figures"]:
             medians = [_fmt(n["median"]) for n in fig["numbers"]]
@@ -217,18 +258,24 @@ def performance_page(result: dict, source: str) -> str:
             lines += ["| line | number | min | median | max |", "|---|---|---|---|---|"]
             for line, k, n in varying:
                 excerpt = line.strip().replace("{}", "#").replace("{{", "{").replace("}}", "}")
-                lines.append(f"| {escape(' '.join(excerpt.split())[:70])} | {k + 1} | "
-                             f"{_fmt(n['min'])} | "
-                             f"{_fmt(n['median'])} | {_fmt(n['max'])} |")
+                lines.append(
+                    f"| {escape(' '.join(excerpt.split())[:70])} | {k + 1} | "
+                    f"{_fmt(n['min'])} | "
+                    f"{_fmt(n['median'])} | {_fmt(n['max'])} |"
+                )
             lines.append("")
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Write docs/_generated/*.md from the code.")
-    parser.add_argument("--bench", type=Path, default=None,
-                        help=f"bench result (default: {BENCH.relative_to(ROOT)} if present, "
-                             f"else {BENCH_SAMPLE.relative_to(ROOT)})")
+    parser.add_argument(
+        "--bench",
+        type=Path,
+        default=None,
+        help=f"bench result (default: {BENCH.relative_to(ROOT)} if present, "
+        f"else {BENCH_SAMPLE.relative_to(ROOT)})",
+    )
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     bench = args.bench or (BENCH if BENCH.exists() else BENCH_SAMPLE)
@@ -239,8 +286,11 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     source = bench.relative_to(ROOT).as_posix() if bench.is_relative_to(ROOT) else str(bench)
     OUT.mkdir(exist_ok=True)
-    pages = {"cli.md": cli_page(), "scene-keys.md": scene_page(),
-             "performance.md": performance_page(result, source)}
+    pages = {
+        "cli.md": cli_page(),
+        "scene-keys.md": scene_page(),
+        "performance.md": performance_page(result, source),
+    }
     from fruitcli.fsutil import write_text
 
     for name, text in pages.items():

@@ -38,8 +38,7 @@ def scene_path(name: str) -> Path:
     name = name.removesuffix(".toml")
     path = root() / SCENES / f"{name}.toml"
     if not path.is_file():
-        raise FruitError(f"unknown scene '{name}' (bundled scenes: "
-                         f"{', '.join(scene_names())})")
+        raise FruitError(f"unknown scene '{name}' (bundled scenes: {', '.join(scene_names())})")
     return path
 
 
@@ -62,7 +61,7 @@ def _first_clause(text: str) -> str:
     depth = 0
     for i, c in enumerate(text):
         depth += (c == "(") - (c == ")")
-        if depth == 0 and (c == ":" or (c == "." and text[i + 1:i + 3].strip()[:1].isupper())):
+        if depth == 0 and (c == ":" or (c == "." and text[i + 1 : i + 3].strip()[:1].isupper())):
             return text[:i]
     return text.rstrip(".")
 

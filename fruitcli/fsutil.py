@@ -109,9 +109,15 @@ def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
     for entry in entries:
         if not entry.name.startswith(prefix):
             continue
-        pid, dash, _ = entry.name[len(prefix):].partition("-")  # "<pid>-<random>"
-        if dash and pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) \
-                and entry.is_dir() and not entry.is_symlink():
+        pid, dash, _ = entry.name[len(prefix) :].partition("-")  # "<pid>-<random>"
+        if (
+            dash
+            and pid.isdigit()
+            and int(pid) != os.getpid()
+            and not _alive(int(pid))
+            and entry.is_dir()
+            and not entry.is_symlink()
+        ):
             shutil.rmtree(entry, ignore_errors=True)
             removed.append(entry)
     return removed

@@ -31,8 +31,7 @@ def require(nbytes: float, what: str, error=FruitError) -> None:
     """Raise `error` naming `what` when `nbytes` exceeds SHARE of the available memory."""
     have = available_bytes()
     if nbytes > SHARE * have:
-        raise error(f"{what} needs about {_size(nbytes)} of memory, {_size(have)} is "
-                    "available")
+        raise error(f"{what} needs about {_size(nbytes)} of memory, {_size(have)} is available")
 
 
 def _size(nbytes: float) -> str:

@@ -57,11 +57,9 @@ class Key:
 
     def in_range(self, value: float) -> bool:
         """True when `value` lies in [min, max] (ends excluded as declared)."""
-        if self.min is not None and (value <= self.min if self.min_exclusive
-                                     else value < self.min):
+        if self.min is not None and (value <= self.min if self.min_exclusive else value < self.min):
             return False
-        return self.max is None or (value < self.max if self.max_exclusive
-                                    else value <= self.max)
+        return self.max is None or (value < self.max if self.max_exclusive else value <= self.max)
 
     def expectation(self) -> str:
         """What a valid value is, for error messages."""
@@ -90,8 +88,9 @@ def _plain_folder_name(name: str) -> bool:
 
 
 def _two_positive_ints(count: list) -> bool:
-    return len(count) == 2 and all(isinstance(c, int) and not isinstance(c, bool) and c > 0
-                                   for c in count)
+    return len(count) == 2 and all(
+        isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in count
+    )
 
 
 def _increasing_pair(pair: list[float]) -> bool:
@@ -109,10 +108,13 @@ crossing (`fruitcli.electrostatics`)."""
 
 def _gap_table(gaps) -> bool:
     """At least two finite gaps (mm), increasing from 0 (contact)."""
-    return (isinstance(gaps, (list, tuple)) and len(gaps) >= 2
-            and all(isinstance(g, NUM) and not isinstance(g, bool) and math.isfinite(g)
-                    for g in gaps)
-            and gaps[0] == 0 and all(b > a for a, b in zip(gaps[:-1], gaps[1:], strict=False)))
+    return (
+        isinstance(gaps, (list, tuple))
+        and len(gaps) >= 2
+        and all(isinstance(g, NUM) and not isinstance(g, bool) and math.isfinite(g) for g in gaps)
+        and gaps[0] == 0
+        and all(b > a for a, b in zip(gaps[:-1], gaps[1:], strict=False))
+    )
 
 
 def _nonempty_box(box: list[float]) -> bool:
@@ -129,46 +131,89 @@ LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
 # Sections that are tables (one per scene).
 SCHEMA: dict[str, dict[str, Key]] = {
     "scene": {
-        "name": Key("str", None, "scene name (default: file stem)", valid=_plain_folder_name,
-                    expected="a plain folder name (it names out/<name>)"),
+        "name": Key(
+            "str",
+            None,
+            "scene name (default: file stem)",
+            valid=_plain_folder_name,
+            expected="a plain folder name (it names out/<name>)",
+        ),
         "description": Key("str", "", "free text"),
         "configuration": Key("str", "Rest", "configuration label in tables (Rest, Deformed, ...)"),
     },
     "geometry": {
         "artist": Key("path", None, "artist's high-resolution closed mesh (STL/OBJ/PLY)"),
         "generate_artist": Key("bool", False, "write the default fruit to `artist` if missing"),
-        "unit": Key("str", "mm", "unit of the mesh files (artist, solid, surface): mm, cm, m",
-                    choices=tuple(UNIT_TO_MM)),
-        "fit_mm": Key("num", None, "scale the artist mesh (after unit) so that its largest "
-                                   "extent is this (mm); chambers stay as given (mm)"),
+        "unit": Key(
+            "str",
+            "mm",
+            "unit of the mesh files (artist, solid, surface): mm, cm, m",
+            choices=tuple(UNIT_TO_MM),
+        ),
+        "fit_mm": Key(
+            "num",
+            None,
+            "scale the artist mesh (after unit) so that its largest "
+            "extent is this (mm); chambers stay as given (mm)",
+        ),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
         "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
         "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
     },
     "tracks": {
-        "cover_mm": Key("num", 2.0, "inward offset for the cover layer (mm)", min=0.0,
-                         expected="a thickness >= 0 mm"),
-        "faces": Key("int", 5000, "target triangle count of the reduced surface", min=4,
-                      max=MAX_FACES, expected=f"a triangle count 4 <= faces <= {MAX_FACES:,}"),
-        "track_radius_mm": Key("num", 0.6, "radius of the yarn tubes (mm)", **POSITIVE,
-                                expected="a radius > 0 mm"),
+        "cover_mm": Key(
+            "num",
+            2.0,
+            "inward offset for the cover layer (mm)",
+            min=0.0,
+            expected="a thickness >= 0 mm",
+        ),
+        "faces": Key(
+            "int",
+            5000,
+            "target triangle count of the reduced surface",
+            min=4,
+            max=MAX_FACES,
+            expected=f"a triangle count 4 <= faces <= {MAX_FACES:,}",
+        ),
+        "track_radius_mm": Key(
+            "num", 0.6, "radius of the yarn tubes (mm)", **POSITIVE, expected="a radius > 0 mm"
+        ),
         "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
-        "yarn_max_stretch": Key("num", 0.25, "warn when a track stretches more than this "
-                                             "fraction (yarn limit 0.3 minus a 0.05 margin)",
-                                **OPEN_FRACTION,
-                                expected="a fraction 0 < value < 1 (0.25 = 25 %)"),
-        "zigzag_pitch_mm": Key("num", 4.0, "zig-zag pitch of the sewn yarn (mm): the warnings' "
-                                           "amplitude and the length of the local stretch",
-                               **POSITIVE, expected="> 0 (mm)"),
-        "file": Key("path", None, "track centre lines given directly (track,axis,index,point,"
-                                  "x_mm,y_mm,z_mm; default: make-tracks' tracks.csv)"),
+        "yarn_max_stretch": Key(
+            "num",
+            0.25,
+            "warn when a track stretches more than this "
+            "fraction (yarn limit 0.3 minus a 0.05 margin)",
+            **OPEN_FRACTION,
+            expected="a fraction 0 < value < 1 (0.25 = 25 %)",
+        ),
+        "zigzag_pitch_mm": Key(
+            "num",
+            4.0,
+            "zig-zag pitch of the sewn yarn (mm): the warnings' "
+            "amplitude and the length of the local stretch",
+            **POSITIVE,
+            expected="> 0 (mm)",
+        ),
+        "file": Key(
+            "path",
+            None,
+            "track centre lines given directly (track,axis,index,point,"
+            "x_mm,y_mm,z_mm; default: make-tracks' tracks.csv)",
+        ),
     },
     "grid": {
         "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)", **POSITIVE),
         "spacing_y_mm": Key("num", 12.0, "distance between y = const planes (mm)", **POSITIVE),
         "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
-        "count": Key("list", None, "[nx, ny] taxels on a flat pad", valid=_two_positive_ints,
-                     expected="two positive integers [nx, ny]"),
+        "count": Key(
+            "list",
+            None,
+            "[nx, ny] taxels on a flat pad",
+            valid=_two_positive_ints,
+            expected="two positive integers [nx, ny]",
+        ),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
     },
     "mold": {
@@ -187,22 +232,38 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "min_quality": Key("num", 0.05, "refuse meshes whose worst SICN is below this"),
     },
     "fem": {
-        "element": Key("str", "p2", "p2 (quadratic tets, P2/P0 mean dilatation: no locking), "
-                       "p2-pure (quadratic, displacement only) or p1 (linear tets, the "
-                       "paper's SOFA element)", choices=tuple(ELEMENTS)),
+        "element": Key(
+            "str",
+            "p2",
+            "p2 (quadratic tets, P2/P0 mean dilatation: no locking), "
+            "p2-pure (quadratic, displacement only) or p1 (linear tets, the "
+            "paper's SOFA element)",
+            choices=tuple(ELEMENTS),
+        ),
     },
     "material": {
-        "model": Key("str", "neo-hookean", "neo-hookean (from E and nu), yeoh (c10_kpa, "
-                     "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)",
-                     choices=MATERIAL_MODELS),
+        "model": Key(
+            "str",
+            "neo-hookean",
+            "neo-hookean (from E and nu), yeoh (c10_kpa, "
+            "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)",
+            choices=MATERIAL_MODELS,
+        ),
         "c10_kpa": Key("num", None, "yeoh: C10 (kPa; the shear modulus is 2 C10)"),
         "c20_kpa": Key("num", 0.0, "yeoh: C20 (kPa)"),
         "c30_kpa": Key("num", 0.0, "yeoh: C30 (kPa)"),
         "bulk_modulus_kpa": Key("num", None, "bulk modulus kappa (kPa; default from E, nu)"),
         "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)", **POSITIVE),
-        "poisson_ratio": Key("num", 0.45, "Poisson's ratio nu (-1 < nu < 0.5)", min=-1.0,
-                             max=0.5, min_exclusive=True, max_exclusive=True,
-                             expected="-1 < nu < 0.5"),
+        "poisson_ratio": Key(
+            "num",
+            0.45,
+            "Poisson's ratio nu (-1 < nu < 0.5)",
+            min=-1.0,
+            max=0.5,
+            min_exclusive=True,
+            max_exclusive=True,
+            expected="-1 < nu < 0.5",
+        ),
         "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)", min=0.0),
     },
     "gravity": {
@@ -213,35 +274,53 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "actuation": {
         "pressure_kpa": Key("table", None, "per chamber: one pressure per state (kPa)"),
         "volume_growth_mm3": Key("table", None, "per chamber: one volume growth per state (mm^3)"),
-        "period_s": Key("num", None, "duration of one cycle of the states (s), for animations",
-                        **POSITIVE),
+        "period_s": Key(
+            "num", None, "duration of one cycle of the states (s), for animations", **POSITIVE
+        ),
     },
     "solver": {
-        "tolerance": Key("num", 1e-6, "Newton stops when |residual| <= tolerance * |load|",
-                         **POSITIVE),
-        "displacement_tolerance_mm": Key("num", 1e-4, "... or when the kept factor estimates "
-                                         "the correction left within half this (mm; 0 = "
-                                         "off)", min=0.0),
+        "tolerance": Key(
+            "num", 1e-6, "Newton stops when |residual| <= tolerance * |load|", **POSITIVE
+        ),
+        "displacement_tolerance_mm": Key(
+            "num",
+            1e-4,
+            "... or when the kept factor estimates "
+            "the correction left within half this (mm; 0 = "
+            "off)",
+            min=0.0,
+        ),
         "max_iterations": Key("int", 25, "Newton iterations per load step", min=1),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
-        "linear_solver": Key("str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi",
-                             choices=LINEAR_SOLVERS),
+        "linear_solver": Key(
+            "str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi", choices=LINEAR_SOLVERS
+        ),
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1),
-        "first_steps": Key("int", 4, "load steps of the state solved from rest (hyperelastic "
-                           "models)", min=1),
-        "max_seconds": Key("num", 300.0, "time budget of one state (s); past it the state "
-                           "fails, saying how far its load got", **POSITIVE,
-                           expected="a time budget > 0 s"),
+        "first_steps": Key(
+            "int", 4, "load steps of the state solved from rest (hyperelastic models)", min=1
+        ),
+        "max_seconds": Key(
+            "num",
+            300.0,
+            "time budget of one state (s); past it the state fails, saying how far its load got",
+            **POSITIVE,
+            expected="a time budget > 0 s",
+        ),
     },
     "reduced": {  # the reduced model of the live loop (fruitcli.fem.reduced.build)
-        "pressure_range_kpa": Key("vec2", None, "[lo, hi] kPa for every chamber (default: "
-                                  "each chamber's [actuation] pressures plus the margin)",
-                                  valid=_increasing_pair, expected="[lo, hi] with lo < hi"),
-        "margin": Key("num", 0.1, "fraction of each chamber's [actuation] span added on "
-                      "either side", min=0.0),
+        "pressure_range_kpa": Key(
+            "vec2",
+            None,
+            "[lo, hi] kPa for every chamber (default: "
+            "each chamber's [actuation] pressures plus the margin)",
+            valid=_increasing_pair,
+            expected="[lo, hi] with lo < hi",
+        ),
+        "margin": Key(
+            "num", 0.1, "fraction of each chamber's [actuation] span added on either side", min=0.0
+        ),
         "points_per_axis": Key("int", 5, "Chebyshev-Lobatto full solves per chamber", min=2),
-        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)",
-                          min=1),
+        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)", min=1),
         "validation": Key("int", 50, "held-out random pressure vectors solved in full", min=1),
         "seed": Key("int", 0, "seed of the held-out pressure vectors", **SEED),
     },
@@ -253,46 +332,95 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
-        "format": Key("str", "auto", "frames on the port and in raw captures: auto, ascii "
-                      "(stock Muca_Raw) or binary (stock SendRawByte packets)",
-                      choices=("auto", *BOARD_FORMATS)),
+        "format": Key(
+            "str",
+            "auto",
+            "frames on the port and in raw captures: auto, ascii "
+            "(stock Muca_Raw) or binary (stock SendRawByte packets)",
+            choices=("auto", *BOARD_FORMATS),
+        ),
     },
     "frames": {
         "recording": Key("path", None, "recorded frames (.npz or MuCa ASCII log)"),
-        "model": Key("str", "reduced", "a recording with chamber pressures: reduced (taxels "
-                     "from the reduced model at each frame's pressures) or full (along the "
-                     "simulated states)", choices=("reduced", "full")),
+        "model": Key(
+            "str",
+            "reduced",
+            "a recording with chamber pressures: reduced (taxels "
+            "from the reduced model at each frame's pressures) or full (along the "
+            "simulated states)",
+            choices=("reduced", "full"),
+        ),
     },
     "detection": {
-        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)",
-                                **POSITIVE),
+        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)", **POSITIVE),
         "baseline_frames": Key("int", 10, "frames averaged into the baseline C0", min=1),
-        "method": Key("str", "n9", "n9 (paper), n9_floor, peaks or fit2 (two footprints "
-                      "of the [skin] fitted around each peak: fingers close together)",
-                      choices=("n9", "n9_floor", "peaks", "fit2")),
-        "noise_floor_counts": Key("num", 0.0, "subtracted from v before weighting (n9_floor)",
-                                   min=0.0, expected="counts >= 0"),
-        "hysteresis_counts": Key("num", 0.0, "touch ends below threshold - hysteresis", min=0.0,
-                                  expected="counts >= 0"),
-        "debounce_frames": Key("int", 0, "frames above threshold before a touch starts", min=0,
-                                expected="frames >= 0"),
-        "drift_rate": Key("num", 0.0, "baseline tracking rate per untouched frame (0: off)",
-                           min=0.0, max=1.0, expected="a rate per frame 0 <= rate <= 1"),
-        "track_gate_mm": Key("num", 0.0, "touch IDs across frames within this distance (0: off)",
-                              min=0.0, expected="a distance >= 0 mm"),
-        "project": Key("str", "none", "none (the N9 average of the 3D taxels, the paper) or "
-                                      "surface (moved to the nearest point of the body)",
-                       choices=("none", "surface")),
-        "divide_by_gain": Key("bool", False, "divide each taxel's activation by its gain in "
-                              "[skin].taxel_gain before detection (threshold, maxima and N9 "
-                              "weights on the divided v; off: the paper)"),
+        "method": Key(
+            "str",
+            "n9",
+            "n9 (paper), n9_floor, peaks or fit2 (two footprints "
+            "of the [skin] fitted around each peak: fingers close together)",
+            choices=("n9", "n9_floor", "peaks", "fit2"),
+        ),
+        "noise_floor_counts": Key(
+            "num",
+            0.0,
+            "subtracted from v before weighting (n9_floor)",
+            min=0.0,
+            expected="counts >= 0",
+        ),
+        "hysteresis_counts": Key(
+            "num", 0.0, "touch ends below threshold - hysteresis", min=0.0, expected="counts >= 0"
+        ),
+        "debounce_frames": Key(
+            "int", 0, "frames above threshold before a touch starts", min=0, expected="frames >= 0"
+        ),
+        "drift_rate": Key(
+            "num",
+            0.0,
+            "baseline tracking rate per untouched frame (0: off)",
+            min=0.0,
+            max=1.0,
+            expected="a rate per frame 0 <= rate <= 1",
+        ),
+        "track_gate_mm": Key(
+            "num",
+            0.0,
+            "touch IDs across frames within this distance (0: off)",
+            min=0.0,
+            expected="a distance >= 0 mm",
+        ),
+        "project": Key(
+            "str",
+            "none",
+            "none (the N9 average of the 3D taxels, the paper) or "
+            "surface (moved to the nearest point of the body)",
+            choices=("none", "surface"),
+        ),
+        "divide_by_gain": Key(
+            "bool",
+            False,
+            "divide each taxel's activation by its gain in "
+            "[skin].taxel_gain before detection (threshold, maxima and N9 "
+            "weights on the divided v; off: the paper)",
+        ),
         "hovers": Key("bool", False, "report hovers (below the touch threshold) as kind hover"),
-        "hover_threshold_counts": Key("num", None, "hover threshold (counts; default 8 x the "
-                                      "[skin] noise std); below threshold_counts"),
-        "hover_hysteresis_counts": Key("num", None, "a hover ends below its threshold minus "
-                                       "this (counts; default 3 x the [skin] noise std)"),
-        "footprint": Key("str", None, "[skin].footprint_sigma_mm entry heights and strengths "
-                         "assume (default: the only one, else small)"),
+        "hover_threshold_counts": Key(
+            "num",
+            None,
+            "hover threshold (counts; default 8 x the [skin] noise std); below threshold_counts",
+        ),
+        "hover_hysteresis_counts": Key(
+            "num",
+            None,
+            "a hover ends below its threshold minus "
+            "this (counts; default 3 x the [skin] noise std)",
+        ),
+        "footprint": Key(
+            "str",
+            None,
+            "[skin].footprint_sigma_mm entry heights and strengths "
+            "assume (default: the only one, else small)",
+        ),
     },
     "bench": {
         "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
@@ -301,76 +429,154 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "step_mm": Key("num", 0.1, "indenter descent step (mm)", **POSITIVE),
         "seed": Key("int", 0, "seed of the noise", **SEED),
         "baseline_frames": Key("int", 10, "idle frames recorded before each descent", min=1),
-        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)",
-                                   **POSITIVE),
-        "register": Key("str", "none", "registration of the bench rows: none, translation, "
-                                       "rigid or similarity (see [[evaluate]].register)",
-                        choices=REGISTER_METHODS),
+        "reference_length_mm": Key(
+            "num", None, "for % errors (default: largest truth span)", **POSITIVE
+        ),
+        "register": Key(
+            "str",
+            "none",
+            "registration of the bench rows: none, translation, "
+            "rigid or similarity (see [[evaluate]].register)",
+            choices=REGISTER_METHODS,
+        ),
     },
     "skin": {  # the skin's forward model (fruitcli.sensing.skin.forward); defaults: its assumptions
-        "footprint_sigma_mm": Key("table", None, "per indenter: lateral Gaussian width (mm); "
-                                                 "default small 6.18, medium 7.21",
-                                  **POSITIVE, expected="a width > 0 mm"),
-        "contact_counts": Key("num", 60.0, "activation of the taxel under the indenter at "
-                                           "contact (counts)", **POSITIVE),
-        "gap_decay_mm": Key("num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)",
-                            **POSITIVE),
-        "gain_spread": Key("num", 0.0, "taxel gains drawn uniformly in 1 +- spread (seeded)",
-                           min=0.0, max=1.0, max_exclusive=True,
-                           expected="0 <= spread < 1"),
-        "noise_std_counts": Key("range", [0.5, 1.85], "noise std (counts): one value, or "
-                                                      "[lo, hi] drawn per taxel (seeded)"),
-        "taxel_gain": Key("path", None, "CSV (id, gain) of measured taxel gains, e.g. fruit "
-                                        "calibrate's gains.csv (with gain_spread = 0)"),
+        "footprint_sigma_mm": Key(
+            "table",
+            None,
+            "per indenter: lateral Gaussian width (mm); default small 6.18, medium 7.21",
+            **POSITIVE,
+            expected="a width > 0 mm",
+        ),
+        "contact_counts": Key(
+            "num",
+            60.0,
+            "activation of the taxel under the indenter at contact (counts)",
+            **POSITIVE,
+        ),
+        "gap_decay_mm": Key(
+            "num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)", **POSITIVE
+        ),
+        "gain_spread": Key(
+            "num",
+            0.0,
+            "taxel gains drawn uniformly in 1 +- spread (seeded)",
+            min=0.0,
+            max=1.0,
+            max_exclusive=True,
+            expected="0 <= spread < 1",
+        ),
+        "noise_std_counts": Key(
+            "range",
+            [0.5, 1.85],
+            "noise std (counts): one value, or [lo, hi] drawn per taxel (seeded)",
+        ),
+        "taxel_gain": Key(
+            "path",
+            None,
+            "CSV (id, gain) of measured taxel gains, e.g. fruit "
+            "calibrate's gains.csv (with gain_spread = 0)",
+        ),
         # the electrostatic crossing (fruitcli.electrostatics.crossing, `fruit skin`)
-        "model": Key("str", "gaussian", "gaussian (the assumed footprint, gap decay and strain "
-                                        "gain above) or electrostatic (the crossing's field)",
-                     choices=SKIN_MODELS),
-        "permittivity": Key("num", 2.8, "relative permittivity of the silicone (Ecoflex: about "
-                                        "2.8, as quoted for platinum-cure silicones at low "
-                                        "frequency, 2.5-3)", min=1.0,
-                            expected="a relative permittivity >= 1 (Ecoflex: about 2.8)"),
-        "yarn_radius_mm": Key("num", None, "radius of the conductive yarn (mm; default "
-                                           "[tracks].track_radius_mm)", **POSITIVE,
-                              expected="> 0 (mm)"),
-        "insulation_mm": Key("num", 0.1, "insulating layer between Tx and Rx where they cross "
-                                         "(mm)", **POSITIVE,
-                             expected="> 0 (mm; the yarns must not touch)"),
-        "gaps_mm": Key("list", [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],
-                       "object gaps of the crossing's table (mm, increasing from 0: contact)",
-                       valid=_gap_table,
-                       expected="at least two gaps in mm, increasing and starting at 0 "
-                                "(contact)"),
+        "model": Key(
+            "str",
+            "gaussian",
+            "gaussian (the assumed footprint, gap decay and strain "
+            "gain above) or electrostatic (the crossing's field)",
+            choices=SKIN_MODELS,
+        ),
+        "permittivity": Key(
+            "num",
+            2.8,
+            "relative permittivity of the silicone (Ecoflex: about "
+            "2.8, as quoted for platinum-cure silicones at low "
+            "frequency, 2.5-3)",
+            min=1.0,
+            expected="a relative permittivity >= 1 (Ecoflex: about 2.8)",
+        ),
+        "yarn_radius_mm": Key(
+            "num",
+            None,
+            "radius of the conductive yarn (mm; default [tracks].track_radius_mm)",
+            **POSITIVE,
+            expected="> 0 (mm)",
+        ),
+        "insulation_mm": Key(
+            "num",
+            0.1,
+            "insulating layer between Tx and Rx where they cross (mm)",
+            **POSITIVE,
+            expected="> 0 (mm; the yarns must not touch)",
+        ),
+        "gaps_mm": Key(
+            "list",
+            [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],
+            "object gaps of the crossing's table (mm, increasing from 0: contact)",
+            valid=_gap_table,
+            expected="at least two gaps in mm, increasing and starting at 0 (contact)",
+        ),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
-        "model_origin_mm": Key("vec3", None, "where the model's origin is, printer coordinates "
-                               "(mm; required with [printer])"),
+        "model_origin_mm": Key(
+            "vec3",
+            None,
+            "where the model's origin is, printer coordinates (mm; required with [printer])",
+        ),
         "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)"),
-        "safe_height_mm": Key("num", 20.0, "tip height above the model's highest point "
-                              "between samples (mm)", **POSITIVE,
-                              expected="> 0 (mm above the model's highest point; lower "
-                                       "would drag the tip through the model)"),
-        "step_mm": Key("num", 0.1, "descent step (mm, 0 < step <= 1)", **POSITIVE, max=1.0,
-                       expected="0 < step <= 1 mm"),
-        "feed_mm_min": Key("num", 600.0, "feed rate of every move (mm/min)", **POSITIVE,
-                           expected="> 0 mm/min"),
-        "max_press_mm": Key("num", 1.5, "deepest press below the expected surface before the "
-                            "sample is an error (mm)", **POSITIVE,
-                            expected="> 0 mm"),
-        "bed_mm": Key("box", [0.0, 0.0, 0.0, 220.0, 220.0, 250.0], "reachable volume "
-                      "[xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)",
-                      valid=_nonempty_box,
-                      expected="[xmin, ymin, zmin, xmax, ymax, zmax] with min < max"),
+        "safe_height_mm": Key(
+            "num",
+            20.0,
+            "tip height above the model's highest point between samples (mm)",
+            **POSITIVE,
+            expected="> 0 (mm above the model's highest point; lower "
+            "would drag the tip through the model)",
+        ),
+        "step_mm": Key(
+            "num",
+            0.1,
+            "descent step (mm, 0 < step <= 1)",
+            **POSITIVE,
+            max=1.0,
+            expected="0 < step <= 1 mm",
+        ),
+        "feed_mm_min": Key(
+            "num", 600.0, "feed rate of every move (mm/min)", **POSITIVE, expected="> 0 mm/min"
+        ),
+        "max_press_mm": Key(
+            "num",
+            1.5,
+            "deepest press below the expected surface before the sample is an error (mm)",
+            **POSITIVE,
+            expected="> 0 mm",
+        ),
+        "bed_mm": Key(
+            "box",
+            [0.0, 0.0, 0.0, 220.0, 220.0, 250.0],
+            "reachable volume [xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)",
+            valid=_nonempty_box,
+            expected="[xmin, ymin, zmin, xmax, ymax, zmax] with min < max",
+        ),
         "baud": Key("int", 115200, "the printer's serial baud rate", **POSITIVE),
         "home": Key("bool", False, "send G28 (home all axes) first"),
-        "timeout_s": Key("num", 30.0, "longest wait for an 'ok' (s; busy lines extend it)",
-                         **POSITIVE, expected="> 0 s"),
+        "timeout_s": Key(
+            "num",
+            30.0,
+            "longest wait for an 'ok' (s; busy lines extend it)",
+            **POSITIVE,
+            expected="> 0 s",
+        ),
     },
     "sensitivity": {
-        "noise_frames": Key("int", 300, "frames at rest for the per-taxel noise std", min=2,
-                             expected="frames >= 2 (a standard deviation needs two)"),
-        "animation_frames": Key("int", 60, "frames over one animation cycle", min=1,
-                                 expected="frames >= 1"),
+        "noise_frames": Key(
+            "int",
+            300,
+            "frames at rest for the per-taxel noise std",
+            min=2,
+            expected="frames >= 2 (a standard deviation needs two)",
+        ),
+        "animation_frames": Key(
+            "int", 60, "frames over one animation cycle", min=1, expected="frames >= 1"
+        ),
     },
     "report": {
         "paper_rows": Key("list", [], "paper Table I rows to show next to ours"),
@@ -386,14 +592,23 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
     },
     "fixed": {
         "box_mm": Key("box", None, "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)", required=True),
-        "displacement_mm": Key("vec3", None, "the clamp moved by [dx, dy, dz] (mm), ramped "
-                               "with the load steps (default: held at rest)"),
+        "displacement_mm": Key(
+            "vec3",
+            None,
+            "the clamp moved by [dx, dy, dz] (mm), ramped "
+            "with the load steps (default: held at rest)",
+        ),
     },
     "jig": {
         "region_box_mm": Key("box", None, "nodes pulled by the springs (mm)", required=True),
         "rotate_deg": Key("num", 0.0, "rotation of the target about `axis` (degrees)"),
-        "axis": Key("vec3", [0.0, 0.0, 1.0], "rotation axis", valid=_nonzero_vector,
-                    expected="a non-zero vector"),
+        "axis": Key(
+            "vec3",
+            [0.0, 0.0, 1.0],
+            "rotation axis",
+            valid=_nonzero_vector,
+            expected="a non-zero vector",
+        ),
         "pivot_mm": Key("vec3", [0.0, 0.0, 0.0], "point on the rotation axis (mm)"),
         "translate_mm": Key("vec3", [0.0, 0.0, 0.0], "translation after the rotation (mm)"),
         "stiffness_n_per_mm": Key("num", 10.0, "spring stiffness per node (N/mm)", **POSITIVE),
@@ -402,23 +617,41 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
         "label": Key("str", None, "row label, e.g. 'Rest, small'", required=True),
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
-        "reference_length_mm": Key("num", None, "for % errors (default: largest truth span)",
-                                   **POSITIVE),
-        "register": Key("str", "none", "none, translation (the paper's protocol), rigid or "
-                                       "similarity: measurement mapped onto the truth first",
-                        choices=REGISTER_METHODS),
+        "reference_length_mm": Key(
+            "num", None, "for % errors (default: largest truth span)", **POSITIVE
+        ),
+        "register": Key(
+            "str",
+            "none",
+            "none, translation (the paper's protocol), rigid or "
+            "similarity: measurement mapped onto the truth first",
+            choices=REGISTER_METHODS,
+        ),
     },
 }
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
-SUBTABLES = {"ellipsoid": {"center_mm": Key("vec3", required=True),
-                          "radii_mm": Key("vec3", required=True, **POSITIVE,
-                                          expected="positive radii")}}
+SUBTABLES = {
+    "ellipsoid": {
+        "center_mm": Key("vec3", required=True),
+        "radii_mm": Key("vec3", required=True, **POSITIVE, expected="positive radii"),
+    }
+}
 ITEM_LABELS = {"geometry.chamber": "name", "evaluate": "label"}
 """Arrays whose items' value errors name them by this key ('c1') rather than by number."""
 
-_KIND_TYPES = {"str": "str", "path": "Path", "num": "float", "int": "int", "bool": "bool",
-               "vec2": "list[float]", "vec3": "list[float]", "box": "list[float]",
-               "list": "list", "table": "dict", "range": "float | list[float]"}
+_KIND_TYPES = {
+    "str": "str",
+    "path": "Path",
+    "num": "float",
+    "int": "int",
+    "bool": "bool",
+    "vec2": "list[float]",
+    "vec3": "list[float]",
+    "box": "list[float]",
+    "list": "list",
+    "table": "dict",
+    "range": "float | list[float]",
+}
 
 
 class Record:
@@ -435,16 +668,25 @@ class Record:
 def _record_type(name: str, spec: dict[str, Key], nested: dict[str, str]) -> type:
     """A frozen dataclass with one field per key of `spec`, defaulting as the schema
     says; `nested`: keys holding typed records (annotation given)."""
+
     def default(value):
         if isinstance(value, (list, dict)):
             return field(default_factory=lambda: _copy_plain(value))
         return field(default=value)
 
-    cls = make_dataclass(name, [(key, nested.get(key) or _KIND_TYPES[k.kind]
-                                 + (" | None" if k.default is None else ""),
-                                 default(() if key in nested and k.default == [] else k.default))
-                                for key, k in spec.items()],
-                         bases=(Record,), frozen=True)
+    cls = make_dataclass(
+        name,
+        [
+            (
+                key,
+                nested.get(key) or _KIND_TYPES[k.kind] + (" | None" if k.default is None else ""),
+                default(() if key in nested and k.default == [] else k.default),
+            )
+            for key, k in spec.items()
+        ],
+        bases=(Record,),
+        frozen=True,
+    )
     cls.__module__, cls.__qualname__ = __name__, name
     cls.__doc__ = f"Typed scene table ({', '.join(spec) or 'no keys'})."
     globals()[name] = cls  # importable and picklable as fruitcli.scene.<name>
@@ -463,17 +705,27 @@ def _camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.replace(".", "_").split("_"))
 
 
-SUBTABLE_TYPES = {key: _record_type(f"{_camel(key)}Table", spec, {})
-                  for key, spec in SUBTABLES.items()}
-ITEM_TYPES = {name: _record_type(f"{_camel(name.split('.')[-1])}Table", spec,
-                                 {k: f"{SUBTABLE_TYPES[k].__name__} | None"
-                                  for k in spec if k in SUBTABLES})
-              for name, spec in ARRAY_SCHEMA.items()}
+SUBTABLE_TYPES = {
+    key: _record_type(f"{_camel(key)}Table", spec, {}) for key, spec in SUBTABLES.items()
+}
+ITEM_TYPES = {
+    name: _record_type(
+        f"{_camel(name.split('.')[-1])}Table",
+        spec,
+        {k: f"{SUBTABLE_TYPES[k].__name__} | None" for k in spec if k in SUBTABLES},
+    )
+    for name, spec in ARRAY_SCHEMA.items()
+}
 """The typed record of one item of each array of tables ([[fixed]], [[geometry.chamber]])."""
-SECTION_TYPES = {name: _record_type(f"{_camel(name)}Section", spec,
-                                    {"chamber": "tuple[ChamberTable, ...]"}
-                                    if name == "geometry" else {})
-                 for name, spec in SCHEMA.items() if name not in ARRAY_SECTIONS}
+SECTION_TYPES = {
+    name: _record_type(
+        f"{_camel(name)}Section",
+        spec,
+        {"chamber": "tuple[ChamberTable, ...]"} if name == "geometry" else {},
+    )
+    for name, spec in SCHEMA.items()
+    if name not in ARRAY_SECTIONS
+}
 """The typed record of each table section ([fem] -> FemSection)."""
 
 
@@ -521,8 +773,9 @@ class Scene:
         """A section's values as plain data, as the TOML gave them with defaults filled
         in: a dict for a table, a list of dicts for an array of tables (stage hashes)."""
         if section not in self.sections:
-            raise SceneError(f"{self.path.name}: unknown section [{section}]"
-                             f"{_closest(section, self.sections)}")
+            raise SceneError(
+                f"{self.path.name}: unknown section [{section}]{_closest(section, self.sections)}"
+            )
         return _plain(self.sections[section])
 
     def with_values(self, changes: dict[str, Any]) -> Scene:
@@ -534,18 +787,20 @@ class Scene:
         for dotted, value in changes.items():
             section, _, key = dotted.partition(".")
             if section not in SECTION_TYPES:
-                raise SceneError(f"{where}: cannot set [{section}]"
-                                 f"{_closest(section, SECTION_TYPES)}")
+                raise SceneError(
+                    f"{where}: cannot set [{section}]{_closest(section, SECTION_TYPES)}"
+                )
             if not key:
                 if not isinstance(value, SECTION_TYPES[section]):
-                    raise SceneError(f"{where}: [{section}]: expected a "
-                                     f"{SECTION_TYPES[section].__name__}, got {value!r}")
+                    raise SceneError(
+                        f"{where}: [{section}]: expected a "
+                        f"{SECTION_TYPES[section].__name__}, got {value!r}"
+                    )
                 sections[section] = value
                 continue
             spec = SCHEMA[section]
             if key not in spec or key == "chamber":
-                raise SceneError(f"{where}: [{section}]: unknown key '{key}'"
-                                 f"{_closest(key, spec)}")
+                raise SceneError(f"{where}: [{section}]: unknown key '{key}'{_closest(key, spec)}")
             _check_value(f"{where}: [{section}]", key, spec[key], value)
             sections[section] = replace(sections[section], **{key: value})
         scene = replace(self, sections=sections)
@@ -614,11 +869,20 @@ def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_e
             fail("a finite number")
         return float(value)
     if k == "range":
-        if isinstance(value, NUM) and not isinstance(value, bool) and math.isfinite(value) \
-                and value >= 0:
+        if (
+            isinstance(value, NUM)
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and value >= 0
+        ):
             return float(value)
-        ok = isinstance(value, list) and len(value) == 2 and all(
-            isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        ok = (
+            isinstance(value, list)
+            and len(value) == 2
+            and all(
+                isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v) for v in value
+            )
+        )
         if not ok or not 0 <= value[0] <= value[1]:
             fail("a number >= 0 or [lo, hi] with 0 <= lo <= hi")
         return [float(v) for v in value]
@@ -656,8 +920,12 @@ def _check_value(where: str, key: str, spec: Key, value: Any) -> None:
     if spec.min is not None or spec.max is not None:
         if isinstance(value, dict):
             for entry, v in value.items():
-                if isinstance(v, bool) or not isinstance(v, NUM) or not math.isfinite(v) \
-                        or not spec.in_range(v):
+                if (
+                    isinstance(v, bool)
+                    or not isinstance(v, NUM)
+                    or not math.isfinite(v)
+                    or not spec.in_range(v)
+                ):
                     fail(f"{key}.{entry}", v)
         elif isinstance(value, list):
             if not all(spec.in_range(v) for v in value):
@@ -685,8 +953,9 @@ def _validate_table(where, table, spec, scene_path, must_exist):
             raise SceneError(f"{where}: unknown key '{key}'{_closest(key, spec)}")
         if key in SUBTABLES:
             sub = _check(where, key, spec[key], value, scene_path, must_exist)
-            out[key] = _validate_table(f"{where}.{key}", sub, SUBTABLES[key], scene_path,
-                                       must_exist)
+            out[key] = _validate_table(
+                f"{where}.{key}", sub, SUBTABLES[key], scene_path, must_exist
+            )
             for sk, sspec in SUBTABLES[key].items():
                 if sspec.required and sk not in out[key]:
                     raise SceneError(f"{where}.{key}: missing key '{sk}'")
@@ -705,8 +974,7 @@ def _items(where0: str, array: str, items: list, scene_path: Path, must_exist: b
     spec, label = ARRAY_SCHEMA[array], ITEM_LABELS.get(array)
     records = []
     for n, item in enumerate(items):
-        out = _validate_table(f"{where0}: [[{array}]] #{n + 1}", item, spec, scene_path,
-                              must_exist)
+        out = _validate_table(f"{where0}: [[{array}]] #{n + 1}", item, spec, scene_path, must_exist)
         named = f"'{out[label]}'" if label else f"#{n + 1}"
         _check_values(f"{where0}: [[{array}]] {named}", out, spec)
         for key in SUBTABLES:
@@ -742,8 +1010,12 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
         chambers = table.pop("chamber", []) if section == "geometry" else None
         # the artist mesh may be generated by the make-artist stage: checked below
         values = _validate_table(where, table, spec, path, must_exist and section != "geometry")
-        if section == "geometry" and values["solid"] is not None and must_exist \
-                and not values["solid"].exists():
+        if (
+            section == "geometry"
+            and values["solid"] is not None
+            and must_exist
+            and not values["solid"].exists()
+        ):
             raise SceneError(f"{where}.solid: file not found: {table['solid']}")
         _check_values(where, values, spec)
         if section == "geometry":
@@ -753,8 +1025,11 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
                 raise SceneError(f"{where}.chamber: expected [[geometry.chamber]] tables")
             values["chamber"] = _items(where0, "geometry.chamber", chambers, path, must_exist)
         sections[section] = SECTION_TYPES[section](**values)
-    scene = Scene(path=path, sections=sections,
-                  declared=frozenset(s for s, v in raw.items() if v not in ([], {})))
+    scene = Scene(
+        path=path,
+        sections=sections,
+        declared=frozenset(s for s, v in raw.items() if v not in ([], {})),
+    )
     _cross_checks(scene, where0, must_exist)
     return scene
 
@@ -764,14 +1039,17 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     labels = [ev.label for ev in scene.evaluate]
     twice = sorted({label for label in labels if labels.count(label) > 1})
     if twice:
-        raise SceneError(f"{where}: [[evaluate]].label: {twice[0]!r} is given twice; expected "
-                         "one label per row (it names the row's folder and table line)")
+        raise SceneError(
+            f"{where}: [[evaluate]].label: {twice[0]!r} is given twice; expected "
+            "one label per row (it names the row's folder and table line)"
+        )
     geo = scene.geometry
     given = {"artist": geo.artist, "solid": geo.solid, "pad_size_mm": geo.pad_size_mm}
     sources = [k for k, v in given.items() if v is not None]
     if len(sources) > 1:
-        raise SceneError(f"{where}: [geometry] give one of artist, solid, pad_size_mm, "
-                         f"not {sources}")
+        raise SceneError(
+            f"{where}: [geometry] give one of artist, solid, pad_size_mm, not {sources}"
+        )
     if geo.artist is not None and geo.generate_artist:
         pass  # the make-artist stage writes it
     elif geo.artist is not None and must_exist and not Path(geo.artist).exists():
@@ -781,7 +1059,8 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         if (ch.ellipsoid is None) == (ch.surface is None):
             raise SceneError(
                 f"{where}: [[geometry.chamber]] #{n + 1} '{ch.name}': give exactly one of "
-                "ellipsoid or surface")
+                "ellipsoid or surface"
+            )
         if ch.name in names:
             raise SceneError(f"{where}: [[geometry.chamber]]: duplicate name '{ch.name}'")
         names.append(ch.name)
@@ -791,51 +1070,74 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
         raise SceneError(f"{where}: {exc}") from None
     element = scene.fem.element
     if material.model == "corotational" and element != "p1":
-        raise SceneError(f"{where}: [material].model = \"corotational\" is the paper's SOFA "
-                         f"model on linear tets: set [fem].element = \"p1\" (got "
-                         f"{element!r}), or use model = \"neo-hookean\"")
+        raise SceneError(
+            f'{where}: [material].model = "corotational" is the paper\'s SOFA '
+            f'model on linear tets: set [fem].element = "p1" (got '
+            f'{element!r}), or use model = "neo-hookean"'
+        )
     act = scene.actuation
     lengths = set()
-    for key, table in (("pressure_kpa", act.pressure_kpa),
-                       ("volume_growth_mm3", act.volume_growth_mm3)):
+    for key, table in (
+        ("pressure_kpa", act.pressure_kpa),
+        ("volume_growth_mm3", act.volume_growth_mm3),
+    ):
         if table is None:
             continue
         for cname, values in table.items():
             if cname not in names:
                 hint = _closest(cname, names) if names else " (the scene has no chambers)"
                 raise SceneError(f"{where}: [actuation].{key}.{cname}: no such chamber{hint}")
-            ok = isinstance(values, list) and values and all(
-                isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v)
-                for v in values)
+            ok = (
+                isinstance(values, list)
+                and values
+                and all(
+                    isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in values
+                )
+            )
             if not ok:
-                raise SceneError(f"{where}: [actuation].{key}.{cname}: expected a non-empty "
-                                 "list of numbers, one per state")
+                raise SceneError(
+                    f"{where}: [actuation].{key}.{cname}: expected a non-empty "
+                    "list of numbers, one per state"
+                )
             lengths.add(len(values))
     if len(lengths) > 1:
-        raise SceneError(f"{where}: [actuation]: every chamber needs the same number of states, "
-                         f"got {sorted(lengths)}")
+        raise SceneError(
+            f"{where}: [actuation]: every chamber needs the same number of states, "
+            f"got {sorted(lengths)}"
+        )
     if act.pressure_kpa and act.volume_growth_mm3:
         both = set(act.pressure_kpa) & set(act.volume_growth_mm3)
         if both:
-            raise SceneError(f"{where}: [actuation]: chamber {sorted(both)[0]} is controlled by "
-                             "both pressure_kpa and volume_growth_mm3")
+            raise SceneError(
+                f"{where}: [actuation]: chamber {sorted(both)[0]} is controlled by "
+                "both pressure_kpa and volume_growth_mm3"
+            )
     skin = scene.skin
     if skin.taxel_gain is not None and skin.gain_spread > 0:
-        raise SceneError(f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
-                         f"are measured, not drawn), got {skin.gain_spread}")
+        raise SceneError(
+            f"{where}: [skin].gain_spread: expected 0 with taxel_gain (the gains "
+            f"are measured, not drawn), got {skin.gain_spread}"
+        )
     if scene.has("bench"):
         bench = scene.bench
         # the paper's indenters (fruitcli.sensing.skin.forward) and those [skin] gives a width
         known = tuple(dict.fromkeys(["small", "medium", *(skin.footprint_sigma_mm or {})]))
         if not bench.indenters or any(i not in known for i in bench.indenters):
-            raise SceneError(f"{where}: [bench].indenters: expected a non-empty list of "
-                             f"{', '.join(known)}, got {bench.indenters}")
+            raise SceneError(
+                f"{where}: [bench].indenters: expected a non-empty list of "
+                f"{', '.join(known)}, got {bench.indenters}"
+            )
     if scene.has("printer") and scene.printer.model_origin_mm is None:
-        raise SceneError(f"{where}: [printer]: missing key 'model_origin_mm' (where the "
-                         "model's origin is, printer coordinates, mm)")
+        raise SceneError(
+            f"{where}: [printer]: missing key 'model_origin_mm' (where the "
+            "model's origin is, printer coordinates, mm)"
+        )
     if scene.detection.divide_by_gain and skin.taxel_gain is None:
-        raise SceneError(f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
-                         "taxel_gain = \"gains.csv\" (written by fruit calibrate)")
+        raise SceneError(
+            f"{where}: [detection].divide_by_gain: needs the gains, [skin]."
+            'taxel_gain = "gains.csv" (written by fruit calibrate)'
+        )
 
 
 def load_skin_table(path: str | Path) -> Any:
@@ -849,8 +1151,10 @@ def load_skin_table(path: str | Path) -> Any:
     skin = parse_scene(text, path)
     other = sorted(skin.declared - {"skin"})
     if "skin" not in skin.declared or other:
-        raise SceneError(f"{path.name}: expected only a [skin] table"
-                         + (f", found [{'], ['.join(other)}]" if other else ", found none"))
+        raise SceneError(
+            f"{path.name}: expected only a [skin] table"
+            + (f", found [{'], ['.join(other)}]" if other else ", found none")
+        )
     return skin.skin
 
 
@@ -884,6 +1188,8 @@ def load_scene(path: str | Path, must_exist: bool = True) -> Scene:
         raise SceneError(f"{path}: cannot read scene: {exc}") from None
     scene = parse_scene(text, path.resolve(), must_exist=must_exist)
     if not scene.declared:
-        raise SceneError(f"{path.name}: the scene declares no section; expected at least "
-                         "[scene] and what to run ([geometry], [[evaluate]], ...)")
+        raise SceneError(
+            f"{path.name}: the scene declares no section; expected at least "
+            "[scene] and what to run ([geometry], [[evaluate]], ...)"
+        )
     return scene

@@ -19,8 +19,9 @@ import numpy as np
 from fruitcli.errors import FruitError
 
 
-def read_table(path: str | Path, required: list[str], numeric: list[str] | None = None,
-               error=FruitError) -> dict[str, np.ndarray]:
+def read_table(
+    path: str | Path, required: list[str], numeric: list[str] | None = None, error=FruitError
+) -> dict[str, np.ndarray]:
     """Read a CSV into columns. `required` columns must exist; `numeric` ones (default:
     all required) must be finite numbers. Returns {column: (n,) array} (str for others)."""
     path = Path(path)
@@ -31,20 +32,27 @@ def read_table(path: str | Path, required: list[str], numeric: list[str] | None 
         text = path.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"{path}: cannot read as text: {exc}") from None
-    lines = [(n + 1, line) for n, line in enumerate(text.splitlines())
-             if line.strip() and not line.lstrip().startswith("#")]
+    lines = [
+        (n + 1, line)
+        for n, line in enumerate(text.splitlines())
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
     if not lines:
         raise error(f"{path}: empty file (expected a header with {', '.join(required)})")
     header_line, header = lines[0][0], next(csv.reader([lines[0][1]]))
     header = [h.strip() for h in header]
     repeated = sorted({h for h in header if header.count(h) > 1})
     if repeated:
-        raise error(f"{path}: row {header_line}: column(s) {', '.join(repeated)} appear more "
-                    "than once in the header; expected each column once")
+        raise error(
+            f"{path}: row {header_line}: column(s) {', '.join(repeated)} appear more "
+            "than once in the header; expected each column once"
+        )
     missing = [c for c in required if c not in header]
     if missing:
-        raise error(f"{path}: row {header_line}: missing column(s) {', '.join(missing)} "
-                    f"(found {', '.join(header)})")
+        raise error(
+            f"{path}: row {header_line}: missing column(s) {', '.join(missing)} "
+            f"(found {', '.join(header)})"
+        )
     if len(lines) == 1:
         raise error(f"{path}: no data rows after the header")
     cols: dict[str, list] = {h: [] for h in header}
@@ -58,15 +66,18 @@ def read_table(path: str | Path, required: list[str], numeric: list[str] | None 
                 try:
                     x = float(value)
                 except ValueError:
-                    raise error(f"{path}: row {lineno}: column {h}: not a number: "
-                                f"{value!r}") from None
+                    raise error(
+                        f"{path}: row {lineno}: column {h}: not a number: {value!r}"
+                    ) from None
                 if not math.isfinite(x):
                     raise error(f"{path}: row {lineno}: column {h}: not finite: {value!r}")
                 cols[h].append(x)
             else:
                 cols[h].append(value)
-    return {h: (np.asarray(v, dtype=float) if h in numeric else np.asarray(v, dtype=object))
-            for h, v in cols.items()}
+    return {
+        h: (np.asarray(v, dtype=float) if h in numeric else np.asarray(v, dtype=object))
+        for h, v in cols.items()
+    }
 
 
 def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint: str = "") -> dict:
@@ -79,9 +90,10 @@ def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint:
     try:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
-        why = ("it holds Python objects, not plain arrays" if "allow_pickle" in str(exc)
-               else str(exc))
+    except Exception as exc:
+        why = (
+            "it holds Python objects, not plain arrays" if "allow_pickle" in str(exc) else str(exc)
+        )
         raise error(f"{path}: not a readable {what}: {why}") from None
 
 
@@ -95,8 +107,9 @@ def check_zip(path: str | Path, what: str, error=FruitError) -> None:
     except (OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as exc:
         raise error(f"{path}: not a readable {what}: {exc}") from None
     if bad is not None:
-        raise error(f"{path}: not a readable {what}: member {bad} fails its CRC check (the "
-                    "file is damaged)")
+        raise error(
+            f"{path}: not a readable {what}: member {bad} fails its CRC check (the file is damaged)"
+        )
 
 
 TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm"]
@@ -125,19 +138,25 @@ def read_taxels(path: str | os.PathLike, error=FruitError) -> Taxels:
     for name in ("id", "i", "j"):
         bad = np.nonzero(cols[name] != np.round(cols[name]))[0]
         if bad.size:
-            raise error(f"{path}: data row {bad[0] + 1}: column {name}: expected an "
-                             f"integer, got {cols[name][bad[0]]}")
+            raise error(
+                f"{path}: data row {bad[0] + 1}: column {name}: expected an "
+                f"integer, got {cols[name][bad[0]]}"
+            )
     i, j = cols["i"].astype(np.int64), cols["j"].astype(np.int64)
     bad = np.nonzero((i < 0) | (j < 0))[0]
     if bad.size:
-        raise error(f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
-                         f"got ({i[bad[0]]}, {j[bad[0]]})")
+        raise error(
+            f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
+            f"got ({i[bad[0]]}, {j[bad[0]]})"
+        )
     ids = cols["id"].astype(np.int64)
     _, first = np.unique(ids, return_index=True)
     if first.size < ids.size:
         k = int(np.setdiff1d(np.arange(ids.size), first)[0])
-        raise error(f"{path}: data row {k + 1}: duplicate taxel id {ids[k]} (also on "
-                         f"data row {int(np.nonzero(ids == ids[k])[0][0]) + 1})")
+        raise error(
+            f"{path}: data row {k + 1}: duplicate taxel id {ids[k]} (also on "
+            f"data row {int(np.nonzero(ids == ids[k])[0][0]) + 1})"
+        )
     key = i * (j.max() + 1) + j
     _, first, counts = np.unique(key, return_index=True, return_counts=True)
     if np.any(counts > 1):

@@ -20,8 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-TIME_KEY = re.compile(r"(^|_)(s|ms|seconds|time|times|times_s|cpu_times_s|elapsed|when|date|"
-                      r"hash|sha256|code|commit|machine|version|created)$|_s$|_ms$|^times|^cpu")
+TIME_KEY = re.compile(
+    r"(^|_)(s|ms|seconds|time|times|times_s|cpu_times_s|elapsed|when|date|"
+    r"hash|sha256|code|commit|machine|version|created)$|_s$|_ms$|^times|^cpu"
+)
 SKIP_JSON_FILES = {"manifest.json"}  # hashes of inputs and code: differ whenever code does
 
 

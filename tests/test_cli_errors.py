@@ -20,15 +20,29 @@ def last_line(res):
 
 def test_unwritable_output_is_one_line(tmp_path):
     (tmp_path / "a_file").write_text("x")
-    res = run("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured",
-              PAPER / "paper_rest_measured.csv", "--out", tmp_path / "a_file" / "sub")
+    res = run(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "a_file" / "sub",
+    )
     assert res.exit_code == 1 and last_line(res).startswith(f"Error: {tmp_path / 'a_file'}")
     assert "Traceback" not in res.output
 
 
 def test_outputs_have_the_usual_permissions(tmp_path):
-    res = run("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured",
-              PAPER / "paper_rest_measured.csv", "--out", tmp_path / "o")
+    res = run(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "o",
+    )
     assert res.exit_code == 0, res.output
     umask = os.umask(0o022)
     os.umask(umask)
@@ -45,8 +59,7 @@ def test_demo_checks_every_scene_name_before_running(tmp_path):
 
 
 def test_runtime_study_refuses_a_scene_without_fem(tmp_path):
-    res = run("study", "runtime", ROOT / "pipelines" / "paper-table.toml", "--out",
-              tmp_path / "o")
+    res = run("study", "runtime", ROOT / "pipelines" / "paper-table.toml", "--out", tmp_path / "o")
     assert res.exit_code == 2 and "the scene has no FEM to study" in res.output
     assert not (tmp_path / "o").exists()
     assert run("study", "stability", "--jobs", "0").exit_code == 2
@@ -59,13 +72,13 @@ def test_make_tracks_garbage_and_nan_origin(tmp_path):
     assert res.exit_code == 1
     # trimesh versions differ: some raise on these bytes, others read no triangle from them:
     # either way one line naming the file
-    assert last_line(res) in (f"Error: {garbage}: cannot read as a STL mesh; is it a triangle "
-                              "mesh file?",
-                              f"Error: {garbage}: no triangles found; expected a triangle mesh")
+    assert last_line(res) in (
+        f"Error: {garbage}: cannot read as a STL mesh; is it a triangle mesh file?",
+        f"Error: {garbage}: no triangles found; expected a triangle mesh",
+    )
     res = run("make-tracks", garbage, "--out", tmp_path / "o", "--origin-mm", "nan", "0")
     assert res.exit_code == 1
-    assert last_line(res) == "Error: --origin-mm: expected two finite numbers (mm), got " \
-        "[nan, 0.0]"
+    assert last_line(res) == "Error: --origin-mm: expected two finite numbers (mm), got [nan, 0.0]"
     assert not (tmp_path / "o").exists()
 
 
@@ -86,5 +99,6 @@ def test_mesh_far_too_large_for_its_unit_is_refused(tmp_path):
     trimesh.creation.icosphere(2, 40.0).export(art)
     res = run("make-tracks", art, "--out", tmp_path / "o", "--unit", "m")
     assert res.exit_code == 1
-    assert last_line(res) == (f"Error: {art}: the mesh is 8e+04 mm across in m, more than "
-                              "5000 mm: is that its unit?")
+    assert last_line(res) == (
+        f"Error: {art}: the mesh is 8e+04 mm across in m, more than 5000 mm: is that its unit?"
+    )

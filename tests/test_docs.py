@@ -39,8 +39,12 @@ def test_cli_page_has_every_command_and_option():
     page = generate.cli_page()
     for name in COMMANDS:
         assert f"\n## fruit {name}\n" in page
-    for sub in ("fruit scenes copy", "fruit study runtime", "fruit study stability",
-                "fruit study bench"):
+    for sub in (
+        "fruit scenes copy",
+        "fruit study runtime",
+        "fruit study stability",
+        "fruit study bench",
+    ):
         assert f"\n## {sub}\n" in page
     run_section = page.split("\n## fruit run\n")[1].split("\n## ")[0]
     for option in ("--out DIRECTORY", "--dry-run", "--until TEXT", "--force"):
@@ -69,39 +73,74 @@ def test_scene_page_has_every_key_with_its_unit_and_default():
 
 
 def test_bench_lines_split_into_template_and_numbers():
-    assert run_all.split_line("p1 state: median 7.6 ms (runs 7.4-8.1), 1,520,000 frames/s") \
-        == ("p1 state: median {} ms (runs {}-{}), {} frames/s", [7.6, 7.4, 8.1, 1520000.0])
-    assert run_all.split_line("bench_fem p2 4x4 8N1 100k {x}") == \
-        ("bench_fem p2 4x4 8N1 100k {{x}}", [])
+    assert run_all.split_line("p1 state: median 7.6 ms (runs 7.4-8.1), 1,520,000 frames/s") == (
+        "p1 state: median {} ms (runs {}-{}), {} frames/s",
+        [7.6, 7.4, 8.1, 1520000.0],
+    )
+    assert run_all.split_line("bench_fem p2 4x4 8N1 100k {x}") == (
+        "bench_fem p2 4x4 8N1 100k {{x}}",
+        [],
+    )
 
 
 def test_bench_figures_are_min_median_max_over_runs():
-    outputs = ["a: 1.0 ms, 5 MB\nb: 2\nb: 7\n", "a: 3.0 ms, 5 MB\nb: 4\nb: 9\n",
-               "a: 8.0 ms, 5 MB\nb: 3\n"]
+    outputs = [
+        "a: 1.0 ms, 5 MB\nb: 2\nb: 7\n",
+        "a: 3.0 ms, 5 MB\nb: 4\nb: 9\n",
+        "a: 8.0 ms, 5 MB\nb: 3\n",
+    ]
     figures = run_all.figures(outputs)
     assert [(f["line"], f["occurrence"], f["runs"]) for f in figures] == [
-        ("a: {} ms, {} MB", 0, 3), ("b: {}", 0, 3), ("b: {}", 1, 2)]
+        ("a: {} ms, {} MB", 0, 3),
+        ("b: {}", 0, 3),
+        ("b: {}", 1, 2),
+    ]
     a_ms = figures[0]["numbers"][0]
     assert (a_ms["min"], a_ms["median"], a_ms["max"]) == (1.0, 3.0, 8.0)
     assert figures[2]["numbers"][0]["median"] == 8.0
-    result = {"date": "2026-01-01T00:00:00+00:00", "commit": "abc", "cores": 2,
-              "processor": "CPU <x>", "runs": 3, "load_average_before": [1.0, 0.5, 0.25],
-              "load_average_after": [2.0, 1.0, 0.5],
-              "scripts": [{"name": "bench_x", "exit_codes": [0, 0, 0], "figures": figures,
-                           "wall_s": {"min": 1.0, "median": 2.0, "max": 4.0}}]}
+    result = {
+        "date": "2026-01-01T00:00:00+00:00",
+        "commit": "abc",
+        "cores": 2,
+        "processor": "CPU <x>",
+        "runs": 3,
+        "load_average_before": [1.0, 0.5, 0.25],
+        "load_average_after": [2.0, 1.0, 0.5],
+        "scripts": [
+            {
+                "name": "bench_x",
+                "exit_codes": [0, 0, 0],
+                "figures": figures,
+                "wall_s": {"min": 1.0, "median": 2.0, "max": 4.0},
+            }
+        ],
+    }
     page = generate.performance_page(result, "build/bench/bench.json")
     assert "a: 3 ms, 5 MB\nb: 3\nb: 8\n" in page
     assert "| a: \\# ms, \\# MB | 1 | 1 | 3 | 8 |" in page
-    assert "| processor | CPU \\<x\\> |" in page and "| load average before (1, 5, 15 min) | " \
-        "1.00, 0.50, 0.25 |" in page
+    assert (
+        "| processor | CPU \\<x\\> |" in page
+        and "| load average before (1, 5, 15 min) | 1.00, 0.50, 0.25 |" in page
+    )
     assert "wall time 2 s (min 1, max 4)" in page
 
 
 def test_run_all_writes_a_result_file(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    res = subprocess.run([sys.executable, str(RUN_ALL), "--only",
-                          "bench_evaluate", "--json", str(tmp_path / "r.json")], env=env,
-                         capture_output=True, text=True, timeout=300)
+    res = subprocess.run(
+        [
+            sys.executable,
+            str(RUN_ALL),
+            "--only",
+            "bench_evaluate",
+            "--json",
+            str(tmp_path / "r.json"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stderr
     import json
 
@@ -113,8 +152,12 @@ def test_run_all_writes_a_result_file(tmp_path):
     assert script["figures"][0]["line"].startswith("summarize 100k samples: {} ms")
     page = generate.performance_page(result, str(tmp_path / "r.json"))
     assert "## bench_evaluate" in page
-    res = subprocess.run([sys.executable, str(RUN_ALL), "--only",
-                          "bench_nothing"], env=env, capture_output=True, text=True)
+    res = subprocess.run(
+        [sys.executable, str(RUN_ALL), "--only", "bench_nothing"],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode == 2 and "--only: no script bench_nothing" in res.stderr
 
 
@@ -141,9 +184,11 @@ def free_port() -> int:
 # there, so a tutorial that changes is noticed here.
 SMALLER = {
     "fruit-to-table-1": [
-        ("fruit scenes copy fruit-deformed deformed\n",
-         "fruit scenes copy fruit-deformed deformed\n"
-         "sed -i 's/^size_mm = 5.0/size_mm = 8.0/' deformed/fruit-deformed.toml\n"),
+        (
+            "fruit scenes copy fruit-deformed deformed\n",
+            "fruit scenes copy fruit-deformed deformed\n"
+            "sed -i 's/^size_mm = 5.0/size_mm = 8.0/' deformed/fruit-deformed.toml\n",
+        ),
         ("--scenes paper-table,fruit-rest,fruit-deformed", "--scenes paper-table,fruit-rest"),
     ],
     "own-sculpture": [("[mesh]\nsize_mm = 6.0", "[mesh]\nsize_mm = 8.0")],
@@ -151,14 +196,27 @@ SMALLER = {
     "installation": [("--view 8765", "--view {port}")],
 }
 EXPECTED = {  # files the tutorial's page says its commands make
-    "fruit-to-table-1": ["out/paper-table/evaluate/table.md", "out/fruit-rest/evaluate/table.md",
-                         "out/fruit-deformed/evaluate/deformed-small/top.png", "out/report.md"],
-    "own-sculpture": ["tracks/taxels.csv", "tracks/preview.png",
-                      "out/sculpture/simulate/yarns.csv", "out/sculpture/evaluate/table.md",
-                      "molds/mold.json"],
-    "lab": ["out/lab-bench/small/frames.npz", "out/lab-evaluate/table.md",
-            "out/calibration/skin.toml", "out/bench-calibrated/small/frames.npz",
-            "recording.npz", "out/recording-locate/touches.csv"],
+    "fruit-to-table-1": [
+        "out/paper-table/evaluate/table.md",
+        "out/fruit-rest/evaluate/table.md",
+        "out/fruit-deformed/evaluate/deformed-small/top.png",
+        "out/report.md",
+    ],
+    "own-sculpture": [
+        "tracks/taxels.csv",
+        "tracks/preview.png",
+        "out/sculpture/simulate/yarns.csv",
+        "out/sculpture/evaluate/table.md",
+        "molds/mold.json",
+    ],
+    "lab": [
+        "out/lab-bench/small/frames.npz",
+        "out/lab-evaluate/table.md",
+        "out/calibration/skin.toml",
+        "out/bench-calibrated/small/frames.npz",
+        "recording.npz",
+        "out/recording-locate/touches.csv",
+    ],
     "installation": ["touches.jsonl", "fruit.log"],
 }
 
@@ -179,15 +237,27 @@ def test_tutorial_commands_run(name, tmp_path):
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
     shim = bin_dir / "fruit"  # this checkout's fruit, whatever the venv has installed
-    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -c "
-                    "'import sys; from fruitcli.cli.main import main; sys.exit(main())' \"$@\"\n")
+    shim.write_text(
+        f"#!/bin/sh\nexec {sys.executable} -c "
+        "'import sys; from fruitcli.cli.main import main; sys.exit(main())' \"$@\"\n"
+    )
     shim.chmod(0o755)
     work = tmp_path / "work"
     work.mkdir()
-    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "PYTHONPATH": str(ROOT),
-           "MPLBACKEND": "Agg"}
-    res = subprocess.run(["bash", "-c", tutorial_script(name)], cwd=work, env=env,
-                         capture_output=True, text=True, timeout=1200)
+    env = {
+        **os.environ,
+        "PATH": f"{bin_dir}:{os.environ['PATH']}",
+        "PYTHONPATH": str(ROOT),
+        "MPLBACKEND": "Agg",
+    }
+    res = subprocess.run(
+        ["bash", "-c", tutorial_script(name)],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     for rel in EXPECTED[name]:
         assert (work / rel).is_file() and (work / rel).stat().st_size > 0, rel

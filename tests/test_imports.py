@@ -92,31 +92,65 @@ def test_a_circle_is_found():
 
 # package -> packages it must not import (what each package's docstring allows)
 FORBIDDEN = {
-    "fruitcli.geometry": ["fruitcli.sensing", "fruitcli.workflow", "fruitcli.cli",
-                          "fruitcli.printer", "fruitcli.studies"],
-    "fruitcli.fem": ["fruitcli.sensing", "fruitcli.geometry.tracks", "fruitcli.workflow",
-                     "fruitcli.cli", "fruitcli.printer", "fruitcli.studies"],
-    "fruitcli.evaluation": ["fruitcli.sensing", "fruitcli.fem", "fruitcli.geometry",
-                            "fruitcli.workflow", "fruitcli.cli"],
-    "fruitcli.sensing.frames": ["fruitcli.sensing.detection", "fruitcli.sensing.skin",
-                                "fruitcli.sensing.outputs", "fruitcli.sensing.live",
-                                "fruitcli.fem", "fruitcli.geometry"],
+    "fruitcli.geometry": [
+        "fruitcli.sensing",
+        "fruitcli.workflow",
+        "fruitcli.cli",
+        "fruitcli.printer",
+        "fruitcli.studies",
+    ],
+    "fruitcli.fem": [
+        "fruitcli.sensing",
+        "fruitcli.geometry.tracks",
+        "fruitcli.workflow",
+        "fruitcli.cli",
+        "fruitcli.printer",
+        "fruitcli.studies",
+    ],
+    "fruitcli.evaluation": [
+        "fruitcli.sensing",
+        "fruitcli.fem",
+        "fruitcli.geometry",
+        "fruitcli.workflow",
+        "fruitcli.cli",
+    ],
+    "fruitcli.sensing.frames": [
+        "fruitcli.sensing.detection",
+        "fruitcli.sensing.skin",
+        "fruitcli.sensing.outputs",
+        "fruitcli.sensing.live",
+        "fruitcli.fem",
+        "fruitcli.geometry",
+    ],
     "fruitcli.sensing.outputs": ["fruitcli.sensing.live", "fruitcli.sensing.skin"],
-    "fruitcli.sensing": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.printer",
-                         "fruitcli.studies"],
+    "fruitcli.sensing": [
+        "fruitcli.workflow",
+        "fruitcli.cli",
+        "fruitcli.printer",
+        "fruitcli.studies",
+    ],
     "fruitcli.printer": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.studies"],
-    "fruitcli.electrostatics": ["fruitcli.workflow", "fruitcli.cli", "fruitcli.printer",
-                                "fruitcli.studies", "fruitcli.sensing.live"],
+    "fruitcli.electrostatics": [
+        "fruitcli.workflow",
+        "fruitcli.cli",
+        "fruitcli.printer",
+        "fruitcli.studies",
+        "fruitcli.sensing.live",
+    ],
     "fruitcli.workflow": ["fruitcli.cli"],
     "fruitcli.studies": ["fruitcli.cli"],
 }
 
 
 def test_packages_import_only_what_they_may():
-    bad = [f"{m} imports {d}" for m, deps in sorted(import_graph().items()) for d in deps
-           for pkg, banned in FORBIDDEN.items()
-           if (m == pkg or m.startswith(pkg + ".")) and any(d == b or d.startswith(b + ".")
-                                                            for b in banned)]
+    bad = [
+        f"{m} imports {d}"
+        for m, deps in sorted(import_graph().items())
+        for d in deps
+        for pkg, banned in FORBIDDEN.items()
+        if (m == pkg or m.startswith(pkg + "."))
+        and any(d == b or d.startswith(b + ".") for b in banned)
+    ]
     assert bad == []
 
 
@@ -136,7 +170,12 @@ def test_every_module_imports_on_its_own():
         "        failed.append(f'{name}: {type(exc).__name__}: {exc}')\n"
         "print('\\n'.join(failed))\n"
     )
-    res = subprocess.run([sys.executable, "-c", code, *module_names()], capture_output=True,
-                         text=True, cwd=ROOT, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-c", code, *module_names()],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.strip() == ""

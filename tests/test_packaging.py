@@ -33,9 +33,23 @@ def wheel(tmp_path_factory) -> Path:
     for name in ("fruitcli", "pipelines", "data"):
         shutil.copytree(ROOT / name, src / name, ignore=skip)
     out = tmp_path_factory.mktemp("wheel")
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps",
-                    "--no-build-isolation", "--wheel-dir", str(out), str(src)],
-                   check=True, capture_output=True, cwd=out)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--wheel-dir",
+            str(out),
+            str(src),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=out,
+    )
     (found,) = out.glob("fruitcli-*.whl")
     return found
 
@@ -45,12 +59,31 @@ def fruit_bin(wheel, tmp_path_factory) -> Path:
     venv = tmp_path_factory.mktemp("venv")
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     python = venv / "bin" / "python"
-    site = subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()"
-                           "['purelib'])"], check=True, capture_output=True, text=True)
+    site = subprocess.run(
+        [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     Path(site.stdout.strip(), "project_deps.pth").write_text(
-        sysconfig.get_paths()["purelib"] + "\n")
-    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet",
-                    "--ignore-installed", "--no-deps", str(wheel)], check=True, capture_output=True)
+        sysconfig.get_paths()["purelib"] + "\n"
+    )
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            str(python),
+            "install",
+            "--quiet",
+            "--ignore-installed",
+            "--no-deps",
+            str(wheel),
+        ],
+        check=True,
+        capture_output=True,
+    )
     # --ignore-installed: this environment's own (editable) fruitcli is visible through the
     # .pth file and must be neither taken as the install nor uninstalled
     return venv / "bin" / "fruit"
@@ -59,8 +92,14 @@ def fruit_bin(wheel, tmp_path_factory) -> Path:
 def run(fruit_bin: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the wheel's code only
     env["MPLBACKEND"] = "Agg"
-    return subprocess.run([str(fruit_bin), *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [str(fruit_bin), *map(str, args)],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_wheel_holds_every_module_and_the_bundled_files(wheel):
@@ -68,9 +107,13 @@ def test_wheel_holds_every_module_and_the_bundled_files(wheel):
     sources = {p.relative_to(ROOT).as_posix() for p in (ROOT / "fruitcli").rglob("*.py")}
     assert sources - names == set()  # a package missing from pyproject's list fails here
     bundled = {n for n in names if n.startswith("fruitcli/_bundled/")}
-    assert bundled == ({f"fruitcli/_bundled/pipelines/{n}.toml" for n in NAMES}
-                       | {f"fruitcli/_bundled/data/paper/{p.name}"
-                          for p in (ROOT / "data" / "paper").glob("*.csv")})
+    assert bundled == (
+        {f"fruitcli/_bundled/pipelines/{n}.toml" for n in NAMES}
+        | {
+            f"fruitcli/_bundled/data/paper/{p.name}"
+            for p in (ROOT / "data" / "paper").glob("*.csv")
+        }
+    )
 
 
 def test_installed_demo_runs_from_an_empty_folder(fruit_bin, tmp_path):
@@ -103,7 +146,8 @@ def test_installed_bad_input_is_one_line(fruit_bin, tmp_path):
     res = run(fruit_bin, "scenes", "copy", "no-such", "x", cwd=tmp_path)
     assert res.returncode == 1
     assert res.stderr.strip().splitlines() == [
-        f"Error: unknown scene 'no-such' (bundled scenes: {', '.join(NAMES)})"]
+        f"Error: unknown scene 'no-such' (bundled scenes: {', '.join(NAMES)})"
+    ]
     assert not (tmp_path / "x").exists()
 
 
@@ -116,9 +160,11 @@ def test_lower_bounds_are_the_tested_versions():
     wanted = list(project["dependencies"])
     for extra in project["optional-dependencies"].values():
         wanted += extra
-    pins = dict(line.strip().lower().split("==") for line in
-                (ROOT / "requirements" / "constraints.txt").read_text().splitlines()
-                if "==" in line and not line.startswith("#"))
+    pins = dict(
+        line.strip().lower().split("==")
+        for line in (ROOT / "requirements" / "constraints.txt").read_text().splitlines()
+        if "==" in line and not line.startswith("#")
+    )
     for spec in wanted:
         name, bound = re.fullmatch(r"([A-Za-z0-9_.-]+)>=([0-9.]+)", spec).groups()
         assert pins[name.lower().replace("_", "-")] == bound, spec

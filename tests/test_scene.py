@@ -44,24 +44,34 @@ def test_minimal_keys_and_defaults():
     assert s.has("gravity") and not s.has("bench")
 
 
-@pytest.mark.parametrize("text,expected", [
-    ("[material]\nyoung_modulus_kp = 3", "unknown key 'young_modulus_kp' (did you mean "
-     "'young_modulus_kpa'?)"),
-    ("[materials]\nx = 1", "unknown section [materials] (did you mean 'material'?)"),
-    ("[material]\nyoung_modulus_kpa = 'soft'", "young_modulus_kpa: expected a finite number"),
-    ("[material]\nyoung_modulus_kpa = -5", "young_modulus_kpa: expected > 0"),
-    ("[material]\npoisson_ratio = 0.5", "poisson_ratio: expected -1 < nu < 0.5"),
-    ("[[fixed]]\nbox_mm = [0, 0, 0, 1, 1]", "box_mm: expected a list of 6 numbers"),
-    ("[[fixed]]\nbox_mm = [2, 0, 0, 1, 1, 1]", "with min <= max"),
-    ("[actuation]\npressure_kpa = { c1 = [1.0] }", "no such chamber (the scene has no chambers)"),
-    ("[geometry]\nsolid = 'a.stl'\npad_size_mm = [1, 1, 1]", "give one of artist, solid"),
-    ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, fit2, got 'fancy'"),
-    ("[[jig]]\nregion_box_mm = [0, 0, 0, 1, 1, 1]\nstiffness_n_per_mm = 0",
-     "stiffness_n_per_mm: expected > 0"),
-    ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),
-    ("x = [", "not valid TOML"),
-    ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm: expected >= 0"),
-])
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        (
+            "[material]\nyoung_modulus_kp = 3",
+            "unknown key 'young_modulus_kp' (did you mean 'young_modulus_kpa'?)",
+        ),
+        ("[materials]\nx = 1", "unknown section [materials] (did you mean 'material'?)"),
+        ("[material]\nyoung_modulus_kpa = 'soft'", "young_modulus_kpa: expected a finite number"),
+        ("[material]\nyoung_modulus_kpa = -5", "young_modulus_kpa: expected > 0"),
+        ("[material]\npoisson_ratio = 0.5", "poisson_ratio: expected -1 < nu < 0.5"),
+        ("[[fixed]]\nbox_mm = [0, 0, 0, 1, 1]", "box_mm: expected a list of 6 numbers"),
+        ("[[fixed]]\nbox_mm = [2, 0, 0, 1, 1, 1]", "with min <= max"),
+        (
+            "[actuation]\npressure_kpa = { c1 = [1.0] }",
+            "no such chamber (the scene has no chambers)",
+        ),
+        ("[geometry]\nsolid = 'a.stl'\npad_size_mm = [1, 1, 1]", "give one of artist, solid"),
+        ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, fit2, got 'fancy'"),
+        (
+            "[[jig]]\nregion_box_mm = [0, 0, 0, 1, 1, 1]\nstiffness_n_per_mm = 0",
+            "stiffness_n_per_mm: expected > 0",
+        ),
+        ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),
+        ("x = [", "not valid TOML"),
+        ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm: expected >= 0"),
+    ],
+)
 def test_bad_scenes_name_the_field(text, expected):
     with pytest.raises(SceneError) as err:
         scene(text)
@@ -70,10 +80,15 @@ def test_bad_scenes_name_the_field(text, expected):
 
 
 def test_states_must_agree_across_chambers():
-    text = MINIMAL.replace('pressure_kpa = { c1 = [0.0, 2.5, 5.0] }',
-                           'pressure_kpa = { c1 = [0.0, 2.5, 5.0], c2 = [1.0] }')
-    text = text.replace('[mesh]', '[[geometry.chamber]]\nname = "c2"\n'
-                        'ellipsoid = { center_mm = [0, 0, 0], radii_mm = [1, 1, 1] }\n[mesh]')
+    text = MINIMAL.replace(
+        "pressure_kpa = { c1 = [0.0, 2.5, 5.0] }",
+        "pressure_kpa = { c1 = [0.0, 2.5, 5.0], c2 = [1.0] }",
+    )
+    text = text.replace(
+        "[mesh]",
+        '[[geometry.chamber]]\nname = "c2"\n'
+        "ellipsoid = { center_mm = [0, 0, 0], radii_mm = [1, 1, 1] }\n[mesh]",
+    )
     with pytest.raises(SceneError, match="same number of states"):
         scene(text)
 
@@ -93,8 +108,10 @@ def test_paths_resolve_against_scene_folder_then_project_root(tmp_path):
     (tmp_path / "data").mkdir()
     (tmp_path / "data" / "t.csv").write_text("")
     (tmp_path / "pipelines").mkdir()
-    s = parse_scene("[[evaluate]]\nlabel='a'\ntruth='data/t.csv'\nmeasured='data/t.csv'",
-                    tmp_path / "pipelines" / "s.toml")
+    s = parse_scene(
+        "[[evaluate]]\nlabel='a'\ntruth='data/t.csv'\nmeasured='data/t.csv'",
+        tmp_path / "pipelines" / "s.toml",
+    )
     assert s.evaluate[0].truth == tmp_path / "data" / "t.csv"
 
 
@@ -118,17 +135,20 @@ def test_readme_scene_example_is_valid():
         parse_scene(block, ROOT / "pipelines" / "example.toml", must_exist=False)
 
 
-@pytest.mark.parametrize("text, match", [
-    ("[grid]\ncount = [4]", r"\[grid\].count: expected two positive integers"),
-    ("[grid]\ncount = [4, 0]", r"\[grid\].count: expected two positive integers"),
-    ("[grid]\nspacing_x_mm = 0.0", r"\[grid\].spacing_x_mm: expected > 0, got 0.0"),
-    ("[bench]\nindenters = []", r"\[bench\].indenters: expected a non-empty list"),
-    ("[bench]\nindenters = ['huge']", r"\[bench\].indenters: .* got \['huge'\]"),
-    ("[bench]\nstep_mm = 0.0", r"\[bench\].step_mm: expected > 0"),
-    ("[bench]\nreference_length_mm = -1.0", r"\[bench\].reference_length_mm: expected > 0"),
-    ("[actuation]\nperiod_s = -6.0", r"\[actuation\].period_s: expected > 0"),
-    ("[scene]\nname = '../../evil'", r"\[scene\].name: expected a plain folder name"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("[grid]\ncount = [4]", r"\[grid\].count: expected two positive integers"),
+        ("[grid]\ncount = [4, 0]", r"\[grid\].count: expected two positive integers"),
+        ("[grid]\nspacing_x_mm = 0.0", r"\[grid\].spacing_x_mm: expected > 0, got 0.0"),
+        ("[bench]\nindenters = []", r"\[bench\].indenters: expected a non-empty list"),
+        ("[bench]\nindenters = ['huge']", r"\[bench\].indenters: .* got \['huge'\]"),
+        ("[bench]\nstep_mm = 0.0", r"\[bench\].step_mm: expected > 0"),
+        ("[bench]\nreference_length_mm = -1.0", r"\[bench\].reference_length_mm: expected > 0"),
+        ("[actuation]\nperiod_s = -6.0", r"\[actuation\].period_s: expected > 0"),
+        ("[scene]\nname = '../../evil'", r"\[scene\].name: expected a plain folder name"),
+    ],
+)
 def test_values_checked_when_the_scene_is_read(tmp_path, text, match):
     """Each bad value is one error naming the file and the field, before any stage."""
     (tmp_path / "s.toml").write_text(text + "\n")
@@ -155,9 +175,11 @@ def test_typed_sections_agree_with_the_schema():
 
     assert set(SECTION_TYPES) == set(SCHEMA) - ARRAY_SECTIONS
     assert set(ITEM_TYPES) == set(ARRAY_SCHEMA) and set(SUBTABLE_TYPES) == set(SUBTABLES)
-    pairs = ([(SECTION_TYPES[n], SCHEMA[n]) for n in SECTION_TYPES]
-             + [(ITEM_TYPES[n], ARRAY_SCHEMA[n]) for n in ITEM_TYPES]
-             + [(SUBTABLE_TYPES[n], SUBTABLES[n]) for n in SUBTABLE_TYPES])
+    pairs = (
+        [(SECTION_TYPES[n], SCHEMA[n]) for n in SECTION_TYPES]
+        + [(ITEM_TYPES[n], ARRAY_SCHEMA[n]) for n in ITEM_TYPES]
+        + [(SUBTABLE_TYPES[n], SUBTABLES[n]) for n in SUBTABLE_TYPES]
+    )
     for record, spec in pairs:
         assert [f.name for f in fields(record)] == list(spec)
     defaults = default_scene()
@@ -180,46 +202,65 @@ def test_arrays_are_tuples_of_typed_records():
     (fixed,) = s.fixed
     assert fixed.box_mm == [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0] and fixed.displacement_mm is None
     assert s.jig == () and s.evaluate == ()
-    assert s.values("fixed") == [{"box_mm": [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0],
-                                  "displacement_mm": None}]
+    assert s.values("fixed") == [
+        {"box_mm": [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0], "displacement_mm": None}
+    ]
     assert s.values("geometry")["chamber"] == [
-        {"name": "c1", "ellipsoid": {"center_mm": [0.0, 0.0, 0.0],
-                                     "radii_mm": [10.0, 10.0, 10.0]}, "surface": None}]
+        {
+            "name": "c1",
+            "ellipsoid": {"center_mm": [0.0, 0.0, 0.0], "radii_mm": [10.0, 10.0, 10.0]},
+            "surface": None,
+        }
+    ]
 
 
 def test_an_unknown_section_or_key_fails_loudly():
     s = scene(MINIMAL)
-    with pytest.raises(AttributeError, match=r"FemSection has no key 'elemnt' \(did you mean "
-                                             r"'element'\?\)"):
+    with pytest.raises(
+        AttributeError,
+        match=r"FemSection has no key 'elemnt' \(did you mean "
+        r"'element'\?\)",
+    ):
         s.fem.elemnt  # noqa: B018
-    with pytest.raises(AttributeError, match=r"no section \[materal\] \(did you mean "
-                                             r"'material'\?\)"):
+    with pytest.raises(
+        AttributeError,
+        match=r"no section \[materal\] \(did you mean "
+        r"'material'\?\)",
+    ):
         s.materal  # noqa: B018
     with pytest.raises(AttributeError, match="no key 'radius'"):
         s.chambers[0].radius  # noqa: B018
     with pytest.raises(TypeError):
-        s["fem"]  # noqa: B018
+        s["fem"]
     with pytest.raises(SceneError, match=r"unknown section \[femm\]"):
         s.values("femm")
 
 
 def test_with_values_checks_and_leaves_the_scene_as_it_was():
     s = scene(MINIMAL)
-    t = s.with_values({"fem.element": "p1", "material.model": "corotational",
-                       "mesh.size_mm": 2.0})
+    t = s.with_values({"fem.element": "p1", "material.model": "corotational", "mesh.size_mm": 2.0})
     assert (t.fem.element, t.material.model, t.mesh.size_mm) == ("p1", "corotational", 2.0)
     assert (s.fem.element, s.material.model, s.mesh.size_mm) == ("p2", "neo-hookean", 3.0)
     assert t.chambers == s.chambers and t.declared == s.declared
-    with pytest.raises(SceneError, match=r"^scene.toml: \[mesh\].size_mm: expected > 0, got "
-                                         r"-1.0$"):
+    with pytest.raises(
+        SceneError,
+        match=r"^scene.toml: \[mesh\].size_mm: expected > 0, got "
+        r"-1.0$",
+    ):
         s.with_values({"mesh.size_mm": -1.0})
-    with pytest.raises(SceneError, match=r"\[fem\].element: expected one of p2, p2-pure, p1, "
-                                         r"got 'p3'"):
+    with pytest.raises(
+        SceneError,
+        match=r"\[fem\].element: expected one of p2, p2-pure, p1, "
+        r"got 'p3'",
+    ):
         s.with_values({"fem.element": "p3"})
     with pytest.raises(SceneError, match=r"corotational.*linear tets"):  # across keys
         s.with_values({"material.model": "corotational"})
-    with pytest.raises(SceneError, match=r"\[mesh\]: unknown key 'size' \(did you mean "
-                                         r"'size_mm'\?\)"):
+    with pytest.raises(
+        SceneError,
+        match=r"\[mesh\]: unknown key 'size' \(did you mean "
+        r"'size_mm'\?\)",
+    ):
         s.with_values({"mesh.size": 1.0})
     skin = s.skin.__class__(contact_counts=80.0)
     assert s.with_values({"skin": skin}).skin.contact_counts == 80.0
@@ -254,14 +295,21 @@ def _bad_values(where: tuple, spec):
     """Values the key's declared choices, range or condition refuse."""
     if spec.choices is not None:
         yield "not-a-choice"
-    for bound, exclusive, step in ((spec.min, spec.min_exclusive, -1),
-                                   (spec.max, spec.max_exclusive, 1)):
+    for bound, exclusive, step in (
+        (spec.min, spec.min_exclusive, -1),
+        (spec.max, spec.max_exclusive, 1),
+    ):
         if bound is None:
             continue
         v = bound if exclusive else bound + step
         v = int(v) if spec.kind == "int" else float(v)
-        yield ({"small": v} if spec.kind == "table" else [1.0, 1.0, v]
-               if spec.kind.startswith("vec") else v)
+        yield (
+            {"small": v}
+            if spec.kind == "table"
+            else [1.0, 1.0, v]
+            if spec.kind.startswith("vec")
+            else v
+        )
     if spec.valid is not None:
         yield BAD_FOR_CONDITION[where]
 
@@ -296,19 +344,24 @@ CHECKED_KEYS = {
     "bench": "baseline_frames reference_length_mm register seed step_mm",
     "board": "format",
     "detection": "baseline_frames debounce_frames drift_rate hysteresis_counts method "
-                 "noise_floor_counts project threshold_counts track_gate_mm",
-    "ellipsoid": "radii_mm", "evaluate": "reference_length_mm register", "fem": "element",
-    "frames": "model", "geometry": "unit", "grid": "count spacing_x_mm spacing_y_mm",
+    "noise_floor_counts project threshold_counts track_gate_mm",
+    "ellipsoid": "radii_mm",
+    "evaluate": "reference_length_mm register",
+    "fem": "element",
+    "frames": "model",
+    "geometry": "unit",
+    "grid": "count spacing_x_mm spacing_y_mm",
     "jig": "axis stiffness_n_per_mm",
-    "material": "density_kg_m3 model poisson_ratio young_modulus_kpa", "mesh": "size_mm",
+    "material": "density_kg_m3 model poisson_ratio young_modulus_kpa",
+    "mesh": "size_mm",
     "printer": "baud bed_mm feed_mm_min max_press_mm safe_height_mm step_mm timeout_s",
     "reduced": "margin max_degree points_per_axis pressure_range_kpa seed validation",
     "scene": "name",
     "sensitivity": "animation_frames noise_frames",
     "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
-            "insulation_mm model permittivity yarn_radius_mm",
+    "insulation_mm model permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
-              "max_seconds tolerance",
+    "max_seconds tolerance",
     "tracks": "cover_mm faces track_radius_mm yarn_max_stretch zigzag_pitch_mm",
 }
 
@@ -318,13 +371,16 @@ def test_the_schema_declares_the_checks_of_these_keys():
     assert declared == {(s, k) for s, keys in CHECKED_KEYS.items() for k in keys.split()}
 
 
-@pytest.mark.parametrize("section, key, spec, bad", _declared_keys(),
-                         ids=lambda v: v if isinstance(v, str) else None)
+@pytest.mark.parametrize(
+    "section, key, spec, bad", _declared_keys(), ids=lambda v: v if isinstance(v, str) else None
+)
 def test_every_declared_range_and_choice_refuses_a_bad_value(section, key, spec, bad):
     """One line naming the file and the key, what was expected and what was given."""
     with pytest.raises(SceneError) as err:
         parse_scene(_scene_with(section, key, bad), Path("/tmp/s.toml"), must_exist=False)
     msg = str(err.value)
     assert msg.startswith("s.toml: ") and "\n" not in msg
-    assert f".{key}: expected {spec.expectation()}, got " in msg \
+    assert (
+        f".{key}: expected {spec.expectation()}, got " in msg
         or f".{key}.small: expected {spec.expectation()}, got 0.0" in msg
+    )

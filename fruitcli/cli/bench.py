@@ -32,27 +32,61 @@ def scene_surface(scene):
 @click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
 @taxels_option()
 @states_option("without it the bench runs on the taxels' own surface at rest.")
-@click.option("--surface", "surface", type=click.Path(dir_okay=False), default=None,
-              help="The body's closed surface at rest (mm), on which the truth lies; "
-                   "default: the scene's own (reduced.stl or its solid).")
+@click.option(
+    "--surface",
+    "surface",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="The body's closed surface at rest (mm), on which the truth lies; "
+    "default: the scene's own (reduced.stl or its solid).",
+)
 @out_option("Output folder: <indenter>/frames.npz and <indenter>/truth.csv.")
-@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
-              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
-                   "scene's: the virtual bench's skin.")
-@click.option("--printer", "printer_port", default=None,
-              help="Real bench: the Marlin printer's serial port (with --board; the "
-                   "scene's [printer] says where the model sits and how to move).")
-@click.option("--board", "board_port", default=None,
-              help="Real bench: the MuCa board's serial port (with --printer).")
-@click.option("--indenter", default=None,
-              help="Real bench: the indenter on the printer (output folder name; default: "
-                   "the first of [bench].indenters).")
+@click.option(
+    "--skin",
+    "skin_toml",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) instead of the "
+    "scene's: the virtual bench's skin.",
+)
+@click.option(
+    "--printer",
+    "printer_port",
+    default=None,
+    help="Real bench: the Marlin printer's serial port (with --board; the "
+    "scene's [printer] says where the model sits and how to move).",
+)
+@click.option(
+    "--board",
+    "board_port",
+    default=None,
+    help="Real bench: the MuCa board's serial port (with --printer).",
+)
+@click.option(
+    "--indenter",
+    default=None,
+    help="Real bench: the indenter on the printer (output folder name; default: "
+    "the first of [bench].indenters).",
+)
 @format_option(default=None, what="Real bench: ")
 @baud_option(name="--board-baud", what="Real bench: the board's line. ")
-@click.option("--overwrite", is_flag=True,
-              help="Real bench: replace an existing <indenter>/frames.npz.")
-def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, printer_port,
-          board_port, indenter, fmt, board_baud, overwrite):
+@click.option(
+    "--overwrite", is_flag=True, help="Real bench: replace an existing <indenter>/frames.npz."
+)
+def bench(
+    scene_path,
+    taxels_csv,
+    states_npz,
+    surface,
+    out_dir,
+    skin_toml,
+    printer_port,
+    board_port,
+    indenter,
+    fmt,
+    board_baud,
+    overwrite,
+):
     """Replay the paper's bench protocol on the model for SCENE's [bench] section, or run
     it on a real printer and board (--printer, --board).
 
@@ -65,10 +99,22 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, print
     """
     if printer_port or board_port:
         if skin_toml:
-            raise click.UsageError("--skin models the virtual bench's skin; the real bench "
-                                   "(--printer, --board) measures the real one")
-        return real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port,
-                          board_port, indenter, fmt, board_baud, overwrite)
+            raise click.UsageError(
+                "--skin models the virtual bench's skin; the real bench "
+                "(--printer, --board) measures the real one"
+            )
+        return real_bench(
+            scene_path,
+            taxels_csv,
+            states_npz,
+            out_dir,
+            printer_port,
+            board_port,
+            indenter,
+            fmt,
+            board_baud,
+            overwrite,
+        )
     from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene, load_skin_table
     from fruitcli.sensing.stages import run_bench
@@ -89,13 +135,26 @@ def bench(scene_path, taxels_csv, states_npz, surface, out_dir, skin_toml, print
         res = run_bench(scene, taxels, states_npz, out_dir, progress, surface, unit)
     click.echo(f"truth on {res['truth_surface']}", err=True)
     for name, r in res["indenters"].items():
-        click.echo(f"{name}: {r['samples']} samples recorded ({r['dropped']} never reached "
-                   "the threshold), "
-                   f"{r['frames']} frames -> {out_dir}/{name}", err=True)
+        click.echo(
+            f"{name}: {r['samples']} samples recorded ({r['dropped']} never reached "
+            "the threshold), "
+            f"{r['frames']} frames -> {out_dir}/{name}",
+            err=True,
+        )
 
 
-def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_port,
-               indenter, fmt, board_baud, overwrite):
+def real_bench(
+    scene_path,
+    taxels_csv,
+    states_npz,
+    out_dir,
+    printer_port,
+    board_port,
+    indenter,
+    fmt,
+    board_baud,
+    overwrite,
+):
     """`fruit bench --printer --board`: the protocol on hardware (fruitcli.bench)."""
     from fruitcli.errors import SceneError
     from fruitcli.printer.indentation import BenchInterrupted, run_printer_bench
@@ -107,8 +166,10 @@ def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_
             raise click.UsageError("the real bench needs both --printer and --board")
         scene = load_scene(scene_path)
         if not scene.has("printer"):
-            raise SceneError(f"{scene_path}: no [printer] table (where the model sits on the "
-                             "bed, how to move): needed with --printer")
+            raise SceneError(
+                f"{scene_path}: no [printer] table (where the model sits on the "
+                "bed, how to move): needed with --printer"
+            )
         name = indenter or scene.bench.indenters[0]
         if not name or any(c in name for c in "/\\") or name in (".", ".."):
             raise click.BadParameter(f"{name!r}: expected a plain name", param_hint="--indenter")
@@ -117,11 +178,24 @@ def real_bench(scene_path, taxels_csv, states_npz, out_dir, printer_port, board_
             taxels, found = scene_products(scene, progress=progress)
             states_npz = states_npz or found
         try:
-            res = run_printer_bench(scene, taxels, states_npz, printer_port, board_port,
-                                    out_dir, name, fmt or scene.board.format,
-                                    board_baud, progress, overwrite)
+            res = run_printer_bench(
+                scene,
+                taxels,
+                states_npz,
+                printer_port,
+                board_port,
+                out_dir,
+                name,
+                fmt or scene.board.format,
+                board_baud,
+                progress,
+                overwrite,
+            )
         except BenchInterrupted as exc:
             click.echo(f"Interrupted: {exc}", err=True)
             raise SystemExit(130) from None
-    click.echo(f"{name}: {res['samples']} samples, {res['frames']} frames "
-               f"({res['resends']} lines resent) -> {res['out']}", err=True)
+    click.echo(
+        f"{name}: {res['samples']} samples, {res['frames']} frames "
+        f"({res['resends']} lines resent) -> {res['out']}",
+        err=True,
+    )

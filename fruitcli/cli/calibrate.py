@@ -10,10 +10,20 @@ from fruitcli.workflow.scene_outputs import scene_products
 
 @click.command()
 @click.argument("frames", type=click.Path(dir_okay=False))
-@click.option("--truth", "truth_csv", required=True, type=click.Path(dir_okay=False),
-              help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm).")
-@click.option("--scene", "scene_path", required=True, type=click.Path(dir_okay=False),
-              help="Scene whose [board] and taxels the recording used.")
+@click.option(
+    "--truth",
+    "truth_csv",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm).",
+)
+@click.option(
+    "--scene",
+    "scene_path",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Scene whose [board] and taxels the recording used.",
+)
 @taxels_option()
 @click.option("--indenter", default=None, help="Indenter of the recording (default: its meta).")
 @out_option("Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
@@ -28,7 +38,10 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
         scene = load_scene(scene_path)
         taxels = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
         res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress)
-    click.echo(f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm, "
-               f"contact {res['contact_counts']:.1f} counts, gap decay "
-               f"{res['gap_decay_mm']:.2f} mm, noise {res['noise_std_counts']:.2f} counts "
-               f"-> {out_dir}/skin.toml", err=True)
+    click.echo(
+        f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm, "
+        f"contact {res['contact_counts']:.1f} counts, gap decay "
+        f"{res['gap_decay_mm']:.2f} mm, noise {res['noise_std_counts']:.2f} counts "
+        f"-> {out_dir}/skin.toml",
+        err=True,
+    )

@@ -14,8 +14,12 @@ DEMO_SCENES = ["paper-table", "fruit-rest", "fruit-deformed", "fruit-breathing",
 
 @click.command()
 @out_option("Output folder: one sub-folder per scene, report.md.", required=False, default="out")
-@click.option("--scenes", default=",".join(DEMO_SCENES), show_default=True,
-              help="Comma-separated names of bundled scenes (see `fruit scenes`).")
+@click.option(
+    "--scenes",
+    default=",".join(DEMO_SCENES),
+    show_default=True,
+    help="Comma-separated names of bundled scenes (see `fruit scenes`).",
+)
 def demo(out_dir, scenes):
     """Run the default experiments (the paper's Table I, the Fruit at rest, in its jig,
     breathing, and the bent 4x4 pad) and write OUT/report.md.
@@ -35,8 +39,9 @@ def demo(out_dir, scenes):
     with fruit_errors():
         names = [s.strip() for s in scenes.split(",") if s.strip()]
         if not names:
-            raise click.UsageError("--scenes: expected at least one scene name (see `fruit "
-                                   "scenes`)")
+            raise click.UsageError(
+                "--scenes: expected at least one scene name (see `fruit scenes`)"
+            )
         for name in names:  # every name checked before anything is written
             bundled.scene_path(name)
         loaded = [load_scene(bundled.export_scene(name, out / "scenes")) for name in names]
@@ -45,8 +50,10 @@ def demo(out_dir, scenes):
             t0 = time.perf_counter()
             steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
             plans[scene.name] = planner.format_plan(steps)
-            seconds[scene.name] = (time.perf_counter() - t0,
-                                   sum(s.action == "run" for s in steps),
-                                   sum(s.action == "reuse" for s in steps))
+            seconds[scene.name] = (
+                time.perf_counter() - t0,
+                sum(s.action == "run" for s in steps),
+                sum(s.action == "reuse" for s in steps),
+            )
         report = write_report(out, plans, seconds)
     click.echo(f"report: {report}")

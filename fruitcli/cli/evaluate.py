@@ -8,22 +8,37 @@ from fruitcli.cli.options import FiniteFloat, fruit_errors, out_option
 
 
 @click.command()
-@click.option("--truth", required=True, type=click.Path(dir_okay=False),
-              help="Ground-truth CSV: sample,x_mm,y_mm[,z_mm].")
-@click.option("--measured", required=True, type=click.Path(dir_okay=False),
-              help="Measured CSV with the same samples: sample,x_mm,y_mm[,z_mm].")
+@click.option(
+    "--truth",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Ground-truth CSV: sample,x_mm,y_mm[,z_mm].",
+)
+@click.option(
+    "--measured",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Measured CSV with the same samples: sample,x_mm,y_mm[,z_mm].",
+)
 @out_option("Output folder (errors.csv, table.md, table.csv, summary.json, plots).")
-@click.option("--reference-length-mm", type=FiniteFloat(), default=None,
-              help="Length for % errors in mm. [default: largest distance between two "
-                   "truth samples; the paper uses 152]")
-@click.option("--label", default="result", show_default=True,
-              help="Row label, e.g. 'Rest, small'.")
-@click.option("--register", type=click.Choice(["none", "translation", "rigid", "similarity"]),
-              default="none", show_default=True,
-              help="Map the measurement onto the truth before the errors are taken: "
-                   "translation removes the mean error vector (the paper's protocol), rigid "
-                   "is the least-squares rotation and translation, similarity adds one scale. "
-                   "Top-view (x, y) data: none or translation.")
+@click.option(
+    "--reference-length-mm",
+    type=FiniteFloat(),
+    default=None,
+    help="Length for % errors in mm. [default: largest distance between two "
+    "truth samples; the paper uses 152]",
+)
+@click.option("--label", default="result", show_default=True, help="Row label, e.g. 'Rest, small'.")
+@click.option(
+    "--register",
+    type=click.Choice(["none", "translation", "rigid", "similarity"]),
+    default="none",
+    show_default=True,
+    help="Map the measurement onto the truth before the errors are taken: "
+    "translation removes the mean error vector (the paper's protocol), rigid "
+    "is the least-squares rotation and translation, similarity adds one scale. "
+    "Top-view (x, y) data: none or translation.",
+)
 def evaluate(truth, measured, out_dir, reference_length_mm, label, register):
     """Compare measured touch positions with ground truth, as in the paper's Table I.
 
@@ -39,9 +54,9 @@ def evaluate(truth, measured, out_dir, reference_length_mm, label, register):
     with fruit_errors():
         if reference_length_mm is not None and not reference_length_mm > 0:
             raise EvaluationError(
-                f"--reference-length-mm: expected a length > 0 mm, got {reference_length_mm}")
-        summary, sample, t, m = evaluate_pair(truth, measured, reference_length_mm, label,
-                                             register)
+                f"--reference-length-mm: expected a length > 0 mm, got {reference_length_mm}"
+            )
+        summary, sample, t, m = evaluate_pair(truth, measured, reference_length_mm, label, register)
         write_single(out_dir, summary, sample, t, m)
     view = "3D" if summary["dims"] == 3 else "top view (x, y) only"
     click.echo(f"{summary['n']} samples, {view}; written to {out_dir}/")

@@ -14,9 +14,13 @@ from fruitcli.workflow.scene_outputs import shared_outputs
 @click.command(name="limits")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @out_option("Output folder: mesh files, limits.json, pv.csv, pv.png.", path_type=Path)
-@click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
-                   "without it, make-tracks runs first (into OUT/make-tracks).")
+@click.option(
+    "--solid",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
+    "without it, make-tracks runs first (into OUT/make-tracks).",
+)
 def limits(scene, out_dir, solid):
     """Follow each chamber of SCENE past its limit pressure by volume control.
 
@@ -42,8 +46,9 @@ def limits(scene, out_dir, solid):
         if solid is None and geo.artist is not None:
             from fruitcli.workflow import planner
 
-            planner.run(sc, out_dir, until="make-tracks", progress=log,
-                        shared=shared_outputs(out_dir))
+            planner.run(
+                sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs(out_dir)
+            )
             solid = out_dir / "make-tracks" / "reduced.stl"
         elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
@@ -51,9 +56,17 @@ def limits(scene, out_dir, solid):
         info = run_limits(sc, out_dir / "mesh.npz", out_dir, progress=log)
     for name, ch in info["chambers"].items():
         lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
-        click.echo(f"chamber {name}: limit pressure "
-                   + (f"none up to {MAX_STRETCH**3:g} V0" if lim is None else
-                      f"{lim:.4g} kPa at {ch['limit_volume_growth_mm3']:.4g} mm^3 growth")
-                   + ", collapse " + ("none" if col is None else f"{col:.4g} kPa"))
-    click.echo(f"{out_dir / 'limits.json'}: {len(info['chambers'])} chamber(s), "
-               f"{info['element']}, {info['seconds']:.1f} s")
+        click.echo(
+            f"chamber {name}: limit pressure "
+            + (
+                f"none up to {MAX_STRETCH**3:g} V0"
+                if lim is None
+                else f"{lim:.4g} kPa at {ch['limit_volume_growth_mm3']:.4g} mm^3 growth"
+            )
+            + ", collapse "
+            + ("none" if col is None else f"{col:.4g} kPa")
+        )
+    click.echo(
+        f"{out_dir / 'limits.json'}: {len(info['chambers'])} chamber(s), "
+        f"{info['element']}, {info['seconds']:.1f} s"
+    )

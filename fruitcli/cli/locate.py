@@ -19,35 +19,83 @@ from fruitcli.cli.options import (
 @click.command()
 @click.argument("frames", type=click.Path(dir_okay=False))
 @taxels_option(required=True)
-@states_option("taxels follow the deformation (the recording's chamber pressures, or its meta "
-               "state).")
-@click.option("--scene", "scene_path", type=click.Path(dir_okay=False), default=None,
-              help="Scene whose [board] and [detection] sections to use.")
-@click.option("--baseline-frames", type=click.IntRange(min=1), default=None,
-              help="Frames averaged into the baseline C0 (default 10).")
-@click.option("--threshold", type=FiniteFloat(min=0, min_open=True), default=None,
-              help="Touch threshold on v = C - C0, counts (default 20).")
-@click.option("--method", type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]), default=None,
-              help="n9: the paper's sequential N9 (default); n9_floor; peaks; fit2 (two "
-                   "footprints of the skin fitted around each peak).")
-@click.option("--surface", type=click.Path(dir_okay=False), default=None,
-              help="The body's closed surface at rest (mm), for the scene's "
-                   "[detection].project = surface.")
-@click.option("--model", "model_kind", type=click.Choice(["reduced", "full"]), default="reduced",
-              show_default=True,
-              help="For a recording with chamber pressures and a --scene: reduced (each "
-                   "frame's taxels from the scene's reduced model, built into "
-                   "out/<scene name>/reduce on first use) or full (the --states path).")
-@click.option("--skin", "skin_toml", type=click.Path(dir_okay=False), default=None,
-              help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
-                   "the touches' heights and strengths (default: the scene's [skin]).")
-@click.option("--hovers", is_flag=True, default=None,
-              help="Report hovers (below the touch threshold) as rows of kind hover "
-                   "(default: the scene's [detection].hovers).")
+@states_option(
+    "taxels follow the deformation (the recording's chamber pressures, or its meta state)."
+)
+@click.option(
+    "--scene",
+    "scene_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Scene whose [board] and [detection] sections to use.",
+)
+@click.option(
+    "--baseline-frames",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Frames averaged into the baseline C0 (default 10).",
+)
+@click.option(
+    "--threshold",
+    type=FiniteFloat(min=0, min_open=True),
+    default=None,
+    help="Touch threshold on v = C - C0, counts (default 20).",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]),
+    default=None,
+    help="n9: the paper's sequential N9 (default); n9_floor; peaks; fit2 (two "
+    "footprints of the skin fitted around each peak).",
+)
+@click.option(
+    "--surface",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="The body's closed surface at rest (mm), for the scene's [detection].project = surface.",
+)
+@click.option(
+    "--model",
+    "model_kind",
+    type=click.Choice(["reduced", "full"]),
+    default="reduced",
+    show_default=True,
+    help="For a recording with chamber pressures and a --scene: reduced (each "
+    "frame's taxels from the scene's reduced model, built into "
+    "out/<scene name>/reduce on first use) or full (the --states path).",
+)
+@click.option(
+    "--skin",
+    "skin_toml",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
+    "the touches' heights and strengths (default: the scene's [skin]).",
+)
+@click.option(
+    "--hovers",
+    is_flag=True,
+    default=None,
+    help="Report hovers (below the touch threshold) as rows of kind hover "
+    "(default: the scene's [detection].hovers).",
+)
 @divide_by_gain_option
 @out_option("Output folder: touches.csv (and measured.csv for bench recordings).")
-def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshold, method,
-           surface, model_kind, skin_toml, hovers, gains_csv, out_dir):
+def locate(
+    frames,
+    taxels_csv,
+    states_npz,
+    scene_path,
+    baseline_frames,
+    threshold,
+    method,
+    surface,
+    model_kind,
+    skin_toml,
+    hovers,
+    gains_csv,
+    out_dir,
+):
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak,height_mm,
@@ -70,22 +118,47 @@ def locate(frames, taxels_csv, states_npz, scene_path, baseline_frames, threshol
 
             skin_table = skin_with_gap_law(skin_toml)
         reduced = None
-        if model_kind == "reduced" and scene is not None and scene.chambers \
-                and has_pressures(frames, scene.board):
+        if (
+            model_kind == "reduced"
+            and scene is not None
+            and scene.chambers
+            and has_pressures(frames, scene.board)
+        ):
             from pathlib import Path
 
             from fruitcli.workflow.reduced_model import ensure_reduced
 
-            reduced = ensure_reduced(scene, Path("out") / scene.name, taxels_csv, progress,
-                                     label=f"{scene_path}: --model reduced",
-                                     bar=reduced_build_bar)
-        res = run_locate(scene, frames, taxels_csv, states_npz, out_dir, progress,
-                         baseline_frames=baseline_frames, threshold_counts=threshold,
-                         method=method, surface_path=surface, reduced=reduced,
-                         gains_csv=gains_csv, skin_table=skin_table, hovers=hovers)
-    model = {"reduced": "taxels from the reduced model",
-             "full": "taxels along the simulated states"}.get(res.get("model"), "")
-    click.echo(f"{res['touches']} touches in {res['frames']} frames "
-               f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}"
-               + (f"; {model}" if model else ""), err=True)
-
+            reduced = ensure_reduced(
+                scene,
+                Path("out") / scene.name,
+                taxels_csv,
+                progress,
+                label=f"{scene_path}: --model reduced",
+                bar=reduced_build_bar,
+            )
+        res = run_locate(
+            scene,
+            frames,
+            taxels_csv,
+            states_npz,
+            out_dir,
+            progress,
+            baseline_frames=baseline_frames,
+            threshold_counts=threshold,
+            method=method,
+            surface_path=surface,
+            reduced=reduced,
+            gains_csv=gains_csv,
+            skin_table=skin_table,
+            hovers=hovers,
+        )
+    model = {
+        "reduced": "taxels from the reduced model",
+        "full": "taxels along the simulated states",
+    }.get(res.get("model"), "")
+    click.echo(
+        f"{res['touches']} touches in {res['frames']} frames "
+        f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}"
+        + (f"; {model}" if model else ""),
+        err=True,
+    )

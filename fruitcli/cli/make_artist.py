@@ -23,5 +23,4 @@ def make_artist(out, overwrite):
         if Path(out).exists() and not overwrite:
             raise GeometryError(f"--out {out}: exists; give --overwrite to replace it")
         info = write_artist(out)
-    progress(f"wrote {info['path']}: {info['triangles']} triangles, "
-             f"{info['volume_mm3']:.0f} mm^3")
+    progress(f"wrote {info['path']}: {info['triangles']} triangles, {info['volume_mm3']:.0f} mm^3")

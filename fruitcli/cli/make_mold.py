@@ -11,24 +11,29 @@ from fruitcli.workflow.scene_outputs import shared_outputs
 
 
 def _opt(name, kind, help_):
-    return click.option(f"--{name.replace('_', '-')}", name, type=kind, default=None,
-                        help=help_)
+    return click.option(f"--{name.replace('_', '-')}", name, type=kind, default=None, help=help_)
 
 
 @click.command("make-mold")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @out_option("Output folder: one STL per mold part, mold.json, preview.png.", path_type=Path)
-@click.option("--tracks", "tracks_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="A make-tracks output folder; default: make-tracks runs "
-                                 "first (into OUT/make-tracks).")
+@click.option(
+    "--tracks",
+    "tracks_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="A make-tracks output folder; default: make-tracks runs first (into OUT/make-tracks).",
+)
 @_opt("wall_mm", float, "Mold wall thickness (mm; default 4, at least 1).")
-@_opt("clearance_mm", float, "Gap between keys and sockets, pins and holes (mm; default 0.3, "
-                             "at most the wall).")
+@_opt(
+    "clearance_mm",
+    float,
+    "Gap between keys and sockets, pins and holes (mm; default 0.3, at most the wall).",
+)
 @_opt("key_radius_mm", float, "Radius of the hemispherical registration keys (mm; default 3).")
 @_opt("pour_diameter_mm", float, "Pour hole diameter (mm; default 8).")
 @_opt("vent_diameter_mm", float, "Vent diameter (mm; default 2).")
-@_opt("pin_diameter_mm", float, "Diameter of the pins holding the chamber cores (mm; "
-                                "default 3).")
+@_opt("pin_diameter_mm", float, "Diameter of the pins holding the chamber cores (mm; default 3).")
 @_opt("vents", int, "Vents at the cavity's highest points besides the pour hole (default 4).")
 def make_mold(scene, out_dir, tracks_dir, **given):
     """Molds to cast SCENE's pieces in silicone: the tracked top (its yarn grooves are
@@ -44,23 +49,37 @@ def make_mold(scene, out_dir, tracks_dir, **given):
     log = Progress("make-mold ")
     with fruit_errors():
         sc = load_scene(scene)
-        values = {k: (given[k] if given[k] is not None else getattr(sc.mold, k))
-                  for k in MoldOptions.__dataclass_fields__}
+        values = {
+            k: (given[k] if given[k] is not None else getattr(sc.mold, k))
+            for k in MoldOptions.__dataclass_fields__
+        }
         names = {k: CLI_NAMES[k] if given[k] is not None else SCENE_NAMES[k] for k in values}
         opts = MoldOptions(**values)
         opts.check(names)
         if tracks_dir is None:
             if sc.geometry.artist is None:
-                raise SceneError(f"{scene}: [geometry]: make-mold needs an artist mesh (its "
-                                 "tracked top and reduced body), or --tracks")
+                raise SceneError(
+                    f"{scene}: [geometry]: make-mold needs an artist mesh (its "
+                    "tracked top and reduced body), or --tracks"
+                )
             from fruitcli.workflow import planner
 
-            planner.run(sc, out_dir, until="make-tracks", progress=log,
-                        shared=shared_outputs(out_dir))
+            planner.run(
+                sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs(out_dir)
+            )
             tracks_dir = out_dir / "make-tracks"
-        report = run_make_mold(tracks_dir, out_dir, scene_chambers(sc),
-                               sc.material.density_kg_m3, opts, names, progress=log)
+        report = run_make_mold(
+            tracks_dir,
+            out_dir,
+            scene_chambers(sc),
+            sc.material.density_kg_m3,
+            opts,
+            names,
+            progress=log,
+        )
     for m in report["molds"]:
-        click.echo(f"{m['piece']}: {', '.join(m['parts'])}; {m['silicone_ml']} ml "
-                   f"({m['silicone_g']} g) of silicone; cavity / piece "
-                   f"{m['cavity_vs_piece']:.4f}")
+        click.echo(
+            f"{m['piece']}: {', '.join(m['parts'])}; {m['silicone_ml']} ml "
+            f"({m['silicone_g']} g) of silicone; cavity / piece "
+            f"{m['cavity_vs_piece']:.4f}"
+        )

@@ -70,9 +70,10 @@ class Progress:
 
 def progressbar(iterable=None, length=None, label=""):
     """A click progress bar on stderr, silent under --quiet."""
-    file = open("/dev/null", "w") if quiet() else sys.stderr  # noqa: SIM115
-    return click.progressbar(iterable, length=length, label=label, file=file,
-                             show_pos=True, show_eta=True)
+    file = open("/dev/null", "w") if quiet() else sys.stderr
+    return click.progressbar(
+        iterable, length=length, label=label, file=file, show_pos=True, show_eta=True
+    )
 
 
 def reduced_build_bar(total: int):
@@ -81,39 +82,74 @@ def reduced_build_bar(total: int):
 
 
 divide_by_gain_option = click.option(
-    "--divide-by-gain", "gains_csv", type=click.Path(dir_okay=False), default=None,
+    "--divide-by-gain",
+    "gains_csv",
+    type=click.Path(dir_okay=False),
+    default=None,
     metavar="GAINS.csv",
     help="Divide each taxel's activation by its gain from this CSV (id, gain: fruit "
-         "calibrate's gains.csv) before detection; the threshold applies to the divided "
-         "activations. Default: the scene's [detection].divide_by_gain (off).")
+    "calibrate's gains.csv) before detection; the threshold applies to the divided "
+    "activations. Default: the scene's [detection].divide_by_gain (off).",
+)
 """`fruit locate` and `fruit live`: detection divides by the taxels' calibrated gains."""
 
 
 # The options several commands share, declared once (as rasterio's `rio/options.py`
 # does); each command says what it writes, reads or paces with them.
 
-def out_option(written: str, *, required: bool = True, default: str | None = None,
-               file: bool = False, dest: str = "out_dir", path_type=None):
+
+def out_option(
+    written: str,
+    *,
+    required: bool = True,
+    default: str | None = None,
+    file: bool = False,
+    dest: str = "out_dir",
+    path_type=None,
+):
     """``--out``: the folder (a file with `file`) the command writes; `written` says what."""
-    kind = click.Path(dir_okay=False, path_type=path_type) if file else \
-        click.Path(file_okay=False, path_type=path_type)
-    return click.option("--out", dest, required=required, default=default, type=kind,
-                        show_default=default is not None, help=written)
+    kind = (
+        click.Path(dir_okay=False, path_type=path_type)
+        if file
+        else click.Path(file_okay=False, path_type=path_type)
+    )
+    return click.option(
+        "--out",
+        dest,
+        required=required,
+        default=default,
+        type=kind,
+        show_default=default is not None,
+        help=written,
+    )
 
 
 def taxels_option(*, required: bool = False, path_type=None):
     """``--taxels``: the taxel CSV; by default the scene's own."""
-    where = "." if required else \
-        "; default: the scene's own (its stages run into out/<scene name> when needed)."
-    return click.option("--taxels", "taxels_csv", required=required, default=None,
-                        type=click.Path(dir_okay=False, path_type=path_type),
-                        help=f"Taxel CSV: id,i,j,x_mm,y_mm,z_mm (mm, rest positions){where}")
+    where = (
+        "."
+        if required
+        else "; default: the scene's own (its stages run into out/<scene name> when needed)."
+    )
+    return click.option(
+        "--taxels",
+        "taxels_csv",
+        required=required,
+        default=None,
+        type=click.Path(dir_okay=False, path_type=path_type),
+        help=f"Taxel CSV: id,i,j,x_mm,y_mm,z_mm (mm, rest positions){where}",
+    )
 
 
 def states_option(follows: str):
     """``--states``: `fruit simulate`'s states.npz; `follows` says what the taxels do."""
-    return click.option("--states", "states_npz", type=click.Path(dir_okay=False),
-                        default=None, help=f"states.npz from `fruit simulate`: {follows}")
+    return click.option(
+        "--states",
+        "states_npz",
+        type=click.Path(dir_okay=False),
+        default=None,
+        help=f"states.npz from `fruit simulate`: {follows}",
+    )
 
 
 def format_option(*, default: str | None, auto: bool = True, what: str = ""):
@@ -128,31 +164,49 @@ def format_option(*, default: str | None, auto: bool = True, what: str = ""):
         tail = " auto: whichever yields frames first."
     else:
         tail = ""
-    return click.option("--format", "fmt", type=click.Choice(choices), default=default,
-                        show_default=default is not None,
-                        help=f"{what}The board's frame format: stock Muca_Raw ASCII lines or "
-                             f"SendRawByte binary packets.{tail}")
+    return click.option(
+        "--format",
+        "fmt",
+        type=click.Choice(choices),
+        default=default,
+        show_default=default is not None,
+        help=f"{what}The board's frame format: stock Muca_Raw ASCII lines or "
+        f"SendRawByte binary packets.{tail}",
+    )
 
 
 def baud_option(*, name: str = "--baud", pace: bool = False, what: str = ""):
     """``--baud``: a serial line's baud rate (8N1); with `pace` an emulator paces its bytes
     at it and 0 means unpaced."""
-    help_text = (f"{what}Pace the bytes like a serial line at this baud, 8N1 (10 bits a "
-                 "byte; 0: unpaced).") if pace else f"{what}Baud rate (8N1)."
-    return click.option(name, type=click.IntRange(min=0 if pace else 1), default=115200,
-                        show_default=True, help=help_text)
+    help_text = (
+        (f"{what}Pace the bytes like a serial line at this baud, 8N1 (10 bits a byte; 0: unpaced).")
+        if pace
+        else f"{what}Baud rate (8N1)."
+    )
+    return click.option(
+        name,
+        type=click.IntRange(min=0 if pace else 1),
+        default=115200,
+        show_default=True,
+        help=help_text,
+    )
 
 
 def jobs_option(what: str = "Worker processes"):
     """``--jobs``: local worker processes (default: all cores)."""
-    return click.option("--jobs", type=click.IntRange(min=1), default=None,
-                        help=f"{what}. [default: all cores]")
+    return click.option(
+        "--jobs", type=click.IntRange(min=1), default=None, help=f"{what}. [default: all cores]"
+    )
 
 
 def scheduler_option(what: str):
     """``--scheduler ADDRESS``: a Dask distributed scheduler to run `what` on."""
-    return click.option("--scheduler", metavar="ADDRESS", default=None,
-                        help=f"Run {what} on the workers of this Dask distributed scheduler "
-                             "(tcp://host:8786), e.g. one started by dask-jobqueue on SLURM "
-                             "or PBS; --out must be on a file system they share. Needs pip "
-                             "install 'fruitcli[cluster]'.")
+    return click.option(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help=f"Run {what} on the workers of this Dask distributed scheduler "
+        "(tcp://host:8786), e.g. one started by dask-jobqueue on SLURM "
+        "or PBS; --out must be on a file system they share. Needs pip "
+        "install 'fruitcli[cluster]'.",
+    )

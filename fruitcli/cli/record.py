@@ -18,32 +18,65 @@ from fruitcli.cli.options import (
 
 
 @click.command()
-@click.option("--port", required=True, help="Serial port of the board (device path or "
-              "pyserial URL).")
-@out_option("Recording: .npz, or a MuCa ASCII log (.log/.txt/.csv) with host "
-            "timestamps.", file=True, dest="out_path")
-@click.option("--frames", "n_frames", type=click.IntRange(min=1), default=None,
-              help="Stop after this many frames.")
-@click.option("--seconds", type=FiniteFloat(min=0, min_open=True), default=None,
-              help="Stop after this many seconds.")
+@click.option(
+    "--port", required=True, help="Serial port of the board (device path or pyserial URL)."
+)
+@out_option(
+    "Recording: .npz, or a MuCa ASCII log (.log/.txt/.csv) with host timestamps.",
+    file=True,
+    dest="out_path",
+)
+@click.option(
+    "--frames",
+    "n_frames",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Stop after this many frames.",
+)
+@click.option(
+    "--seconds",
+    type=FiniteFloat(min=0, min_open=True),
+    default=None,
+    help="Stop after this many seconds.",
+)
 @baud_option()
-@click.option("--rows", type=click.IntRange(min=1), default=21, show_default=True,
-              help="Frame rows (Tx lines).")
-@click.option("--cols", type=click.IntRange(min=1), default=12, show_default=True,
-              help="Frame columns (Rx lines).")
+@click.option(
+    "--rows",
+    type=click.IntRange(min=1),
+    default=21,
+    show_default=True,
+    help="Frame rows (Tx lines).",
+)
+@click.option(
+    "--cols",
+    type=click.IntRange(min=1),
+    default=12,
+    show_default=True,
+    help="Frame columns (Rx lines).",
+)
 @format_option(default="auto")
-@click.option("--pressure-port", default=None,
-              help="Serial source of chamber pressures, the `fruit live` line protocol "
-                   "'P c1=2.5 c2=0.0' (kPa): each frame gets the latest pressures received "
-                   "before it (pressure_kpa) and the time of that reading (pressure_t_s). "
-                   "Needs --chambers and an .npz --out.")
-@click.option("--chambers", default=None,
-              help="Chamber names of --pressure-port, comma-separated (e.g. c1,c2,c3): the "
-                   "columns of pressure_kpa; lines naming others are skipped and counted.")
-@click.option("--overwrite", is_flag=True,
-              help="Replace an existing --out file (once the new recording has frames).")
-def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_port, chambers,
-           overwrite):
+@click.option(
+    "--pressure-port",
+    default=None,
+    help="Serial source of chamber pressures, the `fruit live` line protocol "
+    "'P c1=2.5 c2=0.0' (kPa): each frame gets the latest pressures received "
+    "before it (pressure_kpa) and the time of that reading (pressure_t_s). "
+    "Needs --chambers and an .npz --out.",
+)
+@click.option(
+    "--chambers",
+    default=None,
+    help="Chamber names of --pressure-port, comma-separated (e.g. c1,c2,c3): the "
+    "columns of pressure_kpa; lines naming others are skipped and counted.",
+)
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an existing --out file (once the new recording has frames).",
+)
+def record(
+    port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_port, chambers, overwrite
+):
     """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
 
     Every whole frame received is on disk as soon as it arrives; board log lines, cut
@@ -68,8 +101,10 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         check_limits(n_frames, seconds)
         names = tuple(c.strip() for c in chambers.split(",")) if chambers else ()
         if pressure_port and not names:
-            raise FrameError(f"--pressure-port {pressure_port}: give --chambers, the names "
-                             "of the pressures' columns (e.g. --chambers c1,c2,c3)")
+            raise FrameError(
+                f"--pressure-port {pressure_port}: give --chambers, the names "
+                "of the pressures' columns (e.g. --chambers c1,c2,c3)"
+            )
         if names and not pressure_port:
             raise FrameError("--chambers: needs --pressure-port, the source of the pressures")
         if any(not c for c in names) or len(set(names)) != len(names):
@@ -77,8 +112,11 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         check_out_path(out_path, overwrite, pressures=bool(pressure_port))
         from pathlib import Path
 
-        untouched = (f"{out_path} left as it was" if Path(out_path).exists()
-                     else f"nothing written to {out_path}")
+        untouched = (
+            f"{out_path} left as it was"
+            if Path(out_path).exists()
+            else f"nothing written to {out_path}"
+        )
         ser = open_port(port, baud)
         pser = p_thread = pressure = None
         stop = threading.Event()
@@ -92,17 +130,25 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
         reader = FrameReader(ser, rows, cols, name=port, fmt=fmt)
         if pressure is not None:
             p_thread = pressure_thread(pser, pressure, stop, pressure_port)
-        sink = LogSink(log_path_for(out_path),
-                       header=f"fruit record from {port} at {baud} baud: t_s (host, s), "
-                              f"{rows}x{cols} counts", pressure=pressure, t0=reader.t0)
+        sink = LogSink(
+            log_path_for(out_path),
+            header=f"fruit record from {port} at {baud} baud: t_s (host, s), {rows}x{cols} counts",
+            pressure=pressure,
+            t0=reader.t0,
+        )
         started = time.monotonic()
         try:
             res = record_stream(reader, sink, n_frames, seconds, progress)
         except KeyboardInterrupt:
             interrupted = True
             took = time.monotonic() - started
-            res = {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
-                   "frames_per_s": sink.frames / took if took > 0 else 0.0, "closed": ""}
+            res = {
+                "frames": sink.frames,
+                "skipped": reader.skipped,
+                "cut": reader.cut,
+                "frames_per_s": sink.frames / took if took > 0 else 0.0,
+                "closed": "",
+            }
         finally:
             sink.close()
             ser.close()
@@ -110,35 +156,49 @@ def record(port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_po
             if p_thread is not None:
                 p_thread.join(1.0)
                 pser.close()
-        meta = {"source": "fruit record", "port": port, "baud": baud,
-                "format": reader.format}
+        meta = {"source": "fruit record", "port": port, "baud": baud, "format": reader.format}
         if pressure is not None:
-            meta.update(pressure_port=pressure_port, pressure_lines=pressure.received,
-                        pressure_lines_skipped=pressure.skipped)
+            meta.update(
+                pressure_port=pressure_port,
+                pressure_lines=pressure.received,
+                pressure_lines_skipped=pressure.skipped,
+            )
         frames = finalize(out_path, meta, rows, cols, names)
         why = reader.skip_reasons()
         unit = "damaged packets" if reader.format == "binary" else "lines"
         skipped = f"{res['skipped']} {unit} skipped" + (f": {why}" if why else "")
         if frames == 0:
-            how = ("port closed" if res["closed"] else "interrupted" if interrupted
-                   else f"stopped after {seconds:g} s" if seconds else "stopped")
+            how = (
+                "port closed"
+                if res["closed"]
+                else "interrupted"
+                if interrupted
+                else f"stopped after {seconds:g} s"
+                if seconds
+                else "stopped"
+            )
             got = skipped if res["skipped"] or why else "nothing received"
             if interrupted:
-                click.echo(f"Interrupted: no frame received from {port}; {untouched} "
-                           f"({got})", err=True)
+                click.echo(
+                    f"Interrupted: no frame received from {port}; {untouched} ({got})", err=True
+                )
                 raise SystemExit(130)
             raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
-    summary = (f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
-               f"{skipped}, "
-               f"{res['cut']} cut -> {out_path}")
+    summary = (
+        f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
+        f"{skipped}, "
+        f"{res['cut']} cut -> {out_path}"
+    )
     if pressure is not None:
-        summary += (f"; pressure lines: {pressure.received} taken, {pressure.skipped} skipped "
-                    f"(not 'P name=kPa ...' with chambers {', '.join(names)})"
-                    + ("; the pressure port closed during the recording"
-                       if pressure.closed else ""))
+        summary += (
+            f"; pressure lines: {pressure.received} taken, {pressure.skipped} skipped "
+            f"(not 'P name=kPa ...' with chambers {', '.join(names)})"
+            + ("; the pressure port closed during the recording" if pressure.closed else "")
+        )
     if res["closed"]:
-        raise click.ClickException(f"{port}: port closed after {frames} frames; {out_path} "
-                                   f"holds them ({skipped})")
+        raise click.ClickException(
+            f"{port}: port closed after {frames} frames; {out_path} holds them ({skipped})"
+        )
     click.echo(summary, err=True)
     if interrupted:
         click.echo("Interrupted.", err=True)

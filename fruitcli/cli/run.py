@@ -17,8 +17,11 @@ def default_out(scene) -> Path:
 @click.command()
 @click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False))
 @out_option("Output folder; one sub-folder per stage. [default: out/<scene name>]", required=False)
-@click.option("--dry-run", is_flag=True,
-              help="Print each stage as run, reuse or not needed, with the reason; run nothing.")
+@click.option(
+    "--dry-run",
+    is_flag=True,
+    help="Print each stage as run, reuse or not needed, with the reason; run nothing.",
+)
 @click.option("--until", default=None, help="Stop after this stage (and what it needs).")
 @click.option("--force", is_flag=True, help="Rerun every needed stage even if unchanged.")
 def run(scene_file, out_dir, dry_run, until, force):
@@ -40,7 +43,8 @@ def run(scene_file, out_dir, dry_run, until, force):
             click.echo(planner.format_plan(steps))
             return
         progress = Progress()
-        steps = planner.run(scene, out, until=until, progress=progress, force=force,
-                            shared=shared_outputs(out))
+        steps = planner.run(
+            scene, out, until=until, progress=progress, force=force, shared=shared_outputs(out)
+        )
         click.echo(f"{scene.name}: done -> {out}/")
         click.echo(planner.format_plan(steps))

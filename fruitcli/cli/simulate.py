@@ -21,17 +21,32 @@ from fruitcli.workflow.scene_outputs import shared_outputs
 @click.command(name="simulate")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @out_option("Output folder: mesh files and states.npz.", path_type=Path)
-@click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
-                   "without it, make-tracks runs first (into OUT/make-tracks).")
+@click.option(
+    "--solid",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
+    "without it, make-tracks runs first (into OUT/make-tracks).",
+)
 @taxels_option(path_type=Path)
 @click.option("--vtu", is_flag=True, help="Also write one VTU per state for ParaView.")
-@click.option("--pressures", "pressures_csv", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="CSV of pressure vectors instead of [actuation]: one row per "
-              "state, one column <chamber>_kpa per chamber (kPa), # comment lines allowed.")
-@click.option("--model", "model_kind", type=click.Choice(["full", "reduced"]), default="full",
-              show_default=True, help="full: the FEM solved per state; reduced: the scene's "
-              "reduced model (built into OUT/reduce on first use, pressures within its range).")
+@click.option(
+    "--pressures",
+    "pressures_csv",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="CSV of pressure vectors instead of [actuation]: one row per "
+    "state, one column <chamber>_kpa per chamber (kPa), # comment lines allowed.",
+)
+@click.option(
+    "--model",
+    "model_kind",
+    type=click.Choice(["full", "reduced"]),
+    default="full",
+    show_default=True,
+    help="full: the FEM solved per state; reduced: the scene's "
+    "reduced model (built into OUT/reduce on first use, pressures within its range).",
+)
 def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
     """Tetrahedralize SCENE's body, then solve each state of [actuation].
 
@@ -66,10 +81,21 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
         if model_kind == "reduced":
             from fruitcli.workflow.reduced_model import simulate_reduced
 
-            info = simulate_reduced(sc, out_dir, taxels_csv, table, rows, pressures_csv, log,
-                                    vtu=vtu, bar=reduced_build_bar)
-            click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
-                       f"model, {info['us_per_state']:.1f} us per state; {info['describe']}")
+            info = simulate_reduced(
+                sc,
+                out_dir,
+                taxels_csv,
+                table,
+                rows,
+                pressures_csv,
+                log,
+                vtu=vtu,
+                bar=reduced_build_bar,
+            )
+            click.echo(
+                f"{out_dir / 'states.npz'}: {info['states']} state(s) from the reduced "
+                f"model, {info['us_per_state']:.1f} us per state; {info['describe']}"
+            )
             return
         geo = sc.geometry
         taxel_csv = taxels_csv or sc.grid.taxels
@@ -83,8 +109,9 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
         if solid is None and geo.artist is not None:
             from fruitcli.workflow import planner
 
-            planner.run(sc, out_dir, until="make-tracks", progress=log,
-                        shared=shared_outputs(out_dir))
+            planner.run(
+                sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs(out_dir)
+            )
             solid = out_dir / "make-tracks" / "reduced.stl"
             tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
             if xyz is None:
@@ -92,24 +119,36 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
         elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
-        with progressbar(length=n_states(sc) if table is None else len(table),
-                         label="states") as bar:
+        with progressbar(
+            length=n_states(sc) if table is None else len(table), label="states"
+        ) as bar:
+
             def progress(msg: str) -> None:
                 if msg.startswith("state "):
                     bar.update(1)
                 else:
                     log(msg)
 
-            info = run_simulate(sc, out_dir / "mesh.npz", xyz, out_dir, progress=progress,
-                                vtu=vtu, tracks_csv=tracks_csv,
-                                pressures=None if table is None else
-                                dict(zip(names, table.T, strict=True)))
-    click.echo(f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "
-               f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}")
+            info = run_simulate(
+                sc,
+                out_dir / "mesh.npz",
+                xyz,
+                out_dir,
+                progress=progress,
+                vtu=vtu,
+                tracks_csv=tracks_csv,
+                pressures=None if table is None else dict(zip(names, table.T, strict=True)),
+            )
+    click.echo(
+        f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "
+        f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}"
+    )
     if "yarns" in info:
         y = info["yarns"]
-        click.echo(f"{out_dir / 'yarns.csv'}: {y['tracks']} track(s), largest stretch "
-                   f"{y['max_stretch_pct']:.2f} % over a track, {y['max_local_stretch_pct']:.2f}"
-                   f" % over {y['zigzag_pitch_mm']:g} mm (track {y['worst_track']}, state "
-                   f"{y['state_of_max']}); {len(y['warnings'])} over [tracks] yarn_max_stretch "
-                   f"{100 * y['yarn_max_stretch']:g} %")
+        click.echo(
+            f"{out_dir / 'yarns.csv'}: {y['tracks']} track(s), largest stretch "
+            f"{y['max_stretch_pct']:.2f} % over a track, {y['max_local_stretch_pct']:.2f}"
+            f" % over {y['zigzag_pitch_mm']:g} mm (track {y['worst_track']}, state "
+            f"{y['state_of_max']}); {len(y['warnings'])} over [tracks] yarn_max_stretch "
+            f"{100 * y['yarn_max_stretch']:g} %"
+        )

@@ -11,8 +11,13 @@ from fruitcli.cli.options import Progress, fruit_errors
 
 @click.command(name="skin")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output folder: crossing.npz, summary.json.")
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Output folder: crossing.npz, summary.json.",
+)
 def skin(scene, out_dir):
     """C0 of SCENE's Tx-Rx crossing, its change dC under the bench's indenters and a
     finger over gaps and offsets, and C_delta under stretch and bend.
@@ -30,8 +35,12 @@ def skin(scene, out_dir):
         inputs = crossing_inputs(load_scene(scene))
         table, summary = run_crossing(inputs, progress=Progress("skin "))
         write_outputs(out_dir, table, summary)
-    click.echo(f"{out_dir / 'crossing.npz'}: C0 {summary['c0_ff']:.1f} fF, "
-               f"{summary['counts_per_ff']:.3f} counts/fF")
+    click.echo(
+        f"{out_dir / 'crossing.npz'}: C0 {summary['c0_ff']:.1f} fF, "
+        f"{summary['counts_per_ff']:.3f} counts/fF"
+    )
     for name, obj in summary["objects"].items():
-        click.echo(f"  {name}: contact {obj['contact_counts']:.1f} counts, footprint sigma "
-                   f"{obj['footprint_sigma_mm']:.2f} mm, gap decay {obj['gap_decay_mm']:.2f} mm")
+        click.echo(
+            f"  {name}: contact {obj['contact_counts']:.1f} counts, footprint sigma "
+            f"{obj['footprint_sigma_mm']:.2f} mm, gap decay {obj['gap_decay_mm']:.2f} mm"
+        )

@@ -40,8 +40,9 @@ def study():
 
 
 @study.command()
-@out_option("Output folder: stability.md, .csv, "
-            ".json.", required=False, default="out/study-stability")
+@out_option(
+    "Output folder: stability.md, .csv, .json.", required=False, default="out/study-stability"
+)
 @jobs_option()
 @scheduler_option("the cases")
 def stability(out_dir, jobs, scheduler):
@@ -69,18 +70,29 @@ def stability(out_dir, jobs, scheduler):
         text = table_markdown(rows)
         with staged_dir(out_dir) as tmp:
             write_text(tmp / "stability.md", "# Stability study\n\n" + text)
-            write_csv(tmp / "stability.csv", HEADER, [[r.get(h) for h in HEADER] for r in rows],
-                      comments=["units: max_disp_mm in mm, seconds in s"])
+            write_csv(
+                tmp / "stability.csv",
+                HEADER,
+                [[r.get(h) for h in HEADER] for r in rows],
+                comments=["units: max_disp_mm in mm, seconds in s"],
+            )
             write_json(tmp / "stability.json", rows)
     click.echo(text, nl=False)
     click.echo(f"written to {Path(out_dir)}/")
 
 
 @study.command()
-@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
-                default="pipelines/fruit-deformed.toml")
-@out_option("Output folder: runtime.md, runtime.json, "
-            "runtime.png.", required=False, default="out/study-runtime")
+@click.argument(
+    "scene_file",
+    metavar="SCENE",
+    type=click.Path(dir_okay=False),
+    default="pipelines/fruit-deformed.toml",
+)
+@out_option(
+    "Output folder: runtime.md, runtime.json, runtime.png.",
+    required=False,
+    default="out/study-runtime",
+)
 @jobs_option()
 @scheduler_option("the FEM settings")
 def runtime(scene_file, out_dir, jobs, scheduler):
@@ -102,8 +114,10 @@ def runtime(scene_file, out_dir, jobs, scheduler):
         scene = load_scene(scene_file)
         fem = planner.plan(scene, Path(out_dir) / "scene", until="simulate")[-1]
         if fem.action not in ("run", "reuse"):
-            raise click.UsageError(f"{scene_file}: the scene has no FEM to study (no "
-                                   "deformation or no geometry: see `fruit run --dry-run`)")
+            raise click.UsageError(
+                f"{scene_file}: the scene has no FEM to study (no "
+                "deformation or no geometry: see `fruit run --dry-run`)"
+            )
         out = Path(out_dir).resolve() if scheduler else Path(out_dir)  # same on workers
         pool = stack.enter_context(_cases_pool(jobs, scheduler, out))
         base = out / "scene"
@@ -124,24 +138,33 @@ def runtime(scene_file, out_dir, jobs, scheduler):
         args = [(scene.path, work, solid, taxels, c) for c in first]
         rows = run_cases(rt.run_fem_case, args, progress=_bar("runtime: meshes"), pool=pool)
         args = [(scene.path, work, solid, taxels, c) for c in rest]
-        rows += run_cases(rt.run_fem_case, args, progress=_bar("runtime: solver settings"),
-                          pool=pool)
+        rows += run_cases(
+            rt.run_fem_case, args, progress=_bar("runtime: solver settings"), pool=pool
+        )
         order = {c.name: n for n, c in enumerate(cases)}
         rows.sort(key=lambda r: order[r["setting"]])
         rt.add_errors(rows)
         det = []
         if scene.has("bench"):
-            det = rt.run_detection_variants(scene, ctx.dir("bench"), taxels,
-                                            states_path(scene, ctx), work)
+            det = rt.run_detection_variants(
+                scene, ctx.dir("bench"), taxels, states_path(scene, ctx), work
+            )
         rt.write_outputs(out, rows, det, f"size {default:g} mm")
     click.echo((out / "runtime.md").read_text(), nl=False)
 
 
 @study.command("bench")
-@click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False),
-                default="pipelines/fruit-rest.toml")
-@out_option("Output folder: bench.md, bench.csv, bench.json, "
-            "bench.png.", required=False, default="out/study-bench")
+@click.argument(
+    "scene_file",
+    metavar="SCENE",
+    type=click.Path(dir_okay=False),
+    default="pipelines/fruit-rest.toml",
+)
+@out_option(
+    "Output folder: bench.md, bench.csv, bench.json, bench.png.",
+    required=False,
+    default="out/study-bench",
+)
 @jobs_option()
 def bench_study(scene_file, out_dir, jobs):
     """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
@@ -169,8 +192,9 @@ def bench_study(scene_file, out_dir, jobs):
         out = Path(out_dir)
         base = out / "scene"
         # the scene's own stages up to the bench: copied from the demo's out/<scene>
-        planner.run(scene, base, until="simulate", progress=Progress("   "),
-                    shared=out.resolve().parent)
+        planner.run(
+            scene, base, until="simulate", progress=Progress("   "), shared=out.resolve().parent
+        )
         ctx = planner.Context(base)
         taxels = taxels_path(scene, ctx)
         if taxels is None:
@@ -179,30 +203,49 @@ def bench_study(scene_file, out_dir, jobs):
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
         solid = solid_path(scene, ctx)
-        args = [(scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
-                for c in bs.cases(scene.skin, list(scene.bench.indenters), solid is not None)]
+        args = [
+            (scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
+            for c in bs.cases(scene.skin, list(scene.bench.indenters), solid is not None)
+        ]
         results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
         rows = [r for res in results for r in res["rows"]]
         text = bs.table_markdown(rows, scene.name, PAPER_TABLE_I)
         with staged_dir(out) as tmp:
             write_text(tmp / "bench.md", text)
-            write_csv(tmp / "bench.csv", bs.HEADER, bs.csv_rows(rows),
-                      comments=[f"bench study of {scene.name}: errors in mm, registered = "
-                                "translation (the paper's protocol)"])
-            write_json(tmp / "bench.json", {"scene": scene.name,
-                                            "skin_defaults": scene.values("skin"), "rows": rows})
+            write_csv(
+                tmp / "bench.csv",
+                bs.HEADER,
+                bs.csv_rows(rows),
+                comments=[
+                    f"bench study of {scene.name}: errors in mm, registered = "
+                    "translation (the paper's protocol)"
+                ],
+            )
+            write_json(
+                tmp / "bench.json",
+                {"scene": scene.name, "skin_defaults": scene.values("skin"), "rows": rows},
+            )
             bs.plot(tmp / "bench.png", rows, scene.skin, PAPER_TABLE_I)
     click.echo(text, nl=False)
     click.echo(f"written to {out}/")
 
 
 @study.command("two-fingers")
-@out_option("Output folder: two_fingers.md, two_fingers.csv, single_fingers.csv, "
-            "two_fingers.png.", required=False, default="out/study-two-fingers")
-@click.option("--trials", type=click.IntRange(min=2), default=40, show_default=True,
-              help="Frames per axis and distance.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the skin and "
-              "the noise.")
+@out_option(
+    "Output folder: two_fingers.md, two_fingers.csv, single_fingers.csv, two_fingers.png.",
+    required=False,
+    default="out/study-two-fingers",
+)
+@click.option(
+    "--trials",
+    type=click.IntRange(min=2),
+    default=40,
+    show_default=True,
+    help="Frames per axis and distance.",
+)
+@click.option(
+    "--seed", type=int, default=0, show_default=True, help="Seed of the skin and the noise."
+)
 def two_fingers(out_dir, trials, seed):
     """Two fingers close together on the virtual bench: how often the paper's N9
     multitouch and the two-footprint fit ([detection].method = "fit2") report two touches,
@@ -214,14 +257,20 @@ def two_fingers(out_dir, trials, seed):
     with fruit_errors():
         res = write(out_dir, seed, trials)
     for m, n, rate, med, p95 in res["singles"]:
-        click.echo(f"single fingers, {m}: {rate:.1%} of {n} one touch, error median "
-                   f"{med:.2f} mm, p95 {p95:.2f} mm", err=True)
+        click.echo(
+            f"single fingers, {m}: {rate:.1%} of {n} one touch, error median "
+            f"{med:.2f} mm, p95 {p95:.2f} mm",
+            err=True,
+        )
     click.echo(f"-> {out_dir}/two_fingers.md", err=True)
 
 
 @study.command("heights")
-@out_option("Output folder: hover_heights.md, hover_heights.csv.", required=False,
-            default="out/study-heights")
+@out_option(
+    "Output folder: hover_heights.md, hover_heights.csv.",
+    required=False,
+    default="out/study-heights",
+)
 def heights(out_dir):
     """Hover heights on virtual-bench descents the skin was not calibrated on (another
     run, other points, the other indenter, a skin whose gains spread): height error per
@@ -232,7 +281,10 @@ def heights(out_dir):
     with fruit_errors():
         res = write(out_dir)
     for name, e in res["extras"].items():
-        click.echo(f"{name}: detected up to {e['largest_hover_mm']:.2f} mm (median), "
-                   f"position error hovers {e['hover_position_error_mm']:.2f} mm, touches "
-                   f"{e['touch_position_error_mm']:.2f} mm", err=True)
+        click.echo(
+            f"{name}: detected up to {e['largest_hover_mm']:.2f} mm (median), "
+            f"position error hovers {e['hover_position_error_mm']:.2f} mm, touches "
+            f"{e['touch_position_error_mm']:.2f} mm",
+            err=True,
+        )
     click.echo(f"-> {out_dir}/hover_heights.md", err=True)

@@ -16,32 +16,66 @@ from fruitcli.cli.options import (
     scheduler_option,
 )
 
-FIGURES = ("taxels", "tets", "states", "newton_its", "max_disp_mm", "state_ms",
-           "noise_std_max_counts", "shift_max_counts", "shift_mean_counts", "variant_s")
+FIGURES = (
+    "taxels",
+    "tets",
+    "states",
+    "newton_its",
+    "max_disp_mm",
+    "state_ms",
+    "noise_std_max_counts",
+    "shift_max_counts",
+    "shift_mean_counts",
+    "variant_s",
+)
 TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$")
 
 
 @click.command()
 @click.argument("scene_file", metavar="SCENE", type=click.Path(dir_okay=False))
-@click.option("--set", "sets", multiple=True, metavar="KEY=V1,V2,...",
-              help="A scene key and its values, e.g. mesh.size_mm=3,5 or "
-                   "geometry.chamber.c1.radii_mm=[10,10,4],[12,10,4]. Repeat for more keys.")
-@click.option("--grid/--zip", "grid", default=True,
-              help="Every combination of the lists (default), or the i-th value of each "
-                   "list together (lists of one length).")
-@out_option("Output folder: sweep.csv, sweep.md, sweep.png, variants/<name>/. [default: "
-            "out/sweep-<scene name>]", required=False)
+@click.option(
+    "--set",
+    "sets",
+    multiple=True,
+    metavar="KEY=V1,V2,...",
+    help="A scene key and its values, e.g. mesh.size_mm=3,5 or "
+    "geometry.chamber.c1.radii_mm=[10,10,4],[12,10,4]. Repeat for more keys.",
+)
+@click.option(
+    "--grid/--zip",
+    "grid",
+    default=True,
+    help="Every combination of the lists (default), or the i-th value of each "
+    "list together (lists of one length).",
+)
+@out_option(
+    "Output folder: sweep.csv, sweep.md, sweep.png, variants/<name>/. [default: "
+    "out/sweep-<scene name>]",
+    required=False,
+)
 @jobs_option("Local worker processes")
 @scheduler_option("the variants")
-@click.option("--connect-timeout", type=FiniteFloat(min=0.1), default=10.0,
-              show_default=True, help="Seconds to wait for the scheduler and a worker.")
-@click.option("--plot", "figure", default=None,
-              help="The figure sweep.png shows against the swept keys, a sweep.csv column "
-                   "(tets, max_disp_mm, state_ms, shift_max_counts, <row>_mean_mm, ...). "
-                   "[default: the first Table I mean error, else the largest baseline "
-                   "shift, else the largest displacement]")
-@click.option("--dry-run", is_flag=True,
-              help="List the variants and the stages they would share; run nothing.")
+@click.option(
+    "--connect-timeout",
+    type=FiniteFloat(min=0.1),
+    default=10.0,
+    show_default=True,
+    help="Seconds to wait for the scheduler and a worker.",
+)
+@click.option(
+    "--plot",
+    "figure",
+    default=None,
+    help="The figure sweep.png shows against the swept keys, a sweep.csv column "
+    "(tets, max_disp_mm, state_ms, shift_max_counts, <row>_mean_mm, ...). "
+    "[default: the first Table I mean error, else the largest baseline "
+    "shift, else the largest displacement]",
+)
+@click.option(
+    "--dry-run",
+    is_flag=True,
+    help="List the variants and the stages they would share; run nothing.",
+)
 def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, figure, dry_run):
     """Run SCENE for every combination (--grid) or zipped lists (--zip) of scene values.
 
@@ -59,23 +93,33 @@ def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, fig
     if jobs is not None and scheduler:
         raise click.UsageError("give --jobs or --scheduler, not both")
     if figure is not None and figure not in FIGURES and not TABLE_I.match(figure):
-        raise click.BadParameter(f"{figure!r}: expected one of {', '.join(FIGURES)} or a "
-                                 "Table I column <row>_n, <row>_mean_mm, <row>_std_mm",
-                                 param_hint="--plot")
+        raise click.BadParameter(
+            f"{figure!r}: expected one of {', '.join(FIGURES)} or a "
+            "Table I column <row>_n, <row>_mean_mm, <row>_std_mm",
+            param_hint="--plot",
+        )
     with fruit_errors():
         scene = load_scene(scene_file)
         try:
             specs = [parse_set(s) for s in sets]
             variants = build_variants(scene.path, specs, "grid" if grid else "zip")
         except SweepError as exc:
-            raise click.BadParameter(str(exc).removeprefix("--set "), param_hint="--set") \
-                from None
+            raise click.BadParameter(str(exc).removeprefix("--set "), param_hint="--set") from None
         out = Path(out_dir) if out_dir else Path("out") / f"sweep-{scene.name}"
         if dry_run:
             _dry_run(variants, out)
             return
-        _run(scene_file, variants, [s.key for s in specs], out, jobs, scheduler,
-             connect_timeout, figure, "grid" if grid else "zip")
+        _run(
+            scene_file,
+            variants,
+            [s.key for s in specs],
+            out,
+            jobs,
+            scheduler,
+            connect_timeout,
+            figure,
+            "grid" if grid else "zip",
+        )
 
 
 def _dry_run(variants, out: Path) -> None:
@@ -89,8 +133,11 @@ def _dry_run(variants, out: Path) -> None:
         click.echo(f"  {v.name}: {'run' if k in todo else 'reuse (finished before)'}")
     shared = [key for key in tasks if key[0] == "stage"]
     for key in shared:
-        users = sum(1 for t in tasks.values() if ("stage", *key[1:]) in t.deps
-                    and t.func.__name__ == "run_variant_task")
+        users = sum(
+            1
+            for t in tasks.values()
+            if ("stage", *key[1:]) in t.deps and t.func.__name__ == "run_variant_task"
+        )
         click.echo(f"  shared: {key[1]} (run once, used by {users} variants)")
 
 
@@ -102,9 +149,11 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
 
     silent = quiet()
     pool = open_executor(jobs, scheduler, out if scheduler else None, timeout)
-    comment = (f"fruit sweep of {Path(scene_file).name}: {len(variants)} variants "
-               f"({'every combination' if mode == 'grid' else 'zipped lists'} of "
-               f"{', '.join(keys)})")
+    comment = (
+        f"fruit sweep of {Path(scene_file).name}: {len(variants)} variants "
+        f"({'every combination' if mode == 'grid' else 'zipped lists'} of "
+        f"{', '.join(keys)})"
+    )
 
     def write_tables(rows, head):
         report.write_csv(out / "sweep.csv", rows, keys, comment)
@@ -115,33 +164,54 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
             return
         if row is not None and "stage" in row:  # a stage several variants share
             state = f"failed ({row['error']})" if row["error"] else "done"
-            click.echo(f"sweep: {done}/{total} variants, shared {row['stage']} {state} "
-                       f"(in {row['variant']})", err=True)
+            click.echo(
+                f"sweep: {done}/{total} variants, shared {row['stage']} {state} "
+                f"(in {row['variant']})",
+                err=True,
+            )
             return
-        last = "" if row is None else (f", last: {row['variant']} " + (
-            "ok" if row["status"] == "ok" else f"failed ({row['error']})"))
+        last = (
+            ""
+            if row is None
+            else (
+                f", last: {row['variant']} "
+                + ("ok" if row["status"] == "ok" else f"failed ({row['error']})")
+            )
+        )
         click.echo(f"sweep: {done}/{total} variants{last}", err=True)
 
     head = [f"# Sweep of {Path(scene_file).name}", "", f"{comment}; on {pool.name}."]
     try:
         if not silent:
             click.echo(f"sweep: {len(variants)} variants on {pool.name} -> {out}/", err=True)
-        rows, stats = run_sweep(variants, out, pool, progress,
-                                on_row=lambda rows: write_tables(rows, head + ["(running)"]))
+        rows, stats = run_sweep(
+            variants,
+            out,
+            pool,
+            progress,
+            on_row=lambda rows: write_tables(rows, head + ["(running)"]),
+        )
     finally:
         pool.close()
     figure = figure or report.default_figure(rows)
-    note = (report.plot(out / "sweep.png", rows, keys, figure) if figure
-            else "sweep.png: not drawn (no figure in any row)")
+    note = (
+        report.plot(out / "sweep.png", rows, keys, figure)
+        if figure
+        else "sweep.png: not drawn (no figure in any row)"
+    )
     if "not drawn" in note:
         (out / "sweep.png").unlink(missing_ok=True)  # a previous run's plot would mislead
-    head += ["", f"{stats['run']} variant(s) ran, {stats['reused']} reused from a previous run "
-             f"of this sweep, {stats['failed']} failed; {stats['shared_stages']} stage(s) "
-             "shared between variants (run once, copied to the others).",
-             f"Each variant's stages, log.txt and result.json: variants/<variant>/. {note}."]
+    head += [
+        "",
+        f"{stats['run']} variant(s) ran, {stats['reused']} reused from a previous run "
+        f"of this sweep, {stats['failed']} failed; {stats['shared_stages']} stage(s) "
+        "shared between variants (run once, copied to the others).",
+        f"Each variant's stages, log.txt and result.json: variants/<variant>/. {note}.",
+    ]
     write_tables(rows, head)
     click.echo(report.markdown(rows, keys, []).lstrip("\n"), nl=False)
     click.echo(f"written to {out}/ ({stats['failed']} of {len(rows)} variants failed)")
     if stats["failed"] == len(rows):
-        raise click.ClickException(f"every variant failed (first: {rows[0]['error']}); "
-                                   f"see {out}/sweep.md")
+        raise click.ClickException(
+            f"every variant failed (first: {rows[0]['error']}); see {out}/sweep.md"
+        )

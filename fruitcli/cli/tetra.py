@@ -12,9 +12,13 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
 @click.command(name="tetra")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @out_option("Output folder: mesh.npz, mesh.msh, mesh.vtu, quality.json.", path_type=Path)
-@click.option("--solid", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Closed surface of the body (mm), e.g. reduced.stl from make-tracks; "
-                   "default: the scene's geometry.solid or pad_size_mm.")
+@click.option(
+    "--solid",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Closed surface of the body (mm), e.g. reduced.stl from make-tracks; "
+    "default: the scene's geometry.solid or pad_size_mm.",
+)
 def tetra(scene, out_dir, solid):
     """Linear tets of SCENE's body at [mesh] size_mm (mm), chambers as cavities.
 
@@ -27,5 +31,7 @@ def tetra(scene, out_dir, solid):
     with fruit_errors():
         sc = load_scene(scene)
         report = run_tetra(sc, solid, out_dir, progress=Progress("tetra "))
-    click.echo(f"{out_dir / 'mesh.npz'}: {report['n_tets']} tets, {report['n_nodes']} nodes, "
-               f"SICN min {report['sicn_min']:.3f} mean {report['sicn_mean']:.3f}")
+    click.echo(
+        f"{out_dir / 'mesh.npz'}: {report['n_tets']} tets, {report['n_nodes']} nodes, "
+        f"SICN min {report['sicn_min']:.3f} mean {report['sicn_mean']:.3f}"
+    )

@@ -37,8 +37,9 @@ def element_stiffness(nodes: np.ndarray, tets: np.ndarray, order: int = 1) -> np
     """(m, n, n) integral of grad N_a . grad N_b over each element (mm), without eps;
     nodes (N, 3) mm, tets (m, 4) or (m, 10)."""
     if order not in NODES_PER_TET or tets.shape[1] != NODES_PER_TET[order]:
-        raise ValueError(f"order {order} needs {NODES_PER_TET.get(order)} nodes per tet, "
-                         f"got {tets.shape[1]}")
+        raise ValueError(
+            f"order {order} needs {NODES_PER_TET.get(order)} nodes per tet, got {tets.shape[1]}"
+        )
     pts, weights = tet_rule(2 * (order - 1))
     dref = tet_shape_gradients(pts, order)  # (q, n, 3)
     x = nodes[tets]  # (m, n, 3)
@@ -53,8 +54,9 @@ def element_stiffness(nodes: np.ndarray, tets: np.ndarray, order: int = 1) -> np
     return (a * w[:, None, :]) @ a.transpose(0, 2, 1)
 
 
-def stiffness(nodes: np.ndarray, tets: np.ndarray, eps_r: np.ndarray | float = 1.0,
-              order: int = 1) -> sp.csr_matrix:
+def stiffness(
+    nodes: np.ndarray, tets: np.ndarray, eps_r: np.ndarray | float = 1.0, order: int = 1
+) -> sp.csr_matrix:
     """(N, N) CSR stiffness (fF) with relative permittivity `eps_r` per element (m,) or one
     value; nodes (N, 3) mm, tets (m, 4) for order 1 or (m, 10) for order 2."""
     tets = np.asarray(tets, np.int64)

@@ -26,9 +26,13 @@ def factorized(k_free: sp.csr_matrix):
         return lu.solve
     k = sp.csr_matrix(k_free)
     k.sort_indices()
-    chol = cholespy.CholeskySolverD(k.shape[0], k.indptr.astype(np.int32),
-                                    k.indices.astype(np.int32), k.data.astype(np.float64),
-                                    cholespy.MatrixType.CSR)
+    chol = cholespy.CholeskySolverD(
+        k.shape[0],
+        k.indptr.astype(np.int32),
+        k.indices.astype(np.int32),
+        k.data.astype(np.float64),
+        cholespy.MatrixType.CSR,
+    )
 
     def solve(b: np.ndarray) -> np.ndarray:
         b = np.ascontiguousarray(b, dtype=np.float64)
@@ -55,8 +59,9 @@ def solve_potential(k: sp.csr_matrix, fixed: np.ndarray, values: np.ndarray) -> 
     rhs = -(k[free][:, fixed] @ u[fixed])
     x = factorized(k_ff)(rhs)
     if not np.all(np.isfinite(x)):
-        raise SolverError("electrostatics: the potential is not finite (a region without "
-                          "any conductor?)")
+        raise SolverError(
+            "electrostatics: the potential is not finite (a region without any conductor?)"
+        )
     u[free] = x
     return u
 
@@ -71,8 +76,9 @@ def field_energy(k: sp.csr_matrix, u: np.ndarray) -> float:
     return 0.5 * float(u @ (k @ u))
 
 
-def two_conductor_capacitance(k: sp.csr_matrix, high: np.ndarray, low: np.ndarray,
-                              method: str = "charge") -> float:
+def two_conductor_capacitance(
+    k: sp.csr_matrix, high: np.ndarray, low: np.ndarray, method: str = "charge"
+) -> float:
     """Capacitance (fF) between conductors `high` (at 1 V) and `low` (at 0 V), nodes
     given by index; method "charge" (the charge on `high`) or "energy" (2 W / V^2)."""
     fixed = np.concatenate([high, low])
@@ -85,8 +91,9 @@ def two_conductor_capacitance(k: sp.csr_matrix, high: np.ndarray, low: np.ndarra
     raise ValueError(f"method: expected charge or energy, got {method!r}")
 
 
-def mutual_capacitance(k: sp.csr_matrix, drive: np.ndarray, sense: np.ndarray,
-                       grounded: np.ndarray | None = None) -> float:
+def mutual_capacitance(
+    k: sp.csr_matrix, drive: np.ndarray, sense: np.ndarray, grounded: np.ndarray | None = None
+) -> float:
     """Mutual capacitance (fF) from `drive` to `sense`: the charge drawn onto `sense`
     (held at 0 V with every `grounded` node) when `drive` is at 1 V, sign turned so that
     it is positive; what a CDC measures on a Tx-Rx crossing."""

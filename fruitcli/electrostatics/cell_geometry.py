@@ -65,13 +65,17 @@ def build(gmsh, spec: CellSpec) -> None:
     z0 = spec.bottom_z_mm
     sil = occ.addBox(-px, -py, z0, 2 * px, 2 * py, -z0)
     tops = sorted({float(z) for z in spec.levels_mm if 0 < z < spec.air_mm})
-    air = [occ.addBox(-px, -py, z_lo, 2 * px, 2 * py, z_hi - z_lo)
-           for z_lo, z_hi in zip([0.0, *tops], [*tops, spec.air_mm], strict=True)]
+    air = [
+        occ.addBox(-px, -py, z_lo, 2 * px, 2 * py, z_hi - z_lo)
+        for z_lo, z_hi in zip([0.0, *tops], [*tops, spec.air_mm], strict=True)
+    ]
     pad = 1.0  # cylinders overshoot the cell; cut back by the box
-    tx = [occ.addCylinder(x, -py - pad, spec.tx_z_mm, 0, 2 * (py + pad), 0, r)
-          for x in (0.0, -px, px)]
-    rx = [occ.addCylinder(-px - pad, y, spec.rx_z_mm, 2 * (px + pad), 0, 0, r)
-          for y in (0.0, -py, py)]
+    tx = [
+        occ.addCylinder(x, -py - pad, spec.tx_z_mm, 0, 2 * (py + pad), 0, r) for x in (0.0, -px, px)
+    ]
+    rx = [
+        occ.addCylinder(-px - pad, y, spec.rx_z_mm, 2 * (px + pad), 0, 0, r) for y in (0.0, -py, py)
+    ]
     cut, _ = occ.cut([(3, sil)], [(3, t) for t in tx + rx])
     both, _ = occ.fragment(cut, [(3, a) for a in air])
     occ.synchronize()
@@ -82,8 +86,9 @@ def build(gmsh, spec: CellSpec) -> None:
     gmsh.model.addPhysicalGroup(3, vols_air, name="air")
     groups: dict[str, list[int]] = {k: [] for k in ("tx", "rx", "tx_side", "rx_side", "top")}
     tol = 1e-6
-    for _, s in gmsh.model.getBoundary([(3, t) for t in vols_sil + vols_air], oriented=False,
-                                       combined=False):
+    for _, s in gmsh.model.getBoundary(
+        [(3, t) for t in vols_sil + vols_air], oriented=False, combined=False
+    ):
         s = abs(s)
         lo = gmsh.model.getBoundingBox(2, s)
         (xa, ya, za), (xb, yb, zb) = lo[:3], lo[3:]
@@ -129,22 +134,36 @@ def _size_fields(gmsh, spec: CellSpec, yarn_surfaces: list[int]) -> None:
     r = spec.yarn_radius_mm
     far = FAR_SIZE_FACTOR * spec.surface_size_mm
     ball = f.add("Ball")
-    for key, val in (("XCenter", 0.0), ("YCenter", 0.0),
-                     ("ZCenter", -spec.cover_mm), ("Radius", 2 * r),
-                     ("Thickness", 2 * r), ("VIn", spec.crossing_size_mm), ("VOut", far)):
+    for key, val in (
+        ("XCenter", 0.0),
+        ("YCenter", 0.0),
+        ("ZCenter", -spec.cover_mm),
+        ("Radius", 2 * r),
+        ("Thickness", 2 * r),
+        ("VIn", spec.crossing_size_mm),
+        ("VOut", far),
+    ):
         f.setNumber(ball, key, val)
     dist = f.add("Distance")
     f.setNumbers(dist, "SurfacesList", yarn_surfaces)
     yarn = f.add("Threshold")
-    for key, val in (("SizeMin", min(r / 2, spec.surface_size_mm)), ("SizeMax", far),
-                     ("DistMin", 0.0), ("DistMax", 3 * spec.cover_mm)):
+    for key, val in (
+        ("SizeMin", min(r / 2, spec.surface_size_mm)),
+        ("SizeMax", far),
+        ("DistMin", 0.0),
+        ("DistMax", 3 * spec.cover_mm),
+    ):
         f.setNumber(yarn, key, val)
     f.setNumber(yarn, "InField", dist)
     near = f.add("MathEval")
     reach = max(spec.pitch_x_mm, spec.pitch_y_mm) / 2
-    f.setString(near, "F", f"{spec.surface_size_mm} + {far - spec.surface_size_mm} * "
-                           f"Min(1, Max(Abs(z) - 1, 0) / {spec.cover_mm} "
-                           f"+ Sqrt(x*x + y*y) / {reach} / 2)")
+    f.setString(
+        near,
+        "F",
+        f"{spec.surface_size_mm} + {far - spec.surface_size_mm} * "
+        f"Min(1, Max(Abs(z) - 1, 0) / {spec.cover_mm} "
+        f"+ Sqrt(x*x + y*y) / {reach} / 2)",
+    )
     mn = f.add("Min")
     f.setNumbers(mn, "FieldsList", [ball, yarn, near])
     f.setAsBackgroundMesh(mn)

@@ -15,27 +15,27 @@ def parallel_plate(area_mm2: float, gap_mm: float, eps_r: float = 1.0) -> float:
     return EPS0_FF_PER_MM * eps_r * area_mm2 / gap_mm
 
 
-def two_cylinders_per_length(radius_mm: float, centre_distance_mm: float,
-                             eps_r: float = 1.0) -> float:
+def two_cylinders_per_length(
+    radius_mm: float, centre_distance_mm: float, eps_r: float = 1.0
+) -> float:
     """C' = pi eps / arccosh(D / 2a) (fF/mm) between two long parallel cylinders."""
     return np.pi * EPS0_FF_PER_MM * eps_r / np.arccosh(centre_distance_mm / (2 * radius_mm))
 
 
-def cylinder_over_plane_per_length(radius_mm: float, height_mm: float,
-                                   eps_r: float = 1.0) -> float:
+def cylinder_over_plane_per_length(radius_mm: float, height_mm: float, eps_r: float = 1.0) -> float:
     """C' = 2 pi eps / arccosh(h / a) (fF/mm): a cylinder, axis at h above a plane."""
     return 2 * np.pi * EPS0_FF_PER_MM * eps_r / np.arccosh(height_mm / radius_mm)
 
 
-def sphere_over_plane(radius_mm: float, height_mm: float, eps_r: float = 1.0,
-                      terms: int = 2000) -> float:
+def sphere_over_plane(
+    radius_mm: float, height_mm: float, eps_r: float = 1.0, terms: int = 2000
+) -> float:
     """C = 4 pi eps R sinh(alpha) sum_{n>=1} 1 / sinh(n alpha), cosh(alpha) = h / R (fF):
     a sphere of radius R, centre at h > R above a grounded plane (the image series)."""
     alpha = np.arccosh(height_mm / radius_mm)
     x = np.arange(1, terms + 1) * alpha
     inv_sinh = 2.0 * np.exp(-x) / -np.expm1(-2.0 * x)  # 1 / sinh(x) without overflow
-    return float(4 * np.pi * EPS0_FF_PER_MM * eps_r * radius_mm * np.sinh(alpha)
-                 * np.sum(inv_sinh))
+    return float(4 * np.pi * EPS0_FF_PER_MM * eps_r * radius_mm * np.sinh(alpha) * np.sum(inv_sinh))
 
 
 def concentric_spheres(inner_mm: float, outer_mm: float, eps_r: float = 1.0) -> float:
@@ -49,8 +49,13 @@ def image_factor(eps_r_source: float, eps_r_other: float) -> float:
     return (eps_r_source - eps_r_other) / (eps_r_source + eps_r_other)
 
 
-def line_charge_over_dielectric(point_mm: np.ndarray, height_mm: float, eps_r_above: float,
-                                eps_r_below: float, charge_fc_per_mm: float = 1.0) -> np.ndarray:
+def line_charge_over_dielectric(
+    point_mm: np.ndarray,
+    height_mm: float,
+    eps_r_above: float,
+    eps_r_below: float,
+    charge_fc_per_mm: float = 1.0,
+) -> np.ndarray:
     """Potential (V) at points (p, 2) = (x, z) of a line charge (fC/mm, along y) at
     (0, h) above the plane z = 0 between a medium eps_r_above (z > 0) and eps_r_below.
 

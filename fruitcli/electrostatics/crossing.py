@@ -85,8 +85,14 @@ class CrossingTable:
     mesh_info: dict = field(default_factory=dict)
 
 
-def cell_spec(pitch_x_mm: float, pitch_y_mm: float, cover_mm: float, yarn_radius_mm: float,
-              insulation_mm: float, gaps_mm) -> CellSpec:
+def cell_spec(
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    cover_mm: float,
+    yarn_radius_mm: float,
+    insulation_mm: float,
+    gaps_mm,
+) -> CellSpec:
     """The cell of a design, with the mesh sizes this module uses: a node layer at each
     of the table's gaps and a node at each tip position (dx, dy >= 0), so an object's
     lowest point is a node at every position of the table."""
@@ -95,11 +101,19 @@ def cell_spec(pitch_x_mm: float, pitch_y_mm: float, cover_mm: float, yarn_radius
     gaps = [float(g) for g in gaps_mm]
     xs = offsets_mm(pitch_x_mm)
     ys = offsets_mm(pitch_y_mm)
-    points = tuple((float(x), float(y), g) for g in gaps for x in xs[xs >= 0]
-                   for y in ys[ys >= 0])
-    return CellSpec(pitch_x_mm, pitch_y_mm, cover_mm, yarn_radius_mm, insulation_mm,
-                    max(gaps) + OBJECT_LENGTH_MM, size, SURFACE_SIZE_MM,
-                    tuple(g for g in gaps if g > 0), points)
+    points = tuple((float(x), float(y), g) for g in gaps for x in xs[xs >= 0] for y in ys[ys >= 0])
+    return CellSpec(
+        pitch_x_mm,
+        pitch_y_mm,
+        cover_mm,
+        yarn_radius_mm,
+        insulation_mm,
+        max(gaps) + OBJECT_LENGTH_MM,
+        size,
+        SURFACE_SIZE_MM,
+        tuple(g for g in gaps if g > 0),
+        points,
+    )
 
 
 def offsets_mm(pitch_mm: float) -> np.ndarray:
@@ -153,8 +167,9 @@ class CellSolver:
     def _solve(self, held_free: np.ndarray) -> np.ndarray:
         """Potentials (N,) with the free nodes `held_free` (mask over `free`) at 0 V."""
         data = self.upper.data.copy()
-        off = (held_free[self.row] | held_free[self.upper.indices]) & \
-            (self.row != self.upper.indices)
+        off = (held_free[self.row] | held_free[self.upper.indices]) & (
+            self.row != self.upper.indices
+        )
         data[off] = 0.0
         rhs = np.where(held_free, 0.0, self.rhs)
         a = sp.csr_matrix((data, self.upper.indices, self.upper.indptr), self.upper.shape)
@@ -186,8 +201,7 @@ class CellSolver:
         return self.capacitance(np.flatnonzero(inside))
 
 
-def touch_table(solver: CellSolver, objects, gaps, dx, dy, c0: float,
-                progress=None) -> np.ndarray:
+def touch_table(solver: CellSolver, objects, gaps, dx, dy, c0: float, progress=None) -> np.ndarray:
     """dC (k, g, x, y) fF over the table, solved on dx, dy >= 0 and mirrored."""
     dx, dy = np.asarray(dx, float), np.asarray(dy, float)
     out = np.full((len(objects), len(gaps), len(dx), len(dy)), np.nan)
@@ -219,15 +233,21 @@ def deformation_table(solver: CellSolver, spec: CellSpec, c0: float):
             moved = deform.deformed(nodes, deform.stretched(nodes, axis, s), glue, ramp)
             c_stretch[a, i] = solver.capacitance(nodes=moved)
         for i, kappa in enumerate(curvatures[1:], 1):
-            moved = deform.deformed(nodes, deform.bent(nodes, axis, kappa, NEUTRAL_MM),
-                                    glue, ramp)
+            moved = deform.deformed(nodes, deform.bent(nodes, axis, kappa, NEUTRAL_MM), glue, ramp)
             c_bend[a, i] = solver.capacitance(nodes=moved)
     solver.capacitance(nodes=nodes)  # back to the cell at rest
     return strains, c_stretch, curvatures, c_bend
 
 
-def compute(spec: CellSpec, permittivity: float, gaps_mm, objects=tuple(OBJECTS),
-            order: int = 1, time_limit_s: float = 120.0, progress=None) -> CrossingTable:
+def compute(
+    spec: CellSpec,
+    permittivity: float,
+    gaps_mm,
+    objects=tuple(OBJECTS),
+    order: int = 1,
+    time_limit_s: float = 120.0,
+    progress=None,
+) -> CrossingTable:
     """The crossing's table for a cell (`cell_spec`); gmsh is killed after time_limit_s."""
     from fruitcli.electrostatics.cell_mesh import mesh_cell
 
@@ -244,8 +264,18 @@ def compute(spec: CellSpec, permittivity: float, gaps_mm, objects=tuple(OBJECTS)
     dc = touch_table(solver, list(objects), gaps, dx, dy, c0, progress)
     strains, c_stretch, curvatures, c_bend = deformation_table(solver, spec, c0)
     t_solve = time.perf_counter() - t1
-    return CrossingTable(c0, list(objects), gaps, dx, dy, dc,
-                         ["stretch_x", "stretch_y", "bend_x", "bend_y"], strains, curvatures,
-                         c_stretch, c_bend, {"mesh_s": t_mesh, "solve_s": t_solve},
-                         {"tets": int(len(mesh.tets)), "nodes": int(len(mesh.nodes)),
-                          "order": order})
+    return CrossingTable(
+        c0,
+        list(objects),
+        gaps,
+        dx,
+        dy,
+        dc,
+        ["stretch_x", "stretch_y", "bend_x", "bend_y"],
+        strains,
+        curvatures,
+        c_stretch,
+        c_bend,
+        {"mesh_s": t_mesh, "solve_s": t_solve},
+        {"tets": int(len(mesh.tets)), "nodes": int(len(mesh.nodes)), "order": order},
+    )

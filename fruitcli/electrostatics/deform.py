@@ -31,7 +31,7 @@ def blend(nodes: np.ndarray, glue_mm: float, ramp_mm: float) -> np.ndarray:
 def stretched(nodes: np.ndarray, axis: str, strain: float) -> np.ndarray:
     """Nodes (N, 3) under the incompressible uniaxial stretch 1 + strain along `axis`."""
     lam = 1.0 + strain
-    scale = np.full(3, lam ** -0.5)
+    scale = np.full(3, lam**-0.5)
     scale[AXES[axis]] = lam
     return nodes * scale
 
@@ -51,7 +51,6 @@ def bent(nodes: np.ndarray, axis: str, curvature_per_mm: float, neutral_mm: floa
     return out
 
 
-def deformed(nodes: np.ndarray, target: np.ndarray, glue_mm: float,
-             ramp_mm: float) -> np.ndarray:
+def deformed(nodes: np.ndarray, target: np.ndarray, glue_mm: float, ramp_mm: float) -> np.ndarray:
     """Nodes moved towards `target` (N, 3) by the glue blend."""
     return nodes + blend(nodes, glue_mm, ramp_mm)[:, None] * (target - nodes)

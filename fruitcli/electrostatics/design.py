@@ -52,33 +52,57 @@ def crossing_inputs(scene) -> CrossingInputs:
     if not radius > 0:
         raise SceneError(f"{where}: {radius_key}: expected > 0 (mm), got {radius:g}")
     if radius >= pitch / 2:
-        raise SceneError(f"{where}: {radius_key}: expected less than half the pitch "
-                         f"({pitch / 2:g} mm, [grid].spacing_x_mm / spacing_y_mm), got "
-                         f"{radius:g}")
+        raise SceneError(
+            f"{where}: {radius_key}: expected less than half the pitch "
+            f"({pitch / 2:g} mm, [grid].spacing_x_mm / spacing_y_mm), got "
+            f"{radius:g}"
+        )
     if radius >= cover:
-        raise SceneError(f"{where}: {radius_key}: expected less than the cover "
-                         f"([tracks].cover_mm = {cover:g} mm), got {radius:g}")
+        raise SceneError(
+            f"{where}: {radius_key}: expected less than the cover "
+            f"([tracks].cover_mm = {cover:g} mm), got {radius:g}"
+        )
     if 2 * radius + ins / 2 >= cover:
-        raise SceneError(f"{where}: {radius_key}: the upper yarn reaches the surface (two "
-                         f"radii plus half the insulation, {2 * radius + ins / 2:g} mm, "
-                         f"against [tracks].cover_mm = {cover:g} mm); expected a radius "
-                         f"below {(cover - ins / 2) / 2:g} mm")
+        raise SceneError(
+            f"{where}: {radius_key}: the upper yarn reaches the surface (two "
+            f"radii plus half the insulation, {2 * radius + ins / 2:g} mm, "
+            f"against [tracks].cover_mm = {cover:g} mm); expected a radius "
+            f"below {(cover - ins / 2) / 2:g} mm"
+        )
     limit = scene.mesh.time_limit_s
     if not limit > 0:
         raise SceneError(f"{where}: [mesh].time_limit_s: expected > 0 (s), got {limit:g}")
-    return CrossingInputs(float(grid.spacing_x_mm), float(grid.spacing_y_mm),
-                          float(cover), float(radius), float(ins), float(skin.permittivity),
-                          tuple(float(g) for g in skin.gaps_mm), float(limit))
+    return CrossingInputs(
+        float(grid.spacing_x_mm),
+        float(grid.spacing_y_mm),
+        float(cover),
+        float(radius),
+        float(ins),
+        float(skin.permittivity),
+        tuple(float(g) for g in skin.gaps_mm),
+        float(limit),
+    )
 
 
 def run_crossing(inputs: CrossingInputs, progress=None):
     """(CrossingTable, summary dict) of a design."""
     from fruitcli.electrostatics import crossing, equivalents
 
-    spec = crossing.cell_spec(inputs.pitch_x_mm, inputs.pitch_y_mm, inputs.cover_mm,
-                              inputs.yarn_radius_mm, inputs.insulation_mm, inputs.gaps_mm)
-    table = crossing.compute(spec, inputs.permittivity, inputs.gaps_mm,
-                             time_limit_s=inputs.time_limit_s, progress=progress)
+    spec = crossing.cell_spec(
+        inputs.pitch_x_mm,
+        inputs.pitch_y_mm,
+        inputs.cover_mm,
+        inputs.yarn_radius_mm,
+        inputs.insulation_mm,
+        inputs.gaps_mm,
+    )
+    table = crossing.compute(
+        spec,
+        inputs.permittivity,
+        inputs.gaps_mm,
+        time_limit_s=inputs.time_limit_s,
+        progress=progress,
+    )
     summary = equivalents.summarize(table)
     summary["assumed"] = assumed_model()
     summary["inputs"] = inputs.to_dict()
@@ -89,8 +113,11 @@ def assumed_model() -> dict:
     """The phenomenological skin's defaults (`fruitcli.sensing.skin.forward`), for comparison."""
     from fruitcli.sensing.skin import forward
 
-    return {"footprint_sigma_mm": forward.default_footprints_mm(),
-            "gap_decay_mm": forward.GAP_DECAY_MM, "contact_counts": forward.CONTACT_COUNTS}
+    return {
+        "footprint_sigma_mm": forward.default_footprints_mm(),
+        "gap_decay_mm": forward.GAP_DECAY_MM,
+        "contact_counts": forward.CONTACT_COUNTS,
+    }
 
 
 def _finite(obj):
@@ -106,11 +133,19 @@ def _finite(obj):
 
 def table_arrays(table) -> dict[str, np.ndarray]:
     """crossing.npz's arrays."""
-    return {"c0_ff": np.array(table.c0_ff), "objects": np.array(table.objects),
-            "gap_mm": table.gap_mm, "dx_mm": table.dx_mm, "dy_mm": table.dy_mm,
-            "dc_ff": table.dc_ff, "deformations": np.array(table.deformations),
-            "strain": table.strain, "curvature_per_mm": table.curvature_per_mm,
-            "c_stretch_ff": table.c_stretch_ff, "c_bend_ff": table.c_bend_ff}
+    return {
+        "c0_ff": np.array(table.c0_ff),
+        "objects": np.array(table.objects),
+        "gap_mm": table.gap_mm,
+        "dx_mm": table.dx_mm,
+        "dy_mm": table.dy_mm,
+        "dc_ff": table.dc_ff,
+        "deformations": np.array(table.deformations),
+        "strain": table.strain,
+        "curvature_per_mm": table.curvature_per_mm,
+        "c_stretch_ff": table.c_stretch_ff,
+        "c_bend_ff": table.c_bend_ff,
+    }
 
 
 def write_outputs(out_dir: Path, table, summary: dict) -> None:

@@ -27,10 +27,10 @@ def footprint_sigma_mm(dx: np.ndarray, dy: np.ndarray, drop: np.ndarray) -> floa
     from scipy.optimize import curve_fit
 
     gx, gy = np.meshgrid(dx, dy, indexing="ij")
-    r2 = (gx ** 2 + gy ** 2).ravel()
+    r2 = (gx**2 + gy**2).ravel()
 
     def model(r2_, amp, sigma):
-        return amp * np.exp(-0.5 * r2_ / sigma ** 2)
+        return amp * np.exp(-0.5 * r2_ / sigma**2)
 
     guess = (float(drop.max()), float(max(np.ptp(dx), np.ptp(dy))) / 4)
     (amp, sigma), _ = curve_fit(model, r2, drop.ravel(), p0=guess, maxfev=10000)
@@ -64,15 +64,20 @@ def counts_per_ff(table: CrossingTable) -> tuple[float, dict]:
     axis = int(np.argmax(np.abs(shifts)))
     shift = float(shifts[axis])
     if shift == 0 or not np.isfinite(shift):
-        raise SolverError("crossing cell: bending does not change C0; counts per fF cannot "
-                          "be fitted to the bent pad")
+        raise SolverError(
+            "crossing cell: bending does not change C0; counts per fF cannot "
+            "be fitted to the bent pad"
+        )
     scale = BEND_SHIFT_COUNTS / abs(shift)
-    return scale, {"observation": "paper Fig. 9: the 4 x 4 pad bent 180 deg over its 48 mm "
-                                  "active length shifts its baseline by at most 10 counts",
-                   "deformation": table.deformations[2 + axis],
-                   "curvature_per_mm": float(table.curvature_per_mm[i]),
-                   "shift_ff": shift, "counts": BEND_SHIFT_COUNTS,
-                   "other_bend_shift_ff": float(shifts[1 - axis])}
+    return scale, {
+        "observation": "paper Fig. 9: the 4 x 4 pad bent 180 deg over its 48 mm "
+        "active length shifts its baseline by at most 10 counts",
+        "deformation": table.deformations[2 + axis],
+        "curvature_per_mm": float(table.curvature_per_mm[i]),
+        "shift_ff": shift,
+        "counts": BEND_SHIFT_COUNTS,
+        "other_bend_shift_ff": float(shifts[1 - axis]),
+    }
 
 
 def summarize(table: CrossingTable) -> dict:
@@ -89,24 +94,33 @@ def summarize(table: CrossingTable) -> dict:
         under = drop[:, centre_x, centre_y]
         counts = scale * under
         objects[name] = {
-            "footprint_sigma_mm": footprint_sigma_mm(table.dx_mm[quad_x], table.dy_mm[quad_y],
-                                                     contact),
+            "footprint_sigma_mm": footprint_sigma_mm(
+                table.dx_mm[quad_x], table.dy_mm[quad_y], contact
+            ),
             "gap_decay_mm": decay_gap_mm(table.gap_mm, under, under[0] / np.e),
             "contact_counts": float(counts[0]),
             "contact_dc_ff": float(-under[0]),
             "threshold_gap_mm": decay_gap_mm(table.gap_mm, counts, THRESHOLD_COUNTS),
         }
-        objects[name]["extrapolated"] = [k for k in ("gap_decay_mm", "threshold_gap_mm")
-                                         if objects[name][k] > table.gap_mm[-1]]
+        objects[name]["extrapolated"] = [
+            k for k in ("gap_decay_mm", "threshold_gap_mm") if objects[name][k] > table.gap_mm[-1]
+        ]
     shifts = {}
     for a, axis in enumerate(("x", "y")):
         shifts[f"stretch_{axis}"] = (-scale * (table.c_stretch_ff[a] - table.c0_ff)).tolist()
         shifts[f"bend_{axis}"] = (-scale * (table.c_bend_ff[a] - table.c0_ff)).tolist()
-    return {"c0_ff": table.c0_ff, "counts_per_ff": scale, "counts_fit": fit,
-            "objects": objects,
-            "deformation_shift_counts": {"strain": table.strain.tolist(),
-                                         "curvature_per_mm": table.curvature_per_mm.tolist(),
-                                         **shifts},
-            "threshold_counts": THRESHOLD_COUNTS,
-            "mesh": table.mesh_info,
-            "mesh_s": table.times_s.get("mesh_s"), "solve_s": table.times_s.get("solve_s")}
+    return {
+        "c0_ff": table.c0_ff,
+        "counts_per_ff": scale,
+        "counts_fit": fit,
+        "objects": objects,
+        "deformation_shift_counts": {
+            "strain": table.strain.tolist(),
+            "curvature_per_mm": table.curvature_per_mm.tolist(),
+            **shifts,
+        },
+        "threshold_counts": THRESHOLD_COUNTS,
+        "mesh": table.mesh_info,
+        "mesh_s": table.times_s.get("mesh_s"),
+        "solve_s": table.times_s.get("solve_s"),
+    }

@@ -35,19 +35,32 @@ class TetMesh:
     order: int
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        out = {"nodes": self.nodes, "tets": self.tets, "region": self.region,
-               "regions": np.array(self.regions), "order": np.array(self.order)}
+        out = {
+            "nodes": self.nodes,
+            "tets": self.tets,
+            "region": self.region,
+            "regions": np.array(self.regions),
+            "order": np.array(self.order),
+        }
         for name, idx in self.surfaces.items():
             out[f"surface_{name}"] = idx
         return out
 
     @classmethod
     def from_arrays(cls, data) -> TetMesh:
-        surfaces = {k.removeprefix("surface_"): np.asarray(data[k])
-                    for k in data if k.startswith("surface_")}
-        return cls(np.asarray(data["nodes"]), np.asarray(data["tets"]),
-                   np.asarray(data["region"]), tuple(str(s) for s in data["regions"]),
-                   surfaces, int(data["order"]))
+        surfaces = {
+            k.removeprefix("surface_"): np.asarray(data[k])
+            for k in data
+            if k.startswith("surface_")
+        }
+        return cls(
+            np.asarray(data["nodes"]),
+            np.asarray(data["tets"]),
+            np.asarray(data["region"]),
+            tuple(str(s) for s in data["regions"]),
+            surfaces,
+            int(data["order"]),
+        )
 
 
 def mesh_model(gmsh, order: int = 1) -> TetMesh:

@@ -95,8 +95,10 @@ def _hull_points(points: np.ndarray) -> np.ndarray:
         return points[ConvexHull(points, qhull_options="QJ").vertices]
     except (QhullError, ValueError):  # all on a line (or one point): its two ends
         centred = points - points.mean(axis=0)
-        along = centred @ np.linalg.svd(centred[:: max(1, len(points) // 10000)],
-                                        full_matrices=False)[2][0]
+        along = (
+            centred
+            @ np.linalg.svd(centred[:: max(1, len(points) // 10000)], full_matrices=False)[2][0]
+        )
         return points[[int(np.argmin(along)), int(np.argmax(along))]]
 
 
@@ -105,7 +107,7 @@ def _largest_distance(points: np.ndarray) -> float:
     rows = max(1, PAIRS_AT_ONCE // len(points))
     best = 0.0
     for start in range(0, len(points), rows):
-        block = points[start:start + rows]
+        block = points[start : start + rows]
         d2 = ((block[:, None, :] - points[None, :, :]) ** 2).sum(axis=2)
         best = max(best, float(d2.max()))
     return float(np.sqrt(best))
@@ -120,15 +122,23 @@ sqrt(n): the bootstrap costs resamples x n draws and gives the same at that size
 STAT_KEYS = ("mean_mm", "std_mm", "rmse_mm", "median_mm", "p95_mm", "max_mm")
 
 
-def bootstrap_ci(values: np.ndarray, level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES,
-                 seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+def bootstrap_ci(
+    values: np.ndarray,
+    level: float = 0.95,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> tuple[float, float]:
     """Percentile bootstrap interval of the mean of `values` (n,): `resamples` draws of n
     with replacement from a generator seeded with `seed` (same data, same interval)."""
     rng = np.random.default_rng(seed)
     n = len(values)
     chunk = max(1, BOOTSTRAP_CHUNK // n)  # resamples drawn at once: memory stays bounded
-    means = np.concatenate([values[rng.integers(0, n, size=(min(chunk, resamples - k), n))]
-                            .mean(axis=1) for k in range(0, resamples, chunk)])
+    means = np.concatenate(
+        [
+            values[rng.integers(0, n, size=(min(chunk, resamples - k), n))].mean(axis=1)
+            for k in range(0, resamples, chunk)
+        ]
+    )
     lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
     return float(lo), float(hi)
 
@@ -144,16 +154,26 @@ def error_stats(error_vectors: np.ndarray) -> dict:
     else:
         half = 1.959964 * float(err.std()) / np.sqrt(len(err))
         ci, how = [float(err.mean()) - half, float(err.mean()) + half], "normal"
-    return {"mean_mm": float(err.mean()), "std_mm": float(err.std()),
-            "rmse_mm": float(np.sqrt((err ** 2).mean())), "median_mm": float(np.median(err)),
-            "p95_mm": float(np.percentile(err, 95)), "max_mm": float(err.max()),
-            "bias_mm": [float(v) for v in error_vectors.mean(axis=0)],
-            "ci95_mean_mm": ci, "ci95_method": how}
+    return {
+        "mean_mm": float(err.mean()),
+        "std_mm": float(err.std()),
+        "rmse_mm": float(np.sqrt((err**2).mean())),
+        "median_mm": float(np.median(err)),
+        "p95_mm": float(np.percentile(err, 95)),
+        "max_mm": float(err.max()),
+        "bias_mm": [float(v) for v in error_vectors.mean(axis=0)],
+        "ci95_mean_mm": ci,
+        "ci95_method": how,
+    }
 
 
-def summarize(truth_xyz: np.ndarray, measured_xyz: np.ndarray,
-              reference_length_mm: float | None = None, register: str = "none",
-              where: str = "measured") -> dict:
+def summarize(
+    truth_xyz: np.ndarray,
+    measured_xyz: np.ndarray,
+    reference_length_mm: float | None = None,
+    register: str = "none",
+    where: str = "measured",
+) -> dict:
     """Table I statistics of one row: n, dims, the statistics of `error_stats` after the
     `register` transform (with mean and std also in % of the reference length), the
     transform, and under "compare" the statistics unregistered ("none") and translation
@@ -170,7 +190,8 @@ def summarize(truth_xyz: np.ndarray, measured_xyz: np.ndarray,
     stats = error_stats(transform.apply(measured_xyz) - truth_xyz)
     compare = {"none": error_stats(measured_xyz - truth_xyz)}
     compare["translation"] = error_stats(
-        fit(truth_xyz, measured_xyz, "translation", where).apply(measured_xyz) - truth_xyz)
+        fit(truth_xyz, measured_xyz, "translation", where).apply(measured_xyz) - truth_xyz
+    )
     return {
         "n": int(len(truth_xyz)),
         "dims": int(truth_xyz.shape[1]),

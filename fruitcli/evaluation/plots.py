@@ -9,8 +9,9 @@ PLOT_MAX_PAIRS = 5000
 """Pairs drawn at most; larger sets are shown by an evenly spaced subset."""
 
 
-def pairs(ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x", "y"),
-          title: str = ""):
+def pairs(
+    ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x", "y"), title: str = ""
+):
     """Draw matched pairs projected on two coordinate `axes` (0=x, 1=y, 2=z)."""
     from matplotlib.collections import LineCollection
 
@@ -21,10 +22,18 @@ def pairs(ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x",
         truth, measured = truth[keep], measured[keep]
     segments = np.stack([truth[:, [a, b]], measured[:, [a, b]]], axis=1)
     ax.add_collection(LineCollection(segments, colors="black", linewidths=0.8, zorder=1))
-    ax.scatter(truth[:, a], truth[:, b], marker="s", color="red", s=22, label="Ground truth",
-               zorder=2)
-    ax.scatter(measured[:, a], measured[:, b], marker="o", color="blue", s=18,
-               label="Measurement", zorder=3)
+    ax.scatter(
+        truth[:, a], truth[:, b], marker="s", color="red", s=22, label="Ground truth", zorder=2
+    )
+    ax.scatter(
+        measured[:, a],
+        measured[:, b],
+        marker="o",
+        color="blue",
+        s=18,
+        label="Measurement",
+        zorder=3,
+    )
     ax.set_xlabel(f"{labels[0].upper()}-Position (mm)")
     ax.set_ylabel(f"{labels[1].upper()}-Position (mm)")
     ax.set_aspect("equal", adjustable="datalim")

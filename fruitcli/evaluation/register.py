@@ -51,9 +51,13 @@ class Transform:
         return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
     def as_dict(self) -> dict:
-        return {"method": self.method, "rotation": self.rotation.tolist(),
-                "rotation_deg": self.rotation_deg,
-                "translation_mm": self.translation_mm.tolist(), "scale": self.scale}
+        return {
+            "method": self.method,
+            "rotation": self.rotation.tolist(),
+            "rotation_deg": self.rotation_deg,
+            "translation_mm": self.translation_mm.tolist(),
+            "scale": self.scale,
+        }
 
     def describe(self) -> str:
         """One line for a table caption."""
@@ -75,16 +79,20 @@ def identity(d: int) -> Transform:
 def check_method(method: str, dims: int, n: int, where: str) -> None:
     """Refuse a method the data cannot support, naming `where` (the measured file)."""
     if method not in METHODS:
-        raise EvaluationError(f"{where}: register: expected one of {', '.join(METHODS)}, "
-                              f"got {method!r}")
+        raise EvaluationError(
+            f"{where}: register: expected one of {', '.join(METHODS)}, got {method!r}"
+        )
     if dims == 2 and method not in METHODS_2D:
-        raise EvaluationError(f"{where}: register = {method} needs 3D data (x, y, z); "
-                              f"top-view (x, y) data support {' and '.join(METHODS_2D)} only")
+        raise EvaluationError(
+            f"{where}: register = {method} needs 3D data (x, y, z); "
+            f"top-view (x, y) data support {' and '.join(METHODS_2D)} only"
+        )
     need = MIN_SAMPLES[method]
     if n < need:
         extra = " not on one line" if need == 3 else ""
-        raise EvaluationError(f"{where}: register = {method} needs at least {need} matched "
-                              f"sample(s){extra}, got {n}")
+        raise EvaluationError(
+            f"{where}: register = {method} needs at least {need} matched sample(s){extra}, got {n}"
+        )
 
 
 def _collinear(x: np.ndarray) -> bool:
@@ -92,8 +100,9 @@ def _collinear(x: np.ndarray) -> bool:
     return s[0] == 0 or s[1] <= COLLINEAR_RATIO * s[0]
 
 
-def register(truth: np.ndarray, measured: np.ndarray, method: str,
-             where: str = "measured") -> Transform:
+def register(
+    truth: np.ndarray, measured: np.ndarray, method: str, where: str = "measured"
+) -> Transform:
     """The `method` transform that best maps `measured` (n, d) onto `truth` (n, d) mm in
     the least-squares sense. `where` names the data in errors."""
     n, d = truth.shape
@@ -104,9 +113,11 @@ def register(truth: np.ndarray, measured: np.ndarray, method: str,
     if method == "translation":
         return Transform(method, np.eye(d), mu_t - mu_m)
     if _collinear(measured) or _collinear(truth):
-        raise EvaluationError(f"{where}: register = {method}: the {n} matched samples lie on "
-                              "one line, so the rotation about it is undetermined "
-                              "(need 3 samples not on one line)")
+        raise EvaluationError(
+            f"{where}: register = {method}: the {n} matched samples lie on "
+            "one line, so the rotation about it is undetermined "
+            "(need 3 samples not on one line)"
+        )
     a, b = measured - mu_m, truth - mu_t
     u, s, vt = np.linalg.svd(b.T @ a)  # cross-covariance truth x measured (d, d)
     fix = np.eye(d)

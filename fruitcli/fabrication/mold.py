@@ -47,18 +47,24 @@ class MoldOptions:
     def check(self, names: dict[str, str]) -> None:
         """Refuse sizes a printed mold cannot have (`names`: how the user sets each)."""
         if not self.wall_mm >= 1.0:
-            raise GeometryError(f"{names['wall_mm']}: expected a wall of at least 1 mm, got "
-                                f"{self.wall_mm:g} mm")
+            raise GeometryError(
+                f"{names['wall_mm']}: expected a wall of at least 1 mm, got {self.wall_mm:g} mm"
+            )
         if not 0.0 <= self.clearance_mm <= self.wall_mm:
-            raise GeometryError(f"{names['clearance_mm']}: expected a clearance from 0 up to "
-                                f"the wall ({self.wall_mm:g} mm), got {self.clearance_mm:g} mm")
+            raise GeometryError(
+                f"{names['clearance_mm']}: expected a clearance from 0 up to "
+                f"the wall ({self.wall_mm:g} mm), got {self.clearance_mm:g} mm"
+            )
         for key in ("key_radius_mm", "pour_diameter_mm", "vent_diameter_mm", "pin_diameter_mm"):
             if not getattr(self, key) > 0:
-                raise GeometryError(f"{names[key]}: expected a size > 0 mm, got "
-                                    f"{getattr(self, key)}")
+                raise GeometryError(
+                    f"{names[key]}: expected a size > 0 mm, got {getattr(self, key)}"
+                )
         if not self.key_radius_mm < self.wall_mm:
-            raise GeometryError(f"{names['key_radius_mm']}: expected a key radius smaller than "
-                                f"the wall ({self.wall_mm:g} mm), got {self.key_radius_mm:g} mm")
+            raise GeometryError(
+                f"{names['key_radius_mm']}: expected a key radius smaller than "
+                f"the wall ({self.wall_mm:g} mm), got {self.key_radius_mm:g} mm"
+            )
         if not 0 <= self.vents <= 16:
             raise GeometryError(f"{names['vents']}: expected 0 to 16 vents, got {self.vents}")
 
@@ -69,13 +75,13 @@ class Mold:
 
     piece: str
     parts: dict = field(default_factory=dict)
-    pull: dict = field(default_factory=dict)          # part -> unit pull direction or None
-    silicone: object = None                           # the cast piece (piece - cores)
+    pull: dict = field(default_factory=dict)  # part -> unit pull direction or None
+    silicone: object = None  # the cast piece (piece - cores)
     pour_mm: list = field(default_factory=list)
     vents_mm: list = field(default_factory=list)
     box_mm: list = field(default_factory=list)
     cores: list = field(default_factory=list)
-    channels: object = None                           # pour hole and vents (Manifold)
+    channels: object = None  # pour hole and vents (Manifold)
 
 
 def box(lo, hi):
@@ -134,8 +140,16 @@ def highest_points(piece, count: int, keep_off_mm: float, avoid=()):
     return out
 
 
-def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: MoldOptions,
-              tracks_xy=None, track_radius_mm: float = 0.0) -> Mold:
+def make_mold(
+    name: str,
+    piece,
+    zp: float,
+    side: int,
+    chambers: list,
+    opts: MoldOptions,
+    tracks_xy=None,
+    track_radius_mm: float = 0.0,
+) -> Mold:
     """The mold of `piece` (Manifold whose flat face lies on z = zp; `side` +1 if the piece
     lies above the plane, -1 below), with a core for each chamber (name, Manifold) that
     lies inside it. The pour hole and vents keep off the track centre points `tracks_xy`
@@ -146,30 +160,43 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
     b = piece.bounding_box()
     lo, hi = np.array(b[:3]), np.array(b[3:])
     if side > 0 and abs(lo[2] - zp) > 1e-3 or side < 0 and abs(hi[2] - zp) > 1e-3:
-        raise GeometryError(f"{name}: the piece does not rest on the parting plane z = "
-                            f"{zp:.3f} mm")
-    room = w + 2.0 * kr + c              # keys sit in the corners, outside the cavity
+        raise GeometryError(f"{name}: the piece does not rest on the parting plane z = {zp:.3f} mm")
+    room = w + 2.0 * kr + c  # keys sit in the corners, outside the cavity
     x0, y0, x1, y1 = lo[0] - room, lo[1] - room, hi[0] + room, hi[1] + room
-    far = hi[2] + w if side > 0 else lo[2] - w      # the shell's far face
-    near = zp - side * w                             # the plate's far face
+    far = hi[2] + w if side > 0 else lo[2] - w  # the shell's far face
+    near = zp - side * w  # the plate's far face
     shell_box = box((x0, y0, min(zp, far)), (x1, y1, max(zp, far)))
     plate_box = box((x0, y0, min(zp, near)), (x1, y1, max(zp, near)))
     keys, sockets = [], []
-    for kx, ky in ((x0 + w / 2 + kr, y0 + w / 2 + kr), (x1 - w / 2 - kr, y0 + w / 2 + kr),
-                   (x1 - w / 2 - kr, y1 - w / 2 - kr), (x0 + w / 2 + kr, y1 - w / 2 - kr)):
+    for kx, ky in (
+        (x0 + w / 2 + kr, y0 + w / 2 + kr),
+        (x1 - w / 2 - kr, y0 + w / 2 + kr),
+        (x1 - w / 2 - kr, y1 - w / 2 - kr),
+        (x0 + w / 2 + kr, y1 - w / 2 - kr),
+    ):
         key = mf.Manifold.sphere(kr, CIRCLE_SEGMENTS).translate((kx, ky, zp))
         if not (key ^ piece).is_empty():
-            continue                     # the piece reaches this corner: no key there
+            continue  # the piece reaches this corner: no key there
         keys.append(key)
         sockets.append(mf.Manifold.sphere(kr + c, CIRCLE_SEGMENTS).translate((kx, ky, zp)))
     if len(keys) < 2:
-        raise GeometryError(f"{name}: no room for two registration keys in the mold's "
-                            "corners; use a thicker wall")
-    mold = Mold(piece=name, box_mm=[float(x0), float(y0), float(min(far, near)), float(x1),
-                                    float(y1), float(max(far, near))])
+        raise GeometryError(
+            f"{name}: no room for two registration keys in the mold's corners; use a thicker wall"
+        )
+    mold = Mold(
+        piece=name,
+        box_mm=[
+            float(x0),
+            float(y0),
+            float(min(far, near)),
+            float(x1),
+            float(y1),
+            float(max(far, near)),
+        ],
+    )
     cores, pin_holes, pin_xy = [], [], []
     for cname, whole in chambers:
-        ch = whole ^ piece          # a chamber across the parting plane: a core in each half
+        ch = whole ^ piece  # a chamber across the parting plane: a core in each half
         if ch.is_empty() or ch.volume() <= 1e-6 * whole.volume():
             continue
         cb = ch.bounding_box()
@@ -178,15 +205,18 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
         r = opts.pin_diameter_mm / 2
         pin = vertical_cylinder(cx, cy, min(cz, near), max(cz, near), r)
         core = ch + pin
-        if not (core ^ (shell_box - piece)).is_empty() and \
-                (core ^ (shell_box - piece)).volume() > 1e-6:
-            raise GeometryError(f"chamber '{cname}': its locating pin would cross the {name} "
-                                "mold's shell (the straight path to the parting plane leaves "
-                                "the piece)")
+        if (
+            not (core ^ (shell_box - piece)).is_empty()
+            and (core ^ (shell_box - piece)).volume() > 1e-6
+        ):
+            raise GeometryError(
+                f"chamber '{cname}': its locating pin would cross the {name} "
+                "mold's shell (the straight path to the parting plane leaves "
+                "the piece)"
+            )
         cores.append((cname, core))
         pin_xy.append((cx, cy))
-        pin_holes.append(vertical_cylinder(cx, cy, min(zp, near) - 1, max(zp, near) + 1,
-                                           r + c))
+        pin_holes.append(vertical_cylinder(cx, cy, min(zp, near) - 1, max(zp, near) + 1, r + c))
     shell = mf.Manifold.batch_boolean([shell_box, piece, *sockets], mf.OpType.Subtract)
     # whole spheres centred on the plate's face: their lower halves vanish in the plate (no
     # coplanar faces for the union to weld), their upper halves are the keys
@@ -204,25 +234,32 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
         plate = mf.Manifold.batch_boolean([plate, *pin_holes], mf.OpType.Subtract)
     silicone = mf.Manifold.batch_boolean([piece, *[k for _, k in cores]], mf.OpType.Subtract)
     # pour hole and vents: straight up from the cavity's highest points
-    reach = opts.pour_diameter_mm / 2 + 0.3           # the widest channel, and a little
-    avoid = [(np.zeros((0, 2)) if tracks_xy is None else np.asarray(tracks_xy)[:, :2],
-              reach + track_radius_mm),
-             (np.asarray(pin_xy).reshape(-1, 2),
-              reach + opts.pin_diameter_mm / 2 + opts.clearance_mm)]
+    reach = opts.pour_diameter_mm / 2 + 0.3  # the widest channel, and a little
+    avoid = [
+        (
+            np.zeros((0, 2)) if tracks_xy is None else np.asarray(tracks_xy)[:, :2],
+            reach + track_radius_mm,
+        ),
+        (np.asarray(pin_xy).reshape(-1, 2), reach + opts.pin_diameter_mm / 2 + opts.clearance_mm),
+    ]
     pts = highest_points(piece, 1 + opts.vents, opts.pour_diameter_mm / 2 + 0.5, avoid)
     if not pts:
         raise GeometryError(f"{name}: no room for a pour hole in the piece's outline")
     top = max(far, near) + 1.0
-    channels = [vertical_cylinder(x, y, z - 0.5, top,
-                                  (opts.pour_diameter_mm if k == 0 else
-                                   opts.vent_diameter_mm) / 2)
-                for k, (x, y, z) in enumerate(pts)]
+    channels = [
+        vertical_cylinder(
+            x, y, z - 0.5, top, (opts.pour_diameter_mm if k == 0 else opts.vent_diameter_mm) / 2
+        )
+        for k, (x, y, z) in enumerate(pts)
+    ]
     mold.channels = mf.Manifold.batch_boolean(channels, mf.OpType.Add)
     shell = mf.Manifold.batch_boolean([shell, *channels], mf.OpType.Subtract)
     plate = mf.Manifold.batch_boolean([plate, *channels], mf.OpType.Subtract)
     mold.parts = {f"{name}_shell": shell, f"{name}_plate": plate}
-    mold.pull = {f"{name}_shell": [0.0, 0.0, float(side)],
-                 f"{name}_plate": [0.0, 0.0, float(-side)]}
+    mold.pull = {
+        f"{name}_shell": [0.0, 0.0, float(side)],
+        f"{name}_plate": [0.0, 0.0, float(-side)],
+    }
     for cname, core in cores:
         core = mf.Manifold.batch_boolean([core, *channels], mf.OpType.Subtract)
         mold.parts[f"{name}_core_{cname}"] = core
@@ -233,8 +270,9 @@ def make_mold(name: str, piece, zp: float, side: int, chambers: list, opts: Mold
     mold.vents_mm = [[round(v, 3) for v in p] for p in pts[1:]]
     for pname, part in mold.parts.items():
         if part.status() != mf.Error.NoError or part.is_empty():
-            raise GeometryError(f"{name}: the mold part {pname} came out invalid "
-                                f"({part.status().name})")
+            raise GeometryError(
+                f"{name}: the mold part {pname} came out invalid ({part.status().name})"
+            )
     return mold
 
 
@@ -267,5 +305,6 @@ def assembled_cavity(mold: Mold):
     import manifold3d as mf
 
     outer = box(mold.box_mm[:3], mold.box_mm[3:])
-    return mf.Manifold.batch_boolean([outer, *mold.parts.values(), mold.channels],
-                                     mf.OpType.Subtract)
+    return mf.Manifold.batch_boolean(
+        [outer, *mold.parts.values(), mold.channels], mf.OpType.Subtract
+    )

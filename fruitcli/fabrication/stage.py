@@ -47,9 +47,11 @@ def scene_chambers(scene) -> list:
     for ch in scene.chambers:
         if ch.ellipsoid is not None:
             e = ch.ellipsoid
-            m = mf.Manifold.sphere(1.0, ELLIPSOID_SEGMENTS).scale(
-                tuple(float(r) for r in e.radii_mm)).translate(
-                tuple(float(c) for c in e.center_mm))
+            m = (
+                mf.Manifold.sphere(1.0, ELLIPSOID_SEGMENTS)
+                .scale(tuple(float(r) for r in e.radii_mm))
+                .translate(tuple(float(c) for c in e.center_mm))
+            )
         else:
             m = load_solid(ch.surface, f"[[geometry.chamber]] '{ch.name}'.surface")
             m = m.scale((UNIT_TO_MM[scene.geometry.unit],) * 3)
@@ -57,8 +59,15 @@ def scene_chambers(scene) -> list:
     return out
 
 
-def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
-                  opts: MoldOptions, names: dict | None = None, progress=None) -> dict:
+def run_make_mold(
+    tracks_dir,
+    out_dir,
+    chambers: list,
+    density_kg_m3: float,
+    opts: MoldOptions,
+    names: dict | None = None,
+    progress=None,
+) -> dict:
     """Build the top and bottom molds from a make-tracks folder; write `out_dir`."""
     import manifold3d as mf
 
@@ -76,8 +85,9 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
         tr_rep = json.loads(rep_path.read_text())
         zp, r_track = float(tr_rep["split_z_mm"]), float(tr_rep["track_radius_mm"])
     except (ValueError, KeyError, TypeError):
-        raise GeometryError(f"{rep_path}: no split_z_mm or track_radius_mm (expected "
-                            "make-tracks' report)") from None
+        raise GeometryError(
+            f"{rep_path}: no split_z_mm or track_radius_mm (expected make-tracks' report)"
+        ) from None
     tracks_xy = _track_points(tracks_dir / "tracks.csv")
     t0 = time.perf_counter()
     top = load_solid(tracks_dir / "tracked_top.stl", "make-tracks")
@@ -90,45 +100,60 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
     bottom = _snap(bottom, zp, -1)
     for cname, ch in chambers:
         if (ch - reduced).volume() > 1e-4 * ch.volume():
-            raise GeometryError(f"[[geometry.chamber]] '{cname}': the chamber pokes out of the "
-                                f"reduced body ({tracks_dir / 'reduced.stl'})")
+            raise GeometryError(
+                f"[[geometry.chamber]] '{cname}': the chamber pokes out of the "
+                f"reduced body ({tracks_dir / 'reduced.stl'})"
+            )
     say(f"pieces: {time.perf_counter() - t0:.2f} s")
     molds, entries = [], []
     for name, piece, side in (("top", top, +1), ("bottom", bottom, -1)):
         t0 = time.perf_counter()
-        mold = make_mold(name, piece, zp, side, chambers, opts,
-                         tracks_xy if name == "top" else None, r_track)
+        mold = make_mold(
+            name, piece, zp, side, chambers, opts, tracks_xy if name == "top" else None, r_track
+        )
         cavity = assembled_cavity(mold)
         sil = mold.silicone.volume()
         extra = (cavity - mold.silicone).volume()
         missing = (mold.silicone - cavity).volume()
-        entries.append({
-            "piece": name,
-            "parts": [f"{p}.stl" for p in mold.parts],
-            "cores": mold.cores,
-            "part_volumes_mm3": {f"{p}.stl": round(m.volume(), 3)
-                                 for p, m in mold.parts.items()},
-            "pull_direction": {f"{p}.stl": d for p, d in mold.pull.items()},
-            "undercut_area_mm2": {f"{p}.stl": a for p, a in
-                                  undercut_area(piece, zp, side, mold.pull).items()},
-            "piece_volume_mm3": round(sil, 3),
-            "cavity_volume_mm3": round(cavity.volume(), 3),
-            "channels_volume_mm3": round(mold.channels.volume(), 3),
-            "cavity_outside_piece_mm3": round(extra, 3),
-            "piece_outside_cavity_mm3": round(missing, 3),
-            "cavity_vs_piece": round(cavity.volume() / sil, 5),
-            "silicone_ml": round(sil / 1000.0, 2),
-            "silicone_g": round(sil / 1000.0 * density_kg_m3 / 1000.0, 1),
-            "pour_hole_mm": mold.pour_mm, "vents_mm": mold.vents_mm,
-            "pour_diameter_mm": opts.pour_diameter_mm, "vent_diameter_mm": opts.vent_diameter_mm,
-            "parting_plane_z_mm": zp, "box_mm": [round(v, 3) for v in mold.box_mm],
-        })
+        entries.append(
+            {
+                "piece": name,
+                "parts": [f"{p}.stl" for p in mold.parts],
+                "cores": mold.cores,
+                "part_volumes_mm3": {
+                    f"{p}.stl": round(m.volume(), 3) for p, m in mold.parts.items()
+                },
+                "pull_direction": {f"{p}.stl": d for p, d in mold.pull.items()},
+                "undercut_area_mm2": {
+                    f"{p}.stl": a for p, a in undercut_area(piece, zp, side, mold.pull).items()
+                },
+                "piece_volume_mm3": round(sil, 3),
+                "cavity_volume_mm3": round(cavity.volume(), 3),
+                "channels_volume_mm3": round(mold.channels.volume(), 3),
+                "cavity_outside_piece_mm3": round(extra, 3),
+                "piece_outside_cavity_mm3": round(missing, 3),
+                "cavity_vs_piece": round(cavity.volume() / sil, 5),
+                "silicone_ml": round(sil / 1000.0, 2),
+                "silicone_g": round(sil / 1000.0 * density_kg_m3 / 1000.0, 1),
+                "pour_hole_mm": mold.pour_mm,
+                "vents_mm": mold.vents_mm,
+                "pour_diameter_mm": opts.pour_diameter_mm,
+                "vent_diameter_mm": opts.vent_diameter_mm,
+                "parting_plane_z_mm": zp,
+                "box_mm": [round(v, 3) for v in mold.box_mm],
+            }
+        )
         molds.append(mold)
-        say(f"{name} mold: {len(mold.parts)} parts, {sil / 1000:.1f} ml, "
-            f"{time.perf_counter() - t0:.2f} s")
-    report = {"molds": entries, "density_kg_m3": density_kg_m3,
-              "options_mm": {k: getattr(opts, k) for k in MoldOptions.__dataclass_fields__},
-              "source": str(tracks_dir)}
+        say(
+            f"{name} mold: {len(mold.parts)} parts, {sil / 1000:.1f} ml, "
+            f"{time.perf_counter() - t0:.2f} s"
+        )
+    report = {
+        "molds": entries,
+        "density_kg_m3": density_kg_m3,
+        "options_mm": {k: getattr(opts, k) for k in MoldOptions.__dataclass_fields__},
+        "source": str(tracks_dir),
+    }
     with staged_dir(out_dir) as tmp:
         tmp = Path(tmp)
         for mold in molds:
@@ -136,8 +161,10 @@ def run_make_mold(tracks_dir, out_dir, chambers: list, density_kg_m3: float,
                 v, f = manifold_arrays(part)
                 closed, bodies = export.write_stl(tmp / f"{pname}.stl", v, f)
                 if not closed or bodies != 1:
-                    raise GeometryError(f"{pname}.stl does not reload as one closed part ("
-                                        f"{'closed' if closed else 'open'}, {bodies} bodies)")
+                    raise GeometryError(
+                        f"{pname}.stl does not reload as one closed part ("
+                        f"{'closed' if closed else 'open'}, {bodies} bodies)"
+                    )
         _preview(tmp / "preview.png", molds, zp)
         write_json(tmp / "mold.json", report)
     del mf
@@ -159,8 +186,9 @@ def _snap(piece, zp: float, side: int):
     b = piece.bounding_box()
     dz = zp - (b[2] if side > 0 else b[5])
     if abs(dz) > 1e-3:
-        raise GeometryError(f"the piece's flat face is {abs(dz):.4f} mm off the split plane "
-                            f"z = {zp:.3f} mm")
+        raise GeometryError(
+            f"the piece's flat face is {abs(dz):.4f} mm off the split plane z = {zp:.3f} mm"
+        )
     return piece.translate((0.0, 0.0, dz))
 
 
@@ -186,18 +214,26 @@ def _preview(path, molds, zp: float) -> None:
             if "_core_" in pname:
                 continue
             up = mold.pull[pname][2] > 0 if mold.pull[pname] else True
-            group = [mold.parts[pname]] + ([mold.parts[c] for c in mold.parts if "_core_" in c]
-                                           if pname.endswith("_plate") else [])
+            group = [mold.parts[pname]] + (
+                [mold.parts[c] for c in mold.parts if "_core_" in c]
+                if pname.endswith("_plate")
+                else []
+            )
             for part in group:
-                if up:                            # parting face down: turn it over
-                    part = part.mirror((0.0, 0.0, 1.0)).mirror((0.0, 1.0, 0.0)).translate(
-                        (0.0, 2 * yc, 2 * zp))
+                if up:  # parting face down: turn it over
+                    part = (
+                        part.mirror((0.0, 0.0, 1.0))
+                        .mirror((0.0, 1.0, 0.0))
+                        .translate((0.0, 2 * yc, 2 * zp))
+                    )
                 v, f = manifold_arrays(part.trim_by_plane((0.0, 1.0, 0.0), yc))
                 if len(f):
-                    draw_perspective(ax, v + (shift, 0.0, 0.0), f, [], np.zeros((0, 3)),
-                                     flat=True)
+                    draw_perspective(ax, v + (shift, 0.0, 0.0), f, [], np.zeros((0, 3)), flat=True)
             shift += 1.3 * width
-        ax.set_title(f"{mold.piece} mold: {', '.join(mold.parts)} (each with its parting "
-                     f"face up, cut at y = {yc:.0f} mm)", fontsize=9)
+        ax.set_title(
+            f"{mold.piece} mold: {', '.join(mold.parts)} (each with its parting "
+            f"face up, cut at y = {yc:.0f} mm)",
+            fontsize=9,
+        )
     fig.tight_layout()
     fig.savefig(path)

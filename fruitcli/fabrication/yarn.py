@@ -32,8 +32,16 @@ DEFAULT_MAX_STRETCH = YARN_BREAK_STRETCH - YARN_MARGIN
 DEFAULT_PITCH_MM = 4.0
 """Zig-zag pitch (mm) the warnings quote, and the length over which a track's local
 stretch is measured, unless [tracks] zigzag_pitch_mm says otherwise."""
-YARN_COLUMNS = ["track", "axis", "index", "rest_length_mm", "max_stretch_pct",
-                "state_of_max", "max_local_stretch_pct", "state_of_local_max"]
+YARN_COLUMNS = [
+    "track",
+    "axis",
+    "index",
+    "rest_length_mm",
+    "max_stretch_pct",
+    "state_of_max",
+    "max_local_stretch_pct",
+    "state_of_local_max",
+]
 
 
 @dataclass
@@ -57,20 +65,25 @@ def read_tracks(path) -> list[Track]:
 
     path = Path(path)
     if not path.is_file():
-        raise GeometryError(f"{path}: tracks file not found (make-tracks writes tracks.csv; "
-                            "run it again, or set [tracks] file)")
+        raise GeometryError(
+            f"{path}: tracks file not found (make-tracks writes tracks.csv; "
+            "run it again, or set [tracks] file)"
+        )
     rows: dict[int, list] = {}
     meta: dict[int, tuple[str, int]] = {}
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
-        lines = [(n, line) for n, line in enumerate(fh, 1)
-                 if line.strip() and not line.startswith("#")]
+        lines = [
+            (n, line) for n, line in enumerate(fh, 1) if line.strip() and not line.startswith("#")
+        ]
     if not lines:
         raise GeometryError(f"{path}: no tracks (expected a header {','.join(TRACK_FIELDS)})")
     header = next(csv.reader([lines[0][1]]))
     col = {name.strip(): k for k, name in enumerate(header)}
     if not set(TRACK_FIELDS) <= set(col):
-        raise GeometryError(f"{path}: line {lines[0][0]}: expected columns "
-                            f"{','.join(TRACK_FIELDS)}, got {','.join(header)}")
+        raise GeometryError(
+            f"{path}: line {lines[0][0]}: expected columns "
+            f"{','.join(TRACK_FIELDS)}, got {','.join(header)}"
+        )
     for n, line in lines[1:]:
         cells = next(csv.reader([line]))
         try:
@@ -78,12 +91,15 @@ def read_tracks(path) -> list[Track]:
             t, axis, index, point = int(v["track"]), v["axis"], int(v["index"]), int(v["point"])
             xyz = [float(v[f]) for f in ("x_mm", "y_mm", "z_mm")]
         except (IndexError, ValueError):
-            raise GeometryError(f"{path}: line {n}: expected integers track, index, point, "
-                                f"an axis and numbers x_mm, y_mm, z_mm, got {line.strip()!r}"
-                                ) from None
+            raise GeometryError(
+                f"{path}: line {n}: expected integers track, index, point, "
+                f"an axis and numbers x_mm, y_mm, z_mm, got {line.strip()!r}"
+            ) from None
         if axis not in ("x", "y") or not np.all(np.isfinite(xyz)):
-            raise GeometryError(f"{path}: line {n}: expected axis x or y and finite "
-                                f"coordinates (mm), got {line.strip()!r}")
+            raise GeometryError(
+                f"{path}: line {n}: expected axis x or y and finite "
+                f"coordinates (mm), got {line.strip()!r}"
+            )
         if meta.setdefault(t, (axis, index)) != (axis, index):
             raise GeometryError(f"{path}: line {n}: track {t} changes its axis or index")
         rows.setdefault(t, []).append((point, *xyz))
@@ -93,8 +109,9 @@ def read_tracks(path) -> list[Track]:
     for t in sorted(rows):
         pts = np.array(sorted(rows[t]))
         if len(pts) < 2 or len(np.unique(pts[:, 0])) < len(pts):
-            raise GeometryError(f"{path}: track {t}: expected at least 2 points with distinct "
-                                "point numbers")
+            raise GeometryError(
+                f"{path}: track {t}: expected at least 2 points with distinct point numbers"
+            )
         if polyline_lengths(pts[:, 1:]) <= 0:
             raise GeometryError(f"{path}: track {t}: zero length (its points coincide)")
         out.append(Track(t, meta[t][0], meta[t][1], pts[:, 1:]))
@@ -111,8 +128,13 @@ def local_stretch(rest_points: np.ndarray, moved: np.ndarray, window_mm: float) 
     (from a point to the first point that far along it; the whole track when shorter):
     what one zig-zag wave of that pitch must take up. rest_points (n, 3), moved (s, n, 3)."""
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(rest_points, axis=0), axis=1))]
-    now = np.concatenate([np.zeros((len(moved), 1)), np.cumsum(
-        np.linalg.norm(np.diff(moved, axis=1), axis=2), axis=1)], axis=1)
+    now = np.concatenate(
+        [
+            np.zeros((len(moved), 1)),
+            np.cumsum(np.linalg.norm(np.diff(moved, axis=1), axis=2), axis=1),
+        ],
+        axis=1,
+    )
     end = np.searchsorted(arc, arc + window_mm)
     ok = end < len(arc)
     if not ok.any():
@@ -121,9 +143,12 @@ def local_stretch(rest_points: np.ndarray, moved: np.ndarray, window_mm: float) 
     return ((now[:, end] - now[:, start]) / (arc[end] - arc[start]) - 1.0).max(axis=1)
 
 
-def stretch_table(tracks: list[Track], moved: list[np.ndarray],
-                  max_stretch: float = DEFAULT_MAX_STRETCH,
-                  pitch_mm: float = DEFAULT_PITCH_MM):
+def stretch_table(
+    tracks: list[Track],
+    moved: list[np.ndarray],
+    max_stretch: float = DEFAULT_MAX_STRETCH,
+    pitch_mm: float = DEFAULT_PITCH_MM,
+):
     """Rows for YARN_COLUMNS, the whole-track stretch (tracks, s) and the warnings [str]
     of tracks whose largest stretch over one pitch exceeds `max_stretch`, from each
     track's points in every state, moved[k] (s, n, 3) mm."""
@@ -133,8 +158,9 @@ def stretch_table(tracks: list[Track], moved: list[np.ndarray],
         s = polyline_lengths(x) / rest - 1.0
         loc = local_stretch(t.points, x, pitch_mm)
         k, m = int(np.argmax(s)), int(np.argmax(loc))
-        rows.append([t.track, t.axis, t.index, rest, 100.0 * float(s[k]), k,
-                     100.0 * float(loc[m]), m])
+        rows.append(
+            [t.track, t.axis, t.index, rest, 100.0 * float(s[k]), k, 100.0 * float(loc[m]), m]
+        )
         stretch.append(s)
         if loc[m] > max_stretch:
             warnings.append(
@@ -143,13 +169,19 @@ def stretch_table(tracks: list[Track], moved: list[np.ndarray],
                 f"({100 * s[k]:.1f} % over its length), more than [tracks] yarn_max_stretch "
                 f"{100 * max_stretch:g} %: sew it in a zig-zag of amplitude "
                 f"{zigzag_amplitude(float(loc[m]), pitch_mm):.2f} mm at a {pitch_mm:g} mm "
-                "pitch ([tracks] zigzag_pitch_mm) for that slack")
+                "pitch ([tracks] zigzag_pitch_mm) for that slack"
+            )
     return rows, np.array(stretch).reshape(len(tracks), -1), warnings
 
 
-def yarn_stretch(tracks: list[Track], rest_nodes: np.ndarray, tets: np.ndarray,
-                 displacement_mm: np.ndarray, max_stretch: float = DEFAULT_MAX_STRETCH,
-                 pitch_mm: float = DEFAULT_PITCH_MM):
+def yarn_stretch(
+    tracks: list[Track],
+    rest_nodes: np.ndarray,
+    tets: np.ndarray,
+    displacement_mm: np.ndarray,
+    max_stretch: float = DEFAULT_MAX_STRETCH,
+    pitch_mm: float = DEFAULT_PITCH_MM,
+):
     """Each track's rest length and stretch in every state, the points following linear
     tets barycentrically (`follow_tracks` uses the model's own elements).
 
@@ -160,18 +192,26 @@ def yarn_stretch(tracks: list[Track], rest_nodes: np.ndarray, tets: np.ndarray,
 
     disp = np.asarray(displacement_mm, float)
     if disp.ndim != 3 or disp.shape[1:] != np.asarray(rest_nodes).shape:
-        raise GeometryError(f"displacement_mm: expected (states, {len(rest_nodes)}, 3), got "
-                            f"{disp.shape}")
+        raise GeometryError(
+            f"displacement_mm: expected (states, {len(rest_nodes)}, 3), got {disp.shape}"
+        )
     x = np.asarray(rest_nodes, float)[None] + disp
     moved = []
     for t in tracks:
         tet, w, _ = locate(np.asarray(rest_nodes, float), np.asarray(tets), t.points)
-        moved.append(apply(x, np.asarray(tets), tet, w))            # (s, n, 3)
+        moved.append(apply(x, np.asarray(tets), tet, w))  # (s, n, 3)
     return stretch_table(tracks, moved, max_stretch, pitch_mm)
 
 
-def follow_tracks(model, tracks: list[Track], states_x: np.ndarray, max_stretch: float,
-                  pitch_mm: float, outside_warning: float, progress) -> tuple[list, dict]:
+def follow_tracks(
+    model,
+    tracks: list[Track],
+    states_x: np.ndarray,
+    max_stretch: float,
+    pitch_mm: float,
+    outside_warning: float,
+    progress,
+) -> tuple[list, dict]:
     """The tracks through a solved FEM: every point located in the model's corner tets
     at rest and moved with the model's own shape functions (`model.map_points`, quadratic
     on p2, as the taxels). states_x (s, n, 3) mm. Points outside the mesh by more than
@@ -181,26 +221,37 @@ def follow_tracks(model, tracks: list[Track], states_x: np.ndarray, max_stretch:
 
     pts = np.concatenate([t.points for t in tracks])
     tet, w, outside = locate(model.rest, model.tets, pts)
-    xs = model.map_points(tet, w, states_x)                           # (s, p, 3)
+    xs = model.map_points(tet, w, states_x)  # (s, p, 3)
     cut = np.cumsum([len(t.points) for t in tracks])[:-1]
-    far = [t.track for t, d in zip(tracks, np.split(outside, cut), strict=True)
-           if d.max() > outside_warning]
+    far = [
+        t.track
+        for t, d in zip(tracks, np.split(outside, cut), strict=True)
+        if d.max() > outside_warning
+    ]
     if far:
-        progress(f"simulate: warning: {len(far)} of {len(tracks)} tracks (tracks "
-                 f"{', '.join(map(str, far))}) have points outside the mesh: "
-                 f"{int((outside > outside_warning).sum())} of {len(pts)} points, up to "
-                 f"{outside.max():.2f} of the nearest element's size; they follow by "
-                 "extrapolation (check the tracks file or [mesh].size_mm)")
-    rows, _, warnings = stretch_table(tracks, np.split(xs, cut, axis=1), max_stretch,
-                                      pitch_mm)
+        progress(
+            f"simulate: warning: {len(far)} of {len(tracks)} tracks (tracks "
+            f"{', '.join(map(str, far))}) have points outside the mesh: "
+            f"{int((outside > outside_warning).sum())} of {len(pts)} points, up to "
+            f"{outside.max():.2f} of the nearest element's size; they follow by "
+            "extrapolation (check the tracks file or [mesh].size_mm)"
+        )
+    rows, _, warnings = stretch_table(tracks, np.split(xs, cut, axis=1), max_stretch, pitch_mm)
     for msg in warnings:
         progress(f"simulate: warning: {msg}")
     worst = max(rows, key=lambda r: r[6])
-    return rows, {"tracks": len(rows), "max_stretch_pct": round(max(r[4] for r in rows), 3),
-                  "max_local_stretch_pct": round(worst[6], 3), "worst_track": worst[0],
-                  "state_of_max": worst[7], "yarn_max_stretch": max_stretch,
-                  "zigzag_pitch_mm": pitch_mm, "warnings": warnings,
-                  "tracks_outside_mesh": far, "outside_max": round(float(outside.max()), 3)}
+    return rows, {
+        "tracks": len(rows),
+        "max_stretch_pct": round(max(r[4] for r in rows), 3),
+        "max_local_stretch_pct": round(worst[6], 3),
+        "worst_track": worst[0],
+        "state_of_max": worst[7],
+        "yarn_max_stretch": max_stretch,
+        "zigzag_pitch_mm": pitch_mm,
+        "warnings": warnings,
+        "tracks_outside_mesh": far,
+        "outside_max": round(float(outside.max()), 3),
+    }
 
 
 def zigzag_amplitude(stretch: float, pitch_mm: float) -> float:
@@ -215,10 +266,16 @@ def write_yarns_csv(path, rows) -> None:
     """yarns.csv: one row per track (YARN_COLUMNS), units in its header."""
     from fruitcli.fsutil import write_csv
 
-    write_csv(path, YARN_COLUMNS, rows, comments=[
-        "yarn tracks: rest length on the rest surface (mm), largest stretch of the whole "
-        "track over the simulated states (% of the rest length), the state where it "
-        "occurs, and the largest stretch over any piece one zig-zag pitch long (%) with "
-        "its state (states counted from 0, as in states.npz)",
-        "a triangle-wave zig-zag of amplitude A at pitch p gives slack for a stretch of "
-        "sqrt(1 + (4 A / p)^2) - 1"])
+    write_csv(
+        path,
+        YARN_COLUMNS,
+        rows,
+        comments=[
+            "yarn tracks: rest length on the rest surface (mm), largest stretch of the whole "
+            "track over the simulated states (% of the rest length), the state where it "
+            "occurs, and the largest stretch over any piece one zig-zag pitch long (%) with "
+            "its state (states counted from 0, as in states.npz)",
+            "a triangle-wave zig-zag of amplitude A at pitch p gives slack for a stretch of "
+            "sqrt(1 + (4 A / p)^2) - 1",
+        ],
+    )

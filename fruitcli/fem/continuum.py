@@ -44,8 +44,10 @@ def reference_gradients(nodes: np.ndarray, conn: np.ndarray, fam: Family):
     bad = np.flatnonzero(~(det > 0).all(axis=1))
     if len(bad):
         c = x[bad[0], :4].mean(axis=0)
-        raise MeshError(f"mesh: element {bad[0]} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm "
-                        "is inverted or too curved for its edge nodes; remesh finer")
+        raise MeshError(
+            f"mesh: element {bad[0]} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm "
+            "is inverted or too curved for its edge nodes; remesh finer"
+        )
     inv = np.linalg.inv(jac)
     dn = np.einsum("qaj,mqji->mqai", dref, inv)
     return np.ascontiguousarray(dn), np.ascontiguousarray(det * w)
@@ -55,11 +57,12 @@ def support_check(rest: np.ndarray, held: np.ndarray, what: str) -> None:
     """Refuse a support whose nodes lie on one line (rotations about it stay free)."""
     pts = rest[held]
     size = float(np.ptp(rest, axis=0).max())
-    if len(pts) < 3 or np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)[1] \
-            <= 1e-6 * size:
-        raise SceneError(f"{what} holds the body at {len(pts)} node(s) on one line or "
-                         "point, so it can still rotate about it: widen the region "
-                         "(a face or a volume of the body)")
+    if len(pts) < 3 or np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)[1] <= 1e-6 * size:
+        raise SceneError(
+            f"{what} holds the body at {len(pts)} node(s) on one line or "
+            "point, so it can still rotate about it: widen the region "
+            "(a face or a volume of the body)"
+        )
 
 
 DILATATION_STEP = 1.0
@@ -127,11 +130,21 @@ class ContinuumModel:
         return self.material.poisson_ratio
 
     @classmethod
-    def from_arrays(cls, nodes, conn, mat: Material, element: str = "p2", *,
-                    density_kg_m3: float = 0.0, gravity_m_s2=None, fixed_nodes=None,
-                    chambers: dict | None = None, jigs: list[Jig] | None = None,
-                    prescribed: list | None = None,
-                    min_quality: float = SLIVER_QUALITY) -> ContinuumModel:
+    def from_arrays(
+        cls,
+        nodes,
+        conn,
+        mat: Material,
+        element: str = "p2",
+        *,
+        density_kg_m3: float = 0.0,
+        gravity_m_s2=None,
+        fixed_nodes=None,
+        chambers: dict | None = None,
+        jigs: list[Jig] | None = None,
+        prescribed: list | None = None,
+        min_quality: float = SLIVER_QUALITY,
+    ) -> ContinuumModel:
         """Validate and precompute. nodes (n, 3) mm, conn (m, nen) of `element`'s
         family, chambers {name: (t, 3 or 6) wall triangles, normals out of the cavity},
         prescribed [(node indices, (3,) displacement mm[, (3,) components held])]
@@ -140,8 +153,10 @@ class ContinuumModel:
         rest = np.ascontiguousarray(nodes, dtype=float)
         conn = np.ascontiguousarray(conn, dtype=np.int64)
         if conn.ndim != 2 or conn.shape[1] != fam.nodes_per_tet or len(conn) == 0:
-            raise MeshError(f"elements: expected a non-empty (M, {fam.nodes_per_tet}) array "
-                            f"for element {element!r}")
+            raise MeshError(
+                f"elements: expected a non-empty (M, {fam.nodes_per_tet}) array "
+                f"for element {element!r}"
+            )
         if conn.min() < 0 or conn.max() >= len(rest):
             raise MeshError("elements: node index out of range")
         corners = conn[:, :4]
@@ -149,9 +164,11 @@ class ContinuumModel:
         worst = int(np.argmin(quality))
         if quality[worst] < min_quality:
             c = rest[corners[worst]].mean(axis=0)
-            raise MeshError(f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-                            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-                            "remesh before solving")
+            raise MeshError(
+                f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+                f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+                "remesh before solving"
+            )
         if (tet4.signed_volumes(rest, corners) < 0).any():
             raise MeshError("elements: expected positively oriented tets")
         dn, wq = reference_gradients(rest, conn, fam)
@@ -160,22 +177,28 @@ class ContinuumModel:
         for name, tris in (chambers or {}).items():
             tris = np.asarray(tris, np.int64)
             if tris.ndim != 2 or tris.shape[1] != fam.nodes_per_tri or len(tris) < 4:
-                raise MeshError(f"chamber {name}: expected a closed wall of (T, "
-                                f"{fam.nodes_per_tri}) triangles")
+                raise MeshError(
+                    f"chamber {name}: expected a closed wall of (T, {fam.nodes_per_tri}) triangles"
+                )
             names.append(str(name))
             tris_list.append(tris)
             walls.append(Wall(tris))
         v_rest = np.array([w.volume(rest) for w in walls])
         if (v_rest <= 0).any():
-            raise MeshError(f"chamber {names[int(np.argmin(v_rest))]}: wall normals must "
-                            "point out of the cavity")
+            raise MeshError(
+                f"chamber {names[int(np.argmin(v_rest))]}: wall normals must "
+                "point out of the cavity"
+            )
         body = np.zeros((n, 3))
         if gravity_m_s2 is not None and density_kg_m3 > 0:
             pts, w = fam.volume_rule()
             shape = tet_shape(pts, fam.order)  # (q, nen)
             per = np.einsum("mq,qa->ma", wq, shape)  # (m, nen) mm^3: int N_a dV
-            np.add.at(body, conn.ravel(), per.reshape(-1, 1)
-                      * body_force_mn_mm3(density_kg_m3, gravity_m_s2))
+            np.add.at(
+                body,
+                conn.ravel(),
+                per.reshape(-1, 1) * body_force_mn_mm3(density_kg_m3, gravity_m_s2),
+            )
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, np.int64))
         p_dofs, p_mm = prescribed_dofs(prescribed)
         held = np.unique(np.concatenate([fixed, p_dofs // 3]))
@@ -185,13 +208,17 @@ class ContinuumModel:
         gravity_on = bool(np.any(body))
         if len(held) == 0 and not jigs:
             if gravity_on:
-                raise SceneError("[gravity]: nothing supports the body, so gravity has no "
-                                 "equilibrium; add a [[fixed]] region or a [[jig]], or "
-                                 "remove [gravity]")
+                raise SceneError(
+                    "[gravity]: nothing supports the body, so gravity has no "
+                    "equilibrium; add a [[fixed]] region or a [[jig]], or "
+                    "remove [gravity]"
+                )
             pinned = pin_rigid_modes(rest[: int(conn[:, :4].max()) + 1])
-            notes.append("no fixed region and no jig: the six rigid modes are removed by a "
-                         f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))} "
-                         "(the loads are self-equilibrated)")
+            notes.append(
+                "no fixed region and no jig: the six rigid modes are removed by a "
+                f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))} "
+                "(the loads are self-equilibrated)"
+            )
         elif not jigs and len(p_dofs) < 3 * len(np.unique(p_dofs // 3)):
             pass  # rollers: the caller's components hold the rigid modes
         elif not jigs:
@@ -205,14 +232,30 @@ class ContinuumModel:
         pattern = CsrPattern.build(conn, n, free_mask)
         spring = np.zeros(3 * n)
         for jig in jigs:
-            np.add.at(spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(),
-                      jig.stiffness_mn_per_mm)
-        model = cls(rest=rest, conn=conn, family=fam, material=mat, dn=dn, wq=wq,
-                    volumes_mm3=wq.sum(axis=1), chamber_names=names, chamber_tris=tris_list,
-                    chamber_rest_volume_mm3=v_rest, body_force_mn=body, jigs=jigs,
-                    fixed_nodes=fixed, pinned_dofs=pinned, pattern=pattern,
-                    spring_diag=spring[pattern.free], notes=notes,
-                    prescribed_dofs=p_dofs, prescribed_mm=p_mm)
+            np.add.at(
+                spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(), jig.stiffness_mn_per_mm
+            )
+        model = cls(
+            rest=rest,
+            conn=conn,
+            family=fam,
+            material=mat,
+            dn=dn,
+            wq=wq,
+            volumes_mm3=wq.sum(axis=1),
+            chamber_names=names,
+            chamber_tris=tris_list,
+            chamber_rest_volume_mm3=v_rest,
+            body_force_mn=body,
+            jigs=jigs,
+            fixed_nodes=fixed,
+            pinned_dofs=pinned,
+            pattern=pattern,
+            spring_diag=spring[pattern.free],
+            notes=notes,
+            prescribed_dofs=p_dofs,
+            prescribed_mm=p_mm,
+        )
         model.__dict__["_walls"] = walls
         model.evaluate(rest, tangent=False)  # compiled now, not inside the first state
         return model
@@ -227,9 +270,19 @@ class ContinuumModel:
         d = 3 * self.conn.shape[1]
         blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
         jmin = np.empty(len(self.conn))
-        energy = evaluate(x, self.conn, self.dn, self.wq, self.material.constants(),
-                          self.family.mean_dilatation, tangent, forces, blocks, jmin,
-                          *self.node_incidence)
+        energy = evaluate(
+            x,
+            self.conn,
+            self.dn,
+            self.wq,
+            self.material.constants(),
+            self.family.mean_dilatation,
+            tangent,
+            forces,
+            blocks,
+            jmin,
+            *self.node_incidence,
+        )
         if energy == -1.0:
             energy = np.nan
         return forces, energy, jmin, (blocks if tangent else None)
@@ -285,8 +338,11 @@ class ContinuumModel:
         if not self.walls or not np.any(pressure_kpa):
             return None
         free = self.pattern.free
-        h = sum(-pk * w.hessian(x, self.n_nodes)
-                for pk, w in zip(pressure_kpa, self.walls, strict=True) if pk)
+        h = sum(
+            -pk * w.hessian(x, self.n_nodes)
+            for pk, w in zip(pressure_kpa, self.walls, strict=True)
+            if pk
+        )
         return sp.csr_matrix(h)[free][:, free]
 
     # the loads are written once, on the paper's model: they only use the rest
@@ -296,8 +352,9 @@ class ContinuumModel:
 
     def mean_dilatation(self, x: np.ndarray) -> np.ndarray:
         """(m,) volume ratio of each element, det F averaged over its volume."""
-        return integrate.mean_dilatation(np.ascontiguousarray(x, dtype=float), self.conn,
-                                         self.dn, self.wq, self.volumes_mm3)
+        return integrate.mean_dilatation(
+            np.ascontiguousarray(x, dtype=float), self.conn, self.dn, self.wq, self.volumes_mm3
+        )
 
     @property
     def dilatation_step(self) -> float:

@@ -47,30 +47,41 @@ class Load:
     prescribed: float = 1.0
 
     @classmethod
-    def pressures(cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0,
-                  prescribed: float = 1.0) -> Load:
+    def pressures(
+        cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0, prescribed: float = 1.0
+    ) -> Load:
         p = np.asarray(pressure_kpa, float).reshape(-1)
         return cls(p, np.zeros_like(p), np.zeros(len(p), bool), gravity, jig, prescribed)
 
     @classmethod
     def zero(cls, n_chambers: int, volume_controlled=None) -> Load:
         vc = np.zeros(n_chambers, bool) if volume_controlled is None else volume_controlled
-        return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0,
-                   0.0)
+        return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0, 0.0)
 
     def is_zero(self) -> bool:
         """True when nothing loads the body (rest is then the exact answer)."""
-        return not (np.any(self.pressure_kpa) or np.any(self.volume_growth_mm3)
-                    or self.gravity or self.jig or self.prescribed)
+        return not (
+            np.any(self.pressure_kpa)
+            or np.any(self.volume_growth_mm3)
+            or self.gravity
+            or self.jig
+            or self.prescribed
+        )
 
     def lerp(self, other: Load, t: float) -> Load:
         """The load a fraction t of the way from self to other."""
+
         def mix(a, b):
             return (1.0 - t) * a + t * b
-        return replace(other, pressure_kpa=mix(self.pressure_kpa, other.pressure_kpa),
-                       volume_growth_mm3=mix(self.volume_growth_mm3, other.volume_growth_mm3),
-                       gravity=mix(self.gravity, other.gravity), jig=mix(self.jig, other.jig),
-                       prescribed=mix(self.prescribed, other.prescribed))
+
+        return replace(
+            other,
+            pressure_kpa=mix(self.pressure_kpa, other.pressure_kpa),
+            volume_growth_mm3=mix(self.volume_growth_mm3, other.volume_growth_mm3),
+            gravity=mix(self.gravity, other.gravity),
+            jig=mix(self.jig, other.jig),
+            prescribed=mix(self.prescribed, other.prescribed),
+        )
 
 
 def pin_rigid_modes(rest: np.ndarray) -> np.ndarray:
@@ -130,10 +141,21 @@ class Model:
         return len(self.rest)
 
     @classmethod
-    def from_arrays(cls, nodes, tets, E_kpa: float, nu: float, *, density_kg_m3: float = 0.0,
-                    gravity_m_s2=None, fixed_nodes=None, chambers: dict | None = None,
-                    jigs: list[Jig] | None = None, prescribed: list | None = None,
-                    min_quality: float = SLIVER_QUALITY) -> Model:
+    def from_arrays(
+        cls,
+        nodes,
+        tets,
+        E_kpa: float,
+        nu: float,
+        *,
+        density_kg_m3: float = 0.0,
+        gravity_m_s2=None,
+        fixed_nodes=None,
+        chambers: dict | None = None,
+        jigs: list[Jig] | None = None,
+        prescribed: list | None = None,
+        min_quality: float = SLIVER_QUALITY,
+    ) -> Model:
         """Validate and precompute. nodes (n, 3) mm, tets (m, 4), E (kPa), nu, chambers
         {name: (t, 3) triangles}, fixed_nodes indices, jigs with node indices,
         prescribed [(node indices, (3,) displacement mm)] (moved clamps)."""
@@ -158,9 +180,11 @@ class Model:
         worst = int(np.argmin(quality))
         if quality[worst] < min_quality:
             c = rest[tets[worst]].mean(axis=0)
-            raise MeshError(f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-                            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-                            "remesh before solving")
+            raise MeshError(
+                f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+                f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+                "remesh before solving"
+            )
         vol = np.abs(vol)
         lam, mu = tet4.lame_parameters(E_kpa, nu)
         grads = tet4.shape_gradients(rest, tets)
@@ -169,8 +193,10 @@ class Model:
         n = len(rest)
         notes = []
         if nu > 0.49:
-            notes.append(f"nu = {nu} is close to 0.5: linear tets lock (too stiff in bending "
-                         "and under pressure)")
+            notes.append(
+                f"nu = {nu} is close to 0.5: linear tets lock (too stiff in bending "
+                "and under pressure)"
+            )
 
         names, tris_list = [], []
         for name, tris in (chambers or {}).items():
@@ -198,12 +224,16 @@ class Model:
         pinned = np.zeros(0, np.int64)
         if len(fixed) == 0 and not jigs and not len(p_dofs):
             if gravity_m_s2 is not None and density_kg_m3 > 0 and np.any(gravity_m_s2):
-                raise SceneError("[gravity]: nothing supports the body, so gravity has no "
-                                 "equilibrium; add a [[fixed]] region or a [[jig]], or "
-                                 "remove [gravity]")
+                raise SceneError(
+                    "[gravity]: nothing supports the body, so gravity has no "
+                    "equilibrium; add a [[fixed]] region or a [[jig]], or "
+                    "remove [gravity]"
+                )
             pinned = pin_rigid_modes(rest)
-            notes.append("no fixed region and no jig: the six rigid modes are removed by a "
-                         f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))}")
+            notes.append(
+                "no fixed region and no jig: the six rigid modes are removed by a "
+                f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))}"
+            )
         free_mask = np.ones(3 * n, bool)
         free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
         free_mask[pinned] = False
@@ -211,15 +241,31 @@ class Model:
         pattern = CsrPattern.build(tets, n, free_mask)
         spring = np.zeros(3 * n)
         for jig in jigs:
-            np.add.at(spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(),
-                      jig.stiffness_mn_per_mm)
+            np.add.at(
+                spring, (3 * jig.nodes[:, None] + np.arange(3)).ravel(), jig.stiffness_mn_per_mm
+            )
         kernels.warm_up()  # compiled now, not inside the first state's timing
-        return cls(rest=rest, tets=tets, young_modulus_kpa=float(E_kpa),
-                   poisson_ratio=float(nu), dm_inv=dm_inv, volumes_mm3=vol, k0=k0,
-                   chamber_names=names, chamber_tris=tris_list, chamber_rest_volume_mm3=v_rest,
-                   body_force_mn=body, jigs=jigs, fixed_nodes=fixed, pinned_dofs=pinned,
-                   pattern=pattern, spring_diag=spring[pattern.free], notes=notes,
-                   prescribed_dofs=p_dofs, prescribed_mm=p_mm)
+        return cls(
+            rest=rest,
+            tets=tets,
+            young_modulus_kpa=float(E_kpa),
+            poisson_ratio=float(nu),
+            dm_inv=dm_inv,
+            volumes_mm3=vol,
+            k0=k0,
+            chamber_names=names,
+            chamber_tris=tris_list,
+            chamber_rest_volume_mm3=v_rest,
+            body_force_mn=body,
+            jigs=jigs,
+            fixed_nodes=fixed,
+            pinned_dofs=pinned,
+            pattern=pattern,
+            spring_diag=spring[pattern.free],
+            notes=notes,
+            prescribed_dofs=p_dofs,
+            prescribed_mm=p_mm,
+        )
 
     # -- physics at a configuration x (n, 3) -------------------------------------------
 
@@ -235,9 +281,14 @@ class Model:
         guess = self.__dict__.get("_rot_guess")
         warm = guess is not None and guess.shape == (len(self.tets), 3, 3)
         f, rot, det, cold = kernels.kinematics(
-            np.ascontiguousarray(x, dtype=float), self.tets, self.grads,
-            guess if warm else np.empty((0, 3, 3)), warm,
-            corotation.POLAR_WARM_ITERATIONS, corotation.POLAR_WARM_STOP)
+            np.ascontiguousarray(x, dtype=float),
+            self.tets,
+            self.grads,
+            guess if warm else np.empty((0, 3, 3)),
+            warm,
+            corotation.POLAR_WARM_ITERATIONS,
+            corotation.POLAR_WARM_STOP,
+        )
         if cold.any():
             rot[cold] = corotation.polar_rotations(f[cold])
         self.__dict__["_rot_guess"] = rot  # warm start of the next polar decomposition
@@ -255,22 +306,37 @@ class Model:
         """Elastic forces (n, 3) mN and strain energy (mN mm) from the deformation
         gradients and rotations (m, 3, 3) of `kinematics`."""
         lam, mu = self.lame_kpa
-        return kernels.forces_and_energy(self.tets, self.grads, self.volumes_mm3, lam, mu,
-                                         f, rot, *self.node_incidence)
+        return kernels.forces_and_energy(
+            self.tets, self.grads, self.volumes_mm3, lam, mu, f, rot, *self.node_incidence
+        )
 
-    def apply_tangent(self, rot: np.ndarray, t_world: np.ndarray | None,
-                      v: np.ndarray) -> np.ndarray:
+    def apply_tangent(
+        self, rot: np.ndarray, t_world: np.ndarray | None, v: np.ndarray
+    ) -> np.ndarray:
         """The consistent tangent at rotations rot (m, 3, 3) with the rotation-derivative
         term t_world (m, 3, 3, `corotation.skew_stiffness`; None: SOFA's warped R K0 R^T)
         times v (n, 3); returns (n, 3) mN."""
         lam, mu = self.lame_kpa
         t = np.empty((0, 3, 3)) if t_world is None else np.ascontiguousarray(t_world)
-        return kernels.tangent_product(self.tets, self.grads, self.volumes_mm3, lam, mu,
-                                       np.ascontiguousarray(rot), t, t_world is not None,
-                                       np.ascontiguousarray(v, dtype=float))
+        return kernels.tangent_product(
+            self.tets,
+            self.grads,
+            self.volumes_mm3,
+            lam,
+            mu,
+            np.ascontiguousarray(rot),
+            t,
+            t_world is not None,
+            np.ascontiguousarray(v, dtype=float),
+        )
 
-    def apply_tangent_free(self, rot: np.ndarray, t_world: np.ndarray | None,
-                           v_free: np.ndarray, rg: np.ndarray | None = None) -> np.ndarray:
+    def apply_tangent_free(
+        self,
+        rot: np.ndarray,
+        t_world: np.ndarray | None,
+        v_free: np.ndarray,
+        rg: np.ndarray | None = None,
+    ) -> np.ndarray:
         """`apply_tangent` over the free dofs: v_free (n_free,) -> (n_free,) mN (the
         held dofs' components zero, their rows dropped), without full-size copies. rg:
         the rotated gradients of rot (`kernels.rotated_gradients`), if already at hand."""
@@ -279,9 +345,18 @@ class Model:
         if rg is None:
             rg = kernels.rotated_gradients(self.grads, np.ascontiguousarray(rot))
         return kernels.tangent_product_dofs(
-            self.tets, rg, self.volumes_mm3, lam, mu, t, t_world is not None,
-            self.free_dof_map, np.ascontiguousarray(v_free, dtype=float),
-            len(self.pattern.free), *self.node_incidence)
+            self.tets,
+            rg,
+            self.volumes_mm3,
+            lam,
+            mu,
+            t,
+            t_world is not None,
+            self.free_dof_map,
+            np.ascontiguousarray(v_free, dtype=float),
+            len(self.pattern.free),
+            *self.node_incidence,
+        )
 
     @functools.cached_property
     def extent_mm(self) -> float:
@@ -318,25 +393,27 @@ class Model:
             self.__dict__["_grads"] = g
         return g
 
-    def tangent_blocks(self, rot: np.ndarray, f: np.ndarray | None,
-                       project: bool = True) -> np.ndarray:
+    def tangent_blocks(
+        self, rot: np.ndarray, f: np.ndarray | None, project: bool = True
+    ) -> np.ndarray:
         """(m, 12, 12) element tangents: the consistent corotational tangent (projected
         to positive semi-definite per element) at F = f, or SOFA's warped R K0 R^T when
         f is None."""
         if f is None:
             return corotation.warped_stiffness(self.k0, rot)
         lam, mu = self.lame_kpa
-        return corotation.exact_stiffness(self.grads, self.volumes_mm3, lam, mu, rot, f,
-                                          project)
+        return corotation.exact_stiffness(self.grads, self.volumes_mm3, lam, mu, rot, f, project)
 
     def chamber_volumes(self, x: np.ndarray) -> np.ndarray:
         """(K,) cavity volumes (mm^3) at x: sum x0.(x1 x x2)/6 over each surface."""
         tris, owner = self._all_chamber_tris
         p = x[tris]
         a, b, c = p[:, 0], p[:, 1], p[:, 2]
-        t = (a[:, 0] * (b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1])
-             + a[:, 1] * (b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2])
-             + a[:, 2] * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]))
+        t = (
+            a[:, 0] * (b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1])
+            + a[:, 1] * (b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2])
+            + a[:, 2] * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0])
+        )
         return np.bincount(owner, t, minlength=len(self.chamber_tris)) / 6.0
 
     def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
@@ -359,15 +436,20 @@ class Model:
         """All chambers' triangles (T, 3) and the chamber of each (T,)."""
         cat = self.__dict__.get("_cat")
         if cat is None:
-            tris = (np.concatenate(self.chamber_tris) if self.chamber_tris
-                    else np.zeros((0, 3), np.int64))
-            owner = np.repeat(np.arange(len(self.chamber_tris)),
-                              [len(t) for t in self.chamber_tris])
+            tris = (
+                np.concatenate(self.chamber_tris)
+                if self.chamber_tris
+                else np.zeros((0, 3), np.int64)
+            )
+            owner = np.repeat(
+                np.arange(len(self.chamber_tris)), [len(t) for t in self.chamber_tris]
+            )
             cat = self.__dict__["_cat"] = (tris, owner)
         return cat
 
-    def external_forces(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load,
-                        h: np.ndarray | None = None) -> np.ndarray:
+    def external_forces(
+        self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load, h: np.ndarray | None = None
+    ) -> np.ndarray:
         """(n, 3) gravity + pressure (follower) + jig spring forces (mN) at x."""
         f = load.gravity * self.body_force_mn
         if len(self.chamber_tris):
@@ -386,8 +468,12 @@ class Model:
         import scipy.sparse as sp
 
         keep, slot, indices, indptr = self._load_pattern
-        vals = np.concatenate([-pk * pressure.volume_hessian_values(x, t)
-                               for pk, t in zip(pressure_kpa, self.chamber_tris, strict=True)])
+        vals = np.concatenate(
+            [
+                -pk * pressure.volume_hessian_values(x, t)
+                for pk, t in zip(pressure_kpa, self.chamber_tris, strict=True)
+            ]
+        )
         data = np.bincount(slot, vals[keep], minlength=len(indices))
         n = len(self.pattern.free)
         return sp.csr_matrix((data, indices, indptr), shape=(n, n))
@@ -410,8 +496,12 @@ class Model:
             uniq, slot = np.unique(r[keep] * n + c[keep], return_inverse=True)
             indptr = np.zeros(n + 1, np.int64)
             np.cumsum(np.bincount(uniq // n, minlength=n), out=indptr[1:])
-            pat = self.__dict__["_load_pat"] = (keep, slot.reshape(-1),
-                                               (uniq % n).astype(np.int32), indptr)
+            pat = self.__dict__["_load_pat"] = (
+                keep,
+                slot.reshape(-1),
+                (uniq % n).astype(np.int32),
+                indptr,
+            )
         return pat
 
     def external_potential(self, x: np.ndarray, pressure_kpa: np.ndarray, load: Load) -> float:
@@ -427,8 +517,7 @@ class Model:
 
     def internal_forces(self, x: np.ndarray, rot: np.ndarray) -> np.ndarray:
         """(n, 3) elastic forces (mN) at x with element rotations rot."""
-        return corotation.forces_and_energy(x, self.rest, self.tets, self.k0, rot,
-                                            self.scatter)[0]
+        return corotation.forces_and_energy(x, self.rest, self.tets, self.k0, rot, self.scatter)[0]
 
     def min_det_f(self, x: np.ndarray) -> np.ndarray:
         """(m,) det F per tet at x."""

@@ -83,7 +83,7 @@ def chamber_load(model, k: int, growth_mm3: float) -> Load:
 def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, float]:
     """(stretch, pressure) at the vertex of the parabola through samples i - 1, i, i + 1
     (sample i the largest); sample i itself when the parabola opens upward."""
-    s, p = stretch[i - 1:i + 2], pressure[i - 1:i + 2]
+    s, p = stretch[i - 1 : i + 2], pressure[i - 1 : i + 2]
     a, b, c = np.polyfit(s, p, 2)
     if a >= 0:
         return float(stretch[i]), float(pressure[i])
@@ -108,10 +108,19 @@ def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -
     return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
 
 
-def follow(model, k: int, direction: int = 1, *, solver=None,
-           options: SolverOptions | None = None, stop_beyond_kpa: float | None = None,
-           step: float = STRETCH_STEP, deadline: float | None = None,
-           fall_steps: int = FALL_STEPS, progress=None) -> ChamberCurve:
+def follow(
+    model,
+    k: int,
+    direction: int = 1,
+    *,
+    solver=None,
+    options: SolverOptions | None = None,
+    stop_beyond_kpa: float | None = None,
+    step: float = STRETCH_STEP,
+    deadline: float | None = None,
+    fall_steps: int = FALL_STEPS,
+    progress=None,
+) -> ChamberCurve:
     """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
     the limit, suction (direction -1) down to MIN_STRETCH or the collapse. With
     `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
@@ -141,11 +150,22 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
         if last is not None:
             budget = replace(options, max_seconds=max(STEP_BUDGET[0] * last, STEP_BUDGET[1]))
         try:
-            res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p_start,
-                              options=budget, solver=solver, label=f"chamber {name}")
+            res = solve_state(
+                model,
+                load,
+                x_start=x,
+                load_start=prev,
+                pressure_start=p_start,
+                options=budget,
+                solver=solver,
+                label=f"chamber {name}",
+            )
         except SolverError as exc:
-            why = "no equilibrium found within the time" if isinstance(exc, OutOfTime) \
+            why = (
+                "no equilibrium found within the time"
+                if isinstance(exc, OutOfTime)
                 else "no equilibrium"
+            )
             curve.end = f"{why} at mean stretch {s:.2f}"
             if direction < 0:
                 curve.collapse_pressure_kpa = min(curve.pressure_kpa)
@@ -157,9 +177,11 @@ def follow(model, k: int, direction: int = 1, *, solver=None,
         curve.growth_mm3.append(float(res.chamber_volume_mm3[k] - v0))
         curve.pressure_kpa.append(p)
         if progress:
-            progress(f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
-                     f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
-                     f"{res.solve_ms / 1e3:.1f} s)")
+            progress(
+                f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
+                f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
+                f"{res.solve_ms / 1e3:.1f} s)"
+            )
         if stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
             curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
             break
@@ -237,9 +259,15 @@ def forget(solver) -> None:
         solver.refresh = True
 
 
-def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
-                    options: SolverOptions, progress=None,
-                    screen: float = SCREEN_GROWTH) -> None:
+def check_pressures(
+    model,
+    pressures: np.ndarray,
+    keys: list[str],
+    solver,
+    options: SolverOptions,
+    progress=None,
+    screen: float = SCREEN_GROWTH,
+) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
     K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
@@ -256,30 +284,48 @@ def check_pressures(model, pressures: np.ndarray, keys: list[str], solver,
         for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
             if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
                 continue
-            curve = follow(model, k, direction, solver=solver, options=check,
-                           stop_beyond_kpa=asked, fall_steps=1, progress=progress)
+            curve = follow(
+                model,
+                k,
+                direction,
+                solver=solver,
+                options=check,
+                stop_beyond_kpa=asked,
+                fall_steps=1,
+                progress=progress,
+            )
             forget(solver)
             if direction > 0 and curve.limit_bound_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
                     f"below {kpa(curve.limit_bound_kpa)} kPa (its pressure-volume curve levels "
                     "off: no equilibrium above its peak; `fruit limits` computes it); give "
-                    "`volume_growth_mm3` to follow the inflation past it")
+                    "`volume_growth_mm3` to follow the inflation past it"
+                )
             if direction > 0 and curve.limit_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
-                    "`volume_growth_mm3` to follow the inflation past it")
+                    "`volume_growth_mm3` to follow the inflation past it"
+                )
             if direction < 0 and curve.collapse_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's collapse pressure of "
                     f"{kpa(curve.collapse_pressure_kpa)} kPa ({curve.end}: its walls would "
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
-                    "follow the suction")
+                    "follow the suction"
+                )
 
 
-def explain_failure(model, load: Load, keys: list[str], solver, options: SolverOptions,
-                    error: SolverError, progress=None) -> None:
+def explain_failure(
+    model,
+    load: Load,
+    keys: list[str],
+    solver,
+    options: SolverOptions,
+    error: SolverError,
+    progress=None,
+) -> None:
     """After `error` (a state under `load` found no equilibrium): raise the one line of
     `check_pressures` when a chamber's pressure in `load` is past its limit or collapse
     (followed without the screen), else `error` itself."""
@@ -299,7 +345,9 @@ def check_growth(model, loads: list[Load]) -> None:
         vc = np.asarray(load.volume_controlled, bool)
         for k in np.flatnonzero(vc & (np.asarray(load.volume_growth_mm3) <= -v0)):
             name = model.chamber_names[k]
-            raise SceneError(f"[actuation].volume_growth_mm3.{name}: "
-                             f"{load.volume_growth_mm3[k]:g} mm^3 would leave the chamber no "
-                             f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
-                             f"than {-v0[k]:.4g}")
+            raise SceneError(
+                f"[actuation].volume_growth_mm3.{name}: "
+                f"{load.volume_growth_mm3[k]:g} mm^3 would leave the chamber no "
+                f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
+                f"than {-v0[k]:.4g}"
+            )

@@ -54,16 +54,22 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             "limit_volume_growth_mm3": up.limit_growth_mm3,
             "collapse_pressure_kpa": down.collapse_pressure_kpa,
             "rest_volume_mm3": up.rest_volume_mm3,
-            "inflation_end": up.end, "suction_end": down.end,
+            "inflation_end": up.end,
+            "suction_end": down.end,
         }
         samples = list(zip(down.growth_mm3[:0:-1], down.pressure_kpa[:0:-1], strict=True))
         samples += list(zip(up.growth_mm3, up.pressure_kpa, strict=True))
         rows += [(name, g, p) for g, p in samples]
-        progress(f"limits: chamber {name}: limit pressure {_kpa(up.limit_pressure_kpa)}, "
-                 f"collapse {_kpa(down.collapse_pressure_kpa)}")
-    info = {"chambers": chambers, "element": element_name(model),
-            "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
-            "seconds": round(time.perf_counter() - t0, 2)}
+        progress(
+            f"limits: chamber {name}: limit pressure {_kpa(up.limit_pressure_kpa)}, "
+            f"collapse {_kpa(down.collapse_pressure_kpa)}"
+        )
+    info = {
+        "chambers": chambers,
+        "element": element_name(model),
+        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
     with staged_dir(out_dir) as tmp:
         write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
         plot_curves(tmp / "pv.png", curves)
@@ -85,18 +91,31 @@ def plot_curves(path, curves) -> None:
         p = down.pressure_kpa[:0:-1] + up.pressure_kpa
         (line,) = ax.plot(g, p, ".-", label=f"chamber {name}")
         if up.limit_pressure_kpa is not None:
-            ax.plot([up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10,
-                    color=line.get_color())
-            ax.annotate(f"limit {up.limit_pressure_kpa:.4g} kPa",
-                        (up.limit_growth_mm3, up.limit_pressure_kpa),
-                        textcoords="offset points", xytext=(0, -22), ha="center")
+            ax.plot(
+                [up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10, color=line.get_color()
+            )
+            ax.annotate(
+                f"limit {up.limit_pressure_kpa:.4g} kPa",
+                (up.limit_growth_mm3, up.limit_pressure_kpa),
+                textcoords="offset points",
+                xytext=(0, -22),
+                ha="center",
+            )
         if down.collapse_pressure_kpa is not None:
             i = int(np.argmin(np.abs(np.array(down.pressure_kpa) - down.collapse_pressure_kpa)))
-            ax.plot([down.growth_mm3[i]], [down.collapse_pressure_kpa], "x", ms=10,
-                    color=line.get_color())
-            ax.annotate(f"collapse {down.collapse_pressure_kpa:.4g} kPa",
-                        (down.growth_mm3[i], down.collapse_pressure_kpa),
-                        textcoords="offset points", xytext=(10, -4))
+            ax.plot(
+                [down.growth_mm3[i]],
+                [down.collapse_pressure_kpa],
+                "x",
+                ms=10,
+                color=line.get_color(),
+            )
+            ax.annotate(
+                f"collapse {down.collapse_pressure_kpa:.4g} kPa",
+                (down.growth_mm3[i], down.collapse_pressure_kpa),
+                textcoords="offset points",
+                xytext=(10, -4),
+            )
     ax.axhline(0.0, color="0.7", lw=0.8)
     ax.axvline(0.0, color="0.7", lw=0.8)
     ax.set_xlabel("chamber volume growth (mm³)")

@@ -32,9 +32,15 @@ class OnlineSolver:
     until `stop` is set. A pressure the solver cannot reach (past what the body can
     carry) keeps the last positions and is counted in `failures` with `last_error`."""
 
-    def __init__(self, model: Model, taxel_tet: np.ndarray, taxel_bary: np.ndarray,
-                 options: SolverOptions, first_options: SolverOptions | None = None,
-                 min_change_kpa: float = MIN_CHANGE_KPA):
+    def __init__(
+        self,
+        model: Model,
+        taxel_tet: np.ndarray,
+        taxel_bary: np.ndarray,
+        options: SolverOptions,
+        first_options: SolverOptions | None = None,
+        min_change_kpa: float = MIN_CHANGE_KPA,
+    ):
         """`first_options`: for the first state, solved from rest (e.g. in the jig's
         load steps); default `options`."""
         self.model, self.options, self.min_change = model, options, min_change_kpa
@@ -59,18 +65,26 @@ class OnlineSolver:
             return False
         p = np.array(pressure_kpa, float).reshape(-1)  # a copy: the source may reuse its array
         if len(p) != len(self.p):
-            raise SolverError(f"online FEM: expected {len(self.p)} chamber pressures "
-                              f"({', '.join(self.model.chamber_names)}), got {len(p)}")
+            raise SolverError(
+                f"online FEM: expected {len(self.p)} chamber pressures "
+                f"({', '.join(self.model.chamber_names)}), got {len(p)}"
+            )
         if self.solved_kpa is not None and np.all(np.abs(p - self.solved_kpa) < self.min_change):
             return False
         self.solved_kpa = p
         load = Load.pressures(p)
         opts = self.first_options if self.x is None else self.options
         try:
-            res = solve_state(self.model, load, x_start=self.x, load_start=self.load,
-                              pressure_start=None if self.x is None else self.p,
-                              options=opts, solver=self.solver,
-                              label=f"online state at {np.round(p, 3).tolist()} kPa")
+            res = solve_state(
+                self.model,
+                load,
+                x_start=self.x,
+                load_start=self.load,
+                pressure_start=None if self.x is None else self.p,
+                options=opts,
+                solver=self.solver,
+                label=f"online state at {np.round(p, 3).tolist()} kPa",
+            )
         except SolverError as exc:
             self.failures += 1
             self.last_error = str(exc)
@@ -92,7 +106,7 @@ class OnlineSolver:
             while not stop.is_set():
                 try:
                     solved = self.update(source())
-                except Exception as exc:  # noqa: BLE001 -- reported by summary(), not lost
+                except Exception as exc:
                     self.failures += 1
                     self.stopped = f"{type(exc).__name__}: {exc}"
                     return
@@ -107,16 +121,20 @@ class OnlineSolver:
         """One line: solves, median and max time per solve, failures."""
         if not self.solve_ms:
             text = f"online FEM: no state solved, {self.failures} failed"
-            return text + (f"; the FEM thread stopped early ({self.stopped})"
-                           if self.stopped else "")
+            return text + (
+                f"; the FEM thread stopped early ({self.stopped})" if self.stopped else ""
+            )
         ms = np.array(self.solve_ms)
         plural = "s" if len(ms) != 1 else ""
-        text = (f"online FEM: {len(ms)} state{plural} solved, {np.median(ms):.1f} ms median, "
-                f"{ms.max():.1f} ms max, {self.failures} failed")
+        text = (
+            f"online FEM: {len(ms)} state{plural} solved, {np.median(ms):.1f} ms median, "
+            f"{ms.max():.1f} ms max, {self.failures} failed"
+        )
         if self.stopped:
             text += f"; the FEM thread stopped early ({self.stopped})"
         return text.replace("online FEM:", "online FEM (full model):", 1) + (
-            f" (last: {self.last_error})" if self.last_error else "")
+            f" (last: {self.last_error})" if self.last_error else ""
+        )
 
 
 class ReducedOnline:
@@ -128,8 +146,7 @@ class ReducedOnline:
 
     def __init__(self, reduced):
         self.reduced, self.model = reduced, reduced  # .model.chamber_names, as OnlineSolver
-        self.taxels_mm = reduced.taxels(np.clip(np.zeros(len(reduced.lo)), reduced.lo,
-                                                reduced.hi))
+        self.taxels_mm = reduced.taxels(np.clip(np.zeros(len(reduced.lo)), reduced.lo, reduced.hi))
         self.solved_kpa: np.ndarray | None = None
         self._last: list[float] | None = None
         self._lo, self._hi = reduced.lo.tolist(), reduced.hi.tolist()
@@ -146,8 +163,10 @@ class ReducedOnline:
         t0 = time.perf_counter()
         p = np.asarray(pressure_kpa, float).reshape(-1).tolist()  # a copy, in floats
         if len(p) != len(self._lo):
-            raise SolverError(f"reduced model: expected {len(self._lo)} chamber "
-                              f"pressures ({', '.join(self.reduced.chamber_names)}), got {len(p)}")
+            raise SolverError(
+                f"reduced model: expected {len(self._lo)} chamber "
+                f"pressures ({', '.join(self.reduced.chamber_names)}), got {len(p)}"
+            )
         if p == self._last:
             return False
         self._last = p
@@ -163,12 +182,16 @@ class ReducedOnline:
     def summary(self) -> str:
         """One line: the model used, vectors evaluated, time per vector, clamped ones."""
         v = self.reduced.validation()
-        head = (f"online reduced model (degree {v['degree']}, held-out taxel error max "
-                f"{v['taxel_max_mm']:.2g} mm{'' if v['within_bound'] else ', OUTSIDE ITS BOUND'})")
+        head = (
+            f"online reduced model (degree {v['degree']}, held-out taxel error max "
+            f"{v['taxel_max_mm']:.2g} mm{'' if v['within_bound'] else ', OUTSIDE ITS BOUND'})"
+        )
         if not self.solve_ms:
             text = f"{head}: no pressure vector evaluated"
         else:
             us = 1e3 * np.array(self.solve_ms)
-            text = (f"{head}: {len(us)} pressure vectors, {np.median(us):.0f} us median, "
-                    f"{us.max():.0f} us max, {self.clamped} outside its range (clamped)")
+            text = (
+                f"{head}: {len(us)} pressure vectors, {np.median(us):.0f} us median, "
+                f"{us.max():.0f} us max, {self.clamped} outside its range (clamped)"
+            )
         return text + (f"; the thread stopped early ({self.stopped})" if self.stopped else "")

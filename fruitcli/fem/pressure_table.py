@@ -33,9 +33,11 @@ def _read(path: Path, want: list[str]) -> dict:
     text_lines = _data_lines(path)
     extra = [h for h in table if h not in want]
     if extra:
-        raise FruitError(f"{path}: row {text_lines[0][0]}: unexpected column(s) "
-                         f"{', '.join(extra)}: expected one column per chamber: "
-                         f"{', '.join(want)} (kPa)")
+        raise FruitError(
+            f"{path}: row {text_lines[0][0]}: unexpected column(s) "
+            f"{', '.join(extra)}: expected one column per chamber: "
+            f"{', '.join(want)} (kPa)"
+        )
     table["__line__"] = np.array([n for n, _ in text_lines[1:]], np.int64)
     return table
 
@@ -47,13 +49,22 @@ def _data_lines(path: Path) -> list[tuple[int, str]]:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError):
         return []
-    return [(n + 1, line) for n, line in enumerate(text.splitlines())
-            if line.strip() and not line.lstrip().startswith("#")]
+    return [
+        (n + 1, line)
+        for n, line in enumerate(text.splitlines())
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
 
 
 def write_pressures(path: str | Path, chambers: list[str], kpa, comment: str = "") -> None:
     """Write (S, K) kPa as a pressure table, atomically."""
-    rows = [[repr(float(v)) for v in row]  # repr: read back exactly
-            for row in np.asarray(kpa, float).reshape(-1, len(chambers))]
-    write_csv(path, [column(c) for c in chambers], rows,
-              comments=[comment or "chamber pressures, kPa, one row per state"])
+    rows = [
+        [repr(float(v)) for v in row]  # repr: read back exactly
+        for row in np.asarray(kpa, float).reshape(-1, len(chambers))
+    ]
+    write_csv(
+        path,
+        [column(c) for c in chambers],
+        rows,
+        comments=[comment or "chamber pressures, kPa, one row per state"],
+    )

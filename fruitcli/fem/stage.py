@@ -53,7 +53,8 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
         return v, f
 
     own = geo.solid is not None and (
-        solid_path is None or Path(solid_path).resolve() == Path(geo.solid).resolve())
+        solid_path is None or Path(solid_path).resolve() == Path(geo.solid).resolve()
+    )
     if not own and solid_path is not None:
         v, f = shells.load_surface(solid_path, "solid")
         outer = shells.surface_shell(solid_path.name, v, f)
@@ -66,8 +67,10 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
             raise SceneError("[geometry].pad_size_mm: expected positive [x, y, thickness]")
         outer = shells.box_shell("pad", [-x / 2, -y / 2, 0.0], [x / 2, y / 2, t])
     else:
-        raise SceneError("[geometry]: the FEM body needs `solid`, `pad_size_mm` or a solid "
-                         "surface from make-tracks (--solid)")
+        raise SceneError(
+            "[geometry]: the FEM body needs `solid`, `pad_size_mm` or a solid "
+            "surface from make-tracks (--solid)"
+        )
     chambers = []
     for ch in scene.chambers:
         name = ch.name
@@ -92,23 +95,35 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     min_size = float(mesh_cfg.min_size_mm or size)
     if not 0 < min_size <= size:
         raise SceneError(f"[mesh].min_size_mm: expected 0 < min_size_mm <= size_mm = {size}")
-    progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), "
-             f"{len(chambers)} chamber(s)")
-    raw = tetra.run_gmsh([outer, *chambers], size, min_size, mesh_cfg.time_limit_s,
-                         label=outer["name"], work_dir=None, taxels_xyz=taxels_xyz,
-                         progress=progress)
+    progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), {len(chambers)} chamber(s)")
+    raw = tetra.run_gmsh(
+        [outer, *chambers],
+        size,
+        min_size,
+        mesh_cfg.time_limit_s,
+        label=outer["name"],
+        work_dir=None,
+        taxels_xyz=taxels_xyz,
+        progress=progress,
+    )
     mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size, taxels_xyz)
     report = tetra.quality_report(mesh, mesh_cfg.min_quality)
     for k, ch in enumerate(chambers):
         if not np.any(mesh["chamber_tri_owner"] == k):
-            raise MeshError(f"[[geometry.chamber]] '{ch['name']}': no cavity wall in the mesh "
-                            f"of {outer['name']}")
+            raise MeshError(
+                f"[[geometry.chamber]] '{ch['name']}': no cavity wall in the mesh "
+                f"of {outer['name']}"
+            )
     if report["sicn_min"] < mesh_cfg.min_quality:
-        raise MeshError(f"{outer['name']}: mesh too poor: worst SICN {report['sicn_min']:.3f} "
-                        f"< [mesh].min_quality {mesh_cfg.min_quality:g} "
-                        f"({report['poor_tets']} poor tets); check the surface or size_mm")
-    progress(f"tetra: {report['n_tets']} tets, {report['n_nodes']} nodes, "
-             f"SICN min {report['sicn_min']:.2f}")
+        raise MeshError(
+            f"{outer['name']}: mesh too poor: worst SICN {report['sicn_min']:.3f} "
+            f"< [mesh].min_quality {mesh_cfg.min_quality:g} "
+            f"({report['poor_tets']} poor tets); check the surface or size_mm"
+        )
+    progress(
+        f"tetra: {report['n_tets']} tets, {report['n_nodes']} nodes, "
+        f"SICN min {report['sicn_min']:.2f}"
+    )
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "mesh.npz", mesh)
         (tmp / "mesh.msh").write_bytes(raw["msh_text"])
@@ -122,10 +137,19 @@ def _jigs(scene, nodes: np.ndarray) -> list[Jig]:
     for n, jig in enumerate(scene.jig):
         idx = nodes_in_box(nodes, jig.region_box_mm)
         if len(idx) == 0:
-            raise SceneError(f"[[jig]] #{n + 1}.region_box_mm: no mesh node inside "
-                             f"{jig.region_box_mm}")
-        out.append(Jig(idx, spring_mn_per_mm(jig.stiffness_n_per_mm), jig.rotate_deg,
-                       tuple(jig.axis), tuple(jig.pivot_mm), tuple(jig.translate_mm)))
+            raise SceneError(
+                f"[[jig]] #{n + 1}.region_box_mm: no mesh node inside {jig.region_box_mm}"
+            )
+        out.append(
+            Jig(
+                idx,
+                spring_mn_per_mm(jig.stiffness_n_per_mm),
+                jig.rotate_deg,
+                tuple(jig.axis),
+                tuple(jig.pivot_mm),
+                tuple(jig.translate_mm),
+            )
+        )
     return out
 
 
@@ -149,12 +173,16 @@ def state_loads(scene, names: list[str]) -> list[Load]:
     k = len(names)
     pressure, growth = np.zeros((s, k)), np.zeros((s, k))
     vc = np.zeros(k, bool)
-    for key, table, target in (("pressure_kpa", act.pressure_kpa, pressure),
-                               ("volume_growth_mm3", act.volume_growth_mm3, growth)):
+    for key, table, target in (
+        ("pressure_kpa", act.pressure_kpa, pressure),
+        ("volume_growth_mm3", act.volume_growth_mm3, growth),
+    ):
         for cname, values in (table or {}).items():
             if cname not in names:
-                raise SceneError(f"[actuation].{key}.{cname}: no such chamber in the mesh "
-                                 f"(chambers: {', '.join(names) or 'none'})")
+                raise SceneError(
+                    f"[actuation].{key}.{cname}: no such chamber in the mesh "
+                    f"(chambers: {', '.join(names) or 'none'})"
+                )
             target[:, names.index(cname)] = values
             vc[names.index(cname)] = key == "volume_growth_mm3"
     return [Load(pressure[i], growth[i], vc.copy(), 1.0, 1.0) for i in range(s)]
@@ -168,8 +196,9 @@ def build_model(scene, mesh: dict):
     names = [str(n) for n in mesh["chamber_names"]]
     wanted = [c.name for c in scene.chambers]
     if sorted(names) != sorted(wanted):
-        raise MeshError(f"mesh chambers {names} do not match the scene's {wanted}; "
-                        "rerun `fruit tetra`")
+        raise MeshError(
+            f"mesh chambers {names} do not match the scene's {wanted}; rerun `fruit tetra`"
+        )
     mat = scene.material
     material = materials.from_scene(mat)
     element = scene.fem.element
@@ -177,11 +206,18 @@ def build_model(scene, mesh: dict):
     if material.model == "corotational":
         nodes = mesh["nodes"]
         fixed, moved = _fixed(scene, nodes)
-        return Model.from_arrays(nodes, mesh["tets"], mat.young_modulus_kpa,
-                                 mat.poisson_ratio, density_kg_m3=mat.density_kg_m3,
-                                 gravity_m_s2=gravity, fixed_nodes=fixed,
-                                 chambers=io.chamber_dict(mesh), jigs=_jigs(scene, nodes),
-                                 prescribed=moved)
+        return Model.from_arrays(
+            nodes,
+            mesh["tets"],
+            mat.young_modulus_kpa,
+            mat.poisson_ratio,
+            density_kg_m3=mat.density_kg_m3,
+            gravity_m_s2=gravity,
+            fixed_nodes=fixed,
+            chambers=io.chamber_dict(mesh),
+            jigs=_jigs(scene, nodes),
+            prescribed=moved,
+        )
     nodes, tets = mesh["nodes"], mesh["tets"]
     flip = tet4.signed_volumes(nodes, tets) < 0
     if flip.any():
@@ -194,14 +230,22 @@ def build_model(scene, mesh: dict):
         spec = {c.name: c.ellipsoid for c in scene.chambers}
         for name, wall in zip(chambers, walls, strict=True):
             if spec.get(name) is not None:
-                curve_onto_ellipsoid(nodes, tets, np.unique(wall[:, 3:]),
-                                     spec[name].center_mm, spec[name].radii_mm)
+                curve_onto_ellipsoid(
+                    nodes, tets, np.unique(wall[:, 3:]), spec[name].center_mm, spec[name].radii_mm
+                )
     fixed, moved = _fixed(scene, nodes)
     return ContinuumModel.from_arrays(
-        nodes, tets, material, element, density_kg_m3=mat.density_kg_m3,
-        gravity_m_s2=gravity, fixed_nodes=fixed, chambers=dict(zip(chambers, walls,
-                                                                   strict=True)),
-        jigs=_jigs(scene, nodes), prescribed=moved)
+        nodes,
+        tets,
+        material,
+        element,
+        density_kg_m3=mat.density_kg_m3,
+        gravity_m_s2=gravity,
+        fixed_nodes=fixed,
+        chambers=dict(zip(chambers, walls, strict=True)),
+        jigs=_jigs(scene, nodes),
+        prescribed=moved,
+    )
 
 
 OUTSIDE_WARNING = 0.1
@@ -225,13 +269,20 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
         steps = cfg.jig_steps if jig else 1
         if materials.from_scene(scene.material).model != "corotational":
             steps = max(steps, cfg.first_steps)
-    return SolverOptions(cfg.tolerance, cfg.max_iterations, cfg.max_subdivisions,
-                         cfg.linear_solver, steps, cfg.displacement_tolerance_mm,
-                         cfg.max_seconds)
+    return SolverOptions(
+        cfg.tolerance,
+        cfg.max_iterations,
+        cfg.max_subdivisions,
+        cfg.linear_solver,
+        steps,
+        cfg.displacement_tolerance_mm,
+        cfg.max_seconds,
+    )
 
 
-def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
-                 tracks_csv=None, pressures=None) -> dict:
+def run_simulate(
+    scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False, tracks_csv=None, pressures=None
+) -> dict:
     """Solve every actuation state, or with `pressures` {chamber: (S,) kPa} those
     pressure vectors; write out_dir/states.npz (see module docstring), and
     out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any."""
@@ -252,38 +303,52 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
         table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
         loads = [Load.pressures(row) for row in table]
     solver = model.make_solver(scene.solver.linear_solver)
-    keys = [f"--pressures {c}_kpa" if pressures is not None else
-            f"[actuation].pressure_kpa.{c}" for c in model.chamber_names]
+    keys = [
+        f"--pressures {c}_kpa" if pressures is not None else f"[actuation].pressure_kpa.{c}"
+        for c in model.chamber_names
+    ]
     if model.chamber_tris:
         limits.check_growth(model, loads)
-        asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa)
-                          for ld in loads])
-        limits.check_pressures(model, asked, keys, solver, solver_options(scene),
-                               progress=progress)
+        asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
+        limits.check_pressures(model, asked, keys, solver, solver_options(scene), progress=progress)
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
         try:
-            res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
-                              options=opts, solver=solver, label=f"state {i}",
-                              progress=lambda msg: progress(f"simulate: {msg}"))
+            res = solve_state(
+                model,
+                load,
+                x_start=x,
+                load_start=prev,
+                pressure_start=p,
+                options=opts,
+                solver=solver,
+                label=f"state {i}",
+                progress=lambda msg: progress(f"simulate: {msg}"),
+            )
         except SolverError as exc:  # past a limit the check screened out? name it
-            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc,
-                                   progress)
+            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc, progress)
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
-        progress(f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "
-                 f"{res.solve_ms:.0f} ms, residual {res.residual:.1e}")
+        progress(
+            f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "
+            f"{res.solve_ms:.0f} ms, residual {res.residual:.1e}"
+        )
     out = {
-        "model": np.array("full"), "rest_nodes": model.rest, "tets": model.tets,
+        "model": np.array("full"),
+        "rest_nodes": model.rest,
+        "tets": model.tets,
         "surface_tris": mesh["surface_tris"],
-        "element": np.array(element_name(model)), "material_model": np.array(
-            model.material.model if hasattr(model, "material") else "corotational"),
+        "element": np.array(element_name(model)),
+        "material_model": np.array(
+            model.material.model if hasattr(model, "material") else "corotational"
+        ),
         "elements": getattr(model, "conn", model.tets),
         "displacement_mm": np.stack([r.displacement_mm for r in results]),
         "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(len(loads), -1),
         "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(
-            len(loads), -1),
+            len(loads), -1
+        ),
         "chamber_names": np.array(model.chamber_names, dtype=str).reshape(-1),
         "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
         "iterations": np.array([r.iterations for r in results]),
@@ -296,29 +361,48 @@ def run_simulate(scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False,
         taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
         tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
         for k in np.flatnonzero(outside > OUTSIDE_WARNING):
-            progress(f"simulate: warning: taxel {k} (row {k + 1} of the taxels) lies outside "
-                     f"the mesh by {outside[k]:.2f} of its nearest element's size; it follows "
-                     "by extrapolation (check the grid or [mesh].size_mm)")
+            progress(
+                f"simulate: warning: taxel {k} (row {k + 1} of the taxels) lies outside "
+                f"the mesh by {outside[k]:.2f} of its nearest element's size; it follows "
+                "by extrapolation (check the grid or [mesh].size_mm)"
+            )
         states_x = np.stack([r.x for r in results])
-        out.update(taxel_tet=tet, taxel_bary=w, taxel_outside=outside,
-                   taxels_mm=model.map_points(tet, w, states_x))
+        out.update(
+            taxel_tet=tet,
+            taxel_bary=w,
+            taxel_outside=outside,
+            taxels_mm=model.map_points(tet, w, states_x),
+        )
     summary_yarns = None
     if tracks is not None:
         tr = scene.tracks
         yarn_rows, summary_yarns = yarn.follow_tracks(
-            model, tracks, np.stack([r.x for r in results]), tr.yarn_max_stretch,
-            tr.zigzag_pitch_mm, OUTSIDE_WARNING, progress)
+            model,
+            tracks,
+            np.stack([r.x for r in results]),
+            tr.yarn_max_stretch,
+            tr.zigzag_pitch_mm,
+            OUTSIDE_WARNING,
+            progress,
+        )
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", out)
         if tracks is not None:
             yarn.write_yarns_csv(tmp / "yarns.csv", yarn_rows)
         if vtu:
             for i, r in enumerate(results):
-                io.write_vtu(tmp / f"state_{i:03d}.vtu", r.x, out["elements"],
-                             {"displacement_mm": r.displacement_mm})
+                io.write_vtu(
+                    tmp / f"state_{i:03d}.vtu",
+                    r.x,
+                    out["elements"],
+                    {"displacement_mm": r.displacement_mm},
+                )
     if tracks is None:  # no tracks now: an older yarns.csv would not match these states
         (Path(out_dir) / "yarns.csv").unlink(missing_ok=True)
-    return {"states": len(results), "iterations": out["iterations"].tolist(),
-            "solve_ms": out["solve_ms"].tolist(), "notes": model.notes,
-            "linear_solver": solver.stats | {"method": solver.method}} | (
-                {"yarns": summary_yarns} if summary_yarns else {})
+    return {
+        "states": len(results),
+        "iterations": out["iterations"].tolist(),
+        "solve_ms": out["solve_ms"].tolist(),
+        "notes": model.notes,
+        "linear_solver": solver.stats | {"method": solver.method},
+    } | ({"yarns": summary_yarns} if summary_yarns else {})

@@ -35,8 +35,12 @@ _KNOT_B = np.array([18.0, 18.0, 12.0, 10.0, 7.0, 6.0])
 _KNOT_ZC = np.array([-15.0, -14.0, -8.0, -6.0, -10.0, -12.0])
 
 # bumps: (amplitude, waves along s per 100 mm, waves around, phase)
-_BUMPS = ((0.030, 2.3, 3.0, 0.4), (0.022, 3.7, 5.0, 1.9), (0.016, 5.9, 2.0, 4.1),
-          (0.012, 8.3, 7.0, 2.7))
+_BUMPS = (
+    (0.030, 2.3, 3.0, 0.4),
+    (0.022, 3.7, 5.0, 1.9),
+    (0.016, 5.9, 2.0, 4.1),
+    (0.012, 8.3, 7.0, 2.7),
+)
 
 N_ALONG = 420
 N_AROUND = 160
@@ -45,22 +49,39 @@ CORRECTION_ITERATIONS = 3
 
 # the paper's 29 rest sample points (x, y, z) in mm, copied from paper_rest_truth.csv so the
 # generator does not depend on the data folder being present
-PAPER_REST_TRUTH_MM = np.array([
-    [-77.392241, 53.103448, -4.794208], [-60.517241, 53.103448, -1.543040],
-    [-43.642241, 53.103448, 4.221074], [-26.767241, 40.881226, 0.589280],
-    [-26.767241, 53.103448, 3.174063], [-9.892241, -44.674330, -7.681267],
-    [-9.892241, -32.452107, -3.454732], [-9.892241, -20.229885, 2.693112],
-    [-9.892241, -8.007663, 6.802435], [-9.892241, 4.214559, 7.791869],
-    [-9.892241, 16.436782, 5.544413], [-9.892241, 28.659004, 9.548597],
-    [-9.892241, 40.881226, 7.888070], [6.982759, -44.674330, -9.846026],
-    [6.982759, -32.452107, -8.479984], [6.982759, -20.229885, -5.513335],
-    [6.982759, -8.007663, -3.003260], [6.982759, 4.214559, 0.223691],
-    [6.982759, 16.436782, 2.437189], [6.982759, 28.659004, 5.405156],
-    [23.857759, -44.674330, -4.741322], [23.857759, -32.452107, -2.739506],
-    [23.857759, -20.229885, -1.404965], [23.857759, -8.007663, -4.840598],
-    [23.857759, 4.214559, -6.390879], [23.857759, 16.436782, -2.152111],
-    [40.732759, -44.674330, 0.338342], [40.732759, -32.452107, 4.629276],
-    [40.732759, -20.229885, 5.298665]])
+PAPER_REST_TRUTH_MM = np.array(
+    [
+        [-77.392241, 53.103448, -4.794208],
+        [-60.517241, 53.103448, -1.543040],
+        [-43.642241, 53.103448, 4.221074],
+        [-26.767241, 40.881226, 0.589280],
+        [-26.767241, 53.103448, 3.174063],
+        [-9.892241, -44.674330, -7.681267],
+        [-9.892241, -32.452107, -3.454732],
+        [-9.892241, -20.229885, 2.693112],
+        [-9.892241, -8.007663, 6.802435],
+        [-9.892241, 4.214559, 7.791869],
+        [-9.892241, 16.436782, 5.544413],
+        [-9.892241, 28.659004, 9.548597],
+        [-9.892241, 40.881226, 7.888070],
+        [6.982759, -44.674330, -9.846026],
+        [6.982759, -32.452107, -8.479984],
+        [6.982759, -20.229885, -5.513335],
+        [6.982759, -8.007663, -3.003260],
+        [6.982759, 4.214559, 0.223691],
+        [6.982759, 16.436782, 2.437189],
+        [6.982759, 28.659004, 5.405156],
+        [23.857759, -44.674330, -4.741322],
+        [23.857759, -32.452107, -2.739506],
+        [23.857759, -20.229885, -1.404965],
+        [23.857759, -8.007663, -4.840598],
+        [23.857759, 4.214559, -6.390879],
+        [23.857759, 16.436782, -2.152111],
+        [40.732759, -44.674330, 0.338342],
+        [40.732759, -32.452107, 4.629276],
+        [40.732759, -20.229885, 5.298665],
+    ]
+)
 
 # three ellipsoidal pneumatic chambers inside the body (mm)
 FRUIT_CHAMBERS = [
@@ -108,10 +129,10 @@ def _body_vertices(n_along: int, n_around: int) -> tuple[np.ndarray, np.ndarray,
     """Ring vertices (n_along, n_around, 3), the up-ness weight per vertex, total length."""
     length = TRUNK_LENGTH_MM + 0.5 * np.pi * BEND_RADIUS_MM + TIP_LENGTH_MM
     u = (np.arange(1, n_along + 1)) / (n_along + 1)
-    s = 0.5 * length * (1.0 - np.cos(np.pi * u))          # dense near both ends
+    s = 0.5 * length * (1.0 - np.cos(np.pi * u))  # dense near both ends
     theta = 2.0 * np.pi * np.arange(n_around) / n_around
     pts, tan = centreline(s)
-    normal = np.c_[-tan[:, 1], tan[:, 0]]                   # left of the tangent
+    normal = np.c_[-tan[:, 1], tan[:, 0]]  # left of the tangent
     cap0 = np.sqrt(1.0 - (1.0 - np.minimum(s / START_CAP_MM, 1.0)) ** 2)
     cap1 = np.sqrt(1.0 - (1.0 - np.minimum((length - s) / END_CAP_MM, 1.0)) ** 2)
     cap = cap0 * cap1
@@ -123,15 +144,19 @@ def _body_vertices(n_along: int, n_around: int) -> tuple[np.ndarray, np.ndarray,
     bump = np.ones((n_along, n_around))
     pole_fade = np.sin(np.pi * u)[:, None] ** 0.5
     for amp, waves, around, phase in _BUMPS:
-        bump += amp * pole_fade * np.sin(2 * np.pi * waves * s[:, None] / 100.0 + phase) \
+        bump += (
+            amp
+            * pole_fade
+            * np.sin(2 * np.pi * waves * s[:, None] / 100.0 + phase)
             * np.cos(around * theta[None, :] + 0.7 * phase)
+        )
     lateral = a[:, None] * cs[None, :] * bump
     xy = pts[:, None, :] + lateral[:, :, None] * normal[:, None, :]
     z = zc[:, None] + b[:, None] * sn[None, :] * bump
     z = BASE_Z_MM + BASE_SOFTNESS_MM * np.logaddexp(0.0, (z - BASE_Z_MM) / BASE_SOFTNESS_MM)
     up = np.clip((np.sin(theta) - 0.15) / 0.55, 0.0, 1.0)
     # no lift near the poles, where tiny rings would fold
-    up = (up * up * (3 - 2 * up))[None, :] * (cap ** 2)[:, None]
+    up = (up * up * (3 - 2 * up))[None, :] * (cap**2)[:, None]
     verts = np.concatenate([xy, z[:, :, None]], axis=2)
     return verts, up, length
 
@@ -154,11 +179,12 @@ def _ring_faces(n_along: int, n_around: int) -> np.ndarray:
 
 def _gaussian_field(centers: np.ndarray, weights: np.ndarray, xy: np.ndarray) -> np.ndarray:
     d2 = ((xy[:, None, :] - centers[None, :, :]) ** 2).sum(-1)
-    return np.exp(-0.5 * d2 / CORRECTION_SIGMA_MM ** 2) @ weights
+    return np.exp(-0.5 * d2 / CORRECTION_SIGMA_MM**2) @ weights
 
 
-def fruit_arrays(n_along: int = N_ALONG, n_around: int = N_AROUND,
-                 match_truth: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def fruit_arrays(
+    n_along: int = N_ALONG, n_around: int = N_AROUND, match_truth: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) mm and outward-oriented faces (m, 3) of the Fruit.
 
     With `match_truth`, a smooth Gaussian height field on the upper side moves the top
@@ -176,8 +202,9 @@ def fruit_arrays(n_along: int = N_ALONG, n_around: int = N_AROUND,
     if match_truth:
         truth = PAPER_REST_TRUTH_MM
         centers = truth[:, :2]
-        gram = np.exp(-0.5 * ((centers[:, None] - centers[None]) ** 2).sum(-1)
-                      / CORRECTION_SIGMA_MM ** 2)
+        gram = np.exp(
+            -0.5 * ((centers[:, None] - centers[None]) ** 2).sum(-1) / CORRECTION_SIGMA_MM**2
+        )
         lift = np.zeros(ring.shape[:2])
         ring_xy = ring[:, :, :2].reshape(-1, 2)
         for _ in range(CORRECTION_ITERATIONS):
@@ -211,12 +238,17 @@ def write_artist(path, n_along: int = N_ALONG, n_around: int = N_AROUND) -> dict
     path = Path(path)
     kind = path.suffix.lower().lstrip(".")
     if kind not in ("stl", "obj", "ply"):
-        raise GeometryError(f"{path}: unknown mesh format '{path.suffix}' "
-                            "(expected .stl, .obj or .ply)")
+        raise GeometryError(
+            f"{path}: unknown mesh format '{path.suffix}' (expected .stl, .obj or .ply)"
+        )
     mesh = make_fruit_artist(n_along, n_around)
     with atomic_path(path) as tmp:
         mesh.export(tmp, file_type=kind)
     lo, hi = mesh.bounds
-    return {"path": str(path), "triangles": int(len(mesh.faces)),
-            "vertices": int(len(mesh.vertices)), "bounds_mm": [lo.tolist(), hi.tolist()],
-            "volume_mm3": float(mesh.volume)}
+    return {
+        "path": str(path),
+        "triangles": int(len(mesh.faces)),
+        "vertices": int(len(mesh.vertices)),
+        "bounds_mm": [lo.tolist(), hi.tolist()],
+        "volume_mm3": float(mesh.volume),
+    }

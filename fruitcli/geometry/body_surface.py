@@ -31,8 +31,9 @@ def surface_heights(xy_mm: np.ndarray, nodes_mm: np.ndarray, tris: np.ndarray) -
     return np.where(np.isfinite(z), z, np.nan)
 
 
-def carried_vertices(rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray,
-                     vertices: np.ndarray) -> np.ndarray:
+def carried_vertices(
+    rest_nodes: np.ndarray, tets: np.ndarray, nodes: np.ndarray, vertices: np.ndarray
+) -> np.ndarray:
     """Surface vertices (V, 3) mm at rest, moved with a FEM state: each vertex mapped
     barycentrically into its rest tet (corner nodes of `tets`), placed by the same weights
     on the deformed `nodes` (N, 3). Vertices just outside the tet mesh (its surface is a
@@ -59,8 +60,9 @@ def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(surf.vertices, float), np.asarray(surf.faces, np.int64)
 
 
-def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
-                    surface) -> tuple[np.ndarray, str]:
+def contact_heights(
+    xy: np.ndarray, taxels_mm: np.ndarray, states, state: int, surface
+) -> tuple[np.ndarray, str]:
     """z (P,) mm where vertical lines at `xy` (P, 2) meet the body from above (NaN: miss),
     and what the surface was. `surface`: (vertices, triangles) of the body at rest or None."""
     if surface is not None:
@@ -68,13 +70,19 @@ def contact_heights(xy: np.ndarray, taxels_mm: np.ndarray, states, state: int,
         if states is None:
             return surface_heights(xy, verts, tris), "the body's reduced surface at rest"
         moved = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
-        return (surface_heights(xy, moved, tris),
-                f"the body's reduced surface carried by FEM state {state}")
+        return (
+            surface_heights(xy, moved, tris),
+            f"the body's reduced surface carried by FEM state {state}",
+        )
     if states is not None:
-        return (surface_heights(xy, states.nodes_mm(state), states.surface_tris),
-                f"the FEM boundary of state {state} (no body surface given)")
-    return (taxel_surface_heights(xy, taxels_mm),
-            "the taxels' interpolated surface (no body surface given)")
+        return (
+            surface_heights(xy, states.nodes_mm(state), states.surface_tris),
+            f"the FEM boundary of state {state} (no body surface given)",
+        )
+    return (
+        taxel_surface_heights(xy, taxels_mm),
+        "the taxels' interpolated surface (no body surface given)",
+    )
 
 
 FACING_COS = 0.5  # a face "faces the same way" as a taxel's surface within 60 degrees
@@ -90,15 +98,12 @@ class SurfaceProjector:
     def __init__(self, surface, states, state: int | None, taxels_mm: np.ndarray):
         from scipy.spatial import cKDTree
 
-
         verts, tris = surface
         if states is not None:
-            verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state),
-                                     verts)
+            verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
         t = verts[tris]
         normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True),
-                                          1e-300)
+        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         self.verts, self.tris = verts, tris
         _, _, self.own = SurfaceDistance(verts, tris).closest(taxels_mm)
         self.taxel_tree = cKDTree(taxels_mm)
@@ -125,8 +130,9 @@ class SurfaceProjector:
         return points, dist
 
 
-def project_to_surface(xyz_mm: np.ndarray, surface, states, state: int | None,
-                       taxels_mm: np.ndarray):
+def project_to_surface(
+    xyz_mm: np.ndarray, surface, states, state: int | None, taxels_mm: np.ndarray
+):
     """Touch points (n, 3) mm moved onto the body's surface (`SurfaceProjector`).
     -> (points, distances (n,) mm)."""
     if len(xyz_mm) == 0:

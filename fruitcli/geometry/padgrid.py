@@ -25,14 +25,29 @@ def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> 
     i, j = i.ravel(), j.ravel()
     x = i * spacing_x_mm - half_x
     y = j * spacing_y_mm - half_y
-    rows = np.column_stack([np.arange(len(i)), i, j, x, y, np.full_like(x, t),
-                            np.zeros_like(x), np.zeros_like(x), np.ones_like(x)])
+    rows = np.column_stack(
+        [
+            np.arange(len(i)),
+            i,
+            j,
+            x,
+            y,
+            np.full_like(x, t),
+            np.zeros_like(x),
+            np.zeros_like(x),
+            np.ones_like(x),
+        ]
+    )
     return rows
 
 
 def write_pad_taxels(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm) -> int:
     rows = pad_taxels(pad_size_mm, count, spacing_x_mm, spacing_y_mm)
     out = [[int(r[0]), int(r[1]), int(r[2]), *map(float, r[3:])] for r in rows]
-    write_csv(path, TAXEL_HEADER, out,
-              comments=["taxels of a flat pad; positions in mm, unit outward normals"])
+    write_csv(
+        path,
+        TAXEL_HEADER,
+        out,
+        comments=["taxels of a flat pad; positions in mm, unit outward normals"],
+    )
     return len(out)

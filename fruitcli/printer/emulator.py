@@ -24,8 +24,12 @@ import numpy as np
 
 from fruitcli.printer.marlin import checksum
 
-BANNER = ("start", "echo:Marlin 2.1.2 (fruit emulate-printer)",
-          "echo: Last Updated: 2023-01-01 | Author: fruit", "echo: Free Memory: 4096")
+BANNER = (
+    "start",
+    "echo:Marlin 2.1.2 (fruit emulate-printer)",
+    "echo: Last Updated: 2023-01-01 | Author: fruit",
+    "echo: Free Memory: 4096",
+)
 HOME_S = 1.2  # homing takes this long
 BUSY_EVERY_S = 0.5  # echo:busy: processing while homing or waiting in M400 (Marlin's
 # host keepalive; its default interval is 2 s)
@@ -37,8 +41,14 @@ class PrinterEmulator:
     """Open a pty; `start()` answers on it in a thread. The tip position (printer mm) at
     any moment is `tip_mm()`."""
 
-    def __init__(self, bed_mm=(0, 0, 0, 220, 220, 250), start_mm=(0.0, 0.0, 0.0),
-                 time_scale: float = 1.0, faults: dict | None = None, log=None):
+    def __init__(
+        self,
+        bed_mm=(0, 0, 0, 220, 220, 250),
+        start_mm=(0.0, 0.0, 0.0),
+        time_scale: float = 1.0,
+        faults: dict | None = None,
+        log=None,
+    ):
         self.bed = np.asarray(bed_mm, float)
         self.time_scale = time_scale
         self.faults = {k: set(v) for k, v in (faults or {}).items()}
@@ -153,8 +163,9 @@ class PrinterEmulator:
             if cmd.startswith("M110"):
                 self.last_line = n
             elif n != self.last_line + 1:
-                self._send("Error:Line Number is not Last Line Number+1, Last Line: "
-                           f"{self.last_line}")
+                self._send(
+                    f"Error:Line Number is not Last Line Number+1, Last Line: {self.last_line}"
+                )
                 self._send(f"Resend: {self.last_line + 1}")
                 self._send("ok")
                 return
@@ -197,8 +208,10 @@ class PrinterEmulator:
             return []
         if code == "M114":
             x, y, z = self.planned
-            return [f"X:{x:.2f} Y:{y:.2f} Z:{z:.2f} E:0.00 Count X:{round(x * 80)} "
-                    f"Y:{round(y * 80)} Z:{round(z * 400)}"]
+            return [
+                f"X:{x:.2f} Y:{y:.2f} Z:{z:.2f} E:0.00 Count X:{round(x * 80)} "
+                f"Y:{round(y * 80)} Z:{round(z * 400)}"
+            ]
         if code == "G90":
             self.relative = False
         elif code == "G91":

@@ -87,14 +87,23 @@ class BenchLog:
     def save(self, out: Path, meta: dict, indenter: str) -> None:
         if not self.frames:
             return
-        rec = Recording(np.stack(self.frames), np.asarray(self.t_s, float),
-                        sample=np.asarray(self.sample, np.int64), meta=meta,
-                        printer_mm=np.stack(self.printer_mm))
+        rec = Recording(
+            np.stack(self.frames),
+            np.asarray(self.t_s, float),
+            sample=np.asarray(self.sample, np.int64),
+            meta=meta,
+            printer_mm=np.stack(self.printer_mm),
+        )
         write_npz(out / "frames.npz", rec)
-        write_csv(out / "truth.csv", POINT_HEADER,
-                  ([k, *map(float, p)] for k, p in self.truth),
-                  comments=[f"printer bench contact points ({indenter} indenter): the model "
-                            "surface under each sample, model coordinates, mm"])
+        write_csv(
+            out / "truth.csv",
+            POINT_HEADER,
+            ([k, *map(float, p)] for k, p in self.truth),
+            comments=[
+                f"printer bench contact points ({indenter} indenter): the model "
+                "surface under each sample, model coordinates, mm"
+            ],
+        )
 
 
 class BoardStream:
@@ -153,37 +162,58 @@ class BoardStream:
                     break
                 self.cond.wait(left)
         why = self.reader.skip_reasons()
-        raise FrameError(f"{self.reader.name}: no whole board frame within {timeout_s:g} s "
-                         "after the move" + (f" ({why})" if why else ""))
+        raise FrameError(
+            f"{self.reader.name}: no whole board frame within {timeout_s:g} s "
+            "after the move" + (f" ({why})" if why else "")
+        )
 
     def close(self):
         self.stop.set()
         self.thread.join(1.0)
 
 
-def check_reach(pr: dict, placement: Placement, contact_mm: np.ndarray, top_z: float,
-                where: str) -> float:
+def check_reach(
+    pr: dict, placement: Placement, contact_mm: np.ndarray, top_z: float, where: str
+) -> float:
     """The safe height in printer z (mm); it must be reachable."""
     z_safe = float(placement.origin[2] + top_z + pr.safe_height_mm)
     bed = pr.bed_mm
     if z_safe > bed[5]:
-        raise BenchStopped(f"{where}: [printer].safe_height_mm: the safe height, printer z = "
-                           f"{z_safe:.2f} mm ({pr.safe_height_mm:g} mm above the model's "
-                           f"top), is above the bed's reachable z max {bed[5]:g} mm")
+        raise BenchStopped(
+            f"{where}: [printer].safe_height_mm: the safe height, printer z = "
+            f"{z_safe:.2f} mm ({pr.safe_height_mm:g} mm above the model's "
+            f"top), is above the bed's reachable z max {bed[5]:g} mm"
+        )
     if placement.origin[2] + contact_mm[:, 2].min() - pr.max_press_mm < bed[2] - 1e-9:
-        raise BenchStopped(f"{where}: [printer].model_origin_mm: the model's surface minus "
-                           f"max_press_mm lies below the bed's z min {bed[2]:g} mm")
+        raise BenchStopped(
+            f"{where}: [printer].model_origin_mm: the model's surface minus "
+            f"max_press_mm lies below the bed's z min {bed[2]:g} mm"
+        )
     return z_safe
 
 
 def outside_bed(p: np.ndarray, z_low: float, z_safe: float, bed) -> bool:
-    return not (bed[0] <= p[0] <= bed[3] and bed[1] <= p[1] <= bed[4]
-                and z_low >= bed[2] and z_safe <= bed[5])
+    return not (
+        bed[0] <= p[0] <= bed[3]
+        and bed[1] <= p[1] <= bed[4]
+        and z_low >= bed[2]
+        and z_safe <= bed[5]
+    )
 
 
-def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_port: str,
-                      out_dir, indenter: str, fmt: str = "auto", board_baud: int = 115200,
-                      progress=None, overwrite: bool = False) -> dict:
+def run_printer_bench(
+    scene,
+    taxels_csv,
+    states_npz,
+    printer_port: str,
+    board_port: str,
+    out_dir,
+    indenter: str,
+    fmt: str = "auto",
+    board_baud: int = 115200,
+    progress=None,
+    overwrite: bool = False,
+) -> dict:
     """Run the bench on a printer and a board; -> summary. Raises BenchStopped (after
     saving what was recorded) when it cannot finish."""
     from fruitcli.sensing.live.serial_ports import FrameReader, open_port
@@ -192,8 +222,10 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
     pr = scene.printer
     out = Path(out_dir) / indenter
     if (out / "frames.npz").exists() and not overwrite:
-        raise BenchStopped(f"{out / 'frames.npz'}: exists; give --overwrite to replace it "
-                           "(it is replaced once the new run has frames)")
+        raise BenchStopped(
+            f"{out / 'frames.npz'}: exists; give --overwrite to replace it "
+            "(it is replaced once the new run has frames)"
+        )
     taxels = read_taxels(taxels_csv, FrameError)
     board = scene.board
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
@@ -206,8 +238,10 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
         raise BenchStopped(f"{scene.path.name}: no sample point over the taxels' surface")
     z_safe = check_reach(pr, placement, contact, top, scene.path.name)
     feed, step = pr.feed_mm_min, pr.step_mm
-    say(f"{len(ids)} samples ({n_all - len(ids)} off the surface left out), safe height "
-        f"z = {z_safe:.2f} mm, {indenter} indenter")
+    say(
+        f"{len(ids)} samples ({n_all - len(ids)} off the surface left out), safe height "
+        f"z = {z_safe:.2f} mm, {indenter} indenter"
+    )
     ser = open_port(printer_port, pr.baud)
     try:
         bser = open_port(board_port, board_baud)
@@ -217,11 +251,19 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
     printer = Marlin(ser, printer_port, pr.timeout_s, log=say)
     stream = BoardStream(FrameReader(bser, board.rows, board.cols, board_port, fmt))
     log = BenchLog()
-    meta = {"source": "printer bench", "scene": scene.name, "indenter": indenter,
-            "printer_port": printer_port, "board_port": board_port,
-            "step_mm": step, "threshold_counts": threshold, "baseline_frames": n_base,
-            "model_origin_mm": list(placement.origin), "rotate_z_deg": pr.rotate_z_deg,
-            "stopped": ""}
+    meta = {
+        "source": "printer bench",
+        "scene": scene.name,
+        "indenter": indenter,
+        "printer_port": printer_port,
+        "board_port": board_port,
+        "step_mm": step,
+        "threshold_counts": threshold,
+        "baseline_frames": n_base,
+        "model_origin_mm": list(placement.origin),
+        "rotate_z_deg": pr.rotate_z_deg,
+        "stopped": "",
+    }
     where = "start-up"
     tip = None
     try:
@@ -245,9 +287,11 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
             p = placement.to_printer(p_model)
             z_low = p[2] - pr.max_press_mm
             if outside_bed(p, z_low, z_safe, pr.bed_mm):
-                raise BenchStopped(f"{where}: printer x {p[0]:.2f}, y {p[1]:.2f}, z "
-                                   f"{z_low:.2f}..{z_safe:.2f} mm is outside [printer].bed_mm "
-                                   f"{pr.bed_mm}")
+                raise BenchStopped(
+                    f"{where}: printer x {p[0]:.2f}, y {p[1]:.2f}, z "
+                    f"{z_low:.2f}..{z_safe:.2f} mm is outside [printer].bed_mm "
+                    f"{pr.bed_mm}"
+                )
             tip = np.array([p[0], p[1], z_safe])
             printer.move(*tip, feed)
             tip = np.array([p[0], p[1], p[2] + START_GAP_MM])
@@ -264,26 +308,29 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
                 log.add(counts, t_s, tip)
                 z = tip[2] - step
                 if z < z_low - 1e-9:
-                    raise BenchStopped(f"{where}: no touch registered down to "
-                                       f"[printer].max_press_mm = {pr.max_press_mm:g} mm "
-                                       "below the expected surface")
+                    raise BenchStopped(
+                        f"{where}: no touch registered down to "
+                        f"[printer].max_press_mm = {pr.max_press_mm:g} mm "
+                        "below the expected surface"
+                    )
                 tip = np.array([p[0], p[1], z])
                 printer.move(*tip, feed)
                 printer.finish_moves()
             tip = np.array([p[0], p[1], z_safe])
             printer.move(*tip, feed)
-            say(f"{where}: touch at printer z {log.printer_mm[-1][2]:.2f} mm "
-                f"({n + 1}/{len(ids)})")
+            say(f"{where}: touch at printer z {log.printer_mm[-1][2]:.2f} mm ({n + 1}/{len(ids)})")
         printer.finish_moves()
     except (FruitError, KeyboardInterrupt) as exc:
         stopped = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else str(exc)
         meta["stopped"] = f"{where}: {stopped}" if where not in stopped else stopped
         retracted = retract(printer, tip, z_safe, feed, exc)
         log.save(out, meta, indenter)
-        kept = (f"{len(log.frames)} frames and {len(log.truth)} samples kept in {out}"
-                if log.frames else "no frame recorded")
-        tail = "" if retracted or tip is None else \
-            " (not retracted: the printer does not answer)"
+        kept = (
+            f"{len(log.frames)} frames and {len(log.truth)} samples kept in {out}"
+            if log.frames
+            else "no frame recorded"
+        )
+        tail = "" if retracted or tip is None else " (not retracted: the printer does not answer)"
         if isinstance(exc, KeyboardInterrupt):
             raise BenchInterrupted(f"interrupted at {where}; {kept}{tail}") from None
         msg = str(exc) if where in str(exc) else f"{where}: {exc}"
@@ -293,8 +340,14 @@ def run_printer_bench(scene, taxels_csv, states_npz, printer_port: str, board_po
         ser.close()
         bser.close()
     log.save(out, meta, indenter)
-    return {"indenter": indenter, "samples": len(log.truth), "frames": len(log.frames),
-            "off_surface": n_all - len(ids), "resends": printer.resends, "out": str(out)}
+    return {
+        "indenter": indenter,
+        "samples": len(log.truth),
+        "frames": len(log.frames),
+        "off_surface": n_all - len(ids),
+        "resends": printer.resends,
+        "out": str(out),
+    }
 
 
 class BenchInterrupted(BenchStopped):
@@ -318,6 +371,8 @@ def check_position(printer: Marlin, tip: np.ndarray, where: str) -> None:
     """M114 must report the commanded position (within POSITION_TOL_MM)."""
     got = np.asarray(printer.position())
     if np.max(np.abs(got - tip)) > POSITION_TOL_MM:
-        raise BenchStopped(f"{where}: the printer reports X{got[0]:.2f} Y{got[1]:.2f} "
-                           f"Z{got[2]:.2f} after a move to X{tip[0]:.2f} Y{tip[1]:.2f} "
-                           f"Z{tip[2]:.2f} (software endstops or lost steps)")
+        raise BenchStopped(
+            f"{where}: the printer reports X{got[0]:.2f} Y{got[1]:.2f} "
+            f"Z{got[2]:.2f} after a move to X{tip[0]:.2f} Y{tip[1]:.2f} "
+            f"Z{tip[2]:.2f} (software endstops or lost steps)"
+        )

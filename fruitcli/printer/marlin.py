@@ -83,8 +83,9 @@ class Marlin:
             try:
                 chunk = self.port.read(max(1, self.port.in_waiting))
             except (serial.SerialException, OSError, TypeError) as exc:
-                raise PrinterGone(f"{self.name}: printer port closed or unplugged "
-                                  f"({exc})") from None
+                raise PrinterGone(
+                    f"{self.name}: printer port closed or unplugged ({exc})"
+                ) from None
             self.buf += chunk
 
     def _write(self, text: str) -> None:
@@ -96,8 +97,7 @@ class Marlin:
             self.port.write((text + "\n").encode("ascii"))
             self.port.flush()
         except (serial.SerialException, OSError, TypeError, termios.error) as exc:
-            raise PrinterGone(f"{self.name}: printer port closed or unplugged "
-                              f"({exc})") from None
+            raise PrinterGone(f"{self.name}: printer port closed or unplugged ({exc})") from None
 
     def wait_ready(self, timeout_s: float = READY_TIMEOUT_S, quiet_s: float = QUIET_S) -> None:
         """Wait for ``start`` (or `quiet_s` of silence), then reset the line numbers."""
@@ -133,11 +133,13 @@ class Marlin:
         text = line.split(":", 1)[-1].strip()
         if line.startswith("Error:") and any(w in text.lower() for w in COMM_ERRORS):
             return True
-        raise PrinterHalted(f"{self.name}: printer error after {command!r}: {line} "
-                            "(the printer has stopped)")
+        raise PrinterHalted(
+            f"{self.name}: printer error after {command!r}: {line} (the printer has stopped)"
+        )
 
-    def command(self, command: str, timeout_s: float | None = None,
-                numbered_line: int | None = None) -> list[str]:
+    def command(
+        self, command: str, timeout_s: float | None = None, numbered_line: int | None = None
+    ) -> list[str]:
         """Send one command and wait for its ``ok``; -> the lines before the ok."""
         n = self.line + 1 if numbered_line is None else numbered_line
         self.line = n
@@ -152,8 +154,10 @@ class Marlin:
         while True:
             line = self._readline(deadline)
             if line is None:
-                raise PrinterError(f"{self.name}: no 'ok' for {command!r} within {limit:g} s "
-                                   "(printer not answering)")
+                raise PrinterError(
+                    f"{self.name}: no 'ok' for {command!r} within {limit:g} s "
+                    "(printer not answering)"
+                )
             if line.startswith("ok"):
                 return lines
             if line.startswith("echo:busy"):
@@ -166,12 +170,16 @@ class Marlin:
             if m:
                 k = int(m.group(1))
                 if k not in self.sent:
-                    raise PrinterError(f"{self.name}: the printer asks to resend line {k}, "
-                                       f"which was not sent (last line {self.line})")
+                    raise PrinterError(
+                        f"{self.name}: the printer asks to resend line {k}, "
+                        f"which was not sent (last line {self.line})"
+                    )
                 tries[k] = tries.get(k, 0) + 1
                 if tries[k] > MAX_RESENDS:
-                    raise PrinterError(f"{self.name}: line {k} ({self.sent[k]!r}) resent "
-                                       f"{MAX_RESENDS} times, still refused")
+                    raise PrinterError(
+                        f"{self.name}: line {k} ({self.sent[k]!r}) resent "
+                        f"{MAX_RESENDS} times, still refused"
+                    )
                 self._skip_ok(deadline)
                 self.resends += 1
                 self.log(f"printer asked to resend line {k}: {self.sent[k]}")

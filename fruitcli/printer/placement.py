@@ -14,8 +14,9 @@ class Placement:
     def __init__(self, model_origin_mm, rotate_z_deg: float = 0.0):
         self.origin = np.asarray(model_origin_mm, float)
         a = np.radians(rotate_z_deg)
-        self.rot = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
-                             [0.0, 0.0, 1.0]])
+        self.rot = np.array(
+            [[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]]
+        )
 
     @classmethod
     def from_printer(cls, printer) -> Placement:

@@ -23,9 +23,16 @@ from fruitcli.tables import Taxels
 class SkinBoard:
     """`frame(k)` -> (rows, cols) counts for the tip where `tip_mm()` says it is now."""
 
-    def __init__(self, taxels: Taxels, board, placement: Placement, tip_mm,
-                 indenter: str = "small", seed: int = 0,
-                 params: forward.SkinParams = forward.DEFAULT_PARAMS):
+    def __init__(
+        self,
+        taxels: Taxels,
+        board,
+        placement: Placement,
+        tip_mm,
+        indenter: str = "small",
+        seed: int = 0,
+        params: forward.SkinParams = forward.DEFAULT_PARAMS,
+    ):
         from scipy.interpolate import LinearNDInterpolator
 
         forward.footprint_sigma_mm(indenter, params)  # validates the name
@@ -47,13 +54,15 @@ class SkinBoard:
             return base  # the tip is not over the skin
         contact = np.array([tip[0], tip[1], z])
         dist = np.linalg.norm(self.taxels_mm - contact, axis=1)
-        act = forward.activation_counts(dist[None, :], np.array([tip[2] - z]), self.indenter,
-                                       self.skin)
+        act = forward.activation_counts(
+            dist[None, :], np.array([tip[2] - z]), self.indenter, self.skin
+        )
         return base + act[0]
 
     def frame(self, k: int) -> np.ndarray:
         mean = self.mean_counts(self.tip_mm())
         taxel = forward.frame_counts(mean[None, :], self.skin.noise_std_counts, self.rng)
-        fill = forward.frame_counts(np.full((1, *self.shape), forward.BASELINE_COUNTS),
-                                    self.fill_std, self.rng)
+        fill = forward.frame_counts(
+            np.full((1, *self.shape), forward.BASELINE_COUNTS), self.fill_std, self.rng
+        )
         return cell_counts(taxel, self.rows, self.cols, self.shape, fill)[0]

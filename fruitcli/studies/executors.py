@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Hashable
+from typing import Any
 
 from fruitcli.errors import FruitError
 
@@ -49,8 +50,9 @@ def _share_cores(jobs: int) -> None:
 
     from fruitcli.fem import threads
 
-    numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS,
-                                     (os.cpu_count() or 1) // jobs)))
+    numba.set_num_threads(
+        max(1, min(numba.config.NUMBA_NUM_THREADS, (os.cpu_count() or 1) // jobs))
+    )
     threads.AUTO = False  # the share holds; the solvers do not pick from the load
 
 
@@ -75,8 +77,9 @@ class LocalPool:
         self.pool = self._new()
 
     def _new(self):
-        return cf.ProcessPoolExecutor(self.jobs, mp_context=self._ctx,
-                                      initializer=_share_cores, initargs=(self.jobs,))
+        return cf.ProcessPoolExecutor(
+            self.jobs, mp_context=self._ctx, initializer=_share_cores, initargs=(self.jobs,)
+        )
 
     def submit(self, func, *args):
         return self.pool.submit(func, *args)
@@ -100,29 +103,36 @@ class DaskPool:
         try:
             from distributed import Client
         except ImportError:
-            raise FruitError("--scheduler needs the Dask extra: pip install "
-                             "'fruitcli[cluster]'") from None
+            raise FruitError(
+                "--scheduler needs the Dask extra: pip install 'fruitcli[cluster]'"
+            ) from None
         self.address = address
         _check_address(address)
         try:
             self.client = Client(address, timeout=timeout_s, set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise FruitError(f"--scheduler {address}: no Dask scheduler answered within "
-                             f"{timeout_s:g} s ({reason})") from None
+            raise FruitError(
+                f"--scheduler {address}: no Dask scheduler answered within "
+                f"{timeout_s:g} s ({reason})"
+            ) from None
         try:
             self.client.wait_for_workers(1, timeout=timeout_s)
         except (OSError, TimeoutError) as exc:
             self.client.close()
-            raise FruitError(f"--scheduler {address}: the scheduler has no worker after "
-                             f"{timeout_s:g} s; start some (dask worker {address})") from exc
+            raise FruitError(
+                f"--scheduler {address}: the scheduler has no worker after "
+                f"{timeout_s:g} s; start some (dask worker {address})"
+            ) from exc
         workers = self.client.scheduler_info()["workers"]
         self.workers = len(workers)
         threads = max((w.get("nthreads", 1) for w in workers.values()), default=1)
         self.name = f"Dask scheduler {address} ({self.workers} workers)"
         if threads > 1:  # see fruitcli.studies.sweep_run.ONE_AT_A_TIME
-            self.name += (f"; a worker with {threads} threads runs one sweep variant at a "
-                          "time: give workers one thread each and more processes")
+            self.name += (
+                f"; a worker with {threads} threads runs one sweep variant at a "
+                "time: give workers one thread each and more processes"
+            )
         self.executor = self.client.get_executor(pure=False)
 
     def submit(self, func, *args):
@@ -148,23 +158,29 @@ class DaskPool:
         probe_file.write_text(token)
         try:
             answers = self.client.run(see_probe, str(probe_file), token)
-        except Exception as exc:  # noqa: BLE001 - a worker cannot even load fruit
-            raise FruitError(f"--scheduler {self.address}: the workers cannot run fruit "
-                             f"({type(exc).__name__}: {str(exc).splitlines()[0]}); install "
-                             "fruitcli on them") from None
+        except Exception as exc:
+            raise FruitError(
+                f"--scheduler {self.address}: the workers cannot run fruit "
+                f"({type(exc).__name__}: {str(exc).splitlines()[0]}); install "
+                "fruitcli on them"
+            ) from None
         finally:
             probe_file.unlink(missing_ok=True)
         blind = sorted(f"{a} on {host}" for a, (seen, host, _) in answers.items() if not seen)
         if blind:
-            raise FruitError(f"--out {out_dir}: not visible to {len(blind)} of {len(answers)} "
-                             f"workers ({', '.join(blind[:3])}); give an --out on a file "
-                             "system the workers share")
+            raise FruitError(
+                f"--out {out_dir}: not visible to {len(blind)} of {len(answers)} "
+                f"workers ({', '.join(blind[:3])}); give an --out on a file "
+                "system the workers share"
+            )
         mine = code_hash()
         other = sorted(a for a, (_, _, h) in answers.items() if h != mine)
         if other:
-            raise FruitError(f"--scheduler {self.address}: workers {', '.join(other[:3])} run "
-                             "a different fruit version than this machine; install the same "
-                             "one there")
+            raise FruitError(
+                f"--scheduler {self.address}: workers {', '.join(other[:3])} run "
+                "a different fruit version than this machine; install the same "
+                "one there"
+            )
 
     def close(self):
         self.executor.shutdown(wait=False)
@@ -180,8 +196,9 @@ def _check_address(address: str) -> None:
         get_address_host_port(address)
     except ValueError as exc:
         if "don't know how to extract" not in str(exc):  # inproc://, ucx:// are fine
-            raise FruitError(f"--scheduler {address}: not a scheduler address ({exc}); "
-                             "expected tcp://host:port") from None
+            raise FruitError(
+                f"--scheduler {address}: not a scheduler address ({exc}); expected tcp://host:port"
+            ) from None
 
 
 def see_probe(path: str, token: str) -> tuple[bool, str, str]:
@@ -204,8 +221,12 @@ def code_hash() -> str:
     return file_hash_many(sorted(root.rglob("*.py")))
 
 
-def open_executor(jobs: int | None = None, scheduler: str | None = None,
-                  out_dir: Path | None = None, timeout_s: float = CONNECT_TIMEOUT_S):
+def open_executor(
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    out_dir: Path | None = None,
+    timeout_s: float = CONNECT_TIMEOUT_S,
+):
     """Serial (jobs 1), LocalPool (jobs N, default all cores) or DaskPool (scheduler);
     with a scheduler and `out_dir`, the workers must see `out_dir` (probed)."""
     if scheduler:
@@ -221,9 +242,12 @@ def open_executor(jobs: int | None = None, scheduler: str | None = None,
     return Serial() if jobs == 1 else LocalPool(jobs)
 
 
-def run_graph(pool, tasks: dict[Hashable, Task],
-              on_done: Callable[[Hashable, Any], None] | None = None,
-              on_lost: Callable[[Hashable, str], Any] | None = None) -> dict:
+def run_graph(
+    pool,
+    tasks: dict[Hashable, Task],
+    on_done: Callable[[Hashable, Any], None] | None = None,
+    on_lost: Callable[[Hashable, str], Any] | None = None,
+) -> dict:
     """Run `tasks` (in insertion order, each once its deps are done) on `pool`; returns
     key -> result. `on_done(key, result)` is called as each finishes. A task whose worker
     died `MAX_ATTEMPTS` times (or past Dask's own retries) gets `on_lost(key, message)`
@@ -271,8 +295,11 @@ def run_graph(pool, tasks: dict[Hashable, Task],
             if isinstance(pool, LocalPool) and task.attempts < MAX_ATTEMPTS:
                 launch(key)
                 continue
-            message = (f"its worker process died {task.attempts} time(s)" if exc is None
-                       or isinstance(pool, LocalPool) else f"its worker died repeatedly ({exc})")
+            message = (
+                f"its worker process died {task.attempts} time(s)"
+                if exc is None or isinstance(pool, LocalPool)
+                else f"its worker died repeatedly ({exc})"
+            )
             if on_lost is None:
                 raise WorkerLost(f"task {key}: {message}")
             results[key] = on_lost(key, message)

@@ -42,8 +42,7 @@ def _descents(taxels, skin, indenter: str, points: np.ndarray, rng):
     counts, gap, sample = [], [], []
     for k, p in enumerate(points):
         dist = np.linalg.norm(taxels.xyz_mm - p, axis=1)
-        mean = skin.baseline_counts + forward.activation_counts(dist[None, :], gaps, indenter,
-                                                                skin)
+        mean = skin.baseline_counts + forward.activation_counts(dist[None, :], gaps, indenter, skin)
         counts.append(forward.frame_counts(mean, skin.noise_std_counts, rng))
         gap.append(gaps)
         sample.append(np.full(gaps.size, k))
@@ -86,9 +85,14 @@ def calibrated(seed: int = 0):
     counts, gap, sample = _descents(taxels, skin, "small", points, rng)
     dist = np.linalg.norm(taxels.xyz_mm[None] - points[sample][:, None], axis=2)
     fit = fit_gap_law(counts - skin.baseline_counts, dist, gap)
-    noise = float(np.sqrt(np.mean(skin.noise_std_counts ** 2)))
-    return forward.SkinParams({"small": fit["sigma_mm"]}, fit["contact_counts"],
-                              fit["gap_decay_mm"], 0.0, noise), fit, taxels
+    noise = float(np.sqrt(np.mean(skin.noise_std_counts**2)))
+    return (
+        forward.SkinParams(
+            {"small": fit["sigma_mm"]}, fit["contact_counts"], fit["gap_decay_mm"], 0.0, noise
+        ),
+        fit,
+        taxels,
+    )
 
 
 def evaluate(params, fit, taxels, name: str, indenter: str, gain_spread: float, seed: int):
@@ -104,13 +108,20 @@ def evaluate(params, fit, taxels, name: str, indenter: str, gain_spread: float, 
     from fruitcli.sensing.skin import forward
     from fruitcli.sensing.skin.heights import GapLaw
 
-    skin = forward.make_skin(len(taxels), seed, forward.SkinParams(
-        forward.default_footprints_mm(), gain_spread=gain_spread))
+    skin = forward.make_skin(
+        len(taxels),
+        seed,
+        forward.SkinParams(forward.default_footprints_mm(), gain_spread=gain_spread),
+    )
     rng = np.random.default_rng(seed)
     points = _points(taxels, 0.375)
     counts, gap, sample = _descents(taxels, skin, indenter, points, rng)
-    law = GapLaw(params.contact_counts, params.gap_decay_mm, params.footprint_sigma_mm["small"],
-                 params.noise_std_counts)
+    law = GapLaw(
+        params.contact_counts,
+        params.gap_decay_mm,
+        params.footprint_sigma_mm["small"],
+        params.noise_std_counts,
+    )
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True), heights=law)
     err, true, kind, pos = [], [], [], []
     top = []
@@ -136,17 +147,28 @@ def evaluate(params, fit, taxels, name: str, indenter: str, gain_spread: float, 
         sel = (true >= lo) & (true < hi) if lo > 0 else (true <= hi)
         e = err[sel]
         label = f"{lo:g}-{hi:g}" if np.isfinite(hi) else f"{lo:g}+"
-        out.append([name, label, int(sel.sum()),
-                    float(np.median(e)) if e.size else float("nan"),
-                    float(np.percentile(e, 95)) if e.size else float("nan")])
-    extra = {"largest_hover_mm": float(np.nanmedian(top)),
-             "hover_position_error_mm": float(np.median(pos[kind == HOVER])),
-             "touch_position_error_mm": float(np.median(pos[kind == TOUCH]))}
+        out.append(
+            [
+                name,
+                label,
+                int(sel.sum()),
+                float(np.median(e)) if e.size else float("nan"),
+                float(np.percentile(e, 95)) if e.size else float("nan"),
+            ]
+        )
+    extra = {
+        "largest_hover_mm": float(np.nanmedian(top)),
+        "hover_position_error_mm": float(np.median(pos[kind == HOVER])),
+        "touch_position_error_mm": float(np.median(pos[kind == TOUCH])),
+    }
     return out, extra
 
 
-RUNS = (("other run", "small", 0.0, 1), ("other indenter", "medium", 0.0, 2),
-        ("gain spread 0.2", "small", 0.2, 3))
+RUNS = (
+    ("other run", "small", 0.0, 1),
+    ("other indenter", "medium", 0.0, 2),
+    ("gain spread 0.2", "small", 0.2, 3),
+)
 
 
 def write(out_dir) -> dict:
@@ -159,19 +181,34 @@ def write(out_dir) -> dict:
         r, extra = evaluate(params, fit, taxels, name, indenter, spread, seed)
         rows += r
         extras[name] = extra
-    lines = ["# Hover heights on descents the skin was not calibrated on", "",
-             f"Calibration (small indenter, seed 0): footprint {fit['sigma_mm']:.2f} mm, "
-             f"contact {fit['contact_counts']:.1f} counts, gap decay "
-             f"{fit['gap_decay_mm']:.2f} mm.", "",
-             "| run | true height (mm) | frames | median error (mm) | p95 error (mm) |",
-             "|---|---|---|---|---|"]
+    lines = [
+        "# Hover heights on descents the skin was not calibrated on",
+        "",
+        f"Calibration (small indenter, seed 0): footprint {fit['sigma_mm']:.2f} mm, "
+        f"contact {fit['contact_counts']:.1f} counts, gap decay "
+        f"{fit['gap_decay_mm']:.2f} mm.",
+        "",
+        "| run | true height (mm) | frames | median error (mm) | p95 error (mm) |",
+        "|---|---|---|---|---|",
+    ]
     lines += [f"| {r[0]} | {r[1]} | {r[2]} | {r[3]:.2f} | {r[4]:.2f} |" for r in rows]
-    lines += ["", "| run | largest height still detected (mm, median) | hover position "
-              "error (mm, median) | touch position error (mm, median) |", "|---|---|---|---|"]
-    lines += [f"| {k} | {e['largest_hover_mm']:.2f} | {e['hover_position_error_mm']:.2f} | "
-              f"{e['touch_position_error_mm']:.2f} |" for k, e in extras.items()]
+    lines += [
+        "",
+        "| run | largest height still detected (mm, median) | hover position "
+        "error (mm, median) | touch position error (mm, median) |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {k} | {e['largest_hover_mm']:.2f} | {e['hover_position_error_mm']:.2f} | "
+        f"{e['touch_position_error_mm']:.2f} |"
+        for k, e in extras.items()
+    ]
     with staged_dir(out_dir) as tmp:
-        write_csv(tmp / "hover_heights.csv", HEADER, rows,
-                  comments=["|height - true height| of each frame's strongest row, mm"])
+        write_csv(
+            tmp / "hover_heights.csv",
+            HEADER,
+            rows,
+            comments=["|height - true height| of each frame's strongest row, mm"],
+        )
         write_text(tmp / "hover_heights.md", "\n".join(lines) + "\n")
     return {"rows": rows, "extras": extras}

@@ -3,16 +3,21 @@ callback, results in the order of the cases (identical to a serial run)."""
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from fruitcli.studies.executors import Task, default_jobs, open_executor, run_graph
 
 __all__ = ["default_jobs", "run_cases"]
 
 
-def run_cases(func: Callable, cases: Sequence, jobs: int | None = None,
-              progress: Callable[[int, int], None] | None = None,
-              scheduler: str | None = None, pool=None) -> list:
+def run_cases(
+    func: Callable,
+    cases: Sequence,
+    jobs: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    scheduler: str | None = None,
+    pool=None,
+) -> list:
     """`[func(c) for c in cases]`, spread over `jobs` processes (1: in this process), over
     the workers of the Dask `scheduler` at that address, or over an open `pool` (see
     `fruitcli.studies.executors.open_executor`). `func` is a module-level function."""

@@ -33,28 +33,51 @@ class FemCase:
 
 
 def fem_cases(default_size: float) -> list[FemCase]:
-    sizes = sorted({round(default_size * f, 2) for f in (2.0, 1.5, 1.25, 1.0, 0.8)},
-                   reverse=True)
+    sizes = sorted({round(default_size * f, 2) for f in (2.0, 1.5, 1.25, 1.0, 0.8)}, reverse=True)
     cases = [FemCase(f"size {s:g} mm", s, 1e-6, 25, "pcg") for s in sizes]
     # the residual tolerance alone (the displacement tolerance would stop the tight ones)
-    cases += [FemCase(f"tol {t:g}, residual alone", default_size, t, 25, "pcg",
-                      displacement_tolerance_mm=0.0) for t in (1e-2, 1e-4, 1e-6, 1e-8)]
-    cases += [FemCase("tol 1e-3, cap 3 its, residual alone", default_size, 1e-3, 3, "pcg",
-                      displacement_tolerance_mm=0.0),
-              FemCase("solver direct", default_size, 1e-6, 25, "direct")]
-    cases += [FemCase("element p1, corotational (the paper's model)", default_size, 1e-6, 25,
-                      "pcg", "p1", "corotational"),
-              FemCase("element p1, neo-hookean", default_size, 1e-6, 25, "pcg", "p1",
-                      "neo-hookean"),
-              FemCase("element p2-pure, neo-hookean", default_size, 1e-6, 25, "pcg",
-                      "p2-pure", "neo-hookean")]
+    cases += [
+        FemCase(
+            f"tol {t:g}, residual alone", default_size, t, 25, "pcg", displacement_tolerance_mm=0.0
+        )
+        for t in (1e-2, 1e-4, 1e-6, 1e-8)
+    ]
+    cases += [
+        FemCase(
+            "tol 1e-3, cap 3 its, residual alone",
+            default_size,
+            1e-3,
+            3,
+            "pcg",
+            displacement_tolerance_mm=0.0,
+        ),
+        FemCase("solver direct", default_size, 1e-6, 25, "direct"),
+    ]
+    cases += [
+        FemCase(
+            "element p1, corotational (the paper's model)",
+            default_size,
+            1e-6,
+            25,
+            "pcg",
+            "p1",
+            "corotational",
+        ),
+        FemCase("element p1, neo-hookean", default_size, 1e-6, 25, "pcg", "p1", "neo-hookean"),
+        FemCase(
+            "element p2-pure, neo-hookean", default_size, 1e-6, 25, "pcg", "p2-pure", "neo-hookean"
+        ),
+    ]
     return cases
 
 
 def _scene_variant(scene, case: FemCase):
-    changes = {"mesh.size_mm": case.size_mm, "solver.tolerance": case.tolerance,
-               "solver.max_iterations": case.max_iterations,
-               "solver.linear_solver": case.linear_solver}
+    changes = {
+        "mesh.size_mm": case.size_mm,
+        "solver.tolerance": case.tolerance,
+        "solver.max_iterations": case.max_iterations,
+        "solver.linear_solver": case.linear_solver,
+    }
     if case.displacement_tolerance_mm is not None:
         changes["solver.displacement_tolerance_mm"] = case.displacement_tolerance_mm
     if case.element is not None:
@@ -70,23 +93,31 @@ def run_fem_case(args) -> dict:
 
     scene_path, work, solid, taxels_csv, case = args
     scene = _scene_variant(load_scene(scene_path), case)
-    row = {"setting": case.name, "size_mm": case.size_mm, "tolerance": case.tolerance,
-           "max_iterations": case.max_iterations, "linear_solver": case.linear_solver}
+    row = {
+        "setting": case.name,
+        "size_mm": case.size_mm,
+        "tolerance": case.tolerance,
+        "max_iterations": case.max_iterations,
+        "linear_solver": case.linear_solver,
+    }
     mesh_dir = Path(work) / f"mesh-{case.size_mm:g}"
     try:
         if not (mesh_dir / "mesh.npz").exists():
             run_tetra(scene, solid, mesh_dir)
-        out = Path(work) / ("sim-" + case.name.replace(" ", "_").replace("(", "")
-                            .replace(")", ""))
+        out = Path(work) / ("sim-" + case.name.replace(" ", "_").replace("(", "").replace(")", ""))
         xyz = read_taxels(taxels_csv).xyz_mm
         t0 = time.perf_counter()
         run_simulate(scene, mesh_dir / "mesh.npz", xyz, out)
         wall = time.perf_counter() - t0
         with np.load(out / "states.npz", allow_pickle=False) as st:
-            row.update(tets=int(len(st["tets"])), state_ms=float(np.median(st["solve_ms"])),
-                       iterations=float(np.mean(st["iterations"])),
-                       residual=float(np.max(st["residual"])), simulate_s=wall,
-                       taxels=st["taxels_mm"][-1].tolist())
+            row.update(
+                tets=int(len(st["tets"])),
+                state_ms=float(np.median(st["solve_ms"])),
+                iterations=float(np.mean(st["iterations"])),
+                residual=float(np.max(st["residual"])),
+                simulate_s=wall,
+                taxels=st["taxels_mm"][-1].tolist(),
+            )
         row["status"] = "ok"
     except FruitError as exc:
         row["status"] = f"failed: {exc}"
@@ -114,8 +145,9 @@ def pareto(points: list[tuple[float, float]]) -> list[bool]:
     """True for points no other point beats in both coordinates (both minimized)."""
     flags = []
     for i, (a, b) in enumerate(points):
-        dominated = any((c <= a and d <= b) and (c < a or d < b)
-                        for j, (c, d) in enumerate(points) if j != i)
+        dominated = any(
+            (c <= a and d <= b) and (c < a or d < b) for j, (c, d) in enumerate(points) if j != i
+        )
         flags.append(not dominated)
     return flags
 
@@ -131,17 +163,26 @@ def default_reason(rows: list[dict], default_name: str) -> str:
     if row is None:
         return f"The default setting ({default_name}) did not run."
     err, ms = row["taxel_err_mean_mm"], row["state_ms"]
-    head = (f"Default ({default_name}, the scene's tolerances, pcg): mean taxel error "
-            f"{err:.3f} mm against the finest setting, at {ms:.0f} ms per state")
+    head = (
+        f"Default ({default_name}, the scene's tolerances, pcg): mean taxel error "
+        f"{err:.3f} mm against the finest setting, at {ms:.0f} ms per state"
+    )
     if err < PRINTER_ACCURACY_MM:
-        return (f"{head}: below the bench's {PRINTER_ACCURACY_MM} mm positioning accuracy, "
-                "so finer settings cost time for no difference the bench can measure.")
+        return (
+            f"{head}: below the bench's {PRINTER_ACCURACY_MM} mm positioning accuracy, "
+            "so finer settings cost time for no difference the bench can measure."
+        )
     ref = next((r for r in rows if r.get("reference")), None)
-    cost = (f"; the finest setting ({ref['setting']}) takes {ref['state_ms']:.0f} ms per state"
-            if ref is not None else "")
-    return (f"{head}: above the bench's {PRINTER_ACCURACY_MM} mm positioning accuracy{cost}. "
-            "Whether that matters depends on the localization error, which is mm-sized for "
-            "N9 on the bench (see the detection table of a scene with a bench).")
+    cost = (
+        f"; the finest setting ({ref['setting']}) takes {ref['state_ms']:.0f} ms per state"
+        if ref is not None
+        else ""
+    )
+    return (
+        f"{head}: above the bench's {PRINTER_ACCURACY_MM} mm positioning accuracy{cost}. "
+        "Whether that matters depends on the localization error, which is mm-sized for "
+        "N9 on the bench (see the detection table of a scene with a bench)."
+    )
 
 
 DETECTION_VARIANTS = {
@@ -167,17 +208,21 @@ def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Pat
             seconds += time.perf_counter() - t0
             with np.load(ind_dir / "frames.npz", allow_pickle=False) as f:
                 frames += len(f["frames"])
-            s, *_ = evaluate_pair(ind_dir / "truth.csv", out / "measured.csv",
-                                  label=ind_dir.name)
+            s, *_ = evaluate_pair(ind_dir / "truth.csv", out / "measured.csv", label=ind_dir.name)
             errs.append(s["mean_mm"])
             del summary
-        rows.append({"variant": name, "loc_err_mean_mm": float(np.mean(errs)),
-                     "us_per_frame": 1e6 * seconds / max(frames, 1), "frames": frames})
+        rows.append(
+            {
+                "variant": name,
+                "loc_err_mean_mm": float(np.mean(errs)),
+                "us_per_frame": 1e6 * seconds / max(frames, 1),
+                "frames": frames,
+            }
+        )
     return rows
 
 
-def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
-                  default_name: str) -> None:
+def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict], default_name: str) -> None:
     """runtime.md, runtime.json and runtime.png (time per state against taxel error)."""
     import matplotlib
 
@@ -190,27 +235,38 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
     front = pareto([(r["state_ms"], r["taxel_err_mean_mm"]) for r in ok])
     for r, f in zip(ok, front, strict=True):
         r["pareto"] = f
-    lines = ["# Error against run time", "",
-             "| setting | tets | ms per state | Newton its | taxel error mean / max (mm) "
-             "| Pareto |", "|---|---|---|---|---|---|"]
+    lines = [
+        "# Error against run time",
+        "",
+        "| setting | tets | ms per state | Newton its | taxel error mean / max (mm) | Pareto |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in fem_rows:
         if r["status"] != "ok":
             lines.append(f"| {r['setting']} | - | - | - | {r['status']} | |")
             continue
         mark = "yes" if r.get("pareto") else ""
         name = r["setting"] + (" (default)" if r["setting"] == default_name else "")
-        lines.append(f"| {name} | {r['tets']} | {r['state_ms']:.1f} | "
-                     f"{r['iterations']:.1f} | {r['taxel_err_mean_mm']:.3f} / "
-                     f"{r['taxel_err_max_mm']:.3f} | {mark} |")
-    lines += ["", "Taxel error: positions in the last state against the finest setting "
-              "(smallest mesh, tightest tolerance). Time per state: the median over the "
-              "scene's states, each solved from the previous one (the first from rest).", "",
-              default_reason(fem_rows, default_name), ""]
+        lines.append(
+            f"| {name} | {r['tets']} | {r['state_ms']:.1f} | "
+            f"{r['iterations']:.1f} | {r['taxel_err_mean_mm']:.3f} / "
+            f"{r['taxel_err_max_mm']:.3f} | {mark} |"
+        )
+    lines += [
+        "",
+        "Taxel error: positions in the last state against the finest setting "
+        "(smallest mesh, tightest tolerance). Time per state: the median over the "
+        "scene's states, each solved from the previous one (the first from rest).",
+        "",
+        default_reason(fem_rows, default_name),
+        "",
+    ]
     if det_rows:
-        lines += ["| detection | localization error mean (mm) | us per frame |",
-                  "|---|---|---|"]
-        lines += [f"| {r['variant']} | {r['loc_err_mean_mm']:.2f} | {r['us_per_frame']:.1f} |"
-                  for r in det_rows]
+        lines += ["| detection | localization error mean (mm) | us per frame |", "|---|---|---|"]
+        lines += [
+            f"| {r['variant']} | {r['loc_err_mean_mm']:.2f} | {r['us_per_frame']:.1f} |"
+            for r in det_rows
+        ]
     else:
         lines.append("No detection variants: the scene has no [bench].")
     write_text(out / "runtime.md", "\n".join(lines) + "\n")
@@ -227,16 +283,27 @@ def write_outputs(out: Path, fem_rows: list[dict], det_rows: list[dict],
         # of nearby points are stacked downwards instead of printed over each other
         near = sum(abs(lx - px) < 0.25 and abs(ly - py) < 0.15 for px, py in placed)
         placed.append((lx, ly))
-        ax.annotate(str(i), xy, fontsize=8, color=color, xytext=(5, 3 - 10 * near),
-                    textcoords="offset points",
-                    arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5} if near else None)
-        zero = (f" (the reference: error 0, drawn at {PLOT_FLOOR_MM:g})"
-                if r["taxel_err_mean_mm"] == 0 else "")
+        ax.annotate(
+            str(i),
+            xy,
+            fontsize=8,
+            color=color,
+            xytext=(5, 3 - 10 * near),
+            textcoords="offset points",
+            arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5} if near else None,
+        )
+        zero = (
+            f" (the reference: error 0, drawn at {PLOT_FLOOR_MM:g})"
+            if r["taxel_err_mean_mm"] == 0
+            else ""
+        )
         key.append(f"{i:2d}  {r['setting']}{zero}")
-    ax.text(1.03, 1.0, "\n".join(key), transform=ax.transAxes, fontsize=8, va="top",
-            family="monospace")
-    pts = sorted((r["state_ms"], max(r["taxel_err_mean_mm"], PLOT_FLOOR_MM)) for r in ok
-                 if r.get("pareto"))
+    ax.text(
+        1.03, 1.0, "\n".join(key), transform=ax.transAxes, fontsize=8, va="top", family="monospace"
+    )
+    pts = sorted(
+        (r["state_ms"], max(r["taxel_err_mean_mm"], PLOT_FLOOR_MM)) for r in ok if r.get("pareto")
+    )
     if pts:
         ax.plot(*zip(*pts, strict=True), color="tab:red", lw=1, label="Pareto front")
     ax.set_xscale("log")

@@ -53,25 +53,45 @@ class Case:
 
 
 def default_cases() -> list[Case]:
-    cases = [Case("E", f"E = {e:g} kPa", "beam_gravity", E_kpa=e)
-             for e in (1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)]
-    cases += [Case("nu", f"nu = {nu:g}", "beam_gravity", E_kpa=100.0, nu=nu)
-              for nu in (0.0, 0.3, 0.45, 0.49, 0.499)]
-    cases += [Case("pressure", f"p = {p:g} kPa", "hollow_pressure", pressure_kpa=p)
-              for p in (5.0, 20.0, 50.0, 100.0, 200.0, 400.0)]
-    cases += [Case("jig", f"k = {k:g} N/mm", "jig", stiffness_n_per_mm=k)
-              for k in (1e-3, 1e-1, 10.0, 1e3, 1e6)]
+    cases = [
+        Case("E", f"E = {e:g} kPa", "beam_gravity", E_kpa=e)
+        for e in (1.0, 10.0, 100.0, 1e3, 1e4, 1e5, 1e6)
+    ]
+    cases += [
+        Case("nu", f"nu = {nu:g}", "beam_gravity", E_kpa=100.0, nu=nu)
+        for nu in (0.0, 0.3, 0.45, 0.49, 0.499)
+    ]
+    cases += [
+        Case("pressure", f"p = {p:g} kPa", "hollow_pressure", pressure_kpa=p)
+        for p in (5.0, 20.0, 50.0, 100.0, 200.0, 400.0)
+    ]
+    cases += [
+        Case("jig", f"k = {k:g} N/mm", "jig", stiffness_n_per_mm=k)
+        for k in (1e-3, 1e-1, 10.0, 1e3, 1e6)
+    ]
     p2 = {"element": "p2", "material": "neo-hookean"}
-    cases += [Case("nu, p2", f"nu = {nu:g} (p2)", "beam_gravity", nu=nu, **p2)
-              for nu in (0.3, 0.45, 0.49, 0.499, 0.4999)]
-    cases += [Case("pressure, p2", f"p = {p:g} kPa (p2)", "hollow_pressure", pressure_kpa=p, **p2)
-              for p in (5.0, 20.0, 50.0, 100.0)]
-    cases += [Case("volume, p2", f"growth {g:g} V0 (p2)", "hollow_pressure", volume_growth=g,
-                   **p2) for g in (0.5, 1.0, 2.0)]
-    cases += [Case("sphere, gmsh", f"p = {p:g} kPa (sphere)", "gmsh_sphere", pressure_kpa=p,
-                   nu=0.45, **p2) for p in (5.0, 20.0, 2000.0, -20.0, -500.0)]
-    cases += [Case("sliver", "one sliver tet", "sliver"),
-              Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0)]
+    cases += [
+        Case("nu, p2", f"nu = {nu:g} (p2)", "beam_gravity", nu=nu, **p2)
+        for nu in (0.3, 0.45, 0.49, 0.499, 0.4999)
+    ]
+    cases += [
+        Case("pressure, p2", f"p = {p:g} kPa (p2)", "hollow_pressure", pressure_kpa=p, **p2)
+        for p in (5.0, 20.0, 50.0, 100.0)
+    ]
+    cases += [
+        Case("volume, p2", f"growth {g:g} V0 (p2)", "hollow_pressure", volume_growth=g, **p2)
+        for g in (0.5, 1.0, 2.0)
+    ]
+    cases += [
+        Case(
+            "sphere, gmsh", f"p = {p:g} kPa (sphere)", "gmsh_sphere", pressure_kpa=p, nu=0.45, **p2
+        )
+        for p in (5.0, 20.0, 2000.0, -20.0, -500.0)
+    ]
+    cases += [
+        Case("sliver", "one sliver tet", "sliver"),
+        Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0),
+    ]
     return cases
 
 
@@ -82,12 +102,16 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
     from fruitcli.fem.corotational_model import Model
 
     def held(x):
-        return None if fixed_where is None else np.flatnonzero(
-            np.abs(x[:, fixed_where[0]] - fixed_where[1]) < 1e-9)
+        return (
+            None
+            if fixed_where is None
+            else np.flatnonzero(np.abs(x[:, fixed_where[0]] - fixed_where[1]) < 1e-9)
+        )
 
     if case.element == "p1" and case.material == "corotational":
-        return Model.from_arrays(nodes, tets, case.E_kpa, case.nu, chambers=chambers,
-                                 fixed_nodes=held(nodes), **kw)
+        return Model.from_arrays(
+            nodes, tets, case.E_kpa, case.nu, chambers=chambers, fixed_nodes=held(nodes), **kw
+        )
     from fruitcli.fem.continuum import ContinuumModel
     from fruitcli.fem.elements.quadratic import quadratic_mesh
     from fruitcli.fem.materials.build import material
@@ -97,8 +121,14 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
     if case.element != "p1":
         nodes, tets, walls = quadratic_mesh(nodes, tets, walls)
     return ContinuumModel.from_arrays(
-        nodes, tets, material(case.material, case.E_kpa, case.nu), case.element,
-        chambers=dict(zip(names, walls, strict=True)), fixed_nodes=held(nodes), **kw)
+        nodes,
+        tets,
+        material(case.material, case.E_kpa, case.nu),
+        case.element,
+        chambers=dict(zip(names, walls, strict=True)),
+        fixed_nodes=held(nodes),
+        **kw,
+    )
 
 
 def pressure_outward(nodes, tris):
@@ -112,8 +142,9 @@ def _beam(case: Case):
     from fruitcli.fem.meshing.grid import structured_box
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
-    model = _build(case, nodes, tets, density_kg_m3=DENSITY, gravity_m_s2=GRAVITY,
-                   fixed_where=(0, 0.0))
+    model = _build(
+        case, nodes, tets, density_kg_m3=DENSITY, gravity_m_s2=GRAVITY, fixed_where=(0, 0.0)
+    )
     return model, Load.pressures([], gravity=1.0)
 
 
@@ -121,10 +152,12 @@ def _hollow(case: Case, free: bool = False):
     from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
 
-    nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS,
-                                                     CAVITY_LO_MM, CAVITY_HI_MM)
-    model = _build(case, nodes, tets, chambers={"c": cavity},
-                   fixed_where=None if free else (2, 0.0))
+    nodes, tets, cavity = structured_box_with_cavity(
+        (0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS, CAVITY_LO_MM, CAVITY_HI_MM
+    )
+    model = _build(
+        case, nodes, tets, chambers={"c": cavity}, fixed_where=None if free else (2, 0.0)
+    )
     if case.volume_growth:
         growth = case.volume_growth * model.chamber_rest_volume_mm3
         return model, Load(np.zeros(1), growth, np.ones(1, bool), 1.0, 1.0)
@@ -140,8 +173,13 @@ def _jig(case: Case):
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
     fixed = np.flatnonzero(nodes[:, 0] < 1e-9)
     tip = np.flatnonzero(nodes[:, 0] > BEAM_MM[0] - 1e-9)
-    jig = Jig(tip, spring_mn_per_mm(case.stiffness_n_per_mm), rotate_deg=30.0,
-              axis=(0.0, 0.0, 1.0), pivot_mm=(0.0, BEAM_MM[1] / 2, 0.0))
+    jig = Jig(
+        tip,
+        spring_mn_per_mm(case.stiffness_n_per_mm),
+        rotate_deg=30.0,
+        axis=(0.0, 0.0, 1.0),
+        pivot_mm=(0.0, BEAM_MM[1] / 2, 0.0),
+    )
     model = Model.from_arrays(nodes, tets, case.E_kpa, case.nu, fixed_nodes=fixed, jigs=[jig])
     return model, Load.pressures([], jig=1.0)
 
@@ -195,17 +233,32 @@ def _gmsh_sphere(case: Case):
     return model, Load.pressures([case.pressure_kpa])
 
 
-BUILDERS = {"beam_gravity": _beam, "gmsh_sphere": _gmsh_sphere, "hollow_pressure": _hollow,
-            "jig": _jig, "sliver": _sliver, "free_pressure": lambda c: _hollow(c, free=True)}
+BUILDERS = {
+    "beam_gravity": _beam,
+    "gmsh_sphere": _gmsh_sphere,
+    "hollow_pressure": _hollow,
+    "jig": _jig,
+    "sliver": _sliver,
+    "free_pressure": lambda c: _hollow(c, free=True),
+}
 
 
 def run_case(case: Case) -> dict:
     """Solve one case; never raises: failures become a one-line `status`."""
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
-    row = {"group": case.group, "case": case.name, "status": "converged", "iterations": 0,
-           "subdivisions": 0, "residual": None, "max_disp_mm": None, "min_det_f": None,
-           "seconds": 0.0, "note": ""}
+    row = {
+        "group": case.group,
+        "case": case.name,
+        "status": "converged",
+        "iterations": 0,
+        "subdivisions": 0,
+        "residual": None,
+        "max_disp_mm": None,
+        "min_det_f": None,
+        "seconds": 0.0,
+        "note": "",
+    }
     t0 = time.perf_counter()
     try:
         model, load = BUILDERS[case.kind](case)
@@ -218,8 +271,9 @@ def run_case(case: Case) -> dict:
 
             options = replace(options, load_steps=4, max_seconds=SPHERE_SECONDS)
             solver = model.make_solver()
-            limits.check_pressures(model, load.pressure_kpa[None, :], ["cavity"], solver,
-                                   SolverOptions())
+            limits.check_pressures(
+                model, load.pressure_kpa[None, :], ["cavity"], solver, SolverOptions()
+            )
             row["note"] = ""
         else:
             solver = None
@@ -227,17 +281,23 @@ def run_case(case: Case) -> dict:
         disp = float(np.abs(res.displacement_mm).max())
         values = [res.residual, disp, res.min_det_f]
         if not all(math.isfinite(v) for v in values):
-            raise FruitError(f"{case.name}: non-finite result (residual {res.residual}, "
-                             f"max displacement {disp})")
-        row.update(iterations=res.iterations, subdivisions=res.subdivisions,
-                   residual=float(res.residual), max_disp_mm=disp,
-                   min_det_f=float(res.min_det_f))
+            raise FruitError(
+                f"{case.name}: non-finite result (residual {res.residual}, max displacement {disp})"
+            )
+        row.update(
+            iterations=res.iterations,
+            subdivisions=res.subdivisions,
+            residual=float(res.residual),
+            max_disp_mm=disp,
+            min_det_f=float(res.min_det_f),
+        )
         if case.kind == "beam_gravity":
             row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
         if case.kind in ("hollow_pressure", "gmsh_sphere") and len(res.pressure_kpa):
             growth = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0] - 1.0
-            row["note"] = (row["note"] + "; " if row["note"] else "") + \
-                f"pressure {res.pressure_kpa[0]:.4g} kPa, volume growth {growth:.3g} V0"
+            row["note"] = (
+                row["note"] + "; " if row["note"] else ""
+            ) + f"pressure {res.pressure_kpa[0]:.4g} kPa, volume growth {growth:.3g} V0"
         if res.min_det_f <= 0:
             row["status"] = "converged with inverted elements"
     except FruitError as exc:
@@ -252,8 +312,9 @@ def add_scaling_columns(rows: list[dict]) -> None:
     e_rows = [r for r in rows if r["group"] == "E" and "tip_deflection_mm" in r]
     for r in e_rows:
         e = float(r["case"].split("=")[1].split()[0])
-        r["note"] = (r["note"] + "; " if r["note"] else "") + \
-            f"tip x E = {r['tip_deflection_mm'] * e:.4g} mm kPa"
+        r["note"] = (
+            r["note"] + "; " if r["note"] else ""
+        ) + f"tip x E = {r['tip_deflection_mm'] * e:.4g} mm kPa"
     for group, ref_name in (("nu", "nu = 0.3"), ("nu, p2", "nu = 0.3 (p2)")):
         ref = [r for r in rows if r["group"] == group and r["case"] == ref_name]
         if not (ref and "tip_deflection_mm" in ref[0]):
@@ -261,12 +322,23 @@ def add_scaling_columns(rows: list[dict]) -> None:
         base = ref[0]["tip_deflection_mm"]
         for r in rows:
             if r["group"] == group and "tip_deflection_mm" in r:
-                r["note"] = (r["note"] + "; " if r["note"] else "") + \
-                    f"tip / tip(nu=0.3) = {r['tip_deflection_mm'] / base:.3f}"
+                r["note"] = (
+                    r["note"] + "; " if r["note"] else ""
+                ) + f"tip / tip(nu=0.3) = {r['tip_deflection_mm'] / base:.3f}"
 
 
-HEADER = ["group", "case", "status", "iterations", "subdivisions", "residual", "max_disp_mm",
-          "min_det_f", "seconds", "note"]
+HEADER = [
+    "group",
+    "case",
+    "status",
+    "iterations",
+    "subdivisions",
+    "residual",
+    "max_disp_mm",
+    "min_det_f",
+    "seconds",
+    "note",
+]
 
 
 def _fmt(v) -> str:

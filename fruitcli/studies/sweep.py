@@ -97,8 +97,10 @@ def _value(key: str, item: str):
     except tomllib.TOMLDecodeError:
         if BARE.match(item):
             return item
-        raise SweepError(f"--set {key}: cannot read value {item!r} (a number, true/false, "
-                         "a word, a \"quoted string\" or a [list])") from None
+        raise SweepError(
+            f"--set {key}: cannot read value {item!r} (a number, true/false, "
+            'a word, a "quoted string" or a [list])'
+        ) from None
 
 
 def combinations(specs: list[SetSpec], mode: str = "grid") -> list[dict]:
@@ -133,8 +135,9 @@ def apply_value(raw: dict, key: str, value) -> None:
     if section == "geometry" and len(parts) > 1 and parts[1] == "chamber":
         items = raw.get("geometry", {}).get("chamber", [])
         items = [items] if isinstance(items, dict) else items
-        target = _pick(key, "geometry.chamber", items, parts[2] if len(parts) > 2 else "",
-                       by_name=True)
+        target = _pick(
+            key, "geometry.chamber", items, parts[2] if len(parts) > 2 else "", by_name=True
+        )
         spec, rest = ARRAY_SCHEMA["geometry.chamber"], parts[3:]
         if len(rest) == 1 and rest[0] in SUBTABLES["ellipsoid"]:
             rest = ["ellipsoid", rest[0]]
@@ -159,8 +162,9 @@ def apply_value(raw: dict, key: str, value) -> None:
     if name in SUBTABLES:
         sub = SUBTABLES[name]
         if len(rest) != 2 or rest[1] not in sub:
-            raise SweepError(f"--set {key}: expected {'.'.join(parts[:-len(rest) + 1])}."
-                             f"<{' or '.join(sub)}>")
+            raise SweepError(
+                f"--set {key}: expected {'.'.join(parts[: -len(rest) + 1])}.<{' or '.join(sub)}>"
+            )
     elif spec[name].kind != "table" or len(rest) != 2:
         plain = key.rsplit(".", len(rest) - 1)[0]
         raise SweepError(f"--set {key}: '{name}' is not a table; write {plain}=...")
@@ -176,8 +180,11 @@ def _pick(key: str, section: str, items: list, which: str, by_name: bool = False
         return items[int(which) - 1]
     if by_name and which in names:
         return items[names.index(which)]
-    have = (f"chambers: {', '.join(names)}" if by_name and names
-            else f"{len(items)} [[{section}]] table(s), numbered from 1")
+    have = (
+        f"chambers: {', '.join(names)}"
+        if by_name and names
+        else f"{len(items)} [[{section}]] table(s), numbered from 1"
+    )
     what = "a chamber name or number" if by_name else "a number"
     raise SweepError(f"--set {key}: no [[{section}]] '{which}' ({what}; the scene has {have})")
 
@@ -214,8 +221,7 @@ def _toml_value(value) -> str:
     if isinstance(value, list):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}"
-                               for k, v in value.items()) + "}"
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
     raise SweepError(f"cannot write {type(value).__name__} into a scene")  # dates, times
 
 
@@ -225,8 +231,11 @@ def fmt_value(value) -> str:
     if isinstance(value, bool):
         return str(value).lower()
     if isinstance(value, (int, float)):
-        return str(int(value)) if float(value).is_integer() and abs(value) < 1e15 \
+        return (
+            str(int(value))
+            if float(value).is_integer() and abs(value) < 1e15
             else repr(float(value))
+        )
     if isinstance(value, list):
         return "x".join(fmt_value(v) for v in value)
     if isinstance(value, dict):

@@ -10,11 +10,19 @@ from pathlib import Path
 from fruitcli.studies.sweep import fmt_value
 
 FIGURE_ORDER = ["taxels", "tets", "states", "newton_its", "max_disp_mm", "state_ms"]
-TAIL = ["noise_std_max_counts", "shift_max_counts", "shift_mean_counts", "variant_s",
-        "status", "error"]
-UNITS = ("units: *_mm in mm, state_ms in ms (median time per FEM state), variant_s in s "
-         "(wall time of the variant's own stages), *_counts in CDC counts; "
-         "*_n: Table I sample count")
+TAIL = [
+    "noise_std_max_counts",
+    "shift_max_counts",
+    "shift_mean_counts",
+    "variant_s",
+    "status",
+    "error",
+]
+UNITS = (
+    "units: *_mm in mm, state_ms in ms (median time per FEM state), variant_s in s "
+    "(wall time of the variant's own stages), *_counts in CDC counts; "
+    "*_n: Table I sample count"
+)
 
 
 def columns(rows: list[dict], keys: list[str]) -> list[str]:
@@ -22,16 +30,23 @@ def columns(rows: list[dict], keys: list[str]) -> list[str]:
     present = list(dict.fromkeys(c for r in rows if r for c in r))  # first seen first
     known = set(keys) | set(FIGURE_ORDER) | set(TAIL) | {"variant"}
     extra = [c for c in present if c not in known]  # Table I: <row>_n, _mean_mm, _std_mm
-    return (["variant", *keys] + [c for c in FIGURE_ORDER if c in present] + extra
-            + [c for c in TAIL if c in present or c in ("status", "error")])
+    return (
+        ["variant", *keys]
+        + [c for c in FIGURE_ORDER if c in present]
+        + extra
+        + [c for c in TAIL if c in present or c in ("status", "error")]
+    )
 
 
 def cell(value) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
-        return f"{value:.6g}" if not math.isfinite(value) or abs(value) >= 1e6 \
+        return (
+            f"{value:.6g}"
+            if not math.isfinite(value) or abs(value) >= 1e6
             else f"{value:.6f}".rstrip("0").rstrip(".") or "0"
+        )
     if isinstance(value, (list, dict, bool)) or not isinstance(value, (int, str)):
         return fmt_value(value)
     return str(value)
@@ -41,8 +56,9 @@ def write_csv(path: Path, rows: list[dict], keys: list[str], comment: str) -> No
     from fruitcli.fsutil import write_csv as write
 
     cols = columns(rows, keys)
-    write(path, cols, ([cell(r.get(c)) for c in cols] for r in rows if r),
-          comments=[comment, UNITS])
+    write(
+        path, cols, ([cell(r.get(c)) for c in cols] for r in rows if r), comments=[comment, UNITS]
+    )
 
 
 def markdown(rows: list[dict], keys: list[str], head: list[str]) -> str:
@@ -78,16 +94,17 @@ def plot(path: Path, rows: list[dict], keys: list[str], figure: str) -> str:
     from fruitcli.fsutil import atomic_path
 
     if len(keys) > 2:
-        return "sweep.png: not drawn (it shows one or two swept keys; this sweep has " \
-               f"{len(keys)})"
+        return f"sweep.png: not drawn (it shows one or two swept keys; this sweep has {len(keys)})"
     ok = [r for r in rows if r and r.get("status") == "ok" and _number(r.get(figure))]
     if not ok:
         return f"sweep.png: not drawn (no finished variant has {figure})"
     xkey = keys[0]
     xs_all = [r[xkey] for r in rows if r]
     numeric = all(_number(x) for x in xs_all)
-    order = sorted({fmt_value(x) for x in xs_all},
-                   key=lambda s: float(s) if numeric else [fmt_value(x) for x in xs_all].index(s))
+    order = sorted(
+        {fmt_value(x) for x in xs_all},
+        key=lambda s: float(s) if numeric else [fmt_value(x) for x in xs_all].index(s),
+    )
     pos = {s: n for n, s in enumerate(order)}
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     groups = {}
@@ -95,8 +112,9 @@ def plot(path: Path, rows: list[dict], keys: list[str], figure: str) -> str:
         label = f"{keys[1]} = {fmt_value(r[keys[1]])}" if len(keys) == 2 else figure
         groups.setdefault(label, []).append(r)
     for label, group in groups.items():
-        pts = sorted(((float(r[xkey]) if numeric else pos[fmt_value(r[xkey])]), r[figure])
-                     for r in group)
+        pts = sorted(
+            ((float(r[xkey]) if numeric else pos[fmt_value(r[xkey])]), r[figure]) for r in group
+        )
         ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", label=label)
     failed = [r for r in rows if r and r.get("status") != "ok"]
     if not numeric:
@@ -114,29 +132,36 @@ def plot(path: Path, rows: list[dict], keys: list[str], figure: str) -> str:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
-    return f"sweep.png: {figure} against {xkey}" + (f", one line per {keys[1]}"
-                                                    if len(keys) == 2 else "")
+    return f"sweep.png: {figure} against {xkey}" + (
+        f", one line per {keys[1]}" if len(keys) == 2 else ""
+    )
 
 
-LABELS = {"taxels": "taxels", "tets": "tetrahedra", "states": "FEM states",
-          "newton_its": "Newton iterations per state, mean",
-          "max_disp_mm": "largest displacement (mm)", "state_ms": "time per FEM state (ms)",
-          "noise_std_max_counts": "noise std, largest (counts)",
-          "shift_max_counts": "baseline shift, largest (counts)",
-          "shift_mean_counts": "baseline shift, mean over taxels (counts)",
-          "variant_s": "time per variant (s)"}
+LABELS = {
+    "taxels": "taxels",
+    "tets": "tetrahedra",
+    "states": "FEM states",
+    "newton_its": "Newton iterations per state, mean",
+    "max_disp_mm": "largest displacement (mm)",
+    "state_ms": "time per FEM state (ms)",
+    "noise_std_max_counts": "noise std, largest (counts)",
+    "shift_max_counts": "baseline shift, largest (counts)",
+    "shift_mean_counts": "baseline shift, mean over taxels (counts)",
+    "variant_s": "time per variant (s)",
+}
 
 
 def axis_label(figure: str) -> str:
     """`bent-small_mean_mm` -> `bent-small: localization error, mean (mm)`."""
-    for suffix, text in (("_mean_mm", "localization error, mean (mm)"),
-                         ("_std_mm", "localization error, std (mm)"),
-                         ("_n", "sample points")):
+    for suffix, text in (
+        ("_mean_mm", "localization error, mean (mm)"),
+        ("_std_mm", "localization error, std (mm)"),
+        ("_n", "sample points"),
+    ):
         if figure.endswith(suffix) and figure not in LABELS:
-            return f"{figure[:-len(suffix)]}: {text}"
+            return f"{figure[: -len(suffix)]}: {text}"
     return LABELS.get(figure, figure)
 
 
 def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

@@ -43,8 +43,9 @@ def variant_figures(scene, folder: Path) -> dict:
     out: dict = {}
     tax = taxels_path(scene, ctx)
     if tax is not None and Path(tax).exists():
-        lines = [ln for ln in Path(tax).read_text().splitlines()
-                 if ln.strip() and not ln.startswith("#")]
+        lines = [
+            ln for ln in Path(tax).read_text().splitlines() if ln.strip() and not ln.startswith("#")
+        ]
         out["taxels"] = max(len(lines) - 1, 0)  # less the header
     quality = ctx.dir("tetra") / "quality.json"
     if quality.exists():
@@ -53,10 +54,12 @@ def variant_figures(scene, folder: Path) -> dict:
     if states.exists():
         with np.load(states, allow_pickle=False) as st:
             disp = np.linalg.norm(st["displacement_mm"], axis=-1)
-            out.update(states=int(len(st["solve_ms"])),
-                       newton_its=float(np.mean(st["iterations"])),
-                       max_disp_mm=float(disp.max()) if disp.size else 0.0,
-                       state_ms=float(np.median(st["solve_ms"])))
+            out.update(
+                states=int(len(st["solve_ms"])),
+                newton_its=float(np.mean(st["iterations"])),
+                max_disp_mm=float(disp.max()) if disp.size else 0.0,
+                state_ms=float(np.median(st["solve_ms"])),
+            )
     summary = ctx.dir("evaluate") / "summary.json"
     if summary.exists():
         for slug, row in json.loads(summary.read_text()).items():
@@ -66,9 +69,11 @@ def variant_figures(scene, folder: Path) -> dict:
     sens = ctx.dir("sensitivity") / "sensitivity.json"
     if sens.exists():
         s = json.loads(sens.read_text())["summary"]
-        out.update(noise_std_max_counts=float(s["std"]["max"]),
-                   shift_max_counts=float(s["max_shift"]["max"]),
-                   shift_mean_counts=float(s["max_shift"]["mean"]))
+        out.update(
+            noise_std_max_counts=float(s["std"]["max"]),
+            shift_max_counts=float(s["max_shift"]["max"]),
+            shift_mean_counts=float(s["max_shift"]["mean"]),
+        )
     return out
 
 
@@ -77,16 +82,18 @@ def error_line(exc: BaseException) -> str:
     from fruitcli.errors import FruitError
 
     text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    return text if isinstance(exc, FruitError) and text else \
-        f"{type(exc).__name__}: {text}".rstrip(": ")
+    return (
+        text
+        if isinstance(exc, FruitError) and text
+        else f"{type(exc).__name__}: {text}".rstrip(": ")
+    )
 
 
 def _note_attempt(folder: Path, kind: str) -> None:
     """Append who runs this task to folder/attempts.log (one line per start)."""
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "attempts.log", "a") as f:
-        f.write(f"{kind} pid={os.getpid()} host={socket.gethostname()} "
-                f"t={time.time():.3f}\n")
+        f.write(f"{kind} pid={os.getpid()} host={socket.gethostname()} t={time.time():.3f}\n")
 
 
 class _Log:
@@ -107,8 +114,7 @@ class _Log:
 
     def where(self, exc: BaseException) -> str:
         line = error_line(exc)
-        return f"{self.stage}: {line}" if self.stage and not line.startswith(self.stage) \
-            else line
+        return f"{self.stage}: {line}" if self.stage and not line.startswith(self.stage) else line
 
 
 def _failed_dep(deps: dict) -> str | None:
@@ -130,9 +136,8 @@ def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict
     _note_attempt(folder, f"stage {stage}")
     log = _Log(folder)
     try:
-        planner.run(rebuild(text, scene_path), folder, until=stage, shared=shared,
-                    progress=log)
-    except Exception as exc:  # noqa: BLE001 - any failure is this stage's row text
+        planner.run(rebuild(text, scene_path), folder, until=stage, shared=shared, progress=log)
+    except Exception as exc:
         (folder / "error.log").write_text(traceback.format_exc())
         return {"error": log.where(exc)}
     return {"error": None}
@@ -164,7 +169,7 @@ def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
         scene = rebuild(text, scene_path)
         planner.run(scene, folder, shared=shared, progress=log)
         row = {**variant_figures(scene, folder), "status": "ok", "error": ""}
-    except Exception as exc:  # noqa: BLE001 - the row carries the error
+    except Exception as exc:
         (folder / "error.log").write_text(traceback.format_exc())
         row = {"status": "failed", "error": log.where(exc)}
     row["variant_s"] = time.perf_counter() - t0
@@ -214,14 +219,19 @@ def build_tasks(variants: list[Variant], variants_dir: Path, todo: list[int]) ->
                 upstream = _closure(deps_of, key[0]) - {key[0]}
                 deps = tuple(("stage", *j) for j in runs[k] if j in shared and j[0] in upstream)
                 v = variants[k]
-                tasks[("stage", *key)] = Task(run_stage_task, (
-                    v.text, scene_path, str(variants_dir / v.name), key[0], str(variants_dir)),
-                    deps)
+                tasks[("stage", *key)] = Task(
+                    run_stage_task,
+                    (v.text, scene_path, str(variants_dir / v.name), key[0], str(variants_dir)),
+                    deps,
+                )
     for k in todo:
         v = variants[k]
         deps = tuple(("stage", *key) for key in runs[k] if key in shared)
-        tasks[("variant", k)] = Task(run_variant_task, (
-            v.text, scene_path, str(variants_dir / v.name), str(variants_dir)), deps)
+        tasks[("variant", k)] = Task(
+            run_variant_task,
+            (v.text, scene_path, str(variants_dir / v.name), str(variants_dir)),
+            deps,
+        )
     return tasks
 
 
@@ -235,8 +245,9 @@ def _closure(deps_of: dict, name: str) -> set[str]:
     return out
 
 
-def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
-              on_row=None) -> tuple[list[dict], dict]:
+def run_sweep(
+    variants: list[Variant], out_dir: Path, pool, progress=None, on_row=None
+) -> tuple[list[dict], dict]:
     """Run (or reuse) every variant on `pool`; returns the rows in variant order and
     counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
     after each variant, and with {"stage", "error"} after each shared stage;
@@ -262,8 +273,15 @@ def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
         nonlocal done
         if key[0] != "variant":
             if progress:
-                progress(done, len(variants), {"stage": key[1], "error": result["error"],
-                                               "variant": Path(tasks[key].arg[2]).name})
+                progress(
+                    done,
+                    len(variants),
+                    {
+                        "stage": key[1],
+                        "error": result["error"],
+                        "variant": Path(tasks[key].arg[2]).name,
+                    },
+                )
             return
         rows[key[1]] = _with_values(variants[key[1]], result)
         done += 1
@@ -278,9 +296,12 @@ def run_sweep(variants: list[Variant], out_dir: Path, pool, progress=None,
         return {"error": f"{key[1]}: {message}"}
 
     run_graph(pool, tasks, on_done, on_lost)
-    stats = {"run": len(todo), "reused": reused,
-             "failed": sum(r["status"] != "ok" for r in rows),
-             "shared_stages": sum(1 for key in tasks if key[0] == "stage")}
+    stats = {
+        "run": len(todo),
+        "reused": reused,
+        "failed": sum(r["status"] != "ok" for r in rows),
+        "shared_stages": sum(1 for key in tasks if key[0] == "stage"),
+    }
     return rows, stats
 
 

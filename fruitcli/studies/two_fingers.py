@@ -31,16 +31,27 @@ TRIALS = 40  # frames per axis and distance
 SINGLES = 200
 IDLE_FRAMES = 10
 INDENTER = "small"
-HEADER = ["axis", "distance_pitches", "distance_mm", "method", "frames", "two_rate",
-          "one_rate", "more_rate", "median_error_mm", "p95_error_mm"]
+HEADER = [
+    "axis",
+    "distance_pitches",
+    "distance_mm",
+    "method",
+    "frames",
+    "two_rate",
+    "one_rate",
+    "more_rate",
+    "median_error_mm",
+    "p95_error_mm",
+]
 
 
 def _taxels():
     from fruitcli.tables import Taxels
 
     i, j = np.divmod(np.arange(21 * 12), 12)
-    return Taxels(np.arange(i.size), i, j,
-                  np.stack([PITCH_I_MM * i, PITCH_J_MM * j, 0.0 * i], axis=1))
+    return Taxels(
+        np.arange(i.size), i, j, np.stack([PITCH_I_MM * i, PITCH_J_MM * j, 0.0 * i], axis=1)
+    )
 
 
 def _frames(taxels, skin, points: np.ndarray, rng) -> np.ndarray:
@@ -49,8 +60,9 @@ def _frames(taxels, skin, points: np.ndarray, rng) -> np.ndarray:
 
     dist = np.linalg.norm(taxels.xyz_mm[None, None] - points[:, :, None, :], axis=3)
     v = forward.activation_counts(dist, np.zeros(points.shape[:2]), INDENTER, skin).sum(axis=1)
-    return forward.frame_counts(skin.baseline_counts + v, skin.noise_std_counts,
-                                rng).reshape(-1, 21, 12)
+    return forward.frame_counts(skin.baseline_counts + v, skin.noise_std_counts, rng).reshape(
+        -1, 21, 12
+    )
 
 
 def _pair_errors(t, truth: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -65,8 +77,9 @@ def _pair_errors(t, truth: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndar
     return count, np.reshape(errs, (-1, 2))
 
 
-def run(seed: int = 0, trials: int = TRIALS, singles: int = SINGLES,
-        distances=DISTANCES) -> tuple[list[list], list[list]]:
+def run(
+    seed: int = 0, trials: int = TRIALS, singles: int = SINGLES, distances=DISTANCES
+) -> tuple[list[list], list[list]]:
     """-> (pair rows (HEADER), single rows [method, frames, one_rate, median, p95 mm])."""
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
     from fruitcli.sensing.frames.board import default_board
@@ -77,13 +90,16 @@ def run(seed: int = 0, trials: int = TRIALS, singles: int = SINGLES,
     skin = forward.make_skin(len(taxels), seed)
     law = gap_law(skin.params, footprint=INDENTER)
     rng = np.random.default_rng(seed)
-    idle = forward.frame_counts(np.broadcast_to(skin.baseline_counts, (IDLE_FRAMES, 252)),
-                                skin.noise_std_counts, rng)
+    idle = forward.frame_counts(
+        np.broadcast_to(skin.baseline_counts, (IDLE_FRAMES, 252)), skin.noise_std_counts, rng
+    )
     base = idle.mean(axis=0)
     pitch = np.array([PITCH_I_MM, PITCH_J_MM, 0.0])
     middle = np.array([10.0, 5.5, 0.0]) * pitch
-    locators = {m: Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=m),
-                           heights=law) for m in METHODS}
+    locators = {
+        m: Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=m), heights=law)
+        for m in METHODS
+    }
     rows = []
     for axis, (ui, uj) in AXES.items():
         for d in distances:
@@ -94,33 +110,55 @@ def run(seed: int = 0, trials: int = TRIALS, singles: int = SINGLES,
             for m, loc in locators.items():
                 count, err = _pair_errors(loc.batch(frames, base), truth, trials)
                 e = err.ravel()
-                rows.append([axis, d, float(np.linalg.norm(2 * half)), m, trials,
-                             float(np.mean(count == 2)), float(np.mean(count == 1)),
-                             float(np.mean(count > 2)),
-                             float(np.median(e)) if e.size else float("nan"),
-                             float(np.percentile(e, 95)) if e.size else float("nan")])
+                rows.append(
+                    [
+                        axis,
+                        d,
+                        float(np.linalg.norm(2 * half)),
+                        m,
+                        trials,
+                        float(np.mean(count == 2)),
+                        float(np.mean(count == 1)),
+                        float(np.mean(count > 2)),
+                        float(np.median(e)) if e.size else float("nan"),
+                        float(np.percentile(e, 95)) if e.size else float("nan"),
+                    ]
+                )
     one_rows = []
-    points = (np.array([2.0, 2.0, 0.0]) + rng.uniform(0, 1, (singles, 3))
-              * np.array([16.0, 7.0, 0.0])) * pitch
+    points = (
+        np.array([2.0, 2.0, 0.0]) + rng.uniform(0, 1, (singles, 3)) * np.array([16.0, 7.0, 0.0])
+    ) * pitch
     frames = _frames(taxels, skin, points[:, None, :], rng)
     for m, loc in locators.items():
         t = loc.batch(frames, base)
         count = np.bincount(t.frame, minlength=singles)
         ok = np.flatnonzero(count == 1)
         e = np.array([np.linalg.norm(t.xyz_mm[t.frame == f][0] - points[f]) for f in ok])
-        one_rows.append([m, singles, float(np.mean(count == 1)), float(np.median(e)),
-                         float(np.percentile(e, 95))])
+        one_rows.append(
+            [
+                m,
+                singles,
+                float(np.mean(count == 1)),
+                float(np.median(e)),
+                float(np.percentile(e, 95)),
+            ]
+        )
     return rows, one_rows
 
 
 def markdown(rows: list[list], one_rows: list[list]) -> str:
     """The two tables as markdown."""
-    lines = ["# Two fingers close together (virtual bench, at rest)", "",
-             "Separation rate: frames reporting exactly two touches; errors (mm) of those "
-             "touches against the nearer finger of the better pairing.", "",
-             "| axis | distance (pitches) | distance (mm) | " + " | ".join(
-                 f"{m}: two / one / more, median / p95 error (mm)" for m in METHODS) + " |",
-             "|---|---|---|" + "---|" * len(METHODS)]
+    lines = [
+        "# Two fingers close together (virtual bench, at rest)",
+        "",
+        "Separation rate: frames reporting exactly two touches; errors (mm) of those "
+        "touches against the nearer finger of the better pairing.",
+        "",
+        "| axis | distance (pitches) | distance (mm) | "
+        + " | ".join(f"{m}: two / one / more, median / p95 error (mm)" for m in METHODS)
+        + " |",
+        "|---|---|---|" + "---|" * len(METHODS),
+    ]
     by = {(r[0], r[1], r[3]): r for r in rows}
     for axis in AXES:
         for d in sorted({r[1] for r in rows if r[0] == axis}):
@@ -128,13 +166,19 @@ def markdown(rows: list[list], one_rows: list[list]) -> str:
             for m in METHODS:
                 r = by[(axis, d, m)]
                 cells.append(f"{r[5]:.0%} / {r[6]:.0%} / {r[7]:.0%}, {r[8]:.1f} / {r[9]:.1f}")
-            lines.append(f"| {axis} | {d:g} | {by[(axis, d, METHODS[0])][2]:.1f} | "
-                         + " | ".join(cells) + " |")
-    lines += ["", "Single fingers (random points):", "",
-              "| method | frames | exactly one touch | median error (mm) | p95 error (mm) |",
-              "|---|---|---|---|---|"]
-    lines += [f"| {m} | {n} | {r:.1%} | {med:.2f} | {p95:.2f} |" for m, n, r, med, p95
-              in one_rows]
+            lines.append(
+                f"| {axis} | {d:g} | {by[(axis, d, METHODS[0])][2]:.1f} | "
+                + " | ".join(cells)
+                + " |"
+            )
+    lines += [
+        "",
+        "Single fingers (random points):",
+        "",
+        "| method | frames | exactly one touch | median error (mm) | p95 error (mm) |",
+        "|---|---|---|---|---|",
+    ]
+    lines += [f"| {m} | {n} | {r:.1%} | {med:.2f} | {p95:.2f} |" for m, n, r, med, p95 in one_rows]
     return "\n".join(lines) + "\n"
 
 
@@ -169,11 +213,20 @@ def write(out_dir, seed: int = 0, trials: int = TRIALS) -> dict:
 
     rows, one_rows = run(seed, trials)
     with staged_dir(out_dir) as tmp:
-        write_csv(tmp / "two_fingers.csv", HEADER, rows,
-                  comments=["two small indenters at rest on the virtual bench; rates are "
-                            "shares of frames, errors in mm"])
-        write_csv(tmp / "single_fingers.csv", ["method", "frames", "one_rate",
-                                               "median_error_mm", "p95_error_mm"], one_rows)
+        write_csv(
+            tmp / "two_fingers.csv",
+            HEADER,
+            rows,
+            comments=[
+                "two small indenters at rest on the virtual bench; rates are "
+                "shares of frames, errors in mm"
+            ],
+        )
+        write_csv(
+            tmp / "single_fingers.csv",
+            ["method", "frames", "one_rate", "median_error_mm", "p95_error_mm"],
+            one_rows,
+        )
         write_text(tmp / "two_fingers.md", markdown(rows, one_rows))
         plot(rows, tmp / "two_fingers.png")
     return {"rows": rows, "singles": one_rows}

@@ -25,8 +25,10 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
     steps = planner.run(scene, out, until="tetra", progress=progress, shared=shared_outputs(out))
     skipped = [st for st in steps if st.stage == "tetra" and st.action == "not needed"]
     if skipped:
-        raise FrameError(f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
-                         "give [actuation] pressures for its chambers")
+        raise FrameError(
+            f"{scene_path}: --online: the scene is not meshed ({skipped[0].reason}); "
+            "give [actuation] pressures for its chambers"
+        )
     ctx = planner.Context(out)
     return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
 
@@ -41,8 +43,9 @@ def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress, bar=N
     if not scene.chambers:
         raise FrameError(f"{scene_path}: --online: the scene has no [[geometry.chamber]]")
     out = Path("out") / scene.name
-    reduced = ensure_reduced(scene, out, taxels_csv, progress, label=f"{scene_path}: --online",
-                             bar=bar)
+    reduced = ensure_reduced(
+        scene, out, taxels_csv, progress, label=f"{scene_path}: --online", bar=bar
+    )
     progress(reduced.describe())
     return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
 
@@ -53,8 +56,10 @@ def reduced_source(reduced, taxels, taxels_csv):
 
     n = reduced.coef_taxels.shape[1] // 3
     if n != len(taxels):
-        raise FrameError(f"{taxels_csv}: {len(taxels)} taxels, but the reduced model follows "
-                         f"{n}: rebuild it (fruit run SCENE --until reduce)")
+        raise FrameError(
+            f"{taxels_csv}: {len(taxels)} taxels, but the reduced model follows "
+            f"{n}: rebuild it (fruit run SCENE --until reduce)"
+        )
     return ReducedOnline(reduced)
 
 
@@ -69,5 +74,10 @@ def online_solver(scene, mesh_npz, taxels_xyz, progress):
     model = build_model(scene, io.load_mesh(mesh_npz))
     tet, w, _ = barycentric.locate(model.rest, model.tets, taxels_xyz)
     progress(f"online FEM: {len(model.tets)} tets, chambers {', '.join(model.chamber_names)}")
-    return OnlineSolver(model, tet, w, solver_options(scene),
-                        solver_options(scene, first_state=True, jig=bool(model.jigs)))
+    return OnlineSolver(
+        model,
+        tet,
+        w,
+        solver_options(scene),
+        solver_options(scene, first_state=True, jig=bool(model.jigs)),
+    )

@@ -117,8 +117,9 @@ def _copy_in(source: Path, folder: Path) -> None:
 
     folder.parent.mkdir(parents=True, exist_ok=True)
     sweep_orphans(folder.parent, f".{folder.name}.copying.")
-    holder = Path(tempfile.mkdtemp(prefix=owned_prefix(f".{folder.name}.copying."),
-                                   dir=folder.parent))
+    holder = Path(
+        tempfile.mkdtemp(prefix=owned_prefix(f".{folder.name}.copying."), dir=folder.parent)
+    )
     try:
         shutil.copytree(source, holder / folder.name)
         for attempt in range(10):
@@ -137,8 +138,13 @@ def _copy_in(source: Path, folder: Path) -> None:
         shutil.rmtree(holder, ignore_errors=True)
 
 
-def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
-         until: str | None = None, shared: Path | None = None) -> list[Step]:
+def plan(
+    scene: Scene,
+    out_root: Path,
+    stages: list[Stage] | None = None,
+    until: str | None = None,
+    shared: Path | None = None,
+) -> list[Step]:
     """Decide run / reuse / not needed for every stage (up to and including `until`),
     in dependency order; with `shared`, a stage `run` would copy from a sibling scene is
     "reuse" too, and the stages after it are judged on the sibling's outputs."""
@@ -163,8 +169,9 @@ def plan(scene: Scene, out_root: Path, stages: list[Stage] | None = None,
             steps.append(Step(stage.name, "reuse", reason, digest))
         elif digest and (source := _borrow(stage, scene, ctx, digest)) is not None:
             ctx.lent[stage.name] = source
-            steps.append(Step(stage.name, "reuse",
-                              f"{reason} (same inputs as {source.parent.name})", digest))
+            steps.append(
+                Step(stage.name, "reuse", f"{reason} (same inputs as {source.parent.name})", digest)
+            )
         else:
             steps.append(Step(stage.name, "run", reason, digest))
     return steps
@@ -181,9 +188,15 @@ def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str) -> Path | Non
     return None
 
 
-def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
-        force: bool = False, stages: list[Stage] | None = None,
-        shared: Path | None = None) -> list[Step]:
+def run(
+    scene: Scene,
+    out_root: Path,
+    until: str | None = None,
+    progress=None,
+    force: bool = False,
+    stages: list[Stage] | None = None,
+    shared: Path | None = None,
+) -> list[Step]:
     """Run the needed stages (up to and including `until`), reusing unchanged ones.
     With `shared`, a stage whose identical inputs already ran for another scene under
     that folder is copied from there instead of run again."""
@@ -209,8 +222,9 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
         source = None if force else _borrow(stage, scene, ctx, digest)
         if source is not None:  # copied whole beside it, then swapped in: never half
             _copy_in(source, folder)
-            done.append(Step(stage.name, "reuse", f"{reason} (same inputs as "
-                             f"{source.parent.name})", digest))
+            done.append(
+                Step(stage.name, "reuse", f"{reason} (same inputs as {source.parent.name})", digest)
+            )
             ctx.progress(f"{stage.name}: reuse (same inputs as {source.parent.name})")
             continue
         ctx.progress(f"{stage.name}: run ({reason})")
@@ -220,11 +234,17 @@ def run(scene: Scene, out_root: Path, until: str | None = None, progress=None,
         # the manifest is written last: a stage interrupted before this point reruns
         from fruitcli.fsutil import write_json
 
-        write_json(folder / MANIFEST, {
-            "stage": stage.name, "hash": digest, "reason": reason,
-            "seconds": round(time.perf_counter() - t0, 3),
-            "outputs": list(stage.outputs(scene)), "summary": summary,
-        })
+        write_json(
+            folder / MANIFEST,
+            {
+                "stage": stage.name,
+                "hash": digest,
+                "reason": reason,
+                "seconds": round(time.perf_counter() - t0, 3),
+                "outputs": list(stage.outputs(scene)),
+                "summary": summary,
+            },
+        )
         done.append(Step(stage.name, "run", reason, digest))
     return done
 

@@ -9,8 +9,7 @@ from pathlib import Path
 import numpy as np
 
 
-def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None,
-                   bar=None):
+def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None, bar=None):
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
     stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
     meshed, no chambers) is one FruitError line starting with `label`. `bar(total)`, when
@@ -42,8 +41,9 @@ def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=
         log(msg)
 
     try:
-        steps = planner.run(sc, out_root, until="reduce", progress=route,
-                            shared=shared_outputs(out_root))
+        steps = planner.run(
+            sc, out_root, until="reduce", progress=route, shared=shared_outputs(out_root)
+        )
     finally:
         if shown is not None:
             shown.__exit__(None, None, None)
@@ -62,15 +62,27 @@ def actuation_table(scene, names: list[str]) -> np.ndarray:
 
     act = scene.actuation
     if act.volume_growth_mm3:
-        raise SceneError("[actuation].volume_growth_mm3: the reduced model maps pressures; "
-                         "use --model full or --pressures")
+        raise SceneError(
+            "[actuation].volume_growth_mm3: the reduced model maps pressures; "
+            "use --model full or --pressures"
+        )
     table = act.pressure_kpa or {}
-    return np.stack([np.asarray(table.get(n, [0.0] * n_states(scene)), float)
-                     for n in names], axis=1)
+    return np.stack(
+        [np.asarray(table.get(n, [0.0] * n_states(scene)), float) for n in names], axis=1
+    )
 
 
-def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_csv,
-                     progress, vtu: bool = False, bar=None) -> dict:
+def simulate_reduced(
+    scene,
+    out_dir: Path,
+    taxels_csv,
+    table,
+    rows,
+    pressures_csv,
+    progress,
+    vtu: bool = False,
+    bar=None,
+) -> dict:
     """`fruit simulate --model reduced`: states.npz at the rows of `table` (S, K) kPa
     (in the scene's chamber order; default its [actuation] states). Rows outside the
     model's range are one error naming the first (file line `rows`)."""
@@ -80,8 +92,7 @@ def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_cs
 
     model = ensure_reduced(scene, out_dir, taxels_csv, progress, bar=bar)
     names = [c.name for c in scene.chambers]
-    where = str(pressures_csv) if pressures_csv is not None else f"{scene.path.name}: " \
-        "[actuation]"
+    where = str(pressures_csv) if pressures_csv is not None else f"{scene.path.name}: [actuation]"
     if table is None:
         table, rows = actuation_table(scene, names), None
     order = [names.index(n) for n in model.chamber_names]
@@ -90,14 +101,23 @@ def simulate_reduced(scene, out_dir: Path, taxels_csv, table, rows, pressures_cs
     from fruitcli.memory import require
 
     # displacements (S, N, 3) float64, built and then written (twice)
-    require(2 * 8 * 3 * len(kpa) * len(model.rest_nodes),
-            f"{where}: {len(kpa)} states of {len(model.rest_nodes)} nodes")
+    require(
+        2 * 8 * 3 * len(kpa) * len(model.rest_nodes),
+        f"{where}: {len(kpa)} states of {len(model.rest_nodes)} nodes",
+    )
     arrays = states_arrays(model, kpa)
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", arrays)
         if vtu:
             for i, u in enumerate(arrays["displacement_mm"]):
-                io.write_vtu(tmp / f"state_{i:03d}.vtu", model.rest_nodes + u,
-                             arrays["elements"], {"displacement_mm": u})
-    return {"states": len(kpa), "us_per_state": 1e3 * float(np.median(arrays["solve_ms"])),
-            "describe": model.describe()}
+                io.write_vtu(
+                    tmp / f"state_{i:03d}.vtu",
+                    model.rest_nodes + u,
+                    arrays["elements"],
+                    {"displacement_mm": u},
+                )
+    return {
+        "states": len(kpa),
+        "us_per_state": 1e3 * float(np.median(arrays["solve_ms"])),
+        "describe": model.describe(),
+    }

@@ -23,21 +23,27 @@ def _load(path: Path):
 
 
 def _mm_pct(stats: dict, ref: float) -> str:
-    return (f"{stats['mean_mm']:.2f} ({100 * stats['mean_mm'] / ref:.1f} %) / "
-            f"{stats['std_mm']:.2f} ({100 * stats['std_mm'] / ref:.1f} %)")
+    return (
+        f"{stats['mean_mm']:.2f} ({100 * stats['mean_mm'] / ref:.1f} %) / "
+        f"{stats['std_mm']:.2f} ({100 * stats['std_mm'] / ref:.1f} %)"
+    )
 
 
 def table_section(out: Path, scenes: list[str]) -> list[str]:
     """Table I like for like: every row unregistered and translation-registered (the
     paper's protocol), the paper's published row next to the registered one."""
-    lines = ["## Table I: localization error, this model's bench next to the paper", "",
-             "Avg. error / std in mm (and % of the reference length). The paper's published "
-             "measurements were registered by a translation before its errors were taken "
-             "(their mean error vector is zero to 1e-6 mm), so the paper's Table I is to be "
-             "compared with the translation-registered column.", "",
-             "| Configuration, indenter (source) | n | unregistered | translation-registered "
-             "(paper's protocol) | paper's Table I | mean error vector, unregistered (mm) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "## Table I: localization error, this model's bench next to the paper",
+        "",
+        "Avg. error / std in mm (and % of the reference length). The paper's published "
+        "measurements were registered by a translation before its errors were taken "
+        "(their mean error vector is zero to 1e-6 mm), so the paper's Table I is to be "
+        "compared with the translation-registered column.",
+        "",
+        "| Configuration, indenter (source) | n | unregistered | translation-registered "
+        "(paper's protocol) | paper's Table I | mean error vector, unregistered (mm) |",
+        "|---|---|---|---|---|---|",
+    ]
     seen, stats_rows = set(), []
     for name in scenes:
         summary = _load(out / name / "evaluate" / "summary.json")
@@ -51,32 +57,45 @@ def table_section(out: Path, scenes: list[str]) -> list[str]:
             seen.add(label)
             ref = row["reference_length_mm"]
             paper = PAPER_TABLE_I.get(label)
-            ptxt = (f"{paper[0]:.1f} ({paper[1]:.1f} %) / {paper[2]:.1f} ({paper[3]:.1f} %)"
-                    if paper else "-")
+            ptxt = (
+                f"{paper[0]:.1f} ({paper[1]:.1f} %) / {paper[2]:.1f} ({paper[3]:.1f} %)"
+                if paper
+                else "-"
+            )
             figure_data = name == "paper-table"
             source = "the paper's figure data" if figure_data else f"ours: {name}"
-            none = ("already registered: " if figure_data else "") + _mm_pct(compare["none"],
-                                                                             ref)
+            none = ("already registered: " if figure_data else "") + _mm_pct(compare["none"], ref)
             bias = ", ".join(f"{round(v, 2) + 0.0:+.2f}" for v in compare["none"]["bias_mm"])
-            lines.append(f"| {label} ({source}) | {row['n']} | {none} | "
-                         f"{_mm_pct(compare['translation'], ref)} | {ptxt} | ({bias}) |")
+            lines.append(
+                f"| {label} ({source}) | {row['n']} | {none} | "
+                f"{_mm_pct(compare['translation'], ref)} | {ptxt} | ({bias}) |"
+            )
             stats_rows.append((f"{label} ({source})", compare["translation"]))
     for label, p in PAPER_TABLE_I.items():
         if label not in seen:
-            lines.append(f"| {label} | - | not run | not run | {p[0]:.1f} ({p[1]:.1f} %) / "
-                         f"{p[2]:.1f} ({p[3]:.1f} %) | - |")
-    lines += ["", "Percentages are relative to the reference length of each row (152 mm as in "
-              "the paper where set). The paper's deformed figure data are top view only; its "
-              "table value is 3D. Translation registration removes the mean error vector; "
-              "`fruit evaluate --register` also offers rigid and similarity.", "",
-              "Translation-registered, more than mean and std (95 % CI: seeded bootstrap of "
-              "the mean, n is small):", "",
-              "| row | RMSE | median | 95th pct. | max | 95 % CI of the mean |",
-              "|---|---|---|---|---|---|"]
+            lines.append(
+                f"| {label} | - | not run | not run | {p[0]:.1f} ({p[1]:.1f} %) / "
+                f"{p[2]:.1f} ({p[3]:.1f} %) | - |"
+            )
+    lines += [
+        "",
+        "Percentages are relative to the reference length of each row (152 mm as in "
+        "the paper where set). The paper's deformed figure data are top view only; its "
+        "table value is 3D. Translation registration removes the mean error vector; "
+        "`fruit evaluate --register` also offers rigid and similarity.",
+        "",
+        "Translation-registered, more than mean and std (95 % CI: seeded bootstrap of "
+        "the mean, n is small):",
+        "",
+        "| row | RMSE | median | 95th pct. | max | 95 % CI of the mean |",
+        "|---|---|---|---|---|---|",
+    ]
     for label, st in stats_rows:
         lo, hi = st["ci95_mean_mm"]
-        lines.append(f"| {label} | {st['rmse_mm']:.2f} | {st['median_mm']:.2f} | "
-                     f"{st['p95_mm']:.2f} | {st['max_mm']:.2f} | {lo:.2f}-{hi:.2f} |")
+        lines.append(
+            f"| {label} | {st['rmse_mm']:.2f} | {st['median_mm']:.2f} | "
+            f"{st['p95_mm']:.2f} | {st['max_mm']:.2f} | {lo:.2f}-{hi:.2f} |"
+        )
     return lines + [""]
 
 
@@ -91,9 +110,10 @@ def views_section(out: Path, scenes: list[str]) -> list[str]:
 
 
 # the paper's sensitivity figures: (noise std max, baseline shift max, shift mean) counts
-PAPER_SENSITIVITY = {"fruit-breathing": "noise std max 1.9 (Fig. 10); baseline shift max 16, "
-                                        "mean 5.0 (Fig. 11)",
-                     "touchpad-4x4": "baseline shift max 10 when bent 180 deg (Fig. 9)"}
+PAPER_SENSITIVITY = {
+    "fruit-breathing": "noise std max 1.9 (Fig. 10); baseline shift max 16, mean 5.0 (Fig. 11)",
+    "touchpad-4x4": "baseline shift max 10 when bent 180 deg (Fig. 9)",
+}
 
 
 def _pair(summary: dict, key: str) -> str:
@@ -102,12 +122,16 @@ def _pair(summary: dict, key: str) -> str:
 
 
 def sensitivity_section(out: Path, scenes: list[str]) -> list[str]:
-    lines = ["## Sensitivity (Figs. 9-11)", "",
-             "Noise: std of each taxel over the noise window at rest. Shift: the largest "
-             "baseline change of each taxel over the scene's states, measured (with noise) and "
-             "from the model alone. Counts; the touch threshold is 20.", "",
-             "| scene | noise std max / mean | shift max / mean | model shift max / mean "
-             "| paper |", "|---|---|---|---|---|"]
+    lines = [
+        "## Sensitivity (Figs. 9-11)",
+        "",
+        "Noise: std of each taxel over the noise window at rest. Shift: the largest "
+        "baseline change of each taxel over the scene's states, measured (with noise) and "
+        "from the model alone. Counts; the touch threshold is 20.",
+        "",
+        "| scene | noise std max / mean | shift max / mean | model shift max / mean | paper |",
+        "|---|---|---|---|---|",
+    ]
     pics = []
     for name in scenes:
         sdir = out / name / "sensitivity"
@@ -115,10 +139,13 @@ def sensitivity_section(out: Path, scenes: list[str]) -> list[str]:
         if not data:
             continue
         summ = data.get("summary", {})
-        lines.append(f"| {name} | {_pair(summ, 'std')} | {_pair(summ, 'max_shift')} | "
-                     f"{_pair(summ, 'max_shift_model')} | {PAPER_SENSITIVITY.get(name, '-')} |")
-        pics += [f"![{name} {png.stem}]({png.relative_to(out)})"
-                 for png in sorted(sdir.glob("*.png"))]
+        lines.append(
+            f"| {name} | {_pair(summ, 'std')} | {_pair(summ, 'max_shift')} | "
+            f"{_pair(summ, 'max_shift_model')} | {PAPER_SENSITIVITY.get(name, '-')} |"
+        )
+        pics += [
+            f"![{name} {png.stem}]({png.relative_to(out)})" for png in sorted(sdir.glob("*.png"))
+        ]
     return lines + [""] + pics + [""]
 
 
@@ -129,19 +156,26 @@ def fabrication_section(out: Path, scenes: list[str]) -> list[str]:
         rep = _load(tr / "report.json")
         if rep:
             tri = rep.get("triangles", {})
-            facts = (f"{rep.get('taxels')} taxels; triangles: artist {tri.get('artist')}, "
-                     f"reduced {tri.get('reduced')}, tracked top {tri.get('tracked_top')}; "
-                     f"offset Hausdorff {rep.get('offset_error', {}).get('hausdorff_mm', 0):.2f}"
-                     " mm")
+            facts = (
+                f"{rep.get('taxels')} taxels; triangles: artist {tri.get('artist')}, "
+                f"reduced {tri.get('reduced')}, tracked top {tri.get('tracked_top')}; "
+                f"offset Hausdorff {rep.get('offset_error', {}).get('hausdorff_mm', 0):.2f}"
+                " mm"
+            )
             preview = (tr / "preview.png").relative_to(out)
             lines += [f"**{name}**: {facts}", "", f"![tracked piece]({preview})", ""]
             break
     for name in scenes:
         q = _load(out / name / "tetra" / "quality.json")
         if q:
-            lines.append(f"**{name} mesh quality**: " + ", ".join(
-                f"{k} = {v:.3g}" if isinstance(v, float) else f"{k} = {v}"
-                for k, v in q.items() if not isinstance(v, (list, dict))))
+            lines.append(
+                f"**{name} mesh quality**: "
+                + ", ".join(
+                    f"{k} = {v:.3g}" if isinstance(v, float) else f"{k} = {v}"
+                    for k, v in q.items()
+                    if not isinstance(v, (list, dict))
+                )
+            )
             lines.append("")
     return lines
 
@@ -150,18 +184,30 @@ def studies_section(out: Path) -> list[str]:
     """Links to the studies when `make studies` has written them under OUT."""
     lines = ["## Studies (`make studies`)", ""]
     found = False
-    for name, md, png in (("Error against run time, the Fruit in its jig (one hard state)",
-                           "study-runtime/runtime.md", "study-runtime/runtime.png"),
-                          ("Error against run time, the Fruit breathing (13 states)",
-                           "study-runtime-breathing/runtime.md",
-                           "study-runtime-breathing/runtime.png"),
-                          ("Stability", "study-stability/stability.md", None),
-                          ("What the bench's rows depend on: the skin model's assumed "
-                           "parameters", "study-bench/bench.md", "study-bench/bench.png")):
+    for name, md, png in (
+        (
+            "Error against run time, the Fruit in its jig (one hard state)",
+            "study-runtime/runtime.md",
+            "study-runtime/runtime.png",
+        ),
+        (
+            "Error against run time, the Fruit breathing (13 states)",
+            "study-runtime-breathing/runtime.md",
+            "study-runtime-breathing/runtime.png",
+        ),
+        ("Stability", "study-stability/stability.md", None),
+        (
+            "What the bench's rows depend on: the skin model's assumed parameters",
+            "study-bench/bench.md",
+            "study-bench/bench.png",
+        ),
+    ):
         if (out / md).exists():
             found = True
-            lines.append(f"- {name}: [{md}]({md})" + (f", ![plot]({png})" if png and
-                                                       (out / png).exists() else ""))
+            lines.append(
+                f"- {name}: [{md}]({md})"
+                + (f", ![plot]({png})" if png and (out / png).exists() else "")
+            )
     if not found:
         lines.append("Not run yet: `make studies` writes them next to this report.")
     return lines + [""]
@@ -174,16 +220,22 @@ def plans_section(plans: dict[str, str]) -> list[str]:
     return lines
 
 
-def write_report(out: Path, plans: dict[str, str],
-                 timings: dict[str, tuple[float, int, int]]) -> Path:
+def write_report(
+    out: Path, plans: dict[str, str], timings: dict[str, tuple[float, int, int]]
+) -> Path:
     """Assemble out/report.md from the scenes' outputs; `timings` per scene: (seconds of
     this run, stages run, stages reused)."""
     scenes = list(plans)
-    lines = ["# fruit demo report", "",
-             "Generated by `make demo` (`fruit demo`) from the scenes' outputs. A stage whose "
-             "inputs did not change since an earlier run is reused, not run again (see the "
-             "plans at the end); the seconds are this run's.",
-             "", "| scene | seconds | stages run | stages reused |", "|---|---|---|---|"]
+    lines = [
+        "# fruit demo report",
+        "",
+        "Generated by `make demo` (`fruit demo`) from the scenes' outputs. A stage whose "
+        "inputs did not change since an earlier run is reused, not run again (see the "
+        "plans at the end); the seconds are this run's.",
+        "",
+        "| scene | seconds | stages run | stages reused |",
+        "|---|---|---|---|",
+    ]
     lines += [f"| {n} | {s:.1f} | {r} | {u} |" for n, (s, r, u) in timings.items()] + [""]
     lines += table_section(out, scenes)
     lines += views_section(out, scenes)

@@ -75,8 +75,9 @@ def _artist_needed(scene):
     geo = scene.geometry
     if geo.artist is None:
         kind = _geometry_kind(scene)
-        return False, ("no geometry: evaluation only" if kind == "none"
-                       else f"no artist mesh: {kind} geometry")
+        return False, (
+            "no geometry: evaluation only" if kind == "none" else f"no artist mesh: {kind} geometry"
+        )
     if not geo.generate_artist:
         return False, "artist mesh given"
     return True, "default fruit generated on first use"
@@ -108,11 +109,17 @@ def _tracks_needed(scene):
 
 def _tracks_inputs(scene, ctx):
     grid = scene.grid
-    return {"artist": scene.geometry.artist, "unit": scene.geometry.unit,
-            "fit_mm": scene.geometry.fit_mm,
-            "tracks": {k: v for k, v in scene.values("tracks").items() if k not in YARN_KEYS},
-            "grid": {"spacing_x_mm": grid.spacing_x_mm, "spacing_y_mm": grid.spacing_y_mm,
-                     "origin_mm": grid.origin_mm}}
+    return {
+        "artist": scene.geometry.artist,
+        "unit": scene.geometry.unit,
+        "fit_mm": scene.geometry.fit_mm,
+        "tracks": {k: v for k, v in scene.values("tracks").items() if k not in YARN_KEYS},
+        "grid": {
+            "spacing_x_mm": grid.spacing_x_mm,
+            "spacing_y_mm": grid.spacing_y_mm,
+            "origin_mm": grid.origin_mm,
+        },
+    }
 
 
 def _tracks_run(scene, ctx, out_dir):
@@ -120,13 +127,21 @@ def _tracks_run(scene, ctx, out_dir):
 
     geo, tr, grid = scene.geometry, scene.tracks, scene.grid
     report = make_tracks(
-        geo.artist, out_dir, unit=geo.unit, cover_mm=tr.cover_mm, faces=tr.faces,
-        spacing_x_mm=grid.spacing_x_mm, spacing_y_mm=grid.spacing_y_mm,
-        origin_mm=grid.origin_mm, track_radius_mm=tr.track_radius_mm,
-        split_z_mm=tr.split_z_mm, fit_mm=geo.fit_mm, progress=ctx.progress,
-        names=SCENE_NAMES)
-    return {"taxels": report["taxels"],
-            "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
+        geo.artist,
+        out_dir,
+        unit=geo.unit,
+        cover_mm=tr.cover_mm,
+        faces=tr.faces,
+        spacing_x_mm=grid.spacing_x_mm,
+        spacing_y_mm=grid.spacing_y_mm,
+        origin_mm=grid.origin_mm,
+        track_radius_mm=tr.track_radius_mm,
+        split_z_mm=tr.split_z_mm,
+        fit_mm=geo.fit_mm,
+        progress=ctx.progress,
+        names=SCENE_NAMES,
+    )
+    return {"taxels": report["taxels"], "hausdorff_mm": report["offset_error"]["hausdorff_mm"]}
 
 
 # ----------------------------------------------------------------------------- pad-grid
@@ -146,8 +161,13 @@ def _pad_run(scene, ctx, out_dir):
     from fruitcli.geometry.padgrid import write_pad_taxels
 
     grid = scene.grid
-    n = write_pad_taxels(out_dir / "taxels.csv", scene.geometry.pad_size_mm,
-                         grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
+    n = write_pad_taxels(
+        out_dir / "taxels.csv",
+        scene.geometry.pad_size_mm,
+        grid.count or [4, 4],
+        grid.spacing_x_mm,
+        grid.spacing_y_mm,
+    )
     return {"taxels": n}
 
 
@@ -165,8 +185,9 @@ def _fem_reason(scene):
     k = len(scene.chambers)
     act = scene.actuation
     if k and (act.pressure_kpa or act.volume_growth_mm3):
-        parts.append(f"{k} chamber(s), pressure as Lagrange multipliers over {n_states(scene)} "
-                     "state(s)")
+        parts.append(
+            f"{k} chamber(s), pressure as Lagrange multipliers over {n_states(scene)} state(s)"
+        )
     elif k:
         parts.append(f"{k} chamber(s) as empty cavities, no actuation: no pressure constraint")
     else:
@@ -181,9 +202,14 @@ def _fem_reason(scene):
 
 
 def _tetra_inputs(scene, ctx):
-    return {"solid": solid_path(scene, ctx), "unit": scene.geometry.unit,
-            "pad": scene.geometry.pad_size_mm, "chambers": scene.values("geometry")["chamber"],
-            "mesh": scene.values("mesh"), "taxels": taxels_path(scene, ctx)}
+    return {
+        "solid": solid_path(scene, ctx),
+        "unit": scene.geometry.unit,
+        "pad": scene.geometry.pad_size_mm,
+        "chambers": scene.values("geometry")["chamber"],
+        "mesh": scene.values("mesh"),
+        "taxels": taxels_path(scene, ctx),
+    }
 
 
 def _tetra_run(scene, ctx, out_dir):
@@ -192,17 +218,20 @@ def _tetra_run(scene, ctx, out_dir):
 
     tax = taxels_path(scene, ctx)
     xyz = read_taxels(tax).xyz_mm if tax is not None else None
-    return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress,
-                     taxels_xyz=xyz)
+    return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress, taxels_xyz=xyz)
 
 
 def _simulate_inputs(scene, ctx):
     tracks = scene.values("tracks")
-    return {k: scene.values(k) for k in ("material", "gravity", "fixed", "jig", "actuation",
-                                         "solver")
-            } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
-                 "mesh": ctx.dir("tetra") / "mesh.npz", "tracks": tracks_path(scene, ctx),
-                 "yarn": {k: tracks[k] for k in YARN_KEYS[:2]}}
+    return {
+        k: scene.values(k) for k in ("material", "gravity", "fixed", "jig", "actuation", "solver")
+    } | {
+        "has_gravity": scene.has("gravity"),
+        "taxels": taxels_path(scene, ctx),
+        "mesh": ctx.dir("tetra") / "mesh.npz",
+        "tracks": tracks_path(scene, ctx),
+        "yarn": {k: tracks[k] for k in YARN_KEYS[:2]},
+    }
 
 
 def _simulate_run(scene, ctx, out_dir):
@@ -212,10 +241,18 @@ def _simulate_run(scene, ctx, out_dir):
     tax = taxels_path(scene, ctx)
     xyz = read_taxels(tax).xyz_mm if tax is not None else None
     if tax is None:
-        ctx.progress("simulate: no taxels to follow (a [geometry].solid scene takes them "
-                     "from [grid].taxels, a CSV of id,i,j,x_mm,y_mm,z_mm)")
-    return run_simulate(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
-                        progress=ctx.progress, tracks_csv=tracks_path(scene, ctx))
+        ctx.progress(
+            "simulate: no taxels to follow (a [geometry].solid scene takes them "
+            "from [grid].taxels, a CSV of id,i,j,x_mm,y_mm,z_mm)"
+        )
+    return run_simulate(
+        scene,
+        ctx.dir("tetra") / "mesh.npz",
+        xyz,
+        out_dir,
+        progress=ctx.progress,
+        tracks_csv=tracks_path(scene, ctx),
+    )
 
 
 # ----------------------------------------------------------------------------- reduce
@@ -237,12 +274,18 @@ def _reduce_needed(scene):
         return False, why
     if not scene.has("reduced"):
         if locate_uses_reduced(scene):
-            return True, ("the recording carries chamber pressures: its taxels come from "
-                          "the reduced model ([frames].model = \"full\": the states)")
-        return False, ("no [reduced]: built on demand (fruit live --online, fruit simulate "
-                       "--model reduced, fruit locate --scene)")
-    return True, (f"{len(scene.chambers)} chamber(s): response surfaces fitted to full "
-                  "solves over the pressure range, held-out validation")
+            return True, (
+                "the recording carries chamber pressures: its taxels come from "
+                'the reduced model ([frames].model = "full": the states)'
+            )
+        return False, (
+            "no [reduced]: built on demand (fruit live --online, fruit simulate "
+            "--model reduced, fruit locate --scene)"
+        )
+    return True, (
+        f"{len(scene.chambers)} chamber(s): response surfaces fitted to full "
+        "solves over the pressure range, held-out validation"
+    )
 
 
 def locate_uses_reduced(scene) -> bool:
@@ -252,8 +295,7 @@ def locate_uses_reduced(scene) -> bool:
     from fruitcli.sensing.frames.recording_chunks import has_pressures
 
     rec = scene.frames.recording
-    if rec is None or scene.has("bench") or not scene.chambers \
-            or scene.frames.model != "reduced":
+    if rec is None or scene.has("bench") or not scene.chambers or scene.frames.model != "reduced":
         return False
     try:
         return has_pressures(rec, scene.board)
@@ -270,12 +312,20 @@ def _reduce_range(scene) -> dict:
 
 
 def _reduce_inputs(scene, ctx):
-    cfg = {k: v for k, v in scene.values("reduced").items() if k not in ("pressure_range_kpa",
-                                                                         "margin")}
-    return {k: scene.values(k) for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
-            } | {"has_gravity": scene.has("gravity"), "taxels": taxels_path(scene, ctx),
-                 "mesh": ctx.dir("tetra") / "mesh.npz", "range_kpa": _reduce_range(scene),
-                 "reduced": cfg}
+    cfg = {
+        k: v
+        for k, v in scene.values("reduced").items()
+        if k not in ("pressure_range_kpa", "margin")
+    }
+    return {
+        k: scene.values(k) for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
+    } | {
+        "has_gravity": scene.has("gravity"),
+        "taxels": taxels_path(scene, ctx),
+        "mesh": ctx.dir("tetra") / "mesh.npz",
+        "range_kpa": _reduce_range(scene),
+        "reduced": cfg,
+    }
 
 
 def _reduce_run(scene, ctx, out_dir):
@@ -284,8 +334,7 @@ def _reduce_run(scene, ctx, out_dir):
 
     tax = taxels_path(scene, ctx)
     xyz = read_taxels(tax).xyz_mm if tax is not None else None
-    return run_reduce(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir,
-                      progress=ctx.progress)
+    return run_reduce(scene, ctx.dir("tetra") / "mesh.npz", xyz, out_dir, progress=ctx.progress)
 
 
 def reduced_path(scene: Scene, ctx: Context) -> Path:
@@ -317,8 +366,11 @@ def _skin_run(scene, ctx, out_dir):
 
     table, summary = design.run_crossing(design.crossing_inputs(scene), progress=ctx.progress)
     design.write_outputs(out_dir, table, summary)
-    return {"c0_ff": summary["c0_ff"], "counts_per_ff": summary["counts_per_ff"],
-            "contact_counts": {k: v["contact_counts"] for k, v in summary["objects"].items()}}
+    return {
+        "c0_ff": summary["c0_ff"],
+        "counts_per_ff": summary["counts_per_ff"],
+        "contact_counts": {k: v["contact_counts"] for k, v in summary["objects"].items()},
+    }
 
 
 def crossing_dir(scene: Scene, ctx: Context) -> Path | None:
@@ -338,11 +390,17 @@ def _bench_inputs(scene, ctx):
 
     spec = scene.bench.samples  # "quarter" or a CSV, hashed by its content
     samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
-    return {"bench": scene.values("bench"), "samples": samples, "board": scene.values("board"),
-            "detection": scene.values("detection"), "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "grid": scene.values("grid"),
-            "surface": solid_path(scene, ctx), "skin": scene.values("skin")
-            } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
+    return {
+        "bench": scene.values("bench"),
+        "samples": samples,
+        "board": scene.values("board"),
+        "detection": scene.values("detection"),
+        "taxels": taxels_path(scene, ctx),
+        "states": states_path(scene, ctx),
+        "grid": scene.values("grid"),
+        "surface": solid_path(scene, ctx),
+        "skin": scene.values("skin"),
+    } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
 
 
 def _bench_run(scene, ctx, out_dir):
@@ -350,9 +408,16 @@ def _bench_run(scene, ctx, out_dir):
 
     solid = solid_path(scene, ctx)
     unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
-    return run_bench(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                     progress=ctx.progress, surface_path=solid, surface_unit=unit,
-                     crossing_dir=crossing_dir(scene, ctx))
+    return run_bench(
+        scene,
+        taxels_path(scene, ctx),
+        states_path(scene, ctx),
+        out_dir,
+        progress=ctx.progress,
+        surface_path=solid,
+        surface_unit=unit,
+        crossing_dir=crossing_dir(scene, ctx),
+    )
 
 
 def _frame_sources(scene, ctx) -> dict[str, Path]:
@@ -372,12 +437,15 @@ def _locate_needed(scene):
 
 
 def _locate_inputs(scene, ctx):
-    return {"frames": _frame_sources(scene, ctx), "taxels": taxels_path(scene, ctx),
-            "states": states_path(scene, ctx), "detection": scene.values("detection"),
-            "board": scene.values("board"),
-            "surface": solid_path(scene, ctx) if scene.detection.project == "surface"
-            else None,
-            "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None}
+    return {
+        "frames": _frame_sources(scene, ctx),
+        "taxels": taxels_path(scene, ctx),
+        "states": states_path(scene, ctx),
+        "detection": scene.values("detection"),
+        "board": scene.values("board"),
+        "surface": solid_path(scene, ctx) if scene.detection.project == "surface" else None,
+        "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None,
+    }
 
 
 def _locate_run(scene, ctx, out_dir):
@@ -391,10 +459,17 @@ def _locate_run(scene, ctx, out_dir):
 
         reduced = load(reduced_path(scene, ctx))
     for name, frames in _frame_sources(scene, ctx).items():
-        out[name] = run_locate(scene, frames, taxels_path(scene, ctx), states_path(scene, ctx),
-                               out_dir / name, progress=ctx.progress,
-                               surface_path=solid_path(scene, ctx), surface_unit=unit,
-                               reduced=reduced)
+        out[name] = run_locate(
+            scene,
+            frames,
+            taxels_path(scene, ctx),
+            states_path(scene, ctx),
+            out_dir / name,
+            progress=ctx.progress,
+            surface_path=solid_path(scene, ctx),
+            surface_unit=unit,
+            reduced=reduced,
+        )
     return out
 
 
@@ -410,11 +485,15 @@ def _eval_rows(scene, ctx) -> list[dict]:
     if scene.has("bench"):
         config = scene.scene.configuration
         for ind in indenters(scene):
-            rows.append({"label": f"{config}, {ind}",
-                         "truth": ctx.dir("bench") / ind / "truth.csv",
-                         "measured": ctx.dir("locate") / ind / "measured.csv",
-                         "reference_length_mm": scene.bench.reference_length_mm,
-                         "register": scene.bench.register})
+            rows.append(
+                {
+                    "label": f"{config}, {ind}",
+                    "truth": ctx.dir("bench") / ind / "truth.csv",
+                    "measured": ctx.dir("locate") / ind / "measured.csv",
+                    "reference_length_mm": scene.bench.reference_length_mm,
+                    "register": scene.bench.register,
+                }
+            )
     return rows
 
 
@@ -429,12 +508,19 @@ def _eval_needed(scene):
 def _eval_run(scene, ctx, out_dir):
     from fruitcli.evaluation.report import evaluate_pair, write_many
 
-    results = [evaluate_pair(r["truth"], r["measured"], r["reference_length_mm"], r["label"],
-                             r["register"])
-               for r in _eval_rows(scene, ctx)]
+    results = [
+        evaluate_pair(
+            r["truth"], r["measured"], r["reference_length_mm"], r["label"], r["register"]
+        )
+        for r in _eval_rows(scene, ctx)
+    ]
     summaries = write_many(out_dir, results)
-    return {s["label"]: {k: round(v, 4) if isinstance(v, float) else v for k, v in s.items()
-                         if k != "label"} for s in summaries}
+    return {
+        s["label"]: {
+            k: round(v, 4) if isinstance(v, float) else v for k, v in s.items() if k != "label"
+        }
+        for s in summaries
+    }
 
 
 # ----------------------------------------------------------------------------- sensitivity
@@ -445,49 +531,136 @@ def _sens_needed(scene):
 
 
 def _sens_inputs(scene, ctx):
-    return {"sensitivity": scene.values("sensitivity"), "bench": scene.values("bench"),
-            "skin": scene.values("skin"),
-            "taxels": taxels_path(scene, ctx), "states": states_path(scene, ctx)
-            } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
+    return {
+        "sensitivity": scene.values("sensitivity"),
+        "bench": scene.values("bench"),
+        "skin": scene.values("skin"),
+        "taxels": taxels_path(scene, ctx),
+        "states": states_path(scene, ctx),
+    } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
 
 
 def _sens_run(scene, ctx, out_dir):
     from fruitcli.sensing.stages import run_sensitivity
 
-    return run_sensitivity(scene, taxels_path(scene, ctx), states_path(scene, ctx), out_dir,
-                           progress=ctx.progress, crossing_dir=crossing_dir(scene, ctx))
+    return run_sensitivity(
+        scene,
+        taxels_path(scene, ctx),
+        states_path(scene, ctx),
+        out_dir,
+        progress=ctx.progress,
+        crossing_dir=crossing_dir(scene, ctx),
+    )
 
 
 STAGES: list[Stage] = [
-    Stage("make-artist", [], "fruitcli.geometry.artist", _artist_needed,
-          lambda s, c: {"artist": str(s.geometry.artist)}, _artist_run,
-          lambda s: [str(s.geometry.artist)]),
-    Stage("make-tracks", ["make-artist"], "fruitcli.geometry.tracks.make_tracks", _tracks_needed,
-          _tracks_inputs, _tracks_run,
-          lambda s: ["reduced.stl", "tracked_top.stl", "tracks.stl", "taxels.csv",
-                     "tracks.csv", "report.json", "preview.png"]),
-    Stage("pad-grid", [], "fruitcli.geometry.padgrid", _pad_needed, _pad_inputs, _pad_run,
-          lambda s: ["taxels.csv"]),
-    Stage("tetra", ["make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed, _tetra_inputs,
-          _tetra_run, lambda s: ["mesh.npz", "quality.json"]),
-    Stage("simulate", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.stage", _fem_needed,
-          _simulate_inputs, _simulate_run,
-          lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else [])),
-    Stage("reduce", ["tetra", "make-tracks", "pad-grid"], "fruitcli.fem.reduced.build",
-          _reduce_needed, _reduce_inputs, _reduce_run,
-          lambda s: ["reduced.npz", "validation.json"]),
-    Stage("skin", [], "fruitcli.electrostatics", _skin_needed, _skin_inputs, _skin_run,
-          lambda s: ["crossing.npz", "summary.json"]),
-    Stage("bench", ["simulate", "make-tracks", "pad-grid", "skin"], "fruitcli.sensing.stages",
-          _bench_needed, _bench_inputs, _bench_run,
-          lambda s: [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv"
-                                                                  for i in indenters(s)]),
-    Stage("locate", ["bench", "simulate", "reduce"], "fruitcli.sensing.stages", _locate_needed,
-          _locate_inputs, _locate_run, _locate_outputs),
-    Stage("evaluate", ["locate"], "fruitcli.evaluation.report", _eval_needed,
-          lambda s, c: {"rows": _eval_rows(s, c)}, _eval_run,
-          lambda s: ["table.md", "table.csv", "summary.json"]),
-    Stage("sensitivity", ["simulate", "make-tracks", "pad-grid", "skin"],
-          "fruitcli.sensing.stages",
-          _sens_needed, _sens_inputs, _sens_run, lambda s: ["sensitivity.json"]),
+    Stage(
+        "make-artist",
+        [],
+        "fruitcli.geometry.artist",
+        _artist_needed,
+        lambda s, c: {"artist": str(s.geometry.artist)},
+        _artist_run,
+        lambda s: [str(s.geometry.artist)],
+    ),
+    Stage(
+        "make-tracks",
+        ["make-artist"],
+        "fruitcli.geometry.tracks.make_tracks",
+        _tracks_needed,
+        _tracks_inputs,
+        _tracks_run,
+        lambda s: [
+            "reduced.stl",
+            "tracked_top.stl",
+            "tracks.stl",
+            "taxels.csv",
+            "tracks.csv",
+            "report.json",
+            "preview.png",
+        ],
+    ),
+    Stage(
+        "pad-grid",
+        [],
+        "fruitcli.geometry.padgrid",
+        _pad_needed,
+        _pad_inputs,
+        _pad_run,
+        lambda s: ["taxels.csv"],
+    ),
+    Stage(
+        "tetra",
+        ["make-tracks", "pad-grid"],
+        "fruitcli.fem.stage",
+        _fem_needed,
+        _tetra_inputs,
+        _tetra_run,
+        lambda s: ["mesh.npz", "quality.json"],
+    ),
+    Stage(
+        "simulate",
+        ["tetra", "make-tracks", "pad-grid"],
+        "fruitcli.fem.stage",
+        _fem_needed,
+        _simulate_inputs,
+        _simulate_run,
+        lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else []),
+    ),
+    Stage(
+        "reduce",
+        ["tetra", "make-tracks", "pad-grid"],
+        "fruitcli.fem.reduced.build",
+        _reduce_needed,
+        _reduce_inputs,
+        _reduce_run,
+        lambda s: ["reduced.npz", "validation.json"],
+    ),
+    Stage(
+        "skin",
+        [],
+        "fruitcli.electrostatics",
+        _skin_needed,
+        _skin_inputs,
+        _skin_run,
+        lambda s: ["crossing.npz", "summary.json"],
+    ),
+    Stage(
+        "bench",
+        ["simulate", "make-tracks", "pad-grid", "skin"],
+        "fruitcli.sensing.stages",
+        _bench_needed,
+        _bench_inputs,
+        _bench_run,
+        lambda s: (
+            [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv" for i in indenters(s)]
+        ),
+    ),
+    Stage(
+        "locate",
+        ["bench", "simulate", "reduce"],
+        "fruitcli.sensing.stages",
+        _locate_needed,
+        _locate_inputs,
+        _locate_run,
+        _locate_outputs,
+    ),
+    Stage(
+        "evaluate",
+        ["locate"],
+        "fruitcli.evaluation.report",
+        _eval_needed,
+        lambda s, c: {"rows": _eval_rows(s, c)},
+        _eval_run,
+        lambda s: ["table.md", "table.csv", "summary.json"],
+    ),
+    Stage(
+        "sensitivity",
+        ["simulate", "make-tracks", "pad-grid", "skin"],
+        "fruitcli.sensing.stages",
+        _sens_needed,
+        _sens_inputs,
+        _sens_run,
+        lambda s: ["sensitivity.json"],
+    ),
 ]

@@ -52,10 +52,14 @@ def test_glue_blend_keeps_the_crossing_and_moves_the_far_cell():
 def test_objects_hold_their_shapes():
     """The small tip's hemisphere, the Allen key's flat end, placed at (dx, dy, gap)."""
     small, medium = OBJECTS["small"], OBJECTS["medium"]
-    p = np.array([[1.0, 2.0, 0.5],  # the tip's lowest point
-                  [1.0 + 1.4, 2.0, 0.5 + 1.5],  # on the cap's equator, inside
-                  [1.0 + 1.0, 2.0, 0.6],  # beside the tip, under the cap
-                  [1.0, 2.0, 0.49]])  # just under it
+    p = np.array(
+        [
+            [1.0, 2.0, 0.5],  # the tip's lowest point
+            [1.0 + 1.4, 2.0, 0.5 + 1.5],  # on the cap's equator, inside
+            [1.0 + 1.0, 2.0, 0.6],  # beside the tip, under the cap
+            [1.0, 2.0, 0.49],
+        ]
+    )  # just under it
     assert small.contains(p, 1.0, 2.0, 0.5).tolist() == [True, True, False, False]
     q = np.array([[4.0, 0.0, 1.0], [4.1, 0.0, 1.0], [0.0, 0.0, 0.99], [0.0, 0.0, 9.0]])
     assert medium.contains(q, 0.0, 0.0, 1.0).tolist() == [True, False, False, True]
@@ -68,7 +72,7 @@ def test_offsets_cover_the_cell_with_both_signs():
 def test_footprint_fit_recovers_a_gaussian():
     dx, dy = np.array([0.0, 4.0, 8.0]), np.array([0.0, 3.0, 6.0])
     gx, gy = np.meshgrid(dx, dy, indexing="ij")
-    drop = 50.0 * np.exp(-0.5 * (gx ** 2 + gy ** 2) / 6.5 ** 2)
+    drop = 50.0 * np.exp(-0.5 * (gx**2 + gy**2) / 6.5**2)
     assert equivalents.footprint_sigma_mm(dx, dy, drop) == pytest.approx(6.5, rel=1e-6)
 
 
@@ -114,11 +118,11 @@ def test_kept_pattern_solve_matches_a_plain_dirichlet_solve(small_cell):
     plain = capacitance.mutual_capacitance(s.k, s.tx, s.rx, np.concatenate([sides, obj]))
     assert s.with_object("medium", 1.5, 0.0, 0.0) == pytest.approx(plain, rel=1e-9)
     c0 = s.capacitance()
-    assert c0 == pytest.approx(capacitance.mutual_capacitance(s.k, s.tx, s.rx, sides),
-                               rel=1e-9)
+    assert c0 == pytest.approx(capacitance.mutual_capacitance(s.k, s.tx, s.rx, sides), rel=1e-9)
     low = np.concatenate([s.rx, sides, obj])
-    u = capacitance.solve_potential(s.k, np.concatenate([s.tx, low]),
-                                    np.concatenate([np.ones(len(s.tx)), np.zeros(len(low))]))
+    u = capacitance.solve_potential(
+        s.k, np.concatenate([s.tx, low]), np.concatenate([np.ones(len(s.tx)), np.zeros(len(low))])
+    )
     charges = [capacitance.conductor_charge(s.k, u, n) for n in (s.tx, s.rx, sides, obj)]
     assert abs(sum(charges)) < 1e-8 * charges[0]
     assert 0 < plain < c0  # the grounded object takes field from Rx
@@ -134,7 +138,8 @@ def test_deformed_cell_is_solved_and_restored(small_cell):
     assert c_moved != pytest.approx(c0, rel=1e-6)
     assert s.capacitance(nodes=nodes) == pytest.approx(c0, rel=1e-12)
     assert s.capacitance(nodes=deform.deformed(nodes, nodes, 0.9, 2.5)) == pytest.approx(
-        c0, rel=1e-12)
+        c0, rel=1e-12
+    )
     s.capacitance(nodes=nodes)
 
 
@@ -142,11 +147,20 @@ def _table(c_bend_ff):
     gaps = np.array([0.0, 1.0, 2.0])
     dx, dy = crossing.offsets_mm(16.0), crossing.offsets_mm(12.0)
     gx, gy = np.meshgrid(dx, dy, indexing="ij")
-    dc = -40.0 * np.exp(-gaps / 2.0)[:, None, None] * np.exp(-0.5 * (gx ** 2 + gy ** 2) / 36)
+    dc = -40.0 * np.exp(-gaps / 2.0)[:, None, None] * np.exp(-0.5 * (gx**2 + gy**2) / 36)
     return crossing.CrossingTable(
-        800.0, ["small"], gaps, dx, dy, dc[None], ["stretch_x", "stretch_y", "bend_x", "bend_y"],
-        np.array([0.0, 0.1]), np.array([0.0, crossing.PAD_BEND_CURVATURE_PER_MM]),
-        np.full((2, 2), 800.0), np.asarray(c_bend_ff, float))
+        800.0,
+        ["small"],
+        gaps,
+        dx,
+        dy,
+        dc[None],
+        ["stretch_x", "stretch_y", "bend_x", "bend_y"],
+        np.array([0.0, 0.1]),
+        np.array([0.0, crossing.PAD_BEND_CURVATURE_PER_MM]),
+        np.full((2, 2), 800.0),
+        np.asarray(c_bend_ff, float),
+    )
 
 
 def test_counts_per_ff_sets_the_larger_bend_shift_to_ten_counts():

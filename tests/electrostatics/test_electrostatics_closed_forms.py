@@ -20,12 +20,12 @@ def test_parallel_plates_with_two_dielectrics(order):
     """Layers 0.5 mm of eps_r 3 and 1 mm of air under a 4 x 4 mm plate: the series
     capacitance 1 / (d1 / (eps0 3 A) + d2 / (eps0 A)), within 1 %, by charge and energy."""
     mesh = shapes.layered_plates(4.0, [0.5, 1.0], 1.0, order)
-    k = assemble.stiffness(mesh.nodes, mesh.tets, _eps(mesh, {"layer0": 3.0, "layer1": 1.0}),
-                           order)
+    k = assemble.stiffness(mesh.nodes, mesh.tets, _eps(mesh, {"layer0": 3.0, "layer1": 1.0}), order)
     exact = 1.0 / (1.0 / cf.parallel_plate(16.0, 0.5, 3.0) + 1.0 / cf.parallel_plate(16.0, 1.0))
     for method in ("charge", "energy"):
-        c = capacitance.two_conductor_capacitance(k, mesh.surfaces["top"],
-                                                  mesh.surfaces["bottom"], method)
+        c = capacitance.two_conductor_capacitance(
+            k, mesh.surfaces["top"], mesh.surfaces["bottom"], method
+        )
         assert c == pytest.approx(exact, rel=0.01)
 
 
@@ -42,15 +42,15 @@ def test_grounded_sphere_over_grounded_plane():
     """R = 1 mm, centre 1.5 mm above the plane: the image series, within 2 %."""
     mesh = shapes.sphere_over_plane(1.0, 1.5, 10.0, 0.15, 3.0, order=2)
     k = assemble.stiffness(mesh.nodes, mesh.tets, 1.0, 2)
-    c = capacitance.two_conductor_capacitance(k, mesh.surfaces["sphere"],
-                                              mesh.surfaces["plane"])
+    c = capacitance.two_conductor_capacitance(k, mesh.surfaces["sphere"], mesh.surfaces["plane"])
     assert c == pytest.approx(cf.sphere_over_plane(1.0, 1.5), rel=0.02)
 
 
 def test_sphere_over_plane_series_limits():
     """Far from the plane the series tends to an isolated sphere, 4 pi eps0 R."""
-    assert cf.sphere_over_plane(1.0, 1e4) == pytest.approx(4 * np.pi * assemble.EPS0_FF_PER_MM,
-                                                           rel=1e-3)
+    assert cf.sphere_over_plane(1.0, 1e4) == pytest.approx(
+        4 * np.pi * assemble.EPS0_FF_PER_MM, rel=1e-3
+    )
 
 
 def test_line_charge_over_dielectric_half_space():
@@ -61,8 +61,7 @@ def test_line_charge_over_dielectric_half_space():
     dielectric the closed form is off by a third of the range."""
     height, length, e_air, e_sil = 1.0, 0.5, 1.0, 2.8
     mesh = shapes.line_charge_slab(height, 0.05, 5.0, length, 0.03, 1.0, order=2)
-    k = assemble.stiffness(mesh.nodes, mesh.tets, _eps(mesh, {"upper": e_air, "lower": e_sil}),
-                           2)
+    k = assemble.stiffness(mesh.nodes, mesh.tets, _eps(mesh, {"upper": e_air, "lower": e_sil}), 2)
     xz = mesh.nodes[:, [0, 2]]
     exact = cf.line_charge_over_dielectric(xz, height, e_air, e_sil, charge_fc_per_mm=1.0)
     fixed = np.concatenate([mesh.surfaces["wire"], mesh.surfaces["outer"]])
@@ -83,8 +82,9 @@ def _slope(n_nodes, errors) -> float:
     return float(np.polyfit(np.log(h), np.log(errors), 1)[0])
 
 
-@pytest.mark.parametrize("order, sizes, rate", [(1, (0.2, 0.14, 0.1), 2.0),
-                                                (2, (0.3, 0.2, 0.14), 3.0)])
+@pytest.mark.parametrize(
+    "order, sizes, rate", [(1, (0.2, 0.14, 0.1), 2.0), (2, (0.3, 0.2, 0.14), 3.0)]
+)
 def test_potential_error_falls_at_the_element_rate(order, sizes, rate):
     """u = exp(x) cos(y) on a box, Dirichlet on x = 0, 1: the nodal RMS error falls as
     h^(p+1) (2 for linear, 3 for quadratic tets), within 0.5."""
@@ -108,8 +108,7 @@ def test_capacitance_error_falls_at_the_element_rate():
     for h in (0.3, 0.2, 0.15):
         mesh = shapes.concentric_spheres(1.0, 2.0, h, 1)
         k = assemble.stiffness(mesh.nodes, mesh.tets, 1.0, 1)
-        c = capacitance.two_conductor_capacitance(k, mesh.surfaces["inner"],
-                                                  mesh.surfaces["outer"])
+        c = capacitance.two_conductor_capacitance(k, mesh.surfaces["inner"], mesh.surfaces["outer"])
         n.append(len(mesh.nodes))
         err.append(abs(c / cf.concentric_spheres(1.0, 2.0) - 1.0))
     assert err[-1] < 0.01
@@ -122,7 +121,8 @@ def test_mutual_capacitance_is_symmetric():
     k = assemble.stiffness(mesh.nodes, mesh.tets, 1.0, 1)
     left, right = mesh.surfaces["left"], mesh.surfaces["right"]
     assert capacitance.mutual_capacitance(k, left, right) == pytest.approx(
-        capacitance.mutual_capacitance(k, right, left), rel=1e-9)
+        capacitance.mutual_capacitance(k, right, left), rel=1e-9
+    )
 
 
 def test_quadratic_element_stiffness_annihilates_constants():

@@ -11,18 +11,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fruitcli.scene import parse_scene  # noqa: E402
-from fruitcli.sensing.detection.locate import load_states  # noqa: E402
-from fruitcli.sensing.frames.board import taxel_cells  # noqa: E402
-from fruitcli.sensing.frames.recording import read_npz  # noqa: E402
-from fruitcli.sensing.skin import forward  # noqa: E402
-from fruitcli.sensing.skin.crossing_skin import (  # noqa: E402
+from fruitcli.scene import parse_scene
+from fruitcli.sensing.detection.locate import load_states
+from fruitcli.sensing.frames.board import taxel_cells
+from fruitcli.sensing.frames.recording import read_npz
+from fruitcli.sensing.skin import forward
+from fruitcli.sensing.skin.crossing_skin import (
     CrossingSkin,
     _odd_interp,
     yarn_deformation,
 )
-from fruitcli.sensing.stages import run_bench, run_sensitivity  # noqa: E402
-from fruitcli.tables import read_taxels  # noqa: E402
+from fruitcli.sensing.stages import run_bench, run_sensitivity
+from fruitcli.tables import read_taxels
 from tests.sensing.skin.test_virtual_bench import pad_states, pad_taxel_csv
 
 PAD = """
@@ -66,8 +66,9 @@ def pad_run(tmp_path_factory):
     out = tmp / "out"
     runner = CliRunner()
     first = runner.invoke(cli, ["run", str(scene), "--out", str(out)], catch_exceptions=False)
-    second = runner.invoke(cli, ["run", str(scene), "--out", str(out), "--dry-run"],
-                           catch_exceptions=False)
+    second = runner.invoke(
+        cli, ["run", str(scene), "--out", str(out), "--dry-run"], catch_exceptions=False
+    )
     return tmp, out, first, second
 
 
@@ -101,7 +102,7 @@ def test_bench_activation_is_the_tables_counts(pad_run):
         frames = rec.frames[:, rows, cols]
         first_sample = np.flatnonzero(rec.sample == 0)[0]
         # sample 0 is over taxel 5: its frames from the start gap down, step 0.25 mm
-        approach = frames[idle:first_sample + 1, 5] - skin.baseline_counts[5]
+        approach = frames[idle : first_sample + 1, 5] - skin.baseline_counts[5]
         gaps = 5.0 - 0.25 * np.arange(len(approach))
         expected = table.drop(name, 0.0, 0.0, gaps)
         assert np.all(np.abs(approach - expected) <= 0.5 + 1e-9)
@@ -109,28 +110,41 @@ def test_bench_activation_is_the_tables_counts(pad_run):
         dc = -summary["counts_per_ff"] * np.load(out / "skin" / "crossing.npz")["dc_ff"]
         centre = dc[k, :, 2, 2]
         assert table.drop(name, 0.0, 0.0, 0.0) == pytest.approx(
-            summary["objects"][name]["contact_counts"], rel=1e-9)
+            summary["objects"][name]["contact_counts"], rel=1e-9
+        )
         assert table.drop(name, 0.0, 0.0, [0.0, 1.0, 2.0]) == pytest.approx(centre, rel=1e-9)
         assert table.drop(name, 0.0, 0.0, 0.5) == pytest.approx(centre[:2].mean(), rel=1e-9)
         assert np.all(np.diff(table.drop(name, 0.0, 0.0, np.linspace(0, 5, 21))) < 0)
         crossed = gaps[-1]
         if summary["objects"][name]["contact_counts"] > scene.detection.threshold_counts:
             assert table.drop(name, 0.0, 0.0, crossed) > scene.detection.threshold_counts - 1
-            assert table.drop(name, 0.0, 0.0, crossed + 0.25) <= \
-                scene.detection.threshold_counts + 1
+            assert (
+                table.drop(name, 0.0, 0.0, crossed + 0.25) <= scene.detection.threshold_counts + 1
+            )
 
 
 def _synthetic_table() -> CrossingSkin:
     gap = np.array([0.0, 1.0, 2.0])
     d = np.array([-4.0, -2.0, 0.0, 2.0, 4.0])
     gx, gy = np.meshgrid(d, d, indexing="ij")
-    lateral = np.exp(-(gx ** 2 + gy ** 2) / 18.0)
+    lateral = np.exp(-(gx**2 + gy**2) / 18.0)
     drop = 40.0 * np.exp(-gap / 2.0)[:, None, None] * lateral[None]
-    return CrossingSkin(("small",), gap, d, d, drop[None], np.array([3.0]), np.array([2.0]),
-                        np.array([2.0]),
-                        np.array([0.0, 0.1, 0.2]), np.array([0.0, 0.05]),
-                        np.array([[0.0, 1.0, 3.0], [0.0, -1.0, -2.0]]),
-                        np.array([[0.0, 4.0], [0.0, 10.0]]), 1.5, 0.5)
+    return CrossingSkin(
+        ("small",),
+        gap,
+        d,
+        d,
+        drop[None],
+        np.array([3.0]),
+        np.array([2.0]),
+        np.array([2.0]),
+        np.array([0.0, 0.1, 0.2]),
+        np.array([0.0, 0.05]),
+        np.array([[0.0, 1.0, 3.0], [0.0, -1.0, -2.0]]),
+        np.array([[0.0, 4.0], [0.0, 10.0]]),
+        1.5,
+        0.5,
+    )
 
 
 def test_offsets_and_gaps_beyond_the_table_continue_it():
@@ -139,8 +153,7 @@ def test_offsets_and_gaps_beyond_the_table_continue_it():
     assert t.drop("small", 6.0, 0.0, 0.0) == pytest.approx(edge * np.exp(-0.5 * 20 / 9.0))
     assert t.drop("small", 0.0, 0.0, 3.0) == pytest.approx(40.0 * np.exp(-1.5))
     assert t.drop("small", 0.0, 0.0, -1.0) == pytest.approx(40.0 * np.exp(0.5))  # pressed
-    assert t.drop("small", 1.0, 0.0, 0.0) == pytest.approx(
-        40.0 * (1 + np.exp(-4 / 18)) / 2)
+    assert t.drop("small", 1.0, 0.0, 0.0) == pytest.approx(40.0 * (1 + np.exp(-4 / 18)) / 2)
     with pytest.raises(Exception, match="indenter"):
         t.drop("finger", 0.0, 0.0, 0.0)
 
@@ -152,8 +165,9 @@ def test_shift_is_the_bend_plus_the_stretch_left_over():
     assert shift[0] == pytest.approx(4.0)
     shift = t.deformation_shift(np.array([[0.0, 0.15]]), np.array([[0.0, 0.0]]))
     assert shift[0] == pytest.approx(-1.5)
-    assert _odd_interp(np.array([-0.15, 0.3]), t.strain, t.stretch_counts[0]) == \
-        pytest.approx([-2.0, 5.0])
+    assert _odd_interp(np.array([-0.15, 0.3]), t.strain, t.stretch_counts[0]) == pytest.approx(
+        [-2.0, 5.0]
+    )
 
 
 def test_bent_pad_surface_stretch_and_curvature(tmp_path):
@@ -181,9 +195,14 @@ def test_a_body_curved_at_rest_has_no_shift_at_rest(tmp_path):
     radius = 48.0 / np.pi
     bent = forward.bend_nodes(flat, radius, 3.0)
     k, bary, _ = locate(flat, tets, forward.pad_taxels_mm(z_mm=3.0 - 1e-6))
-    states = SimpleNamespace(rest_nodes=bent, tets=tets, surface_tris=boundary_faces(flat, tets),
-                             displacement_mm=np.array([bent - bent, flat - bent]),
-                             taxel_tet=k, taxel_bary=bary)
+    states = SimpleNamespace(
+        rest_nodes=bent,
+        tets=tets,
+        surface_tris=boundary_faces(flat, tets),
+        displacement_mm=np.array([bent - bent, flat - bent]),
+        taxel_tet=k,
+        taxel_bary=bary,
+    )
     table = _synthetic_table()
     shift = shift_counts(states, table, np.ones(16))
     assert np.abs(shift[0]).max() < 1e-9
@@ -197,19 +216,33 @@ def test_bent_pad_shift_is_the_tables_bend(tmp_path):
     table = _synthetic_table()
     tables = tmp_path / "skin"
     tables.mkdir()
-    np.savez(tables / "crossing.npz", c0_ff=np.array(100.0), objects=np.array(["small"]),
-             gap_mm=table.gap_mm, dx_mm=table.dx_mm, dy_mm=table.dy_mm,
-             dc_ff=-table.drop_counts / 0.5, strain=table.strain,
-             curvature_per_mm=np.array([0.0, np.pi / 48]),
-             c_stretch_ff=100.0 - table.stretch_counts / 0.5,
-             c_bend_ff=100.0 - table.bend_counts / 0.5)
-    (tmp_path / "skin" / "summary.json").write_text(json.dumps(
-        {"counts_per_ff": 0.5, "objects": {"small": {"footprint_sigma_mm": 3.0,
-                                                     "gap_decay_mm": 2.0}}}))
+    np.savez(
+        tables / "crossing.npz",
+        c0_ff=np.array(100.0),
+        objects=np.array(["small"]),
+        gap_mm=table.gap_mm,
+        dx_mm=table.dx_mm,
+        dy_mm=table.dy_mm,
+        dc_ff=-table.drop_counts / 0.5,
+        strain=table.strain,
+        curvature_per_mm=np.array([0.0, np.pi / 48]),
+        c_stretch_ff=100.0 - table.stretch_counts / 0.5,
+        c_bend_ff=100.0 - table.bend_counts / 0.5,
+    )
+    (tmp_path / "skin" / "summary.json").write_text(
+        json.dumps(
+            {
+                "counts_per_ff": 0.5,
+                "objects": {"small": {"footprint_sigma_mm": 3.0, "gap_decay_mm": 2.0}},
+            }
+        )
+    )
     states = pad_states(tmp_path / "s.npz")
     taxels = pad_taxel_csv(tmp_path / "t.csv")
-    text = "[grid]\nspacing_x_mm = 16.0\nspacing_y_mm = 16.0\n[sensitivity]\n" \
-           "[skin]\nmodel = \"electrostatic\"\n"
+    text = (
+        "[grid]\nspacing_x_mm = 16.0\nspacing_y_mm = 16.0\n[sensitivity]\n"
+        '[skin]\nmodel = "electrostatic"\n'
+    )
     sc = parse_scene(text, tmp_path / "pad.toml", must_exist=False)
     out = run_sensitivity(sc, taxels, states, tmp_path / "sens", crossing_dir=tables)
     fab = np.array([t["fab"] for t in out["taxels"]])
@@ -224,16 +257,20 @@ def test_gaussian_outputs_do_not_depend_on_the_electrostatic_keys(tmp_path):
     states = pad_states(tmp_path / "s.npz")
     base = "[grid]\nspacing_x_mm = 16.0\nspacing_y_mm = 16.0\n[bench]\nstate = 2\n"
     plain = parse_scene(base, tmp_path / "a.toml", must_exist=False)
-    keyed = parse_scene(base + "[skin]\nmodel = \"gaussian\"\npermittivity = 3.5\n"
-                        "gaps_mm = [0.0, 1.0]\n", tmp_path / "b.toml", must_exist=False)
+    keyed = parse_scene(
+        base + '[skin]\nmodel = "gaussian"\npermittivity = 3.5\ngaps_mm = [0.0, 1.0]\n',
+        tmp_path / "b.toml",
+        must_exist=False,
+    )
     run_bench(plain, taxels, states, tmp_path / "a")
     run_bench(keyed, taxels, states, tmp_path / "b", crossing_dir=tmp_path / "none")
     for ind in ("small", "medium"):
         a = read_npz(tmp_path / "a" / ind / "frames.npz")
         b = read_npz(tmp_path / "b" / ind / "frames.npz")
         assert np.array_equal(a.frames, b.frames) and np.array_equal(a.sample, b.sample)
-        assert (tmp_path / "a" / ind / "truth.csv").read_bytes() == \
-            (tmp_path / "b" / ind / "truth.csv").read_bytes()
+        assert (tmp_path / "a" / ind / "truth.csv").read_bytes() == (
+            tmp_path / "b" / ind / "truth.csv"
+        ).read_bytes()
 
 
 def test_a_yarn_that_does_not_fit_stops_the_run_naming_the_key(tmp_path, fruit):

@@ -59,30 +59,36 @@ def test_skin_writes_the_table_and_summary(tmp_path, fruit):
         obj = summary["objects"][name]
         assert obj["footprint_sigma_mm"] > 0 and obj["gap_decay_mm"] > 0
         assert obj["contact_counts"] == pytest.approx(
-            -summary["counts_per_ff"] * obj["contact_dc_ff"])
+            -summary["counts_per_ff"] * obj["contact_dc_ff"]
+        )
     assert summary["mesh_s"] > 0 and summary["solve_s"] > 0
     assert summary["inputs"]["yarn_radius_mm"] == 0.4
 
 
-@pytest.mark.parametrize("edit, key", [
-    ("permittivity = 0.0", "[skin].permittivity"),
-    ("permittivity = -2.8", "[skin].permittivity"),
-    ("insulation_mm = 0.0", "[skin].insulation_mm"),
-    ("gaps_mm = [0.5, 1.0]", "[skin].gaps_mm"),
-    ("gaps_mm = [0.0, 1.0, 1.0]", "[skin].gaps_mm"),
-    ("yarn_radius_mm = 2.6", "[skin].yarn_radius_mm"),
-    ("yarn_radius_mm = 1.6", "[skin].yarn_radius_mm"),
-    ("yarn_radius_mm = 0.74", "[skin].yarn_radius_mm"),
-    ("model = \"electrostatics\"", "[skin].model"),
-])
+@pytest.mark.parametrize(
+    "edit, key",
+    [
+        ("permittivity = 0.0", "[skin].permittivity"),
+        ("permittivity = -2.8", "[skin].permittivity"),
+        ("insulation_mm = 0.0", "[skin].insulation_mm"),
+        ("gaps_mm = [0.5, 1.0]", "[skin].gaps_mm"),
+        ("gaps_mm = [0.0, 1.0, 1.0]", "[skin].gaps_mm"),
+        ("yarn_radius_mm = 2.6", "[skin].yarn_radius_mm"),
+        ("yarn_radius_mm = 1.6", "[skin].yarn_radius_mm"),
+        ("yarn_radius_mm = 0.74", "[skin].yarn_radius_mm"),
+        ('model = "electrostatics"', "[skin].model"),
+    ],
+)
 def test_bad_skin_inputs_are_one_line_naming_the_key(tmp_path, fruit, edit, key):
     """Permittivity <= 0, no insulation, a gap table not from contact or not increasing,
     a yarn wider than half the pitch (2.5 mm), than the cover (1.5 mm) or reaching the
     surface, an unknown model."""
     text = SMALL_CELL.replace("[skin]\n", f"[skin]\n{edit}\n")
-    text = "\n".join(line for line in text.splitlines()
-                     if not (line.split("=")[0].strip() == edit.split("=")[0].strip()
-                             and line != edit))
+    text = "\n".join(
+        line
+        for line in text.splitlines()
+        if not (line.split("=")[0].strip() == edit.split("=")[0].strip() and line != edit)
+    )
     out = tmp_path / "out"
     result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
     assert result.exit_code == 1
@@ -94,7 +100,8 @@ def test_bad_skin_inputs_are_one_line_naming_the_key(tmp_path, fruit, edit, key)
 def test_track_radius_is_named_when_it_is_the_yarn(tmp_path, fruit):
     """Without [skin].yarn_radius_mm the yarn is [tracks].track_radius_mm: that key is named."""
     text = SMALL_CELL.replace("yarn_radius_mm = 0.4\n", "").replace(
-        "track_radius_mm = 0.6", "track_radius_mm = 0.8")
+        "track_radius_mm = 0.6", "track_radius_mm = 0.8"
+    )
     result = fruit("-q", "skin", _scene(tmp_path, text), "--out", tmp_path / "out")
     assert result.exit_code == 1
     assert "[tracks].track_radius_mm" in result.output

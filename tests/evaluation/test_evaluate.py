@@ -13,9 +13,19 @@ from tests.conftest import PAPER, ROOT
 
 def test_paper_rest_row_is_reproduced(fruit, tmp_path):
     """Table I, 'Rest, small': mean 2.56 mm (1.7 %), std 1.28 mm (0.8 %) at 152 mm."""
-    res = fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv",
-                "--measured", PAPER / "paper_rest_measured.csv", "--out", tmp_path / "ev",
-                "--reference-length-mm", 152, "--label", "Rest, small")
+    res = fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "ev",
+        "--reference-length-mm",
+        152,
+        "--label",
+        "Rest, small",
+    )
     assert res.exit_code == 0, res.output
     s = json.loads((tmp_path / "ev" / "summary.json").read_text())
     assert s["n"] == 29 and s["dims"] == 3
@@ -42,8 +52,15 @@ def test_summary_uses_population_std():
 
 
 def test_top_view_data_is_said_and_has_no_side_view(fruit, tmp_path):
-    res = fruit("evaluate", "--truth", PAPER / "paper_deformed_truth_xy.csv",
-                "--measured", PAPER / "paper_deformed_measured_xy.csv", "--out", tmp_path / "d")
+    res = fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_deformed_truth_xy.csv",
+        "--measured",
+        PAPER / "paper_deformed_measured_xy.csv",
+        "--out",
+        tmp_path / "d",
+    )
     assert res.exit_code == 0, res.output
     assert "top view" in res.output
     assert not (tmp_path / "d" / "side.png").exists()
@@ -52,12 +69,21 @@ def test_top_view_data_is_said_and_has_no_side_view(fruit, tmp_path):
 
 
 def test_errors_csv_round_trip(fruit, tmp_path):
-    fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv",
-          "--measured", PAPER / "paper_rest_measured.csv", "--out", tmp_path / "e")
+    fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "e",
+    )
     from fruitcli.tables import read_table
 
-    t = read_table(tmp_path / "e" / "errors.csv",
-                   ["sample", "error_mm", "error_x_mm", "error_y_mm", "error_z_mm"])
+    t = read_table(
+        tmp_path / "e" / "errors.csv",
+        ["sample", "error_mm", "error_x_mm", "error_y_mm", "error_z_mm"],
+    )
     assert len(t["sample"]) == 29
     vec = np.column_stack([t["error_x_mm"], t["error_y_mm"], t["error_z_mm"]])
     np.testing.assert_allclose(np.linalg.norm(vec, axis=1), t["error_mm"], atol=2e-6)
@@ -68,22 +94,39 @@ def _csv(path, text):
     return path
 
 
-@pytest.mark.parametrize("truth,measured,expected", [
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n0,0,0\n2,1,1\n",
-     "missing sample(s) 1 present in truth.csv; extra sample(s) 2"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n0,0,abc\n1,1,1\n",
-     "measured.csv: row 2: column y_mm: not a number: 'abc'"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n0,0,nan\n1,1,1\n",
-     "row 2: column y_mm: not finite"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm\n0,0\n1,1\n",
-     "missing column(s) y_mm"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "", "measured.csv: empty file"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n", "no data rows"),
-    ("sample,x_mm,y_mm\n0,0,0\n0,1,1\n", "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
-     "duplicate sample 0"),
-    ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n0,0,0,9\n1,1,1\n",
-     "row 2: expected 3 fields, got 4"),
-])
+@pytest.mark.parametrize(
+    "truth,measured,expected",
+    [
+        (
+            "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
+            "sample,x_mm,y_mm\n0,0,0\n2,1,1\n",
+            "missing sample(s) 1 present in truth.csv; extra sample(s) 2",
+        ),
+        (
+            "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
+            "sample,x_mm,y_mm\n0,0,abc\n1,1,1\n",
+            "measured.csv: row 2: column y_mm: not a number: 'abc'",
+        ),
+        (
+            "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
+            "sample,x_mm,y_mm\n0,0,nan\n1,1,1\n",
+            "row 2: column y_mm: not finite",
+        ),
+        ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm\n0,0\n1,1\n", "missing column(s) y_mm"),
+        ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "", "measured.csv: empty file"),
+        ("sample,x_mm,y_mm\n0,0,0\n1,1,1\n", "sample,x_mm,y_mm\n", "no data rows"),
+        (
+            "sample,x_mm,y_mm\n0,0,0\n0,1,1\n",
+            "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
+            "duplicate sample 0",
+        ),
+        (
+            "sample,x_mm,y_mm\n0,0,0\n1,1,1\n",
+            "sample,x_mm,y_mm\n0,0,0,9\n1,1,1\n",
+            "row 2: expected 3 fields, got 4",
+        ),
+    ],
+)
 def test_bad_input_is_one_line_and_writes_nothing(fruit, tmp_path, truth, measured, expected):
     t = _csv(tmp_path / "truth.csv", truth)
     m = _csv(tmp_path / "measured.csv", measured)
@@ -96,27 +139,50 @@ def test_bad_input_is_one_line_and_writes_nothing(fruit, tmp_path, truth, measur
 
 
 def test_bad_reference_length(fruit, tmp_path):
-    res = fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv",
-                "--measured", PAPER / "paper_rest_measured.csv", "--out", tmp_path / "o",
-                "--reference-length-mm", 0)
+    res = fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "o",
+        "--reference-length-mm",
+        0,
+    )
     assert res.exit_code == 1 and "expected a length > 0 mm" in res.output
     assert not (tmp_path / "o").exists()
 
 
 def test_missing_file(fruit, tmp_path):
-    res = fruit("evaluate", "--truth", tmp_path / "nope.csv",
-                "--measured", PAPER / "paper_rest_measured.csv", "--out", tmp_path / "o")
+    res = fruit(
+        "evaluate",
+        "--truth",
+        tmp_path / "nope.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "o",
+    )
     assert res.exit_code == 1 and "nope.csv: file not found" in res.output
 
 
 def test_existing_outputs_survive_a_failed_run(fruit, tmp_path):
     out = tmp_path / "ev"
-    fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv",
-          "--measured", PAPER / "paper_rest_measured.csv", "--out", out)
+    fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        out,
+    )
     before = (out / "summary.json").read_text()
     bad = _csv(tmp_path / "bad.csv", "sample,x_mm,y_mm,z_mm\n0,1,2,x\n")
-    res = fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured", bad,
-                "--out", out)
+    res = fruit(
+        "evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured", bad, "--out", out
+    )
     assert res.exit_code == 1
     assert (out / "summary.json").read_text() == before
 

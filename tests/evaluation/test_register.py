@@ -13,14 +13,16 @@ from fruitcli.evaluation.metrics import bootstrap_ci, error_stats, match, read_p
 from fruitcli.evaluation.register import register
 from tests.conftest import PAPER
 
-ROT = Rotation.from_rotvec(np.radians(23.0) * np.array([0.3, -0.5, 0.81]) /
-                          np.linalg.norm([0.3, -0.5, 0.81])).as_matrix()
+ROT = Rotation.from_rotvec(
+    np.radians(23.0) * np.array([0.3, -0.5, 0.81]) / np.linalg.norm([0.3, -0.5, 0.81])
+).as_matrix()
 SHIFT = np.array([110.0, -42.5, 7.25])
 
 
 def paper_rest():
-    _, t, m = match(read_points(PAPER / "paper_rest_truth.csv"),
-                    read_points(PAPER / "paper_rest_measured.csv"))
+    _, t, m = match(
+        read_points(PAPER / "paper_rest_truth.csv"), read_points(PAPER / "paper_rest_measured.csv")
+    )
     return t, m
 
 
@@ -75,8 +77,9 @@ def test_translation_removes_the_mean_error_vector():
     meas = truth + rng.normal(0, 1.0, truth.shape) + [2.0, -1.0, 0.5]
     s = summarize(truth, meas, 100.0, "translation")
     assert np.abs(s["bias_mm"]).max() < 1e-12
-    np.testing.assert_allclose(s["compare"]["none"]["bias_mm"],
-                               (meas - truth).mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(
+        s["compare"]["none"]["bias_mm"], (meas - truth).mean(axis=0), atol=1e-12
+    )
     assert s["mean_mm"] < s["compare"]["none"]["mean_mm"]
 
 
@@ -104,16 +107,18 @@ def test_bootstrap_is_seeded_and_contains_the_mean():
 
 def test_too_few_or_collinear_samples_are_refused():
     pts = np.array([[0.0, 0, 0], [1, 1, 1], [2, 0, 1]])
-    with pytest.raises(EvaluationError, match="m.csv: register = rigid needs at least 3 "
-                                              "matched sample"):
+    with pytest.raises(
+        EvaluationError, match="m.csv: register = rigid needs at least 3 matched sample"
+    ):
         register(pts[:2], pts[:2], "rigid", "m.csv")
     line = np.array([[0.0, 0, 0], [1, 1, 1], [2, 2, 2], [3, 3, 3]])
     with pytest.raises(EvaluationError, match="lie on one line"):
         register(line, line + 1, "similarity", "m.csv")
     with pytest.raises(EvaluationError, match="translation needs at least 1"):
         register(np.zeros((0, 3)), np.zeros((0, 3)), "translation", "m.csv")
-    with pytest.raises(EvaluationError, match="top-view .x, y. data support none and "
-                                              "translation only"):
+    with pytest.raises(
+        EvaluationError, match="top-view .x, y. data support none and translation only"
+    ):
         register(pts[:, :2], pts[:, :2], "rigid", "m.csv")
 
 
@@ -124,9 +129,19 @@ def _csv(path, rows, z=True):
 
 
 def test_cli_register_writes_the_transform(fruit, tmp_path):
-    res = fruit("evaluate", "--truth", PAPER / "paper_rest_truth.csv",
-                "--measured", PAPER / "paper_rest_measured.csv", "--out", tmp_path / "ev",
-                "--reference-length-mm", 152, "--register", "rigid")
+    res = fruit(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        PAPER / "paper_rest_measured.csv",
+        "--out",
+        tmp_path / "ev",
+        "--reference-length-mm",
+        152,
+        "--register",
+        "rigid",
+    )
     assert res.exit_code == 0, res.output
     s = json.loads((tmp_path / "ev" / "summary.json").read_text())
     assert s["register"] == "rigid" and s["transform"]["method"] == "rigid"
@@ -139,19 +154,31 @@ def test_cli_register_writes_the_transform(fruit, tmp_path):
     assert "registered_error_mm" in errors and "error_mm" in errors
 
 
-@pytest.mark.parametrize("rows,z,method,expected", [
-    ([(0, 0, 0, 0), (1, 1, 0, 0)], True, "rigid",
-     "register = rigid needs at least 3 matched sample(s) not on one line, got 2"),
-    ([(0, 0, 0, 0), (1, 1, 1, 1), (2, 2, 2, 2)], True, "similarity", "lie on one line"),
-    ([(0, 0, 0), (1, 1, 0), (2, 0, 1)], False, "rigid",
-     "register = rigid needs 3D data (x, y, z); top-view (x, y) data support none and "
-     "translation only"),
-])
+@pytest.mark.parametrize(
+    "rows,z,method,expected",
+    [
+        (
+            [(0, 0, 0, 0), (1, 1, 0, 0)],
+            True,
+            "rigid",
+            "register = rigid needs at least 3 matched sample(s) not on one line, got 2",
+        ),
+        ([(0, 0, 0, 0), (1, 1, 1, 1), (2, 2, 2, 2)], True, "similarity", "lie on one line"),
+        (
+            [(0, 0, 0), (1, 1, 0), (2, 0, 1)],
+            False,
+            "rigid",
+            "register = rigid needs 3D data (x, y, z); top-view (x, y) data support none and "
+            "translation only",
+        ),
+    ],
+)
 def test_cli_bad_registration_is_one_line(fruit, tmp_path, rows, z, method, expected):
     t = _csv(tmp_path / "truth.csv", rows, z)
     m = _csv(tmp_path / "measured.csv", rows, z)
-    res = fruit("evaluate", "--truth", t, "--measured", m, "--out", tmp_path / "o",
-                "--register", method)
+    res = fruit(
+        "evaluate", "--truth", t, "--measured", m, "--out", tmp_path / "o", "--register", method
+    )
     assert res.exit_code == 1
     assert expected in res.output and "measured.csv" in res.output
     assert len(res.output.strip().splitlines()) == 1
@@ -162,15 +189,20 @@ def test_scene_register_key(fruit, tmp_path):
     from fruitcli.errors import SceneError
     from fruitcli.scene import parse_scene
 
-    text = (f'[[evaluate]]\nlabel = "Rest, small"\ntruth = "{PAPER / "paper_rest_truth.csv"}"\n'
-            f'measured = "{PAPER / "paper_rest_measured.csv"}"\nregister = "translation"\n')
+    text = (
+        f'[[evaluate]]\nlabel = "Rest, small"\ntruth = "{PAPER / "paper_rest_truth.csv"}"\n'
+        f'measured = "{PAPER / "paper_rest_measured.csv"}"\nregister = "translation"\n'
+    )
     (tmp_path / "s.toml").write_text(text)
     res = fruit("run", tmp_path / "s.toml", "--out", tmp_path / "out")
     assert res.exit_code == 0, res.output
     s = json.loads((tmp_path / "out" / "evaluate" / "summary.json").read_text())
     assert s["rest-small"]["register"] == "translation"
-    with pytest.raises(SceneError, match=r"\[\[evaluate\]\] 'Rest, small'.register: expected "
-                                         "one of none, translation, rigid, similarity"):
+    with pytest.raises(
+        SceneError,
+        match=r"\[\[evaluate\]\] 'Rest, small'.register: expected "
+        "one of none, translation, rigid, similarity",
+    ):
         parse_scene(text.replace('"translation"', '"affine"'), tmp_path / "s.toml")
 
 

@@ -78,12 +78,12 @@ def test_parts_do_not_overlap_and_enclose_the_piece(molded):
         b = m["box_mm"]
         outer = mf.Manifold.cube(tuple(np.subtract(b[3:], b[:3]))).translate(tuple(b[:3]))
         # the pour hole and vents: vertical channels from the given points to the box top
-        channels = [mf.Manifold.cylinder(b[5] + 1 - (z - 0.5), d / 2, d / 2, 48).translate(
-                        (x, y, z - 0.5))
-                    for (x, y, z), d in [(m["pour_hole_mm"], m["pour_diameter_mm"])]
-                    + [(v, m["vent_diameter_mm"]) for v in m["vents_mm"]]]
-        cavity = mf.Manifold.batch_boolean([outer, *parts.values(), *channels],
-                                           mf.OpType.Subtract)
+        channels = [
+            mf.Manifold.cylinder(b[5] + 1 - (z - 0.5), d / 2, d / 2, 48).translate((x, y, z - 0.5))
+            for (x, y, z), d in [(m["pour_hole_mm"], m["pour_diameter_mm"])]
+            + [(v, m["vent_diameter_mm"]) for v in m["vents_mm"]]
+        ]
+        cavity = mf.Manifold.batch_boolean([outer, *parts.values(), *channels], mf.OpType.Subtract)
         cores = [p for n, p in parts.items() if "_core_" in n]
         silicone = mf.Manifold.batch_boolean([piece, *cores], mf.OpType.Subtract)
         differ = (cavity - silicone).volume() + (silicone - cavity).volume()
@@ -105,7 +105,7 @@ def test_ridges_of_the_top_shell_reproduce_the_tracks(molded):
     tracks = out / "make-tracks"
     t = read_table(tracks / "tracks.csv", ["track", "point", "x_mm", "y_mm", "z_mm"])
     last = np.r_[t["track"][1:] != t["track"][:-1], True]
-    inner = (t["point"] > 0) & ~last                  # a tube ends in a flat cap at its ends
+    inner = (t["point"] > 0) & ~last  # a tube ends in a flat cap at its ends
     p = np.c_[t["x_mm"], t["y_mm"], t["z_mm"]][inner][::7]
     red = trimesh.load_mesh(tracks / "reduced.stl", process=True)
     _, _, face = SurfaceDistance(red.vertices, red.faces).closest(p)
@@ -114,36 +114,38 @@ def test_ridges_of_the_top_shell_reproduce_the_tracks(molded):
     shell = trimesh.load_mesh(out / "top_shell.stl", process=True)
     wn = Winding(np.asarray(shell.vertices), np.asarray(shell.faces))
     z0 = rep["molds"][0]["parting_plane_z_mm"]
-    keep = p[:, 2] > z0 + 2.5 * r                     # tracks stay clear of the plane
+    keep = p[:, 2] > z0 + 2.5 * r  # tracks stay clear of the plane
     assert keep.sum() > 50
     assert (wn(p[keep] - 0.5 * r * n[keep]) > 0.5).all()
     assert (wn(p[keep] - 1.5 * r * n[keep]) < 0.5).all()
 
 
-@pytest.mark.parametrize("opts,words", [
-    (["--wall-mm", "0.5"], ["--wall-mm", "at least 1 mm", "0.5 mm"]),
-    (["--clearance-mm", "5"], ["--clearance-mm", "up to the wall (4 mm)", "5 mm"]),
-    (["--key-radius-mm", "6"], ["--key-radius-mm", "smaller than the wall"]),
-])
+@pytest.mark.parametrize(
+    "opts,words",
+    [
+        (["--wall-mm", "0.5"], ["--wall-mm", "at least 1 mm", "0.5 mm"]),
+        (["--clearance-mm", "5"], ["--clearance-mm", "up to the wall (4 mm)", "5 mm"]),
+        (["--key-radius-mm", "6"], ["--key-radius-mm", "smaller than the wall"]),
+    ],
+)
 def test_cli_refuses_bad_mold_options(tmp_path, opts, words):
     trimesh.creation.icosphere(3, 30.0).export(tmp_path / "ell.stl")
     (tmp_path / "s.toml").write_text(SCENE)
     out = tmp_path / "out"
-    res = CliRunner().invoke(cli, ["make-mold", str(tmp_path / "s.toml"), "--out", str(out),
-                                   *opts])
+    res = CliRunner().invoke(cli, ["make-mold", str(tmp_path / "s.toml"), "--out", str(out), *opts])
     assert res.exit_code == 1, res.output
     line = res.output.strip().splitlines()[-1]
     assert line.startswith("Error:") and "Traceback" not in res.output
     for w in words:
         assert w in line, line
-    assert not out.exists()                 # refused before make-tracks ran
+    assert not out.exists()  # refused before make-tracks ran
 
 
 def test_scene_mold_options_are_named_in_errors(tmp_path):
     trimesh.creation.icosphere(3, 30.0).export(tmp_path / "ell.stl")
     (tmp_path / "s.toml").write_text(SCENE + "[mold]\nwall_mm = 0.8\n")
-    res = CliRunner().invoke(cli, ["make-mold", str(tmp_path / "s.toml"), "--out",
-                                   str(tmp_path / "out")])
+    res = CliRunner().invoke(
+        cli, ["make-mold", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]
+    )
     assert res.exit_code == 1
     assert "Error: [mold].wall_mm: expected a wall of at least 1 mm, got 0.8 mm" in res.output
-

@@ -22,12 +22,24 @@ def plate_tets(length, width, thick, step):
     """A structured tet mesh of [0, length] x [0, width] x [-thick/2, thick/2] (6 tets per
     cube)."""
     nx, ny, nz = (int(round(v / step)) for v in (length, width, thick))
-    x, y, z = np.meshgrid(np.linspace(0, length, nx + 1), np.linspace(0, width, ny + 1),
-                          np.linspace(-thick / 2, thick / 2, nz + 1), indexing="ij")
+    x, y, z = np.meshgrid(
+        np.linspace(0, length, nx + 1),
+        np.linspace(0, width, ny + 1),
+        np.linspace(-thick / 2, thick / 2, nz + 1),
+        indexing="ij",
+    )
     nodes = np.c_[x.ravel(), y.ravel(), z.ravel()]
     idx = np.arange(len(nodes)).reshape(nx + 1, ny + 1, nz + 1)
-    c = [idx[:-1, :-1, :-1], idx[1:, :-1, :-1], idx[1:, 1:, :-1], idx[:-1, 1:, :-1],
-         idx[:-1, :-1, 1:], idx[1:, :-1, 1:], idx[1:, 1:, 1:], idx[:-1, 1:, 1:]]
+    c = [
+        idx[:-1, :-1, :-1],
+        idx[1:, :-1, :-1],
+        idx[1:, 1:, :-1],
+        idx[:-1, 1:, :-1],
+        idx[:-1, :-1, 1:],
+        idx[1:, :-1, 1:],
+        idx[1:, 1:, 1:],
+        idx[:-1, 1:, 1:],
+    ]
     c = [a.ravel() for a in c]
     six = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
     tets = np.concatenate([np.c_[c[a], c[b], c[d], c[e]] for a, b, d, e in six])
@@ -76,9 +88,12 @@ def test_yarns_csv_and_tracks_csv_round_trip(tmp_path):
     from fruitcli.tables import read_table
 
     pts = np.array([[0.0, 0, 0], [1, 0, 0], [1, 2, 0]])
-    write_csv(tmp_path / "tracks.csv", ["track", "axis", "index", "point", "x_mm", "y_mm",
-                                         "z_mm"],
-              [[3, "x", 2, k, *map(float, p)] for k, p in enumerate(pts)], comments=["mm"])
+    write_csv(
+        tmp_path / "tracks.csv",
+        ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"],
+        [[3, "x", 2, k, *map(float, p)] for k, p in enumerate(pts)],
+        comments=["mm"],
+    )
     (t,) = read_tracks(tmp_path / "tracks.csv")
     assert (t.track, t.axis, t.index) == (3, "x", 2) and np.allclose(t.points, pts)
     write_yarns_csv(tmp_path / "yarns.csv", [[3, "x", 2, 3.0, 12.5, 4, 20.0, 1]])
@@ -94,8 +109,9 @@ def test_local_stretch_is_the_largest_over_one_pitch():
     rest = np.c_[xs, np.zeros_like(xs), np.zeros_like(xs)]
     moved = rest.copy()
     moved[:, 0] = np.where(xs <= 10, 1.2 * xs, 12.0 + (xs - 10))
-    (row,), s, warnings = stretch_table([Track(0, "x", 0, rest)], [moved[None]],
-                                        max_stretch=0.15, pitch_mm=4.0)
+    (row,), s, warnings = stretch_table(
+        [Track(0, "x", 0, rest)], [moved[None]], max_stretch=0.15, pitch_mm=4.0
+    )
     assert s[0, 0] == pytest.approx(0.10)
     assert local_stretch(rest, moved[None], 4.0)[0] == pytest.approx(0.20)
     assert row[6] == pytest.approx(20.0) and row[4] == pytest.approx(10.0)
@@ -105,23 +121,38 @@ def test_local_stretch_is_the_largest_over_one_pitch():
     assert local_stretch(rest[:5], moved[None, :5], 4.0)[0] == pytest.approx(0.20)
 
 
-@pytest.mark.parametrize("text, says", [
-    ("track,axis,index,point,x_mm,y_mm\n0,x,0,0,1,2\n", "expected columns"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,zz\n0,x,0,1,1,2,3\n",
-     "line 2: expected integers"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,nan\n0,x,0,1,1,2,3\n",
-     "line 2: expected axis x or y and finite"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,q,0,0,1,2,3\n0,q,0,1,1,2,3\n",
-     "line 2: expected axis x or y"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n", "track 0: expected at "
-     "least 2 points"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1\n",
-     "line 3: expected integers"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1,2,3\n",
-     "track 0: zero length"),
-    ("", "no tracks"),
-    ("track,axis,index,point,x_mm,y_mm,z_mm\n", "no track points"),
-])
+@pytest.mark.parametrize(
+    "text, says",
+    [
+        ("track,axis,index,point,x_mm,y_mm\n0,x,0,0,1,2\n", "expected columns"),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,zz\n0,x,0,1,1,2,3\n",
+            "line 2: expected integers",
+        ),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,nan\n0,x,0,1,1,2,3\n",
+            "line 2: expected axis x or y and finite",
+        ),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,q,0,0,1,2,3\n0,q,0,1,1,2,3\n",
+            "line 2: expected axis x or y",
+        ),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n",
+            "track 0: expected at least 2 points",
+        ),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1\n",
+            "line 3: expected integers",
+        ),
+        (
+            "track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1,2,3\n0,x,0,1,1,2,3\n",
+            "track 0: zero length",
+        ),
+        ("", "no tracks"),
+        ("track,axis,index,point,x_mm,y_mm,z_mm\n", "no track points"),
+    ],
+)
 def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
     path = tmp_path / "tracks.csv"
     path.write_text(text)
@@ -145,8 +176,9 @@ def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
     above = Track(1, "y", 1, inside.points + [0.0, 0.0, 0.0])
     above.points[4, 2] = 1.0
     said = []
-    rows, summary = follow_tracks(model, [inside, above], model.rest[None], 0.25, 4.0, 0.1,
-                                  said.append)
+    rows, summary = follow_tracks(
+        model, [inside, above], model.rest[None], 0.25, 4.0, 0.1, said.append
+    )
     assert [r[4] for r in rows] == pytest.approx([0.0, 0.0], abs=1e-9)
     assert len(said) == 1 and "1 of 2 tracks (tracks 1) have points outside" in said[0]
     assert summary["tracks_outside_mesh"] == [1] and summary["warnings"] == []
@@ -171,8 +203,10 @@ def bent_plate_scene(folder, theta_deg=90.0, extra="", tracks=True, size_mm=1.5)
     xs = np.linspace(-lb / 2, lb / 2, 49)
     if tracks:
         lines = ["track,axis,index,point,x_mm,y_mm,z_mm"] + [
-            f"{k},y,{k},{n},{x:.6f},0.0,{z}" for k, z in enumerate([t, t / 2])
-            for n, x in enumerate(xs)]
+            f"{k},y,{k},{n},{x:.6f},0.0,{z}"
+            for k, z in enumerate([t, t / 2])
+            for n, x in enumerate(xs)
+        ]
         (folder / "tracks.csv").write_text("\n".join(lines) + "\n")
     path = folder / "bend.toml"
     path.write_text(f"""
@@ -212,8 +246,17 @@ def bent(tmp_path_factory):
     folder = tmp_path_factory.mktemp("bent")
     scene = bent_plate_scene(folder, 90.0, "yarn_max_stretch = 0.05")
     (folder / "taxels.csv").write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,-4,0,2\n1,1,0,4,0,2\n")
-    res = CliRunner().invoke(cli, ["simulate", str(scene), "--out", str(folder / "o"),
-                                   "--taxels", str(folder / "taxels.csv")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "simulate",
+            str(scene),
+            "--out",
+            str(folder / "o"),
+            "--taxels",
+            str(folder / "taxels.csv"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     return folder, res
 
@@ -230,7 +273,7 @@ def test_simulate_bent_plate_top_yarn_stretches_h_over_r(bent):
     top, mid = 1 + yarns["max_stretch_pct"] / 100
     h, radius = BEND["thick"] / 2, BEND["length"] / (np.pi / 2)
     assert top / mid - 1 == pytest.approx(h / radius, rel=0.05)
-    assert abs(mid - 1) < 0.01                       # the mid-surface hardly stretches
+    assert abs(mid - 1) < 0.01  # the mid-surface hardly stretches
     assert yarns["max_local_stretch_pct"][0] >= yarns["max_stretch_pct"][0]
 
 
@@ -267,18 +310,24 @@ def test_simulate_warns_of_an_overstretched_track(bent):
     warned = [line for line in res.stderr.splitlines() if "yarn_max_stretch" in line]
     assert len(warned) == 1 and "warning: track 0 " in warned[0]
     local = read_table(folder / "o" / "yarns.csv", ["max_local_stretch_pct"])[
-        "max_local_stretch_pct"][0]
+        "max_local_stretch_pct"
+    ][0]
     assert f"stretches {local:.1f} % over 4 mm" in warned[0]
-    assert f"zig-zag of amplitude {zigzag_amplitude(local / 100, 4.0):.2f} mm at a 4 mm " \
+    assert (
+        f"zig-zag of amplitude {zigzag_amplitude(local / 100, 4.0):.2f} mm at a 4 mm "
         "pitch" in warned[0]
+    )
     assert "1 over [tracks] yarn_max_stretch 5 %" in res.stdout
 
 
-@pytest.mark.parametrize("extra, says", [
-    ("yarn_max_stretch = 0.0", "[tracks].yarn_max_stretch: expected a fraction 0 < value < 1"),
-    ("yarn_max_stretch = 25", "[tracks].yarn_max_stretch: expected a fraction 0 < value < 1"),
-    ("zigzag_pitch_mm = -1", "[tracks].zigzag_pitch_mm: expected > 0"),
-])
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        ("yarn_max_stretch = 0.0", "[tracks].yarn_max_stretch: expected a fraction 0 < value < 1"),
+        ("yarn_max_stretch = 25", "[tracks].yarn_max_stretch: expected a fraction 0 < value < 1"),
+        ("zigzag_pitch_mm = -1", "[tracks].zigzag_pitch_mm: expected > 0"),
+    ],
+)
 def test_simulate_refuses_bad_yarn_settings(tmp_path, fruit, extra, says):
     res = fruit("simulate", bent_plate_scene(tmp_path, extra=extra), "--out", tmp_path / "o")
     assert res.exit_code == 1 and says in res.output.strip().splitlines()[-1]
@@ -289,13 +338,18 @@ def test_simulate_refuses_a_missing_or_malformed_tracks_file(tmp_path, fruit):
     scene = bent_plate_scene(tmp_path, tracks=False)
     res = fruit("simulate", scene, "--out", tmp_path / "o")
     assert res.exit_code == 1
-    assert res.output.strip().splitlines()[-1] == \
-        "Error: bend.toml: [tracks].file: file not found: tracks.csv"
+    assert (
+        res.output.strip().splitlines()[-1]
+        == "Error: bend.toml: [tracks].file: file not found: tracks.csv"
+    )
     (tmp_path / "tracks.csv").write_text("track,axis,index,point,x_mm,y_mm,z_mm\n0,x,0,0,1\n")
     res = fruit("simulate", scene, "--out", tmp_path / "o")
     assert res.exit_code == 1 and "Traceback" not in res.output
-    assert res.output.strip().splitlines()[-1].startswith(
-        f"Error: {tmp_path / 'tracks.csv'}: line 2: expected integers")
+    assert (
+        res.output.strip()
+        .splitlines()[-1]
+        .startswith(f"Error: {tmp_path / 'tracks.csv'}: line 2: expected integers")
+    )
     assert not (tmp_path / "o").exists()
 
 
@@ -312,13 +366,13 @@ def test_planner_reruns_simulate_for_new_tracks_or_limits(tmp_path):
 
     def prints(extra=""):
         sc = load_scene(bent_plate_scene(tmp_path, extra=extra, tracks=False))
-        return fingerprint(stage["simulate"], sc, ctx), fingerprint(stage["make-tracks"], sc,
-                                                                     ctx)
+        return fingerprint(stage["simulate"], sc, ctx), fingerprint(stage["make-tracks"], sc, ctx)
 
     sim0, tracks0 = prints()
     assert "yarns.csv" in stage["simulate"].outputs(load_scene(scene_path))
     sim1, tracks1 = prints("yarn_max_stretch = 0.2")
     assert sim1 != sim0 and tracks1 == tracks0
-    (tmp_path / "tracks.csv").write_text((tmp_path / "tracks.csv").read_text() + "2,x,0,0,0,0,2\n"
-                                         "2,x,0,1,0,1,2\n")
+    (tmp_path / "tracks.csv").write_text(
+        (tmp_path / "tracks.csv").read_text() + "2,x,0,0,0,0,2\n2,x,0,1,0,1,2\n"
+    )
     assert prints()[0] not in (sim0, sim1)

@@ -19,8 +19,9 @@ L, B, H = 100.0, 10.0, 10.0
 def cantilever_tip(cells, E=1e5, nu=0.3, rho=1000.0, solver="pcg"):
     nodes, tets = structured_box([0, 0, 0], [L, B, H], cells)
     fixed = np.flatnonzero(nodes[:, 0] == 0.0)
-    m = Model.from_arrays(nodes, tets, E, nu, density_kg_m3=rho, gravity_m_s2=[0, 0, -9.81],
-                          fixed_nodes=fixed)
+    m = Model.from_arrays(
+        nodes, tets, E, nu, density_kg_m3=rho, gravity_m_s2=[0, 0, -9.81], fixed_nodes=fixed
+    )
     res = solve_state(m, Load.pressures([]), options=SolverOptions(linear_solver=solver))
     tip = nodes[:, 0] == L
     return -res.displacement_mm[tip, 2].mean(), m
@@ -58,11 +59,20 @@ def test_springs_rotate_free_body_to_rotated_rest_shape():
     rotated rest shape everywhere (no spurious strain), to 1e-6 mm."""
     nodes, tets = structured_box([0, 0, 0], [40, 8, 8], (10, 2, 2))
     region = nodes_in_box(nodes, [-1, -1, -1, 10.5, 9, 9])
-    jig = Jig(region, 1e4, rotate_deg=30.0, axis=(0.0, 1.0, 1.0), pivot_mm=(20.0, 4.0, 4.0),
-              translate_mm=(1.0, -2.0, 0.5))
+    jig = Jig(
+        region,
+        1e4,
+        rotate_deg=30.0,
+        axis=(0.0, 1.0, 1.0),
+        pivot_mm=(20.0, 4.0, 4.0),
+        translate_mm=(1.0, -2.0, 0.5),
+    )
     m = Model.from_arrays(nodes, tets, 100.0, 0.3, jigs=[jig])
-    res = solve_state(m, Load.pressures([]),
-                      options=SolverOptions(tolerance=1e-10, load_steps=3, max_iterations=60))
+    res = solve_state(
+        m,
+        Load.pressures([]),
+        options=SolverOptions(tolerance=1e-10, load_steps=3, max_iterations=60),
+    )
     q = rotation_matrix((0.0, 1.0, 1.0), 30.0)
     target = (nodes - [20.0, 4.0, 4.0]) @ q.T + [20.0, 4.0, 4.0] + [1.0, -2.0, 0.5]
     assert np.abs(res.x - target).max() < 1e-6
@@ -85,7 +95,7 @@ def test_volume_gradient_identities():
     v = pressure.cavity_volume(x, tris)
     d = RNG.normal(size=x.shape)
     eps = 1e-6
-    fd = (pressure.cavity_volume(x + eps * d, tris) - pressure.cavity_volume(x - eps * d, tris))
+    fd = pressure.cavity_volume(x + eps * d, tris) - pressure.cavity_volume(x - eps * d, tris)
     assert fd / (2 * eps) == pytest.approx(np.sum(h * d), rel=1e-7)
     assert abs(np.sum(h * [0.3, -1.0, 2.0])) < 1e-10 * v
     omega = np.array([0.2, -0.5, 0.9])
@@ -94,8 +104,9 @@ def test_volume_gradient_identities():
 
 
 def cavity_model(E=100.0, nu=0.3, **kw):
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
     fixed = np.flatnonzero(nodes[:, 2] == 0.0)
     return Model.from_arrays(nodes, tets, E, nu, fixed_nodes=fixed, chambers={"c": cav}, **kw)
 
@@ -117,8 +128,9 @@ def test_chamber_winding_is_made_consistent_and_open_surface_refused():
     """A cavity given with every other triangle flipped has its rest volume (64 mm^3, not
     the signed sum) and the same pressure response as the well-wound one; a surface with
     a hole is refused naming the chamber."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
     mixed = cav.copy()
     mixed[::2] = mixed[::2][:, [0, 2, 1]]
     fixed = np.flatnonzero(nodes[:, 2] == 0.0)
@@ -163,8 +175,12 @@ def test_pressure_ramp_until_inversion_fails_clearly():
     res = solve_state(m, Load.pressures([2.0]))
     assert np.isfinite(res.x).all() and res.min_det_f > 0
     with pytest.raises(SolverError, match=r"state 7: .*residual .*worst element tet \d+"):
-        solve_state(m, Load.pressures([500.0]), label="state 7",
-                    options=SolverOptions(max_subdivisions=3, max_iterations=15))
+        solve_state(
+            m,
+            Load.pressures([500.0]),
+            label="state 7",
+            options=SolverOptions(max_subdivisions=3, max_iterations=15),
+        )
 
 
 @pytest.mark.parametrize("k_n_per_mm", [1e-3, 1.0, 1e6])
@@ -174,8 +190,7 @@ def test_jig_stiffness_range(k_n_per_mm):
     nodes, tets = structured_box([0, 0, 0], [30, 10, 10], (6, 2, 2))
     fixed = np.flatnonzero(nodes[:, 0] == 0.0)
     region = nodes_in_box(nodes, [29.9, -1, -1, 31, 11, 11])
-    jig = Jig(region, k_n_per_mm * 1000.0, rotate_deg=5.0, axis=(0, 0, 1),
-              pivot_mm=(0.0, 5.0, 5.0))
+    jig = Jig(region, k_n_per_mm * 1000.0, rotate_deg=5.0, axis=(0, 0, 1), pivot_mm=(0.0, 5.0, 5.0))
     m = Model.from_arrays(nodes, tets, 1e4, 0.3, fixed_nodes=fixed, jigs=[jig])
     res = solve_state(m, Load.pressures([]), options=SolverOptions(max_iterations=50))
     gap = np.abs(res.x[region] - jig.targets(nodes)).max()

@@ -40,8 +40,10 @@ def observed_order(sizes, values) -> float:
 
 def error_orders(sizes, errors) -> list[float]:
     """log(e1 / e2) / log(h1 / h2) for each pair of successive meshes."""
-    return [float(np.log(errors[i] / errors[i + 1]) / np.log(sizes[i] / sizes[i + 1]))
-            for i in range(len(errors) - 1)]
+    return [
+        float(np.log(errors[i] / errors[i + 1]) / np.log(sizes[i] / sizes[i + 1]))
+        for i in range(len(errors) - 1)
+    ]
 
 
 # -- Lamé's thick sphere ----------------------------------------------------------------
@@ -61,8 +63,10 @@ def lame_displacement(x: np.ndarray) -> np.ndarray:
 
 def symmetry_rollers(nodes: np.ndarray) -> list:
     """Each node on a plane x_d = 0 held in u_d (the closed form's symmetry)."""
-    return [(np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
-            for d in range(3)]
+    return [
+        (np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
+        for d in range(3)
+    ]
 
 
 def nodal_error(nodes: np.ndarray, displacement: np.ndarray) -> float:
@@ -84,16 +88,16 @@ def whole_shell(n: int):
         ts.append(k * len(nodes) + (tets[:, [0, 2, 1, 3]] if odd else tets))
         ws.append(k * len(nodes) + (wall[:, [0, 2, 1]] if odd else wall))
     x = np.vstack(xs)
-    _, first, merged = np.unique(np.round(x, 9), axis=0, return_index=True,
-                                 return_inverse=True)
+    _, first, merged = np.unique(np.round(x, 9), axis=0, return_index=True, return_inverse=True)
     merged = merged.ravel()
     return x[first], merged[np.vstack(ts)], merged[np.vstack(ws)]
 
 
 def lame_error_p1(n: int) -> float:
     nodes, tets, wall = whole_shell(n)
-    m = Model.from_arrays(nodes, tets, E, NU, chambers={"c": wall},
-                          prescribed=symmetry_rollers(nodes))
+    m = Model.from_arrays(
+        nodes, tets, E, NU, chambers={"c": wall}, prescribed=symmetry_rollers(nodes)
+    )
     res = solve_state(m, Load.pressures([P]), options=SolverOptions(tolerance=1e-10))
     return nodal_error(nodes, res.displacement_mm)
 
@@ -107,10 +111,18 @@ def lame_error_p2(n: int, curved: bool) -> float:
     nodes, tets, (wall, outer) = quadratic_mesh(nodes, tets, [wall, outer])
     if curved:
         for tris, radius in ((wall, A), (outer, B)):
-            assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0],
-                                        [radius] * 3) == 0
-    m = ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", E, NU), "p2",
-                                   chambers={"c": wall}, prescribed=symmetry_rollers(nodes))
+            assert (
+                curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0], [radius] * 3)
+                == 0
+            )
+    m = ContinuumModel.from_arrays(
+        nodes,
+        tets,
+        material("neo-hookean", E, NU),
+        "p2",
+        chambers={"c": wall},
+        prescribed=symmetry_rollers(nodes),
+    )
     res = solve_state(m, Load.pressures([P]), options=ACCURATE)
     return nodal_error(nodes, res.displacement_mm)
 
@@ -158,8 +170,7 @@ def beam_theory() -> float:
     q = -body_force_mn_mm3(RHO, GRAVITY)[2] * W * H
     kappa = 10 * (1 + NU) / (12 + 11 * NU)
     shear_modulus = BEAM_E / (2 * (1 + NU))
-    return (q * L**4 / (8 * BEAM_E * W * H**3 / 12)
-            + q * L**2 / (2 * kappa * shear_modulus * W * H))
+    return q * L**4 / (8 * BEAM_E * W * H**3 / 12) + q * L**2 / (2 * kappa * shear_modulus * W * H)
 
 
 def tip_deflection(element: str, n: int) -> float:
@@ -169,18 +180,32 @@ def tip_deflection(element: str, n: int) -> float:
     faces = boundary_faces(nodes, tets)
     end = faces[np.all(nodes[faces][:, :, 0] == L, axis=1)]
     corners = nodes[end]
-    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                         corners[:, 2] - corners[:, 0]), axis=1)
+    area = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
     if element == "p1":
-        m = Model.from_arrays(nodes, tets, BEAM_E, NU, density_kg_m3=RHO, gravity_m_s2=GRAVITY,
-                              fixed_nodes=np.flatnonzero(nodes[:, 0] == 0.0))
+        m = Model.from_arrays(
+            nodes,
+            tets,
+            BEAM_E,
+            NU,
+            density_kg_m3=RHO,
+            gravity_m_s2=GRAVITY,
+            fixed_nodes=np.flatnonzero(nodes[:, 0] == 0.0),
+        )
         u = solve_state(m, Load.pressures([])).displacement_mm
         face_mean = u[end, 2].mean(axis=1)  # exact for a linear triangle
     else:
         nodes, tets, (end,) = quadratic_mesh(nodes, tets, [end])
-        m = ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", BEAM_E, NU), "p2",
-                                       density_kg_m3=RHO, gravity_m_s2=GRAVITY,
-                                       fixed_nodes=np.flatnonzero(nodes[:, 0] == 0.0))
+        m = ContinuumModel.from_arrays(
+            nodes,
+            tets,
+            material("neo-hookean", BEAM_E, NU),
+            "p2",
+            density_kg_m3=RHO,
+            gravity_m_s2=GRAVITY,
+            fixed_nodes=np.flatnonzero(nodes[:, 0] == 0.0),
+        )
         u = solve_state(m, Load.pressures([]), options=ACCURATE).displacement_mm
         face_mean = u[end[:, 3:], 2].mean(axis=1)  # a quadratic's mean: its edge nodes'
     return -float((area * face_mean).sum() / (W * H))
@@ -206,8 +231,10 @@ def test_cantilever_tip_orders():
     (measured -0.8 %; the order still falling, the extrapolation undershoots: 8 cells
     give 0.1478 mm)."""
     theory = beam_theory()
-    for element, cells, band, rel in (("p1", (4, 6, 8), (1.3, 2.1), 0.02),
-                                      ("p2", (2, 3, 4), (1.7, 3.0), 0.015)):
+    for element, cells, band, rel in (
+        ("p1", (4, 6, 8), (1.3, 2.1), 0.02),
+        ("p2", (2, 3, 4), (1.7, 3.0), 0.015),
+    ):
         sizes = [H / n for n in cells]
         tips = [tip_deflection(element, n) for n in cells]
         q = observed_order(sizes, tips)

@@ -25,8 +25,9 @@ def test_element_stiffness_has_six_zero_modes():
     nodes = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.2, 0.3, 1.0]]) * 3.0
     tets = np.array([[0, 1, 2, 3]])
     lam, mu = tet4.lame_parameters(100.0, 0.3)
-    k = tet4.element_stiffness(tet4.shape_gradients(nodes, tets),
-                               tet4.signed_volumes(nodes, tets), lam, mu)[0]
+    k = tet4.element_stiffness(
+        tet4.shape_gradients(nodes, tets), tet4.signed_volumes(nodes, tets), lam, mu
+    )[0]
     ev = np.linalg.eigvalsh(k)
     assert np.allclose(k, k.T, atol=1e-12)
     assert np.sum(np.abs(ev) < 1e-10 * ev.max()) == 6
@@ -99,15 +100,27 @@ def test_patch_test_affine_field_reproduced_inside():
     m = Model.from_arrays(nodes, tets, 100.0, 0.35, fixed_nodes=boundary)
     start = nodes.copy()
     start[boundary] = exact[boundary]
-    res = solve_state(m, Load.pressures([], gravity=0.0, jig=0.0), x_start=start,
-                      load_start=Load.zero(0), options=SolverOptions(tolerance=1e-10))
+    res = solve_state(
+        m,
+        Load.pressures([], gravity=0.0, jig=0.0),
+        x_start=start,
+        load_start=Load.zero(0),
+        options=SolverOptions(tolerance=1e-10),
+    )
     assert np.abs(res.x - exact).max() < 1e-7
 
 
 def test_zero_load_returns_rest_exactly():
     nodes, tets = bar()
-    m = Model.from_arrays(nodes, tets, 100.0, 0.3, fixed_nodes=[0, 1, 2],
-                          density_kg_m3=1000.0, gravity_m_s2=[0, 0, -9.81])
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.3,
+        fixed_nodes=[0, 1, 2],
+        density_kg_m3=1000.0,
+        gravity_m_s2=[0, 0, -9.81],
+    )
     res = solve_state(m, Load.pressures([], gravity=0.0))
     assert res.iterations == 0
     assert np.array_equal(res.x, nodes)
@@ -169,8 +182,9 @@ def test_consistent_tangent_matches_force_derivative_and_projection_is_psd():
         xx = x.copy()
         xx[m.tets[e]] = y
         r = m.rotations(xx)[0]
-        return corotation.forces_and_energy(xx, m.rest, m.tets[e:e + 1], m.k0[e:e + 1],
-                                            r[e:e + 1])[0][m.tets[e]]
+        return corotation.forces_and_energy(
+            xx, m.rest, m.tets[e : e + 1], m.k0[e : e + 1], r[e : e + 1]
+        )[0][m.tets[e]]
 
     eps = 1e-6
     fd = (force(x[m.tets[e]] + eps * v) - force(x[m.tets[e]] - eps * v)).ravel() / (2 * eps)
@@ -184,13 +198,25 @@ def test_soft_cantilever_converges_quadratically():
     which stalled with the warped tangent) converges to 1e-10; a further 10 % gravity
     step from that state needs at most 4 Newton iterations with the fresh tangent."""
     nodes, tets = structured_box([0, 0, 0], [40.0, 8.0, 8.0], (10, 2, 2))
-    m = Model.from_arrays(nodes, tets, 10.0, 0.3, density_kg_m3=1070.0,
-                          gravity_m_s2=[0, 0, -9.81], fixed_nodes=np.flatnonzero(nodes[:, 0] == 0))
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        10.0,
+        0.3,
+        density_kg_m3=1070.0,
+        gravity_m_s2=[0, 0, -9.81],
+        fixed_nodes=np.flatnonzero(nodes[:, 0] == 0),
+    )
     opts = SolverOptions(tolerance=1e-10, linear_solver="direct")
     first = solve_state(m, Load.pressures([], gravity=1.0, jig=0.0), options=opts)
     assert nodes[:, 2].min() - first.x[:, 2].min() > 15.0
-    res = solve_state(m, Load.pressures([], gravity=1.1, jig=0.0), x_start=first.x,
-                      load_start=Load.pressures([], gravity=1.0, jig=0.0), options=opts)
+    res = solve_state(
+        m,
+        Load.pressures([], gravity=1.1, jig=0.0),
+        x_start=first.x,
+        load_start=Load.pressures([], gravity=1.0, jig=0.0),
+        options=opts,
+    )
     assert res.iterations <= 4 and res.residual <= 1e-10 and res.subdivisions == 0
 
 
@@ -215,8 +241,15 @@ def test_compiled_kernels_match_per_element_ones(project):
     guess = m.__dict__["_rot_guess"].copy()
     f, rot, det = m.kinematics(x)
     assert det.min() < 0
-    cold = kernels.kinematics(x, m.tets, m.grads, guess, True, corotation.POLAR_WARM_ITERATIONS,
-                              corotation.POLAR_WARM_STOP)[3]
+    cold = kernels.kinematics(
+        x,
+        m.tets,
+        m.grads,
+        guess,
+        True,
+        corotation.POLAR_WARM_ITERATIONS,
+        corotation.POLAR_WARM_STOP,
+    )[3]
     assert cold[5:9].all() and cold[det <= 0].all() and not cold.all()
     f_ref = corotation.deformation_gradients(x, m.tets, m.dm_inv)
     assert np.allclose(f, f_ref, rtol=0, atol=1e-12 * np.abs(f_ref).max())
@@ -229,11 +262,14 @@ def test_compiled_kernels_match_per_element_ones(project):
     lam, mu = m.lame_kpa
     t = corotation.skew_stiffness(f, rot, lam, mu, project)
     v = RNG.normal(size=nodes.shape)
-    for t_world, blocks in ((t, m.tangent_blocks(rot, f, project)),
-                            (None, m.tangent_blocks(rot, None))):
+    for t_world, blocks in (
+        (t, m.tangent_blocks(rot, f, project)),
+        (None, m.tangent_blocks(rot, None)),
+    ):
         kv = m.apply_tangent(rot, t_world, v)
         kv_ref = corotation.scatter_nodes(
-            m.tets, (blocks @ v[m.tets].reshape(-1, 12, 1)).reshape(-1, 4, 3), len(nodes))
+            m.tets, (blocks @ v[m.tets].reshape(-1, 12, 1)).reshape(-1, 4, 3), len(nodes)
+        )
         assert np.abs(kv - kv_ref).max() < 1e-12 * np.abs(kv_ref).max()
 
 
@@ -267,10 +303,12 @@ def test_follower_pressure_stiffness_matches_the_pressure_force_derivative():
     central-difference derivative of -p H(x) (1e-7 rel.) on a randomly deformed cavity."""
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
 
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (4, 4, 4),
-                                                  [3, 3, 3], [9, 9, 9])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (4, 4, 4), [3, 3, 3], [9, 9, 9]
+    )
+    m = Model.from_arrays(
+        nodes, tets, 100.0, 0.3, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
+    )
     x = nodes + 0.4 * RNG.normal(size=nodes.shape)
     p = np.array([7.0])
     k = m.load_stiffness(x, p)

@@ -19,23 +19,36 @@ from fruitcli.fem.solver.newton import SolverOptions, solve_state
 def hollow_cube(element: str):
     """A 12 mm cube with a 6 mm cavity, base fixed, E = 100 kPa, nu = 0.49: linear
     corotational tets or quadratic neo-Hookean ones."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 3),
-                                                  [3, 3, 3], [9, 9, 9])
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 3), [3, 3, 3], [9, 9, 9]
+    )
     fixed = np.flatnonzero(nodes[:, 2] == 0.0)
     if element == "p1":
-        return Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
-                                 fixed_nodes=fixed)
+        return Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav}, fixed_nodes=fixed)
     nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
-    return ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49),
-                                      "p2", chambers={"c": walls[0]}, fixed_nodes=fixed)
+    return ContinuumModel.from_arrays(
+        nodes,
+        conn,
+        material("neo-hookean", 100.0, 0.49),
+        "p2",
+        chambers={"c": walls[0]},
+        fixed_nodes=fixed,
+    )
 
 
 def two_states(m, options):
     """6 kPa from rest, then 9 kPa from there with the same solver."""
     solver = m.make_solver("pcg")
     a = solve_state(m, Load.pressures([6.0]), solver=solver, options=options)
-    b = solve_state(m, Load.pressures([9.0]), x_start=a.x, load_start=Load.pressures([6.0]),
-                    pressure_start=a.pressure_kpa, solver=solver, options=options)
+    b = solve_state(
+        m,
+        Load.pressures([9.0]),
+        x_start=a.x,
+        load_start=Load.pressures([6.0]),
+        pressure_start=a.pressure_kpa,
+        solver=solver,
+        options=options,
+    )
     return a, b
 
 
@@ -57,10 +70,12 @@ def test_volume_controlled_chamber_ignores_the_displacement_tolerance():
     """A chamber grown by 5 mm^3 meets that volume to 1e-6 of its rest volume even with
     a displacement tolerance of 1 m: the estimate does not bound the volume error."""
     m = hollow_cube("p1")
-    load = Load(pressure_kpa=np.zeros(1), volume_growth_mm3=np.array([5.0]),
-                volume_controlled=np.array([True]))
-    res = solve_state(m, load, options=SolverOptions(tolerance=1e-6,
-                                                     displacement_tolerance_mm=1e3))
+    load = Load(
+        pressure_kpa=np.zeros(1),
+        volume_growth_mm3=np.array([5.0]),
+        volume_controlled=np.array([True]),
+    )
+    res = solve_state(m, load, options=SolverOptions(tolerance=1e-6, displacement_tolerance_mm=1e3))
     target = m.chamber_rest_volume_mm3[0] + 5.0
     assert abs(res.chamber_volume_mm3[0] - target) <= 1e-6 * m.chamber_rest_volume_mm3[0]
 

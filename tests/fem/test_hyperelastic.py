@@ -76,17 +76,34 @@ def test_shape_functions_reproduce_their_complete_polynomial(order):
     reproduces it (values and gradients) at random points, to 1e-12."""
     ref = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     corner_lam = np.eye(4)
-    lam_nodes = corner_lam if order == 1 else np.vstack(
-        [corner_lam] + [(corner_lam[a] + corner_lam[b]) / 2
-                        for a, b in [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]])
+    lam_nodes = (
+        corner_lam
+        if order == 1
+        else np.vstack(
+            [corner_lam]
+            + [
+                (corner_lam[a] + corner_lam[b]) / 2
+                for a, b in [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]
+            ]
+        )
+    )
     xyz_nodes = lam_nodes @ ref
     c = RNG.standard_normal(10)
 
     def poly(p):
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         val = c[0] + c[1] * x + c[2] * y + c[3] * z
-        return val if order == 1 else val + c[4] * x * x + c[5] * y * y + c[6] * z * z \
-            + c[7] * x * y + c[8] * y * z + c[9] * x * z
+        return (
+            val
+            if order == 1
+            else val
+            + c[4] * x * x
+            + c[5] * y * y
+            + c[6] * z * z
+            + c[7] * x * y
+            + c[8] * y * z
+            + c[9] * x * z
+        )
 
     lam = RNG.dirichlet(np.ones(4), 20)
     got = tet_shape(lam, order) @ poly(xyz_nodes)
@@ -117,8 +134,9 @@ def test_patch_test_affine_deformation_is_exact(element):
     a = np.eye(3) + np.array([[0.2, 0.05, 0.0], [0.0, -0.1, 0.1], [0.03, 0.0, 0.15]])
     target = nodes @ a.T + [0.5, -0.2, 0.1]
     pres = [(np.array([i]), target[i] - nodes[i]) for i in on_boundary]
-    m = ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", 100.0, 0.49),
-                                   element, prescribed=pres)
+    m = ContinuumModel.from_arrays(
+        nodes, tets, material("neo-hookean", 100.0, 0.49), element, prescribed=pres
+    )
     res = solve_state(m, Load.pressures([]), options=SolverOptions(tolerance=1e-10))
     assert len(m.pattern.free) > 0
     assert np.abs(res.x - target).max() < 1e-9
@@ -169,13 +187,18 @@ def roller_bar(element, stretch, length=20.0, width=4.0, cells=(5, 1, 1), nu=0.4
     origin = np.flatnonzero(np.all(nodes == 0.0, axis=1))
     corner_y = np.flatnonzero((nodes[:, 0] == 0) & (nodes[:, 1] == width) & (nodes[:, 2] == 0))
     mask_x = np.array([True, False, False])
-    pres = [(left, np.zeros(3), mask_x), (right, [(stretch - 1.0) * length, 0, 0], mask_x),
-            (origin, np.zeros(3), np.array([False, True, True])),
-            (corner_y, np.zeros(3), np.array([False, False, True]))]
-    m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 90.0, nu), element,
-                                   prescribed=pres)
-    res = solve_state(m, Load.pressures([]),
-                      options=SolverOptions(load_steps=8, linear_solver=SOLVER))
+    pres = [
+        (left, np.zeros(3), mask_x),
+        (right, [(stretch - 1.0) * length, 0, 0], mask_x),
+        (origin, np.zeros(3), np.array([False, True, True])),
+        (corner_y, np.zeros(3), np.array([False, False, True])),
+    ]
+    m = ContinuumModel.from_arrays(
+        nodes, conn, material("neo-hookean", 90.0, nu), element, prescribed=pres
+    )
+    res = solve_state(
+        m, Load.pressures([]), options=SolverOptions(load_steps=8, linear_solver=SOLVER)
+    )
     return m, res, right
 
 
@@ -197,9 +220,15 @@ def cantilever(element, nu, cells=(40, 4, 4), E=1e5, rho=1000.0):
     L, B, H = 100.0, 10.0, 10.0
     nodes, conn = mesh_of(element, (0, 0, 0), (L, B, H), cells)
     fixed = np.flatnonzero(nodes[:, 0] == 0.0)
-    m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", E, nu), element,
-                                   density_kg_m3=rho, gravity_m_s2=[0, 0, -9.81],
-                                   fixed_nodes=fixed)
+    m = ContinuumModel.from_arrays(
+        nodes,
+        conn,
+        material("neo-hookean", E, nu),
+        element,
+        density_kg_m3=rho,
+        gravity_m_s2=[0, 0, -9.81],
+        fixed_nodes=fixed,
+    )
     res = solve_state(m, Load.pressures([]))
     tip = nodes[:, 0] == L
     q = -body_force_mn_mm3(rho, [0, 0, -9.81])[2] * B * H
@@ -233,15 +262,18 @@ def test_bad_materials_and_supports_are_refused():
     nodes, conn = mesh_of("p2", (0, 0, 0), (4, 2, 2), (2, 1, 1))
     mat = material("neo-hookean", 100.0, 0.45)
     with pytest.raises(SceneError, match=r"^\[gravity\]: nothing supports the body"):
-        ContinuumModel.from_arrays(nodes, conn, mat, "p2", density_kg_m3=1000.0,
-                                   gravity_m_s2=[0, 0, -9.81])
+        ContinuumModel.from_arrays(
+            nodes, conn, mat, "p2", density_kg_m3=1000.0, gravity_m_s2=[0, 0, -9.81]
+        )
     line = np.flatnonzero((nodes[:, 0] == 0) & (nodes[:, 1] == 0))
-    with pytest.raises(SceneError, match=r"^\[\[fixed\]\] holds the body at \d+ node\(s\) on "
-                                         r"one line"):
+    with pytest.raises(
+        SceneError,
+        match=r"^\[\[fixed\]\] holds the body at \d+ node\(s\) on "
+        r"one line",
+    ):
         ContinuumModel.from_arrays(nodes, conn, mat, "p2", fixed_nodes=line)
     assert tri_rule(4)[1].sum() == pytest.approx(0.5)
     assert tri_shape(np.array([[1.0, 0, 0]]), 2)[0, 0] == 1.0
-
 
 
 def jig_bent_pad():
@@ -252,11 +284,14 @@ def jig_bent_pad():
     fixed = nodes_in_box(nodes, [-21, -9, -1, -12.5, 9, 3])
     region = nodes_in_box(nodes, [12.5, -9, -1, 21, 9, 3])
     jig = Jig(region, 1e4, rotate_deg=-180.0, axis=(0.0, 1.0, 0.0), pivot_mm=(0.0, 0.0, 8.4))
-    m = ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", 100.0, 0.49), "p2",
-                                   fixed_nodes=fixed, jigs=[jig])
-    res = solve_state(m, Load.pressures([], gravity=0.0, jig=1.0),
-                      options=SolverOptions(load_steps=6, max_subdivisions=0,
-                                            linear_solver=SOLVER))
+    m = ContinuumModel.from_arrays(
+        nodes, tets, material("neo-hookean", 100.0, 0.49), "p2", fixed_nodes=fixed, jigs=[jig]
+    )
+    res = solve_state(
+        m,
+        Load.pressures([], gravity=0.0, jig=1.0),
+        options=SolverOptions(load_steps=6, max_subdivisions=0, linear_solver=SOLVER),
+    )
     return m, jig, region, res
 
 

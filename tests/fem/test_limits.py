@@ -60,9 +60,9 @@ def test_radial_reference_is_the_closed_form_when_incompressible():
         for la in (1.2, STRETCH_AT_LIMIT, 2.2):
             if nu == 0.4999:
                 assert radial_pressure(mu, kappa, la) == pytest.approx(
-                    inflation_pressure(mu, la), rel=1e-3)
-    assert inflation_pressure(1.0, STRETCH_AT_LIMIT) == pytest.approx(LIMIT_B_OVER_A_2,
-                                                                      abs=1e-4)
+                    inflation_pressure(mu, la), rel=1e-3
+                )
+    assert inflation_pressure(1.0, STRETCH_AT_LIMIT) == pytest.approx(LIMIT_B_OVER_A_2, abs=1e-4)
     assert radial_pressure(mu, kappa, STRETCH_AT_LIMIT) / mu == pytest.approx(0.8043, abs=1e-3)
 
 
@@ -81,7 +81,8 @@ def test_thick_sphere_limit_pressure_and_descending_branch():
     assert curve.end == "past the limit point"
     assert curve.limit_pressure_kpa == pytest.approx(LIMIT_B_OVER_A_2 * mu, rel=0.03)
     assert curve.limit_pressure_kpa == pytest.approx(
-        radial_pressure(mu, kappa, STRETCH_AT_LIMIT), rel=0.005)
+        radial_pressure(mu, kappa, STRETCH_AT_LIMIT), rel=0.005
+    )
     v0 = model.chamber_rest_volume_mm3[0]
     stretch = (1 + curve.limit_growth_mm3 / v0) ** (1 / 3)
     assert stretch == pytest.approx(STRETCH_AT_LIMIT, abs=0.1)
@@ -90,8 +91,9 @@ def test_thick_sphere_limit_pressure_and_descending_branch():
     x, prev, p = None, None, None
     for la in np.arange(1.1, 2.25, 0.1):
         load = Load(np.zeros(1), np.array([v0 * (la**3 - 1)]), np.array([True]))
-        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
-                          options=SolverOptions())
+        res = solve_state(
+            model, load, x_start=x, load_start=prev, pressure_start=p, options=SolverOptions()
+        )
         x, prev, p = res.x, load, res.pressure_kpa
     assert la == pytest.approx(2.2)
     assert p[0] == pytest.approx(inflation_pressure(mu, 2.2), rel=0.03)
@@ -131,35 +133,45 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     options = SolverOptions()
     key = ["[actuation].pressure_kpa.c"]
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(model, np.array([[5.0], [28.0]]), key,
-                               model.make_solver(), options, screen=0.0)
+        limits.check_pressures(
+            model, np.array([[5.0], [28.0]]), key, model.make_solver(), options, screen=0.0
+        )
     line = str(info.value)
     lim = float(line.split("limit pressure of ")[1].split(" kPa")[0])
     assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
-    assert line == (f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
-                    f"pressure of {limits.kpa(lim)} kPa (no equilibrium above it); give "
-                    "`volume_growth_mm3` to follow the inflation past it")
+    assert line == (
+        f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
+        f"pressure of {limits.kpa(lim)} kPa (no equilibrium above it); give "
+        "`volume_growth_mm3` to follow the inflation past it"
+    )
     told = []
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(model, np.array([[100.0]]), key, model.make_solver(),
-                               options, progress=told.append)
+        limits.check_pressures(
+            model, np.array([[100.0]]), key, model.make_solver(), options, progress=told.append
+        )
     line = str(info.value)
     bound = float(line.split("which is below ")[1].split(" kPa")[0])
     assert lim < bound < 100.0
-    assert line == (f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
-                    f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
-                    "levels off: no equilibrium above its peak; `fruit limits` computes it); "
-                    "give `volume_growth_mm3` to follow the inflation past it")
+    assert line == (
+        f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
+        f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
+        "levels off: no equilibrium above its peak; `fruit limits` computes it); "
+        "give `volume_growth_mm3` to follow the inflation past it"
+    )
     assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
-    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
-                                         r"this chamber's collapse pressure of -\d"):
-        limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(),
-                               options)
-    limits.check_pressures(model, np.array([[10.0], [-10.0], [np.nan]]), key,
-                           model.make_solver(), options)
+    with pytest.raises(
+        SceneError,
+        match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
+        r"this chamber's collapse pressure of -\d",
+    ):
+        limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(), options)
+    limits.check_pressures(
+        model, np.array([[10.0], [-10.0], [np.nan]]), key, model.make_solver(), options
+    )
     told = []
-    limits.check_pressures(model, np.array([[0.5]]), key, model.make_solver(), options,
-                           progress=told.append)
+    limits.check_pressures(
+        model, np.array([[0.5]]), key, model.make_solver(), options, progress=told.append
+    )
     assert told == []  # screened out: no sample followed
 
 
@@ -174,13 +186,17 @@ def test_a_failed_state_past_the_limit_is_named():
     load = Load.pressures([28.0])
     with pytest.raises(SolverError) as failed:
         solve_state(model, load, options=SolverOptions(load_steps=4), solver=solver)
-    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 28 kPa is past "
-                                         r"this chamber's limit pressure of 27.0 kPa "):
+    with pytest.raises(
+        SceneError,
+        match=r"^\[actuation\].pressure_kpa.c: 28 kPa is past "
+        r"this chamber's limit pressure of 27.0 kPa ",
+    ):
         limits.explain_failure(model, load, key, solver, SolverOptions(), failed.value)
     original = SolverError("state 0: no equilibrium")
     with pytest.raises(SolverError, match="^state 0: no equilibrium$"):
-        limits.explain_failure(model, Load.pressures([10.0]), key, solver, SolverOptions(),
-                               original)
+        limits.explain_failure(
+            model, Load.pressures([10.0]), key, solver, SolverOptions(), original
+        )
 
 
 def test_time_budget_names_the_load_fraction():
@@ -188,12 +204,14 @@ def test_time_budget_names_the_load_fraction():
     fraction reached and the chamber pressures there."""
     model = octant_ball(1, 1, nu=0.49)
     with pytest.raises(OutOfTime) as info:
-        solve_state(model, Load.pressures([20.0]), options=SolverOptions(max_seconds=1e-9),
-                    label="state 0")
+        solve_state(
+            model, Load.pressures([20.0]), options=SolverOptions(max_seconds=1e-9), label="state 0"
+        )
     assert str(info.value) == (
         "state 0: stopped after 1e-09 s ([solver].max_seconds) at 0.000 of the load step "
         "(chambers: c 0 kPa); a chamber may be past its limit pressure (`fruit limits` "
-        "computes it), or raise [solver].max_seconds")
+        "computes it), or raise [solver].max_seconds"
+    )
     assert info.value.fraction == 0.0
 
 
@@ -203,8 +221,13 @@ def test_progress_of_a_long_state(monkeypatch):
     monkeypatch.setattr(newton, "PROGRESS_SECONDS", 0.0)
     model = octant_ball(1, 1, nu=0.49)
     told = []
-    solve_state(model, Load.pressures([10.0]), options=SolverOptions(load_steps=2),
-                label="state 3", progress=told.append)
+    solve_state(
+        model,
+        Load.pressures([10.0]),
+        options=SolverOptions(load_steps=2),
+        label="state 3",
+        progress=told.append,
+    )
     assert told[0].startswith("state 3: load 0.500, Newton step 0, residual ")
     assert any(t.startswith("state 3: load 1.000, Newton step 1, ") for t in told)
 
@@ -234,8 +257,11 @@ def test_cholmod_refusal_is_our_error_not_its_warning(capfd):
 @pytest.mark.parametrize("value", ["0", "-1.5"])
 def test_max_seconds_must_be_positive(tmp_path, value):
     text = f"[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n[solver]\nmax_seconds = {value}\n"
-    with pytest.raises(SceneError, match=r"^s.toml: \[solver\].max_seconds: expected a time "
-                                         r"budget > 0 s, got "):
+    with pytest.raises(
+        SceneError,
+        match=r"^s.toml: \[solver\].max_seconds: expected a time "
+        r"budget > 0 s, got ",
+    ):
         parse_scene(text, tmp_path / "s.toml")
 
 
@@ -255,8 +281,9 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     assert saved == json.loads(json.dumps(info))
     cav = saved["chambers"]["c"]
     mu = 100 / (2 * 1.45)
-    assert cav["limit_pressure_kpa"] == pytest.approx(radial_pressure(mu, 100 / 0.3, 1.83),
-                                                      rel=0.05)
+    assert cav["limit_pressure_kpa"] == pytest.approx(
+        radial_pressure(mu, 100 / 0.3, 1.83), rel=0.05
+    )
     assert cav["collapse_pressure_kpa"] < 0 and cav["limit_volume_growth_mm3"] > 0
     assert saved["element"] == "p2" and saved["mesh"]["elements"] > 0
     rows = (out / "pv.csv").read_text().splitlines()
@@ -273,17 +300,20 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
         f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure, which "
         f"is below {limits.kpa(bound)} kPa (its pressure-volume curve levels off: no "
         "equilibrium above its peak; `fruit limits` computes it); give `volume_growth_mm3` "
-        "to follow the inflation past it")
+        "to follow the inflation past it"
+    )
     assert not (tmp_path / "sim" / "states.npz").exists()
 
 
 def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):
     (tmp_path / "s.toml").write_text("[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n")
-    res = CliRunner().invoke(cli, ["limits", str(tmp_path / "s.toml"), "--out",
-                                   str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli, ["limits", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")]
+    )
     assert res.exit_code == 1
-    assert res.output == (f"Error: {tmp_path / 's.toml'}: [[geometry.chamber]]: the scene "
-                          "has no chamber\n")
+    assert res.output == (
+        f"Error: {tmp_path / 's.toml'}: [[geometry.chamber]]: the scene has no chamber\n"
+    )
     assert not (tmp_path / "o").exists()
 
 
@@ -293,7 +323,10 @@ def test_volume_growth_below_minus_the_rest_volume_is_refused():
     ok = Load(np.zeros(1), np.array([-0.5 * v0]), np.array([True]))
     limits.check_growth(model, [ok])
     bad = Load(np.zeros(1), np.array([-2 * v0]), np.array([True]))
-    with pytest.raises(SceneError, match=r"^\[actuation\].volume_growth_mm3.c: -\d+(\.\d+)? "
-                                         r"mm\^3 would leave the chamber no volume \(its rest "
-                                         r"volume is \d+(\.\d+)? mm\^3\): expected more than "):
+    with pytest.raises(
+        SceneError,
+        match=r"^\[actuation\].volume_growth_mm3.c: -\d+(\.\d+)? "
+        r"mm\^3 would leave the chamber no volume \(its rest "
+        r"volume is \d+(\.\d+)? mm\^3\): expected more than ",
+    ):
         limits.check_growth(model, [ok, bad])

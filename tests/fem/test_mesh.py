@@ -93,8 +93,9 @@ def test_lame_thick_sphere_compliance_paper_model(tmp_path):
     assert 0.94 * exact < compliance < exact
     wall = np.unique(mesh["chamber_tris"])
     x0 = st["rest_nodes"][wall]
-    u_r = np.einsum("ni,ni->n", st["displacement_mm"][0][wall],
-                    x0 / np.linalg.norm(x0, axis=1, keepdims=True))
+    u_r = np.einsum(
+        "ni,ni->n", st["displacement_mm"][0][wall], x0 / np.linalg.norm(x0, axis=1, keepdims=True)
+    )
     assert 0.94 * u_a < u_r.mean() < 1.02 * u_a
     assert st["pressure_kpa"][0, 0] == p
     assert str(st["element"]) == "p1" and str(st["material_model"]) == "corotational"
@@ -163,12 +164,19 @@ def octant_ball(cells=4, layers=4, nu=0.499, a=10.0, b=20.0):
     outer = faces[on_outer]
     nodes, tets, (wall, outer) = quadratic_mesh(nodes, tets, [wall, outer])
     for tris, r in ((wall, a), (outer, b)):
-        assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0],
-                                    [r] * 3) == 0
-    rollers = [(np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
-               for d in range(3)]
-    return ContinuumModel.from_arrays(nodes, tets, material("neo-hookean", 100.0, nu), "p2",
-                                      chambers={"c": wall}, prescribed=rollers)
+        assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0], [r] * 3) == 0
+    rollers = [
+        (np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
+        for d in range(3)
+    ]
+    return ContinuumModel.from_arrays(
+        nodes,
+        tets,
+        material("neo-hookean", 100.0, nu),
+        "p2",
+        chambers={"c": wall},
+        prescribed=rollers,
+    )
 
 
 def test_thick_sphere_large_inflation_octant():
@@ -188,15 +196,17 @@ def test_thick_sphere_large_inflation_octant():
     x, prev = None, None
     for la in (1.2, 1.5):
         load = Load.pressures([inflation_pressure(mu, la)])
-        res = solve_state(model, load, x_start=x, load_start=prev,
-                          options=SolverOptions(load_steps=4))
+        res = solve_state(
+            model, load, x_start=x, load_start=prev, options=SolverOptions(load_steps=4)
+        )
         assert res.chamber_volume_mm3[0] / v0 == pytest.approx(la**3, rel=0.03)
         x, prev = res.x, load
     # volume control from there: the cavity held at V0 1.5^3, its pressure comes back
     reached = Load(np.zeros(1), res.chamber_volume_mm3 - v0, np.array([True]))
     held = Load(np.zeros(1), np.array([v0 * (1.5**3 - 1)]), np.array([True]))
-    res = solve_state(model, held, x_start=res.x, load_start=reached,
-                      pressure_start=res.pressure_kpa)
+    res = solve_state(
+        model, held, x_start=res.x, load_start=reached, pressure_start=res.pressure_kpa
+    )
     assert res.chamber_volume_mm3[0] == pytest.approx(v0 * 1.5**3, rel=1e-6)
     assert res.pressure_kpa[0] == pytest.approx(inflation_pressure(mu, 1.5), rel=0.01)
 
@@ -216,9 +226,17 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
     for name in ("mesh.npz", "mesh.msh", "mesh.vtu", "quality.json"):
         assert (tmp_path / "m" / name).exists()
     mesh = np.load(tmp_path / "m" / "mesh.npz", allow_pickle=False)
-    vol = np.abs(np.linalg.det(np.transpose(
-        mesh["nodes"][mesh["tets"]][:, 1:] - mesh["nodes"][mesh["tets"]][:, :1],
-        (0, 2, 1)))).sum() / 6
+    vol = (
+        np.abs(
+            np.linalg.det(
+                np.transpose(
+                    mesh["nodes"][mesh["tets"]][:, 1:] - mesh["nodes"][mesh["tets"]][:, :1],
+                    (0, 2, 1),
+                )
+            )
+        ).sum()
+        / 6
+    )
     chamber = 4 / 3 * np.pi * 8 * 6 * 2.5
     assert vol == pytest.approx(40 * 30 * 10 - chamber, rel=0.01)
     assert mesh["surface_tri_tag"].sum() > 0  # base faces tagged
@@ -233,8 +251,11 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
     assert np.array_equal(st["displacement_mm"][0], np.zeros((n, 3)))
     assert np.allclose(st["taxels_mm"][0], taxels, atol=1e-9)
     # the chamber grows with pressure and lifts the top above it
-    assert st["chamber_volume_mm3"][2, 0] > st["chamber_volume_mm3"][1, 0] > \
-        st["chamber_volume_mm3"][0, 0]
+    assert (
+        st["chamber_volume_mm3"][2, 0]
+        > st["chamber_volume_mm3"][1, 0]
+        > st["chamber_volume_mm3"][0, 0]
+    )
     assert st["taxels_mm"][2, 0, 2] > st["taxels_mm"][1, 0, 2] > 10.0
     for key in ("iterations", "residual", "solve_ms", "subdivisions", "min_det_f"):
         assert st[key].shape == (s,)
@@ -245,8 +266,11 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
 
 def test_chamber_poking_out_is_refused(tmp_path):
     scene = pad_scene(tmp_path, cx=17.0)
-    with pytest.raises(MeshError, match=r"^pad.toml: \[\[geometry.chamber\]\] 'a': .* mm\^3 "
-                                        "of it lies outside the solid pad "):
+    with pytest.raises(
+        MeshError,
+        match=r"^pad.toml: \[\[geometry.chamber\]\] 'a': .* mm\^3 "
+        "of it lies outside the solid pad ",
+    ):
         run_tetra(scene, None, tmp_path / "m")
 
 
@@ -273,12 +297,14 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
     trimesh.creation.icosphere(3, 0.04).export(tmp_path / "sphere_m.stl")
     trimesh.creation.icosphere(2, 0.008).export(tmp_path / "chamber_m.stl")
     (tmp_path / "s.toml").write_text(SPHERE_M.format(unit=""))
-    res = CliRunner().invoke(cli, ["-q", "run", str(tmp_path / "s.toml"), "--out",
-                                   str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli, ["-q", "run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")]
+    )
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1] == (
-        'Error: s.toml: [geometry].solid: sphere_m.stl is only 0.08 mm across, so it is not '
-        'in millimetres; set [geometry].unit = "m" (or "cm")')
+        "Error: s.toml: [geometry].solid: sphere_m.stl is only 0.08 mm across, so it is not "
+        'in millimetres; set [geometry].unit = "m" (or "cm")'
+    )
     assert not (tmp_path / "o" / "tetra").exists()
     scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
     outer, (chamber,) = body_shells(scene, scene.geometry.solid)
@@ -287,12 +313,18 @@ def test_solid_in_metres_needs_its_unit(tmp_path):
     assert outer["name"] == "sphere_m.stl"
     trimesh.creation.icosphere(3, 40.0).export(tmp_path / "sphere_m.stl")  # now in mm
     scene = parse_scene(SPHERE_M.format(unit=""), tmp_path / "s.toml")
-    with pytest.raises(GeometryError, match=r"^s.toml: \[\[geometry.chamber\]\] 'c1'.surface: "
-                                         r"chamber_m.stl is only 0.016 mm across"):
+    with pytest.raises(
+        GeometryError,
+        match=r"^s.toml: \[\[geometry.chamber\]\] 'c1'.surface: "
+        r"chamber_m.stl is only 0.016 mm across",
+    ):
         body_shells(scene, scene.geometry.solid)
     scene = parse_scene(SPHERE_M.format(unit='unit = "m"'), tmp_path / "s.toml")
-    with pytest.raises(GeometryError, match=r"^s.toml: \[geometry\].solid: sphere_m.stl is "
-                                         r"8e\+04 mm across in m, more than 5000 mm"):
+    with pytest.raises(
+        GeometryError,
+        match=r"^s.toml: \[geometry\].solid: sphere_m.stl is "
+        r"8e\+04 mm across in m, more than 5000 mm",
+    ):
         body_shells(scene, scene.geometry.solid)  # a mm solid read as metres
 
 
@@ -328,26 +360,38 @@ def pad_mesh(tmp_path_factory):
     return d / "mesh.npz"
 
 
-@pytest.mark.parametrize("extra, match", [
-    ("[[fixed]]\nbox_mm = [100, 100, 100, 101, 101, 101]",
-     r"\[\[fixed\]\] #1.box_mm: no mesh node"),
-    ("[[jig]]\nregion_box_mm = [100, 100, 100, 101, 101, 101]",
-     r"\[\[jig\]\] #1.region_box_mm: no mesh node"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (
+            "[[fixed]]\nbox_mm = [100, 100, 100, 101, 101, 101]",
+            r"\[\[fixed\]\] #1.box_mm: no mesh node",
+        ),
+        (
+            "[[jig]]\nregion_box_mm = [100, 100, 100, 101, 101, 101]",
+            r"\[\[jig\]\] #1.region_box_mm: no mesh node",
+        ),
+    ],
+)
 def test_bad_boxes_are_refused(tmp_path, pad_mesh, extra, match):
     scene = pad_scene(tmp_path, extra=extra)
     with pytest.raises(SceneError, match=match):
         run_simulate(scene, pad_mesh, None, tmp_path / "s")
 
 
-@pytest.mark.parametrize("extra, match", [
-    ("[actuation]\npressure_kpa = {b = [1.0]}", "pressure_kpa.b: no such chamber"),
-    ("[material]\nyoung_modulus_kpa = -5.0", "young_modulus_kpa: expected > 0"),
-    ("[material]\npoisson_ratio = 0.5", "poisson_ratio: expected -1 < nu < 0.5"),
-    ("[material]\npoisson_ratio = -1.0", "poisson_ratio: expected -1 < nu < 0.5"),
-    ("[solver]\nlinear_solver = \"splu\"",
-     "pad.toml: \\[solver\\].linear_solver: expected one of pcg, direct, jacobi, got 'splu'"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        ("[actuation]\npressure_kpa = {b = [1.0]}", "pressure_kpa.b: no such chamber"),
+        ("[material]\nyoung_modulus_kpa = -5.0", "young_modulus_kpa: expected > 0"),
+        ("[material]\npoisson_ratio = 0.5", "poisson_ratio: expected -1 < nu < 0.5"),
+        ("[material]\npoisson_ratio = -1.0", "poisson_ratio: expected -1 < nu < 0.5"),
+        (
+            '[solver]\nlinear_solver = "splu"',
+            "pad.toml: \\[solver\\].linear_solver: expected one of pcg, direct, jacobi, got 'splu'",
+        ),
+    ],
+)
 def test_bad_scene_values_are_refused(tmp_path, extra, match):
     with pytest.raises(SceneError, match=match):
         pad_scene(tmp_path, extra=extra)
@@ -365,14 +409,25 @@ pressure_kpa = {a = [1.0]}
     pad_scene(tmp_path, extra=extra)
     (tmp_path / "taxels.csv").write_text("# mm\nid,i,j,x_mm,y_mm,z_mm\n0,0,0,0.0,0.0,10.0\n")
     runner = CliRunner()
-    res = runner.invoke(cli, ["-q", "simulate", str(tmp_path / "pad.toml"), "--out",
-                              str(tmp_path / "o"), "--taxels", str(tmp_path / "taxels.csv")])
+    res = runner.invoke(
+        cli,
+        [
+            "-q",
+            "simulate",
+            str(tmp_path / "pad.toml"),
+            "--out",
+            str(tmp_path / "o"),
+            "--taxels",
+            str(tmp_path / "taxels.csv"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     st = np.load(tmp_path / "o" / "states.npz", allow_pickle=False)
     assert st["taxels_mm"].shape == (1, 1, 3)
     pad_scene(tmp_path, cx=17.0)
-    res = runner.invoke(cli, ["-q", "tetra", str(tmp_path / "pad.toml"), "--out",
-                              str(tmp_path / "o2")])
+    res = runner.invoke(
+        cli, ["-q", "tetra", str(tmp_path / "pad.toml"), "--out", str(tmp_path / "o2")]
+    )
     assert res.exit_code == 1
     assert "Error: pad.toml: [[geometry.chamber]] 'a': " in res.output
     assert "of it lies outside the solid pad" in res.output
@@ -397,11 +452,15 @@ def dome_dir(tmp_path_factory):
     import manifold3d
 
     d = tmp_path_factory.mktemp("dome")
-    body = manifold3d.Manifold.sphere(1.0, 64).scale((30.0, 20.0, 15.0)).trim_by_plane(
-        (0.0, 0.0, 1.0), 0.0)
+    body = (
+        manifold3d.Manifold.sphere(1.0, 64)
+        .scale((30.0, 20.0, 15.0))
+        .trim_by_plane((0.0, 0.0, 1.0), 0.0)
+    )
     mesh = body.to_mesh64()
-    trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3],
-                    np.asarray(mesh.tri_verts)).export(d / "dome.stl")
+    trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts)).export(
+        d / "dome.stl"
+    )
     return d
 
 
@@ -418,8 +477,12 @@ def test_split_into_two_disks():
 
     from fruitcli.fem.meshing.patches import boundary_loops, is_disk, split_bottom_top, split_loop
 
-    m = manifold3d.Manifold.sphere(1.0, 32).scale((30.0, 20.0, 15.0)).trim_by_plane(
-        (0.0, 0.0, 1.0), 0.0).to_mesh64()
+    m = (
+        manifold3d.Manifold.sphere(1.0, 32)
+        .scale((30.0, 20.0, 15.0))
+        .trim_by_plane((0.0, 0.0, 1.0), 0.0)
+        .to_mesh64()
+    )
     v, f = np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts, np.int64)
     bottom, base = split_bottom_top(v, f)
     assert base and is_disk(f[bottom]) and is_disk(f[~bottom])
@@ -512,8 +575,9 @@ def test_plc_failure_runs_the_fallback_chain(tmp_path, caplog):
     v = m.vertices.copy()
     v[np.all(np.isclose(v, [0.0, 0.0, 5.0]), axis=1), 2] = -8.0
     trimesh.Trimesh(v, m.faces, process=False).export(tmp_path / "poke.stl")
-    scene = parse_scene('[geometry]\nsolid = "poke.stl"\n[mesh]\nsize_mm = 5.0\n',
-                        tmp_path / "s.toml")
+    scene = parse_scene(
+        '[geometry]\nsolid = "poke.stl"\n[mesh]\nsize_mm = 5.0\n', tmp_path / "s.toml"
+    )
     with pytest.raises(MeshError) as err, caplog.at_level("WARNING"):
         run_tetra(scene, None, tmp_path / "out")
     msg = str(err.value)

@@ -26,10 +26,12 @@ OPTS = SolverOptions(tolerance=1e-8)
 def cube_with_cavity():
     """30 mm cube on a fixed base, a 10 mm cavity (the stability study's body), and three
     'taxels' on its top face."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [30, 30, 30], (6, 6, 6),
-                                                  [10, 10, 10], [20, 20, 20])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [30, 30, 30], (6, 6, 6), [10, 10, 10], [20, 20, 20]
+    )
+    m = Model.from_arrays(
+        nodes, tets, 100.0, 0.3, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
+    )
     taxels = np.array([[15.0, 15.0, 29.9], [7.0, 21.0, 29.9], [24.0, 5.0, 29.9]])
     tet, w, _ = barycentric.locate(m.rest, m.tets, taxels)
     return m, tet, w
@@ -166,9 +168,24 @@ def test_live_online_solves_the_measured_pressure(tmp_path, monkeypatch):
     em = BoardEmulator(frames, fps=12, wait_for_reader=True)
     th = em.start()
     try:
-        res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
-                                       "--taxels", str(taxels), "--pressure-port", src.path,
-                                       "--online", "--model", "full", "--frames", "60"])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "live",
+                str(tmp_path / "s.toml"),
+                "--port",
+                em.path,
+                "--taxels",
+                str(taxels),
+                "--pressure-port",
+                src.path,
+                "--online",
+                "--model",
+                "full",
+                "--frames",
+                "60",
+            ],
+        )
     finally:
         th.join(5)
         src.close()
@@ -192,17 +209,31 @@ def test_live_online_bad_inputs(tmp_path, monkeypatch):
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     flat = PAD_SCENE.replace(
         '[[geometry.chamber]]\nname = "bend"\n'
-        'ellipsoid = {center_mm = [0.0, 0.0, 4.0], radii_mm = [20.0, 20.0, 2.5]}\n', "")
+        "ellipsoid = {center_mm = [0.0, 0.0, 4.0], radii_mm = [20.0, 20.0, 2.5]}\n",
+        "",
+    )
     flat = flat.replace("[actuation]\npressure_kpa = {bend = [0.0, 3.0]}\n", "")
     still = PAD_SCENE.replace("[0.0, 3.0]", "[0.0, 0.0]")
-    cases = [(PAD_SCENE, [], "--online: needs --pressure-port"),
-             (flat, ["--pressure-port", "y"], "--online: the scene has no [[geometry.chamber]]"),
-             (still, ["--pressure-port", "y"],
-              "--online: the scene is not meshed (no deformation")]
+    cases = [
+        (PAD_SCENE, [], "--online: needs --pressure-port"),
+        (flat, ["--pressure-port", "y"], "--online: the scene has no [[geometry.chamber]]"),
+        (still, ["--pressure-port", "y"], "--online: the scene is not meshed (no deformation"),
+    ]
     for n, (text, extra, message) in enumerate(cases):
         (tmp_path / f"s{n}.toml").write_text(text)
-        res = CliRunner().invoke(cli, ["live", str(tmp_path / f"s{n}.toml"), "--port", "x",
-                                       "--taxels", str(taxels), "--online", *extra])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "live",
+                str(tmp_path / f"s{n}.toml"),
+                "--port",
+                "x",
+                "--taxels",
+                str(taxels),
+                "--online",
+                *extra,
+            ],
+        )
         assert res.exit_code == 1 and message in res.output, res.output
         assert res.output.count("Error") == 1
 
@@ -220,8 +251,7 @@ def test_live_online_uses_the_reduced_model_by_default(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "s.toml").write_text(PAD_SCENE)
     taxels = top_taxel_csv(tmp_path / "t.csv")
-    built = ensure_reduced(load_scene(tmp_path / "s.toml"), tmp_path / "out" / "online-pad",
-                           taxels)
+    built = ensure_reduced(load_scene(tmp_path / "s.toml"), tmp_path / "out" / "online-pad", taxels)
     assert built.validation()["within_bound"]
     src = PressureSource(3.0)
     frames = touch_frames(noise=False)
@@ -229,16 +259,32 @@ def test_live_online_uses_the_reduced_model_by_default(tmp_path, monkeypatch):
     em = BoardEmulator(frames, fps=50, wait_for_reader=True)
     th = em.start()
     try:
-        res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
-                                       "--taxels", str(taxels), "--pressure-port",
-                                       src.path, "--online", "--frames", "60"])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "live",
+                str(tmp_path / "s.toml"),
+                "--port",
+                em.path,
+                "--taxels",
+                str(taxels),
+                "--pressure-port",
+                src.path,
+                "--online",
+                "--frames",
+                "60",
+            ],
+        )
     finally:
         th.join(5)
         src.close()
     assert res.exit_code == 0, res.output
     assert "reduce: reuse" in res.output
-    assert re.search(r"online reduced model \(degree \d.*\): \d+ pressure vectors, \d+ us "
-                     "median", res.output)
+    assert re.search(
+        r"online reduced model \(degree \d.*\): \d+ pressure vectors, \d+ us "
+        "median",
+        res.output,
+    )
     lines = live_lines(res.output)
     assert [d["frame"] for d in lines] == list(range(40, 51))
     z = np.array([d["touches"][0]["z_mm"] for d in lines[:-1]])

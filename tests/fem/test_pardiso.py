@@ -17,8 +17,11 @@ def laplacian(n: int, shift: float = 0.0):
     """The 3D 7-point Laplacian on an n^3 grid minus shift * I (SPD for shift 0)."""
     one = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
     eye = sp.identity(n)
-    k = (sp.kron(sp.kron(one, eye), eye) + sp.kron(sp.kron(eye, one), eye)
-         + sp.kron(sp.kron(eye, eye), one))
+    k = (
+        sp.kron(sp.kron(one, eye), eye)
+        + sp.kron(sp.kron(eye, one), eye)
+        + sp.kron(sp.kron(eye, eye), one)
+    )
     return (k - shift * sp.identity(n**3)).tocsr()
 
 

@@ -87,12 +87,14 @@ def test_pressure_box_from_actuation_margin_and_range():
     sc = parse_scene(PAD, Path("/tmp/pad.toml"), must_exist=False)
     lo, hi = pressure_box(sc, ["left", "right"])
     assert np.allclose(lo, [-0.3, -0.3]) and np.allclose(hi, [3.3, 3.3])
-    sc = parse_scene(PAD + "pressure_range_kpa = [1.0, 5.0]\n",
-                     Path("/tmp/pad.toml"), must_exist=False)
+    sc = parse_scene(
+        PAD + "pressure_range_kpa = [1.0, 5.0]\n", Path("/tmp/pad.toml"), must_exist=False
+    )
     assert pressure_box(sc, ["left", "right"])[1].tolist() == [5.0, 5.0]
     with pytest.raises(FruitError, match=r"\[reduced\].pressure_range_kpa: expected \[lo, hi\]"):
-        parse_scene(PAD + "pressure_range_kpa = [5.0, 1.0]\n",
-                    Path("/tmp/pad.toml"), must_exist=False)
+        parse_scene(
+            PAD + "pressure_range_kpa = [5.0, 1.0]\n", Path("/tmp/pad.toml"), must_exist=False
+        )
 
 
 def test_pressure_csv_round_trip(tmp_path):
@@ -106,15 +108,18 @@ def test_pressure_csv_round_trip(tmp_path):
     assert np.array_equal(swapped, kpa[:, ::-1])
 
 
-@pytest.mark.parametrize("text, message", [
-    ("left_kpa\n1.0\n", "missing column(s) right_kpa"),
-    ("left_kpa,right_kpa,c3_kpa\n1,2,3\n", "unexpected column(s) c3_kpa"),
-    ("left_kpa,right_kpa\n1.0,nan\n", "row 2: column right_kpa: not finite"),
-    ("left_kpa,right_kpa\n1.0,x\n", "row 2: column right_kpa: not a number"),
-    ("# only a comment\n", "empty file"),
-    ("left_kpa,right_kpa\n", "no data rows"),
-    ("left_kpa,right_kpa\n1.0\n", "row 2: expected 2 fields, got 1"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("left_kpa\n1.0\n", "missing column(s) right_kpa"),
+        ("left_kpa,right_kpa,c3_kpa\n1,2,3\n", "unexpected column(s) c3_kpa"),
+        ("left_kpa,right_kpa\n1.0,nan\n", "row 2: column right_kpa: not finite"),
+        ("left_kpa,right_kpa\n1.0,x\n", "row 2: column right_kpa: not a number"),
+        ("# only a comment\n", "empty file"),
+        ("left_kpa,right_kpa\n", "no data rows"),
+        ("left_kpa,right_kpa\n1.0\n", "row 2: expected 2 fields, got 1"),
+    ],
+)
 def test_pressure_csv_bad_inputs(tmp_path, text, message):
     (tmp_path / "p.csv").write_text(text)
     with pytest.raises(FruitError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -128,8 +133,9 @@ def pad_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("pad")
     (root / "pad.toml").write_text(PAD)
     out = root / "out"
-    res = CliRunner().invoke(cli, ["run", str(root / "pad.toml"), "--out", str(out),
-                                   "--until", "reduce"])
+    res = CliRunner().invoke(
+        cli, ["run", str(root / "pad.toml"), "--out", str(out), "--until", "reduce"]
+    )
     assert res.exit_code == 0, res.output
     rng = np.random.default_rng(7)
     kpa = -0.3 + rng.random((4, 2)) * 3.6
@@ -137,9 +143,21 @@ def pad_run(tmp_path_factory):
     taxels = out / "pad-grid" / "taxels.csv"
     states = {}
     for kind in ("reduced", "full"):
-        res = CliRunner().invoke(cli, ["simulate", str(root / "pad.toml"), "--out",
-                                       str(root / kind), "--pressures", str(root / "p.csv"),
-                                       "--model", kind, "--taxels", str(taxels)])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "simulate",
+                str(root / "pad.toml"),
+                "--out",
+                str(root / kind),
+                "--pressures",
+                str(root / "p.csv"),
+                "--model",
+                kind,
+                "--taxels",
+                str(taxels),
+            ],
+        )
         assert res.exit_code == 0, res.output
         with np.load(root / kind / "states.npz") as st:
             states[kind] = {k: st[k] for k in st.files}
@@ -174,8 +192,16 @@ def test_simulate_pressures_outside_the_range(pad_run):
     for `full`."""
     root, out, _, _ = pad_run
     (root / "far.csv").write_text("# kPa\nleft_kpa,right_kpa\n1.0,1.0\n1.0,4.5\n")
-    args = ["simulate", str(root / "pad.toml"), "--out", str(root / "far"), "--pressures",
-            str(root / "far.csv"), "--taxels", str(out / "pad-grid" / "taxels.csv")]
+    args = [
+        "simulate",
+        str(root / "pad.toml"),
+        "--out",
+        str(root / "far"),
+        "--pressures",
+        str(root / "far.csv"),
+        "--taxels",
+        str(out / "pad-grid" / "taxels.csv"),
+    ]
     res = CliRunner().invoke(cli, args + ["--model", "reduced"])
     assert res.exit_code == 1
     last = res.output.strip().splitlines()[-1]
@@ -192,20 +218,40 @@ def test_simulate_pressures_bad_csv_is_one_line(pad_run, tmp_path):
     root, _, _, _ = pad_run
     (tmp_path / "bad.csv").write_text("left_kpa,middle_kpa\n1.0,2.0\n")
     for kind in ("full", "reduced"):
-        res = CliRunner().invoke(cli, ["simulate", str(root / "pad.toml"), "--out",
-                                       str(tmp_path / kind), "--pressures",
-                                       str(tmp_path / "bad.csv"), "--model", kind])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "simulate",
+                str(root / "pad.toml"),
+                "--out",
+                str(tmp_path / kind),
+                "--pressures",
+                str(tmp_path / "bad.csv"),
+                "--model",
+                kind,
+            ],
+        )
         assert res.exit_code == 1
         assert res.output.strip().splitlines() == [
             f"Error: {tmp_path / 'bad.csv'}: row 1: missing column(s) right_kpa (found "
-            "left_kpa, middle_kpa)"]
+            "left_kpa, middle_kpa)"
+        ]
 
 
 def test_check_range_names_the_row():
     arrays = {"range_lo_kpa": np.array([0.0, 0.0]), "range_hi_kpa": np.array([2.0, 3.0])}
-    m = reduced_mod.ReducedModel(["a", "b"], arrays["range_lo_kpa"], arrays["range_hi_kpa"],
-                                 rs.exponents(2, 1), np.zeros((3, 3)), np.zeros((3, 2)),
-                                 np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((1, 3)), arrays)
+    m = reduced_mod.ReducedModel(
+        ["a", "b"],
+        arrays["range_lo_kpa"],
+        arrays["range_hi_kpa"],
+        rs.exponents(2, 1),
+        np.zeros((3, 3)),
+        np.zeros((3, 2)),
+        np.zeros((3, 1)),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),
+        arrays,
+    )
     m.check_range(np.array([[0.0, 3.0], [2.0, 0.0]]))
     with pytest.raises(SolverError, match=r"p.csv: row 12: pressures \[2.5, 1.0\] kPa outside"):
         m.check_range(np.array([[0.0, 3.0], [2.5, 1.0]]), "p.csv", rows=[11, 12])
@@ -226,8 +272,14 @@ def test_planner_rebuilds_the_reduced_model_when_its_range_changes(pad_run, tmp_
     assert action(PAD.replace("right = [0.0, 0.0, 3.0]", "right = [0.0, 3.0, 0.0]")) == "reuse"
     assert action(PAD + "pressure_range_kpa = [0.0, 4.0]\n") == "run"
     assert action(PAD.replace("right = [0.0, 0.0, 3.0]", "right = [0.0, 0.0, 4.0]")) == "run"
-    assert action(PAD.replace('model = "corotational"',
-                              'model = "corotational"\nyoung_modulus_kpa = 150.0')) == "run"
+    assert (
+        action(
+            PAD.replace(
+                'model = "corotational"', 'model = "corotational"\nyoung_modulus_kpa = 150.0'
+            )
+        )
+        == "run"
+    )
 
 
 def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_run, tmp_path):
@@ -243,12 +295,16 @@ def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_r
     rng = np.random.default_rng(5)
     n = 200
     kpa = rng.uniform(0.0, 3.0, (n, 2))
-    write_npz(root / "rec.npz", Recording(touch_frames(n, rng), np.arange(n) / 30.0, kpa,
-                                          ("left", "right")))
+    write_npz(
+        root / "rec.npz",
+        Recording(touch_frames(n, rng), np.arange(n) / 30.0, kpa, ("left", "right")),
+    )
     text = PAD + '[frames]\nrecording = "rec.npz"\n'
     got = {}
-    for kind, scene_text in (("reduced", text),
-                             ("full", text.replace('"rec.npz"\n', '"rec.npz"\nmodel = "full"\n'))):
+    for kind, scene_text in (
+        ("reduced", text),
+        ("full", text.replace('"rec.npz"\n', '"rec.npz"\nmodel = "full"\n')),
+    ):
         (root / "rec.toml").write_text(scene_text)
         res = CliRunner().invoke(cli, ["run", str(root / "rec.toml"), "--out", str(out)])
         assert res.exit_code == 0, res.output
@@ -272,9 +328,18 @@ def test_one_vector_basis_equals_the_batch_basis():
     lo, hi = np.array([-1.2, 0.0, 3.0]), np.array([13.2, 5.0, 4.0])
     e = rs.exponents(3, 4)
     rng = np.random.default_rng(2)
-    m = reduced_mod.ReducedModel(["a", "b", "c"], lo, hi, e, rng.normal(size=(len(e), 6)),
-                                 np.zeros((len(e), 3)), np.zeros((len(e), 1)),
-                                 np.zeros((1, 3)), np.zeros((1, 3)), {})
+    m = reduced_mod.ReducedModel(
+        ["a", "b", "c"],
+        lo,
+        hi,
+        e,
+        rng.normal(size=(len(e), 6)),
+        np.zeros((len(e), 3)),
+        np.zeros((len(e), 1)),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),
+        {},
+    )
     p = lo + rng.random((20, 3)) * (hi - lo)
     batch = m.taxels(p)
     assert batch.shape == (20, 2, 3)
@@ -292,17 +357,30 @@ def translating_model(lo, hi, shift_per_kpa, rest_xyz):
     p = lo + (grid + 1) / 2 * (hi - lo)
     y = rest_xyz.ravel() + np.tile(p @ shift_per_kpa.T, len(rest_xyz))  # (n, 3T)
     coef = rs.fit(rs.basis(grid, e), y)
-    return reduced_mod.ReducedModel(["left", "right"], lo, hi, e, coef, np.zeros((k + 1, k)),
-                                    np.zeros((k + 1, 1)), np.zeros((1, 3)), np.zeros((1, 3)),
-                                    {"validation_taxel_error_mm": np.zeros((1, 1)),
-                                     "validation_volume_error_pct": np.zeros((1, k)),
-                                     "validation_surface_error_mm": np.zeros((1, 1)),
-                                     "sample_kpa": p, "build_s": np.array(0.0),
-                                     "full_solves": np.array(len(p))})
+    return reduced_mod.ReducedModel(
+        ["left", "right"],
+        lo,
+        hi,
+        e,
+        coef,
+        np.zeros((k + 1, k)),
+        np.zeros((k + 1, 1)),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),
+        {
+            "validation_taxel_error_mm": np.zeros((1, 1)),
+            "validation_volume_error_pct": np.zeros((1, k)),
+            "validation_surface_error_mm": np.zeros((1, 1)),
+            "sample_kpa": p,
+            "build_s": np.array(0.0),
+            "full_solves": np.array(len(p)),
+        },
+    )
 
 
-@pytest.mark.parametrize("detection", [{}, {"hysteresis_counts": 6.0, "drift_rate": 0.05,
-                                            "track_gate_mm": 30.0}])
+@pytest.mark.parametrize(
+    "detection", [{}, {"hysteresis_counts": 6.0, "drift_rate": 0.05, "track_gate_mm": 30.0}]
+)
 def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detection):
     """With a reduced model, a recording's frames with pressures put their touches at
     the taxels the model gives at those pressures (batch and stateful paths, chunked):
@@ -327,14 +405,16 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
     write_npz(tmp_path / "f.npz", Recording(frames, t_s, kpa[:, ::-1], ("right", "left")))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     b = np.array([[0.3, -0.1], [0.0, 0.2], [1.0, 0.5]])
-    model = translating_model(np.array([-3.0, -3.0]), np.array([12.0, 12.0]), b,
-                              read_taxels(taxels).xyz_mm)
+    model = translating_model(
+        np.array([-3.0, -3.0]), np.array([12.0, 12.0]), b, read_taxels(taxels).xyz_mm
+    )
     sc = scene(detection=detection)
     # on the rest taxels: the same recording without its pressures
     write_npz(tmp_path / "r.npz", Recording(frames, t_s))
     _, res0 = located(tmp_path, sc, tmp_path / "r.npz", taxels, out="rest")
-    res = run_locate(sc, tmp_path / "f.npz", taxels, None, tmp_path / "red",
-                     chunk_frames=64, reduced=model)
+    res = run_locate(
+        sc, tmp_path / "f.npz", taxels, None, tmp_path / "red", chunk_frames=64, reduced=model
+    )
     assert res0["touches"] > 50 and res["model"] == "reduced"
     assert res["frames_outside_reduced_range"] == 0
 
@@ -343,8 +423,9 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
             return [r for r in csv.DictReader(line for line in fh if not line.startswith("#"))]
 
     rest, red = rows(tmp_path / "rest" / "touches.csv"), rows(tmp_path / "red" / "touches.csv")
-    assert [(r["frame"], r["i"], r["j"]) for r in red] == [(r["frame"], r["i"], r["j"])
-                                                          for r in rest]
+    assert [(r["frame"], r["i"], r["j"]) for r in red] == [
+        (r["frame"], r["i"], r["j"]) for r in rest
+    ]
     for r0, r1 in zip(rest, red, strict=True):
         shift = b @ kpa[int(r0["frame"])]
         got = np.array([float(r1[c]) for c in ("x_mm", "y_mm", "z_mm")])
@@ -359,8 +440,7 @@ def test_reduced_online_clamps_to_the_range_and_skips_repeats():
 
     rest = np.array([[0.0, 0.0, 10.0], [16.0, 0.0, 10.0]])
     b = np.array([[0.3, -0.1], [0.0, 0.2], [1.0, 0.5]])
-    live = ReducedOnline(translating_model(np.array([0.0, 0.0]), np.array([5.0, 5.0]), b,
-                                           rest))
+    live = ReducedOnline(translating_model(np.array([0.0, 0.0]), np.array([5.0, 5.0]), b, rest))
     assert np.allclose(live.taxels_mm, rest)
     assert live.update(np.array([1.0, 2.0])) and not live.update([1.0, 2.0])
     assert np.abs(live.taxels_mm - (rest + b @ [1.0, 2.0])).max() < 1e-12

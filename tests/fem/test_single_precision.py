@@ -68,8 +68,9 @@ def test_ill_conditioned_tangent_falls_back_to_double_precision_for_good(soft):
     assert not solver.factor.single
 
 
-def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = True,
-                       tolerance: float = 1e-8):
+def hollow_cube_states(
+    monkeypatch, element: str, single: bool, chord: bool = True, tolerance: float = 1e-8
+):
     """A hollow cube (linear corotational, or quadratic neo-Hookean; nu = 0.49) under
     6 kPa, then 9 kPa from there, with the kept factor in single or double precision,
     with or without Newton's chord steps; (nodes of both states, whether the last factor
@@ -83,16 +84,22 @@ def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = Tr
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
     monkeypatch.setattr(linsolve, "SINGLE_PRECISION", single)
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 3),
-                                                  [3, 3, 3], [9, 9, 9])
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 3), [3, 3, 3], [9, 9, 9]
+    )
     fixed = np.flatnonzero(nodes[:, 2] == 0.0)
     if element == "p1":
-        m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
-                              fixed_nodes=fixed)
+        m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav}, fixed_nodes=fixed)
     else:
         nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
-        m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49),
-                                       "p2", chambers={"c": walls[0]}, fixed_nodes=fixed)
+        m = ContinuumModel.from_arrays(
+            nodes,
+            conn,
+            material("neo-hookean", 100.0, 0.49),
+            "p2",
+            chambers={"c": walls[0]},
+            fixed_nodes=fixed,
+        )
     solver = m.make_solver("pcg")
     if not chord:
         solver.near_tolerance = 0.0
@@ -101,14 +108,20 @@ def hollow_cube_states(monkeypatch, element: str, single: bool, chord: bool = Tr
     solver.update = lambda *args, **kwargs: updates.append(1) or update(*args, **kwargs)
     options = SolverOptions(tolerance=tolerance)
     a = solve_state(m, Load.pressures([6.0]), solver=solver, options=options)
-    b = solve_state(m, Load.pressures([9.0]), x_start=a.x, load_start=Load.pressures([6.0]),
-                    pressure_start=a.pressure_kpa, solver=solver, options=options)
+    b = solve_state(
+        m,
+        Load.pressures([9.0]),
+        x_start=a.x,
+        load_start=Load.pressures([6.0]),
+        pressure_start=a.pressure_kpa,
+        solver=solver,
+        options=options,
+    )
     return (a.x, b.x), solver.factor.single, len(updates) / (a.iterations + b.iterations)
 
 
 @pytest.mark.parametrize("element", ["p1", "p2"])
-def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypatch,
-                                                                        element):
+def test_states_agree_with_the_double_precision_factor_to_the_tolerance(monkeypatch, element):
     """The preconditioner's precision changes CG's path, not the equilibrium: two
     inflation states of a hollow cube agree to 1e-6 mm (tolerance 1e-8 on a 12 mm cube),
     on both solvers."""
@@ -126,8 +139,9 @@ def test_hyperelastic_chord_steps_reach_the_same_states(monkeypatch):
     tangent updates than Newton steps, and the same two states as without chord steps
     to 1e-6 mm."""
     chord, _, updates_chord = hollow_cube_states(monkeypatch, "p2", True, tolerance=1e-6)
-    plain, _, updates_plain = hollow_cube_states(monkeypatch, "p2", True, chord=False,
-                                                 tolerance=1e-6)
+    plain, _, updates_plain = hollow_cube_states(
+        monkeypatch, "p2", True, chord=False, tolerance=1e-6
+    )
     assert updates_chord < 1.0 <= updates_plain
     for xc, xp in zip(chord, plain, strict=True):
         assert np.abs(xc - xp).max() < 1e-6

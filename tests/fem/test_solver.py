@@ -21,9 +21,11 @@ def bent_pad(steps=8, solver="pcg"):
     region = nodes_in_box(nodes, [12.5, -9, -1, 21, 9, 3])
     jig = Jig(region, 1e4, rotate_deg=-180.0, axis=(0.0, 1.0, 0.0), pivot_mm=(0.0, 0.0, 8.4))
     m = Model.from_arrays(nodes, tets, 100.0, 0.45, fixed_nodes=fixed, jigs=[jig])
-    res = solve_state(m, Load.pressures([], gravity=0.0, jig=1.0),
-                      options=SolverOptions(tolerance=1e-6, load_steps=steps,
-                                            linear_solver=solver))
+    res = solve_state(
+        m,
+        Load.pressures([], gravity=0.0, jig=1.0),
+        options=SolverOptions(tolerance=1e-6, load_steps=steps, linear_solver=solver),
+    )
     return m, jig, region, res
 
 
@@ -44,8 +46,9 @@ def test_free_hollow_body_under_pressure_has_no_support_reactions():
     carries nothing (the pressure is self-equilibrated): the force balance holds at the
     pinned dofs too (1e-6 of the pressure force). Its cavity grows as much as with the
     base fixed, within 30 %."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
     m = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav})
     assert len(m.pinned_dofs) == 6 and any("3-2-1" in n for n in m.notes)
     res = solve_state(m, Load.pressures([4.0]))
@@ -54,8 +57,9 @@ def test_free_hollow_body_under_pressure_has_no_support_reactions():
     f_int = m.internal_forces(res.x, m.rotations(res.x)[0])
     reaction = (f_int - f_ext).reshape(-1)[m.pinned_dofs]
     assert np.abs(reaction).max() < 1e-6 * np.abs(f_ext).sum()
-    fixed = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav},
-                              fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    fixed = Model.from_arrays(
+        nodes, tets, 100.0, 0.3, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
+    )
     growth_fixed = solve_state(fixed, Load.pressures([4.0])).chamber_volume_mm3[0] - 64.0
     assert res.chamber_volume_mm3[0] - 64.0 == pytest.approx(growth_fixed, rel=0.3)
 
@@ -65,10 +69,12 @@ def test_state_sequence_continued_from_previous_states_matches_fresh_solves():
     secant start from the previous states) give the fresh solution of each state (1e-5
     of the displacement) in no more Newton iterations than without the secant start
     (here 22 against 24 in all)."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.3, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
+    m = Model.from_arrays(
+        nodes, tets, 100.0, 0.3, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
+    )
     opts = SolverOptions(tolerance=1e-8)
     totals = []
     for secant in (True, False):
@@ -79,8 +85,9 @@ def test_state_sequence_continued_from_previous_states_matches_fresh_solves():
             load = Load.pressures([pk])
             if not secant:
                 solver.history.clear()
-            res = solve_state(m, load, x_start=x, load_start=prev, pressure_start=p,
-                              options=opts, solver=solver)
+            res = solve_state(
+                m, load, x_start=x, load_start=prev, pressure_start=p, options=opts, solver=solver
+            )
             if secant and pk in (10.0, 40.0):
                 fresh = solve_state(m, load, options=opts)
                 scale = np.abs(fresh.displacement_mm).max()
@@ -99,10 +106,17 @@ def test_first_state_sensitivity_starts_the_next_state_to_first_order():
     same solution (1e-6 of the displacement)."""
     from fruitcli.fem.solver.newton import _sensitivity_guess
 
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.45, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.45,
+        chambers={"c": cav},
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     opts = SolverOptions(tolerance=1e-8)
     a, b = Load.pressures([4.0]), Load.pressures([5.0])
     results = []
@@ -114,8 +128,15 @@ def test_first_state_sensitivity_starts_the_next_state_to_first_order():
             solver.sensitivity = None
         guess = _sensitivity_guess(solver, first.x, b)
         assert (guess is not None) == keep
-        res = solve_state(m, b, x_start=first.x, load_start=a,
-                          pressure_start=first.pressure_kpa, options=opts, solver=solver)
+        res = solve_state(
+            m,
+            b,
+            x_start=first.x,
+            load_start=a,
+            pressure_start=first.pressure_kpa,
+            options=opts,
+            solver=solver,
+        )
         results.append(res)
         if keep:
             step = np.abs(res.x - first.x).max()
@@ -145,8 +166,11 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
     from fruitcli.fem.solver.newton import HISTORY_STATES, _history_guess, _load_vector
 
     rng = np.random.default_rng(3)
-    a, b, c = rng.standard_normal((4, 3, 3, 3)), rng.standard_normal((4, 3, 3)), \
-        rng.standard_normal((4, 3))
+    a, b, c = (
+        rng.standard_normal((4, 3, 3, 3)),
+        rng.standard_normal((4, 3, 3)),
+        rng.standard_normal((4, 3)),
+    )
 
     def response(pk):  # (4, 3) "x", quadratic in the 3 pressures
         return c + b @ pk + np.einsum("nkij,i,j->nk", a, pk, pk)
@@ -193,13 +217,15 @@ def test_history_keeps_one_state_per_load():
 
     hist = []
     for i, pk in enumerate((1.0, 2.0, 3.0, 1.0, 4.0)):
-        hist = _remember(hist, _load_vector(Load.pressures([pk])), np.full((2, 3), i),
-                         np.array([pk]))
+        hist = _remember(
+            hist, _load_vector(Load.pressures([pk])), np.full((2, 3), i), np.array([pk])
+        )
     assert [h[2][0] for h in hist] == [2.0, 3.0, 1.0, 4.0]
     assert hist[2][1][0, 0] == 3  # the repeated load keeps its newest state
     for pk in range(5, 5 + HISTORY_STATES):
-        hist = _remember(hist, _load_vector(Load.pressures([pk])), np.zeros((2, 3)),
-                         np.array([float(pk)]))
+        hist = _remember(
+            hist, _load_vector(Load.pressures([pk])), np.zeros((2, 3)), np.array([float(pk)])
+        )
     assert [h[2][0] for h in hist] == [float(pk) for pk in range(5, 5 + HISTORY_STATES)]
 
 
@@ -212,14 +238,24 @@ def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(m
     on both paths."""
     from fruitcli.fem.solver import newton
 
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.49,
+        chambers={"c": cav},
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     pressures = [2.0, 5.0, 8.0, 10.0, 8.0, 5.0, 2.0, 0.5, 3.0, 7.0]
-    ref = [solve_state(m, Load.pressures([pk]),
-                       options=SolverOptions(tolerance=1e-11, linear_solver="direct"))
-           for pk in pressures]
+    ref = [
+        solve_state(
+            m, Load.pressures([pk]), options=SolverOptions(tolerance=1e-11, linear_solver="direct")
+        )
+        for pk in pressures
+    ]
     scale = max(np.abs(r.displacement_mm).max() for r in ref)
     chords = []
     direction = newton._Step.direction
@@ -238,8 +274,15 @@ def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(m
         its = []
         for pk, fresh in zip(pressures, ref, strict=True):
             load = Load.pressures([pk])
-            res = solve_state(m, load, x_start=x, load_start=prev, pressure_start=p,
-                              options=SolverOptions(tolerance=1e-6), solver=solver)
+            res = solve_state(
+                m,
+                load,
+                x_start=x,
+                load_start=prev,
+                pressure_start=p,
+                options=SolverOptions(tolerance=1e-6),
+                solver=solver,
+            )
             assert res.residual <= 1e-6
             assert np.abs(res.x - fresh.x).max() <= 1e-6 * scale
             its.append(res.iterations)
@@ -253,16 +296,28 @@ def test_first_state_at_rest_keeps_no_sensitivity_and_the_next_solves():
     """A first state that needs no Newton step (zero pressure from the rest positions,
     as a scene starting at rest twice) leaves no dx/dp (the solver has no tangent yet)
     and no error; the next state converges."""
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (6, 6, 6),
-                                                  [4, 4, 4], [8, 8, 8])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.45, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.45,
+        chambers={"c": cav},
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     solver = TangentSolver(m)
     rest = solve_state(m, Load.pressures([0.0]), x_start=m.rest.copy(), solver=solver)
     assert rest.iterations == 0 and solver.sensitivity is None
-    res = solve_state(m, Load.pressures([3.0]), x_start=rest.x,
-                      load_start=Load.pressures([0.0]), pressure_start=rest.pressure_kpa,
-                      solver=solver)
+    res = solve_state(
+        m,
+        Load.pressures([3.0]),
+        x_start=rest.x,
+        load_start=Load.pressures([0.0]),
+        pressure_start=rest.pressure_kpa,
+        solver=solver,
+    )
     assert res.residual <= 1e-6
 
 
@@ -274,17 +329,31 @@ def test_a_repeated_load_within_the_kept_states_starts_at_its_own_state():
     from fruitcli.fem.solver.newton import HISTORY_STATES
 
     assert HISTORY_STATES >= 13
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (5, 5, 5),
-                                                  [4, 4, 4], [8, 8, 8])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.45, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (5, 5, 5), [4, 4, 4], [8, 8, 8]
+    )
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.45,
+        chambers={"c": cav},
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     solver = TangentSolver(m)
     cycle = [Load.pressures([1.0 + 0.8 * k]) for k in range(13)]
     x = p = prev = None
     first = []
     for i, load in enumerate(cycle + cycle[1:]):
-        res = solve_state(m, load, x_start=x, load_start=prev, pressure_start=p,
-                          solver=solver, options=SolverOptions(tolerance=1e-8))
+        res = solve_state(
+            m,
+            load,
+            x_start=x,
+            load_start=prev,
+            pressure_start=p,
+            solver=solver,
+            options=SolverOptions(tolerance=1e-8),
+        )
         if i < 13:
             first.append(res.x)
         else:

@@ -15,8 +15,9 @@ from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
-pytestmark = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2,
-                                reason="one thread only on this machine")
+pytestmark = pytest.mark.skipif(
+    numba.config.NUMBA_NUM_THREADS < 2, reason="one thread only on this machine"
+)
 
 
 @pytest.fixture
@@ -33,16 +34,28 @@ def solve_hollow_cube(n_threads: int):
     """A hollow cube (1,600 tets, more than the loops' 64 blocks) under 6 kPa, then
     9 kPa from there, on n_threads; the nodes of both states."""
     numba.set_num_threads(n_threads)
-    nodes, tets, cav = structured_box_with_cavity([0, 0, 0], [12, 12, 12], (10, 10, 4),
-                                                  [3, 3, 3], [9, 9, 9])
-    m = Model.from_arrays(nodes, tets, 100.0, 0.49, chambers={"c": cav},
-                          fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (10, 10, 4), [3, 3, 3], [9, 9, 9]
+    )
+    m = Model.from_arrays(
+        nodes,
+        tets,
+        100.0,
+        0.49,
+        chambers={"c": cav},
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     solver = TangentSolver(m)
-    a = solve_state(m, Load.pressures([6.0]), solver=solver,
-                    options=SolverOptions(tolerance=1e-8))
-    b = solve_state(m, Load.pressures([9.0]), x_start=a.x, load_start=Load.pressures([6.0]),
-                    pressure_start=a.pressure_kpa, solver=solver,
-                    options=SolverOptions(tolerance=1e-8))
+    a = solve_state(m, Load.pressures([6.0]), solver=solver, options=SolverOptions(tolerance=1e-8))
+    b = solve_state(
+        m,
+        Load.pressures([9.0]),
+        x_start=a.x,
+        load_start=Load.pressures([6.0]),
+        pressure_start=a.pressure_kpa,
+        solver=solver,
+        options=SolverOptions(tolerance=1e-8),
+    )
     assert len(m.tets) > 64
     return a.x, b.x
 
@@ -61,8 +74,13 @@ def test_hyperelastic_loop_gives_the_same_bits_on_one_thread_and_two(fixed_threa
     configuration are equal to the last bit on one thread and on two."""
     nodes, tets = structured_box([0, 0, 0], [4, 4, 2], (6, 6, 3))
     nodes, conn, _ = quadratic_mesh(nodes, tets, [])
-    m = ContinuumModel.from_arrays(nodes, conn, material("neo-hookean", 100.0, 0.49), "p2",
-                                   fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0))
+    m = ContinuumModel.from_arrays(
+        nodes,
+        conn,
+        material("neo-hookean", 100.0, 0.49),
+        "p2",
+        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+    )
     x = nodes + 0.03 * np.random.default_rng(3).standard_normal(nodes.shape)
     out = []
     for n in (1, 2):

@@ -47,7 +47,7 @@ def test_winding_number_of_a_sphere_with_a_hole_is_its_solid_angle():
     kept = trimesh.Trimesh(s.vertices, s.faces[keep], process=False)
     edges = kept.edges_sorted[trimesh.grouping.group_rows(kept.edges_sorted, require_count=1)]
     rim = kept.vertices[np.unique(edges)]
-    t = np.arccos(np.mean(rim[:, 2]) / 40.0)                   # the hole's actual rim
+    t = np.arccos(np.mean(rim[:, 2]) / 40.0)  # the hole's actual rim
     wn = winding.Winding(holed.vertices, holed.faces)
     w = wn(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -200.0]]))
     assert w[0] == pytest.approx(1 - (1 - np.cos(t)) / 2, abs=0.01)
@@ -55,11 +55,14 @@ def test_winding_number_of_a_sphere_with_a_hole_is_its_solid_angle():
     # pi 25.7^2 / 200^2 / (4 pi) = 0.004 for this one
     assert abs(w[1]) < 0.006
     assert holed.holes == 1
-    two = trimesh.util.concatenate([trimesh.creation.icosphere(4, 10.0),
-                                    trimesh.creation.icosphere(4, 10.0).apply_translation(
-                                        (10, 0, 0))])
+    two = trimesh.util.concatenate(
+        [
+            trimesh.creation.icosphere(4, 10.0),
+            trimesh.creation.icosphere(4, 10.0).apply_translation((10, 0, 0)),
+        ]
+    )
     w2 = winding.Winding(two.vertices, two.faces)(np.array([[5.0, 0, 0], [-5.0, 0, 0]]))
-    assert np.allclose(w2, [2.0, 1.0], atol=5e-3)   # the fast (Barnes-Hut) evaluation
+    assert np.allclose(w2, [2.0, 1.0], atol=5e-3)  # the fast (Barnes-Hut) evaluation
 
 
 def test_grid_winding_interpolates_only_far_from_the_surface():
@@ -93,7 +96,7 @@ def test_faces_inside_a_union_do_not_bound_it():
 def test_loader_counts_and_orients_without_changing_the_surface(tmp_path):
     m = head_with_eye_sockets()
     f = np.asarray(m.faces).copy()
-    f[::5] = f[::5, ::-1]                                   # scrambled winding
+    f[::5] = f[::5, ::-1]  # scrambled winding
     trimesh.Trimesh(m.vertices, f, process=False).export(tmp_path / "head.ply")
     s = load.load_mesh(tmp_path / "head.ply")
     assert (s.holes, s.parts, s.non_manifold_edges) == (4, 3, 0)
@@ -125,26 +128,34 @@ def test_other_formats_and_scenes_are_read(tmp_path, suffix):
         return
     scene = trimesh.Scene()
     scene.add_geometry(a, node_name="a")
-    scene.add_geometry(b, node_name="b", transform=trimesh.transformations.translation_matrix(
-        (30.0, 0, 0)))
+    scene.add_geometry(
+        b, node_name="b", transform=trimesh.transformations.translation_matrix((30.0, 0, 0))
+    )
     scene.export(path)
     v, f, notes = load.read_mesh_file(path)
     assert len(f) == len(a.faces) + len(b.faces)
     assert notes == ["merged the 2 meshes of the file into one"]
-    assert v[:, 0].max() == pytest.approx(38.0, abs=1e-4)    # the transform applied
+    assert v[:, 0].max() == pytest.approx(38.0, abs=1e-4)  # the transform applied
 
 
-@pytest.mark.parametrize("text,words", [
-    ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-     "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n", ["no triangles", "3 points only"]),
-    ("OFF\n3 1 0\n0 0 0\n10 0 0\n0 10 0\n3 0 1 9\n", ["cannot read", "outside the range"]),
-    ("v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 7\n", ["faces refer to missing vertices"]),
-    ("v 0 0 nan\nv 10 0 0\nv 0 10 0\nf 1 2 3\n", ["NaN or infinite"]),
-    ("v 0 0 0\nv 9000 0 0\nv 0 10 0\nf 1 2 3\n", ["9000 mm across", "5000 mm"]),
-])
+@pytest.mark.parametrize(
+    "text,words",
+    [
+        (
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+            ["no triangles", "3 points only"],
+        ),
+        ("OFF\n3 1 0\n0 0 0\n10 0 0\n0 10 0\n3 0 1 9\n", ["cannot read", "outside the range"]),
+        ("v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 7\n", ["faces refer to missing vertices"]),
+        ("v 0 0 nan\nv 10 0 0\nv 0 10 0\nf 1 2 3\n", ["NaN or infinite"]),
+        ("v 0 0 0\nv 9000 0 0\nv 0 10 0\nf 1 2 3\n", ["9000 mm across", "5000 mm"]),
+    ],
+)
 def test_cli_refuses_what_is_not_a_mesh(tmp_path, text, words):
-    name = "bad.ply" if text.startswith("ply") else "bad.off" if text.startswith("OFF") \
-        else "bad.obj"
+    name = (
+        "bad.ply" if text.startswith("ply") else "bad.off" if text.startswith("OFF") else "bad.obj"
+    )
     (tmp_path / name).write_text(text)
     out = tmp_path / "out"
     _refused(_cli(["make-tracks", str(tmp_path / name), "--out", str(out)]), out, name, *words)
@@ -155,22 +166,50 @@ def test_fit_mm_scales_after_the_unit(tmp_path):
     m = trimesh.creation.icosphere(4, 1.0).apply_scale((1.35, 1.0, 1.1))
     m.export(tmp_path / "head.obj")
     out = tmp_path / "out"
-    res = _cli(["make-tracks", str(tmp_path / "head.obj"), "--out", str(out), "--fit-mm",
-                "150", "--faces", "1500"])
+    res = _cli(
+        [
+            "make-tracks",
+            str(tmp_path / "head.obj"),
+            "--out",
+            str(out),
+            "--fit-mm",
+            "150",
+            "--faces",
+            "1500",
+        ]
+    )
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert rep["fit_mm"] == 150.0
     assert "so that its largest extent is 150 mm (from 2.7 mm)" in res.output
     red = trimesh.load_mesh(out / "reduced.stl")
     assert red.extents.max() == pytest.approx(146.0, abs=0.4)
-    _refused(_cli(["make-tracks", str(tmp_path / "head.obj"), "--out", str(tmp_path / "o2"),
-                   "--fit-mm", "-3"]), tmp_path / "o2", "--fit-mm", "expected a size > 0")
+    _refused(
+        _cli(
+            [
+                "make-tracks",
+                str(tmp_path / "head.obj"),
+                "--out",
+                str(tmp_path / "o2"),
+                "--fit-mm",
+                "-3",
+            ]
+        ),
+        tmp_path / "o2",
+        "--fit-mm",
+        "expected a size > 0",
+    )
 
 
-@pytest.mark.parametrize("make,holes,parts", [
-    (sphere_with_holes, 3, 1), (head_with_eye_sockets, 4, 3), (overlapping_figure, 0, 9),
-    (teapot_with_open_lid, 2, 4),
-])
+@pytest.mark.parametrize(
+    "make,holes,parts",
+    [
+        (sphere_with_holes, 3, 1),
+        (head_with_eye_sockets, 4, 3),
+        (overlapping_figure, 0, 9),
+        (teapot_with_open_lid, 2, 4),
+    ],
+)
 def test_meshes_with_an_inside_give_tracks(tmp_path, make, holes, parts):
     path = tmp_path / "art.stl"
     make().export(path)
@@ -201,17 +240,23 @@ def test_sphere_with_holes_is_offset_as_the_closed_sphere(tmp_path):
     # the caps are flatter than the sphere (w = 1/2 spans a hole nearly as a plane)
     c = red.vertices / r[:, None]
     axis3 = np.array([0, 1, 0.3]) / np.linalg.norm([0, 1, 0.3])
-    on_sphere = (-c[:, 2] < np.cos(np.radians(40))) & (c[:, 0] < np.cos(np.radians(30))) \
+    on_sphere = (
+        (-c[:, 2] < np.cos(np.radians(40)))
+        & (c[:, 0] < np.cos(np.radians(30)))
         & (c @ axis3 < np.cos(np.radians(20)))
+    )
     assert np.allclose(r[on_sphere], 38.0, atol=0.35)
     assert r.max() < 38.4
     assert rep["offset_error"]["hausdorff_mm"] < 1.0
 
 
-@pytest.mark.parametrize("make,words", [
-    (open_sheet, ["no inside", "winding number reaches only 0.", "open sheet"]),
-    (plane, ["no inside", "open sheet or a plane"]),
-])
+@pytest.mark.parametrize(
+    "make,words",
+    [
+        (open_sheet, ["no inside", "winding number reaches only 0.", "open sheet"]),
+        (plane, ["no inside", "open sheet or a plane"]),
+    ],
+)
 def test_cli_refuses_what_has_no_inside(tmp_path, make, words):
     path = tmp_path / "sheet.stl"
     make().export(path)
@@ -232,9 +277,12 @@ def test_sharp_edged_part_gives_tracks_and_names_its_thin_wall(tmp_path):
     w = [x for x in rep["warnings"] if "thinner than twice the cover" in x]
     assert w
     x, y, z = rep["offset_error"]["worst_at_mm"]
-    assert 19.0 <= abs(x) <= 25.0      # the same 4 mm wall at the hole at x = -18 mm
-    with pytest.raises(GeometryError, match=r"consumes the whole body: it is at most 1[0-9.]+ "
-                                            r"mm thick \(at \(.*\) mm\)"):
+    assert 19.0 <= abs(x) <= 25.0  # the same 4 mm wall at the hole at x = -18 mm
+    with pytest.raises(
+        GeometryError,
+        match=r"consumes the whole body: it is at most 1[0-9.]+ "
+        r"mm thick \(at \(.*\) mm\)",
+    ):
         make_tracks(path, tmp_path / "o2", cover_mm=7.5, faces=2000)
 
 
@@ -242,12 +290,15 @@ def test_scene_fit_mm_is_named_in_errors(tmp_path):
     from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES
     from fruitcli.scene import load_scene
 
-    trimesh.creation.icosphere(3, 0.5).export(tmp_path / "head.stl")      # 1 mm across
+    trimesh.creation.icosphere(3, 0.5).export(tmp_path / "head.stl")  # 1 mm across
     (tmp_path / "s.toml").write_text('[geometry]\nartist = "head.stl"\nfit_mm = 120\n')
     assert load_scene(tmp_path / "s.toml").geometry.fit_mm == 120
     with pytest.raises(GeometryError, match=r"^\[geometry\]\.fit_mm: expected a size > 0"):
         make_tracks(tmp_path / "head.stl", tmp_path / "o", fit_mm=-1.0, names=SCENE_NAMES)
-    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
-                                            r'\[geometry\]\.fit_mm$'):
+    with pytest.raises(
+        GeometryError,
+        match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
+        r"\[geometry\]\.fit_mm$",
+    ):
         make_tracks(tmp_path / "head.stl", tmp_path / "o", names=SCENE_NAMES)
     assert not (tmp_path / "o").exists()

@@ -39,8 +39,15 @@ def ellipsoid_run(tmp_path_factory):
 def test_outputs_and_report(ellipsoid_run):
     out, report = ellipsoid_run
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["preview.png", "reduced.stl", "report.json", "taxels.csv",
-                     "tracked_top.stl", "tracks.csv", "tracks.stl"]
+    assert names == [
+        "preview.png",
+        "reduced.stl",
+        "report.json",
+        "taxels.csv",
+        "tracked_top.stl",
+        "tracks.csv",
+        "tracks.stl",
+    ]
     saved = json.loads((out / "report.json").read_text())
     assert saved["taxels"] == report["taxels"] > 10
     assert set(saved["times_s"]) >= {"load", "reduce", "sections", "taxels", "tracks", "total"}
@@ -96,8 +103,9 @@ def test_default_fruit_end_to_end(tmp_path):
     reduced = load_stl(tmp_path / "out" / "reduced.stl")
     dist = SurfaceDistance(reduced.vertices, reduced.faces)
     u, w = np.meshgrid(np.linspace(0, np.pi, 25), np.linspace(0, 2 * np.pi, 48))
-    unit = np.c_[(np.sin(u) * np.cos(w)).ravel(), (np.sin(u) * np.sin(w)).ravel(),
-                 np.cos(u).ravel()]
+    unit = np.c_[
+        (np.sin(u) * np.cos(w)).ravel(), (np.sin(u) * np.sin(w)).ravel(), np.cos(u).ravel()
+    ]
     for k, ch in enumerate(FRUIT_CHAMBERS):
         c, r = np.array(ch["center_mm"]), np.array(ch["radii_mm"])
         pts = c + unit * r
@@ -105,10 +113,10 @@ def test_default_fruit_end_to_end(tmp_path):
         assert d.min() >= 3.0, ch["name"]
         pi, zh = vertical_hits(reduced.vertices, reduced.faces, pts)
         above = np.bincount(pi[zh > pts[pi, 2]], minlength=len(pts))
-        assert (above % 2 == 1).all(), ch["name"]          # inside the reduced body
-        for other in FRUIT_CHAMBERS[k + 1:]:
+        assert (above % 2 == 1).all(), ch["name"]  # inside the reduced body
+        for other in FRUIT_CHAMBERS[k + 1 :]:
             q = (pts - np.array(other["center_mm"])) / np.array(other["radii_mm"])
-            assert ((q ** 2).sum(1) > 1).all()
+            assert ((q**2).sum(1) > 1).all()
 
 
 def _cli(args):
@@ -124,10 +132,13 @@ def _assert_refused(result, out, *words):
     assert not out.exists() or not any(out.iterdir())
 
 
-@pytest.mark.parametrize("content,words", [
-    (b"\x00\xff garbage \x13" * 40, ["bad.stl"]),
-    (b"", ["empty"]),
-])
+@pytest.mark.parametrize(
+    "content,words",
+    [
+        (b"\x00\xff garbage \x13" * 40, ["bad.stl"]),
+        (b"", ["empty"]),
+    ],
+)
 def test_cli_refuses_bad_files(tmp_path, content, words):
     bad = tmp_path / "bad.stl"
     bad.write_bytes(content)
@@ -137,8 +148,12 @@ def test_cli_refuses_bad_files(tmp_path, content, words):
 
 def test_cli_refuses_missing_file(tmp_path):
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(tmp_path / "nope.stl"), "--out", str(out)]),
-                    out, "nope.stl", "not found")
+    _assert_refused(
+        _cli(["make-tracks", str(tmp_path / "nope.stl"), "--out", str(out)]),
+        out,
+        "nope.stl",
+        "not found",
+    )
 
 
 def test_cli_takes_a_sphere_with_many_holes(tmp_path):
@@ -175,16 +190,24 @@ def test_cli_refuses_two_bodies(tmp_path):
     path = tmp_path / "two.ply"
     trimesh.util.concatenate([a, b]).export(path)
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out,
-                    "encloses 2 separate bodies", "do not touch", "join them")
+    _assert_refused(
+        _cli(["make-tracks", str(path), "--out", str(out)]),
+        out,
+        "encloses 2 separate bodies",
+        "do not touch",
+        "join them",
+    )
 
 
 def test_cli_metres_need_unit(tmp_path):
     path = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out)]), out,
-                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
-                    "give its unit (--unit m or --unit cm) or its size (--fit-mm)")
+    _assert_refused(
+        _cli(["make-tracks", str(path), "--out", str(out)]),
+        out,
+        "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
+        "give its unit (--unit m or --unit cm) or its size (--fit-mm)",
+    )
     res = _cli(["make-tracks", str(path), "--out", str(out), "--unit", "m", "--faces", "1500"])
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
@@ -200,40 +223,54 @@ def test_scene_artist_in_metres_is_refused(tmp_path):
     ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
     (tmp_path / "s.toml").write_text('[geometry]\nartist = "m.stl"\n')
     out = tmp_path / "out"
-    _assert_refused(_cli(["run", str(tmp_path / "s.toml"), "--out", str(out)]), out,
-                    "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
-                    'set [geometry].unit = "m" (or "cm") or [geometry].fit_mm')
+    _assert_refused(
+        _cli(["run", str(tmp_path / "s.toml"), "--out", str(out)]),
+        out,
+        "m.stl: the mesh is only 0.08 mm across, so it is not in millimetres; "
+        'set [geometry].unit = "m" (or "cm") or [geometry].fit_mm',
+    )
 
 
 def test_scene_names_in_errors(tmp_path):
     """With SCENE_NAMES (the scene's make-tracks stage) hints name scene keys, not flags."""
     small = ellipsoid(tmp_path / "m.stl", radii=(0.04, 0.03, 0.02))
-    with pytest.raises(GeometryError, match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
-                                            r'\[geometry\]\.fit_mm$'):
+    with pytest.raises(
+        GeometryError,
+        match=r'set \[geometry\]\.unit = "m" \(or "cm"\) or '
+        r"\[geometry\]\.fit_mm$",
+    ):
         make_tracks(small, tmp_path / "o", unit="mm", names=SCENE_NAMES)
     big = ellipsoid(tmp_path / "e.stl")
-    with pytest.raises(GeometryError, match=r"consumes the whole body: it is at most 3[0-9.]+ "
-                                            r"mm thick \(at \(.*\) mm\), thinner than twice "
-                                            r"the cover; use a smaller \[tracks\]\.cover_mm$"):
-        make_tracks(big, tmp_path / "o", unit="mm", cover_mm=25.0, faces=1500,
-                    names=SCENE_NAMES)
+    with pytest.raises(
+        GeometryError,
+        match=r"consumes the whole body: it is at most 3[0-9.]+ "
+        r"mm thick \(at \(.*\) mm\), thinner than twice "
+        r"the cover; use a smaller \[tracks\]\.cover_mm$",
+    ):
+        make_tracks(big, tmp_path / "o", unit="mm", cover_mm=25.0, faces=1500, names=SCENE_NAMES)
     with pytest.raises(GeometryError, match=r"^\[tracks\]\.track_radius_mm: 7 mm"):
         make_tracks(big, tmp_path / "o", track_radius_mm=7.0, names=SCENE_NAMES)
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize("opts,words", [
-    (["--spacing-x-mm", "500", "--spacing-y-mm", "500", "--origin-mm", "250", "250"],
-     ["misses the shape"]),
-    (["--track-radius-mm", "7"], ["--track-radius-mm", "half the grid spacing"]),
-    (["--cover-mm", "25"], ["consumes", "--cover-mm"]),
-    (["--split-z-mm", "40"], ["--split-z-mm", "outside"]),
-])
+@pytest.mark.parametrize(
+    "opts,words",
+    [
+        (
+            ["--spacing-x-mm", "500", "--spacing-y-mm", "500", "--origin-mm", "250", "250"],
+            ["misses the shape"],
+        ),
+        (["--track-radius-mm", "7"], ["--track-radius-mm", "half the grid spacing"]),
+        (["--cover-mm", "25"], ["consumes", "--cover-mm"]),
+        (["--split-z-mm", "40"], ["--split-z-mm", "outside"]),
+    ],
+)
 def test_cli_refuses_bad_options(tmp_path, opts, words):
     path = ellipsoid(tmp_path / "e.stl")
     out = tmp_path / "out"
-    _assert_refused(_cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500", *opts]),
-                    out, *words)
+    _assert_refused(
+        _cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500", *opts]), out, *words
+    )
 
 
 def test_make_artist_cli(tmp_path):
@@ -249,8 +286,11 @@ def test_make_artist_cli(tmp_path):
 def _rounded_box(path):
     import manifold3d
 
-    m = manifold3d.Manifold.cube((80.0, 60.0, 30.0), True).minkowski_sum(
-        manifold3d.Manifold.sphere(6.0, 24)).to_mesh()
+    m = (
+        manifold3d.Manifold.cube((80.0, 60.0, 30.0), True)
+        .minkowski_sum(manifold3d.Manifold.sphere(6.0, 24))
+        .to_mesh()
+    )
     trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], m.tri_verts).export(path)
 
 
@@ -264,11 +304,14 @@ def _lying_cylinder(path):
     cyl.export(path)
 
 
-@pytest.mark.parametrize("make,extents", [
-    (_rounded_box, None),        # sliver faces broke curves into overlapping pieces: tunnels
-    (_disc, None),               # tubes along the sharp rim cut off slivers: 9 bodies
-    (_lying_cylinder, [96.0, 36.0, 36.0]),   # long side triangles: the offset came out wrong
-])
+@pytest.mark.parametrize(
+    "make,extents",
+    [
+        (_rounded_box, None),  # sliver faces broke curves into overlapping pieces: tunnels
+        (_disc, None),  # tubes along the sharp rim cut off slivers: 9 bodies
+        (_lying_cylinder, [96.0, 36.0, 36.0]),  # long side triangles: the offset came out wrong
+    ],
+)
 def test_other_shapes_give_one_piece_without_tunnels(tmp_path, make, extents):
     art = tmp_path / "shape.stl"
     make(art)
@@ -283,12 +326,16 @@ def test_other_shapes_give_one_piece_without_tunnels(tmp_path, make, extents):
     assert len(tx.ids) >= 10
     # brute force over all triangles: the reduced cylinder has long strips along its axis
     t = reduced.triangles
-    d = [np.linalg.norm(closest_on_triangles(np.tile(p, (len(t), 1)), t[:, 0], t[:, 1], t[:, 2])
-                        - p, axis=1).min() for p in tx.xyz_mm]
+    d = [
+        np.linalg.norm(
+            closest_on_triangles(np.tile(p, (len(t), 1)), t[:, 0], t[:, 1], t[:, 2]) - p, axis=1
+        ).min()
+        for p in tx.xyz_mm
+    ]
     assert max(d) <= ON_SURFACE_MM
     if extents is not None:
         assert np.allclose(reduced.extents, extents, atol=0.3)
-        assert report["offset_error"]["reduced_to_ideal_mean_mm"] < 0.2   # was 1.4
+        assert report["offset_error"]["reduced_to_ideal_mean_mm"] < 0.2  # was 1.4
 
 
 def test_cli_repairs_inconsistent_winding(tmp_path):
@@ -337,14 +384,27 @@ def test_cli_refuses_tracks_that_cut_the_piece_apart(tmp_path):
     import manifold3d
 
     # an arch whose bridge is 2 mm thick after the cover: 5.5 mm tubes cut it to pieces
-    arch = (manifold3d.Manifold.cube((100.0, 30.0, 60.0), True)
-            - manifold3d.Manifold.cube((80.0, 40.0, 54.0), True).translate((0, 0, -6.0)))
+    arch = manifold3d.Manifold.cube((100.0, 30.0, 60.0), True) - manifold3d.Manifold.cube(
+        (80.0, 40.0, 54.0), True
+    ).translate((0, 0, -6.0))
     m = arch.to_mesh()
     path = tmp_path / "arch.stl"
     trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], m.tri_verts).export(path)
     out = tmp_path / "out"
-    res = _cli(["make-tracks", str(path), "--out", str(out), "--faces", "1500",
-                "--split-z-mm", "-10", "--track-radius-mm", "5.5"])
+    res = _cli(
+        [
+            "make-tracks",
+            str(path),
+            "--out",
+            str(out),
+            "--faces",
+            "1500",
+            "--split-z-mm",
+            "-10",
+            "--track-radius-mm",
+            "5.5",
+        ]
+    )
     _assert_refused(res, out, "arch.stl", "bodies", "--track-radius-mm", "--origin-mm")
 
 

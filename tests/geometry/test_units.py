@@ -18,11 +18,15 @@ from fruitcli.geometry.tracks.tubes import resample, track_polylines, tube_array
 
 def test_closest_on_triangle_regions():
     a, b, c = np.array([0.0, 0, 0]), np.array([2.0, 0, 0]), np.array([0.0, 2, 0])
-    p = np.array([[0.5, 0.5, 3.0],     # above the interior -> its projection
-                  [-1.0, -1.0, 0.0],   # beyond vertex a
-                  [3.0, -1.0, 1.0],    # beyond vertex b
-                  [1.0, -2.0, 0.0],    # beyond edge ab
-                  [2.0, 2.0, 0.0]])    # beyond edge bc
+    p = np.array(
+        [
+            [0.5, 0.5, 3.0],  # above the interior -> its projection
+            [-1.0, -1.0, 0.0],  # beyond vertex a
+            [3.0, -1.0, 1.0],  # beyond vertex b
+            [1.0, -2.0, 0.0],  # beyond edge ab
+            [2.0, 2.0, 0.0],
+        ]
+    )  # beyond edge bc
     n = len(p)
     q = closest_on_triangles(p, np.tile(a, (n, 1)), np.tile(b, (n, 1)), np.tile(c, (n, 1)))
     expect = [[0.5, 0.5, 0], [0, 0, 0], [2, 0, 0], [1, 0, 0], [1, 1, 0]]
@@ -42,14 +46,20 @@ def test_tree_distance_is_the_brute_force_minimum():
     far from every corner of its long faces), against the minimum over all triangles;
     the face returned is one of the nearest."""
     rng = np.random.default_rng(5)
-    for mesh in (trimesh.creation.icosphere(3, 10.0),
-                 trimesh.creation.box(extents=(200.0, 4.0, 3.0))):
+    for mesh in (
+        trimesh.creation.icosphere(3, 10.0),
+        trimesh.creation.box(extents=(200.0, 4.0, 3.0)),
+    ):
         v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
         lo, hi = v.min(axis=0) - 5, v.max(axis=0) + 5
         p = lo + (hi - lo) * rng.random((400, 3))
         tri = v[f]
-        q_all = np.stack([closest_on_triangles(np.tile(x, (len(f), 1)), tri[:, 0], tri[:, 1],
-                                               tri[:, 2]) for x in p])
+        q_all = np.stack(
+            [
+                closest_on_triangles(np.tile(x, (len(f), 1)), tri[:, 0], tri[:, 1], tri[:, 2])
+                for x in p
+            ]
+        )
         d_all = np.linalg.norm(q_all - p[:, None, :], axis=2)
         q, d, face = TreeDistance(v, f).closest(p)
         assert np.allclose(d, d_all.min(axis=1), rtol=0, atol=1e-9)
@@ -83,8 +93,7 @@ def test_top_z_and_parity_on_a_box():
     pi, zh = vertical_hits(box.vertices, box.faces, xy)
     assert np.array_equal(pi, [0, 0, 1, 1]) and np.allclose(zh, [-1, 1, -1, 1])
     inside = inside_columns(box.vertices, box.faces, xy, np.array([-2.0, -0.5, 0.5, 2.0]))
-    assert inside.tolist() == [[False, True, True, False], [False, True, True, False],
-                               [False] * 4]
+    assert inside.tolist() == [[False, True, True, False], [False, True, True, False], [False] * 4]
 
 
 def test_sphere_section_is_a_circle():
@@ -92,7 +101,7 @@ def test_sphere_section_is_a_circle():
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=r)
     pieces = section_pieces(sphere.vertices, sphere.faces, 0, 6.0)
     assert len(pieces) == 1 and pieces[0].closed
-    rho = np.sqrt(r ** 2 - 36.0)
+    rho = np.sqrt(r**2 - 36.0)
     assert abs(pieces[0].length_mm - 2 * np.pi * rho) < 0.01 * 2 * np.pi * rho
     assert np.allclose(pieces[0].points[:, 0], 6.0)
     # only the upper half: one open arc from z ~ 0 over the top
@@ -119,8 +128,9 @@ def test_tube_volume_and_closedness():
     assert mesh.is_watertight and mesh.volume > 0
     # a 12-gon of circumradius r has area 3 r^2
     assert mesh.volume == pytest.approx(3 * 0.36 * 20.0, rel=1e-9)
-    arc = np.c_[10 * np.cos(np.linspace(0, np.pi, 50)), 10 * np.sin(np.linspace(0, np.pi, 50)),
-                np.zeros(50)]
+    arc = np.c_[
+        10 * np.cos(np.linspace(0, np.pi, 50)), 10 * np.sin(np.linspace(0, np.pi, 50)), np.zeros(50)
+    ]
     v, f = tube_arrays(arc, 0.5)
     assert trimesh.Trimesh(v, f).is_watertight
     assert len(resample(arc, 1.0)) == 33
@@ -137,12 +147,12 @@ def test_closed_loop_becomes_two_overlapping_tubes():
 def test_masked_runs_bridges_short_gaps_and_drops_short_parts():
     from fruitcli.geometry.tracks.sections import Piece, masked_runs
 
-    x = np.arange(21, dtype=float)                      # 20 segments of 1 mm along x
+    x = np.arange(21, dtype=float)  # 20 segments of 1 mm along x
     piece = Piece(np.c_[x, 0 * x, 0 * x], np.arange(20), False)
     keep = np.ones(20, dtype=bool)
-    keep[8] = False                                     # a 1 mm gap: bridged
-    keep[:2] = False                                    # a leading gap: dropped
-    keep[17] = False                                    # leaves a 2 mm tail: too short
+    keep[8] = False  # a 1 mm gap: bridged
+    keep[:2] = False  # a leading gap: dropped
+    keep[17] = False  # leaves a 2 mm tail: too short
     keep[16] = False
     out = masked_runs(piece, keep, max_gap_mm=1.5, min_length_mm=2.5)
     assert len(out) == 1
@@ -168,7 +178,7 @@ def test_orient_faces_without_networkx():
     out, conflicts = orient_faces(f)
     assert conflicts == 0
     assert trimesh.Trimesh(s.vertices, out, process=False).is_winding_consistent
-    assert (out[0] == f[0]).all()                        # the first face keeps its winding
+    assert (out[0] == f[0]).all()  # the first face keeps its winding
     # an open surface (a hemisphere) with every other face flipped: made consistent too
     keep = s.triangles_center[:, 2] > 0
     out, conflicts = orient_faces(f[keep])
@@ -215,8 +225,15 @@ def test_weld_merges_what_a_reader_merges(tmp_path):
     # faces (as a boolean left them where a tube ended on a wall): an STL reader merges the
     # two corners and sees two collapsed faces (2 bodies, not watertight), so the weld must
     # merge them too
-    v = np.array([[0.0, 0, 0], [10.0, 0, 0], [0.0, 10, 0], [0.003876361763, -5.98, 1.8],
-                  [0.003876359668, -5.98, 1.8]])
+    v = np.array(
+        [
+            [0.0, 0, 0],
+            [10.0, 0, 0],
+            [0.0, 10, 0],
+            [0.003876361763, -5.98, 1.8],
+            [0.003876359668, -5.98, 1.8],
+        ]
+    )
     f = np.array([[0, 2, 1], [0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 0, 4], [0, 3, 4]])
     assert trimesh.Trimesh(v, f, process=False).is_watertight
     wv, wf = weld_float32(v, f)

@@ -2,15 +2,14 @@
 sphere; the Barnes-Hut tree against the exact sum; the crossing count on a closed
 surface's grid against the tree, including lines that run exactly through a vertex."""
 
-
 import numpy as np
 import pytest
 import trimesh
 
-from fruitcli.geometry.mesh import winding  # noqa: E402
-from fruitcli.geometry.mesh.columns import RAY_JITTER_MM  # noqa: E402
-from fruitcli.geometry.mesh.solid_angle import SolidAngleTree, exact_winding  # noqa: E402
-from tests.helpers.artist_meshes import overlapping_figure, sphere_with_holes, teapot_with_open_lid  # noqa: E402
+from fruitcli.geometry.mesh import winding
+from fruitcli.geometry.mesh.columns import RAY_JITTER_MM
+from fruitcli.geometry.mesh.solid_angle import SolidAngleTree, exact_winding
+from tests.helpers.artist_meshes import overlapping_figure, sphere_with_holes, teapot_with_open_lid
 
 TREE_TOLERANCE = 0.01
 """The tree at beta = 2 stays within this of the exact sum (measured: at most 0.0077
@@ -35,7 +34,7 @@ def _square_closed_form(p: np.ndarray) -> np.ndarray:
 
     def corner(cx, cy):
         dx, dy = cx - x, cy - y
-        return np.arctan(dx * dy / (z * np.sqrt(dx ** 2 + dy ** 2 + z ** 2)))
+        return np.arctan(dx * dy / (z * np.sqrt(dx**2 + dy**2 + z**2)))
 
     omega = corner(1, 1) - corner(-1, 1) - corner(1, -1) + corner(-1, -1)
     return -omega / (4 * np.pi)
@@ -57,7 +56,7 @@ def test_square_exact_and_tree_match_the_closed_form():
     z = rng.uniform(0.05, 3.0, 3000) * rng.choice([-1.0, 1.0], 3000)
     p = np.c_[rng.uniform(-2, 2, 3000), rng.uniform(-2, 2, 3000), z]
     want = _square_closed_form(p)
-    assert want[np.abs(p[:, :2]).max(axis=1) < 1].max() > 0.4   # near the square: +-1/2
+    assert want[np.abs(p[:, :2]).max(axis=1) < 1].max() > 0.4  # near the square: +-1/2
     assert np.abs(exact_winding(v, f, p) - want).max() < 1e-10
     assert np.abs(SolidAngleTree(v, f)(p) - want).max() < TREE_TOLERANCE
     # on the axis at height 1: 4 arcsin(1/2) / (4 pi) = 1/6
@@ -70,7 +69,7 @@ def test_closed_sphere_is_one_inside_and_zero_outside():
     d = rng.normal(size=(3000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     r = rng.uniform(0.0, 30.0, 3000)
-    r = r[np.abs(r - 10.0) > 0.5]          # the facets lie between 9.9 and 10 mm
+    r = r[np.abs(r - 10.0) > 0.5]  # the facets lie between 9.9 and 10 mm
     p = d[: len(r)] * r[:, None]
     want = (r < 10.0).astype(float)
     assert np.abs(exact_winding(s.vertices, s.faces, p) - want).max() < 1e-6
@@ -99,12 +98,12 @@ def test_is_closed_counts_each_edge_both_ways():
     s = trimesh.creation.icosphere(2, 5.0)
     f = np.asarray(s.faces)
     assert winding.is_closed(f)
-    assert not winding.is_closed(f[1:])                     # a hole
+    assert not winding.is_closed(f[1:])  # a hole
     flipped = f.copy()
     flipped[0] = flipped[0, ::-1]
-    assert not winding.is_closed(flipped)                   # one face wound the wrong way
+    assert not winding.is_closed(flipped)  # one face wound the wrong way
     two = np.r_[f, f + f.max() + 1]
-    assert winding.is_closed(two)                           # several closed parts
+    assert winding.is_closed(two)  # several closed parts
     assert not winding.is_closed(np.zeros((0, 3), dtype=np.int64))
 
 
@@ -133,12 +132,12 @@ def test_column_through_a_vertex_is_evaluated_point_by_point():
     four sides there at once (and its base once): the count does not add up to zero, so
     that line's points are taken from the tree instead, and still come out 1 inside and
     0 outside; every other line is an exact count."""
-    jx, jy = RAY_JITTER_MM                     # the line through grid x = 0, y = 0
+    jx, jy = RAY_JITTER_MM  # the line through grid x = 0, y = 0
     v = np.array([[-5.0, -5, -5], [5, -5, -5], [5, 5, -5], [-5, 5, -5], [jx, jy, 5]])
     f = np.array([[0, 2, 1], [0, 3, 2], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
     tri = v[f]
     assert np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) > 0  # outward
-    axes = [np.arange(-6.0, 6.1, 1.5)] * 2 + [np.arange(-7.25, 7.0, 1.5)]   # none on a face
+    axes = [np.arange(-6.0, 6.1, 1.5)] * 2 + [np.arange(-7.25, 7.0, 1.5)]  # none on a face
     wn = winding.Winding(v, f)
     assert wn.closed
     w = winding.column_winding(wn, axes)
@@ -148,7 +147,7 @@ def test_column_through_a_vertex_is_evaluated_point_by_point():
     line = w[i0, i0]
     assert np.all(np.abs(line - exact[i0, i0]) < TREE_TOLERANCE)
     assert np.round(line).max() == 1 and np.round(line).min() == 0
-    assert not np.all(np.isin(line, [0.0, 1.0]))             # from the tree, not a count
+    assert not np.all(np.isin(line, [0.0, 1.0]))  # from the tree, not a count
     rest = np.ones(w.shape[:2], bool)
     rest[i0, i0] = False
     assert np.array_equal(w[rest], np.round(exact[rest]))

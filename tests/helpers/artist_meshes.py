@@ -35,8 +35,8 @@ def head_with_eye_sockets():
     parts = [_drop(s, keep)]
     for e in eyes:
         cup = trimesh.creation.icosphere(3, 7.0)
-        cup = _drop(cup, cup.triangles_center[:, 1] < 0.0)   # back half: the socket
-        cup.invert()                                          # seen from the front
+        cup = _drop(cup, cup.triangles_center[:, 1] < 0.0)  # back half: the socket
+        cup.invert()  # seen from the front
         cup.apply_translation(e - (0, 2.0, 0))
         parts.append(cup)
     return trimesh.util.concatenate(parts)
@@ -45,10 +45,17 @@ def head_with_eye_sockets():
 def overlapping_figure():
     """A figure of nine overlapping closed parts (torso, head, neck, arms, legs, feet)."""
     parts = []
-    for c, r in (((0, 0, 0), (18, 12, 28)), ((0, 0, 40), (11, 11, 11)), ((0, 0, 29), (5, 5, 6)),
-                 ((-24, 0, 8), (16, 6, 6)), ((24, 0, 8), (16, 6, 6)),
-                 ((-9, 0, -38), (7, 7, 18)), ((9, 0, -38), (7, 7, 18)),
-                 ((-9, 6, -56), (6, 10, 4)), ((9, 6, -56), (6, 10, 4))):
+    for c, r in (
+        ((0, 0, 0), (18, 12, 28)),
+        ((0, 0, 40), (11, 11, 11)),
+        ((0, 0, 29), (5, 5, 6)),
+        ((-24, 0, 8), (16, 6, 6)),
+        ((24, 0, 8), (16, 6, 6)),
+        ((-9, 0, -38), (7, 7, 18)),
+        ((9, 0, -38), (7, 7, 18)),
+        ((-9, 6, -56), (6, 10, 4)),
+        ((9, 6, -56), (6, 10, 4)),
+    ):
         e = trimesh.creation.icosphere(4, 1.0)
         e.apply_scale(r)
         e.apply_translation(c)
@@ -100,13 +107,20 @@ def machined_part():
     block = mf.Manifold.cube((50.0, 25.0, 14.0), True)
     step = mf.Manifold.cube((14.0, 27.0, 6.0), True).translate((-18.0, 0, 5.0))
     pocket = mf.Manifold.cube((16.0, 12.0, 8.0), True).translate((6.0, 0, 5.0))
-    holes = [mf.Manifold.cylinder(20.0, 3.0, 3.0, 48, True).translate((x, 0, 0))
-             for x in (-18.0, 19.0)]
+    holes = [
+        mf.Manifold.cylinder(20.0, 3.0, 3.0, 48, True).translate((x, 0, 0)) for x in (-18.0, 19.0)
+    ]
     part = mf.Manifold.batch_boolean([block, step, pocket, *holes], mf.OpType.Subtract)
     m = part.to_mesh()
     return trimesh.Trimesh(np.asarray(m.vert_properties)[:, :3], np.asarray(m.tri_verts))
 
 
-ALL = {"sphere_with_holes": sphere_with_holes, "head_with_eye_sockets": head_with_eye_sockets,
-       "overlapping_figure": overlapping_figure, "teapot_with_open_lid": teapot_with_open_lid,
-       "open_sheet": open_sheet, "plane": plane, "machined_part": machined_part}
+ALL = {
+    "sphere_with_holes": sphere_with_holes,
+    "head_with_eye_sockets": head_with_eye_sockets,
+    "overlapping_figure": overlapping_figure,
+    "teapot_with_open_lid": teapot_with_open_lid,
+    "open_sheet": open_sheet,
+    "plane": plane,
+    "machined_part": machined_part,
+}

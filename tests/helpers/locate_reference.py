@@ -50,8 +50,15 @@ def _centroids(flat, rows, centre, shape, tax_of_cell, floor):
 def _collect(parts):
     if not parts:
         e = np.zeros(0)
-        return (e.astype(np.int64), e.astype(np.int64), e, e, e,
-                np.zeros((0, 9), np.int64), np.zeros((0, 9)))
+        return (
+            e.astype(np.int64),
+            e.astype(np.int64),
+            e,
+            e,
+            e,
+            np.zeros((0, 9), np.int64),
+            np.zeros((0, 9)),
+        )
     cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
     order = np.lexsort((cols[1], cols[0]))
     return tuple(c[order] for c in cols)
@@ -84,7 +91,7 @@ def local_peaks(flat, shape, threshold):
     for di, dj in zip(_DI, _DJ, strict=True):
         if di == 0 and dj == 0:
             continue
-        nb = v[:, 1 + di:h - 1 + di, 1 + dj:w - 1 + dj]
+        nb = v[:, 1 + di : h - 1 + di, 1 + dj : w - 1 + dj]
         before = di < 0 or (di == 0 and dj < 0)
         ok &= (inner > nb) if before else (inner >= nb)
     f, ci, cj = np.nonzero(ok)
@@ -135,9 +142,22 @@ def touches_3d(frame, taxel, weight, positions, seg, frac):
     return (1.0 - t) * p0 + t * p1
 
 
-def locate(frames, t_s, taxel_i, taxel_j, rows, cols, positions, threshold=20.0,
-           baseline_frames=10, method="n9", floor=0.0, max_touches=10,
-           pressure=None, state_pressure=None):
+def locate(
+    frames,
+    t_s,
+    taxel_i,
+    taxel_j,
+    rows,
+    cols,
+    positions,
+    threshold=20.0,
+    baseline_frames=10,
+    method="n9",
+    floor=0.0,
+    max_touches=10,
+    pressure=None,
+    state_pressure=None,
+):
     """Touch table (frame, touch, i, j, xyz (n, 3), peak) as the batch path computed it."""
     values = frames[:, rows, cols]
     baseline = values[:baseline_frames].mean(axis=0)
@@ -151,8 +171,11 @@ def locate(frames, t_s, taxel_i, taxel_j, rows, cols, positions, threshold=20.0,
     frame, rank, i, j, peak, tax, w = t
     seg = frac = None
     if positions.ndim == 3:
-        seg, frac = ((np.zeros(len(frames), np.int64), np.zeros(len(frames)))
-                     if pressure is None else state_path_position(pressure, state_pressure))
+        seg, frac = (
+            (np.zeros(len(frames), np.int64), np.zeros(len(frames)))
+            if pressure is None
+            else state_path_position(pressure, state_pressure)
+        )
     xyz = touches_3d(frame, tax, w, positions, seg, frac)
     return frame, rank, i, j, xyz, peak
 
@@ -171,7 +194,16 @@ def touches_csv_text(table, t_s, comment: str) -> str:
     for n in range(len(frame)):
         f = int(frame[n])
         x, y, z = xyz[n]
-        row = [f, float(t_s[f]), int(touch[n]), float(i[n]), float(j[n]), float(x),
-               float(y), float(z), float(peak[n])]
+        row = [
+            f,
+            float(t_s[f]),
+            int(touch[n]),
+            float(i[n]),
+            float(j[n]),
+            float(x),
+            float(y),
+            float(z),
+            float(peak[n]),
+        ]
         writer.writerow([fmt(v) for v in row])
     return buf.getvalue()

@@ -45,8 +45,11 @@ class SoakPlan:
     touch_s: float = 2.0
     touch_counts: float = 60.0
     touch_sigma_cells: float = 0.8
-    pulls: tuple[tuple[float, float], ...] = ((5 * 3600.0, 60.0), (6.5 * 3600.0, 30.0),
-                                              (7.5 * 3600.0, 120.0))  # (start, length) s
+    pulls: tuple[tuple[float, float], ...] = (
+        (5 * 3600.0, 60.0),
+        (6.5 * 3600.0, 30.0),
+        (7.5 * 3600.0, 120.0),
+    )  # (start, length) s
     quiet_after_s: float = 20.0
     rows: int = 21
     cols: int = 12
@@ -56,14 +59,16 @@ class SoakPlan:
 
     def __post_init__(self):
         rng = np.random.default_rng(self.seed)
-        cells = self.cells or tuple((r, c) for r in range(1, self.rows - 1)
-                                    for c in range(1, self.cols - 1))
+        cells = self.cells or tuple(
+            (r, c) for r in range(1, self.rows - 1) for c in range(1, self.cols - 1)
+        )
         self.base = 500 + rng.normal(0, 30, (self.rows, self.cols))
         self.drift_share = rng.uniform(0.5, 1.0, (self.rows, self.cols))
         self.drift_share /= self.drift_share.max()  # the largest drifts drift_counts
         self._rng = np.random.default_rng(self.seed + 1)
-        quiet = [(0.0, self.quiet_after_s)] + [(a, a + d + self.quiet_after_s)
-                                               for a, d in self.pulls]
+        quiet = [(0.0, self.quiet_after_s)] + [
+            (a, a + d + self.quiet_after_s) for a, d in self.pulls
+        ]
         t = self.quiet_after_s
         end = self.hours * 3600.0
         while t + self.touch_s < end:
@@ -93,8 +98,9 @@ class SoakPlan:
         for tc in self.touches:
             on = (times >= tc.start_s) & (times < tc.end_s)
             if on.any():
-                blob = tc.counts * np.exp(-((r - tc.row) ** 2 + (c - tc.col) ** 2)
-                                          / (2 * self.touch_sigma_cells ** 2))
+                blob = tc.counts * np.exp(
+                    -((r - tc.row) ** 2 + (c - tc.col) ** 2) / (2 * self.touch_sigma_cells**2)
+                )
                 f[on] += blob
         return np.maximum(np.round(f), 0).astype(np.int32)
 
@@ -116,8 +122,13 @@ class SoakBoard:
         n = len(frames)
         if not last:  # one more frame, cut in the middle of its line by the pull
             frames = np.concatenate([frames, frames[-1:]])
-        em = BoardEmulator(frames, self.plan.fps, wait_for_reader=True,
-                           time_scale=self.scale, vanish_after=None if last else n)
+        em = BoardEmulator(
+            frames,
+            self.plan.fps,
+            wait_for_reader=True,
+            time_scale=self.scale,
+            vanish_after=None if last else n,
+        )
         tmp = self.link.with_name(self.link.name + ".new")
         tmp.unlink(missing_ok=True)
         os.symlink(em.path, tmp)

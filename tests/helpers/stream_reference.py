@@ -29,8 +29,9 @@ class ReferenceStream:
         self._empty = TouchTable.concat([])
         self._none_xyz, self._none_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
 
-    def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
-             frame: int = 0) -> TouchTable:
+    def step(
+        self, values: np.ndarray, pressure_kpa: np.ndarray | None = None, frame: int = 0
+    ) -> TouchTable:
         """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
         loc, s = self.loc, self.s
         if values.ndim == 2:
@@ -67,9 +68,14 @@ class ReferenceStream:
         for k, (_, _, _, tax, w) in enumerate(rows):
             xyz[k] = w @ pos[np.where(tax < 0, 0, tax)]
         ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
-        return TouchTable(np.full(n, frame, np.int64), ids,
-                          np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                          xyz, np.array([r[2] for r in rows]))
+        return TouchTable(
+            np.full(n, frame, np.int64),
+            ids,
+            np.array([r[0] for r in rows]),
+            np.array([r[1] for r in rows]),
+            xyz,
+            np.array([r[2] for r in rows]),
+        )
 
     def _sequential(self, flat: np.ndarray, thr: float, floor: float) -> list:
         """The paper's N9 loop on one padded flat frame (zeroed in place)."""
@@ -87,8 +93,15 @@ class ReferenceStream:
                 win = np.maximum(win - floor, 0.0)
             w = win / win.sum()
             ci, cj = divmod(k, width)
-            rows.append((ci - 1 + float(w @ self._di), cj - 1 + float(w @ self._dj), peak,
-                         grid.taxel_of_cell[idx], w))
+            rows.append(
+                (
+                    ci - 1 + float(w @ self._di),
+                    cj - 1 + float(w @ self._dj),
+                    peak,
+                    grid.taxel_of_cell[idx],
+                    w,
+                )
+            )
             flat[idx] = 0.0
         flat[:] = 0.0
         return rows

@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.sensing.outputs.test_live_view import Chromium, free_port  # noqa: E402
+from tests.sensing.outputs.test_live_view import Chromium, free_port
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # as a script
-from fruitcli.scene import load_scene  # noqa: E402
-from fruitcli.sensing.live.board_emulator import BoardEmulator  # noqa: E402
-from fruitcli.tables import read_taxels  # noqa: E402
-from fruitcli.workflow.scene_outputs import scene_products  # noqa: E402
+from fruitcli.scene import load_scene
+from fruitcli.sensing.live.board_emulator import BoardEmulator
+from fruitcli.tables import read_taxels
+from fruitcli.workflow.scene_outputs import scene_products
 
 SCENE = "pipelines/fruit-breathing.toml"
 
@@ -53,18 +53,34 @@ def main(out: str) -> None:
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
     order = np.lexsort((tx.j, tx.i))
     for k, counts in ((order[len(order) // 4], 55.0), (order[3 * len(order) // 4], 38.0)):
-        f[20:] += counts * np.exp(-((r - tx.i[k] - 0.3) ** 2 + (c - tx.j[k] + 0.2) ** 2)
-                                  / (2 * 0.8 ** 2))
+        f[20:] += counts * np.exp(
+            -((r - tx.i[k] - 0.3) ** 2 + (c - tx.j[k] + 0.2) ** 2) / (2 * 0.8**2)
+        )
     em = BoardEmulator(np.round(f).astype(np.int64), fps=30, wait_for_reader=True)
     th = em.start()
     stop = threading.Event()
     ppty = pressure_pty("P c1=6.0 c2=3.5 c3=9.0", stop)
     port = free_port()
-    live = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; "
-                             "main()", "live", SCENE, "--port", em.path, "--taxels",
-                             str(taxels_csv), "--states", str(states), "--pressure-port",
-                             ppty, "--view", f"127.0.0.1:{port}"],
-                            stdout=subprocess.DEVNULL)
+    live = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from fruitcli.cli.main import main; main()",
+            "live",
+            SCENE,
+            "--port",
+            em.path,
+            "--taxels",
+            str(taxels_csv),
+            "--states",
+            str(states),
+            "--pressure-port",
+            ppty,
+            "--view",
+            f"127.0.0.1:{port}",
+        ],
+        stdout=subprocess.DEVNULL,
+    )
     with tempfile.TemporaryDirectory() as profile:
         browser = Chromium(profile)
         try:

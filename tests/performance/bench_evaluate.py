@@ -18,8 +18,10 @@ def main():
     s = summarize(truth, meas, 152.0)
     dt = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"summarize 100k samples: {dt * 1e3:.1f} ms; mean {s['mean_mm']:.3f} mm; "
-          f"peak RSS {peak:.0f} MB")
+    print(
+        f"summarize 100k samples: {dt * 1e3:.1f} ms; mean {s['mean_mm']:.3f} mm; "
+        f"peak RSS {peak:.0f} MB"
+    )
 
 
 if __name__ == "__main__":

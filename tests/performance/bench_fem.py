@@ -63,8 +63,11 @@ def scene_loads(scene, names, n_states: int, cycles: int = 1) -> list:
     from fruitcli.fem.stage import state_loads
 
     loads = state_loads(scene, names)[:n_states]
-    if cycles > 1 and len(loads) > 2 and np.array_equal(loads[0].pressure_kpa,
-                                                        loads[-1].pressure_kpa):
+    if (
+        cycles > 1
+        and len(loads) > 2
+        and np.array_equal(loads[0].pressure_kpa, loads[-1].pressure_kpa)
+    ):
         loads = loads[:-1]
     return loads * cycles
 
@@ -84,8 +87,15 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
     return [Load.pressures(row) for row in spline(t)]
 
 
-def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
-                keep_states: bool = False, stats_log: list | None = None):
+def time_states(
+    scene,
+    mesh_npz,
+    solver_name: str,
+    n_states: int,
+    loads=None,
+    keep_states: bool = False,
+    stats_log: list | None = None,
+):
     """Solve the scene's states (or `loads`, a function of the chamber names) in order
     with one reused solver; returns (model, solver, rows (ms, iterations, cg, cpu ms)[,
     the StateResults]); a copy of the solver's stats after each state goes to
@@ -103,10 +113,17 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
     for load in loads:
         cg0 = solver.stats["cg_iterations"]
         cpu0 = time.process_time()
-        res = solve_state(model, load, x_start=x, load_start=prev, pressure_start=p,
-                          options=opts, solver=solver)
-        rows.append((res.solve_ms, res.iterations, solver.stats["cg_iterations"] - cg0,
-                     1e3 * (time.process_time() - cpu0)))
+        res = solve_state(
+            model, load, x_start=x, load_start=prev, pressure_start=p, options=opts, solver=solver
+        )
+        rows.append(
+            (
+                res.solve_ms,
+                res.iterations,
+                solver.stats["cg_iterations"] - cg0,
+                1e3 * (time.process_time() - cpu0),
+            )
+        )
         if stats_log is not None:
             stats_log.append(dict(solver.stats))
         states.append(res)
@@ -117,16 +134,26 @@ def time_states(scene, mesh_npz, solver_name: str, n_states: int, loads=None,
 def breathing_runs(scene, mesh_npz, n_states: int) -> list:
     """[(label, rows)] of the three timings of the breathing (see the module docstring);
     rows exclude each run's first state, solved from rest."""
-    _, _, rows = time_states(scene, mesh_npz, "pcg", n_states,
-                             lambda names: scene_loads(scene, names, n_states, cycles=3))
+    _, _, rows = time_states(
+        scene,
+        mesh_npz,
+        "pcg",
+        n_states,
+        lambda names: scene_loads(scene, names, n_states, cycles=3),
+    )
     per_cycle = len(rows) // 3  # one row per state solved
-    _, _, live = time_states(scene, mesh_npz, "pcg", n_states,
-                             lambda names: live_loads(scene, names, LIVE_HZ, cycles=2))
-    return [(f"scene's states, first cycle ({per_cycle - 1} after the one from rest, "
-             "history filling)",
-             rows[1:per_cycle]),
-            ("scene's states, cycles 2-3 (running animation)", rows[per_cycle:]),
-            (f"the whole cycle sampled at {LIVE_HZ:g} Hz, second cycle", live[len(live) // 2:])]
+    _, _, live = time_states(
+        scene, mesh_npz, "pcg", n_states, lambda names: live_loads(scene, names, LIVE_HZ, cycles=2)
+    )
+    return [
+        (
+            f"scene's states, first cycle ({per_cycle - 1} after the one from rest, "
+            "history filling)",
+            rows[1:per_cycle],
+        ),
+        ("scene's states, cycles 2-3 (running animation)", rows[per_cycle:]),
+        (f"the whole cycle sampled at {LIVE_HZ:g} Hz, second cycle", live[len(live) // 2 :]),
+    ]
 
 
 LIVE_HZ = 30.0
@@ -190,13 +217,17 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     stop.set()
     th.join(5)
     solves = np.array(online.solve_ms[solved0:])
-    print(f"\nonline FEM (fruit live --online) on the breathing in real time, {seconds:g} s: "
-          f"{len(solves) / seconds:.0f} states solved per second, {np.median(solves):.1f} ms "
-          f"median per state (the taxels' lag behind the pressures), "
-          f"{online.failures} failed")
-    print(f"live loop per frame: {np.median(alone):.3f} ms median alone, "
-          f"{np.median(with_fem):.3f} ms with the FEM thread (p99 {np.percentile(alone, 99):.3f}"
-          f" and {np.percentile(with_fem, 99):.3f} ms)")
+    print(
+        f"\nonline FEM (fruit live --online) on the breathing in real time, {seconds:g} s: "
+        f"{len(solves) / seconds:.0f} states solved per second, {np.median(solves):.1f} ms "
+        f"median per state (the taxels' lag behind the pressures), "
+        f"{online.failures} failed"
+    )
+    print(
+        f"live loop per frame: {np.median(alone):.3f} ms median alone, "
+        f"{np.median(with_fem):.3f} ms with the FEM thread (p99 {np.percentile(alone, 99):.3f}"
+        f" and {np.percentile(with_fem, 99):.3f} ms)"
+    )
 
 
 def one_direct_solve_ms(model) -> tuple[float, float]:
@@ -232,11 +263,13 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
     opts = dataclasses.replace(solver_options(scene, first_state=True), tolerance=tol)
     res = solve_state(model, load, options=opts, solver=solver)
     st = solver.stats
-    print(f"\ntouchpad bend: {q['n_tets']} tets, {cfg['jig_steps']} jig steps, tolerance {tol:g}: "
-          f"{res.solve_ms / 1e3:.2f} s, {res.iterations} Newton iterations, "
-          f"{res.subdivisions} subdivisions, {st['factorizations']} factorizations "
-          f"({st['factor_s']:.2f} s), {st['cg_iterations']} CG iterations, residual "
-          f"{res.residual:.1e}")
+    print(
+        f"\ntouchpad bend: {q['n_tets']} tets, {cfg['jig_steps']} jig steps, tolerance {tol:g}: "
+        f"{res.solve_ms / 1e3:.2f} s, {res.iterations} Newton iterations, "
+        f"{res.subdivisions} subdivisions, {st['factorizations']} factorizations "
+        f"({st['factor_s']:.2f} s), {st['cg_iterations']} CG iterations, residual "
+        f"{res.residual:.1e}"
+    )
 
 
 LAME_SCENE = """
@@ -273,16 +306,16 @@ def bench_lame(tmp: Path, sizes: list[float], p2_sizes: list[float]) -> None:
     trimesh.creation.icosphere(3, 20.0).export(tmp / "ball.stl")
     a, b, p = 10.0, 20.0, 0.1
     print("\nLame's thick sphere, compliance dV/dp against the closed form:")
-    print(f"{'element':>8} {'nu':>6} {'size_mm':>7} {'cavity':>6} {'tets':>7} {'dV/dp':>7} "
-          f"{'exact':>7} {'error':>7} {'time_s':>6}")
+    print(
+        f"{'element':>8} {'nu':>6} {'size_mm':>7} {'cavity':>6} {'tets':>7} {'dV/dp':>7} "
+        f"{'exact':>7} {'error':>7} {'time_s':>6}"
+    )
     runs = [("p1", "corotational", 0.3, size) for size in sizes]
     runs += [("p2", "neo-hookean", nu, size) for nu in (0.3, 0.49, 0.4999) for size in p2_sizes]
     for element, model, nu, size in runs:
-        u_a = p * a**3 / (100.0 * (b**3 - a**3)) * ((1 - 2 * nu) * a
-                                                    + (1 + nu) * b**3 / (2 * a**2))
+        u_a = p * a**3 / (100.0 * (b**3 - a**3)) * ((1 - 2 * nu) * a + (1 + nu) * b**3 / (2 * a**2))
         exact = 4 * np.pi * a**2 * u_a / p
-        text = LAME_SCENE.format(size=size, cavity=size / 2, element=element, model=model,
-                                 nu=nu)
+        text = LAME_SCENE.format(size=size, cavity=size / 2, element=element, model=model, nu=nu)
         scene = parse_scene(text, tmp / "lame.toml")
         out = tmp / f"lame-{element}-{nu:g}-{size:g}"
         t0 = time.perf_counter()
@@ -290,9 +323,11 @@ def bench_lame(tmp: Path, sizes: list[float], p2_sizes: list[float]) -> None:
         run_simulate(scene, out / "mesh.npz", None, out)
         st = np.load(out / "states.npz", allow_pickle=False)
         dv = (st["chamber_volume_mm3"][0, 0] - st["chamber_rest_volume_mm3"][0]) / p
-        print(f"{element:>8} {nu:6g} {size:7g} {size / 2:6g} {q['n_tets']:7d} {dv:7.2f} "
-              f"{exact:7.2f} {100 * (dv / exact - 1):+6.1f}% {time.perf_counter() - t0:6.1f}",
-              flush=True)
+        print(
+            f"{element:>8} {nu:6g} {size:7g} {size / 2:6g} {q['n_tets']:7d} {dv:7.2f} "
+            f"{exact:7.2f} {100 * (dv / exact - 1):+6.1f}% {time.perf_counter() - t0:6.1f}",
+            flush=True,
+        )
 
 
 def paper_model(scene):
@@ -300,10 +335,12 @@ def paper_model(scene):
     return scene.with_values({"fem.element": "p1", "material.model": "corotational"})
 
 
-PHASES = [("precond_s", "triangular solves (CG's preconditioner)"),
-          ("product_s", "tangent products"),
-          ("update_s", "tangent updates (rotation term, pressure stiffness)"),
-          ("factor_s", "factorizations")]
+PHASES = [
+    ("precond_s", "triangular solves (CG's preconditioner)"),
+    ("product_s", "tangent products"),
+    ("update_s", "tangent updates (rotation term, pressure stiffness)"),
+    ("factor_s", "factorizations"),
+]
 
 
 def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, float]:
@@ -323,8 +360,7 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     log = []
     model, solver, rows = time_states(scene, mesh_npz, "pcg", n_states, stats_log=log)
     threads_chosen = numba.get_num_threads()  # by the solver, from the load average
-    runs = [rows] + [time_states(scene, mesh_npz, "pcg", n_states)[2]
-                     for _ in range(P1_RUNS - 1)]
+    runs = [rows] + [time_states(scene, mesh_npz, "pcg", n_states)[2] for _ in range(P1_RUNS - 1)]
     from fruitcli.fem import threads as fem_threads
 
     fem_threads.AUTO = False  # the runs below on a fixed number of threads
@@ -340,51 +376,69 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
     st = {key: log[-1][key] - log[0][key] for key in log[0]}  # after the first state
     st["update_s"] -= st["factor_s"]  # refreshes happen in updates or on a CG retry
     later_s = sum(r[0] for r in later) / 1e3
-    print(f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
-          f"tets, nu = {model.poisson_ratio:g}, tolerance {scene.solver.tolerance:g} or "
-          f"{scene.solver.displacement_tolerance_mm:g} mm, "
-          f"element loops on {threads_chosen} threads (chosen from the load), load average "
-          f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):")
-    print(f"  per state from the previous one: wall {wall:.1f} ms median "
-          f"(range {min(r[0] for r in later):.1f}-{max(r[0] for r in later):.1f}), CPU "
-          f"{cpu:.1f} ms median; {np.mean([r[1] for r in later]):.2f} Newton and "
-          f"{np.mean([r[2] for r in later]):.1f} CG iterations per state")
-    print(f"  from rest: wall {rows[0][0]:.0f} ms, CPU {rows[0][3]:.0f} ms "
-          f"({log[0]['factorizations']} factorizations, {log[0]['factor_s']:.2f} s)")
-    print(f"  wall time of the {len(later)} states from the previous one ({later_s:.2f} s): "
-          + ", ".join(f"{label} {100 * st[key] / later_s:.0f} %" for key, label in PHASES)
-          + f" ({st['factorizations']}), the rest (element kernels for the residual, "
-          "line search, predictor) "
-          f"{100 * (1 - sum(st[k] for k, _ in PHASES) / later_s):.0f} %")
+    print(
+        f"\np1 breathing ({len(later)} states after the one from rest, {len(model.tets)} "
+        f"tets, nu = {model.poisson_ratio:g}, tolerance {scene.solver.tolerance:g} or "
+        f"{scene.solver.displacement_tolerance_mm:g} mm, "
+        f"element loops on {threads_chosen} threads (chosen from the load), load average "
+        f"{load0:.1f}-{load1:.1f} on {os.cpu_count()} cores):"
+    )
+    print(
+        f"  per state from the previous one: wall {wall:.1f} ms median "
+        f"(range {min(r[0] for r in later):.1f}-{max(r[0] for r in later):.1f}), CPU "
+        f"{cpu:.1f} ms median; {np.mean([r[1] for r in later]):.2f} Newton and "
+        f"{np.mean([r[2] for r in later]):.1f} CG iterations per state"
+    )
+    print(
+        f"  from rest: wall {rows[0][0]:.0f} ms, CPU {rows[0][3]:.0f} ms "
+        f"({log[0]['factorizations']} factorizations, {log[0]['factor_s']:.2f} s)"
+    )
+    print(
+        f"  wall time of the {len(later)} states from the previous one ({later_s:.2f} s): "
+        + ", ".join(f"{label} {100 * st[key] / later_s:.0f} %" for key, label in PHASES)
+        + f" ({st['factorizations']}), the rest (element kernels for the residual, "
+        "line search, predictor) "
+        f"{100 * (1 - sum(st[k] for k, _ in PHASES) / later_s):.0f} %"
+    )
     medians = [float(np.median([r[0] for r in run[1:]])) for run in runs]
     cpus = [float(np.median([r[3] for r in run[1:]])) for run in runs]
     serial_medians = [float(np.median([r[0] for r in run[1:]])) for run in serial]
-    print(f"  {P1_RUNS} runs of the {len(later)} states: medians "
-          + " ".join(f"{m:.1f}" for m in medians) + " ms wall, "
-          + " ".join(f"{c:.1f}" for c in cpus) + " ms CPU (both cores' time); with the "
-          "element loops on one thread (numba.set_num_threads(1)): "
-          + " ".join(f"{m:.1f}" for m in serial_medians) + " ms wall")
+    print(
+        f"  {P1_RUNS} runs of the {len(later)} states: medians "
+        + " ".join(f"{m:.1f}" for m in medians)
+        + " ms wall, "
+        + " ".join(f"{c:.1f}" for c in cpus)
+        + " ms CPU (both cores' time); with the "
+        "element loops on one thread (numba.set_num_threads(1)): "
+        + " ".join(f"{m:.1f}" for m in serial_medians)
+        + " ms wall"
+    )
     wall = float(np.median(medians))
     direct = float(np.median([one_direct_solve_ms(model)[1] for _ in range(3)]))
-    print(f"p1 breathing state: median {wall:.1f} ms (from previous state; runs "
-          f"{min(medians):.1f}-{max(medians):.1f}), {rows[0][0]:.0f} ms (from rest); "
-          f"element loops on one thread {np.median(serial_medians):.1f} ms (target <= 10 ms); "
-          f"the machine's speed now: one SciPy direct solve of the rest stiffness "
-          f"{direct:.0f} ms, a state {wall / direct:.3f} of it", flush=True)
+    print(
+        f"p1 breathing state: median {wall:.1f} ms (from previous state; runs "
+        f"{min(medians):.1f}-{max(medians):.1f}), {rows[0][0]:.0f} ms (from rest); "
+        f"element loops on one thread {np.median(serial_medians):.1f} ms (target <= 10 ms); "
+        f"the machine's speed now: one SciPy direct solve of the rest stiffness "
+        f"{direct:.0f} ms, a state {wall / direct:.3f} of it",
+        flush=True,
+    )
     # the residual tolerance alone, as before [solver] displacement_tolerance_mm
     plain = scene.with_values({"solver.displacement_tolerance_mm": 0.0})
     _, _, rows_p, states_p = time_states(plain, mesh_npz, "pcg", n_states, keep_states=True)
     _, _, _, states = time_states(scene, mesh_npz, "pcg", n_states, keep_states=True)
     moved = max(float(np.abs(a.x - b.x).max()) for a, b in zip(states, states_p, strict=True))
-    print(f"  with the residual tolerance alone ([solver] displacement_tolerance_mm = 0 "
-          f"instead of {scene.solver.displacement_tolerance_mm:g}): wall "
-          f"{np.median([r[0] for r in rows_p[1:]]):.1f} ms, CPU "
-          f"{np.median([r[3] for r in rows_p[1:]]):.1f} ms median, "
-          f"{np.mean([r[1] for r in rows_p[1:]]):.2f} Newton and "
-          f"{np.mean([r[2] for r in rows_p[1:]]):.1f} CG iterations per state; the "
-          f"default's nodes within {moved:.1e} mm of its states", flush=True)
+    print(
+        f"  with the residual tolerance alone ([solver] displacement_tolerance_mm = 0 "
+        f"instead of {scene.solver.displacement_tolerance_mm:g}): wall "
+        f"{np.median([r[0] for r in rows_p[1:]]):.1f} ms, CPU "
+        f"{np.median([r[3] for r in rows_p[1:]]):.1f} ms median, "
+        f"{np.mean([r[1] for r in rows_p[1:]]):.2f} Newton and "
+        f"{np.mean([r[2] for r in rows_p[1:]]):.1f} CG iterations per state; the "
+        f"default's nodes within {moved:.1e} mm of its states",
+        flush=True,
+    )
     return wall, rows[0][0]
-
 
 
 def bench_factor(scene0, mesh_npz: Path) -> None:
@@ -426,26 +480,34 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
             entries = fac.iparm[17]
             fac.free()
             kind = "single precision (CG's default)" if single else "double precision"
-            parts.append(f"{kind}: "
-                         f"analysis + factorization {t_fac:.0f} ms, refactorization "
-                         f"{t_re:.0f} ms, one solve {t_solve:.2f} ms, relative residual of a "
-                         f"solve {miss:.0e}")
+            parts.append(
+                f"{kind}: "
+                f"analysis + factorization {t_fac:.0f} ms, refactorization "
+                f"{t_re:.0f} ms, one solve {t_solve:.2f} ms, relative residual of a "
+                f"solve {miss:.0e}"
+            )
         if label == "p1" and linsolve._cholesky is not None:
             chol, t_chol = timed(linsolve._cholesky, k.tocsc())
             chol.solve(b)
             _, t_csolve = timed(chol.solve, b, n=reps)
-            parts.append(f"cholespy: factorization {t_chol:.0f} ms, one solve "
-                         f"{t_csolve:.2f} ms")
-        print(f"  {label}, {k.shape[0]} dofs, factor {entries:,} entries; " + "; ".join(parts),
-              flush=True)
+            parts.append(f"cholespy: factorization {t_chol:.0f} ms, one solve {t_csolve:.2f} ms")
+        print(
+            f"  {label}, {k.shape[0]} dofs, factor {entries:,} entries; " + "; ".join(parts),
+            flush=True,
+        )
+
 
 P1_RUNS = 5
 """Runs of the breathing in `bench_p1_breathing` (each a fresh solver, as `fruit
 simulate`): their medians show how much one run's figure varies on this machine."""
 
 
-ELEMENT_SETTINGS = [("p1", "corotational"), ("p1", "neo-hookean"), ("p2-pure", "neo-hookean"),
-                    ("p2", "neo-hookean")]
+ELEMENT_SETTINGS = [
+    ("p1", "corotational"),
+    ("p1", "neo-hookean"),
+    ("p2-pure", "neo-hookean"),
+    ("p2", "neo-hookean"),
+]
 
 
 def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
@@ -455,27 +517,36 @@ def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
     element's (what the paper's model costs in accuracy). Returns {(element, material):
     (median ms from the previous state, ms from rest)}."""
     print(f"\nelements on the default fruit's breathing ({n_states} states, pcg):")
-    print(f"{'element':>8} {'material':>12} {'dofs':>6} {'rest_ms':>8} {'median_ms':>9} "
-          f"{'iters':>5} {'factor':>6} {'dV c1/c2/c3 vs p2':>20}")
+    print(
+        f"{'element':>8} {'material':>12} {'dofs':>6} {'rest_ms':>8} {'median_ms':>9} "
+        f"{'iters':>5} {'factor':>6} {'dV c1/c2/c3 vs p2':>20}"
+    )
     growth, times = {}, {}
     for element, material in ELEMENT_SETTINGS:
         scene = scene0.with_values({"fem.element": element, "material.model": material})
-        model, solver, rows, states = time_states(scene, mesh_npz, "pcg", n_states,
-                                                  keep_states=True)
+        model, solver, rows, states = time_states(
+            scene, mesh_npz, "pcg", n_states, keep_states=True
+        )
         peak = int(np.argmax([s.pressure_kpa[0] for s in states]))
-        growth[(element, material)] = (states[peak].chamber_volume_mm3
-                                       - model.chamber_rest_volume_mm3)
+        growth[(element, material)] = (
+            states[peak].chamber_volume_mm3 - model.chamber_rest_volume_mm3
+        )
         later = np.array([r[0] for r in rows[1:]])
         times[(element, material)] = (float(np.median(later)), rows[0][0])
         dofs = len(model.pattern.free)
-        print(f"{element:>8} {material:>12} {dofs:6d} {rows[0][0]:8.0f} {np.median(later):9.1f} "
-              f"{np.mean([r[1] for r in rows[1:]]):5.1f} {solver.stats['factorizations']:6d}",
-              end="", flush=True)
+        print(
+            f"{element:>8} {material:>12} {dofs:6d} {rows[0][0]:8.0f} {np.median(later):9.1f} "
+            f"{np.mean([r[1] for r in rows[1:]]):5.1f} {solver.stats['factorizations']:6d}",
+            end="",
+            flush=True,
+        )
         print()
     ref = growth[("p2", "neo-hookean")]
     for key, g in growth.items():
-        print(f"  {key[0]:>8} {key[1]:>12}: chamber growth / default element's = "
-              + " / ".join(f"{v:.2f}" for v in g / ref))
+        print(
+            f"  {key[0]:>8} {key[1]:>12}: chamber growth / default element's = "
+            + " / ".join(f"{v:.2f}" for v in g / ref)
+        )
     return times
 
 
@@ -483,35 +554,56 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=float, nargs="+", default=[8.0, 6.0, 5.0, 4.0])
     ap.add_argument("--states", type=int, default=13)
-    ap.add_argument("--with-jacobi", action="store_true",
-                    help="also time Jacobi CG (about 11 s per state here)")
+    ap.add_argument(
+        "--with-jacobi", action="store_true", help="also time Jacobi CG (about 11 s per state here)"
+    )
     ap.add_argument("--no-pad", action="store_true", help="skip the touchpad bend")
-    ap.add_argument("--lame-sizes", type=float, nargs="*", default=[3.0, 2.0],
-                    help="mesh sizes of Lame's sphere (1.5 adds about 70 s); none to skip")
-    ap.add_argument("--lame-p2-sizes", type=float, nargs="*", default=[6.0, 5.0, 4.0],
-                    help="mesh sizes of Lame's sphere for the default element")
-    ap.add_argument("--p1-only", action="store_true",
-                    help="only the paper's model on the default fruit's breathing")
-    ap.add_argument("--factor", action="store_true",
-                    help="only the kept factor's times on the default fruit (p1 and p2)")
+    ap.add_argument(
+        "--lame-sizes",
+        type=float,
+        nargs="*",
+        default=[3.0, 2.0],
+        help="mesh sizes of Lame's sphere (1.5 adds about 70 s); none to skip",
+    )
+    ap.add_argument(
+        "--lame-p2-sizes",
+        type=float,
+        nargs="*",
+        default=[6.0, 5.0, 4.0],
+        help="mesh sizes of Lame's sphere for the default element",
+    )
+    ap.add_argument(
+        "--p1-only",
+        action="store_true",
+        help="only the paper's model on the default fruit's breathing",
+    )
+    ap.add_argument(
+        "--factor",
+        action="store_true",
+        help="only the kept factor's times on the default fruit (p1 and p2)",
+    )
     ap.add_argument("--child-states", type=Path, default=None, help=argparse.SUPPRESS)
-    ap.add_argument("--pad-tolerance", type=float, default=None,
-                    help="override the touchpad scene's [solver] tolerance")
+    ap.add_argument(
+        "--pad-tolerance",
+        type=float,
+        default=None,
+        help="override the touchpad scene's [solver] tolerance",
+    )
     args = ap.parse_args()
     from fruitcli.fem.solver import linsolve, pardiso
     from fruitcli.scene import load_scene
 
     if args.child_states is not None:  # peak memory of the simulation alone
-        scene = paper_model(load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
-                                       must_exist=False))
+        scene = paper_model(
+            load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+        )
         _, _, rows = time_states(scene, args.child_states, "pcg", args.states)
         print(f"{hwm_mb():.0f} {np.median([r[0] for r in rows[1:]]):.1f}")
         return
     from fruitcli.fem.stage import run_tetra
 
     if args.factor or args.p1_only:  # the default fruit's mesh, then that part alone
-        scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
-                                   must_exist=False)
+        scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
         with tempfile.TemporaryDirectory() as tmp:
             tmp = Path(tmp)
             run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
@@ -526,16 +618,27 @@ def main() -> None:
         tmp = Path(tmp)
         t0 = time.perf_counter()
         solid = fruit_solid(tmp)
-        print(f"default fruit: make-artist + make-tracks {time.perf_counter() - t0:.1f} s "
-              f"-> {solid.name}")
+        print(
+            f"default fruit: make-artist + make-tracks {time.perf_counter() - t0:.1f} s "
+            f"-> {solid.name}"
+        )
         default_size = scene0["mesh"]["size_mm"]
         sizes = sorted(set(args.sizes) | {default_size}, reverse=True)
-        backend = ("MKL PARDISO" if linsolve.USE_PARDISO and pardiso.available() else
-                   "SuperLU" if linsolve._cholesky is None else "cholespy")
-        print(f"kept factorization: {backend}; iters and cg: means per state after the first; "
-              "factor: factorizations in all")
-        print(f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
-              f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'cg':>5} {'factor':>6}")
+        backend = (
+            "MKL PARDISO"
+            if linsolve.USE_PARDISO and pardiso.available()
+            else "SuperLU"
+            if linsolve._cholesky is None
+            else "cholespy"
+        )
+        print(
+            f"kept factorization: {backend}; iters and cg: means per state after the first; "
+            "factor: factorizations in all"
+        )
+        print(
+            f"{'size_mm':>7} {'tets':>7} {'nodes':>6} {'tetra_s':>7} {'solver':>10} "
+            f"{'median_ms':>9} {'max_ms':>7} {'iters':>5} {'cg':>5} {'factor':>6}"
+        )
         for size in sizes:
             scene = scene0.with_values({"mesh.size_mm": size})
             out = tmp / f"mesh-{size:g}"
@@ -550,41 +653,64 @@ def main() -> None:
                 later = np.array([r[0] for r in rows[1:]])  # states from the previous one
                 its = np.mean([r[1] for r in rows[1:]])
                 cg = np.mean([r[2] for r in rows[1:]])
-                print(f"{size:7g} {q['n_tets']:7d} {q['n_nodes']:6d} {t_tetra:7.2f} "
-                      f"{name:>10} {np.median(later):9.1f} {later.max():7.1f} {its:5.1f} "
-                      f"{cg:5.1f} {solver.stats['factorizations']:6d}", flush=True)
+                print(
+                    f"{size:7g} {q['n_tets']:7d} {q['n_nodes']:6d} {t_tetra:7.2f} "
+                    f"{name:>10} {np.median(later):9.1f} {later.max():7.1f} {its:5.1f} "
+                    f"{cg:5.1f} {solver.stats['factorizations']:6d}",
+                    flush=True,
+                )
             if size == default_size:
                 asm_ms, direct_ms = one_direct_solve_ms(model)
                 runs = breathing_runs(scene, out / "mesh.npz", args.states)
-                child = subprocess.run([sys.executable, __file__, "--child-states",
-                                        str(out / "mesh.npz"), "--states", str(args.states)],
-                                       capture_output=True, text=True, check=True)
+                child = subprocess.run(
+                    [
+                        sys.executable,
+                        __file__,
+                        "--child-states",
+                        str(out / "mesh.npz"),
+                        "--states",
+                        str(args.states),
+                    ],
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                )
                 default = (size, runs, asm_ms, direct_ms, child.stdout.split())
                 default_mesh = out / "mesh.npz"
         size, runs, asm_ms, direct_ms, (child_rss, child_med) = default
-        print(f"\ndefault size {size:g} mm, one new pressure state from the previous one "
-              f"(target <= 33 ms median):")
+        print(
+            f"\ndefault size {size:g} mm, one new pressure state from the previous one "
+            f"(target <= 33 ms median):"
+        )
         for label, rows in runs:
             ms = np.array([r[0] for r in rows])
-            print(f"  {label}: {np.median(ms):.1f} ms median, {np.percentile(ms, 90):.1f} ms "
-                  f"90th percentile, max {ms.max():.1f}; "
-                  f"{np.mean([r[1] for r in rows]):.2f} Newton and "
-                  f"{np.mean([r[2] for r in rows]):.1f} CG iterations per state")
+            print(
+                f"  {label}: {np.median(ms):.1f} ms median, {np.percentile(ms, 90):.1f} ms "
+                f"90th percentile, max {ms.max():.1f}; "
+                f"{np.mean([r[1] for r in rows]):.2f} Newton and "
+                f"{np.mean([r[2] for r in rows]):.1f} CG iterations per state"
+            )
         med = float(np.median([r[0] for r in runs[0][1]]))
-        print(f"assembly of the rest K {asm_ms:.1f} ms; one scipy spsolve of it "
-              f"{direct_ms:.1f} ms; ratio state (first cycle) / direct solve "
-              f"{med / direct_ms:.2f}")
-        print(f"peak RSS of the {args.states} default states alone (own process: load the mesh, "
-              f"build, solve) {child_rss} MB, median state there {child_med} ms "
-              f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB")
+        print(
+            f"assembly of the rest K {asm_ms:.1f} ms; one scipy spsolve of it "
+            f"{direct_ms:.1f} ms; ratio state (first cycle) / direct solve "
+            f"{med / direct_ms:.2f}"
+        )
+        print(
+            f"peak RSS of the {args.states} default states alone (own process: load the mesh, "
+            f"build, solve) {child_rss} MB, median state there {child_med} ms "
+            f"(target <= 500 MB); this whole benchmark {rss_mb():.0f} MB"
+        )
         bench_online(scene0, default_mesh, tmp / "tracks" / "taxels.csv")
         bench_factor(scene_default, default_mesh)
         p1 = bench_p1_breathing(scene_default, default_mesh, args.states)
         times = bench_elements(scene_default, default_mesh, args.states)
         p2 = times[("p2", "neo-hookean")]
-        print(f"\np1 breathing state: median {p1[0]:.1f} ms (from previous state), "
-              f"{p1[1]:.0f} ms (from rest); p2 (the default, neo-Hookean): median "
-              f"{p2[0]:.0f} ms (from previous state), {p2[1]:.0f} ms (from rest)")
+        print(
+            f"\np1 breathing state: median {p1[0]:.1f} ms (from previous state), "
+            f"{p1[1]:.0f} ms (from rest); p2 (the default, neo-Hookean): median "
+            f"{p2[0]:.0f} ms (from previous state), {p2[1]:.0f} ms (from rest)"
+        )
         if not args.no_pad:
             bench_pad(tmp, args.pad_tolerance)
         if args.lame_sizes:

@@ -21,23 +21,27 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from fruitcli.fsutil import write_csv  # noqa: E402
-from fruitcli.scene import load_scene  # noqa: E402
-from fruitcli.sensing.skin import forward  # noqa: E402
-from fruitcli.sensing.skin.calibrate import run_calibrate  # noqa: E402
-from fruitcli.sensing.stages import run_bench, run_locate  # noqa: E402
-from fruitcli.tables import read_table  # noqa: E402
-from tests.sensing.skin.test_calibrate import HIDDEN_SKIN, virtual_bench_scene  # noqa: E402
+from fruitcli.fsutil import write_csv
+from fruitcli.scene import load_scene
+from fruitcli.sensing.skin import forward
+from fruitcli.sensing.skin.calibrate import run_calibrate
+from fruitcli.sensing.stages import run_bench, run_locate
+from fruitcli.tables import read_table
+from tests.sensing.skin.test_calibrate import HIDDEN_SKIN, virtual_bench_scene
 
 
 def errors(out: Path, truth: Path) -> dict[int, float]:
     """sample -> 3D error (mm) of measured.csv against truth.csv."""
     m = read_table(out / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     t = read_table(truth, ["sample", "x_mm", "y_mm", "z_mm"])
-    want = {int(k): np.array([x, y, z]) for k, x, y, z in zip(
-        t["sample"], t["x_mm"], t["y_mm"], t["z_mm"], strict=True)}
-    return {int(k): float(np.linalg.norm(np.array([x, y, z]) - want[int(k)])) for k, x, y, z
-            in zip(m["sample"], m["x_mm"], m["y_mm"], m["z_mm"], strict=True)}
+    want = {
+        int(k): np.array([x, y, z])
+        for k, x, y, z in zip(t["sample"], t["x_mm"], t["y_mm"], t["z_mm"], strict=True)
+    }
+    return {
+        int(k): float(np.linalg.norm(np.array([x, y, z]) - want[int(k)]))
+        for k, x, y, z in zip(m["sample"], m["x_mm"], m["y_mm"], m["z_mm"], strict=True)
+    }
 
 
 def one_seed(tmp: Path, seed: int) -> dict:
@@ -51,10 +55,14 @@ def one_seed(tmp: Path, seed: int) -> dict:
     hidden = forward.make_skin(16, seed, forward.SkinParams.from_table(scene.skin)).gain
     write_csv(tmp / "hidden.csv", ["id", "gain"], ([k, float(g)] for k, g in enumerate(hidden)))
     out = {}
-    for name, gains in (("plain", None), ("calibrated", tmp / "cal" / "gains.csv"),
-                        ("hidden", tmp / "hidden.csv")):
-        run_locate(scene, rec / "frames.npz", tmp / "t.csv", None, tmp / name,
-                   gains_csv=gains, workers=1)
+    for name, gains in (
+        ("plain", None),
+        ("calibrated", tmp / "cal" / "gains.csv"),
+        ("hidden", tmp / "hidden.csv"),
+    ):
+        run_locate(
+            scene, rec / "frames.npz", tmp / "t.csv", None, tmp / name, gains_csv=gains, workers=1
+        )
         out[name] = errors(tmp / name, rec / "truth.csv")
     out["samples"] = len(read_table(rec / "truth.csv", ["sample"])["sample"])
     return out
@@ -76,19 +84,25 @@ def main(seeds: int = 10) -> None:
             found[n] += len(r[n])
             per[n] += list(r[n].values())
             paired[n] += [r[n][k] for k in sorted(common)]
-        print(f"seed {seed}: mean error plain {np.mean(list(r['plain'].values())):.3f} mm, "
-              f"calibrated gains {np.mean(list(r['calibrated'].values())):.3f} mm, hidden "
-              f"gains {np.mean(list(r['hidden'].values())):.3f} mm "
-              f"({len(r['plain'])}/{len(r['calibrated'])}/{len(r['hidden'])} of "
-              f"{r['samples']} samples found)")
+        print(
+            f"seed {seed}: mean error plain {np.mean(list(r['plain'].values())):.3f} mm, "
+            f"calibrated gains {np.mean(list(r['calibrated'].values())):.3f} mm, hidden "
+            f"gains {np.mean(list(r['hidden'].values())):.3f} mm "
+            f"({len(r['plain'])}/{len(r['calibrated'])}/{len(r['hidden'])} of "
+            f"{r['samples']} samples found)"
+        )
     for n in names:
         e = np.array(paired[n])
-        print(f"{n:>10}: {found[n]}/{total} samples found; on the {len(e)} found by all "
-              f"three: mean {e.mean():.3f} mm, median {np.median(e):.3f} mm, p90 "
-              f"{np.percentile(e, 90):.3f} mm, max {e.max():.3f} mm")
+        print(
+            f"{n:>10}: {found[n]}/{total} samples found; on the {len(e)} found by all "
+            f"three: mean {e.mean():.3f} mm, median {np.median(e):.3f} mm, p90 "
+            f"{np.percentile(e, 90):.3f} mm, max {e.max():.3f} mm"
+        )
     d = np.array(paired["calibrated"]) - np.array(paired["plain"])
-    print(f"dividing by the calibrated gains: error change per sample mean {d.mean():+.3f} mm"
-          f" (better on {int((d < 0).sum())}, worse on {int((d > 0).sum())} of {d.size})")
+    print(
+        f"dividing by the calibrated gains: error change per sample mean {d.mean():+.3f} mm"
+        f" (better on {int((d < 0).sum())}, worse on {int((d > 0).sum())} of {d.size})"
+    )
 
 
 if __name__ == "__main__":

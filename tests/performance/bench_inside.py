@@ -26,12 +26,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from tests.helpers import artist_meshes as am  # noqa: E402
+from tests.helpers import artist_meshes as am
 
 
 def _ellipsoids(p, items):
-    return np.any([(((p - np.asarray(c)) / np.asarray(r)) ** 2).sum(1) < 1 for c, r in items],
-                  axis=0)
+    return np.any(
+        [(((p - np.asarray(c)) / np.asarray(r)) ** 2).sum(1) < 1 for c, r in items], axis=0
+    )
 
 
 def truth(name, p):
@@ -41,14 +42,23 @@ def truth(name, p):
     if name == "head_with_eye_sockets":
         return _ellipsoids(p, [((0, 0, 0), (40, 50, 60))])
     if name == "overlapping_figure":
-        return _ellipsoids(p, [((0, 0, 0), (18, 12, 28)), ((0, 0, 40), (11, 11, 11)),
-                               ((0, 0, 29), (5, 5, 6)), ((-24, 0, 8), (16, 6, 6)),
-                               ((24, 0, 8), (16, 6, 6)), ((-9, 0, -38), (7, 7, 18)),
-                               ((9, 0, -38), (7, 7, 18)), ((-9, 6, -56), (6, 10, 4)),
-                               ((9, 6, -56), (6, 10, 4))])
+        return _ellipsoids(
+            p,
+            [
+                ((0, 0, 0), (18, 12, 28)),
+                ((0, 0, 40), (11, 11, 11)),
+                ((0, 0, 29), (5, 5, 6)),
+                ((-24, 0, 8), (16, 6, 6)),
+                ((24, 0, 8), (16, 6, 6)),
+                ((-9, 0, -38), (7, 7, 18)),
+                ((9, 0, -38), (7, 7, 18)),
+                ((-9, 6, -56), (6, 10, 4)),
+                ((9, 6, -56), (6, 10, 4)),
+            ],
+        )
     if name == "teapot_with_open_lid":
         return _ellipsoids(p, [((0, 0, 0), (50, 50, 38))]) & (p[:, 2] < 27.0)
-    if name == "machined_part":          # closed: ray parity is exact
+    if name == "machined_part":  # closed: ray parity is exact
         m = am.machined_part()
         return _parity(m.vertices, m.faces, p)
     return None
@@ -81,12 +91,14 @@ def main() -> None:
     if igl is None:
         print("(libigl not installed: fruit's own evaluations only)")
     one = (np.eye(3), np.array([[0, 1, 2]]))
-    Winding(*one)(np.zeros((1, 3)))                # load the compiled kernels first
+    Winding(*one)(np.zeros((1, 3)))  # load the compiled kernels first
     exact_winding(*one, np.zeros((1, 3)))
 
     rng = np.random.default_rng(0)
-    print(f"{'mesh':24s} {'faces':>6s}  {'parity wrong':>12s}  {'fast WN wrong':>13s} "
-          f"{'exact WN wrong':>14s}  {'fast WN s':>9s} {'exact WN s':>10s}  manifold3d")
+    print(
+        f"{'mesh':24s} {'faces':>6s}  {'parity wrong':>12s}  {'fast WN wrong':>13s} "
+        f"{'exact WN wrong':>14s}  {'fast WN s':>9s} {'exact WN s':>10s}  manifold3d"
+    )
     for name, make in am.ALL.items():
         m = make()
         s = load.clean(np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
@@ -109,10 +121,12 @@ def main() -> None:
             igl_fast = bvh.winding_number(p, 2.0)
             t_igl = time.perf_counter() - t0
             igl_exact = igl.winding_number(v, f, p)
-            igl_note = (f"  libigl fast {t_igl:.3f} s, |fruit fast - exact| max "
-                        f"{np.abs(fast - exact).max():.4f}, |libigl fast - exact| max "
-                        f"{np.abs(igl_fast - exact).max():.4f}, |libigl exact - fruit exact| "
-                        f"max {np.abs(igl_exact - exact).max():.1e}")
+            igl_note = (
+                f"  libigl fast {t_igl:.3f} s, |fruit fast - exact| max "
+                f"{np.abs(fast - exact).max():.4f}, |libigl fast - exact| max "
+                f"{np.abs(igl_fast - exact).max():.4f}, |libigl exact - fruit exact| "
+                f"max {np.abs(igl_exact - exact).max():.1e}"
+            )
         else:
             igl_note = f"  |fast - exact| max {np.abs(fast - exact).max():.4f}"
         par = _parity(v, f, p)
@@ -123,9 +137,11 @@ def main() -> None:
         else:
             rates = [f"{((x > 0.5) != want).mean() * 100:11.2f}%" for x in (par, fast, exact)]
             note = ""
-        print(f"{name:24s} {len(f):6d}  {rates[0]:>12s}  {rates[1]:>13s} {rates[2]:>14s}  "
-              f"{t_fast:9.3f} {t_exact:10.3f}  {status}{note}  w in "
-              f"[{fast.min():.2f}, {fast.max():.2f}]{igl_note}")
+        print(
+            f"{name:24s} {len(f):6d}  {rates[0]:>12s}  {rates[1]:>13s} {rates[2]:>14s}  "
+            f"{t_fast:9.3f} {t_exact:10.3f}  {status}{note}  w in "
+            f"[{fast.min():.2f}, {fast.max():.2f}]{igl_note}"
+        )
 
 
 if __name__ == "__main__":

@@ -38,35 +38,44 @@ def sphere_refinement() -> None:
         if reference is None:  # the radial solution's own peak
             from scipy.optimize import minimize_scalar
 
-            top = minimize_scalar(lambda la, mu=mu, kappa=kappa: -radial_pressure(mu, kappa, la),
-                                  bounds=(1.6, 2.0), method="bounded",
-                                  options={"xatol": 1e-5})
+            top = minimize_scalar(
+                lambda la, mu=mu, kappa=kappa: -radial_pressure(mu, kappa, la),
+                bounds=(1.6, 2.0),
+                method="bounded",
+                options={"xatol": 1e-5},
+            )
             reference = -top.fun
             print(f"radial solution's peak: {reference / mu:.5f} mu at la = {top.x:.4f}")
         t0 = time.perf_counter()
         curve = limits.follow(model, 0)
         dt = time.perf_counter() - t0
         p = curve.limit_pressure_kpa
-        print(f"{cells:5d}  {cells:6d}  {len(model.conn):4d}  {p / mu:8.4f}  "
-              f"{100 * (p / (LIMIT_B_OVER_A_2 * mu) - 1):+17.2f} %  "
-              f"{100 * (p / reference - 1):+12.3f} %  {dt:5.1f}")
+        print(
+            f"{cells:5d}  {cells:6d}  {len(model.conn):4d}  {p / mu:8.4f}  "
+            f"{100 * (p / (LIMIT_B_OVER_A_2 * mu) - 1):+17.2f} %  "
+            f"{100 * (p / reference - 1):+12.3f} %  {dt:5.1f}"
+        )
 
 
 def fruit_limits(out: Path) -> None:
     scene = ROOT / "pipelines" / "fruit-breathing.toml"
     t0 = time.perf_counter()
     fruit = Path(sys.executable).parent / "fruit"
-    code = subprocess.call([str(fruit), "-q", "limits",
-                            str(scene), "--out", str(out)], cwd=ROOT,
-                           env=os.environ | {"MPLBACKEND": "Agg"})
+    code = subprocess.call(
+        [str(fruit), "-q", "limits", str(scene), "--out", str(out)],
+        cwd=ROOT,
+        env=os.environ | {"MPLBACKEND": "Agg"},
+    )
     wall = time.perf_counter() - t0
     if code:
         print(f"fruit limits: exit {code}")
         return
     info = json.loads((out / "limits.json").read_text())
-    print(f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
-          f"tets): {wall:.1f} s wall (make-tracks and tetra included), {info['seconds']:.1f} s "
-          "following the curves")
+    print(
+        f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
+        f"tets): {wall:.1f} s wall (make-tracks and tetra included), {info['seconds']:.1f} s "
+        "following the curves"
+    )
     import tomllib
 
     asked = tomllib.loads(scene.read_text())["actuation"]["pressure_kpa"]
@@ -74,8 +83,10 @@ def fruit_limits(out: Path) -> None:
         lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
         top = max(asked.get(name, [0.0]))
         far = "" if lim is None else f", the breathing's {top:g} kPa is {100 * top / lim:.0f} %"
-        print(f"  chamber {name}: limit {'none up to 27 V0' if lim is None else f'{lim:.4g} kPa'}"
-              f"{far}; collapse {'none' if col is None else f'{col:.4g} kPa'}")
+        print(
+            f"  chamber {name}: limit {'none up to 27 V0' if lim is None else f'{lim:.4g} kPa'}"
+            f"{far}; collapse {'none' if col is None else f'{col:.4g} kPa'}"
+        )
 
 
 def main() -> None:

@@ -13,8 +13,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from fruitcli.sensing.frames.recording import read_npz  # noqa: E402
-from tests.printer.test_indentation import Rig, make_scene  # noqa: E402
+from fruitcli.sensing.frames.recording import read_npz
+from tests.printer.test_indentation import Rig, make_scene
 
 
 def main() -> None:
@@ -29,11 +29,13 @@ def main() -> None:
             dz = np.diff(rec.printer_mm[:, 2])
             step = np.isclose(dz, -0.1)  # one descent step between these frames
             per_step = np.diff(rec.t_s)[step]
-            print(f"{fmt:6s} at 115200 baud: {res['samples']} samples in {dt:5.1f} s "
-                  f"({dt / res['samples']:.1f} s per sample, moves included), {len(rec)} "
-                  f"frames; a descent step (G1, M400, the next whole frame after it) takes "
-                  f"{np.median(per_step) * 1e3:.0f} ms median, "
-                  f"{np.percentile(per_step, 90) * 1e3:.0f} ms p90 over {step.sum()} steps")
+            print(
+                f"{fmt:6s} at 115200 baud: {res['samples']} samples in {dt:5.1f} s "
+                f"({dt / res['samples']:.1f} s per sample, moves included), {len(rec)} "
+                f"frames; a descent step (G1, M400, the next whole frame after it) takes "
+                f"{np.median(per_step) * 1e3:.0f} ms median, "
+                f"{np.percentile(per_step, 90) * 1e3:.0f} ms p90 over {step.sum()} steps"
+            )
 
 
 if __name__ == "__main__":

@@ -31,8 +31,9 @@ def variant(scene, element: str):
     scene's own element and material."""
     if element == "p2":
         return scene
-    return scene.with_values({"fem.element": "p1", "material.model": "corotational",
-                              "material.poisson_ratio": 0.45})
+    return scene.with_values(
+        {"fem.element": "p1", "material.model": "corotational", "material.poisson_ratio": 0.45}
+    )
 
 
 def _rounds(fn, rows, rounds: int = 15) -> tuple[float, float, float]:
@@ -59,18 +60,24 @@ def time_per_vector(model, n: int = 200) -> dict:
     big = model.lo + rng.random((2000, len(model.lo))) * (model.hi - model.lo)
     model.taxels(p[0])  # warm
     live = ReducedOnline(model)
-    return {"taxels_one_us": _rounds(model.taxels, p),
-            "taxels_batch_us": tuple(v / 2000 for v in _rounds(model.taxels, [big], 15)),
-            "nodes_one_us": _rounds(model.nodes, p[:20], 5),
-            "live_update_us": _rounds(live.update, p)}
+    return {
+        "taxels_one_us": _rounds(model.taxels, p),
+        "taxels_batch_us": tuple(v / 2000 for v in _rounds(model.taxels, [big], 15)),
+        "nodes_one_us": _rounds(model.nodes, p[:20], 5),
+        "live_update_us": _rounds(live.update, p),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--element", choices=["p1", "p2"], default="p1")
     ap.add_argument("--reuse", type=Path, default=None)
-    ap.add_argument("--keep", type=Path, default=None,
-                    help="build into this folder (kept, for --reuse) instead of a temporary one")
+    ap.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        help="build into this folder (kept, for --reuse) instead of a temporary one",
+    )
     args = ap.parse_args()
     from fruitcli.fem.reduced import model as reduced
     from fruitcli.scene import load_scene
@@ -82,8 +89,9 @@ def main() -> None:
         model = reduced.load(args.reuse / "reduce" / "reduced.npz")
         print(f"reduced model of {args.reuse} (as built):")
     else:
-        scene = variant(load_scene(ROOT / "pipelines" / "fruit-breathing.toml",
-                                   must_exist=False), args.element)
+        scene = variant(
+            load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False), args.element
+        )
         with tempfile.TemporaryDirectory() as tmp:
             out = args.keep or Path(tmp) / "out"
             t0 = time.perf_counter()
@@ -93,33 +101,49 @@ def main() -> None:
         print(f"reduced model of the default Fruit on {args.element}:")
     a, v = model.arrays, model.validation()
     solve_ms = a["solve_ms"]
-    print(f"  build {v['build_s']:.1f} s: {v['full_solves']} full solves "
-          f"({np.median(solve_ms[1:]):.0f} ms median, first from rest {solve_ms[0]:.0f} ms), "
-          f"fit {float(a['fit_s']):.2f} s; {a['coef_taxels'].shape[1] // 3} taxels, "
-          f"{len(model.rest_nodes)} nodes, {len(model.modes)} POD modes")
-    box = ", ".join(f"{n} {lo:g}..{hi:g}" for n, lo, hi in
-                    zip(model.chamber_names, model.lo, model.hi, strict=True))
-    print(f"  range {box} kPa; degree {v['degree']} (leave-one-out taxel max by degree: "
-          + ", ".join(f"{int(d)}: {e:.3g} mm" for d, e in
-                      zip(a["loo_degrees"], a["loo_taxel_max_mm"], strict=True)) + ")")
-    print(f"  held-out at {v['vectors']} random pressure vectors: taxels max "
-          f"{v['taxel_max_mm']:.2g} mm, median {v['taxel_median_mm']:.2g} mm (bound "
-          f"{reduced.TAXEL_BOUND_MM} mm); volumes max {v['volume_max_pct']:.2g} %, median "
-          f"{v['volume_median_pct']:.2g} % (bound {reduced.VOLUME_BOUND_PCT} %); surface "
-          f"nodes max {v['surface_max_mm']:.2g} mm; "
-          + ("within the bound" if v["within_bound"] else "OUTSIDE THE BOUND"))
+    print(
+        f"  build {v['build_s']:.1f} s: {v['full_solves']} full solves "
+        f"({np.median(solve_ms[1:]):.0f} ms median, first from rest {solve_ms[0]:.0f} ms), "
+        f"fit {float(a['fit_s']):.2f} s; {a['coef_taxels'].shape[1] // 3} taxels, "
+        f"{len(model.rest_nodes)} nodes, {len(model.modes)} POD modes"
+    )
+    box = ", ".join(
+        f"{n} {lo:g}..{hi:g}"
+        for n, lo, hi in zip(model.chamber_names, model.lo, model.hi, strict=True)
+    )
+    print(
+        f"  range {box} kPa; degree {v['degree']} (leave-one-out taxel max by degree: "
+        + ", ".join(
+            f"{int(d)}: {e:.3g} mm"
+            for d, e in zip(a["loo_degrees"], a["loo_taxel_max_mm"], strict=True)
+        )
+        + ")"
+    )
+    print(
+        f"  held-out at {v['vectors']} random pressure vectors: taxels max "
+        f"{v['taxel_max_mm']:.2g} mm, median {v['taxel_median_mm']:.2g} mm (bound "
+        f"{reduced.TAXEL_BOUND_MM} mm); volumes max {v['volume_max_pct']:.2g} %, median "
+        f"{v['volume_median_pct']:.2g} % (bound {reduced.VOLUME_BOUND_PCT} %); surface "
+        f"nodes max {v['surface_max_mm']:.2g} mm; "
+        + ("within the bound" if v["within_bound"] else "OUTSIDE THE BOUND")
+    )
     print("  held-out error against samples and degree:")
-    print(f"  {'per axis':>8} {'samples':>7} {'degree':>6} {'taxel max mm':>12} "
-          f"{'volume max %':>12}")
+    print(
+        f"  {'per axis':>8} {'samples':>7} {'degree':>6} {'taxel max mm':>12} {'volume max %':>12}"
+    )
     for m, d, s, e, ve in a["study"]:
         print(f"  {m:8.0f} {s:7.0f} {d:6.0f} {e:12.2g} {ve:12.2g}")
     t = time_per_vector(model)
-    print(f"  load average {os.getloadavg()[0]:.1f}; per pressure vector, wall best / wall "
-          "median / CPU median of 15 passes (us):")
-    for key, label in (("taxels_one_us", "taxels, one vector at a time (bound 100 us)"),
-                       ("taxels_batch_us", "taxels, in a batch of 2000"),
-                       ("live_update_us", "fruit live's ReducedOnline.update"),
-                       ("nodes_one_us", "every node, one vector")):
+    print(
+        f"  load average {os.getloadavg()[0]:.1f}; per pressure vector, wall best / wall "
+        "median / CPU median of 15 passes (us):"
+    )
+    for key, label in (
+        ("taxels_one_us", "taxels, one vector at a time (bound 100 us)"),
+        ("taxels_batch_us", "taxels, in a batch of 2000"),
+        ("live_update_us", "fruit live's ReducedOnline.update"),
+        ("nodes_one_us", "every node, one vector"),
+    ):
         print(f"    {label}: " + " / ".join(f"{v:.1f}" for v in t[key]))
 
 

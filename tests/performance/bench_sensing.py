@@ -45,10 +45,17 @@ def frames_with_touches(n: int, taxels: Taxels, seed: int = 0) -> np.ndarray:
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
     for k in range(2):
         touched = rng.random(n) < (0.5 if k == 0 else 0.15)
-        centre = taxels.i[rng.integers(len(taxels), size=n)], taxels.j[rng.integers(
-            len(taxels), size=n)]
-        blob = 60 * np.exp(-((r - centre[0][:, None, None] - 0.3) ** 2
-                             + (c - centre[1][:, None, None] + 0.25) ** 2) / 1.2)
+        centre = (
+            taxels.i[rng.integers(len(taxels), size=n)],
+            taxels.j[rng.integers(len(taxels), size=n)],
+        )
+        blob = 60 * np.exp(
+            -(
+                (r - centre[0][:, None, None] - 0.3) ** 2
+                + (c - centre[1][:, None, None] + 0.25) ** 2
+            )
+            / 1.2
+        )
         f += blob * touched[:, None, None]
     return np.maximum(np.round(f), 0).astype(np.int64)
 
@@ -67,8 +74,10 @@ def main():
     t0 = time.perf_counter()
     table = loc.batch(frames, base, kpa)
     dt = time.perf_counter() - t0
-    print(f"batch: {n} frames of 21x12, {len(table)} touches, {dt:.3f} s -> "
-          f"{n / dt:,.0f} frames/s (target >= 100,000)")
+    print(
+        f"batch: {n} frames of 21x12, {len(table)} touches, {dt:.3f} s -> "
+        f"{n / dt:,.0f} frames/s (target >= 100,000)"
+    )
     rest = Locator(taxels, default_board(), taxels.xyz_mm, settings)
     t0 = time.perf_counter()
     rest.batch(frames, base)
@@ -82,8 +91,10 @@ def main():
         t = time.perf_counter()
         stream.step(v, kpa[k], k)
         times[k] = time.perf_counter() - t
-    print(f"live loop (detect + locate per frame): median {np.median(times) * 1e3:.4f} ms, "
-          f"p99 {np.percentile(times, 99) * 1e3:.4f} ms (target median <= 0.1 ms)")
+    print(
+        f"live loop (detect + locate per frame): median {np.median(times) * 1e3:.4f} ms, "
+        f"p99 {np.percentile(times, 99) * 1e3:.4f} ms (target median <= 0.1 ms)"
+    )
     lines = [format_line(f) for f in frames[:5000]]
     t0 = time.perf_counter()
     for line in lines:
@@ -98,8 +109,10 @@ def main():
     for line in raw:
         dec.feed(line)
     fast = (time.perf_counter() - t0) / len(raw)
-    print(f"live loop line parsing (252 counts): {fast * 1e3:.4f} ms per frame through the "
-          f"board decoder (compiled fast path), {dt * 1e3:.4f} ms by parse_line (odd lines)")
+    print(
+        f"live loop line parsing (252 counts): {fast * 1e3:.4f} ms per frame through the "
+        f"board decoder (compiled fast path), {dt * 1e3:.4f} ms by parse_line (odd lines)"
+    )
     recordings()
 
 
@@ -108,8 +121,11 @@ def write_touch_recording(path: Path, n: int, seed: int = 0, chunk: int = 20_000
     10 flat baseline frames, then a touch in every frame (30 % of them a second one)."""
     rng = np.random.default_rng(seed)
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
-    header = {"descr": np.lib.format.dtype_to_descr(np.dtype("<i8")), "fortran_order": False,
-              "shape": (n, 21, 12)}
+    header = {
+        "descr": np.lib.format.dtype_to_descr(np.dtype("<i8")),
+        "fortran_order": False,
+        "shape": (n, 21, 12),
+    }
     with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
         with zf.open("frames.npy", "w", force_zip64=True) as fh:
             np.lib.format.write_array_header_1_0(fh, header)
@@ -124,8 +140,10 @@ def write_touch_recording(path: Path, n: int, seed: int = 0, chunk: int = 20_000
                 if a == 0:
                     f[:10] = 500.0
                 fh.write(np.round(f).astype("<i8").tobytes())
-        for key, arr in (("t_s", np.arange(n) / 100.0),
-                         ("meta", np.array(json.dumps({"source": "bench_sensing"})))):
+        for key, arr in (
+            ("t_s", np.arange(n) / 100.0),
+            ("meta", np.array(json.dumps({"source": "bench_sensing"}))),
+        ):
             with zf.open(f"{key}.npy", "w") as fh:
                 np.lib.format.write_array(fh, arr)
 
@@ -133,8 +151,11 @@ def write_touch_recording(path: Path, n: int, seed: int = 0, chunk: int = 20_000
 def full_board_taxels(path: Path) -> Path:
     """252 taxels, one on every cell of the 21 x 12 board (the largest grid)."""
     lines = ["id,i,j,x_mm,y_mm,z_mm"]
-    lines += [f"{i * 12 + j},{i},{j},{16.0 * j},{12.0 * i},{np.sin(i / 3):.6f}"
-              for i in range(21) for j in range(12)]
+    lines += [
+        f"{i * 12 + j},{i},{j},{16.0 * j},{12.0 * i},{np.sin(i / 3):.6f}"
+        for i in range(21)
+        for j in range(12)
+    ]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -155,8 +176,9 @@ print(json.dumps([time.perf_counter() - t0, usage.ru_utime + usage.ru_stime,
 
 def run_command(args: list[str]) -> tuple[float, float, float]:
     """Run a command; (wall s, user + sys CPU s, peak resident memory MB) of it alone."""
-    proc = subprocess.run([sys.executable, "-c", _TRAMPOLINE, *args], capture_output=True,
-                          text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", _TRAMPOLINE, *args], capture_output=True, text=True
+    )
     if proc.returncode:
         raise SystemExit(f"{' '.join(args)}: {proc.stderr}")
     wall, cpu, peak_mb, code = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -177,37 +199,61 @@ def recordings(repeats: int = 5) -> None:
         sizes = (20_000, 200_000, 1_000_000)
         for n in sizes:
             write_touch_recording(tmp / f"r{n}.npz", n, seed=n)
-        cmd = {n: [fruit, "-q", "locate", str(tmp / f"r{n}.npz"), "--taxels", str(taxels),
-                   "--out", str(tmp / f"o{n}")] for n in sizes}
-        print("load average before:", ", ".join(f"{x:.1f}" for x in os.getloadavg()),
-              f"({os.cpu_count()} CPUs)")
-        runs = {n: [run_command(cmd[n]) for _ in range(repeats if n < sizes[-1] else 1)]
-                for n in sizes}
+        cmd = {
+            n: [
+                fruit,
+                "-q",
+                "locate",
+                str(tmp / f"r{n}.npz"),
+                "--taxels",
+                str(taxels),
+                "--out",
+                str(tmp / f"o{n}"),
+            ]
+            for n in sizes
+        }
+        print(
+            "load average before:",
+            ", ".join(f"{x:.1f}" for x in os.getloadavg()),
+            f"({os.cpu_count()} CPUs)",
+        )
+        runs = {
+            n: [run_command(cmd[n]) for _ in range(repeats if n < sizes[-1] else 1)] for n in sizes
+        }
         for n in sizes:
             walls = ", ".join(f"{w:.2f}" for w, _, _ in runs[n])
-            print(f"  {' '.join(cmd[n][1:4])} ...: wall {walls} s, CPU "
-                  f"{np.median([c for _, c, _ in runs[n]]):.2f} s, peak "
-                  f"{max(m for _, _, m in runs[n]):.0f} MB")
+            print(
+                f"  {' '.join(cmd[n][1:4])} ...: wall {walls} s, CPU "
+                f"{np.median([c for _, c, _ in runs[n]]):.2f} s, peak "
+                f"{max(m for _, _, m in runs[n]):.0f} MB"
+            )
         small, big = sizes[0], sizes[1]
         spread_wall = max(np.ptp([w for w, _, _ in runs[n]]) for n in (small, big))
         spread_cpu = max(np.ptp([c for _, c, _ in runs[n]]) for n in (small, big))
         for name, pick in (("best", np.min), ("median", np.median)):
             wall = pick([w for w, _, _ in runs[big]]) - pick([w for w, _, _ in runs[small]])
             cpu = pick([c for _, c, _ in runs[big]]) - pick([c for _, c, _ in runs[small]])
-            print(f"fruit locate end to end, {name} of {repeats}: ({big:,} - {small:,} frames)"
-                  f" / (wall difference {wall:.2f} s) -> "
-                  + rate(big - small, wall, spread_wall) + " (target >= 200,000); by CPU "
-                  "time " + rate(big - small, cpu, spread_cpu))
+            print(
+                f"fruit locate end to end, {name} of {repeats}: ({big:,} - {small:,} frames)"
+                f" / (wall difference {wall:.2f} s) -> "
+                + rate(big - small, wall, spread_wall)
+                + " (target >= 200,000); by CPU "
+                "time " + rate(big - small, cpu, spread_cpu)
+            )
         huge = sizes[-1]
         wall = runs[huge][0][0] - np.min([w for w, _, _ in runs[small]])
-        print(f"fruit locate on {huge:,} frames: peak memory {runs[huge][0][2]:.0f} MB "
-              f"(target < 2,048 MB), wall {runs[huge][0][0]:.1f} s; ({huge:,} - {small:,} "
-              f"frames) / (wall difference {wall:.2f} s) -> {(huge - small) / wall:,.0f} "
-              "frames/s")
+        print(
+            f"fruit locate on {huge:,} frames: peak memory {runs[huge][0][2]:.0f} MB "
+            f"(target < 2,048 MB), wall {runs[huge][0][0]:.1f} s; ({huge:,} - {small:,} "
+            f"frames) / (wall difference {wall:.2f} s) -> {(huge - small) / wall:,.0f} "
+            "frames/s"
+        )
         print("load average after:", ", ".join(f"{x:.1f}" for x in os.getloadavg()))
         same = check_against_reference(tmp / f"r{small}.npz", taxels, tmp / f"o{small}")
-        print(f"touches.csv of {small:,} frames equals the batch path of 589909f "
-              f"(tests/helpers/locate_reference.py) byte for byte: {same}")
+        print(
+            f"touches.csv of {small:,} frames equals the batch path of 589909f "
+            f"(tests/helpers/locate_reference.py) byte for byte: {same}"
+        )
 
 
 def rate(frames: int, seconds: float, spread: float) -> str:
@@ -218,8 +264,10 @@ def rate(frames: int, seconds: float, spread: float) -> str:
         return f"not measurable (difference {seconds:.2f} s, runs' spread {spread:.2f} s)"
     text = f"{frames / seconds:,.0f} frames/s"
     if seconds <= spread:
-        text += (f" (within the runs' spread of {spread:.2f} s, so mostly start-up jitter; "
-                 "the 1,000,000-frame line is steadier)")
+        text += (
+            f" (within the runs' spread of {spread:.2f} s, so mostly start-up jitter; "
+            "the 1,000,000-frame line is steadier)"
+        )
     return text
 
 
@@ -232,15 +280,17 @@ def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -
     rec = read_npz(frames_npz)
     tx = read_taxels(taxels_csv)
     rows, cols = taxel_cells(tx, default_board())
-    text = touches_csv_text(locate(rec.frames, rec.t_s, tx.i, tx.j, rows, cols, tx.xyz_mm),
-                            rec.t_s, f"touches of {frames_npz.name}: frame index from 0 "
-                            "(baseline frames included), t_s in s, i, j fractional grid "
-                            "coordinates, x_mm, y_mm, z_mm in mm, peak in counts")
+    text = touches_csv_text(
+        locate(rec.frames, rec.t_s, tx.i, tx.j, rows, cols, tx.xyz_mm),
+        rec.t_s,
+        f"touches of {frames_npz.name}: frame index from 0 "
+        "(baseline frames included), t_s in s, i, j fractional grid "
+        "coordinates, x_mm, y_mm, z_mm in mm, peak in counts",
+    )
     return text.encode() == (out_dir / "touches.csv").read_bytes()
 
 
-def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
-                      hovers: bool = False):
+def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False, hovers: bool = False):
     """Board line arriving -> last TUIO/OSC bundle of the frame leaving, with 10
     simultaneous touches (target p99 <= 1 ms). Each frame's line is written to a pty; the
     clock starts when the pty has it for the reader (select), then the live loop's own
@@ -260,12 +310,16 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
 
     i, j = np.divmod(np.arange(21 * 12), 12)
     taxels = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], axis=1))
-    loc = Locator(taxels, default_board(), taxels.xyz_mm,
-                  Settings(baseline_frames=10, hovers=hovers))
+    loc = Locator(
+        taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10, hovers=hovers)
+    )
     from fruitcli.sensing.detection.drift import DriftTracker
 
-    live = LiveLocator(loc, drift=DriftTracker(60.0, 20.0), health=True) if live_defaults \
+    live = (
+        LiveLocator(loc, drift=DriftTracker(60.0, 20.0), health=True)
+        if live_defaults
         else LiveLocator(loc)
+    )
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
     sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
@@ -284,7 +338,7 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
         if k >= 10:
             for a, b in centres:
                 d = 0.3 * np.sin(k / 20)  # the fingers move a little
-                f += 60 * np.exp(-((r - a - d) ** 2 + (c - b + d) ** 2) / (2 * 0.6 ** 2))
+                f += 60 * np.exp(-((r - a - d) ** 2 + (c - b + d) ** 2) / (2 * 0.6**2))
         lines.append((format_line(np.round(f).astype(np.int64)) + "\r\n").encode())
     load = os.getloadavg()
     frame_gc = FrameGC().__enter__()  # as `fruit live` does
@@ -300,9 +354,17 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
                 got = reader.poll()
             lf = live.step(got[0][0], got[0][1])
             if lf is not None:
-                tuio.send(lf.t_s, lf.sessions.ids, lf.sessions.new, lf.sessions.ended,
-                          lf.ij, lf.touches.xyz_mm, lf.touches.peak, lf.shape,
-                          lf.touches.kind)
+                tuio.send(
+                    lf.t_s,
+                    lf.sessions.ids,
+                    lf.sessions.new,
+                    lf.sessions.ended,
+                    lf.ij,
+                    lf.touches.xyz_mm,
+                    lf.touches.peak,
+                    lf.shape,
+                    lf.touches.kind,
+                )
                 lat.append(time.perf_counter() - t0)
                 cpu.append(time.thread_time() - c0)
                 counts.append(len(lf.touches))
@@ -315,18 +377,23 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False,
         sink.close()
         tuio.close()
     ms = np.array(lat) * 1e3
-    what = "with fruit live's drift tracker and taxel flags" if live_defaults else \
-        "detection, sessions and TUIO only"
+    what = (
+        "with fruit live's drift tracker and taxel flags"
+        if live_defaults
+        else "detection, sessions and TUIO only"
+    )
     what += ", hovers on" if hovers else ""
-    print(f"OSC latency ({what}), board line -> TUIO bundles sent, "
-          f"{int(np.median(counts))} touches "
-          f"({min(counts)}-{max(counts)}), {len(ms)} frames: median {np.median(ms):.3f} ms, "
-          f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms (target p99 <= 1 ms); "
-          f"CPU time of the loop's thread: median {np.median(cpu) * 1e3:.3f} ms, p99 "
-          f"{np.percentile(cpu, 99) * 1e3:.3f} ms (wall minus CPU: waiting for a core); "
-          f"load average {load[0]:.1f} before, {os.getloadavg()[0]:.1f} after "
-          f"({os.cpu_count()} CPUs); garbage collections between frames (generation 0, 1, "
-          f"2): {', '.join(map(str, frame_gc.collections))}")
+    print(
+        f"OSC latency ({what}), board line -> TUIO bundles sent, "
+        f"{int(np.median(counts))} touches "
+        f"({min(counts)}-{max(counts)}), {len(ms)} frames: median {np.median(ms):.3f} ms, "
+        f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms (target p99 <= 1 ms); "
+        f"CPU time of the loop's thread: median {np.median(cpu) * 1e3:.3f} ms, p99 "
+        f"{np.percentile(cpu, 99) * 1e3:.3f} ms (wall minus CPU: waiting for a core); "
+        f"load average {load[0]:.1f} before, {os.getloadavg()[0]:.1f} after "
+        f"({os.cpu_count()} CPUs); garbage collections between frames (generation 0, 1, "
+        f"2): {', '.join(map(str, frame_gc.collections))}"
+    )
 
 
 def _readable(sock) -> bool:

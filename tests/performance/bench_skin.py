@@ -21,10 +21,16 @@ import numpy as np
 from fruitcli.electrostatics import assemble
 from fruitcli.electrostatics.design import CrossingInputs, run_crossing
 
-DEFAULT = CrossingInputs(pitch_x_mm=16.0, pitch_y_mm=12.0, cover_mm=2.0, yarn_radius_mm=0.6,
-                         insulation_mm=0.1, permittivity=2.8,
-                         gaps_mm=(0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0),
-                         time_limit_s=120.0)
+DEFAULT = CrossingInputs(
+    pitch_x_mm=16.0,
+    pitch_y_mm=12.0,
+    cover_mm=2.0,
+    yarn_radius_mm=0.6,
+    insulation_mm=0.1,
+    permittivity=2.8,
+    gaps_mm=(0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0),
+    time_limit_s=120.0,
+)
 TARGET_S = 120.0
 
 
@@ -34,31 +40,43 @@ def table() -> None:
     wall = time.perf_counter() - t0
     mesh = summary["mesh"]
     quadrant = (tab.dx_mm >= 0).sum() * (tab.dy_mm >= 0).sum()
-    solves = (1 + len(tab.objects) * len(tab.gap_mm) * quadrant
-              + 2 * (len(tab.strain) - 1 + len(tab.curvature_per_mm) - 1))
-    print(f"default cell: {mesh['tets']} tets, {mesh['nodes']} nodes (P{mesh['order']}), "
-          f"{solves} solves")
-    print(f"  mesh {summary['mesh_s']:.1f} s, solves {summary['solve_s']:.1f} s, "
-          f"table {wall:.1f} s wall (target <= {TARGET_S:.0f} s: "
-          f"{'met' if wall <= TARGET_S else 'MISSED'})")
-    print(f"  C0 {summary['c0_ff']:.1f} fF, counts per fF {summary['counts_per_ff']:.3f} "
-          f"(bent pad: {summary['counts_fit']['shift_ff']:+.2f} fF -> 10 counts)")
+    solves = (
+        1
+        + len(tab.objects) * len(tab.gap_mm) * quadrant
+        + 2 * (len(tab.strain) - 1 + len(tab.curvature_per_mm) - 1)
+    )
+    print(
+        f"default cell: {mesh['tets']} tets, {mesh['nodes']} nodes (P{mesh['order']}), "
+        f"{solves} solves"
+    )
+    print(
+        f"  mesh {summary['mesh_s']:.1f} s, solves {summary['solve_s']:.1f} s, "
+        f"table {wall:.1f} s wall (target <= {TARGET_S:.0f} s: "
+        f"{'met' if wall <= TARGET_S else 'MISSED'})"
+    )
+    print(
+        f"  C0 {summary['c0_ff']:.1f} fF, counts per fF {summary['counts_per_ff']:.3f} "
+        f"(bent pad: {summary['counts_fit']['shift_ff']:+.2f} fF -> 10 counts)"
+    )
     assumed = summary["assumed"]
     for name, obj in summary["objects"].items():
         sigma = assumed["footprint_sigma_mm"].get(name)
-        print(f"  {name:7s} dC at contact {obj['contact_dc_ff']:8.2f} fF = "
-              f"{obj['contact_counts']:6.1f} counts (assumed {assumed['contact_counts']:.0f}); "
-              f"footprint sigma {obj['footprint_sigma_mm']:.2f} mm (assumed "
-              f"{'-' if sigma is None else f'{sigma:.2f}'}); gap decay "
-              f"{obj['gap_decay_mm']:.2f} mm (assumed {assumed['gap_decay_mm']:.1f}); "
-              f"threshold crossed at {obj['threshold_gap_mm']:.2f} mm")
+        print(
+            f"  {name:7s} dC at contact {obj['contact_dc_ff']:8.2f} fF = "
+            f"{obj['contact_counts']:6.1f} counts (assumed {assumed['contact_counts']:.0f}); "
+            f"footprint sigma {obj['footprint_sigma_mm']:.2f} mm (assumed "
+            f"{'-' if sigma is None else f'{sigma:.2f}'}); gap decay "
+            f"{obj['gap_decay_mm']:.2f} mm (assumed {assumed['gap_decay_mm']:.1f}); "
+            f"threshold crossed at {obj['threshold_gap_mm']:.2f} mm"
+        )
     shifts = summary["deformation_shift_counts"]
     for key in ("stretch_x", "stretch_y"):
-        print(f"  {key} at strains {shifts['strain']}: "
-              f"{np.round(shifts[key], 1).tolist()} counts")
+        print(f"  {key} at strains {shifts['strain']}: {np.round(shifts[key], 1).tolist()} counts")
     for key in ("bend_x", "bend_y"):
-        print(f"  {key} at curvatures {np.round(shifts['curvature_per_mm'], 4).tolist()} /mm: "
-              f"{np.round(shifts[key], 1).tolist()} counts")
+        print(
+            f"  {key} at curvatures {np.round(shifts['curvature_per_mm'], 4).tolist()} /mm: "
+            f"{np.round(shifts[key], 1).tolist()} counts"
+        )
 
 
 def assembly() -> None:
@@ -75,8 +93,7 @@ def assembly() -> None:
     for order, h in ((1, 0.12), (2, 0.2)):
         mesh = es_shapes.concentric_spheres(1.0, 2.0, h, order)
         eps = np.random.default_rng(0).uniform(1.0, 3.0, len(mesh.tets))
-        best = min(_timed(assemble.stiffness, mesh.nodes, mesh.tets, eps, order)
-                   for _ in range(3))
+        best = min(_timed(assemble.stiffness, mesh.nodes, mesh.tets, eps, order) for _ in range(3))
         line = f"P{order}: {len(mesh.tets)} tets: fruit {best:.3f} s"
         if asm is not None:
             corners = np.unique(mesh.tets[:, :4])

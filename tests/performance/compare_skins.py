@@ -58,8 +58,7 @@ def run_scene(path: Path, out: Path) -> Path:
     from fruitcli.workflow.planner import run
 
     root = out / path.stem
-    run(load_scene(path), root, progress=lambda msg: print(f"  {path.stem}: {msg}"),
-        shared=out)
+    run(load_scene(path), root, progress=lambda msg: print(f"  {path.stem}: {msg}"), shared=out)
     return root
 
 
@@ -78,9 +77,14 @@ def bent_pad_shift(model: str) -> float:
     taxels = forward.pad_taxels_mm(z_mm=forward.PAD_SIZE_MM[2] - 1e-6)
     k, bary, _ = locate(nodes, tets, taxels)
     bent = forward.bend_nodes(nodes, forward.PAD_ACTIVE_MM / np.pi, forward.PAD_SIZE_MM[2])
-    states = SimpleNamespace(rest_nodes=nodes, tets=tets, displacement_mm=(bent - nodes)[None],
-                             surface_tris=boundary_faces(nodes, tets), taxel_tet=k,
-                             taxel_bary=bary)
+    states = SimpleNamespace(
+        rest_nodes=nodes,
+        tets=tets,
+        displacement_mm=(bent - nodes)[None],
+        surface_tris=boundary_faces(nodes, tets),
+        taxel_tet=k,
+        taxel_bary=bary,
+    )
     response = crossing_skin(load_scene(PIPELINES / "touchpad-4x4.toml"))
     shift = shift_counts(states, response, np.ones(len(taxels)), 0)
     return float(shift[np.argmax(np.abs(shift))])
@@ -107,21 +111,29 @@ def main(argv=None) -> None:
     report = {}
     for model in MODELS:
         rest = run_scene(variant("fruit-rest", model, out, '\nregister = "translation"\n'), out)
-        entry = {"table_i": [{k: r.get(k) for k in ("label", "n", "register", "mean_mm",
-                                                     "std_mm", "mean_pct", "std_pct")}
-                             for r in _rows(rest)],
-                 "bent_pad_max_shift": bent_pad_shift(model),
-                 "threshold_gap_mm": threshold_gaps(rest / "skin" if model != "gaussian"
-                                                    else None)}
+        entry = {
+            "table_i": [
+                {
+                    k: r.get(k)
+                    for k in ("label", "n", "register", "mean_mm", "std_mm", "mean_pct", "std_pct")
+                }
+                for r in _rows(rest)
+            ],
+            "bent_pad_max_shift": bent_pad_shift(model),
+            "threshold_gap_mm": threshold_gaps(rest / "skin" if model != "gaussian" else None),
+        }
         if args.breathing:
             root = run_scene(variant("fruit-breathing", model, out), out)
             sens = json.loads((root / "sensitivity" / "sensitivity.json").read_text())
             model_shift = np.array([t["max_shift_model"] for t in sens["taxels"]])
-            entry["breathing"] = {"played_max_shift": sens["summary"]["max_shift"],
-                                  "model_max_shift": sens["summary"]["max_shift_model"],
-                                  "model_max_abs_shift": {
-                                      "max": float(np.abs(model_shift).max()),
-                                      "mean": float(np.abs(model_shift).mean())}}
+            entry["breathing"] = {
+                "played_max_shift": sens["summary"]["max_shift"],
+                "model_max_shift": sens["summary"]["max_shift_model"],
+                "model_max_abs_shift": {
+                    "max": float(np.abs(model_shift).max()),
+                    "mean": float(np.abs(model_shift).mean()),
+                },
+            }
         report[model] = entry
     (out / "comparison.json").write_text(json.dumps(report, indent=2))
     print(json.dumps(report, indent=2))

@@ -54,9 +54,22 @@ def figures(outputs: list[str]) -> list[dict]:
     for key in order:
         runs = rows[key]
         columns = list(zip(*runs, strict=False))
-        out.append({"line": key[0], "occurrence": key[1], "runs": len(runs), "numbers": [
-            {"min": min(c), "median": statistics.median(c), "max": max(c), "values": list(c)}
-            for c in columns]})
+        out.append(
+            {
+                "line": key[0],
+                "occurrence": key[1],
+                "runs": len(runs),
+                "numbers": [
+                    {
+                        "min": min(c),
+                        "median": statistics.median(c),
+                        "max": max(c),
+                        "values": list(c),
+                    }
+                    for c in columns
+                ],
+            }
+        )
     return out
 
 
@@ -72,10 +85,15 @@ def processor() -> str:
 
 def commit() -> str:
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=ROOT, capture_output=True, text=True).stdout.strip()
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("+changes" if dirty else "")
@@ -84,8 +102,9 @@ def commit() -> str:
 def run_script(script: Path) -> tuple[int, str, float]:
     """Run one benchmark, echoing its output; returns exit code, output, wall seconds."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, str(script)], cwd=ROOT, stdout=subprocess.PIPE,
-                            text=True)
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], cwd=ROOT, stdout=subprocess.PIPE, text=True
+    )
     lines = []
     for line in proc.stdout:
         print(line, end="", flush=True)
@@ -98,8 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=1, help="runs of every script (>= 1)")
     parser.add_argument("--json", type=Path, default=None, help="write the result file here")
-    parser.add_argument("--only", default=None,
-                        help="comma-separated script names (bench_evaluate,...): only these")
+    parser.add_argument(
+        "--only", default=None, help="comma-separated script names (bench_evaluate,...): only these"
+    )
     args = parser.parse_args(argv)
     if args.runs < 1:
         parser.error("--runs: expected at least 1")
@@ -108,16 +128,25 @@ def main(argv: list[str] | None = None) -> int:
         wanted = {n.strip().removesuffix(".py") for n in args.only.split(",")}
         unknown = wanted - {s.stem for s in scripts}
         if unknown:
-            parser.error(f"--only: no script {', '.join(sorted(unknown))} (scripts: "
-                         f"{', '.join(s.stem for s in scripts)})")
+            parser.error(
+                f"--only: no script {', '.join(sorted(unknown))} (scripts: "
+                f"{', '.join(s.stem for s in scripts)})"
+            )
         scripts = [s for s in scripts if s.stem in wanted]
     if not scripts:
         print("no benchmarks found")
         return 1
-    result = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-              "commit": commit(), "cores": os.cpu_count(), "processor": processor(),
-              "python": platform.python_version(), "platform": platform.platform(),
-              "runs": args.runs, "load_average_before": list(os.getloadavg()), "scripts": []}
+    result = {
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "commit": commit(),
+        "cores": os.cpu_count(),
+        "processor": processor(),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "runs": args.runs,
+        "load_average_before": list(os.getloadavg()),
+        "scripts": [],
+    }
     failed = []
     for script in scripts:
         outputs, walls, codes = [], [], []
@@ -130,11 +159,19 @@ def main(argv: list[str] | None = None) -> int:
             codes.append(code)
         if any(codes):
             failed.append(script.name)
-        result["scripts"].append({
-            "name": script.stem, "exit_codes": codes,
-            "wall_s": {"min": min(walls), "median": statistics.median(walls),
-                       "max": max(walls), "values": walls},
-            "figures": figures(outputs)})
+        result["scripts"].append(
+            {
+                "name": script.stem,
+                "exit_codes": codes,
+                "wall_s": {
+                    "min": min(walls),
+                    "median": statistics.median(walls),
+                    "max": max(walls),
+                    "values": walls,
+                },
+                "figures": figures(outputs),
+            }
+        )
     result["load_average_after"] = list(os.getloadavg())
     if args.json is not None:
         from fruitcli.fsutil import write_json

@@ -41,7 +41,8 @@ timeout_s = 3
 def make_scene(tmp_path, printer=PRINTER, extra=""):
     pad_taxel_csv(tmp_path / "t.csv")
     (tmp_path / "samples.csv").write_text(
-        "sample,x_mm,y_mm\n" + "".join(f"{k},{x},{y}\n" for k, (x, y) in enumerate(SAMPLES)))
+        "sample,x_mm,y_mm\n" + "".join(f"{k},{x},{y}\n" for k, (x, y) in enumerate(SAMPLES))
+    )
     (tmp_path / "s.toml").write_text(f"""
 [grid]
 spacing_x_mm = 16.0
@@ -65,13 +66,13 @@ def expected_touch_gap_mm(xy):
     t = forward.pad_taxels_mm(z_mm=3.0)
     d = np.min(np.hypot(t[:, 0] - xy[0], t[:, 1] - xy[1]))
     sigma = forward.footprint_sigma_mm("small")
-    return forward.GAP_DECAY_MM * np.log(forward.CONTACT_COUNTS / forward.THRESHOLD_COUNTS
-                                         * np.exp(-0.5 * (d / sigma) ** 2))
+    return forward.GAP_DECAY_MM * np.log(
+        forward.CONTACT_COUNTS / forward.THRESHOLD_COUNTS * np.exp(-0.5 * (d / sigma) ** 2)
+    )
 
 
 def test_marlin_line_checksum():
-    assert checksum("N1 G21") == (ord("N") ^ ord("1") ^ ord(" ") ^ ord("G") ^ ord("2")
-                                  ^ ord("1"))
+    assert checksum("N1 G21") == (ord("N") ^ ord("1") ^ ord(" ") ^ ord("G") ^ ord("2") ^ ord("1"))
     assert numbered(7, "M400") == f"N7 M400*{checksum('N7 M400')}"
 
 
@@ -80,15 +81,41 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
     # step (with noise the first frame over the threshold came up to 0.5 mm early, about
     # once in a hundred runs, as which frames took which draws depends on timing)
     scene = make_scene(tmp_path, extra="[skin]\nnoise_std_counts = 0.0")
-    proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
-                             "emulate-printer", "--board-from", str(scene), "--baud",
-                             "2000000", "--time-scale", "0.1", "--fault", "resend:6"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from fruitcli.cli.main import main; main()",
+            "emulate-printer",
+            "--board-from",
+            str(scene),
+            "--baud",
+            "2000000",
+            "--time-scale",
+            "0.1",
+            "--fault",
+            "resend:6",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         printer = proc.stdout.readline().split()[1]
         board = proc.stdout.readline().split()[1]
-        res = CliRunner().invoke(cli, ["bench", str(scene), "--printer", printer, "--board",
-                                       board, "--out", str(tmp_path / "out")])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "bench",
+                str(scene),
+                "--printer",
+                printer,
+                "--board",
+                board,
+                "--out",
+                str(tmp_path / "out"),
+            ],
+        )
     finally:
         proc.terminate()
         proc.wait(10)
@@ -108,12 +135,21 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
         # descent's next step (0.1 mm) at most
         below = expected_touch_gap_mm(SAMPLES[k]) - gap
         assert 0.049 < below < 0.15, (k, gap)
-    truth = read_table(tmp_path / "out" / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
-                                                                  "z_mm"])
+    truth = read_table(tmp_path / "out" / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     assert truth["x_mm"].tolist() == [s[0] for s in SAMPLES] and np.all(truth["z_mm"] == 3.0)
-    res = CliRunner().invoke(cli, ["locate", str(tmp_path / "out" / "small" / "frames.npz"),
-                                   "--taxels", str(tmp_path / "t.csv"), "--scene", str(scene),
-                                   "--out", str(tmp_path / "loc")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "out" / "small" / "frames.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--scene",
+            str(scene),
+            "--out",
+            str(tmp_path / "loc"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     measured = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm"])
     assert measured["sample"].astype(int).tolist() == [0, 1, 2]
@@ -124,36 +160,66 @@ def test_bench_end_to_end_through_emulate_printer_with_a_resend(tmp_path):
 class Rig:
     """The printer and the board emulators in this process (their state can be read)."""
 
-    def __init__(self, scene_path, faults=None, vanish_after=None, printer_bed=None,
-                 fmt="binary", baud=2000000, time_scale=0.1):
+    def __init__(
+        self,
+        scene_path,
+        faults=None,
+        vanish_after=None,
+        printer_bed=None,
+        fmt="binary",
+        baud=2000000,
+        time_scale=0.1,
+    ):
         self.scene = load_scene(scene_path)
         pr = self.scene.printer
         bed = printer_bed or pr.bed_mm
         self.printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, faults)
-        skin = SkinBoard(read_taxels(scene_path.parent / "t.csv"), self.scene.board,
-                         Placement.from_printer(pr), self.printer.tip_mm)
-        self.board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt,
-                                   baud=baud, vanish_after=vanish_after)
+        skin = SkinBoard(
+            read_taxels(scene_path.parent / "t.csv"),
+            self.scene.board,
+            Placement.from_printer(pr),
+            self.printer.tip_mm,
+        )
+        self.board = BoardEmulator(
+            skin.frame, fps=0, wait_for_reader=True, fmt=fmt, baud=baud, vanish_after=vanish_after
+        )
         self.fmt = fmt
-        self.threads = [self.printer.start(), threading.Thread(target=self.board.play,
-                                                               daemon=True)]
+        self.threads = [self.printer.start(), threading.Thread(target=self.board.play, daemon=True)]
         self.threads[1].start()
 
     def run(self, out, progress=None):
         """run_printer_bench itself (to inject Ctrl-C or a pulled cable via `progress`)."""
         try:
-            return run_printer_bench(self.scene, self.scene.path.parent / "t.csv", None,
-                                     self.printer.path, self.board.path, out, "small",
-                                     self.fmt, progress=progress)
+            return run_printer_bench(
+                self.scene,
+                self.scene.path.parent / "t.csv",
+                None,
+                self.printer.path,
+                self.board.path,
+                out,
+                "small",
+                self.fmt,
+                progress=progress,
+            )
         finally:
             self.end()
 
     def cli(self, out):
         """`fruit bench SCENE --printer P --board B --out OUT`: -> the click result."""
         try:
-            return CliRunner().invoke(cli, ["bench", str(self.scene.path), "--printer",
-                                            self.printer.path, "--board", self.board.path,
-                                            "--out", str(out)])
+            return CliRunner().invoke(
+                cli,
+                [
+                    "bench",
+                    str(self.scene.path),
+                    "--printer",
+                    self.printer.path,
+                    "--board",
+                    self.board.path,
+                    "--out",
+                    str(out),
+                ],
+            )
         finally:
             self.end()
 
@@ -170,7 +236,7 @@ def one_error_line(res, pattern):
 
     assert res.exit_code == 1 and res.output.count("Error: ") == 1, res.output
     line = [ln for ln in res.output.splitlines() if ln.startswith("Error: ")][0]
-    assert re.search(pattern, line[len("Error: "):]), line
+    assert re.search(pattern, line[len("Error: ") :]), line
 
 
 def kept(out):
@@ -179,9 +245,11 @@ def kept(out):
 
 def test_a_missing_ok_times_out_retracts_and_keeps_the_frames(tmp_path):
     rig = Rig(make_scene(tmp_path), faults={"no-ok": [40]})
-    one_error_line(rig.cli(tmp_path / "out"),
-                   r"^sample \d \(model x .*\): /dev/.*: no 'ok' for '(G1|M400).*' within 3 s "
-                   r"\(printer not answering\); \d+ frames and \d samples kept in .*small$")
+    one_error_line(
+        rig.cli(tmp_path / "out"),
+        r"^sample \d \(model x .*\): /dev/.*: no 'ok' for '(G1|M400).*' within 3 s "
+        r"\(printer not answering\); \d+ frames and \d samples kept in .*small$",
+    )
     assert rig.z_at_end == pytest.approx(13.0)  # retracted to the safe height
     rec = kept(tmp_path / "out")
     assert len(rec) > 10 and "no 'ok'" in rec.meta["stopped"]
@@ -189,20 +257,24 @@ def test_a_missing_ok_times_out_retracts_and_keeps_the_frames(tmp_path):
 
 def test_a_printer_error_halts_keeps_the_frames_and_says_so(tmp_path):
     rig = Rig(make_scene(tmp_path), faults={"halt": [45]})
-    one_error_line(rig.cli(tmp_path / "out"),
-                   r"Error:Printer halted\. kill\(\) called! \(the printer has stopped\); "
-                   r"\d+ frames and \d samples kept in .*\(not retracted: the printer does "
-                   r"not answer\)$")
+    one_error_line(
+        rig.cli(tmp_path / "out"),
+        r"Error:Printer halted\. kill\(\) called! \(the printer has stopped\); "
+        r"\d+ frames and \d samples kept in .*\(not retracted: the printer does "
+        r"not answer\)$",
+    )
     assert len(kept(tmp_path / "out")) > 10
 
 
 def test_a_sample_outside_the_bed_stops_there_after_the_samples_before(tmp_path):
     printer = PRINTER + "bed_mm = [0, 0, 0, 220, 102, 250]\n"  # sample 1 is at y 103.5
     rig = Rig(make_scene(tmp_path, printer))
-    one_error_line(rig.cli(tmp_path / "out"),
-                   r"^sample 1 \(model x 0\.00, y 4\.00 mm\): printer x 98\.00, y 103\.46, "
-                   r"z 1\.50\.\.13\.00 mm is outside \[printer\]\.bed_mm .*; \d+ frames and "
-                   r"1 samples kept in")
+    one_error_line(
+        rig.cli(tmp_path / "out"),
+        r"^sample 1 \(model x 0\.00, y 4\.00 mm\): printer x 98\.00, y 103\.46, "
+        r"z 1\.50\.\.13\.00 mm is outside \[printer\]\.bed_mm .*; \d+ frames and "
+        r"1 samples kept in",
+    )
     assert rig.z_at_end == pytest.approx(13.0)
     assert kept(tmp_path / "out").sample.max() == 0
     truth = read_table(tmp_path / "out" / "small" / "truth.csv", ["sample"])
@@ -211,12 +283,16 @@ def test_a_sample_outside_the_bed_stops_there_after_the_samples_before(tmp_path)
 
 def test_no_touch_before_max_press_is_an_error_naming_the_sample(tmp_path):
     rig = Rig(make_scene(tmp_path, extra="[detection]\nthreshold_counts = 5000.0\n"))
-    one_error_line(rig.cli(tmp_path / "out"), r"^sample 0 .*: no touch registered down to "
-                   r"\[printer\]\.max_press_mm = 1\.5 mm below")
+    one_error_line(
+        rig.cli(tmp_path / "out"),
+        r"^sample 0 .*: no touch registered down to "
+        r"\[printer\]\.max_press_mm = 1\.5 mm below",
+    )
     rec = kept(tmp_path / "out")
     assert rig.z_at_end == pytest.approx(13.0)
-    assert rec.printer_mm[:, 2].min() == pytest.approx(Placement(
-        [100, 100, 0], 30).to_printer([-20, -20, 3.0])[2] - 1.5, abs=1e-6)
+    assert rec.printer_mm[:, 2].min() == pytest.approx(
+        Placement([100, 100, 0], 30).to_printer([-20, -20, 3.0])[2] - 1.5, abs=1e-6
+    )
 
 
 def test_the_board_vanishing_retracts_and_keeps_the_frames(tmp_path):
@@ -226,8 +302,11 @@ def test_the_board_vanishing_retracts_and_keeps_the_frames(tmp_path):
         if msg.startswith("sample 0"):
             rig.board.vanish_after = 0
 
-    with pytest.raises(BenchStopped, match=r"^sample 1 .*: /dev/.*: port closed or unplugged.*"
-                                           r"; \d+ frames and 1 samples kept in"):
+    with pytest.raises(
+        BenchStopped,
+        match=r"^sample 1 .*: /dev/.*: port closed or unplugged.*"
+        r"; \d+ frames and 1 samples kept in",
+    ):
         rig.run(tmp_path / "out", progress)
     assert rig.z_at_end == pytest.approx(13.0)
     assert kept(tmp_path / "out").sample.max() == 0
@@ -240,9 +319,12 @@ def test_the_printer_vanishing_keeps_the_frames_and_says_it_could_not_retract(tm
         if msg.startswith("sample 0"):
             rig.printer.stop.set()  # its thread closes the pty
 
-    with pytest.raises(BenchStopped, match=r"^sample 1 .*: printer port closed or unplugged.*"
-                                           r"; \d+ frames and 1 samples kept in .*\(not "
-                                           r"retracted: the printer does not answer\)$"):
+    with pytest.raises(
+        BenchStopped,
+        match=r"^sample 1 .*: printer port closed or unplugged.*"
+        r"; \d+ frames and 1 samples kept in .*\(not "
+        r"retracted: the printer does not answer\)$",
+    ):
         rig.run(tmp_path / "out", progress)
     assert kept(tmp_path / "out").sample.max() == 0
 
@@ -251,10 +333,12 @@ def test_m114_catches_a_move_the_printer_clamped(tmp_path):
     """The scene's bed_mm claims more room than the printer has: its software endstops
     clamp the move to sample 1 (y 103.5 -> 102), and M114 says so."""
     rig = Rig(make_scene(tmp_path), printer_bed=[0, 0, 0, 220, 102, 250])
-    one_error_line(rig.cli(tmp_path / "out"),
-                   r"^sample 1 .*: the printer reports X98\.00 Y102\.00 Z8\.00 after a move to "
-                   r"X98\.00 Y103\.46 Z8\.00 \(software endstops or lost steps\); \d+ frames "
-                   r"and 1 samples kept")
+    one_error_line(
+        rig.cli(tmp_path / "out"),
+        r"^sample 1 .*: the printer reports X98\.00 Y102\.00 Z8\.00 after a move to "
+        r"X98\.00 Y103\.46 Z8\.00 \(software endstops or lost steps\); \d+ frames "
+        r"and 1 samples kept",
+    )
     assert rig.printer.clamped >= 1 and rig.z_at_end == pytest.approx(13.0)
 
 
@@ -264,25 +348,34 @@ def test_ctrl_c_retracts_and_keeps_the_frames(tmp_path):
             raise KeyboardInterrupt
 
     rig = Rig(make_scene(tmp_path))
-    with pytest.raises(BenchInterrupted, match=r"^interrupted at sample 1 .*; \d+ frames and "
-                                               r"2 samples kept in"):
+    with pytest.raises(
+        BenchInterrupted,
+        match=r"^interrupted at sample 1 .*; \d+ frames and "
+        r"2 samples kept in",
+    ):
         rig.run(tmp_path / "out", progress)
     assert rig.z_at_end == pytest.approx(13.0)
     assert kept(tmp_path / "out").meta["stopped"].endswith("interrupted (Ctrl-C)")
 
 
-@pytest.mark.parametrize("line, msg", [
-    ("step_mm = 0.0", r"\[printer\]\.step_mm: expected 0 < step <= 1 mm, got 0\.0"),
-    ("step_mm = 1.5", r"\[printer\]\.step_mm: expected 0 < step <= 1 mm, got 1\.5"),
-    ("feed_mm_min = 0", r"\[printer\]\.feed_mm_min: expected > 0 mm/min"),
-    ("safe_height_mm = -2.0", r"\[printer\]\.safe_height_mm: expected > 0"),
-    ("bed_mm = [0, 0, 0, 0, 220, 250]", r"\[printer\]\.bed_mm: expected .* min < max"),
-    ("stepmm = 0.1", r"\[printer\]: unknown key 'stepmm' \(did you mean 'step_mm'\?\)"),
-])
+@pytest.mark.parametrize(
+    "line, msg",
+    [
+        ("step_mm = 0.0", r"\[printer\]\.step_mm: expected 0 < step <= 1 mm, got 0\.0"),
+        ("step_mm = 1.5", r"\[printer\]\.step_mm: expected 0 < step <= 1 mm, got 1\.5"),
+        ("feed_mm_min = 0", r"\[printer\]\.feed_mm_min: expected > 0 mm/min"),
+        ("safe_height_mm = -2.0", r"\[printer\]\.safe_height_mm: expected > 0"),
+        ("bed_mm = [0, 0, 0, 0, 220, 250]", r"\[printer\]\.bed_mm: expected .* min < max"),
+        ("stepmm = 0.1", r"\[printer\]: unknown key 'stepmm' \(did you mean 'step_mm'\?\)"),
+    ],
+)
 def test_bad_printer_tables_are_one_line_errors(tmp_path, line, msg):
     key = line.split("=")[0].strip()
-    printer = "".join(ln + "\n" for ln in PRINTER.splitlines()
-                      if not ln.startswith(key + " ")) + line + "\n"
+    printer = (
+        "".join(ln + "\n" for ln in PRINTER.splitlines() if not ln.startswith(key + " "))
+        + line
+        + "\n"
+    )
     with pytest.raises(SceneError, match=msg):
         load_scene(make_scene(tmp_path, printer))
 
@@ -291,19 +384,39 @@ def test_printer_table_without_origin_and_unreachable_safe_height(tmp_path):
     with pytest.raises(SceneError, match=r"\[printer\]: missing key 'model_origin_mm'"):
         load_scene(make_scene(tmp_path, "[printer]\nstep_mm = 0.2\n"))
     scene = make_scene(tmp_path, PRINTER + "bed_mm = [0, 0, 0, 220, 220, 12]\n")
-    res = CliRunner().invoke(cli, ["bench", str(scene), "--printer", "/dev/nonexistent-p",
-                                   "--board", "/dev/nonexistent-b", "--out",
-                                   str(tmp_path / "out")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "bench",
+            str(scene),
+            "--printer",
+            "/dev/nonexistent-p",
+            "--board",
+            "/dev/nonexistent-b",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert "[printer].safe_height_mm: the safe height, printer z = 13.00 mm" in res.output
     scene = make_scene(tmp_path)
-    res = CliRunner().invoke(cli, ["bench", str(scene), "--printer", "/dev/nonexistent-p",
-                                   "--board", "/dev/nonexistent-b", "--out",
-                                   str(tmp_path / "out")])
-    assert res.exit_code == 1 and "/dev/nonexistent-p: serial port does not exist" \
-        in res.output
-    res = CliRunner().invoke(cli, ["bench", str(scene), "--printer", "/dev/x", "--out",
-                                   str(tmp_path / "out")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "bench",
+            str(scene),
+            "--printer",
+            "/dev/nonexistent-p",
+            "--board",
+            "/dev/nonexistent-b",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+    )
+    assert res.exit_code == 1 and "/dev/nonexistent-p: serial port does not exist" in res.output
+    res = CliRunner().invoke(
+        cli, ["bench", str(scene), "--printer", "/dev/x", "--out", str(tmp_path / "out")]
+    )
     assert res.exit_code == 2 and "needs both --printer and --board" in res.output
     assert not (tmp_path / "out").exists()
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, Phase, given, settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run as a script
-from tests.robustness.fuzz_targets import TARGETS  # noqa: E402
+from tests.robustness.fuzz_targets import TARGETS
 
 
 class _OutOfTime(Exception):
@@ -30,8 +30,13 @@ def fuzz(name: str, seconds: float) -> tuple[int, int, str]:
     tried, failed, first = 0, 0, ""
     end = time.monotonic() + seconds
 
-    @settings(max_examples=10**9, deadline=None, database=None, phases=[Phase.generate],
-              suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=10**9,
+        deadline=None,
+        database=None,
+        phases=[Phase.generate],
+        suppress_health_check=list(HealthCheck),
+    )
     @given(strategy())
     def prop(value):
         nonlocal tried, failed, first
@@ -40,7 +45,7 @@ def fuzz(name: str, seconds: float) -> tuple[int, int, str]:
         tried += 1
         try:
             check(value)
-        except Exception as exc:  # noqa: BLE001 - counted and shown, the run goes on
+        except Exception as exc:
             failed += 1
             first = first or f"{exc!r} on {value!r}"[:400]
 
@@ -54,8 +59,12 @@ def fuzz(name: str, seconds: float) -> tuple[int, int, str]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=600.0,
-                        help="time budget of the whole run (s), shared by the targets")
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=600.0,
+        help="time budget of the whole run (s), shared by the targets",
+    )
     parser.add_argument("--only", default=None, help="run this target only")
     parser.add_argument("--markdown", default=None, help="also write the table to this file")
     args = parser.parse_args()
@@ -78,7 +87,9 @@ def main() -> int:
             "(tests/robustness/fuzz_targets.py); each case must give a correct result or the "
             "project's own error in one line naming the input. Written by `make fuzz` "
             f"({args.seconds:g} s in all).\n\n| target | cases | failures |\n|---|---|---|\n"
-            + "\n".join(rows) + "\n")
+            + "\n".join(rows)
+            + "\n"
+        )
     return 1 if bad else 0
 
 

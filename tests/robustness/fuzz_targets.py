@@ -42,25 +42,29 @@ def outcome(call, name: str):
     """call() -> its result, or None after checking the error it raised."""
     try:
         return call()
-    except Exception as exc:  # noqa: BLE001 - the point: which exception, and its text
+    except Exception as exc:
         clean_error(exc, name)
         return None
 
 
 # ------------------------------------------------------------------------ values and text
-NUMBERS = st.one_of(st.integers(-10**20, 10**20), st.floats(allow_nan=True,
-                                                            allow_infinity=True))
-FIELD = st.one_of(NUMBERS.map(str), st.sampled_from(["", " ", "nan", "inf", "-0", "1e400",
-                                                     "x", '"1"', "1,2", "\ufeff"]),
-                  st.text(max_size=6))
+NUMBERS = st.one_of(st.integers(-(10**20), 10**20), st.floats(allow_nan=True, allow_infinity=True))
+FIELD = st.one_of(
+    NUMBERS.map(str),
+    st.sampled_from(["", " ", "nan", "inf", "-0", "1e400", "x", '"1"', "1,2", "\ufeff"]),
+    st.text(max_size=6),
+)
 
 
 def _toml_value(value) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
-        return ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")) \
-            if not math.isfinite(value) else repr(value)
+        return (
+            ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
+            if not math.isfinite(value)
+            else repr(value)
+        )
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
@@ -73,8 +77,13 @@ def _toml_value(value) -> str:
 def _scene_strategy():
     from fruitcli.scene import SCHEMA
 
-    value = st.one_of(NUMBERS, st.booleans(), st.text(max_size=8),
-                      st.lists(NUMBERS, max_size=7), st.sampled_from(["p1", "p2", "none"]))
+    value = st.one_of(
+        NUMBERS,
+        st.booleans(),
+        st.text(max_size=8),
+        st.lists(NUMBERS, max_size=7),
+        st.sampled_from(["p1", "p2", "none"]),
+    )
     sections = st.sampled_from(sorted(SCHEMA))
 
     def keys(section):
@@ -108,18 +117,26 @@ def _csv_strategy(columns: list[str]):
 
     def with_rows(head):  # rows of the header's width, mostly numbers, or of any width
         width = st.lists(st.one_of(number, FIELD), min_size=len(head), max_size=len(head))
-        return st.tuples(st.just(head), st.lists(st.one_of(width, width, st.lists(
-            FIELD, max_size=9)), max_size=6), comments)
+        return st.tuples(
+            st.just(head),
+            st.lists(st.one_of(width, width, st.lists(FIELD, max_size=9)), max_size=6),
+            comments,
+        )
 
     def to_text(parts) -> str:
         head, body, notes = parts
         return "\n".join(notes + [",".join(head)] + [",".join(r) for r in body]) + "\n"
 
-    good = st.lists(st.tuples(*[st.floats(-1e3, 1e3)] * len(columns)), min_size=1,
-                    max_size=5).map(lambda r: ",".join(columns) + "\n" + "\n".join(
-                        ",".join(repr(v) for v in row) for row in r) + "\n")
-    return st.one_of(header.flatmap(with_rows).map(to_text), good,
-                     st.binary(max_size=100).map(lambda b: b.decode("latin-1")))
+    good = st.lists(st.tuples(*[st.floats(-1e3, 1e3)] * len(columns)), min_size=1, max_size=5).map(
+        lambda r: (
+            ",".join(columns) + "\n" + "\n".join(",".join(repr(v) for v in row) for row in r) + "\n"
+        )
+    )
+    return st.one_of(
+        header.flatmap(with_rows).map(to_text),
+        good,
+        st.binary(max_size=100).map(lambda b: b.decode("latin-1")),
+    )
 
 
 def check_table(text: str) -> None:
@@ -156,22 +173,38 @@ def _ascii_strategy():
     from fruitcli.sensing.frames.muca_line import format_line
 
     counts = st.lists(st.integers(0, 65535), min_size=ROWS * COLS, max_size=ROWS * COLS)
-    line = st.one_of(counts.map(lambda c: format_line(np.array(c)).decode("ascii")
-                                if isinstance(format_line(np.array(c)), bytes)
-                                else format_line(np.array(c))),
-                     st.lists(FIELD, max_size=ROWS * COLS + 2).map(",".join))
-    return st.lists(line, max_size=5).map(lambda ls: "\n".join(ls)).flatmap(
-        lambda text: st.tuples(st.just(text), st.integers(0, max(len(text), 1)),
-                               st.binary(max_size=8))).map(
-        lambda t: (t[0][:t[1]] + t[2].decode("latin-1") + t[0][t[1]:]).encode("latin-1",
-                                                                                "replace"))
+    line = st.one_of(
+        counts.map(
+            lambda c: (
+                format_line(np.array(c)).decode("ascii")
+                if isinstance(format_line(np.array(c)), bytes)
+                else format_line(np.array(c))
+            )
+        ),
+        st.lists(FIELD, max_size=ROWS * COLS + 2).map(",".join),
+    )
+    return (
+        st.lists(line, max_size=5)
+        .map(lambda ls: "\n".join(ls))
+        .flatmap(
+            lambda text: st.tuples(
+                st.just(text), st.integers(0, max(len(text), 1)), st.binary(max_size=8)
+            )
+        )
+        .map(
+            lambda t: (t[0][: t[1]] + t[2].decode("latin-1") + t[0][t[1] :]).encode(
+                "latin-1", "replace"
+            )
+        )
+    )
 
 
 def _binary_strategy():
     from fruitcli.sensing.frames.muca import encode_packet
 
-    frame = st.lists(st.integers(0, 65535), min_size=ROWS * COLS,
-                     max_size=ROWS * COLS).map(lambda c: encode_packet(np.array(c)))
+    frame = st.lists(st.integers(0, 65535), min_size=ROWS * COLS, max_size=ROWS * COLS).map(
+        lambda c: encode_packet(np.array(c))
+    )
     return st.lists(st.one_of(frame, st.binary(max_size=300)), max_size=4).map(b"".join)
 
 
@@ -214,8 +247,7 @@ NPZ = _npz_bytes()
 
 
 def _npz_strategy():
-    edits = st.lists(st.tuples(st.integers(0, len(NPZ) - 1), st.integers(0, 255)),
-                     max_size=4)
+    edits = st.lists(st.tuples(st.integers(0, len(NPZ) - 1), st.integers(0, 255)), max_size=4)
 
     def mutate(args) -> bytes:
         changes, cut = args
@@ -253,8 +285,7 @@ def _mesh_strategy():
 
     def with_faces(vs):
         n = max(len(vs), 1)
-        return st.tuples(st.just(vs), st.lists(st.tuples(*[st.integers(0, n)] * 3),
-                                               max_size=16))
+        return st.tuples(st.just(vs), st.lists(st.tuples(*[st.integers(0, n)] * 3), max_size=16))
 
     return verts.flatmap(with_faces)
 
@@ -295,13 +326,29 @@ class _FakePort:
 
 
 def _reply_strategy():
-    line = st.one_of(st.sampled_from(["ok", "ok T:20", "echo:busy: processing", "Resend: 1",
-                                      "Resend: 7", "rs N1", "Error:checksum mismatch",
-                                      "Error:Printer halted", "!! kill", "X:1.0 Y:2.0 Z:3.0 E:0",
-                                      "X:nan Y:2 Z:3", "start", ""]),
-                     st.text(max_size=20))
-    return st.lists(line, max_size=6).map(lambda ls: ("\n".join(ls) + "\n").encode(
-        "utf-8", "replace"))
+    line = st.one_of(
+        st.sampled_from(
+            [
+                "ok",
+                "ok T:20",
+                "echo:busy: processing",
+                "Resend: 1",
+                "Resend: 7",
+                "rs N1",
+                "Error:checksum mismatch",
+                "Error:Printer halted",
+                "!! kill",
+                "X:1.0 Y:2.0 Z:3.0 E:0",
+                "X:nan Y:2 Z:3",
+                "start",
+                "",
+            ]
+        ),
+        st.text(max_size=20),
+    )
+    return st.lists(line, max_size=6).map(
+        lambda ls: ("\n".join(ls) + "\n").encode("utf-8", "replace")
+    )
 
 
 def check_reply(reply: bytes) -> None:
@@ -316,8 +363,7 @@ def check_reply(reply: bytes) -> None:
 TARGETS = {
     "scene TOML": (_scene_strategy, check_scene),
     "points CSV": (lambda: _csv_strategy(["sample", "x_mm", "y_mm"]), check_table),
-    "taxel CSV": (lambda: _csv_strategy(["id", "i", "j", "x_mm", "y_mm", "z_mm"]),
-                  check_taxels),
+    "taxel CSV": (lambda: _csv_strategy(["id", "i", "j", "x_mm", "y_mm", "z_mm"]), check_taxels),
     "pressure table": (lambda: _csv_strategy(["c1_kpa", "c2_kpa"]), check_pressures),
     "MuCa ASCII stream": (_ascii_strategy, check_ascii_stream),
     "MuCa binary stream": (_binary_strategy, check_binary_stream),

@@ -16,8 +16,9 @@ def test_generate_artist_keeps_the_users_mesh(tmp_path):
     trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(mine)
     before = mine.read_bytes()
     scene = tmp_path / "s.toml"
-    scene.write_text('[scene]\nname = "s"\n[geometry]\nartist = "mine.stl"\n'
-                     "generate_artist = true\n")
+    scene.write_text(
+        '[scene]\nname = "s"\n[geometry]\nartist = "mine.stl"\ngenerate_artist = true\n'
+    )
     res = run("run", scene, "--out", tmp_path / "o", "--until", "make-artist")
     assert res.exit_code == 0, res.output
     assert mine.read_bytes() == before
@@ -29,7 +30,8 @@ def test_make_artist_refuses_an_existing_file(tmp_path):
     res = run("make-artist", "--out", out)
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1] == (
-        f"Error: --out {out}: exists; give --overwrite to replace it")
+        f"Error: --out {out}: exists; give --overwrite to replace it"
+    )
     assert out.read_text() == "the user's mesh"
 
 
@@ -50,6 +52,9 @@ def test_locate_removes_a_measured_csv_of_another_run(tmp_path):
     res = run("locate", log, "--taxels", taxels, "--out", out)
     assert res.exit_code == 0, res.output
     assert sorted(p.name for p in out.iterdir()) == ["touches.csv"]
-    rows = [line for line in (out / "touches.csv").read_text().splitlines()
-            if line and not line.startswith("#")]
+    rows = [
+        line
+        for line in (out / "touches.csv").read_text().splitlines()
+        if line and not line.startswith("#")
+    ]
     assert len(rows) == 1 + 5  # header, one touch in each of frames 15-19

@@ -6,8 +6,9 @@ from hypothesis import HealthCheck, given, settings
 
 from tests.robustness.fuzz_targets import TARGETS
 
-SHORT = settings(max_examples=40, deadline=None, database=None,
-                 suppress_health_check=list(HealthCheck))
+SHORT = settings(
+    max_examples=40, deadline=None, database=None, suppress_health_check=list(HealthCheck)
+)
 
 
 @pytest.mark.parametrize("name", list(TARGETS))

@@ -27,8 +27,15 @@ def assert_one_line(res, start):
 def test_evaluate_refuses_a_duplicated_header_column(tmp_path):
     measured = tmp_path / "m.csv"
     measured.write_text("sample,x_mm,y_mm,x_mm\n0,1,2,3\n1,2,3,4\n")
-    res = run("evaluate", "--truth", PAPER / "paper_rest_truth.csv", "--measured", measured,
-              "--out", tmp_path / "o")
+    res = run(
+        "evaluate",
+        "--truth",
+        PAPER / "paper_rest_truth.csv",
+        "--measured",
+        measured,
+        "--out",
+        tmp_path / "o",
+    )
     assert_one_line(res, f"Error: {measured}: row 1: column(s) x_mm appear more than once")
     assert not (tmp_path / "o").exists()
 
@@ -62,8 +69,12 @@ def test_reference_length_is_the_diameter_without_all_pairs():
     from fruitcli.evaluation.metrics import reference_length
 
     rng = np.random.default_rng(1)
-    sets = [rng.normal(size=(500, 3)), np.c_[rng.normal(size=(500, 2)), np.zeros(500)],
-            np.outer(rng.normal(size=500), [1.0, 2.0, 2.0]), rng.normal(size=(500, 2))]
+    sets = [
+        rng.normal(size=(500, 3)),
+        np.c_[rng.normal(size=(500, 2)), np.zeros(500)],
+        np.outer(rng.normal(size=500), [1.0, 2.0, 2.0]),
+        rng.normal(size=(500, 2)),
+    ]
     for pts in sets:
         assert abs(reference_length(pts) - pdist(pts).max()) < 1e-9
     # 400,000 points in the unit cube and two opposite corners: the diameter is sqrt(3)
@@ -103,12 +114,16 @@ def test_npz_with_a_bad_crc_is_refused(tmp_path):
     np.savez(path, frames=np.zeros((4, 21, 12), np.uint16), t_s=np.arange(4.0))
     assert read_npz_arrays(path, "recording")["frames"].shape == (4, 21, 12)
     flip_a_bit_in_member(path, "frames.npy")
-    for call, error in ((lambda: read_npz_arrays(path, ".npz recording"), FruitError),
-                        (lambda: open_recording(path), FrameError)):
+    for call, error in (
+        (lambda: read_npz_arrays(path, ".npz recording"), FruitError),
+        (lambda: open_recording(path), FrameError),
+    ):
         try:
             call()
         except error as exc:
-            assert str(exc) == (f"{path}: not a readable .npz recording: member frames.npy "
-                                "fails its CRC check (the file is damaged)")
+            assert str(exc) == (
+                f"{path}: not a readable .npz recording: member frames.npy "
+                "fails its CRC check (the file is damaged)"
+            )
         else:
             raise AssertionError("a damaged npz was read")

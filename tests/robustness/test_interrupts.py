@@ -15,8 +15,7 @@ def test_a_kernel_interrupted_by_ctrl_c_is_one_line(monkeypatch, capsys, tmp_pat
 
     monkeypatch.setattr(report, "evaluate_pair", kernel)
     with pytest.raises(SystemExit) as done:
-        main(["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out",
-              str(tmp_path / "o")])
+        main(["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out", str(tmp_path / "o")])
     assert done.value.code == 130
     assert capsys.readouterr().err == "Interrupted.\n"
 
@@ -30,8 +29,7 @@ def test_other_errors_still_show_their_traceback(monkeypatch, tmp_path):
 
     monkeypatch.setattr(report, "evaluate_pair", broken)
     with pytest.raises(SystemError, match="a real bug"):
-        main(["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out",
-              str(tmp_path / "o")])
+        main(["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out", str(tmp_path / "o")])
 
 
 def test_ctrl_c_inside_a_deferred_block_comes_after_it():

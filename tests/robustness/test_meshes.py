@@ -49,8 +49,7 @@ def test_a_one_triangle_mesh_is_one_line(tmp_path):
     trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [0, 10, 0]], [[0, 1, 2]], process=False).export(path)
     res = run("make-tracks", path, "--out", tmp_path / "o")
     assert res.exit_code == 1 and "Traceback" not in res.output
-    assert res.output.strip().splitlines()[-1].startswith(f"Error: {path}: the mesh has no "
-                                                          "inside")
+    assert res.output.strip().splitlines()[-1].startswith(f"Error: {path}: the mesh has no inside")
     assert not (tmp_path / "o").exists()
 
 
@@ -61,7 +60,8 @@ def test_a_body_far_from_the_origin_is_one_line(tmp_path):
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1] == (
         f"Error: {path}: the mesh lies up to 1e+09 mm from the origin, more than 5000 mm; "
-        "move it near the origin (the outputs are in the mesh's own coordinates)")
+        "move it near the origin (the outputs are in the mesh's own coordinates)"
+    )
 
 
 def test_a_thin_closed_plate_is_not_called_an_open_sheet(tmp_path):

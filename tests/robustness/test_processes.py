@@ -44,8 +44,9 @@ time.sleep(120)
 
 def test_gmsh_child_ends_when_its_parent_is_killed():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE,
-                              text=True, env=env)
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True, env=env
+    )
     try:
         child = int(parent.stdout.readline())
         os.kill(child, 0)  # running

@@ -15,10 +15,20 @@ def test_pareto_front_keeps_only_undominated_points():
 def test_errors_are_measured_against_the_finest_setting():
     base = np.zeros((3, 3))
     rows = [
-        {"setting": "coarse", "size_mm": 8.0, "tolerance": 1e-6, "status": "ok",
-         "taxels": (base + [0.3, 0.4, 0.0]).tolist()},
-        {"setting": "fine", "size_mm": 4.0, "tolerance": 1e-6, "status": "ok",
-         "taxels": base.tolist()},
+        {
+            "setting": "coarse",
+            "size_mm": 8.0,
+            "tolerance": 1e-6,
+            "status": "ok",
+            "taxels": (base + [0.3, 0.4, 0.0]).tolist(),
+        },
+        {
+            "setting": "fine",
+            "size_mm": 4.0,
+            "tolerance": 1e-6,
+            "status": "ok",
+            "taxels": base.tolist(),
+        },
         {"setting": "broken", "size_mm": 2.0, "tolerance": 1e-6, "status": "failed: x"},
     ]
     add_errors(rows)
@@ -42,14 +52,19 @@ def test_cases_sweep_size_tolerance_cap_and_solver():
 
 
 def test_default_reason_uses_the_measured_row():
-    rows = [{"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.07,
-             "state_ms": 120.0}]
+    rows = [{"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.07, "state_ms": 120.0}]
     text = default_reason(rows, "size 5 mm")
     assert "0.070 mm against the finest setting, at 120 ms per state: below" in text
-    rows = [{"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.12,
-             "state_ms": 24.0},
-            {"setting": "size 4 mm", "status": "ok", "taxel_err_mean_mm": 0.0,
-             "state_ms": 37.0, "reference": True}]
+    rows = [
+        {"setting": "size 5 mm", "status": "ok", "taxel_err_mean_mm": 0.12, "state_ms": 24.0},
+        {
+            "setting": "size 4 mm",
+            "status": "ok",
+            "taxel_err_mean_mm": 0.0,
+            "state_ms": 37.0,
+            "reference": True,
+        },
+    ]
     text = default_reason(rows, "size 5 mm")
     assert "0.120 mm against the finest setting, at 24 ms per state: above" in text
     assert "the finest setting (size 4 mm) takes 37 ms per state" in text

@@ -24,19 +24,23 @@ def test_box_mesh_is_conforming_and_fills_the_box():
 
 
 def test_hollow_box_cavity_is_closed():
-    nodes, tets, cavity = structured_box_with_cavity((0.0,) * 3, (30.0,) * 3, (6, 6, 6),
-                                                     (10.0,) * 3, (20.0,) * 3)
+    nodes, tets, cavity = structured_box_with_cavity(
+        (0.0,) * 3, (30.0,) * 3, (6, 6, 6), (10.0,) * 3, (20.0,) * 3
+    )
     assert len(cavity) == 6 * 4 * 2  # 6 faces of 2 x 2 cells, 2 triangles each
-    edges = np.sort(np.concatenate([cavity[:, [0, 1]], cavity[:, [1, 2]], cavity[:, [2, 0]]]),
-                    axis=1)
+    edges = np.sort(
+        np.concatenate([cavity[:, [0, 1]], cavity[:, [1, 2]], cavity[:, [2, 0]]]), axis=1
+    )
     _, counts = np.unique(edges, axis=0, return_counts=True)
     assert np.all(counts == 2)
 
 
 def test_every_case_gives_a_finite_row_or_a_named_failure():
-    cases = [Case("E", "E = 1e+06 kPa", "beam_gravity", E_kpa=1e6),
-             Case("sliver", "one sliver tet", "sliver"),
-             Case("jig", "k = 1e+06 N/mm", "jig", stiffness_n_per_mm=1e6)]
+    cases = [
+        Case("E", "E = 1e+06 kPa", "beam_gravity", E_kpa=1e6),
+        Case("sliver", "one sliver tet", "sliver"),
+        Case("jig", "k = 1e+06 N/mm", "jig", stiffness_n_per_mm=1e6),
+    ]
     rows = [run_case(c) for c in cases]
     assert rows[0]["status"] == "converged"
     assert rows[0]["tip_deflection_mm"] > 0
@@ -69,6 +73,7 @@ def test_realistic_sphere_past_its_limit_is_a_named_failure():
     failure after minutes)."""
     case = next(c for c in default_cases() if c.name == "p = 2000 kPa (sphere)")
     row = run_case(case)
-    assert row["status"].startswith("failed: cavity: 2000 kPa is past this chamber's limit "
-                                    "pressure")
+    assert row["status"].startswith(
+        "failed: cavity: 2000 kPa is past this chamber's limit pressure"
+    )
     assert "\n" not in row["status"]

@@ -17,8 +17,10 @@ from tests.sensing.skin.test_virtual_bench import pad_taxel_csv
 def pad_scene(tmp_path):
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     path = tmp_path / "pad.toml"
-    path.write_text(f'[scene]\nname = "pad"\n[grid]\ntaxels = "{taxels}"\nspacing_x_mm = 16.0\n'
-                    'spacing_y_mm = 16.0\n[bench]\nindenters = ["small", "medium"]\nseed = 3\n')
+    path.write_text(
+        f'[scene]\nname = "pad"\n[grid]\ntaxels = "{taxels}"\nspacing_x_mm = 16.0\n'
+        'spacing_y_mm = 16.0\n[bench]\nindenters = ["small", "medium"]\nseed = 3\n'
+    )
     return path, taxels
 
 
@@ -52,16 +54,20 @@ def test_study_bench_table_plot_and_the_default_row(fruit, tmp_path):
     sc = load_scene(path)
     run_bench(sc, taxels, None, tmp_path / "b")
     run_locate(sc, tmp_path / "b" / "small" / "frames.npz", taxels, None, tmp_path / "l")
-    s, *_ = evaluate_pair(tmp_path / "b" / "small" / "truth.csv", tmp_path / "l" /
-                          "measured.csv")
-    default = next(r for r in data["rows"] if r["setting"] == "default"
-                   and r["indenter"] == "small")
+    s, *_ = evaluate_pair(tmp_path / "b" / "small" / "truth.csv", tmp_path / "l" / "measured.csv")
+    default = next(
+        r for r in data["rows"] if r["setting"] == "default" and r["indenter"] == "small"
+    )
     assert default["mean_mm"] == pytest.approx(s["compare"]["none"]["mean_mm"], abs=1e-12)
-    assert default["reg_mean_mm"] == pytest.approx(s["compare"]["translation"]["mean_mm"],
-                                                   abs=1e-12)
+    assert default["reg_mean_mm"] == pytest.approx(
+        s["compare"]["translation"]["mean_mm"], abs=1e-12
+    )
     # the footprint moves the row
-    feet = {r["value"]: r["mean_mm"] for r in data["rows"]
-            if r["parameter"] == "footprint" and r["indenter"] == "small"}
+    feet = {
+        r["value"]: r["mean_mm"]
+        for r in data["rows"]
+        if r["parameter"] == "footprint" and r["indenter"] == "small"
+    }
     assert len(set(np.round(list(feet.values()), 6))) > 1
 
 

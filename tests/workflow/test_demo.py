@@ -14,8 +14,10 @@ def test_demo_report_from_paper_table(fruit, tmp_path):
     assert res.exit_code == 0, res.output
     report = (tmp_path / "report.md").read_text()
     # the figure data are registered already: both columns give the paper's own row
-    assert ("| Rest, small (the paper's figure data) | 29 | already registered: 2.56 (1.7 %) "
-            "/ 1.28 (0.8 %) | 2.56 (1.7 %) / 1.28 (0.8 %) | 2.6 (1.7 %) / 1.3 (0.8 %) |") in report
+    assert (
+        "| Rest, small (the paper's figure data) | 29 | already registered: 2.56 (1.7 %) "
+        "/ 1.28 (0.8 %) | 2.56 (1.7 %) / 1.28 (0.8 %) | 2.6 (1.7 %) / 1.3 (0.8 %) |"
+    ) in report
     assert "evaluation only: measured points given" in report
     assert "paper-table/evaluate/rest-small/top.png" in report
     # a second run reuses the evaluation
@@ -28,7 +30,8 @@ def test_demo_unknown_scene_is_one_line(fruit, tmp_path):
     assert res.exit_code == 1
     assert res.output.strip().splitlines() == [
         "Error: unknown scene 'no-such-scene' (bundled scenes: fruit-breathing, fruit-deformed, "
-        "fruit-rest, paper-table, touchpad-4x4)"]
+        "fruit-rest, paper-table, touchpad-4x4)"
+    ]
     assert not any(tmp_path.iterdir())
 
 
@@ -38,7 +41,8 @@ def test_demo_in_an_unwritable_folder_is_one_line(fruit, tmp_path):
     res = fruit("demo", "--out", blocker / "out", "--scenes", "paper-table")
     assert res.exit_code == 1
     assert res.output.strip().splitlines() == [
-        f"Error: {blocker}/out/scenes/data/paper: Not a directory"]
+        f"Error: {blocker}/out/scenes/data/paper: Not a directory"
+    ]
     read_only = tmp_path / "read-only"
     read_only.mkdir(mode=0o555)
     if os.access(read_only, os.W_OK):
@@ -53,22 +57,37 @@ def test_scenes_lists_each_bundled_scene_with_its_stages(fruit):
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
     assert [line.split()[0] for line in lines] == [
-        "fruit-breathing", "fruit-deformed", "fruit-rest", "paper-table", "touchpad-4x4"]
-    assert lines[3] == ("paper-table      The paper's Table I from its figure data (rest: 3D, "
-                        "deformed: top view only) [stages: evaluate]")
-    assert lines[4] == ("touchpad-4x4     The flat 4 x 4 touchpad of the paper's Figs. 7-9 "
-                        "[stages: pad-grid, tetra, simulate, sensitivity]")
+        "fruit-breathing",
+        "fruit-deformed",
+        "fruit-rest",
+        "paper-table",
+        "touchpad-4x4",
+    ]
+    assert lines[3] == (
+        "paper-table      The paper's Table I from its figure data (rest: 3D, "
+        "deformed: top view only) [stages: evaluate]"
+    )
+    assert lines[4] == (
+        "touchpad-4x4     The flat 4 x 4 touchpad of the paper's Figs. 7-9 "
+        "[stages: pad-grid, tetra, simulate, sensitivity]"
+    )
 
 
 def test_scenes_copy_writes_an_editable_scene_with_its_data(fruit, tmp_path):
     res = fruit("scenes", "copy", "paper-table", tmp_path / "mine")
     assert res.exit_code == 0, res.output
-    copied = sorted(p.relative_to(tmp_path / "mine").as_posix()
-                    for p in (tmp_path / "mine").rglob("*") if p.is_file())
-    assert copied == ["data/paper/paper_deformed_measured_xy.csv",
-                      "data/paper/paper_deformed_truth_xy.csv",
-                      "data/paper/paper_rest_measured.csv", "data/paper/paper_rest_truth.csv",
-                      "paper-table.toml"]
+    copied = sorted(
+        p.relative_to(tmp_path / "mine").as_posix()
+        for p in (tmp_path / "mine").rglob("*")
+        if p.is_file()
+    )
+    assert copied == [
+        "data/paper/paper_deformed_measured_xy.csv",
+        "data/paper/paper_deformed_truth_xy.csv",
+        "data/paper/paper_rest_measured.csv",
+        "data/paper/paper_rest_truth.csv",
+        "paper-table.toml",
+    ]
     for name in copied[:-1]:
         assert (tmp_path / "mine" / name).read_bytes() == (ROOT / name).read_bytes()
     res = fruit("scenes", "copy", "fruit-rest", tmp_path / "fruit")
@@ -82,7 +101,8 @@ def test_scenes_copy_refuses_a_non_empty_folder_and_unknown_names(fruit, tmp_pat
     res = fruit("scenes", "copy", "paper-table", tmp_path)
     assert res.exit_code == 1
     assert res.output.strip().splitlines() == [
-        f"Error: {tmp_path}: is not empty; give a new or empty folder (nothing written)"]
+        f"Error: {tmp_path}: is not empty; give a new or empty folder (nothing written)"
+    ]
     assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
     res = fruit("scenes", "copy", "paper", tmp_path / "new")
     assert res.exit_code == 1 and "unknown scene 'paper' (bundled scenes: " in res.output

@@ -14,8 +14,8 @@ def _scene(tmp_path, extra=""):
     text = f"""
 [[evaluate]]
 label = "Rest, small"
-truth = "{PAPER / 'paper_rest_truth.csv'}"
-measured = "{tmp_path / 'm.csv'}"
+truth = "{PAPER / "paper_rest_truth.csv"}"
+measured = "{tmp_path / "m.csv"}"
 reference_length_mm = 152.0
 {extra}"""
     (tmp_path / "m.csv").write_text((PAPER / "paper_rest_measured.csv").read_text())
@@ -47,12 +47,15 @@ def test_reuse_until_an_input_changes(tmp_path):
     assert _actions(planner.plan(sc, out))["evaluate"] == "run"
     planner.run(sc, out)
     # a changed parameter too
-    sc2 = parse_scene(f"""[[evaluate]]
+    sc2 = parse_scene(
+        f"""[[evaluate]]
 label = "Rest, small"
-truth = "{PAPER / 'paper_rest_truth.csv'}"
-measured = "{tmp_path / 'm.csv'}"
+truth = "{PAPER / "paper_rest_truth.csv"}"
+measured = "{tmp_path / "m.csv"}"
 reference_length_mm = 150.0
-""", tmp_path / "s.toml")
+""",
+        tmp_path / "s.toml",
+    )
     assert _actions(planner.plan(sc2, out))["evaluate"] == "run"
 
 
@@ -67,18 +70,33 @@ def test_deleted_output_reruns(tmp_path):
 def test_dry_run_cli(fruit, tmp_path):
     from tests.conftest import ROOT
 
-    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run",
-                "--out", tmp_path / "o")
+    res = fruit(
+        "run", ROOT / "pipelines" / "paper-table.toml", "--dry-run", "--out", tmp_path / "o"
+    )
     assert res.exit_code == 0
     assert "evaluate     run" in res.output
     assert "no deformation: taxels at rest, no FEM" in res.output
     assert not (tmp_path / "o").exists()
-    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run", "--until",
-                "make-tracks", "--out", tmp_path / "o")
+    res = fruit(
+        "run",
+        ROOT / "pipelines" / "paper-table.toml",
+        "--dry-run",
+        "--until",
+        "make-tracks",
+        "--out",
+        tmp_path / "o",
+    )
     assert res.exit_code == 0 and "make-tracks" in res.output
     assert "evaluate" not in res.output and "locate" not in res.output
-    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--dry-run", "--until",
-                "bogus", "--out", tmp_path / "o")
+    res = fruit(
+        "run",
+        ROOT / "pipelines" / "paper-table.toml",
+        "--dry-run",
+        "--until",
+        "bogus",
+        "--out",
+        tmp_path / "o",
+    )
     assert res.exit_code == 1 and "unknown stage 'bogus'" in res.output
 
 
@@ -104,14 +122,16 @@ def test_identical_stage_is_borrowed_from_a_sibling_scene(tmp_path):
     steps = planner.run(sc, tmp_path / "out" / "second", shared=tmp_path / "out")
     step = [s for s in steps if s.stage == "evaluate"][0]
     assert step.action == "reuse" and "same inputs as first" in step.reason
-    assert (tmp_path / "out" / "second" / "evaluate" / "table.md").read_text() == \
-        (tmp_path / "out" / "first" / "evaluate" / "table.md").read_text()
+    assert (tmp_path / "out" / "second" / "evaluate" / "table.md").read_text() == (
+        tmp_path / "out" / "first" / "evaluate" / "table.md"
+    ).read_text()
 
 
 def test_plan_shows_stages_copied_from_a_sibling_and_judges_the_next_on_them(tmp_path):
     """Stage b reads stage a's output file. After a run for scene 'first', the plan for
     'second' (with the same inputs) says both are copied from 'first', not run: b's input
     is judged on the file it would be copied with."""
+
     def yes(scene):
         return True, "always"
 
@@ -120,12 +140,27 @@ def test_plan_shows_stages_copied_from_a_sibling_and_judges_the_next_on_them(tmp
             out_dir.mkdir(parents=True, exist_ok=True)
             (out_dir / f"{name}.txt").write_text(name)
             return {}
+
         return run
 
-    a = Stage("a", [], "fruitcli.geometry.padgrid", yes, lambda s, c: {"k": 1}, write("a"),
-              lambda s: ["a.txt"])
-    b = Stage("b", ["a"], "fruitcli.geometry.padgrid", yes,
-              lambda s, c: {"a": c.dir("a") / "a.txt"}, write("b"), lambda s: ["b.txt"])
+    a = Stage(
+        "a",
+        [],
+        "fruitcli.geometry.padgrid",
+        yes,
+        lambda s, c: {"k": 1},
+        write("a"),
+        lambda s: ["a.txt"],
+    )
+    b = Stage(
+        "b",
+        ["a"],
+        "fruitcli.geometry.padgrid",
+        yes,
+        lambda s, c: {"a": c.dir("a") / "a.txt"},
+        write("b"),
+        lambda s: ["b.txt"],
+    )
     sc, out = _scene(tmp_path), tmp_path / "out"
     planner.run(sc, out / "first", stages=[a, b])
     steps = planner.plan(sc, out / "second", stages=[a, b], shared=out)
@@ -170,7 +205,13 @@ def test_stage_code_hash_covers_the_packages_it_imports():
     imports (geometry/mesh/load.py for the unit check, scene.py), so a change there reruns
     them; evaluation's does not cover the FEM."""
     files = {f"{p.parent.name}/{p.name}" for p in planner.code_files("fruitcli.fem.stage")}
-    assert {"fem/stage.py", "materials/corotation_kernels.py", "elements/integrate.py",
-            "solver/newton.py", "mesh/load.py", "fruitcli/scene.py"} <= files
+    assert {
+        "fem/stage.py",
+        "materials/corotation_kernels.py",
+        "elements/integrate.py",
+        "solver/newton.py",
+        "mesh/load.py",
+        "fruitcli/scene.py",
+    } <= files
     files = {p.parent.name for p in planner.code_files("fruitcli.evaluation.report")}
     assert "fem" not in files and "evaluation" in files

@@ -20,8 +20,9 @@ def barycentric_coordinates(points: np.ndarray, corners: np.ndarray) -> np.ndarr
     return np.column_stack([1.0 - v.sum(axis=1), v])
 
 
-def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def locate(
+    nodes: np.ndarray, tets: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For points (t, 3): containing tet (t,), weights (t, 4), and how far outside
     (t,) as -min(weight) clipped at 0 (0 for points inside)."""
     from scipy.spatial import cKDTree
@@ -41,8 +42,9 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray
     return cand[rows, best], weights, np.clip(-weights.min(axis=1), 0.0, None)
 
 
-def apply(x: np.ndarray, tets: np.ndarray, tet_index: np.ndarray, weights: np.ndarray
-          ) -> np.ndarray:
+def apply(
+    x: np.ndarray, tets: np.ndarray, tet_index: np.ndarray, weights: np.ndarray
+) -> np.ndarray:
     """Mapped positions (t, 3) for node positions x (n, 3), or (s, n, 3) -> (s, t, 3)."""
     corners = x[..., tets[tet_index], :]  # (..., t, 4, 3)
     return np.einsum("...tai,ta->...ti", corners, weights)

@@ -42,8 +42,9 @@ def _inverse(f, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blocks, jmin,
-             ptr, rows):
+def evaluate(
+    x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blocks, jmin, ptr, rows
+):
     """Strain energy (mN mm) at node positions x (n, 3); writes the internal forces
     dPsi/dx (n, 3, mN) into `forces`, element tangents (m, 3 nen, 3 nen, mN/mm) into
     `blocks` when want_tangent, and each element's smallest det F into jmin (m,).
@@ -97,8 +98,9 @@ def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blo
             for q in range(nq):
                 w = wq[e, q]
                 jq = det[q]
-                energy += w * isochoric(fq[q], finv[q], jq, c10, c20, c30,
-                                       want_tangent, p_iso, a, d_iso)
+                energy += w * isochoric(
+                    fq[q], finv[q], jq, c10, c20, c30, want_tangent, p_iso, a, d_iso
+                )
                 if mean_dilatation:
                     u1, u2 = u1_e, 0.0
                 else:
@@ -124,8 +126,14 @@ def evaluate(x, conn, dn, wq, consts, mean_dilatation, want_tangent, forces, blo
                         for k in range(3):
                             for ll in range(3):
                                 c = 3 * k + ll
-                                a[r, c] += u1 * jq * (finv[q, jj, i] * finv[q, ll, k]
-                                                      - finv[q, ll, i] * finv[q, jj, k])
+                                a[r, c] += (
+                                    u1
+                                    * jq
+                                    * (
+                                        finv[q, jj, i] * finv[q, ll, k]
+                                        - finv[q, ll, i] * finv[q, jj, k]
+                                    )
+                                )
                                 if not mean_dilatation:
                                     a[r, c] += u2 * jq * jq * finv[q, jj, i] * finv[q, ll, k]
                 for i in range(3):
@@ -189,7 +197,10 @@ def mean_dilatation(x, conn, dn, wq, volumes):
                 f20 += x[p, 2] * g0
                 f21 += x[p, 2] * g1
                 f22 += x[p, 2] * g2
-            acc += wq[e, q] * (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
-                               + f02 * (f10 * f21 - f11 * f20))
+            acc += wq[e, q] * (
+                f00 * (f11 * f22 - f12 * f21)
+                - f01 * (f10 * f22 - f12 * f20)
+                + f02 * (f10 * f21 - f11 * f20)
+            )
         out[e] = acc / volumes[e]
     return out

@@ -112,13 +112,28 @@ class Family:
 
 
 ELEMENTS = {
-    "p2": Family("p2", 2, 10, 6, 2, 4, True,
-                 "quadratic tets (10 nodes), curved on analytic chambers, with the volume "
-                 "change constant per element (P2/P0 mean dilatation: no volumetric locking)"),
-    "p2-pure": Family("p2-pure", 2, 10, 6, 2, 4, False,
-                      "quadratic tets, displacement only (locks as nu -> 0.5; for comparison)"),
-    "p1": Family("p1", 1, 4, 3, 1, 2, False,
-                 "linear tets (4 nodes): the paper's SOFA element"),
+    "p2": Family(
+        "p2",
+        2,
+        10,
+        6,
+        2,
+        4,
+        True,
+        "quadratic tets (10 nodes), curved on analytic chambers, with the volume "
+        "change constant per element (P2/P0 mean dilatation: no volumetric locking)",
+    ),
+    "p2-pure": Family(
+        "p2-pure",
+        2,
+        10,
+        6,
+        2,
+        4,
+        False,
+        "quadratic tets, displacement only (locks as nu -> 0.5; for comparison)",
+    ),
+    "p1": Family("p1", 1, 4, 3, 1, 2, False, "linear tets (4 nodes): the paper's SOFA element"),
 }
 """[fem].element values."""
 

@@ -34,8 +34,7 @@ def quadratic_mesh(nodes: np.ndarray, tets: np.ndarray, tris: list[np.ndarray]):
             continue
         k = _edge_key(t[:, TRI6_EDGES[:, 0]], t[:, TRI6_EDGES[:, 1]], n)
         pos = np.searchsorted(uniq, k.ravel())
-        if np.any(pos >= len(uniq)) or np.any(uniq[np.minimum(pos, len(uniq) - 1)]
-                                               != k.ravel()):
+        if np.any(pos >= len(uniq)) or np.any(uniq[np.minimum(pos, len(uniq) - 1)] != k.ravel()):
             raise ValueError("a surface triangle's edge is not an edge of any tet")
         out.append(np.hstack([t, n + pos.reshape(-1, 3)]))
     return nodes2, tets10, out
@@ -55,8 +54,9 @@ Jacobian anywhere below this fraction of the straight element's (a coarse wall o
 flat ellipsoid would otherwise fold its elements)."""
 
 
-def curve_onto_ellipsoid(nodes: np.ndarray, tets10: np.ndarray, idx: np.ndarray, center,
-                         radii) -> int:
+def curve_onto_ellipsoid(
+    nodes: np.ndarray, tets10: np.ndarray, idx: np.ndarray, center, radii
+) -> int:
     """Move the edge nodes idx onto the ellipsoid (in place), except those of elements
     the curving would distort past CURVED_MIN_JACOBIAN; returns how many stay straight."""
     from fruitcli.fem.elements.lagrange import tet_rule, tet_shape_gradients
@@ -76,8 +76,9 @@ def curve_onto_ellipsoid(nodes: np.ndarray, tets10: np.ndarray, idx: np.ndarray,
         x = nodes[tets10[cand]]
         det = np.linalg.det(np.einsum("mai,paj->mpij", x, dref))
         c = x[:, :4]
-        ref = np.linalg.det(np.stack([c[:, 1] - c[:, 0], c[:, 2] - c[:, 0],
-                                      c[:, 3] - c[:, 0]], axis=-1))
+        ref = np.linalg.det(
+            np.stack([c[:, 1] - c[:, 0], c[:, 2] - c[:, 0], c[:, 3] - c[:, 0]], axis=-1)
+        )
         bad = cand[(det.min(axis=1) < CURVED_MIN_JACOBIAN * np.abs(ref))]
         if not len(bad):
             break

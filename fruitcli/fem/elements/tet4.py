@@ -34,8 +34,9 @@ def shape_gradients(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
     return grads
 
 
-def element_stiffness(grads: np.ndarray, volumes_mm3: np.ndarray,
-                      lam_kpa: float, mu_kpa: float) -> np.ndarray:
+def element_stiffness(
+    grads: np.ndarray, volumes_mm3: np.ndarray, lam_kpa: float, mu_kpa: float
+) -> np.ndarray:
     """(m, 12, 12) small-strain Hooke stiffness V * B^T C B (mN/mm), dofs node-major.
 
     K[a i, b j] = V (lambda g_ai g_bj + mu g_aj g_bi + mu delta_ij g_a . g_b).

@@ -28,8 +28,10 @@ class Wall:
         self.dn = tri_shape_gradients(pts, order)  # (q, nn, 2)
         # the Hessian's quadrature weights w_q N_a dN_b/dxi_k as (q, nn nn) per k: its
         # blocks are then two matrix products (one einsum took 2.7 ms per wall here)
-        self.w_n_dn = [np.einsum("q,qa,qb->qab", w, self.n, self.dn[:, :, k])
-                       .reshape(len(w), -1) for k in (0, 1)]
+        self.w_n_dn = [
+            np.einsum("q,qa,qb->qab", w, self.n, self.dn[:, :, k]).reshape(len(w), -1)
+            for k in (0, 1)
+        ]
 
     def _frames(self, x):
         p = x[self.tris]  # (t, nn, 3)
@@ -56,9 +58,14 @@ class Wall:
 
         def skew(v):  # (t, q, 3) -> (t, q, 3, 3), [v]x
             z = np.zeros(v.shape[:-1])
-            return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                             np.stack([v[..., 2], z, -v[..., 0]], -1),
-                             np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+            return np.stack(
+                [
+                    np.stack([z, -v[..., 2], v[..., 1]], -1),
+                    np.stack([v[..., 2], z, -v[..., 0]], -1),
+                    np.stack([-v[..., 1], v[..., 0], z], -1),
+                ],
+                -2,
+            )
 
         t, nn = self.tris.shape
         q = len(self.w)

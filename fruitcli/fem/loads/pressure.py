@@ -48,8 +48,10 @@ def consistent_winding(tris: np.ndarray) -> np.ndarray:
     key = np.sort(e, axis=1)
     _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     if np.any(counts != 2):
-        raise ValueError(f"{int(np.sum(counts != 2))} edge(s) not shared by exactly two "
-                         "triangles (open or non-manifold surface)")
+        raise ValueError(
+            f"{int(np.sum(counts != 2))} edge(s) not shared by exactly two "
+            "triangles (open or non-manifold surface)"
+        )
     order = np.argsort(inv, kind="stable")
     a, b = owner[order[0::2]], owner[order[1::2]]  # the two triangles of each edge
     same = e[order[0::2], 0] == e[order[1::2], 0]  # same direction: one must flip

@@ -40,44 +40,68 @@ def lame_from(e_kpa: float, nu: float) -> tuple[float, float]:
     return e_kpa / (2.0 * (1.0 + nu)), e_kpa / (3.0 * (1.0 - 2.0 * nu))
 
 
-def material(model: str = "neo-hookean", young_modulus_kpa: float = 100.0,
-             poisson_ratio: float = 0.45, c10_kpa=None, c20_kpa=0.0, c30_kpa=0.0,
-             bulk_modulus_kpa=None, where: str = "[material]") -> Material:
+def material(
+    model: str = "neo-hookean",
+    young_modulus_kpa: float = 100.0,
+    poisson_ratio: float = 0.45,
+    c10_kpa=None,
+    c20_kpa=0.0,
+    c30_kpa=0.0,
+    bulk_modulus_kpa=None,
+    where: str = "[material]",
+) -> Material:
     """A checked Material; errors name the scene field."""
     if model not in MATERIAL_MODELS:
         from difflib import get_close_matches
 
         near = get_close_matches(model, MATERIAL_MODELS, 1)
         hint = f" (did you mean {near[0]!r}?)" if near else ""
-        raise SceneError(f"{where}.model: expected one of {', '.join(MATERIAL_MODELS)}, "
-                         f"got {model!r}{hint}")
+        raise SceneError(
+            f"{where}.model: expected one of {', '.join(MATERIAL_MODELS)}, got {model!r}{hint}"
+        )
     mu, kappa = lame_from(young_modulus_kpa, poisson_ratio)
     if bulk_modulus_kpa is not None:
         kappa = float(bulk_modulus_kpa)
     if not kappa > 0:
-        raise SceneError(f"{where}.bulk_modulus_kpa: expected > 0 (a material with a "
-                         f"negative bulk modulus is unstable), got {kappa}")
+        raise SceneError(
+            f"{where}.bulk_modulus_kpa: expected > 0 (a material with a "
+            f"negative bulk modulus is unstable), got {kappa}"
+        )
     if model == "yeoh":
         if c10_kpa is None:
-            raise SceneError(f"{where}.c10_kpa: the yeoh model needs its constants "
-                             "(c10_kpa > 0, c20_kpa, c30_kpa in kPa)")
+            raise SceneError(
+                f"{where}.c10_kpa: the yeoh model needs its constants "
+                "(c10_kpa > 0, c20_kpa, c30_kpa in kPa)"
+            )
         c10, c20, c30 = float(c10_kpa), float(c20_kpa), float(c30_kpa)
         if not c10 > 0:
-            raise SceneError(f"{where}.c10_kpa: expected > 0 (the small-strain shear "
-                             f"modulus is 2 c10), got {c10}")
+            raise SceneError(
+                f"{where}.c10_kpa: expected > 0 (the small-strain shear "
+                f"modulus is 2 c10), got {c10}"
+            )
         if c30 < 0:
-            raise SceneError(f"{where}.c30_kpa: expected >= 0 (a negative c30 makes the "
-                             f"material unstable at large stretch), got {c30}")
+            raise SceneError(
+                f"{where}.c30_kpa: expected >= 0 (a negative c30 makes the "
+                f"material unstable at large stretch), got {c30}"
+            )
         e = 9.0 * kappa * 2 * c10 / (3.0 * kappa + 2 * c10)
         nu = (3.0 * kappa - 4 * c10) / (2.0 * (3.0 * kappa + 2 * c10))
         return Material(model, e, nu, c10, c20, c30, kappa)
     if not mu > 0:
         raise SceneError(f"{where}: the shear modulus E / (2 (1 + nu)) must be > 0")
-    return Material(model, float(young_modulus_kpa), float(poisson_ratio), 0.5 * mu, 0.0,
-                    0.0, kappa)
+    return Material(
+        model, float(young_modulus_kpa), float(poisson_ratio), 0.5 * mu, 0.0, 0.0, kappa
+    )
 
 
 def from_scene(mat) -> Material:
     """The Material of a scene's [material] table (a `fruitcli.scene.MaterialSection`)."""
-    return material(mat.model, mat.young_modulus_kpa, mat.poisson_ratio, mat.c10_kpa,
-                    mat.c20_kpa or 0.0, mat.c30_kpa or 0.0, mat.bulk_modulus_kpa)
+    return material(
+        mat.model,
+        mat.young_modulus_kpa,
+        mat.poisson_ratio,
+        mat.c10_kpa,
+        mat.c20_kpa or 0.0,
+        mat.c30_kpa or 0.0,
+        mat.bulk_modulus_kpa,
+    )

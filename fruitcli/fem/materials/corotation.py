@@ -36,9 +36,11 @@ this: the correction converges quadratically, so R is then exact to about 1e-14.
 
 def det3(a: np.ndarray) -> np.ndarray:
     """(m,) determinants of (m, 3, 3) matrices (closed form, faster than LAPACK here)."""
-    return (a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
-            - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
-            + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0]))
+    return (
+        a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
+        - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
+        + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0])
+    )
 
 
 def polar_rotations(f: np.ndarray) -> np.ndarray:
@@ -69,9 +71,14 @@ def polar_rotations(f: np.ndarray) -> np.ndarray:
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross products of (m, 3) arrays (np.cross is slow on many short rows)."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+    return np.stack(
+        [
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ],
+        axis=1,
+    )
 
 
 def svd_rotations(f: np.ndarray) -> np.ndarray:
@@ -83,8 +90,9 @@ def svd_rotations(f: np.ndarray) -> np.ndarray:
     return u @ vt
 
 
-def forces_and_energy(x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray,
-                      rot: np.ndarray, scatter=None) -> tuple[np.ndarray, float]:
+def forces_and_energy(
+    x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray, rot: np.ndarray, scatter=None
+) -> tuple[np.ndarray, float]:
     """Elastic forces (n, 3) mN and strain energy (mN mm = uJ) sum_e u.K0 u / 2 with
     u = R^T x_e - X_e. For isotropic Hooke and the polar R the forces are the exact
     gradient of this energy (the dR/dx term vanishes), so it serves the line search.
@@ -115,8 +123,9 @@ def scatter_nodes(tets: np.ndarray, values: np.ndarray, n_nodes: int) -> np.ndar
     return np.stack([np.bincount(idx, vals[:, c], minlength=n_nodes) for c in range(3)], axis=1)
 
 
-def skew_stiffness(f: np.ndarray, rot: np.ndarray, lam: float, mu: float,
-                   project: bool = True) -> np.ndarray:
+def skew_stiffness(
+    f: np.ndarray, rot: np.ndarray, lam: float, mu: float, project: bool = True
+) -> np.ndarray:
     """(m, 3, 3) world-frame matrices T' = R T R^T of the rotation-derivative term.
 
     The corotational energy per unit rest volume is psi = mu |F - R|^2 + lam/2 tr(S - I)^2
@@ -160,13 +169,19 @@ def scatter_matrix(tets: np.ndarray, n_nodes: int):
     import scipy.sparse as sp
 
     m = len(tets)
-    return sp.csr_matrix((np.ones(4 * m), (tets.ravel(), np.arange(4 * m))),
-                         shape=(n_nodes, 4 * m))
+    return sp.csr_matrix((np.ones(4 * m), (tets.ravel(), np.arange(4 * m))), shape=(n_nodes, 4 * m))
 
 
-def exact_stiffness(grads: np.ndarray, volumes: np.ndarray, lam: float, mu: float,
-                    rot: np.ndarray, f: np.ndarray, project: bool = True,
-                    warped_only: bool = False) -> np.ndarray:
+def exact_stiffness(
+    grads: np.ndarray,
+    volumes: np.ndarray,
+    lam: float,
+    mu: float,
+    rot: np.ndarray,
+    f: np.ndarray,
+    project: bool = True,
+    warped_only: bool = False,
+) -> np.ndarray:
     """(m, 12, 12) consistent tangent d f_int / dx (mN/mm) of the corotational forces:
     R K0 R^T plus the rotation-derivative term (see `skew_stiffness`), projected to
     positive semi-definite per element when `project`. With h_a = R g_a:

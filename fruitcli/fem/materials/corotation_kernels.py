@@ -59,9 +59,11 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
                         s += x[tets[e, b], i] * grads[e, b, j]
                     f[e, i, j] = s
             fe = f[e]
-            det[e] = (fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
-                      - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
-                      + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0]))
+            det[e] = (
+                fe[0, 0] * (fe[1, 1] * fe[2, 2] - fe[1, 2] * fe[2, 1])
+                - fe[0, 1] * (fe[1, 0] * fe[2, 2] - fe[1, 2] * fe[2, 0])
+                + fe[0, 2] * (fe[1, 0] * fe[2, 1] - fe[1, 1] * fe[2, 0])
+            )
             if not use_guess or det[e] <= 0.0:  # inverted or flat: the cold path's SVD
                 cold[e] = True
                 continue
@@ -139,13 +141,15 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
             v = volumes[e]
             for i in range(3):
                 for j in range(3):
-                    p[i, j] = v * (r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j]
-                                   + r[i, 2] * sig[2, j])
+                    p[i, j] = v * (r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j])
             energies[e] = 0.5 * v * en
             for b in range(4):
                 for i in range(3):
-                    fe_rows[4 * e + b, i] = (p[i, 0] * grads[e, b, 0] + p[i, 1] * grads[e, b, 1]
-                                             + p[i, 2] * grads[e, b, 2])
+                    fe_rows[4 * e + b, i] = (
+                        p[i, 0] * grads[e, b, 0]
+                        + p[i, 1] * grads[e, b, 1]
+                        + p[i, 2] * grads[e, b, 2]
+                    )
     out = np.empty((ptr.shape[0] - 1, 3))
     gather_rows(fe_rows, ptr, rows, out)
     energy = 0.0
@@ -159,9 +163,20 @@ def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
     n = v.shape[0]
     dof = np.arange(3 * n).reshape(n, 3)
     ptr, rows = node_incidence(tets, n)
-    out = tangent_product_dofs(tets, rotated_gradients(grads, rot), volumes, lam, mu,
-                               t_world, with_t, dof, np.ascontiguousarray(v).reshape(-1),
-                               3 * n, ptr, rows)
+    out = tangent_product_dofs(
+        tets,
+        rotated_gradients(grads, rot),
+        volumes,
+        lam,
+        mu,
+        t_world,
+        with_t,
+        dof,
+        np.ascontiguousarray(v).reshape(-1),
+        3 * n,
+        ptr,
+        rows,
+    )
     return out.reshape(n, 3)
 
 
@@ -175,14 +190,14 @@ def rotated_gradients(grads, rot):
         r = rot[e]
         for b in range(4):
             for i in range(3):
-                rg[e, b, i] = (r[i, 0] * grads[e, b, 0] + r[i, 1] * grads[e, b, 1]
-                               + r[i, 2] * grads[e, b, 2])
+                rg[e, b, i] = (
+                    r[i, 0] * grads[e, b, 0] + r[i, 1] * grads[e, b, 1] + r[i, 2] * grads[e, b, 2]
+                )
     return rg
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out, ptr,
-                         rows):
+def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out, ptr, rows):
     """Consistent tangent times v (mN), over the dofs numbered by dof (n, 3) (-1: held,
     its component of v is zero and its row dropped), v (n_out,): per element, with
     the rotated gradients rg = R g_b (`rotated_gradients`),
@@ -207,8 +222,12 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
                     ve[b, i] = v[k] if k >= 0 else 0.0
             for i in range(3):
                 for j in range(3):
-                    g[i, j] = (ve[0, i] * rg[e, 0, j] + ve[1, i] * rg[e, 1, j]
-                               + ve[2, i] * rg[e, 2, j] + ve[3, i] * rg[e, 3, j])
+                    g[i, j] = (
+                        ve[0, i] * rg[e, 0, j]
+                        + ve[1, i] * rg[e, 1, j]
+                        + ve[2, i] * rg[e, 2, j]
+                        + ve[3, i] * rg[e, 3, j]
+                    )
             vol = volumes[e]
             tr = vol * lam * (g[0, 0] + g[1, 1] + g[2, 2])
             vm = vol * mu
@@ -231,8 +250,9 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
                 mm[2, 1] += t0
             for a in range(4):
                 for i in range(3):
-                    e_rows[4 * e + a, i] = (mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1]
-                                            + mm[i, 2] * rg[e, a, 2])
+                    e_rows[4 * e + a, i] = (
+                        mm[i, 0] * rg[e, a, 0] + mm[i, 1] * rg[e, a, 1] + mm[i, 2] * rg[e, a, 2]
+                    )
     sums = np.empty((ptr.shape[0] - 1, 3))
     gather_rows(e_rows, ptr, rows, sums)
     out = np.zeros(n_out)
@@ -283,9 +303,11 @@ def skew_stiffness_closed_form(f, rot, lam, mu, project):
             det_q = q[0, 0] * adj[0, 0] + q[0, 1] * adj[1, 0] + q[0, 2] * adj[2, 0]
             ok = det_q > 1e-6 * abs(tr) ** 3
             if ok and project:
-                q_low = min(q[0, 0] - abs(q[0, 1]) - abs(q[0, 2]),
-                            q[1, 1] - abs(q[1, 2]) - abs(q[1, 0]),
-                            q[2, 2] - abs(q[2, 0]) - abs(q[2, 1]))
+                q_low = min(
+                    q[0, 0] - abs(q[0, 1]) - abs(q[0, 2]),
+                    q[1, 1] - abs(q[1, 2]) - abs(q[1, 0]),
+                    q[2, 2] - abs(q[2, 0]) - abs(q[2, 1]),
+                )
                 ok = q_low > 0.0 and (c >= 0.0 or mu * q_low + c >= 0.0)
             if not ok:
                 continue
@@ -315,8 +337,7 @@ def warm_up() -> None:
     eye = np.eye(3).reshape(1, 3, 3)
     f, rot, _, _ = kinematics(x, tets, grads, eye, True, 4, 1e-7)
     kinematics(x, tets, grads, np.empty((0, 3, 3)), False, 4, 1e-7)
-    forces_and_energy(tets, grads, np.ones(1), 1.0, 1.0, f, rot,
-                      *node_incidence(tets, 4))
+    forces_and_energy(tets, grads, np.ones(1), 1.0, 1.0, f, rot, *node_incidence(tets, 4))
     tangent_product(tets, grads, np.ones(1), 1.0, 1.0, rot, eye.copy(), True, x)
     tangent_product(tets, grads, np.ones(1), 1.0, 1.0, rot, np.empty((0, 3, 3)), False, x)
     for project in (True, False):

@@ -42,9 +42,11 @@ def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d):
                 r = 3 * i + jj
                 for k in range(3):
                     for ll in range(3):
-                        d2 = (-(2.0 / 3.0) * finv[ll, k] * (f[i, jj] - i1 / 3.0 * finv[jj, i])
-                              - (2.0 / 3.0) * f[k, ll] * finv[jj, i]
-                              + i1 / 3.0 * finv[jj, k] * finv[ll, i])
+                        d2 = (
+                            -(2.0 / 3.0) * finv[ll, k] * (f[i, jj] - i1 / 3.0 * finv[jj, i])
+                            - (2.0 / 3.0) * f[k, ll] * finv[jj, i]
+                            + i1 / 3.0 * finv[jj, k] * finv[ll, i]
+                        )
                         if i == k and jj == ll:
                             d2 += 1.0
                         a_out[r, 3 * k + ll] = w2 * d[i, jj] * d[k, ll] + w1 * 2.0 * c * d2
@@ -54,5 +56,8 @@ def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d):
 @njit(cache=True, nogil=True)
 def volumetric(det, kappa):
     """(U, dU/dJ, d2U/dJ2) in kPa at J = det."""
-    return (0.25 * kappa * (det * det - 1.0 - 2.0 * np.log(det)),
-            0.5 * kappa * (det - 1.0 / det), 0.5 * kappa * (1.0 + 1.0 / (det * det)))
+    return (
+        0.25 * kappa * (det * det - 1.0 - 2.0 * np.log(det)),
+        0.5 * kappa * (det - 1.0 / det),
+        0.5 * kappa * (1.0 + 1.0 / (det * det)),
+    )

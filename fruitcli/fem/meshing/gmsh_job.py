@@ -130,14 +130,35 @@ def _size_field(gmsh, job: dict, size: float, min_size: float) -> None:
 
     for i in range(1, int(job["n_shells"])):
         lo_hi = job[f"s{i}_refine_box"]
-        add("Box", {"XMin": lo_hi[0], "YMin": lo_hi[1], "ZMin": lo_hi[2], "XMax": lo_hi[3],
-                    "YMax": lo_hi[4], "ZMax": lo_hi[5], "Thickness": size,
-                    "VIn": float(job[f"s{i}_size"]), "VOut": size})
+        add(
+            "Box",
+            {
+                "XMin": lo_hi[0],
+                "YMin": lo_hi[1],
+                "ZMin": lo_hi[2],
+                "XMax": lo_hi[3],
+                "YMax": lo_hi[4],
+                "ZMax": lo_hi[5],
+                "Thickness": size,
+                "VIn": float(job[f"s{i}_size"]),
+                "VOut": size,
+            },
+        )
     if "taxels" in job:
         radius = float(job["taxel_radius_mm"])
         for x, y, z in np.asarray(job["taxels"], float).reshape(-1, 3):
-            add("Ball", {"XCenter": x, "YCenter": y, "ZCenter": z, "Radius": radius,
-                         "Thickness": size, "VIn": min_size, "VOut": size})
+            add(
+                "Ball",
+                {
+                    "XCenter": x,
+                    "YCenter": y,
+                    "ZCenter": z,
+                    "Radius": radius,
+                    "Thickness": size,
+                    "VIn": min_size,
+                    "VOut": size,
+                },
+            )
     if fields:
         m = gmsh.model.mesh.field.add("Min")
         gmsh.model.mesh.field.setNumbers(m, "FieldsList", fields)
@@ -155,20 +176,21 @@ def mesh_job(job: dict, out_dir: Path) -> None:
         shells = []
         for i in range(int(job["n_shells"])):
             if f"s{i}_faces" in job:
-                shells.append((job[f"s{i}_vertices"], job[f"s{i}_faces"],
-                               job.get(f"s{i}_bottom")))
+                shells.append((job[f"s{i}_vertices"], job[f"s{i}_faces"], job.get(f"s{i}_bottom")))
             else:
                 kind = "box" if f"s{i}_box" in job else "ellipsoid"
-                shells.append((*_occ_surface(gmsh, kind, job[f"s{i}_{kind}"],
-                                             float(job[f"s{i}_size"])), None))
+                shells.append(
+                    (*_occ_surface(gmsh, kind, job[f"s{i}_{kind}"], float(job[f"s{i}_size"])), None)
+                )
         gmsh.model.add("fruit")
         tags, shell_surfaces, to_param, base = _Tags(), [], [], []
         for i, (v, f, bottom) in enumerate(shells):
             if bottom is None:
                 shell_surfaces.append(_add_kept(gmsh, tags, v, f))
             else:
-                surf, dim_tags = _add_split(gmsh, tags, np.asarray(v, float), f,
-                                            np.asarray(bottom, bool))
+                surf, dim_tags = _add_split(
+                    gmsh, tags, np.asarray(v, float), f, np.asarray(bottom, bool)
+                )
                 shell_surfaces.append(surf)
                 to_param += dim_tags
                 if i == 0 and bool(job.get("base", False)):
@@ -179,8 +201,9 @@ def mesh_job(job: dict, out_dir: Path) -> None:
         gmsh.model.geo.addVolume(loops)
         gmsh.model.geo.synchronize()
         gmsh.model.addPhysicalGroup(3, [1], name="silicone")
-        gmsh.model.addPhysicalGroup(2, [s for s in shell_surfaces[0] if s not in base],
-                                    name="outer")
+        gmsh.model.addPhysicalGroup(
+            2, [s for s in shell_surfaces[0] if s not in base], name="outer"
+        )
         if base:
             gmsh.model.addPhysicalGroup(2, base, name="base")
         for i in range(1, len(shells)):
@@ -196,10 +219,12 @@ def mesh_job(job: dict, out_dir: Path) -> None:
         index = np.zeros(int(tags_.max()) + 1, dtype=np.int64)
         index[tags_.astype(np.int64)] = np.arange(len(tags_))
         tet_tags, tet_nodes = gmsh.model.mesh.getElementsByType(4)
-        out = {"nodes": coords.reshape(-1, 3),
-               "tets": index[tet_nodes.astype(np.int64)].reshape(-1, 4),
-               "sicn": np.asarray(gmsh.model.mesh.getElementQualities(tet_tags, "minSICN")),
-               "gamma": np.asarray(gmsh.model.mesh.getElementQualities(tet_tags, "gamma"))}
+        out = {
+            "nodes": coords.reshape(-1, 3),
+            "tets": index[tet_nodes.astype(np.int64)].reshape(-1, 4),
+            "sicn": np.asarray(gmsh.model.mesh.getElementQualities(tet_tags, "minSICN")),
+            "gamma": np.asarray(gmsh.model.mesh.getElementQualities(tet_tags, "gamma")),
+        }
 
         def tris(surfs):
             got = [gmsh.model.mesh.getElementsByType(2, s)[1] for s in surfs]
@@ -257,8 +282,10 @@ def main(argv: list[str]) -> int:
     try:
         mesh_job(job, out_dir)
     except Exception as exc:  # reported to the parent on stderr, one line
-        print(f"gmsh: {str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r}",
-              file=sys.stderr)
+        print(
+            f"gmsh: {str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r}",
+            file=sys.stderr,
+        )
         return 3
     return 0
 

@@ -42,8 +42,7 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
         tets.append(np.stack(corners, axis=1))
     tets = np.concatenate(tets)
     p = nodes[tets]
-    vol = np.einsum("mi,mi->m", p[:, 1] - p[:, 0],
-                    np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    vol = np.einsum("mi,mi->m", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
     neg = vol < 0
     tets[neg] = tets[neg][:, [0, 2, 1, 3]]
     return nodes, tets

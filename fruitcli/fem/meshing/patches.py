@@ -74,8 +74,12 @@ def is_disk(faces: np.ndarray) -> bool:
     if len(faces) == 0 or len(np.unique(shells(faces))) != 1:
         return False
     n_v = len(np.unique(faces))
-    n_e = len(np.unique(np.sort(np.concatenate(
-        [faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0))
+    n_e = len(
+        np.unique(
+            np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1),
+            axis=0,
+        )
+    )
     return n_v - n_e + len(faces) == 1 and len(boundary_loops(faces)) == 1
 
 
@@ -101,7 +105,8 @@ def corner_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         a = p[:, (k + 1) % 3] - p[:, k]
         b = p[:, (k + 2) % 3] - p[:, k]
         cos = np.einsum("ij,ij->i", a, b) / np.maximum(
-            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), np.finfo(float).tiny)
+            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), np.finfo(float).tiny
+        )
         out[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
     return out
 
@@ -177,6 +182,6 @@ def split_loop(loop: np.ndarray, vertices: np.ndarray) -> tuple[np.ndarray, np.n
     j = int(np.lexsort((loop, -x))[0])
     rolled = np.roll(loop, -i)
     k = (j - i) % len(loop)
-    forward = rolled[:k + 1]
+    forward = rolled[: k + 1]
     backward = np.concatenate([rolled[k:], rolled[:1]])[::-1]
     return forward, backward

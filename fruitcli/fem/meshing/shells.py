@@ -16,8 +16,9 @@ from fruitcli.errors import MeshError, SceneError
 from fruitcli.fem.tolerances import INSIDE_VOLUME_MM3
 
 
-def load_surface(path: Path, what: str, error=SceneError,
-                 scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def load_surface(
+    path: Path, what: str, error=SceneError, scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (v, 3) mm and faces (f, 3) of a closed, consistently wound surface file
     (its coordinates times `scale`: 1000 for a file in metres)."""
     import trimesh
@@ -39,8 +40,12 @@ def load_surface(path: Path, what: str, error=SceneError,
 
 
 def surface_shell(name: str, vertices, faces) -> dict:
-    return {"name": name, "kind": "surface", "vertices": np.asarray(vertices, float),
-            "faces": np.asarray(faces, np.int64)}
+    return {
+        "name": name,
+        "kind": "surface",
+        "vertices": np.asarray(vertices, float),
+        "faces": np.asarray(faces, np.int64),
+    }
 
 
 def box_shell(name: str, lo, hi) -> dict:
@@ -48,8 +53,13 @@ def box_shell(name: str, lo, hi) -> dict:
 
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     m = trimesh.creation.box(bounds=[lo, hi])
-    return {"name": name, "kind": "box", "params": np.concatenate([lo, hi - lo]),
-            "vertices": np.asarray(m.vertices), "faces": np.asarray(m.faces)}
+    return {
+        "name": name,
+        "kind": "box",
+        "params": np.concatenate([lo, hi - lo]),
+        "vertices": np.asarray(m.vertices),
+        "faces": np.asarray(m.faces),
+    }
 
 
 def ellipsoid_shell(name: str, center_mm, radii_mm) -> dict:
@@ -59,19 +69,27 @@ def ellipsoid_shell(name: str, center_mm, radii_mm) -> dict:
     m = trimesh.creation.icosphere(subdivisions=4)
     # circumscribed stand-in (a little larger than the true ellipsoid) for the checks
     v = np.asarray(m.vertices) * r * 1.01 + c
-    return {"name": name, "kind": "ellipsoid", "params": np.concatenate([c, r]),
-            "vertices": v, "faces": np.asarray(m.faces)}
+    return {
+        "name": name,
+        "kind": "ellipsoid",
+        "params": np.concatenate([c, r]),
+        "vertices": v,
+        "faces": np.asarray(m.faces),
+    }
 
 
 def _manifold(shell: dict):
     import manifold3d
 
-    mesh = manifold3d.Mesh(vert_properties=np.asarray(shell["vertices"], np.float32),
-                           tri_verts=np.asarray(shell["faces"], np.uint32))
+    mesh = manifold3d.Mesh(
+        vert_properties=np.asarray(shell["vertices"], np.float32),
+        tri_verts=np.asarray(shell["faces"], np.uint32),
+    )
     man = manifold3d.Manifold(mesh)
     if man.status() != manifold3d.Error.NoError:
-        raise MeshError(f"{shell['name']}: surface is not a valid closed manifold "
-                        f"({man.status().name})")
+        raise MeshError(
+            f"{shell['name']}: surface is not a valid closed manifold ({man.status().name})"
+        )
     return man
 
 
@@ -92,11 +110,15 @@ def _check_layout(outer: dict, chambers: list[dict], where: str) -> None:
         vol = man.volume()
         outside = (man - body).volume()
         if outside > INSIDE_VOLUME_MM3 * max(vol, 1.0) + 1e-9:
-            raise MeshError(f"{where}: [[geometry.chamber]] '{ch['name']}': {outside:.3g} mm^3 "
-                            f"of it lies outside the solid {outer['name']} (chambers must be "
-                            "inside the body)")
+            raise MeshError(
+                f"{where}: [[geometry.chamber]] '{ch['name']}': {outside:.3g} mm^3 "
+                f"of it lies outside the solid {outer['name']} (chambers must be "
+                "inside the body)"
+            )
         for other, oman in zip(chambers, mans, strict=False):
             if (man ^ oman).volume() > INSIDE_VOLUME_MM3 * max(vol, 1.0) + 1e-9:
-                raise MeshError(f"{where}: [[geometry.chamber]] '{ch['name']}' intersects "
-                                f"[[geometry.chamber]] '{other['name']}'")
+                raise MeshError(
+                    f"{where}: [[geometry.chamber]] '{ch['name']}' intersects "
+                    f"[[geometry.chamber]] '{other['name']}'"
+                )
         mans.append(man)

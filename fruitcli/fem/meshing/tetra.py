@@ -126,20 +126,29 @@ def fallback_plan(size_mm: float) -> list[tuple[float, bool]]:
     return [(size_mm, True), (size_mm * FALLBACK_SIZE_FACTOR, True), (size_mm, False)]
 
 
-def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
-              taxels_xyz: np.ndarray | None = None, remesh: bool = True) -> dict:
+def build_job(
+    shells: list[dict],
+    size_mm: float,
+    min_size_mm: float,
+    taxels_xyz: np.ndarray | None = None,
+    remesh: bool = True,
+) -> dict:
     """The arrays handed to the gmsh child (see `fruitcli.fem.meshing.gmsh_job`). With
     remesh=False the triangle surfaces are kept as they are (no patch split)."""
     wall = chamber_sizes(shells, min_size_mm)
     # gmsh clamps every size to MeshSizeMin: chamber files remeshed at their wall size
     # need it that low; analytic chambers are triangulated apart and kept
-    remeshed_walls = [w for w, sh in zip(wall, shells[1:], strict=True)
-                      if sh["kind"] == "surface"]
-    job = {"n_shells": np.array(len(shells)), "size_mm": np.array(size_mm),
-           "min_size_mm": np.array(min_size_mm),
-           "curvature_min_mm": np.array(min([min_size_mm, CURVATURE_MIN_FRACTION * size_mm,
-                                             *remeshed_walls])),
-           "curvature_n": np.array(CURVATURE_ELEMENTS), "base": np.array(False)}
+    remeshed_walls = [w for w, sh in zip(wall, shells[1:], strict=True) if sh["kind"] == "surface"]
+    job = {
+        "n_shells": np.array(len(shells)),
+        "size_mm": np.array(size_mm),
+        "min_size_mm": np.array(min_size_mm),
+        "curvature_min_mm": np.array(
+            min([min_size_mm, CURVATURE_MIN_FRACTION * size_mm, *remeshed_walls])
+        ),
+        "curvature_n": np.array(CURVATURE_ELEMENTS),
+        "base": np.array(False),
+    }
     for i, sh in enumerate(shells):
         h = size_mm if i == 0 else wall[i - 1]
         if sh["kind"] == "surface":
@@ -162,9 +171,16 @@ def build_job(shells: list[dict], size_mm: float, min_size_mm: float,
     return job
 
 
-def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_s: float,
-             label: str, work_dir: Path | None = None,
-             taxels_xyz: np.ndarray | None = None, progress=None) -> dict:
+def run_gmsh(
+    shells: list[dict],
+    size_mm: float,
+    min_size_mm: float,
+    time_limit_s: float,
+    label: str,
+    work_dir: Path | None = None,
+    taxels_xyz: np.ndarray | None = None,
+    progress=None,
+) -> dict:
     """Mesh the outer shell (first) with the chamber shells as holes, through the
     fallback chain (module docstring). Returns gmsh's raw arrays, the .msh text and
     `attempts` (JSON list of {size_mm, surfaces, result}). MeshError names `label` on
@@ -173,20 +189,28 @@ def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_
     for n, (size, remesh) in enumerate(plan):
         surfaces = "remeshed" if remesh else "kept as input"
         try:
-            raw = _run_once(build_job(shells, size, min(min_size_mm, size), taxels_xyz,
-                                      remesh), time_limit_s, label, work_dir)
+            raw = _run_once(
+                build_job(shells, size, min(min_size_mm, size), taxels_xyz, remesh),
+                time_limit_s,
+                label,
+                work_dir,
+            )
         except MeshError as exc:
             reason = str(exc).removeprefix(f"{label}: ")
             if not any(m in reason for m in RETRY_MARKERS):
                 if reason.startswith("tetrahedralization failed"):
-                    raise MeshError(f"{exc}; check that the surfaces are closed and apart, "
-                                    f"or change [mesh].size_mm") from None
+                    raise MeshError(
+                        f"{exc}; check that the surfaces are closed and apart, "
+                        f"or change [mesh].size_mm"
+                    ) from None
                 raise
             attempts.append({"size_mm": size, "surfaces": surfaces, "result": reason})
             if n + 1 < len(plan):
-                msg = (f"tetra: attempt {n + 1} failed ({reason}); retrying at size "
-                       f"{plan[n + 1][0]:g} mm with the surfaces "
-                       f"{'remeshed' if plan[n + 1][1] else 'kept as input'}")
+                msg = (
+                    f"tetra: attempt {n + 1} failed ({reason}); retrying at size "
+                    f"{plan[n + 1][0]:g} mm with the surfaces "
+                    f"{'remeshed' if plan[n + 1][1] else 'kept as input'}"
+                )
                 log.warning(msg)
                 if progress is not None:
                     progress(msg)
@@ -198,7 +222,8 @@ def run_gmsh(shells: list[dict], size_mm: float, min_size_mm: float, time_limit_
         f"{label}: tetrahedralization failed in all {len(plan)} attempts (size_mm "
         f"{size_mm:g} and {size_mm * FALLBACK_SIZE_FACTOR:g} remeshed, {size_mm:g} with the "
         f"input triangles kept; last: {attempts[-1]['result']}); change [mesh].size_mm or "
-        f"repair {label} (facets that cross or touch)")
+        f"repair {label} (facets that cross or touch)"
+    )
 
 
 def _kill_group(pid: int) -> None:
@@ -218,20 +243,37 @@ def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None)
     with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
-        cmd = [sys.executable, "-m", "fruitcli.fem.meshing.gmsh_job",
-               str(tmp / "job.npz"), str(tmp)]
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]),
-            **{PARENT_ENV: str(os.getpid())})
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                start_new_session=True, env=env, text=True)
+        cmd = [
+            sys.executable,
+            "-m",
+            "fruitcli.fem.meshing.gmsh_job",
+            str(tmp / "job.npz"),
+            str(tmp),
+        ]
+        env = dict(
+            os.environ,
+            PYTHONPATH=os.pathsep.join(
+                [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]
+            ),
+            **{PARENT_ENV: str(os.getpid())},
+        )
+        proc = subprocess.Popen(
+            cmd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+            env=env,
+            text=True,
+        )
         try:
             _, err = proc.communicate(timeout=time_limit_s)
         except subprocess.TimeoutExpired:
             _kill_group(proc.pid)
             proc.communicate()
-            raise MeshError(f"{label}: gmsh did not finish within [mesh].time_limit_s = "
-                            f"{time_limit_s:g} s (killed); try a larger size_mm") from None
+            raise MeshError(
+                f"{label}: gmsh did not finish within [mesh].time_limit_s = "
+                f"{time_limit_s:g} s (killed); try a larger size_mm"
+            ) from None
         except BaseException:  # Ctrl-C or any error here: the child (own session) goes too
             _kill_group(proc.pid)
             proc.communicate()
@@ -258,8 +300,9 @@ def _match_faces(faces: np.ndarray, wanted: np.ndarray) -> np.ndarray:
     return faces[np.isin(ka, kb)]
 
 
-def surface_tags(nodes: np.ndarray, outer: np.ndarray, base: np.ndarray,
-                 taxels_xyz: np.ndarray | None) -> np.ndarray:
+def surface_tags(
+    nodes: np.ndarray, outer: np.ndarray, base: np.ndarray, taxels_xyz: np.ndarray | None
+) -> np.ndarray:
     """(f,) int8 tag per outer triangle (see the module docstring): base where `base`,
     else taxel region where a corner or the centroid lies within TAXEL_RADIUS_MM of a
     taxel (and the triangle nearest each taxel), else 0."""
@@ -278,8 +321,9 @@ def surface_tags(nodes: np.ndarray, outer: np.ndarray, base: np.ndarray,
     return tag
 
 
-def assemble_mesh(raw: dict, names: list[str], size_mm: float,
-                  taxels_xyz: np.ndarray | None = None) -> dict:
+def assemble_mesh(
+    raw: dict, names: list[str], size_mm: float, taxels_xyz: np.ndarray | None = None
+) -> dict:
     """Arrays of mesh.npz from gmsh's output: nodes, tets (positive), outer surface
     (outward) with its tags, chamber triangles (normals out of the cavity)."""
     nodes, tets = raw["nodes"], raw["tets"].astype(np.int64)
@@ -300,22 +344,27 @@ def assemble_mesh(raw: dict, names: list[str], size_mm: float,
     base_tris = raw.get("base_tris", np.zeros((0, 3), np.int64))
     if len(base_tris):
         key = np.sort(outer, axis=1)
-        base = np.isin(key @ np.array([len(nodes) ** 2, len(nodes), 1]),
-                       np.sort(remap[base_tris], axis=1) @ np.array([len(nodes) ** 2,
-                                                                      len(nodes), 1]))
+        base = np.isin(
+            key @ np.array([len(nodes) ** 2, len(nodes), 1]),
+            np.sort(remap[base_tris], axis=1) @ np.array([len(nodes) ** 2, len(nodes), 1]),
+        )
     else:
-        normals = np.cross(nodes[outer[:, 1]] - nodes[outer[:, 0]],
-                           nodes[outer[:, 2]] - nodes[outer[:, 0]])
+        normals = np.cross(
+            nodes[outer[:, 1]] - nodes[outer[:, 0]], nodes[outer[:, 2]] - nodes[outer[:, 0]]
+        )
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         zmin = nodes[:, 2].min()
         low = np.all(nodes[outer][:, :, 2] < zmin + 1e-6 * max(size_mm, 1.0), axis=1)
         base = low & (normals[:, 2] < -BASE_NORMAL_COS)
     return {
-        "nodes": nodes, "tets": tets, "surface_tris": outer,
+        "nodes": nodes,
+        "tets": tets,
+        "surface_tris": outer,
         "surface_tri_tag": surface_tags(nodes, outer, base, taxels_xyz),
         "chamber_names": np.array(names, dtype=str),
-        "chamber_tris": (np.concatenate(chamber_tris) if chamber_tris
-                         else np.zeros((0, 3), np.int64)),
+        "chamber_tris": (
+            np.concatenate(chamber_tris) if chamber_tris else np.zeros((0, 3), np.int64)
+        ),
         "chamber_tri_owner": (np.concatenate(owner) if owner else np.zeros(0, np.int64)),
         "sicn": raw["sicn"],
         "gamma": raw["gamma"],
@@ -327,9 +376,15 @@ def quality_report(mesh: dict, min_quality: float) -> dict:
     """Quality figures of a mesh (gmsh's minSICN and gamma, dihedral angles in degrees)."""
     sicn, gamma = mesh["sicn"], mesh["gamma"]
     dihedral = min_dihedral_deg(mesh["nodes"], mesh["tets"])
-    return {"n_nodes": int(len(mesh["nodes"])), "n_tets": int(len(mesh["tets"])),
-            "sicn_min": float(sicn.min()), "sicn_mean": float(sicn.mean()),
-            "gamma_min": float(gamma.min()), "gamma_mean": float(gamma.mean()),
-            "min_dihedral_deg": float(dihedral.min()),
-            "poor_tets": int(np.sum(sicn < min_quality)), "min_quality": float(min_quality),
-            "attempts": json.loads(str(mesh.get("attempts", "[]")))}
+    return {
+        "n_nodes": int(len(mesh["nodes"])),
+        "n_tets": int(len(mesh["tets"])),
+        "sicn_min": float(sicn.min()),
+        "sicn_mean": float(sicn.mean()),
+        "gamma_min": float(gamma.min()),
+        "gamma_mean": float(gamma.mean()),
+        "min_dihedral_deg": float(dihedral.min()),
+        "poor_tets": int(np.sum(sicn < min_quality)),
+        "min_quality": float(min_quality),
+        "attempts": json.loads(str(mesh.get("attempts", "[]"))),
+    }

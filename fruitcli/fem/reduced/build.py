@@ -44,20 +44,26 @@ def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
         return np.full(k, float(lo)), np.full(k, float(hi))
     act = scene.actuation
     if act.volume_growth_mm3:
-        raise SceneError("[actuation].volume_growth_mm3: the reduced model maps pressures; "
-                         "give [reduced].pressure_range_kpa = [lo, hi] (kPa)")
+        raise SceneError(
+            "[actuation].volume_growth_mm3: the reduced model maps pressures; "
+            "give [reduced].pressure_range_kpa = [lo, hi] (kPa)"
+        )
     table = act.pressure_kpa or {}
     if not table:
-        raise SceneError("[reduced]: no pressure range: give [reduced].pressure_range_kpa = "
-                         "[lo, hi] (kPa) or [actuation].pressure_kpa")
+        raise SceneError(
+            "[reduced]: no pressure range: give [reduced].pressure_range_kpa = "
+            "[lo, hi] (kPa) or [actuation].pressure_kpa"
+        )
     values = [np.asarray(table.get(n, [0.0]), float) for n in names]
     lo = np.array([v.min() for v in values])
     hi = np.array([v.max() for v in values])
     span = hi - lo
     span = np.where(span > 0, span, span.max())
     if span.max() <= 0:
-        raise SceneError("[actuation].pressure_kpa: every chamber at one pressure: give "
-                         "[reduced].pressure_range_kpa = [lo, hi] (kPa)")
+        raise SceneError(
+            "[actuation].pressure_kpa: every chamber at one pressure: give "
+            "[reduced].pressure_range_kpa = [lo, hi] (kPa)"
+        )
     m = cfg.margin
     return lo - m * span, hi + m * span
 
@@ -77,23 +83,34 @@ class _Solves:
         load = Load.pressures(p)
         if self.p:
             j = int(np.argmin(np.linalg.norm(np.array(self.p) - p, axis=1)))
-            start = dict(x_start=self.x[j], load_start=Load.pressures(self.p[j]),
-                         pressure_start=self.p[j], options=self.options)
+            start = dict(
+                x_start=self.x[j],
+                load_start=Load.pressures(self.p[j]),
+                pressure_start=self.p[j],
+                options=self.options,
+            )
         else:
             start = dict(options=self.first)
         try:
-            res = solve_state(self.model, load, solver=self.solver,
-                              label=f"reduced-model sample at {np.round(p, 3).tolist()} kPa",
-                              **start)
+            res = solve_state(
+                self.model,
+                load,
+                solver=self.solver,
+                label=f"reduced-model sample at {np.round(p, 3).tolist()} kPa",
+                **start,
+            )
         except SolverError as exc:
-            raise SolverError(f"{exc} (narrow [reduced].pressure_range_kpa or "
-                              "[reduced].margin)") from None
+            raise SolverError(
+                f"{exc} (narrow [reduced].pressure_range_kpa or [reduced].margin)"
+            ) from None
         self.p.append(np.array(p, float))
         self.x.append(res.x)
         self.results.append(res)
-        self.progress(f"state {len(self.p)}/{self.total}: full solve at "
-                      f"{np.round(p, 2).tolist()} kPa, {res.iterations} iterations, "
-                      f"{res.solve_ms:.0f} ms")
+        self.progress(
+            f"state {len(self.p)}/{self.total}: full solve at "
+            f"{np.round(p, 2).tolist()} kPa, {res.iterations} iterations, "
+            f"{res.solve_ms:.0f} ms"
+        )
         return res
 
 
@@ -126,9 +143,23 @@ def _pod(u: np.ndarray) -> np.ndarray:
     return vt
 
 
-def build(model, taxel_tet, taxel_bary, lo, hi, options, first_options, *,
-          points_per_axis=5, max_degree=4, validation=50, seed=0, surface_nodes=None,
-          extra=None, progress=None) -> ReducedModel:
+def build(
+    model,
+    taxel_tet,
+    taxel_bary,
+    lo,
+    hi,
+    options,
+    first_options,
+    *,
+    points_per_axis=5,
+    max_degree=4,
+    validation=50,
+    seed=0,
+    surface_nodes=None,
+    extra=None,
+    progress=None,
+) -> ReducedModel:
     """Fit and validate the reduced model of `model` over the box [lo, hi] (K,) kPa.
     `extra`: arrays stored beside it (mesh, element names). Raises SolverError naming
     the sample pressure when a full solve fails."""
@@ -139,8 +170,9 @@ def build(model, taxel_tet, taxel_bary, lo, hi, options, first_options, *,
     if k == 0:
         raise SceneError("[reduced]: the body has no chambers: nothing to reduce")
     if n < 2 or max_degree < 1 or validation < 1:
-        raise SceneError("[reduced]: expected points_per_axis >= 2, max_degree >= 1, "
-                         "validation >= 1")
+        raise SceneError(
+            "[reduced]: expected points_per_axis >= 2, max_degree >= 1, validation >= 1"
+        )
     if np.any(hi <= lo):
         raise SceneError(f"[reduced]: empty pressure range {lo.tolist()}..{hi.tolist()} kPa")
     grid_idx = rs.snake_grid(k, n)
@@ -178,7 +210,7 @@ def build(model, taxel_tet, taxel_bary, lo, hi, options, first_options, *,
     for d in degrees:
         phi = rs.basis(xi_grid, rs.exponents(k, d))
         loo = rs.leave_one_out(phi, np.hstack([tax_g, vol_g]))
-        loo_max.append(float(taxel_errors(loo[:, :tax_g.shape[1]], 0 * tax_g).max()))
+        loo_max.append(float(taxel_errors(loo[:, : tax_g.shape[1]], 0 * tax_g).max()))
     for m in [m for m in range(2, n + 1) if (n - 1) % (m - 1) == 0]:
         step = (n - 1) // (m - 1)
         keep = np.all(grid_idx % step == 0, axis=1)
@@ -186,9 +218,15 @@ def build(model, taxel_tet, taxel_bary, lo, hi, options, first_options, *,
             exps = rs.exponents(k, d)
             c = rs.fit(rs.basis(xi_grid[keep], exps), np.hstack([tax_g[keep], vol_g[keep]]))
             pred = rs.basis(xi_val, exps) @ c
-            study.append([m, d, int(keep.sum()),
-                          taxel_errors(pred[:, :tax_g.shape[1]], tax_v).max(),
-                          volume_errors(pred[:, tax_g.shape[1]:], vol_v).max()])
+            study.append(
+                [
+                    m,
+                    d,
+                    int(keep.sum()),
+                    taxel_errors(pred[:, : tax_g.shape[1]], tax_v).max(),
+                    volume_errors(pred[:, tax_g.shape[1] :], vol_v).max(),
+                ]
+            )
     degree = degrees[int(np.argmin(loo_max))]
     exps = rs.exponents(k, degree)
     phi_g = rs.basis(xi_grid, exps)
@@ -199,24 +237,39 @@ def build(model, taxel_tet, taxel_bary, lo, hi, options, first_options, *,
     phi_v = rs.basis(xi_val, exps)
     err_tax = taxel_errors(phi_v @ coef_taxels, tax_v)
     err_vol = volume_errors(phi_v @ coef_volume, vol_v)
-    surf = (np.arange(len(model.rest)) if surface_nodes is None
-            else np.asarray(surface_nodes, np.int64))
+    surf = (
+        np.arange(len(model.rest)) if surface_nodes is None else np.asarray(surface_nodes, np.int64)
+    )
     u_pred = (phi_v @ coef_modes) @ modes
     err_surf = np.linalg.norm((u_pred - u_v).reshape(validation, -1, 3)[:, surf], axis=2)
     solve_ms = np.array([r.solve_ms for r in solves.results])
     arrays = dict(extra or {})
     arrays.update(
         chamber_names=np.array(model.chamber_names, dtype=str).reshape(-1),
-        range_lo_kpa=lo, range_hi_kpa=hi, exponents=exps, coef_taxels=coef_taxels,
-        coef_volume=coef_volume, coef_modes=coef_modes, modes=modes, rest_nodes=model.rest,
-        surface_node_index=surf, taxel_tet=np.asarray(taxel_tet),
-        taxel_bary=np.asarray(taxel_bary, float), sample_kpa=p_grid,
-        validation_kpa=p_val, validation_taxel_error_mm=err_tax,
-        validation_volume_error_pct=err_vol, validation_surface_error_mm=err_surf,
-        loo_degrees=np.array(degrees), loo_taxel_max_mm=np.array(loo_max),
+        range_lo_kpa=lo,
+        range_hi_kpa=hi,
+        exponents=exps,
+        coef_taxels=coef_taxels,
+        coef_volume=coef_volume,
+        coef_modes=coef_modes,
+        modes=modes,
+        rest_nodes=model.rest,
+        surface_node_index=surf,
+        taxel_tet=np.asarray(taxel_tet),
+        taxel_bary=np.asarray(taxel_bary, float),
+        sample_kpa=p_grid,
+        validation_kpa=p_val,
+        validation_taxel_error_mm=err_tax,
+        validation_volume_error_pct=err_vol,
+        validation_surface_error_mm=err_surf,
+        loo_degrees=np.array(degrees),
+        loo_taxel_max_mm=np.array(loo_max),
         study=np.array(study, float).reshape(-1, 5),  # points/axis, degree, samples, mm, %
-        full_solves=np.array(len(solves.results)), solve_ms=solve_ms,
-        fit_s=np.array(time.perf_counter() - fit_s), build_s=np.array(0.0))
+        full_solves=np.array(len(solves.results)),
+        solve_ms=solve_ms,
+        fit_s=np.array(time.perf_counter() - fit_s),
+        build_s=np.array(0.0),
+    )
     arrays["build_s"] = np.array(time.perf_counter() - t0)
     return ReducedModel.from_arrays(arrays)
 
@@ -241,33 +294,75 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
     cfg = scene.reduced
     taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
     tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
-    box = ", ".join(f"{c} {a:g}..{b:g}" for c, a, b in zip(model.chamber_names, lo, hi,
-                                                            strict=True))
-    progress(f"reduce: {cfg.points_per_axis}^{len(lo)} samples + {cfg.validation} "
-             f"held-out full solves over {box} kPa")
-    extra = {"tets": model.tets, "elements": getattr(model, "conn", model.tets),
-             "surface_tris": mesh["surface_tris"], "element": np.array(element_name(model)),
-             "material_model": np.array(getattr(getattr(model, "material", None), "model",
-                                                "corotational")),
-             "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
-             "taxel_outside": outside}
-    reduced = build(model, tet, w, lo, hi, solver_options(scene),
-                    solver_options(scene, first_state=True, jig=bool(model.jigs)),
-                    points_per_axis=cfg.points_per_axis, max_degree=cfg.max_degree,
-                    validation=cfg.validation, seed=cfg.seed,
-                    surface_nodes=np.unique(mesh["surface_tris"]), extra=extra,
-                    progress=progress)
+    box = ", ".join(
+        f"{c} {a:g}..{b:g}" for c, a, b in zip(model.chamber_names, lo, hi, strict=True)
+    )
+    progress(
+        f"reduce: {cfg.points_per_axis}^{len(lo)} samples + {cfg.validation} "
+        f"held-out full solves over {box} kPa"
+    )
+    extra = {
+        "tets": model.tets,
+        "elements": getattr(model, "conn", model.tets),
+        "surface_tris": mesh["surface_tris"],
+        "element": np.array(element_name(model)),
+        "material_model": np.array(
+            getattr(getattr(model, "material", None), "model", "corotational")
+        ),
+        "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
+        "taxel_outside": outside,
+    }
+    reduced = build(
+        model,
+        tet,
+        w,
+        lo,
+        hi,
+        solver_options(scene),
+        solver_options(scene, first_state=True, jig=bool(model.jigs)),
+        points_per_axis=cfg.points_per_axis,
+        max_degree=cfg.max_degree,
+        validation=cfg.validation,
+        seed=cfg.seed,
+        surface_nodes=np.unique(mesh["surface_tris"]),
+        extra=extra,
+        progress=progress,
+    )
     figures = reduced.validation()
     progress(reduced.describe())
     with staged_dir(out_dir) as tmp:
         reduced.save(tmp / "reduced.npz")
-        write_json(tmp / "validation.json", figures | {
-            "range_kpa": {c: [float(a), float(b)] for c, a, b in
-                          zip(model.chamber_names, lo, hi, strict=True)},
-            "study": [dict(zip(("points_per_axis", "degree", "samples", "taxel_max_mm",
-                                "volume_max_pct"), row, strict=True))
-                      for row in reduced.arrays["study"].tolist()],
-            "loo_taxel_max_mm": dict(zip(map(str, reduced.arrays["loo_degrees"].tolist()),
-                                         reduced.arrays["loo_taxel_max_mm"].tolist(),
-                                         strict=True))})
+        write_json(
+            tmp / "validation.json",
+            figures
+            | {
+                "range_kpa": {
+                    c: [float(a), float(b)]
+                    for c, a, b in zip(model.chamber_names, lo, hi, strict=True)
+                },
+                "study": [
+                    dict(
+                        zip(
+                            (
+                                "points_per_axis",
+                                "degree",
+                                "samples",
+                                "taxel_max_mm",
+                                "volume_max_pct",
+                            ),
+                            row,
+                            strict=True,
+                        )
+                    )
+                    for row in reduced.arrays["study"].tolist()
+                ],
+                "loo_taxel_max_mm": dict(
+                    zip(
+                        map(str, reduced.arrays["loo_degrees"].tolist()),
+                        reduced.arrays["loo_taxel_max_mm"].tolist(),
+                        strict=True,
+                    )
+                ),
+            },
+        )
     return figures

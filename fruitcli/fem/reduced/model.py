@@ -108,39 +108,54 @@ class ReducedModel:
             i = int(bad[0])
             p = np.atleast_2d(np.asarray(pressure_kpa, float))[i]
             row = rows[i] if rows is not None else i + 1
-            box = ", ".join(f"{n} {a:g}..{b:g}" for n, a, b in
-                            zip(self.chamber_names, self.lo, self.hi, strict=True))
-            raise SolverError(f"{where}: row {row}: pressures {np.round(p, 4).tolist()} kPa "
-                              f"outside the reduced model's range ({box} kPa; "
-                              f"{len(bad)} row(s) outside): use --model full, or widen "
-                              "[reduced].pressure_range_kpa")
+            box = ", ".join(
+                f"{n} {a:g}..{b:g}"
+                for n, a, b in zip(self.chamber_names, self.lo, self.hi, strict=True)
+            )
+            raise SolverError(
+                f"{where}: row {row}: pressures {np.round(p, 4).tolist()} kPa "
+                f"outside the reduced model's range ({box} kPa; "
+                f"{len(bad)} row(s) outside): use --model full, or widen "
+                "[reduced].pressure_range_kpa"
+            )
 
     def validation(self) -> dict:
         """The build's held-out figures: taxel error max/median (mm), volume error
         max/median (%), vectors, build seconds, and whether the bounds hold."""
         a = self.arrays
         tax, vol = a["validation_taxel_error_mm"], a["validation_volume_error_pct"]
-        out = {"vectors": int(tax.shape[0]), "degree": self.degree,
-               "taxel_max_mm": float(tax.max()), "taxel_median_mm": float(np.median(tax)),
-               "volume_max_pct": float(vol.max()), "volume_median_pct": float(np.median(vol)),
-               "surface_max_mm": float(a["validation_surface_error_mm"].max()),
-               "build_s": float(a["build_s"]), "full_solves": int(a["full_solves"])}
-        out["within_bound"] = bool(out["taxel_max_mm"] <= TAXEL_BOUND_MM
-                                   and out["volume_max_pct"] <= VOLUME_BOUND_PCT)
+        out = {
+            "vectors": int(tax.shape[0]),
+            "degree": self.degree,
+            "taxel_max_mm": float(tax.max()),
+            "taxel_median_mm": float(np.median(tax)),
+            "volume_max_pct": float(vol.max()),
+            "volume_median_pct": float(np.median(vol)),
+            "surface_max_mm": float(a["validation_surface_error_mm"].max()),
+            "build_s": float(a["build_s"]),
+            "full_solves": int(a["full_solves"]),
+        }
+        out["within_bound"] = bool(
+            out["taxel_max_mm"] <= TAXEL_BOUND_MM and out["volume_max_pct"] <= VOLUME_BOUND_PCT
+        )
         return out
 
     def describe(self) -> str:
         """One line: degree, samples, held-out errors; a warning when past the bound."""
         v = self.validation()
-        text = (f"reduced model: degree {v['degree']} over {len(self.arrays['sample_kpa'])} "
-                f"samples, held-out at {v['vectors']} pressure vectors: taxels max "
-                f"{v['taxel_max_mm']:.2g} mm (median {v['taxel_median_mm']:.2g}), volumes max "
-                f"{v['volume_max_pct']:.2g} % (median {v['volume_median_pct']:.2g}), built in "
-                f"{v['build_s']:.0f} s")
+        text = (
+            f"reduced model: degree {v['degree']} over {len(self.arrays['sample_kpa'])} "
+            f"samples, held-out at {v['vectors']} pressure vectors: taxels max "
+            f"{v['taxel_max_mm']:.2g} mm (median {v['taxel_median_mm']:.2g}), volumes max "
+            f"{v['volume_max_pct']:.2g} % (median {v['volume_median_pct']:.2g}), built in "
+            f"{v['build_s']:.0f} s"
+        )
         if not v["within_bound"]:
-            text += (f"; WARNING: outside the bound ({TAXEL_BOUND_MM} mm, "
-                     f"{VOLUME_BOUND_PCT} %): use --model full or a denser "
-                     "[reduced].points_per_axis / narrower pressure_range_kpa")
+            text += (
+                f"; WARNING: outside the bound ({TAXEL_BOUND_MM} mm, "
+                f"{VOLUME_BOUND_PCT} %): use --model full or a denser "
+                "[reduced].points_per_axis / narrower pressure_range_kpa"
+            )
         return text
 
     def save(self, path: Path) -> None:
@@ -148,23 +163,46 @@ class ReducedModel:
 
     @classmethod
     def from_arrays(cls, arrays: dict) -> ReducedModel:
-        return cls([str(n) for n in arrays["chamber_names"]], arrays["range_lo_kpa"],
-                   arrays["range_hi_kpa"], arrays["exponents"], arrays["coef_taxels"],
-                   arrays["coef_volume"], arrays["coef_modes"], arrays["modes"],
-                   arrays["rest_nodes"], arrays)
+        return cls(
+            [str(n) for n in arrays["chamber_names"]],
+            arrays["range_lo_kpa"],
+            arrays["range_hi_kpa"],
+            arrays["exponents"],
+            arrays["coef_taxels"],
+            arrays["coef_volume"],
+            arrays["coef_modes"],
+            arrays["modes"],
+            arrays["rest_nodes"],
+            arrays,
+        )
 
 
-REQUIRED = ("chamber_names", "range_lo_kpa", "range_hi_kpa", "exponents", "coef_taxels",
-            "coef_volume", "coef_modes", "modes", "rest_nodes", "surface_node_index",
-            "validation_taxel_error_mm", "validation_volume_error_pct",
-            "validation_surface_error_mm", "sample_kpa", "build_s", "full_solves")
+REQUIRED = (
+    "chamber_names",
+    "range_lo_kpa",
+    "range_hi_kpa",
+    "exponents",
+    "coef_taxels",
+    "coef_volume",
+    "coef_modes",
+    "modes",
+    "rest_nodes",
+    "surface_node_index",
+    "validation_taxel_error_mm",
+    "validation_volume_error_pct",
+    "validation_surface_error_mm",
+    "sample_kpa",
+    "build_s",
+    "full_solves",
+)
 
 
 def load(path: str | Path) -> ReducedModel:
     """reduced.npz as a ReducedModel; one FruitError line naming a missing array."""
     path = Path(path)
-    arrays = read_npz_arrays(path, "reduced model .npz", FruitError,
-                             " (run `fruit run SCENE --until reduce`)")
+    arrays = read_npz_arrays(
+        path, "reduced model .npz", FruitError, " (run `fruit run SCENE --until reduce`)"
+    )
     missing = [k for k in REQUIRED if k not in arrays]
     if missing:
         raise FruitError(f"{path}: not a reduced model: missing array(s) {', '.join(missing)}")
@@ -189,15 +227,26 @@ def states_arrays(reduced: ReducedModel, pressure_kpa) -> dict:
         ms[i] = 1e3 * (time.perf_counter() - t0)
     x = np.stack(nodes)
     return {
-        "model": np.array("reduced"), "reduced_degree": np.array(reduced.degree),
-        "rest_nodes": reduced.rest_nodes, "tets": a["tets"], "surface_tris": a["surface_tris"],
-        "element": a["element"], "material_model": a["material_model"],
-        "elements": a["elements"], "displacement_mm": x - reduced.rest_nodes,
-        "pressure_kpa": p, "chamber_volume_mm3": np.stack(vols),
+        "model": np.array("reduced"),
+        "reduced_degree": np.array(reduced.degree),
+        "rest_nodes": reduced.rest_nodes,
+        "tets": a["tets"],
+        "surface_tris": a["surface_tris"],
+        "element": a["element"],
+        "material_model": a["material_model"],
+        "elements": a["elements"],
+        "displacement_mm": x - reduced.rest_nodes,
+        "pressure_kpa": p,
+        "chamber_volume_mm3": np.stack(vols),
         "chamber_names": np.array(reduced.chamber_names, dtype=str).reshape(-1),
         "chamber_rest_volume_mm3": a["chamber_rest_volume_mm3"],
-        "iterations": np.zeros(s, np.int64), "residual": np.full(s, np.nan),
-        "solve_ms": ms, "subdivisions": np.zeros(s, np.int64),
-        "min_det_f": np.full(s, np.nan), "taxel_tet": a["taxel_tet"],
-        "taxel_bary": a["taxel_bary"], "taxel_outside": a["taxel_outside"],
-        "taxels_mm": np.stack(taxels)}
+        "iterations": np.zeros(s, np.int64),
+        "residual": np.full(s, np.nan),
+        "solve_ms": ms,
+        "subdivisions": np.zeros(s, np.int64),
+        "min_det_f": np.full(s, np.nan),
+        "taxel_tet": a["taxel_tet"],
+        "taxel_bary": a["taxel_bary"],
+        "taxel_outside": a["taxel_outside"],
+        "taxels_mm": np.stack(taxels),
+    }

@@ -66,7 +66,7 @@ def snake_grid(k: int, n: int) -> np.ndarray:
     rows = []
     for head in snake_grid(k - 1, n):
         flip = int(head.sum()) % 2 == 1
-        for j in (range(n - 1, -1, -1) if flip else range(n)):
+        for j in range(n - 1, -1, -1) if flip else range(n):
             rows.append([*head, j])
     return np.array(rows, dtype=np.int64)
 

@@ -51,8 +51,13 @@ class CsrPattern:
         n_kept = int(keep.sum())
         entry_slot = np.full(len(keep), -1, np.int32 if len(uniq) < 2**31 else np.int64)
         entry_slot[keep] = inverse[:n_kept]
-        return cls(free=free, entry_slot=entry_slot, diag_slot=inverse[n_kept:],
-                   indptr=indptr, indices=uc.astype(np.int32))
+        return cls(
+            free=free,
+            entry_slot=entry_slot,
+            diag_slot=inverse[n_kept:],
+            indptr=indptr,
+            indices=uc.astype(np.int32),
+        )
 
     @property
     def nnz(self) -> int:
@@ -60,8 +65,9 @@ class CsrPattern:
 
     def assemble(self, blocks: np.ndarray, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
         """CSR matrix from element blocks (m, d, d) plus an optional diagonal (n_free,)."""
-        data = _scatter(np.ascontiguousarray(blocks, dtype=float).reshape(-1),
-                        self.entry_slot, self.nnz)
+        data = _scatter(
+            np.ascontiguousarray(blocks, dtype=float).reshape(-1), self.entry_slot, self.nnz
+        )
         if diagonal is not None:
             data[self.diag_slot] += diagonal
         n = len(self.free)

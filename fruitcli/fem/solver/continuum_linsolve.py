@@ -48,8 +48,10 @@ def factorize(k, previous=None, single: bool = False):
         # PARDISO tried positive definite and symmetric indefinite: a general LU would
         # cost minutes and gigabytes here (SuperLU on the quadratic system) for a
         # tangent that is singular anyway; Newton takes its next, safer tangent
-        raise SolverError(f"tangent stiffness has no factor ({why}); is the body held by "
-                          "[[fixed]], [[jig]] or its rigid modes pinned?")
+        raise SolverError(
+            f"tangent stiffness has no factor ({why}); is the body held by "
+            "[[fixed]], [[jig]] or its rigid modes pinned?"
+        )
     k = k.tocsc()
     if _cholesky is not None:
         try:
@@ -61,8 +63,10 @@ def factorize(k, previous=None, single: bool = False):
     try:
         lu = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
     except RuntimeError as exc:
-        raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
-                          "[[fixed]], [[jig]] or its rigid modes pinned?") from None
+        raise SolverError(
+            f"tangent stiffness is singular ({exc}); is the body held by "
+            "[[fixed]], [[jig]] or its rigid modes pinned?"
+        ) from None
     return _Exact(lu)
 
 
@@ -80,8 +84,10 @@ class ContinuumSolver:
 
     def __init__(self, model, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
-            raise SolverError(f"[solver].linear_solver: expected one of "
-                              f"{', '.join(LINEAR_SOLVERS)}, got {method!r}")
+            raise SolverError(
+                f"[solver].linear_solver: expected one of "
+                f"{', '.join(LINEAR_SOLVERS)}, got {method!r}"
+            )
         self.model, self.method = model, method
         self.k = None
         self.factor = None
@@ -99,8 +105,7 @@ class ContinuumSolver:
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
-        self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
-                      "factor_s": 0.0}
+        self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0, "factor_s": 0.0}
 
     def update(self, rot, f=None, load_stiffness=None, project: bool = False) -> None:
         """Tangent at the configuration `rot` (= the model's state x, n x 3): the full
@@ -154,8 +159,9 @@ class ContinuumSolver:
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.fresh and not self.factor.single:
             return self.factor.solve(b) if z0 is None else z0
-        x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
-                         2 * PCG_REFRESH_ITERATIONS, z0)
+        x, its, ok = pcg(
+            self.k.__matmul__, self.factor.solve, b, self.rtol, 2 * PCG_REFRESH_ITERATIONS, z0
+        )
         self.stats["cg_iterations"] += its
         if ok:
             self.refresh = self.refresh or its > PCG_REFRESH_ITERATIONS
@@ -163,7 +169,6 @@ class ContinuumSolver:
         if self.fresh:  # a fresh single-precision factor that failed: double from now on
             self.single = False
         self._factorize()
-        x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol,
-                         PCG_MAX_ITERATIONS)
+        x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
         self.stats["cg_iterations"] += its
         return x if ok else self.factor.solve(b)

@@ -85,8 +85,9 @@ def _cholesky(k):
     # CHOLMOD prints "not positive definite" with C's stdio before cholespy raises
     with captured_output():
         try:
-            fac = CholeskySolverD(k.shape[0], c.row.astype(np.int32),
-                                  c.col.astype(np.int32), c.data, MatrixType.COO)
+            fac = CholeskySolverD(
+                k.shape[0], c.row.astype(np.int32), c.col.astype(np.int32), c.data, MatrixType.COO
+            )
         except ValueError:
             raise RuntimeError("CHOLMOD: the matrix is not positive definite") from None
 
@@ -106,7 +107,7 @@ def _cholesky(k):
 try:
     import cholespy  # noqa: F401
 except ImportError:  # optional: SuperLU in symmetric mode instead
-    _cholesky = None  # noqa: F811
+    _cholesky = None
 
 
 class TangentSolver:
@@ -118,8 +119,10 @@ class TangentSolver:
 
     def __init__(self, model, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
-            raise SolverError(f"[solver].linear_solver: expected one of "
-                              f"{', '.join(LINEAR_SOLVERS)}, got {method!r}")
+            raise SolverError(
+                f"[solver].linear_solver: expected one of "
+                f"{', '.join(LINEAR_SOLVERS)}, got {method!r}"
+            )
         self.model = model
         self.method = method
         self.rot = None
@@ -144,12 +147,23 @@ class TangentSolver:
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
-        self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0,
-                      "factor_s": 0.0, "update_s": 0.0, "product_s": 0.0,
-                      "precond_s": 0.0}
+        self.stats = {
+            "factorizations": 0,
+            "cg_iterations": 0,
+            "assembly_s": 0.0,
+            "factor_s": 0.0,
+            "update_s": 0.0,
+            "product_s": 0.0,
+            "precond_s": 0.0,
+        }
 
-    def update(self, rot: np.ndarray, f: np.ndarray | None = None, load_stiffness=None,
-               project: bool = False) -> None:
+    def update(
+        self,
+        rot: np.ndarray,
+        f: np.ndarray | None = None,
+        load_stiffness=None,
+        project: bool = False,
+    ) -> None:
         """Set the current element rotations (m, 3, 3) and deformation gradients (m, 3, 3)
         (without f, the tangent is the warped R K0 R^T), the follower-pressure stiffness
         over the free dofs (anything with `@`, or None) and whether the rotation term is
@@ -162,8 +176,7 @@ class TangentSolver:
         self.rg = kernels.rotated_gradients(self.model.grads, np.ascontiguousarray(rot))
         if f is not None:
             lam, mu = self.model.lame_kpa
-            self.t_world = np.ascontiguousarray(
-                corotation.skew_stiffness(f, rot, lam, mu, project))
+            self.t_world = np.ascontiguousarray(corotation.skew_stiffness(f, rot, lam, mu, project))
         self.fresh = False
         if self.method == "direct":
             self._factorize(self._assemble(self.kind == "exact"))
@@ -189,8 +202,7 @@ class TangentSolver:
     def _assemble(self, with_load: bool = True):
         t0 = time.perf_counter()
         m = self.model
-        k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project),
-                               m.spring_diag)
+        k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project), m.spring_diag)
         if with_load and self.f is not None and self.load_k is not None:
             k = k + self.load_k
         self.stats["assembly_s"] += time.perf_counter() - t0
@@ -205,8 +217,7 @@ class TangentSolver:
             elif USE_PARDISO and pardiso.available():  # kept analysis, refactorized
                 previous = self.factor if isinstance(self.factor, pardiso.Pardiso) else None
                 self.factor = None
-                self.factor = pardiso.factorize_probed(k, upper_triangle(k), previous,
-                                                       self.single)
+                self.factor = pardiso.factorize_probed(k, upper_triangle(k), previous, self.single)
                 # a tangent too ill-conditioned for single precision stays so
                 self.single = self.single and getattr(self.factor, "single", False)
                 if self.factor is None:  # missed its probe in double precision too
@@ -214,14 +225,20 @@ class TangentSolver:
             elif _cholesky is not None:  # positive definite: sparse Cholesky when installed
                 self.factor = _cholesky(k)
             else:  # positive definite: symmetric mode, diagonal pivots (about 5x faster)
-                self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                        options={"SymmetricMode": True})
+                self.factor = spla.splu(
+                    k,
+                    permc_spec="MMD_AT_PLUS_A",
+                    diag_pivot_thresh=0.0,
+                    options={"SymmetricMode": True},
+                )
         except (RuntimeError, pardiso.PardisoError) as exc:  # SuperLU's, PARDISO's
             self.factor = None  # spent: the next update factorizes afresh
             if isinstance(exc, pardiso.PardisoError) and not exc.singular:
                 raise SolverError(f"the tangent could not be factorized ({exc})") from None
-            raise SolverError(f"tangent stiffness is singular ({exc}); is the body held by "
-                              "[[fixed]], [[jig]] or its rigid modes pinned?") from None
+            raise SolverError(
+                f"tangent stiffness is singular ({exc}); is the body held by "
+                "[[fixed]], [[jig]] or its rigid modes pinned?"
+            ) from None
         if not np.isfinite(self.factor.solve(np.ones(k.shape[0]))).all():
             self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
         self.stats["factor_s"] += time.perf_counter() - t0
@@ -268,12 +285,14 @@ class TangentSolver:
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.method == "jacobi":
             inv_d = 1.0 / self.diag
-            x, its, ok = pcg(self.matvec, lambda v: inv_d * v, b, self.rtol,
-                             50 * 20 * PCG_MAX_ITERATIONS)
+            x, its, ok = pcg(
+                self.matvec, lambda v: inv_d * v, b, self.rtol, 50 * 20 * PCG_MAX_ITERATIONS
+            )
             self.stats["cg_iterations"] += its
             if not ok:
-                raise SolverError(f"CG did not converge in {its} iterations "
-                                  "(try [solver].linear_solver = \"pcg\")")
+                raise SolverError(
+                    f'CG did not converge in {its} iterations (try [solver].linear_solver = "pcg")'
+                )
             return x
         limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
         x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, limit, z0)
@@ -301,8 +320,7 @@ def kept_estimate(estimated, b: np.ndarray, factorizations: int):
     return None
 
 
-def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int,
-        z0: np.ndarray | None = None):
+def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int, z0: np.ndarray | None = None):
     """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|,
     after `maxiter` iterations or on negative curvature (an indefinite tangent); then it
     returns the last iterate, or the preconditioned residual if there is none, which

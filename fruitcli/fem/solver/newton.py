@@ -187,9 +187,13 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         # asks, and the tangent of the previous step is kept (chord step); only right
         # after a step in Newton's quadratic regime (CHORD_CONTRACTION) and never twice
         # in a row (see CHORD_CONTRACTION)
-        near = (it > 0 and level == 0 and not chord
-                and merit <= CHORD_CONTRACTION * last_merit
-                and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance)
+        near = (
+            it > 0
+            and level == 0
+            and not chord
+            and merit <= CHORD_CONTRACTION * last_merit
+            and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance
+        )
         chord, last_merit = near, merit
         cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
         step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
@@ -200,8 +204,10 @@ def _newton(step: _Step, x, p, options: SolverOptions):
                 level += 1
                 continue
             raise
-        if (merit <= STALL_RESIDUAL_FACTOR * options.tolerance
-                and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size):
+        if (
+            merit <= STALL_RESIDUAL_FACTOR * options.tolerance
+            and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size
+        ):
             return True, x, p, it, merit, det_f  # round-off stall: the correction is nil
         if not len(step.vc) and level < 2 and not float(r @ dx_free) > 0.0:
             level += 1  # not a descent direction: indefinite tangent
@@ -223,12 +229,17 @@ def _newton(step: _Step, x, p, options: SolverOptions):
                 alpha *= 0.5
                 continue
             descent = len(step.vc) == 0 and (
-                trial[6] <= energy - ARMIJO * alpha * float(r @ dx_free))
+                trial[6] <= energy - ARMIJO * alpha * float(r @ dx_free)
+            )
             # volume control: a step's first full Newton step meets the volume but (a
             # nearly incompressible body's bulk term weighing its second-order part)
             # leaves a force residual above the volume error it started from; take it
-            descent = descent or (len(step.vc) > 0 and it == 0 and alpha == 1.0 and
-                                  np.abs(trial[4]).max() < np.abs(g).max())
+            descent = descent or (
+                len(step.vc) > 0
+                and it == 0
+                and alpha == 1.0
+                and np.abs(trial[4]).max() < np.abs(g).max()
+            )
             if descent or trial[5] < merit:
                 accepted = True
                 break
@@ -263,10 +274,17 @@ def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptio
     return z is not None and ESTIMATE_SAFETY * float(np.abs(z).max(initial=0.0)) <= dtol
 
 
-def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
-                load_start: Load | None = None, pressure_start: np.ndarray | None = None,
-                options: SolverOptions = SolverOptions(), solver: TangentSolver | None = None,
-                label: str = "state", progress=None) -> StateResult:
+def solve_state(
+    model: Model,
+    load: Load,
+    x_start: np.ndarray | None = None,
+    load_start: Load | None = None,
+    pressure_start: np.ndarray | None = None,
+    options: SolverOptions = SolverOptions(),
+    solver: TangentSolver | None = None,
+    label: str = "state",
+    progress=None,
+) -> StateResult:
     """Equilibrium under `load`, continuing from `x_start` (default: rest) reached under
     `load_start` (default: zero load) with chamber pressures `pressure_start`. Pass the
     same `solver` across states to reuse its factorization. Raises SolverError naming
@@ -322,8 +340,9 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         try:
             ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
         except OutOfTime:
-            raise OutOfTime(_out_of_time(model, label, options.max_seconds, t, p, load,
-                                         load_start), t) from None
+            raise OutOfTime(
+                _out_of_time(model, label, options.max_seconds, t, p, load, load_start), t
+            ) from None
         iterations += its
         if ok:
             last = (t, x, p)
@@ -337,16 +356,21 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
         if subdivisions > options.max_subdivisions:
             hint = "lower the load or raise [solver].max_subdivisions"
             if k and np.any(load.pressure_kpa[~vc]):
-                hint = ("a chamber pressure may be past the body's limit point (the largest "
-                        "pressure it can hold while inflating): control its volume "
-                        "([actuation].volume_growth_mm3) to follow the inflation past it")
+                hint = (
+                    "a chamber pressure may be past the body's limit point (the largest "
+                    "pressure it can hold while inflating): control its volume "
+                    "([actuation].volume_growth_mm3) to follow the inflation past it"
+                )
             if det_f.min() <= 1.01 * MIN_DET_F:
-                hint = ("elements are about to invert: the load is likely past what the body "
-                        "can carry (a chamber past its limit pressure: control its volume)")
+                hint = (
+                    "elements are about to invert: the load is likely past what the body "
+                    "can carry (a chamber past its limit pressure: control its volume)"
+                )
             raise SolverError(
                 f"{label}: no equilibrium after {subdivisions - 1} load subdivisions "
                 f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
-                f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}")
+                f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}"
+            )
         dt *= 0.5
     first = not solver.history
     solver.history = _remember(solver.history, _load_vector(load), x, p)
@@ -355,28 +379,35 @@ def solve_state(model: Model, load: Load, x_start: np.ndarray | None = None,
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
 
 
-def _report(progress, told: list, label: str, fraction: float, iteration: int,
-            merit: float) -> None:
+def _report(
+    progress, told: list, label: str, fraction: float, iteration: int, merit: float
+) -> None:
     """Tell `progress` where the state is, at most every PROGRESS_SECONDS."""
     now = time.perf_counter()
     if now - told[0] >= PROGRESS_SECONDS:
         told[0] = now
-        progress(f"{label}: load {fraction:.3f}, Newton step {iteration}, "
-                 f"residual {merit:.1e}")
+        progress(f"{label}: load {fraction:.3f}, Newton step {iteration}, residual {merit:.1e}")
 
 
-def _out_of_time(model, label: str, seconds: float, t: float, p: np.ndarray, load: Load,
-                 load_start: Load) -> str:
+def _out_of_time(
+    model, label: str, seconds: float, t: float, p: np.ndarray, load: Load, load_start: Load
+) -> str:
     """The one line of a state stopped at its time budget."""
     reached = load_start.lerp(load, t)
     vc = np.asarray(reached.volume_controlled, bool)
-    where = ", ".join(f"{name} {reached.volume_growth_mm3[i]:.4g} mm^3 at {p[i]:.4g} kPa"
-                      if vc[i] else f"{name} {reached.pressure_kpa[i]:.4g} kPa"
-                      for i, name in enumerate(model.chamber_names))
-    return (f"{label}: stopped after {seconds:g} s ([solver].max_seconds) at {t:.3f} of the "
-            f"load step" + (f" (chambers: {where})" if where else "")
-            + "; a chamber may be past its limit pressure (`fruit limits` computes it), or "
-            "raise [solver].max_seconds")
+    where = ", ".join(
+        f"{name} {reached.volume_growth_mm3[i]:.4g} mm^3 at {p[i]:.4g} kPa"
+        if vc[i]
+        else f"{name} {reached.pressure_kpa[i]:.4g} kPa"
+        for i, name in enumerate(model.chamber_names)
+    )
+    return (
+        f"{label}: stopped after {seconds:g} s ([solver].max_seconds) at {t:.3f} of the "
+        f"load step"
+        + (f" (chambers: {where})" if where else "")
+        + "; a chamber may be past its limit pressure (`fruit limits` computes it), or "
+        "raise [solver].max_seconds"
+    )
 
 
 HISTORY_STATES = 16
@@ -419,8 +450,13 @@ def _load_vector(load: Load) -> np.ndarray:
     gravity, jig scale, and which chambers are volume controlled (1.0 or 0.0: a change
     of control mode makes the secant meaningless, see `_history_guess`)."""
     vc = np.asarray(load.volume_controlled, bool)
-    return np.concatenate([np.where(vc, load.volume_growth_mm3, load.pressure_kpa),
-                           [load.gravity, load.jig, load.prescribed], vc.astype(float)])
+    return np.concatenate(
+        [
+            np.where(vc, load.volume_growth_mm3, load.pressure_kpa),
+            [load.gravity, load.jig, load.prescribed],
+            vc.astype(float),
+        ]
+    )
 
 
 def _history_guess(history, x_start, load: Load):
@@ -467,8 +503,7 @@ SENSITIVITY_RTOL = 1e-2
 only start Newton, which the tangent's own staleness already limits to first order."""
 
 
-def _remember_sensitivity(model, solver, x: np.ndarray, load: Load,
-                          iterations: int) -> None:
+def _remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: int) -> None:
     """Keep on the solver dx/dp (n, 3, K) at the first converged state x: the nodes'
     response to each pressure-controlled chamber's pressure, K^-1 H_k^T with the solver's
     current tangent (one CG solve per chamber, counted in this state's time and the
@@ -508,8 +543,12 @@ def _sensitivity_guess(solver, x_start, load: Load):
     chambers' pressures changed; None otherwise."""
     sens = getattr(solver, "sensitivity", None)
     history = solver.history
-    if (sens is None or not history or x_start is None
-            or not np.array_equal(x_start, history[-1][1])):
+    if (
+        sens is None
+        or not history
+        or x_start is None
+        or not np.array_equal(x_start, history[-1][1])
+    ):
         return None
     q_last, x_last, p_last = history[-1]
     dq = _load_vector(load) - q_last
@@ -540,8 +579,9 @@ def _moments(d: np.ndarray, order: int) -> np.ndarray:
 @functools.lru_cache(maxsize=64)
 def _monomial_rows(n: int, order: int) -> np.ndarray:
     """(monomials, order) row indices of every degree-`order` monomial of n variables."""
-    return np.array(list(itertools.combinations_with_replacement(range(n), order)),
-                    np.int64).reshape(-1, order)
+    return np.array(
+        list(itertools.combinations_with_replacement(range(n), order)), np.int64
+    ).reshape(-1, order)
 
 
 def _moment_weights(d: np.ndarray, dq: np.ndarray):
@@ -580,8 +620,9 @@ def impose_prescribed(model, x: np.ndarray, load: Load) -> np.ndarray:
         return x
     x = np.array(x, float)
     flat = x.reshape(-1)
-    flat[model.prescribed_dofs] = (model.rest.reshape(-1)[model.prescribed_dofs]
-                                   + load.prescribed * model.prescribed_mm)
+    flat[model.prescribed_dofs] = (
+        model.rest.reshape(-1)[model.prescribed_dofs] + load.prescribed * model.prescribed_mm
+    )
     return x
 
 
@@ -626,15 +667,21 @@ def _unloaded(model: Model, load: Load) -> bool:
     return not (load.jig and any(j.rotate_deg or np.any(j.translate_mm) for j in model.jigs))
 
 
-def _result(model: Model, x, p, iterations, merit, subdivisions, t0,
-            det_f=None) -> StateResult:
+def _result(model: Model, x, p, iterations, merit, subdivisions, t0, det_f=None) -> StateResult:
     if det_f is None:
         det_f = model.min_det_f(x)
     volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
-    return StateResult(x=x, displacement_mm=x - model.rest, pressure_kpa=p,
-                       chamber_volume_mm3=volumes, iterations=iterations, residual=merit,
-                       subdivisions=subdivisions, min_det_f=float(det_f.min()),
-                       solve_ms=1e3 * (time.perf_counter() - t0))
+    return StateResult(
+        x=x,
+        displacement_mm=x - model.rest,
+        pressure_kpa=p,
+        chamber_volume_mm3=volumes,
+        iterations=iterations,
+        residual=merit,
+        subdivisions=subdivisions,
+        min_det_f=float(det_f.min()),
+        solve_ms=1e3 * (time.perf_counter() - t0),
+    )
 
 
 def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: float) -> float:
@@ -648,4 +695,3 @@ def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: floa
         pb[~load_b.volume_controlled] = load_b.pressure_kpa[~load_b.volume_controlled]
     fb = model.external_forces(x, pb, load_b, h).reshape(-1)[free]
     return max(np.linalg.norm(fa), np.linalg.norm(fb), floor)
-

@@ -49,12 +49,20 @@ class PardisoError(SolverError):
         return self.code in (0, -4, -7)
 
 
-ERRORS = {-1: "inconsistent input", -2: "not enough memory", -3: "reordering problem",
-          -4: "zero pivot (the matrix is not positive definite or is singular)",
-          -5: "unclassified internal error", -6: "reordering failed",
-          -7: "the diagonal matrix is singular", -8: "32-bit integer overflow",
-          -9: "not enough memory for out-of-core", -10: "out-of-core files",
-          -11: "out-of-core read/write", -12: "wrong library (pardiso_64)"}
+ERRORS = {
+    -1: "inconsistent input",
+    -2: "not enough memory",
+    -3: "reordering problem",
+    -4: "zero pivot (the matrix is not positive definite or is singular)",
+    -5: "unclassified internal error",
+    -6: "reordering failed",
+    -7: "the diagonal matrix is singular",
+    -8: "32-bit integer overflow",
+    -9: "not enough memory for out-of-core",
+    -10: "out-of-core files",
+    -11: "out-of-core read/write",
+    -12: "wrong library (pardiso_64)",
+}
 """PARDISO's error codes (MKL's documentation of `pardiso`)."""
 
 
@@ -93,9 +101,24 @@ def _functions():
             pass
         i32 = ctypes.POINTER(ctypes.c_int32)
         pardiso = lib.pardiso
-        pardiso.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32,
-                            ctypes.c_void_p, i32, i32, i32, i32, i32, i32,
-                            ctypes.c_void_p, ctypes.c_void_p, i32]
+        pardiso.argtypes = [
+            ctypes.POINTER(ctypes.c_int64),
+            i32,
+            i32,
+            i32,
+            i32,
+            i32,
+            ctypes.c_void_p,
+            i32,
+            i32,
+            i32,
+            i32,
+            i32,
+            i32,
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            i32,
+        ]
         pardiso.restype = None
         init = lib.pardisoinit
         init.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32]
@@ -136,8 +159,11 @@ class Pardiso:
         self.pt = np.zeros(64, np.int64)
         self.iparm = np.zeros(64, np.int32)
         self._alive = False
-        init(self._ptr(self.pt, ctypes.c_int64), ctypes.byref(ctypes.c_int32(mtype)),
-             self._ptr(self.iparm))
+        init(
+            self._ptr(self.pt, ctypes.c_int64),
+            ctypes.byref(ctypes.c_int32(mtype)),
+            self._ptr(self.iparm),
+        )
         self.iparm[7] = 0  # no iterative refinement: the solves precondition CG
         self.iparm[27] = 1 if single else 0  # precision of the factor and the solves
         self.iparm[34] = 1  # zero-based indices
@@ -150,9 +176,12 @@ class Pardiso:
 
     def same_pattern(self, upper) -> bool:
         """True when `upper` has this factor's sparsity pattern (then `refactor` applies)."""
-        return (upper.shape[0] == self.n and len(upper.indices) == len(self.indices)
-                and np.array_equal(upper.indptr, self.indptr)
-                and np.array_equal(upper.indices, self.indices))
+        return (
+            upper.shape[0] == self.n
+            and len(upper.indices) == len(self.indices)
+            and np.array_equal(upper.indptr, self.indptr)
+            and np.array_equal(upper.indices, self.indices)
+        )
 
     def refactor(self, upper) -> None:
         """Numerical factorization of `upper` (same pattern) on the kept analysis."""
@@ -164,8 +193,9 @@ class Pardiso:
         to perturb (iparm[13], indefinite type) means a singular matrix here."""
         self._call(phase, self.data, np.zeros(self.n, self.dtype), np.zeros(self.n, self.dtype))
         if self.iparm[13] > 0:
-            raise PardisoError(f"PARDISO: the matrix is singular ({self.iparm[13]} "
-                               "perturbed pivots)", 0)
+            raise PardisoError(
+                f"PARDISO: the matrix is singular ({self.iparm[13]} perturbed pivots)", 0
+            )
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x (float64) with A x = b for b (n,) or (n, k)."""
@@ -184,7 +214,7 @@ class Pardiso:
     def __del__(self):
         try:
             self.free()
-        except Exception:  # noqa: BLE001 - at interpreter exit MKL frees it anyway
+        except Exception:
             pass
 
     @staticmethod
@@ -194,17 +224,27 @@ class Pardiso:
     def _call(self, phase: int, data, b, x, nrhs: int = 1) -> None:
         err = ctypes.c_int32(0)
         one = ctypes.c_int32(1)
-        self._pardiso(self._ptr(self.pt, ctypes.c_int64), ctypes.byref(one), ctypes.byref(one),
-                      ctypes.byref(ctypes.c_int32(self.mtype)),
-                      ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(self.n)),
-                      data.ctypes.data, self._ptr(self.indptr), self._ptr(self.indices),
-                      None, ctypes.byref(ctypes.c_int32(nrhs)), self._ptr(self.iparm),
-                      ctypes.byref(ctypes.c_int32(0)), b.ctypes.data, x.ctypes.data,
-                      ctypes.byref(err))
+        self._pardiso(
+            self._ptr(self.pt, ctypes.c_int64),
+            ctypes.byref(one),
+            ctypes.byref(one),
+            ctypes.byref(ctypes.c_int32(self.mtype)),
+            ctypes.byref(ctypes.c_int32(phase)),
+            ctypes.byref(ctypes.c_int32(self.n)),
+            data.ctypes.data,
+            self._ptr(self.indptr),
+            self._ptr(self.indices),
+            None,
+            ctypes.byref(ctypes.c_int32(nrhs)),
+            self._ptr(self.iparm),
+            ctypes.byref(ctypes.c_int32(0)),
+            b.ctypes.data,
+            x.ctypes.data,
+            ctypes.byref(err),
+        )
         if err.value != 0:
             meaning = ERRORS.get(err.value, "unknown error")
-            raise PardisoError(f"PARDISO phase {phase}: {meaning} (error {err.value})",
-                               err.value)
+            raise PardisoError(f"PARDISO phase {phase}: {meaning} (error {err.value})", err.value)
 
 
 def factorize_upper(upper, previous: Pardiso | None = None, single: bool = False) -> Pardiso:
@@ -213,8 +253,7 @@ def factorize_upper(upper, previous: Pardiso | None = None, single: bool = False
     when it has the same pattern and precision; otherwise a new one, positive definite
     first, then indefinite. `previous` is spent either way (freed unless returned).
     Raises PardisoError."""
-    if (previous is not None and previous.single == single
-            and previous.same_pattern(upper)):
+    if previous is not None and previous.single == single and previous.same_pattern(upper):
         try:
             previous.refactor(upper)
             return previous
@@ -245,8 +284,9 @@ def passes_probe(k, fac, bound: float) -> bool:
     of at most `bound` on the sparse k (any factor with `.solve`)."""
     probe = np.ones(k.shape[0])
     sol = fac.solve(probe)
-    return bool(np.isfinite(sol).all()
-                and np.linalg.norm(k @ sol - probe) <= bound * np.linalg.norm(probe))
+    return bool(
+        np.isfinite(sol).all() and np.linalg.norm(k @ sol - probe) <= bound * np.linalg.norm(probe)
+    )
 
 
 def factorize_probed(k, upper, previous: Pardiso | None = None, single: bool = False):
@@ -255,7 +295,7 @@ def factorize_probed(k, upper, previous: Pardiso | None = None, single: bool = F
     double-precision factor misses its probe (the caller's fallback takes over); a
     PardisoError of the double-precision factorization propagates. `previous` is spent
     (see `factorize_upper`)."""
-    for precision in ((True, False) if single else (False,)):
+    for precision in (True, False) if single else (False,):
         try:
             fac = factorize_upper(upper, previous, precision)
         except PardisoError:

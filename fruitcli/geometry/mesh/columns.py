@@ -13,8 +13,13 @@ import numpy as np
 RAY_JITTER_MM = np.array([3.1e-7, 1.7e-7])
 
 
-def vertical_hits(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
-                  cell_mm: float | None = None, upward: bool = False):
+def vertical_hits(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    xy: np.ndarray,
+    cell_mm: float | None = None,
+    upward: bool = False,
+):
     """All crossings of vertical lines through `xy` (n, 2) with the triangles.
 
     Returns (point_index (h,) int, z_mm (h,) float), sorted by point then z; with
@@ -58,10 +63,12 @@ def vertical_hits(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
     p = xy[pair_p]
     d = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
-        u = ((b[:, 0] - p[:, 0]) * (c[:, 1] - p[:, 1])
-             - (c[:, 0] - p[:, 0]) * (b[:, 1] - p[:, 1])) / d
-        v = ((c[:, 0] - p[:, 0]) * (a[:, 1] - p[:, 1])
-             - (a[:, 0] - p[:, 0]) * (c[:, 1] - p[:, 1])) / d
+        u = (
+            (b[:, 0] - p[:, 0]) * (c[:, 1] - p[:, 1]) - (c[:, 0] - p[:, 0]) * (b[:, 1] - p[:, 1])
+        ) / d
+        v = (
+            (c[:, 0] - p[:, 0]) * (a[:, 1] - p[:, 1]) - (a[:, 0] - p[:, 0]) * (c[:, 1] - p[:, 1])
+        ) / d
         w = 1.0 - u - v
         hit = (d != 0) & (u >= 0) & (v >= 0) & (w >= 0)
         z = u * a[:, 2] + v * b[:, 2] + w * c[:, 2]
@@ -80,8 +87,9 @@ def top_z(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray) -> np.ndarray
     return out
 
 
-def inside_columns(vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray,
-                   z_mm: np.ndarray) -> np.ndarray:
+def inside_columns(
+    vertices: np.ndarray, faces: np.ndarray, xy: np.ndarray, z_mm: np.ndarray
+) -> np.ndarray:
     """Inside/outside of a closed mesh on a grid of columns: point (k, m) is (xy[k], z_mm[m]).
 
     Returns a (len(xy), len(z_mm)) bool array by ray parity (hits above each point).

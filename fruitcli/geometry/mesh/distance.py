@@ -17,8 +17,7 @@ CHUNK_POINTS = 20000
 MAX_SAMPLE_LEVEL = 24
 
 
-def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
-                         c: np.ndarray) -> np.ndarray:
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Closest points (n, 3) on triangles (a, b, c) (each (n, 3)) to points p (n, 3).
 
     Vectorized region test over vertices, edges and the interior (Ericson, 5.1.5).
@@ -36,7 +35,7 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
         denom = va + vb + vc
         v = vb / denom
         w = vc / denom
-        out = a + ab * v[:, None] + ac * w[:, None]           # interior
+        out = a + ab * v[:, None] + ac * w[:, None]  # interior
         t_ab = d1 / (d1 - d3)
         t_ac = d2 / (d2 - d6)
         t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
@@ -49,7 +48,7 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray,
     out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
     out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
     out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
-    bad = ~np.isfinite(out).all(axis=1)                      # degenerate triangles
+    bad = ~np.isfinite(out).all(axis=1)  # degenerate triangles
     if bad.any():
         out[bad] = a[bad]
     return out
@@ -79,8 +78,7 @@ class SurfaceDistance:
         self.samples, self.sample_face = _face_samples(self.vertices, self.faces)
         self.sample_tree = cKDTree(self.samples, balanced_tree=False, compact_nodes=False)
 
-    def nearest_vertex_distance(self, points: np.ndarray,
-                                upper_mm: float = np.inf) -> np.ndarray:
+    def nearest_vertex_distance(self, points: np.ndarray, upper_mm: float = np.inf) -> np.ndarray:
         """Distance (n,) to the nearest vertex (an upper bound of the surface distance)."""
         d, _ = self.tree.query(points, k=1, distance_upper_bound=upper_mm)
         return d
@@ -89,8 +87,10 @@ class SurfaceDistance:
         """Closest surface points (n, 3), distances (n,), face indices (n,)."""
         points = np.asarray(points, dtype=float)
         if len(points) > CHUNK_POINTS:
-            parts = [self._closest(points[i:i + CHUNK_POINTS])
-                     for i in range(0, len(points), CHUNK_POINTS)]
+            parts = [
+                self._closest(points[i : i + CHUNK_POINTS])
+                for i in range(0, len(points), CHUNK_POINTS)
+            ]
             return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
         return self._closest(points)
 
@@ -103,8 +103,18 @@ class SurfaceDistance:
         q = np.empty((n, 3))
         d2 = np.empty(n)
         fid = np.empty(n, dtype=np.int64)
-        _closest_kernel(np.ascontiguousarray(points, dtype=float), vi, si, self.vf_start,
-                        self.vf_faces, self.vertices, self.faces, q, d2, fid)
+        _closest_kernel(
+            np.ascontiguousarray(points, dtype=float),
+            vi,
+            si,
+            self.vf_start,
+            self.vf_faces,
+            self.vertices,
+            self.faces,
+            q,
+            d2,
+            fid,
+        )
         return q, np.sqrt(d2), fid
 
 
@@ -149,7 +159,7 @@ def _closest_point(p, a, b, c, out):
         out[2] = b[2] + w * (c[2] - b[2])
         return
     denom = va + vb + vc
-    if denom == 0.0:                       # degenerate triangle
+    if denom == 0.0:  # degenerate triangle
         out[0], out[1], out[2] = a[0], a[1], a[2]
         return
     v = vb / denom
@@ -175,8 +185,9 @@ def _closest_kernel(points, vi, si, vf_start, vf_faces, vertices, faces, q, d2, 
                 lo, hi = 0, 1
             for t in range(lo, hi):
                 f = vf_faces[t] if kk < vi.shape[1] else si[i, kk - vi.shape[1]]
-                _closest_point(p, vertices[faces[f, 0]], vertices[faces[f, 1]],
-                               vertices[faces[f, 2]], tmp)
+                _closest_point(
+                    p, vertices[faces[f, 0]], vertices[faces[f, 1]], vertices[faces[f, 2]], tmp
+                )
                 e = (tmp[0] - p[0]) ** 2 + (tmp[1] - p[1]) ** 2 + (tmp[2] - p[2]) ** 2
                 if e < best:
                     best = e
@@ -220,12 +231,12 @@ class TreeDistance:
         self.tree = cKDTree(self.vertices, balanced_tree=False, compact_nodes=False)
         tri = self.vertices[self.faces]
         self.perm, self.start, self.end, self.child = _build_tree(
-            np.ascontiguousarray(tri.mean(axis=1)), LEAF_TRIANGLES)
+            np.ascontiguousarray(tri.mean(axis=1)), LEAF_TRIANGLES
+        )
         self.tri = np.ascontiguousarray(tri[self.perm].reshape(-1, 9))
         self.lo, self.hi = _node_boxes(self.tri, self.start, self.end, self.child)
 
-    def nearest_vertex_distance(self, points: np.ndarray,
-                                upper_mm: float = np.inf) -> np.ndarray:
+    def nearest_vertex_distance(self, points: np.ndarray, upper_mm: float = np.inf) -> np.ndarray:
         """Distance (n,) to the nearest vertex (an upper bound of the surface distance)."""
         d, _ = self.tree.query(points, k=1, distance_upper_bound=upper_mm)
         return d
@@ -237,8 +248,19 @@ class TreeDistance:
         d2 = np.zeros(len(pts))
         fid = np.zeros(len(pts), dtype=np.int64)
         if len(pts):
-            _tree_closest(pts, self.tri, self.perm, self.start, self.end, self.child,
-                          self.lo, self.hi, q, d2, fid)
+            _tree_closest(
+                pts,
+                self.tri,
+                self.perm,
+                self.start,
+                self.end,
+                self.child,
+                self.lo,
+                self.hi,
+                q,
+                d2,
+                fid,
+            )
         return q, np.sqrt(d2), fid
 
 
@@ -303,7 +325,7 @@ def _tree_closest(points, t, perm, start, end, child, lo, hi, q, d2, fid):
             a, b = child[nd], child[nd] + 1
             if _box_d2(p, lo, hi, a) < _box_d2(p, lo, hi, b):
                 a, b = b, a
-            stack[top] = a              # the farther child waits
+            stack[top] = a  # the farther child waits
             stack[top + 1] = b
             top += 2
         d2[i] = best
@@ -317,8 +339,9 @@ def grid_vertex_distance(vertices: np.ndarray, axes, upper_mm: float) -> np.ndar
     each vertex, the grid points within `upper_mm` of it."""
     ax = [np.ascontiguousarray(a, dtype=float) for a in axes]
     d2 = np.full(len(ax[0]) * len(ax[1]) * len(ax[2]), np.inf)
-    _splat_nearest(np.ascontiguousarray(vertices, dtype=float), ax[0], ax[1], ax[2],
-                   float(upper_mm), d2)
+    _splat_nearest(
+        np.ascontiguousarray(vertices, dtype=float), ax[0], ax[1], ax[2], float(upper_mm), d2
+    )
     d = np.sqrt(d2)
     d[d >= upper_mm] = np.inf
     return d

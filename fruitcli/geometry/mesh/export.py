@@ -25,8 +25,9 @@ def weld_float32(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     sf = np.sort(f, axis=1).astype(np.int64)
     n = int(f.max()) + 1 if len(f) else 1
-    _, inv, counts = np.unique((sf[:, 0] * n + sf[:, 1]) * n + sf[:, 2], return_inverse=True,
-                               return_counts=True)
+    _, inv, counts = np.unique(
+        (sf[:, 0] * n + sf[:, 1]) * n + sf[:, 2], return_inverse=True, return_counts=True
+    )
     return uniq.astype(float), f[counts[inv] % 2 == 1]
 
 

@@ -51,9 +51,14 @@ class Surface:
         return self.holes == 0 and self.parts == 1 and self.non_manifold_edges == 0
 
     def facts(self) -> dict:
-        return {"holes": self.holes, "largest_hole_perimeter_mm": self.largest_hole_perimeter_mm,
-                "parts": self.parts, "non_manifold_edges": self.non_manifold_edges,
-                "faces_dropped_at_load": self.faces_dropped, "closed": self.closed}
+        return {
+            "holes": self.holes,
+            "largest_hole_perimeter_mm": self.largest_hole_perimeter_mm,
+            "parts": self.parts,
+            "non_manifold_edges": self.non_manifold_edges,
+            "faces_dropped_at_load": self.faces_dropped,
+            "closed": self.closed,
+        }
 
 
 def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
@@ -63,16 +68,21 @@ def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
     (and where it was given)."""
     extent = float(np.ptp(verts_mm, axis=0).max())
     if unit == "mm" and extent < MIN_EXTENT_MM:
-        raise GeometryError(f"{what} is only {extent:.3g} mm across, so it is not in "
-                            f"millimetres; {hint}")
+        raise GeometryError(
+            f"{what} is only {extent:.3g} mm across, so it is not in millimetres; {hint}"
+        )
     if extent > MAX_EXTENT_MM:
-        raise GeometryError(f"{what} is {extent:.4g} mm across in {unit}, more than "
-                            f"{MAX_EXTENT_MM:g} mm: is that its unit?")
+        raise GeometryError(
+            f"{what} is {extent:.4g} mm across in {unit}, more than "
+            f"{MAX_EXTENT_MM:g} mm: is that its unit?"
+        )
     far = float(np.abs(verts_mm).max())
     if far > MAX_EXTENT_MM:  # 1e9 mm away, a float's step is 1e-7 mm: the carving fails
-        raise GeometryError(f"{what} lies up to {far:.4g} mm from the origin, more than "
-                            f"{MAX_EXTENT_MM:g} mm; move it near the origin (the outputs "
-                            "are in the mesh's own coordinates)")
+        raise GeometryError(
+            f"{what} lies up to {far:.4g} mm from the origin, more than "
+            f"{MAX_EXTENT_MM:g} mm; move it near the origin (the outputs "
+            "are in the mesh's own coordinates)"
+        )
 
 
 def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -84,11 +94,13 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
     if not path.exists():
         raise GeometryError(f"{path}: file not found")
     if path.is_dir():
-        raise GeometryError(f"{path}: is a folder (expected a mesh file: "
-                            f"{', '.join(MESH_SUFFIXES)})")
+        raise GeometryError(
+            f"{path}: is a folder (expected a mesh file: {', '.join(MESH_SUFFIXES)})"
+        )
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise GeometryError(f"{path}: unknown mesh format '{path.suffix}' "
-                            f"(expected {', '.join(MESH_SUFFIXES)})")
+        raise GeometryError(
+            f"{path}: unknown mesh format '{path.suffix}' (expected {', '.join(MESH_SUFFIXES)})"
+        )
     if path.stat().st_size == 0:
         raise GeometryError(f"{path}: empty file (expected a triangle mesh)")
     try:
@@ -96,13 +108,18 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         parts = list(scene.dump()) if isinstance(scene, trimesh.Scene) else [scene]
     except IndexError:
         raise GeometryError(f"{path}: faces refer to missing vertices") from None
-    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file
+    except Exception as exc:
         # (a garbage binary STL makes trimesh try it as text, which may need a module
         # that is not installed: that says nothing about the file, so it is not shown)
-        why = "" if isinstance(exc, ImportError) else \
-            f" ({type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:80]})"
-        raise GeometryError(f"{path}: cannot read as a {path.suffix[1:].upper()} mesh{why}; "
-                            "is it a triangle mesh file?") from None
+        why = (
+            ""
+            if isinstance(exc, ImportError)
+            else f" ({type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:80]})"
+        )
+        raise GeometryError(
+            f"{path}: cannot read as a {path.suffix[1:].upper()} mesh{why}; "
+            "is it a triangle mesh file?"
+        ) from None
     meshes = [p for p in parts if isinstance(p, trimesh.Trimesh) and len(p.faces)]
     if not meshes:
         points = sum(len(getattr(p, "vertices", [])) for p in parts)
@@ -124,8 +141,13 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
     return verts, faces, notes
 
 
-def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT,
-              fit_mm: float | None = None, fit_name: str = "--fit-mm") -> Surface:
+def load_mesh(
+    path,
+    unit: str | None = None,
+    unit_hint: str = CLI_UNIT_HINT,
+    fit_mm: float | None = None,
+    fit_name: str = "--fit-mm",
+) -> Surface:
     """Load `path` as a surface in mm: `unit` (mm, cm, m) first, then, if `fit_mm` is
     given, a uniform scale making its largest extent `fit_mm` mm (`fit_name` names that
     option in errors). Unless `unit` is cm or m or `fit_mm` is given the mesh must be at
@@ -134,8 +156,9 @@ def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT,
     if unit is not None and unit not in UNIT_TO_MM:
         raise GeometryError(f"{path}: unknown unit '{unit}' (expected mm, cm or m)")
     if fit_mm is not None and not 0 < fit_mm <= MAX_EXTENT_MM:
-        raise GeometryError(f"{fit_name}: expected a size > 0 and <= {MAX_EXTENT_MM:g} mm, "
-                            f"got {fit_mm}")
+        raise GeometryError(
+            f"{fit_name}: expected a size > 0 and <= {MAX_EXTENT_MM:g} mm, got {fit_mm}"
+        )
     verts, faces, notes = read_mesh_file(path)
     unit = unit or "mm"
     verts = verts * UNIT_TO_MM[unit]
@@ -145,8 +168,10 @@ def load_mesh(path, unit: str | None = None, unit_hint: str = CLI_UNIT_HINT,
         if not extent > 0:
             raise GeometryError(f"{path}: all vertices coincide; there is nothing to scale")
         verts = verts * (fit_mm / extent)
-        repairs.append(f"scaled by {fit_mm / extent:.6g} so that its largest extent is "
-                       f"{fit_mm:g} mm (from {extent:.4g} mm)")
+        repairs.append(
+            f"scaled by {fit_mm / extent:.6g} so that its largest extent is "
+            f"{fit_mm:g} mm (from {extent:.4g} mm)"
+        )
     check_extent(verts, "any" if fit_mm is not None else unit, f"{path}: the mesh", unit_hint)
     surf = clean(verts, faces, str(path))
     surf.repairs = repairs + surf.repairs
@@ -170,8 +195,12 @@ def clean(verts: np.ndarray, faces: np.ndarray, source: str = "mesh") -> Surface
     n_in = len(faces)
     tri = verts[faces]
     area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) \
-        | (faces[:, 0] == faces[:, 2]) | (area2 == 0)
+    degenerate = (
+        (faces[:, 0] == faces[:, 1])
+        | (faces[:, 1] == faces[:, 2])
+        | (faces[:, 0] == faces[:, 2])
+        | (area2 == 0)
+    )
     if degenerate.any():
         repairs.append(f"dropped {int(degenerate.sum())} degenerate faces (zero area)")
         faces = faces[~degenerate]
@@ -188,18 +217,25 @@ def clean(verts: np.ndarray, faces: np.ndarray, source: str = "mesh") -> Surface
     oriented, outward = _outward(verts, oriented, labels)
     flipped = int((oriented[:, 0] != faces[:, 0]).sum())
     if flipped:
-        repairs.append(f"made the face winding consistent and outward ({flipped} faces "
-                       "flipped)")
+        repairs.append(f"made the face winding consistent and outward ({flipped} faces flipped)")
     if conflicts:
-        repairs.append(f"{conflicts} edges join faces whose winding cannot agree (a "
-                       "non-orientable surface); the winding number may be off there")
+        repairs.append(
+            f"{conflicts} edges join faces whose winding cannot agree (a "
+            "non-orientable surface); the winding number may be off there"
+        )
     used = _edge_use(oriented)
     holes, perimeter = hole_loops(verts, oriented)
-    return Surface(vertices=verts, faces=oriented, repairs=repairs, notes=[],
-                   holes=holes, largest_hole_perimeter_mm=perimeter,
-                   parts=int(len(np.unique(labels))),
-                   non_manifold_edges=int((used > 2).sum() // 3),
-                   faces_dropped=n_in - len(oriented))
+    return Surface(
+        vertices=verts,
+        faces=oriented,
+        repairs=repairs,
+        notes=[],
+        holes=holes,
+        largest_hole_perimeter_mm=perimeter,
+        parts=int(len(np.unique(labels))),
+        non_manifold_edges=int((used > 2).sum() // 3),
+        faces_dropped=n_in - len(oriented),
+    )
 
 
 def _edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -258,12 +294,11 @@ def orient_faces(faces: np.ndarray) -> tuple[np.ndarray, int]:
     idx = np.nonzero(two)[0]
     order = idx[np.argsort(key[idx], kind="stable")]
     a, b = order[0::2], order[1::2]
-    same = e[a, 0] == e[b, 0]                  # both faces run the edge the same way
+    same = e[a, 0] == e[b, 0]  # both faces run the edge the same way
     fa, fb = owner[a], owner[b]
     # relation +1 (same way: flip relative) or -1 (opposite: keep) per face pair
     r = np.where(same, 2.0, 1.0)
-    rel = coo_matrix((np.r_[r, r], (np.r_[fa, fb], np.r_[fb, fa])),
-                     shape=(m, m)).tocsr()
+    rel = coo_matrix((np.r_[r, r], (np.r_[fa, fb], np.r_[fb, fa])), shape=(m, m)).tocsr()
     graph = (rel > 0).astype(np.int8)
     flip = np.zeros(m, dtype=bool)
     seen = np.zeros(m, dtype=bool)
@@ -276,7 +311,7 @@ def orient_faces(faces: np.ndarray) -> tuple[np.ndarray, int]:
         if f.size == 0:  # an isolated face: nothing to orient it against
             continue
         p = pred[f]
-        r = (np.asarray(rel[f, p]).ravel() % 2 == 0).tolist()   # 2 (or 4): same way
+        r = (np.asarray(rel[f, p]).ravel() % 2 == 0).tolist()  # 2 (or 4): same way
         fl = flip.tolist()
         for fi, pi, ri in zip(f.tolist(), p.tolist(), r, strict=True):
             fl[fi] = fl[pi] ^ ri
@@ -293,8 +328,13 @@ def _outward(verts: np.ndarray, faces: np.ndarray, labels: np.ndarray):
     tri = verts[faces]
     nlab = int(labels.max()) + 1
     cnt = np.bincount(labels, minlength=nlab)
-    centre = np.stack([np.bincount(labels, tri[:, :, k].mean(axis=1), minlength=nlab)
-                       for k in range(3)], axis=1) / np.maximum(cnt, 1)[:, None]
+    centre = (
+        np.stack(
+            [np.bincount(labels, tri[:, :, k].mean(axis=1), minlength=nlab) for k in range(3)],
+            axis=1,
+        )
+        / np.maximum(cnt, 1)[:, None]
+    )
     t = tri - centre[labels][:, None, :]
     six = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2]))
     vol = np.bincount(labels, six, minlength=nlab) / 6.0
@@ -310,8 +350,10 @@ def component_count(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     from scipy.sparse.csgraph import connected_components
 
     rows = np.repeat(np.arange(len(faces)), 3)
-    graph = coo_matrix((np.ones(len(rows)), (rows, faces.ravel() + len(faces))),
-                       shape=(len(faces) + n_vertices,) * 2)
+    graph = coo_matrix(
+        (np.ones(len(rows)), (rows, faces.ravel() + len(faces))),
+        shape=(len(faces) + n_vertices,) * 2,
+    )
     _, labels = connected_components(graph, directed=False)
     labels = labels[: len(faces)]
     return np.unique(labels, return_inverse=True)[1].ravel()
@@ -321,8 +363,10 @@ def to_manifold(vertices: np.ndarray, faces: np.ndarray):
     """A manifold3d.Manifold from arrays (vertices float64 mm, faces int)."""
     import manifold3d
 
-    mesh = manifold3d.Mesh(np.ascontiguousarray(vertices, dtype=np.float32),
-                           np.ascontiguousarray(faces, dtype=np.uint32))
+    mesh = manifold3d.Mesh(
+        np.ascontiguousarray(vertices, dtype=np.float32),
+        np.ascontiguousarray(faces, dtype=np.uint32),
+    )
     return manifold3d.Manifold(mesh)
 
 
@@ -335,7 +379,9 @@ def edge_shells(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     _, edge_id = np.unique(e[:, 0] * n_vertices + e[:, 1], return_inverse=True)
     owner = np.tile(np.arange(len(faces)), 3)
-    graph = coo_matrix((np.ones(len(owner)), (owner, edge_id.ravel() + len(faces))),
-                       shape=(len(faces) + edge_id.max() + 1,) * 2)
+    graph = coo_matrix(
+        (np.ones(len(owner)), (owner, edge_id.ravel() + len(faces))),
+        shape=(len(faces) + edge_id.max() + 1,) * 2,
+    )
     _, labels = connected_components(graph, directed=False)
     return np.unique(labels[: len(faces)], return_inverse=True)[1].ravel()

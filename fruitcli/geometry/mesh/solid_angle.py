@@ -48,8 +48,12 @@ def _triangle_angle(px, py, pz, t, k):
     lb = np.sqrt(bx * bx + by * by + bz * bz)
     lc = np.sqrt(cx * cx + cy * cy + cz * cz)
     det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-    den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc
-           + (bx * cx + by * cy + bz * cz) * la + (cx * ax + cy * ay + cz * az) * lb)
+    den = (
+        la * lb * lc
+        + (ax * bx + ay * by + az * bz) * lc
+        + (bx * cx + by * cy + bz * cz) * la
+        + (cx * ax + cy * ay + cz * az) * lb
+    )
     return 2.0 * np.arctan2(det, den)
 
 
@@ -137,10 +141,10 @@ def _node_records(t, start, end, child):
     first (moments shifted to the parent's centre), radii exact over the corners."""
     n = start.shape[0]
     m = t.shape[0]
-    va = np.zeros((m, 3))          # vector areas A n
+    va = np.zeros((m, 3))  # vector areas A n
     area = np.zeros(m)
     cen = np.zeros((m, 3))
-    quad = np.zeros((m, 3, 3))     # int (x - c)(x - c)^T dA / A = sum_v (v - c)(v - c)^T / 12
+    quad = np.zeros((m, 3, 3))  # int (x - c)(x - c)^T dA / A = sum_v (v - c)(v - c)^T / 12
     for k in range(m):
         e1x, e1y, e1z = t[k, 3] - t[k, 0], t[k, 4] - t[k, 1], t[k, 5] - t[k, 2]
         e2x, e2y, e2z = t[k, 6] - t[k, 0], t[k, 7] - t[k, 1], t[k, 8] - t[k, 2]
@@ -186,8 +190,9 @@ def _node_records(t, start, end, child):
                     for j in range(3):
                         big_m[nd, i, j] += va[k, i] * delta[j]
                         for kk in range(3):
-                            big_t[nd, i, j, kk] += va[k, i] * (delta[j] * delta[kk]
-                                                               + quad[k, j, kk])
+                            big_t[nd, i, j, kk] += va[k, i] * (
+                                delta[j] * delta[kk] + quad[k, j, kk]
+                            )
         else:
             lft, rgt = child[nd], child[nd] + 1
             a = tot[lft] + tot[rgt]
@@ -205,9 +210,12 @@ def _node_records(t, start, end, child):
                     for j in range(3):
                         big_m[nd, i, j] += big_m[c, i, j] + big_n[c, i] * delta[j]
                         for kk in range(3):
-                            big_t[nd, i, j, kk] += (big_t[c, i, j, kk] + big_m[c, i, j] * delta[kk]
-                                                    + big_m[c, i, kk] * delta[j]
-                                                    + big_n[c, i] * delta[j] * delta[kk])
+                            big_t[nd, i, j, kk] += (
+                                big_t[c, i, j, kk]
+                                + big_m[c, i, j] * delta[kk]
+                                + big_m[c, i, kk] * delta[j]
+                                + big_n[c, i] * delta[j] * delta[kk]
+                            )
     rec = np.zeros((n, _NODE_FIELDS))
     for nd in range(n):
         r2 = 0.0
@@ -224,12 +232,19 @@ def _node_records(t, start, end, child):
         rec[nd, 4:7] = big_n[nd]
         rec[nd, 7] = mm[0, 0] + mm[1, 1] + mm[2, 2]
         rec[nd, 8], rec[nd, 9], rec[nd, 10] = mm[0, 0], mm[1, 1], mm[2, 2]
-        rec[nd, 11], rec[nd, 12], rec[nd, 13] = (mm[0, 1] + mm[1, 0], mm[0, 2] + mm[2, 0],
-                                                 mm[1, 2] + mm[2, 1])
-        for k in range(3):          # u_k = 2 sum_i T_iik + sum_j T_kjj
-            rec[nd, 14 + k] = 2.0 * (tt[0, 0, k] + tt[1, 1, k] + tt[2, 2, k]) \
-                + tt[k, 0, 0] + tt[k, 1, 1] + tt[k, 2, 2]
-        for i in range(3):          # the cubic's coefficients: T summed over permutations
+        rec[nd, 11], rec[nd, 12], rec[nd, 13] = (
+            mm[0, 1] + mm[1, 0],
+            mm[0, 2] + mm[2, 0],
+            mm[1, 2] + mm[2, 1],
+        )
+        for k in range(3):  # u_k = 2 sum_i T_iik + sum_j T_kjj
+            rec[nd, 14 + k] = (
+                2.0 * (tt[0, 0, k] + tt[1, 1, k] + tt[2, 2, k])
+                + tt[k, 0, 0]
+                + tt[k, 1, 1]
+                + tt[k, 2, 2]
+            )
+        for i in range(3):  # the cubic's coefficients: T summed over permutations
             for j in range(3):
                 for k in range(3):
                     rec[nd, 17 + _cubic_slot(i, j, k)] += tt[i, j, k]
@@ -269,7 +284,7 @@ def _fast_kernel(t, start, end, child, rec, beta, points, out):
         while top > 0:
             top -= 1
             nd = stack[top]
-            x = rec[nd, 0] - px          # r = centre - q
+            x = rec[nd, 0] - px  # r = centre - q
             y = rec[nd, 1] - py
             z = rec[nd, 2] - pz
             d2 = x * x + y * y + z * z
@@ -278,15 +293,28 @@ def _fast_kernel(t, start, end, child, rec, beta, points, out):
                 inv3 = inv2 / np.sqrt(d2)
                 inv5 = inv3 * inv2
                 s += (x * rec[nd, 4] + y * rec[nd, 5] + z * rec[nd, 6]) * inv3
-                rmr = (rec[nd, 8] * x * x + rec[nd, 9] * y * y + rec[nd, 10] * z * z
-                       + rec[nd, 11] * x * y + rec[nd, 12] * x * z + rec[nd, 13] * y * z)
+                rmr = (
+                    rec[nd, 8] * x * x
+                    + rec[nd, 9] * y * y
+                    + rec[nd, 10] * z * z
+                    + rec[nd, 11] * x * y
+                    + rec[nd, 12] * x * z
+                    + rec[nd, 13] * y * z
+                )
                 s += rec[nd, 7] * inv3 - 3.0 * rmr * inv5
                 ru = x * rec[nd, 14] + y * rec[nd, 15] + z * rec[nd, 16]
-                cub = (rec[nd, 17] * x * x * x + rec[nd, 18] * y * y * y
-                       + rec[nd, 19] * z * z * z + rec[nd, 20] * x * x * y
-                       + rec[nd, 21] * x * x * z + rec[nd, 22] * y * y * x
-                       + rec[nd, 23] * y * y * z + rec[nd, 24] * z * z * x
-                       + rec[nd, 25] * z * z * y + rec[nd, 26] * x * y * z)
+                cub = (
+                    rec[nd, 17] * x * x * x
+                    + rec[nd, 18] * y * y * y
+                    + rec[nd, 19] * z * z * z
+                    + rec[nd, 20] * x * x * y
+                    + rec[nd, 21] * x * x * z
+                    + rec[nd, 22] * y * y * x
+                    + rec[nd, 23] * y * y * z
+                    + rec[nd, 24] * z * z * x
+                    + rec[nd, 25] * z * z * y
+                    + rec[nd, 26] * x * y * z
+                )
                 s += 0.5 * (-3.0 * ru * inv5 + 15.0 * cub * inv5 * inv2)
             elif child[nd] < 0:
                 for k in range(start[nd], end[nd]):
@@ -318,6 +346,5 @@ class SolidAngleTree:
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.zeros(len(pts))
         if len(pts) and len(self.t):
-            _fast_kernel(self.t, self.start, self.end, self.child, self.rec, self.beta, pts,
-                         out)
+            _fast_kernel(self.t, self.start, self.end, self.child, self.rec, self.beta, pts, out)
         return out

@@ -97,8 +97,9 @@ def column_winding(wn: Winding, axes) -> np.ndarray:
     bad = np.nonzero(above[:, 0] != 0)[0]
     if len(bad):
         i, j = np.unravel_index(bad, shape[:2])
-        pts = np.stack(np.broadcast_arrays(axes[0][i][:, None], axes[1][j][:, None],
-                                           axes[2][None, :]), axis=-1).reshape(-1, 3)
+        pts = np.stack(
+            np.broadcast_arrays(axes[0][i][:, None], axes[1][j][:, None], axes[2][None, :]), axis=-1
+        ).reshape(-1, 3)
         w[i, j] = wn(pts).reshape(len(bad), shape[2])
     return np.ascontiguousarray(w)
 

@@ -5,8 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def write_preview(path, top_v: np.ndarray, top_f: np.ndarray, curves: list[np.ndarray],
-                  taxel_xyz: np.ndarray, title: str = "") -> None:
+def write_preview(
+    path,
+    top_v: np.ndarray,
+    top_f: np.ndarray,
+    curves: list[np.ndarray],
+    taxel_xyz: np.ndarray,
+    title: str = "",
+) -> None:
     """Save a two-panel PNG (mm axes) of the piece, its track curves and numbered taxels."""
     import matplotlib
 
@@ -17,8 +23,15 @@ def write_preview(path, top_v: np.ndarray, top_f: np.ndarray, curves: list[np.nd
     ax = fig.add_subplot(1, 2, 1)
     t = top_v[top_f]
     facing_up = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])[:, 2] > 0
-    ax.tripcolor(top_v[:, 0], top_v[:, 1], top_f[facing_up], top_v[:, 2],
-                 cmap="Greys", shading="gouraud", alpha=0.8)
+    ax.tripcolor(
+        top_v[:, 0],
+        top_v[:, 1],
+        top_f[facing_up],
+        top_v[:, 2],
+        cmap="Greys",
+        shading="gouraud",
+        alpha=0.8,
+    )
     for c in curves:
         ax.plot(c[:, 0], c[:, 1], color="tab:orange", lw=0.8)
     ax.scatter(taxel_xyz[:, 0], taxel_xyz[:, 1], s=10, color="tab:red", zorder=3)
@@ -57,8 +70,16 @@ def view_matrix(elev_deg: float = 35.0, azim_deg: float = -60.0) -> np.ndarray:
     return np.stack([right, up, toward])
 
 
-def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=35.0,
-                     azim_deg=-60.0, flat: bool = False):
+def draw_perspective(
+    ax,
+    v: np.ndarray,
+    f: np.ndarray,
+    curves,
+    points,
+    elev_deg=35.0,
+    azim_deg=-60.0,
+    flat: bool = False,
+):
     """Shaded orthographic view of a mesh on a 2D Axes (Gouraud-shaded triangles in
     painter's order, far faces first: much faster than mplot3d), with curves and numbered
     points on it. `flat`: one shade per face (for boxy parts, whose long thin faces smear
@@ -72,18 +93,28 @@ def draw_perspective(ax, v: np.ndarray, f: np.ndarray, curves, points, elev_deg=
         np.add.at(vn, f[:, k], n)
     vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
     front = f[n[:, 2] > 0]
-    front = front[np.argsort(q[front, 2].mean(axis=1))]      # far faces first
+    front = front[np.argsort(q[front, 2].mean(axis=1))]  # far faces first
     light = np.array([0.3, 0.5, 0.81])
     if flat:
         fn = np.cross(q[front[:, 1]] - q[front[:, 0]], q[front[:, 2]] - q[front[:, 0]])
         fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
         shade = 0.25 + 0.75 * np.clip(fn @ light, 0, 1)
-        ax.tripcolor(q[:, 0], q[:, 1], front, facecolors=shade, cmap="Greys_r", vmin=0.0,
-                     vmax=1.15, edgecolors="face", linewidth=0.1)
+        ax.tripcolor(
+            q[:, 0],
+            q[:, 1],
+            front,
+            facecolors=shade,
+            cmap="Greys_r",
+            vmin=0.0,
+            vmax=1.15,
+            edgecolors="face",
+            linewidth=0.1,
+        )
     else:
         shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
-        ax.tripcolor(q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15,
-                     shading="gouraud")
+        ax.tripcolor(
+            q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15, shading="gouraud"
+        )
     for c in curves:
         q = c @ r.T
         ax.plot(q[:, 0], q[:, 1], color="tab:orange", lw=0.7)

@@ -49,9 +49,15 @@ class Reduced:
     inside_volume_mm3: float = 0.0
 
 
-def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: float,
-                         level_mm: float, pad_mm: float, dist: TreeDistance | None = None,
-                         inside: Inside | None = None):
+def signed_distance_grid(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    spacing_mm: float,
+    level_mm: float,
+    pad_mm: float,
+    dist: TreeDistance | None = None,
+    inside: Inside | None = None,
+):
     """Signed distance (positive inside) on a grid; returns (axes (x, y, z), sdf (nx, ny, nz),
     winding number (nx, ny, nz)).
 
@@ -65,8 +71,10 @@ def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: fl
 
     lo = vertices.min(axis=0) - pad_mm
     hi = vertices.max(axis=0) + pad_mm
-    axes = [lo[k] + spacing_mm * np.arange(int(np.ceil((hi[k] - lo[k]) / spacing_mm)) + 1)
-            for k in range(3)]
+    axes = [
+        lo[k] + spacing_mm * np.arange(int(np.ceil((hi[k] - lo[k]) / spacing_mm)) + 1)
+        for k in range(3)
+    ]
     shape = tuple(len(a) for a in axes)
     inside = inside or Inside(vertices, faces)
     band = level_mm + 3.0 * spacing_mm
@@ -78,8 +86,11 @@ def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing_mm: fl
     d = grid_vertex_distance(dist.vertices, axes, band if closed else max(band, radius))
     near = None
     if not closed:
-        near = d < radius if inside.tree is None else \
-            grid_vertex_distance(inside.wn.vertices, axes, radius) < radius
+        near = (
+            d < radius
+            if inside.tree is None
+            else grid_vertex_distance(inside.wn.vertices, axes, radius) < radius
+        )
         near = near.reshape(shape)
     w = winding.grid_winding(inside.wn, axes, near)
     d = np.minimum(d, band)
@@ -107,13 +118,19 @@ class Inside:
     all its vertices (the winding number jumps at every face); when it has holes, caps
     (where the winding number crosses 1/2 away from the surface) join the distance."""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, all_faces_bound: bool = True,
-                 holes: bool = False):
+    def __init__(
+        self,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        all_faces_bound: bool = True,
+        holes: bool = False,
+    ):
         from scipy.spatial import cKDTree
 
         self.wn = winding.Winding(vertices, faces)
-        self.tree = None if all_faces_bound else \
-            cKDTree(vertices, balanced_tree=False, compact_nodes=False)
+        self.tree = (
+            None if all_faces_bound else cKDTree(vertices, balanced_tree=False, compact_nodes=False)
+        )
         self.caps = bool(holes)
         self.cap_points = np.zeros((0, 3))
 
@@ -153,18 +170,19 @@ def edge_for_faces(area_mm2: float, faces: int) -> float:
 
 def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
     tri = vertices[faces]
-    return float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                      axis=1).sum())
+    return float(
+        0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
 
 
 def grid_for_faces(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> float:
     """Spacing (mm) of the signed-distance grid `reduce_body` uses for `target_faces`."""
-    return GRID_PER_EDGE * edge_for_faces(surface_area(vertices, faces),
-                                          OVERSAMPLE * target_faces)
+    return GRID_PER_EDGE * edge_for_faces(surface_area(vertices, faces), OVERSAMPLE * target_faces)
 
 
-def densify(vertices: np.ndarray, faces: np.ndarray, max_edge_mm: float,
-            max_faces: int | None = None):
+def densify(
+    vertices: np.ndarray, faces: np.ndarray, max_edge_mm: float, max_faces: int | None = None
+):
     """Split the long edges of a closed mesh until none is longer than `max_edge_mm`
     (same surface, conforming, winding kept).
 
@@ -196,8 +214,7 @@ def _edges(v: np.ndarray, f: np.ndarray):
     """Unique edges (e, 2) (low vertex first), face -> edge ids (m, 3) for edges ab, bc, ca,
     and edge lengths (e,)."""
     e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    _, first, inv = np.unique(e[:, 0] * len(v) + e[:, 1], return_index=True,
-                              return_inverse=True)
+    _, first, inv = np.unique(e[:, 0] * len(v) + e[:, 1], return_index=True, return_inverse=True)
     ue = e[first]
     return ue, inv.reshape(3, -1).T, np.linalg.norm(v[ue[:, 0]] - v[ue[:, 1]], axis=1)
 
@@ -225,8 +242,7 @@ def _split_long(v: np.ndarray, f: np.ndarray, edge: float, cap: float):
         n_long = long_.sum(axis=1)
         fl = length[fe]
         short = np.where(long_, np.inf, fl).min(axis=1)
-        step = np.where(n_long == 2, np.sqrt(np.maximum(edge ** 2 - short ** 2,
-                                                        0.5 * edge ** 2)), edge)
+        step = np.where(n_long == 2, np.sqrt(np.maximum(edge**2 - short**2, 0.5 * edge**2)), edge)
         pieces = np.ones(len(ue), dtype=np.int64)
         need = np.ceil(fl / step[:, None]).astype(np.int64)
         np.maximum.at(pieces, fe[long_], need[long_])
@@ -258,16 +274,17 @@ def _split_midpoints(v: np.ndarray, f: np.ndarray, m: np.ndarray) -> np.ndarray:
     out.append(np.c_[p, b, q])
     # the quad a p q c: cut along its shorter diagonal
     aq = np.linalg.norm(v[a] - v[q], axis=1) <= np.linalg.norm(v[p] - v[c], axis=1)
-    out += [np.where(aq[:, None], np.c_[a, p, q], np.c_[a, p, c]),
-            np.where(aq[:, None], np.c_[a, q, c], np.c_[p, q, c])]
+    out += [
+        np.where(aq[:, None], np.c_[a, p, q], np.c_[a, p, c]),
+        np.where(aq[:, None], np.c_[a, q, c], np.c_[p, q, c]),
+    ]
     a, b, c = rf[three].T
     p, q, s = rm[three].T
     out += [np.c_[a, p, s], np.c_[p, b, q], np.c_[s, q, c], np.c_[p, q, s]]
     return np.concatenate(out).astype(np.int64)
 
 
-def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
-                  pieces: np.ndarray):
+def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray, pieces: np.ndarray):
     """Cut edge k into pieces[k] equal parts; faces with one cut edge become a fan from the
     opposite corner, faces with two a ladder between them. Returns (vertices, faces)."""
     cut = np.nonzero(pieces > 1)[0]
@@ -289,17 +306,17 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
     new = []
     for face, edges in zip(f[split].tolist(), fe[split].tolist(), strict=True):
         cuts = [pieces[q] > 1 for q in edges]
-        if sum(cuts) == 1:                       # fan from the corner opposite the cut edge
+        if sum(cuts) == 1:  # fan from the corner opposite the cut edge
             r = cuts.index(True)
             a, b, c = face[r], face[(r + 1) % 3], face[(r + 2) % 3]
             ps = chain(a, b, edges[r])
             new += [(ps[i], ps[i + 1], c) for i in range(len(ps) - 1)]
             continue
-        if sum(cuts) == 3:                       # _split_long cuts those in four first
+        if sum(cuts) == 3:  # _split_long cuts those in four first
             raise ValueError("a face with three long edges reached the ladder split")
-        r = (cuts.index(False) + 1) % 3          # the uncut edge becomes ca
+        r = (cuts.index(False) + 1) % 3  # the uncut edge becomes ca
         a, b, c = face[r], face[(r + 1) % 3], face[(r + 2) % 3]
-        ab = chain(a, b, edges[r])                # a .. b
+        ab = chain(a, b, edges[r])  # a .. b
         cb = chain(c, b, edges[(r + 1) % 3])[:-1]  # c .. (before b)
         i = j = 0
         while i < len(ab) - 1 or j < len(cb) - 1:
@@ -308,8 +325,9 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
             elif j == len(cb) - 1:
                 go_a = True
             else:
-                go_a = (np.sum((v[ab[i + 1]] - v[cb[j]]) ** 2)
-                        <= np.sum((v[ab[i]] - v[cb[j + 1]]) ** 2))
+                go_a = np.sum((v[ab[i + 1]] - v[cb[j]]) ** 2) <= np.sum(
+                    (v[ab[i]] - v[cb[j + 1]]) ** 2
+                )
             if go_a:
                 new.append((ab[i], ab[i + 1], cb[j]))
                 i += 1
@@ -320,9 +338,16 @@ def _split_pieces(v: np.ndarray, f: np.ndarray, ue: np.ndarray, fe: np.ndarray,
     return v, np.concatenate(out)
 
 
-def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target_faces: int,
-                source: str = "mesh", dist: TreeDistance | None = None,
-                cover_name: str = "--cover-mm", inside: Inside | None = None) -> Reduced:
+def reduce_body(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    cover_mm: float,
+    target_faces: int,
+    source: str = "mesh",
+    dist: TreeDistance | None = None,
+    cover_name: str = "--cover-mm",
+    inside: Inside | None = None,
+) -> Reduced:
     """Offset a surface inward by `cover_mm` with about `target_faces` triangles
     (`cover_name`: how the user sets cover_mm, named in errors). `vertices`, `faces`: the
     faces that bound the inside; `inside`: what decides inside (default: these faces)."""
@@ -340,19 +365,23 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
             f"reaches {winding.DEEP_INSIDE:g} to 1) on a grid of {h:.2g} mm, as for an open "
             "sheet or a plane, or a closed body thinner than about "
             f"{2 * h:.2g} mm; give a sheet a thickness in a modeller, or ask for more "
-            "triangles (--faces, [tracks].faces) for a finer grid")
+            "triangles (--faces, [tracks].faces) for a finer grid"
+        )
     if not (sdf > cover_mm).any():
         where = _xyz(axes, int(np.argmax(sdf)))
         raise GeometryError(
             f"{source}: an inward offset of {cover_mm:g} mm consumes the whole body: it is "
             f"at most {2 * float(sdf.max()):.2f} mm thick (at {where} mm), thinner than twice "
-            f"the cover; use a smaller {cover_name}")
+            f"the cover; use a smaller {cover_name}"
+        )
     lo = [float(a[0]) for a in axes]
     hi = [float(a[-1]) for a in axes]
     body = manifold3d.Manifold.level_set(_trilinear(axes, sdf), lo + hi, edge, cover_mm)
     if body.status() != manifold3d.Error.NoError or body.is_empty():
-        raise GeometryError(f"{source}: an inward offset of {cover_mm:g} mm consumes the whole "
-                            f"body (use a smaller {cover_name})")
+        raise GeometryError(
+            f"{source}: an inward offset of {cover_mm:g} mm consumes the whole "
+            f"body (use a smaller {cover_name})"
+        )
     pieces = sorted(body.decompose(), key=lambda m: -m.volume())
     big = pieces[0].volume()
     kept = [p for p in pieces if p.volume() >= ISLAND_VOLUME_FRACTION * big]
@@ -362,12 +391,14 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
             raise GeometryError(
                 f"{source}: the mesh encloses {len(kept)} separate bodies (their insides do "
                 f"not touch; the two largest around {where} mm); expected one casting piece: "
-                "join them or delete the extra bodies")
+                "join them or delete the extra bodies"
+            )
         raise GeometryError(
             f"{source}: an inward offset of {cover_mm:g} mm pinches the body apart into "
             f"{len(kept)} pieces: the feature joining them at {where} mm is only "
             f"{thick:.2f} mm thick, thinner than twice the cover; use a smaller {cover_name} "
-            "(or thicken that feature)")
+            "(or thicken that feature)"
+        )
     islands = [(float(p.volume()), _centre(p)) for p in pieces[1:]]
     body = simplify_to(pieces[0], target_faces, SIMPLIFY_MAX_PER_EDGE * edge)
     body, cut_off = _drop_pinched_shells(body)
@@ -377,17 +408,23 @@ def reduce_body(vertices: np.ndarray, faces: np.ndarray, cover_mm: float, target
         raise GeometryError(
             f"{source}: an inward offset of {cover_mm:g} mm pinches off a piece of {v:.0f} "
             f"mm^3 at {at} mm: the feature joining it is thinner than twice the cover; use a "
-            f"smaller {cover_name} (or thicken that feature)")
+            f"smaller {cover_name} (or thicken that feature)"
+        )
     # equator: the height of the largest horizontal cross-section of the reduced body
     area_z = (sdf > cover_mm).sum(axis=(0, 1)).astype(float)
     plateau = np.nonzero(area_z >= EQUATOR_AREA_FRACTION * area_z.max())[0]
     equator = float(np.median(axes[2][plateau]))
     inside_w = w > winding.INSIDE
-    return Reduced(body=body, edge_mm=edge, grid_mm=h, dropped_islands=len(islands),
-                   islands=[{"volume_mm3": round(v, 3), "at_mm": at} for v, at in islands],
-                   equator_z_mm=equator,
-                   winding_range=(float(w.min()), float(w.max())),
-                   inside_volume_mm3=float(inside_w.sum()) * h ** 3)
+    return Reduced(
+        body=body,
+        edge_mm=edge,
+        grid_mm=h,
+        dropped_islands=len(islands),
+        islands=[{"volume_mm3": round(v, 3), "at_mm": at} for v, at in islands],
+        equator_z_mm=equator,
+        winding_range=(float(w.min()), float(w.max())),
+        inside_volume_mm3=float(inside_w.sum()) * h**3,
+    )
 
 
 def _centre(m) -> str:
@@ -425,8 +462,12 @@ def to_manifold64(vertices: np.ndarray, faces: np.ndarray):
     """A manifold3d.Manifold from float64 arrays (no rounding to float32)."""
     import manifold3d
 
-    return manifold3d.Manifold(manifold3d.Mesh64(np.ascontiguousarray(vertices, dtype=float),
-                                                 np.ascontiguousarray(faces, dtype=np.uint64)))
+    return manifold3d.Manifold(
+        manifold3d.Mesh64(
+            np.ascontiguousarray(vertices, dtype=float),
+            np.ascontiguousarray(faces, dtype=np.uint64),
+        )
+    )
 
 
 def _xyz(axes, flat_index: int) -> str:
@@ -456,10 +497,12 @@ def neck(axes, sdf: np.ndarray, cover_mm: float, steps: int = 10):
     b_pts = np.argwhere(lab == two[1])
     lab0, _ = pieces(0.0)
     if lab0[tuple(a_pts[0])] != lab0[tuple(b_pts[0])]:
-        at = [_xyz(axes, int(np.ravel_multi_index(tuple(p.mean(axis=0).astype(int)),
-                                                  sdf.shape))) for p in (a_pts, b_pts)]
+        at = [
+            _xyz(axes, int(np.ravel_multi_index(tuple(p.mean(axis=0).astype(int)), sdf.shape)))
+            for p in (a_pts, b_pts)
+        ]
         return None, " and ".join(at)
-    lo, hi = 0.0, cover_mm          # joined at lo (inside the body), apart at hi
+    lo, hi = 0.0, cover_mm  # joined at lo (inside the body), apart at hi
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
         lab_m, _ = pieces(mid)
@@ -504,9 +547,16 @@ def manifold_arrays(m) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(v), np.asarray(mesh.tri_verts, dtype=np.int64)
 
 
-def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndarray,
-                 artist_f: np.ndarray, cover_mm: float, n_samples: int = 20000,
-                 dist: TreeDistance | None = None, caps: np.ndarray | None = None) -> dict:
+def offset_error(
+    reduced_v: np.ndarray,
+    reduced_f: np.ndarray,
+    artist_v: np.ndarray,
+    artist_f: np.ndarray,
+    cover_mm: float,
+    n_samples: int = 20000,
+    dist: TreeDistance | None = None,
+    caps: np.ndarray | None = None,
+) -> dict:
     """Hausdorff-type distance (mm) between the reduced surface and the ideal offset surface.
 
     reduced -> ideal: | distance to the artist surface - cover | at reduced vertices and
@@ -540,8 +590,13 @@ def offset_error(reduced_v: np.ndarray, reduced_f: np.ndarray, artist_v: np.ndar
         _, back, _ = TreeDistance(reduced_v, reduced_f).closest(ideal)
     h_fwd = float(fwd.max()) if len(fwd) else 0.0
     h_back = float(back.max()) if len(back) else 0.0
-    worst = q[int(np.argmax(fwd))] if h_fwd >= h_back or not len(back) else \
-        ideal[int(np.argmax(back))]
-    return {"hausdorff_mm": max(h_fwd, h_back), "reduced_to_ideal_max_mm": h_fwd,
-            "ideal_to_reduced_max_mm": h_back, "reduced_to_ideal_mean_mm": float(fwd.mean()),
-            "worst_at_mm": [round(float(x), 2) for x in worst]}
+    worst = (
+        q[int(np.argmax(fwd))] if h_fwd >= h_back or not len(back) else ideal[int(np.argmax(back))]
+    )
+    return {
+        "hausdorff_mm": max(h_fwd, h_back),
+        "reduced_to_ideal_max_mm": h_fwd,
+        "ideal_to_reduced_max_mm": h_back,
+        "reduced_to_ideal_mean_mm": float(fwd.mean()),
+        "worst_at_mm": [round(float(x), 2) for x in worst],
+    }

@@ -25,8 +25,13 @@ class Piece:
         return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
 
 
-def plane_segments(vertices: np.ndarray, faces: np.ndarray, axis: int, value: float,
-                   face_mask: np.ndarray | None = None):
+def plane_segments(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    axis: int,
+    value: float,
+    face_mask: np.ndarray | None = None,
+):
     """Segments of the section: (node ids (m, 2) int, points (m, 2, 3), face ids (m,)).
 
     A node id names the mesh edge (or vertex) a point lies on, so that the segments of
@@ -97,8 +102,13 @@ def chain(seg_nodes: np.ndarray, seg_pts: np.ndarray, seg_faces: np.ndarray) -> 
     return pieces
 
 
-def section_pieces(vertices: np.ndarray, faces: np.ndarray, axis: int, value: float,
-                   face_mask: np.ndarray | None = None) -> list[Piece]:
+def section_pieces(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    axis: int,
+    value: float,
+    face_mask: np.ndarray | None = None,
+) -> list[Piece]:
     """Connected pieces of the section `coordinate[axis] = value` over `face_mask` faces."""
     nodes, pts, fid = plane_segments(vertices, faces, axis, value, face_mask)
     return chain(nodes, pts, fid)
@@ -108,12 +118,12 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int, bool]]:
     """Runs of equal values in a 1D bool array: (start, stop, value), stop exclusive."""
     cut = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
     bounds = np.r_[0, cut, len(flags)]
-    return [(int(a), int(b), bool(flags[a])) for a, b in zip(bounds[:-1], bounds[1:],
-                                                                strict=True)]
+    return [(int(a), int(b), bool(flags[a])) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
 
 
-def masked_runs(piece: Piece, keep: np.ndarray, max_gap_mm: float,
-                min_length_mm: float) -> list[Piece]:
+def masked_runs(
+    piece: Piece, keep: np.ndarray, max_gap_mm: float, min_length_mm: float
+) -> list[Piece]:
     """The parts of `piece` whose segments are kept (`keep` (k-1,) bool per segment).
 
     A mask taken face by face is noisy (a sliver face with a tilted normal breaks a curve
@@ -128,7 +138,7 @@ def masked_runs(piece: Piece, keep: np.ndarray, max_gap_mm: float,
     shift = 0
     if not keep.any():
         return []
-    if piece.closed:                      # start the loop where a dropped part starts
+    if piece.closed:  # start the loop where a dropped part starts
         shift = int(np.flatnonzero(~keep & np.roll(keep, 1))[0])
         keep = np.roll(keep, -shift)
         seg_len = np.roll(seg_len, -shift)
@@ -141,12 +151,12 @@ def masked_runs(piece: Piece, keep: np.ndarray, max_gap_mm: float,
         return [piece] if seg_len.sum() >= min_length_mm else []
     pts = piece.points[:-1] if piece.closed else piece.points
     fcs = piece.faces
-    if piece.closed:                      # unroll: segment s runs from point s to s + 1
+    if piece.closed:  # unroll: segment s runs from point s to s + 1
         pts = np.roll(pts, -shift, axis=0)
         pts = np.concatenate([pts, pts[:1]])
         fcs = np.roll(fcs, -shift)
     out = []
     for a, b, kept in _runs(keep):
         if kept and seg_len[a:b].sum() >= min_length_mm:
-            out.append(Piece(pts[a:b + 1], fcs[a:b], False))
+            out.append(Piece(pts[a : b + 1], fcs[a:b], False))
     return out

@@ -38,8 +38,12 @@ def piece_crossings(piece: Piece, axis: int, values: np.ndarray):
     return lidx, pts, piece.faces[seg]
 
 
-def grid_crossings(pieces_by_plane: dict[int, list[Piece]], axis_other: int,
-                   values_other: np.ndarray, offset_other: int) -> dict:
+def grid_crossings(
+    pieces_by_plane: dict[int, list[Piece]],
+    axis_other: int,
+    values_other: np.ndarray,
+    offset_other: int,
+) -> dict:
     """{(plane index, other plane index): (point, face)}, the top-most crossing for each."""
     out: dict[tuple[int, int], tuple[np.ndarray, int]] = {}
     for k, pieces in pieces_by_plane.items():
@@ -52,9 +56,14 @@ def grid_crossings(pieces_by_plane: dict[int, list[Piece]], axis_other: int,
     return out
 
 
-def find_taxels(x_pieces: dict[int, list[Piece]], y_pieces: dict[int, list[Piece]],
-                x_planes: dict[int, float], y_planes: dict[int, float],
-                vertices: np.ndarray, faces: np.ndarray) -> dict:
+def find_taxels(
+    x_pieces: dict[int, list[Piece]],
+    y_pieces: dict[int, list[Piece]],
+    x_planes: dict[int, float],
+    y_planes: dict[int, float],
+    vertices: np.ndarray,
+    faces: np.ndarray,
+) -> dict:
     """Crossings present on both an x-curve and a y-curve.
 
     Returns {"k": (T,) x-plane index, "l": (T,) y-plane index, "xyz": (T, 3) mm,
@@ -65,23 +74,36 @@ def find_taxels(x_pieces: dict[int, list[Piece]], y_pieces: dict[int, list[Piece
     xs = np.array([x_planes[k] for k in kx])
     ys = np.array([y_planes[l_] for l_ in ly])
     from_x = grid_crossings(x_pieces, 1, ys, ly[0] if ly else 0)
-    from_y = {(k, l_): v for (l_, k), v in
-              grid_crossings(y_pieces, 0, xs, kx[0] if kx else 0).items()}
+    from_y = {
+        (k, l_): v for (l_, k), v in grid_crossings(y_pieces, 0, xs, kx[0] if kx else 0).items()
+    }
     keys = sorted(set(from_x) & set(from_y))
     if not keys:
-        return {"k": np.zeros(0, int), "l": np.zeros(0, int), "xyz": np.zeros((0, 3)),
-                "normals": np.zeros((0, 3)), "face": np.zeros(0, int), "mismatch_mm": 0.0}
+        return {
+            "k": np.zeros(0, int),
+            "l": np.zeros(0, int),
+            "xyz": np.zeros((0, 3)),
+            "normals": np.zeros((0, 3)),
+            "face": np.zeros(0, int),
+            "mismatch_mm": 0.0,
+        }
     xyz = np.array([from_x[key][0] for key in keys])
     other = np.array([from_y[key][0] for key in keys])
     face = np.array([from_x[key][1] for key in keys])
     normals = interpolated_normals(vertices, faces, face, xyz)
-    return {"k": np.array([key[0] for key in keys]), "l": np.array([key[1] for key in keys]),
-            "xyz": xyz, "normals": normals, "face": face,
-            "mismatch_mm": float(np.linalg.norm(xyz - other, axis=1).max())}
+    return {
+        "k": np.array([key[0] for key in keys]),
+        "l": np.array([key[1] for key in keys]),
+        "xyz": xyz,
+        "normals": normals,
+        "face": face,
+        "mismatch_mm": float(np.linalg.norm(xyz - other, axis=1).max()),
+    }
 
 
-def interpolated_normals(vertices: np.ndarray, faces: np.ndarray, face: np.ndarray,
-                         points: np.ndarray) -> np.ndarray:
+def interpolated_normals(
+    vertices: np.ndarray, faces: np.ndarray, face: np.ndarray, points: np.ndarray
+) -> np.ndarray:
     """Unit normals (n, 3) at points on given faces: vertex normals mixed barycentrically."""
     vn = vertex_normals(vertices, faces)
     tri = vertices[faces[face]]
@@ -93,6 +115,9 @@ def interpolated_normals(vertices: np.ndarray, faces: np.ndarray, face: np.ndarr
     w1 = (d11 * d20 - d01 * d21) / den
     w2 = (d00 * d21 - d01 * d20) / den
     w0 = 1.0 - w1 - w2
-    n = (w0[:, None] * vn[faces[face, 0]] + w1[:, None] * vn[faces[face, 1]]
-         + w2[:, None] * vn[faces[face, 2]])
+    n = (
+        w0[:, None] * vn[faces[face, 0]]
+        + w1[:, None] * vn[faces[face, 1]]
+        + w2[:, None] * vn[faces[face, 2]]
+    )
     return n / np.linalg.norm(n, axis=1, keepdims=True)

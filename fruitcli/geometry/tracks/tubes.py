@@ -47,15 +47,17 @@ def rotation_minimising_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return tan, normals
 
 
-def tube_arrays(points: np.ndarray, radius_mm: float, step_mm: float = TUBE_STEP_MM,
-                ring: int = TUBE_RING) -> tuple[np.ndarray, np.ndarray]:
+def tube_arrays(
+    points: np.ndarray, radius_mm: float, step_mm: float = TUBE_STEP_MM, ring: int = TUBE_RING
+) -> tuple[np.ndarray, np.ndarray]:
     """A closed, outward-oriented tube along an open polyline: vertices (n, 3), faces (m, 3)."""
     p = resample(np.asarray(points, dtype=float), step_mm)
     tan, nrm = rotation_minimising_frames(p)
     bin_ = np.cross(tan, nrm)
     phi = 2.0 * np.pi * np.arange(ring) / ring
-    rings = p[:, None, :] + radius_mm * (np.cos(phi)[None, :, None] * nrm[:, None, :]
-                                         + np.sin(phi)[None, :, None] * bin_[:, None, :])
+    rings = p[:, None, :] + radius_mm * (
+        np.cos(phi)[None, :, None] * nrm[:, None, :] + np.sin(phi)[None, :, None] * bin_[:, None, :]
+    )
     k = len(p)
     verts = np.concatenate([rings.reshape(-1, 3), p[[0, -1]]])
     r = np.arange(k - 1)[:, None]
@@ -81,7 +83,7 @@ def track_polylines(points: np.ndarray, closed: bool) -> list[np.ndarray]:
     """Open polylines to sweep: the piece itself, or a closed loop as two overlapping halves."""
     if not closed:
         return [points]
-    k = len(points) - 1                      # last point repeats the first
+    k = len(points) - 1  # last point repeats the first
     half, lap = k // 2, max(1, k // 10)
     loop = np.concatenate([points[:-1], points[:-1]])
-    return [loop[: half + lap + 1], loop[half: k + lap + 1]]
+    return [loop[: half + lap + 1], loop[half : k + lap + 1]]

@@ -49,8 +49,9 @@ class Touches:
         return int(self.frame.shape[0])
 
 
-def baseline_counts(frames: np.ndarray, k: int, where: str = "frames",
-                    n_frames: int | None = None) -> np.ndarray:
+def baseline_counts(
+    frames: np.ndarray, k: int, where: str = "frames", n_frames: int | None = None
+) -> np.ndarray:
     """C0: mean of the first `k` frames (counts), shape of one frame. `n_frames`: the
     recording's length when `frames` holds only its first frames."""
     n = frames.shape[0] if n_frames is None else n_frames
@@ -108,8 +109,9 @@ class Layout:
         pos_of_cell[grid.cell] = column
         idx = grid.cell[order][:, None] + grid.offsets
         ci, cj = np.divmod(grid.cell[order], grid.shape[1])
-        return cls(frame_cell, order, frame_cell[order], pos_of_cell[idx],
-                   grid.taxel_of_cell[idx], ci, cj)
+        return cls(
+            frame_cell, order, frame_cell[order], pos_of_cell[idx], grid.taxel_of_cell[idx], ci, cj
+        )
 
 
 def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -125,8 +127,9 @@ def n9_offsets(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return di, dj
 
 
-def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid,
-                    gain: np.ndarray | None = None) -> np.ndarray:
+def activation_grid(
+    values: np.ndarray, baseline: np.ndarray, grid: Grid, gain: np.ndarray | None = None
+) -> np.ndarray:
     """v = max(C - C0, 0) (/ gain) per taxel (N, T) -> padded flat grid (N, H * W) float64."""
     v = np.asarray(values, dtype=float) - baseline
     np.maximum(v, 0.0, out=v)
@@ -137,8 +140,7 @@ def activation_grid(values: np.ndarray, baseline: np.ndarray, grid: Grid,
     return out
 
 
-def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Grid,
-               floor: float):
+def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Grid, floor: float):
     """N9 windows around `centre` cells of frames `rows`: (i, j, taxel, weight, window idx)."""
     idx = centre[:, None] + grid.offsets
     win = flat[rows[:, None], idx]
@@ -155,17 +157,30 @@ def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Gri
 def _collect(parts: list[tuple]) -> Touches:
     if not parts:
         e = np.zeros(0)
-        return Touches(e.astype(np.int64), e.astype(np.int64), e, e, e,
-                       np.zeros((0, 9), np.int64), np.zeros((0, 9)))
+        return Touches(
+            e.astype(np.int64),
+            e.astype(np.int64),
+            e,
+            e,
+            e,
+            np.zeros((0, 9), np.int64),
+            np.zeros((0, 9)),
+        )
     cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
     frame, rank = cols[0], cols[1]
     order = np.lexsort((rank, frame))
     return Touches(*(c[order] for c in cols))
 
 
-def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
-                  threshold: float, floor: float = 0.0,
-                  max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None) -> Touches:
+def n9_sequential(
+    frames: np.ndarray,
+    baseline: np.ndarray,
+    layout: Layout,
+    threshold: float,
+    floor: float = 0.0,
+    max_touches: int = MAX_TOUCHES,
+    gain: np.ndarray | None = None,
+) -> Touches:
     """The paper's multitouch on frames (N, rows * cols) counts against C0 (T,): take the
     maximum, N9 centroid, zero N9, repeat while some v > threshold (v divided by `gain`
     (T,) when given). The extraction runs compiled frame by frame
@@ -180,9 +195,21 @@ def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
     peak, win = np.empty(cap), np.empty((cap, 9))
     base = np.asarray(baseline, dtype=float)[layout.taxel]
     g = np.ones(base.size) if gain is None else np.asarray(gain, dtype=float)[layout.taxel]
-    count = n9_scan(np.ascontiguousarray(frames, dtype=np.int64), layout.cell, base, g,
-                    gain is not None, layout.n9, float(threshold), int(max_touches), frame,
-                    rank, pos, peak, win)
+    count = n9_scan(
+        np.ascontiguousarray(frames, dtype=np.int64),
+        layout.cell,
+        base,
+        g,
+        gain is not None,
+        layout.n9,
+        float(threshold),
+        int(max_touches),
+        frame,
+        rank,
+        pos,
+        peak,
+        win,
+    )
     if count == 0:
         return _collect([])
     k = pos[:count]
@@ -190,12 +217,18 @@ def n9_sequential(frames: np.ndarray, baseline: np.ndarray, layout: Layout,
     win = np.maximum(win - floor, 0.0) if floor > 0 else np.maximum(win, 0.0)
     w = win / win.sum(axis=1, keepdims=True)
     di, dj = n9_offsets(w)
-    return Touches(frame[:count].copy(), rank[:count].copy(), (layout.ci[k] - 1) + di,
-                   (layout.cj[k] - 1) + dj, peak[:count].copy(), layout.n9_taxel[k], w)
+    return Touches(
+        frame[:count].copy(),
+        rank[:count].copy(),
+        (layout.ci[k] - 1) + di,
+        (layout.cj[k] - 1) + dj,
+        peak[:count].copy(),
+        layout.n9_taxel[k],
+        w,
+    )
 
 
-def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndarray,
-                                                                         np.ndarray]:
+def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndarray, np.ndarray]:
     """Cells with v > threshold that beat their 8 neighbours: strictly those before them in
     row-major order, or equal those after (a plateau yields one peak). -> (frame, cell)."""
     h, w = grid.shape
@@ -205,15 +238,20 @@ def local_peaks(flat: np.ndarray, grid: Grid, threshold: float) -> tuple[np.ndar
     for di, dj in zip(_DI, _DJ, strict=True):
         if di == 0 and dj == 0:
             continue
-        nb = v[:, 1 + di:h - 1 + di, 1 + dj:w - 1 + dj]
+        nb = v[:, 1 + di : h - 1 + di, 1 + dj : w - 1 + dj]
         before = di < 0 or (di == 0 and dj < 0)
         ok &= (inner > nb) if before else (inner >= nb)
     f, ci, cj = np.nonzero(ok)
     return f, (ci + 1) * w + (cj + 1)
 
 
-def n9_peaks(flat: np.ndarray, grid: Grid, threshold: float, floor: float = 0.0,
-             max_touches: int = MAX_TOUCHES) -> Touches:
+def n9_peaks(
+    flat: np.ndarray,
+    grid: Grid,
+    threshold: float,
+    floor: float = 0.0,
+    max_touches: int = MAX_TOUCHES,
+) -> Touches:
     """Peak-based multitouch: every local maximum's N9 centroid on the unmodified v, so
     the result does not depend on the order of extraction. Ranked by peak value."""
     if floor >= threshold:

@@ -36,16 +36,23 @@ HOLD_S = 4.0  # QTouch DEF_DRIFT_HOLD_TIME
 class DriftTracker:
     """Adapt a baseline (T,) counts in place on quiet frames (see the module docstring)."""
 
-    def __init__(self, tau_s: float, threshold_counts: float,
-                 guard_counts: float | None = None, hold_s: float = HOLD_S):
+    def __init__(
+        self,
+        tau_s: float,
+        threshold_counts: float,
+        guard_counts: float | None = None,
+        hold_s: float = HOLD_S,
+    ):
         if not (tau_s > 0 and math.isfinite(tau_s)):
-            raise FrameError(f"drift time constant: expected a finite number of seconds "
-                             f"> 0, got {tau_s:g}")
+            raise FrameError(
+                f"drift time constant: expected a finite number of seconds > 0, got {tau_s:g}"
+            )
         self.tau_s = float(tau_s)
         self.rate: float | None = None  # fraction per quiet frame (`per_frame`), else tau
         self.follow_below = True  # counts below the baseline are followed while frozen
-        self.guard = GUARD_FRACTION * threshold_counts if guard_counts is None \
-            else float(guard_counts)
+        self.guard = (
+            GUARD_FRACTION * threshold_counts if guard_counts is None else float(guard_counts)
+        )
         self.hold_s = float(hold_s)
         self.last_t: float | None = None
         self.last_active = -math.inf  # host time of the last frame above the guard
@@ -65,8 +72,14 @@ class DriftTracker:
         """After a new baseline (reconnect): no history."""
         self.last_t, self.last_active = None, -math.inf
 
-    def update(self, baseline: np.ndarray, values: np.ndarray, t_s: float,
-               ignore: np.ndarray | None = None, active: bool | None = None) -> bool:
+    def update(
+        self,
+        baseline: np.ndarray,
+        values: np.ndarray,
+        t_s: float,
+        ignore: np.ndarray | None = None,
+        active: bool | None = None,
+    ) -> bool:
         """One frame's taxel counts (T,) at host time t_s; -> True if it adapted.
         `ignore` (T,) bool: taxels that cannot freeze the tracker (flagged stuck,
         saturated, dead or noisy: not a hand; they are still tracked). `active`: the
@@ -101,7 +114,11 @@ class DriftTracker:
 
     def state(self) -> str:
         if self.rate is not None:
-            return (f"drift tracking {self.rate:g} per quiet frame: {self.adapted} frames "
-                    f"adapted, {self.frozen} frozen")
-        return (f"drift tracking tau {self.tau_s:g} s, guard {self.guard:g} counts: "
-                f"{self.adapted} frames adapted, {self.frozen} frozen")
+            return (
+                f"drift tracking {self.rate:g} per quiet frame: {self.adapted} frames "
+                f"adapted, {self.frozen} frozen"
+            )
+        return (
+            f"drift tracking tau {self.tau_s:g} s, guard {self.guard:g} counts: "
+            f"{self.adapted} frames adapted, {self.frozen} frozen"
+        )

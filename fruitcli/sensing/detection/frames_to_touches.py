@@ -62,17 +62,31 @@ TOUCH, HOVER = 0, 1  # TouchTable.kind
 KIND_NAMES = ("touch", "hover")
 
 
-
-def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
-           threshold: float, method: str = "n9", floor: float = 0.0,
-           max_touches: int = MAX_TOUCHES, gain: np.ndarray | None = None,
-           footprint=None) -> Touches:
+def detect(
+    frames: np.ndarray,
+    baseline: np.ndarray,
+    grid: Grid,
+    layout: Layout,
+    threshold: float,
+    method: str = "n9",
+    floor: float = 0.0,
+    max_touches: int = MAX_TOUCHES,
+    gain: np.ndarray | None = None,
+    footprint=None,
+) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
     ``[detection].method``: n9 (paper), n9_floor, peaks or fit2 (with the skin's
     `two_footprints.Footprint`); activations divided by `gain` (T,) when given."""
     if method in ("n9", "n9_floor"):
-        return n9_sequential(frames, baseline, layout, threshold,
-                             floor if method == "n9_floor" else 0.0, max_touches, gain)
+        return n9_sequential(
+            frames,
+            baseline,
+            layout,
+            threshold,
+            floor if method == "n9_floor" else 0.0,
+            max_touches,
+            gain,
+        )
     if method in ("peaks", "fit2"):
         values = np.take(frames, layout.frame_cell, axis=1)
         flat = activation_grid(values, baseline, grid, gain)
@@ -80,6 +94,7 @@ def detect(frames: np.ndarray, baseline: np.ndarray, grid: Grid, layout: Layout,
             return fit2_touches(flat, grid, threshold, footprint, max_touches)
         return n9_peaks(flat, grid, threshold, floor, max_touches)
     raise FrameError(f"detection method: expected n9, n9_floor, peaks or fit2, got {method!r}")
+
 
 @dataclass(frozen=True)
 class Settings:
@@ -103,15 +118,23 @@ class Settings:
     def from_scene(cls, detection, **overrides) -> Settings:
         """From a scene's [detection] (a `fruitcli.scene.DetectionSection`); `overrides`
         that are not None win."""
-        keys = {k: getattr(detection, k) for k in cls.__dataclass_fields__
-                if k in type(detection).__dataclass_fields__}
+        keys = {
+            k: getattr(detection, k)
+            for k in cls.__dataclass_fields__
+            if k in type(detection).__dataclass_fields__
+        }
         keys.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**keys)
 
     @property
     def stateful(self) -> bool:
-        return bool(self.drift_rate > 0 or self.hysteresis_counts > 0 or self.hovers
-                    or self.debounce_frames > 1 or self.track_gate_mm > 0)
+        return bool(
+            self.drift_rate > 0
+            or self.hysteresis_counts > 0
+            or self.hovers
+            or self.debounce_frames > 1
+            or self.track_gate_mm > 0
+        )
 
     def hover_levels(self, noise_std_counts: float) -> tuple[float, float]:
         """(on, off) hover levels (counts): the threshold and threshold - hysteresis,
@@ -121,14 +144,20 @@ class Settings:
         hyst = self.hover_hysteresis_counts
         hyst = HOVER_HYSTERESIS_SIGMAS * noise_std_counts if hyst is None else float(hyst)
         if not 0 < on < self.threshold_counts:
-            how = "" if self.hover_threshold_counts is not None else \
-                f" ({HOVER_NOISE_SIGMAS:g} x the skin's noise std {noise_std_counts:g})"
-            raise FrameError(f"[detection].hover_threshold_counts: expected > 0 and below the "
-                             f"touch threshold {self.threshold_counts:g} counts, got {on:g}"
-                             + how)
+            how = (
+                ""
+                if self.hover_threshold_counts is not None
+                else f" ({HOVER_NOISE_SIGMAS:g} x the skin's noise std {noise_std_counts:g})"
+            )
+            raise FrameError(
+                f"[detection].hover_threshold_counts: expected > 0 and below the "
+                f"touch threshold {self.threshold_counts:g} counts, got {on:g}" + how
+            )
         if not 0 <= hyst < on:
-            raise FrameError(f"[detection].hover_hysteresis_counts: expected >= 0 and below "
-                             f"the hover threshold {on:g} counts, got {hyst:g}")
+            raise FrameError(
+                f"[detection].hover_hysteresis_counts: expected >= 0 and below "
+                f"the hover threshold {on:g} counts, got {hyst:g}"
+            )
         return on, on - hyst
 
     @property
@@ -136,8 +165,19 @@ class Settings:
         return self.noise_floor_counts if self.method != "n9" else 0.0
 
 
-FIELDS = ("frame", "touch", "i", "j", "xyz_mm", "peak", "height_mm", "height_err_mm",
-          "strength", "size_mm", "kind")
+FIELDS = (
+    "frame",
+    "touch",
+    "i",
+    "j",
+    "xyz_mm",
+    "peak",
+    "height_mm",
+    "height_err_mm",
+    "strength",
+    "size_mm",
+    "kind",
+)
 
 
 @dataclass
@@ -199,24 +239,34 @@ class Locator:
     (default: the default skin's gap law).
     """
 
-    def __init__(self, taxels: Taxels, board, positions_mm: np.ndarray,
-                 settings: Settings, state_pressure_kpa: np.ndarray | None = None,
-                 where: str = "taxels", reduced=None, gain: np.ndarray | None = None,
-                 heights=None):
+    def __init__(
+        self,
+        taxels: Taxels,
+        board,
+        positions_mm: np.ndarray,
+        settings: Settings,
+        state_pressure_kpa: np.ndarray | None = None,
+        where: str = "taxels",
+        reduced=None,
+        gain: np.ndarray | None = None,
+        heights=None,
+    ):
         if heights is None:
             from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
             from fruitcli.sensing.skin.heights import gap_law
 
             heights = gap_law(DEFAULT_PARAMS, footprint=settings.footprint)
         self.heights = heights
-        self.hover_levels = settings.hover_levels(heights.noise_std_counts) \
-            if settings.hovers else None
+        self.hover_levels = (
+            settings.hover_levels(heights.noise_std_counts) if settings.hovers else None
+        )
         self.footprint = None
         if settings.method == "fit2":
             from fruitcli.sensing.detection.two_footprints import Footprint
 
-            self.footprint = Footprint.from_taxels(heights.sigma_mm, heights.noise_std_counts,
-                                                   taxels.i, taxels.j, taxels.xyz_mm)
+            self.footprint = Footprint.from_taxels(
+                heights.sigma_mm, heights.noise_std_counts, taxels.i, taxels.j, taxels.xyz_mm
+            )
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
@@ -240,13 +290,18 @@ class Locator:
         cell = self.rows * frames.shape[2] + self.cols
         return np.take(frames.reshape(frames.shape[0], -1), cell, axis=1)
 
-    def baseline(self, frames: np.ndarray, where: str = "frames",
-                 n_frames: int | None = None) -> np.ndarray:
+    def baseline(
+        self, frames: np.ndarray, where: str = "frames", n_frames: int | None = None
+    ) -> np.ndarray:
         """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
         `n_frames` the recording's length."""
         k = self.settings.baseline_frames
-        return baseline_counts(self.values(frames[:max(k, 1)]), k, where,
-                               frames.shape[0] if n_frames is None else n_frames)
+        return baseline_counts(
+            self.values(frames[: max(k, 1)]),
+            k,
+            where,
+            frames.shape[0] if n_frames is None else n_frames,
+        )
 
     def _path(self, pressure_kpa: np.ndarray | None, n: int):
         if self.positions_mm.ndim == 2:
@@ -255,10 +310,16 @@ class Locator:
             return np.zeros(n, np.int64), np.zeros(n)
         return state_path_position(pressure_kpa, self.state_pressure_kpa)
 
-    def chunks(self, read: Callable[[int, int], np.ndarray], n_frames: int,
-               baseline: np.ndarray, pressure_kpa: np.ndarray | None = None,
-               size: int = CHUNK_FRAMES, then: Callable | None = None,
-               workers: int = 1) -> Iterator:
+    def chunks(
+        self,
+        read: Callable[[int, int], np.ndarray],
+        n_frames: int,
+        baseline: np.ndarray,
+        pressure_kpa: np.ndarray | None = None,
+        size: int = CHUNK_FRAMES,
+        then: Callable | None = None,
+        workers: int = 1,
+    ) -> Iterator:
         """Touches of frames 0 .. n_frames - 1, `size` at a time: ``read(start, count)``
         gives frames (count, R, C); frame indices count over the whole recording and
         `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
@@ -272,9 +333,18 @@ class Locator:
             stream = Stream(self, baseline)
             for start in starts:
                 frames = read(start, size)
-                yield finish(TouchTable.concat([
-                    stream.step(f, None if pressure_kpa is None else pressure_kpa[start + n],
-                                start + n) for n, f in enumerate(self.values(frames))]))
+                yield finish(
+                    TouchTable.concat(
+                        [
+                            stream.step(
+                                f,
+                                None if pressure_kpa is None else pressure_kpa[start + n],
+                                start + n,
+                            )
+                            for n, f in enumerate(self.values(frames))
+                        ]
+                    )
+                )
             return
         seg = frac = None
         if self.positions_mm.ndim == 3:
@@ -283,11 +353,22 @@ class Locator:
         def job(start: int):
             frames = read(start, size)
             if tuple(frames.shape[1:]) != self.frame_shape:
-                raise FrameError(f"frames of shape {tuple(frames.shape[1:])}, expected "
-                                 f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]")
-            t = detect(frames.reshape(frames.shape[0], -1), baseline, self.grid, self.layout,
-                       s.threshold_counts, s.method, s.floor, s.max_touches, self.gain,
-                       self.footprint)
+                raise FrameError(
+                    f"frames of shape {tuple(frames.shape[1:])}, expected "
+                    f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]"
+                )
+            t = detect(
+                frames.reshape(frames.shape[0], -1),
+                baseline,
+                self.grid,
+                self.layout,
+                s.threshold_counts,
+                s.method,
+                s.floor,
+                s.max_touches,
+                self.gain,
+                self.footprint,
+            )
             end = start + frames.shape[0]
             tax = np.where(t.taxel < 0, 0, t.taxel)
             if self.reduced is not None and pressure_kpa is not None:
@@ -298,15 +379,27 @@ class Locator:
                 s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
                 xyz = touches_3d(t, self.positions_mm, s0, f0)
                 pos9 = self._taxel_points(tax, t.frame, s0, f0)
-            counts = frames.reshape(frames.shape[0], -1)[t.frame[:, None],
-                                                         self.layout.frame_cell[tax]]
+            counts = frames.reshape(frames.shape[0], -1)[
+                t.frame[:, None], self.layout.frame_cell[tax]
+            ]
             v9 = np.maximum(counts - np.asarray(baseline, float)[tax], 0.0) * (t.taxel >= 0)
             if self.gain is not None:
                 v9 = v9 / self.gain[tax]
             sh = touch_shapes(v9, t.taxel, pos9, xyz, self.heights)
-            return finish(TouchTable(t.frame + start, t.rank, t.i, t.j, xyz, t.peak,
-                                     sh.height_mm, sh.height_err_mm, sh.strength,
-                                     sh.size_mm))
+            return finish(
+                TouchTable(
+                    t.frame + start,
+                    t.rank,
+                    t.i,
+                    t.j,
+                    xyz,
+                    t.peak,
+                    sh.height_mm,
+                    sh.height_err_mm,
+                    sh.strength,
+                    sh.size_mm,
+                )
+            )
 
         yield from _in_order(job, starts, workers)
 
@@ -321,13 +414,21 @@ class Locator:
         t = frac[frame][:, None, None]
         return (1.0 - t) * pos[s0[:, None], tax] + t * pos[s1[:, None], tax]
 
-    def batch(self, frames: np.ndarray, baseline: np.ndarray,
-              pressure_kpa: np.ndarray | None = None,
-              size: int = CHUNK_FRAMES) -> TouchTable:
+    def batch(
+        self,
+        frames: np.ndarray,
+        baseline: np.ndarray,
+        pressure_kpa: np.ndarray | None = None,
+        size: int = CHUNK_FRAMES,
+    ) -> TouchTable:
         """All touches of frames (N, R, C) in memory, `size` at a time."""
-        return TouchTable.concat(list(self.chunks(lambda a, k: frames[a:a + k],
-                                                  frames.shape[0], baseline, pressure_kpa,
-                                                  size)))
+        return TouchTable.concat(
+            list(
+                self.chunks(
+                    lambda a, k: frames[a : a + k], frames.shape[0], baseline, pressure_kpa, size
+                )
+            )
+        )
 
 
 def _in_order(job: Callable, items: Iterable, workers: int) -> Iterator:
@@ -360,8 +461,7 @@ class Stream:
         self.touched = False
         self.hovering = False
         self.above = 0
-        self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 \
-            else None
+        self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 else None
         self.tracker = None
         if self.s.track_gate_mm > 0:
             from fruitcli.sensing.detection.sessions import SessionTracker
@@ -380,12 +480,26 @@ class Stream:
         self._scratch = np.empty(len(locator.rows))
         self._k, self._peak = np.empty(m, np.int64), np.empty(m)
         self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
-        self._n9_frame(self.activation, locator.layout.taxel, locator.layout.n9,
-                       locator.layout.ci, locator.layout.cj, np.inf, 0.0, m, self._scratch,
-                       self._k, self._peak, self._i, self._j, self._w)  # load it now
+        self._n9_frame(
+            self.activation,
+            locator.layout.taxel,
+            locator.layout.n9,
+            locator.layout.ci,
+            locator.layout.cj,
+            np.inf,
+            0.0,
+            m,
+            self._scratch,
+            self._k,
+            self._peak,
+            self._i,
+            self._j,
+            self._w,
+        )  # load it now
 
-    def step(self, values: np.ndarray, pressure_kpa: np.ndarray | None = None,
-             frame: int = 0) -> TouchTable:
+    def step(
+        self, values: np.ndarray, pressure_kpa: np.ndarray | None = None, frame: int = 0
+    ) -> TouchTable:
         """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
         loc, s = self.loc, self.s
         if values.ndim == 2:
@@ -430,10 +544,22 @@ class Stream:
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             lay = loc.layout
-            n = self._n9_frame(v, lay.taxel, lay.n9, lay.ci, lay.cj, float(thr),
-                               float(s.floor if s.method == "n9_floor" else 0.0),
-                               int(s.max_touches), self._scratch, self._k, self._peak,
-                               self._i, self._j, self._w)
+            n = self._n9_frame(
+                v,
+                lay.taxel,
+                lay.n9,
+                lay.ci,
+                lay.cj,
+                float(thr),
+                float(s.floor if s.method == "n9_floor" else 0.0),
+                int(s.max_touches),
+                self._scratch,
+                self._k,
+                self._peak,
+                self._i,
+                self._j,
+                self._w,
+            )
             i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
             tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
         pos = self._positions(pressure_kpa)
@@ -445,8 +571,19 @@ class Stream:
         sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
-        return TouchTable(np.full(n, frame, np.int64), ids, i, j, xyz, peak, sh.height_mm,
-                          sh.height_err_mm, sh.strength, sh.size_mm, kind)
+        return TouchTable(
+            np.full(n, frame, np.int64),
+            ids,
+            i,
+            j,
+            xyz,
+            peak,
+            sh.height_mm,
+            sh.height_err_mm,
+            sh.strength,
+            sh.size_mm,
+            kind,
+        )
 
     def _positions(self, pressure_kpa) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""

@@ -27,13 +27,17 @@ NOISY_FRACTION = 0.25  # of the threshold
 
 
 class TaxelHealth:
-    def __init__(self, n_taxels: int, threshold_counts: float,
-                 run_frames: int = RUN_FRAMES, saturation_counts: float = SATURATION_COUNTS,
-                 noisy_std: float | None = None):
+    def __init__(
+        self,
+        n_taxels: int,
+        threshold_counts: float,
+        run_frames: int = RUN_FRAMES,
+        saturation_counts: float = SATURATION_COUNTS,
+        noisy_std: float | None = None,
+    ):
         self.run_frames = run_frames
         self.saturation = saturation_counts
-        self.noisy_std = NOISY_FRACTION * threshold_counts if noisy_std is None \
-            else noisy_std
+        self.noisy_std = NOISY_FRACTION * threshold_counts if noisy_std is None else noisy_std
         self.prev: np.ndarray | None = None
         self.prev_quiet = False
         self.same = np.zeros(n_taxels, np.int64)
@@ -69,8 +73,12 @@ class TaxelHealth:
         noisy = np.zeros_like(dead)
         if self.pairs >= self.run_frames:
             noisy = self.noise_std() > self.noisy_std
-        return {"dead": np.flatnonzero(dead), "stuck": np.flatnonzero(stuck),
-                "saturated": np.flatnonzero(self.saturated), "noisy": np.flatnonzero(noisy)}
+        return {
+            "dead": np.flatnonzero(dead),
+            "stuck": np.flatnonzero(stuck),
+            "saturated": np.flatnonzero(self.saturated),
+            "noisy": np.flatnonzero(noisy),
+        }
 
     def broken(self) -> np.ndarray:
         """(T,) bool: taxels with any flag."""
@@ -81,6 +89,9 @@ class TaxelHealth:
 
     def summary(self, taxel_ids: np.ndarray) -> str:
         """'taxels: dead 3, 7; noisy 12' or 'taxels: all healthy' (taxel ids)."""
-        parts = [f"{name} {', '.join(str(int(taxel_ids[k])) for k in idx)}"
-                 for name, idx in self.flags().items() if idx.size]
+        parts = [
+            f"{name} {', '.join(str(int(taxel_ids[k])) for k in idx)}"
+            for name, idx in self.flags().items()
+            if idx.size
+        ]
         return "taxels: " + ("; ".join(parts) if parts else "all healthy")

@@ -22,8 +22,17 @@ from fruitcli.errors import FrameError
 from fruitcli.sensing.detection.detect import Touches
 from fruitcli.tables import read_npz_arrays
 
-STATE_KEYS = ("rest_nodes", "tets", "surface_tris", "displacement_mm", "pressure_kpa",
-              "chamber_names", "taxels_mm", "taxel_tet", "taxel_bary")
+STATE_KEYS = (
+    "rest_nodes",
+    "tets",
+    "surface_tris",
+    "displacement_mm",
+    "pressure_kpa",
+    "chamber_names",
+    "taxels_mm",
+    "taxel_tet",
+    "taxel_bary",
+)
 _SEGMENT_EPS_KPA2 = 1e-12  # segments shorter than this (kPa^2) are points
 
 
@@ -67,18 +76,25 @@ def load_states(path: str | os.PathLike, n_taxels: int | None = None) -> States:
     if n_taxels is not None and t != n_taxels:
         raise FrameError(f"{path}: taxels_mm: {t} taxels, the taxel file has {n_taxels}")
     if disp.shape != (s, nodes.shape[0], 3):
-        raise FrameError(f"{path}: displacement_mm: expected ({s}, {nodes.shape[0]}, 3), "
-                         f"got {disp.shape}")
+        raise FrameError(
+            f"{path}: displacement_mm: expected ({s}, {nodes.shape[0]}, 3), got {disp.shape}"
+        )
     if press.ndim != 2 or press.shape[0] != s:
         raise FrameError(f"{path}: pressure_kpa: expected ({s}, K), got {press.shape}")
     for key, arr in (("taxels_mm", tax), ("displacement_mm", disp), ("pressure_kpa", press)):
         if not np.all(np.isfinite(arr)):
             raise FrameError(f"{path}: {key}: NaN or infinite values")
-    return States(nodes, np.asarray(data["tets"], dtype=np.int64),
-                  np.asarray(data["surface_tris"], dtype=np.int64), disp, press,
-                  tuple(str(c) for c in data["chamber_names"]), tax,
-                  np.asarray(data["taxel_tet"], dtype=np.int64),
-                  np.asarray(data["taxel_bary"], dtype=float))
+    return States(
+        nodes,
+        np.asarray(data["tets"], dtype=np.int64),
+        np.asarray(data["surface_tris"], dtype=np.int64),
+        disp,
+        press,
+        tuple(str(c) for c in data["chamber_names"]),
+        tax,
+        np.asarray(data["taxel_tet"], dtype=np.int64),
+        np.asarray(data["taxel_bary"], dtype=float),
+    )
 
 
 def state_path_position(pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray):
@@ -128,14 +144,20 @@ def match_chambers(names: tuple[str, ...], states: States, where: str) -> np.nda
     index = []
     for c in states.chamber_names:
         if c not in names:
-            raise FrameError(f"{where}: no pressure for chamber {c!r} (recording has "
-                             f"{', '.join(names) or 'none'})")
+            raise FrameError(
+                f"{where}: no pressure for chamber {c!r} (recording has "
+                f"{', '.join(names) or 'none'})"
+            )
         index.append(names.index(c))
     return np.asarray(index, dtype=np.int64)
 
 
-def touches_3d(touches: Touches, positions_mm: np.ndarray, seg: np.ndarray | None = None,
-               frac: np.ndarray | None = None) -> np.ndarray:
+def touches_3d(
+    touches: Touches,
+    positions_mm: np.ndarray,
+    seg: np.ndarray | None = None,
+    frac: np.ndarray | None = None,
+) -> np.ndarray:
     """Weighted 3D touch points (n, 3) mm.
 
     `positions_mm` is (T, 3) (one state for all frames) or (S, T, 3) with per-frame state

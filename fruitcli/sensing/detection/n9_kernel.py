@@ -14,8 +14,9 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def n9_scan(frames, cell, base, gain, divide, n9, threshold, max_touches, frame, rank, pos,
-            peak, win):
+def n9_scan(
+    frames, cell, base, gain, divide, n9, threshold, max_touches, frame, rank, pos, peak, win
+):
     """Multitouch N9 extraction on frames (n, S) counts; taxel p (in row-major grid order)
     is frame cell cell[p] with baseline base[p], its N9 neighbours n9[p] (-1: none).
     v = C - C0, divided by gain[p] when `divide`; while the first maximum of v is >
@@ -71,8 +72,7 @@ def n9_scan(frames, cell, base, gain, divide, n9, threshold, max_touches, frame,
 
 
 @njit(cache=True, nogil=True)
-def n9_frame(v, taxel, n9, ci, cj, threshold, floor, max_touches, scratch, pos, peak, i, j,
-             w):
+def n9_frame(v, taxel, n9, ci, cj, threshold, floor, max_touches, scratch, pos, peak, i, j, w):
     """The paper's N9 loop on one frame (the live loop's `Stream`): activations v (T,)
     (clipped at 0, in taxel order) are copied into `scratch` (T,) in row-major grid
     order (taxel[p] at position p); while the first maximum is > threshold (and fewer
@@ -105,8 +105,9 @@ def n9_frame(v, taxel, n9, ci, cj, threshold, floor, max_touches, scratch, pos, 
             if floor > 0:
                 x = max(x - floor, 0.0)
             win[q] = x
-        total = (((win[0] + win[1]) + (win[2] + win[3]))
-                 + ((win[4] + win[5]) + (win[6] + win[7]))) + win[8]
+        total = (
+            ((win[0] + win[1]) + (win[2] + win[3])) + ((win[4] + win[5]) + (win[6] + win[7]))
+        ) + win[8]
         di = 0.0
         dj = 0.0
         for q in range(9):

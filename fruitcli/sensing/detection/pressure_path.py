@@ -29,17 +29,20 @@ def path_distance_kpa(pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray) 
     return np.linalg.norm(p - nearest, axis=1)
 
 
-def off_path_summary(dist_kpa: np.ndarray, t_s: np.ndarray, no_reading: int = 0,
-                     tolerance_kpa: float = OFF_PATH_KPA) -> dict:
+def off_path_summary(
+    dist_kpa: np.ndarray, t_s: np.ndarray, no_reading: int = 0, tolerance_kpa: float = OFF_PATH_KPA
+) -> dict:
     """Counts and the worst distance, for the locate result and its message."""
     off = np.flatnonzero(dist_kpa > tolerance_kpa)
-    out = {"tolerance_kpa": tolerance_kpa, "frames_off_path": int(off.size),
-           "max_distance_kpa": float(dist_kpa.max()) if dist_kpa.size else 0.0,
-           "frames_without_pressure_reading": int(no_reading)}
+    out = {
+        "tolerance_kpa": tolerance_kpa,
+        "frames_off_path": int(off.size),
+        "max_distance_kpa": float(dist_kpa.max()) if dist_kpa.size else 0.0,
+        "frames_without_pressure_reading": int(no_reading),
+    }
     if off.size:
         worst = int(off[np.argmax(dist_kpa[off])])
-        out.update(worst_frame=worst, worst_t_s=float(t_s[worst]),
-                   first_off_frame=int(off[0]))
+        out.update(worst_frame=worst, worst_t_s=float(t_s[worst]), first_off_frame=int(off[0]))
     return out
 
 
@@ -49,21 +52,28 @@ def off_path_message(summary: dict, n_frames: int) -> str:
     parts = []
     k = summary["frames_off_path"]
     if k:
-        parts.append(f"{k} of {n_frames} frames have pressures more than "
-                     f"{summary['tolerance_kpa']:g} kPa off the states' path (up to "
-                     f"{summary['max_distance_kpa']:.2f} kPa, frame {summary['worst_frame']}): "
-                     "their taxels sit at the path's nearest point, see off_path.csv")
+        parts.append(
+            f"{k} of {n_frames} frames have pressures more than "
+            f"{summary['tolerance_kpa']:g} kPa off the states' path (up to "
+            f"{summary['max_distance_kpa']:.2f} kPa, frame {summary['worst_frame']}): "
+            "their taxels sit at the path's nearest point, see off_path.csv"
+        )
     else:
-        parts.append(f"pressures within {summary['tolerance_kpa']:g} kPa of the states' path "
-                     f"(at most {summary['max_distance_kpa']:.2f} kPa)")
+        parts.append(
+            f"pressures within {summary['tolerance_kpa']:g} kPa of the states' path "
+            f"(at most {summary['max_distance_kpa']:.2f} kPa)"
+        )
     if summary["frames_without_pressure_reading"]:
-        parts.append(f"{summary['frames_without_pressure_reading']} frames before the first "
-                     "pressure reading taken at 0 kPa")
+        parts.append(
+            f"{summary['frames_without_pressure_reading']} frames before the first "
+            "pressure reading taken at 0 kPa"
+        )
     return "; ".join(parts)
 
 
-def report_off_path(rec, pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray,
-                    out_dir, say=None) -> dict:
+def report_off_path(
+    rec, pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray, out_dir, say=None
+) -> dict:
     """Distances of a recording's frames to the state path: DIR/off_path.csv (frame, t_s,
     distance_kpa of every frame off the path), one progress line, and the summary."""
     from pathlib import Path
@@ -74,11 +84,16 @@ def report_off_path(rec, pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarra
     no_reading = 0 if rec.pressure_t_s is None else int(np.isnan(rec.pressure_t_s).sum())
     summary = off_path_summary(dist, rec.t_s, no_reading)
     off = np.flatnonzero(dist > summary["tolerance_kpa"])
-    write_csv(Path(out_dir) / "off_path.csv", ["frame", "t_s", "distance_kpa"],
-              ([int(k), float(rec.t_s[k]), float(dist[k])] for k in off),
-              comments=[f"frames whose chamber pressures lie more than "
-                        f"{summary['tolerance_kpa']:g} kPa from the simulated states' path "
-                        "(Euclidean, kPa); t_s in s"])
+    write_csv(
+        Path(out_dir) / "off_path.csv",
+        ["frame", "t_s", "distance_kpa"],
+        ([int(k), float(rec.t_s[k]), float(dist[k])] for k in off),
+        comments=[
+            f"frames whose chamber pressures lie more than "
+            f"{summary['tolerance_kpa']:g} kPa from the simulated states' path "
+            "(Euclidean, kPa); t_s in s"
+        ],
+    )
     if say:
         say(off_path_message(summary, len(rec)))
     return summary

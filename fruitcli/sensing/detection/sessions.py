@@ -47,8 +47,16 @@ class SessionTracker:
 
             self._nearest = nearest_match
             one = np.zeros((1, 3))  # compiled (or loaded from the cache) now, not on a frame
-            nearest_match(one, one, np.zeros(1, np.int64), 0.0, 0, np.empty((1, 1)),
-                          np.empty(1, np.int64), np.empty(1, bool))
+            nearest_match(
+                one,
+                one,
+                np.zeros(1, np.int64),
+                0.0,
+                0,
+                np.empty((1, 1)),
+                np.empty(1, np.int64),
+                np.empty(1, bool),
+            )
 
     def update(self, xyz_mm: np.ndarray) -> SessionStep:
         n = xyz_mm.shape[0]
@@ -56,8 +64,13 @@ class SessionTracker:
         if self.gate_mm > 0 and n and m:
             xyz = np.ascontiguousarray(xyz_mm, dtype=float)
             cost, ids, new = np.empty((m, n)), np.empty(n, np.int64), np.empty(n, bool)
-            k = self._nearest(self.prev_xyz, xyz, self.prev_ids, self.gate_mm, self.next_id,
-                              cost, ids, new) if self.fast else -1
+            k = (
+                self._nearest(
+                    self.prev_xyz, xyz, self.prev_ids, self.gate_mm, self.next_id, cost, ids, new
+                )
+                if self.fast
+                else -1
+            )
             if k >= 0:
                 self.next_id += k
                 return self._step(xyz_mm, ids, new)

@@ -18,8 +18,7 @@ _HI = (7, 5)
 
 
 @njit(cache=True, nogil=True)
-def gap_law_shapes(v9, tax9, pos9, xyz, contact, decay, sigma, noise, gain, min_counts,
-                   out):
+def gap_law_shapes(v9, tax9, pos9, xyz, contact, decay, sigma, noise, gain, min_counts, out):
     """out[k] = (strength, size_mm, height_mm, height_err_mm) of touch k from its N9
     activations v9 (n, 9), taxels tax9 (n, 9) (-1: none), positions pos9 (n, 9, 3),
     reported point xyz (n, 3); gain (T,) the model's taxel gains (ones: none)."""
@@ -66,8 +65,9 @@ def gap_law_shapes(v9, tax9, pos9, xyz, contact, decay, sigma, noise, gain, min_
             u = np.empty(3)
             norm = 0.0
             for d in range(3):
-                u[d] = ((pos9[k, 4, d] - pos9[k, lo, d]) + (pos9[k, hi, d] - pos9[k, 4, d])) \
-                    / (a + b)
+                u[d] = ((pos9[k, 4, d] - pos9[k, lo, d]) + (pos9[k, hi, d] - pos9[k, 4, d])) / (
+                    a + b
+                )
                 norm += u[d] * u[d]
             norm = max(math.sqrt(norm), 1e-12)
             along = delta

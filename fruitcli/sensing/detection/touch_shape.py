@@ -41,8 +41,9 @@ class Shapes:
     height_err_mm: np.ndarray
 
 
-def footprint_fit(v9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, sigma_mm: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def footprint_fit(
+    v9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, sigma_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(centre (n, 3) mm, size (n,) mm) of N9 activations v9 (n, 9) at taxel positions
     pos9 (n, 9, 3), starting from the reported points xyz (n, 3). An axis with one usable
     neighbour only places the centre with the skin's footprint width `sigma_mm`."""
@@ -65,7 +66,7 @@ def footprint_fit(v9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, sigma_mm: f
         xn = np.where(has_hi & ~has_lo, b, -a)
         ln_ratio = lv[:, 4] - np.where(has_hi & ~has_lo, lv[:, hi], lv[:, lo])
         one = (has_lo ^ has_hi) & ~both
-        delta = np.where(one, (xn ** 2 - 2 * sigma_mm ** 2 * ln_ratio) / (2 * xn), delta)
+        delta = np.where(one, (xn**2 - 2 * sigma_mm**2 * ln_ratio) / (2 * xn), delta)
         ok = both | one
         delta = np.clip(delta, -a / 2, b / 2)
         u = (da + db) / (a + b)[:, None]
@@ -79,17 +80,27 @@ def footprint_fit(v9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, sigma_mm: f
     return centre, size
 
 
-def gap_law_shapes(v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray,
-                   law) -> Shapes:
+def gap_law_shapes(
+    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, law
+) -> Shapes:
     """`touch_shapes` for a `heights.GapLaw`, compiled (`shape_kernel`)."""
     from fruitcli.sensing.detection.shape_kernel import gap_law_shapes as kernel
 
     gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
     out = np.empty((len(v9), 4))
-    kernel(np.ascontiguousarray(v9, dtype=float), np.ascontiguousarray(taxel9, np.int64),
-           np.ascontiguousarray(pos9, dtype=float), np.ascontiguousarray(xyz, dtype=float),
-           float(law.contact), float(law.gap_decay_mm), float(law.sigma_mm),
-           float(law.noise_std_counts), np.asarray(gain, dtype=float), MIN_COUNTS, out)
+    kernel(
+        np.ascontiguousarray(v9, dtype=float),
+        np.ascontiguousarray(taxel9, np.int64),
+        np.ascontiguousarray(pos9, dtype=float),
+        np.ascontiguousarray(xyz, dtype=float),
+        float(law.contact),
+        float(law.gap_decay_mm),
+        float(law.sigma_mm),
+        float(law.noise_std_counts),
+        np.asarray(gain, dtype=float),
+        MIN_COUNTS,
+        out,
+    )
     return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
 
@@ -104,8 +115,9 @@ def _ones(n: int) -> np.ndarray:
     return _ONES
 
 
-def touch_shapes(v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray,
-                 model) -> Shapes:
+def touch_shapes(
+    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, model
+) -> Shapes:
     """Shapes of touches from their N9 activations v9 (n, 9) counts (0 where no taxel),
     taxels taxel9 (n, 9) (-1: none), positions pos9 (n, 9, 3) mm and reported points xyz
     (n, 3) mm, through a `fruitcli.sensing.skin.heights.HeightModel`."""

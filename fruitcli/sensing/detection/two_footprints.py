@@ -48,14 +48,23 @@ class Footprint:
     noise_std_counts: float
 
     @classmethod
-    def from_taxels(cls, sigma_mm: float, noise_std_counts: float, i: np.ndarray,
-                    j: np.ndarray, xyz_mm: np.ndarray) -> Footprint:
+    def from_taxels(
+        cls,
+        sigma_mm: float,
+        noise_std_counts: float,
+        i: np.ndarray,
+        j: np.ndarray,
+        xyz_mm: np.ndarray,
+    ) -> Footprint:
         """Widths from the taxels' mean spacing between grid neighbours along i and j."""
         cell = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(i, j, strict=True))}
 
         def pitch(di: int, dj: int) -> float:
-            d = [np.linalg.norm(xyz_mm[k] - xyz_mm[cell[(a + di, b + dj)]])
-                 for (a, b), k in cell.items() if (a + di, b + dj) in cell]
+            d = [
+                np.linalg.norm(xyz_mm[k] - xyz_mm[cell[(a + di, b + dj)]])
+                for (a, b), k in cell.items()
+                if (a + di, b + dj) in cell
+            ]
             return float(np.mean(d)) if d else 1.0
 
         return cls(sigma_mm / pitch(1, 0), sigma_mm / pitch(0, 1), noise_std_counts)
@@ -65,7 +74,7 @@ def _model(x, ci, cj, fp: Footprint):
     """Sum of footprints (A, i, j) in x at cells (ci, cj)."""
     out = np.zeros(ci.shape)
     for k in range(0, len(x), 3):
-        a, pi, pj = x[k:k + 3]
+        a, pi, pj = x[k : k + 3]
         out += a * np.exp(-0.5 * (((ci - pi) / fp.sigma_i) ** 2 + ((cj - pj) / fp.sigma_j) ** 2))
     return out
 
@@ -74,35 +83,47 @@ def _jacobian(x, ci, cj, fp: Footprint):
     """d model / d (A, i, j) of each footprint, (cells, len(x))."""
     jac = np.empty((ci.size, len(x)))
     for k in range(0, len(x), 3):
-        a, pi, pj = x[k:k + 3]
+        a, pi, pj = x[k : k + 3]
         g = np.exp(-0.5 * (((ci - pi) / fp.sigma_i) ** 2 + ((cj - pj) / fp.sigma_j) ** 2))
         jac[:, k] = g
-        jac[:, k + 1] = a * g * (ci - pi) / fp.sigma_i ** 2
-        jac[:, k + 2] = a * g * (cj - pj) / fp.sigma_j ** 2
+        jac[:, k + 1] = a * g * (ci - pi) / fp.sigma_i**2
+        jac[:, k + 2] = a * g * (cj - pj) / fp.sigma_j**2
     return jac
 
 
 def _fit(v, ci, cj, fp: Footprint, x0):
     from scipy.optimize import least_squares
 
-    res = least_squares(lambda x: _model(x, ci, cj, fp) - v, x0, method="lm",
-                        jac=lambda x: _jacobian(x, ci, cj, fp), max_nfev=MAX_EVALUATIONS)
-    return res.x, float(np.sum(res.fun ** 2))
+    res = least_squares(
+        lambda x: _model(x, ci, cj, fp) - v,
+        x0,
+        method="lm",
+        jac=lambda x: _jacobian(x, ci, cj, fp),
+        max_nfev=MAX_EVALUATIONS,
+    )
+    return res.x, float(np.sum(res.fun**2))
 
 
-def split(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, peak_ij, fp: Footprint,
-          threshold: float):
+def split(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, peak_ij, fp: Footprint, threshold: float):
     """The two footprints (2, 3) = (A, i, j) fitted to activations v at cells (ci, cj)
     around the peak at `peak_ij`, or None when one footprint explains them."""
     pi, pj = peak_ij
     one, rss1 = _fit(v, ci, cj, fp, np.array([v.max(), pi, pj]))
-    if rss1 <= MIN_GAIN_SIGMA2 * fp.noise_std_counts ** 2:
+    if rss1 <= MIN_GAIN_SIGMA2 * fp.noise_std_counts**2:
         return None  # one footprint within the noise: nothing to split
     best, rss2 = None, np.inf
     for ui, uj in _STARTS:
         h = 0.5
-        x0 = np.array([one[0] / 2, one[1] - h * ui, one[2] - h * uj,
-                       one[0] / 2, one[1] + h * ui, one[2] + h * uj])
+        x0 = np.array(
+            [
+                one[0] / 2,
+                one[1] - h * ui,
+                one[2] - h * uj,
+                one[0] / 2,
+                one[1] + h * ui,
+                one[2] + h * uj,
+            ]
+        )
         x, rss = _fit(v, ci, cj, fp, x0)
         if rss < rss2:
             best, rss2 = x, rss
@@ -110,8 +131,13 @@ def split(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, peak_ij, fp: Footprint,
     gain = rss1 - rss2
     sep = np.hypot(two[0, 1] - two[1, 1], two[0, 2] - two[1, 2])
     inside = np.all(np.abs(two[:, 1] - pi) <= WINDOW) and np.all(np.abs(two[:, 2] - pj) <= WINDOW)
-    if (gain > MIN_GAIN_SIGMA2 * fp.noise_std_counts ** 2 and rss2 <= MAX_RESIDUAL_SHARE * rss1
-            and two[:, 0].min() > threshold / 2 and sep >= MIN_SEPARATION and inside):
+    if (
+        gain > MIN_GAIN_SIGMA2 * fp.noise_std_counts**2
+        and rss2 <= MAX_RESIDUAL_SHARE * rss1
+        and two[:, 0].min() > threshold / 2
+        and sep >= MIN_SEPARATION
+        and inside
+    ):
         return two
     return None
 
@@ -133,8 +159,9 @@ def bilinear_window(fi: float, fj: float, grid: Grid) -> tuple[np.ndarray, np.nd
     return tax, weight, centre
 
 
-def fit2_touches(flat: np.ndarray, grid: Grid, threshold: float, fp: Footprint,
-                 max_touches: int = MAX_TOUCHES) -> Touches:
+def fit2_touches(
+    flat: np.ndarray, grid: Grid, threshold: float, fp: Footprint, max_touches: int = MAX_TOUCHES
+) -> Touches:
     """Touches of activation grids flat (N, H * W) (see the module docstring)."""
     h, w = grid.shape
     f, cells = local_peaks(flat, grid, threshold)
@@ -147,22 +174,28 @@ def fit2_touches(flat: np.ndarray, grid: Grid, threshold: float, fp: Footprint,
         out = []
         for n, cell in enumerate(mine):
             pi, pj = peaks_ij[n]
-            near = (np.abs(ci_all - 1 - pi) <= WINDOW) & (np.abs(cj_all - 1 - pj) <= WINDOW) \
+            near = (
+                (np.abs(ci_all - 1 - pi) <= WINDOW)
+                & (np.abs(cj_all - 1 - pj) <= WINDOW)
                 & (grid.taxel_of_cell >= 0)
+            )
             own = np.hypot(ci_all - 1 - pi, cj_all - 1 - pj)
             others = np.delete(peaks_ij, n, axis=0)
             for qi, qj in others:  # cells nearer another peak are its
                 near &= own < np.hypot(ci_all - 1 - qi, cj_all - 1 - qj)
             ci, cj = ci_all[near] - 1.0, cj_all[near] - 1.0
-            rest = _model(np.column_stack([np.delete(flat[frame, mine], n), others]).ravel(),
-                          ci, cj, fp)
+            rest = _model(
+                np.column_stack([np.delete(flat[frame, mine], n), others]).ravel(), ci, cj, fp
+            )
             two = split(flat[frame, near] - rest, ci, cj, (pi, pj), fp, threshold)
-            if two is not None and len(others) and min(
-                    np.hypot(*(others - two[k, 1:]).T).min() for k in range(2)) < MIN_OTHER:
+            if (
+                two is not None
+                and len(others)
+                and min(np.hypot(*(others - two[k, 1:]).T).min() for k in range(2)) < MIN_OTHER
+            ):
                 two = None
             if two is None:
-                i, j, tax, wt, _ = _centroids(flat, np.array([frame]), np.array([cell]), grid,
-                                              0.0)
+                i, j, tax, wt, _ = _centroids(flat, np.array([frame]), np.array([cell]), grid, 0.0)
                 out.append((flat[frame, cell], i[0], j[0], tax[0], wt[0]))
             else:
                 for a, fi, fj in two[np.argsort(-two[:, 0])]:
@@ -174,9 +207,21 @@ def fit2_touches(flat: np.ndarray, grid: Grid, threshold: float, fp: Footprint,
                 rows[key].append(val)
     if not rows["frame"]:
         e = np.zeros(0)
-        return Touches(e.astype(np.int64), e.astype(np.int64), e, e, e,
-                       np.zeros((0, 9), np.int64), np.zeros((0, 9)))
-    return Touches(np.array(rows["frame"], np.int64), np.array(rows["rank"], np.int64),
-                   np.array(rows["i"], float), np.array(rows["j"], float),
-                   np.array(rows["peak"], float), np.array(rows["taxel"], np.int64),
-                   np.array(rows["weight"], float))
+        return Touches(
+            e.astype(np.int64),
+            e.astype(np.int64),
+            e,
+            e,
+            e,
+            np.zeros((0, 9), np.int64),
+            np.zeros((0, 9)),
+        )
+    return Touches(
+        np.array(rows["frame"], np.int64),
+        np.array(rows["rank"], np.int64),
+        np.array(rows["i"], float),
+        np.array(rows["j"], float),
+        np.array(rows["peak"], float),
+        np.array(rows["taxel"], np.int64),
+        np.array(rows["weight"], float),
+    )

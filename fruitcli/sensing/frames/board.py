@@ -35,9 +35,11 @@ def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarra
     bad = np.nonzero((rows < 0) | (rows >= board.rows) | (cols < 0) | (cols >= board.cols))[0]
     if bad.size:
         k = bad[0]
-        raise FrameError(f"{where}: taxel id {taxels.ids[k]} (i={taxels.i[k]}, j={taxels.j[k]}) "
-                         f"maps to frame cell ({rows[k]}, {cols[k]}), outside the "
-                         f"{board.rows} x {board.cols} frame")
+        raise FrameError(
+            f"{where}: taxel id {taxels.ids[k]} (i={taxels.i[k]}, j={taxels.j[k]}) "
+            f"maps to frame cell ({rows[k]}, {cols[k]}), outside the "
+            f"{board.rows} x {board.cols} frame"
+        )
     return rows.astype(np.int64), cols.astype(np.int64)
 
 
@@ -51,5 +53,7 @@ def check_frame_shape(frames: np.ndarray, board, where: str) -> None:
     """Frames must be (N, rows, cols) as the board says."""
     want = (board.rows, board.cols)
     if tuple(frames.shape[1:]) != want:
-        raise FrameError(f"{where}: frames of shape {tuple(frames.shape[1:])}, expected "
-                         f"{want[0]} x {want[1]} per [board]")
+        raise FrameError(
+            f"{where}: frames of shape {tuple(frames.shape[1:])}, expected "
+            f"{want[0]} x {want[1]} per [board]"
+        )

@@ -167,16 +167,20 @@ class AsciiDecoder:
         parts = []
         common = self.wrong_size.most_common(2)
         for n, k in common:
-            parts.append(f"{k} line{'s' * (k != 1)} of {n} counts, expected {n_cells} = "
-                         f"{self.rows} x {self.cols}")
+            parts.append(
+                f"{k} line{'s' * (k != 1)} of {n} counts, expected {n_cells} = "
+                f"{self.rows} x {self.cols}"
+            )
         rest = sum(self.wrong_size.values()) - sum(k for _, k in common)
         if rest:
             parts.append(f"{rest} other line{'s' * (rest != 1)} of another size")
         if self.bad_values:
             parts.append(f"{self.bad_values} with bad values ({self.last_bad_value})")
         if self.shifted:
-            parts.append(f"{self.shifted} of {n_cells + 1} fields without a host timestamp "
-                         "in front (shifted counts refused)")
+            parts.append(
+                f"{self.shifted} of {n_cells + 1} fields without a host timestamp "
+                "in front (shifted counts refused)"
+            )
         if self.board_lines:
             parts.append(f"{self.board_lines} board log line{'s' * (self.board_lines != 1)}")
         return "; ".join(parts)
@@ -207,15 +211,17 @@ class BinaryDecoder:
 
     def _counts(self, at: int) -> np.ndarray | None:
         """Counts of the packet at `at` in the buffer, None when (a) fails."""
-        if 0 not in self.buf[at + HEADER_BYTES: at + self.size]:
+        if 0 not in self.buf[at + HEADER_BYTES : at + self.size]:
             return None
-        return packet_counts(self.buf[at: at + self.size])
+        return packet_counts(self.buf[at : at + self.size])
 
     @staticmethod
     def agree(a: np.ndarray, b: np.ndarray) -> bool:
         """(b) for two packets' counts (the minimum is counts.min() when (a) holds)."""
-        return (abs(int(a.min()) - int(b.min())) <= MAX_MIN_STEP_COUNTS
-                and float(np.median(np.abs(a - b))) <= MAX_MEDIAN_STEP_COUNTS)
+        return (
+            abs(int(a.min()) - int(b.min())) <= MAX_MIN_STEP_COUNTS
+            and float(np.median(np.abs(a - b))) <= MAX_MEDIAN_STEP_COUNTS
+        )
 
     def _best_offset(self, n: int = SYNC_PACKETS) -> int | None:
         """The offset in [0, size) whose `n` packets satisfy (a) and (b) and vary least;
@@ -233,8 +239,9 @@ class BinaryDecoder:
         head = win[cand, :, 0].astype(np.int64) << 8 | win[cand, :, 1]
         counts = head[:, :, None] + data[cand]
         step = np.abs(np.diff(counts, axis=1))
-        ok = ((np.abs(np.diff(head, axis=1)) <= MAX_MIN_STEP_COUNTS).all(axis=1)
-              & (np.median(step, axis=2) <= MAX_MEDIAN_STEP_COUNTS).all(axis=1))
+        ok = (np.abs(np.diff(head, axis=1)) <= MAX_MIN_STEP_COUNTS).all(axis=1) & (
+            np.median(step, axis=2) <= MAX_MEDIAN_STEP_COUNTS
+        ).all(axis=1)
         if not ok.any():
             return None
         variation = np.where(ok, step.mean(axis=(1, 2)), np.inf)
@@ -254,7 +261,7 @@ class BinaryDecoder:
             del self.buf[:off]
             at = self.bytes - len(self.buf)
             self.starts.extend(at + k * p for k in range(n - 1))
-            run = [packet_counts(self.buf[k * p: (k + 1) * p]) for k in range(n - 1)]
+            run = [packet_counts(self.buf[k * p : (k + 1) * p]) for k in range(n - 1)]
             del self.buf[: (n - 1) * p]
             self.synced = True
             self.syncs += 1
@@ -278,8 +285,11 @@ class BinaryDecoder:
             if len(self.buf) < p + HEADER_BYTES:
                 break
             this = self._counts(0)
-            if this is not None and self.agree(self.prev, this) and \
-                    abs(self._header(p) - int(this.min())) <= MAX_MIN_STEP_COUNTS:
+            if (
+                this is not None
+                and self.agree(self.prev, this)
+                and abs(self._header(p) - int(this.min())) <= MAX_MIN_STEP_COUNTS
+            ):
                 out.append(this)
                 self.starts.append(self.bytes - len(self.buf))
                 self.prev = this
@@ -311,8 +321,12 @@ class BinaryDecoder:
             if off is not None:
                 self.syncs += 1
                 self.skipped_bytes += off
-                out = [packet_counts(self.buf[off + k * p: off + (k + 1) * p]).reshape(
-                    self.rows, self.cols) for k in range(n)]
+                out = [
+                    packet_counts(self.buf[off + k * p : off + (k + 1) * p]).reshape(
+                        self.rows, self.cols
+                    )
+                    for k in range(n)
+                ]
                 self.starts = [at + off + k * p for k in range(n)]
                 del self.buf[: off + n * p]
         if self.buf:
@@ -324,15 +338,18 @@ class BinaryDecoder:
     def skip_reasons(self) -> str:
         parts = []
         if not self.syncs and self.bytes:
-            parts.append(f"no run of {SYNC_PACKETS} agreeing packets of {self.size} bytes "
-                         f"(2 + {self.rows} x {self.cols}) in {self.bytes} bytes")
+            parts.append(
+                f"no run of {SYNC_PACKETS} agreeing packets of {self.size} bytes "
+                f"(2 + {self.rows} x {self.cols}) in {self.bytes} bytes"
+            )
         if self.skipped:
             parts.append(f"{self.skipped} damaged packet{'s' * (self.skipped != 1)} dropped")
         if self.syncs > 1:
             parts.append(f"{self.syncs - 1} resynchronization{'s' * (self.syncs != 2)}")
         if self.skipped_bytes:
-            parts.append(f"{self.skipped_bytes} bytes outside packets (start-up lines, "
-                         "resets, damage)")
+            parts.append(
+                f"{self.skipped_bytes} bytes outside packets (start-up lines, resets, damage)"
+            )
         return "; ".join(parts)
 
 
@@ -388,15 +405,16 @@ class AutoDecoder:
         n = self.candidates[0].bytes
         if not n:
             return ""
-        return (f"neither format found in {n} bytes: ASCII: {a or 'no whole line'}; "
-                f"binary: {b or 'too few bytes'}")
+        return (
+            f"neither format found in {n} bytes: ASCII: {a or 'no whole line'}; "
+            f"binary: {b or 'too few bytes'}"
+        )
 
 
 def make_decoder(fmt: str, rows: int, cols: int):
     """AsciiDecoder, BinaryDecoder or AutoDecoder for ``--format`` / ``[board].format``."""
     check_format(fmt)
-    return {"ascii": AsciiDecoder, "binary": BinaryDecoder, "auto": AutoDecoder}[fmt](rows,
-                                                                                      cols)
+    return {"ascii": AsciiDecoder, "binary": BinaryDecoder, "auto": AutoDecoder}[fmt](rows, cols)
 
 
 def decode_bytes(data: bytes, fmt: str, rows: int, cols: int):
@@ -404,7 +422,7 @@ def decode_bytes(data: bytes, fmt: str, rows: int, cols: int):
     dec = make_decoder(fmt, rows, cols)
     frames = []
     for k in range(0, len(data), DECODE_CHUNK_BYTES):  # auto-detection commits early
-        frames += dec.feed(data[k: k + DECODE_CHUNK_BYTES])
+        frames += dec.feed(data[k : k + DECODE_CHUNK_BYTES])
     frames += dec.finish()
     arr = np.stack(frames) if frames else np.zeros((0, rows, cols), np.int64)
     return arr, dec

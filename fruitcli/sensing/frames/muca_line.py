@@ -42,9 +42,15 @@ def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None
         elif not fields[-1].strip():
             fields = fields[:-1]  # the firmware's trailing comma
         else:
-            return None, None, (f"shifted: {n_cells + 1} fields, one more than the "
-                                f"{n_cells} counts, and the first ({fields[0].strip()!r}) is "
-                                "not a host timestamp (a number with a decimal point)")
+            return (
+                None,
+                None,
+                (
+                    f"shifted: {n_cells + 1} fields, one more than the "
+                    f"{n_cells} counts, and the first ({fields[0].strip()!r}) is "
+                    "not a host timestamp (a number with a decimal point)"
+                ),
+            )
     elif len(fields) != n_cells:
         return None, None, "fields"
     if "" in fields:
@@ -64,8 +70,7 @@ def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None
     return counts, t, ""
 
 
-def format_line(counts: np.ndarray, t_s: float | None = None,
-                trailing_comma: bool = False) -> str:
+def format_line(counts: np.ndarray, t_s: float | None = None, trailing_comma: bool = False) -> str:
     """One frame as a line, without its line end: the counts comma-separated in the
     board's order, after the host time `t_s` (s; `repr` keeps it exact) when given, with
     a trailing comma as some firmware sketches print it when `trailing_comma`."""

@@ -95,10 +95,12 @@ def read_npz(path: str | os.PathLike) -> Recording:
     if "frames" not in data:
         raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
     frames = check_frames(data["frames"], str(path))
-    t_s, pressure, names, sample, meta, pressure_t, printer = npz_extras(path, data,
-                                                                         frames.shape[0])
-    return Recording(frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t,
-                     printer_mm=printer)
+    t_s, pressure, names, sample, meta, pressure_t, printer = npz_extras(
+        path, data, frames.shape[0]
+    )
+    return Recording(
+        frames, t_s, pressure, names, sample, meta, pressure_t_s=pressure_t, printer_mm=printer
+    )
 
 
 def npz_extras(path: Path, data, n: int) -> tuple:
@@ -120,8 +122,9 @@ def npz_extras(path: Path, data, n: int) -> tuple:
     if "pressure_kpa" in data:
         pressure = np.asarray(data["pressure_kpa"], dtype=float)
         if pressure.ndim != 2 or pressure.shape[0] != n or not np.all(np.isfinite(pressure)):
-            raise FrameError(f"{path}: pressure_kpa: expected ({n}, K) finite kPa, "
-                             f"got shape {pressure.shape}")
+            raise FrameError(
+                f"{path}: pressure_kpa: expected ({n}, K) finite kPa, got shape {pressure.shape}"
+            )
         names = tuple(str(s) for s in data.get("chamber_names", []))
         if len(names) != pressure.shape[1]:
             names = tuple(f"c{k + 1}" for k in range(pressure.shape[1]))
@@ -129,8 +132,10 @@ def npz_extras(path: Path, data, n: int) -> tuple:
     if "pressure_t_s" in data:
         pressure_t = np.asarray(data["pressure_t_s"], dtype=float)
         if pressure is None or pressure_t.shape != (n,) or np.any(np.isinf(pressure_t)):
-            raise FrameError(f"{path}: pressure_t_s: expected ({n},) times (s, NaN before "
-                             f"the first reading) with pressure_kpa, got {pressure_t.shape}")
+            raise FrameError(
+                f"{path}: pressure_t_s: expected ({n},) times (s, NaN before "
+                f"the first reading) with pressure_kpa, got {pressure_t.shape}"
+            )
     sample = None
     if "sample" in data:
         sample = np.asarray(data["sample"])
@@ -141,16 +146,19 @@ def npz_extras(path: Path, data, n: int) -> tuple:
     if "printer_mm" in data:
         printer = np.asarray(data["printer_mm"], dtype=float)
         if printer.shape != (n, 3) or not np.all(np.isfinite(printer)):
-            raise FrameError(f"{path}: printer_mm: expected ({n}, 3) finite mm, got "
-                             f"shape {printer.shape}")
+            raise FrameError(
+                f"{path}: printer_mm: expected ({n}, 3) finite mm, got shape {printer.shape}"
+            )
     return t_s, pressure, names, sample, meta, pressure_t, printer
 
 
 def write_npz(path: str | os.PathLike, rec: Recording) -> None:
     """Write a recording `.npz` atomically."""
-    arrays = {"frames": check_frames(rec.frames, str(path)),
-              "t_s": np.asarray(rec.t_s, dtype=float),
-              "meta": np.array(json.dumps(rec.meta))}
+    arrays = {
+        "frames": check_frames(rec.frames, str(path)),
+        "t_s": np.asarray(rec.t_s, dtype=float),
+        "meta": np.array(json.dumps(rec.meta)),
+    }
     if rec.pressure_kpa is not None:
         arrays["pressure_kpa"] = np.asarray(rec.pressure_kpa, dtype=float)
         arrays["chamber_names"] = np.array(list(rec.chamber_names), dtype=str)
@@ -164,8 +172,9 @@ def write_npz(path: str | os.PathLike, rec: Recording) -> None:
         np.savez(fh, **arrays)
 
 
-def read_muca_log(path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS,
-                  strict: bool = True) -> Recording:
+def read_muca_log(
+    path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, strict: bool = True
+) -> Recording:
     """Read a MuCa ASCII log. Lines with another field count are skipped and counted; in a
     file (`strict`) a bad value, a shifted line or host timestamps that go backwards are
     errors naming the line."""
@@ -191,15 +200,19 @@ def read_muca_log(path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = B
             continue
         if strict and t is not None:
             if last_t is not None and t < last_t:
-                raise FrameError(f"{path}: line {lineno}: host timestamp {t!r} is earlier "
-                                 f"than line {last_t_line}'s {last_t!r}: the first column is "
-                                 "not a timestamp column")
+                raise FrameError(
+                    f"{path}: line {lineno}: host timestamp {t!r} is earlier "
+                    f"than line {last_t_line}'s {last_t!r}: the first column is "
+                    "not a timestamp column"
+                )
             last_t, last_t_line = t, lineno
         frames.append(counts)
         times.append(t)
     if not frames:
-        raise FrameError(f"{path}: empty recording (no line with {rows * cols} counts; "
-                         f"{skipped} other lines skipped)")
+        raise FrameError(
+            f"{path}: empty recording (no line with {rows * cols} counts; "
+            f"{skipped} other lines skipped)"
+        )
     stamped = [t is not None for t in times]
     meta = {"source": "muca-log"}
     if all(stamped):
@@ -211,8 +224,9 @@ def read_muca_log(path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = B
     return Recording(arr, t_s, meta=meta, skipped_lines=skipped)
 
 
-def read_board_capture(path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS,
-                       fmt: str = "auto") -> Recording:
+def read_board_capture(
+    path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, fmt: str = "auto"
+) -> Recording:
     """Read raw bytes captured from a board (``cat /dev/ttyACM0 > capture.bin``): ASCII
     lines or SendRawByte packets (`muca_formats`), detected unless `fmt` says. t_s is the
     frame index (a capture has no host times)."""
@@ -226,19 +240,23 @@ def read_board_capture(path: str | os.PathLike, rows: int = BOARD_ROWS, cols: in
     frames, dec = decode_bytes(data, fmt, rows, cols)
     if not len(frames):
         why = dec.skip_reasons() or "empty file"
-        raise FrameError(f"{path}: no {rows} x {cols} frame in the board's {fmt} format "
-                         f"({why})")
-    meta = {"source": "board capture", "format": dec.format,
-            "t_s": "frame index (a capture has no host timestamps)"}
-    return Recording(frames, np.arange(len(frames), dtype=float), meta=meta,
-                     skipped_lines=int(dec.skipped))
+        raise FrameError(f"{path}: no {rows} x {cols} frame in the board's {fmt} format ({why})")
+    meta = {
+        "source": "board capture",
+        "format": dec.format,
+        "t_s": "frame index (a capture has no host timestamps)",
+    }
+    return Recording(
+        frames, np.arange(len(frames), dtype=float), meta=meta, skipped_lines=int(dec.skipped)
+    )
 
 
 def write_muca_log(path: str | os.PathLike, rec: Recording, timestamps: bool = True) -> None:
     """Write frames as a MuCa ASCII log (with host timestamps unless told not to)."""
     frames = check_frames(rec.frames, str(path))
-    lines = [format_line(f, t if timestamps else None) for f, t in zip(frames, rec.t_s,
-                                                                      strict=True)]
+    lines = [
+        format_line(f, t if timestamps else None) for f, t in zip(frames, rec.t_s, strict=True)
+    ]
     with atomic_path(path) as tmp:
         Path(tmp).write_text("\n".join(lines) + "\n")
 
@@ -248,8 +266,9 @@ def is_log_path(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() in LOG_SUFFIXES
 
 
-def read_recording(path: str | os.PathLike, rows: int = BOARD_ROWS,
-                   cols: int = BOARD_COLS, fmt: str = "auto") -> Recording:
+def read_recording(
+    path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, fmt: str = "auto"
+) -> Recording:
     """Read an `.npz`, a MuCa ASCII log (.log/.txt/.csv/.muca, host timestamps allowed) or a
     raw board capture (.bin/.raw, or anything else: ASCII or binary per `fmt`)."""
     suffix = Path(path).suffix.lower()

@@ -66,7 +66,7 @@ class ChunkedRecording:
         next `read`: use it before reading on."""
         count = max(0, min(count, self.n_frames - start))
         if isinstance(self._source, np.ndarray):
-            return self._source[start:start + count]
+            return self._source[start : start + count]
         return check_frames(self._source.read(start, count), str(self.path), first=start)
 
     def chunks(self, size: int) -> Iterator[tuple[int, np.ndarray]]:
@@ -92,7 +92,7 @@ class _NpyMember:
         self.path = path
         self._zip = zf
         if info.compress_type == zipfile.ZIP_STORED:
-            self._fh = open(path, "rb")  # noqa: SIM115 - closed by close()
+            self._fh = open(path, "rb")
             self._fh.seek(info.header_offset)
             head = self._fh.read(_LOCAL_HEADER.size)
             if len(head) < _LOCAL_HEADER.size or head[:4] != _LOCAL_MAGIC:
@@ -117,8 +117,9 @@ class _NpyMember:
         self._data_at = self._fh.tell()
         n_frames = shape[0] if shape else 0
         if self._data_at - begin + n_frames * self.frame_bytes > info.file_size:
-            raise ValueError(f"the member holds fewer bytes than its shape {tuple(shape)} "
-                             "needs (truncated)")
+            raise ValueError(
+                f"the member holds fewer bytes than its shape {tuple(shape)} needs (truncated)"
+            )
         self._next = 0  # the frame the file is at
         self._lock = threading.Lock()  # one reader at a time: seek and read go together
         self._local = threading.local()  # each thread's read buffer, reused
@@ -137,13 +138,17 @@ class _NpyMember:
                     n = self._fh.readinto(view[got:])
                 except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
                     self._next = -1
-                    raise FrameError(f"{self.path}: frames: cannot read frame "
-                                     f"{start + got // max(self.frame_bytes, 1)}: "
-                                     f"{exc}") from None
+                    raise FrameError(
+                        f"{self.path}: frames: cannot read frame "
+                        f"{start + got // max(self.frame_bytes, 1)}: "
+                        f"{exc}"
+                    ) from None
                 if not n:
                     self._next = -1
-                    raise FrameError(f"{self.path}: frames: the file ends inside frame "
-                                     f"{start + got // max(self.frame_bytes, 1)} (truncated)")
+                    raise FrameError(
+                        f"{self.path}: frames: the file ends inside frame "
+                        f"{start + got // max(self.frame_bytes, 1)} (truncated)"
+                    )
                 got += n
             self._next = start + count
         return buf[:size].view(self.dtype).reshape((count, *self.shape[1:]))
@@ -167,8 +172,14 @@ def _open_npz(path: Path) -> ChunkedRecording:
             raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
         try:
             member = _NpyMember(path, zf, zf.getinfo(names["frames"]))
-        except (ValueError, OSError, EOFError, NotImplementedError, zipfile.BadZipFile,
-                zlib.error) as exc:
+        except (
+            ValueError,
+            OSError,
+            EOFError,
+            NotImplementedError,
+            zipfile.BadZipFile,
+            zlib.error,
+        ) as exc:
             raise FrameError(f"{path}: not a readable .npz recording: frames: {exc}") from None
     except BaseException:
         zf.close()
@@ -183,25 +194,52 @@ def _open_npz(path: Path) -> ChunkedRecording:
         try:
             with np.load(path, allow_pickle=False) as data:
                 small = {k: data[k] for k in data.files if k != "frames"}
-        except Exception as exc:  # noqa: BLE001 - any unreadable npz is one error line
-            why = ("it holds Python objects, not plain arrays" if "allow_pickle" in str(exc)
-                   else str(exc))
+        except Exception as exc:
+            why = (
+                "it holds Python objects, not plain arrays"
+                if "allow_pickle" in str(exc)
+                else str(exc)
+            )
             raise FrameError(f"{path}: not a readable .npz recording: {why}") from None
         t_s, pressure, chambers, sample, meta, pressure_t, printer = npz_extras(
-            path, small, shape[0])
+            path, small, shape[0]
+        )
     except BaseException:
         member.close()
         raise
-    return ChunkedRecording(path, shape[0], tuple(shape[1:]), t_s, pressure, chambers, sample,
-                            meta, 0, member, pressure_t, printer)
+    return ChunkedRecording(
+        path,
+        shape[0],
+        tuple(shape[1:]),
+        t_s,
+        pressure,
+        chambers,
+        sample,
+        meta,
+        0,
+        member,
+        pressure_t,
+        printer,
+    )
 
 
 def in_memory(rec: Recording, path: str | os.PathLike = "frames") -> ChunkedRecording:
     """A recording already read whole, served in chunks."""
     frames = check_frames(rec.frames, str(path))
-    return ChunkedRecording(Path(path), frames.shape[0], tuple(frames.shape[1:]), rec.t_s,
-                            rec.pressure_kpa, rec.chamber_names, rec.sample, rec.meta,
-                            rec.skipped_lines, frames, rec.pressure_t_s, rec.printer_mm)
+    return ChunkedRecording(
+        Path(path),
+        frames.shape[0],
+        tuple(frames.shape[1:]),
+        rec.t_s,
+        rec.pressure_kpa,
+        rec.chamber_names,
+        rec.sample,
+        rec.meta,
+        rec.skipped_lines,
+        frames,
+        rec.pressure_t_s,
+        rec.printer_mm,
+    )
 
 
 def has_pressures(path: str | os.PathLike, board) -> bool:
@@ -209,19 +247,20 @@ def has_pressures(path: str | os.PathLike, board) -> bool:
     [board]; an .npz is read from its header only, a MuCa log whole, so the answer is
     kept per file version: the planner asks several times for one run)."""
     st = os.stat(path)
-    return _has_pressures(str(Path(path).resolve()), st.st_size, st.st_mtime_ns,
-                          board.rows, board.cols, board.format)
+    return _has_pressures(
+        str(Path(path).resolve()), st.st_size, st.st_mtime_ns, board.rows, board.cols, board.format
+    )
 
 
 @functools.lru_cache(maxsize=16)
-def _has_pressures(path: str, size: int, mtime_ns: int, rows: int, cols: int,
-                   fmt: str) -> bool:
+def _has_pressures(path: str, size: int, mtime_ns: int, rows: int, cols: int, fmt: str) -> bool:
     with open_recording(path, rows, cols, fmt) as rec:
         return rec.pressure_kpa is not None
 
 
-def open_recording(path: str | os.PathLike, rows: int = BOARD_ROWS,
-                   cols: int = BOARD_COLS, fmt: str = "auto") -> ChunkedRecording:
+def open_recording(
+    path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, fmt: str = "auto"
+) -> ChunkedRecording:
     """An `.npz` (frames read chunk by chunk), or a MuCa ASCII log or raw board capture
     (read whole, `fmt` as `read_recording` takes it), by suffix as `read_recording` does.
     Use it as a context manager (it holds the file open)."""

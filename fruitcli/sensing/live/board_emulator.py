@@ -37,8 +37,9 @@ _POLL_S = 0.01
 _DRAIN_EMPTY_POLLS = 5  # consecutive empty polls that mean drained
 
 
-def synthetic_frames(n: int, seed: int = 0, rows: int = BOARD_ROWS,
-                     cols: int = BOARD_COLS) -> np.ndarray:
+def synthetic_frames(
+    n: int, seed: int = 0, rows: int = BOARD_ROWS, cols: int = BOARD_COLS
+) -> np.ndarray:
     """Idle board (500 counts, noise std 1) with one touch (60 counts, sigma 0.8 cells)
     sweeping diagonally during the middle half of the `n` frames."""
     rng = np.random.default_rng(seed)
@@ -47,7 +48,7 @@ def synthetic_frames(n: int, seed: int = 0, rows: int = BOARD_ROWS,
     for k in range(n // 4, 3 * n // 4):
         u = (k - n // 4) / max(n // 2, 1)
         r0, c0 = 2 + u * (rows - 5), 2 + u * (cols - 5)
-        frames[k] += 60 * np.exp(-((r - r0) ** 2 + (c - c0) ** 2) / (2 * 0.8 ** 2))
+        frames[k] += 60 * np.exp(-((r - r0) ** 2 + (c - c0) ** 2) / (2 * 0.8**2))
     return np.maximum(np.round(frames), 0).astype(np.int64)
 
 
@@ -67,8 +68,9 @@ def frame_bytes(frame, fmt: str, trailing_comma: bool = False) -> bytes:
     return format_ascii_line(frame, trailing_comma)
 
 
-def pacing_line(fmt: str, baud: int, rows: int = BOARD_ROWS, cols: int = BOARD_COLS,
-                frames=None) -> str:
+def pacing_line(
+    fmt: str, baud: int, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, frames=None
+) -> str:
     """What the pacing means, e.g. "115200 baud 8N1 = 11520 bytes/s: 254-byte binary
     packets, at most 45.4 frames/s"."""
     if not baud:
@@ -78,8 +80,10 @@ def pacing_line(fmt: str, baud: int, rows: int = BOARD_ROWS, cols: int = BOARD_C
     else:
         size = 2 + rows * cols if fmt == "binary" else rows * cols * 4 + 1
     what = "binary packets" if fmt == "binary" else "ASCII lines"
-    return (f"{baud} baud 8N1 = {byte_rate(baud):g} bytes/s: {size:,.0f}-byte {what}, "
-            f"at most {byte_rate(baud) / size:.1f} frames/s")
+    return (
+        f"{baud} baud 8N1 = {byte_rate(baud):g} bytes/s: {size:,.0f}-byte {what}, "
+        f"at most {byte_rate(baud) / size:.1f} frames/s"
+    )
 
 
 class BoardEmulator:
@@ -100,10 +104,22 @@ class BoardEmulator:
     times faster (the compressed-time soak test, `tests/soak_board.py`).
     """
 
-    def __init__(self, frames: np.ndarray, fps: float = 60.0, log_every: int = 0,
-                 cut_at=(), vanish_after: int | None = None, wait_for_reader: bool = False,
-                 fmt: str = "ascii", baud: int = 0, lose_byte_at=(), extra_byte_at=(),
-                 reset_at=(), trailing_comma: bool = False, time_scale: float = 1.0):
+    def __init__(
+        self,
+        frames: np.ndarray,
+        fps: float = 60.0,
+        log_every: int = 0,
+        cut_at=(),
+        vanish_after: int | None = None,
+        wait_for_reader: bool = False,
+        fmt: str = "ascii",
+        baud: int = 0,
+        lose_byte_at=(),
+        extra_byte_at=(),
+        reset_at=(),
+        trailing_comma: bool = False,
+        time_scale: float = 1.0,
+    ):
         self.source = frames if callable(frames) else None  # k -> frame, or None: the end
         self.frames = None if callable(frames) else np.asarray(frames)
         self.fps = fps * time_scale
@@ -140,7 +156,7 @@ class BoardEmulator:
                 delay = self._line_free - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-                chunk = data[k:k + piece]
+                chunk = data[k : k + piece]
                 self._line_free = max(self._line_free, time.monotonic()) + len(chunk) / self.rate
                 self._write_now(chunk)
             return
@@ -194,7 +210,7 @@ class BoardEmulator:
                 elif k in self.cut_at:
                     self._write(data[:half] + (b"\r\n" if self.fmt == "ascii" else b""))
                 elif k in self.lose_byte_at:
-                    self._write(data[:half] + data[half + 1:])
+                    self._write(data[:half] + data[half + 1 :])
                 elif k in self.extra_byte_at:
                     self._write(data[:half] + b"\x07" + data[half:])
                 else:
@@ -232,8 +248,7 @@ class BoardEmulator:
         empty = 0
         while time.monotonic() < end and not self.stop.is_set() and empty < _DRAIN_EMPTY_POLLS:
             time.sleep(_POLL_S)
-            pending = struct.unpack("i", fcntl.ioctl(self.slave, termios.FIONREAD,
-                                                     b"\0\0\0\0"))[0]
+            pending = struct.unpack("i", fcntl.ioctl(self.slave, termios.FIONREAD, b"\0\0\0\0"))[0]
             empty = empty + 1 if pending == 0 else 0
 
     def close(self) -> None:

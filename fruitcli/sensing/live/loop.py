@@ -63,9 +63,15 @@ class LiveLocator:
     (T, 3) holds the taxels at the latest measured pressures,
     `fruitcli.fem.online.OnlineSolver`), each frame uses those positions."""
 
-    def __init__(self, locator: Locator, pressure: PressureState | None = None,
-                 online=None, gate_mm: float = DEFAULT_GATE_MM,
-                 drift: DriftTracker | None = None, health: bool = False):
+    def __init__(
+        self,
+        locator: Locator,
+        pressure: PressureState | None = None,
+        online=None,
+        gate_mm: float = DEFAULT_GATE_MM,
+        drift: DriftTracker | None = None,
+        health: bool = False,
+    ):
         if drift is not None and locator.settings.drift_rate > 0:
             # one tracker: the per-frame rate of the bench replays gives way to this one
             locator.settings = replace(locator.settings, drift_rate=0.0)
@@ -76,8 +82,9 @@ class LiveLocator:
         self.k = locator.settings.baseline_frames
         self.sessions = SessionTracker(gate_mm)
         self.drift = drift
-        self.health = TaxelHealth(len(locator.rows), locator.settings.threshold_counts) \
-            if health else None
+        self.health = (
+            TaxelHealth(len(locator.rows), locator.settings.threshold_counts) if health else None
+        )
         self._base: list[np.ndarray] = []
         self.stream: Stream | None = None
         self.initial_baseline: np.ndarray | None = None
@@ -99,8 +106,11 @@ class LiveLocator:
         self._base, self.stream = [], None
         if self.drift is not None:
             self.drift.reset()
-        line = json.dumps({"frame": self.frame, "t_s": round(float(t_s), 6),
-                           "touches": []}) if self._had else None
+        line = (
+            json.dumps({"frame": self.frame, "t_s": round(float(t_s), 6), "touches": []})
+            if self._had
+            else None
+        )
         self._had = False
         return self.sessions.end_all(), line
 
@@ -143,13 +153,21 @@ class LiveLocator:
         if len(t) == 0 and not self._had:
             return None
         self._had = len(t) > 0
-        touches = [{"touch": int(t.touch[n]), "i": round(float(t.i[n]), 4),
-                    "j": round(float(t.j[n]), 4),
-                    **{k: round(float(v), 4) for k, v in zip(("x_mm", "y_mm", "z_mm"),
-                                                            t.xyz_mm[n], strict=True)},
-                    "peak": float(t.peak[n]), **_shape(t, n)} for n in range(len(t))]
-        return json.dumps({"frame": f.frame, "t_s": round(float(f.t_s), 6),
-                           "touches": touches})
+        touches = [
+            {
+                "touch": int(t.touch[n]),
+                "i": round(float(t.i[n]), 4),
+                "j": round(float(t.j[n]), 4),
+                **{
+                    k: round(float(v), 4)
+                    for k, v in zip(("x_mm", "y_mm", "z_mm"), t.xyz_mm[n], strict=True)
+                },
+                "peak": float(t.peak[n]),
+                **_shape(t, n),
+            }
+            for n in range(len(t))
+        ]
+        return json.dumps({"frame": f.frame, "t_s": round(float(f.t_s), 6), "touches": touches})
 
     def baseline_shift(self) -> np.ndarray:
         """(T,) counts the baseline moved since the first one (0 before it)."""
@@ -160,15 +178,22 @@ class LiveLocator:
 
 def _shape(t: TouchTable, n: int) -> dict:
     """Height, strength, size and kind of touch n, for its JSON line (NaN: null)."""
-    out = {k: (None if np.isnan(v) else round(float(v), 4)) for k, v in (
-        ("height_mm", t.height_mm[n]), ("height_err_mm", t.height_err_mm[n]),
-        ("strength", t.strength[n]), ("size_mm", t.size_mm[n]))}
+    out = {
+        k: (None if np.isnan(v) else round(float(v), 4))
+        for k, v in (
+            ("height_mm", t.height_mm[n]),
+            ("height_err_mm", t.height_err_mm[n]),
+            ("strength", t.strength[n]),
+            ("size_mm", t.size_mm[n]),
+        )
+    }
     out["kind"] = KIND_NAMES[int(t.kind[n])]
     return out
 
 
-def pressure_thread(port, state: PressureState, stop: threading.Event,
-                    name: str = "pressure port") -> threading.Thread:
+def pressure_thread(
+    port, state: PressureState, stop: threading.Event, name: str = "pressure port"
+) -> threading.Thread:
     """Read pressure lines from `port` into `state` until `stop` or the port closes."""
     reader = LineReader(port, name)
 

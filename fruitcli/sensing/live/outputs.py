@@ -56,8 +56,17 @@ class Outputs:
         if f is not None:
             tt = f.touches
             if self.tuio is not None:  # first: a slow reader of stdout must not delay it
-                self.tuio.send(t, f.sessions.ids, f.sessions.new, f.sessions.ended, f.ij,
-                               tt.xyz_mm, tt.peak, f.shape, tt.kind)
+                self.tuio.send(
+                    t,
+                    f.sessions.ids,
+                    f.sessions.new,
+                    f.sessions.ended,
+                    f.ij,
+                    tt.xyz_mm,
+                    tt.peak,
+                    f.shape,
+                    tt.kind,
+                )
             line = self.live.json_line(f)
             if line is not None:
                 sys.stdout.write(line + "\n")
@@ -84,11 +93,13 @@ class Outputs:
     def status(self, t: float) -> str:
         shift = self.live.baseline_shift()
         h = self.live.health
-        return (f"t {t:.0f} s, {self.frames} frames, {self.fps(t):.1f} frames/s, "
-                f"{self.touches} touches, baseline {self.live.baseline_state} (shift mean "
-                f"{float(np.mean(shift)):+.1f}, max |{float(np.abs(shift).max()):.1f}| "
-                f"counts), {self.reconnects} reconnects, "
-                + (h.summary(self.taxels.ids) if h is not None else ""))
+        return (
+            f"t {t:.0f} s, {self.frames} frames, {self.fps(t):.1f} frames/s, "
+            f"{self.touches} touches, baseline {self.live.baseline_state} (shift mean "
+            f"{float(np.mean(shift)):+.1f}, max |{float(np.abs(shift).max()):.1f}| "
+            f"counts), {self.reconnects} reconnects, "
+            + (h.summary(self.taxels.ids) if h is not None else "")
+        )
 
     def reconnect(self, port, baud, board, fmt, wait_for_port):
         """The port vanished: end the touches, wait for the port, start a new baseline."""
@@ -106,11 +117,14 @@ class Outputs:
             self.log.event(f"port {port} lost at t {t:.1f} s")
         ser = wait_for_port(port, baud)
         self.reconnects += 1
-        self.progress(f"{port}: reconnected ({self.reconnects}); collecting "
-                      f"{self.live.k} baseline frames")
+        self.progress(
+            f"{port}: reconnected ({self.reconnects}); collecting {self.live.k} baseline frames"
+        )
         if self.log is not None:
-            self.log.event(f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
-                           f"reconnect {self.reconnects}")
+            self.log.event(
+                f"port {port} back at t {self.now(time.monotonic()):.1f} s, "
+                f"reconnect {self.reconnects}"
+            )
         return ser, FrameReader(ser, board.rows, board.cols, name=port, fmt=fmt)
 
     def start_view(self, target: str) -> None:
@@ -119,38 +133,68 @@ class Outputs:
 
         host, port = parse_host_port(target, "--view", default_host="127.0.0.1")
         tx = self.taxels
-        layout = {"taxels": [[int(tx.ids[k]), int(tx.i[k]), int(tx.j[k]),
-                              float(tx.xyz_mm[k, 0]), float(tx.xyz_mm[k, 1])]
-                             for k in range(len(tx))],
-                  "threshold_counts": self.live.loc.settings.threshold_counts}
+        layout = {
+            "taxels": [
+                [
+                    int(tx.ids[k]),
+                    int(tx.i[k]),
+                    int(tx.j[k]),
+                    float(tx.xyz_mm[k, 0]),
+                    float(tx.xyz_mm[k, 1]),
+                ]
+                for k in range(len(tx))
+            ],
+            "threshold_counts": self.live.loc.settings.threshold_counts,
+        }
         self.view = ViewServer(host, port, layout, self.view_state)
         self.progress(f"live view at {self.view.url}")
 
     def view_state(self) -> dict:
         """The live view's state (called from the view's threads)."""
         f, recent = self.last, list(self.recent)
-        fps = (len(recent) - 1) / (recent[-1] - recent[0]) \
-            if len(recent) > 1 and recent[-1] > recent[0] else 0.0
+        fps = (
+            (len(recent) - 1) / (recent[-1] - recent[0])
+            if len(recent) > 1 and recent[-1] > recent[0]
+            else 0.0
+        )
         touches = []
         if f is not None:
             tt = f.touches
-            touches = [{"id": int(tt.touch[n]), "x_mm": float(tt.xyz_mm[n, 0]),
-                        "y_mm": float(tt.xyz_mm[n, 1]), "z_mm": float(tt.xyz_mm[n, 2]),
-                        "i": float(tt.i[n]), "j": float(tt.j[n]), "peak": float(tt.peak[n]),
-                        "kind": KIND_NAMES[int(tt.kind[n])],
-                        "height_mm": _finite(tt.height_mm[n])}
-                       for n in range(len(tt))]
+            touches = [
+                {
+                    "id": int(tt.touch[n]),
+                    "x_mm": float(tt.xyz_mm[n, 0]),
+                    "y_mm": float(tt.xyz_mm[n, 1]),
+                    "z_mm": float(tt.xyz_mm[n, 2]),
+                    "i": float(tt.i[n]),
+                    "j": float(tt.j[n]),
+                    "peak": float(tt.peak[n]),
+                    "kind": KIND_NAMES[int(tt.kind[n])],
+                    "height_mm": _finite(tt.height_mm[n]),
+                }
+                for n in range(len(tt))
+            ]
         act = f.activation if f is not None else [0.0] * len(self.taxels)
         h = self.live.health
-        flags = {name: self.taxels.ids[idx].tolist() for name, idx in h.flags().items()} \
-            if h is not None else {}
+        flags = (
+            {name: self.taxels.ids[idx].tolist() for name, idx in h.flags().items()}
+            if h is not None
+            else {}
+        )
         p = self.pressure
-        return {"frame": self.live.frame, "t_s": round(self.now_s(), 3), "fps": fps,
-                "baseline": self.live.baseline_state, "reconnects": self.reconnects,
-                "activation": [round(float(v), 1) for v in act], "touches": touches,
-                "pressures": {} if p is None or not p.received else
-                dict(zip(p.chambers, (float(v) for v in p.kpa), strict=True)),
-                "flags": flags}
+        return {
+            "frame": self.live.frame,
+            "t_s": round(self.now_s(), 3),
+            "fps": fps,
+            "baseline": self.live.baseline_state,
+            "reconnects": self.reconnects,
+            "activation": [round(float(v), 1) for v in act],
+            "touches": touches,
+            "pressures": {}
+            if p is None or not p.received
+            else dict(zip(p.chambers, (float(v) for v in p.kpa), strict=True)),
+            "flags": flags,
+        }
 
     def now_s(self) -> float:
         return self.now(time.monotonic())
@@ -159,16 +203,19 @@ class Outputs:
         """Touches that ended without a frame (the board went away)."""
         e = np.zeros(0)
         if self.tuio is not None:
-            self.tuio.send(t, e.astype(np.int64), e.astype(bool), ended, np.zeros((0, 2)),
-                           np.zeros((0, 3)), e)
+            self.tuio.send(
+                t, e.astype(np.int64), e.astype(bool), ended, np.zeros((0, 2)), np.zeros((0, 3)), e
+            )
         if self.log is not None:
             self.log.ended(t, ended)
 
     def summary(self) -> list[str]:
         lines = []
         if self.reconnects:
-            lines.append(f"{self.reconnects} reconnect{'s' * (self.reconnects != 1)} "
-                         f"({self.skipped} lines skipped before the last one)")
+            lines.append(
+                f"{self.reconnects} reconnect{'s' * (self.reconnects != 1)} "
+                f"({self.skipped} lines skipped before the last one)"
+            )
         if self.live.drift is not None:
             lines.append(self.live.drift.state())
         if self.live.health is not None:

@@ -36,11 +36,10 @@ class LogSink:
     received before the frame and the time of that reading (on the clock that started at
     monotonic `t0`, like the frames' t_s; ``nan`` before the first reading)."""
 
-    def __init__(self, path: str | os.PathLike, header: str = "", pressure=None,
-                 t0: float = 0.0):
+    def __init__(self, path: str | os.PathLike, header: str = "", pressure=None, t0: float = 0.0):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fh = open(self.path, "x")  # noqa: SIM115 - closed by close(); never clobbers
+        self.fh = open(self.path, "x")
         if header:
             self.fh.write(f"# {header}\n")
             self.fh.flush()
@@ -48,14 +47,15 @@ class LogSink:
         self.pressure, self.t0 = pressure, t0
         self.pfh = None
         if pressure is not None:
-            self.pfh = open(pressure_path_for(self.path), "x")  # noqa: SIM115
+            self.pfh = open(pressure_path_for(self.path), "x")
 
     def write(self, counts, t_s: float) -> None:
         if self.pfh is not None:  # the pressures before the frame, written just after it
             kpa, t = self.pressure.latest
             self.fh.write(format_line(counts, t_s) + "\n")
-            self.pfh.write(",".join([repr(float(t - self.t0))]
-                                    + [repr(float(v)) for v in kpa]) + "\n")
+            self.pfh.write(
+                ",".join([repr(float(t - self.t0))] + [repr(float(v)) for v in kpa]) + "\n"
+            )
             self.fh.flush()
             self.pfh.flush()
         else:
@@ -97,8 +97,9 @@ def log_path_for(out: str | os.PathLike) -> Path:
     return out.with_name(out.name + ".partial.log")
 
 
-def finalize(out: str | os.PathLike, meta: dict, rows: int, cols: int,
-             chambers: tuple[str, ...] = ()) -> int:
+def finalize(
+    out: str | os.PathLike, meta: dict, rows: int, cols: int, chambers: tuple[str, ...] = ()
+) -> int:
     """Move (a log) or convert (an `.npz`, with the pressures of `chambers` when given)
     the partial log onto `out`. -> frames.
 
@@ -118,8 +119,14 @@ def finalize(out: str | os.PathLike, meta: dict, rows: int, cols: int,
     if chambers:
         t, kpa = read_pressure_csv(plog, len(chambers))
         n = min(len(rec), len(t))  # a crash between the two lines: drop the odd frame
-        rec = Recording(rec.frames[:n], rec.t_s[:n], np.nan_to_num(kpa[:n], nan=0.0),
-                        tuple(chambers), meta=rec.meta, pressure_t_s=t[:n])
+        rec = Recording(
+            rec.frames[:n],
+            rec.t_s[:n],
+            np.nan_to_num(kpa[:n], nan=0.0),
+            tuple(chambers),
+            meta=rec.meta,
+            pressure_t_s=t[:n],
+        )
     write_npz(out, rec)
     log.unlink()
     plog.unlink(missing_ok=True)
@@ -131,8 +138,13 @@ def _has_frames(path: Path, n_cells: int) -> bool:
         return any(line.count(",") >= n_cells - 1 for line in fh)
 
 
-def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = None,
-                  seconds: float | None = None, progress=None) -> dict:
+def record_stream(
+    reader: FrameReader,
+    sink: LogSink,
+    n_frames: int | None = None,
+    seconds: float | None = None,
+    progress=None,
+) -> dict:
     """Copy frames from `reader` to `sink` until `n_frames`, `seconds` or the port closes.
 
     Returns {frames, skipped, cut, seconds, frames_per_s, closed (message or "")}."""
@@ -152,8 +164,10 @@ def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = Non
                     break
             if progress and now - last >= PROGRESS_EVERY_S:
                 why = reader.skip_reasons() if not sink.frames else ""
-                progress(f"{sink.frames} frames, {sink.frames / (now - t0):.1f} frames/s"
-                         + (f", {reader.skipped} lines skipped: {why}" if why else ""))
+                progress(
+                    f"{sink.frames} frames, {sink.frames / (now - t0):.1f} frames/s"
+                    + (f", {reader.skipped} lines skipped: {why}" if why else "")
+                )
                 last = now
     except PortClosed as exc:
         closed = str(exc)
@@ -161,9 +175,14 @@ def record_stream(reader: FrameReader, sink: LogSink, n_frames: int | None = Non
             if n_frames is None or sink.frames < n_frames:
                 sink.write(counts, t_s)
     dt = time.monotonic() - t0
-    return {"frames": sink.frames, "skipped": reader.skipped, "cut": reader.cut,
-            "seconds": dt, "frames_per_s": sink.frames / dt if dt > 0 else 0.0,
-            "closed": closed}
+    return {
+        "frames": sink.frames,
+        "skipped": reader.skipped,
+        "cut": reader.cut,
+        "seconds": dt,
+        "frames_per_s": sink.frames / dt if dt > 0 else 0.0,
+        "closed": closed,
+    }
 
 
 def check_limits(n_frames: int | None, seconds: float | None) -> None:
@@ -171,29 +190,37 @@ def check_limits(n_frames: int | None, seconds: float | None) -> None:
         raise FrameError("give --frames or --seconds, not both")
 
 
-def check_out_path(out: str | os.PathLike, overwrite: bool = False,
-                   pressures: bool = False) -> None:
+def check_out_path(
+    out: str | os.PathLike, overwrite: bool = False, pressures: bool = False
+) -> None:
     """`out` must be an `.npz` or a MuCa log by its suffix (an `.npz` with `pressures`),
     must not exist unless `overwrite`, and no partial log of an unfinished recording may
     be in the way."""
     suffix = Path(out).suffix.lower()
     if suffix != ".npz" and not is_log_path(out):
-        raise FrameError(f"--out {out}: expected a .npz or a MuCa log "
-                         f"({', '.join(LOG_SUFFIXES)}), got {suffix or 'no suffix'!r}")
+        raise FrameError(
+            f"--out {out}: expected a .npz or a MuCa log "
+            f"({', '.join(LOG_SUFFIXES)}), got {suffix or 'no suffix'!r}"
+        )
     if pressures and suffix != ".npz":
-        raise FrameError(f"--out {out}: chamber pressures are recorded in an .npz only "
-                         "(a MuCa log has no place for them)")
+        raise FrameError(
+            f"--out {out}: chamber pressures are recorded in an .npz only "
+            "(a MuCa log has no place for them)"
+        )
     if Path(out).is_dir():
         raise FrameError(f"--out {out}: is a folder, expected a file")
     if not Path(out).absolute().parent.is_dir():
-        raise FrameError(f"--out {out}: folder {Path(out).parent} does not exist; create it "
-                         "first")
+        raise FrameError(f"--out {out}: folder {Path(out).parent} does not exist; create it first")
     if Path(out).exists() and not overwrite:
-        raise FrameError(f"--out {out}: exists; give --overwrite to replace it (it is "
-                         "replaced only once the new recording has frames)")
+        raise FrameError(
+            f"--out {out}: exists; give --overwrite to replace it (it is "
+            "replaced only once the new recording has frames)"
+        )
     partial = log_path_for(out)
     if not partial.exists() and pressure_path_for(partial).exists():
         partial = pressure_path_for(partial)
     if partial.exists():
-        raise FrameError(f"{partial}: left by a recording that did not finish (it holds "
-                         "its frames, a MuCa log); move or remove it first")
+        raise FrameError(
+            f"{partial}: left by a recording that did not finish (it holds "
+            "its frames, a MuCa log); move or remove it first"
+        )

@@ -23,7 +23,8 @@ class RunLog:
         self.logger.propagate = False
         self.logger.setLevel(logging.INFO)
         self.handler = logging.handlers.RotatingFileHandler(
-            path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8")
+            path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8"
+        )
         fmt = logging.Formatter("%(asctime)s.%(msecs)03dZ %(message)s", "%Y-%m-%dT%H:%M:%S")
         fmt.converter = time.gmtime
         self.handler.setFormatter(fmt)
@@ -41,8 +42,9 @@ class RunLog:
             s = int(sessions.ids[k])
             if sessions.new[k]:
                 x, y, z = xyz_mm[k]
-                self.logger.info(f"down {s} {x:.2f} {y:.2f} {z:.2f} {ij[k][0]:.3f} "
-                                 f"{ij[k][1]:.3f} {peak[k]:.1f}")
+                self.logger.info(
+                    f"down {s} {x:.2f} {y:.2f} {z:.2f} {ij[k][0]:.3f} {ij[k][1]:.3f} {peak[k]:.1f}"
+                )
                 self.open[s] = (t_s, float(peak[k]))
             elif s in self.open:
                 t0, pk = self.open[s]

@@ -19,7 +19,7 @@ import errno
 import math
 import os
 import time
-from collections import Counter  # noqa: F401 - annotations
+from collections import Counter
 
 import numpy as np
 
@@ -39,17 +39,27 @@ def open_port(port: str, baud: int = 115200, timeout_s: float = READ_TIMEOUT_S):
     import serial
 
     try:
-        return serial.serial_for_url(port, baudrate=baud, bytesize=8, parity="N",
-                                     stopbits=1, timeout=timeout_s, exclusive=True)
+        return serial.serial_for_url(
+            port,
+            baudrate=baud,
+            bytesize=8,
+            parity="N",
+            stopbits=1,
+            timeout=timeout_s,
+            exclusive=True,
+        )
     except (serial.SerialException, OSError, ValueError) as exc:
         code = getattr(exc, "errno", None)
         text = str(exc)
-        if code == errno.ENOENT or "No such file" in text or "could not open port" in text \
-                and "No such" in text:
+        if (
+            code == errno.ENOENT
+            or "No such file" in text
+            or "could not open port" in text
+            and "No such" in text
+        ):
             raise FrameError(f"{port}: serial port does not exist") from None
         if code in (errno.EBUSY, errno.EAGAIN) or "lock" in text or "busy" in text.lower():
-            raise FrameError(f"{port}: serial port is busy (another program has it open)") \
-                from None
+            raise FrameError(f"{port}: serial port is busy (another program has it open)") from None
         raise FrameError(f"{port}: cannot open serial port: {text}") from None
 
 
@@ -104,8 +114,14 @@ class FrameReader:
     """MuCa frames (R, C) counts from a port, stamped with host time (s), in the firmware's
     ASCII or binary format (`fmt`: auto, ascii, binary; `muca_formats`)."""
 
-    def __init__(self, port, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, name: str = "port",
-                 fmt: str = "auto"):
+    def __init__(
+        self,
+        port,
+        rows: int = BOARD_ROWS,
+        cols: int = BOARD_COLS,
+        name: str = "port",
+        fmt: str = "auto",
+    ):
         from fruitcli.sensing.frames.muca import make_decoder
 
         self.port, self.name = port, name
@@ -116,7 +132,7 @@ class FrameReader:
 
     @property
     def format(self) -> str | None:
-        """"ascii" or "binary" once known (None while auto-detection waits)."""
+        """ "ascii" or "binary" once known (None while auto-detection waits)."""
         return self.decoder.format
 
     @property

@@ -16,8 +16,10 @@ import numpy as np
 
 
 def _python_row(columns: list[np.ndarray], kinds: str, r: int) -> bytes:
-    fields = [str(int(c[r])) if k == "d" else f"{float(c[r]):.6f}"
-              for c, k in zip(columns, kinds, strict=True)]
+    fields = [
+        str(int(c[r])) if k == "d" else f"{float(c[r]):.6f}"
+        for c, k in zip(columns, kinds, strict=True)
+    ]
     return (",".join(fields) + "\n").encode()
 
 
@@ -51,7 +53,7 @@ def format_rows(columns: list[np.ndarray], kinds: str) -> bytes:
         return flat
     pieces, start = [], 0
     for r in np.flatnonzero(bad):
-        pieces += [flat[start:ends[r]], _python_row(columns, kinds, int(r))]
+        pieces += [flat[start : ends[r]], _python_row(columns, kinds, int(r))]
         start = int(ends[r])
     pieces.append(flat[start:])
     return b"".join(pieces)

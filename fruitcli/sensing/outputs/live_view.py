@@ -77,25 +77,27 @@ class ViewServer:
         server = ThreadingHTTPServer
         if ":" in host:  # an IPv6 address, e.g. --view [::1]:8080
 
-            class server(ThreadingHTTPServer):  # noqa: N801
+            class server(ThreadingHTTPServer):
                 address_family = socket.AF_INET6
+
         try:
             self.httpd = server((host, port), Handler)
         except socket.gaierror as exc:
-            raise FrameError(f"{where}: host {host!r} does not resolve ({exc.strerror})"
-                             ) from None
+            raise FrameError(f"{where}: host {host!r} does not resolve ({exc.strerror})") from None
         except OSError as exc:
             if exc.errno == errno.EADDRINUSE:
-                raise FrameError(f"{where}: port {port} is in use (another program "
-                                 "listens there; choose another port)") from None
+                raise FrameError(
+                    f"{where}: port {port} is in use (another program "
+                    "listens there; choose another port)"
+                ) from None
             if exc.errno == errno.EADDRNOTAVAIL:
-                raise FrameError(f"{where}: {host} is not an address of this machine"
-                                 ) from None
+                raise FrameError(f"{where}: {host} is not an address of this machine") from None
             raise FrameError(f"{where}: cannot listen: {exc.strerror or exc}") from None
         self.httpd.daemon_threads = True
         self.address = self.httpd.server_address[:2]
-        self.thread = threading.Thread(target=self.httpd.serve_forever,
-                                       kwargs={"poll_interval": 0.2}, daemon=True)
+        self.thread = threading.Thread(
+            target=self.httpd.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True
+        )
         self.thread.start()
 
     @property

@@ -28,8 +28,11 @@ class Template:
     (its int32 size first); messages of a template all have the same size."""
 
     def __init__(self, address: str, strings: tuple[str, ...] = (), tags: str = ""):
-        self.prefix = (osc_string(address) + osc_string("," + "s" * len(strings) + tags)
-                       + b"".join(osc_string(s) for s in strings))
+        self.prefix = (
+            osc_string(address)
+            + osc_string("," + "s" * len(strings) + tags)
+            + b"".join(osc_string(s) for s in strings)
+        )
         self._struct = struct.Struct(">" + tags)
         size = len(self.prefix) + self._struct.size
         self._sized = size.to_bytes(4, "big") + self.prefix

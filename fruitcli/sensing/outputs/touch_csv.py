@@ -22,8 +22,22 @@ from fruitcli.fsutil import atomic_path
 from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES, TouchTable
 from fruitcli.sensing.outputs.csv_rows import format_rows
 
-TOUCH_HEADER = ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak", "height_mm",
-                "height_err_mm", "strength", "size_mm", "kind"]
+TOUCH_HEADER = [
+    "frame",
+    "t_s",
+    "touch",
+    "i",
+    "j",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "peak",
+    "height_mm",
+    "height_err_mm",
+    "strength",
+    "size_mm",
+    "kind",
+]
 _KINDS = "dfdffffffffff"  # every column but kind, written as its name
 _KIND_ENDS = [f",{name}\n".encode() for name in KIND_NAMES]
 
@@ -33,9 +47,24 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
     if len(table) == 0:
         return b""
     xyz = table.xyz_mm
-    data = format_rows([table.frame, t_s[table.frame], table.touch, table.i, table.j,
-                        xyz[:, 0], xyz[:, 1], xyz[:, 2], table.peak, table.height_mm,
-                        table.height_err_mm, table.strength, table.size_mm], _KINDS)
+    data = format_rows(
+        [
+            table.frame,
+            t_s[table.frame],
+            table.touch,
+            table.i,
+            table.j,
+            xyz[:, 0],
+            xyz[:, 1],
+            xyz[:, 2],
+            table.peak,
+            table.height_mm,
+            table.height_err_mm,
+            table.strength,
+            table.size_mm,
+        ],
+        _KINDS,
+    )
     ends = [_KIND_ENDS[k] for k in table.kind.tolist()]
     return b"".join(line + end for line, end in zip(data.split(b"\n")[:-1], ends, strict=True))
 

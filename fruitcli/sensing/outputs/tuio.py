@@ -44,8 +44,7 @@ from fruitcli.sensing.outputs import osc
 PROFILES_3D = ("3Dcur", "25Dcur")
 
 
-def parse_host_port(text: str, option: str, default_host: str | None = None
-                    ) -> tuple[str, int]:
+def parse_host_port(text: str, option: str, default_host: str | None = None) -> tuple[str, int]:
     """``HOST:PORT`` (or ``PORT`` when `default_host` is given) -> (host, port)."""
     host, sep, port = text.rpartition(":")
     if not sep:
@@ -63,8 +62,9 @@ def resolve(host: str, port: int, option: str) -> tuple:
         info = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
     except (socket.gaierror, UnicodeError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
-        raise FrameError(f"{option} {host}:{port}: host {host!r} does not resolve ({why})"
-                         ) from None
+        raise FrameError(
+            f"{option} {host}:{port}: host {host!r} does not resolve ({why})"
+        ) from None
     return info[0][4]
 
 
@@ -89,13 +89,20 @@ class Normalizer:
     @classmethod
     def from_taxels(cls, i: np.ndarray, j: np.ndarray, xyz_mm: np.ndarray) -> Normalizer:
         lo, hi = xyz_mm.min(axis=0), xyz_mm.max(axis=0)
-        return cls(float(i.min()), float(max(i.max() - i.min(), 1)), float(j.min()),
-                   float(max(j.max() - j.min(), 1)), lo, float(max((hi - lo).max(), 1e-9)))
+        return cls(
+            float(i.min()),
+            float(max(i.max() - i.min(), 1)),
+            float(j.min()),
+            float(max(j.max() - j.min(), 1)),
+            lo,
+            float(max((hi - lo).max(), 1e-9)),
+        )
 
     def grid(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """(n, 2) normalized grid positions."""
-        return np.stack([(i - self.i_min) / self.i_span,
-                         1.0 - (j - self.j_min) / self.j_span], axis=1)
+        return np.stack(
+            [(i - self.i_min) / self.i_span, 1.0 - (j - self.j_min) / self.j_span], axis=1
+        )
 
     def space(self, xyz_mm: np.ndarray) -> np.ndarray:
         """(n, 3) normalized 3D positions."""
@@ -117,9 +124,16 @@ class Kinematics:
         self.g, self.vel = np.zeros((0, 5)), np.zeros((0, 5))
         self.speed: list[tuple[float, float]] = []  # |v| of the 2D and of the 3D part
 
-    def update(self, ids: np.ndarray, ij: np.ndarray, xyz_mm: np.ndarray, norm: np.ndarray,
-               t_s: float, height_mm: np.ndarray | None = None,
-               plane: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def update(
+        self,
+        ids: np.ndarray,
+        ij: np.ndarray,
+        xyz_mm: np.ndarray,
+        norm: np.ndarray,
+        t_s: float,
+        height_mm: np.ndarray | None = None,
+        plane: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sessions `ids` (n,) at grid positions ij (n, 2) and points xyz_mm (n, 3) ->
         (positions g (n, 5) = (x2, y2, x3, y3, z3) normalized by `norm` (see `motion`),
         velocity (n, 5), acceleration (n, 2) = (m2, m3)): v = (p - p_prev) / dt,
@@ -129,8 +143,7 @@ class Kinematics:
         dt = 0.0 if self.t_s is None else t_s - self.t_s
         g, vel, rows = np.empty((n, 5)), np.empty((n, 5)), np.empty(n, np.int64)
         h = np.zeros(n) if height_mm is None else np.ascontiguousarray(height_mm, dtype=float)
-        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows, h,
-                     plane)
+        self._motion(ids, ij, xyz_mm, norm, self.ids, self.g, self.vel, dt, g, vel, rows, h, plane)
         hypot, prev = math.hypot, self.speed
         speed, acc = [], []
         for r, (a, b, c, d, e) in zip(rows.tolist(), vel.tolist(), strict=True):
@@ -151,25 +164,43 @@ class Kinematics:
 class TuioSender:
     """Send each frame's touches to one OSC/UDP address (see the module docstring)."""
 
-    def __init__(self, address: tuple, norm: Normalizer, profile_3d: str = "3Dcur",
-                 source: str | None = None):
+    def __init__(
+        self, address: tuple, norm: Normalizer, profile_3d: str = "3Dcur", source: str | None = None
+    ):
         if profile_3d not in PROFILES_3D:
-            raise FrameError(f"TUIO 3D profile: expected one of {', '.join(PROFILES_3D)}, "
-                             f"got {profile_3d!r}")
+            raise FrameError(
+                f"TUIO 3D profile: expected one of {', '.join(PROFILES_3D)}, got {profile_3d!r}"
+            )
         self.address = address
-        self.sock = socket.socket(socket.AF_INET6 if len(address) == 4 else socket.AF_INET,
-                                  socket.SOCK_DGRAM)
+        self.sock = socket.socket(
+            socket.AF_INET6 if len(address) == 4 else socket.AF_INET, socket.SOCK_DGRAM
+        )
         self.sock.setblocking(False)
         self.norm = norm
         self.profiles = ("/tuio/2Dcur", f"/tuio/{profile_3d}", "/tuio/_sp")
         self.source = source or f"fruit@{socket.gethostname()}"
         self.kin = Kinematics()
         self.fseq = 0
-        self._norm = np.array([norm.i_min, norm.i_span, norm.j_min, norm.j_span,
-                               *np.asarray(norm.origin_mm, dtype=float), norm.scale_mm])
+        self._norm = np.array(
+            [
+                norm.i_min,
+                norm.i_span,
+                norm.j_min,
+                norm.j_span,
+                *np.asarray(norm.origin_mm, dtype=float),
+                norm.scale_mm,
+            ]
+        )
         self._templates()
-        self.bundles(0.0, np.zeros(0, np.int64), np.zeros(0, bool), [], np.zeros((0, 2)),
-                     np.zeros((0, 3)), np.zeros(0))  # the kernels loaded now, not on a frame
+        self.bundles(
+            0.0,
+            np.zeros(0, np.int64),
+            np.zeros(0, bool),
+            [],
+            np.zeros((0, 2)),
+            np.zeros((0, 3)),
+            np.zeros(0),
+        )  # the kernels loaded now, not on a frame
         self.kin = Kinematics()
         self.fseq = 0
         self.sent = 0  # datagrams sent
@@ -177,11 +208,14 @@ class TuioSender:
 
     def _templates(self) -> None:
         p2, p3, pp = self.profiles
-        self._source = {p: osc.Template(p, ("source", self.source)).element()
-                        for p in self.profiles}
-        self._set = {p2: osc.Template(p2, ("set",), "ifffff"),
-                     p3: osc.Template(p3, ("set",), "ifffffff"),
-                     pp: osc.Template(pp, ("set",), "if")}
+        self._source = {
+            p: osc.Template(p, ("source", self.source)).element() for p in self.profiles
+        }
+        self._set = {
+            p2: osc.Template(p2, ("set",), "ifffff"),
+            p3: osc.Template(p3, ("set",), "ifffffff"),
+            pp: osc.Template(pp, ("set",), "if"),
+        }
         self._fseq = {p: osc.Template(p, ("fseq",), "i") for p in self.profiles}
         self._frame = osc.Template("/fruit/frame", (), "iif")
         self._down = osc.Template("/fruit/down", (), "i" + "f" * 9 + "i")
@@ -199,21 +233,35 @@ class TuioSender:
         `tuio_kernel`'s order (made once per n)."""
         got = self._consts.get(n)
         if got is None:
-            pieces = [osc.BUNDLE_HEAD + self._source[p]
-                      + osc.Template(p, ("alive",), "i" * n).head for p in self.profiles]
+            pieces = [
+                osc.BUNDLE_HEAD + self._source[p] + osc.Template(p, ("alive",), "i" * n).head
+                for p in self.profiles
+            ]
             pieces += [self._set[p].head for p in self.profiles]
             pieces += [self._fseq[p].head for p in self.profiles]
-            pieces += [osc.BUNDLE_HEAD + self._frame.head, self._down.head,
-                       self._touch.head, self._up.head]
+            pieces += [
+                osc.BUNDLE_HEAD + self._frame.head,
+                self._down.head,
+                self._touch.head,
+                self._up.head,
+            ]
             length = np.array([len(x) for x in pieces], np.int64)
             seg = np.column_stack([np.cumsum(length) - length, length])
             got = self._consts[n] = (np.frombuffer(b"".join(pieces), np.uint8), seg)
         return got
 
-    def bundles(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
-                ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray,
-                shape: np.ndarray | None = None, kind: np.ndarray | None = None
-                ) -> list[bytes]:
+    def bundles(
+        self,
+        t_s: float,
+        ids: np.ndarray,
+        new: np.ndarray,
+        ended: list[int],
+        ij: np.ndarray,
+        xyz_mm: np.ndarray,
+        peak: np.ndarray,
+        shape: np.ndarray | None = None,
+        kind: np.ndarray | None = None,
+    ) -> list[bytes]:
         """The frame's four datagrams (and advance fseq). `ij` (n, 2) grid position,
         `xyz_mm` (n, 3), `peak` (n,) counts, `ids` (n,) sessions, `new` (n,) bool,
         `shape` (n, 3) height mm, strength, size mm (None: NaN), `kind` (n,) 0 touch,
@@ -226,26 +274,54 @@ class TuioSender:
         n = sid.shape[0]
         ij = np.ascontiguousarray(ij, dtype=float).reshape(n, 2)
         xyz = np.ascontiguousarray(xyz_mm, dtype=float).reshape(n, 3)
-        shape = np.full((n, 3), np.nan) if shape is None else \
-            np.ascontiguousarray(shape, dtype=float).reshape(n, 3)
+        shape = (
+            np.full((n, 3), np.nan)
+            if shape is None
+            else np.ascontiguousarray(shape, dtype=float).reshape(n, 3)
+        )
         kind = np.zeros(n, np.int64) if kind is None else np.asarray(kind, np.int64)
-        g, vel, acc = self.kin.update(sid, ij, xyz, self._norm, t_s, shape[:, 0],
-                                      self.profiles[1] == "/tuio/25Dcur")
+        g, vel, acc = self.kin.update(
+            sid, ij, xyz, self._norm, t_s, shape[:, 0], self.profiles[1] == "/tuio/25Dcur"
+        )
         consts, seg = self._pieces(n)
         need = (consts.size + 200) * (n + 2) + 8 * len(ended)
         if self._out.size < need:
             self._out = np.empty(need, np.uint8)
-        self._pack(self._out, consts, seg, sid,
-                   np.asarray(new, dtype=bool).reshape(n), np.asarray(ended, np.int64),
-                   g, vel, acc, xyz, ij, np.asarray(peak, dtype=float).reshape(n), shape,
-                   kind, self.fseq, float(t_s), self._ends)
-        data = self._out[:self._ends[3]].tobytes()
+        self._pack(
+            self._out,
+            consts,
+            seg,
+            sid,
+            np.asarray(new, dtype=bool).reshape(n),
+            np.asarray(ended, np.int64),
+            g,
+            vel,
+            acc,
+            xyz,
+            ij,
+            np.asarray(peak, dtype=float).reshape(n),
+            shape,
+            kind,
+            self.fseq,
+            float(t_s),
+            self._ends,
+        )
+        data = self._out[: self._ends[3]].tobytes()
         e = self._ends.tolist()
-        return [data[:e[0]], data[e[0]:e[1]], data[e[1]:e[2]], data[e[2]:e[3]]]
+        return [data[: e[0]], data[e[0] : e[1]], data[e[1] : e[2]], data[e[2] : e[3]]]
 
-    def send(self, t_s: float, ids: np.ndarray, new: np.ndarray, ended: list[int],
-             ij: np.ndarray, xyz_mm: np.ndarray, peak: np.ndarray,
-             shape: np.ndarray | None = None, kind: np.ndarray | None = None) -> None:
+    def send(
+        self,
+        t_s: float,
+        ids: np.ndarray,
+        new: np.ndarray,
+        ended: list[int],
+        ij: np.ndarray,
+        xyz_mm: np.ndarray,
+        peak: np.ndarray,
+        shape: np.ndarray | None = None,
+        kind: np.ndarray | None = None,
+    ) -> None:
         """Send the frame's bundles; an OS error (no route, full buffer) is counted."""
         for dgram in self.bundles(t_s, ids, new, ended, ij, xyz_mm, peak, shape, kind):
             try:

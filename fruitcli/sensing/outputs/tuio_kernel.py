@@ -14,15 +14,28 @@ import numpy as np
 from numba import njit
 
 # pieces of `consts`, as (start, length) rows of `seg`
-LEAD_2D, LEAD_3D, LEAD_SP, SET_2D, SET_3D, SET_SP, FSEQ_2D, FSEQ_3D, FSEQ_SP, \
-    LEAD_PLAIN, DOWN, TOUCH, UP = range(13)
+(
+    LEAD_2D,
+    LEAD_3D,
+    LEAD_SP,
+    SET_2D,
+    SET_3D,
+    SET_SP,
+    FSEQ_2D,
+    FSEQ_3D,
+    FSEQ_SP,
+    LEAD_PLAIN,
+    DOWN,
+    TOUCH,
+    UP,
+) = range(13)
 
 
 @njit(cache=True, nogil=True)
 def _copy(out, at, consts, seg, piece):
     a = seg[piece, 0]
     n = seg[piece, 1]
-    out[at:at + n] = consts[a:a + n]
+    out[at : at + n] = consts[a : a + n]
     return at + n
 
 
@@ -43,8 +56,9 @@ def _float(out, at, x, f32, u32):
 
 
 @njit(cache=True, nogil=True)
-def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, shape, kind,
-               fseq, t_s, ends):
+def pack_frame(
+    out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, shape, kind, fseq, t_s, ends
+):
     """Write the 2D, 3D, peak and plain datagrams one after the other into `out` (uint8);
     ends[0..3] = the offset after each. ids (n,), new (n,) bool, ended (m,), g (n, 5)
     positions (x2, y2, x3, y3, z3), vel (n, 5), acc (n, 2) (m2, m3), xyz (n, 3) mm,
@@ -102,8 +116,7 @@ def pack_frame(out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, sh
 
 
 @njit(cache=True, nogil=True)
-def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows, height,
-           plane):
+def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows, height, plane):
     """Normalized positions and velocities of a frame's sessions (float64, elementwise
     as the per-touch code computed them). norm = (i_min, i_span, j_min, j_span, ox, oy,
     oz, scale); g (n, 5) = (x2, y2, x3, y3, z3), or with `plane` (TUIO 2.5D) (x2, y2, x2,

@@ -64,8 +64,9 @@ def descent_gaps(rec, truth_z: dict[int, float], n_idle: int, where: str):
     return np.concatenate(frames), np.concatenate(samples), np.concatenate(gaps)
 
 
-def check_samples(rec_samples: np.ndarray, truth_ids: np.ndarray, frames_where: str,
-                  truth_where: str) -> None:
+def check_samples(
+    rec_samples: np.ndarray, truth_ids: np.ndarray, frames_where: str, truth_where: str
+) -> None:
     """The truth file and the recording must name the same samples."""
     have = set(int(k) for k in rec_samples[rec_samples >= 0])
     want = set(int(k) for k in truth_ids)
@@ -75,11 +76,14 @@ def check_samples(rec_samples: np.ndarray, truth_ids: np.ndarray, frames_where: 
     if missing or extra:
         parts = []
         if missing:
-            parts.append(f"samples {', '.join(map(str, missing[:5]))} have no frame in "
-                         f"{frames_where}")
+            parts.append(
+                f"samples {', '.join(map(str, missing[:5]))} have no frame in {frames_where}"
+            )
         if extra:
-            parts.append(f"{frames_where} has frames of samples "
-                         f"{', '.join(map(str, extra[:5]))} that are not in it")
+            parts.append(
+                f"{frames_where} has frames of samples "
+                f"{', '.join(map(str, extra[:5]))} that are not in it"
+            )
         raise FrameError(f"{truth_where}: does not match the recording: {'; '.join(parts)}")
 
 
@@ -93,8 +97,7 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     def model(x):
         a, s, lam = np.exp(x[:3])
         g = np.exp(x[3:])
-        return (g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2)
-                * np.exp(-gap_mm / lam)[:, None])
+        return g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
 
     def residual(x):
         return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
@@ -123,9 +126,14 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     g = np.where(measured, g, np.nan)
     scale = float(np.nanmean(g)) if measured.any() else 1.0
     gain = np.where(measured, g / scale, 1.0)
-    return {"contact_counts": float(a * scale), "sigma_mm": float(s),
-            "gap_decay_mm": float(lam), "gain": gain, "measured": measured,
-            "rms_counts": float(np.sqrt(np.mean((pred - v) ** 2)))}
+    return {
+        "contact_counts": float(a * scale),
+        "sigma_mm": float(s),
+        "gap_decay_mm": float(lam),
+        "gain": gain,
+        "measured": measured,
+        "rms_counts": float(np.sqrt(np.mean((pred - v) ** 2))),
+    }
 
 
 def noise_std_counts(idle: np.ndarray) -> tuple[float, np.ndarray]:
@@ -137,18 +145,21 @@ def noise_std_counts(idle: np.ndarray) -> tuple[float, np.ndarray]:
 
 def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.csv") -> str:
     """The ``[skin]`` table of a calibration."""
-    return ("# fruit calibrate: the skin's forward model fitted to a bench recording\n"
-            "[skin]\n"
-            f"footprint_sigma_mm = {{ {indenter} = {fit['sigma_mm']:.4f} }}\n"
-            f"contact_counts = {fit['contact_counts']:.4f}\n"
-            f"gap_decay_mm = {fit['gap_decay_mm']:.4f}\n"
-            "gain_spread = 0.0\n"
-            f"taxel_gain = \"{gains_name}\"\n"
-            f"noise_std_counts = {noise:.4f}\n")
+    return (
+        "# fruit calibrate: the skin's forward model fitted to a bench recording\n"
+        "[skin]\n"
+        f"footprint_sigma_mm = {{ {indenter} = {fit['sigma_mm']:.4f} }}\n"
+        f"contact_counts = {fit['contact_counts']:.4f}\n"
+        f"gap_decay_mm = {fit['gap_decay_mm']:.4f}\n"
+        "gain_spread = 0.0\n"
+        f'taxel_gain = "{gains_name}"\n'
+        f"noise_std_counts = {noise:.4f}\n"
+    )
 
 
-def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None,
-                  progress=None) -> dict:
+def run_calibrate(
+    scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None, progress=None
+) -> dict:
     """Fit the skin to a bench recording; write DIR/skin.toml, DIR/gains.csv and
     DIR/calibration.json. -> the summary."""
     from pathlib import Path
@@ -174,37 +185,61 @@ def run_calibrate(scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=N
         raise FrameError(f"{where}: meta names no indenter: give --indenter")
     n_idle = int(rec.meta.get("baseline_frames", scene.detection.baseline_frames))
     if not 1 < n_idle < len(rec):
-        raise FrameError(f"{where}: {n_idle} idle frames (meta baseline_frames): expected "
-                         f"2 .. {len(rec) - 1}")
+        raise FrameError(
+            f"{where}: {n_idle} idle frames (meta baseline_frames): expected 2 .. {len(rec) - 1}"
+        )
     counts = rec.frames[:, rows, cols].astype(float)
     idle = counts[:n_idle]
     c0 = idle.mean(axis=0)
     pts = np.stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]], axis=1)
     point = dict(zip(ids.tolist(), pts, strict=True))
-    frames, samples, gaps = descent_gaps(rec, {k: p[2] for k, p in point.items()}, n_idle,
-                                         where)
+    frames, samples, gaps = descent_gaps(rec, {k: p[2] for k, p in point.items()}, n_idle, where)
     contact = np.stack([point[int(k)] for k in samples])
     dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - contact[:, None, :], axis=2)
     say(f"fitting {len(frames)} descent frames of {len(ids)} samples x {len(taxels)} taxels")
     fit = fit_skin(counts[frames] - c0, dist, gaps)
     noise, noise_per = noise_std_counts(idle)
-    summary = {"indenter": name, "footprint_sigma_mm": fit["sigma_mm"],
-               "contact_counts": fit["contact_counts"], "gap_decay_mm": fit["gap_decay_mm"],
-               "noise_std_counts": noise, "rms_residual_counts": fit["rms_counts"],
-               "frames": int(len(frames)), "samples": int(len(ids)),
-               "taxels_measured": int(fit["measured"].sum()), "taxels": len(taxels),
-               "idle_frames": n_idle, "recording": where, "truth": str(truth_csv)}
+    summary = {
+        "indenter": name,
+        "footprint_sigma_mm": fit["sigma_mm"],
+        "contact_counts": fit["contact_counts"],
+        "gap_decay_mm": fit["gap_decay_mm"],
+        "noise_std_counts": noise,
+        "rms_residual_counts": fit["rms_counts"],
+        "frames": int(len(frames)),
+        "samples": int(len(ids)),
+        "taxels_measured": int(fit["measured"].sum()),
+        "taxels": len(taxels),
+        "idle_frames": n_idle,
+        "recording": where,
+        "truth": str(truth_csv),
+    }
     with staged_dir(out_dir) as tmp:
         write_text(tmp / "skin.toml", skin_toml(name, fit, noise))
-        write_csv(tmp / "gains.csv", ["id", "i", "j", "gain", "noise_std_counts", "measured"],
-                  ([int(taxels.ids[k]), int(taxels.i[k]), int(taxels.j[k]),
-                    float(fit["gain"][k]), float(noise_per[k]), int(fit["measured"][k])]
-                   for k in range(len(taxels))),
-                  comments=["per-taxel gain (mean 1 over measured taxels; 1 where not "
-                            "measured) and noise std (counts) from fruit calibrate"])
+        write_csv(
+            tmp / "gains.csv",
+            ["id", "i", "j", "gain", "noise_std_counts", "measured"],
+            (
+                [
+                    int(taxels.ids[k]),
+                    int(taxels.i[k]),
+                    int(taxels.j[k]),
+                    float(fit["gain"][k]),
+                    float(noise_per[k]),
+                    int(fit["measured"][k]),
+                ]
+                for k in range(len(taxels))
+            ),
+            comments=[
+                "per-taxel gain (mean 1 over measured taxels; 1 where not "
+                "measured) and noise std (counts) from fruit calibrate"
+            ],
+        )
         write_json(tmp / "calibration.json", summary)
-    say(f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
+    say(
+        f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
         f"decay {fit['gap_decay_mm']:.2f} mm, noise {noise:.2f} counts, "
         f"{int(fit['measured'].sum())}/{len(taxels)} gains measured, rms residual "
-        f"{fit['rms_counts']:.2f} counts")
+        f"{fit['rms_counts']:.2f} counts"
+    )
     return summary

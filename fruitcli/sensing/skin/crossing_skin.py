@@ -79,12 +79,22 @@ class CrossingSkin:
             tail.append(_decay_mm(gap[-2:], under[-2:], fallback))
             press.append(_decay_mm(gap[:2], under[:2], fallback))
         sigma = [float(summary["objects"][n]["footprint_sigma_mm"]) for n in objects]
-        return cls(objects, gap, dx, dy, drop, np.array(sigma), np.array(tail), np.array(press),
-                   np.asarray(arrays["strain"], float),
-                   np.asarray(arrays["curvature_per_mm"], float),
-                   -scale * (np.asarray(arrays["c_stretch_ff"], float) - c0),
-                   -scale * (np.asarray(arrays["c_bend_ff"], float) - c0),
-                   float(NEUTRAL_MM), scale)
+        return cls(
+            objects,
+            gap,
+            dx,
+            dy,
+            drop,
+            np.array(sigma),
+            np.array(tail),
+            np.array(press),
+            np.asarray(arrays["strain"], float),
+            np.asarray(arrays["curvature_per_mm"], float),
+            -scale * (np.asarray(arrays["c_stretch_ff"], float) - c0),
+            -scale * (np.asarray(arrays["c_bend_ff"], float) - c0),
+            float(NEUTRAL_MM),
+            scale,
+        )
 
     @classmethod
     def load(cls, folder: Path) -> CrossingSkin:
@@ -95,14 +105,17 @@ class CrossingSkin:
                 arrays = {k: data[k] for k in data.files}
             summary = json.loads((folder / "summary.json").read_text())
         except (OSError, ValueError, KeyError) as exc:
-            raise FrameError(f"{folder}: the crossing's table (crossing.npz, summary.json) "
-                             f"cannot be read: {exc}") from None
+            raise FrameError(
+                f"{folder}: the crossing's table (crossing.npz, summary.json) cannot be read: {exc}"
+            ) from None
         return cls.from_table(arrays, summary)
 
     def object_index(self, indenter: str) -> int:
         if indenter not in self.objects:
-            raise FrameError(f"indenter: expected one of the crossing table's objects "
-                             f"({', '.join(self.objects)}), got {indenter!r}")
+            raise FrameError(
+                f"indenter: expected one of the crossing table's objects "
+                f"({', '.join(self.objects)}), got {indenter!r}"
+            )
         return self.objects.index(indenter)
 
     def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
@@ -110,29 +123,29 @@ class CrossingSkin:
         from scipy.interpolate import RegularGridInterpolator
 
         k = self.object_index(indenter)
-        dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm,
-                                                                           gap_mm)))
+        dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
         cx = np.clip(dx, self.dx_mm[0], self.dx_mm[-1])
         cy = np.clip(dy, self.dy_mm[0], self.dy_mm[-1])
         cg = np.clip(gap, 0.0, self.gap_mm[-1])
-        grid = RegularGridInterpolator((self.gap_mm, self.dx_mm, self.dy_mm),
-                                       self.drop_counts[k])
+        grid = RegularGridInterpolator((self.gap_mm, self.dx_mm, self.dy_mm), self.drop_counts[k])
         v = grid(np.stack([cg, cx, cy], axis=-1))
-        lateral = (dx ** 2 - cx ** 2) + (dy ** 2 - cy ** 2)
+        lateral = (dx**2 - cx**2) + (dy**2 - cy**2)
         v = v * np.exp(-0.5 * lateral / self.sigma_mm[k] ** 2)
         v = v * np.exp(np.maximum(-gap, 0.0) / self.press_decay_mm[k])
         return v * np.exp(-np.maximum(gap - self.gap_mm[-1], 0.0) / self.tail_decay_mm[k])
 
-    def activation(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray,
-                   gaps_mm: np.ndarray) -> np.ndarray:
+    def activation(
+        self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray, gaps_mm: np.ndarray
+    ) -> np.ndarray:
         """(G, T) counts of taxels (T, 3) with the indenter `gaps_mm` (G,) above the
         contact point (3,)."""
         off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
         gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
         return self.drop(indenter, off[None, :, 0], off[None, :, 1], gap)
 
-    def deformation_shift(self, stretch: np.ndarray, curvature_per_mm: np.ndarray,
-                          rest_curvature_per_mm=0.0):
+    def deformation_shift(
+        self, stretch: np.ndarray, curvature_per_mm: np.ndarray, rest_curvature_per_mm=0.0
+    ):
         """Baseline shift (counts) for the surface's stretches and curvatures (..., 2)
         along x, y, from its curvatures at rest (..., 2) (0: flat). The table's curvature
         is its neutral plane's, ``neutral_mm`` under the surface: k = k_s / (1 -
@@ -143,10 +156,10 @@ class CrossingSkin:
         total = 0.0
         for a in range(2):
             left = stretch[..., a] - self.neutral_mm * (kappa[..., a] - kappa0[..., a])
-            total = total + (_odd_interp(kappa[..., a], self.curvature_per_mm,
-                                         self.bend_counts[a])
-                             - _odd_interp(kappa0[..., a], self.curvature_per_mm,
-                                           self.bend_counts[a]))
+            total = total + (
+                _odd_interp(kappa[..., a], self.curvature_per_mm, self.bend_counts[a])
+                - _odd_interp(kappa0[..., a], self.curvature_per_mm, self.bend_counts[a])
+            )
             total = total + _odd_interp(left, self.strain, self.stretch_counts[a])
         return total
 
@@ -213,8 +226,7 @@ def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarr
         w = w_all[t, f] / w_all[t, f].sum()
         n0 = _unit(w @ n_rest[f])
         tx = np.array([1.0, 0.0, 0.0]) - n0[0] * n0
-        tx = _unit(tx if np.linalg.norm(tx) > 1e-6 else np.cross(np.array([0.0, 1.0, 0.0]),
-                                                                  n0))
+        tx = _unit(tx if np.linalg.norm(tx) > 1e-6 else np.cross(np.array([0.0, 1.0, 0.0]), n0))
         for a, axis_dir in enumerate((tx, np.cross(n0, tx))):
             tf = axis_dir - (n_rest[f] @ axis_dir)[:, None] * n_rest[f]
             tf = _unit(tf)
@@ -230,7 +242,7 @@ def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarr
             nrm = np.einsum("svd,sd->sv", vertex_normal[:, verts], t_def)
             pos = pos - (pos @ wv)[:, None]
             nrm = nrm - (nrm @ wv)[:, None]
-            var = (pos ** 2) @ wv
+            var = (pos**2) @ wv
             surface = np.where(var > 1e-9, ((pos * nrm) @ wv) / np.maximum(var, 1e-9), 0.0)
             curv[:, t, a] = surface
     return stretch, curv

@@ -107,10 +107,14 @@ class SkinParams:
         skin = _SKIN if skin is None else skin
         feet = {**default_footprints_mm(), **(skin.footprint_sigma_mm or {})}
         noise = skin.noise_std_counts
-        return cls({k: float(v) for k, v in feet.items()}, float(skin.contact_counts),
-                   float(skin.gap_decay_mm), float(skin.gain_spread),
-                   tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
-                   skin.taxel_gain)
+        return cls(
+            {k: float(v) for k, v in feet.items()},
+            float(skin.contact_counts),
+            float(skin.gap_decay_mm),
+            float(skin.gain_spread),
+            tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
+            skin.taxel_gain,
+        )
 
 
 DEFAULT_PARAMS = SkinParams(default_footprints_mm())
@@ -127,8 +131,9 @@ class Skin:
     params: SkinParams = DEFAULT_PARAMS
 
 
-def make_skin(n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS,
-              taxel_ids=None) -> Skin:
+def make_skin(
+    n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS, taxel_ids=None
+) -> Skin:
     """Draw per-taxel baselines, noise std, fabrication factors and gains from `seed`;
     with ``params.taxel_gain`` the gains are read from it for `taxel_ids` (T,)."""
     rng = np.random.default_rng(seed)
@@ -163,34 +168,39 @@ def load_taxel_gains(path, taxel_ids, only_these: bool = False) -> np.ndarray:
         raise FrameError(f"{path}: a taxel id appears twice")
     bad = np.flatnonzero(gains <= 0)
     if bad.size:
-        raise FrameError(f"{path}: taxel {ids[bad[0]]}: gain expected > 0, got "
-                         f"{gains[bad[0]]:g}")
+        raise FrameError(f"{path}: taxel {ids[bad[0]]}: gain expected > 0, got {gains[bad[0]]:g}")
     row = dict(zip(ids.tolist(), range(len(ids)), strict=True))
     missing = [int(t) for t in taxel_ids if int(t) not in row]
     if missing:
-        raise FrameError(f"{path}: no gain for taxel(s) {', '.join(map(str, missing[:5]))} "
-                         f"({len(missing)} of {len(taxel_ids)} taxels missing; [skin].taxel_gain "
-                         "must be made for these taxels)")
+        raise FrameError(
+            f"{path}: no gain for taxel(s) {', '.join(map(str, missing[:5]))} "
+            f"({len(missing)} of {len(taxel_ids)} taxels missing; [skin].taxel_gain "
+            "must be made for these taxels)"
+        )
     if only_these:
         known = set(int(t) for t in taxel_ids)
         extra = [int(t) for t in ids if int(t) not in known]
         if extra:
-            raise FrameError(f"{path}: id: gains for taxel(s) {', '.join(map(str, extra[:5]))}"
-                             f" that the taxel file does not have ({len(ids)} gains for "
-                             f"{len(taxel_ids)} taxels; made for another skin?)")
+            raise FrameError(
+                f"{path}: id: gains for taxel(s) {', '.join(map(str, extra[:5]))}"
+                f" that the taxel file does not have ({len(ids)} gains for "
+                f"{len(taxel_ids)} taxels; made for another skin?)"
+            )
     return gains[[row[int(t)] for t in taxel_ids]]
 
 
 def footprint_sigma_mm(indenter: str, params: SkinParams = DEFAULT_PARAMS) -> float:
     """Lateral Gaussian width of an indenter's activation (mm)."""
     if indenter not in params.footprint_sigma_mm:
-        raise FrameError(f"indenter: expected one of {', '.join(params.footprint_sigma_mm)}, "
-                         f"got {indenter!r}")
+        raise FrameError(
+            f"indenter: expected one of {', '.join(params.footprint_sigma_mm)}, got {indenter!r}"
+        )
     return params.footprint_sigma_mm[indenter]
 
 
-def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str,
-                      skin: Skin | None = None) -> np.ndarray:
+def activation_counts(
+    dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str, skin: Skin | None = None
+) -> np.ndarray:
     """Mean activation (counts) of taxels at 3D distance `dist_mm` (..., T) from the
     contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in)."""
     p = DEFAULT_PARAMS if skin is None else skin.params
@@ -201,16 +211,21 @@ def activation_counts(dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str,
     return v if skin is None or skin.gain is None else v * skin.gain
 
 
-def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray,
-                         tris: np.ndarray) -> np.ndarray:
+def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """In-plane Green strain norm of each surface triangle: |E| with E = (G0^-1 G - I) / 2,
     G0 and G the triangle's rest and deformed metric (edge dot products).
 
     rest_nodes (N, 3), nodes (..., N, 3) deformed, tris (F, 3) -> (..., F)."""
+
     def metric(x):
         e1, e2 = x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :]
-        g = np.stack([np.stack([(e1 * e1).sum(-1), (e1 * e2).sum(-1)], -1),
-                      np.stack([(e1 * e2).sum(-1), (e2 * e2).sum(-1)], -1)], -2)
+        g = np.stack(
+            [
+                np.stack([(e1 * e1).sum(-1), (e1 * e2).sum(-1)], -1),
+                np.stack([(e1 * e2).sum(-1), (e2 * e2).sum(-1)], -1),
+            ],
+            -2,
+        )
         return g
 
     g0 = metric(rest_nodes[tris])
@@ -223,8 +238,9 @@ def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray,
     return np.where(ok, norm, 0.0)
 
 
-def taxel_surface_weights(rest_nodes: np.ndarray, tris: np.ndarray,
-                          taxels_mm: np.ndarray) -> np.ndarray:
+def taxel_surface_weights(
+    rest_nodes: np.ndarray, tris: np.ndarray, taxels_mm: np.ndarray
+) -> np.ndarray:
     """(T, F) area weights, rows summing to 1, of the surface triangles around each taxel:
     within ``CROSSING_RADIUS_MM`` of it, parallel to the nearest one and within
     ``CROSSING_PLANE_MM`` of its plane (so the far side of a thin pad is left out;
@@ -251,8 +267,9 @@ def taxel_strain(states, state_index=None) -> np.ndarray:
     stretch the sewn yarn feels."""
     idx = slice(None) if state_index is None else state_index
     nodes = states.rest_nodes + states.displacement_mm[idx]
-    rest_taxels = np.einsum("tk,tkd->td", states.taxel_bary,
-                            states.rest_nodes[states.tets[states.taxel_tet]])
+    rest_taxels = np.einsum(
+        "tk,tkd->td", states.taxel_bary, states.rest_nodes[states.tets[states.taxel_tet]]
+    )
     w = taxel_surface_weights(states.rest_nodes, states.surface_tris, rest_taxels)
     return surface_green_strain(states.rest_nodes, nodes, states.surface_tris) @ w.T
 
@@ -272,8 +289,9 @@ def bend_nodes(nodes: np.ndarray, radius_mm: float, thickness_mm: float) -> np.n
     the top face (z = thickness) outside."""
     r = radius_mm + nodes[:, 2] - thickness_mm / 2
     th = nodes[:, 0] / radius_mm
-    return np.stack([r * np.sin(th), nodes[:, 1],
-                     r * np.cos(th) - radius_mm + thickness_mm / 2], axis=1)
+    return np.stack(
+        [r * np.sin(th), nodes[:, 1], r * np.cos(th) - radius_mm + thickness_mm / 2], axis=1
+    )
 
 
 def pad_taxels_mm(n: int = 4, pitch_mm: float = PAD_PITCH_MM, z_mm: float = 3.0) -> np.ndarray:

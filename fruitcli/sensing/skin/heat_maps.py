@@ -13,12 +13,25 @@ def grid_image(i: np.ndarray, j: np.ndarray, values: np.ndarray) -> np.ndarray:
     return img
 
 
-def taxel_heatmap(ax, i: np.ndarray, j: np.ndarray, values: np.ndarray, title: str = "",
-                  vmax: float | None = None, label: str = "counts", annotate: bool = True):
+def taxel_heatmap(
+    ax,
+    i: np.ndarray,
+    j: np.ndarray,
+    values: np.ndarray,
+    title: str = "",
+    vmax: float | None = None,
+    label: str = "counts",
+    annotate: bool = True,
+):
     """Per-taxel values as a heat map over the (i, j) grid, each cell labelled."""
     img = grid_image(i, j, values)
-    im = ax.imshow(img, origin="lower", cmap="viridis", vmin=0.0,
-                   vmax=vmax if vmax is not None else np.nanmax(img))
+    im = ax.imshow(
+        img,
+        origin="lower",
+        cmap="viridis",
+        vmin=0.0,
+        vmax=vmax if vmax is not None else np.nanmax(img),
+    )
     ax.figure.colorbar(im, ax=ax, label=label)
     if annotate:
         for a, b, v in zip(i, j, values, strict=True):
@@ -46,21 +59,45 @@ def save_heatmap(path, i, j, values, title, vmax=None, label="counts") -> None:
     plt.close(fig)
 
 
-def taxel_topview(ax, xy_mm: np.ndarray, values: np.ndarray, outline_xy_mm: np.ndarray,
-                  title: str = "", vmax: float | None = None, label: str = "counts"):
+def taxel_topview(
+    ax,
+    xy_mm: np.ndarray,
+    values: np.ndarray,
+    outline_xy_mm: np.ndarray,
+    title: str = "",
+    vmax: float | None = None,
+    label: str = "counts",
+):
     """Per-taxel values as coloured discs at the taxels' top-view positions `xy_mm` (T, 2)
     over the body's outline: its surface triangles projected on x-y (F, 3, 2), in grey."""
     from matplotlib.collections import PolyCollection
 
-    ax.add_collection(PolyCollection(outline_xy_mm, facecolors="0.88", edgecolors="none",
-                                     zorder=0))
+    ax.add_collection(PolyCollection(outline_xy_mm, facecolors="0.88", edgecolors="none", zorder=0))
     top = float(vmax if vmax is not None else np.max(values))
-    sc = ax.scatter(xy_mm[:, 0], xy_mm[:, 1], c=values, cmap="viridis", vmin=0.0, vmax=top,
-                    s=230, edgecolors="0.3", linewidths=0.5, zorder=2)
+    sc = ax.scatter(
+        xy_mm[:, 0],
+        xy_mm[:, 1],
+        c=values,
+        cmap="viridis",
+        vmin=0.0,
+        vmax=top,
+        s=230,
+        edgecolors="0.3",
+        linewidths=0.5,
+        zorder=2,
+    )
     ax.figure.colorbar(sc, ax=ax, label=label, shrink=0.85)
     for (x, y), v in zip(xy_mm, values, strict=True):
-        ax.text(x, y, f"{v:.1f}", ha="center", va="center", fontsize=6, zorder=3,
-                color="white" if v < 0.6 * top else "black")
+        ax.text(
+            x,
+            y,
+            f"{v:.1f}",
+            ha="center",
+            va="center",
+            fontsize=6,
+            zorder=3,
+            color="white" if v < 0.6 * top else "black",
+        )
     lo, hi = outline_xy_mm.reshape(-1, 2).min(axis=0), outline_xy_mm.reshape(-1, 2).max(axis=0)
     pad = 0.04 * (hi - lo).max()
     ax.set_xlim(lo[0] - pad, hi[0] + pad)

@@ -33,8 +33,9 @@ class HeightModel(Protocol):
     def contact_counts(self, taxel: np.ndarray, dist_mm: np.ndarray) -> np.ndarray:
         """Activation (counts) of taxels `taxel` at `dist_mm` from a contact point."""
 
-    def height_mm(self, strength: np.ndarray, strength_err: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def height_mm(
+        self, strength: np.ndarray, strength_err: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(height, its 1-sigma uncertainty) mm of strengths (n,) with their errors."""
 
 
@@ -52,8 +53,9 @@ class GapLaw:
         m = self.contact * np.exp(-0.5 * (dist_mm / self.sigma_mm) ** 2)
         return m if self.gain is None else m * self.gain[taxel]
 
-    def height_mm(self, strength: np.ndarray, strength_err: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+    def height_mm(
+        self, strength: np.ndarray, strength_err: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         s = np.maximum(strength, 1e-12)
         h = np.maximum(-self.gap_decay_mm * np.log(s), 0.0)
         return h, self.gap_decay_mm * strength_err / s
@@ -64,14 +66,14 @@ def footprint_name(params, footprint: str | None) -> str:
     feet = params.footprint_sigma_mm
     if footprint is not None:
         if footprint not in feet:
-            raise FrameError(f"[detection].footprint: expected one of {', '.join(feet)}, "
-                             f"got {footprint!r}")
+            raise FrameError(
+                f"[detection].footprint: expected one of {', '.join(feet)}, got {footprint!r}"
+            )
         return footprint
     return next(iter(feet)) if len(feet) == 1 else "small"
 
 
-def gap_law(params, taxel_ids=None, footprint: str | None = None,
-            divided: bool = False) -> GapLaw:
+def gap_law(params, taxel_ids=None, footprint: str | None = None, divided: bool = False) -> GapLaw:
     """The `GapLaw` of a `forward.SkinParams`; its measured gains (``taxel_gain``) for
     `taxel_ids` unless the activations are already `divided` by them."""
     from fruitcli.sensing.skin.forward import load_taxel_gains
@@ -81,8 +83,13 @@ def gap_law(params, taxel_ids=None, footprint: str | None = None,
     gain = None
     if params.taxel_gain is not None and not divided and taxel_ids is not None:
         gain = load_taxel_gains(params.taxel_gain, taxel_ids)
-    return GapLaw(params.contact_counts, params.gap_decay_mm,
-                  params.footprint_sigma_mm[footprint_name(params, footprint)], noise, gain)
+    return GapLaw(
+        params.contact_counts,
+        params.gap_decay_mm,
+        params.footprint_sigma_mm[footprint_name(params, footprint)],
+        noise,
+        gain,
+    )
 
 
 def skin_with_gap_law(path) -> dict:
@@ -97,6 +104,8 @@ def skin_with_gap_law(path) -> dict:
         given = tomllib.load(fh).get("skin", {})
     for key in ("gap_decay_mm", "contact_counts"):
         if key not in given:
-            raise FrameError(f"{path}: [skin].{key}: missing; heights need the skin's gap law "
-                             "(fruit calibrate fits it from a bench descent)")
+            raise FrameError(
+                f"{path}: [skin].{key}: missing; heights need the skin's gap law "
+                "(fruit calibrate fits it from a bench descent)"
+            )
     return table

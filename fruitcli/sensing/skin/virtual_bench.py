@@ -52,17 +52,27 @@ class BenchRun:
     dropped: int  # samples that never crossed the threshold
 
 
-def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarray,
-            skin: forward.Skin, indenter: str, step_mm: float, idle_frames: int,
-            threshold: float, rng, response=None) -> BenchRun:
+def descend(
+    contact_mm: np.ndarray,
+    taxels_mm: np.ndarray,
+    rest_counts: np.ndarray,
+    skin: forward.Skin,
+    indenter: str,
+    step_mm: float,
+    idle_frames: int,
+    threshold: float,
+    rng,
+    response=None,
+) -> BenchRun:
     """Replay the bench over contact points (P, 3) on taxels at `taxels_mm` (T, 3) whose
     mean counts without touch are `rest_counts` (T,) (baseline + deformation shift).
     `response`: the electrostatic skin (`crossing_skin.CrossingSkin`) for the activation,
     None: the assumed Gaussian (`forward.activation_counts`)."""
     if step_mm <= 0:
         raise FrameError(f"[bench].step_mm: expected > 0, got {step_mm}")
-    idle = forward.frame_counts(np.broadcast_to(rest_counts, (idle_frames, len(rest_counts))),
-                                skin.noise_std_counts, rng)
+    idle = forward.frame_counts(
+        np.broadcast_to(rest_counts, (idle_frames, len(rest_counts))), skin.noise_std_counts, rng
+    )
     c0 = idle.mean(axis=0)
     gaps = np.arange(START_GAP_MM, -PRESS_MM - step_mm / 2, -step_mm)
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
@@ -86,12 +96,22 @@ def descend(contact_mm: np.ndarray, taxels_mm: np.ndarray, rest_counts: np.ndarr
         samples.append(s)
         truth.append(p)
         ids.append(k)
-    return BenchRun(np.concatenate(blocks), np.concatenate(samples),
-                    np.reshape(truth, (-1, 3)), np.asarray(ids, np.int64), dropped)
+    return BenchRun(
+        np.concatenate(blocks),
+        np.concatenate(samples),
+        np.reshape(truth, (-1, 3)),
+        np.asarray(ids, np.int64),
+        dropped,
+    )
 
 
-def cell_counts(taxel_counts: np.ndarray, rows: np.ndarray, cols: np.ndarray,
-                shape: tuple[int, int], fill_counts: np.ndarray) -> np.ndarray:
+def cell_counts(
+    taxel_counts: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    shape: tuple[int, int],
+    fill_counts: np.ndarray,
+) -> np.ndarray:
     """Whole frames (N, R, C): taxel cells from `taxel_counts` (N, T), others `fill_counts`
     (N, R, C) (the board reports every crossing, wired or not)."""
     frames = fill_counts.copy()

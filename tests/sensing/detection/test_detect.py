@@ -111,10 +111,14 @@ def test_batch_is_vectorized_over_frames_and_matches_frame_by_frame():
     rng = np.random.default_rng(3)
     cells = rng.integers(0, [5, 6], size=(50, 2, 2))
     vals = rng.integers(10, 80, size=(50, 2))
-    frames = np.stack([frame_with({tuple(c[0]): v[0]}) + frame_with({tuple(c[1]): v[1]}) - BASE
-                       for c, v in zip(cells, vals, strict=True)])
+    frames = np.stack(
+        [
+            frame_with({tuple(c[0]): v[0]}) + frame_with({tuple(c[1]): v[1]}) - BASE
+            for c, v in zip(cells, vals, strict=True)
+        ]
+    )
     whole = run(frames)
-    per = [run(frames[n:n + 1]) for n in range(50)]
+    per = [run(frames[n : n + 1]) for n in range(50)]
     assert len(whole) == sum(len(p) for p in per)
     k = 0
     for n, p in enumerate(per):
@@ -131,8 +135,11 @@ def test_board_mapping_flip_transpose_and_outside():
     assert r.tolist() == [20, 20, 20, 19, 19, 19] and c.tolist() == [2, 3, 4, 2, 3, 4]
     r, c = taxel_cells(tx, replace(default_board(), transpose=True))
     assert r.tolist() == [0, 1, 2, 0, 1, 2] and c.tolist() == [0, 0, 0, 1, 1, 1]
-    with pytest.raises(FrameError, match=r"taxel id 2 \(i=0, j=2\) maps to frame cell "
-                                         r"\(0, 12\), outside the 21 x 12 frame"):
+    with pytest.raises(
+        FrameError,
+        match=r"taxel id 2 \(i=0, j=2\) maps to frame cell "
+        r"\(0, 12\), outside the 21 x 12 frame",
+    ):
         taxel_cells(tx, replace(default_board(), offset_j=10), "t.csv")
 
 
@@ -170,16 +177,21 @@ def test_drift_tracking_is_frozen_while_touched():
 
 def test_touch_ids_follow_touches_within_the_gate():
     # touch A moves one taxel right each frame (16 mm); B appears in frame 1
-    frames = [frame_with({(1, 1): 50}),
-              frame_with({(1, 2): 50, (4, 1): 40}),
-              frame_with({(1, 3): 50, (4, 1): 45})]
+    frames = [
+        frame_with({(1, 1): 50}),
+        frame_with({(1, 2): 50, (4, 1): 40}),
+        frame_with({(1, 3): 50, (4, 1): 45}),
+    ]
     t = _stream(frames, track_gate_mm=20.0)
     assert t.frame.tolist() == [0, 1, 1, 2, 2]
     assert t.touch.tolist() == [0, 0, 1, 0, 1]
     # A lifts, B jumps 32 mm: within a 40 mm gate B keeps ID 1, beyond a 10 mm gate it is
     # a new touch and gets the lowest free ID
-    frames = [frame_with({(1, 1): 50}), frame_with({(1, 1): 50, (4, 1): 40}),
-              frame_with({(4, 3): 40})]
+    frames = [
+        frame_with({(1, 1): 50}),
+        frame_with({(1, 1): 50, (4, 1): 40}),
+        frame_with({(4, 3): 40}),
+    ]
     assert _stream(frames, track_gate_mm=40.0).touch.tolist() == [0, 0, 1, 1]
     assert _stream(frames, track_gate_mm=10.0).touch.tolist() == [0, 0, 1, 0]
 
@@ -190,8 +202,9 @@ def test_pressure_interpolates_between_states():
     press = np.array([[0.0], [10.0], [20.0]])
     loc = Locator(tx, default_board(), pos, Settings(baseline_frames=1), press)
     f = frame_with({(2, 2): 40})
-    t = loc.batch(np.stack([f, f, f]), np.full(len(tx), float(BASE)),
-                  np.array([[5.0], [15.0], [99.0]]))
+    t = loc.batch(
+        np.stack([f, f, f]), np.full(len(tx), float(BASE)), np.array([[5.0], [15.0], [99.0]])
+    )
     assert t.xyz_mm[:, 2] == pytest.approx(2.0 + np.array([5.0, 20.0, 30.0]))
 
 
@@ -203,13 +216,20 @@ def test_stream_matches_batch_and_state_path_matches_vectorized():
     pos = np.stack([tx.xyz_mm + [0, 0, 3.0 * s] for s in range(4)])
     press = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 8.0]])
     loc = Locator(tx, default_board(), pos, Settings(baseline_frames=1), press)
-    frames = np.stack([frame_with({(int(a), int(b)): int(v), (int(c), int(d)): int(u)})
-                       for a, b, v, c, d, u in zip(rng.integers(5, size=40),
-                                                    rng.integers(6, size=40),
-                                                    rng.integers(0, 90, 40),
-                                                    rng.integers(5, size=40),
-                                                    rng.integers(6, size=40),
-                                                    rng.integers(0, 90, 40), strict=True)])
+    frames = np.stack(
+        [
+            frame_with({(int(a), int(b)): int(v), (int(c), int(d)): int(u)})
+            for a, b, v, c, d, u in zip(
+                rng.integers(5, size=40),
+                rng.integers(6, size=40),
+                rng.integers(0, 90, 40),
+                rng.integers(5, size=40),
+                rng.integers(6, size=40),
+                rng.integers(0, 90, 40),
+                strict=True,
+            )
+        ]
+    )
     kpa = rng.uniform(-1, 9, (40, 2))
     base = np.full(len(tx), float(BASE))
     whole = loc.batch(frames, base, kpa)

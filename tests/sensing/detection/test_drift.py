@@ -92,8 +92,10 @@ def test_taxel_health_flags():
     assert f["noisy"].tolist() == [4]
     std = h.noise_std()
     assert 0.5 < std[0] < 1.5 and 5 < std[4] < 12
-    assert h.summary(np.array([10, 11, 12, 13, 14])) == \
-        "taxels: dead 11; stuck 12, 13; saturated 13; noisy 14"
+    assert (
+        h.summary(np.array([10, 11, 12, 13, 14]))
+        == "taxels: dead 11; stuck 12, 13; saturated 13; noisy 14"
+    )
 
 
 def test_rotating_log_stays_bounded(tmp_path):
@@ -123,9 +125,19 @@ def board_taxel_csv(path):
 def live_command(tmp_path, link, *extra):
     (tmp_path / "s.toml").write_text(SCENE)
     taxels = board_taxel_csv(tmp_path / "t.csv")
-    return [sys.executable, "-c", "from fruitcli.cli.main import main; main()", "live",
-            str(tmp_path / "s.toml"), "--port", str(link), "--taxels", str(taxels),
-            "--reconnect", *extra]
+    return [
+        sys.executable,
+        "-c",
+        "from fruitcli.cli.main import main; main()",
+        "live",
+        str(tmp_path / "s.toml"),
+        "--port",
+        str(link),
+        "--taxels",
+        str(taxels),
+        "--reconnect",
+        *extra,
+    ]
 
 
 def sessions_of(stdout: str) -> dict[int, list]:
@@ -152,15 +164,34 @@ def check_touches(plan: SoakPlan, sessions: dict[int, list]):
 
 
 def test_reconnect_after_a_cable_pull_rebaselines_and_goes_on(tmp_path):
-    plan = SoakPlan(hours=0.02, fps=5.0, drift_counts=2.0, touch_every_s=4.0, touch_s=1.0,
-                    pulls=((36.0, 3.0),), quiet_after_s=4.0, seed=3)
+    plan = SoakPlan(
+        hours=0.02,
+        fps=5.0,
+        drift_counts=2.0,
+        touch_every_s=4.0,
+        touch_s=1.0,
+        pulls=((36.0, 3.0),),
+        quiet_after_s=4.0,
+        seed=3,
+    )
     link = tmp_path / "ttyFRUIT"
     board = SoakBoard(plan, link, time_scale=20.0)
     total = sum(len(plan.frame_times(a, b)) for a, b in plan.connected())
-    proc = subprocess.Popen(live_command(tmp_path, link, "--frames", str(total),
-                                         "--time-scale", "20", "--log",
-                                         str(tmp_path / "run.log")),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        live_command(
+            tmp_path,
+            link,
+            "--frames",
+            str(total),
+            "--time-scale",
+            "20",
+            "--log",
+            str(tmp_path / "run.log"),
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     time.sleep(0.5)  # fruit live waits for the port first (--reconnect)
     th = board.start()
     try:
@@ -208,8 +239,10 @@ def test_rebaseline_ends_the_touches_and_collects_a_new_baseline():
 
     i, j = np.divmod(np.arange(16), 4)
     taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))
-    live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
-                               Settings(baseline_frames=2)), drift=DriftTracker(60, 20))
+    live = LiveLocator(
+        Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=2)),
+        drift=DriftTracker(60, 20),
+    )
     idle = np.full((21, 12), 500)
     touched = idle.copy()
     touched[1, 1] += 50
@@ -232,13 +265,24 @@ def test_rebaseline_ends_the_touches_and_collects_a_new_baseline():
 
 def test_log_in_a_missing_folder_is_one_line(tmp_path):
     (tmp_path / "s.toml").write_text(SCENE)
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                   str(tmp_path / "tty"), "--taxels",
-                                   str(board_taxel_csv(tmp_path / "t.csv")), "--log",
-                                   str(tmp_path / "no" / "run.log")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            str(tmp_path / "tty"),
+            "--taxels",
+            str(board_taxel_csv(tmp_path / "t.csv")),
+            "--log",
+            str(tmp_path / "no" / "run.log"),
+        ],
+    )
     assert res.exit_code == 1
-    assert res.output.strip().splitlines()[-1] == \
-        f"Error: {tmp_path / 'no' / 'run.log'}: No such file or directory"
+    assert (
+        res.output.strip().splitlines()[-1]
+        == f"Error: {tmp_path / 'no' / 'run.log'}: No such file or directory"
+    )
 
 
 def test_a_log_that_cannot_be_written_is_counted_not_fatal(tmp_path, capsys):
@@ -261,9 +305,11 @@ def test_a_noisy_taxel_is_flagged_and_does_not_freeze_the_drift_tracker():
     taxels = Taxels(np.arange(16), i, j, np.stack([16.0 * i, 16.0 * j, 0 * i], axis=1))
     ends = {}
     for health in (False, True):
-        live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
-                                   Settings(baseline_frames=10)),
-                           drift=DriftTracker(10.0, 20.0), health=health)
+        live = LiveLocator(
+            Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10)),
+            drift=DriftTracker(10.0, 20.0),
+            health=health,
+        )
         noise = np.random.default_rng(5)
         for k in range(3000):  # 10 frames/s, 300 s
             f = 500.0 + 0.1 * k / 10 + noise.normal(0, 0.5, (21, 12))

@@ -16,8 +16,9 @@ from tests.sensing.skin.test_calibrate import calibrate, hidden_bench
 
 
 def locator(taxels, gain, **kw):
-    return Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=1, **kw),
-                   gain=gain)
+    return Locator(
+        taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=1, **kw), gain=gain
+    )
 
 
 def gains_of(taxels, cells: dict) -> np.ndarray:
@@ -33,8 +34,10 @@ def n9_closed_form(v: dict, centre):
     ci, cj = centre
     win = {(ci + a, cj + b): v.get((ci + a, cj + b), 0.0) for a in (-1, 0, 1) for b in (-1, 0, 1)}
     total = sum(win.values())
-    return (sum(w * i for (i, _), w in win.items()) / total,
-            sum(w * j for (_, j), w in win.items()) / total)
+    return (
+        sum(w * i for (i, _), w in win.items()) / total,
+        sum(w * j for (_, j), w in win.items()) / total,
+    )
 
 
 @pytest.mark.parametrize("method", ["n9", "n9_floor", "peaks"])
@@ -48,8 +51,10 @@ def test_centroid_with_division_is_the_n9_centroid_of_the_divided_activations(me
     want_i, want_j = n9_closed_form(divided, (2, 3))
     loc = locator(tx, g, method=method, noise_floor_counts=floor)
     frame = frame_with(counts)
-    for t in (loc.batch(frame[None], np.full(len(tx), float(BASE))),
-              Stream(loc, np.full(len(tx), float(BASE))).step(loc.values(frame[None])[0])):
+    for t in (
+        loc.batch(frame[None], np.full(len(tx), float(BASE))),
+        Stream(loc, np.full(len(tx), float(BASE))).step(loc.values(frame[None])[0]),
+    ):
         assert len(t) == 1
         assert (t.i[0], t.j[0]) == pytest.approx((want_i, want_j), abs=1e-12)
         assert t.peak[0] == pytest.approx(60 / 1.25)  # the peak is a divided activation
@@ -91,9 +96,18 @@ def test_division_by_gains_of_one_changes_nothing():
 
 
 def locate(tmp_path, out, *extra):
-    return CliRunner().invoke(cli, ["locate", str(tmp_path / "frames.npz"), "--taxels",
-                                    str(tmp_path / "t.csv"), "--out", str(tmp_path / out),
-                                    *extra])
+    return CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "frames.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--out",
+            str(tmp_path / out),
+            *extra,
+        ],
+    )
 
 
 def test_round_trip_from_a_calibrate_run(tmp_path):
@@ -109,8 +123,9 @@ def test_round_trip_from_a_calibrate_run(tmp_path):
     assert res.exit_code == 0, res.output
     res = locate(tmp_path, "divided", "--divide-by-gain", str(gains_csv))
     assert res.exit_code == 0, res.output
-    (tmp_path / "g.toml").write_text('[detection]\ndivide_by_gain = true\n'
-                                     '[skin]\ntaxel_gain = "cal/gains.csv"\n')
+    (tmp_path / "g.toml").write_text(
+        '[detection]\ndivide_by_gain = true\n[skin]\ntaxel_gain = "cal/gains.csv"\n'
+    )
     res = locate(tmp_path, "scene", "--scene", str(tmp_path / "g.toml"))
     assert res.exit_code == 0, res.output
     divided = (tmp_path / "divided" / "touches.csv").read_bytes()
@@ -132,19 +147,30 @@ def test_round_trip_from_a_calibrate_run(tmp_path):
     np.testing.assert_allclose(got[:, 8], t.peak, rtol=1e-6)
 
 
-@pytest.mark.parametrize("rows, message", [
-    (None, "gains.csv: file not found"),
-    ([[k, 1.0] for k in range(15)], "gains.csv: no gain for taxel(s) 15 (1 of 16 taxels "
-                                    "missing"),
-    ([[k, 1.0] for k in range(17)], "gains.csv: id: gains for taxel(s) 16 that the taxel "
-                                    "file does not have (17 gains for 16 taxels"),
-    ([[k, float(k != 5)] for k in range(16)], "gains.csv: taxel 5: gain expected > 0, "
-                                              "got 0"),
-    ([[k, -0.5 if k == 2 else 1.0] for k in range(16)], "gains.csv: taxel 2: gain expected "
-                                                        "> 0, got -0.5"),
-    ([[k, "nan" if k == 7 else 1.0] for k in range(16)], "gains.csv: row 9: column gain: not "
-                                                         "finite: 'nan'"),
-])
+@pytest.mark.parametrize(
+    "rows, message",
+    [
+        (None, "gains.csv: file not found"),
+        (
+            [[k, 1.0] for k in range(15)],
+            "gains.csv: no gain for taxel(s) 15 (1 of 16 taxels missing",
+        ),
+        (
+            [[k, 1.0] for k in range(17)],
+            "gains.csv: id: gains for taxel(s) 16 that the taxel "
+            "file does not have (17 gains for 16 taxels",
+        ),
+        ([[k, float(k != 5)] for k in range(16)], "gains.csv: taxel 5: gain expected > 0, got 0"),
+        (
+            [[k, -0.5 if k == 2 else 1.0] for k in range(16)],
+            "gains.csv: taxel 2: gain expected > 0, got -0.5",
+        ),
+        (
+            [[k, "nan" if k == 7 else 1.0] for k in range(16)],
+            "gains.csv: row 9: column gain: not finite: 'nan'",
+        ),
+    ],
+)
 def test_bad_gain_files_are_one_line_and_write_nothing(tmp_path, rows, message):
     hidden_bench(tmp_path)
     if rows is not None:
@@ -153,19 +179,26 @@ def test_bad_gain_files_are_one_line_and_write_nothing(tmp_path, rows, message):
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert message in res.output
     assert not (tmp_path / "out" / "touches.csv").exists()
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                   str(tmp_path / "no-port"), "--taxels",
-                                   str(tmp_path / "t.csv"), "--divide-by-gain",
-                                   str(tmp_path / "gains.csv")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            str(tmp_path / "no-port"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--divide-by-gain",
+            str(tmp_path / "gains.csv"),
+        ],
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert message in res.output
 
 
 def test_a_scene_that_divides_without_gains_is_refused(tmp_path):
     hidden_bench(tmp_path)
-    (tmp_path / "g.toml").write_text('[detection]\ndivide_by_gain = true\n')
+    (tmp_path / "g.toml").write_text("[detection]\ndivide_by_gain = true\n")
     res = locate(tmp_path, "out", "--scene", str(tmp_path / "g.toml"))
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
-    assert "g.toml: [detection].divide_by_gain: needs the gains, [skin].taxel_gain" \
-        in res.output
-
+    assert "g.toml: [detection].divide_by_gain: needs the gains, [skin].taxel_gain" in res.output

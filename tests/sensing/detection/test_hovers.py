@@ -113,11 +113,11 @@ def test_hovers_leave_the_touches_as_they_were():
     taxels = grid_taxels()
     rng = np.random.default_rng(5)
     gaps = np.r_[np.linspace(4.0, -0.5, 40), np.linspace(-0.5, 4.0, 40)]
-    counts = [finger(taxels, g, (60.0 + k, 40.0, 0.0)) + rng.normal(0, 1, 252)
-              for k, g in enumerate(gaps)]
+    counts = [
+        finger(taxels, g, (60.0 + k, 40.0, 0.0)) + rng.normal(0, 1, 252) for k, g in enumerate(gaps)
+    ]
     st, _ = stream()
-    loc = Locator(taxels, default_board(), taxels.xyz_mm,
-                  Settings(track_gate_mm=20.0), heights=LAW)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(track_gate_mm=20.0), heights=LAW)
     plain = Stream(loc, np.full(len(taxels), BASE))
     with_h = TouchTable.concat([st.step(c.copy(), None, f) for f, c in enumerate(counts)])
     without = TouchTable.concat([plain.step(c.copy(), None, f) for f, c in enumerate(counts)])
@@ -130,18 +130,27 @@ def test_hovers_leave_the_touches_as_they_were():
 def test_hover_threshold_at_or_above_the_touch_threshold_is_refused():
     taxels = grid_taxels()
     for bad in (20.0, 25.0):
-        with pytest.raises(FrameError, match=r"^\[detection\]\.hover_threshold_counts: "
-                                             r"expected > 0 and below the touch threshold 20"):
-            Locator(taxels, default_board(), taxels.xyz_mm,
-                    Settings(hovers=True, hover_threshold_counts=bad), heights=LAW)
+        with pytest.raises(
+            FrameError,
+            match=r"^\[detection\]\.hover_threshold_counts: "
+            r"expected > 0 and below the touch threshold 20",
+        ):
+            Locator(
+                taxels,
+                default_board(),
+                taxels.xyz_mm,
+                Settings(hovers=True, hover_threshold_counts=bad),
+                heights=LAW,
+            )
     noisy = GapLaw(60.0, 2.0, 6.0, 3.0)  # 8 x 3 counts of noise: above 20
     with pytest.raises(FrameError, match="8 x the skin's noise std 3"):
         Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True), heights=noisy)
 
 
 def taxel_csv(path):
-    lines = ["id,i,j,x_mm,y_mm,z_mm"] + [f"{n},{n // 12},{n % 12},{16.0 * (n // 12)},"
-                                         f"{12.0 * (n % 12)},0.0" for n in range(252)]
+    lines = ["id,i,j,x_mm,y_mm,z_mm"] + [
+        f"{n},{n // 12},{n % 12},{16.0 * (n // 12)},{12.0 * (n % 12)},0.0" for n in range(252)
+    ]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -149,26 +158,58 @@ def taxel_csv(path):
 def test_cli_bad_hover_threshold_and_a_skin_without_gap_law(tmp_path):
     taxels = grid_taxels()
     frames = np.stack([np.full(252, BASE)] * 10 + [finger(taxels, g) for g in (3, 2, 1, 0)])
-    write_npz(tmp_path / "f.npz", Recording(np.round(frames).astype(np.int64).reshape(-1, 21, 12),
-                                            np.arange(14) / 60.0, meta={"board": "muca"}))
+    write_npz(
+        tmp_path / "f.npz",
+        Recording(
+            np.round(frames).astype(np.int64).reshape(-1, 21, 12),
+            np.arange(14) / 60.0,
+            meta={"board": "muca"},
+        ),
+    )
     taxel_csv(tmp_path / "t.csv")
     (tmp_path / "s.toml").write_text("[detection]\nhovers = true\nhover_threshold_counts = 20\n")
     (tmp_path / "o").mkdir()
     (tmp_path / "o" / "touches.csv").write_text("kept\n")
-    r = CliRunner().invoke(cli, ["locate", str(tmp_path / "f.npz"), "--taxels",
-                                 str(tmp_path / "t.csv"), "--scene", str(tmp_path / "s.toml"),
-                                 "--out", str(tmp_path / "o")])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "f.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--scene",
+            str(tmp_path / "s.toml"),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert r.exit_code != 0
-    assert r.output.strip().splitlines()[-1].endswith(
-        "[detection].hover_threshold_counts: expected > 0 and below the touch threshold 20 "
-        "counts, got 20")
+    assert (
+        r.output.strip()
+        .splitlines()[-1]
+        .endswith(
+            "[detection].hover_threshold_counts: expected > 0 and below the touch threshold 20 "
+            "counts, got 20"
+        )
+    )
     assert "Traceback" not in r.output
     assert (tmp_path / "o" / "touches.csv").read_text() == "kept\n"
-    (tmp_path / "skin.toml").write_text("[skin]\nfootprint_sigma_mm = { small = 6.0 }\n"
-                                        "contact_counts = 55.0\n")
-    r = CliRunner().invoke(cli, ["locate", str(tmp_path / "f.npz"), "--taxels",
-                                 str(tmp_path / "t.csv"), "--skin", str(tmp_path / "skin.toml"),
-                                 "--out", str(tmp_path / "o")])
+    (tmp_path / "skin.toml").write_text(
+        "[skin]\nfootprint_sigma_mm = { small = 6.0 }\ncontact_counts = 55.0\n"
+    )
+    r = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "f.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--skin",
+            str(tmp_path / "skin.toml"),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert r.exit_code != 0
     assert "skin.toml: [skin].gap_decay_mm: missing; heights need the skin's gap law" in r.output
     assert len(r.output.strip().splitlines()) == 1
@@ -179,19 +220,43 @@ def test_cli_locate_with_a_skin_gives_its_heights(tmp_path):
     taxels = grid_taxels()
     gaps = [3.0, 2.0, 1.0, 0.5]
     frames = np.stack([np.full(252, BASE)] * 10 + [finger(taxels, g) for g in gaps])
-    write_npz(tmp_path / "f.npz", Recording(np.round(frames).reshape(-1, 21, 12).astype(int),
-                                            np.arange(14) / 60.0, meta={"board": "muca"}))
+    write_npz(
+        tmp_path / "f.npz",
+        Recording(
+            np.round(frames).reshape(-1, 21, 12).astype(int),
+            np.arange(14) / 60.0,
+            meta={"board": "muca"},
+        ),
+    )
     taxel_csv(tmp_path / "t.csv")
     # the same skin, its gap law stated; counts rounded: heights within 0.15 mm
     (tmp_path / "skin.toml").write_text(
-        "[skin]\nfootprint_sigma_mm = { small = %r }\ncontact_counts = 60.0\n"
-        "gap_decay_mm = 2.0\nnoise_std_counts = 1.0\n" % forward.default_footprints_mm()["small"])
-    r = CliRunner().invoke(cli, ["locate", str(tmp_path / "f.npz"), "--taxels",
-                                 str(tmp_path / "t.csv"), "--skin", str(tmp_path / "skin.toml"),
-                                 "--threshold", "5", "--out", str(tmp_path / "o")])
+        "[skin]\nfootprint_sigma_mm = {{ small = {!r} }}\ncontact_counts = 60.0\n"
+        "gap_decay_mm = 2.0\nnoise_std_counts = 1.0\n".format(
+            forward.default_footprints_mm()["small"]
+        )
+    )
+    r = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "f.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--skin",
+            str(tmp_path / "skin.toml"),
+            "--threshold",
+            "5",
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert r.exit_code == 0, r.output
-    rows = [ln.split(",") for ln in (tmp_path / "o" / "touches.csv").read_text().splitlines()
-            if not ln.startswith("#")]
+    rows = [
+        ln.split(",")
+        for ln in (tmp_path / "o" / "touches.csv").read_text().splitlines()
+        if not ln.startswith("#")
+    ]
     head, body = rows[0], rows[1:]
     h = [float(r[head.index("height_mm")]) for r in body]
     assert [int(r[0]) for r in body] == [10, 11, 12, 13]
@@ -205,12 +270,18 @@ def test_json_lines_carry_heights_strengths_sizes_and_kinds():
     from fruitcli.sensing.live.loop import LiveLocator
 
     taxels = grid_taxels()
-    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True,
-                                                                   baseline_frames=2),
-                  heights=LAW)
+    loc = Locator(
+        taxels,
+        default_board(),
+        taxels.xyz_mm,
+        Settings(hovers=True, baseline_frames=2),
+        heights=LAW,
+    )
     live = LiveLocator(loc)
-    lines = [live.push(np.round(finger(taxels, g)).reshape(21, 12).astype(np.int64), k / 60)
-             for k, g in enumerate([20.0, 20.0, 3.0, 0.5])]
+    lines = [
+        live.push(np.round(finger(taxels, g)).reshape(21, 12).astype(np.int64), k / 60)
+        for k, g in enumerate([20.0, 20.0, 3.0, 0.5])
+    ]
     hover, touch = (json.loads(x)["touches"][0] for x in lines[2:])
     assert (hover["kind"], touch["kind"]) == ("hover", "touch")
     assert hover["touch"] == touch["touch"]

@@ -24,9 +24,10 @@ BASE = 500
 
 def scene(board=None, detection=None):
     """A scene at the schema's defaults with these [board] and [detection] values."""
-    return default_scene().with_values({f"board.{k}": v for k, v in (board or {}).items()}
-                                       | {f"detection.{k}": v
-                                          for k, v in (detection or {}).items()})
+    return default_scene().with_values(
+        {f"board.{k}": v for k, v in (board or {}).items()}
+        | {f"detection.{k}": v for k, v in (detection or {}).items()}
+    )
 
 
 def write_taxels(path, ij, seed=0):
@@ -57,8 +58,11 @@ def touch_frames(n, rng, max_touches=4, n_base=10, amp=(10, 90), noisy_base=Fals
         on[:n_base] = False
         ci, cj = rng.uniform(-1, R, n), rng.uniform(-1, C, n)
         a = rng.uniform(*amp, n)
-        f += on[:, None, None] * a[:, None, None] * np.exp(
-            -((r - ci[:, None, None]) ** 2 + (c - cj[:, None, None]) ** 2) / 1.1)
+        f += (
+            on[:, None, None]
+            * a[:, None, None]
+            * np.exp(-((r - ci[:, None, None]) ** 2 + (c - cj[:, None, None]) ** 2) / 1.1)
+        )
     f = np.round(f).astype(np.int64)
     tie = rng.random(n) < 0.1  # two equal maxima far apart
     tie[:n_base] = False
@@ -73,17 +77,39 @@ def touch_frames(n, rng, max_touches=4, n_base=10, amp=(10, 90), noisy_base=Fals
     return np.maximum(f, 0)
 
 
-def reference_csv(frames, t_s, taxels_csv, board, det, positions=None, pressure=None,
-                  state_pressure=None, name="f.npz"):
+def reference_csv(
+    frames,
+    t_s,
+    taxels_csv,
+    board,
+    det,
+    positions=None,
+    pressure=None,
+    state_pressure=None,
+    name="f.npz",
+):
     tx = read_taxels(taxels_csv)
     rows, cols = taxel_cells(tx, board)
-    table = reference_locate(frames, t_s, tx.i, tx.j, rows, cols,
-                             tx.xyz_mm if positions is None else positions,
-                             det.threshold_counts, det.baseline_frames, det.method,
-                             det.noise_floor_counts, 10, pressure,
-                             state_pressure)
-    comment = (f"touches of {name}: frame index from 0 (baseline frames included), t_s in s, "
-               "i, j fractional grid coordinates, x_mm, y_mm, z_mm in mm, peak in counts")
+    table = reference_locate(
+        frames,
+        t_s,
+        tx.i,
+        tx.j,
+        rows,
+        cols,
+        tx.xyz_mm if positions is None else positions,
+        det.threshold_counts,
+        det.baseline_frames,
+        det.method,
+        det.noise_floor_counts,
+        10,
+        pressure,
+        state_pressure,
+    )
+    comment = (
+        f"touches of {name}: frame index from 0 (baseline frames included), t_s in s, "
+        "i, j fractional grid coordinates, x_mm, y_mm, z_mm in mm, peak in counts"
+    )
     return touches_csv_text(table, t_s, comment).encode(), table
 
 
@@ -120,13 +146,16 @@ def test_chunks_write_the_reference_bytes_for_every_method(tmp_path, method):
         assert res["touches"] == len(table[0])
 
 
-@pytest.mark.parametrize("size, board", [
-    ((21, 12), {}),  # most cells, in grid order: detection on the frames' own cells
-    ((19, 11), {"offset_i": 2, "offset_j": 1}),
-    ((12, 7), {}),  # fewer cells: the taxels' counts are taken out
-    ((12, 7), {"flip_i": True}),  # not in grid order: taken out
-    ((12, 7), {"transpose": True, "flip_j": True}),
-])
+@pytest.mark.parametrize(
+    "size, board",
+    [
+        ((21, 12), {}),  # most cells, in grid order: detection on the frames' own cells
+        ((19, 11), {"offset_i": 2, "offset_j": 1}),
+        ((12, 7), {}),  # fewer cells: the taxels' counts are taken out
+        ((12, 7), {"flip_i": True}),  # not in grid order: taken out
+        ((12, 7), {"transpose": True, "flip_j": True}),
+    ],
+)
 def test_holes_offsets_flips_and_transposes(tmp_path, size, board):
     rng = np.random.default_rng(2)
     ij = full_grid(*size, holes={(0, 0), (5, 3), (5, 4), (11, 6), (6, 0)})
@@ -150,8 +179,7 @@ def test_no_touch_gives_the_header_only(tmp_path):
     write_npz(tmp_path / "f.npz", Recording(frames, np.arange(50) * 0.1))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     sc = scene()
-    want, table = reference_csv(frames, np.arange(50) * 0.1, taxels, sc.board,
-                                sc.detection)
+    want, table = reference_csv(frames, np.arange(50) * 0.1, taxels, sc.board, sc.detection)
     got, res = located(tmp_path, sc, tmp_path / "f.npz", taxels, chunk=16)
     assert got == want and res["touches"] == 0 and len(table[0]) == 0
     assert got.count(b"\n") == 2  # the comment and the header
@@ -163,12 +191,18 @@ def states_npz(path, taxels_mm, n_states=4):
     lift = np.array([[0, 0, 0], [0.4, 0, 2.0], [0.4, 1.1, 5.0], [0, 2.0, 9.0]])[:n_states]
     tax = taxels_mm[None] + lift[:, None, :] * (1 + taxels_mm[None, :, :1] / 100)
     nodes = taxels_mm[:4]
-    np.savez(path, rest_nodes=nodes, tets=np.array([[0, 1, 2, 3]]),
-             surface_tris=np.array([[0, 1, 2]]),
-             displacement_mm=np.zeros((n_states, 4, 3)),
-             pressure_kpa=np.array([[0, 0], [5.0, 0], [5.0, 3.0], [9.0, 6.0]])[:n_states],
-             chamber_names=np.array(["left", "right"]), taxels_mm=tax,
-             taxel_tet=np.zeros(t, np.int64), taxel_bary=np.full((t, 4), 0.25))
+    np.savez(
+        path,
+        rest_nodes=nodes,
+        tets=np.array([[0, 1, 2, 3]]),
+        surface_tris=np.array([[0, 1, 2]]),
+        displacement_mm=np.zeros((n_states, 4, 3)),
+        pressure_kpa=np.array([[0, 0], [5.0, 0], [5.0, 3.0], [9.0, 6.0]])[:n_states],
+        chamber_names=np.array(["left", "right"]),
+        taxels_mm=tax,
+        taxel_tet=np.zeros(t, np.int64),
+        taxel_bary=np.full((t, 4), 0.25),
+    )
     return path, tax
 
 
@@ -183,8 +217,16 @@ def test_pressures_move_the_taxels_along_the_states_as_before(tmp_path):
     tx = read_taxels(taxels)
     states, positions = states_npz(tmp_path / "s.npz", tx.xyz_mm)
     sc = scene()
-    want, _ = reference_csv(frames, t_s, taxels, sc.board, sc.detection, positions,
-                            kpa, np.array([[0, 0], [5.0, 0], [5.0, 3.0], [9.0, 6.0]]))
+    want, _ = reference_csv(
+        frames,
+        t_s,
+        taxels,
+        sc.board,
+        sc.detection,
+        positions,
+        kpa,
+        np.array([[0, 0], [5.0, 0], [5.0, 3.0], [9.0, 6.0]]),
+    )
     for chunk in (5, 256):
         got, _ = located(tmp_path, sc, tmp_path / "f.npz", taxels, states, chunk=chunk)
         assert got == want
@@ -195,8 +237,14 @@ def test_stateful_settings_carry_their_state_across_chunks(tmp_path):
     frames = touch_frames(300, rng, max_touches=2, noisy_base=True)
     write_npz(tmp_path / "f.npz", Recording(frames, np.arange(300) * 0.02))
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
-    sc = scene(detection={"hysteresis_counts": 6.0, "debounce_frames": 2,
-                          "drift_rate": 0.05, "track_gate_mm": 30.0})
+    sc = scene(
+        detection={
+            "hysteresis_counts": 6.0,
+            "debounce_frames": 2,
+            "drift_rate": 0.05,
+            "track_gate_mm": 30.0,
+        }
+    )
     whole, res = located(tmp_path, sc, tmp_path / "f.npz", taxels, chunk=10_000, out="w")
     assert res["touches"] > 100
     for chunk in (1, 9):
@@ -246,41 +294,74 @@ def test_a_truncated_npz_is_one_error_line(tmp_path):
     with pytest.raises(FrameError, match=r"cut.npz: not a readable .npz recording"):
         run_locate(scene(), tmp_path / "cut.npz", taxels, None, tmp_path / "o")
     rng = np.random.default_rng(8)
-    np.savez_compressed(tmp_path / "z.npz", frames=rng.integers(0, 900, (400, R, C)),
-                        t_s=np.arange(400) * 0.1)
+    np.savez_compressed(
+        tmp_path / "z.npz", frames=rng.integers(0, 900, (400, R, C)), t_s=np.arange(400) * 0.1
+    )
     data = bytearray((tmp_path / "z.npz").read_bytes())
-    data[len(data) // 3:len(data) // 3 + 64] = bytes(64)  # inside the compressed frames
+    data[len(data) // 3 : len(data) // 3 + 64] = bytes(64)  # inside the compressed frames
     (tmp_path / "z.npz").write_bytes(bytes(data))
     with pytest.raises(FrameError, match=r"z\.npz: "):  # bad data, a bad CRC or zlib error
         run_locate(scene(), tmp_path / "z.npz", taxels, None, tmp_path / "o", chunk_frames=16)
     assert not (tmp_path / "o" / "touches.csv").exists()
-    np.savez(tmp_path / "obj.npz", frames=np.array([None, 1], dtype=object),
-             t_s=np.zeros(2))
+    np.savez(tmp_path / "obj.npz", frames=np.array([None, 1], dtype=object), t_s=np.zeros(2))
     with pytest.raises(FrameError, match=r"obj.npz: not a readable .npz recording"):
         run_locate(scene(), tmp_path / "obj.npz", taxels, None, tmp_path / "o")
 
 
 def python_rows(columns, kinds):
-    return "".join(",".join(str(int(c[r])) if k == "d" else f"{float(c[r]):.6f}"
-                            for c, k in zip(columns, kinds, strict=True)) + "\n"
-                   for r in range(len(columns[0]))).encode()
+    return "".join(
+        ",".join(
+            str(int(c[r])) if k == "d" else f"{float(c[r]):.6f}"
+            for c, k in zip(columns, kinds, strict=True)
+        )
+        + "\n"
+        for r in range(len(columns[0]))
+    ).encode()
 
 
 def test_bulk_rows_equal_python_formatting_on_ties_and_extremes():
     rng = np.random.default_rng(7)
     n = 20_000
-    special = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 1e300, -1e-300, 5e-324,
-                        0.5e-6, 1.5e-6, 2.5e-6, -2.5e-6, 0.9999995, 999999.9999995,
-                        4503599627.370496, 4503599627.370495, 0.0078125, 1 / 3])
-    pools = [rng.uniform(-1e3, 1e3, n), rng.normal(0, 1e-5, n),
-             rng.integers(-10**6, 10**6, n) / 128,  # exact binary ties of the sixth decimal
-             (rng.integers(0, 10**7, n) + 0.5) / 1e6,  # near ties
-             rng.uniform(1e9, 5e9, n), 10.0 ** rng.uniform(-12, 15, n) * rng.choice([-1, 1], n)]
+    special = np.array(
+        [
+            0.0,
+            -0.0,
+            np.nan,
+            np.inf,
+            -np.inf,
+            1e300,
+            -1e-300,
+            5e-324,
+            0.5e-6,
+            1.5e-6,
+            2.5e-6,
+            -2.5e-6,
+            0.9999995,
+            999999.9999995,
+            4503599627.370496,
+            4503599627.370495,
+            0.0078125,
+            1 / 3,
+        ]
+    )
+    pools = [
+        rng.uniform(-1e3, 1e3, n),
+        rng.normal(0, 1e-5, n),
+        rng.integers(-(10**6), 10**6, n) / 128,  # exact binary ties of the sixth decimal
+        (rng.integers(0, 10**7, n) + 0.5) / 1e6,  # near ties
+        rng.uniform(1e9, 5e9, n),
+        10.0 ** rng.uniform(-12, 15, n) * rng.choice([-1, 1], n),
+    ]
     vals = np.concatenate(pools + [special])
     rng.shuffle(vals)
     m = vals.size // 3
-    cols = [rng.integers(-5, 10**9, m), vals[:m], vals[m:2 * m], rng.integers(0, 12, m),
-            vals[2 * m:3 * m]]
+    cols = [
+        rng.integers(-5, 10**9, m),
+        vals[:m],
+        vals[m : 2 * m],
+        rng.integers(0, 12, m),
+        vals[2 * m : 3 * m],
+    ]
     assert format_rows(cols, "dffdf") == python_rows(cols, "dffdf")
     assert format_rows([np.array([7]), np.array([2.5])], "df") == b"7,2.500000\n"
     assert format_rows([np.zeros(0)], "f") == b""

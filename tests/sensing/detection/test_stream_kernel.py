@@ -23,8 +23,9 @@ def random_frames(n, rng, taxels, touches=(0, 10)):
         for _ in range(rng.integers(*touches, endpoint=True)):
             a = rng.uniform(taxels.i.min() - 0.5, taxels.i.max() + 0.5)
             b = rng.uniform(taxels.j.min() - 0.5, taxels.j.max() + 0.5)
-            f[k] += rng.uniform(15, 90) * np.exp(-((r - a) ** 2 + (c - b) ** 2)
-                                                 / (2 * rng.uniform(0.4, 1.2) ** 2))
+            f[k] += rng.uniform(15, 90) * np.exp(
+                -((r - a) ** 2 + (c - b) ** 2) / (2 * rng.uniform(0.4, 1.2) ** 2)
+            )
     f = np.round(f)
     f[::7, 3, 4] = f[::7, 3, 5] = BASE + 50  # ties of the maximum
     return f.astype(np.int64)
@@ -32,8 +33,7 @@ def random_frames(n, rng, taxels, touches=(0, 10)):
 
 def full_board():
     i, j = np.divmod(np.arange(21 * 12), 12)
-    return Taxels(np.arange(i.size), i, j, np.stack([16.0 * j, 12.0 * i, np.sin(i / 3.0)],
-                                                    axis=1))
+    return Taxels(np.arange(i.size), i, j, np.stack([16.0 * j, 12.0 * i, np.sin(i / 3.0)], axis=1))
 
 
 SETTINGS = [
@@ -60,8 +60,14 @@ def test_compiled_stream_equals_the_numpy_stream_bit_for_bit(kw, board):
     found = 0
     for gain in gains:
         for pos, p in ((tx.xyz_mm, None), (states, kpa)):
-            loc = Locator(tx, default_board(), pos, Settings(baseline_frames=1, **kw),
-                          None if p is None else press, gain=gain)
+            loc = Locator(
+                tx,
+                default_board(),
+                pos,
+                Settings(baseline_frames=1, **kw),
+                None if p is None else press,
+                gain=gain,
+            )
             base = loc.baseline(frames[:1]) - 0.5
             new, old = Stream(loc, base), ReferenceStream(loc, base)
             for n, values in enumerate(loc.values(frames)):
@@ -121,7 +127,7 @@ def test_ascii_fast_path_reads_what_parse_line_reads():
     data = b"".join(x.encode("utf-8") + b"\r\n" for x in lines)
     got = []
     for a in range(0, len(data), 97):  # chunks that cut lines
-        got += dec.feed(data[a:a + 97])
+        got += dec.feed(data[a : a + 97])
     want = [parse_line(x.rstrip("\r"), n)[0] for x in lines]
     want = [w.reshape(rows, cols) for w in want if w is not None]
     assert len(got) == len(want) and dec.skipped == len(lines) - len(want)
@@ -149,7 +155,9 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
         alive: list[int] = []
         next_id, t = 0, 0.0
         for _ in range(400):
-            t += float(rng.choice([0.0, -0.01, 0.0333, 0.1 * rng.random()], p=[.1, .05, .6, .25]))
+            t += float(
+                rng.choice([0.0, -0.01, 0.0333, 0.1 * rng.random()], p=[0.1, 0.05, 0.6, 0.25])
+            )
             keep = [s for s in alive if rng.random() < 0.85]
             ended = sorted(set(alive) - set(keep))
             born = int(rng.integers(0, 3)) if len(keep) < 10 else 0
@@ -160,8 +168,9 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
             ij = np.column_stack([rng.uniform(-1, 21, n), rng.uniform(-1, 12, n)])
             xyz = rng.normal(0, 80, (n, 3))
             peak = rng.uniform(20, 300, n)
-            shape = np.column_stack([rng.uniform(0, 4, n), rng.uniform(0, 1.5, n),
-                                     rng.uniform(4, 9, n)])
+            shape = np.column_stack(
+                [rng.uniform(0, 4, n), rng.uniform(0, 1.5, n), rng.uniform(4, 9, n)]
+            )
             kind = rng.integers(0, 2, n)
             a = new.bundles(t, ids, is_new, ended, ij, xyz, peak, shape, kind)
             b = old.bundles(t, ids, is_new, ended, ij, xyz, peak, shape, kind)
@@ -169,10 +178,23 @@ def test_vectorized_tuio_bundles_equal_the_per_touch_encoder_byte_for_byte():
             alive = ids.tolist()
         assert new.fseq == 400
     empty = np.zeros(0)
-    assert new.bundles(t, empty.astype(np.int64), empty.astype(bool), [3], np.zeros((0, 2)),
-                       np.zeros((0, 3)), empty) == old.bundles(
-        t, empty.astype(np.int64), empty.astype(bool), [3], np.zeros((0, 2)),
-        np.zeros((0, 3)), empty)
+    assert new.bundles(
+        t,
+        empty.astype(np.int64),
+        empty.astype(bool),
+        [3],
+        np.zeros((0, 2)),
+        np.zeros((0, 3)),
+        empty,
+    ) == old.bundles(
+        t,
+        empty.astype(np.int64),
+        empty.astype(bool),
+        [3],
+        np.zeros((0, 2)),
+        np.zeros((0, 3)),
+        empty,
+    )
 
 
 def test_nearest_partner_sessions_equal_the_assignment_solver():

@@ -26,12 +26,12 @@ PITCH_I, PITCH_J = 16.0, 12.0  # mm, the Fruit's two pitches
 
 def grid_taxels() -> Taxels:
     i, j = np.divmod(np.arange(21 * 12), 12)
-    return Taxels(np.arange(i.size), i, j,
-                  np.stack([PITCH_I * i, PITCH_J * j, 0.0 * i], axis=1))
+    return Taxels(np.arange(i.size), i, j, np.stack([PITCH_I * i, PITCH_J * j, 0.0 * i], axis=1))
 
 
-def model_frame(taxels: Taxels, point_mm, gap_mm: float, base: float = 500.0,
-                indenter: str = "small") -> np.ndarray:
+def model_frame(
+    taxels: Taxels, point_mm, gap_mm: float, base: float = 500.0, indenter: str = "small"
+) -> np.ndarray:
     """Mean counts (21, 12) of the default skin with the indenter `gap_mm` above a point."""
     dist = np.linalg.norm(taxels.xyz_mm - np.asarray(point_mm, float), axis=1)
     v = forward.activation_counts(dist[None, :], np.array([gap_mm]), indenter)[0]
@@ -91,28 +91,48 @@ def test_shapes_use_the_skin_gains_and_report_uncertainty():
     sh = touch_shapes(v9, np.arange(9)[None], pos9, np.zeros((1, 3)), law)
     assert sh.height_mm[0] == pytest.approx(1.0, rel=1e-12)
     m = 2.0 * 60.0 * np.exp(-0.5 * (d / 6.0) ** 2)
-    err_s = 1.5 / np.sqrt((m ** 2).sum())
+    err_s = 1.5 / np.sqrt((m**2).sum())
     assert sh.height_err_mm[0] == pytest.approx(2.0 * err_s / np.exp(-0.5), rel=1e-12)
 
 
 def test_gap_law_takes_the_skin_table_and_footprint():
-    skin = default_scene().with_values({"skin.footprint_sigma_mm": {"medium": 7.5},
-                                        "skin.contact_counts": 80.0, "skin.gap_decay_mm": 1.5,
-                                        "skin.noise_std_counts": 1.2}).skin
+    skin = (
+        default_scene()
+        .with_values(
+            {
+                "skin.footprint_sigma_mm": {"medium": 7.5},
+                "skin.contact_counts": 80.0,
+                "skin.gap_decay_mm": 1.5,
+                "skin.noise_std_counts": 1.2,
+            }
+        )
+        .skin
+    )
     params = forward.SkinParams.from_table(skin)
     law = gap_law(params, footprint="medium")
-    assert (law.contact, law.gap_decay_mm, law.sigma_mm, law.noise_std_counts) == \
-        (80.0, 1.5, 7.5, 1.2)
+    assert (law.contact, law.gap_decay_mm, law.sigma_mm, law.noise_std_counts) == (
+        80.0,
+        1.5,
+        7.5,
+        1.2,
+    )
 
 
 def test_touches_csv_round_trips_every_new_column(tmp_path):
     n = 4
-    table = TouchTable(np.arange(n), np.array([0, 1, 1, 2]), np.linspace(1, 2, n),
-                       np.linspace(3, 4, n), np.arange(12.0).reshape(n, 3),
-                       np.array([25.0, 12.5, 30.0, 9.0]), np.array([0.0, 1.25, 0.0, 2.5]),
-                       np.array([0.01, 0.1, 0.02, 0.3]),
-                       np.array([1.2, 0.5, 1.0, 0.3]), np.array([6.1, np.nan, 7.0, 5.5]),
-                       np.array([TOUCH, HOVER, TOUCH, HOVER], np.int8))
+    table = TouchTable(
+        np.arange(n),
+        np.array([0, 1, 1, 2]),
+        np.linspace(1, 2, n),
+        np.linspace(3, 4, n),
+        np.arange(12.0).reshape(n, 3),
+        np.array([25.0, 12.5, 30.0, 9.0]),
+        np.array([0.0, 1.25, 0.0, 2.5]),
+        np.array([0.01, 0.1, 0.02, 0.3]),
+        np.array([1.2, 0.5, 1.0, 0.3]),
+        np.array([6.1, np.nan, 7.0, 5.5]),
+        np.array([TOUCH, HOVER, TOUCH, HOVER], np.int8),
+    )
     path = tmp_path / "touches.csv"
     with touch_csv(path, ["test"]) as out:
         out.write(touch_bytes(table, np.arange(n) * 0.5), n)
@@ -134,9 +154,15 @@ def test_compiled_gap_law_shapes_equal_the_generic_path():
     """Noisy frames with touches anywhere, some hovering, at the board's edges too."""
     rng = np.random.default_rng(11)
     taxels = grid_taxels()
-    frames = np.stack([model_frame(taxels, (rng.uniform(-8, 330), rng.uniform(-6, 140), 0.0),
-                                   rng.uniform(-0.5, 3.0)).ravel()
-                       + rng.normal(0, 1.2, 252) for _ in range(300)])
+    frames = np.stack(
+        [
+            model_frame(
+                taxels, (rng.uniform(-8, 330), rng.uniform(-6, 140), 0.0), rng.uniform(-0.5, 3.0)
+            ).ravel()
+            + rng.normal(0, 1.2, 252)
+            for _ in range(300)
+        ]
+    )
     t = locate_frames(frames.reshape(-1, 21, 12))
     assert len(t) > 250
     law = GapLaw(60.0, 2.0, 6.2, 1.3, gain=rng.uniform(0.8, 1.2, 252))

@@ -21,15 +21,18 @@ def grid_taxels() -> Taxels:
 
 
 def frame(taxels, points) -> np.ndarray:
-    v = sum(forward.activation_counts(np.linalg.norm(taxels.xyz_mm - np.asarray(p), axis=1)
-                                      [None], np.zeros(1), "small")[0] for p in points)
+    v = sum(
+        forward.activation_counts(
+            np.linalg.norm(taxels.xyz_mm - np.asarray(p), axis=1)[None], np.zeros(1), "small"
+        )[0]
+        for p in points
+    )
     return np.round(500.0 + v).astype(np.int64).reshape(1, 21, 12)  # counts, as boards give
 
 
 def located(points, method):
     taxels = grid_taxels()
-    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=method),
-                  heights=LAW)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=method), heights=LAW)
     return loc.batch(frame(taxels, points), np.full(252, 500.0))
 
 

@@ -47,7 +47,7 @@ def binary_stream(frames, damage=None):
         p = encode_packet(f)
         kind, at = (damage or {}).get(k, (None, 0))
         if kind == "lose":
-            p = p[:at] + p[at + 1:]
+            p = p[:at] + p[at + 1 :]
         elif kind == "extra":
             p = p[:at] + b"\x07" + p[at:]
         elif kind == "reset":
@@ -114,8 +114,7 @@ def test_many_random_lost_and_extra_bytes(spread, noise):
     SYNC_PACKETS = 8 packets after a synchronization costs those packets: not tested here.)"""
     frames = board_frames(400, seed=2, spread=spread, noise=noise)
     rng = np.random.default_rng(3)
-    damage = {k: (("lose", "extra")[k % 2], int(rng.integers(0, 254)))
-              for k in range(10, 400, 12)}
+    damage = {k: (("lose", "extra")[k % 2], int(rng.integers(0, 254))) for k in range(10, 400, 12)}
     got, _ = decode_bytes(binary_stream(frames, damage), "binary", 21, 12)
     assert_only_whole_frames(got, frames, damage)
 
@@ -133,7 +132,7 @@ def test_binary_stream_fed_in_small_chunks_equals_one_feed():
     dec = BinaryDecoder(21, 12)
     out = []
     for k in range(0, len(data), 37):
-        out += dec.feed(data[k:k + 37])
+        out += dec.feed(data[k : k + 37])
     out += dec.finish()
     assert np.array_equal(np.stack(out), np.delete(frames, 9, axis=0))
 
@@ -153,9 +152,12 @@ def test_one_field_too_many_without_a_timestamp_is_refused(tmp_path):
     counts, _, why = parse_line(line, 252)
     assert counts is None and why.startswith("shifted") and "'0'" in why
     (tmp_path / "a.log").write_text("[Muca] Set TEST mode\n" + line + "\n")
-    with pytest.raises(FrameError, match=r"a\.log: line 2: 253 fields, one more than the 252 "
-                                         r"counts, and the first \('0'\) is not a host "
-                                         r"timestamp .*refusing shifted counts"):
+    with pytest.raises(
+        FrameError,
+        match=r"a\.log: line 2: 253 fields, one more than the 252 "
+        r"counts, and the first \('0'\) is not a host "
+        r"timestamp .*refusing shifted counts",
+    ):
         read_muca_log(tmp_path / "a.log")
     dec = AsciiDecoder(21, 12)
     assert dec.feed((line + "\r\n").encode()) == [] and dec.shifted == 1
@@ -165,8 +167,11 @@ def test_one_field_too_many_without_a_timestamp_is_refused(tmp_path):
 def test_timestamps_that_go_backwards_are_not_a_timestamp_column(tmp_path):
     body = ",".join(["500"] * 252)
     (tmp_path / "a.log").write_text(f"1.5,{body}\n2.5,{body}\n0.5,{body}\n")
-    with pytest.raises(FrameError, match=r"line 3: host timestamp 0\.5 is earlier than line "
-                                         r"2's 2\.5: the first column is not a timestamp"):
+    with pytest.raises(
+        FrameError,
+        match=r"line 3: host timestamp 0\.5 is earlier than line "
+        r"2's 2\.5: the first column is not a timestamp",
+    ):
         read_muca_log(tmp_path / "a.log")
 
 
@@ -182,9 +187,12 @@ def test_auto_detects_each_format_and_says_when_neither_fits(tmp_path):
     (tmp_path / "c.raw").write_bytes(ascii_bytes)
     assert np.array_equal(read_recording(tmp_path / "c.raw").frames, frames)
     (tmp_path / "junk.bin").write_bytes(START + bytes(range(1, 256)) * 10)
-    with pytest.raises(FrameError, match=r"junk\.bin: no 21 x 12 frame in the board's auto "
-                                         r"format \(neither format found in \d+ bytes: ASCII: "
-                                         r".*binary: no run of 8 agreeing packets of 254"):
+    with pytest.raises(
+        FrameError,
+        match=r"junk\.bin: no 21 x 12 frame in the board's auto "
+        r"format \(neither format found in \d+ bytes: ASCII: "
+        r".*binary: no run of 8 agreeing packets of 254",
+    ):
         read_recording(tmp_path / "junk.bin")
     with pytest.raises(FrameError, match=r"c\.bin: no 17 x 12 frame"):  # skipLine'd wrongly
         read_recording(tmp_path / "c.bin", rows=17, cols=12, fmt="binary")
@@ -208,8 +216,11 @@ def play(tmp_path, frames, args=(), **kw):
 def test_record_both_formats_over_a_pty_with_damage_and_a_reset(tmp_path, fmt):
     frames = board_frames(50, seed=7)
     damaged = [10, 34] if fmt == "ascii" else [10, 22, 34]
-    kw = ({"cut_at": [10], "reset_at": [34], "trailing_comma": True} if fmt == "ascii" else
-          {"lose_byte_at": [10], "extra_byte_at": [22], "reset_at": [34]})
+    kw = (
+        {"cut_at": [10], "reset_at": [34], "trailing_comma": True}
+        if fmt == "ascii"
+        else {"lose_byte_at": [10], "extra_byte_at": [22], "reset_at": [34]}
+    )
     res, out = play(tmp_path, frames, ["--frames", "40"], fmt=fmt, **kw)
     assert res.exit_code == 0, res.output
     rec = read_recording(out)
@@ -234,11 +245,13 @@ def test_record_a_board_in_neither_format_says_so_and_writes_nothing(tmp_path):
 
 
 def test_emulator_pacing_is_the_lines_byte_rate():
-    assert pacing_line("binary", 115200) == ("115200 baud 8N1 = 11520 bytes/s: 254-byte "
-                                             "binary packets, at most 45.4 frames/s")
+    assert pacing_line("binary", 115200) == (
+        "115200 baud 8N1 = 11520 bytes/s: 254-byte binary packets, at most 45.4 frames/s"
+    )
     frames = synthetic_frames(30)
     assert pacing_line("ascii", 115200, frames=frames) == (  # 3-digit counts
-        "115200 baud 8N1 = 11520 bytes/s: 1,009-byte ASCII lines, at most 11.4 frames/s")
+        "115200 baud 8N1 = 11520 bytes/s: 1,009-byte ASCII lines, at most 11.4 frames/s"
+    )
     import time
 
     import serial
@@ -263,17 +276,37 @@ def test_live_and_locate_read_binary(tmp_path):
 
     frames = touch_frames()
     frames = np.concatenate([frames, frames[-1:]])  # the last packet waits for a successor
-    (tmp_path / "s.toml").write_text(SCENE + "[board]\nformat = \"binary\"\n")
+    (tmp_path / "s.toml").write_text(SCENE + '[board]\nformat = "binary"\n')
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     em = BoardEmulator(frames, fps=0, wait_for_reader=True, fmt="binary")
     th = em.start()
-    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                  str(taxels), "--frames", "30"])
+    res = invoke(
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            em.path,
+            "--taxels",
+            str(taxels),
+            "--frames",
+            "30",
+        ]
+    )
     th.join(5)
     assert res.exit_code == 0, res.output
     (tmp_path / "cap.bin").write_bytes(binary_stream(frames))
-    res2 = invoke(["locate", str(tmp_path / "cap.bin"), "--taxels", str(taxels), "--scene",
-                   str(tmp_path / "s.toml"), "--out", str(tmp_path / "loc")])
+    res2 = invoke(
+        [
+            "locate",
+            str(tmp_path / "cap.bin"),
+            "--taxels",
+            str(taxels),
+            "--scene",
+            str(tmp_path / "s.toml"),
+            "--out",
+            str(tmp_path / "loc"),
+        ]
+    )
     assert res2.exit_code == 0, res2.output
     from fruitcli.tables import read_table
 
@@ -290,14 +323,14 @@ def test_decoders_report_each_frames_stream_offset():
     dec = AsciiDecoder(21, 12)
     starts = []
     for k in range(0, len(data), 500):
-        dec.feed(data[k:k + 500])
+        dec.feed(data[k : k + 500])
         starts += dec.starts
     assert starts == [len(START) + sum(map(len, lines[:k])) for k in range(12)]
     dec = BinaryDecoder(21, 12)
     data = binary_stream(board_frames(30, seed=10), {15: ("lose", 50)})
     starts = []
     for k in range(0, len(data), 300):
-        dec.feed(data[k:k + 300])
+        dec.feed(data[k : k + 300])
         starts += dec.starts
     dec.finish()
     starts += dec.starts
@@ -308,17 +341,42 @@ def test_emulate_board_command_speaks_binary_and_says_its_pacing(tmp_path):
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
-                             "emulate-board", "--format", "binary", "--frames", "30"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from fruitcli.cli.main import main; main()",
+            "emulate-board",
+            "--format",
+            "binary",
+            "--frames",
+            "30",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         path = proc.stdout.readline().strip()
-        res = invoke(["record", "--port", path, "--out", str(tmp_path / "r.npz"),
-                      "--frames", "29", "--format", "binary"])
+        res = invoke(
+            [
+                "record",
+                "--port",
+                path,
+                "--out",
+                str(tmp_path / "r.npz"),
+                "--frames",
+                "29",
+                "--format",
+                "binary",
+            ]
+        )
     finally:
         _, err = proc.communicate(timeout=20)
     assert res.exit_code == 0, res.output
     assert np.array_equal(read_recording(tmp_path / "r.npz").frames, synthetic_frames(30)[:29])
-    assert ("30 21 x 12 frames, binary; pacing: 115200 baud 8N1 = 11520 bytes/s: 254-byte "
-            "binary packets, at most 45.4 frames/s") in err
+    assert (
+        "30 21 x 12 frames, binary; pacing: 115200 baud 8N1 = 11520 bytes/s: 254-byte "
+        "binary packets, at most 45.4 frames/s"
+    ) in err
     assert "29 binary frames" in res.output and "frames/s" in res.output

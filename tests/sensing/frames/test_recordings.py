@@ -72,8 +72,19 @@ def test_log_round_trip_exact(tmp_path):
 def test_log_skips_board_lines_and_cut_lines_and_reads_empty_fields_as_zero(tmp_path):
     vals = np.arange(252) % 7
     line = ",".join("" if v == 0 else str(v) for v in vals)
-    text = "\r\n".join(["[Muca] Set TEST mode", "[Muca] Gain set to 10", line,
-                        line[: len(line) // 2], "Calibration performed 3/20", line]) + "\r\n"
+    text = (
+        "\r\n".join(
+            [
+                "[Muca] Set TEST mode",
+                "[Muca] Gain set to 10",
+                line,
+                line[: len(line) // 2],
+                "Calibration performed 3/20",
+                line,
+            ]
+        )
+        + "\r\n"
+    )
     (tmp_path / "a.log").write_text(text)
     back = read_muca_log(tmp_path / "a.log")
     assert back.skipped_lines == 4 and len(back) == 2
@@ -81,12 +92,15 @@ def test_log_skips_board_lines_and_cut_lines_and_reads_empty_fields_as_zero(tmp_
     assert back.frames[0, 1, 0] == vals[12]  # value k is Tx k // 12, Rx k % 12
 
 
-@pytest.mark.parametrize("bad, msg", [
-    ("x", "line 2: field 5: expected an integer count, got 'x'"),
-    ("-3", "line 2: field 5: negative count -3"),
-    ("nan", "line 2: field 5: expected an integer count, got 'nan'"),
-    ("1.5", "line 2: field 5: expected an integer count, got '1.5'"),
-])
+@pytest.mark.parametrize(
+    "bad, msg",
+    [
+        ("x", "line 2: field 5: expected an integer count, got 'x'"),
+        ("-3", "line 2: field 5: negative count -3"),
+        ("nan", "line 2: field 5: expected an integer count, got 'nan'"),
+        ("1.5", "line 2: field 5: expected an integer count, got '1.5'"),
+    ],
+)
 def test_log_bad_values_in_a_file_are_errors(tmp_path, bad, msg):
     fields = ["1"] * 252
     fields[4] = bad
@@ -133,18 +147,30 @@ def touch_recording(n_base=10):
     frames[n_base, 1, 2] += 60
     frames[n_base, 1, 3] += 20
     frames[n_base + 2, 2, 2] += 25
-    return Recording(frames, np.arange(n_base + 3) * 0.1,
-                     sample=np.r_[-np.ones(n_base, int), 0, -1, 1], meta={})
+    return Recording(
+        frames, np.arange(n_base + 3) * 0.1, sample=np.r_[-np.ones(n_base, int), 0, -1, 1], meta={}
+    )
 
 
 def test_locate_cli_writes_touches_and_measured(tmp_path):
     write_npz(tmp_path / "f.npz", touch_recording())
     write_taxels(tmp_path / "t.csv")
-    res = CliRunner().invoke(cli, ["locate", str(tmp_path / "f.npz"), "--taxels",
-                                   str(tmp_path / "t.csv"), "--out", str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "f.npz"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert res.exit_code == 0, res.output
-    t = read_table(tmp_path / "o" / "touches.csv",
-                   ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"])
+    t = read_table(
+        tmp_path / "o" / "touches.csv",
+        ["frame", "t_s", "touch", "i", "j", "x_mm", "y_mm", "z_mm", "peak"],
+    )
     assert t["frame"].tolist() == [10, 12]
     assert t["j"][0] == pytest.approx(2.25) and t["x_mm"][0] == pytest.approx(36.0)
     assert t["peak"].tolist() == [60, 25]
@@ -155,20 +181,32 @@ def test_locate_cli_writes_touches_and_measured(tmp_path):
 def test_locate_cli_reads_a_log_with_same_result(tmp_path):
     write_muca_log(tmp_path / "f.log", touch_recording())
     write_taxels(tmp_path / "t.csv")
-    res = CliRunner().invoke(cli, ["locate", str(tmp_path / "f.log"), "--taxels",
-                                   str(tmp_path / "t.csv"), "--out", str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(tmp_path / "f.log"),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     t = read_table(tmp_path / "o" / "touches.csv", ["frame", "i", "j"])
     assert t["frame"].tolist() == [10, 12]
 
 
-@pytest.mark.parametrize("case, msg", [
-    ("few", "13 frames, fewer than the 20 baseline frames"),
-    ("outside", "maps to frame cell (21, 0), outside the 21 x 12 frame"),
-    ("shape", "frames of shape (20, 12), expected 21 x 12 per [board]"),
-    ("fields", "line 1: field 3: expected an integer count, got 'a'"),
-    ("missing", "file not found"),
-])
+@pytest.mark.parametrize(
+    "case, msg",
+    [
+        ("few", "13 frames, fewer than the 20 baseline frames"),
+        ("outside", "maps to frame cell (21, 0), outside the 21 x 12 frame"),
+        ("shape", "frames of shape (20, 12), expected 21 x 12 per [board]"),
+        ("fields", "line 1: field 3: expected an integer count, got 'a'"),
+        ("missing", "file not found"),
+    ],
+)
 def test_locate_cli_bad_input_one_line_exit_1(tmp_path, case, msg):
     write_npz(tmp_path / "f.npz", touch_recording())
     write_taxels(tmp_path / "t.csv", shift_i=18 if case == "outside" else 0)
@@ -185,8 +223,18 @@ def test_locate_cli_bad_input_one_line_exit_1(tmp_path, case, msg):
         frames.write_text("1,2,a" + ",0" * 249 + "\n")
     if case == "missing":
         frames = tmp_path / "nope.npz"
-    res = CliRunner().invoke(cli, ["locate", str(frames), "--taxels", str(tmp_path / "t.csv"),
-                                   "--out", str(tmp_path / "o"), *args])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "locate",
+            str(frames),
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--out",
+            str(tmp_path / "o"),
+            *args,
+        ],
+    )
     assert res.exit_code == 1
     assert msg in res.output and "Traceback" not in res.output
     errors = [ln for ln in res.output.splitlines() if ln.startswith("Error: ")]
@@ -194,8 +242,9 @@ def test_locate_cli_bad_input_one_line_exit_1(tmp_path, case, msg):
 
 
 def test_locate_cli_bad_flag_exit_2(tmp_path):
-    res = CliRunner().invoke(cli, ["locate", "f.npz", "--taxels", "t.csv", "--out", "o",
-                                   "--threshold", "-1"])
+    res = CliRunner().invoke(
+        cli, ["locate", "f.npz", "--taxels", "t.csv", "--out", "o", "--threshold", "-1"]
+    )
     assert res.exit_code == 2
 
 
@@ -208,8 +257,11 @@ def test_meta_is_json(tmp_path):
 def test_taxels_with_a_duplicate_id_are_refused(tmp_path):
     path = tmp_path / "t.csv"
     path.write_text("id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,0,1,0,1,0\n0,1,0,1,0,0\n")
-    with pytest.raises(FrameError, match=r"t\.csv: data row 3: duplicate taxel id 0 "
-                                         r"\(also on data row 1\)"):
+    with pytest.raises(
+        FrameError,
+        match=r"t\.csv: data row 3: duplicate taxel id 0 "
+        r"\(also on data row 1\)",
+    ):
         read_taxels(path, FrameError)
 
 
@@ -219,5 +271,6 @@ def test_emulate_board_refuses_frames_larger_than_21_by_12(tmp_path):
     write_npz(tmp_path / "f.npz", r)
     res = CliRunner().invoke(cli, ["emulate-board", "--from", str(tmp_path / "f.npz")])
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
-    assert "f.npz: frames of 22 x 12, expected at most 21 x 12 (the MuCa board's Tx x Rx" \
-        in res.output
+    assert (
+        "f.npz: frames of 22 x 12, expected at most 21 x 12 (the MuCa board's Tx x Rx" in res.output
+    )

@@ -68,8 +68,21 @@ def test_record_with_pressures_each_frame_carries_the_latest_reading(tmp_path):
     threads[1].start()
     out = tmp_path / "rec.npz"
     try:
-        res = invoke(["record", "--port", em.path, "--out", str(out), "--frames", "40",
-                      "--pressure-port", src.path, "--chambers", "bend"])
+        res = invoke(
+            [
+                "record",
+                "--port",
+                em.path,
+                "--out",
+                str(out),
+                "--frames",
+                "40",
+                "--pressure-port",
+                src.path,
+                "--chambers",
+                "bend",
+            ]
+        )
     finally:
         em.stop.set()
         src.close()
@@ -91,24 +104,54 @@ def test_record_with_pressures_each_frame_carries_the_latest_reading(tmp_path):
     assert not list(tmp_path.glob("*.partial*"))
 
 
-@pytest.mark.parametrize("args, msg", [
-    (["--pressure-port", "loop://"], "--pressure-port loop://: give --chambers"),
-    (["--chambers", "c1"], "--chambers: needs --pressure-port"),
-    (["--pressure-port", "loop://", "--chambers", "c1,c1"],
-     "--chambers c1,c1: expected distinct non-empty names"),
-])
+@pytest.mark.parametrize(
+    "args, msg",
+    [
+        (["--pressure-port", "loop://"], "--pressure-port loop://: give --chambers"),
+        (["--chambers", "c1"], "--chambers: needs --pressure-port"),
+        (
+            ["--pressure-port", "loop://", "--chambers", "c1,c1"],
+            "--chambers c1,c1: expected distinct non-empty names",
+        ),
+    ],
+)
 def test_record_pressure_options_are_checked(tmp_path, args, msg):
-    res = invoke(["record", "--port", "loop://", "--out", str(tmp_path / "r.npz"),
-                  "--seconds", "0.2", *args])
+    res = invoke(
+        ["record", "--port", "loop://", "--out", str(tmp_path / "r.npz"), "--seconds", "0.2", *args]
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert msg in res.output and list(tmp_path.iterdir()) == []
-    res = invoke(["record", "--port", "loop://", "--out", str(tmp_path / "r.log"),
-                  "--seconds", "0.2", "--pressure-port", "loop://", "--chambers", "c1"])
-    assert res.exit_code == 1 and "chamber pressures are recorded in an .npz only" \
-        in res.output
-    res = invoke(["record", "--port", "loop://", "--out", str(tmp_path / "r.npz"),
-                  "--seconds", "0.2", "--pressure-port", str(tmp_path / "nope"),
-                  "--chambers", "c1"])
+    res = invoke(
+        [
+            "record",
+            "--port",
+            "loop://",
+            "--out",
+            str(tmp_path / "r.log"),
+            "--seconds",
+            "0.2",
+            "--pressure-port",
+            "loop://",
+            "--chambers",
+            "c1",
+        ]
+    )
+    assert res.exit_code == 1 and "chamber pressures are recorded in an .npz only" in res.output
+    res = invoke(
+        [
+            "record",
+            "--port",
+            "loop://",
+            "--out",
+            str(tmp_path / "r.npz"),
+            "--seconds",
+            "0.2",
+            "--pressure-port",
+            str(tmp_path / "nope"),
+            "--chambers",
+            "c1",
+        ]
+    )
     assert res.exit_code == 1 and "serial port does not exist" in res.output
     assert list(tmp_path.iterdir()) == []
 
@@ -127,17 +170,30 @@ def test_locate_counts_frames_off_the_states_path(tmp_path):
     n = 61
     kpa = np.linspace(0.0, 3.0, n)[:, None]
     t_reading = np.r_[np.nan, np.arange(1, n) * 0.05 - 0.01]
-    rec = Recording(synthetic_frames(n, seed=12), np.arange(n) * 0.05, kpa, ("bend",),
-                    pressure_t_s=t_reading)
+    rec = Recording(
+        synthetic_frames(n, seed=12), np.arange(n) * 0.05, kpa, ("bend",), pressure_t_s=t_reading
+    )
     write_npz(tmp_path / "r.npz", rec)
     back = read_npz(tmp_path / "r.npz")
     assert np.array_equal(back.pressure_t_s, t_reading, equal_nan=True)  # round trip
-    res = invoke(["locate", str(tmp_path / "r.npz"), "--taxels", str(taxels), "--states",
-                  str(states), "--out", str(tmp_path / "loc")])
+    res = invoke(
+        [
+            "locate",
+            str(tmp_path / "r.npz"),
+            "--taxels",
+            str(taxels),
+            "--states",
+            str(states),
+            "--out",
+            str(tmp_path / "loc"),
+        ]
+    )
     assert res.exit_code == 0, res.output
     off = np.flatnonzero(kpa[:, 0] - 2.0 > 0.5)  # 2.55 ... 3.0 kPa
-    assert f"{off.size} of {n} frames have pressures more than 0.5 kPa off the states' " \
-           f"path (up to 1.00 kPa, frame {n - 1})" in res.output
+    assert (
+        f"{off.size} of {n} frames have pressures more than 0.5 kPa off the states' "
+        f"path (up to 1.00 kPa, frame {n - 1})" in res.output
+    )
     assert "1 frames before the first pressure reading taken at 0 kPa" in res.output
     got = read_table(tmp_path / "loc" / "off_path.csv", ["frame", "t_s", "distance_kpa"])
     assert got["frame"].astype(int).tolist() == off.tolist()
@@ -152,8 +208,21 @@ def test_record_with_pressures_then_locate(tmp_path):
     threads = [em.start(), threading.Thread(target=src.run, daemon=True)]
     threads[1].start()
     try:
-        res = invoke(["record", "--port", em.path, "--out", str(tmp_path / "r.npz"),
-                      "--frames", "30", "--pressure-port", src.path, "--chambers", "bend"])
+        res = invoke(
+            [
+                "record",
+                "--port",
+                em.path,
+                "--out",
+                str(tmp_path / "r.npz"),
+                "--frames",
+                "30",
+                "--pressure-port",
+                src.path,
+                "--chambers",
+                "bend",
+            ]
+        )
     finally:
         em.stop.set()
         src.close()
@@ -163,9 +232,18 @@ def test_record_with_pressures_then_locate(tmp_path):
     rec = read_recording(tmp_path / "r.npz")
     assert np.isfinite(rec.pressure_t_s).sum() >= 20
     states = pad_states(tmp_path / "s.npz")
-    res = invoke(["locate", str(tmp_path / "r.npz"), "--taxels",
-                  str(pad_taxel_csv(tmp_path / "t.csv")), "--states", str(states), "--out",
-                  str(tmp_path / "loc")])
+    res = invoke(
+        [
+            "locate",
+            str(tmp_path / "r.npz"),
+            "--taxels",
+            str(pad_taxel_csv(tmp_path / "t.csv")),
+            "--states",
+            str(states),
+            "--out",
+            str(tmp_path / "loc"),
+        ]
+    )
     assert res.exit_code == 0, res.output
     expected = int((rec.pressure_kpa[:, 0] > 2.5).sum())
     if expected:

@@ -63,22 +63,31 @@ def test_record_npz_port_vanishing_converts(tmp_path):
 
 
 def test_record_bad_ports(tmp_path):
-    res = invoke(["record", "--port", str(tmp_path / "ttyNOPE"), "--out",
-                  str(tmp_path / "r.npz"), "--frames", "3"])
+    res = invoke(
+        [
+            "record",
+            "--port",
+            str(tmp_path / "ttyNOPE"),
+            "--out",
+            str(tmp_path / "r.npz"),
+            "--frames",
+            "3",
+        ]
+    )
     assert res.exit_code == 1 and "serial port does not exist" in res.output
     em = BoardEmulator(synthetic_frames(5), fps=0)
     import serial
 
     hold = serial.Serial(em.path, exclusive=True)
     try:
-        res = invoke(["record", "--port", em.path, "--out", str(tmp_path / "r.npz"),
-                      "--frames", "3"])
+        res = invoke(
+            ["record", "--port", em.path, "--out", str(tmp_path / "r.npz"), "--frames", "3"]
+        )
         assert res.exit_code == 1 and "serial port is busy" in res.output
     finally:
         hold.close()
         em.close()
-    res = invoke(["record", "--port", "x", "--out", "r.npz", "--frames", "3",
-                  "--seconds", "1"])
+    res = invoke(["record", "--port", "x", "--out", "r.npz", "--frames", "3", "--seconds", "1"])
     assert res.exit_code == 1 and "give --frames or --seconds, not both" in res.output
     res = invoke(["record", "--port", "x", "--out", "r.npz", "--frames", "0"])
     assert res.exit_code == 2
@@ -114,8 +123,19 @@ def test_live_matches_batch_locate(tmp_path):
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     em = BoardEmulator(frames, fps=0, log_every=4, cut_at=[], wait_for_reader=True)
     th = em.start()
-    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                  str(taxels), "--frames", "30", "--no-drift"])  # the batch has no drift
+    res = invoke(
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            em.path,
+            "--taxels",
+            str(taxels),
+            "--frames",
+            "30",
+            "--no-drift",
+        ]
+    )  # the batch has no drift
     th.join(5)
     assert res.exit_code == 0, res.output
     lines = live_lines(res.output)
@@ -124,8 +144,7 @@ def test_live_matches_batch_locate(tmp_path):
     write_npz(tmp_path / "f.npz", Recording(frames, np.arange(30.0)))
     from fruitcli.scene import load_scene
 
-    run_locate(load_scene(tmp_path / "s.toml"), tmp_path / "f.npz", taxels, None,
-               tmp_path / "o")
+    run_locate(load_scene(tmp_path / "s.toml"), tmp_path / "f.npz", taxels, None, tmp_path / "o")
     t = read_table(tmp_path / "o" / "touches.csv", ["frame", "i", "j", "x_mm", "peak"])
     assert t["frame"].tolist() == [d["frame"] for d in lines[:-1]]
     assert np.allclose(t["x_mm"], [d["touches"][0]["x_mm"] for d in lines[:-1]], atol=1e-3)
@@ -137,8 +156,7 @@ def test_live_port_vanishing_is_one_error_line(tmp_path):
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     em = BoardEmulator(touch_frames(), fps=0, vanish_after=15, wait_for_reader=True)
     th = em.start()
-    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                  str(taxels)])
+    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels", str(taxels)])
     th.join(5)
     assert res.exit_code == 1
     assert f"Error: {em.path}: port closed after 15 frames" in res.output
@@ -186,9 +204,22 @@ def test_live_with_pressure_moves_taxels_through_states(tmp_path):
     em = BoardEmulator(touch_frames(noise=False), fps=50, wait_for_reader=True)
     th = em.start()
     try:
-        res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                      str(taxels), "--states", str(states), "--pressure-port", src.path,
-                      "--frames", "20"])
+        res = invoke(
+            [
+                "live",
+                str(tmp_path / "s.toml"),
+                "--port",
+                em.path,
+                "--taxels",
+                str(taxels),
+                "--states",
+                str(states),
+                "--pressure-port",
+                src.path,
+                "--frames",
+                "20",
+            ]
+        )
     finally:
         th.join(5)
         src.close()
@@ -218,15 +249,27 @@ def test_emulate_board_command_in_a_subprocess_feeds_record(tmp_path):
 
     rec = Recording(synthetic_frames(50, seed=4), np.arange(50.0))
     write_npz(tmp_path / "src.npz", rec)
-    proc = subprocess.Popen([sys.executable, "-c", "from fruitcli.cli.main import main; main()",
-                             "emulate-board", "--from", str(tmp_path / "src.npz"), "--fps",
-                             "0", "--log-every", "3"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from fruitcli.cli.main import main; main()",
+            "emulate-board",
+            "--from",
+            str(tmp_path / "src.npz"),
+            "--fps",
+            "0",
+            "--log-every",
+            "3",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         path = proc.stdout.readline().strip()
         assert path.startswith("/dev/")
-        res = invoke(["record", "--port", path, "--out", str(tmp_path / "r.log"), "--frames",
-                      "40"])
+        res = invoke(["record", "--port", path, "--out", str(tmp_path / "r.log"), "--frames", "40"])
         assert res.exit_code == 0, res.output
         assert np.array_equal(read_recording(tmp_path / "r.log").frames, rec.frames[:40])
     finally:
@@ -267,16 +310,16 @@ def test_record_wrong_frame_size_says_why_and_writes_nothing(tmp_path):
 
 @pytest.mark.parametrize("out", ["r.npz", "r.log"])
 def test_record_no_frame_is_an_error_and_writes_nothing(tmp_path, out):
-    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
-                  str(tmp_path / out)])
+    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out", str(tmp_path / out)])
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert "loop://: no frame received" in res.output and "nothing written" in res.output
     assert list(tmp_path.iterdir()) == []
 
 
 def test_record_refuses_an_unknown_out_suffix(tmp_path):
-    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
-                  str(tmp_path / "r.xyz")])
+    res = invoke(
+        ["record", "--port", "loop://", "--seconds", "0.2", "--out", str(tmp_path / "r.xyz")]
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert "r.xyz: expected a .npz or a MuCa log" in res.output
     assert list(tmp_path.iterdir()) == []
@@ -285,45 +328,52 @@ def test_record_refuses_an_unknown_out_suffix(tmp_path):
 def test_live_wrong_frame_size_says_why(tmp_path):
     (tmp_path / "s.toml").write_text(SCENE)
     taxels = pad_taxel_csv(tmp_path / "t.csv")
-    em = BoardEmulator(synthetic_frames(12, rows=20), fps=0, vanish_after=12,
-                       wait_for_reader=True)
+    em = BoardEmulator(synthetic_frames(12, rows=20), fps=0, vanish_after=12, wait_for_reader=True)
     th = em.start()
-    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels",
-                  str(taxels)])
+    res = invoke(["live", str(tmp_path / "s.toml"), "--port", em.path, "--taxels", str(taxels)])
     th.join(5)
     assert res.exit_code == 1
     assert f"Error: {em.path}: port closed after 0 frames" in res.output
     assert "12 lines of 240 counts, expected 252 = 21 x 12" in res.output
 
 
-@pytest.mark.parametrize("args, msg", [
-    (["--pressure-port", "/dev/nonexistent"],
-     "--pressure-port /dev/nonexistent: nothing uses the pressures; it needs --states or "
-     "--online"),
-    (["--frames", "5", "--baseline-frames", "50"],
-     "--frames 5: expected more than the 50 baseline frames"),
-    (["--frames", "5"], "--frames 5: expected more than the 5 baseline frames"),
-])
+@pytest.mark.parametrize(
+    "args, msg",
+    [
+        (
+            ["--pressure-port", "/dev/nonexistent"],
+            "--pressure-port /dev/nonexistent: nothing uses the pressures; it needs --states or "
+            "--online",
+        ),
+        (
+            ["--frames", "5", "--baseline-frames", "50"],
+            "--frames 5: expected more than the 50 baseline frames",
+        ),
+        (["--frames", "5"], "--frames 5: expected more than the 5 baseline frames"),
+    ],
+)
 def test_live_refuses_options_that_cannot_work(tmp_path, args, msg):
     (tmp_path / "s.toml").write_text(SCENE)
     taxels = pad_taxel_csv(tmp_path / "t.csv")
-    res = invoke(["live", str(tmp_path / "s.toml"), "--port", "loop://", "--taxels",
-                  str(taxels), *args])
+    res = invoke(
+        ["live", str(tmp_path / "s.toml"), "--port", "loop://", "--taxels", str(taxels), *args]
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert f"Error: {msg}" in res.output
 
 
 @pytest.mark.parametrize("out", ["old.npz", "old.log"])
-def test_record_refuses_an_existing_out_and_overwrite_keeps_it_until_frames_arrive(
-        tmp_path, out):
+def test_record_refuses_an_existing_out_and_overwrite_keeps_it_until_frames_arrive(tmp_path, out):
     path = tmp_path / out
     path.write_bytes(b"an earlier recording")
-    res = invoke(["record", "--port", str(tmp_path / "ttyNOPE"), "--out", str(path),
-                  "--frames", "3"])  # refused before the port is opened
+    res = invoke(
+        ["record", "--port", str(tmp_path / "ttyNOPE"), "--out", str(path), "--frames", "3"]
+    )  # refused before the port is opened
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert f"--out {path}: exists; give --overwrite to replace it" in res.output
-    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out", str(path),
-                  "--overwrite"])  # no frame: the earlier recording stays
+    res = invoke(
+        ["record", "--port", "loop://", "--seconds", "0.2", "--out", str(path), "--overwrite"]
+    )  # no frame: the earlier recording stays
     assert res.exit_code == 1 and f"{path} left as it was" in res.output, res.output
     assert path.read_bytes() == b"an earlier recording"
     assert sorted(p.name for p in tmp_path.iterdir()) == [out]
@@ -340,8 +390,9 @@ def test_record_refuses_an_existing_out_and_overwrite_keeps_it_until_frames_arri
 def test_record_refuses_to_start_over_an_unfinished_recording(tmp_path):
     partial = tmp_path / "r.npz.partial.log"
     partial.write_text("1.5," + ",".join(["500"] * 252) + "\n")
-    res = invoke(["record", "--port", "loop://", "--seconds", "0.2", "--out",
-                  str(tmp_path / "r.npz")])
+    res = invoke(
+        ["record", "--port", "loop://", "--seconds", "0.2", "--out", str(tmp_path / "r.npz")]
+    )
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert f"{partial}: left by a recording that did not finish" in res.output
     assert len(read_recording(partial)) == 1

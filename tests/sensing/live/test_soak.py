@@ -34,10 +34,21 @@ def test_eight_hours_compressed(tmp_path):
     board = SoakBoard(plan, link, time_scale=SCALE)
     spans = plan.connected()
     total = sum(len(plan.frame_times(a, b)) for a, b in spans)
-    proc = subprocess.Popen(live_command(tmp_path, link, "--frames", str(total),
-                                         "--time-scale", str(SCALE), "--log",
-                                         str(tmp_path / "run.log")),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        live_command(
+            tmp_path,
+            link,
+            "--frames",
+            str(total),
+            "--time-scale",
+            str(SCALE),
+            "--log",
+            str(tmp_path / "run.log"),
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     time.sleep(0.5)
     th = board.start()
     rss = []
@@ -105,8 +116,7 @@ def test_a_fixed_baseline_fails_the_soak_day_and_the_tracker_does_not():
     taxels = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], 1))
     found = {}
     for name, drift in (("fixed", None), ("tracked", DriftTracker(60.0, 20.0))):
-        live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm, Settings()),
-                           drift=drift)
+        live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm, Settings()), drift=drift)
         sessions = set()
         for f, t in zip(frames, times, strict=True):
             lf = live.step(f, t)

@@ -19,8 +19,16 @@ from fruitcli.tables import read_taxels
 from tests.sensing.detection.test_drift import board_taxel_csv
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 class Chromium:
@@ -37,10 +45,20 @@ class Chromium:
             os.dup2(b, 4)
 
         self.proc = subprocess.Popen(
-            [CHROMIUM, *FLAGS, f"--user-data-dir={profile_dir}", "--remote-debugging-pipe",
-             f"--window-size={width},{height}", "about:blank"],
-            preexec_fn=onto_3_and_4, close_fds=False, stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                CHROMIUM,
+                *FLAGS,
+                f"--user-data-dir={profile_dir}",
+                "--remote-debugging-pipe",
+                f"--window-size={width},{height}",
+                "about:blank",
+            ],
+            preexec_fn=onto_3_and_4,
+            close_fds=False,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         os.close(cmd_r)
         os.close(res_w)
         self.buf = b""
@@ -74,12 +92,14 @@ class Chromium:
 
     def open(self, url):
         target = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
-        self.session = self.call("Target.attachToTarget", {"targetId": target,
-                                                           "flatten": True})["sessionId"]
+        self.session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})[
+            "sessionId"
+        ]
         w, h = self.size
-        self.call("Emulation.setDeviceMetricsOverride", {"width": w, "height": h,
-                                                         "deviceScaleFactor": 1,
-                                                         "mobile": False})
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": w, "height": h, "deviceScaleFactor": 1, "mobile": False},
+        )
         self.call("Page.navigate", {"url": url})
 
     def js(self, expression):
@@ -125,7 +145,7 @@ def held_touch_frames(n=3000, cell=(10, 5), counts=60.0, seed=0):
     rng = np.random.default_rng(seed)
     f = 500 + rng.normal(0, 0.5, (n, 21, 12))
     r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
-    f[20:] += counts * np.exp(-((r - cell[0]) ** 2 + (c - cell[1]) ** 2) / (2 * 0.8 ** 2))
+    f[20:] += counts * np.exp(-((r - cell[0]) ** 2 + (c - cell[1]) ** 2) / (2 * 0.8**2))
     return np.round(f).astype(np.int64)
 
 
@@ -137,9 +157,23 @@ def test_live_view_in_headless_chromium(tmp_path):
     th = em.start()
     port = free_port()
     live = subprocess.Popen(
-        [sys.executable, "-c", "from fruitcli.cli.main import main; main()", "live",
-         str(tmp_path / "s.toml"), "--port", em.path, "--taxels", str(taxels), "--view",
-         f"127.0.0.1:{port}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-c",
+            "from fruitcli.cli.main import main; main()",
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            em.path,
+            "--taxels",
+            str(taxels),
+            "--view",
+            f"127.0.0.1:{port}",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     browser = None
     try:
         url = f"http://127.0.0.1:{port}/"
@@ -163,8 +197,7 @@ def test_live_view_in_headless_chromium(tmp_path):
                     left: parseFloat(m.style.left), top: parseFloat(m.style.top),
                     label: m.textContent}; })()""")
         assert m["id"] == "0" and m["label"] == "0"
-        assert m["x"] == pytest.approx(160.0, abs=1.0) and m["y"] == pytest.approx(60.0,
-                                                                                    abs=1.0)
+        assert m["x"] == pytest.approx(160.0, abs=1.0) and m["y"] == pytest.approx(60.0, abs=1.0)
         # the page's top view: taxels x 0..320 mm, y 0..132 mm fitted in 560 x 400 px
         # (40 px margins), y up: the marker sits on taxel (10, 5)
         s = min(560 / 320, 400 / 132)
@@ -182,8 +215,7 @@ def test_live_view_in_headless_chromium(tmp_path):
         text = browser.js("document.querySelector('#touches li').textContent")
         import re
 
-        got = re.fullmatch(r"id 0: \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) mm, peak (\d+) counts",
-                           text)
+        got = re.fullmatch(r"id 0: \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) mm, peak (\d+) counts", text)
         assert got, text
         assert [float(v) for v in got.groups()] == pytest.approx([160, 60, 0, 60], abs=1.5)
         assert browser.js("document.getElementById('baseline').textContent") == "tracking"
@@ -221,20 +253,51 @@ def test_view_port_in_use_is_one_line(tmp_path):
         s.bind(("127.0.0.1", 0))
         s.listen()
         port = s.getsockname()[1]
-        res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                       str(tmp_path / "tty"), "--taxels", str(taxels),
-                                       "--view", str(port)])
+        res = CliRunner().invoke(
+            cli,
+            [
+                "live",
+                str(tmp_path / "s.toml"),
+                "--port",
+                str(tmp_path / "tty"),
+                "--taxels",
+                str(taxels),
+                "--view",
+                str(port),
+            ],
+        )
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1] == (
         f"Error: --view 127.0.0.1:{port}: port {port} is in use (another program listens "
-        "there; choose another port)")
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                   str(tmp_path / "tty"), "--taxels", str(taxels),
-                                   "--view", "nosuchhost.invalid:8080"])
+        "there; choose another port)"
+    )
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            str(tmp_path / "tty"),
+            "--taxels",
+            str(taxels),
+            "--view",
+            "nosuchhost.invalid:8080",
+        ],
+    )
     assert res.exit_code == 1 and "host 'nosuchhost.invalid' does not resolve" in res.output
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                   str(tmp_path / "tty"), "--taxels", str(taxels),
-                                   "--view", "80800"])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            str(tmp_path / "tty"),
+            "--taxels",
+            str(taxels),
+            "--view",
+            "80800",
+        ],
+    )
     assert res.exit_code == 1 and "expected [HOST:]PORT with a port in 1-65535" in res.output
 
 
@@ -247,9 +310,11 @@ def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
     from fruitcli.sensing.live.serial_ports import PressureState
 
     taxels = read_taxels(board_taxel_csv(tmp_path / "t.csv"))
-    live = LiveLocator(Locator(taxels, default_board(), taxels.xyz_mm,
-                               Settings(baseline_frames=10)), drift=DriftTracker(60, 20),
-                        health=True)
+    live = LiveLocator(
+        Locator(taxels, default_board(), taxels.xyz_mm, Settings(baseline_frames=10)),
+        drift=DriftTracker(60, 20),
+        health=True,
+    )
     pressure = PressureState(("c1", "c2"))
     out = Outputs(live, taxels, lambda message: None, 1.0, pressure)
     frames = held_touch_frames(40)
@@ -265,7 +330,8 @@ def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
     assert st["pressures"] == {"c1": 2.5, "c2": 7.0}
     (t,) = st["touches"]
     assert t["id"] == 0 and (t["x_mm"], t["y_mm"], t["i"], t["j"]) == pytest.approx(
-        (160, 60, 10, 5), abs=0.2)
+        (160, 60, 10, 5), abs=0.2
+    )
     assert st["activation"][10 * 12 + 5] == pytest.approx(60, abs=2)
     assert st["flags"] == {"dead": [], "stuck": [], "saturated": [], "noisy": []}
     assert capsys.readouterr().out.count('"touch": 0') == 20  # the JSON lines

@@ -79,27 +79,42 @@ def test_tuio_bundles_carry_every_field_in_closed_form():
     # taxel itself), a static one at (3, 3); frame times: 0.1 s apart, then 0.05 s
     t = [0.0, 0.1, 0.2, 0.3, 0.4, 0.45, 0.55, 0.65]
     frames = [frame_with({}) for _ in range(3)]
-    frames += [frame_with({(0, 0): 40, (3, 3): 30}), frame_with({(1, 0): 41, (3, 3): 30}),
-               frame_with({(2, 0): 42, (3, 3): 30}), frame_with({(3, 3): 30}),
-               frame_with({(5, 4): 50})]
+    frames += [
+        frame_with({(0, 0): 40, (3, 3): 30}),
+        frame_with({(1, 0): 41, (3, 3): 30}),
+        frame_with({(2, 0): 42, (3, 3): 30}),
+        frame_with({(3, 3): 30}),
+        frame_with({(5, 4): 50}),
+    ]
     sent = []
     for k, f in enumerate(frames):
         lf = live.step(f, t[k])
         if lf is not None:
-            tuio.send(lf.t_s, lf.sessions.ids, lf.sessions.new, lf.sessions.ended, lf.ij,
-                      lf.touches.xyz_mm, lf.touches.peak)
+            tuio.send(
+                lf.t_s,
+                lf.sessions.ids,
+                lf.sessions.new,
+                lf.sessions.ended,
+                lf.ij,
+                lf.touches.xyz_mm,
+                lf.touches.peak,
+            )
             sent.append(lf)
     got = rx.close(expect=4 * len(sent))
     tuio.close()
     assert len(got) == 4 * len(sent) == 20
     L = 16.0 * 5  # largest side of the taxels' bounding box (x: 0..80 mm)
     # expected per frame: (sessions, (i, j) of each, peak of each)
-    want = [([0, 1], [(0, 0), (3, 3)], [40, 30]), ([0, 1], [(1, 0), (3, 3)], [41, 30]),
-            ([0, 1], [(2, 0), (3, 3)], [42, 30]), ([1], [(3, 3)], [30]),
-            ([2], [(5, 4)], [50])]
+    want = [
+        ([0, 1], [(0, 0), (3, 3)], [40, 30]),
+        ([0, 1], [(1, 0), (3, 3)], [41, 30]),
+        ([0, 1], [(2, 0), (3, 3)], [42, 30]),
+        ([1], [(3, 3)], [30]),
+        ([2], [(5, 4)], [50]),
+    ]
     v_i = [0.0, 1 / 0.1, 1 / 0.05]  # grid units per s of the moving touch (session 0)
     for f, (ids, ij, peaks) in enumerate(want):
-        b2, b3, bp, plain = got[4 * f: 4 * f + 4]
+        b2, b3, bp, plain = got[4 * f : 4 * f + 4]
         for b, prof in ((b2, "/tuio/2Dcur"), (b3, "/tuio/3Dcur"), (bp, "/tuio/_sp")):
             assert [a for a, _ in b] == [prof] * (3 + len(ids))
             assert b[0][1] == ["source", "fruit@test"]
@@ -116,28 +131,28 @@ def test_tuio_bundles_carry_every_field_in_closed_form():
             x2, y2, X2, Y2, m2 = b2[2 + n][1][2:]
             assert (x2, y2) == pytest.approx((i / 5, 1 - j / 4), **F32)
             assert (X2, Y2) == pytest.approx((vi / 5, 0.0), **F32)
-            assert m2 == pytest.approx((vi - vi_prev) / 5 / dt if moving and f else 0.0,
-                                       **F32)
+            assert m2 == pytest.approx((vi - vi_prev) / 5 / dt if moving and f else 0.0, **F32)
             # 3Dcur: (x, y, z) mm / L from the bounding box corner (0, 0, 0)
             x3, y3, z3, X3, Y3, Z3, m3 = b3[2 + n][1][2:]
             assert (x3, y3, z3) == pytest.approx((16 * i / L, 12 * j / L, 0.5 * i / L), **F32)
             speed3 = np.hypot(16, 0.5) / L  # per grid unit along i
             assert (X3, Y3, Z3) == pytest.approx((16 * vi / L, 0.0, 0.5 * vi / L), **F32)
-            assert m3 == pytest.approx(speed3 * (vi - vi_prev) / dt if moving and f
-                                       else 0.0, **F32)
+            assert m3 == pytest.approx(speed3 * (vi - vi_prev) / dt if moving and f else 0.0, **F32)
             assert bp[2 + n][1] == ["set", s, pytest.approx(peaks[n])]
         # plain messages: frame, downs, touches, ups
         downs = [s for s in ids if s not in (want[f - 1][0] if f else [])]
         ups = [s for s in (want[f - 1][0] if f else []) if s not in ids]
         assert plain[0] == ("/fruit/frame", [f + 1, len(ids), pytest.approx(t[3 + f], **F32)])
         addrs = [a for a, _ in plain[1:]]
-        assert addrs == ["/fruit/down"] * len(downs) + ["/fruit/touch"] * len(ids) + \
-            ["/fruit/up"] * len(ups)
+        assert addrs == ["/fruit/down"] * len(downs) + ["/fruit/touch"] * len(ids) + [
+            "/fruit/up"
+        ] * len(ups)
         touch_rows = [p for a, p in plain if a == "/fruit/touch"]
         for n, s in enumerate(ids):
             i, j = ij[n]
-            assert touch_rows[n][:7] == pytest.approx([s, 16 * i, 12 * j, 0.5 * i, i, j,
-                                                       peaks[n]], **F32)
+            assert touch_rows[n][:7] == pytest.approx(
+                [s, 16 * i, 12 * j, 0.5 * i, i, j, peaks[n]], **F32
+            )
             assert np.isnan(touch_rows[n][7:10]).all() and touch_rows[n][10] == 0
         assert [p[0] for a, p in plain if a == "/fruit/down"] == downs
         assert [p for a, p in plain if a == "/fruit/up"] == [[s] for s in ups]
@@ -154,11 +169,22 @@ def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
     th = threading.Thread(target=server.serve_forever, daemon=True)
     th.start()
     try:
-        tuio = TuioSender(server.server_address, Normalizer.from_taxels(
-            taxels.i, taxels.j, taxels.xyz_mm), "25Dcur")
-        tuio.send(1.5, np.array([7]), np.array([True]), [3], np.array([[2.0, 1.0]]),
-                  np.array([[32.0, 12.0, 1.0]]), np.array([44.0]),
-                  np.array([[1.5, 0.47, 6.2]]), np.array([1]))
+        tuio = TuioSender(
+            server.server_address,
+            Normalizer.from_taxels(taxels.i, taxels.j, taxels.xyz_mm),
+            "25Dcur",
+        )
+        tuio.send(
+            1.5,
+            np.array([7]),
+            np.array([True]),
+            [3],
+            np.array([[2.0, 1.0]]),
+            np.array([[32.0, 12.0, 1.0]]),
+            np.array([44.0]),
+            np.array([[1.5, 0.47, 6.2]]),
+            np.array([1]),
+        )
         tuio.close()
         import time
 
@@ -177,8 +203,7 @@ def test_25dcur_profile_and_plain_messages_through_a_python_osc_server():
     assert st[2:] == pytest.approx([2 / 5, 1 - 1 / 4, 1.5 / 80, 0, 0, 0, 0], **F32)
     assert by["/fruit/frame"] == [[1, 1, 1.5]]
     assert by["/fruit/down"] == by["/fruit/touch"]
-    assert by["/fruit/down"][0] == pytest.approx([7, 32, 12, 1, 2, 1, 44, 1.5, 0.47, 6.2, 1],
-                                                 **F32)
+    assert by["/fruit/down"][0] == pytest.approx([7, 32, 12, 1, 2, 1, 44, 1.5, 0.47, 6.2, 1], **F32)
     assert by["/fruit/up"] == [[3]]
 
 
@@ -204,9 +229,21 @@ def test_fruit_live_osc_end_to_end(tmp_path):
     em = BoardEmulator(frames, fps=0, wait_for_reader=True)
     th = em.start()
     rx = Receiver()
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port", em.path,
-                                   "--taxels", str(taxels), "--frames", "80", "--osc",
-                                   f"127.0.0.1:{rx.port}"])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            em.path,
+            "--taxels",
+            str(taxels),
+            "--frames",
+            "80",
+            "--osc",
+            f"127.0.0.1:{rx.port}",
+        ],
+    )
     th.join(5)
     got = rx.close(expect=4 * 75)
     assert res.exit_code == 0, res.output
@@ -225,16 +262,31 @@ def test_fruit_live_osc_end_to_end(tmp_path):
     assert "OSC: 300 bundles sent, 0 failed" in res.output
 
 
-@pytest.mark.parametrize("target, msg", [
-    ("nosuchhost.invalid:9000", "--osc nosuchhost.invalid:9000: host 'nosuchhost.invalid' "
-                                "does not resolve"),
-    ("127.0.0.1", "--osc 127.0.0.1: expected HOST:PORT with a port in 1-65535"),
-    ("127.0.0.1:0", "--osc 127.0.0.1:0: expected HOST:PORT with a port in 1-65535"),
-])
+@pytest.mark.parametrize(
+    "target, msg",
+    [
+        (
+            "nosuchhost.invalid:9000",
+            "--osc nosuchhost.invalid:9000: host 'nosuchhost.invalid' does not resolve",
+        ),
+        ("127.0.0.1", "--osc 127.0.0.1: expected HOST:PORT with a port in 1-65535"),
+        ("127.0.0.1:0", "--osc 127.0.0.1:0: expected HOST:PORT with a port in 1-65535"),
+    ],
+)
 def test_bad_osc_target_is_one_line(tmp_path, target, msg):
     (tmp_path / "s.toml").write_text(SCENE)
-    res = CliRunner().invoke(cli, ["live", str(tmp_path / "s.toml"), "--port",
-                                   str(tmp_path / "tty"), "--taxels",
-                                   str(board_taxel_csv(tmp_path / "t.csv")), "--osc", target])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            str(tmp_path / "tty"),
+            "--taxels",
+            str(board_taxel_csv(tmp_path / "t.csv")),
+            "--osc",
+            target,
+        ],
+    )
     assert res.exit_code == 1
     assert res.output.strip().splitlines()[-1].startswith(f"Error: {msg}")

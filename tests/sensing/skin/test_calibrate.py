@@ -46,21 +46,41 @@ def hidden_bench(tmp_path, seed=0, step_mm=0.1, n_idle=10, threshold=20.0):
     counts = np.concatenate(rows)
     frames = noisy(np.full((len(counts), 21, 12), 500.0))
     frames[:, np.arange(t) // 4, np.arange(t) % 4] = counts
-    meta = {"source": "bench", "indenter": "small", "step_mm": step_mm,
-            "baseline_frames": n_idle, "threshold_counts": threshold}
-    write_npz(tmp_path / "frames.npz", Recording(frames, np.arange(len(frames)) / 60.0,
-                                                 sample=np.concatenate(samples), meta=meta))
-    write_csv(tmp_path / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"],
-              ([k, float(p[0]), float(p[1]), 3.0] for k, p in enumerate(xy)))
+    meta = {
+        "source": "bench",
+        "indenter": "small",
+        "step_mm": step_mm,
+        "baseline_frames": n_idle,
+        "threshold_counts": threshold,
+    }
+    write_npz(
+        tmp_path / "frames.npz",
+        Recording(frames, np.arange(len(frames)) / 60.0, sample=np.concatenate(samples), meta=meta),
+    )
+    write_csv(
+        tmp_path / "truth.csv",
+        ["sample", "x_mm", "y_mm", "z_mm"],
+        ([k, float(p[0]), float(p[1]), 3.0] for k, p in enumerate(xy)),
+    )
     pad_taxel_csv(tmp_path / "t.csv")
     (tmp_path / "s.toml").write_text('[grid]\ntaxels = "t.csv"\n')
     return gains
 
 
 def calibrate(tmp_path, truth="truth.csv"):
-    return CliRunner().invoke(cli, ["calibrate", str(tmp_path / "frames.npz"), "--truth",
-                                    str(tmp_path / truth), "--scene", str(tmp_path / "s.toml"),
-                                    "--out", str(tmp_path / "cal")])
+    return CliRunner().invoke(
+        cli,
+        [
+            "calibrate",
+            str(tmp_path / "frames.npz"),
+            "--truth",
+            str(tmp_path / truth),
+            "--scene",
+            str(tmp_path / "s.toml"),
+            "--out",
+            str(tmp_path / "cal"),
+        ],
+    )
 
 
 def test_calibration_recovers_hidden_parameters_within_10_percent(tmp_path):
@@ -86,9 +106,16 @@ def test_calibration_recovers_hidden_parameters_within_10_percent(tmp_path):
 def test_calibration_refuses_a_truth_file_that_does_not_match(tmp_path):
     hidden_bench(tmp_path)
     rows = read_table(tmp_path / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
-    write_csv(tmp_path / "bad.csv", ["sample", "x_mm", "y_mm", "z_mm"],
-              ([int(k) + 100, x, y, z] for k, x, y, z in zip(
-                  rows["sample"], rows["x_mm"], rows["y_mm"], rows["z_mm"], strict=True)))
+    write_csv(
+        tmp_path / "bad.csv",
+        ["sample", "x_mm", "y_mm", "z_mm"],
+        (
+            [int(k) + 100, x, y, z]
+            for k, x, y, z in zip(
+                rows["sample"], rows["x_mm"], rows["y_mm"], rows["z_mm"], strict=True
+            )
+        ),
+    )
     res = calibrate(tmp_path, "bad.csv")
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert "bad.csv: does not match the recording: samples 100, 101, 102" in res.output
@@ -100,9 +127,13 @@ def test_descent_gaps_of_a_printer_bench_recording():
     contact's; virtual-bench frames: 5 mm less j steps."""
     sample = np.array([-1, -1, -1, -1, 0, -1, 1])
     tip_z = np.array([30.0, 30.0, 12.0, 11.9, 11.8, 13.0, 12.9])
-    rec = Recording(np.zeros((7, 2, 2), np.int64), np.arange(7.0), sample=sample,
-                    meta={"model_origin_mm": [100.0, 100.0, 5.0], "step_mm": 0.1},
-                    printer_mm=np.column_stack([np.zeros(7), np.zeros(7), tip_z]))
+    rec = Recording(
+        np.zeros((7, 2, 2), np.int64),
+        np.arange(7.0),
+        sample=sample,
+        meta={"model_origin_mm": [100.0, 100.0, 5.0], "step_mm": 0.1},
+        printer_mm=np.column_stack([np.zeros(7), np.zeros(7), tip_z]),
+    )
     frames, samples, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
     assert frames.tolist() == [2, 3, 4, 5, 6] and samples.tolist() == [0, 0, 0, 1, 1]
     assert gaps == pytest.approx([4.0, 3.9, 3.8, 4.0, 3.9])
@@ -126,25 +157,39 @@ def virtual_bench_scene(tmp_path, skin=HIDDEN_SKIN):
     50 idle frames, the [skin] given."""
     pad_taxel_csv(tmp_path / "t.csv")
     c = np.linspace(-21.0, 21.0, 6)
-    write_csv(tmp_path / "samples.csv", ["sample", "x_mm", "y_mm"],
-              ([n, float(x), float(y)] for n, (x, y) in enumerate(
-                  (x, y) for x in c for y in c)))
+    write_csv(
+        tmp_path / "samples.csv",
+        ["sample", "x_mm", "y_mm"],
+        ([n, float(x), float(y)] for n, (x, y) in enumerate((x, y) for x in c for y in c)),
+    )
     (tmp_path / "s.toml").write_text(
         '[grid]\ntaxels = "t.csv"\nspacing_x_mm = 16.0\nspacing_y_mm = 16.0\n'
         '[bench]\nindenters = ["small"]\nsamples = "samples.csv"\nbaseline_frames = 50\n'
-        "seed = 4\n" + skin)
+        "seed = 4\n" + skin
+    )
     return tmp_path / "s.toml"
 
 
 def bench_and_calibrate(tmp_path, name, extra=()):
     runner = CliRunner()
-    res = runner.invoke(cli, ["bench", str(tmp_path / "s.toml"), "--out",
-                              str(tmp_path / name), *extra])
+    res = runner.invoke(
+        cli, ["bench", str(tmp_path / "s.toml"), "--out", str(tmp_path / name), *extra]
+    )
     assert res.exit_code == 0, res.output
     rec = tmp_path / name / "small"
-    res = runner.invoke(cli, ["calibrate", str(rec / "frames.npz"), "--truth",
-                              str(rec / "truth.csv"), "--scene", str(tmp_path / "s.toml"),
-                              "--out", str(tmp_path / f"cal-{name}")])
+    res = runner.invoke(
+        cli,
+        [
+            "calibrate",
+            str(rec / "frames.npz"),
+            "--truth",
+            str(rec / "truth.csv"),
+            "--scene",
+            str(tmp_path / "s.toml"),
+            "--out",
+            str(tmp_path / f"cal-{name}"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     return tmp_path / f"cal-{name}"
 
@@ -179,14 +224,14 @@ def test_a_virtual_bench_with_a_hidden_skin_calibrates_back_and_replays(tmp_path
     cal = bench_and_calibrate(tmp_path, "hidden")
     p = assert_hidden_skin(cal, gains)
     skin = forward.make_skin(16, 4, p, np.arange(16))
-    assert np.array_equal(skin.gain, forward.load_taxel_gains(cal / "gains.csv",
-                                                              np.arange(16)))
+    assert np.array_equal(skin.gain, forward.load_taxel_gains(cal / "gains.csv", np.arange(16)))
     again = bench_and_calibrate(tmp_path, "replayed", ["--skin", str(cal / "skin.toml")])
     assert_hidden_skin(again, gains)
     # the replay's skin is the file's: half its contact counts, half the calibrated ones
     text = (cal / "skin.toml").read_text()
-    half = text.replace(f"contact_counts = {p.contact_counts:.4f}",
-                        f"contact_counts = {p.contact_counts / 2:.4f}")
+    half = text.replace(
+        f"contact_counts = {p.contact_counts:.4f}", f"contact_counts = {p.contact_counts / 2:.4f}"
+    )
     assert half != text
     (cal / "half.toml").write_text(half)
     weak = bench_and_calibrate(tmp_path, "half", ["--skin", str(cal / "half.toml")])
@@ -220,11 +265,14 @@ def test_a_scene_skin_with_measured_gains(tmp_path):
     with pytest.raises(SceneError, match=r"\[skin\].gain_spread: expected 0 with taxel_gain"):
         load_scene(path)
     virtual_bench_scene(tmp_path)
-    (tmp_path / "bad.toml").write_text('[skin]\ncontact_counts = 70.0\n[bench]\nseed = 1\n')
-    res = CliRunner().invoke(cli, ["bench", str(path), "--skin", str(tmp_path / "bad.toml"),
-                                   "--out", str(tmp_path / "b")])
-    assert res.exit_code == 1 and "bad.toml: expected only a [skin] table, found [bench]" \
-        in res.output, res.output
+    (tmp_path / "bad.toml").write_text("[skin]\ncontact_counts = 70.0\n[bench]\nseed = 1\n")
+    res = CliRunner().invoke(
+        cli,
+        ["bench", str(path), "--skin", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "b")],
+    )
+    assert (
+        res.exit_code == 1 and "bad.toml: expected only a [skin] table, found [bench]" in res.output
+    ), res.output
 
 
 def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
@@ -238,8 +286,9 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     taxels = read_taxels(pad_taxel_csv(tmp_path / "t.csv"))
     write_csv(tmp_path / "gains.csv", ["id", "gain"], ([k, 0.9 + 0.01 * k] for k in range(16)))
     (tmp_path / "skin.toml").write_text(
-        '[skin]\nfootprint_sigma_mm = { small = 5.0 }\ncontact_counts = 70.0\n'
-        'gap_decay_mm = 1.5\ntaxel_gain = "gains.csv"\nnoise_std_counts = 1.0\n')
+        "[skin]\nfootprint_sigma_mm = { small = 5.0 }\ncontact_counts = 70.0\n"
+        'gap_decay_mm = 1.5\ntaxel_gain = "gains.csv"\nnoise_std_counts = 1.0\n'
+    )
     from fruitcli.scene import load_skin_table
 
     p = forward.SkinParams.from_table(load_skin_table(tmp_path / "skin.toml"))
@@ -248,7 +297,8 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     tip = np.array([103.0, 98.0, 14.0])  # over model (3, -2), 1 mm above the pad's top
     skin = SkinBoard(taxels, board, place, lambda: tip, params=p)
     d = np.linalg.norm(taxels.xyz_mm - [3.0, -2.0, 3.0], axis=1)
-    want = (skin.skin.baseline_counts + (0.9 + 0.01 * np.arange(16)) * 70.0
-            * np.exp(-0.5 * (d / 5.0) ** 2) * np.exp(-1.0 / 1.5))
+    want = skin.skin.baseline_counts + (0.9 + 0.01 * np.arange(16)) * 70.0 * np.exp(
+        -0.5 * (d / 5.0) ** 2
+    ) * np.exp(-1.0 / 1.5)
     np.testing.assert_allclose(skin.mean_counts(tip), want, rtol=1e-12)
     assert np.all(skin.skin.noise_std_counts == 1.0)

@@ -40,10 +40,18 @@ def pad_states(path: Path, angles_deg=(0.0, 90.0, 180.0)):
         moved = nodes if a == 0 else forward.bend_nodes(nodes, 48.0 / np.radians(a), 3.0)
         disp.append(moved - nodes)
         tax.append(np.einsum("tk,tkd->td", bary, moved[tets[k]]))
-    np.savez(path, rest_nodes=nodes, tets=tets, surface_tris=boundary_faces(nodes, tets),
-             displacement_mm=np.array(disp), pressure_kpa=np.array(angles_deg)[:, None] / 90,
-             chamber_names=np.array(["bend"]), taxels_mm=np.array(tax), taxel_tet=k,
-             taxel_bary=bary)
+    np.savez(
+        path,
+        rest_nodes=nodes,
+        tets=tets,
+        surface_tris=boundary_faces(nodes, tets),
+        displacement_mm=np.array(disp),
+        pressure_kpa=np.array(angles_deg)[:, None] / 90,
+        chamber_names=np.array(["bend"]),
+        taxels_mm=np.array(tax),
+        taxel_tet=k,
+        taxel_bary=bary,
+    )
     return path
 
 
@@ -74,8 +82,9 @@ def test_bent_pad_calibration_gives_10_counts_at_180_deg(tmp_path):
 def test_noise_model_reaches_the_papers_1_9_counts():
     skin = forward.make_skin(47, seed=0)
     rng = np.random.default_rng(1)
-    rest = forward.frame_counts(np.broadcast_to(skin.baseline_counts, (300, 47)),
-                                skin.noise_std_counts, rng)
+    rest = forward.frame_counts(
+        np.broadcast_to(skin.baseline_counts, (300, 47)), skin.noise_std_counts, rng
+    )
     std = noise_std_counts(rest)
     assert 1.6 < std.max() <= 2.0 and std.min() > 0.3
     assert rest.dtype == np.int64
@@ -104,13 +113,15 @@ def test_bench_without_states_then_locate_recovers_the_samples(tmp_path):
     assert res["off_surface"] == 7 and res["indenters"]["small"]["samples"] == 9
     rec = read_npz(tmp_path / "bench" / "small" / "frames.npz")
     assert rec.frames.shape[1:] == (21, 12) and rec.meta["state"] == 0
-    truth = read_table(tmp_path / "bench" / "small" / "truth.csv",
-                       ["sample", "x_mm", "y_mm", "z_mm"])
+    truth = read_table(
+        tmp_path / "bench" / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"]
+    )
     assert np.sum(rec.sample >= 0) == len(truth["sample"])
     assert np.allclose(truth["z_mm"], 3.0)
     assert np.allclose((truth["x_mm"] + 24) % 16, 4.0)
-    out = run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None,
-                     tmp_path / "loc")
+    out = run_locate(
+        sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None, tmp_path / "loc"
+    )
     assert out["samples_missed"] == 0
     m = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     assert m["sample"].tolist() == truth["sample"].tolist()
@@ -124,14 +135,16 @@ def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     res = run_bench(sc, taxels, states, tmp_path / "bench")
     assert res["indenters"]["small"]["samples"] > 0
-    truth = read_table(tmp_path / "bench" / "small" / "truth.csv",
-                       ["sample", "x_mm", "y_mm", "z_mm"])
+    truth = read_table(
+        tmp_path / "bench" / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"]
+    )
     # the top of a cylinder of radius 48/pi + 1.5 mm around the axis z = 1.5 - R
     r = 48 / np.pi
     rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
     assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements
-    out = run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, states,
-                     tmp_path / "loc")
+    out = run_locate(
+        sc, tmp_path / "bench" / "small" / "frames.npz", taxels, states, tmp_path / "loc"
+    )
     m = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     assert out["samples_missed"] == 0
     pts = np.column_stack([m["x_mm"], m["y_mm"], m["z_mm"]])
@@ -146,8 +159,9 @@ def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
 
 def test_sensitivity_json_and_heatmaps(tmp_path):
     sc = scene(tmp_path)
-    out = run_sensitivity(sc, pad_taxel_csv(tmp_path / "t.csv"), pad_states(tmp_path / "s.npz"),
-                          tmp_path / "sens")
+    out = run_sensitivity(
+        sc, pad_taxel_csv(tmp_path / "t.csv"), pad_states(tmp_path / "s.npz"), tmp_path / "sens"
+    )
     data = json.loads((tmp_path / "sens" / "sensitivity.json").read_text())
     assert len(data["taxels"]) == 16 and data["states"] == 3
     model = np.array([t["max_shift_model"] for t in data["taxels"]])
@@ -161,13 +175,23 @@ def test_sensitivity_json_and_heatmaps(tmp_path):
 
 def test_bench_cli_bad_input(tmp_path):
     (tmp_path / "pad.toml").write_text(PAD_SCENE)
-    res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--out",
-                                   str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli, ["bench", str(tmp_path / "pad.toml"), "--out", str(tmp_path / "o")]
+    )
     assert res.exit_code == 1 and "no taxels: give --taxels" in res.output
     taxels = pad_taxel_csv(tmp_path / "t.csv")
     (tmp_path / "pad.toml").write_text(PAD_SCENE + "state = 1\n")
-    res = CliRunner().invoke(cli, ["bench", str(tmp_path / "pad.toml"), "--taxels",
-                                   str(taxels), "--out", str(tmp_path / "o")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "bench",
+            str(tmp_path / "pad.toml"),
+            "--taxels",
+            str(taxels),
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
     assert res.exit_code == 1 and "[bench].state = 1 needs FEM states" in res.output
 
 
@@ -192,19 +216,19 @@ def test_one_truth_a_state_with_zero_displacement_gives_the_rest_row(tmp_path):
     still = pad_states(tmp_path / "s.npz", angles_deg=(0.0,))
     rest = run_bench(sc, taxels, None, tmp_path / "rest", surface_path=surface)
     held = run_bench(sc, taxels, still, tmp_path / "held", surface_path=surface)
-    assert "at rest" in rest["truth_surface"] and "carried by FEM state 0" in held[
-        "truth_surface"]
+    assert "at rest" in rest["truth_surface"] and "carried by FEM state 0" in held["truth_surface"]
     # every quarter sample lies over the 80 x 80 mm body, also those past the taxels' hull
     assert rest["off_surface"] == held["off_surface"] == 0
     rows = {}
     for name, states in (("rest", None), ("held", still)):
-        t = read_table(tmp_path / name / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
-                                                                 "z_mm"])
+        t = read_table(tmp_path / name / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
         assert np.allclose(t["z_mm"], 3.0, atol=1e-9)  # the pad's top face
-        run_locate(sc, tmp_path / name / "small" / "frames.npz", taxels, states,
-                   tmp_path / f"loc-{name}")
-        rows[name], _, truth, _ = evaluate_pair(tmp_path / name / "small" / "truth.csv",
-                                                tmp_path / f"loc-{name}" / "measured.csv")
+        run_locate(
+            sc, tmp_path / name / "small" / "frames.npz", taxels, states, tmp_path / f"loc-{name}"
+        )
+        rows[name], _, truth, _ = evaluate_pair(
+            tmp_path / name / "small" / "truth.csv", tmp_path / f"loc-{name}" / "measured.csv"
+        )
         rows[name]["truth"] = truth
     np.testing.assert_allclose(rows["held"]["truth"], rows["rest"]["truth"], atol=1e-9)
     a = read_npz(tmp_path / "rest" / "small" / "frames.npz").frames
@@ -217,11 +241,14 @@ def test_one_truth_a_state_with_zero_displacement_gives_the_rest_row(tmp_path):
 def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
     sc = scene(tmp_path, "state = 1\n")
     surface = pad_surface_stl(tmp_path / "pad.stl")
-    res = run_bench(sc, pad_taxel_csv(tmp_path / "t.csv"),
-                    pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0)), tmp_path / "b",
-                    surface_path=surface)
-    truth = read_table(tmp_path / "b" / "small" / "truth.csv", ["sample", "x_mm", "y_mm",
-                                                                "z_mm"])
+    res = run_bench(
+        sc,
+        pad_taxel_csv(tmp_path / "t.csv"),
+        pad_states(tmp_path / "s.npz", angles_deg=(0.0, 180.0)),
+        tmp_path / "b",
+        surface_path=surface,
+    )
+    truth = read_table(tmp_path / "b" / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     assert res["indenters"]["small"]["samples"] > 0
     r = 48 / np.pi  # the mid-plane's bend radius; the top face lies 1.5 mm outside it
     rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
@@ -231,15 +258,18 @@ def test_truth_on_a_bent_body_follows_the_carried_surface(tmp_path):
 def test_skin_table_defaults_are_the_models_assumptions(tmp_path):
     p = forward.SkinParams.from_table(scene(tmp_path).skin)
     assert p == forward.DEFAULT_PARAMS
-    assert p.footprint_sigma_mm == pytest.approx({"small": np.hypot(6, 1.5),
-                                                  "medium": np.hypot(6, 4)})
+    assert p.footprint_sigma_mm == pytest.approx(
+        {"small": np.hypot(6, 1.5), "medium": np.hypot(6, 4)}
+    )
     assert (p.contact_counts, p.gap_decay_mm, p.gain_spread) == (60.0, 2.0, 0.0)
     assert p.noise_std_counts == (0.5, 1.85)
 
 
 def test_skin_table_sets_the_touch_response(tmp_path):
-    text = ("[skin]\nfootprint_sigma_mm = { small = 4.5 }\ncontact_counts = 80.0\n"
-            "gap_decay_mm = 1.0\ngain_spread = 0.2\nnoise_std_counts = 1.2\n")
+    text = (
+        "[skin]\nfootprint_sigma_mm = { small = 4.5 }\ncontact_counts = 80.0\n"
+        "gap_decay_mm = 1.0\ngain_spread = 0.2\nnoise_std_counts = 1.2\n"
+    )
     p = forward.SkinParams.from_table(scene(tmp_path, text).skin)
     assert p.footprint_sigma_mm["small"] == 4.5
     assert p.footprint_sigma_mm["medium"] == pytest.approx(np.hypot(6, 4))  # default kept
@@ -256,15 +286,20 @@ def test_skin_table_sets_the_touch_response(tmp_path):
     np.testing.assert_allclose(v[1], 80 * np.exp(-0.5) * np.exp(-1.0) * g)  # 1 sigma, 1 decay
 
 
-@pytest.mark.parametrize("text,expected", [
-    ("contact_counts = 0.0", "[skin].contact_counts: expected > 0"),
-    ("gap_decay_mm = -1.0", "[skin].gap_decay_mm: expected > 0"),
-    ("gain_spread = 1.5", "[skin].gain_spread: expected 0 <= spread < 1"),
-    ("noise_std_counts = [2.0, 1.0]", "[skin].noise_std_counts: expected a number >= 0 or "
-                                      "[lo, hi]"),
-    ("footprint_sigma_mm = { small = 0 }", "[skin].footprint_sigma_mm.small: expected a width"),
-    ("contact_count = 60.0", "unknown key 'contact_count' (did you mean 'contact_counts'?)"),
-])
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        ("contact_counts = 0.0", "[skin].contact_counts: expected > 0"),
+        ("gap_decay_mm = -1.0", "[skin].gap_decay_mm: expected > 0"),
+        ("gain_spread = 1.5", "[skin].gain_spread: expected 0 <= spread < 1"),
+        (
+            "noise_std_counts = [2.0, 1.0]",
+            "[skin].noise_std_counts: expected a number >= 0 or [lo, hi]",
+        ),
+        ("footprint_sigma_mm = { small = 0 }", "[skin].footprint_sigma_mm.small: expected a width"),
+        ("contact_count = 60.0", "unknown key 'contact_count' (did you mean 'contact_counts'?)"),
+    ],
+)
 def test_bad_skin_table_is_one_line(tmp_path, text, expected):
     from fruitcli.errors import SceneError
 
@@ -287,8 +322,13 @@ def test_project_to_surface_moves_a_chord_point_onto_the_body(tmp_path):
     from fruitcli.geometry.body_surface import body_surface, project_to_surface
 
     surface = body_surface(pad_surface_stl(tmp_path / "pad.stl"))
-    pts, dist = project_to_surface(np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]), surface,
-                                   None, None, forward.pad_taxels_mm(z_mm=3.0))
+    pts, dist = project_to_surface(
+        np.array([[1.0, 2.0, 2.5], [0.0, 0.0, 3.4]]),
+        surface,
+        None,
+        None,
+        forward.pad_taxels_mm(z_mm=3.0),
+    )
     np.testing.assert_allclose(pts, [[1.0, 2.0, 3.0], [0.0, 0.0, 3.0]], atol=1e-12)
     np.testing.assert_allclose(dist, [0.5, 0.4], atol=1e-12)
 
@@ -309,25 +349,35 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
         return np.hypot(m["x_mm"], m["z_mm"] - (1.5 - r))
 
     run_locate(sc, frames, taxels, states, tmp_path / "plain")
-    proj = scene(tmp_path, "state = 1\n[detection]\nproject = \"surface\"\n")
+    proj = scene(tmp_path, 'state = 1\n[detection]\nproject = "surface"\n')
     res = run_locate(proj, frames, taxels, states, tmp_path / "proj", surface_path=surface)
     assert np.all(radius(tmp_path / "plain") < r + 1.5 - 0.3)  # inside the body
     # on its outer face (4 mm facets), not the inner one 3 mm below
     assert np.allclose(radius(tmp_path / "proj"), r + 1.5, atol=0.2)
     assert res["projected_to_surface"]["mean_mm"] > 0.3
     # read in chunks of 7 frames on 2 threads: the same touches, the same figures
-    small = run_locate(proj, frames, taxels, states, tmp_path / "proj7", surface_path=surface,
-                       chunk_frames=7, workers=2)
-    assert (tmp_path / "proj7" / "touches.csv").read_bytes() == \
-        (tmp_path / "proj" / "touches.csv").read_bytes()
+    small = run_locate(
+        proj,
+        frames,
+        taxels,
+        states,
+        tmp_path / "proj7",
+        surface_path=surface,
+        chunk_frames=7,
+        workers=2,
+    )
+    assert (tmp_path / "proj7" / "touches.csv").read_bytes() == (
+        tmp_path / "proj" / "touches.csv"
+    ).read_bytes()
     assert small["frames"] > 7 * 4
     for key in ("touches", "max_mm"):
         assert small["projected_to_surface"][key] == res["projected_to_surface"][key]
-    assert small["projected_to_surface"]["mean_mm"] == \
-        pytest.approx(res["projected_to_surface"]["mean_mm"], rel=1e-12)
+    assert small["projected_to_surface"]["mean_mm"] == pytest.approx(
+        res["projected_to_surface"]["mean_mm"], rel=1e-12
+    )
     with pytest.raises(FrameError, match="project = surface needs the body's surface"):
         run_locate(proj, frames, taxels, states, tmp_path / "x")
     from fruitcli.errors import SceneError
 
     with pytest.raises(SceneError, match=r"\[detection\].project: expected one of none, surface"):
-        scene(tmp_path, "[detection]\nproject = \"nearest\"\n")
+        scene(tmp_path, '[detection]\nproject = "nearest"\n')
