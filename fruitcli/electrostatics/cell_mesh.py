@@ -2,16 +2,13 @@
 
 ``python -m fruitcli.electrostatics.cell_mesh SPEC.json OUT.npz ORDER`` meshes
 `cell_geometry.build` and writes the `occ_mesh.TetMesh` arrays; the parent
-(`mesh_cell`) runs it in its own process group, as `fruitcli.fem.meshing.tetra` does,
-because gmsh can ignore polite signals for a long time.
+(`mesh_cell`) runs it through `fruitcli.fem.meshing.child_process`, killed at the time
+limit and ended with its parent.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -21,6 +18,7 @@ import numpy as np
 from fruitcli.electrostatics.cell_geometry import CellSpec, build
 from fruitcli.electrostatics.occ_mesh import TetMesh, mesh_model, start
 from fruitcli.errors import MeshError
+from fruitcli.fem.meshing.child_process import follow_parent, last_error_line, run_module
 
 
 def mesh_cell(
@@ -30,50 +28,22 @@ def mesh_cell(
     with tempfile.TemporaryDirectory(prefix="fruit-cell-") as tmp:
         tmp = Path(tmp)
         (tmp / "spec.json").write_text(json.dumps(spec.to_dict()))
-        cmd = [
-            sys.executable,
-            "-m",
-            "fruitcli.electrostatics.cell_mesh",
-            str(tmp / "spec.json"),
-            str(tmp / "mesh.npz"),
-            str(order),
-        ]
-        env = dict(
-            os.environ,
-            PYTHONPATH=os.pathsep.join(
-                [str(Path(__file__).resolve().parents[2]), os.environ.get("PYTHONPATH", "")]
-            ),
-        )
-        proc = subprocess.Popen(
-            cmd,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            start_new_session=True,
-            env=env,
-            text=True,
-        )
+        args = [str(tmp / "spec.json"), str(tmp / "mesh.npz"), str(order)]
         try:
-            _, err = proc.communicate(timeout=time_limit_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
+            code, err = run_module("fruitcli.electrostatics.cell_mesh", args, time_limit_s)
+        except TimeoutError:
             raise MeshError(
                 f"crossing cell: gmsh did not finish within {time_limit_key} = "
                 f"{time_limit_s:g} s (killed)"
             ) from None
-        except BaseException:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-            raise
-        if proc.returncode != 0 or not (tmp / "mesh.npz").exists():
-            lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-            msg = lines[-1] if lines else f"exit code {proc.returncode}"
-            raise MeshError(f"crossing cell: meshing failed: {msg}")
+        if code != 0 or not (tmp / "mesh.npz").exists():
+            raise MeshError(f"crossing cell: meshing failed: {last_error_line(err, code)}")
         with np.load(tmp / "mesh.npz", allow_pickle=False) as data:
             return TetMesh.from_arrays({k: data[k] for k in data.files})
 
 
 def main(argv: list[str]) -> int:
+    follow_parent()
     raw = json.loads(Path(argv[0]).read_text())
     spec = CellSpec(
         **{

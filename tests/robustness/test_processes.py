@@ -32,7 +32,7 @@ PARENT = """
 import os, subprocess, sys, time
 env = dict(os.environ, FRUIT_GMSH_PARENT=str(os.getpid()))
 child = subprocess.Popen([sys.executable, "-c", "import os, sys, time\\n"
-    "from fruitcli.fem.meshing.gmsh_job import PARENT_ENV, die_with_parent\\n"
+    "from fruitcli.fem.meshing.child_process import PARENT_ENV, die_with_parent\\n"
     "die_with_parent(int(os.environ[PARENT_ENV]))\\n"
     "print('ready', flush=True)\\n"
     "time.sleep(120)"], env=env, start_new_session=True, stdout=subprocess.PIPE, text=True)
@@ -96,8 +96,8 @@ def test_concurrent_copies_of_a_borrowed_stage_do_not_collide(tmp_path):
 
 
 def test_killing_an_ended_gmsh_group_is_no_error():
-    from fruitcli.fem.meshing.tetra import _kill_group
+    from fruitcli.fem.meshing.child_process import kill_group
 
     proc = subprocess.Popen([sys.executable, "-c", "pass"], start_new_session=True)
     proc.wait()
-    _kill_group(proc.pid)  # "No such process" before
+    kill_group(proc.pid)  # "No such process" before

@@ -2,7 +2,7 @@
 
 gmsh can ignore polite signals for a long time, so the parent (`fruitcli.fem.meshing.tetra`)
 runs this module in its own process group and kills it after the time limit; the child
-ends with its parent (`die_with_parent`), so a killed `fruit run` leaves no gmsh behind.
+ends with its parent (`child_process.follow_parent`), so a killed `fruit run` leaves no gmsh behind.
 
 JOB.npz holds shells in order (the outer boundary first, then one per chamber), each
 either a triangle surface (`s{i}_vertices`, `s{i}_faces`, mm) or an analytic shape
@@ -240,42 +240,10 @@ def mesh_job(job: dict, out_dir: Path) -> None:
         gmsh.finalize()
 
 
-PARENT_ENV = "FRUIT_GMSH_PARENT"
-"""Environment variable holding the parent's process id."""
-PARENT_POLL_S = 0.5
-
-
-def die_with_parent(parent_pid: int) -> None:
-    """End this process when `parent_pid` ends, however it ends (SIGKILL included): on
-    Linux the kernel sends SIGKILL (prctl PR_SET_PDEATHSIG); elsewhere, and for a parent
-    gone before that call, a daemon thread polls the parent id (gmsh's C calls, made
-    through ctypes, release the GIL, so the thread runs while gmsh meshes)."""
-    import os
-    import signal
-    import threading
-    import time
-
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(PARENT_POLL_S)
-        os._exit(130)
-
-    threading.Thread(target=watch, daemon=True, name="parent-watch").start()
-
-
 def main(argv: list[str]) -> int:
-    import os
+    from fruitcli.fem.meshing.child_process import follow_parent
 
-    if os.environ.get(PARENT_ENV, "").isdigit():
-        die_with_parent(int(os.environ[PARENT_ENV]))
+    follow_parent()
     job_path, out_dir = Path(argv[0]), Path(argv[1])
     with np.load(job_path, allow_pickle=False) as data:
         job = {k: data[k] for k in data.files}

@@ -34,10 +34,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import signal
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -226,62 +222,26 @@ def run_gmsh(
     )
 
 
-def _kill_group(pid: int) -> None:
-    """SIGKILL the gmsh child's process group; one that has just ended is no error."""
-    try:
-        os.killpg(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-
-
 def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None) -> dict:
     """One gmsh child on `job`: its raw arrays and the .msh text."""
-    from fruitcli.fem.meshing.gmsh_job import PARENT_ENV
+    from fruitcli.fem.meshing.child_process import last_error_line, run_module
     from fruitcli.fsutil import owned_prefix, sweep_orphans
 
     sweep_orphans(Path(work_dir or tempfile.gettempdir()), "fruit-gmsh-")
     with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as tmp:
         tmp = Path(tmp)
         np.savez(tmp / "job.npz", **job)
-        cmd = [
-            sys.executable,
-            "-m",
-            "fruitcli.fem.meshing.gmsh_job",
-            str(tmp / "job.npz"),
-            str(tmp),
-        ]
-        env = dict(
-            os.environ,
-            PYTHONPATH=os.pathsep.join(
-                [str(Path(__file__).resolve().parents[3]), os.environ.get("PYTHONPATH", "")]
-            ),
-            **{PARENT_ENV: str(os.getpid())},
-        )
-        proc = subprocess.Popen(
-            cmd,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            start_new_session=True,
-            env=env,
-            text=True,
-        )
         try:
-            _, err = proc.communicate(timeout=time_limit_s)
-        except subprocess.TimeoutExpired:
-            _kill_group(proc.pid)
-            proc.communicate()
+            code, err = run_module(
+                "fruitcli.fem.meshing.gmsh_job", [str(tmp / "job.npz"), str(tmp)], time_limit_s
+            )
+        except TimeoutError:
             raise MeshError(
                 f"{label}: gmsh did not finish within [mesh].time_limit_s = "
                 f"{time_limit_s:g} s (killed); try a larger size_mm"
             ) from None
-        except BaseException:  # Ctrl-C or any error here: the child (own session) goes too
-            _kill_group(proc.pid)
-            proc.communicate()
-            raise
-        if proc.returncode != 0 or not (tmp / "raw.npz").exists():
-            lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-            msg = lines[-1] if lines else f"exit code {proc.returncode}"
-            raise MeshError(f"{label}: tetrahedralization failed: {msg}")
+        if code != 0 or not (tmp / "raw.npz").exists():
+            raise MeshError(f"{label}: tetrahedralization failed: {last_error_line(err, code)}")
         with np.load(tmp / "raw.npz", allow_pickle=False) as data:
             raw = {k: data[k] for k in data.files}
         raw["msh_text"] = (tmp / "mesh.msh").read_bytes()
