@@ -123,6 +123,12 @@ FORBIDDEN = {
         "fruitcli.geometry",
     ],
     "fruitcli.sensing.outputs": ["fruitcli.sensing.live", "fruitcli.sensing.skin"],
+    "fruitcli.sensing.shape": [
+        "fruitcli.sensing.live",
+        "fruitcli.sensing.outputs",
+        "fruitcli.fem",
+        "fruitcli.geometry",
+    ],
     "fruitcli.sensing": [
         "fruitcli.workflow",
         "fruitcli.cli",

@@ -8,6 +8,8 @@ Sub-packages, by concept (each may import only those listed before it, plus
   recordings of frames (`.npz`, MuCa ASCII logs), read whole or chunk by chunk.
 - `detection`: baseline, threshold, N9 centroid, multitouch (paper Sec. III-B), 3D
   location (eq. 7), baseline drift, touch sessions, taxel health, gain division.
+- `shape`: a touch's strength, size and hover height, and two footprints fitted to
+  separate fingers close together.
 - `skin`: the skin's forward model, the virtual 3D-printer bench, its calibration,
   sensitivity analysis and heat maps.
 - `outputs`: where touches go: touches CSV, TUIO 1.1 and plain OSC, the live view.

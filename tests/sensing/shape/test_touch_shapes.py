@@ -14,9 +14,9 @@ from fruitcli.sensing.detection.frames_to_touches import (
     Settings,
     TouchTable,
 )
-from fruitcli.sensing.detection.touch_shape import touch_shapes
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.outputs.touch_csv import TOUCH_HEADER, touch_bytes, touch_csv
+from fruitcli.sensing.shape.touch_shape import touch_shapes
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.heights import GapLaw, gap_law
 from fruitcli.tables import Taxels

@@ -84,7 +84,7 @@ def gap_law_shapes(
     v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, law
 ) -> Shapes:
     """`touch_shapes` for a `heights.GapLaw`, compiled (`shape_kernel`)."""
-    from fruitcli.sensing.detection.shape_kernel import gap_law_shapes as kernel
+    from fruitcli.sensing.shape.shape_kernel import gap_law_shapes as kernel
 
     gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
     out = np.empty((len(v9), 4))
