@@ -57,6 +57,25 @@ def fuzz(name: str, seconds: float) -> tuple[int, int, str]:
     return tried, failed, first
 
 
+def _where() -> str:
+    """Date, commit and machine of this run, for the page it writes."""
+    import datetime
+    import os
+    import platform
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True
+        ).stdout.strip()
+    except OSError:
+        commit = ""
+    date = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    machine = f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    return f"{date}, commit {commit or 'unknown'}, {machine}"
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -86,9 +105,8 @@ def main() -> int:
             "# Reliability: fuzzing\n\nEvery reader and parser given hostile inputs "
             "(tests/robustness/fuzz_targets.py); each case must give a correct result or the "
             "project's own error in one line naming the input. Written by `make fuzz` "
-            f"({args.seconds:g} s in all).\n\n| target | cases | failures |\n|---|---|---|\n"
-            + "\n".join(rows)
-            + "\n"
+            f"({args.seconds:g} s in all) on {_where()}.\n\n"
+            "| target | cases | failures |\n|---|---|---|\n" + "\n".join(rows) + "\n"
         )
     return 1 if bad else 0
 
