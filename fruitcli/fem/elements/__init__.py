@@ -2,7 +2,11 @@
 tet's geometry and Hooke stiffness (`tet4`), the quadratic mesh built from a linear one
 (`quadratic`), the compiled element loops for any element and material (`integrate`),
 and points (taxels) located in the mesh (`barycentric`). An element is a `Family`: nodes
-per tet, the surface triangle it induces and their quadrature rules."""
+per tet, the surface triangle it induces and their quadrature rules.
+
+May import: `fruitcli.fem.materials` (the material kernels the element loops call),
+`fruitcli.fem` top modules, `fruitcli.errors`.
+"""
 
 from fruitcli.fem.elements.lagrange import ELEMENTS, Family, family
 

@@ -1,4 +1,7 @@
 """The reduced model for live use: chamber pressures (kPa) -> taxel and node positions (mm)
 by polynomial response surfaces (`response_surface`) fitted to full solves (`build`), and
 the model itself (`model`).
+
+May import: `fruitcli.fem.solver`, `fruitcli.fem` top modules, `fruitcli.errors`,
+`fruitcli.fsutil`, `fruitcli.scene`.
 """
