@@ -7,13 +7,17 @@ import click
 from fruitcli.cli.options import (
     FiniteFloat,
     Progress,
+    baseline_frames_option,
     baud_option,
     divide_by_gain_option,
     format_option,
     fruit_errors,
+    hovers_option,
     reduced_build_bar,
+    skin_table_option,
     states_option,
     taxels_option,
+    threshold_option,
 )
 from fruitcli.sensing.detection.drift import DEFAULT_TAU_S
 from fruitcli.workflow.scene_outputs import scene_products
@@ -55,34 +59,11 @@ from fruitcli.workflow.scene_outputs import scene_products
 )
 @baud_option()
 @format_option(default=None)
-@click.option(
-    "--baseline-frames",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Frames averaged into the baseline C0 (default: the scene's).",
-)
-@click.option(
-    "--threshold",
-    type=FiniteFloat(min=0, min_open=True),
-    default=None,
-    help="Touch threshold, counts (default: the scene's).",
-)
+@baseline_frames_option
+@threshold_option
 @divide_by_gain_option
-@click.option(
-    "--skin",
-    "skin_toml",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
-    "heights and strengths (default: the scene's [skin]).",
-)
-@click.option(
-    "--hovers",
-    is_flag=True,
-    default=None,
-    help="Report hovers below the touch threshold (kind hover; default: the "
-    "scene's [detection].hovers).",
-)
+@skin_table_option
+@hovers_option
 @click.option(
     "--osc",
     "osc_target",

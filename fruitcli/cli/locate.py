@@ -5,14 +5,17 @@ from __future__ import annotations
 import click
 
 from fruitcli.cli.options import (
-    FiniteFloat,
     Progress,
+    baseline_frames_option,
     divide_by_gain_option,
     fruit_errors,
+    hovers_option,
     out_option,
     reduced_build_bar,
+    skin_table_option,
     states_option,
     taxels_option,
+    threshold_option,
 )
 
 
@@ -29,18 +32,8 @@ from fruitcli.cli.options import (
     default=None,
     help="Scene whose [board] and [detection] sections to use.",
 )
-@click.option(
-    "--baseline-frames",
-    type=click.IntRange(min=1),
-    default=None,
-    help="Frames averaged into the baseline C0 (default 10).",
-)
-@click.option(
-    "--threshold",
-    type=FiniteFloat(min=0, min_open=True),
-    default=None,
-    help="Touch threshold on v = C - C0, counts (default 20).",
-)
+@baseline_frames_option
+@threshold_option
 @click.option(
     "--method",
     type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]),
@@ -64,21 +57,8 @@ from fruitcli.cli.options import (
     "frame's taxels from the scene's reduced model, built into "
     "out/<scene name>/reduce on first use) or full (the --states path).",
 )
-@click.option(
-    "--skin",
-    "skin_toml",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives "
-    "the touches' heights and strengths (default: the scene's [skin]).",
-)
-@click.option(
-    "--hovers",
-    is_flag=True,
-    default=None,
-    help="Report hovers (below the touch threshold) as rows of kind hover "
-    "(default: the scene's [detection].hovers).",
-)
+@skin_table_option
+@hovers_option
 @divide_by_gain_option
 @out_option("Output folder: touches.csv (and measured.csv for bench recordings).")
 def locate(

@@ -210,3 +210,36 @@ def scheduler_option(what: str):
         "or PBS; --out must be on a file system they share. Needs pip "
         "install 'fruitcli[cluster]'.",
     )
+
+
+# The detection options `fruit locate` and `fruit live` share; each falls back on the
+# scene's [detection] (or [skin]) when not given.
+baseline_frames_option = click.option(
+    "--baseline-frames",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Frames averaged into the baseline C0 (default: the scene's "
+    "[detection].baseline_frames, 10).",
+)
+threshold_option = click.option(
+    "--threshold",
+    type=FiniteFloat(min=0, min_open=True),
+    default=None,
+    help="Touch threshold on v = C - C0, counts (default: the scene's "
+    "[detection].threshold_counts, 20).",
+)
+skin_table_option = click.option(
+    "--skin",
+    "skin_toml",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="A [skin] table (e.g. `fruit calibrate`'s skin.toml) whose gap law gives the "
+    "touches' heights and strengths (default: the scene's [skin]).",
+)
+hovers_option = click.option(
+    "--hovers",
+    is_flag=True,
+    default=None,
+    help="Report hovers (below the touch threshold) as touches of kind hover (default: the "
+    "scene's [detection].hovers).",
+)

@@ -112,7 +112,7 @@ def test_tuio_bundles_carry_every_field_in_closed_form():
         ([1], [(3, 3)], [30]),
         ([2], [(5, 4)], [50]),
     ]
-    v_i = [0.0, 1 / 0.1, 1 / 0.05]  # grid units per s of the moving touch (session 0)
+    v_i = [0.0, 1 / 0.1, 1 / 0.05]  # grid units per s of the moving touch (session id 0)
     for f, (ids, ij, peaks) in enumerate(want):
         b2, b3, bp, plain = got[4 * f : 4 * f + 4]
         for b, prof in ((b2, "/tuio/2Dcur"), (b3, "/tuio/3Dcur"), (bp, "/tuio/_sp")):
