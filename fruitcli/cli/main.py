@@ -120,8 +120,8 @@ def main(argv=None):
 
     try:
         return cli.main(args=argv, standalone_mode=False)
-    except click.exceptions.Abort:
-        click.echo("Aborted.", err=True)
+    except click.exceptions.Abort as exc:  # click turns Ctrl-C into Abort; EOF at a prompt too
+        click.echo("Interrupted." if _interrupted(exc) else "Aborted.", err=True)
         sys.exit(130)
     except click.ClickException as exc:
         exc.show()
