@@ -421,3 +421,29 @@ def test_coarse_reduction_warns_when_it_departs_from_the_offset(tmp_path):
     warn = [w for w in rep["warnings"] if "departs from the ideal 2 mm offset" in w]
     assert warn and warn[0].endswith("raise --faces or lower --cover-mm")
     assert f"warning: {warn[0]}" in res.output
+
+
+def test_a_body_touching_itself_along_an_edge_is_filled_closed():
+    """Two blocks meeting only along the vertical edge x = y = 10 mm, joined by a slab on
+    top: one shell, but a mesh file would reload that edge with four faces (as the
+    Stanford bunny's offset does at its ear). A capsule fills it: closed, one body."""
+    import manifold3d
+
+    from fruitcli.geometry.mesh.export import weld_float32
+    from fruitcli.geometry.tracks.reduce import _fill_pinched_edges, manifold_arrays
+
+    block = manifold3d.Manifold.cube((10.0, 10.0, 10.0))
+    slab = manifold3d.Manifold.cube((20.0, 20.0, 2.0)).translate((0.0, 0.0, 10.0))
+    body = block + block.translate((10.0, 10.0, 0.0)) + slab
+    assert len(body.decompose()) == 1
+    before = trimesh.Trimesh(*weld_float32(*manifold_arrays(body)))
+    assert not before.is_watertight
+
+    radius = 0.5
+    filled, where = _fill_pinched_edges(body, radius)
+    after = trimesh.Trimesh(*weld_float32(*manifold_arrays(filled)))
+    assert after.is_watertight and len(after.split(only_watertight=False)) == 1
+    assert where == ["(10.0, 10.0, 5.0)"]
+    # the filling adds at most a capsule's volume along the 10 mm edge (12-gon sphere)
+    added = filled.volume() - body.volume()
+    assert 0.0 < added <= np.pi * radius**2 * 10.0 + 4.0 / 3.0 * np.pi * radius**3

@@ -176,6 +176,7 @@ def test_every_subcommand_has_help_with_units(fruit):
     for name in COMMANDS:
         res = fruit(name, "--help")
         assert res.exit_code == 0, (name, res.output)
+        assert "None]" not in res.output, (name, res.output)  # no 'x<=None' for a range
     for name in ("make-tracks", "simulate", "locate", "evaluate", "bench", "record"):
         res = fruit(name, "--help")
         assert "mm" in res.output or "counts" in res.output or "frames" in res.output, name

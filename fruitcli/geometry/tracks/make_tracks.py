@@ -396,6 +396,13 @@ def make_tracks(
             f"at {big['at_mm']} mm): a feature there is thinner than twice the "
             "cover; they are not in the reduced body"
         )
+    if red.filled_pinches:
+        warnings.append(
+            f"the {cover_mm:g} mm offset surface touched itself along "
+            f"{len(red.filled_pinches)} edge(s) (first at {red.filled_pinches[0]} mm), "
+            "where a feature is about twice the cover thick; each was filled with a "
+            "capsule so the reduced body is closed"
+        )
     if slivers:
         warnings.append(
             f"dropped {len(slivers)} sliver(s) of {sum(slivers):.3g} mm^3 that "
@@ -447,6 +454,7 @@ def make_tracks(
         "distance_grid_mm": red.grid_mm,
         "dropped_islands": red.dropped_islands,
         "islands": red.islands,
+        "filled_pinches_at_mm": red.filled_pinches,
         "split_long_triangles": split_edge is not None,
         "split_edge_mm": split_edge,
         "offset_error": offset,

@@ -47,6 +47,7 @@ class Reduced:
     islands: list = field(default_factory=list)
     winding_range: tuple[float, float] = (0.0, 1.0)
     inside_volume_mm3: float = 0.0
+    filled_pinches: list = field(default_factory=list)
 
 
 def signed_distance_grid(
@@ -403,6 +404,7 @@ def reduce_body(
     body = simplify_to(pieces[0], target_faces, SIMPLIFY_MAX_PER_EDGE * edge)
     body, cut_off = _drop_pinched_shells(body)
     islands += cut_off
+    body, filled = _fill_pinched_edges(body, max(PINCH_RADIUS_EDGE * edge, PINCH_RADIUS_MIN_MM))
     if sum(v for v, _ in cut_off) >= ISLAND_VOLUME_FRACTION * body.volume():
         v, at = max(cut_off)
         raise GeometryError(
@@ -424,6 +426,7 @@ def reduce_body(
         equator_z_mm=equator,
         winding_range=(float(w.min()), float(w.max())),
         inside_volume_mm3=float(inside_w.sum()) * h**3,
+        filled_pinches=filled,
     )
 
 
@@ -456,6 +459,40 @@ def _drop_pinched_shells(body):
     keep = f[labels == big]
     used, inv = np.unique(keep, return_inverse=True)
     return to_manifold64(v[used], inv.reshape(-1, 3)), out
+
+
+PINCH_RADIUS_EDGE = 0.25
+"""Radius of the capsule that fills a pinch, as a fraction of the level set's edge."""
+PINCH_RADIUS_MIN_MM = 0.2
+
+
+def _fill_pinched_edges(body, radius_mm: float, rounds: int = 5):
+    """Fill the places where the offset surface touches itself along an edge.
+
+    manifold3d keeps the two sheets of such a pinch apart by duplicated vertices; a mesh
+    file cannot, and reloads the edge with four faces (not closed). Each pinched edge is
+    filled with a capsule of `radius_mm` (mm) around it, a local thickening of a place
+    that is zero thick. Returns (body, ['(x, y, z)' mm of each capsule's centre])."""
+    import manifold3d
+
+    from fruitcli.geometry.mesh.export import weld_float32
+
+    ball = np.asarray(manifold3d.Manifold.sphere(radius_mm, 12).to_mesh().vert_properties)
+    filled = []
+    for _ in range(rounds):
+        v, f = weld_float32(*manifold_arrays(body))
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        unique, counts = np.unique(edges, axis=0, return_counts=True)
+        pinched = v[unique[counts != 2]]  # (k, 2, 3): both ends of each pinched edge
+        if not len(pinched):
+            break
+        capsules = [
+            manifold3d.Manifold.hull_points(np.concatenate([ball[:, :3] + end for end in ends]))
+            for ends in pinched
+        ]
+        body = manifold3d.Manifold.batch_boolean([body, *capsules], manifold3d.OpType.Add)
+        filled += ["(" + ", ".join(f"{x:.1f}" for x in ends.mean(axis=0)) + ")" for ends in pinched]
+    return body, filled
 
 
 def to_manifold64(vertices: np.ndarray, faces: np.ndarray):
