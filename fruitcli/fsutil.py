@@ -13,11 +13,12 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike):
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path`; rename it onto `path` on success."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -124,7 +125,7 @@ def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
 
 
 @contextlib.contextmanager
-def staged_dir(final: str | os.PathLike):
+def staged_dir(final: str | os.PathLike) -> Iterator[Path]:
     """Yield a fresh temporary folder; on success move its files into `final`.
 
     Outputs of one step appear together or not at all; files already in `final`

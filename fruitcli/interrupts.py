@@ -8,10 +8,11 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+from collections.abc import Iterator
 
 
 @contextlib.contextmanager
-def deferred_sigint():
+def deferred_sigint() -> Iterator[None]:
     """Hold SIGINT back for the block (main thread only; elsewhere a no-op), then raise
     KeyboardInterrupt if one came."""
     if threading.current_thread() is not threading.main_thread():

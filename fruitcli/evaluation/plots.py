@@ -3,15 +3,25 @@ a black line joining each pair; axes in mm with equal aspect. Functions take an 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 PLOT_MAX_PAIRS = 5000
 """Pairs drawn at most; larger sets are shown by an evenly spaced subset."""
 
 
 def pairs(
-    ax, truth: np.ndarray, measured: np.ndarray, axes=(0, 1), labels=("x", "y"), title: str = ""
-):
+    ax: Axes,
+    truth: np.ndarray,
+    measured: np.ndarray,
+    axes: tuple[int, int] = (0, 1),
+    labels: tuple[str, str] = ("x", "y"),
+    title: str = "",
+) -> Axes:
     """Draw matched pairs projected on two coordinate `axes` (0=x, 1=y, 2=z)."""
     from matplotlib.collections import LineCollection
 

@@ -16,10 +16,14 @@ All lengths in mm, volumes in mm^3, as float64 manifold3d solids.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
+
+if TYPE_CHECKING:
+    import manifold3d as mf
 
 CIRCLE_SEGMENTS = 48
 """Segments of the pins', channels' and keys' circles."""
@@ -84,7 +88,7 @@ class Mold:
     channels: object = None  # pour hole and vents (Manifold)
 
 
-def box(lo, hi):
+def box(lo, hi) -> mf.Manifold:
     """An axis-aligned box Manifold from corner lo to corner hi (mm)."""
     import manifold3d as mf
 
@@ -92,13 +96,15 @@ def box(lo, hi):
     return mf.Manifold.cube(tuple(hi - lo)).translate(tuple(lo))
 
 
-def vertical_cylinder(x: float, y: float, z0: float, z1: float, r: float):
+def vertical_cylinder(x: float, y: float, z0: float, z1: float, r: float) -> mf.Manifold:
     import manifold3d as mf
 
     return mf.Manifold.cylinder(z1 - z0, r, r, CIRCLE_SEGMENTS).translate((x, y, z0))
 
 
-def highest_points(piece, count: int, keep_off_mm: float, avoid=()):
+def highest_points(
+    piece: mf.Manifold, count: int, keep_off_mm: float, avoid=()
+) -> list[tuple[float, float, float]]:
     """The cavity's highest points: [(x, y, z)] mm, the highest first, then local maxima of
     the piece's top height at least VENT_SEPARATION_MM apart, at most `count` in all, each
     at least `keep_off_mm` inside the piece's outline (seen from above) and, for each
@@ -298,7 +304,7 @@ def undercut_area(piece, zp: float, side: int, pull: dict) -> dict:
     return out
 
 
-def assembled_cavity(mold: Mold):
+def assembled_cavity(mold: Mold) -> mf.Manifold:
     """The empty space the assembled mold encloses (box - all parts - the pour and vent
     channels), as a Manifold: what the silicone fills (plus the keys' and pins'
     clearance)."""

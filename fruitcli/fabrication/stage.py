@@ -10,18 +10,22 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.fabrication.mold import MoldOptions, assembled_cavity, make_mold, undercut_area
 
+if TYPE_CHECKING:
+    import manifold3d as mf
+
 CLI_NAMES = {k: "--" + k.replace("_", "-") for k in MoldOptions.__dataclass_fields__}
 SCENE_NAMES = {k: f"[mold].{k}" for k in MoldOptions.__dataclass_fields__}
 ELLIPSOID_SEGMENTS = 64
 
 
-def load_solid(path, what: str):
+def load_solid(path: str | Path, what: str) -> mf.Manifold:
     """A closed surface file in mm as a float64 Manifold."""
     from fruitcli.geometry.mesh import load
     from fruitcli.geometry.tracks.reduce import to_manifold64

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,11 @@ from fruitcli.fem.materials import corotation_kernels as kernels
 from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from fruitcli.fem.solver.linsolve import TangentSolver
 
 
 @dataclass(frozen=True)
@@ -295,7 +301,7 @@ class Model:
         return f, rot, det
 
     @property
-    def scatter(self):
+    def scatter(self) -> sp.csr_matrix:
         """Sparse (n, 4 m) operator summing per-element nodal rows into nodes."""
         s = self.__dict__.get("_scatter")
         if s is None:
@@ -460,7 +466,7 @@ class Model:
             np.add.at(f, jig.nodes, jig.stiffness_mn_per_mm * (target - x[jig.nodes]))
         return f
 
-    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray):
+    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray) -> sp.csr_matrix | None:
         """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k d^2V_k/dx^2
         (mN/mm), or None without chamber pressure."""
         if not len(self.chamber_tris) or not np.any(pressure_kpa):
@@ -523,7 +529,7 @@ class Model:
         """(m,) det F per tet at x."""
         return corotation.det3(corotation.deformation_gradients(x, self.tets, self.dm_inv))
 
-    def make_solver(self, method: str = "pcg"):
+    def make_solver(self, method: str = "pcg") -> TangentSolver:
         from fruitcli.fem.solver.linsolve import TangentSolver
 
         return TangentSolver(self, method)

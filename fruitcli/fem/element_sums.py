@@ -29,19 +29,19 @@ def node_incidence(tets: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarr
 
 
 @njit(cache=True, nogil=True)
-def n_blocks(m):
+def n_blocks(m: int) -> int:
     """Blocks for m elements: BLOCKS, or fewer for a small mesh."""
     return max(1, min(m, BLOCKS))
 
 
 @njit(cache=True, nogil=True, inline="always")
-def block_range(c, nblocks, m):
+def block_range(c: int, nblocks: int, m: int) -> tuple[int, int]:
     """Element range [lo, hi) of block c of nblocks over m elements."""
     return c * m // nblocks, (c + 1) * m // nblocks
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def gather_rows(e_rows, ptr, rows, out):
+def gather_rows(e_rows: np.ndarray, ptr: np.ndarray, rows: np.ndarray, out: np.ndarray) -> None:
     """out[a, i] = sum of e_rows[rows[k], i] over node a's k in ptr[a]:ptr[a + 1], added in
     that (element) order; e_rows (nen m, 3), out (n, 3), ptr and rows from
     `node_incidence`."""

@@ -11,10 +11,14 @@ All lengths in mm; no random numbers.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.geometry.mesh.columns import top_z
+
+if TYPE_CHECKING:
+    import trimesh
 
 # centreline: trunk from (15, -66) along +y to (15, 5); arc of radius 45 about (-30, 5)
 # turning left by 90 degrees to (-30, 50); tip straight along -x to (-95, 50)
@@ -222,7 +226,7 @@ def fruit_arrays(
     return verts, faces
 
 
-def make_fruit_artist(n_along: int = N_ALONG, n_around: int = N_AROUND):
+def make_fruit_artist(n_along: int = N_ALONG, n_around: int = N_AROUND) -> trimesh.Trimesh:
     """The default artist mesh as a closed trimesh.Trimesh in mm (>= 100,000 triangles)."""
     import trimesh
 

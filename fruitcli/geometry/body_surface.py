@@ -132,7 +132,7 @@ class SurfaceProjector:
 
 def project_to_surface(
     xyz_mm: np.ndarray, surface, states, state: int | None, taxels_mm: np.ndarray
-):
+) -> tuple[np.ndarray, np.ndarray]:
     """Touch points (n, 3) mm moved onto the body's surface (`SurfaceProjector`).
     -> (points, distances (n,) mm)."""
     if len(xyz_mm) == 0:

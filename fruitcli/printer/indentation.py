@@ -48,7 +48,7 @@ class BenchStopped(FruitError):
     """The bench stopped at a sample (bed limit, no touch, printer or board failure)."""
 
 
-def bench_samples(scene, taxels, states_npz):
+def bench_samples(scene, taxels, states_npz) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(sample ids (m,), contact points (m, 3) model mm, highest model z mm, samples in
     all): the virtual bench's sample points over the surface."""
     from fruitcli.sensing.detection.locate import load_states
@@ -78,7 +78,7 @@ class BenchLog:
         self.frames, self.t_s, self.printer_mm, self.sample = [], [], [], []
         self.truth: list[tuple[int, np.ndarray]] = []
 
-    def add(self, counts, t_s, tip_mm, sample=-1):
+    def add(self, counts: np.ndarray, t_s: float, tip_mm, sample: int = -1) -> None:
         self.frames.append(counts)
         self.t_s.append(t_s)
         self.printer_mm.append(np.asarray(tip_mm, float))
@@ -140,7 +140,7 @@ class BoardStream:
                     self.cond.notify_all()
             time.sleep(YIELD_S)  # let next_frame_after take the read lock
 
-    def next_frame_after(self, timeout_s: float = FRAME_TIMEOUT_S):
+    def next_frame_after(self, timeout_s: float = FRAME_TIMEOUT_S) -> tuple[np.ndarray, float]:
         """The next whole frame whose first byte arrived after now: (counts, t_s)."""
         with self.read_lock:
             try:
@@ -167,7 +167,7 @@ class BoardStream:
             "after the move" + (f" ({why})" if why else "")
         )
 
-    def close(self):
+    def close(self) -> None:
         self.stop.set()
         self.thread.join(1.0)
 

@@ -61,7 +61,7 @@ class Serial:
 
     name = "serial"
 
-    def close(self):
+    def close(self) -> None:
         pass
 
 
@@ -81,18 +81,18 @@ class LocalPool:
             self.jobs, mp_context=self._ctx, initializer=_share_cores, initargs=(self.jobs,)
         )
 
-    def submit(self, func, *args):
+    def submit(self, func: Callable[..., Any], *args: Any) -> cf.Future:
         return self.pool.submit(func, *args)
 
     def lost(self, exc: BaseException) -> bool:
         return isinstance(exc, cf.process.BrokenProcessPool)
 
-    def renew(self):
+    def renew(self) -> None:
         """A worker died: the pool is broken for every task in it; start a new one."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = self._new()
 
-    def close(self):
+    def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -135,7 +135,7 @@ class DaskPool:
             )
         self.executor = self.client.get_executor(pure=False)
 
-    def submit(self, func, *args):
+    def submit(self, func: Callable[..., Any], *args: Any) -> cf.Future:
         return self.executor.submit(func, *args)
 
     def lost(self, exc: BaseException) -> bool:
@@ -143,7 +143,7 @@ class DaskPool:
 
         return isinstance(exc, KilledWorker)
 
-    def renew(self):
+    def renew(self) -> None:
         pass  # the scheduler already reran the task on other workers
 
     def probe(self, out_dir: Path) -> None:
@@ -182,7 +182,7 @@ class DaskPool:
                 "one there"
             )
 
-    def close(self):
+    def close(self) -> None:
         self.executor.shutdown(wait=False)
         self.client.close()
 
@@ -226,7 +226,7 @@ def open_executor(
     scheduler: str | None = None,
     out_dir: Path | None = None,
     timeout_s: float = CONNECT_TIMEOUT_S,
-):
+) -> Serial | LocalPool | DaskPool:
     """Serial (jobs 1), LocalPool (jobs N, default all cores) or DaskPool (scheduler);
     with a scheduler and `out_dir`, the workers must see `out_dir` (probed)."""
     if scheduler:

@@ -104,10 +104,10 @@ class Family:
     mean_dilatation: bool
     doc: str
 
-    def volume_rule(self):
+    def volume_rule(self) -> tuple[np.ndarray, np.ndarray]:
         return tet_rule(self.volume_degree)
 
-    def surface_rule(self):
+    def surface_rule(self) -> tuple[np.ndarray, np.ndarray]:
         return tri_rule(self.surface_degree)
 
 

@@ -14,7 +14,9 @@ def _edge_key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return lo.astype(np.int64) * n + hi
 
 
-def quadratic_mesh(nodes: np.ndarray, tets: np.ndarray, tris: list[np.ndarray]):
+def quadratic_mesh(
+    nodes: np.ndarray, tets: np.ndarray, tris: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """(nodes2 (n + e, 3), tets10 (m, 10), tris6 list of (t, 6)) for corner nodes
     (n, 3) mm, tets (m, 4) and surface triangles (t, 3) each. Corner nodes keep their
     numbers; edge nodes follow, at the edge midpoints."""

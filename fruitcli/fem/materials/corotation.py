@@ -8,7 +8,12 @@ Points (n, 3) mm, forces (n, 3) mN, stiffness blocks (m, 12, 12) mN/mm.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 
 def deformation_gradients(x: np.ndarray, tets: np.ndarray, dm_inv: np.ndarray) -> np.ndarray:
@@ -164,7 +169,7 @@ def skew_stiffness(
     return t
 
 
-def scatter_matrix(tets: np.ndarray, n_nodes: int):
+def scatter_matrix(tets: np.ndarray, n_nodes: int) -> sp.csr_matrix:
     """Sparse (n_nodes, 4 m) sum of per-element nodal rows (m, 4, 3) -> (n_nodes, 3)."""
     import scipy.sparse as sp
 

@@ -32,7 +32,9 @@ def _rt_f(r, f, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
+def kinematics(
+    x, tets, grads, guess, use_guess, iterations, stop
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(f, rot, det, cold) at points x (n, 3): F = sum_b x_b g_b^T, det F, and R of F = R S
     by Newton on skew(R^T F) = 0 from the rotations `guess` (m, 3, 3) of a nearby
     configuration: (tr S I - S) w = vee(A - A^T), A = R^T F, S = sym(A), R <- R cay(w/2),
@@ -111,7 +113,7 @@ def kinematics(x, tets, grads, guess, use_guess, iterations, stop):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
+def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows) -> tuple[np.ndarray, float]:
     """Elastic forces (n, 3) mN and strain energy (mN mm): with H = R^T F - I and
     sigma = lam tr H I + mu (H + H^T), node a of element e gets V R sigma g_a and the
     energy sums V sigma : H / 2 (R K0 (R^T x - X) of the isotropic Hooke K0). ptr, rows:
@@ -158,7 +160,7 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows):
     return out, energy
 
 
-def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
+def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v) -> np.ndarray:
     """Consistent tangent times v (n, 3) (mN) over every dof (`tangent_product_dofs`)."""
     n = v.shape[0]
     dof = np.arange(3 * n).reshape(n, 3)
@@ -181,7 +183,7 @@ def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def rotated_gradients(grads, rot):
+def rotated_gradients(grads: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """(m, 4, 3) R g_b: each element's shape-function gradients turned by its rotation
     (computed once per tangent, read by every product)."""
     m = grads.shape[0]
@@ -197,7 +199,9 @@ def rotated_gradients(grads, rot):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out, ptr, rows):
+def tangent_product_dofs(
+    tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_out, ptr, rows
+) -> np.ndarray:
     """Consistent tangent times v (mN), over the dofs numbered by dof (n, 3) (-1: held,
     its component of v is zero and its row dropped), v (n_out,): per element, with
     the rotated gradients rg = R g_b (`rotated_gradients`),
@@ -265,7 +269,7 @@ def tangent_product_dofs(tets, rg, volumes, lam, mu, t_world, with_t, dof, v, n_
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def skew_stiffness_closed_form(f, rot, lam, mu, project):
+def skew_stiffness_closed_form(f, rot, lam, mu, project) -> tuple[np.ndarray, np.ndarray]:
     """(t, easy): the rotation-derivative term T' = R (2 mu I + 2 c Q^-1) R^T (m, 3, 3)
     of `corotation.skew_stiffness` (Q = tr S I - S, S = sym(R^T F), c = lam tr(S - I) -
     2 mu) with Q^-1 from its adjugate, for the elements where that is safe (`easy`):

@@ -18,7 +18,7 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d):
+def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d) -> float:
     """W(I1bar) (kPa) at F (3, 3) with F^-1 `finv` and det F `det`; writes P (3, 3) into
     p_out and, when want_tangent, dP/dF (9, 9) into a_out; d (3, 3): scratch (the
     element loop runs on several threads, where an allocation per call is slow)."""
@@ -54,7 +54,7 @@ def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d):
 
 
 @njit(cache=True, nogil=True)
-def volumetric(det, kappa):
+def volumetric(det: float, kappa: float) -> tuple[float, float, float]:
     """(U, dU/dJ, d2U/dJ2) in kPa at J = det."""
     return (
         0.25 * kappa * (det * det - 1.0 - 2.0 * np.log(det)),

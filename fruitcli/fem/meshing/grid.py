@@ -48,7 +48,9 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
     return nodes, tets
 
 
-def structured_box_with_cavity(lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm):
+def structured_box_with_cavity(
+    lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Structured box minus the cells whose centre lies in the cavity box. Returns nodes
     (n, 3), tets (m, 4) and the cavity wall triangles (t, 3), normals out of the cavity."""
     from fruitcli.fem.meshing.topology import boundary_faces
@@ -68,7 +70,9 @@ def structured_box_with_cavity(lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm):
     return nodes, tets, cavity[:, [0, 2, 1]]
 
 
-def shell_octant(inner_mm: float, outer_mm: float, cells: int, layers: int):
+def shell_octant(
+    inner_mm: float, outer_mm: float, cells: int, layers: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The octant x, y, z >= 0 of a spherical shell inner_mm <= r <= outer_mm as tets:
     three cubed-sphere patches (the cube faces x = 1, y = 1, z = 1 seen from the centre,
     equiangular), `cells` cells along each patch edge and `layers` radially, each cell

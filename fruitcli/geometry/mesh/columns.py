@@ -19,7 +19,7 @@ def vertical_hits(
     xy: np.ndarray,
     cell_mm: float | None = None,
     upward: bool = False,
-):
+) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All crossings of vertical lines through `xy` (n, 2) with the triangles.
 
     Returns (point_index (h,) int, z_mm (h,) float), sorted by point then z; with

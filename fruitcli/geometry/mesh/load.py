@@ -12,10 +12,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
+
+if TYPE_CHECKING:
+    import manifold3d
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
@@ -359,7 +363,7 @@ def component_count(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.unique(labels, return_inverse=True)[1].ravel()
 
 
-def to_manifold(vertices: np.ndarray, faces: np.ndarray):
+def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
     """A manifold3d.Manifold from arrays (vertices float64 mm, faces int)."""
     import manifold3d
 

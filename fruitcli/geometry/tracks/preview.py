@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 
 def write_preview(
@@ -71,15 +76,15 @@ def view_matrix(elev_deg: float = 35.0, azim_deg: float = -60.0) -> np.ndarray:
 
 
 def draw_perspective(
-    ax,
+    ax: Axes,
     v: np.ndarray,
     f: np.ndarray,
     curves,
     points,
-    elev_deg=35.0,
-    azim_deg=-60.0,
+    elev_deg: float = 35.0,
+    azim_deg: float = -60.0,
     flat: bool = False,
-):
+) -> Axes:
     """Shaded orthographic view of a mesh on a 2D Axes (Gouraud-shaded triangles in
     painter's order, far faces first: much faster than mplot3d), with curves and numbered
     points on it. `flat`: one shade per face (for boxy parts, whose long thin faces smear

@@ -9,12 +9,16 @@ at `level = cover_mm` with an edge length chosen for the requested triangle coun
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.mesh import winding
 from fruitcli.geometry.mesh.distance import TreeDistance, grid_vertex_distance
+
+if TYPE_CHECKING:
+    import manifold3d
 
 # level-set triangles per mm^2 of surface at edge length e: TRIANGLES_PER_AREA / e^2
 TRIANGLES_PER_AREA = 3.4
@@ -58,7 +62,7 @@ def signed_distance_grid(
     pad_mm: float,
     dist: TreeDistance | None = None,
     inside: Inside | None = None,
-):
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Signed distance (positive inside) on a grid; returns (axes (x, y, z), sdf (nx, ny, nz),
     winding number (nx, ny, nz)).
 
@@ -183,7 +187,7 @@ def grid_for_faces(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -
 
 def densify(
     vertices: np.ndarray, faces: np.ndarray, max_edge_mm: float, max_faces: int | None = None
-):
+) -> tuple[np.ndarray, np.ndarray, float | None]:
     """Split the long edges of a closed mesh until none is longer than `max_edge_mm`
     (same surface, conforming, winding kept).
 
@@ -495,7 +499,7 @@ def _fill_pinched_edges(body, radius_mm: float, rounds: int = 5):
     return body, filled
 
 
-def to_manifold64(vertices: np.ndarray, faces: np.ndarray):
+def to_manifold64(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
     """A manifold3d.Manifold from float64 arrays (no rounding to float32)."""
     import manifold3d
 
@@ -513,7 +517,9 @@ def _xyz(axes, flat_index: int) -> str:
     return "(" + ", ".join(f"{float(axes[k][ijk[k]]):.1f}" for k in range(3)) + ")"
 
 
-def neck(axes, sdf: np.ndarray, cover_mm: float, steps: int = 10):
+def neck(
+    axes: list[np.ndarray], sdf: np.ndarray, cover_mm: float, steps: int = 10
+) -> tuple[float | None, str]:
     """Where the offset pinches the body apart: the thickness (mm, twice the largest level
     at which the two largest pieces of {sdf > level} are still joined) and the grid point
     '(x, y, z)' at that level joining them. (None, 'A and B') when the pieces are not
@@ -559,7 +565,9 @@ def neck(axes, sdf: np.ndarray, cover_mm: float, steps: int = 10):
     return 2 * lo, _xyz(axes, flat)
 
 
-def simplify_to(body, target_faces: int, max_tol_mm: float):
+def simplify_to(
+    body: manifold3d.Manifold, target_faces: int, max_tol_mm: float
+) -> manifold3d.Manifold:
     """Simplify a Manifold to about `target_faces` triangles (bisection on the tolerance)."""
     if body.num_tri() <= target_faces:
         return body

@@ -31,7 +31,7 @@ def plane_segments(
     axis: int,
     value: float,
     face_mask: np.ndarray | None = None,
-):
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Segments of the section: (node ids (m, 2) int, points (m, 2, 3), face ids (m,)).
 
     A node id names the mesh edge (or vertex) a point lies on, so that the segments of

@@ -22,7 +22,9 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return vn / np.where(norm > 0, norm, 1.0)
 
 
-def piece_crossings(piece: Piece, axis: int, values: np.ndarray):
+def piece_crossings(
+    piece: Piece, axis: int, values: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where a piece crosses the planes `coordinate[axis] = values[l]`.
 
     Returns (plane index l (c,), points (c, 3), faces (c,)).

@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.scene import default_scene
+from fruitcli.scene import Record, default_scene
 from fruitcli.tables import Taxels
 
 BOARD_ROWS = default_scene().board.rows  # Tx lines of the FocalTech FT5316 (MuCa): frame rows
@@ -43,7 +43,7 @@ def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarra
     return rows.astype(np.int64), cols.astype(np.int64)
 
 
-def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS):
+def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS) -> Record:
     """The ``[board]`` defaults (a `fruitcli.scene.BoardSection`): frame[i, j] is taxel
     (i, j)."""
     return replace(default_scene().board, rows=rows, cols=cols)

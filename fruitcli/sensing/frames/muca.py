@@ -411,13 +411,15 @@ class AutoDecoder:
         )
 
 
-def make_decoder(fmt: str, rows: int, cols: int):
+def make_decoder(fmt: str, rows: int, cols: int) -> AsciiDecoder | BinaryDecoder | AutoDecoder:
     """AsciiDecoder, BinaryDecoder or AutoDecoder for ``--format`` / ``[board].format``."""
     check_format(fmt)
     return {"ascii": AsciiDecoder, "binary": BinaryDecoder, "auto": AutoDecoder}[fmt](rows, cols)
 
 
-def decode_bytes(data: bytes, fmt: str, rows: int, cols: int):
+def decode_bytes(
+    data: bytes, fmt: str, rows: int, cols: int
+) -> tuple[np.ndarray, AsciiDecoder | BinaryDecoder | AutoDecoder]:
     """All frames (N, rows, cols) of a whole capture, and the decoder (its counters)."""
     dec = make_decoder(fmt, rows, cols)
     frames = []

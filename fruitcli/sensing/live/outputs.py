@@ -9,11 +9,17 @@ from __future__ import annotations
 import sys
 import time
 from collections import deque
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES
 from fruitcli.sensing.live.run_log import STATUS_EVERY_S
+
+if TYPE_CHECKING:
+    from serial import SerialBase
+
+    from fruitcli.sensing.live.serial_ports import FrameReader
 
 
 def _finite(x) -> float | None:
@@ -101,7 +107,9 @@ class Outputs:
             + (h.summary(self.taxels.ids) if h is not None else "")
         )
 
-    def reconnect(self, port, baud, board, fmt, wait_for_port):
+    def reconnect(
+        self, port: str, baud: int, board, fmt: str, wait_for_port
+    ) -> tuple[SerialBase, FrameReader]:
         """The port vanished: end the touches, wait for the port, start a new baseline."""
         from fruitcli.sensing.live.serial_ports import FrameReader
 

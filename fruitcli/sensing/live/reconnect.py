@@ -8,14 +8,18 @@ Units: s.
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.live.serial_ports import open_port
 
+if TYPE_CHECKING:
+    from serial import SerialBase
+
 POLL_S = 0.2  # between attempts to reopen
 
 
-def wait_for_port(port: str, baud: int, poll_s: float = POLL_S, on_wait=None):
+def wait_for_port(port: str, baud: int, poll_s: float = POLL_S, on_wait=None) -> SerialBase:
     """Open `port`, retrying every `poll_s` while it does not exist or is busy; ->
     the open port. `on_wait(message)` is called once with the first failure's reason."""
     told = False

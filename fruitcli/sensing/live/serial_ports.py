@@ -20,11 +20,15 @@ import math
 import os
 import time
 from collections import Counter
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.frames.board import BOARD_COLS, BOARD_ROWS
+
+if TYPE_CHECKING:
+    from serial import SerialBase
 
 READ_TIMEOUT_S = 0.05  # a read returns after this long without data (deadline checks)
 MAX_LINE_BYTES = 65536  # a line longer than this is garbage: dropped and counted
@@ -34,7 +38,7 @@ class PortClosed(FrameError):
     """The port vanished while reading (cable unplugged, pseudo-terminal closed)."""
 
 
-def open_port(port: str, baud: int = 115200, timeout_s: float = READ_TIMEOUT_S):
+def open_port(port: str, baud: int = 115200, timeout_s: float = READ_TIMEOUT_S) -> SerialBase:
     """Open `port` 8N1 with pyserial (``serial_for_url``: device paths and URLs)."""
     import serial
 
