@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import click
 
 from fruitcli.cli.options import (
@@ -15,8 +17,13 @@ from fruitcli.cli.options import (
 )
 from fruitcli.workflow.scene_outputs import scene_products
 
+if TYPE_CHECKING:
+    from pathlib import Path
 
-def scene_surface(scene):
+    from fruitcli.scene import Scene
+
+
+def scene_surface(scene: Scene) -> tuple[Path | None, str]:
     """(path, unit) of the scene's body surface at rest in out/<scene name>, or (None, mm)."""
     from pathlib import Path
 
@@ -86,7 +93,7 @@ def bench(
     fmt,
     board_baud,
     overwrite,
-):
+) -> None:
     """Replay the paper's bench protocol on the model for SCENE's [bench] section, or run
     it on a real printer and board (--printer, --board).
 
@@ -154,7 +161,7 @@ def real_bench(
     fmt,
     board_baud,
     overwrite,
-):
+) -> None:
     """`fruit bench --printer --board`: the protocol on hardware (fruitcli.bench)."""
     from fruitcli.errors import SceneError
     from fruitcli.printer.indentation import BenchInterrupted, run_printer_bench

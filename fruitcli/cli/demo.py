@@ -20,7 +20,7 @@ DEMO_SCENES = ["paper-table", "fruit-rest", "fruit-deformed", "fruit-breathing",
     show_default=True,
     help="Comma-separated names of bundled scenes (see `fruit scenes`).",
 )
-def demo(out_dir, scenes):
+def demo(out_dir, scenes) -> None:
     """Run the default experiments (the paper's Table I, the Fruit at rest, in its jig,
     breathing, and the bent 4x4 pad) and write OUT/report.md.
 

@@ -53,7 +53,7 @@ from fruitcli.cli.options import FiniteFloat, baud_option, format_option, fruit_
     show_default=True,
     help="Hold the stream until a reader opens the port.",
 )
-def emulate_board(from_path, bench_dir, fmt, baud, fps, n_frames, log_every, wait):
+def emulate_board(from_path, bench_dir, fmt, baud, fps, n_frames, log_every, wait) -> None:
     """Open a pseudo-terminal, print its path, and play frames on it like a MuCa board
     running the stock firmware.
 

@@ -39,7 +39,7 @@ from fruitcli.cli.options import FiniteFloat, fruit_errors, out_option
     "is the least-squares rotation and translation, similarity adds one scale. "
     "Top-view (x, y) data: none or translation.",
 )
-def evaluate(truth, measured, out_dir, reference_length_mm, label, register):
+def evaluate(truth, measured, out_dir, reference_length_mm, label, register) -> None:
     """Compare measured touch positions with ground truth, as in the paper's Table I.
 
     Samples are matched by their `sample` column. With z in both files the error is 3D;

@@ -170,7 +170,7 @@ def live(
     log_backups,
     view_target,
     time_scale,
-):
+) -> None:
     """Stream touches of every frame from PORT as JSON lines on stdout.
 
     One line per frame with touches, and one with "touches": [] when they end:

@@ -81,16 +81,16 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 class LazyGroup(click.Group):
     """A click group that imports a subcommand's module on first use."""
 
-    def list_commands(self, ctx):
+    def list_commands(self, ctx: click.Context) -> list[str]:
         return list(COMMANDS)
 
-    def get_command(self, ctx, name):
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name not in COMMANDS:
             return None
         module, attr, _ = COMMANDS[name]
         return getattr(importlib.import_module(module), attr)
 
-    def format_commands(self, ctx, formatter):
+    def format_commands(self, ctx, formatter) -> None:
         rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
@@ -101,7 +101,7 @@ class LazyGroup(click.Group):
 @click.option("-q", "--quiet", is_flag=True, help="No progress output on stderr.")
 @click.version_option(package_name="fruitcli", prog_name="fruit")
 @click.pass_context
-def cli(ctx, verbose, quiet):
+def cli(ctx, verbose, quiet) -> None:
     """fruit: model-based capacitive touch sensing on soft robots.
 
     From an artist's mesh to a fabricated, calibrated, evaluated touch skin.
@@ -114,7 +114,7 @@ def cli(ctx, verbose, quiet):
     logging.basicConfig(level=max(level, logging.DEBUG), format="%(message)s", stream=sys.stderr)
 
 
-def main(argv=None):
+def main(argv: list[str] | None = None) -> None:
     """Console entry point: FruitErrors become one line on stderr and exit code 1."""
     from fruitcli.errors import FruitError
 

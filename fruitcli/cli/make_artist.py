@@ -10,7 +10,7 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
 @click.command("make-artist")
 @out_option("Output mesh file: .stl, .obj or .ply (mm).", file=True, dest="out")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --out file.")
-def make_artist(out, overwrite):
+def make_artist(out, overwrite) -> None:
     """Write the default artist mesh, a procedural 'Fruit' about 150 mm across (mm units,
     >= 100,000 triangles, closed), its top under the paper's 29 rest sample positions."""
     from pathlib import Path

@@ -35,7 +35,7 @@ def _opt(name, kind, help_):
 @_opt("vent_diameter_mm", float, "Vent diameter (mm; default 2).")
 @_opt("pin_diameter_mm", float, "Diameter of the pins holding the chamber cores (mm; default 3).")
 @_opt("vents", int, "Vents at the cavity's highest points besides the pour hole (default 4).")
-def make_mold(scene, out_dir, tracks_dir, **given):
+def make_mold(scene, out_dir, tracks_dir, **given) -> None:
     """Molds to cast SCENE's pieces in silicone: the tracked top (its yarn grooves are
     ridges on the shell's inner face) and the lower half, each a box split at the casting
     split plane into shell and plate, with registration keys, a pour hole and vents at the

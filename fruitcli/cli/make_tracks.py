@@ -90,7 +90,7 @@ def make_tracks(
     origin_mm,
     track_radius_mm,
     split_z_mm,
-):
+) -> None:
     """Reduce an artist mesh (STL/OBJ/PLY/OFF/glTF, mm), carve yarn tracks, export the taxels.
 
     Any surface with an inside is taken: holes are closed by the level set, overlapping

@@ -76,7 +76,7 @@ from fruitcli.cli.options import (
 )
 def record(
     port, out_path, n_frames, seconds, baud, rows, cols, fmt, pressure_port, chambers, overwrite
-):
+) -> None:
     """Record frames from a MuCa board until --frames, --seconds, Ctrl-C or the port closes.
 
     Every whole frame received is on disk as soon as it arrives; board log lines, cut

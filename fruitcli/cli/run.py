@@ -24,7 +24,7 @@ def default_out(scene) -> Path:
 )
 @click.option("--until", default=None, help="Stop after this stage (and what it needs).")
 @click.option("--force", is_flag=True, help="Rerun every needed stage even if unchanged.")
-def run(scene_file, out_dir, dry_run, until, force):
+def run(scene_file, out_dir, dry_run, until, force) -> None:
     """Run every stage SCENE needs, in dependency order.
 
     A stage is reused while its inputs and parameters are unchanged (its folder holds a

@@ -23,7 +23,7 @@ def needed_stages(scene_file: Path) -> list[str]:
 
 @click.group(invoke_without_command=True)
 @click.pass_context
-def scenes(ctx):
+def scenes(ctx) -> None:
     """List the bundled example scenes: what each shows and the stages it needs.
 
     `fruit scenes copy NAME DIR` starts an experiment of your own from one of them.
@@ -44,7 +44,7 @@ def scenes(ctx):
 @scenes.command()
 @click.argument("name")
 @click.argument("folder", type=click.Path(file_okay=False))
-def copy(name, folder):
+def copy(name, folder) -> None:
     """Write bundled scene NAME, and the data files it reads, into FOLDER (new or empty);
     then `fruit run FOLDER/NAME.toml`."""
     from fruitcli import bundled

@@ -47,7 +47,7 @@ from fruitcli.workflow.scene_outputs import shared_outputs
     help="full: the FEM solved per state; reduced: the scene's "
     "reduced model (built into OUT/reduce on first use, pressures within its range).",
 )
-def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind):
+def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) -> None:
     """Tetrahedralize SCENE's body, then solve each state of [actuation].
 
     Pressures in kPa (or volume growth in mm^3) per chamber, jig springs in N/mm,

@@ -19,7 +19,7 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
     help="Closed surface of the body (mm), e.g. reduced.stl from make-tracks; "
     "default: the scene's geometry.solid or pad_size_mm.",
 )
-def tetra(scene, out_dir, solid):
+def tetra(scene, out_dir, solid) -> None:
     """Linear tets of SCENE's body at [mesh] size_mm (mm), chambers as cavities.
 
     gmsh runs in a child process killed after [mesh] time_limit_s seconds; meshes whose
