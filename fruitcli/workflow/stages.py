@@ -52,15 +52,22 @@ def solid_path(scene: Scene, ctx: Context) -> Path | None:
     return None
 
 
+def _pad_tracks(scene: Scene) -> bool:
+    """Whether pad-grid writes the taxels and so the pad's grid lines (tracks.csv)."""
+    return _geometry_kind(scene) == "pad" and scene.grid.taxels is None
+
+
 def _has_tracks(scene: Scene) -> bool:
-    return scene.tracks.file is not None or _geometry_kind(scene) == "artist"
+    return scene.tracks.file is not None or _geometry_kind(scene) == "artist" or _pad_tracks(scene)
 
 
 def tracks_path(scene: Scene, ctx: Context) -> Path | None:
     """Where this scene's yarn track centre lines come from ([tracks] file, or the
-    tracks.csv of make-tracks), or None: no yarns.csv."""
+    tracks.csv of make-tracks or pad-grid), or None: no yarns.csv."""
     if scene.tracks.file is not None:
         return scene.tracks.file
+    if _pad_tracks(scene):
+        return ctx.dir("pad-grid") / "tracks.csv"
     return ctx.dir("make-tracks") / "tracks.csv" if _has_tracks(scene) else None
 
 
@@ -154,17 +161,12 @@ def _pad_needed(scene):
 
 
 def _pad_run(scene, ctx, out_dir):
-    from fruitcli.geometry.padgrid import write_pad_taxels
+    from fruitcli.geometry.padgrid import write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
-    n = write_pad_taxels(
-        out_dir / "taxels.csv",
-        scene.geometry.pad_size_mm,
-        grid.count or [4, 4],
-        grid.spacing_x_mm,
-        grid.spacing_y_mm,
-    )
-    return {"taxels": n}
+    args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
+    n = write_pad_taxels(out_dir / "taxels.csv", *args)
+    return {"taxels": n, "tracks": write_pad_tracks(out_dir / "tracks.csv", *args)}
 
 
 # ----------------------------------------------------------------------------- tetra / simulate
@@ -526,7 +528,7 @@ STAGES: list[Stage] = [
         _pad_needed,
         no_inputs,
         _pad_run,
-        lambda s: ["taxels.csv"],
+        lambda s: ["taxels.csv", "tracks.csv"],
         reads=("geometry.pad_size_mm", "grid"),
         minus=("grid.taxels",),
         decides=(*GEOMETRY_KIND, "grid.taxels"),
