@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fruitcli.scene import Scene, has_deformation, n_states
+from fruitcli.scene import Scene, has_deformation, has_gravity, n_states
 from fruitcli.workflow.stage_types import Context, Stage
 
 
@@ -75,8 +75,8 @@ YARN_KEYS = ("tracks.yarn_max_stretch", "tracks.zigzag_pitch_mm", "tracks.file")
 """[tracks] keys read by simulate (yarns.csv), not by make-tracks."""
 GEOMETRY_KIND = ("geometry.artist", "geometry.solid", "geometry.pad_size_mm")
 """The keys `_geometry_kind` reads."""
-DEFORMS = ("actuation", "fixed", "jig")
-"""The sections `has_deformation` reads (whether states.npz exists)."""
+DEFORMS = ("actuation", "fixed", "jig", "gravity", "material.density_kg_m3")
+"""The keys `has_deformation` reads (whether states.npz exists)."""
 
 
 def no_inputs(scene: Scene, ctx: Context) -> dict:
@@ -194,7 +194,9 @@ def _fem_reason(scene):
         parts.append(f"{len(scene.jig)} jig spring region(s)")
     if not scene.fixed:
         parts.append("no fixed region: rigid modes removed")
-    if not scene.has("gravity"):
+    if has_gravity(scene):
+        parts.append("gravity on the held body")
+    elif not scene.has("gravity"):
         parts.append("no gravity")
     return "; ".join(parts)
 
@@ -542,7 +544,7 @@ STAGES: list[Stage] = [
         _tetra_run,
         lambda s: ["mesh.npz", "quality.json"],
         reads=("geometry", "mesh", "grid.taxels"),
-        decides=(*DEFORMS, "gravity"),
+        decides=DEFORMS,
     ),
     Stage(
         "simulate",
@@ -552,7 +554,7 @@ STAGES: list[Stage] = [
         no_inputs,
         _simulate_run,
         lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else []),
-        reads=(*DEFORMS, "geometry", "fem", "material", "gravity", "solver", "grid") + YARN_KEYS,
+        reads=(*DEFORMS, "geometry", "fem", "material", "solver", "grid") + YARN_KEYS,
     ),
     Stage(
         "reduce",
