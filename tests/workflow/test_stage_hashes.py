@@ -404,6 +404,19 @@ def test_schema_walk_changes_exactly_the_declaring_stages(tmp_path):
         assert got == _propagate(direct, set(), got), section
 
 
+@pytest.mark.parametrize(
+    "section, key, value, stage",
+    [
+        ("fem", "element", "p1", "simulate"),  # states.npz said p2 after a change to p1
+        ("detection", "threshold_counts", 30.0, "sensitivity"),  # sensitivity.json said 20
+    ],
+)
+def test_the_stale_cases_of_the_issue_change_their_stage(tmp_path, section, key, value, stage):
+    scene = _walk_scene(tmp_path)
+    before = _hashes(scene, tmp_path / "out")[stage]
+    assert _hashes(_set(scene, section, key, value), tmp_path / "out")[stage] != before
+
+
 def test_path_keys_count_by_content_not_path(tmp_path):
     """The same bytes under another name: no stage changes (but make-artist, whose
     declared path is where it writes); a file edited in place: a new hash."""
