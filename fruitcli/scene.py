@@ -1167,14 +1167,27 @@ def n_states(scene: Scene) -> int:
     return 1
 
 
+def has_gravity(scene: Scene) -> bool:
+    """True when gravity loads the body: [gravity] declared with a non-zero vector, a
+    body with mass, held by a [[fixed]] region or a [[jig]] (a free body under gravity
+    would only fall)."""
+    return (
+        scene.has("gravity")
+        and any(scene.gravity.vector_m_s2)
+        and scene.material.density_kg_m3 > 0
+        and bool(scene.fixed or scene.jig)
+    )
+
+
 def has_deformation(scene: Scene) -> bool:
-    """True when something moves the body: non-zero actuation, a jig or a moved clamp."""
+    """True when something moves the body: non-zero actuation, a jig, a moved clamp or
+    gravity on a held body."""
     act = scene.actuation
     for table in (act.pressure_kpa, act.volume_growth_mm3):
         if table and any(v != 0 for vals in table.values() for v in vals):
             return True
     moved = any(f.displacement_mm is not None and any(f.displacement_mm) for f in scene.fixed)
-    return bool(scene.jig) or moved
+    return bool(scene.jig) or moved or has_gravity(scene)
 
 
 def load_scene(path: str | Path, must_exist: bool = True) -> Scene:

@@ -5,7 +5,7 @@
   point-to-surface distances and vertical rays.
 - `tracks`: make-tracks (paper Sec. III-D, Fig. 6): the reduced body, its plane
   sections, the yarn tubes carved along them, the taxels at their crossings, previews.
-- `artist` (the default 'Fruit'), `padgrid` (a flat pad's taxels), `body_surface`
+- `artist` (the default 'Fruit'), `padgrid` (a flat pad's taxels and grid lines), `body_surface`
   (where points meet the body's surface, at rest or carried by a FEM state).
 
 May import: `fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`, and

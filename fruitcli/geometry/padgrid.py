@@ -1,4 +1,6 @@
-"""Taxels of a flat pad: a regular nx x ny grid centred on the pad's top face (z = thickness)."""
+"""Taxels of a flat pad: a regular nx x ny grid centred on the pad's top face (z = thickness),
+and its yarn tracks: the grid lines through the taxels, edge to edge on the top face
+(the sections x = const and y = const that make-tracks cuts on an artist's surface)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,9 @@ from fruitcli.errors import SceneError
 from fruitcli.fsutil import write_csv
 
 TAXEL_HEADER = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
+TRACK_HEADER = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
+TRACK_STEP_MM = 0.5
+"""Largest distance between two points of a track (mm)."""
 
 
 def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> np.ndarray:
@@ -51,3 +56,38 @@ def write_pad_taxels(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm)
         comments=["taxels of a flat pad; positions in mm, unit outward normals"],
     )
     return len(out)
+
+
+def pad_tracks(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> list[list]:
+    """Rows (track, axis, index, point, x, y, z) mm of the pad's grid lines on its top
+    face: axis x, the line x = const through taxels i = index (along y); axis y, the line
+    y = const through taxels j = index (along x); each from edge to edge, points at most
+    TRACK_STEP_MM apart."""
+    rows = pad_taxels(pad_size_mm, count, spacing_x_mm, spacing_y_mm)
+    sx, sy, t = pad_size_mm
+    out, track = [], 0
+    for axis, col, along in (("x", 1, sy), ("y", 2, sx)):
+        for index in np.unique(rows[:, col]).astype(int):
+            at = rows[rows[:, col] == index][0, 3 if axis == "x" else 4]
+            s = np.linspace(-along / 2, along / 2, int(np.ceil(along / TRACK_STEP_MM)) + 1)
+            for n, v in enumerate(s):
+                x, y = (at, v) if axis == "x" else (v, at)
+                out.append([track, axis, int(index), n, float(x), float(y), float(t)])
+            track += 1
+    return out
+
+
+def write_pad_tracks(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm) -> int:
+    """tracks.csv of the pad's grid lines (as make-tracks writes); -> number of tracks."""
+    rows = pad_tracks(pad_size_mm, count, spacing_x_mm, spacing_y_mm)
+    write_csv(
+        path,
+        TRACK_HEADER,
+        rows,
+        comments=[
+            "yarn track centre lines of a flat pad: its grid lines on the top face (mm)",
+            "track: line number; axis x: the line x = const of grid index i (index), "
+            "axis y: y = const of index j; point: order along the line",
+        ],
+    )
+    return rows[-1][0] + 1

@@ -19,29 +19,17 @@ from pathlib import Path
 
 from fruitcli.errors import FruitError
 from fruitcli.scene import Scene
+from fruitcli.workflow.scene_hash import content, scene_inputs
 from fruitcli.workflow.stage_types import Context, Stage, Step
 from fruitcli.workflow.stages import STAGES
 
 MANIFEST = "manifest.json"
-PLANNER_VERSION = 1
-
-
-def file_hash(path: Path) -> str:
-    """sha256 of a file's bytes (or of a folder's files, sorted by name)."""
-    h = hashlib.sha256()
-    path = Path(path)
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for p in files:
-        h.update(p.name.encode())
-        with open(p, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
-    return h.hexdigest()
+PLANNER_VERSION = 2  # 2: scene inputs from the stages' declared reads, files by content
 
 
 def _canonical(obj):
     if isinstance(obj, Path):
-        return {"file": obj.name, "sha256": file_hash(obj) if obj.exists() else "missing"}
+        return content(obj)
     if isinstance(obj, dict):
         return {str(k): _canonical(v) for k, v in sorted(obj.items())}
     if isinstance(obj, (list, tuple)):
@@ -50,11 +38,13 @@ def _canonical(obj):
 
 
 def fingerprint(stage: Stage, scene: Scene, ctx: Context) -> str:
-    """Content hash of a stage's inputs, including its upstream stages' hashes."""
+    """Content hash of a stage's inputs: the scene keys it declares it reads (files by
+    content), what its `inputs` adds, its code and its upstream stages' hashes."""
     payload = {
         "planner": PLANNER_VERSION,
         "stage": stage.name,
         "code": _code_hash(stage.module),
+        "scene": scene_inputs(scene, stage.reads, stage.minus),
         "inputs": _canonical(stage.inputs(scene, ctx)),
         "upstream": {d: ctx.hashes.get(d, "") for d in stage.deps},
     }

@@ -12,8 +12,18 @@ from pathlib import Path
 
 @dataclass
 class Stage:
-    """One pipeline stage. `needed(scene)` -> (bool, reason); `inputs(scene, ctx)` -> what is
-    hashed; `run(scene, ctx, out_dir)` -> summary dict; `outputs(scene)` -> file names."""
+    """One pipeline stage. `needed(scene)` -> (bool, reason); `inputs(scene, ctx)` -> what
+    is hashed besides the scene keys it reads (values that are not scene keys);
+    `run(scene, ctx, out_dir)` -> summary dict; `outputs(scene)` -> file names.
+
+    The scene keys a stage reads are declared, and its hash covers them (see
+    `workflow.scene_hash`): `reads` names whole sections ("material") or keys
+    ("geometry.unit"), each with the content of every file a path key names and whether
+    the file declares the section; `minus` leaves keys of a read section out (not read);
+    `decides` names keys only `needed` reads (they decide whether the stage runs, not what
+    it writes: not hashed); `derived` names keys read only through a value `inputs`
+    derives from them (hashed as that value). Upstream outputs are covered by the hashes
+    of `deps`, which must name every stage whose folder the stage reads."""
 
     name: str
     deps: list[str]
@@ -22,6 +32,10 @@ class Stage:
     inputs: Callable
     run: Callable
     outputs: Callable
+    reads: tuple[str, ...] = ()
+    minus: tuple[str, ...] = ()
+    decides: tuple[str, ...] = ()
+    derived: tuple[str, ...] = ()
 
 
 @dataclass

@@ -1,15 +1,21 @@
 """The pipeline's stages, in dependency order, as the planner sees them.
 
-Each entry says when a scene needs the stage (and why not, when it does not), what
-goes into its content hash, and which library function does the work. The heavy
-modules are imported only when a stage runs.
+Each entry says when a scene needs the stage (and why not, when it does not), which
+library function does the work, and which scene keys it reads: `reads` (whole sections
+or `section.key`, hashed with the content of every file a path key names), `minus`
+(keys of a read section it does not read), `decides` (keys only `needed` reads) and
+`derived` (keys hashed through a value its `inputs` derives). `inputs` adds only what
+is not a scene key; upstream outputs are covered by the hashes of `deps`.
+tests/workflow/test_stage_hashes.py records what each stage reads on small scenes and
+fails on a read its declaration lacks. The heavy modules are imported only when a stage
+runs.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from fruitcli.scene import Scene, has_deformation, n_states
+from fruitcli.scene import Scene, has_deformation, has_gravity, n_states
 from fruitcli.workflow.stage_types import Context, Stage
 
 
@@ -46,20 +52,36 @@ def solid_path(scene: Scene, ctx: Context) -> Path | None:
     return None
 
 
+def _pad_tracks(scene: Scene) -> bool:
+    """Whether pad-grid writes the taxels and so the pad's grid lines (tracks.csv)."""
+    return _geometry_kind(scene) == "pad" and scene.grid.taxels is None
+
+
 def _has_tracks(scene: Scene) -> bool:
-    return scene.tracks.file is not None or _geometry_kind(scene) == "artist"
+    return scene.tracks.file is not None or _geometry_kind(scene) == "artist" or _pad_tracks(scene)
 
 
 def tracks_path(scene: Scene, ctx: Context) -> Path | None:
     """Where this scene's yarn track centre lines come from ([tracks] file, or the
-    tracks.csv of make-tracks), or None: no yarns.csv."""
+    tracks.csv of make-tracks or pad-grid), or None: no yarns.csv."""
     if scene.tracks.file is not None:
         return scene.tracks.file
+    if _pad_tracks(scene):
+        return ctx.dir("pad-grid") / "tracks.csv"
     return ctx.dir("make-tracks") / "tracks.csv" if _has_tracks(scene) else None
 
 
-YARN_KEYS = ("yarn_max_stretch", "zigzag_pitch_mm", "file")
+YARN_KEYS = ("tracks.yarn_max_stretch", "tracks.zigzag_pitch_mm", "tracks.file")
 """[tracks] keys read by simulate (yarns.csv), not by make-tracks."""
+GEOMETRY_KIND = ("geometry.artist", "geometry.solid", "geometry.pad_size_mm")
+"""The keys `_geometry_kind` reads."""
+DEFORMS = ("actuation", "fixed", "jig", "gravity", "material.density_kg_m3")
+"""The keys `has_deformation` reads (whether states.npz exists)."""
+
+
+def no_inputs(scene: Scene, ctx: Context) -> dict:
+    """A stage whose hash is its declared scene keys and upstream hashes alone."""
+    return {}
 
 
 def states_path(scene: Scene, ctx: Context) -> Path | None:
@@ -107,21 +129,6 @@ def _tracks_needed(scene):
     return False, "no geometry: evaluation only"
 
 
-def _tracks_inputs(scene, ctx):
-    grid = scene.grid
-    return {
-        "artist": scene.geometry.artist,
-        "unit": scene.geometry.unit,
-        "fit_mm": scene.geometry.fit_mm,
-        "tracks": {k: v for k, v in scene.values("tracks").items() if k not in YARN_KEYS},
-        "grid": {
-            "spacing_x_mm": grid.spacing_x_mm,
-            "spacing_y_mm": grid.spacing_y_mm,
-            "origin_mm": grid.origin_mm,
-        },
-    }
-
-
 def _tracks_run(scene, ctx, out_dir):
     from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 
@@ -153,22 +160,13 @@ def _pad_needed(scene):
     return True, "flat pad: taxels on a regular grid on its top face"
 
 
-def _pad_inputs(scene, ctx):
-    return {"pad": scene.geometry.pad_size_mm, "grid": scene.values("grid")}
-
-
 def _pad_run(scene, ctx, out_dir):
-    from fruitcli.geometry.padgrid import write_pad_taxels
+    from fruitcli.geometry.padgrid import write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
-    n = write_pad_taxels(
-        out_dir / "taxels.csv",
-        scene.geometry.pad_size_mm,
-        grid.count or [4, 4],
-        grid.spacing_x_mm,
-        grid.spacing_y_mm,
-    )
-    return {"taxels": n}
+    args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
+    n = write_pad_taxels(out_dir / "taxels.csv", *args)
+    return {"taxels": n, "tracks": write_pad_tracks(out_dir / "tracks.csv", *args)}
 
 
 # ----------------------------------------------------------------------------- tetra / simulate
@@ -196,20 +194,11 @@ def _fem_reason(scene):
         parts.append(f"{len(scene.jig)} jig spring region(s)")
     if not scene.fixed:
         parts.append("no fixed region: rigid modes removed")
-    if not scene.has("gravity"):
+    if has_gravity(scene):
+        parts.append("gravity on the held body")
+    elif not scene.has("gravity"):
         parts.append("no gravity")
     return "; ".join(parts)
-
-
-def _tetra_inputs(scene, ctx):
-    return {
-        "solid": solid_path(scene, ctx),
-        "unit": scene.geometry.unit,
-        "pad": scene.geometry.pad_size_mm,
-        "chambers": scene.values("geometry")["chamber"],
-        "mesh": scene.values("mesh"),
-        "taxels": taxels_path(scene, ctx),
-    }
 
 
 def _tetra_run(scene, ctx, out_dir):
@@ -219,19 +208,6 @@ def _tetra_run(scene, ctx, out_dir):
     tax = taxels_path(scene, ctx)
     xyz = read_taxels(tax).xyz_mm if tax is not None else None
     return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress, taxels_xyz=xyz)
-
-
-def _simulate_inputs(scene, ctx):
-    tracks = scene.values("tracks")
-    return {
-        k: scene.values(k) for k in ("material", "gravity", "fixed", "jig", "actuation", "solver")
-    } | {
-        "has_gravity": scene.has("gravity"),
-        "taxels": taxels_path(scene, ctx),
-        "mesh": ctx.dir("tetra") / "mesh.npz",
-        "tracks": tracks_path(scene, ctx),
-        "yarn": {k: tracks[k] for k in YARN_KEYS[:2]},
-    }
 
 
 def _simulate_run(scene, ctx, out_dir):
@@ -312,20 +288,9 @@ def _reduce_range(scene) -> dict:
 
 
 def _reduce_inputs(scene, ctx):
-    cfg = {
-        k: v
-        for k, v in scene.values("reduced").items()
-        if k not in ("pressure_range_kpa", "margin")
-    }
-    return {
-        k: scene.values(k) for k in ("material", "fem", "gravity", "fixed", "jig", "solver")
-    } | {
-        "has_gravity": scene.has("gravity"),
-        "taxels": taxels_path(scene, ctx),
-        "mesh": ctx.dir("tetra") / "mesh.npz",
-        "range_kpa": _reduce_range(scene),
-        "reduced": cfg,
-    }
+    # the pressure box from [actuation] and [reduced] pressure_range_kpa, margin, not
+    # those keys: new states inside the same box keep the model
+    return {"range_kpa": _reduce_range(scene)}
 
 
 def _reduce_run(scene, ctx, out_dir):
@@ -355,12 +320,6 @@ def _skin_needed(scene):
     return True, f"electrostatic skin for the {' and '.join(users)}: the crossing's table"
 
 
-def _skin_inputs(scene, ctx):
-    from fruitcli.electrostatics.design import crossing_inputs
-
-    return crossing_inputs(scene).to_dict()
-
-
 def _skin_run(scene, ctx, out_dir):
     from fruitcli.electrostatics import design
 
@@ -388,19 +347,9 @@ def _bench_needed(scene):
 def _bench_inputs(scene, ctx):
     from fruitcli.scene import resolve_path
 
-    spec = scene.bench.samples  # "quarter" or a CSV, hashed by its content
-    samples = spec if spec == "quarter" else Path(resolve_path(scene.path, spec))
-    return {
-        "bench": scene.values("bench"),
-        "samples": samples,
-        "board": scene.values("board"),
-        "detection": scene.values("detection"),
-        "taxels": taxels_path(scene, ctx),
-        "states": states_path(scene, ctx),
-        "grid": scene.values("grid"),
-        "surface": solid_path(scene, ctx),
-        "skin": scene.values("skin"),
-    } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
+    # [bench].samples is a string key ("quarter" or a CSV path): the CSV by its content
+    spec = scene.bench.samples
+    return {} if spec == "quarter" else {"samples": Path(resolve_path(scene.path, spec))}
 
 
 def _bench_run(scene, ctx, out_dir):
@@ -434,18 +383,6 @@ def _locate_needed(scene):
     if scene.frames.recording is not None:
         return True, "detect touches in the recording, map them to 3D"
     return False, "no frames: no recording and no bench"
-
-
-def _locate_inputs(scene, ctx):
-    return {
-        "frames": _frame_sources(scene, ctx),
-        "taxels": taxels_path(scene, ctx),
-        "states": states_path(scene, ctx),
-        "detection": scene.values("detection"),
-        "board": scene.values("board"),
-        "surface": solid_path(scene, ctx) if scene.detection.project == "surface" else None,
-        "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None,
-    }
 
 
 def _locate_run(scene, ctx, out_dir):
@@ -530,16 +467,6 @@ def _sens_needed(scene):
     return True, "noise std at rest and baseline shift over the states"
 
 
-def _sens_inputs(scene, ctx):
-    return {
-        "sensitivity": scene.values("sensitivity"),
-        "bench": scene.values("bench"),
-        "skin": scene.values("skin"),
-        "taxels": taxels_path(scene, ctx),
-        "states": states_path(scene, ctx),
-    } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
-
-
 def _sens_run(scene, ctx, out_dir):
     from fruitcli.sensing.stages import run_sensitivity
 
@@ -559,16 +486,21 @@ STAGES: list[Stage] = [
         [],
         "fruitcli.geometry.artist",
         _artist_needed,
+        # the path it writes (not a file it reads: hashing its content would change the
+        # hash once the mesh is written)
         lambda s, c: {"artist": str(s.geometry.artist)},
         _artist_run,
         lambda s: [str(s.geometry.artist)],
+        reads=("geometry.generate_artist",),
+        decides=GEOMETRY_KIND,
+        derived=("geometry.artist",),
     ),
     Stage(
         "make-tracks",
         ["make-artist"],
         "fruitcli.geometry.tracks.make_tracks",
         _tracks_needed,
-        _tracks_inputs,
+        no_inputs,
         _tracks_run,
         lambda s: [
             "reduced.stl",
@@ -579,33 +511,50 @@ STAGES: list[Stage] = [
             "report.json",
             "preview.png",
         ],
+        reads=(
+            "geometry.artist",
+            "geometry.unit",
+            "geometry.fit_mm",
+            "tracks",
+            "grid.spacing_x_mm",
+            "grid.spacing_y_mm",
+            "grid.origin_mm",
+        ),
+        minus=YARN_KEYS,
+        decides=GEOMETRY_KIND,
     ),
     Stage(
         "pad-grid",
         [],
         "fruitcli.geometry.padgrid",
         _pad_needed,
-        _pad_inputs,
+        no_inputs,
         _pad_run,
-        lambda s: ["taxels.csv"],
+        lambda s: ["taxels.csv", "tracks.csv"],
+        reads=("geometry.pad_size_mm", "grid"),
+        minus=("grid.taxels",),
+        decides=(*GEOMETRY_KIND, "grid.taxels"),
     ),
     Stage(
         "tetra",
         ["make-tracks", "pad-grid"],
         "fruitcli.fem.stage",
         _fem_needed,
-        _tetra_inputs,
+        no_inputs,
         _tetra_run,
         lambda s: ["mesh.npz", "quality.json"],
+        reads=("geometry", "mesh", "grid.taxels"),
+        decides=DEFORMS,
     ),
     Stage(
         "simulate",
         ["tetra", "make-tracks", "pad-grid"],
         "fruitcli.fem.stage",
         _fem_needed,
-        _simulate_inputs,
+        no_inputs,
         _simulate_run,
         lambda s: ["states.npz"] + (["yarns.csv"] if _has_tracks(s) else []),
+        reads=(*DEFORMS, "geometry", "fem", "material", "solver", "grid") + YARN_KEYS,
     ),
     Stage(
         "reduce",
@@ -615,15 +564,33 @@ STAGES: list[Stage] = [
         _reduce_inputs,
         _reduce_run,
         lambda s: ["reduced.npz", "validation.json"],
+        reads=("geometry", "fem", "material", "gravity", "fixed", "jig", "solver", "reduced")
+        + ("grid.taxels",),
+        minus=("reduced.pressure_range_kpa", "reduced.margin"),
+        decides=("frames", "board", "bench"),  # locate_uses_reduced
+        derived=("actuation", "reduced.pressure_range_kpa", "reduced.margin"),
     ),
     Stage(
         "skin",
         [],
         "fruitcli.electrostatics",
         _skin_needed,
-        _skin_inputs,
+        no_inputs,
         _skin_run,
         lambda s: ["crossing.npz", "summary.json"],
+        reads=(  # design.crossing_inputs
+            "skin.model",
+            "skin.yarn_radius_mm",
+            "skin.insulation_mm",
+            "skin.permittivity",
+            "skin.gaps_mm",
+            "tracks.cover_mm",
+            "tracks.track_radius_mm",
+            "grid.spacing_x_mm",
+            "grid.spacing_y_mm",
+            "mesh.time_limit_s",
+        ),
+        decides=("bench", "sensitivity"),
     ),
     Stage(
         "bench",
@@ -635,32 +602,37 @@ STAGES: list[Stage] = [
         lambda s: (
             [f"{i}/frames.npz" for i in indenters(s)] + [f"{i}/truth.csv" for i in indenters(s)]
         ),
+        reads=(*DEFORMS, "bench", "board", "skin", "grid", "geometry")
+        + ("detection.threshold_counts", "scene.name"),
     ),
     Stage(
         "locate",
-        ["bench", "simulate", "reduce"],
+        ["bench", "simulate", "reduce", "make-tracks", "pad-grid"],
         "fruitcli.sensing.stages",
         _locate_needed,
-        _locate_inputs,
+        no_inputs,
         _locate_run,
         _locate_outputs,
+        reads=(*DEFORMS, "frames", "bench", "board", "detection", "skin", "grid", "geometry"),
     ),
     Stage(
         "evaluate",
-        ["locate"],
+        ["locate", "bench"],
         "fruitcli.evaluation.report",
         _eval_needed,
-        lambda s, c: {"rows": _eval_rows(s, c)},
+        no_inputs,
         _eval_run,
         lambda s: ["table.md", "table.csv", "summary.json"],
+        reads=("evaluate", "bench", "scene.configuration"),
     ),
     Stage(
         "sensitivity",
         ["simulate", "make-tracks", "pad-grid", "skin"],
         "fruitcli.sensing.stages",
         _sens_needed,
-        _sens_inputs,
+        no_inputs,
         _sens_run,
         lambda s: ["sensitivity.json"],
+        reads=(*DEFORMS, "sensitivity", "bench", "skin", "detection", "grid", "geometry"),
     ),
 ]
