@@ -446,3 +446,4 @@ if __name__ == "__main__":
         main()
         bench_osc_latency()
         bench_osc_latency(live_defaults=True)
+        bench_osc_latency(live_defaults=True, hovers=True)
