@@ -469,6 +469,7 @@ def _locate_run(scene, ctx, out_dir):
             surface_path=solid_path(scene, ctx),
             surface_unit=unit,
             reduced=reduced,
+            crossing_dir=crossing_dir(scene, ctx),
         )
     return out
 
