@@ -445,7 +445,8 @@ def _locate_inputs(scene, ctx):
         "board": scene.values("board"),
         "surface": solid_path(scene, ctx) if scene.detection.project == "surface" else None,
         "reduced": reduced_path(scene, ctx) if locate_uses_reduced(scene) else None,
-    }
+        "skin": scene.values("skin"),  # heights, strengths and sizes
+    } | ({"crossing": ctx.dir("skin") / "crossing.npz"} if electrostatic(scene) else {})
 
 
 def _locate_run(scene, ctx, out_dir):
@@ -639,7 +640,7 @@ STAGES: list[Stage] = [
     ),
     Stage(
         "locate",
-        ["bench", "simulate", "reduce"],
+        ["bench", "simulate", "reduce", "skin"],
         "fruitcli.sensing.stages",
         _locate_needed,
         _locate_inputs,
