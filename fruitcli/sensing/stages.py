@@ -214,7 +214,7 @@ def run_locate(
     heights = skin_heights(skin_table, taxels, settings, gain is not None, crossing)
     if workers is None:
         workers = min(4, _usable_cpus())
-    with open_recording(frames_path, board.rows, board.cols, board.format) as rec:
+    with open_recording(frames_path, board.rows, board.cols, board.format, "read") as rec:
         locator, pressure = build_locator(
             scene, taxels, states, rec, settings, where, reduced, gain, heights
         )
@@ -267,6 +267,7 @@ def run_locate(
                 if time.perf_counter() - shown > 2.0:
                     shown = time.perf_counter()
                     say(f"{done} of {len(rec)} frames, {out.rows} touches")
+            rec.verify()  # the frames' CRC-32, before touches.csv appears
         dt = time.perf_counter() - t0
     result = {
         "frames": len(rec),
