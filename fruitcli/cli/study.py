@@ -246,19 +246,27 @@ def bench_study(scene_file, out_dir, jobs):
 @click.option(
     "--seed", type=int, default=0, show_default=True, help="Seed of the skin and the noise."
 )
-def two_fingers(out_dir, trials, seed):
+@click.option(
+    "--body",
+    "bodies",
+    type=click.Choice(["rest", "bent", "stretched"]),
+    multiple=True,
+    help="The grid's body: rest (flat), bent (on a cylinder) or stretched (inflated on a "
+    "dome); repeat for several. Default: all three.",
+)
+def two_fingers(out_dir, trials, seed, bodies):
     """Two fingers close together on the virtual bench: how often the paper's N9
     multitouch and the two-footprint fit ([detection].method = "fit2") report two touches,
-    at 0.5-3 pitches along i, j and the diagonal, and their errors (mm); single fingers
-    to check that fit2 does not make them worse. Writes a table and a plot of the
-    separation rate against distance."""
-    from fruitcli.studies.two_fingers import write
+    at 0.5-3 pitches along i, j and the diagonal, on the grid at rest and deformed, and
+    their errors (mm); single fingers to check that fit2 does not make them worse. Writes
+    a table per body and a plot of the separation rate against distance."""
+    from fruitcli.studies.two_fingers import BODIES, write
 
     with fruit_errors():
-        res = write(out_dir, seed, trials)
-    for m, n, rate, med, p95 in res["singles"]:
+        res = write(out_dir, seed, trials, bodies or BODIES)
+    for body, m, n, rate, med, p95 in res["singles"]:
         click.echo(
-            f"single fingers, {m}: {rate:.1%} of {n} one touch, error median "
+            f"single fingers, {body}, {m}: {rate:.1%} of {n} one touch, error median "
             f"{med:.2f} mm, p95 {p95:.2f} mm",
             err=True,
         )

@@ -173,6 +173,7 @@ def run_locate(
     gains_csv=None,
     skin_table: dict | None = None,
     hovers: bool | None = None,
+    crossing_dir=None,
 ) -> dict:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
     The recording is read, detected and written `chunk_frames` frames at a time, on
@@ -184,8 +185,10 @@ def run_locate(
     are divided by the taxels' gains with `gains_csv` or the scene's
     ``[detection].divide_by_gain`` (`gain_division`). Heights, strengths and sizes
     come from `skin_table` (a [skin] table, e.g. `fruit calibrate`'s) or the scene's
-    [skin] (`fruitcli.sensing.skin.heights.gap_law`); hovers are written with kind hover
-    and are never bench samples."""
+    [skin] (`fruitcli.sensing.skin.heights.gap_law`; with ``[skin].model =
+    "electrostatic"``, the crossing's table from `crossing_dir` or computed now,
+    `crossing_heights`); hovers are written with kind hover and are never bench
+    samples."""
     from fruitcli.sensing.detection.gain_division import detection_gain
 
     say = progress or (lambda msg: None)
@@ -204,12 +207,14 @@ def run_locate(
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
     gain = detection_gain(scene, taxels, gains_csv)
+    crossing = None
     if skin_table is None and scene is not None:
         skin_table = scene.skin
-    heights = skin_heights(skin_table, taxels, settings, gain is not None)
+        crossing = electrostatic_skin(scene, crossing_dir, say)
+    heights = skin_heights(skin_table, taxels, settings, gain is not None, crossing)
     if workers is None:
         workers = min(4, _usable_cpus())
-    with open_recording(frames_path, board.rows, board.cols, board.format) as rec:
+    with open_recording(frames_path, board.rows, board.cols, board.format, "read") as rec:
         locator, pressure = build_locator(
             scene, taxels, states, rec, settings, where, reduced, gain, heights
         )
@@ -262,6 +267,7 @@ def run_locate(
                 if time.perf_counter() - shown > 2.0:
                     shown = time.perf_counter()
                     say(f"{done} of {len(rec)} frames, {out.rows} touches")
+            rec.verify()  # the frames' CRC-32, before touches.csv appears
         dt = time.perf_counter() - t0
     result = {
         "frames": len(rec),
@@ -334,13 +340,21 @@ def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
     return table.rows((sample[table.frame] >= 0) & (table.kind == TOUCH))
 
 
-def skin_heights(skin: dict | None, taxels: Taxels, settings: Settings, divided: bool):
+def skin_heights(
+    skin: dict | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
+):
     """The height model of a [skin] table (None: the defaults) for these taxels
-    (`heights.gap_law`)."""
+    (`heights.gap_law`), or of the crossing's table `crossing` (a `CrossingSkin`) with
+    the table's noise and gains (`crossing_heights`)."""
     from fruitcli.sensing.skin.forward import SkinParams
     from fruitcli.sensing.skin.heights import gap_law
 
-    return gap_law(SkinParams.from_table(skin), taxels.ids, settings.footprint, divided)
+    params = SkinParams.from_table(skin)
+    if crossing is not None:
+        from fruitcli.sensing.skin.crossing_heights import crossing_heights
+
+        return crossing_heights(crossing, params, taxels.ids, settings.footprint, divided)
+    return gap_law(params, taxels.ids, settings.footprint, divided)
 
 
 def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:

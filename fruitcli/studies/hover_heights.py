@@ -14,7 +14,9 @@ baseline is the skin's mean counts), heights from the calibration:
 - ``other run``: the small indenter;
 - ``other indenter``: the medium one (wider footprint) on the small one's calibration;
 - ``gain spread``: a skin whose taxel gains spread +-20 %, on the calibration of the
-  uniform skin.
+  uniform skin;
+- ``calibrated on a gain spread``: the other way round, a uniform skin on a calibration
+  recorded on a skin whose gains spread +-20 % (fitted as if uniform).
 
 Per band of true height: the median and 95th percentile of |height - true| of each
 frame's strongest row (a touch or a hover); the largest true height at which a hover is
@@ -73,13 +75,18 @@ def fit_gap_law(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     return {"contact_counts": float(a), "sigma_mm": float(s), "gap_decay_mm": float(lam)}
 
 
-def calibrated(seed: int = 0):
-    """The `forward.SkinParams` fitted to a calibration run, the fit, and the taxels."""
+def calibrated(seed: int = 0, gain_spread: float = 0.0):
+    """The `forward.SkinParams` fitted to a calibration run on a skin whose taxel gains
+    spread +- `gain_spread`, the fit, and the taxels."""
     from fruitcli.sensing.skin import forward
     from fruitcli.studies.two_fingers import _taxels
 
     taxels = _taxels()
-    skin = forward.make_skin(len(taxels), seed)
+    skin = forward.make_skin(
+        len(taxels),
+        seed,
+        forward.SkinParams(forward.default_footprints_mm(), gain_spread=gain_spread),
+    )
     rng = np.random.default_rng(seed)
     points = _points(taxels, 0.25)[::CALIBRATION_STRIDE]
     counts, gap, sample = _descents(taxels, skin, "small", points, rng)
@@ -164,10 +171,11 @@ def evaluate(params, fit, taxels, name: str, indenter: str, gain_spread: float, 
     return out, extra
 
 
-RUNS = (
-    ("other run", "small", 0.0, 1),
-    ("other indenter", "medium", 0.0, 2),
-    ("gain spread 0.2", "small", 0.2, 3),
+RUNS = (  # name, indenter, gain spread of the skin, seed, gain spread of the calibration
+    ("other run", "small", 0.0, 1, 0.0),
+    ("other indenter", "medium", 0.0, 2, 0.0),
+    ("gain spread 0.2", "small", 0.2, 3, 0.0),
+    ("calibrated on a gain spread 0.2", "small", 0.0, 4, 0.2),
 )
 
 
@@ -175,18 +183,21 @@ def write(out_dir) -> dict:
     """Calibrate, evaluate every run; write hover_heights.csv and hover_heights.md."""
     from fruitcli.fsutil import staged_dir, write_csv, write_text
 
-    params, fit, taxels = calibrated()
+    cals = {spread: calibrated(0, spread) for spread in sorted({r[4] for r in RUNS})}
     rows, extras = [], {}
-    for name, indenter, spread, seed in RUNS:
+    for name, indenter, spread, seed, cal_spread in RUNS:
+        params, fit, taxels = cals[cal_spread]
         r, extra = evaluate(params, fit, taxels, name, indenter, spread, seed)
         rows += r
         extras[name] = extra
-    lines = [
-        "# Hover heights on descents the skin was not calibrated on",
-        "",
-        f"Calibration (small indenter, seed 0): footprint {fit['sigma_mm']:.2f} mm, "
-        f"contact {fit['contact_counts']:.1f} counts, gap decay "
-        f"{fit['gap_decay_mm']:.2f} mm.",
+    lines = ["# Hover heights on descents the skin was not calibrated on", ""]
+    for spread, (_, fit, _) in cals.items():
+        lines.append(
+            f"- Calibration on a skin with gains spread +-{spread:g} (small indenter, seed "
+            f"0): footprint {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} "
+            f"counts, gap decay {fit['gap_decay_mm']:.2f} mm."
+        )
+    lines += [
         "",
         "| run | true height (mm) | frames | median error (mm) | p95 error (mm) |",
         "|---|---|---|---|---|",

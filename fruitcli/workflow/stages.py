@@ -406,6 +406,7 @@ def _locate_run(scene, ctx, out_dir):
             surface_path=solid_path(scene, ctx),
             surface_unit=unit,
             reduced=reduced,
+            crossing_dir=crossing_dir(scene, ctx),
         )
     return out
 
@@ -607,7 +608,7 @@ STAGES: list[Stage] = [
     ),
     Stage(
         "locate",
-        ["bench", "simulate", "reduce", "make-tracks", "pad-grid"],
+        ["bench", "simulate", "reduce", "skin", "make-tracks", "pad-grid"],
         "fruitcli.sensing.stages",
         _locate_needed,
         no_inputs,

@@ -248,12 +248,36 @@ def recordings(repeats: int = 5) -> None:
             f"frames) / (wall difference {wall:.2f} s) -> {(huge - small) / wall:,.0f} "
             "frames/s"
         )
+        one_thread_cpu(tmp / f"r{small}.npz", tmp / f"r{big}.npz", taxels, tmp / "inproc")
         print("load average after:", ", ".join(f"{x:.1f}" for x in os.getloadavg()))
         same = check_against_reference(tmp / f"r{small}.npz", taxels, tmp / f"o{small}")
         print(
             f"touches.csv of {small:,} frames, the paper's columns, equal the first batch "
             f"path's (tests/helpers/locate_reference.py) to the byte: {same}"
         )
+
+
+def one_thread_cpu(small: Path, big: Path, taxels: Path, out: Path, repeats: int = 3) -> None:
+    """`run_locate` in this process on one thread: frames/s by the CPU time of the big
+    recording less the small one's (best of `repeats`), steadier than wall time on a
+    loaded machine."""
+    from fruitcli.sensing.stages import run_locate
+
+    cpu = {}
+    for path in (small, big):
+        n = int(path.stem[1:])
+        run_locate(None, path, taxels, None, out, workers=1)  # loaded and compiled
+        times = []
+        for _ in range(repeats):
+            t0 = time.process_time()
+            run_locate(None, path, taxels, None, out, workers=1)
+            times.append(time.process_time() - t0)
+        cpu[n] = min(times)
+    (n0, c0), (n1, c1) = sorted(cpu.items())
+    print(
+        f"run_locate in process, one thread, best of {repeats}: CPU {c0:.3f} s on {n0:,} "
+        f"frames, {c1:.3f} s on {n1:,} -> {(n1 - n0) / (c1 - c0):,.0f} frames/s per CPU"
+    )
 
 
 def rate(frames: int, seconds: float, spread: float) -> str:
@@ -422,3 +446,4 @@ if __name__ == "__main__":
         main()
         bench_osc_latency()
         bench_osc_latency(live_defaults=True)
+        bench_osc_latency(live_defaults=True, hovers=True)

@@ -4,6 +4,7 @@ expected, exit 1, nothing written; or a correct result where the input is valid.
 import zipfile
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
@@ -127,3 +128,55 @@ def test_npz_with_a_bad_crc_is_refused(tmp_path):
             )
         else:
             raise AssertionError("a damaged npz was read")
+
+
+@pytest.mark.parametrize("chunk, workers", [(5000, 1), (7, 2), (3, 4)])
+def test_locate_checks_the_frames_crc_as_it_reads_and_writes_nothing(tmp_path, chunk, workers):
+    """fruit locate reads the frames once, checking their CRC-32 on the way (in order,
+    from several threads too); a flipped bit is one error and no touches.csv."""
+    from fruitcli.errors import FrameError
+    from fruitcli.sensing.stages import run_locate
+
+    rng = np.random.default_rng(1)
+    frames = np.full((300, 21, 12), 500, np.int64)
+    frames[10:, 5, 5] += rng.integers(30, 90, 290)
+    path = tmp_path / "rec.npz"
+    np.savez(path, frames=frames, t_s=np.arange(300) / 60.0)
+    lines = ["id,i,j,x_mm,y_mm,z_mm"] + [
+        f"{n},{n // 12},{n % 12},{16.0 * (n // 12)},{12.0 * (n % 12)},0.0" for n in range(252)
+    ]
+    (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
+    kw = {"chunk_frames": chunk, "workers": workers}
+    res = run_locate(None, path, tmp_path / "t.csv", None, tmp_path / "good", **kw)
+    assert res["touches"] == 290
+    flip_a_bit_in_member(path, "frames.npy")
+    with pytest.raises(FrameError) as err:
+        run_locate(None, path, tmp_path / "t.csv", None, tmp_path / "bad", **kw)
+    assert str(err.value) == (
+        f"{path}: not a readable .npz recording: member frames.npy "
+        "fails its CRC check (the file is damaged)"
+    )
+    assert not (tmp_path / "bad" / "touches.csv").exists()
+
+
+def test_frames_read_out_of_order_are_checked_again_at_the_end(tmp_path):
+    from fruitcli.errors import FrameError
+    from fruitcli.sensing.frames.recording_chunks import open_recording
+
+    path = tmp_path / "rec.npz"
+    np.savez(path, frames=np.zeros((40, 21, 12), np.uint16), t_s=np.arange(40.0))
+    for damaged in (False, True):
+        if damaged:
+            flip_a_bit_in_member(path, "frames.npy")
+        with open_recording(path, verify="read") as rec:
+            rec.read(20, 20)  # a gap: the running CRC cannot cover it
+            rec.read(0, 20)
+            if damaged:
+                with pytest.raises(FrameError, match="frames.npy fails its CRC check"):
+                    rec.verify()
+            else:
+                rec.verify()
+    np.savez(path, frames=np.zeros((4, 21, 12), np.uint16), t_s=np.arange(4.0))
+    flip_a_bit_in_member(path, "t_s.npy")  # the small members: checked on opening
+    with pytest.raises(FrameError, match="member t_s.npy fails its CRC check"):
+        open_recording(path, verify="read")

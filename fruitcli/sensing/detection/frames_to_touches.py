@@ -51,7 +51,7 @@ from fruitcli.sensing.detection.detect import (
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
 from fruitcli.sensing.frames.board import taxel_cells
-from fruitcli.sensing.shape.touch_shape import touch_shapes
+from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
 from fruitcli.sensing.shape.two_footprints import fit2_touches
 from fruitcli.tables import Taxels
 
@@ -378,14 +378,23 @@ class Locator:
             else:
                 s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
                 xyz = touches_3d(t, self.positions_mm, s0, f0)
-                pos9 = self._taxel_points(tax, t.frame, s0, f0)
-            counts = frames.reshape(frames.shape[0], -1)[
-                t.frame[:, None], self.layout.frame_cell[tax]
-            ]
-            v9 = np.maximum(counts - np.asarray(baseline, float)[tax], 0.0) * (t.taxel >= 0)
-            if self.gain is not None:
-                v9 = v9 / self.gain[tax]
-            sh = touch_shapes(v9, t.taxel, pos9, xyz, self.heights)
+                pos9 = None if seg is None else self._taxel_points(tax, t.frame, s0, f0)
+            if pos9 is None:  # one state: the N9 positions are rows of positions_mm
+                points, rows = self.positions_mm, tax
+            else:
+                points, rows = pos9.reshape(-1, 3), np.arange(pos9.shape[0] * 9).reshape(-1, 9)
+            sh = frame_shapes(
+                frames.reshape(frames.shape[0], -1),
+                t.frame,
+                self.layout.frame_cell,
+                baseline,
+                self.gain,
+                t.taxel,
+                points,
+                rows,
+                xyz,
+                self.heights,
+            )
             return finish(
                 TouchTable(
                     t.frame + start,

@@ -4,8 +4,12 @@ Units: counts, seconds, kPa.
 
 An `.npz` recording's ``frames`` member is read in place: its npy header gives the
 shape and dtype, then chunks of whole frames are read straight from the file when the
-member is stored (as `np.savez` writes it; the zip CRC of that member is then not
-checked, as for a memory-mapped ``.npy``) or through `zipfile` when it is compressed.
+member is stored (as `np.savez` writes it) or through `zipfile` when it is compressed.
+Every member's CRC-32 is checked when the recording is opened (`check_zip`), or, with
+``verify="read"`` (one pass over the file instead of two), the small members' then and
+the stored frames member's as its frames are read in order: the reader calls
+`ChunkedRecording.verify` after reading them all (frames read out of order, or not
+all, are checked there in a second pass).
 Each chunk is checked like a whole recording (`check_frames`: integers >= 0; an error
 names the frame's index in the recording). The other keys (t_s, pressures, bench
 samples, printer positions, meta) are small and read whole. A MuCa log or a raw board
@@ -74,6 +78,12 @@ class ChunkedRecording:
         for start in range(0, self.n_frames, size):
             yield start, self.read(start, size)
 
+    def verify(self) -> None:
+        """With ``verify="read"``: FrameError unless the frames member's CRC-32 matches
+        (after every frame was read); otherwise nothing to do."""
+        if isinstance(self._source, _NpyMember):
+            self._source.verify()
+
     def close(self) -> None:
         if isinstance(self._source, _NpyMember):
             self._source.close()
@@ -88,9 +98,13 @@ class ChunkedRecording:
 class _NpyMember:
     """The ``frames.npy`` member of an npz: header parsed, frames read on demand."""
 
-    def __init__(self, path: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo):
+    def __init__(
+        self, path: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo, crc_on_read: bool = False
+    ):
         self.path = path
         self._zip = zf
+        self._info = info
+        self._crc = None  # running CRC-32 of the member's bytes read in order, when checked
         if info.compress_type == zipfile.ZIP_STORED:
             self._fh = open(path, "rb")
             self._fh.seek(info.header_offset)
@@ -121,7 +135,16 @@ class _NpyMember:
                 f"the member holds fewer bytes than its shape {tuple(shape)} needs (truncated)"
             )
         self._next = 0  # the frame the file is at
-        self._lock = threading.Lock()  # one reader at a time: seek and read go together
+        if crc_on_read:
+            if info.compress_type != zipfile.ZIP_STORED:  # zipfile checks it on reading
+                _check_member(path, zf, info)
+            else:
+                self._fh.seek(begin)
+                self._crc = zlib.crc32(self._fh.read(self._data_at - begin))
+                self._crc_end = self._data_at - begin + n_frames * self.frame_bytes
+                self._crc_upto = 0  # frame bytes in the running CRC
+                self._crc_broken = self._crc_end != info.file_size
+        self._lock = threading.Condition()  # one reader at a time: seek and read go together
         self._local = threading.local()  # each thread's read buffer, reused
 
     def read(self, start: int, count: int) -> np.ndarray:
@@ -130,7 +153,11 @@ class _NpyMember:
         if buf is None or buf.size < size:
             buf = self._local.buf = np.empty(size, np.uint8)
         view, got = memoryview(buf[:size]), 0
+        lo = start * self.frame_bytes
         with self._lock:
+            if self._crc is not None and not self._crc_broken and lo > self._crc_upto:
+                # an earlier chunk's thread has not read yet: let it, for one running CRC
+                self._lock.wait_for(lambda: lo <= self._crc_upto, timeout=0.5)
             if start != self._next:  # (zipfile seeks in a compressed member by reading on)
                 self._fh.seek(self._data_at + start * self.frame_bytes)
             while got < size:
@@ -151,17 +178,59 @@ class _NpyMember:
                     )
                 got += n
             self._next = start + count
+            if self._crc is not None and not self._crc_broken:
+                if lo <= self._crc_upto < lo + size:
+                    self._crc = zlib.crc32(view[self._crc_upto - lo :], self._crc)
+                    self._crc_upto = lo + size
+                    self._lock.notify_all()
+                elif lo > self._crc_upto:
+                    self._crc_broken = True  # a gap: verify reads the member again
+                    self._lock.notify_all()
         return buf[:size].view(self.dtype).reshape((count, *self.shape[1:]))
+
+    def verify(self) -> None:
+        """Compare the running CRC-32 with the member's (see the module docstring)."""
+        if self._crc is None:
+            return
+        with self._lock:
+            whole = not self._crc_broken and self._crc_upto == self.shape[0] * self.frame_bytes
+            crc, self._crc = self._crc, None
+        if not whole:
+            _check_member(self.path, self._zip, self._info)
+        elif crc != self._info.CRC:
+            raise FrameError(_crc_message(self.path, self._info.filename))
 
     def close(self) -> None:
         self._fh.close()
         self._zip.close()
 
 
-def _open_npz(path: Path) -> ChunkedRecording:
+def _crc_message(path: Path, member: str) -> str:
+    return (
+        f"{path}: not a readable .npz recording: member {member} fails its CRC check "
+        "(the file is damaged)"
+    )
+
+
+def _check_member(path: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+    """Read one member whole: zipfile compares its CRC-32 at the end."""
+    try:
+        with zf.open(info) as fh:
+            while fh.read(1 << 22):
+                pass
+    except zipfile.BadZipFile as exc:
+        if "CRC" in str(exc):
+            raise FrameError(_crc_message(path, info.filename)) from None
+        raise FrameError(f"{path}: not a readable .npz recording: {exc}") from None
+    except (OSError, EOFError, zlib.error, NotImplementedError) as exc:
+        raise FrameError(f"{path}: not a readable .npz recording: {exc}") from None
+
+
+def _open_npz(path: Path, verify: str = "open") -> ChunkedRecording:
     if not path.exists():
         raise FrameError(f"{path}: file not found")
-    check_zip(path, ".npz recording", FrameError)
+    if verify == "open":
+        check_zip(path, ".npz recording", FrameError)
     try:
         zf = zipfile.ZipFile(path)
     except (OSError, zipfile.BadZipFile) as exc:
@@ -170,8 +239,12 @@ def _open_npz(path: Path) -> ChunkedRecording:
         names = {n[:-4]: n for n in zf.namelist() if n.endswith(".npy")}
         if "frames" not in names:
             raise FrameError(f"{path}: missing key 'frames' (N, rows, cols) counts")
+        if verify != "open":
+            for info in zf.infolist():
+                if info.filename != names["frames"]:
+                    _check_member(path, zf, info)
         try:
-            member = _NpyMember(path, zf, zf.getinfo(names["frames"]))
+            member = _NpyMember(path, zf, zf.getinfo(names["frames"]), verify != "open")
         except (
             ValueError,
             OSError,
@@ -259,12 +332,20 @@ def _has_pressures(path: str, size: int, mtime_ns: int, rows: int, cols: int, fm
 
 
 def open_recording(
-    path: str | os.PathLike, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, fmt: str = "auto"
+    path: str | os.PathLike,
+    rows: int = BOARD_ROWS,
+    cols: int = BOARD_COLS,
+    fmt: str = "auto",
+    verify: str = "open",
 ) -> ChunkedRecording:
     """An `.npz` (frames read chunk by chunk), or a MuCa ASCII log or raw board capture
     (read whole, `fmt` as `read_recording` takes it), by suffix as `read_recording` does.
-    Use it as a context manager (it holds the file open)."""
+    Use it as a context manager (it holds the file open). An `.npz`'s CRCs are checked
+    on opening (`verify` "open"), or the frames' as they are read ("read": the caller
+    must call `ChunkedRecording.verify` after reading every frame)."""
     path = Path(path)
+    if verify not in ("open", "read"):
+        raise ValueError(f"verify: expected open or read, got {verify!r}")
     if path.suffix.lower() == ".npz":
-        return _open_npz(path)
+        return _open_npz(path, verify)
     return in_memory(read_recording(path, rows, cols, fmt), path)

@@ -1,6 +1,8 @@
 """Compiled loop (numba) writing CSV rows of numbers as Python's ``str(int)`` and
-``"%.6f"`` write them; see `fruitcli.sensing.outputs.csv_rows` for the rule and its exceptions.
-Releases the GIL; compiled (or loaded from numba's disk cache) on first use."""
+``"%.6f"`` write them (``nan``, ``inf``, ``-inf`` for the non-finite), and words picked
+from a list by an int column; see `fruitcli.sensing.outputs.csv_rows` for the rule and
+its exceptions. Releases the GIL; compiled (or loaded from numba's disk cache) on first
+use."""
 
 from __future__ import annotations
 
@@ -11,7 +13,9 @@ from numba import njit
 
 MAX_EXACT = 2.0**52 / 1e6  # |x| below this: |x| 1e6 < 2**52, so rint is an exact integer
 REL_ERR = 2.0**-50  # bound on the relative error of fl(|x| 1e6) (2**-53), with margin
-MAX_FIELD = 22  # bytes of one field at most: "-" + 20 digits, or "-" + 10 + "." + 6
+MAX_FIELD = 22  # bytes of one number at most: "-" + 20 digits, or "-" + 10 + "." + 6
+_NAN = np.frombuffer(b"nan", np.uint8)  # as Python writes NaN of either sign
+_INF = np.frombuffer(b"inf", np.uint8)
 
 
 @njit(cache=True, nogil=True)
@@ -29,11 +33,20 @@ def _put_uint(out, at, u):
 
 
 @njit(cache=True, nogil=True)
-def format_into(ints, floats, kinds, out, ends, bad):
+def _put_text(out, at, text, size):
+    """Bytes text[:size] at out[at:]; returns the position after them."""
+    for m in range(size):
+        out[at + m] = text[m]
+    return at + size
+
+
+@njit(cache=True, nogil=True)
+def format_into(ints, floats, kinds, words, word_len, out, ends, bad):
     """Rows r of columns given by `kinds` (0: next column of ints (n, a) int64, 1: next of
-    floats (n, b) float64) written at out; ends[r] = position after row r. A row with a
-    float Python must format (see csv_rows) is left out and marked in bad[r]. Returns the
-    number of bytes written."""
+    floats (n, b) float64, 2: next column of ints as an index into words (W, L) uint8 of
+    word_len (W,) bytes) written at out; ends[r] = position after row r. A row with a
+    float Python must format (see csv_rows) or a word index out of range is left out and
+    marked in bad[r]. Returns the number of bytes written."""
     n = ends.shape[0]
     at = 0
     for r in range(n):
@@ -45,7 +58,14 @@ def format_into(ints, floats, kinds, out, ends, bad):
             if c > 0:
                 out[at] = 44  # ,
                 at += 1
-            if kinds[c] == 0:
+            if kinds[c] == 2:
+                w = ints[r, ii]
+                ii += 1
+                if w < 0 or w >= word_len.shape[0]:
+                    ok = False
+                    break
+                at = _put_text(out, at, words[w], word_len[w])
+            elif kinds[c] == 0:
                 v = ints[r, ii]
                 ii += 1
                 if v < 0:
@@ -58,7 +78,16 @@ def format_into(ints, floats, kinds, out, ends, bad):
                 x = floats[r, ff]
                 ff += 1
                 a = abs(x)
-                if not a < MAX_EXACT:  # also NaN
+                if math.isnan(x):
+                    at = _put_text(out, at, _NAN, 3)
+                    continue
+                if math.isinf(x):
+                    if x < 0:
+                        out[at] = 45
+                        at += 1
+                    at = _put_text(out, at, _INF, 3)
+                    continue
+                if not a < MAX_EXACT:
                     ok = False
                     break
                 y = a * 1e6

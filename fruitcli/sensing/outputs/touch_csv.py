@@ -38,8 +38,7 @@ TOUCH_HEADER = [
     "size_mm",
     "kind",
 ]
-_KINDS = "dfdffffffffff"  # every column but kind, written as its name
-_KIND_ENDS = [f",{name}\n".encode() for name in KIND_NAMES]
+_KINDS = "dfdffffffffffs"  # kind: written as its name
 
 
 def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
@@ -47,7 +46,7 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
     if len(table) == 0:
         return b""
     xyz = table.xyz_mm
-    data = format_rows(
+    return format_rows(
         [
             table.frame,
             t_s[table.frame],
@@ -62,11 +61,11 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray) -> bytes:
             table.height_err_mm,
             table.strength,
             table.size_mm,
+            table.kind,
         ],
         _KINDS,
+        KIND_NAMES,
     )
-    ends = [_KIND_ENDS[k] for k in table.kind.tolist()]
-    return b"".join(line + end for line, end in zip(data.split(b"\n")[:-1], ends, strict=True))
 
 
 class _Rows:

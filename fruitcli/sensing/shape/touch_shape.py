@@ -104,6 +104,60 @@ def gap_law_shapes(
     return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
 
+def frame_shapes(
+    counts: np.ndarray,
+    frame: np.ndarray,
+    cell: np.ndarray,
+    baseline: np.ndarray,
+    divide: np.ndarray | None,
+    taxel9: np.ndarray,
+    pos: np.ndarray,
+    pos_row: np.ndarray,
+    xyz: np.ndarray,
+    model,
+) -> Shapes:
+    """`touch_shapes` of touches read from frames: counts (N, R * C), touch k in frame
+    frame[k], taxel t in cell cell[t] with C0 baseline[t] counts and its activation divided
+    by divide[t] (None: not), taxels taxel9 (n, 9) (-1: none), N9 positions
+    pos[pos_row] (n, 9, 3) mm. Compiled in one pass for a `heights.GapLaw`."""
+    from fruitcli.sensing.skin.heights import GapLaw
+
+    if len(taxel9) == 0:
+        e = np.zeros(0)
+        return Shapes(e, e, e, e)
+    if type(model) is not GapLaw:
+        tax = np.where(taxel9 < 0, 0, taxel9)
+        v9 = np.maximum(counts[frame[:, None], cell[tax]] - np.asarray(baseline)[tax], 0.0)
+        v9 = v9 * (taxel9 >= 0)
+        if divide is not None:
+            v9 = v9 / divide[tax]
+        return touch_shapes(v9, taxel9, pos[pos_row], xyz, model)
+    from fruitcli.sensing.shape.shape_kernel import gathered_shapes
+
+    law = model
+    gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
+    out = np.empty((len(taxel9), 4))
+    gathered_shapes(
+        counts,
+        np.ascontiguousarray(frame, np.int64),
+        np.ascontiguousarray(cell, np.int64),
+        np.ascontiguousarray(baseline, dtype=float),
+        np.zeros(0) if divide is None else np.ascontiguousarray(divide, dtype=float),
+        np.ascontiguousarray(taxel9, np.int64),
+        np.ascontiguousarray(pos, dtype=float),
+        np.ascontiguousarray(pos_row, np.int64),
+        np.ascontiguousarray(xyz, dtype=float),
+        float(law.contact),
+        float(law.gap_decay_mm),
+        float(law.sigma_mm),
+        float(law.noise_std_counts),
+        np.asarray(gain, dtype=float),
+        MIN_COUNTS,
+        out,
+    )
+    return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
+
+
 _ONES = np.ones(0)
 
 

@@ -104,9 +104,22 @@ def _fit(v, ci, cj, fp: Footprint, x0):
     return res.x, float(np.sum(res.fun**2))
 
 
-def split(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, peak_ij, fp: Footprint, threshold: float):
+def split(
+    v: np.ndarray,
+    ci: np.ndarray,
+    cj: np.ndarray,
+    peak_ij,
+    fp: Footprint,
+    threshold: float,
+    extent: tuple[float, float] = (np.inf, np.inf),
+):
     """The two footprints (2, 3) = (A, i, j) fitted to activations v at cells (ci, cj)
-    around the peak at `peak_ij`, or None when one footprint explains them."""
+    around the peak at `peak_ij`, or None when one footprint explains them, when fewer
+    than six cells (two footprints' parameters) are there to fit (a peak in a corner) or
+    when a footprint falls outside the taxel grid, 0 <= i <= extent[0], 0 <= j <=
+    extent[1] (a finger off the skin's edge cannot be placed on it)."""
+    if v.size < 6:
+        return None
     pi, pj = peak_ij
     one, rss1 = _fit(v, ci, cj, fp, np.array([v.max(), pi, pj]))
     if rss1 <= MIN_GAIN_SIGMA2 * fp.noise_std_counts**2:
@@ -131,6 +144,8 @@ def split(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, peak_ij, fp: Footprint,
     gain = rss1 - rss2
     sep = np.hypot(two[0, 1] - two[1, 1], two[0, 2] - two[1, 2])
     inside = np.all(np.abs(two[:, 1] - pi) <= WINDOW) and np.all(np.abs(two[:, 2] - pj) <= WINDOW)
+    inside = inside and np.all((two[:, 1] >= 0) & (two[:, 1] <= extent[0]))
+    inside = inside and np.all((two[:, 2] >= 0) & (two[:, 2] <= extent[1]))
     if (
         gain > MIN_GAIN_SIGMA2 * fp.noise_std_counts**2
         and rss2 <= MAX_RESIDUAL_SHARE * rss1
@@ -187,7 +202,10 @@ def fit2_touches(
             rest = _model(
                 np.column_stack([np.delete(flat[frame, mine], n), others]).ravel(), ci, cj, fp
             )
-            two = split(flat[frame, near] - rest, ci, cj, (pi, pj), fp, threshold)
+            two = split(flat[frame, near] - rest, ci, cj, (pi, pj), fp, threshold, (h - 3, w - 3))
+            windows = [] if two is None else [bilinear_window(fi, fj, grid) for _, fi, fj in two]
+            if any(wt.sum() == 0 for _, wt, _ in windows):
+                two = None  # no taxel among a footprint's four nearest cells
             if (
                 two is not None
                 and len(others)
@@ -198,8 +216,9 @@ def fit2_touches(
                 i, j, tax, wt, _ = _centroids(flat, np.array([frame]), np.array([cell]), grid, 0.0)
                 out.append((flat[frame, cell], i[0], j[0], tax[0], wt[0]))
             else:
-                for a, fi, fj in two[np.argsort(-two[:, 0])]:
-                    tax, wt, _ = bilinear_window(fi, fj, grid)
+                for k in np.argsort(-two[:, 0]):
+                    a, fi, fj = two[k]
+                    tax, wt, _ = windows[k]
                     out.append((a, fi, fj, tax, wt))
         out.sort(key=lambda r: -r[0])
         for rank, (pk, i, j, tax, wt) in enumerate(out[:max_touches]):

@@ -290,3 +290,33 @@ def test_json_lines_carry_heights_strengths_sizes_and_kinds():
     assert touch["strength"] == pytest.approx(np.exp(-0.25), abs=0.02)
     assert hover["size_mm"] is None or hover["size_mm"] > 0
     assert set(touch) >= {"height_err_mm", "size_mm"}
+
+
+def test_cli_locate_with_a_scene_gives_heights_from_the_scenes_skin(tmp_path):
+    """The fingers come down on the default skin (gap decay 2 mm); a scene whose [skin]
+    states a gap decay of 4 mm reads every strength as twice the height."""
+    taxels = grid_taxels()
+    gaps = [1.5, 1.0, 0.5]
+    frames = np.stack([np.full(252, BASE)] * 10 + [finger(taxels, g) for g in gaps])
+    write_npz(
+        tmp_path / "f.npz",
+        Recording(np.round(frames).reshape(-1, 21, 12).astype(int), np.arange(13) / 60.0),
+    )
+    taxel_csv(tmp_path / "t.csv")
+    (tmp_path / "s.toml").write_text(
+        "[skin]\ngap_decay_mm = 4.0\n[detection]\nthreshold_counts = 5\n"
+    )
+    args = ["locate", str(tmp_path / "f.npz"), "--taxels", str(tmp_path / "t.csv")]
+    r = CliRunner().invoke(
+        cli, [*args, "--scene", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")]
+    )
+    assert r.exit_code == 0, r.output
+    rows = [
+        ln.split(",")
+        for ln in (tmp_path / "o" / "touches.csv").read_text().splitlines()
+        if not ln.startswith("#")
+    ]
+    head, body = rows[0], rows[1:]
+    assert [int(b[0]) for b in body] == [10, 11, 12]
+    h = [float(b[head.index("height_mm")]) for b in body]
+    np.testing.assert_allclose(h, 2 * np.array(gaps), atol=0.3)

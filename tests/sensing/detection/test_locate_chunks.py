@@ -365,3 +365,24 @@ def test_bulk_rows_equal_python_formatting_on_ties_and_extremes():
     assert format_rows(cols, "dffdf") == python_rows(cols, "dffdf")
     assert format_rows([np.array([7]), np.array([2.5])], "df") == b"7,2.500000\n"
     assert format_rows([np.zeros(0)], "f") == b""
+
+
+def test_bulk_rows_write_words_and_non_finite_floats_as_python_does():
+    rng = np.random.default_rng(8)
+    n = 5000
+    x = rng.uniform(-50, 50, n)
+    x[rng.random(n) < 0.2] = np.nan
+    x[rng.random(n) < 0.05] = np.inf
+    x[rng.random(n) < 0.05] = -np.inf
+    x[rng.random(n) < 0.05] = -np.nan
+    kind = rng.integers(0, 3, n)
+    words = ("touch", "hover", "a-longer-word-than-any-number-field")
+    cols = [rng.integers(-5, 10**6, n), x, kind, rng.uniform(0, 1, n)]
+    want = "".join(
+        f"{cols[0][r]},{float(x[r]):.6f},{words[kind[r]]},{cols[3][r]:.6f}\n" for r in range(n)
+    ).encode()
+    assert format_rows(cols, "dfsf", words) == want
+    assert format_rows([np.array([np.nan]), np.array([-np.inf])], "ff") == b"nan,-inf\n"
+    for bad in (2, -1):
+        with pytest.raises(IndexError, match="word index"):
+            format_rows([np.array([0, bad])], "s", ("touch", "hover"))

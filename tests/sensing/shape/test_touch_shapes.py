@@ -16,7 +16,7 @@ from fruitcli.sensing.detection.frames_to_touches import (
 )
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.outputs.touch_csv import TOUCH_HEADER, touch_bytes, touch_csv
-from fruitcli.sensing.shape.touch_shape import touch_shapes
+from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.heights import GapLaw, gap_law
 from fruitcli.tables import Taxels
@@ -181,3 +181,65 @@ def test_compiled_gap_law_shapes_equal_the_generic_path():
     assert np.isnan(a.size_mm).any() and not np.isnan(a.size_mm).all()
     for name in ("strength", "size_mm", "height_mm", "height_err_mm"):
         np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12)
+
+
+def test_shapes_gathered_from_the_frames_equal_those_of_gathered_activations():
+    """`frame_shapes` (the batch path: one compiled pass reading the frames) gives the
+    values `touch_shapes` gives on the same activations gathered by numpy, to the bit:
+    with and without gain division, positions by taxel or one (n, 9) block per touch,
+    and through the generic path of another law."""
+    rng = np.random.default_rng(12)
+    taxels = grid_taxels()
+    frames = np.stack(
+        [
+            model_frame(taxels, (rng.uniform(-8, 330), rng.uniform(-6, 140), 0.0), 0.3).ravel()
+            + rng.normal(0, 1.2, 252)
+            for _ in range(200)
+        ]
+    )
+    counts = np.round(frames).astype(np.int64)
+    t = locate_frames(counts.reshape(-1, 21, 12).astype(float))
+    assert len(t) > 150
+    n = len(t)
+    tax9 = np.where(rng.random((n, 9)) < 0.1, -1, rng.integers(0, 252, (n, 9)))
+    cell = rng.permutation(252)
+    base = 500.0 + rng.normal(0, 0.3, 252)
+    divide = rng.uniform(0.7, 1.3, 252)
+    tax = np.maximum(tax9, 0)
+    law = GapLaw(60.0, 2.0, 6.2, 1.3, gain=rng.uniform(0.8, 1.2, 252))
+    for div in (None, divide):
+        v9 = np.maximum(counts[t.frame[:, None], cell[tax]] - base[tax], 0.0) * (tax9 >= 0)
+        if div is not None:
+            v9 = v9 / div[tax]
+        pos9 = taxels.xyz_mm[tax] + rng.normal(0, 0.5, (n, 9, 3))
+        want = touch_shapes(v9, tax9, taxels.xyz_mm[tax], t.xyz_mm, law)
+        got = frame_shapes(
+            counts, t.frame, cell, base, div, tax9, taxels.xyz_mm, tax, t.xyz_mm, law
+        )
+        want9 = touch_shapes(v9, tax9, pos9, t.xyz_mm, law)
+        rows = np.arange(n * 9).reshape(n, 9)
+        got9 = frame_shapes(
+            counts, t.frame, cell, base, div, tax9, pos9.reshape(-1, 3), rows, t.xyz_mm, law
+        )
+        with np.errstate(divide="ignore", invalid="ignore"):  # touches far from their taxels
+            plain = _PlainLaw(60.0, 2.0, 6.2, 1.3, gain=law.gain)
+            generic = frame_shapes(
+                counts, t.frame, cell, base, div, tax9, taxels.xyz_mm, tax, t.xyz_mm, plain
+            )
+            want_generic = touch_shapes(v9, tax9, taxels.xyz_mm[tax], t.xyz_mm, plain)
+        for name in ("strength", "size_mm", "height_mm", "height_err_mm"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+            np.testing.assert_array_equal(getattr(got9, name), getattr(want9, name))
+            np.testing.assert_array_equal(getattr(generic, name), getattr(want_generic, name))
+
+
+def test_a_touch_without_taxels_near_its_centre_has_no_strength_or_height():
+    law = GapLaw(60.0, 2.0, 6.2, 1.3)
+    v9 = np.zeros((1, 9))
+    v9[0, 4] = 40.0
+    tax9 = np.full((1, 9), -1)
+    tax9[0, 4] = 0
+    pos9 = np.zeros((1, 9, 3))
+    pos9[0, 4] = [1e4, 0, 0]  # far from the reported point: the footprint underflows
+    sh = touch_shapes(v9, tax9, pos9, np.zeros((1, 3)), law)
+    assert np.isnan([sh.strength[0], sh.height_mm[0], sh.height_err_mm[0]]).all()

@@ -77,3 +77,27 @@ def test_a_single_finger_is_where_n9_puts_it():
         assert len(a) == len(b) == 1
         assert (a.i[0], a.j[0], a.peak[0]) == (b.i[0], b.j[0], b.peak[0])
         np.testing.assert_allclose(a.xyz_mm, b.xyz_mm, rtol=0, atol=1e-9)
+
+
+def test_fingers_at_the_board_edges_stay_on_the_grid():
+    """Up to four fingers anywhere, at corners and past the edges too (noisy counts): no
+    footprint is placed off the taxel grid (it would have no taxels to weigh), every
+    touch's weights stay a partition of one, its point lies among the taxels and its
+    strength is finite."""
+    rng = np.random.default_rng(3)
+    taxels = grid_taxels()
+    n = 1500
+    r, c = np.meshgrid(np.arange(21), np.arange(12), indexing="ij")
+    f = 500.0 + rng.normal(0, 2.0, (n, 21, 12))
+    for _ in range(4):
+        on = rng.random(n) < 0.6
+        ci, cj = rng.uniform(-1, 21, n)[:, None, None], rng.uniform(-1, 12, n)[:, None, None]
+        amp = rng.uniform(10, 90, n)[:, None, None]
+        f += on[:, None, None] * amp * np.exp(-((r - ci) ** 2 + (c - cj) ** 2) / 1.1)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="fit2"), heights=LAW)
+    t = loc.batch(np.round(f).astype(np.int64), np.full(252, 500.0))
+    assert len(t) > n
+    assert (t.i >= 0).all() and (t.i <= 20).all() and (t.j >= 0).all() and (t.j <= 11).all()
+    assert (t.xyz_mm[:, 0] >= 0).all() and (t.xyz_mm[:, 0] <= 320).all()
+    assert (t.xyz_mm[:, 1] >= 0).all() and (t.xyz_mm[:, 1] <= 132).all()
+    assert np.isfinite(t.strength).all()

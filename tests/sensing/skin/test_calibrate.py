@@ -302,3 +302,47 @@ def test_the_printer_emulators_skin_board_uses_the_skin_table(tmp_path):
     ) * np.exp(-1.0 / 1.5)
     np.testing.assert_allclose(skin.mean_counts(tip), want, rtol=1e-12)
     assert np.all(skin.skin.noise_std_counts == 1.0)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"sample": None}, "frames.npz: no 'sample' key: not a bench recording"),
+        (
+            {"meta": {"indenter": "small", "baseline_frames": 10}},
+            "frames.npz: meta has no step_mm (virtual bench) and no printer_mm",
+        ),
+        ({"sample_all": -1}, "samples 0, 1, 2, 3, 4 have no frame in"),
+        (
+            {"meta": {"step_mm": 0.1, "baseline_frames": 10}},
+            "frames.npz: meta names no indenter: give --indenter",
+        ),
+        (
+            {"meta": {"step_mm": 0.1, "indenter": "small", "baseline_frames": 100000}},
+            "frames.npz: 100000 idle frames (meta baseline_frames): expected 2 ..",
+        ),
+    ],
+)
+def test_a_recording_without_what_calibration_needs_is_one_line(tmp_path, change, message):
+    """A recording that lacks the frames (or the facts about them) a calibration needs:
+    one line naming the file, exit code 1, an earlier calibration's files kept."""
+    from fruitcli.sensing.frames.recording import read_npz
+
+    hidden_bench(tmp_path)
+    rec = read_npz(tmp_path / "frames.npz")
+    sample = rec.sample
+    if "sample_all" in change:
+        sample = np.full_like(sample, change["sample_all"])
+    if "sample" in change:
+        sample = change["sample"]
+    write_npz(
+        tmp_path / "frames.npz",
+        Recording(rec.frames, rec.t_s, sample=sample, meta=change.get("meta", rec.meta)),
+    )
+    (tmp_path / "cal").mkdir()
+    (tmp_path / "cal" / "skin.toml").write_text("kept\n")
+    res = calibrate(tmp_path)
+    assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
+    assert message in res.output and "Traceback" not in res.output
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == ["skin.toml"]
+    assert (tmp_path / "cal" / "skin.toml").read_text() == "kept\n"
