@@ -22,7 +22,10 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path`; rename it onto `path` on success."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    sweep_orphans(path.parent, f".{path.name}.")  # left by a writer killed with SIGKILL
+    fd, tmp = tempfile.mkstemp(
+        prefix=owned_prefix(f".{path.name}."), suffix=path.suffix, dir=path.parent
+    )
     os.close(fd)
     try:
         yield Path(tmp)
@@ -99,9 +102,9 @@ def _alive(pid: int) -> bool:
 
 
 def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
-    """Remove the temporary folders `prefix` + "<pid>-..." in `folder` whose process has
-    ended (a run killed with SIGKILL leaves them); a live run's are left alone. Returns
-    the folders removed."""
+    """Remove the temporary files and folders `prefix` + "<pid>-..." in `folder` whose
+    process has ended (a run killed with SIGKILL leaves them); a live run's are left
+    alone. Returns the entries removed."""
     removed = []
     try:
         entries = list(Path(folder).iterdir())
@@ -116,10 +119,13 @@ def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
             and pid.isdigit()
             and int(pid) != os.getpid()
             and not _alive(int(pid))
-            and entry.is_dir()
             and not entry.is_symlink()
         ):
-            shutil.rmtree(entry, ignore_errors=True)
+            if entry.is_dir():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    entry.unlink()
             removed.append(entry)
     return removed
 

@@ -101,3 +101,22 @@ def test_killing_an_ended_gmsh_group_is_no_error():
     proc = subprocess.Popen([sys.executable, "-c", "pass"], start_new_session=True)
     proc.wait()
     kill_group(proc.pid)  # "No such process" before
+
+
+def test_orphaned_temporary_files_are_swept_when_the_file_is_written_again(tmp_path):
+    """A writer killed with SIGKILL between creating its temporary file and renaming it
+    leaves `.<name>.<pid>-...`; the next write of that file removes it, not a live
+    writer's."""
+    from fruitcli.fsutil import atomic_path, owned_prefix, write_text
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    orphan = tmp_path / f".noise_std.png.{dead.pid}-abc.png"
+    orphan.write_text("half")
+    live = tmp_path / f".noise_std.png.{os.getppid()}-def.png"
+    live.write_text("being written")
+    with atomic_path(tmp_path / "noise_std.png") as tmp:
+        assert tmp.name.startswith(owned_prefix(".noise_std.png."))
+        tmp.write_text("whole")
+    write_text(tmp_path / "other.txt", "x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [live.name, "noise_std.png", "other.txt"]
