@@ -60,12 +60,15 @@ class CrossingSkin:
     counts_per_ff: float
 
     @classmethod
-    def from_table(cls, arrays: dict, summary: dict) -> CrossingSkin:
+    def from_table(
+        cls, arrays: dict, summary: dict, counts_per_ff: float | None = None
+    ) -> CrossingSkin:
         """From crossing.npz's arrays and summary.json's dict (`fruitcli.electrostatics.
-        design`)."""
+        design`), in counts of `counts_per_ff` (default: the summary's, fitted to the
+        bent pad)."""
         from fruitcli.electrostatics.crossing import NEUTRAL_MM
 
-        scale = float(summary["counts_per_ff"])
+        scale = float(summary["counts_per_ff"] if counts_per_ff is None else counts_per_ff)
         c0 = float(arrays["c0_ff"])
         objects = tuple(str(o) for o in arrays["objects"])
         gap = np.asarray(arrays["gap_mm"], float)
@@ -97,7 +100,7 @@ class CrossingSkin:
         )
 
     @classmethod
-    def load(cls, folder: Path) -> CrossingSkin:
+    def load(cls, folder: Path, counts_per_ff: float | None = None) -> CrossingSkin:
         """From `fruit skin`'s folder (crossing.npz, summary.json)."""
         folder = Path(folder)
         try:
@@ -108,7 +111,7 @@ class CrossingSkin:
             raise FrameError(
                 f"{folder}: the crossing's table (crossing.npz, summary.json) cannot be read: {exc}"
             ) from None
-        return cls.from_table(arrays, summary)
+        return cls.from_table(arrays, summary, counts_per_ff)
 
     def object_index(self, indenter: str) -> int:
         if indenter not in self.objects:
@@ -262,10 +265,12 @@ def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=No
 
 def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
     """The scene's electrostatic skin: from `folder` (the skin stage's crossing.npz and
-    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`)."""
+    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`); in
+    counts of ``[skin].counts_per_ff`` when the scene gives it."""
+    scale = scene.skin.counts_per_ff
     if folder is not None:
-        return CrossingSkin.load(folder)
+        return CrossingSkin.load(folder, scale)
     from fruitcli.electrostatics import design
 
     table, summary = design.run_crossing(design.crossing_inputs(scene), progress=progress)
-    return CrossingSkin.from_table(design.table_arrays(table), summary)
+    return CrossingSkin.from_table(design.table_arrays(table), summary, scale)
