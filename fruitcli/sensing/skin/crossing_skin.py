@@ -123,28 +123,90 @@ class CrossingSkin:
 
     def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
         """Activation (counts) at lateral offsets dx, dy and gaps (broadcast together)."""
-        from scipy.interpolate import RegularGridInterpolator
-
         k = self.object_index(indenter)
         dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
-        cx = np.clip(dx, self.dx_mm[0], self.dx_mm[-1])
-        cy = np.clip(dy, self.dy_mm[0], self.dy_mm[-1])
-        cg = np.clip(gap, 0.0, self.gap_mm[-1])
-        grid = RegularGridInterpolator((self.gap_mm, self.dx_mm, self.dy_mm), self.drop_counts[k])
-        v = grid(np.stack([cg, cx, cy], axis=-1))
-        lateral = (dx**2 - cx**2) + (dy**2 - cy**2)
-        v = v * np.exp(-0.5 * lateral / self.sigma_mm[k] ** 2)
-        v = v * np.exp(np.maximum(-gap, 0.0) / self.press_decay_mm[k])
-        return v * np.exp(-np.maximum(gap - self.gap_mm[-1], 0.0) / self.tail_decay_mm[k])
+        profile = self._lateral(k, dx.ravel(), dy.ravel())
+        return self._along_gap(k, profile, gap.ravel()[None, :])[0].reshape(dx.shape)
 
     def activation(
         self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray, gaps_mm: np.ndarray
     ) -> np.ndarray:
         """(G, T) counts of taxels (T, 3) with the indenter `gaps_mm` (G,) above the
-        contact point (3,)."""
+        contact point (3,). The table is interpolated across (dx, dy) once per taxel, then
+        along the gap for every frame: the same trilinear values as `drop`."""
+        k = self.object_index(indenter)
         off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
         gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
-        return self.drop(indenter, off[None, :, 0], off[None, :, 1], gap)
+        return self._along_gap(k, self._lateral(k, off[:, 0], off[:, 1]), gap)
+
+    def _lateral(self, k: int, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+        """(N, u) the table's column at each of N offsets, on the uniform gap grid
+        (`_uniform`): bilinear within the table's offsets, beyond them its edge value
+        times the contact Gaussian's fall-off."""
+        cx = np.minimum(np.maximum(dx, self.dx_mm[0]), self.dx_mm[-1])
+        cy = np.minimum(np.maximum(dy, self.dy_mm[0]), self.dy_mm[-1])
+        ix, wx = _cell(self.dx_mm, cx)
+        iy, wy = _cell(self.dy_mm, cy)
+        table = self._uniform[1][k]  # (x y, u)
+        ny = len(self.dy_mm)
+        corners = (ix * ny + iy)[:, None] + np.array([0, 1, ny, ny + 1])  # (N, 4)
+        ux, uy = 1.0 - wx, 1.0 - wy
+        weights = np.stack([ux * uy, ux * wy, wx * uy, wx * wy], axis=1)
+        v = np.einsum("nc,ncu->nu", weights, table[corners])
+        outside = (dx**2 - cx**2) + (dy**2 - cy**2)
+        if outside.any():
+            v *= np.exp(-0.5 * outside / self.sigma_mm[k] ** 2)[:, None]
+        return v
+
+    def _along_gap(self, k: int, profile: np.ndarray, gap: np.ndarray) -> np.ndarray:
+        """(G, N) `profile` (N, u) at gaps (G, N): linear between the grid's gaps,
+        exponential below 0 and beyond the last. The grid is uniform, so a gap's
+        interval is arithmetic; the passes over (G, N) are few and in place (the bench
+        calls this for every frame)."""
+        step, _ = self._uniform
+        top, n = float(self.gap_mm[-1]), profile.shape[1]
+        u = np.clip(gap, 0.0, top)
+        u *= 1.0 / step
+        at = u.astype(np.intp)
+        np.minimum(at, n - 2, out=at)
+        u -= at  # the weight of the upper node
+        at += np.arange(profile.shape[0]) * n  # the lower node's index in the profile
+        flat = profile.ravel()
+        v = flat[at]
+        at += 1
+        upper = flat[at]
+        upper -= v
+        upper *= u
+        v += upper
+        pressed = np.flatnonzero(gap.min(axis=1) < 0)  # rows with a gap below contact
+        if pressed.size:
+            v[pressed] *= np.exp(np.maximum(-gap[pressed], 0.0) / self.press_decay_mm[k])
+        far = np.flatnonzero(gap.max(axis=1) > top)
+        if far.size:
+            v[far] *= np.exp(-np.maximum(gap[far] - top, 0.0) / self.tail_decay_mm[k])
+        return v
+
+    @property
+    def _uniform(self) -> tuple[float, np.ndarray]:
+        """(step mm, drop_counts (k, x y, u)): the table on a uniform gap grid from 0 to
+        its last gap whose step divides every gap of the table, so linear
+        interpolation on it is linear interpolation on the table (made once)."""
+        cached = self.__dict__.get("_uniform_cache")
+        if cached is None:
+            step = _common_step(self.gap_mm)
+            grid = np.linspace(0.0, self.gap_mm[-1], round(self.gap_mm[-1] / step) + 1)
+            i, w = _cell(self.gap_mm, grid)
+            table = (
+                self.drop_counts[:, i] * (1 - w)[:, None, None]
+                + self.drop_counts[:, i + 1] * w[:, None, None]
+            )
+            by_offset = np.moveaxis(table, 1, -1)  # (k, x, y, u)
+            cached = (
+                float(grid[1] - grid[0]),
+                np.ascontiguousarray(by_offset.reshape(len(table), -1, len(grid))),
+            )
+            object.__setattr__(self, "_uniform_cache", cached)
+        return cached
 
     def deformation_shift(
         self, stretch: np.ndarray, curvature_per_mm: np.ndarray, rest_curvature_per_mm=0.0
@@ -169,6 +231,25 @@ class CrossingSkin:
     def _neutral(self, surface_curvature_per_mm) -> np.ndarray:
         surface = np.asarray(surface_curvature_per_mm, float)
         return surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
+
+
+def _cell(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the interval of increasing `nodes` holding each `x` (clipped to them) and
+    the weight of its upper node."""
+    i = np.minimum(np.maximum(np.searchsorted(nodes, x, side="right") - 1, 0), len(nodes) - 2)
+    return i, (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+
+def _common_step(gaps: np.ndarray, most: int = 4096) -> float:
+    """The largest step (mm) that divides every gap (from 0) within 1e-9 mm, at most
+    `most` steps to the last gap; else the last gap / `most` (then linear on the grid
+    departs from linear on the table by at most the curvature over a 1/most step)."""
+    top = float(gaps[-1])
+    for n in range(1, most + 1):
+        k = gaps * (n / top)
+        if np.all(np.abs(k - np.round(k)) * (top / n) < 1e-9):
+            return top / n
+    return top / most
 
 
 def _decay_mm(gaps: np.ndarray, drops: np.ndarray, fallback: float) -> float:

@@ -22,16 +22,17 @@ OFFSETS = np.array([-16.0, -8.0, -4.0, 0.0, 4.0, 8.0, 16.0])
 AMPLITUDE_FF = {"small": 60.0, "medium": 150.0}  # -dC at contact over the crossing
 
 
-def table(counts_per_ff: float = 0.5) -> CrossingSkin:
+def table(counts_per_ff: float = 0.5, gaps=GAPS) -> CrossingSkin:
     """A crossing table: -dC = A exp(-r^2 / 2 (8 mm)^2) exp(-gap / 1.5 mm) on its nodes."""
     gx, gy = np.meshgrid(OFFSETS, OFFSETS, indexing="ij")
     lateral = np.exp(-0.5 * (gx**2 + gy**2) / 64.0)
-    decay = np.exp(-GAPS / 1.5)[:, None, None]
+    gaps = np.asarray(gaps, float)
+    decay = np.exp(-gaps / 1.5)[:, None, None]
     dc = np.stack([-a * decay * lateral for a in AMPLITUDE_FF.values()])
     arrays = {
         "c0_ff": np.array(800.0),
         "objects": np.array(list(AMPLITUDE_FF)),
-        "gap_mm": GAPS,
+        "gap_mm": gaps,
         "dx_mm": OFFSETS,
         "dy_mm": OFFSETS,
         "dc_ff": dc,
@@ -198,3 +199,28 @@ def test_calibrate_refuses_an_indenter_the_table_lacks(tmp_path):
             response=table(),
         )
     assert not (tmp_path / "cal").exists()
+
+
+@pytest.mark.parametrize("gaps", [[0.0, 1.0, 2.0, 4.0], [0.0, 0.3, 0.7, 2.0, 5.0]])
+def test_drop_and_activation_are_trilinear_on_the_table(gaps):
+    """Within the table's offsets and gaps the activation is scipy's trilinear
+    interpolation of counts_per_ff * -dC (the bench's fast path on a uniform gap grid
+    changes nothing), and `activation` gives `drop`'s values."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    t = table(0.5, gaps)
+    rng = np.random.default_rng(5)
+    dx, dy = rng.uniform(-16, 16, (2, 500))
+    gap = rng.uniform(0, gaps[-1], 500)
+    for k, name in enumerate(t.objects):
+        ref = RegularGridInterpolator((t.gap_mm, OFFSETS, OFFSETS), t.drop_counts[k])
+        want = ref(np.stack([gap, dx, dy], axis=1))
+        np.testing.assert_allclose(t.drop(name, dx, dy, gap), want, rtol=1e-12, atol=1e-12)
+        taxels = np.column_stack([dx[:30], dy[:30], rng.uniform(-0.5, 0.5, 30)])
+        gaps_g = np.linspace(3.0, -1.0, 17)
+        off = np.array([0.5, -0.5, 0.2]) - taxels
+        np.testing.assert_allclose(
+            t.activation(name, [0.5, -0.5, 0.2], taxels, gaps_g),
+            t.drop(name, off[None, :, 0], off[None, :, 1], gaps_g[:, None] + off[None, :, 2]),
+            rtol=1e-12,
+        )
