@@ -38,6 +38,8 @@ import numpy as np
 from fruitcli.errors import FrameError
 
 AXES = ("x", "y")
+BLOCK_VALUES = 2_000_000
+"""Most table values the bench interpolates across the offsets at once (16 MB)."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +128,7 @@ class CrossingSkin:
         k = self.object_index(indenter)
         dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
         profile = self._lateral(k, dx.ravel(), dy.ravel())
-        return self._along_gap(k, profile, gap.ravel()[None, :])[0].reshape(dx.shape)
+        return self._along_gap(k, profile, np.zeros(1), gap.ravel())[0].reshape(dx.shape)
 
     def activation(
         self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray, gaps_mm: np.ndarray
@@ -136,11 +138,34 @@ class CrossingSkin:
         along the gap for every frame: the same trilinear values as `drop`."""
         k = self.object_index(indenter)
         off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
-        gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
-        return self._along_gap(k, self._lateral(k, off[:, 0], off[:, 1]), gap)
+        profile = self._lateral(k, off[:, 0], off[:, 1])
+        return self._along_gap(k, profile, np.asarray(gaps_mm, float), off[:, 2])
+
+    def descent(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray):
+        """A function (p, gaps (G,)) -> (G, T) counts of taxels (T, 3) with the indenter
+        above contact point p of `contact_mm` (P, 3): `activation` with the lateral
+        interpolation done for a block of contact points at once (the bench's descents;
+        blocks of at most ``BLOCK_VALUES`` table values)."""
+        k = self.object_index(indenter)
+        off = np.asarray(contact_mm, float)[:, None, :] - taxels_mm  # (P, T, 3)
+        size = max(1, BLOCK_VALUES // (off.shape[1] * (len(self._uniform[1][k][0]))))
+        block = {}
+
+        def at_gaps(p: int, gaps_mm: np.ndarray) -> np.ndarray:
+            start = p - p % size
+            if start not in block:
+                flat = off[start : start + size].reshape(-1, 3)
+                block.clear()
+                block[start] = self._lateral(k, flat[:, 0], flat[:, 1]).reshape(
+                    -1, off.shape[1], len(self._uniform[1][k][0])
+                )
+            profile = block[start][p - start]
+            return self._along_gap(k, profile, np.asarray(gaps_mm, float), off[p, :, 2])
+
+        return at_gaps
 
     def _lateral(self, k: int, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-        """(N, u) the table's column at each of N offsets, on the uniform gap grid
+        """(N, u + 1) the table's column at each of N offsets, on the uniform gap grid
         (`_uniform`): bilinear within the table's offsets, beyond them its edge value
         times the contact Gaussian's fall-off."""
         cx = np.minimum(np.maximum(dx, self.dx_mm[0]), self.dx_mm[-1])
@@ -158,17 +183,17 @@ class CrossingSkin:
             v *= np.exp(-0.5 * outside / self.sigma_mm[k] ** 2)[:, None]
         return v
 
-    def _along_gap(self, k: int, profile: np.ndarray, gap: np.ndarray) -> np.ndarray:
-        """(G, N) `profile` (N, u) at gaps (G, N): linear between the grid's gaps,
-        exponential below 0 and beyond the last. The grid is uniform, so a gap's
-        interval is arithmetic; the passes over (G, N) are few and in place (the bench
-        calls this for every frame)."""
+    def _along_gap(self, k: int, profile: np.ndarray, rows: np.ndarray, cols: np.ndarray):
+        """(G, N) `profile` (N, u + 1) at the gaps rows (G,) + cols (N,): linear between
+        the grid's gaps, exponential below 0 and beyond the last. The grid is uniform, so
+        a gap's interval is arithmetic; the passes over (G, N) are few and in place (the
+        bench calls this for every frame)."""
         step, _ = self._uniform
         top, n = float(self.gap_mm[-1]), profile.shape[1]
+        gap = rows[:, None] + cols
         u = np.clip(gap, 0.0, top)
         u *= 1.0 / step
-        at = u.astype(np.intp)
-        np.minimum(at, n - 2, out=at)
+        at = u.astype(np.intp)  # up to u's last node: the profile repeats it
         u -= at  # the weight of the upper node
         at += np.arange(profile.shape[0]) * n  # the lower node's index in the profile
         flat = profile.ravel()
@@ -178,19 +203,20 @@ class CrossingSkin:
         upper -= v
         upper *= u
         v += upper
-        pressed = np.flatnonzero(gap.min(axis=1) < 0)  # rows with a gap below contact
+        pressed = np.flatnonzero(rows + cols.min() < 0)  # rows with a gap below contact
         if pressed.size:
             v[pressed] *= np.exp(np.maximum(-gap[pressed], 0.0) / self.press_decay_mm[k])
-        far = np.flatnonzero(gap.max(axis=1) > top)
+        far = np.flatnonzero(rows + cols.max() > top)
         if far.size:
             v[far] *= np.exp(-np.maximum(gap[far] - top, 0.0) / self.tail_decay_mm[k])
         return v
 
     @property
     def _uniform(self) -> tuple[float, np.ndarray]:
-        """(step mm, drop_counts (k, x y, u)): the table on a uniform gap grid from 0 to
-        its last gap whose step divides every gap of the table, so linear
-        interpolation on it is linear interpolation on the table (made once)."""
+        """(step mm, drop_counts (k, x y, u + 1)): the table on a uniform gap grid from 0
+        to its last gap (the last repeated once) whose step divides every gap of the
+        table, so linear interpolation on it is linear interpolation on the table (made
+        once)."""
         cached = self.__dict__.get("_uniform_cache")
         if cached is None:
             step = _common_step(self.gap_mm)
@@ -200,10 +226,11 @@ class CrossingSkin:
                 self.drop_counts[:, i] * (1 - w)[:, None, None]
                 + self.drop_counts[:, i + 1] * w[:, None, None]
             )
-            by_offset = np.moveaxis(table, 1, -1)  # (k, x, y, u)
+            table = np.concatenate([table, table[:, -1:]], axis=1)  # the last repeated
+            by_offset = np.moveaxis(table, 1, -1)  # (k, x, y, u + 1)
             cached = (
                 float(grid[1] - grid[0]),
-                np.ascontiguousarray(by_offset.reshape(len(table), -1, len(grid))),
+                np.ascontiguousarray(by_offset.reshape(len(table), -1, len(grid) + 1)),
             )
             object.__setattr__(self, "_uniform_cache", cached)
         return cached

@@ -224,3 +224,22 @@ def test_drop_and_activation_are_trilinear_on_the_table(gaps):
             t.drop(name, off[None, :, 0], off[None, :, 1], gaps_g[:, None] + off[None, :, 2]),
             rtol=1e-12,
         )
+
+
+def test_the_benchs_descents_are_the_activation(monkeypatch):
+    """`descent` (the lateral interpolation by blocks of contact points) gives
+    `activation`'s counts, whatever the block size."""
+    from fruitcli.sensing.skin import crossing_skin
+
+    t = table(0.5, [0.0, 0.3, 0.7, 2.0, 5.0])
+    rng = np.random.default_rng(6)
+    taxels = np.column_stack([rng.uniform(-20, 20, (12, 2)), rng.uniform(-1, 1, 12)])
+    contact = np.column_stack([rng.uniform(-20, 20, (7, 2)), rng.uniform(-1, 1, 7)])
+    gaps = np.arange(5.0, -2.05, -0.1)
+    for block in (1, 3 * 12 * 51, 10**6):
+        monkeypatch.setattr(crossing_skin, "BLOCK_VALUES", block)
+        descent = t.descent("medium", contact, taxels)
+        for p in (0, 4, 5, 6, 2):
+            np.testing.assert_allclose(
+                descent(p, gaps), t.activation("medium", contact[p], taxels, gaps), rtol=1e-12
+            )
