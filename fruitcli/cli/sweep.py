@@ -71,7 +71,8 @@ TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$|contact_counts_.+")
     "figure",
     default=None,
     help="The figure sweep.png shows against the swept keys, a sweep.csv column "
-    "(tets, max_disp_mm, state_ms, shift_max_counts, <row>_mean_mm, ...). "
+    "(tets, max_disp_mm, state_ms, shift_max_counts, bend_margin_counts, "
+    "<row>_mean_mm, ...). "
     "[default: the first Table I mean error, else the largest baseline "
     "shift, else the largest displacement]",
 )
