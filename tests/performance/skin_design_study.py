@@ -112,8 +112,11 @@ def plot(rows: list[dict], path: Path, note: str) -> None:
             label = f"cover {c:g} mm, {column.split('_')[0].removeprefix('rest-')}"
             err.plot(pitch, [float(r[column]) for r in mine], style, marker="o",
                      color=colour, label=label)  # fmt: skip
-        margin.plot(pitch, [float(r["bend_margin_counts"]) for r in mine], "-", marker="o",
-                    color=colour, label=f"cover {c:g} mm")  # fmt: skip
+        margins = [float(r["bend_margin_counts"]) for r in mine]
+        margin.plot(pitch, margins, "-", marker="o", color=colour)
+        margin.annotate(f"cover {c:g} mm", (pitch[-1], margins[-1]), xytext=(6, 0),
+                        textcoords="offset points", va="center", fontsize=8,
+                        color=colour)  # fmt: skip
     err.set(xlabel="pitch (mm)", ylabel="registered mean error (mm)",
             title="Bench error (Table I, translation-registered)")  # fmt: skip
     err.legend(fontsize=7, ncol=2)
@@ -122,7 +125,7 @@ def plot(rows: list[dict], path: Path, note: str) -> None:
                 va="bottom", color="0.3")  # fmt: skip
     margin.set(xlabel="pitch (mm)", ylabel="threshold - largest bend shift (counts)",
                title="Bending false-touch margin (pad bent 180 deg)")  # fmt: skip
-    margin.legend(fontsize=8)
+    margin.set_xlim(right=margin.get_xlim()[1] + 2.5)  # room for the labels
     for ax in (err, margin):
         ax.grid(alpha=0.3)
     fig.suptitle(f"Electrostatic skin on the Fruit at rest. {note}", fontsize=8)
