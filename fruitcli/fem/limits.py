@@ -67,6 +67,7 @@ class ChamberCurve:
     collapse_pressure_kpa: float | None = None
     end: str = ""
     limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_below`)
+    failed: bool = False  # the curve ended without equilibrium at its next sample
 
 
 def chamber_load(model, k: int, growth_mm3: float) -> Load:
@@ -119,6 +120,7 @@ def follow(
     step: float = STRETCH_STEP,
     deadline: float | None = None,
     fall_steps: int = FALL_STEPS,
+    budget: tuple[float, float] | None = None,
     progress=None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
@@ -126,11 +128,13 @@ def follow(
     `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
     neither a limit nor a collapse before it). `fall_steps`: samples past the peak
     (inflation) or past the lowest pressure (suction) that end the curve.
-    `deadline` (time.monotonic()) ends the
-    curve where it is. `progress(msg)` is told each sample."""
+    `deadline` (time.monotonic()) ends the curve where it is; `budget` (factor, floor)
+    caps each sample after the first (default STEP_BUDGET). `progress(msg)` is told each
+    sample."""
     name = model.chamber_names[k]
     v0 = float(model.chamber_rest_volume_mm3[k])
     curve = ChamberCurve(name, v0, [0.0], [0.0])
+    budget = budget or STEP_BUDGET
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
     options = options or SolverOptions(load_steps=1)
     stretches = [1.0]
@@ -146,9 +150,9 @@ def follow(
             curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
             break
         load = chamber_load(model, k, v0 * (s**3 - 1.0))
-        budget = options
+        timed = options
         if last is not None:
-            budget = replace(options, max_seconds=max(STEP_BUDGET[0] * last, STEP_BUDGET[1]))
+            timed = replace(options, max_seconds=max(budget[0] * last, budget[1]))
         try:
             res = solve_state(
                 model,
@@ -156,7 +160,7 @@ def follow(
                 x_start=x,
                 load_start=prev,
                 pressure_start=p_start,
-                options=budget,
+                options=timed,
                 solver=solver,
                 label=f"chamber {name}",
             )
@@ -166,7 +170,8 @@ def follow(
                 if isinstance(exc, OutOfTime)
                 else "no equilibrium"
             )
-            curve.end = f"{why} at mean stretch {s:.2f}"
+            curve.end = f"{why} at {s**3:.2f} V0"
+            curve.failed = True
             if direction < 0:
                 curve.collapse_pressure_kpa = min(curve.pressure_kpa)
             break
@@ -233,6 +238,16 @@ STEP_BUDGET = (4.0, 5.0)
 least this many seconds (a sample that fails, e.g. as the walls buckle in, costs little
 more than one that converges; the first sample, from rest, has the scene's budget)."""
 
+CHECK_BUDGET = (2.0, 2.0)
+"""`STEP_BUDGET` of the samples of `check_pressures`: a sample that fails there (the
+thick sphere's cavity buckling in at 0.34 V0) is the refusal's evidence, and it is
+reached in half the time (the converging samples take 3-4 Newton steps each)."""
+
+CHECK_SUBDIVISIONS = 2
+"""Load-step halvings of a sample of `check_pressures` (the scene's [solver]
+max_subdivisions is for its states): a sample that needs more is past the range the
+check follows."""
+
 
 def rest_compliance(model, solver) -> np.ndarray:
     """(K,) dV_k/dp_k (mm^3/kPa) of each chamber at rest, from the solver's tangent there
@@ -277,7 +292,12 @@ def check_pressures(
     if not np.any(np.nan_to_num(pressures)):
         return
     w = rest_compliance(model, solver)
-    check = replace(options, tolerance=max(options.tolerance, CHECK_TOLERANCE), load_steps=1)
+    check = replace(
+        options,
+        tolerance=max(options.tolerance, CHECK_TOLERANCE),
+        load_steps=1,
+        max_subdivisions=min(options.max_subdivisions, CHECK_SUBDIVISIONS),
+    )
     v0 = model.chamber_rest_volume_mm3
     for k, key in enumerate(keys):
         col = pressures[:, k][np.isfinite(pressures[:, k])]
@@ -292,21 +312,30 @@ def check_pressures(
                 options=check,
                 stop_beyond_kpa=asked,
                 fall_steps=1,
+                budget=CHECK_BUDGET,
                 progress=progress,
             )
             forget(solver)
             if direction > 0 and curve.limit_bound_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
-                    f"below {kpa(curve.limit_bound_kpa)} kPa (its pressure-volume curve levels "
-                    "off: no equilibrium above its peak; `fruit limits` computes it); give "
-                    "`volume_growth_mm3` to follow the inflation past it"
+                    f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: its pressure-volume "
+                    "curve levels off, and there is no equilibrium above its peak; `fruit "
+                    "limits` computes the limit); give `volume_growth_mm3` to follow the "
+                    "inflation past it"
                 )
             if direction > 0 and curve.limit_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it"
+                )
+            if direction < 0 and curve.failed:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's collapse: no equilibrium "
+                    f"was found beyond {kpa(curve.collapse_pressure_kpa)} kPa ({curve.end}: "
+                    "its walls buckle in or meet, and self-contact is not modelled); give "
+                    "`volume_growth_mm3` to follow the suction"
                 )
             if direction < 0 and curve.collapse_pressure_kpa is not None:
                 raise SceneError(

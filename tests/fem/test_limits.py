@@ -150,19 +150,19 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
             model, np.array([[100.0]]), key, model.make_solver(), options, progress=told.append
         )
     line = str(info.value)
-    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    bound = float(line.split("which is at most ")[1].split(" kPa")[0])
     assert lim < bound < 100.0
     assert line == (
         f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
-        f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
-        "levels off: no equilibrium above its peak; `fruit limits` computes it); "
-        "give `volume_growth_mm3` to follow the inflation past it"
+        f"pressure, which is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume "
+        "curve levels off, and there is no equilibrium above its peak; `fruit limits` "
+        "computes the limit); give `volume_growth_mm3` to follow the inflation past it"
     )
     assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
     with pytest.raises(
         SceneError,
         match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
-        r"this chamber's collapse pressure of -\d",
+        r"this chamber's collapse( pressure of -\d|: no equilibrium was found beyond -\d)",
     ):
         limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(), options)
     limits.check_pressures(
@@ -294,13 +294,13 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     with pytest.raises(SceneError) as refused:
         run_simulate(scene, out / "mesh.npz", None, tmp_path / "sim")
     line = str(refused.value)
-    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    bound = float(line.split("which is at most ")[1].split(" kPa")[0])
     assert cav["limit_pressure_kpa"] < bound < 2000.0
     assert line == (
         f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure, which "
-        f"is below {limits.kpa(bound)} kPa (its pressure-volume curve levels off: no "
-        "equilibrium above its peak; `fruit limits` computes it); give `volume_growth_mm3` "
-        "to follow the inflation past it"
+        f"is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume curve levels off, "
+        "and there is no equilibrium above its peak; `fruit limits` computes the limit); "
+        "give `volume_growth_mm3` to follow the inflation past it"
     )
     assert not (tmp_path / "sim" / "states.npz").exists()
 
