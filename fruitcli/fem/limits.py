@@ -28,6 +28,9 @@ from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
 
+TOGETHER = "together"
+"""The name of the curve of the chambers inflated together (`follow` with ratios)."""
+
 STRETCH_STEP = 0.1
 """Step of the mean stretch (V / V0)^(1/3) between samples of a curve: the thick
 sphere's peak (at stretch 1.83) comes out of the parabola within 0.1 % of the densely
@@ -109,9 +112,18 @@ def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -
     return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
 
 
+def ratio_of(model, k) -> np.ndarray:
+    """(K,) pressure ratios of a curve: chamber k alone (an int), or the given ratios
+    scaled to a largest of 1."""
+    if isinstance(k, (int, np.integer)):
+        return np.eye(len(model.chamber_tris))[k]
+    r = np.asarray(k, float)
+    return r / np.abs(r).max()
+
+
 def follow(
     model,
-    k: int,
+    k,
     direction: int = 1,
     *,
     solver=None,
@@ -123,16 +135,20 @@ def follow(
     budget: tuple[float, float] | None = None,
     progress=None,
 ) -> ChamberCurve:
-    """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
-    the limit, suction (direction -1) down to MIN_STRETCH or the collapse. With
-    `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
-    neither a limit nor a collapse before it). `fall_steps`: samples past the peak
+    """Chamber k's curve from rest (k an int; or the chambers together along pressure
+    ratios k, (K,), `Load.together`: the curve's pressure is then the largest chamber
+    pressure and its volume growth that of sum_k ratio_k V_k): inflation (direction 1)
+    up to MAX_STRETCH or past the limit, suction (direction -1) down to MIN_STRETCH or
+    the collapse. With `stop_beyond_kpa`, it stops as soon as the pressure passes that
+    value (reachable: neither a limit nor a collapse before it). `fall_steps`: samples past the peak
     (inflation) or past the lowest pressure (suction) that end the curve.
     `deadline` (time.monotonic()) ends the curve where it is; `budget` (factor, floor)
     caps each sample after the first (default STEP_BUDGET). `progress(msg)` is told each
     sample."""
-    name = model.chamber_names[k]
-    v0 = float(model.chamber_rest_volume_mm3[k])
+    r = ratio_of(model, k)
+    alone = isinstance(k, (int, np.integer))
+    name = model.chamber_names[k] if alone else TOGETHER
+    v0 = float(r @ model.chamber_rest_volume_mm3)
     curve = ChamberCurve(name, v0, [0.0], [0.0])
     budget = budget or STEP_BUDGET
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
@@ -149,7 +165,8 @@ def follow(
         if deadline is not None and time.monotonic() > deadline:
             curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
             break
-        load = chamber_load(model, k, v0 * (s**3 - 1.0))
+        growth = v0 * (s**3 - 1.0)
+        load = chamber_load(model, k, growth) if alone else Load.together(r, growth)
         timed = options
         if last is not None:
             timed = replace(options, max_seconds=max(budget[0] * last, budget[1]))
@@ -177,13 +194,14 @@ def follow(
             break
         x, prev, p_start = res.x, load, res.pressure_kpa
         last = res.solve_ms / 1e3
-        p = float(res.pressure_kpa[k])
+        volume = float(r @ res.chamber_volume_mm3)
+        p = float(res.pressure_kpa @ r / (r @ r))
         stretches.append(s)
-        curve.growth_mm3.append(float(res.chamber_volume_mm3[k] - v0))
+        curve.growth_mm3.append(volume - v0)
         curve.pressure_kpa.append(p)
         if progress:
             progress(
-                f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
+                f"limits: chamber {name}: volume {volume / v0:.3f} V0, "
                 f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
                 f"{res.solve_ms / 1e3:.1f} s)"
             )
@@ -207,7 +225,7 @@ def follow(
         else:
             low = int(np.argmin(pr))
             why = None
-            if res.chamber_volume_mm3[k] <= COLLAPSE_VOLUME * v0:
+            if np.any(res.chamber_volume_mm3 <= COLLAPSE_VOLUME * model.chamber_rest_volume_mm3):
                 why = "the cavity's volume is gone"
             elif res.min_det_f <= COLLAPSE_DET_F:
                 why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
@@ -250,14 +268,14 @@ check follows."""
 
 
 def rest_compliance(model, solver) -> np.ndarray:
-    """(K,) dV_k/dp_k (mm^3/kPa) of each chamber at rest, from the solver's tangent there
-    (its factor is then the one the first state starts with)."""
+    """(K, K) dV_i/dp_j (mm^3/kPa) of the chambers at rest, from the solver's tangent
+    there (its factor is then the one the first state starts with)."""
     free = model.pattern.free
     x = model.rest
     kin = model.kinematics(x)
     solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
     h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
-    return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
+    return h @ solver.solve(np.ascontiguousarray(h.T)).reshape(len(h[0]), -1)
 
 
 def kpa(value: float) -> str:
@@ -291,7 +309,8 @@ def check_pressures(
     `solver` (the states' own: its analysis is kept, see `forget`)."""
     if not np.any(np.nan_to_num(pressures)):
         return
-    w = rest_compliance(model, solver)
+    compliance = rest_compliance(model, solver)
+    w = np.diag(compliance)
     check = replace(
         options,
         tolerance=max(options.tolerance, CHECK_TOLERANCE),
@@ -344,6 +363,49 @@ def check_pressures(
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
                     "follow the suction"
                 )
+    check_together(model, pressures, keys, solver, check, compliance, screen, progress)
+
+
+def check_together(model, pressures, keys, solver, check, compliance, screen, progress=None):
+    """Refuse, in one line naming the state's keys, the state whose pressures, several
+    chambers inflated together, are past the chambers' limit along their own ratios:
+    the state with the largest chamber pressure among those with several (all pressure
+    controlled), followed along its ratios (`follow` with ratios) as far as that
+    pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest."""
+    rows = np.nan_to_num(pressures, nan=-1.0)
+    several = np.flatnonzero(((rows > 0).sum(1) >= 2) & (rows >= 0).all(1))
+    if not len(several):
+        return
+    i = several[np.argmax(rows[several].max(1))]
+    asked = float(rows[i].max())
+    ratio = rows[i] / asked
+    v0 = model.chamber_rest_volume_mm3
+    if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
+        return
+    curve = follow(
+        model,
+        ratio,
+        1,
+        solver=solver,
+        options=check,
+        stop_beyond_kpa=asked,
+        fall_steps=1,
+        budget=CHECK_BUDGET,
+        progress=progress,
+    )
+    forget(solver)
+    which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))
+    if curve.limit_bound_kpa is not None:
+        limit = f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: the curve levels off)"
+    elif curve.limit_pressure_kpa is not None:
+        limit = f"{kpa(curve.limit_pressure_kpa)} kPa"
+    else:
+        return
+    raise SceneError(
+        f"state {i}: {which}: together these are past the chambers' limit along these "
+        f"ratios, where the largest chamber pressure is {limit}; no equilibrium above "
+        "it; lower them or give `volume_growth_mm3`"
+    )
 
 
 def explain_failure(

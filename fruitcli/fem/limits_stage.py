@@ -5,9 +5,14 @@
 
 - limits.json: chambers.<name>.{limit_pressure_kpa, limit_volume_growth_mm3,
   collapse_pressure_kpa, rest_volume_mm3, inflation_end, suction_end} (None where the
-  range followed does not reach it), element, mesh (nodes, elements), seconds;
+  range followed does not reach it); with several chambers, together.{ratios,
+  limit_pressure_kpa, limit_volume_growth_mm3, inflation_end}: the chambers inflated
+  together along the scene's own pressure ratios (each chamber's largest pressure over
+  the states; equal ratios when the scene has none), the pressure the largest chamber's
+  and the volume sum_k ratio_k V_k (None otherwise); element, mesh (nodes, elements),
+  seconds;
 - pv.csv: one row per sample (chamber, volume_growth_mm3, pressure_kpa), suction then
-  inflation, by growing volume;
+  inflation, by growing volume; the chambers together as chamber "together";
 - pv.png: pressure against volume growth per chamber, the limit and collapse marked.
 """
 
@@ -19,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.fem import io, limits
-from fruitcli.fem.stage import build_model, element_name, solver_options
+from fruitcli.fem.stage import build_model, element_name, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 
@@ -36,6 +41,18 @@ def follow_both(model, k: int, options, progress=_noop) -> tuple:
     down = limits.follow(model, k, -1, options=options, progress=progress)
     up = limits.follow(model, k, 1, options=options, progress=progress)
     return down, up
+
+
+def scene_ratios(scene, names: list[str]) -> np.ndarray:
+    """(K,) the scene's own pressure ratios: each chamber's largest pressure over the
+    states (0 where volume controlled or never inflated), scaled to a largest of 1;
+    equal ratios when no chamber is inflated by pressure."""
+    loads = state_loads(scene, names)
+    top = np.zeros(len(names))
+    for load in loads:
+        p = np.where(load.volume_controlled, 0.0, load.pressure_kpa)
+        top = np.maximum(top, p)
+    return top / top.max() if top.max() > 0 else np.ones(len(names))
 
 
 def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
@@ -64,8 +81,23 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             f"limits: chamber {name}: limit pressure {_kpa(up.limit_pressure_kpa)}, "
             f"collapse {_kpa(down.collapse_pressure_kpa)}"
         )
+    together = None
+    if len(model.chamber_names) > 1:
+        ratio = scene_ratios(scene, model.chamber_names)
+        up = limits.follow(model, ratio, 1, options=options, progress=progress)
+        together = {
+            "ratios": dict(zip(model.chamber_names, map(float, ratio), strict=True)),
+            "limit_pressure_kpa": up.limit_pressure_kpa,
+            "limit_volume_growth_mm3": up.limit_growth_mm3,
+            "inflation_end": up.end,
+        }
+        samples = zip(up.growth_mm3, up.pressure_kpa, strict=True)
+        rows += [(limits.TOGETHER, g, p) for g, p in samples]
+        curves.append((limits.TOGETHER, limits.ChamberCurve(limits.TOGETHER, 0.0), up))
+        progress(f"limits: chambers together: limit pressure {_kpa(up.limit_pressure_kpa)}")
     info = {
         "chambers": chambers,
+        "together": together,
         "element": element_name(model),
         "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
         "seconds": round(time.perf_counter() - t0, 2),
@@ -89,7 +121,10 @@ def plot_curves(path, curves) -> None:
     for name, down, up in curves:
         g = down.growth_mm3[:0:-1] + up.growth_mm3
         p = down.pressure_kpa[:0:-1] + up.pressure_kpa
-        (line,) = ax.plot(g, p, ".-", label=f"chamber {name}")
+        label, style = f"chamber {name}", ".-"
+        if name == limits.TOGETHER:
+            label, style = "together (largest chamber's pressure)", ".--"
+        (line,) = ax.plot(g, p, style, label=label)
         if up.limit_pressure_kpa is not None:
             ax.plot(
                 [up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10, color=line.get_color()
