@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -133,6 +134,7 @@ def follow(
     deadline: float | None = None,
     fall_steps: int = FALL_STEPS,
     budget: tuple[float, float] | None = None,
+    stop_at_asked: bool = True,
     progress=None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
@@ -143,8 +145,9 @@ def follow(
     value (reachable: neither a limit nor a collapse before it). `fall_steps`: samples past the peak
     (inflation) or past the lowest pressure (suction) that end the curve.
     `deadline` (time.monotonic()) ends the curve where it is; `budget` (factor, floor)
-    caps each sample after the first (default STEP_BUDGET). `progress(msg)` is told each
-    sample."""
+    caps each sample after the first (default STEP_BUDGET). Without `stop_at_asked`,
+    `stop_beyond_kpa` only ends an inflation whose curve levels off below it (the
+    curve otherwise goes on to its peak). `progress(msg)` is told each sample."""
     r = ratio_of(model, k)
     alone = isinstance(k, (int, np.integer))
     name = model.chamber_names[k] if alone else TOGETHER
@@ -205,7 +208,7 @@ def follow(
                 f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
                 f"{res.solve_ms / 1e3:.1f} s)"
             )
-        if stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
+        if stop_at_asked and stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
             curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
             break
         pr = np.array(curve.pressure_kpa)
@@ -300,13 +303,16 @@ def check_pressures(
     options: SolverOptions,
     progress=None,
     screen: float = SCREEN_GROWTH,
+    found: list | None = None,
 ) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
     K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
     control (`follow`, the others at rest) only as far as its largest or smallest
     pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH; on
-    `solver` (the states' own: its analysis is kept, see `forget`)."""
+    `solver` (the states' own: its analysis is kept, see `forget`). With a `found`
+    list, the curves followed go on to the limit or collapse (unless a bound refuses
+    first) and are appended to it as (direction, curve)."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -332,9 +338,24 @@ def check_pressures(
                 stop_beyond_kpa=asked,
                 fall_steps=1,
                 budget=CHECK_BUDGET,
+                stop_at_asked=found is None,
                 progress=progress,
             )
             forget(solver)
+            if found is not None:
+                found.append((direction, curve))
+            if (
+                direction > 0
+                and curve.limit_pressure_kpa is not None
+                and asked < curve.limit_pressure_kpa
+            ):
+                continue
+            if (
+                direction < 0
+                and curve.collapse_pressure_kpa is not None
+                and asked > curve.collapse_pressure_kpa
+            ):
+                continue
             if direction > 0 and curve.limit_bound_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
@@ -363,10 +384,12 @@ def check_pressures(
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
                     "follow the suction"
                 )
-    check_together(model, pressures, keys, solver, check, compliance, screen, progress)
+    check_together(model, pressures, keys, solver, check, compliance, screen, progress, found)
 
 
-def check_together(model, pressures, keys, solver, check, compliance, screen, progress=None):
+def check_together(
+    model, pressures, keys, solver, check, compliance, screen, progress=None, found=None
+):
     """Refuse, in one line naming the state's keys, the state whose pressures, several
     chambers inflated together, are past the chambers' limit along their own ratios:
     the state with the largest chamber pressure among those with several (all pressure
@@ -391,9 +414,14 @@ def check_together(model, pressures, keys, solver, check, compliance, screen, pr
         stop_beyond_kpa=asked,
         fall_steps=1,
         budget=CHECK_BUDGET,
+        stop_at_asked=found is None,
         progress=progress,
     )
     forget(solver)
+    if found is not None:
+        found.append((1, curve))
+    if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
+        return
     which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))
     if curve.limit_bound_kpa is not None:
         limit = f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: the curve levels off)"
@@ -442,3 +470,13 @@ def check_growth(model, loads: list[Load]) -> None:
                 f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
                 f"than {-v0[k]:.4g}"
             )
+
+
+LIMITS_FILE = "limits.json"
+"""The limits stage's summary (`fruitcli.fem.limits_stage.run_limits_stage`)."""
+
+
+def checked_by(limits_dir) -> bool:
+    """True when the limits stage's output is in `limits_dir` (simulate then skips its
+    own check: the stage checked the same pressures on the same mesh)."""
+    return limits_dir is not None and (Path(limits_dir) / LIMITS_FILE).exists()

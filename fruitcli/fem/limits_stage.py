@@ -163,3 +163,107 @@ def plot_curves(path, curves) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)
+
+
+NEAR_SHEAR_FRACTION = 0.5
+"""The planner's `limits` stage runs when a chamber's largest pressure magnitude
+reaches this fraction of the material's shear modulus: the incompressible neo-Hookean
+sphere's limit pressure is 0.49 mu when its wall is half its cavity radius thick (B/A
+= 1.5), 0.82 mu at B/A = 2. Below it `simulate` checks the pressures itself (its
+compliance screen, `limits.SCREEN_GROWTH`); the default Fruit's breathing (12 kPa,
+0.36 mu) stays below."""
+
+
+def near_limit(scene) -> tuple[bool, str]:
+    """(whether the scene's pressures come near a limit by the cheap estimate
+    NEAR_SHEAR_FRACTION, why), from the scene alone (no mesh)."""
+    from fruitcli.fem.materials import build as materials
+
+    table = scene.actuation.pressure_kpa or {}
+    if not scene.chambers or not table:
+        return False, "no chamber pressures"
+    top = max(max(abs(v) for v in values) for values in table.values())
+    mu = materials.from_scene(scene.material).shear_modulus_kpa
+    if top < NEAR_SHEAR_FRACTION * mu:
+        return False, (
+            f"pressures up to {top:g} kPa, under {NEAR_SHEAR_FRACTION:g} mu = "
+            f"{NEAR_SHEAR_FRACTION * mu:.3g} kPa: simulate checks them itself"
+        )
+    return True, (
+        f"pressures up to {top:g} kPa, {top / mu:.2g} mu: near a chamber's limit "
+        "pressure, checked against it once"
+    )
+
+
+def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
+    """The planner's `limits` stage: the scene's pressures checked against the limits
+    (`limits.check_pressures` on the scene's states, without its screen: the planner
+    runs this stage when the pressures come near a limit, `near_limit`), each
+    pressurised chamber's curve followed on to its limit or collapse; raises the
+    check's one line for a pressure past one, else writes out_dir/limits.json (chambers.<name>.{followed,
+    limit_pressure_kpa, limit_volume_growth_mm3, collapse_pressure_kpa}, together (or
+    None), element, mesh, seconds) and, when a curve was followed, pv.csv and pv.png.
+    `simulate` then skips its own check (`limits.checked_by`)."""
+    progress = progress or _noop
+    t0 = time.perf_counter()
+    model = build_model(scene, io.load_mesh(Path(mesh_npz)))
+    names = model.chamber_names
+    loads = state_loads(scene, names)
+    limits.check_growth(model, loads)
+    asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
+    keys = [f"[actuation].pressure_kpa.{c}" for c in names]
+    found: list = []
+    solver = model.make_solver(scene.solver.linear_solver)
+    limits.check_pressures(
+        model, asked, keys, solver, solver_options(scene), progress, screen=0.0, found=found
+    )
+    chambers = {
+        c: {
+            "followed": [],
+            "limit_pressure_kpa": None,
+            "limit_volume_growth_mm3": None,
+            "collapse_pressure_kpa": None,
+        }
+        for c in names
+    }
+    together, rows, curves = None, [], {}
+    for direction, curve in found:
+        samples = list(zip(curve.growth_mm3[1:], curve.pressure_kpa[1:], strict=True))
+        rows += [(curve.name, g, p) for g, p in samples]
+        down, up = curves.get(curve.name, (limits.ChamberCurve(curve.name, 0.0),) * 2)
+        curves[curve.name] = (curve, up) if direction < 0 else (down, curve)
+        entry = {
+            "followed": [],
+            "limit_pressure_kpa": curve.limit_pressure_kpa,
+            "limit_volume_growth_mm3": curve.limit_growth_mm3,
+        }
+        if curve.name == limits.TOGETHER:
+            together = entry
+            continue
+        entry = chambers[curve.name]
+        entry["followed"].append("inflation" if direction > 0 else "suction")
+        if direction > 0:
+            entry["limit_pressure_kpa"] = curve.limit_pressure_kpa
+            entry["limit_volume_growth_mm3"] = curve.limit_growth_mm3
+        else:
+            entry["collapse_pressure_kpa"] = curve.collapse_pressure_kpa
+    info = {
+        "chambers": chambers,
+        "together": together,
+        "element": element_name(model),
+        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
+    with staged_dir(out_dir) as tmp:
+        if found:
+            rows = [(c, 0.0, 0.0) for c in curves] + rows
+            rows.sort(key=lambda r: (r[0], r[1]))
+            write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
+            plot_curves(tmp / "pv.png", [(c, d, u) for c, (d, u) in curves.items()])
+        write_json(tmp / limits.LIMITS_FILE, info)
+    progress(
+        "limits: "
+        + (f"{len(found)} curve(s) followed" if found else "no pressure near a limit")
+        + f" ({info['seconds']:.1f} s)"
+    )
+    return info

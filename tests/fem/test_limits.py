@@ -441,3 +441,52 @@ def test_bad_limit_inputs_are_one_line(tmp_path, command, extra, line):
     assert res.exit_code == 1
     assert res.output == f"Error: {scene.name}: {line}\n"
     assert not (tmp_path / "o").exists()
+
+
+def test_the_limits_stage_is_planned_near_a_limit(tmp_path):
+    """The planner runs `limits` when a pressure reaches NEAR_SHEAR_FRACTION of the shear
+    modulus (E = 100 kPa, nu = 0.45: mu = 34.5 kPa, the threshold 17.2 kPa)."""
+    from fruitcli.fem.limits_stage import near_limit
+
+    assert near_limit(ball_scene(tmp_path, nu=0.45, p=20.0)) == (
+        True,
+        "pressures up to 20 kPa, 0.58 mu: near a chamber's limit pressure, checked against it once",
+    )
+    assert near_limit(ball_scene(tmp_path, nu=0.45, p=-10.0)) == (
+        False,
+        "pressures up to 10 kPa, under 0.5 mu = 17.2 kPa: simulate checks them itself",
+    )
+
+
+@pytest.mark.slow
+def test_limits_stage_follows_to_the_limit_and_simulate_reuses_it(tmp_path):
+    """The limits stage on the gmsh ball (size 8 mm, nu = 0.45) at 20 kPa: the curve is
+    followed on to its limit (the radial solution's 26.3 kPa within 5 %, as `fruit
+    limits`), limits.json, pv.csv and pv.png written; simulate given its folder follows
+    no curve of its own. At 2000 kPa the stage refuses in one line, nothing written."""
+    from fruitcli.fem.limits_stage import run_limits_stage
+
+    scene = ball_scene(tmp_path, size=8.0, nu=0.45, p=20.0)
+    run_tetra(scene, None, tmp_path / "tetra")
+    mesh = tmp_path / "tetra" / "mesh.npz"
+    info = run_limits_stage(scene, mesh, tmp_path / "limits")
+    cav = info["chambers"]["c"]
+    assert cav["followed"] == ["inflation"] and cav["collapse_pressure_kpa"] is None
+    mu = 100 / (2 * 1.45)
+    assert cav["limit_pressure_kpa"] == pytest.approx(
+        radial_pressure(mu, 100 / 0.3, 1.83), rel=0.05
+    )
+    assert info["together"] is None
+    assert json.loads((tmp_path / "limits" / "limits.json").read_text()) == json.loads(
+        json.dumps(info)
+    )
+    assert (tmp_path / "limits" / "pv.png").exists()
+    told = []
+    run_simulate(
+        scene, mesh, None, tmp_path / "sim", progress=told.append, limits_dir=tmp_path / "limits"
+    )
+    assert not any(t.startswith("limits:") for t in told)
+    assert (tmp_path / "sim" / "states.npz").exists()
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 2000 kPa is past"):
+        run_limits_stage(ball_scene(tmp_path, size=8.0, nu=0.45, p=2000.0), mesh, tmp_path / "l2")
+    assert not (tmp_path / "l2").exists()
