@@ -203,7 +203,8 @@ def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
     check's one line for a pressure past one, else writes out_dir/limits.json
     (chambers.<name>.{followed, limit_pressure_kpa, limit_volume_growth_mm3,
     collapse_pressure_kpa}, together (or None), element, mesh, seconds) and, when a
-    curve was followed, pv.csv and pv.png. `simulate` then skips its own check (`limits.checked_by`)."""
+    curve was followed, pv.csv and pv.png. `simulate` then skips its own check
+    (`limits.checked_by`)."""
     progress = progress or _noop
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
