@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +37,28 @@ def _kpa(value: float | None) -> str:
     return "none in the range" if value is None else f"{value:.4g} kPa"
 
 
+CURVE_STEP = 0.15
+"""Step of the mean stretch between the samples of `fruit limits` (`limits.STRETCH_STEP`
+is 0.1): the octant's limit pressure moves by 0.07 %, and the default Fruit's flat
+chambers, whose peaks lie at 5-8 V0, need a third fewer samples, the costliest ones."""
+
+CURVE_FALL_STEPS = 1
+"""Samples past the peak (or the lowest suction) that end a curve of `fruit limits`:
+the parabola of the peak takes the top and its two neighbours either way, and a sample
+past the peak of a flat chamber is its slowest (3 min of the default Fruit's 18)."""
+
+
+def curve_options(options):
+    """The scene's [solver] options for the samples of a curve: Newton's tolerance
+    loosened to `limits.CHECK_TOLERANCE` (the pressure to four digits)."""
+    return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))
+
+
 def follow_both(model, k: int, options, progress=_noop) -> tuple:
     """(suction curve, inflation curve) of chamber k, each on a fresh solver."""
-    down = limits.follow(model, k, -1, options=options, progress=progress)
-    up = limits.follow(model, k, 1, options=options, progress=progress)
+    kw = {"options": options, "progress": progress, "step": CURVE_STEP}
+    down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
+    up = limits.follow(model, k, 1, fall_steps=CURVE_FALL_STEPS, **kw)
     return down, up
 
 
@@ -61,7 +80,7 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     progress = progress or _noop
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
-    options = solver_options(scene)
+    options = curve_options(solver_options(scene))
     chambers, rows, curves = {}, [], []
     for k, name in enumerate(model.chamber_names):
         down, up = follow_both(model, k, options, progress)
@@ -84,7 +103,15 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     together = None
     if len(model.chamber_names) > 1:
         ratio = scene_ratios(scene, model.chamber_names)
-        up = limits.follow(model, ratio, 1, options=options, progress=progress)
+        up = limits.follow(
+            model,
+            ratio,
+            1,
+            options=options,
+            step=CURVE_STEP,
+            fall_steps=CURVE_FALL_STEPS,
+            progress=progress,
+        )
         together = {
             "ratios": dict(zip(model.chamber_names, map(float, ratio), strict=True)),
             "limit_pressure_kpa": up.limit_pressure_kpa,
