@@ -289,7 +289,7 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     assert cav["collapse_pressure_kpa"] < 0 and cav["limit_volume_growth_mm3"] > 0
     assert saved["element"] == "p2" and saved["mesh"]["elements"] > 0
     rows = (out / "pv.csv").read_text().splitlines()
-    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 10
+    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 5
     growth = [float(r.split(",")[1]) for r in rows[1:]]
     assert growth == sorted(growth) and 0.0 in growth
     assert (out / "pv.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
