@@ -389,7 +389,11 @@ def main(argv: list[str] | None = None) -> int:
         "scene-keys.md": scene_page(),
         "performance.md": performance_page(result, source),
     }
-    limits = json.loads(LIMITS.with_suffix(".json").read_text())
+    try:
+        limits = json.loads(LIMITS.with_suffix(".json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        print(f"Error: {LIMITS}.json: cannot read the limits: {exc}", file=sys.stderr)
+        return 1
     pages["fruit-limits.md"] = limits_page(limits)
     limits_figure(limits, LIMITS.with_suffix(".csv"), OUT / "fruit-limits.png")
     from fruitcli.fsutil import write_text
