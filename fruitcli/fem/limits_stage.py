@@ -37,11 +37,6 @@ def _kpa(value: float | None) -> str:
     return "none in the range" if value is None else f"{value:.4g} kPa"
 
 
-CURVE_STEP = 0.15
-"""Step of the mean stretch between the samples of `fruit limits` (`limits.STRETCH_STEP`
-is 0.1): the octant's limit pressure moves by 0.07 %, and the default Fruit's flat
-chambers, whose peaks lie at 5-8 V0, need a third fewer samples, the costliest ones."""
-
 CURVE_FALL_STEPS = 1
 """Samples past the peak (or the lowest suction) that end a curve of `fruit limits`:
 the parabola of the peak takes the top and its two neighbours either way, and a sample
@@ -56,7 +51,7 @@ def curve_options(options):
 
 def follow_both(model, k: int, options, progress=_noop) -> tuple:
     """(suction curve, inflation curve) of chamber k, each on a fresh solver."""
-    kw = {"options": options, "progress": progress, "step": CURVE_STEP}
+    kw = {"options": options, "progress": progress}
     down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
     up = limits.follow(model, k, 1, fall_steps=CURVE_FALL_STEPS, **kw)
     return down, up
@@ -108,7 +103,6 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             ratio,
             1,
             options=options,
-            step=CURVE_STEP,
             fall_steps=CURVE_FALL_STEPS,
             progress=progress,
         )
