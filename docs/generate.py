@@ -298,9 +298,12 @@ def limits_page(info: dict) -> str:
     if together:
         lim = together["limit_pressure_kpa"]
         ratios = ", ".join(f"{c} : {r:g}" for c, r in together["ratios"].items())
+        if lim is None:
+            found = f"not found ({together['inflation_end']})"
+        else:
+            found = f"{lim:.1f} kPa (each chamber)"
         rows.append(
-            f"| together ({ratios}) | "
-            + ("none reached" if lim is None else f"{lim:.1f} kPa (largest chamber)")
+            f"| together ({ratios}) | {found}"
             + " | – | – | "
             + f"{max(info['breathing_max_kpa'].values()):g} kPa |"
         )
