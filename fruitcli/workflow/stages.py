@@ -240,13 +240,6 @@ def _limits_needed(scene):
     return near_limit(scene) if fem else (False, why)
 
 
-def _limits_inputs(scene, ctx):
-    return {
-        k: scene.values(k)
-        for k in ("material", "fem", "gravity", "fixed", "jig", "actuation", "solver")
-    } | {"has_gravity": scene.has("gravity"), "mesh": ctx.dir("tetra") / "mesh.npz"}
-
-
 def _limits_run(scene, ctx, out_dir):
     from fruitcli.fem.limits_stage import run_limits_stage
 
@@ -259,9 +252,10 @@ LIMITS_STAGE = Stage(
     ["tetra"],
     "fruitcli.fem.limits_stage",
     _limits_needed,
-    _limits_inputs,
+    no_inputs,
     _limits_run,
     lambda s: ["limits.json"],
+    reads=(*DEFORMS, "geometry", "fem", "material", "solver"),
 )
 """Each chamber's pressures against its limit and collapse, once per mesh, material and
 actuation (`fruitcli.fem.limits_stage`); `simulate` reads it (`_simulate_run`)."""
