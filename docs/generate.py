@@ -4,7 +4,10 @@
 - scene-keys.md: every scene key with its type, default, unit and meaning (from
   `fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`);
 - performance.md: the figures of `make bench` (build/bench/bench.json when present, else
-  the small sample docs/bench-sample.json).
+  the small sample docs/bench-sample.json);
+- fruit-limits.md and fruit-limits.png: the default Fruit's limit pressures and its
+  chambers' pressure-volume curves, from docs/data/fruit-limits.{json,csv} (written by
+  `tests/performance/bench_limits.py --docs`).
 
 Run by `make docs` before Sphinx; `python docs/generate.py [--bench FILE]`.
 """
@@ -267,6 +270,104 @@ def performance_page(result: dict, source: str) -> str:
     return "\n".join(lines)
 
 
+LIMITS = DOCS / "data" / "fruit-limits"
+
+
+def limits_page(info: dict) -> str:
+    """The table of the default Fruit's limits and how far the breathing is from them."""
+    rows = [
+        "| chamber | limit pressure | volume growth there | collapse (suction) | "
+        "breathing's largest pressure |",
+        "|---|---|---|---|---|",
+    ]
+    for name, ch in info["chambers"].items():
+        lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
+        top = info["breathing_max_kpa"].get(name, 0.0)
+        share = "" if lim is None else f" ({100 * top / lim:.0f} % of the limit)"
+        rows.append(
+            f"| {name} | {'none reached' if lim is None else f'{lim:.1f} kPa'} | "
+            + (
+                "–"
+                if lim is None
+                else f"{ch['limit_volume_growth_mm3']:.0f} mm³ "
+                f"({ch['limit_volume_growth_mm3'] / ch['rest_volume_mm3'] + 1:.1f} V₀)"
+            )
+            + f" | {'none reached' if col is None else f'{col:.1f} kPa'} | {top:g} kPa{share} |"
+        )
+    together = info.get("together")
+    if together:
+        lim = together["limit_pressure_kpa"]
+        ratios = ", ".join(f"{c} : {r:g}" for c, r in together["ratios"].items())
+        if lim is None:
+            found = f"not found ({together['inflation_end']})"
+        else:
+            found = f"{lim:.1f} kPa (each chamber)"
+        rows.append(
+            f"| together ({ratios}) | {found}"
+            + " | – | – | "
+            + f"{max(info['breathing_max_kpa'].values()):g} kPa |"
+        )
+    mesh = info["mesh"]
+    rows.append("")
+    rows.append(
+        f"`fruit limits {info['scene']}` on {info['machine']}, {info['date']}, commit "
+        f"`{info['commit'][:12]}`: {info['wall_seconds']:.0f} s in all "
+        f"({info['seconds']:.0f} s following the curves; {info['element']} element, "
+        f"{mesh['elements']} tetrahedra)."
+    )
+    return "\n".join(rows)
+
+
+def limits_figure(info: dict, csv_path: Path, png: Path) -> None:
+    """fruit-limits.png: pressure against volume growth per chamber, the limits marked,
+    the breathing's largest pressure as a line; date, commit and machine in the title."""
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves: dict[str, list[tuple[float, float]]] = {}
+    with csv_path.open() as f:
+        for row in csv.DictReader(f):
+            curves.setdefault(row["chamber"], []).append(
+                (float(row["volume_growth_mm3"]), float(row["pressure_kpa"]))
+            )
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for name, pts in curves.items():
+        g, p = zip(*sorted(pts), strict=True)
+        together = name == "together"
+        (line,) = ax.plot(
+            g, p, ".--" if together else ".-", label="together" if together else f"chamber {name}"
+        )
+        ch = info["together"] if together else info["chambers"][name]
+        if ch["limit_pressure_kpa"] is not None:
+            ax.plot(
+                ch["limit_volume_growth_mm3"],
+                ch["limit_pressure_kpa"],
+                "^",
+                ms=9,
+                color=line.get_color(),
+            )
+    top = max(info["breathing_max_kpa"].values())
+    ax.axhline(top, color="0.3", lw=1, ls=":", label=f"breathing's largest pressure ({top:g} kPa)")
+    ax.axhline(0.0, color="0.7", lw=0.8)
+    ax.axvline(0.0, color="0.7", lw=0.8)
+    ax.set_xlabel("chamber volume growth (mm³; together: the sum)")
+    ax.set_ylabel("chamber pressure (kPa)")
+    ax.set_title(
+        f"Default Fruit, volume control (▲ limit pressure)\n{info['date'][:10]}, "
+        f"commit {info['commit'][:8]}, {info['machine']}",
+        fontsize=9,
+    )
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Write docs/_generated/*.md from the code.")
     parser.add_argument(
@@ -291,6 +392,13 @@ def main(argv: list[str] | None = None) -> int:
         "scene-keys.md": scene_page(),
         "performance.md": performance_page(result, source),
     }
+    try:
+        limits = json.loads(LIMITS.with_suffix(".json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        print(f"Error: {LIMITS}.json: cannot read the limits: {exc}", file=sys.stderr)
+        return 1
+    pages["fruit-limits.md"] = limits_page(limits)
+    limits_figure(limits, LIMITS.with_suffix(".csv"), OUT / "fruit-limits.png")
     from fruitcli.fsutil import write_text
 
     for name, text in pages.items():

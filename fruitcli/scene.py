@@ -508,6 +508,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
             **POSITIVE,
             expected="> 0 (mm; the yarns must not touch)",
         ),
+        "counts_per_ff": Key(
+            "num",
+            None,
+            "CDC counts per fF of the electrostatic skin (default: fitted so the crossing "
+            "bent as the paper's pad shifts 10 counts; fruit calibrate fits it to a "
+            "bench recording)",
+            **POSITIVE,
+            expected="> 0 (counts per fF)",
+        ),
         "gaps_mm": Key(
             "list",
             [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],

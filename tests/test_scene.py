@@ -358,7 +358,7 @@ CHECKED_KEYS = {
     "reduced": "margin max_degree points_per_axis pressure_range_kpa seed validation",
     "scene": "name",
     "sensitivity": "animation_frames noise_frames",
-    "skin": "contact_counts footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
+    "skin": "contact_counts counts_per_ff footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
     "insulation_mm model permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
     "max_seconds tolerance",

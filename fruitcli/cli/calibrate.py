@@ -29,19 +29,28 @@ from fruitcli.workflow.scene_outputs import scene_products
 @out_option("Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
 def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
     """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
-    a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer)."""
+    a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer).
+
+    With the scene's [skin] model = "electrostatic": the crossing table's counts per fF
+    (the table from the scene's skin stage), per-taxel gains and noise instead."""
     from fruitcli.scene import load_scene
     from fruitcli.sensing.skin.calibrate import run_calibrate
+    from fruitcli.workflow.scene_outputs import crossing_response
 
     progress = Progress("[calibrate] ")
     with fruit_errors():
         scene = load_scene(scene_path)
         taxels = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
-        res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress)
+        response = crossing_response(scene, progress=progress)
+        res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress, response)
+    fitted = (
+        f"footprint sigma {res['footprint_sigma_mm']:.2f} mm, contact "
+        f"{res['contact_counts']:.1f} counts, gap decay {res['gap_decay_mm']:.2f} mm"
+        if response is None
+        else f"electrostatic skin, {res['counts_per_ff']:.4g} counts per fF"
+    )
     click.echo(
-        f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm, "
-        f"contact {res['contact_counts']:.1f} counts, gap decay "
-        f"{res['gap_decay_mm']:.2f} mm, noise {res['noise_std_counts']:.2f} counts "
+        f"{res['indenter']}: {fitted}, noise {res['noise_std_counts']:.2f} counts "
         f"-> {out_dir}/skin.toml",
         err=True,
     )

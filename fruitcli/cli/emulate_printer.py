@@ -95,6 +95,7 @@ def emulate_printer(
     from fruitcli.sensing.live.board_emulator import BoardEmulator, pacing_line
     from fruitcli.sensing.skin import forward
     from fruitcli.tables import read_taxels
+    from fruitcli.workflow.scene_outputs import crossing_response
 
     fault_table = parse_faults(faults)
     with fruit_errors():
@@ -106,11 +107,19 @@ def emulate_printer(
         taxels = read_taxels(taxels_csv, FrameError)
         bed = pr.bed_mm
         printer = PrinterEmulator(bed, (bed[0], bed[1], bed[5]), time_scale, fault_table)
-        params = forward.SkinParams.from_table(
-            load_skin_table(skin_toml) if skin_toml else scene.skin
-        )
+        if skin_toml:
+            scene = scene.with_values({"skin": load_skin_table(skin_toml)})
+        params = forward.SkinParams.from_table(scene.skin)
+        response = crossing_response(scene)
         skin = SkinBoard(
-            taxels, scene.board, Placement.from_printer(pr), printer.tip_mm, indenter, seed, params
+            taxels,
+            scene.board,
+            Placement.from_printer(pr),
+            printer.tip_mm,
+            indenter,
+            seed,
+            params,
+            response,
         )
         board = BoardEmulator(skin.frame, fps=0, wait_for_reader=True, fmt=fmt, baud=baud)
         click.echo(f"printer: {printer.path}")

@@ -26,7 +26,8 @@ def limits(scene, out_dir, solid):
 
     One chamber at a time, the others at rest: inflation until the pressure has passed
     its maximum (the limit pressure: no equilibrium above it under pressure control),
-    suction until the cavity's walls would meet (the collapse pressure). Writes
+    suction until the cavity's walls would meet (the collapse pressure); with several
+    chambers, also all together along the scene's own pressure ratios. Writes
     OUT/limits.json (chambers.<name>.limit_pressure_kpa, limit_volume_growth_mm3,
     collapse_pressure_kpa; null when not reached), OUT/pv.csv (chamber,
     volume_growth_mm3, pressure_kpa) and OUT/pv.png.
@@ -65,6 +66,19 @@ def limits(scene, out_dir, solid):
             )
             + ", collapse "
             + ("none" if col is None else f"{col:.4g} kPa")
+        )
+    together = info.get("together")
+    if together:
+        lim = together["limit_pressure_kpa"]
+        click.echo(
+            "chambers together (pressure ratios "
+            + ", ".join(f"{c} {r:.3g}" for c, r in together["ratios"].items())
+            + "): limit "
+            + (
+                f"none up to {MAX_STRETCH**3:g} V0"
+                if lim is None
+                else f"{lim:.4g} kPa in the chamber of ratio 1"
+            )
         )
     click.echo(
         f"{out_dir / 'limits.json'}: {len(info['chambers'])} chamber(s), "

@@ -27,8 +27,12 @@ FIGURES = (
     "shift_max_counts",
     "shift_mean_counts",
     "variant_s",
+    "c0_ff",
+    "counts_per_ff",
+    "bend_shift_max_counts",
+    "bend_margin_counts",
 )
-TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$")
+TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$|contact_counts_.+")
 
 
 @click.command()
@@ -67,7 +71,8 @@ TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$")
     "figure",
     default=None,
     help="The figure sweep.png shows against the swept keys, a sweep.csv column "
-    "(tets, max_disp_mm, state_ms, shift_max_counts, <row>_mean_mm, ...). "
+    "(tets, max_disp_mm, state_ms, shift_max_counts, bend_margin_counts, "
+    "<row>_mean_mm, ...). "
     "[default: the first Table I mean error, else the largest baseline "
     "shift, else the largest displacement]",
 )
@@ -95,7 +100,7 @@ def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, fig
     if figure is not None and figure not in FIGURES and not TABLE_I.match(figure):
         raise click.BadParameter(
             f"{figure!r}: expected one of {', '.join(FIGURES)} or a "
-            "Table I column <row>_n, <row>_mean_mm, <row>_std_mm",
+            "Table I column <row>_n, <row>_mean_mm, <row>_std_mm or contact_counts_<object>",
             param_hint="--plot",
         )
     with fruit_errors():

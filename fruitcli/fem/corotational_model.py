@@ -51,6 +51,16 @@ class Load:
     gravity: float = 1.0
     jig: float = 1.0
     prescribed: float = 1.0
+    ratio: np.ndarray | None = None  # (K,): the chambers together, see `together`
+
+    @classmethod
+    def together(cls, ratio, growth_mm3: float) -> Load:
+        """The chambers inflated together along pressure ratios `ratio` (K,): their
+        pressures are p_k = lambda ratio_k with one unknown lambda, the controlled
+        volume sum_k ratio_k V_k grown by `growth_mm3` (spread over the chambers as
+        ratio_k growth / |ratio|^2: only that weighted sum counts)."""
+        r = np.asarray(ratio, float).reshape(-1)
+        return cls(np.zeros(len(r)), r * growth_mm3 / float(r @ r), np.ones(len(r), bool), ratio=r)
 
     @classmethod
     def pressures(

@@ -21,12 +21,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+
+TOGETHER = "together"
+"""The name of the curve of the chambers inflated together (`follow` with ratios)."""
 
 STRETCH_STEP = 0.1
 """Step of the mean stretch (V / V0)^(1/3) between samples of a curve: the thick
@@ -67,6 +71,7 @@ class ChamberCurve:
     collapse_pressure_kpa: float | None = None
     end: str = ""
     limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_below`)
+    failed: bool = False  # the curve ended without equilibrium at its next sample
 
 
 def chamber_load(model, k: int, growth_mm3: float) -> Load:
@@ -108,9 +113,18 @@ def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -
     return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
 
 
+def ratio_of(model, k) -> np.ndarray:
+    """(K,) pressure ratios of a curve: chamber k alone (an int), or the given ratios
+    scaled to a largest of 1."""
+    if isinstance(k, (int, np.integer)):
+        return np.eye(len(model.chamber_tris))[k]
+    r = np.asarray(k, float)
+    return r / np.abs(r).max()
+
+
 def follow(
     model,
-    k: int,
+    k,
     direction: int = 1,
     *,
     solver=None,
@@ -119,22 +133,31 @@ def follow(
     step: float = STRETCH_STEP,
     deadline: float | None = None,
     fall_steps: int = FALL_STEPS,
+    budget: tuple[float, float] | None = None,
+    stop_at_asked: bool = True,
     progress=None,
 ) -> ChamberCurve:
-    """Chamber k's curve from rest: inflation (direction 1) up to MAX_STRETCH or past
-    the limit, suction (direction -1) down to MIN_STRETCH or the collapse. With
-    `stop_beyond_kpa`, it stops as soon as the pressure passes that value (reachable:
-    neither a limit nor a collapse before it). `fall_steps`: samples past the peak
+    """Chamber k's curve from rest (k an int; or the chambers together along pressure
+    ratios k, (K,), `Load.together`: the curve's pressure is then the largest chamber
+    pressure and its volume growth that of sum_k ratio_k V_k): inflation (direction 1)
+    up to MAX_STRETCH or past the limit, suction (direction -1) down to MIN_STRETCH or
+    the collapse. With `stop_beyond_kpa`, it stops as soon as the pressure passes that
+    value (reachable: neither a limit nor a collapse before it). `fall_steps`: samples past the peak
     (inflation) or past the lowest pressure (suction) that end the curve.
-    `deadline` (time.monotonic()) ends the
-    curve where it is. `progress(msg)` is told each sample."""
-    name = model.chamber_names[k]
-    v0 = float(model.chamber_rest_volume_mm3[k])
+    `deadline` (time.monotonic()) ends the curve where it is; `budget` (factor, floor)
+    caps each sample after the first (default STEP_BUDGET). Without `stop_at_asked`,
+    `stop_beyond_kpa` only ends an inflation whose curve levels off below it (the
+    curve otherwise goes on to its peak). `progress(msg)` is told each sample."""
+    r = ratio_of(model, k)
+    alone = isinstance(k, (int, np.integer))
+    name = model.chamber_names[k] if alone else TOGETHER
+    v0 = float(r @ model.chamber_rest_volume_mm3)
     curve = ChamberCurve(name, v0, [0.0], [0.0])
+    budget = budget or STEP_BUDGET
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
     options = options or SolverOptions(load_steps=1)
     stretches = [1.0]
-    last = None  # s: the time of the sample before (the next one's budget, STEP_BUDGET)
+    last = None  # s: the longest sample so far (the next one's budget, STEP_BUDGET)
     x, prev, p_start = None, None, None
     s = 1.0
     while True:
@@ -145,10 +168,11 @@ def follow(
         if deadline is not None and time.monotonic() > deadline:
             curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
             break
-        load = chamber_load(model, k, v0 * (s**3 - 1.0))
-        budget = options
+        growth = v0 * (s**3 - 1.0)
+        load = chamber_load(model, k, growth) if alone else Load.together(r, growth)
+        timed = options
         if last is not None:
-            budget = replace(options, max_seconds=max(STEP_BUDGET[0] * last, STEP_BUDGET[1]))
+            timed = replace(options, max_seconds=max(budget[0] * last, budget[1]))
         try:
             res = solve_state(
                 model,
@@ -156,7 +180,7 @@ def follow(
                 x_start=x,
                 load_start=prev,
                 pressure_start=p_start,
-                options=budget,
+                options=timed,
                 solver=solver,
                 label=f"chamber {name}",
             )
@@ -166,23 +190,25 @@ def follow(
                 if isinstance(exc, OutOfTime)
                 else "no equilibrium"
             )
-            curve.end = f"{why} at mean stretch {s:.2f}"
+            curve.end = f"{why} at {s**3:.2f} V0"
+            curve.failed = True
             if direction < 0:
                 curve.collapse_pressure_kpa = min(curve.pressure_kpa)
             break
         x, prev, p_start = res.x, load, res.pressure_kpa
-        last = res.solve_ms / 1e3
-        p = float(res.pressure_kpa[k])
+        last = max(last or 0.0, res.solve_ms / 1e3)
+        volume = float(r @ res.chamber_volume_mm3)
+        p = float(res.pressure_kpa @ r / (r @ r))
         stretches.append(s)
-        curve.growth_mm3.append(float(res.chamber_volume_mm3[k] - v0))
+        curve.growth_mm3.append(volume - v0)
         curve.pressure_kpa.append(p)
         if progress:
             progress(
-                f"limits: chamber {name}: volume {res.chamber_volume_mm3[k] / v0:.3f} V0, "
+                f"limits: chamber {name}: volume {volume / v0:.3f} V0, "
                 f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
                 f"{res.solve_ms / 1e3:.1f} s)"
             )
-        if stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
+        if stop_at_asked and stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
             curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
             break
         pr = np.array(curve.pressure_kpa)
@@ -202,7 +228,7 @@ def follow(
         else:
             low = int(np.argmin(pr))
             why = None
-            if res.chamber_volume_mm3[k] <= COLLAPSE_VOLUME * v0:
+            if np.any(res.chamber_volume_mm3 <= COLLAPSE_VOLUME * model.chamber_rest_volume_mm3):
                 why = "the cavity's volume is gone"
             elif res.min_det_f <= COLLAPSE_DET_F:
                 why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
@@ -229,20 +255,33 @@ CHECK_TOLERANCE = 1e-4
 digits is all it needs)."""
 
 STEP_BUDGET = (4.0, 5.0)
-"""Time budget of one sample of a curve: this many times the sample before it, and at
-least this many seconds (a sample that fails, e.g. as the walls buckle in, costs little
-more than one that converges; the first sample, from rest, has the scene's budget)."""
+"""Time budget of one sample of a curve: this many times the longest sample before it,
+and at least this many seconds (a sample that fails, e.g. as the walls buckle in, costs
+little more than one that converges; the first sample, from rest, has the scene's
+budget). Not the sample just before: on the default Fruit the chambers together took 3 s
+for their second sample (4 Newton steps) and 12.4 s for their third."""
+
+CHECK_BUDGET = (2.0, 2.0)
+"""`STEP_BUDGET` of the samples of `check_pressures`: a sample that fails there (the
+thick sphere's cavity buckling in at 0.34 V0) is the refusal's evidence, and it is
+reached in half the time (the converging samples take 3-4 Newton steps each, the
+first, from rest, the longest)."""
+
+CHECK_SUBDIVISIONS = 2
+"""Load-step halvings of a sample of `check_pressures` (the scene's [solver]
+max_subdivisions is for its states): a sample that needs more is past the range the
+check follows."""
 
 
 def rest_compliance(model, solver) -> np.ndarray:
-    """(K,) dV_k/dp_k (mm^3/kPa) of each chamber at rest, from the solver's tangent there
-    (its factor is then the one the first state starts with)."""
+    """(K, K) dV_i/dp_j (mm^3/kPa) of the chambers at rest, from the solver's tangent
+    there (its factor is then the one the first state starts with)."""
     free = model.pattern.free
     x = model.rest
     kin = model.kinematics(x)
     solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
     h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
-    return np.einsum("kn,nk->k", h, solver.solve(np.ascontiguousarray(h.T)))
+    return h @ solver.solve(np.ascontiguousarray(h.T)).reshape(len(h[0]), -1)
 
 
 def kpa(value: float) -> str:
@@ -267,17 +306,26 @@ def check_pressures(
     options: SolverOptions,
     progress=None,
     screen: float = SCREEN_GROWTH,
+    found: list | None = None,
 ) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
     K) kPa, NaN where a chamber is volume controlled. Each chamber is followed by volume
     control (`follow`, the others at rest) only as far as its largest or smallest
     pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH; on
-    `solver` (the states' own: its analysis is kept, see `forget`)."""
+    `solver` (the states' own: its analysis is kept, see `forget`). With a `found`
+    list, the curves followed go on to the limit or collapse (unless a bound refuses
+    first) and are appended to it as (direction, curve)."""
     if not np.any(np.nan_to_num(pressures)):
         return
-    w = rest_compliance(model, solver)
-    check = replace(options, tolerance=max(options.tolerance, CHECK_TOLERANCE), load_steps=1)
+    compliance = rest_compliance(model, solver)
+    w = np.diag(compliance)
+    check = replace(
+        options,
+        tolerance=max(options.tolerance, CHECK_TOLERANCE),
+        load_steps=1,
+        max_subdivisions=min(options.max_subdivisions, CHECK_SUBDIVISIONS),
+    )
     v0 = model.chamber_rest_volume_mm3
     for k, key in enumerate(keys):
         col = pressures[:, k][np.isfinite(pressures[:, k])]
@@ -292,21 +340,45 @@ def check_pressures(
                 options=check,
                 stop_beyond_kpa=asked,
                 fall_steps=1,
+                budget=CHECK_BUDGET,
+                stop_at_asked=found is None,
                 progress=progress,
             )
             forget(solver)
+            if found is not None:
+                found.append((direction, curve))
+            if (
+                direction > 0
+                and curve.limit_pressure_kpa is not None
+                and asked < curve.limit_pressure_kpa
+            ):
+                continue
+            if (
+                direction < 0
+                and curve.collapse_pressure_kpa is not None
+                and asked > curve.collapse_pressure_kpa
+            ):
+                continue
             if direction > 0 and curve.limit_bound_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure, which is "
-                    f"below {kpa(curve.limit_bound_kpa)} kPa (its pressure-volume curve levels "
-                    "off: no equilibrium above its peak; `fruit limits` computes it); give "
-                    "`volume_growth_mm3` to follow the inflation past it"
+                    f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: its pressure-volume "
+                    "curve levels off, and there is no equilibrium above its peak; `fruit "
+                    "limits` computes the limit); give `volume_growth_mm3` to follow the "
+                    "inflation past it"
                 )
             if direction > 0 and curve.limit_pressure_kpa is not None:
                 raise SceneError(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it"
+                )
+            if direction < 0 and curve.failed:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa is past this chamber's collapse: no equilibrium "
+                    f"was found beyond {kpa(curve.collapse_pressure_kpa)} kPa ({curve.end}: "
+                    "its walls buckle in or meet, and self-contact is not modelled); give "
+                    "`volume_growth_mm3` to follow the suction"
                 )
             if direction < 0 and curve.collapse_pressure_kpa is not None:
                 raise SceneError(
@@ -315,6 +387,56 @@ def check_pressures(
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
                     "follow the suction"
                 )
+    check_together(model, pressures, keys, solver, check, compliance, screen, progress, found)
+
+
+def check_together(
+    model, pressures, keys, solver, check, compliance, screen, progress=None, found=None
+):
+    """Refuse, in one line naming the state's keys, the state whose pressures, several
+    chambers inflated together, are past the chambers' limit along their own ratios:
+    the state with the largest chamber pressure among those with several (all pressure
+    controlled), followed along its ratios (`follow` with ratios) as far as that
+    pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest."""
+    rows = np.nan_to_num(pressures, nan=-1.0)
+    several = np.flatnonzero(((rows > 0).sum(1) >= 2) & (rows >= 0).all(1))
+    if not len(several):
+        return
+    i = several[np.argmax(rows[several].max(1))]
+    asked = float(rows[i].max())
+    ratio = rows[i] / asked
+    v0 = model.chamber_rest_volume_mm3
+    if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
+        return
+    curve = follow(
+        model,
+        ratio,
+        1,
+        solver=solver,
+        options=check,
+        stop_beyond_kpa=asked,
+        fall_steps=1,
+        budget=CHECK_BUDGET,
+        stop_at_asked=found is None,
+        progress=progress,
+    )
+    forget(solver)
+    if found is not None:
+        found.append((1, curve))
+    if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
+        return
+    which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))
+    if curve.limit_bound_kpa is not None:
+        limit = f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: the curve levels off)"
+    elif curve.limit_pressure_kpa is not None:
+        limit = f"{kpa(curve.limit_pressure_kpa)} kPa"
+    else:
+        return
+    raise SceneError(
+        f"state {i}: {which}: together these are past the chambers' limit along these "
+        f"ratios, where the largest chamber pressure is {limit}; no equilibrium above "
+        "it; lower them or give `volume_growth_mm3`"
+    )
 
 
 def explain_failure(
@@ -351,3 +473,13 @@ def check_growth(model, loads: list[Load]) -> None:
                 f"volume (its rest volume is {v0[k]:.4g} mm^3): expected more "
                 f"than {-v0[k]:.4g}"
             )
+
+
+LIMITS_FILE = "limits.json"
+"""The limits stage's summary (`fruitcli.fem.limits_stage.run_limits_stage`)."""
+
+
+def checked_by(limits_dir) -> bool:
+    """True when the limits stage's output is in `limits_dir` (simulate then skips its
+    own check: the stage checked the same pressures on the same mesh)."""
+    return limits_dir is not None and (Path(limits_dir) / LIMITS_FILE).exists()

@@ -5,21 +5,27 @@
 
 - limits.json: chambers.<name>.{limit_pressure_kpa, limit_volume_growth_mm3,
   collapse_pressure_kpa, rest_volume_mm3, inflation_end, suction_end} (None where the
-  range followed does not reach it), element, mesh (nodes, elements), seconds;
+  range followed does not reach it); with several chambers, together.{ratios,
+  limit_pressure_kpa, limit_volume_growth_mm3, inflation_end}: the chambers inflated
+  together along the scene's own pressure ratios (each chamber's largest pressure over
+  the states; equal ratios when the scene has none), the pressure the largest chamber's
+  and the volume sum_k ratio_k V_k (None otherwise); element, mesh (nodes, elements),
+  seconds;
 - pv.csv: one row per sample (chamber, volume_growth_mm3, pressure_kpa), suction then
-  inflation, by growing volume;
+  inflation, by growing volume; the chambers together as chamber "together";
 - pv.png: pressure against volume growth per chamber, the limit and collapse marked.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from fruitcli.fem import io, limits
-from fruitcli.fem.stage import build_model, element_name, solver_options
+from fruitcli.fem.stage import build_model, element_name, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 
@@ -31,11 +37,37 @@ def _kpa(value: float | None) -> str:
     return "none in the range" if value is None else f"{value:.4g} kPa"
 
 
+CURVE_FALL_STEPS = 1
+"""Samples past the peak (or the lowest suction) that end a curve of `fruit limits`:
+the parabola of the peak takes the top and its two neighbours either way, and a sample
+past the peak of a flat chamber is its slowest (on the default Fruit, chamber c1's
+second sample past its peak took 185 s of the curve's 420 s)."""
+
+
+def curve_options(options):
+    """The scene's [solver] options for the samples of a curve: Newton's tolerance
+    loosened to `limits.CHECK_TOLERANCE` (the pressure to four digits)."""
+    return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))
+
+
 def follow_both(model, k: int, options, progress=_noop) -> tuple:
     """(suction curve, inflation curve) of chamber k, each on a fresh solver."""
-    down = limits.follow(model, k, -1, options=options, progress=progress)
-    up = limits.follow(model, k, 1, options=options, progress=progress)
+    kw = {"options": options, "progress": progress}
+    down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
+    up = limits.follow(model, k, 1, fall_steps=CURVE_FALL_STEPS, **kw)
     return down, up
+
+
+def scene_ratios(scene, names: list[str]) -> np.ndarray:
+    """(K,) the scene's own pressure ratios: each chamber's largest pressure over the
+    states (0 where volume controlled or never inflated), scaled to a largest of 1;
+    equal ratios when no chamber is inflated by pressure."""
+    loads = state_loads(scene, names)
+    top = np.zeros(len(names))
+    for load in loads:
+        p = np.where(load.volume_controlled, 0.0, load.pressure_kpa)
+        top = np.maximum(top, p)
+    return top / top.max() if top.max() > 0 else np.ones(len(names))
 
 
 def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
@@ -44,7 +76,7 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     progress = progress or _noop
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
-    options = solver_options(scene)
+    options = curve_options(solver_options(scene))
     chambers, rows, curves = {}, [], []
     for k, name in enumerate(model.chamber_names):
         down, up = follow_both(model, k, options, progress)
@@ -64,8 +96,30 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             f"limits: chamber {name}: limit pressure {_kpa(up.limit_pressure_kpa)}, "
             f"collapse {_kpa(down.collapse_pressure_kpa)}"
         )
+    together = None
+    if len(model.chamber_names) > 1:
+        ratio = scene_ratios(scene, model.chamber_names)
+        up = limits.follow(
+            model,
+            ratio,
+            1,
+            options=options,
+            fall_steps=CURVE_FALL_STEPS,
+            progress=progress,
+        )
+        together = {
+            "ratios": dict(zip(model.chamber_names, map(float, ratio), strict=True)),
+            "limit_pressure_kpa": up.limit_pressure_kpa,
+            "limit_volume_growth_mm3": up.limit_growth_mm3,
+            "inflation_end": up.end,
+        }
+        samples = zip(up.growth_mm3, up.pressure_kpa, strict=True)
+        rows += [(limits.TOGETHER, g, p) for g, p in samples]
+        curves.append((limits.TOGETHER, limits.ChamberCurve(limits.TOGETHER, 0.0), up))
+        progress(f"limits: chambers together: limit pressure {_kpa(up.limit_pressure_kpa)}")
     info = {
         "chambers": chambers,
+        "together": together,
         "element": element_name(model),
         "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
         "seconds": round(time.perf_counter() - t0, 2),
@@ -89,7 +143,10 @@ def plot_curves(path, curves) -> None:
     for name, down, up in curves:
         g = down.growth_mm3[:0:-1] + up.growth_mm3
         p = down.pressure_kpa[:0:-1] + up.pressure_kpa
-        (line,) = ax.plot(g, p, ".-", label=f"chamber {name}")
+        label, style = f"chamber {name}", ".-"
+        if name == limits.TOGETHER:
+            label, style = "together (largest chamber's pressure)", ".--"
+        (line,) = ax.plot(g, p, style, label=label)
         if up.limit_pressure_kpa is not None:
             ax.plot(
                 [up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10, color=line.get_color()
@@ -128,3 +185,108 @@ def plot_curves(path, curves) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)
+
+
+NEAR_SHEAR_FRACTION = 0.5
+"""The planner's `limits` stage runs when a chamber's largest pressure magnitude
+reaches this fraction of the material's shear modulus: the incompressible neo-Hookean
+sphere's limit pressure is 0.49 mu when its wall is half its cavity radius thick (B/A
+= 1.5), 0.82 mu at B/A = 2. Below it `simulate` checks the pressures itself (its
+compliance screen, `limits.SCREEN_GROWTH`); the default Fruit's breathing (12 kPa,
+0.36 mu) stays below."""
+
+
+def near_limit(scene) -> tuple[bool, str]:
+    """(whether the scene's pressures come near a limit by the cheap estimate
+    NEAR_SHEAR_FRACTION, why), from the scene alone (no mesh)."""
+    from fruitcli.fem.materials import build as materials
+
+    table = scene.actuation.pressure_kpa or {}
+    if not scene.chambers or not table:
+        return False, "no chamber pressures"
+    top = max(max(abs(v) for v in values) for values in table.values())
+    mu = materials.from_scene(scene.material).shear_modulus_kpa
+    if top < NEAR_SHEAR_FRACTION * mu:
+        return False, (
+            f"pressures up to {top:g} kPa, under {NEAR_SHEAR_FRACTION:g} mu = "
+            f"{NEAR_SHEAR_FRACTION * mu:.3g} kPa: simulate checks them itself"
+        )
+    return True, (
+        f"pressures up to {top:g} kPa, {top / mu:.2g} mu: near a chamber's limit "
+        "pressure, checked against it once"
+    )
+
+
+def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
+    """The planner's `limits` stage: the scene's pressures checked against the limits
+    (`limits.check_pressures` on the scene's states, without its screen: the planner
+    runs this stage when the pressures come near a limit, `near_limit`), each
+    pressurised chamber's curve followed on to its limit or collapse; raises the
+    check's one line for a pressure past one, else writes out_dir/limits.json
+    (chambers.<name>.{followed, limit_pressure_kpa, limit_volume_growth_mm3,
+    collapse_pressure_kpa}, together (or None), element, mesh, seconds) and, when a
+    curve was followed, pv.csv and pv.png. `simulate` then skips its own check
+    (`limits.checked_by`)."""
+    progress = progress or _noop
+    t0 = time.perf_counter()
+    model = build_model(scene, io.load_mesh(Path(mesh_npz)))
+    names = model.chamber_names
+    loads = state_loads(scene, names)
+    limits.check_growth(model, loads)
+    asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
+    keys = [f"[actuation].pressure_kpa.{c}" for c in names]
+    found: list = []
+    solver = model.make_solver(scene.solver.linear_solver)
+    limits.check_pressures(
+        model, asked, keys, solver, solver_options(scene), progress, screen=0.0, found=found
+    )
+    chambers = {
+        c: {
+            "followed": [],
+            "limit_pressure_kpa": None,
+            "limit_volume_growth_mm3": None,
+            "collapse_pressure_kpa": None,
+        }
+        for c in names
+    }
+    together, rows, curves = None, [], {}
+    for direction, curve in found:
+        samples = list(zip(curve.growth_mm3[1:], curve.pressure_kpa[1:], strict=True))
+        rows += [(curve.name, g, p) for g, p in samples]
+        down, up = curves.get(curve.name, (limits.ChamberCurve(curve.name, 0.0),) * 2)
+        curves[curve.name] = (curve, up) if direction < 0 else (down, curve)
+        entry = {
+            "followed": [],
+            "limit_pressure_kpa": curve.limit_pressure_kpa,
+            "limit_volume_growth_mm3": curve.limit_growth_mm3,
+        }
+        if curve.name == limits.TOGETHER:
+            together = entry
+            continue
+        entry = chambers[curve.name]
+        entry["followed"].append("inflation" if direction > 0 else "suction")
+        if direction > 0:
+            entry["limit_pressure_kpa"] = curve.limit_pressure_kpa
+            entry["limit_volume_growth_mm3"] = curve.limit_growth_mm3
+        else:
+            entry["collapse_pressure_kpa"] = curve.collapse_pressure_kpa
+    info = {
+        "chambers": chambers,
+        "together": together,
+        "element": element_name(model),
+        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
+    with staged_dir(out_dir) as tmp:
+        if found:
+            rows = [(c, 0.0, 0.0) for c in curves] + rows
+            rows.sort(key=lambda r: (r[0], r[1]))
+            write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
+            plot_curves(tmp / "pv.png", [(c, d, u) for c, (d, u) in curves.items()])
+        write_json(tmp / limits.LIMITS_FILE, info)
+    progress(
+        "limits: "
+        + (f"{len(found)} curve(s) followed" if found else "no pressure near a limit")
+        + f" ({info['seconds']:.1f} s)"
+    )
+    return info

@@ -281,11 +281,21 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
 
 
 def run_simulate(
-    scene, mesh_npz, taxels_xyz, out_dir, progress=None, vtu=False, tracks_csv=None, pressures=None
+    scene,
+    mesh_npz,
+    taxels_xyz,
+    out_dir,
+    progress=None,
+    vtu=False,
+    tracks_csv=None,
+    pressures=None,
+    limits_dir=None,
 ) -> dict:
     """Solve every actuation state, or with `pressures` {chamber: (S,) kPa} those
     pressure vectors; write out_dir/states.npz (see module docstring), and
-    out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any."""
+    out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any.
+    The pressures are checked against the chambers' limits first, unless `limits_dir`
+    holds the planner's limits stage output for them (`limits_stage.checked_by`)."""
     progress = progress or _noop
     tracks_csv = scene.tracks.file or tracks_csv
     tracks = None
@@ -310,7 +320,10 @@ def run_simulate(
     if model.chamber_tris:
         limits.check_growth(model, loads)
         asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
-        limits.check_pressures(model, asked, keys, solver, solver_options(scene), progress=progress)
+        if pressures is not None or not limits.checked_by(limits_dir):
+            limits.check_pressures(
+                model, asked, keys, solver, solver_options(scene), progress=progress
+            )
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))

@@ -6,7 +6,9 @@ taxels' surface (linear over their xy Delaunay triangles, as the virtual bench a
 the gap is the tip's height above it, and the counts are the skin's forward model
 (`fruitcli.sensing.skin.forward` with the scene's [skin] parameters: activation at the contact
 point below the tip, Gaussian noise, per-taxel baselines and gains), cells without a taxel
-at the baseline level.
+at the baseline level. With the electrostatic skin (`response`, a
+`crossing_skin.CrossingSkin`) the activation is the crossing table's, as in the virtual
+bench: the drop at the taxel's offset from the contact point and the tip's gap above it.
 """
 
 from __future__ import annotations
@@ -32,10 +34,15 @@ class SkinBoard:
         indenter: str = "small",
         seed: int = 0,
         params: forward.SkinParams = forward.DEFAULT_PARAMS,
+        response=None,
     ):
         from scipy.interpolate import LinearNDInterpolator
 
-        forward.footprint_sigma_mm(indenter, params)  # validates the name
+        if response is None:
+            forward.footprint_sigma_mm(indenter, params)  # validates the name
+        else:
+            response.object_index(indenter)
+        self.response = response
         self.taxels_mm = taxels.xyz_mm
         self.rows, self.cols = taxel_cells(taxels, board, "taxels")
         self.shape = (board.rows, board.cols)
@@ -53,10 +60,12 @@ class SkinBoard:
         if not np.isfinite(z):
             return base  # the tip is not over the skin
         contact = np.array([tip[0], tip[1], z])
+        gap = np.array([tip[2] - z])
+        if self.response is not None:
+            act = self.response.activation(self.indenter, contact, self.taxels_mm, gap)[0]
+            return base + (act if self.skin.gain is None else act * self.skin.gain)
         dist = np.linalg.norm(self.taxels_mm - contact, axis=1)
-        act = forward.activation_counts(
-            dist[None, :], np.array([tip[2] - z]), self.indenter, self.skin
-        )
+        act = forward.activation_counts(dist[None, :], gap, self.indenter, self.skin)
         return base + act[0]
 
     def frame(self, k: int) -> np.ndarray:

@@ -66,6 +66,7 @@ def variant_figures(scene, folder: Path) -> dict:
             out[f"{slug}_n"] = int(row["n"])
             out[f"{slug}_mean_mm"] = float(row["mean_mm"])
             out[f"{slug}_std_mm"] = float(row["std_mm"])
+    out.update(skin_figures(scene, ctx.dir("skin") / "summary.json"))
     sens = ctx.dir("sensitivity") / "sensitivity.json"
     if sens.exists():
         s = json.loads(sens.read_text())["summary"]
@@ -74,6 +75,27 @@ def variant_figures(scene, folder: Path) -> dict:
             shift_max_counts=float(s["max_shift"]["max"]),
             shift_mean_counts=float(s["max_shift"]["mean"]),
         )
+    return out
+
+
+def skin_figures(scene, summary_json: Path) -> dict:
+    """The electrostatic crossing's figures (`fruit skin`'s summary.json), in counts of
+    ``[skin].counts_per_ff`` when the scene gives it: C0 (fF), each object's activation
+    at contact (counts), the bent pad's largest baseline shift (counts, the crossing bent
+    as Fig. 9's pad along either yarn, positive towards a false touch) and the bending
+    false-touch margin (the threshold less that shift)."""
+    if not Path(summary_json).exists():
+        return {}
+    s = json.loads(Path(summary_json).read_text())
+    fitted = float(s["counts_per_ff"])
+    scale = scene.skin.counts_per_ff or fitted
+    out = {"c0_ff": float(s["c0_ff"]), "counts_per_ff": scale}
+    for name, o in s["objects"].items():
+        out[f"contact_counts_{name}"] = float(o["contact_counts"]) * scale / fitted
+    shifts = s["deformation_shift_counts"]
+    bend = max(float(shifts[f"bend_{a}"][-1]) for a in ("x", "y")) * scale / fitted
+    out["bend_shift_max_counts"] = bend
+    out["bend_margin_counts"] = scene.detection.threshold_counts - bend
     return out
 
 

@@ -26,3 +26,20 @@ def scene_products(scene, out_root=None, progress=None):
     planner.run(scene, out, until="simulate", progress=progress, shared=shared_outputs(out))
     ctx = planner.Context(out)
     return taxels_path(scene, ctx), states_path(scene, ctx)
+
+
+def crossing_response(scene, out_root=None, progress=None):
+    """The scene's electrostatic skin (`crossing_skin.CrossingSkin`) with ``[skin].model =
+    "electrostatic"``, else None: the skin stage's table (run into `out_root`, default
+    out/<scene name>, reused while the cell's inputs are unchanged) or, when nothing in
+    the scene needs that stage, computed now."""
+    from fruitcli.sensing.skin.crossing_skin import crossing_skin
+    from fruitcli.workflow.stages import electrostatic
+
+    if not electrostatic(scene):
+        return None
+    out = Path(out_root) if out_root else Path("out") / scene.name
+    steps = planner.run(scene, out, until="skin", progress=progress, shared=shared_outputs(out))
+    made = any(s.stage == "skin" and s.action != "not needed" for s in steps)
+    folder = planner.Context(out).dir("skin") if made else None
+    return crossing_skin(scene, folder, progress)

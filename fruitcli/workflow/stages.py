@@ -228,7 +228,37 @@ def _simulate_run(scene, ctx, out_dir):
         out_dir,
         progress=ctx.progress,
         tracks_csv=tracks_path(scene, ctx),
+        limits_dir=ctx.dir("limits") if _limits_needed(scene)[0] else None,
     )
+
+
+# ----------------------------------------------------------------------------- limits
+def _limits_needed(scene):
+    from fruitcli.fem.limits_stage import near_limit
+
+    fem, why = _fem_needed(scene)
+    return near_limit(scene) if fem else (False, why)
+
+
+def _limits_run(scene, ctx, out_dir):
+    from fruitcli.fem.limits_stage import run_limits_stage
+
+    mesh = ctx.dir("tetra") / "mesh.npz"
+    return run_limits_stage(scene, mesh, out_dir, progress=ctx.progress)
+
+
+LIMITS_STAGE = Stage(
+    "limits",
+    ["tetra"],
+    "fruitcli.fem.limits_stage",
+    _limits_needed,
+    no_inputs,
+    _limits_run,
+    lambda s: ["limits.json"],
+    reads=(*DEFORMS, "geometry", "fem", "material", "solver"),
+)
+"""Each chamber's pressures against its limit and collapse, once per mesh, material and
+actuation (`fruitcli.fem.limits_stage`); `simulate` reads it (`_simulate_run`)."""
 
 
 # ----------------------------------------------------------------------------- reduce
@@ -547,9 +577,10 @@ STAGES: list[Stage] = [
         reads=("geometry", "mesh", "grid.taxels"),
         decides=DEFORMS,
     ),
+    LIMITS_STAGE,
     Stage(
         "simulate",
-        ["tetra", "make-tracks", "pad-grid"],
+        ["tetra", "make-tracks", "pad-grid", "limits"],
         "fruitcli.fem.stage",
         _fem_needed,
         no_inputs,

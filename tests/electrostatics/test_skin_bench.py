@@ -289,3 +289,44 @@ def test_gaussian_scene_plans_no_skin_stage(tmp_path, fruit):
     assert result.exit_code == 0, result.output
     skin = [line for line in result.output.splitlines() if line.startswith("skin ")]
     assert skin and "not needed" in skin[0]
+
+
+@pytest.mark.slow
+def test_fruit_calibrate_on_the_electrostatic_bench_gives_back_its_counts_per_ff(
+    pad_run, monkeypatch
+):
+    """`fruit calibrate` of the electrostatic pad bench (noise 0, gains 1) with the same
+    scene: the skin stage's table is reused (out/<scene>/skin, copied from the run) and
+    its counts per fF come back; skin.toml says model = "electrostatic"."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from fruitcli.cli.main import cli
+    from fruitcli.scene import load_skin_table
+
+    tmp, out, first, _ = pad_run
+    assert first.exit_code == 0, first.output
+    monkeypatch.chdir(tmp)
+    shutil.copytree(out / "skin", tmp / "out" / "pad" / "skin", dirs_exist_ok=True)
+    summary = json.loads((out / "skin" / "summary.json").read_text())
+    res = CliRunner().invoke(
+        cli,
+        [
+            "calibrate",
+            str(out / "bench" / "small" / "frames.npz"),
+            "--truth",
+            str(out / "bench" / "small" / "truth.csv"),
+            "--scene",
+            str(tmp / "pad.toml"),
+            "--out",
+            str(tmp / "cal"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "electrostatic skin" in res.output and "skin: reuse" in res.output
+    cal = json.loads((tmp / "cal" / "calibration.json").read_text())
+    # activations rounded to whole counts near the threshold: within 2 %
+    assert cal["counts_per_ff"] == pytest.approx(summary["counts_per_ff"], rel=0.02)
+    skin = load_skin_table(tmp / "cal" / "skin.toml")
+    assert skin.model == "electrostatic" and skin.gaps_mm == [0.0, 1.0, 2.0]

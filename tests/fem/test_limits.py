@@ -15,8 +15,10 @@ from scipy.optimize import brentq
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import limits
+from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.limits_stage import run_limits
+from fruitcli.fem.materials.build import material
 from fruitcli.fem.solver import linsolve, newton
 from fruitcli.fem.solver.c_output import captured_output
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
@@ -150,19 +152,19 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
             model, np.array([[100.0]]), key, model.make_solver(), options, progress=told.append
         )
     line = str(info.value)
-    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    bound = float(line.split("which is at most ")[1].split(" kPa")[0])
     assert lim < bound < 100.0
     assert line == (
         f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
-        f"pressure, which is below {limits.kpa(bound)} kPa (its pressure-volume curve "
-        "levels off: no equilibrium above its peak; `fruit limits` computes it); "
-        "give `volume_growth_mm3` to follow the inflation past it"
+        f"pressure, which is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume "
+        "curve levels off, and there is no equilibrium above its peak; `fruit limits` "
+        "computes the limit); give `volume_growth_mm3` to follow the inflation past it"
     )
     assert len(told) < 5  # refused before the peak (at stretch 1.83: 8 samples)
     with pytest.raises(
         SceneError,
         match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
-        r"this chamber's collapse pressure of -\d",
+        r"this chamber's collapse( pressure of -\d|: no equilibrium was found beyond -\d)",
     ):
         limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(), options)
     limits.check_pressures(
@@ -287,20 +289,20 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     assert cav["collapse_pressure_kpa"] < 0 and cav["limit_volume_growth_mm3"] > 0
     assert saved["element"] == "p2" and saved["mesh"]["elements"] > 0
     rows = (out / "pv.csv").read_text().splitlines()
-    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 10
+    assert rows[0] == "chamber,volume_growth_mm3,pressure_kpa" and len(rows) > 5
     growth = [float(r.split(",")[1]) for r in rows[1:]]
     assert growth == sorted(growth) and 0.0 in growth
     assert (out / "pv.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(SceneError) as refused:
         run_simulate(scene, out / "mesh.npz", None, tmp_path / "sim")
     line = str(refused.value)
-    bound = float(line.split("which is below ")[1].split(" kPa")[0])
+    bound = float(line.split("which is at most ")[1].split(" kPa")[0])
     assert cav["limit_pressure_kpa"] < bound < 2000.0
     assert line == (
         f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure, which "
-        f"is below {limits.kpa(bound)} kPa (its pressure-volume curve levels off: no "
-        "equilibrium above its peak; `fruit limits` computes it); give `volume_growth_mm3` "
-        "to follow the inflation past it"
+        f"is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume curve levels off, "
+        "and there is no equilibrium above its peak; `fruit limits` computes the limit); "
+        "give `volume_growth_mm3` to follow the inflation past it"
     )
     assert not (tmp_path / "sim" / "states.npz").exists()
 
@@ -330,3 +332,161 @@ def test_volume_growth_below_minus_the_rest_volume_is_refused():
         r"volume is \d+(\.\d+)? mm\^3\): expected more than ",
     ):
         limits.check_growth(model, [ok, bad])
+
+
+def nested_octant_balls(nu=0.49):
+    """Two hollow-ball octants (`octant_ball`, 1 cell, 1 layer) with one centre: ball c
+    (A = 10, B = 20 mm) and ball d, half its size, inside c's cavity (no contact: d
+    grows to 6.4 mm at its limit). Same shape, so the same limit pressure; d's cavity
+    volume is c's / 8."""
+    parts = [octant_ball(1, 1, nu=nu, a=a, b=2 * a) for a in (10.0, 5.0)]
+    n0 = parts[0].n_nodes
+    nodes = np.vstack([m.rest for m in parts])
+    tets = np.vstack([parts[0].conn, parts[1].conn + n0])
+    walls = [parts[0].chamber_tris[0], parts[1].chamber_tris[0] + n0]
+    rollers = [
+        (np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
+        for d in range(3)
+    ]
+    return ContinuumModel.from_arrays(
+        nodes,
+        tets,
+        material("neo-hookean", 100.0, nu),
+        "p2",
+        chambers={"c": walls[0], "d": walls[1]},
+        prescribed=rollers,
+    )
+
+
+def test_chambers_together_along_pressure_ratios():
+    """Two balls of one shape (`nested_octant_balls`): alone, each has the octant's limit
+    pressure (0.8052 mu, see above); together along pressure ratios (1, 1) the curve's
+    limit (the largest chamber pressure at the peak of the volume sum_k r_k V_k) is the
+    same; along (1, 0.5) ball c reaches its limit while d holds half of it, so the limit
+    is c's again, within 1 %. The pressures stay on the ratio line."""
+    model = nested_octant_balls()
+    mu = model.material.shear_modulus_kpa
+    alone = [limits.follow(model, k).limit_pressure_kpa for k in (0, 1)]
+    assert alone == pytest.approx([0.8052 * mu] * 2, rel=0.01)
+    for ratio in ((1.0, 1.0), (1.0, 0.5)):
+        curve = limits.follow(model, np.array(ratio))
+        assert curve.name == limits.TOGETHER
+        assert curve.limit_pressure_kpa == pytest.approx(alone[0], rel=0.01)
+    res = solve_state(model, Load.together([1.0, 0.5], 100.0))
+    assert res.pressure_kpa[1] == pytest.approx(0.5 * res.pressure_kpa[0], rel=1e-12)
+    v = model.chamber_rest_volume_mm3
+    assert res.chamber_volume_mm3 @ [1.0, 0.5] == pytest.approx(v @ [1.0, 0.5] + 100.0, rel=1e-5)
+
+
+def test_a_state_past_the_limit_together_is_refused():
+    """`check_together` on the nested balls (limit 27.0 kPa alone and together along
+    (1, 1)): a state with both at 28 kPa is refused in one line naming both keys and
+    the limit along its ratios; (20, 10) kPa is reachable; a state with one chamber
+    pressurised is left to the check of that chamber alone."""
+    model = nested_octant_balls()
+    keys = ["[actuation].pressure_kpa.c", "[actuation].pressure_kpa.d"]
+    solver = model.make_solver()
+    compliance = limits.rest_compliance(model, solver)
+    assert compliance.shape == (2, 2) and abs(compliance[0, 1]) < 1e-9 * compliance[0, 0]
+    options = SolverOptions(tolerance=limits.CHECK_TOLERANCE)
+    with pytest.raises(SceneError) as info:
+        limits.check_together(
+            model, np.array([[5.0, 0.0], [28.0, 28.0]]), keys, solver, options, compliance, 0.0
+        )
+    line = str(info.value)
+    lim = float(line.split("pressure is ")[1].split(" kPa")[0])
+    assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
+    assert line == (
+        "state 1: [actuation].pressure_kpa.c 28 kPa, [actuation].pressure_kpa.d 28 kPa: "
+        "together these are past the chambers' limit along these ratios, where the "
+        f"largest chamber pressure is {limits.kpa(lim)} kPa; no equilibrium above it; "
+        "lower them or give `volume_growth_mm3`"
+    )
+    for ok in ([[20.0, 10.0]], [[28.0, 0.0]]):
+        limits.check_together(model, np.array(ok), keys, solver, options, compliance, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("extra", "line"),
+    [
+        (
+            "[reduced]\npressure_range_kpa = [nan, 10.0]",
+            "[reduced].pressure_range_kpa: expected a list of 2 numbers, got [nan, 10.0]",
+        ),
+        (
+            "[actuation]\npressure_kpa = { c = [1.0, nan] }",
+            "[actuation].pressure_kpa.c: expected a non-empty list of numbers, one per state",
+        ),
+        (
+            "[actuation]\nvolume_growth_mm3 = { c = [nan] }",
+            "[actuation].volume_growth_mm3.c: expected a non-empty list of numbers, one per state",
+        ),
+        (
+            "[solver]\nmax_seconds = 0",
+            "[solver].max_seconds: expected a time budget > 0 s, got 0.0",
+        ),
+        ("[solver]\nmax_seconds = nan", "[solver].max_seconds: expected a finite number, got nan"),
+    ],
+)
+@pytest.mark.parametrize("command", ["limits", "simulate"])
+def test_bad_limit_inputs_are_one_line(tmp_path, command, extra, line):
+    """A NaN in a pressure range or table, a budget <= 0 or NaN: `fruit limits` and
+    `fruit simulate` stop with one line naming the key, exit 1, no output folder."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[geometry]\npad_size_mm = [10.0, 10.0, 2.0]\n[[geometry.chamber]]\nname = "c"\n'
+        "ellipsoid = {center_mm = [0.0, 0.0, 1.0], radii_mm = [2.0, 2.0, 0.5]}\n" + extra + "\n"
+    )
+    res = CliRunner().invoke(cli, [command, str(scene), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert res.output == f"Error: {scene.name}: {line}\n"
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_limits_stage_is_planned_near_a_limit(tmp_path):
+    """The planner runs `limits` when a pressure reaches NEAR_SHEAR_FRACTION of the shear
+    modulus (E = 100 kPa, nu = 0.45: mu = 34.5 kPa, the threshold 17.2 kPa)."""
+    from fruitcli.fem.limits_stage import near_limit
+
+    assert near_limit(ball_scene(tmp_path, nu=0.45, p=20.0)) == (
+        True,
+        "pressures up to 20 kPa, 0.58 mu: near a chamber's limit pressure, checked against it once",
+    )
+    assert near_limit(ball_scene(tmp_path, nu=0.45, p=-10.0)) == (
+        False,
+        "pressures up to 10 kPa, under 0.5 mu = 17.2 kPa: simulate checks them itself",
+    )
+
+
+@pytest.mark.slow
+def test_limits_stage_follows_to_the_limit_and_simulate_reuses_it(tmp_path):
+    """The limits stage on the gmsh ball (size 8 mm, nu = 0.45) at 20 kPa: the curve is
+    followed on to its limit (the radial solution's 26.3 kPa within 5 %, as `fruit
+    limits`), limits.json, pv.csv and pv.png written; simulate given its folder follows
+    no curve of its own. At 2000 kPa the stage refuses in one line, nothing written."""
+    from fruitcli.fem.limits_stage import run_limits_stage
+
+    scene = ball_scene(tmp_path, size=8.0, nu=0.45, p=20.0)
+    run_tetra(scene, None, tmp_path / "tetra")
+    mesh = tmp_path / "tetra" / "mesh.npz"
+    info = run_limits_stage(scene, mesh, tmp_path / "limits")
+    cav = info["chambers"]["c"]
+    assert cav["followed"] == ["inflation"] and cav["collapse_pressure_kpa"] is None
+    mu = 100 / (2 * 1.45)
+    assert cav["limit_pressure_kpa"] == pytest.approx(
+        radial_pressure(mu, 100 / 0.3, 1.83), rel=0.05
+    )
+    assert info["together"] is None
+    assert json.loads((tmp_path / "limits" / "limits.json").read_text()) == json.loads(
+        json.dumps(info)
+    )
+    assert (tmp_path / "limits" / "pv.png").exists()
+    told = []
+    run_simulate(
+        scene, mesh, None, tmp_path / "sim", progress=told.append, limits_dir=tmp_path / "limits"
+    )
+    assert not any(t.startswith("limits:") for t in told)
+    assert (tmp_path / "sim" / "states.npz").exists()
+    with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 2000 kPa is past"):
+        run_limits_stage(ball_scene(tmp_path, size=8.0, nu=0.45, p=2000.0), mesh, tmp_path / "l2")
+    assert not (tmp_path / "l2").exists()

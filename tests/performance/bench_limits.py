@@ -4,11 +4,15 @@
    element) on its octant at growing refinement: error against the incompressible
    closed form (0.8164 mu; the rest is compressibility) and against the compressible
    radial solution of the FEM's material (the discretization error), and the time.
-2. `fruit limits` on the default Fruit (pipelines/fruit-breathing.toml: 3 chambers) with
-   its wall time (skip with --no-fruit), and how far the breathing's largest pressure
-   is from each limit.
+2. `fruit limits` on the default Fruit (pipelines/fruit-breathing.toml: 3 chambers, one
+   at a time and together along the breathing's ratios) with its wall time (skip with
+   --no-fruit), and how far the breathing's largest pressure is from each limit. With
+   --docs, its pv.csv and a summary (the limits, the time, date, commit and machine)
+   go to docs/data/fruit-limits.{csv,json}, from which `make docs` draws the figure of
+   docs/explanation/limits.md.
 
-Run: .venv/bin/python tests/performance/bench_limits.py [--no-fruit] [--out DIR]
+Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-fruit]
+[--out DIR] [--docs]
 """
 
 import argparse
@@ -20,7 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 
@@ -57,7 +62,7 @@ def sphere_refinement() -> None:
         )
 
 
-def fruit_limits(out: Path) -> None:
+def fruit_limits(out: Path, docs: bool = False) -> None:
     scene = ROOT / "pipelines" / "fruit-breathing.toml"
     t0 = time.perf_counter()
     fruit = Path(sys.executable).parent / "fruit"
@@ -87,17 +92,56 @@ def fruit_limits(out: Path) -> None:
             f"  chamber {name}: limit {'none up to 27 V0' if lim is None else f'{lim:.4g} kPa'}"
             f"{far}; collapse {'none' if col is None else f'{col:.4g} kPa'}"
         )
+    together = info.get("together")
+    if together:
+        lim = together["limit_pressure_kpa"]
+        print(
+            "  chambers together (ratios "
+            + ", ".join(f"{c} {r:g}" for c, r in together["ratios"].items())
+            + "): limit "
+            + ("none up to 27 V0" if lim is None else f"{lim:.4g} kPa (largest chamber)")
+        )
+    if docs:
+        write_docs(out, info, wall, asked)
+
+
+def write_docs(out: Path, info: dict, wall: float, asked: dict) -> None:
+    """docs/data/fruit-limits.csv (the pv.csv) and fruit-limits.json (the limits, the
+    breathing's largest pressures, the times, date, commit and machine)."""
+    import datetime
+    import shutil
+
+    sys.path.insert(0, str(HERE))
+    from run_all import commit, processor
+
+    data = ROOT / "docs" / "data"
+    data.mkdir(exist_ok=True)
+    shutil.copyfile(out / "pv.csv", data / "fruit-limits.csv")
+    summary = {
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "commit": commit(),
+        "machine": f"{processor()}, {os.cpu_count()} cores",
+        "scene": "pipelines/fruit-breathing.toml",
+        "wall_seconds": round(wall, 1),
+        "breathing_max_kpa": {c: max(v) for c, v in asked.items()},
+        **info,
+    }
+    (data / "fruit-limits.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"wrote {data / 'fruit-limits.csv'} and fruit-limits.json")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--no-sphere", action="store_true")
     parser.add_argument("--no-fruit", action="store_true")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--docs", action="store_true", help="write docs/data/fruit-limits.*")
     args = parser.parse_args()
-    sphere_refinement()
+    if not args.no_sphere:
+        sphere_refinement()
     if not args.no_fruit:
         with tempfile.TemporaryDirectory() as tmp:
-            fruit_limits(args.out or Path(tmp) / "limits")
+            fruit_limits(args.out or Path(tmp) / "limits", args.docs)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,15 @@ bends) in at most 2 minutes on a 2-core machine: the default Fruit's design (pit
 12 mm, cover 2 mm, yarn radius 0.6 mm, insulation 0.1 mm, eps_r 2.8, 10 gaps to 8 mm). Prints
 the mesh and solve times, C0, counts per fF and the derived equivalents.
 
+Then the virtual bench's cost per frame with each skin model (target: the electrostatic
+no more than twice the Gaussian): `virtual_bench.descend` over a flat 8 x 6 grid of
+taxels 16 x 12 mm apart (the default Fruit has 40), the small indenter coming down on a
+sample a quarter taxel off each, every frame of each descent made (threshold out of
+reach), the table just computed; the least CPU time (this process's: other work on a shared
+machine counts less) of FRAME_RUNS interleaved runs of each.
+`python tests/performance/bench_skin.py --frames DIR` times only that, on the table of
+`fruit skin`'s DIR.
+
 `python tests/performance/bench_skin.py --assembly` instead times the stiffness assembly of
 fruit's kernel (linear and quadratic tets) against scikit-fem's on the same gmsh meshes
 (scikit-fem must be importable; it is not a dependency).
@@ -32,9 +41,14 @@ DEFAULT = CrossingInputs(
     time_limit_s=120.0,
 )
 TARGET_S = 120.0
+FRAME_RUNS = 9
+FRAME_RATIO_TARGET = 2.0
 
 
 def table() -> None:
+    from fruitcli.electrostatics.design import table_arrays
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
     t0 = time.perf_counter()
     tab, summary = run_crossing(DEFAULT)
     wall = time.perf_counter() - t0
@@ -77,6 +91,38 @@ def table() -> None:
             f"  {key} at curvatures {np.round(shifts['curvature_per_mm'], 4).tolist()} /mm: "
             f"{np.round(shifts[key], 1).tolist()} counts"
         )
+    frame_cost(CrossingSkin.from_table(table_arrays(tab), summary))
+
+
+def frame_cost(response) -> None:
+    """Print the virtual bench's microseconds per frame with each skin model."""
+    from fruitcli.sensing.skin import forward
+    from fruitcli.sensing.skin.virtual_bench import START_GAP_MM, descend, quarter_samples
+
+    gx, gy = np.meshgrid(np.arange(8) * 16.0, np.arange(6) * 12.0, indexing="ij")
+    taxels = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=1)
+    xy = quarter_samples(taxels[:, :2], 16.0, 12.0)
+    contact = np.column_stack([xy, np.zeros(len(xy))])
+    skin = forward.make_skin(len(taxels), 0)
+    step = 0.1
+    frames = len(contact) * len(np.arange(START_GAP_MM, -2.0 - step / 2, -step))
+    best = {"gaussian": np.inf, "electrostatic": np.inf}
+    for _ in range(FRAME_RUNS):
+        for name, model in (("gaussian", None), ("electrostatic", response)):
+            rng = np.random.default_rng(0)
+            t0 = time.process_time()
+            descend(
+                contact, taxels, skin.baseline_counts, skin, "small", step, 10, np.inf, rng, model
+            )
+            best[name] = min(best[name], time.process_time() - t0)
+    per = {name: 1e6 * t / frames for name, t in best.items()}
+    ratio = per["electrostatic"] / per["gaussian"]
+    print(
+        f"bench per frame ({len(taxels)} taxels, {frames} frames): gaussian "
+        f"{per['gaussian']:.2f} us, electrostatic {per['electrostatic']:.2f} us, ratio "
+        f"{ratio:.2f} (target <= {FRAME_RATIO_TARGET:g}: "
+        f"{'met' if ratio <= FRAME_RATIO_TARGET else 'MISSED'})"
+    )
 
 
 def assembly() -> None:
@@ -122,4 +168,11 @@ def _timed(fn, *args) -> float:
 
 
 if __name__ == "__main__":
-    assembly() if "--assembly" in sys.argv[1:] else table()
+    if "--assembly" in sys.argv[1:]:
+        assembly()
+    elif "--frames" in sys.argv[1:]:
+        from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
+        frame_cost(CrossingSkin.load(sys.argv[sys.argv.index("--frames") + 1]))
+    else:
+        table()

@@ -584,3 +584,41 @@ def test_a_task_whose_local_worker_always_dies_is_given_up_after_3_attempts():
     assert MAX_ATTEMPTS == 3 and tasks["dies"].attempts == 3
     assert results["dies"] == "lost: its worker process died 3 time(s)"
     assert results["next"] == (7, {"dies": "lost: its worker process died 3 time(s)"})
+
+
+def test_skin_figures_are_the_crossings_in_the_scenes_counts(tmp_path):
+    """A sweep row's crossing figures from `fruit skin`'s summary.json: the contact counts
+    and the bent pad's shift rescaled to the scene's [skin].counts_per_ff, the margin the
+    threshold less the larger bend shift; nothing without a summary."""
+    import json
+
+    from fruitcli.scene import parse_scene
+    from fruitcli.studies.sweep_run import skin_figures
+
+    summary = {
+        "c0_ff": 850.0,
+        "counts_per_ff": 0.5,
+        "objects": {"small": {"contact_counts": 22.0}, "finger": {"contact_counts": 64.0}},
+        "deformation_shift_counts": {"bend_x": [0.0, -2.0, -4.0], "bend_y": [0.0, 5.0, 10.0]},
+    }
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps(summary))
+    fitted = parse_scene('[skin]\nmodel = "electrostatic"\n', tmp_path / "a.toml")
+    assert skin_figures(fitted, path) == {
+        "c0_ff": 850.0,
+        "counts_per_ff": 0.5,
+        "contact_counts_small": 22.0,
+        "contact_counts_finger": 64.0,
+        "bend_shift_max_counts": 10.0,
+        "bend_margin_counts": 10.0,
+    }
+    given = parse_scene(
+        '[skin]\nmodel = "electrostatic"\ncounts_per_ff = 1.0\n'
+        "[detection]\nthreshold_counts = 25\n",
+        tmp_path / "b.toml",
+    )
+    out = skin_figures(given, path)
+    assert out["contact_counts_small"] == pytest.approx(44.0)
+    assert out["bend_shift_max_counts"] == pytest.approx(20.0)
+    assert out["bend_margin_counts"] == pytest.approx(5.0)
+    assert skin_figures(given, tmp_path / "none.json") == {}

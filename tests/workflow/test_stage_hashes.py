@@ -154,11 +154,25 @@ def artist_scene(d: Path) -> Path:
     return d / "artist.toml"
 
 
+def ball_scene(d: Path) -> Path:
+    """A hollow ball (E = 100 kPa, nu = 0.45, mesh 8 mm) at 20 kPa, past half its shear
+    modulus: the limits stage follows its chamber to the limit before simulate."""
+    import trimesh
+
+    from tests.fem.test_mesh import BALL
+
+    trimesh.creation.icosphere(3, 20.0).export(d / "ball.stl")
+    text = BALL.format(size=8.0, half=4.0, element="p2", model="neo-hookean", nu=0.45, p=20.0)
+    (d / "ball.toml").write_text('[scene]\nname = "ball"\n' + text)
+    return d / "ball.toml"
+
+
 SCENES = {
     "paper-table": lambda d: ROOT / "pipelines" / "paper-table.toml",
     "touchpad": pad_scene,
     "reduced-pad": reduced_scene,
     "artist": artist_scene,
+    "ball": ball_scene,
 }
 
 

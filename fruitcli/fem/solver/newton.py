@@ -98,8 +98,12 @@ class _Step:
     def __init__(self, model: Model, solver: TangentSolver, load: Load, ref: float):
         self.m, self.solver, self.load, self.ref = model, solver, load, ref
         self.vc = np.flatnonzero(load.volume_controlled)
-        self.v_target = model.chamber_rest_volume_mm3 + load.volume_growth_mm3
-        self.v_ref = np.maximum(model.chamber_rest_volume_mm3, 1.0)
+        # the controlled volumes c V (one row per constraint; p moves along c^T):
+        # each volume-controlled chamber, or the chambers together (`Load.together`)
+        k = len(load.volume_controlled)
+        self.c = np.eye(k)[self.vc] if load.ratio is None else load.ratio[None, :]
+        self.v_target = self.c @ (model.chamber_rest_volume_mm3 + load.volume_growth_mm3)
+        self.v_ref = np.maximum(np.abs(self.c) @ model.chamber_rest_volume_mm3, 1.0)
         self.f_int_norm = 0.0
         self.deadline = None  # time.perf_counter() past which Newton stops (OutOfTime)
         self.report = None  # report(iteration, merit) when progress is asked for
@@ -113,14 +117,14 @@ class _Step:
         r = m.external_forces(x, p, self.load, h) - f_int
         r = r.reshape(-1)[m.pattern.free]
         energy += m.external_potential(x, p, self.load)
-        g = (m.chamber_volumes(x) - self.v_target)[self.vc] if len(self.vc) else np.zeros(0)
+        g = self.c @ m.chamber_volumes(x) - self.v_target if len(self.vc) else np.zeros(0)
         # scale: the step's load, or the elastic force once it is larger (volume
         # control starts with an unknown pressure and no external load)
         self.f_int_norm = float(np.linalg.norm(f_int.reshape(-1)[m.pattern.free]))
         scale = max(self.ref, self.f_int_norm)
         merit = np.linalg.norm(r) / scale
         if len(g):
-            merit = max(merit, float(np.max(np.abs(g) / self.v_ref[self.vc])))
+            merit = max(merit, float(np.max(np.abs(g) / self.v_ref)))
         return rot, det_f, h, r, g, merit, energy, f
 
     def direction(self, x, p, rot, h, r, g, f, level, keep_tangent=False):
@@ -137,13 +141,13 @@ class _Step:
             load_k = m.load_stiffness(x, p) if exact else None
             self.solver.update(rot, f, load_k, not exact)
         if not len(self.vc):
-            return self.solver.solve(r), np.zeros(0)
-        hv = h[self.vc].reshape(len(self.vc), -1)[:, m.pattern.free]  # (kv, n_free)
+            return self.solver.solve(r), np.zeros(len(p))
+        hv = (self.c @ h.reshape(len(self.c[0]), -1))[:, m.pattern.free]  # (kv, n_free)
         sol = self.solver.solve(np.column_stack([r, hv.T]))
         kr, kh = sol[:, 0], sol[:, 1:]
         w = hv @ kh  # compliance dV/dp (mm^3/kPa)
         dp = np.linalg.solve(w, -g - hv @ kr)
-        return kr + kh @ dp, dp
+        return kr + kh @ dp, self.c.T @ dp
 
 
 TANGENTS = ("exact", "projected", "warped")
@@ -220,7 +224,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
         for _ in range(LINE_SEARCH_STEPS):
             xt, pt = x + alpha * dx, p.copy()
-            pt[step.vc] += alpha * dp
+            pt += alpha * dp
             if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
                 alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
                 continue

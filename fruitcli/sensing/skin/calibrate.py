@@ -15,7 +15,9 @@ z for a printer-bench recording; for a virtual-bench recording (no ``printer_mm`
 moves. Least squares over log-parameters (scipy), the gains normalized to mean 1 (their
 common factor is contact_counts). The noise std is that of the idle frames, less the
 rounding of integer counts (1/12 count^2). Taxels whose fitted activation never reaches
-``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured.
+``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured. With ``[skin].model =
+"electrostatic"`` the model fitted is the crossing table's instead: its counts per fF and
+the gains (`calibrate_crossing`), the same frames and noise.
 """
 
 from __future__ import annotations
@@ -158,10 +160,13 @@ def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.c
 
 
 def run_calibrate(
-    scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None, progress=None
+    scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None, progress=None, response=None
 ) -> dict:
     """Fit the skin to a bench recording; write DIR/skin.toml, DIR/gains.csv and
-    DIR/calibration.json. -> the summary."""
+    DIR/calibration.json. -> the summary. `response`: the electrostatic skin
+    (`crossing_skin.CrossingSkin`, ``[skin].model = "electrostatic"``): its counts per fF
+    and the gains are fitted (`calibrate_crossing`); None: the Gaussian model's
+    footprint, activation and gap decay."""
     from pathlib import Path
 
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
@@ -197,13 +202,26 @@ def run_calibrate(
     contact = np.stack([point[int(k)] for k in samples])
     dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - contact[:, None, :], axis=2)
     say(f"fitting {len(frames)} descent frames of {len(ids)} samples x {len(taxels)} taxels")
-    fit = fit_skin(counts[frames] - c0, dist, gaps)
     noise, noise_per = noise_std_counts(idle)
+    if response is None:
+        fit = fit_skin(counts[frames] - c0, dist, gaps)
+        toml = skin_toml(name, fit, noise)
+        figures = {
+            "footprint_sigma_mm": fit["sigma_mm"],
+            "contact_counts": fit["contact_counts"],
+            "gap_decay_mm": fit["gap_decay_mm"],
+        }
+    else:
+        from fruitcli.sensing.skin import calibrate_crossing as cc
+
+        response.object_index(name)  # the table must hold the recording's indenter
+        drop = cc.drop_ff(response, name, contact, taxels.xyz_mm, gaps)
+        fit = cc.fit_scale(counts[frames] - c0, drop, MEASURED_MIN_COUNTS, GAUGE_WEIGHT)
+        toml = cc.skin_toml(scene.skin, fit, noise)
+        figures = {"skin_model": "electrostatic", "counts_per_ff": fit["counts_per_ff"]}
     summary = {
         "indenter": name,
-        "footprint_sigma_mm": fit["sigma_mm"],
-        "contact_counts": fit["contact_counts"],
-        "gap_decay_mm": fit["gap_decay_mm"],
+        **figures,
         "noise_std_counts": noise,
         "rms_residual_counts": fit["rms_counts"],
         "frames": int(len(frames)),
@@ -215,7 +233,7 @@ def run_calibrate(
         "truth": str(truth_csv),
     }
     with staged_dir(out_dir) as tmp:
-        write_text(tmp / "skin.toml", skin_toml(name, fit, noise))
+        write_text(tmp / "skin.toml", toml)
         write_csv(
             tmp / "gains.csv",
             ["id", "i", "j", "gain", "noise_std_counts", "measured"],
@@ -236,10 +254,14 @@ def run_calibrate(
             ],
         )
         write_json(tmp / "calibration.json", summary)
-    say(
+    fitted = (
         f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
-        f"decay {fit['gap_decay_mm']:.2f} mm, noise {noise:.2f} counts, "
-        f"{int(fit['measured'].sum())}/{len(taxels)} gains measured, rms residual "
-        f"{fit['rms_counts']:.2f} counts"
+        f"decay {fit['gap_decay_mm']:.2f} mm"
+        if response is None
+        else f"{fit['counts_per_ff']:.4g} counts per fF"
+    )
+    say(
+        f"{fitted}, noise {noise:.2f} counts, {int(fit['measured'].sum())}/{len(taxels)} "
+        f"gains measured, rms residual {fit['rms_counts']:.2f} counts"
     )
     return summary

@@ -38,6 +38,8 @@ import numpy as np
 from fruitcli.errors import FrameError
 
 AXES = ("x", "y")
+BLOCK_VALUES = 2_000_000
+"""Most table values the bench interpolates across the offsets at once (16 MB)."""
 
 
 @dataclass(frozen=True)
@@ -60,12 +62,15 @@ class CrossingSkin:
     counts_per_ff: float
 
     @classmethod
-    def from_table(cls, arrays: dict, summary: dict) -> CrossingSkin:
+    def from_table(
+        cls, arrays: dict, summary: dict, counts_per_ff: float | None = None
+    ) -> CrossingSkin:
         """From crossing.npz's arrays and summary.json's dict (`fruitcli.electrostatics.
-        design`)."""
+        design`), in counts of `counts_per_ff` (default: the summary's, fitted to the
+        bent pad)."""
         from fruitcli.electrostatics.crossing import NEUTRAL_MM
 
-        scale = float(summary["counts_per_ff"])
+        scale = float(summary["counts_per_ff"] if counts_per_ff is None else counts_per_ff)
         c0 = float(arrays["c0_ff"])
         objects = tuple(str(o) for o in arrays["objects"])
         gap = np.asarray(arrays["gap_mm"], float)
@@ -97,7 +102,7 @@ class CrossingSkin:
         )
 
     @classmethod
-    def load(cls, folder: Path) -> CrossingSkin:
+    def load(cls, folder: Path, counts_per_ff: float | None = None) -> CrossingSkin:
         """From `fruit skin`'s folder (crossing.npz, summary.json)."""
         folder = Path(folder)
         try:
@@ -108,7 +113,7 @@ class CrossingSkin:
             raise FrameError(
                 f"{folder}: the crossing's table (crossing.npz, summary.json) cannot be read: {exc}"
             ) from None
-        return cls.from_table(arrays, summary)
+        return cls.from_table(arrays, summary, counts_per_ff)
 
     def object_index(self, indenter: str) -> int:
         if indenter not in self.objects:
@@ -120,28 +125,115 @@ class CrossingSkin:
 
     def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
         """Activation (counts) at lateral offsets dx, dy and gaps (broadcast together)."""
-        from scipy.interpolate import RegularGridInterpolator
-
         k = self.object_index(indenter)
         dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
-        cx = np.clip(dx, self.dx_mm[0], self.dx_mm[-1])
-        cy = np.clip(dy, self.dy_mm[0], self.dy_mm[-1])
-        cg = np.clip(gap, 0.0, self.gap_mm[-1])
-        grid = RegularGridInterpolator((self.gap_mm, self.dx_mm, self.dy_mm), self.drop_counts[k])
-        v = grid(np.stack([cg, cx, cy], axis=-1))
-        lateral = (dx**2 - cx**2) + (dy**2 - cy**2)
-        v = v * np.exp(-0.5 * lateral / self.sigma_mm[k] ** 2)
-        v = v * np.exp(np.maximum(-gap, 0.0) / self.press_decay_mm[k])
-        return v * np.exp(-np.maximum(gap - self.gap_mm[-1], 0.0) / self.tail_decay_mm[k])
+        profile = self._lateral(k, dx.ravel(), dy.ravel())
+        return self._along_gap(k, profile, np.zeros(1), gap.ravel())[0].reshape(dx.shape)
 
     def activation(
         self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray, gaps_mm: np.ndarray
     ) -> np.ndarray:
         """(G, T) counts of taxels (T, 3) with the indenter `gaps_mm` (G,) above the
-        contact point (3,)."""
+        contact point (3,). The table is interpolated across (dx, dy) once per taxel, then
+        along the gap for every frame: the same trilinear values as `drop`."""
+        k = self.object_index(indenter)
         off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
-        gap = np.asarray(gaps_mm, float)[:, None] + off[None, :, 2]
-        return self.drop(indenter, off[None, :, 0], off[None, :, 1], gap)
+        profile = self._lateral(k, off[:, 0], off[:, 1])
+        return self._along_gap(k, profile, np.asarray(gaps_mm, float), off[:, 2])
+
+    def descent(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray):
+        """A function (p, gaps (G,)) -> (G, T) counts of taxels (T, 3) with the indenter
+        above contact point p of `contact_mm` (P, 3): `activation` with the lateral
+        interpolation done for a block of contact points at once (the bench's descents;
+        blocks of at most ``BLOCK_VALUES`` table values)."""
+        k = self.object_index(indenter)
+        off = np.asarray(contact_mm, float)[:, None, :] - taxels_mm  # (P, T, 3)
+        size = max(1, BLOCK_VALUES // (off.shape[1] * (len(self._uniform[1][k][0]))))
+        block = {}
+
+        def at_gaps(p: int, gaps_mm: np.ndarray) -> np.ndarray:
+            start = p - p % size
+            if start not in block:
+                flat = off[start : start + size].reshape(-1, 3)
+                block.clear()
+                block[start] = self._lateral(k, flat[:, 0], flat[:, 1]).reshape(
+                    -1, off.shape[1], len(self._uniform[1][k][0])
+                )
+            profile = block[start][p - start]
+            return self._along_gap(k, profile, np.asarray(gaps_mm, float), off[p, :, 2])
+
+        return at_gaps
+
+    def _lateral(self, k: int, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+        """(N, u + 1) the table's column at each of N offsets, on the uniform gap grid
+        (`_uniform`): bilinear within the table's offsets, beyond them its edge value
+        times the contact Gaussian's fall-off."""
+        cx = np.minimum(np.maximum(dx, self.dx_mm[0]), self.dx_mm[-1])
+        cy = np.minimum(np.maximum(dy, self.dy_mm[0]), self.dy_mm[-1])
+        ix, wx = _cell(self.dx_mm, cx)
+        iy, wy = _cell(self.dy_mm, cy)
+        table = self._uniform[1][k]  # (x y, u)
+        ny = len(self.dy_mm)
+        corners = (ix * ny + iy)[:, None] + np.array([0, 1, ny, ny + 1])  # (N, 4)
+        ux, uy = 1.0 - wx, 1.0 - wy
+        weights = np.stack([ux * uy, ux * wy, wx * uy, wx * wy], axis=1)
+        v = np.einsum("nc,ncu->nu", weights, table[corners])
+        outside = (dx**2 - cx**2) + (dy**2 - cy**2)
+        if outside.any():
+            v *= np.exp(-0.5 * outside / self.sigma_mm[k] ** 2)[:, None]
+        return v
+
+    def _along_gap(self, k: int, profile: np.ndarray, rows: np.ndarray, cols: np.ndarray):
+        """(G, N) `profile` (N, u + 1) at the gaps rows (G,) + cols (N,): linear between
+        the grid's gaps, exponential below 0 and beyond the last. The grid is uniform, so
+        a gap's interval is arithmetic; the passes over (G, N) are few and in place (the
+        bench calls this for every frame)."""
+        step, _ = self._uniform
+        top, n = float(self.gap_mm[-1]), profile.shape[1]
+        gap = rows[:, None] + cols
+        u = np.clip(gap, 0.0, top)
+        u *= 1.0 / step
+        at = u.astype(np.intp)  # up to u's last node: the profile repeats it
+        u -= at  # the weight of the upper node
+        at += np.arange(profile.shape[0]) * n  # the lower node's index in the profile
+        flat = profile.ravel()
+        v = flat[at]
+        at += 1
+        upper = flat[at]
+        upper -= v
+        upper *= u
+        v += upper
+        pressed = np.flatnonzero(rows + cols.min() < 0)  # rows with a gap below contact
+        if pressed.size:
+            v[pressed] *= np.exp(np.maximum(-gap[pressed], 0.0) / self.press_decay_mm[k])
+        far = np.flatnonzero(rows + cols.max() > top)
+        if far.size:
+            v[far] *= np.exp(-np.maximum(gap[far] - top, 0.0) / self.tail_decay_mm[k])
+        return v
+
+    @property
+    def _uniform(self) -> tuple[float, np.ndarray]:
+        """(step mm, drop_counts (k, x y, u + 1)): the table on a uniform gap grid from 0
+        to its last gap (the last repeated once) whose step divides every gap of the
+        table, so linear interpolation on it is linear interpolation on the table (made
+        once)."""
+        cached = self.__dict__.get("_uniform_cache")
+        if cached is None:
+            step = _common_step(self.gap_mm)
+            grid = np.linspace(0.0, self.gap_mm[-1], round(self.gap_mm[-1] / step) + 1)
+            i, w = _cell(self.gap_mm, grid)
+            table = (
+                self.drop_counts[:, i] * (1 - w)[:, None, None]
+                + self.drop_counts[:, i + 1] * w[:, None, None]
+            )
+            table = np.concatenate([table, table[:, -1:]], axis=1)  # the last repeated
+            by_offset = np.moveaxis(table, 1, -1)  # (k, x, y, u + 1)
+            cached = (
+                float(grid[1] - grid[0]),
+                np.ascontiguousarray(by_offset.reshape(len(table), -1, len(grid) + 1)),
+            )
+            object.__setattr__(self, "_uniform_cache", cached)
+        return cached
 
     def deformation_shift(
         self, stretch: np.ndarray, curvature_per_mm: np.ndarray, rest_curvature_per_mm=0.0
@@ -166,6 +258,25 @@ class CrossingSkin:
     def _neutral(self, surface_curvature_per_mm) -> np.ndarray:
         surface = np.asarray(surface_curvature_per_mm, float)
         return surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
+
+
+def _cell(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the interval of increasing `nodes` holding each `x` (clipped to them) and
+    the weight of its upper node."""
+    i = np.minimum(np.maximum(np.searchsorted(nodes, x, side="right") - 1, 0), len(nodes) - 2)
+    return i, (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+
+def _common_step(gaps: np.ndarray, most: int = 4096) -> float:
+    """The largest step (mm) that divides every gap (from 0) within 1e-9 mm, at most
+    `most` steps to the last gap; else the last gap / `most` (then linear on the grid
+    departs from linear on the table by at most the curvature over a 1/most step)."""
+    top = float(gaps[-1])
+    for n in range(1, most + 1):
+        k = gaps * (n / top)
+        if np.all(np.abs(k - np.round(k)) * (top / n) < 1e-9):
+            return top / n
+    return top / most
 
 
 def _decay_mm(gaps: np.ndarray, drops: np.ndarray, fallback: float) -> float:
@@ -262,10 +373,12 @@ def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=No
 
 def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
     """The scene's electrostatic skin: from `folder` (the skin stage's crossing.npz and
-    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`)."""
+    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`); in
+    counts of ``[skin].counts_per_ff`` when the scene gives it."""
+    scale = scene.skin.counts_per_ff
     if folder is not None:
-        return CrossingSkin.load(folder)
+        return CrossingSkin.load(folder, scale)
     from fruitcli.electrostatics import design
 
     table, summary = design.run_crossing(design.crossing_inputs(scene), progress=progress)
-    return CrossingSkin.from_table(design.table_arrays(table), summary)
+    return CrossingSkin.from_table(design.table_arrays(table), summary, scale)

@@ -76,12 +76,14 @@ def descend(
     c0 = idle.mean(axis=0)
     gaps = np.arange(START_GAP_MM, -PRESS_MM - step_mm / 2, -step_mm)
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
+    if response is not None:
+        descent = response.descent(indenter, contact_mm, taxels_mm)
     for k, p in enumerate(contact_mm):
         if response is None:
             dist = np.linalg.norm(taxels_mm - p, axis=1)
             touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
         else:
-            touch = response.activation(indenter, p, taxels_mm, gaps)
+            touch = descent(k, gaps)
             touch = touch if skin.gain is None else touch * skin.gain
         mean = rest_counts + touch
         counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
