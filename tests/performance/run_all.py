@@ -99,6 +99,16 @@ def commit() -> str:
     return head + ("+changes" if dirty else "")
 
 
+MAX_RUNS = re.compile(r"^MAX_RUNS\s*=\s*(\d+)", re.M)
+
+
+def runs_of(script: Path, asked: int) -> int:
+    """`asked`, or fewer when the script says `MAX_RUNS = n` at its top level (a benchmark
+    that takes many minutes, whose figure varies little between runs)."""
+    found = MAX_RUNS.search(script.read_text())
+    return min(asked, int(found.group(1))) if found else asked
+
+
 def run_script(script: Path) -> tuple[int, str, float]:
     """Run one benchmark, echoing its output; returns exit code, output, wall seconds."""
     t0 = time.perf_counter()
@@ -150,8 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     failed = []
     for script in scripts:
         outputs, walls, codes = [], [], []
-        for run in range(args.runs):
-            print(f"\n=== {script.name} (run {run + 1} of {args.runs}) ===", flush=True)
+        runs = runs_of(script, args.runs)
+        for run in range(runs):
+            print(f"\n=== {script.name} (run {run + 1} of {runs}) ===", flush=True)
             code, text, wall = run_script(script)
             print(f"=== {script.name}: exit {code}, {wall:.1f} s wall ===", flush=True)
             outputs.append(text)
