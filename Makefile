@@ -38,8 +38,9 @@ studies: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit study runtime pipelines/fruit-breathing.toml --out out/study-runtime-breathing
 	MPLBACKEND=Agg $(BIN)/fruit study bench pipelines/fruit-rest.toml --out out/study-bench
 
-# Every benchmark, BENCH_RUNS times (a script with MAX_RUNS = n at most n); the figures (min/median/max over the runs) go to
-# build/bench/bench.json, from which `make docs` makes the performance page.
+# Every benchmark, BENCH_RUNS times (a script that sets MAX_RUNS = n, at most n times); the
+# figures (min/median/max over the runs) go to build/bench/bench.json, from which `make docs`
+# makes the performance page.
 bench: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python tests/performance/run_all.py --runs $(BENCH_RUNS) --json build/bench/bench.json
 
