@@ -26,3 +26,12 @@ def deferred_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
     if came:
         raise KeyboardInterrupt
+
+
+def ignore_sigpipe() -> None:
+    """Ignore SIGPIPE again, as Python does at start-up. gmsh's initialize resets it to
+    the default (terminate the process), so a later write to a closed pipe, such as a
+    dead worker process's, would kill this process instead of raising BrokenPipeError.
+    Call it after `gmsh.initialize` (main thread; elsewhere a no-op)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)

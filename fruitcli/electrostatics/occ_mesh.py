@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fruitcli.interrupts import ignore_sigpipe
+
 GMSH_TET = {1: 4, 2: 11}  # gmsh element type of 4- and 10-node tets
 GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """gmsh's edge nodes (0,1), (1,2), (2,0), (3,0), (3,2), (3,1) to VTK's (0,1), (1,2), (0,2),
@@ -121,6 +123,7 @@ def start(name: str = "fruit-electrostatics"):
     import gmsh
 
     gmsh.initialize([name], readConfigFiles=False)
+    ignore_sigpipe()  # gmsh leaves SIGPIPE at its default
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.NumThreads", 1)
     gmsh.model.add(name)

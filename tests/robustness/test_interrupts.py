@@ -64,3 +64,28 @@ def test_check_layout_defers_ctrl_c(monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         shells.check_layout({}, [], "s.toml")
     assert done == [True]
+
+
+def _ignored(signum: int) -> bool:
+    """Whether the kernel ignores `signum` for this process (/proc/self/status SigIgn)."""
+    from pathlib import Path
+
+    status = Path("/proc/self/status").read_text()
+    mask = int(status.split("SigIgn:")[1].split()[0], 16)
+    return bool(mask >> (signum - 1) & 1)
+
+
+def test_gmsh_leaves_sigpipe_ignored():
+    """gmsh.initialize resets SIGPIPE to terminate the process; a later write to a dead
+    worker's pipe then killed the test run (make: Error 141) instead of raising
+    BrokenPipeError. occ_mesh.start ignores it again."""
+    import signal
+
+    from fruitcli.electrostatics import occ_mesh
+
+    gmsh = occ_mesh.start("sigpipe-check")
+    try:
+        assert _ignored(signal.SIGPIPE)
+    finally:
+        gmsh.finalize()
+    assert _ignored(signal.SIGPIPE)

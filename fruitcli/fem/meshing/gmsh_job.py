@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fruitcli.interrupts import ignore_sigpipe
+
 
 def _occ_surface(gmsh, spec_kind: str, values: np.ndarray, size: float):
     """Triangulate an analytic shape's surface; returns (vertices (v,3), faces (f,3))."""
@@ -169,6 +171,7 @@ def mesh_job(job: dict, out_dir: Path) -> None:
     import gmsh
 
     gmsh.initialize(["fruit-tetra"], readConfigFiles=False)
+    ignore_sigpipe()  # gmsh leaves SIGPIPE at its default
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.NumThreads", 1)
