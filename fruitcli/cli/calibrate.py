@@ -27,7 +27,7 @@ from fruitcli.workflow.scene_outputs import scene_products
 @taxels_option()
 @click.option("--indenter", default=None, help="Indenter of the recording (default: its meta).")
 @out_option("Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
-def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir):
+def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir) -> None:
     """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
     a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer).
 

@@ -78,7 +78,7 @@ def parse_faults(specs) -> dict:
 )
 def emulate_printer(
     scene_path, taxels_csv, indenter, fmt, baud, time_scale, faults, seed, skin_toml
-):
+) -> None:
     """Print the printer's and the board's pty paths, then answer on both until Ctrl-C
     (or until 5 s after the bench has closed the board's port).
 

@@ -21,7 +21,7 @@ from fruitcli.workflow.scene_outputs import shared_outputs
     help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
     "without it, make-tracks runs first (into OUT/make-tracks).",
 )
-def limits(scene, out_dir, solid):
+def limits(scene, out_dir, solid) -> None:
     """Follow each chamber of SCENE past its limit pressure by volume control.
 
     One chamber at a time, the others at rest: inflation until the pressure has passed

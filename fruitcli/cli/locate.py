@@ -75,7 +75,7 @@ def locate(
     hovers,
     gains_csv,
     out_dir,
-):
+) -> None:
     """Detect touches in FRAMES (.npz or MuCa ASCII log) and locate them in 3D.
 
     Writes OUT/touches.csv: frame,t_s,touch,i,j,x_mm,y_mm,z_mm,peak,height_mm,

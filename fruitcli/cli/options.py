@@ -5,10 +5,19 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
 from fruitcli.errors import FruitError
+
+if TYPE_CHECKING:
+    from click._termui_impl import ProgressBar
+
+FC = TypeVar("FC", bound=Callable[..., Any])
+"""A click command callback, or the command itself: what an option factory's decorator
+takes and returns."""
 
 
 class FiniteFloat(click.FloatRange):
@@ -17,7 +26,7 @@ class FiniteFloat(click.FloatRange):
 
     name = "finite float"
 
-    def convert(self, value, param, ctx):
+    def convert(self, value, param, ctx) -> float:
         import math
 
         number = click.types.FloatParamType.convert(self, value, param, ctx)
@@ -31,7 +40,7 @@ class FiniteFloat(click.FloatRange):
 
 
 @contextlib.contextmanager
-def fruit_errors():
+def fruit_errors() -> Iterator[None]:
     """Turn library errors, and operating-system errors such as an unwritable output
     folder, into one-line click errors (exit 1)."""
     try:
@@ -72,7 +81,7 @@ class Progress:
             sys.stderr.flush()
 
 
-def progressbar(iterable=None, length=None, label=""):
+def progressbar(iterable=None, length=None, label="") -> ProgressBar[Any]:
     """A click progress bar on stderr, silent under --quiet."""
     file = open("/dev/null", "w") if quiet() else sys.stderr
     return click.progressbar(
@@ -80,7 +89,7 @@ def progressbar(iterable=None, length=None, label=""):
     )
 
 
-def reduced_build_bar(total: int):
+def reduced_build_bar(total: int) -> ProgressBar[Any]:
     """The progress bar of the reduced model's full solves (`ensure_reduced(bar=...)`)."""
     return progressbar(length=total, label="reduced-model full solves")
 
@@ -110,7 +119,7 @@ def out_option(
     file: bool = False,
     dest: str = "out_dir",
     path_type=None,
-):
+) -> Callable[[FC], FC]:
     """``--out``: the folder (a file with `file`) the command writes; `written` says what."""
     kind = (
         click.Path(dir_okay=False, path_type=path_type)
@@ -128,7 +137,7 @@ def out_option(
     )
 
 
-def taxels_option(*, required: bool = False, path_type=None):
+def taxels_option(*, required: bool = False, path_type=None) -> Callable[[FC], FC]:
     """``--taxels``: the taxel CSV; by default the scene's own."""
     where = (
         "."
@@ -145,7 +154,7 @@ def taxels_option(*, required: bool = False, path_type=None):
     )
 
 
-def states_option(follows: str):
+def states_option(follows: str) -> Callable[[FC], FC]:
     """``--states``: `fruit simulate`'s states.npz; `follows` says what the taxels do."""
     return click.option(
         "--states",
@@ -156,7 +165,7 @@ def states_option(follows: str):
     )
 
 
-def format_option(*, default: str | None, auto: bool = True, what: str = ""):
+def format_option(*, default: str | None, auto: bool = True, what: str = "") -> Callable[[FC], FC]:
     """``--format``: the board's frame format (stock Muca_Raw ASCII lines or SendRawByte
     binary packets); `auto` adds auto-detection; `what` says what it applies to."""
     from fruitcli.scene import BOARD_FORMATS
@@ -179,7 +188,7 @@ def format_option(*, default: str | None, auto: bool = True, what: str = ""):
     )
 
 
-def baud_option(*, name: str = "--baud", pace: bool = False, what: str = ""):
+def baud_option(*, name: str = "--baud", pace: bool = False, what: str = "") -> Callable[[FC], FC]:
     """``--baud``: a serial line's baud rate (8N1); with `pace` an emulator paces its bytes
     at it and 0 means unpaced."""
     help_text = (
@@ -196,14 +205,14 @@ def baud_option(*, name: str = "--baud", pace: bool = False, what: str = ""):
     )
 
 
-def jobs_option(what: str = "Worker processes"):
+def jobs_option(what: str = "Worker processes") -> Callable[[FC], FC]:
     """``--jobs``: local worker processes (default: all cores)."""
     return click.option(
         "--jobs", type=click.IntRange(min=1), default=None, help=f"{what}. [default: all cores]"
     )
 
 
-def scheduler_option(what: str):
+def scheduler_option(what: str) -> Callable[[FC], FC]:
     """``--scheduler ADDRESS``: a Dask distributed scheduler to run `what` on."""
     return click.option(
         "--scheduler",

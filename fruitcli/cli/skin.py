@@ -18,7 +18,7 @@ from fruitcli.cli.options import Progress, fruit_errors
     type=click.Path(file_okay=False, path_type=Path),
     help="Output folder: crossing.npz, summary.json.",
 )
-def skin(scene, out_dir):
+def skin(scene, out_dir) -> None:
     """C0 of SCENE's Tx-Rx crossing, its change dC under the bench's indenters and a
     finger over gaps and offsets, and C_delta under stretch and bend.
 

@@ -35,7 +35,7 @@ def _cases_pool(jobs, scheduler, out):
 
 
 @click.group()
-def study():
+def study() -> None:
     """Studies over many independent cases, run in parallel worker processes."""
 
 
@@ -45,7 +45,7 @@ def study():
 )
 @jobs_option()
 @scheduler_option("the cases")
-def stability(out_dir, jobs, scheduler):
+def stability(out_dir, jobs, scheduler) -> None:
     """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.499, pressure until elements
     would invert, jig stiffness 1e-3..1e6 N/mm, a sliver tet, an unsupported body.
 
@@ -95,7 +95,7 @@ def stability(out_dir, jobs, scheduler):
 )
 @jobs_option()
 @scheduler_option("the FEM settings")
-def runtime(scene_file, out_dir, jobs, scheduler):
+def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     """Error against run time on SCENE (default: the Fruit in its jig): FEM mesh size,
     Newton tolerance and iteration cap, linear solver, detection variant.
 
@@ -166,7 +166,7 @@ def runtime(scene_file, out_dir, jobs, scheduler):
     default="out/study-bench",
 )
 @jobs_option()
-def bench_study(scene_file, out_dir, jobs):
+def bench_study(scene_file, out_dir, jobs) -> None:
     """What the virtual bench's Table I rows of SCENE depend on: the skin model's assumed
     parameters ([skin]: footprint width, counts at contact, gap decay, noise std, taxel
     gain spread), one at a time off its default, same seed; and, with a body surface, the
@@ -254,7 +254,7 @@ def bench_study(scene_file, out_dir, jobs):
     help="The grid's body: rest (flat), bent (on a cylinder) or stretched (inflated on a "
     "dome); repeat for several. Default: all three.",
 )
-def two_fingers(out_dir, trials, seed, bodies):
+def two_fingers(out_dir, trials, seed, bodies) -> None:
     """Two fingers close together on the virtual bench: how often the paper's N9
     multitouch and the two-footprint fit ([detection].method = "fit2") report two touches,
     at 0.5-3 pitches along i, j and the diagonal, on the grid at rest and deformed, and
@@ -279,7 +279,7 @@ def two_fingers(out_dir, trials, seed, bodies):
     required=False,
     default="out/study-heights",
 )
-def heights(out_dir):
+def heights(out_dir) -> None:
     """Hover heights on virtual-bench descents the skin was not calibrated on (another
     run, other points, the other indenter, a skin whose gains spread): height error per
     band of true height, the largest height still detected, and the position error of

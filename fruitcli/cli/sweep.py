@@ -81,7 +81,9 @@ TABLE_I = re.compile(r".+_(n|mean_mm|std_mm)$|contact_counts_.+")
     is_flag=True,
     help="List the variants and the stages they would share; run nothing.",
 )
-def sweep(scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, figure, dry_run):
+def sweep(
+    scene_file, sets, grid, out_dir, jobs, scheduler, connect_timeout, figure, dry_run
+) -> None:
     """Run SCENE for every combination (--grid) or zipped lists (--zip) of scene values.
 
     Each variant is validated like a scene file before anything runs; a bad key or value

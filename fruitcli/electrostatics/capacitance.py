@@ -8,13 +8,18 @@ exact for the discrete field), its field energy u^T K u / 2.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 
 from fruitcli.errors import SolverError
 
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
-def factorized(k_free: sp.csr_matrix):
+
+def factorized(k_free: sp.csr_matrix) -> Callable[[np.ndarray], np.ndarray]:
     """A solver for the symmetric positive definite `k_free`: cholespy's Cholesky, or
     SuperLU when cholespy is missing. Returns f(b) -> x."""
     try:

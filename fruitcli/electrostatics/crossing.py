@@ -219,7 +219,9 @@ def touch_table(solver: CellSolver, objects, gaps, dx, dy, c0: float, progress=N
     return out[:, :, src_x][:, :, :, src_y]
 
 
-def deformation_table(solver: CellSolver, spec: CellSpec, c0: float):
+def deformation_table(
+    solver: CellSolver, spec: CellSpec, c0: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(c_stretch (2, s), c_bend (2, c)) fF, strain and curvature lists with 0 first."""
     nodes = solver.mesh.nodes
     glue = 2 * spec.yarn_radius_mm + spec.insulation_mm

@@ -13,10 +13,14 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import SceneError
+
+if TYPE_CHECKING:
+    from fruitcli.electrostatics.crossing import CrossingTable
 
 
 @dataclass(frozen=True)
@@ -84,7 +88,7 @@ def crossing_inputs(scene) -> CrossingInputs:
     )
 
 
-def run_crossing(inputs: CrossingInputs, progress=None):
+def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, dict]:
     """(CrossingTable, summary dict) of a design."""
     from fruitcli.electrostatics import crossing, equivalents
 

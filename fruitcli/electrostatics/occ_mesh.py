@@ -9,10 +9,14 @@ surfaces (curved conductors), reordered to VTK's node order (`fruitcli.fem.eleme
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.interrupts import ignore_sigpipe
+
+if TYPE_CHECKING:
+    from types import ModuleType
 
 GMSH_TET = {1: 4, 2: 11}  # gmsh element type of 4- and 10-node tets
 GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
@@ -118,7 +122,7 @@ def straighten_folded(nodes: np.ndarray, tets10: np.ndarray, rounds: int = 5) ->
     return done
 
 
-def start(name: str = "fruit-electrostatics"):
+def start(name: str = "fruit-electrostatics") -> ModuleType:
     """Initialize gmsh quietly on one thread; returns the module."""
     import gmsh
 

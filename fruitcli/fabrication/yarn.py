@@ -148,7 +148,7 @@ def stretch_table(
     moved: list[np.ndarray],
     max_stretch: float = DEFAULT_MAX_STRETCH,
     pitch_mm: float = DEFAULT_PITCH_MM,
-):
+) -> tuple[list[list], np.ndarray, list[str]]:
     """Rows for YARN_COLUMNS, the whole-track stretch (tracks, s) and the warnings [str]
     of tracks whose largest stretch over one pitch exceeds `max_stretch`, from each
     track's points in every state, moved[k] (s, n, 3) mm."""
@@ -181,7 +181,7 @@ def yarn_stretch(
     displacement_mm: np.ndarray,
     max_stretch: float = DEFAULT_MAX_STRETCH,
     pitch_mm: float = DEFAULT_PITCH_MM,
-):
+) -> tuple[list[list], np.ndarray, list[str]]:
     """Each track's rest length and stretch in every state, the points following linear
     tets barycentrically (`follow_tracks` uses the model's own elements).
 

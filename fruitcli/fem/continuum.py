@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -32,8 +33,13 @@ from fruitcli.fem.solver.assemble import CsrPattern
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
 
+if TYPE_CHECKING:
+    from fruitcli.fem.solver.continuum_linsolve import ContinuumSolver
 
-def reference_gradients(nodes: np.ndarray, conn: np.ndarray, fam: Family):
+
+def reference_gradients(
+    nodes: np.ndarray, conn: np.ndarray, fam: Family
+) -> tuple[np.ndarray, np.ndarray]:
     """(dN (m, q, nen, 3) 1/mm, weights (m, q) mm^3) at the family's volume rule; raises
     MeshError naming an element whose map from the reference tet is not invertible."""
     pts, w = fam.volume_rule()
@@ -262,7 +268,9 @@ class ContinuumModel:
 
     # -- physics at a configuration x (n, 3) -------------------------------------------
 
-    def evaluate(self, x: np.ndarray, tangent: bool = False):
+    def evaluate(
+        self, x: np.ndarray, tangent: bool = False
+    ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray | None]:
         """(internal forces (n, 3) mN, strain energy mN mm or nan when an element is
         inverted, smallest det F per element (m,), element tangents (m, d, d) or None)."""
         x = np.ascontiguousarray(x, dtype=float)
@@ -294,7 +302,7 @@ class ContinuumModel:
         """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
         return node_incidence(self.conn, self.n_nodes)
 
-    def kinematics(self, x: np.ndarray):
+    def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(state, state, smallest det F per element): the state is x itself, evaluated
         once here and reused by `forces_and_energy` (Newton's interface)."""
         x = np.array(x, float)
@@ -332,7 +340,7 @@ class ContinuumModel:
         """(K, n, 3) dV/dx per chamber (mm^2)."""
         return np.stack([w.gradient(x) for w in self.walls]) if self.walls else None
 
-    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray):
+    def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray) -> sp.csr_matrix | None:
         """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k
         d2V_k/dx2 (mN/mm), or None without chamber pressure."""
         if not self.walls or not np.any(pressure_kpa):
@@ -373,7 +381,7 @@ class ContinuumModel:
         c = self.rest[self.conn[i, :4]].mean(axis=0)
         return f"element {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"
 
-    def make_solver(self, method: str = "pcg"):
+    def make_solver(self, method: str = "pcg") -> ContinuumSolver:
         from fruitcli.fem.solver.continuum_linsolve import ContinuumSolver
 
         return ContinuumSolver(self, method)

@@ -392,7 +392,7 @@ def check_pressures(
 
 def check_together(
     model, pressures, keys, solver, check, compliance, screen, progress=None, found=None
-):
+) -> None:
     """Refuse, in one line naming the state's keys, the state whose pressures, several
     chambers inflated together, are past the chambers' limit along their own ratios:
     the state with the largest chamber pressure among those with several (all pressure

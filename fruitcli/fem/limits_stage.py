@@ -21,12 +21,16 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.fem import io, limits
 from fruitcli.fem.stage import build_model, element_name, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
+
+if TYPE_CHECKING:
+    from fruitcli.fem.solver.newton import SolverOptions
 
 
 def _noop(msg: str) -> None:
@@ -44,7 +48,7 @@ past the peak of a flat chamber is its slowest (on the default Fruit, chamber c1
 second sample past its peak took 185 s of the curve's 420 s)."""
 
 
-def curve_options(options):
+def curve_options(options) -> SolverOptions:
     """The scene's [solver] options for the samples of a curve: Newton's tolerance
     loosened to `limits.CHECK_TOLERANCE` (the pressure to four digits)."""
     return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))

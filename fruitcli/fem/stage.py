@@ -188,7 +188,7 @@ def state_loads(scene, names: list[str]) -> list[Load]:
     return [Load(pressure[i], growth[i], vc.copy(), 1.0, 1.0) for i in range(s)]
 
 
-def build_model(scene, mesh: dict):
+def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     """Model of a scene on a loaded mesh.npz: the paper's corotational `Model` on linear
     tets, or the hyperelastic `ContinuumModel` on the scene's [fem].element (quadratic
     tets built here from the linear mesh, edge nodes on ellipsoid chambers moved onto

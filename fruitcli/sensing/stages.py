@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,11 @@ from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording, open_recording
 from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
 from fruitcli.tables import Taxels, read_taxels
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.crossing_heights import CrossingHeights
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.heights import GapLaw
 
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
@@ -130,7 +136,9 @@ def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
     return taxels.xyz_mm if states is None else states.taxels_mm[state]
 
 
-def surface_projector(scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str):
+def surface_projector(
+    scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str
+) -> SurfaceProjector | None:
     """The `SurfaceProjector` of ``[detection].project = "surface"`` (None otherwise)."""
     if _or_defaults(scene).detection.project != "surface":
         return None
@@ -342,7 +350,7 @@ def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
 
 def skin_heights(
     skin: dict | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
-):
+) -> GapLaw | CrossingHeights:
     """The height model of a [skin] table (None: the defaults) for these taxels
     (`heights.gap_law`), or of the crossing's table `crossing` (a `CrossingSkin`) with
     the table's noise and gains (`crossing_heights`)."""
@@ -372,7 +380,7 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
 
 
-def electrostatic_skin(scene, crossing_dir, progress=None):
+def electrostatic_skin(scene, crossing_dir, progress=None) -> CrossingSkin | None:
     """The crossing's table in counts with ``[skin].model = "electrostatic"`` (from
     `crossing_dir`, the skin stage's folder, or computed now without one), else None."""
     if _or_defaults(scene).skin.model != "electrostatic":

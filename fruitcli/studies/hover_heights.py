@@ -26,7 +26,13 @@ contact point) of hovers and of touches.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.forward import SkinParams
+    from fruitcli.tables import Taxels
 
 START_GAP_MM = 5.0
 STEP_MM = 0.1
@@ -75,7 +81,7 @@ def fit_gap_law(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     return {"contact_counts": float(a), "sigma_mm": float(s), "gap_decay_mm": float(lam)}
 
 
-def calibrated(seed: int = 0, gain_spread: float = 0.0):
+def calibrated(seed: int = 0, gain_spread: float = 0.0) -> tuple[SkinParams, dict, Taxels]:
     """The `forward.SkinParams` fitted to a calibration run on a skin whose taxel gains
     spread +- `gain_spread`, the fit, and the taxels."""
     from fruitcli.sensing.skin import forward
@@ -102,7 +108,9 @@ def calibrated(seed: int = 0, gain_spread: float = 0.0):
     )
 
 
-def evaluate(params, fit, taxels, name: str, indenter: str, gain_spread: float, seed: int):
+def evaluate(
+    params, fit, taxels, name: str, indenter: str, gain_spread: float, seed: int
+) -> tuple[list[list], dict[str, float]]:
     """Rows of HEADER, and (largest hover height, hover and touch position errors)."""
     from fruitcli.sensing.detection.frames_to_touches import (
         HOVER,

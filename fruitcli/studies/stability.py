@@ -131,7 +131,7 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
     )
 
 
-def pressure_outward(nodes, tris):
+def pressure_outward(nodes, tris) -> np.ndarray:
     from fruitcli.fem.loads.pressure import orient_outward
 
     return orient_outward(nodes, np.asarray(tris, np.int64))

@@ -10,8 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
 
 FIELD_SIGMAS_MM = (4.0, 5.0, 6.0, 7.0, 8.0)
 CONTACT_COUNTS = (30.0, 45.0, 60.0, 90.0, 120.0)
@@ -152,7 +156,7 @@ HEADER = [
 ]
 
 
-def csv_rows(rows: list[dict]):
+def csv_rows(rows: list[dict]) -> Iterator[list]:
     for r in rows:
         yield [
             r["setting"],

@@ -6,14 +6,21 @@ chamber pressures (mm, kPa).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fruitcli.errors import FrameError
 from fruitcli.workflow import planner
 from fruitcli.workflow.scene_outputs import shared_outputs
 from fruitcli.workflow.stages import taxels_path
 
+if TYPE_CHECKING:
+    from fruitcli.fem.online import OnlineSolver, ReducedOnline
+    from fruitcli.fem.reduced.model import ReducedModel
 
-def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
+
+def online_products(
+    scene, scene_path, taxels_csv, pressure_port, progress
+) -> tuple[str | Path | None, Path]:
     """(taxels CSV, mesh.npz) for `fruit live --online`: the scene's stages up to tetra,
     run into out/<scene name> when needed (one planner run); given taxels are kept."""
 
@@ -33,7 +40,9 @@ def online_products(scene, scene_path, taxels_csv, pressure_port, progress):
     return taxels_csv or taxels_path(scene, ctx), ctx.dir("tetra") / "mesh.npz"
 
 
-def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress, bar=None):
+def online_reduced(
+    scene, scene_path, taxels_csv, pressure_port, progress, bar=None
+) -> tuple[str | Path | None, ReducedModel]:
     """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
     reduced model, built into out/<scene name>/reduce when missing or stale."""
     from fruitcli.workflow.reduced_model import ensure_reduced
@@ -50,7 +59,7 @@ def online_reduced(scene, scene_path, taxels_csv, pressure_port, progress, bar=N
     return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
 
 
-def reduced_source(reduced, taxels, taxels_csv):
+def reduced_source(reduced, taxels, taxels_csv) -> ReducedOnline:
     """The live loop's ReducedOnline; FrameError when the model follows other taxels."""
     from fruitcli.fem.online import ReducedOnline
 
@@ -63,7 +72,7 @@ def reduced_source(reduced, taxels, taxels_csv):
     return ReducedOnline(reduced)
 
 
-def online_solver(scene, mesh_npz, taxels_xyz, progress):
+def online_solver(scene, mesh_npz, taxels_xyz, progress) -> OnlineSolver:
     """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
     mapped into it."""
     from fruitcli.fem import io

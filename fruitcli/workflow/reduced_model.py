@@ -5,11 +5,17 @@ evaluated at pressure vectors (kPa) instead of solving the FEM."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from fruitcli.fem.reduced.model import ReducedModel
 
-def ensure_reduced(scene, out_root: Path, taxels_csv=None, progress=None, label=None, bar=None):
+
+def ensure_reduced(
+    scene, out_root: Path, taxels_csv=None, progress=None, label=None, bar=None
+) -> ReducedModel:
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
     stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
     meshed, no chambers) is one FruitError line starting with `label`. `bar(total)`, when

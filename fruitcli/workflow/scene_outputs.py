@@ -5,12 +5,16 @@ lend a stage's outputs, and the taxels and states a command needs, made on deman
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fruitcli.workflow import planner
 from fruitcli.workflow.stages import states_path, taxels_path
 
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
-def shared_outputs(out_dir):
+
+def shared_outputs(out_dir) -> Path | None:
     """The folder holding the scene output folder `out_dir` and its siblings (out/ for
     out/<scene>), when it exists: a stage whose inputs equal a sibling's is copied from
     there instead of run again (`planner.run(shared=...)`)."""
@@ -18,7 +22,7 @@ def shared_outputs(out_dir):
     return parent if parent.is_dir() else None
 
 
-def scene_products(scene, out_root=None, progress=None):
+def scene_products(scene, out_root=None, progress=None) -> tuple[Path | None, Path | None]:
     """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
     (into `out_root`, default out/<scene name>) and reusing what is already there."""
     out = Path(out_root) if out_root else Path("out") / scene.name
@@ -28,7 +32,7 @@ def scene_products(scene, out_root=None, progress=None):
     return taxels_path(scene, ctx), states_path(scene, ctx)
 
 
-def crossing_response(scene, out_root=None, progress=None):
+def crossing_response(scene, out_root=None, progress=None) -> CrossingSkin | None:
     """The scene's electrostatic skin (`crossing_skin.CrossingSkin`) with ``[skin].model =
     "electrostatic"``, else None: the skin stage's table (run into `out_root`, default
     out/<scene name>, reused while the cell's inputs are unchanged) or, when nothing in

@@ -9,6 +9,10 @@ import ctypes
 import os
 import sys
 import tempfile
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
 
 
 class Captured:
@@ -25,7 +29,7 @@ def _flush_c_stdio() -> None:
 
 
 @contextlib.contextmanager
-def captured_output():
+def captured_output() -> Iterator[Captured]:
     """Redirect fds 1 and 2 to a temporary file for the block; yields a Captured whose
     `text` holds what was written there. Python's own streams are flushed first, so
     nothing of ours is caught."""

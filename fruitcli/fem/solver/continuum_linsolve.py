@@ -11,6 +11,7 @@ Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 from __future__ import annotations
 
 import time
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -27,7 +28,16 @@ from fruitcli.fem.tolerances import (
 from fruitcli.scene import LINEAR_SOLVERS
 
 
-def factorize(k, previous=None, single: bool = False):
+class Factor(Protocol):
+    """What `factorize` returns: `solve(b)` and `single` (whether its solves are only
+    approximate)."""
+
+    single: bool
+
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
+
+
+def factorize(k, previous=None, single: bool = False) -> Factor:
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical

@@ -24,6 +24,7 @@ deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by n
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -39,6 +40,9 @@ from fruitcli.fem.tolerances import (
     PCG_RELATIVE_TOLERANCE,
 )
 from fruitcli.scene import LINEAR_SOLVERS
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 NEAR_TOLERANCE = 30.0
 """Newton's last step, once the residual is within this factor of the tolerance, keeps
@@ -65,7 +69,7 @@ within 6e-7 mm); the same numbers of CG iterations. False (the tests' switch) ke
 double precision."""
 
 
-def upper_triangle(k):
+def upper_triangle(k) -> sp.csr_matrix | sp.csr_array:
     """The upper triangle of the symmetric sparse k in CSR with sorted indices."""
     import scipy.sparse as sp
 
@@ -311,7 +315,7 @@ class TangentSolver:
         return x
 
 
-def kept_estimate(estimated, b: np.ndarray, factorizations: int):
+def kept_estimate(estimated, b: np.ndarray, factorizations: int) -> np.ndarray | None:
     """The solve kept by a solver's `estimate` (r, factorizations then, its solve) when b
     is that same r and no factorization happened since (CG then starts from it instead
     of solving again), else None."""
@@ -320,7 +324,9 @@ def kept_estimate(estimated, b: np.ndarray, factorizations: int):
     return None
 
 
-def pcg(matvec, precond, b: np.ndarray, rtol: float, maxiter: int, z0: np.ndarray | None = None):
+def pcg(
+    matvec, precond, b: np.ndarray, rtol: float, maxiter: int, z0: np.ndarray | None = None
+) -> tuple[np.ndarray, int, bool]:
     """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|,
     after `maxiter` iterations or on negative curvature (an indefinite tangent); then it
     returns the last iterate, or the preconditioned residual if there is none, which

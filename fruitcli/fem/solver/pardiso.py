@@ -289,7 +289,9 @@ def passes_probe(k, fac, bound: float) -> bool:
     )
 
 
-def factorize_probed(k, upper, previous: Pardiso | None = None, single: bool = False):
+def factorize_probed(
+    k, upper, previous: Pardiso | None = None, single: bool = False
+) -> Pardiso | None:
     """A factor of the symmetric k (sparse, upper its upper triangle) that passes its
     probe solve: single precision first when `single`, then double. None when the
     double-precision factor misses its probe (the caller's fallback takes over); a

@@ -97,7 +97,9 @@ def load_states(path: str | os.PathLike, n_taxels: int | None = None) -> States:
     )
 
 
-def state_path_position(pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray):
+def state_path_position(
+    pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Project frame pressures (N, K) onto the state path (S, K) -> (segment (N,), t (N,))."""
     p = np.asarray(pressure_kpa, dtype=float)
     sp = np.asarray(state_pressure_kpa, dtype=float)

@@ -16,7 +16,7 @@ from numba import njit
 @njit(cache=True, nogil=True)
 def n9_scan(
     frames, cell, base, gain, divide, n9, threshold, max_touches, frame, rank, pos, peak, win
-):
+) -> int:
     """Multitouch N9 extraction on frames (n, S) counts; taxel p (in row-major grid order)
     is frame cell cell[p] with baseline base[p], its N9 neighbours n9[p] (-1: none).
     v = C - C0, divided by gain[p] when `divide`; while the first maximum of v is >
@@ -72,7 +72,9 @@ def n9_scan(
 
 
 @njit(cache=True, nogil=True)
-def n9_frame(v, taxel, n9, ci, cj, threshold, floor, max_touches, scratch, pos, peak, i, j, w):
+def n9_frame(
+    v, taxel, n9, ci, cj, threshold, floor, max_touches, scratch, pos, peak, i, j, w
+) -> int:
     """The paper's N9 loop on one frame (the live loop's `Stream`): activations v (T,)
     (clipped at 0, in taxel order) are copied into `scratch` (T,) in row-major grid
     order (taxel[p] at position p); while the first maximum is > threshold (and fewer

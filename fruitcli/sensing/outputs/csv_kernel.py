@@ -41,7 +41,7 @@ def _put_text(out, at, text, size):
 
 
 @njit(cache=True, nogil=True)
-def format_into(ints, floats, kinds, words, word_len, out, ends, bad):
+def format_into(ints, floats, kinds, words, word_len, out, ends, bad) -> int:
     """Rows r of columns given by `kinds` (0: next column of ints (n, a) int64, 1: next of
     floats (n, b) float64, 2: next column of ints as an index into words (W, L) uint8 of
     word_len (W,) bytes) written at out; ends[r] = position after row r. A row with a

@@ -58,7 +58,7 @@ def _float(out, at, x, f32, u32):
 @njit(cache=True, nogil=True)
 def pack_frame(
     out, consts, seg, ids, new, ended, g, vel, acc, xyz, ij, peak, shape, kind, fseq, t_s, ends
-):
+) -> int:
     """Write the 2D, 3D, peak and plain datagrams one after the other into `out` (uint8);
     ends[0..3] = the offset after each. ids (n,), new (n,) bool, ended (m,), g (n, 5)
     positions (x2, y2, x3, y3, z3), vel (n, 5), acc (n, 2) (m2, m3), xyz (n, 3) mm,
@@ -116,7 +116,7 @@ def pack_frame(
 
 
 @njit(cache=True, nogil=True)
-def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows, height, plane):
+def motion(ids, ij, xyz, norm, prev_ids, prev_g, prev_vel, dt, g, vel, rows, height, plane) -> None:
     """Normalized positions and velocities of a frame's sessions (float64, elementwise
     as the per-touch code computed them). norm = (i_min, i_span, j_min, j_span, ox, oy,
     oz, scale); g (n, 5) = (x2, y2, x3, y3, z3), or with `plane` (TUIO 2.5D) (x2, y2, x2,

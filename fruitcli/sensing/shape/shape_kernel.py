@@ -19,7 +19,9 @@ _HI = (7, 5)
 
 
 @njit(cache=True, nogil=True)
-def gap_law_shapes(v9, tax9, pos9, xyz, contact, decay, sigma, noise, gain, min_counts, out):
+def gap_law_shapes(
+    v9, tax9, pos9, xyz, contact, decay, sigma, noise, gain, min_counts, out
+) -> None:
     """out[k] = (strength, size_mm, height_mm, height_err_mm) of touch k from its N9
     activations v9 (n, 9), taxels tax9 (n, 9) (-1: none), positions pos9 (n, 9, 3),
     reported point xyz (n, 3); gain (T,) the model's taxel gains (ones: none)."""
@@ -47,7 +49,7 @@ def gathered_shapes(
     gain,
     min_counts,
     out,
-):
+) -> None:
     """`gap_law_shapes` of touches k with v9[k, q] = max(counts[frame[k], cell[t]] - base[t],
     0) / divide[t] for t = tax9[k, q] (0 where t < 0; divide empty: no division) and
     pos9[k, q] = pos[pos_row[k, q]]: counts (N, R * C) frames, cell (T,) each taxel's

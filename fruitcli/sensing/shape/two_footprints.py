@@ -112,7 +112,7 @@ def split(
     fp: Footprint,
     threshold: float,
     extent: tuple[float, float] = (np.inf, np.inf),
-):
+) -> np.ndarray | None:
     """The two footprints (2, 3) = (A, i, j) fitted to activations v at cells (ci, cj)
     around the peak at `peak_ij`, or None when one footprint explains them, when fewer
     than six cells (two footprints' parameters) are there to fit (a peak in a corner) or

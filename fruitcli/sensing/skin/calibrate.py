@@ -33,7 +33,9 @@ ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
 GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts trade off)
 
 
-def descent_gaps(rec, truth_z: dict[int, float], n_idle: int, where: str):
+def descent_gaps(
+    rec, truth_z: dict[int, float], n_idle: int, where: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frame indices (M,), sample id per frame (M,), gap mm (M,)) of every descent frame."""
     if rec.sample is None:
         raise FrameError(f"{where}: no 'sample' key: not a bench recording")

@@ -32,10 +32,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FrameError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 AXES = ("x", "y")
 BLOCK_VALUES = 2_000_000
@@ -141,7 +145,9 @@ class CrossingSkin:
         profile = self._lateral(k, off[:, 0], off[:, 1])
         return self._along_gap(k, profile, np.asarray(gaps_mm, float), off[:, 2])
 
-    def descent(self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray):
+    def descent(
+        self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray
+    ) -> Callable[[int, np.ndarray], np.ndarray]:
         """A function (p, gaps (G,)) -> (G, T) counts of taxels (T, 3) with the indenter
         above contact point p of `contact_mm` (P, 3): `activation` with the lateral
         interpolation done for a block of contact points at once (the bench's descents;
@@ -237,7 +243,7 @@ class CrossingSkin:
 
     def deformation_shift(
         self, stretch: np.ndarray, curvature_per_mm: np.ndarray, rest_curvature_per_mm=0.0
-    ):
+    ) -> np.ndarray:
         """Baseline shift (counts) for the surface's stretches and curvatures (..., 2)
         along x, y, from its curvatures at rest (..., 2) (0: flat). The table's curvature
         is its neutral plane's, ``neutral_mm`` under the surface: k = k_s / (1 -
@@ -363,7 +369,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
 
 
-def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=None):
+def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=None) -> np.ndarray:
     """Baseline shift (counts) of each taxel from the rest shape: (S, T) (or (T,) for
     one state)."""
     stretch, curv = yarn_deformation(states, state_index)

@@ -274,7 +274,9 @@ def taxel_strain(states, state_index=None) -> np.ndarray:
     return surface_green_strain(states.rest_nodes, nodes, states.surface_tris) @ w.T
 
 
-def pad_mesh(size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4):
+def pad_mesh(
+    size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4
+) -> tuple[np.ndarray, np.ndarray]:
     """A flat pad of tets (`fem.grid.structured_box`): nodes (N, 3), tets (M, 4),
     x and y centred on 0, z in [0, t]."""
     from fruitcli.fem.meshing.grid import structured_box
@@ -319,7 +321,7 @@ def calibrate_strain_gain() -> float:
     return BEND_SHIFT_COUNTS / float(bent_pad_taxel_strain().max())
 
 
-def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = None):
+def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = None) -> np.ndarray:
     """Baseline shift (counts) of each taxel for strains (..., T)."""
     g = calibrate_strain_gain() if gain is None else gain
     return g * skin.fab * np.asarray(strain)

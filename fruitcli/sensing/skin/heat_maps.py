@@ -3,7 +3,12 @@ taxels' top-view positions over the body's outline. Functions take an Axes, retu
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 
 def grid_image(i: np.ndarray, j: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -22,7 +27,7 @@ def taxel_heatmap(
     vmax: float | None = None,
     label: str = "counts",
     annotate: bool = True,
-):
+) -> Axes:
     """Per-taxel values as a heat map over the (i, j) grid, each cell labelled."""
     img = grid_image(i, j, values)
     im = ax.imshow(
@@ -67,7 +72,7 @@ def taxel_topview(
     title: str = "",
     vmax: float | None = None,
     label: str = "counts",
-):
+) -> Axes:
     """Per-taxel values as coloured discs at the taxels' top-view positions `xy_mm` (T, 2)
     over the body's outline: its surface triangles projected on x-y (F, 3, 2), in grey."""
     from matplotlib.collections import PolyCollection

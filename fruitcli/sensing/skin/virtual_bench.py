@@ -36,7 +36,9 @@ PRESS_MM = 2.0  # deepest press into the skin before a sample is given up
 BENCH_FPS = 60.0  # frame rate of the virtual board (frames/s)
 
 
-def quarter_samples(taxels_xy_mm: np.ndarray, spacing_x_mm: float, spacing_y_mm: float):
+def quarter_samples(
+    taxels_xy_mm: np.ndarray, spacing_x_mm: float, spacing_y_mm: float
+) -> np.ndarray:
     """(x, y) of one sample a quarter taxel off each taxel (T, 2) mm."""
     return taxels_xy_mm + np.array([spacing_x_mm, spacing_y_mm]) / 4.0
 

@@ -320,3 +320,54 @@ def test_cli_locate_with_a_scene_gives_heights_from_the_scenes_skin(tmp_path):
     assert [int(b[0]) for b in body] == [10, 11, 12]
     h = [float(b[head.index("height_mm")]) for b in body]
     np.testing.assert_allclose(h, 2 * np.array(gaps), atol=0.3)
+
+
+def test_cli_live_with_a_skin_gives_its_heights(tmp_path):
+    """`fruit live --skin` over a pseudo-terminal: the heights of a finger coming down
+    are the gaps it was built at, as `fruit locate --skin` gives them."""
+    import json
+
+    from fruitcli.sensing.live.board_emulator import BoardEmulator
+
+    taxels = grid_taxels()
+    gaps = [3.0, 2.0, 1.0, 0.5]
+    frames = np.stack([np.full(252, BASE)] * 10 + [finger(taxels, g) for g in gaps])
+    frames = np.round(frames).reshape(-1, 21, 12).astype(np.int64)
+    frames = np.concatenate([frames, frames[:1]])  # the finger lifts: the last line is read
+    taxel_csv(tmp_path / "t.csv")
+    (tmp_path / "s.toml").write_text('[scene]\nname = "live-heights"\n')
+    (tmp_path / "skin.toml").write_text(
+        "[skin]\nfootprint_sigma_mm = {{ small = {!r} }}\ncontact_counts = 60.0\n"
+        "gap_decay_mm = 2.0\nnoise_std_counts = 1.0\n".format(
+            forward.default_footprints_mm()["small"]
+        )
+    )
+    em = BoardEmulator(frames, fps=0, wait_for_reader=True)
+    th = em.start()
+    r = CliRunner().invoke(
+        cli,
+        [
+            "live",
+            str(tmp_path / "s.toml"),
+            "--port",
+            em.path,
+            "--taxels",
+            str(tmp_path / "t.csv"),
+            "--skin",
+            str(tmp_path / "skin.toml"),
+            "--threshold",
+            "5",
+            "--frames",
+            str(len(frames)),
+        ],
+    )
+    em.stop.set()
+    th.join(5)
+    assert r.exit_code == 0, r.output
+    lines = [json.loads(ln) for ln in r.output.splitlines() if ln.startswith("{")]
+    touched = [ln for ln in lines if ln["touches"]]
+    assert [ln["frame"] for ln in touched] == [10, 11, 12, 13]
+    heights = [ln["touches"][0]["height_mm"] for ln in touched]
+    np.testing.assert_allclose(heights, gaps, atol=0.15)
+    assert {ln["touches"][0]["kind"] for ln in touched} == {"touch"}
+    assert len({ln["touches"][0]["touch"] for ln in touched}) == 1  # one session
