@@ -227,7 +227,7 @@ def clean(verts: np.ndarray, faces: np.ndarray, source: str = "mesh") -> Surface
             f"{conflicts} edges join faces whose winding cannot agree (a "
             "non-orientable surface); the winding number may be off there"
         )
-    used = _edge_use(oriented)
+    used = edge_use(oriented)
     holes, perimeter = hole_loops(verts, oriented)
     return Surface(
         vertices=verts,
@@ -242,7 +242,7 @@ def clean(verts: np.ndarray, faces: np.ndarray, source: str = "mesh") -> Surface
     )
 
 
-def _edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Directed edges (3m, 2) in face order (ab of all faces, then bc, then ca) and their
     undirected keys (3m,)."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
@@ -250,9 +250,9 @@ def _edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e, e.min(axis=1) * n + e.max(axis=1)
 
 
-def _edge_use(faces: np.ndarray) -> np.ndarray:
+def edge_use(faces: np.ndarray) -> np.ndarray:
     """For each directed edge (3m,) in face order, how many faces use its undirected edge."""
-    _, key = _edge_keys(faces)
+    _, key = edge_keys(faces)
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     return counts[inv]
 
@@ -265,8 +265,8 @@ def hole_loops(verts: np.ndarray, faces: np.ndarray) -> tuple[int, float]:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    e, _ = _edge_keys(faces)
-    b = e[_edge_use(faces) == 1]
+    e, _ = edge_keys(faces)
+    b = e[edge_use(faces) == 1]
     if len(b) == 0:
         return 0, 0.0
     ids, inv = np.unique(b.ravel(), return_inverse=True)
@@ -291,7 +291,7 @@ def orient_faces(faces: np.ndarray) -> tuple[np.ndarray, int]:
     from scipy.sparse.csgraph import breadth_first_order
 
     m = len(faces)
-    e, key = _edge_keys(faces)
+    e, key = edge_keys(faces)
     owner = np.tile(np.arange(m), 3)
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     two = counts[inv] == 2

@@ -480,14 +480,16 @@ def _fill_pinched_edges(body, radius_mm: float, rounds: int = 5):
     import manifold3d
 
     from fruitcli.geometry.mesh.export import weld_float32
+    from fruitcli.geometry.mesh.load import edge_keys, edge_use
 
     ball = np.asarray(manifold3d.Manifold.sphere(radius_mm, 12).to_mesh().vert_properties)
     filled = []
     for _ in range(rounds):
         v, f = weld_float32(*manifold_arrays(body))
-        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        unique, counts = np.unique(edges, axis=0, return_counts=True)
-        pinched = v[unique[counts != 2]]  # (k, 2, 3): both ends of each pinched edge
+        edges, keys = edge_keys(f)
+        shared = edge_use(f) != 2
+        _, once = np.unique(keys[shared], return_index=True)
+        pinched = v[edges[shared][once]]  # (k, 2, 3): both ends of each pinched edge
         if not len(pinched):
             break
         capsules = [
