@@ -298,6 +298,29 @@ def forget(solver) -> None:
         solver.refresh = True
 
 
+def _check_curve(model, which, direction: int, asked: float, solver, check, progress, found):
+    """The curve of chamber `which` (or of chambers along ratios `which`) followed as
+    far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
+    (its analysis forgotten afterwards); with a `found` list, followed on to the limit
+    or collapse and appended to it as (direction, curve)."""
+    curve = follow(
+        model,
+        which,
+        direction,
+        solver=solver,
+        options=check,
+        stop_beyond_kpa=asked,
+        fall_steps=1,
+        budget=CHECK_BUDGET,
+        stop_at_asked=found is None,
+        progress=progress,
+    )
+    forget(solver)
+    if found is not None:
+        found.append((direction, curve))
+    return curve
+
+
 def check_pressures(
     model,
     pressures: np.ndarray,
@@ -332,21 +355,7 @@ def check_pressures(
         for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
             if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
                 continue
-            curve = follow(
-                model,
-                k,
-                direction,
-                solver=solver,
-                options=check,
-                stop_beyond_kpa=asked,
-                fall_steps=1,
-                budget=CHECK_BUDGET,
-                stop_at_asked=found is None,
-                progress=progress,
-            )
-            forget(solver)
-            if found is not None:
-                found.append((direction, curve))
+            curve = _check_curve(model, k, direction, asked, solver, check, progress, found)
             if (
                 direction > 0
                 and curve.limit_pressure_kpa is not None
@@ -408,21 +417,7 @@ def check_together(
     v0 = model.chamber_rest_volume_mm3
     if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
         return
-    curve = follow(
-        model,
-        ratio,
-        1,
-        solver=solver,
-        options=check,
-        stop_beyond_kpa=asked,
-        fall_steps=1,
-        budget=CHECK_BUDGET,
-        stop_at_asked=found is None,
-        progress=progress,
-    )
-    forget(solver)
-    if found is not None:
-        found.append((1, curve))
+    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found)
     if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
         return
     which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))
