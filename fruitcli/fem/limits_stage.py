@@ -74,6 +74,26 @@ def scene_ratios(scene, names: list[str]) -> np.ndarray:
     return top / top.max() if top.max() > 0 else np.ones(len(names))
 
 
+def _write_limits(out_dir, model, t0: float, chambers, together, rows, curves) -> dict:
+    """Write limits.json (with the element, mesh and seconds since `t0`) and, when curves
+    were followed, pv.csv from `rows` and pv.png from `curves` ((name, suction,
+    inflation) each), all at once in out_dir.
+    Returns the limits.json content."""
+    info = {
+        "chambers": chambers,
+        "together": together,
+        "element": element_name(model),
+        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
+    with staged_dir(out_dir) as tmp:
+        if curves:
+            write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
+            plot_curves(tmp / "pv.png", curves)
+        write_json(tmp / limits.LIMITS_FILE, info)
+    return info
+
+
 def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     """Follow each chamber's curve; write limits.json, pv.csv and pv.png (see module
     docstring). Returns the limits.json content."""
@@ -121,18 +141,7 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
         rows += [(limits.TOGETHER, g, p) for g, p in samples]
         curves.append((limits.TOGETHER, limits.ChamberCurve(limits.TOGETHER, 0.0), up))
         progress(f"limits: chambers together: limit pressure {_kpa(up.limit_pressure_kpa)}")
-    info = {
-        "chambers": chambers,
-        "together": together,
-        "element": element_name(model),
-        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
-        "seconds": round(time.perf_counter() - t0, 2),
-    }
-    with staged_dir(out_dir) as tmp:
-        write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
-        plot_curves(tmp / "pv.png", curves)
-        write_json(tmp / "limits.json", info)
-    return info
+    return _write_limits(out_dir, model, t0, chambers, together, rows, curves)
 
 
 def plot_curves(path, curves) -> None:
@@ -274,20 +283,10 @@ def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
             entry["limit_volume_growth_mm3"] = curve.limit_growth_mm3
         else:
             entry["collapse_pressure_kpa"] = curve.collapse_pressure_kpa
-    info = {
-        "chambers": chambers,
-        "together": together,
-        "element": element_name(model),
-        "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
-        "seconds": round(time.perf_counter() - t0, 2),
-    }
-    with staged_dir(out_dir) as tmp:
-        if found:
-            rows = [(c, 0.0, 0.0) for c in curves] + rows
-            rows.sort(key=lambda r: (r[0], r[1]))
-            write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
-            plot_curves(tmp / "pv.png", [(c, d, u) for c, (d, u) in curves.items()])
-        write_json(tmp / limits.LIMITS_FILE, info)
+    if found:
+        rows = sorted([(c, 0.0, 0.0) for c in curves] + rows, key=lambda r: (r[0], r[1]))
+    curves = [(c, d, u) for c, (d, u) in curves.items()]
+    info = _write_limits(out_dir, model, t0, chambers, together, rows, curves)
     progress(
         "limits: "
         + (f"{len(found)} curve(s) followed" if found else "no pressure near a limit")
