@@ -9,8 +9,9 @@ others at rest (pressure 0).
   parabola through the largest sample and its neighbours.
 - Suction: the pressure falls (below 0) while the cavity shrinks, until its walls would
   meet (self-contact is not modelled): the volume under COLLAPSE_VOLUME of its rest
-  volume, an element at the wall about to invert (det F under COLLAPSE_DET_F), the
-  pressure turning back towards 0 (the wall buckling in) or no equilibrium; the
+  volume or the next sample's below it, an element at the wall about to invert (det F
+  under COLLAPSE_DET_F), the pressure turning back towards 0 (the wall buckling in) or
+  no equilibrium; the
   collapse pressure is the lowest pressure reached.
 
 Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
@@ -162,8 +163,13 @@ def follow(
     s = 1.0
     while True:
         s = s + direction * step
-        if (direction > 0 and s > MAX_STRETCH + 1e-9) or (direction < 0 and s < MIN_STRETCH - 1e-9):
-            curve.end = f"the range followed (mean stretch {s - direction * step:.2f})"
+        if direction > 0 and s > MAX_STRETCH + 1e-9:
+            curve.end = f"the range followed (mean stretch {s - step:.2f})"
+            break
+        if direction < 0 and s < MIN_STRETCH - 1e-9:
+            # the next sample would leave under COLLAPSE_VOLUME: the walls about to meet
+            curve.collapse_pressure_kpa = min(curve.pressure_kpa)
+            curve.end = f"the cavity is nearly empty, at {stretches[-1] ** 3:.3f} V0"
             break
         if deadline is not None and time.monotonic() > deadline:
             curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"

@@ -114,6 +114,22 @@ def test_thick_sphere_suction_collapses():
     assert curve.limit_pressure_kpa is None
 
 
+def test_suction_to_the_end_of_the_range_is_a_collapse(monkeypatch):
+    """A cavity sucked down to the range's end (the next sample would be under
+    COLLAPSE_VOLUME) without buckling has nearly no volume left: its lowest pressure is
+    the collapse, and a suction past it is refused (the range cut to stretch 0.8 here)."""
+    monkeypatch.setattr(limits, "MIN_STRETCH", 0.8)
+    model = octant_ball(1, 1, nu=0.49)
+    curve = limits.follow(model, 0, -1)
+    assert len(curve.pressure_kpa) == 3  # rest, stretch 0.9 and 0.8
+    assert curve.end == "the cavity is nearly empty, at 0.512 V0"
+    assert curve.collapse_pressure_kpa == min(curve.pressure_kpa) < 0
+    with pytest.raises(SceneError, match=r"-500 kPa is past this chamber's collapse pressure"):
+        limits.check_pressures(
+            model, np.array([[-500.0]]), ["k"], model.make_solver(), SolverOptions()
+        )
+
+
 def test_stop_beyond_a_reachable_pressure():
     """Asked whether 10 kPa is reachable, inflation stops at the first sample past it."""
     model = octant_ball(1, 1, nu=0.49)
