@@ -506,3 +506,16 @@ def test_limits_stage_follows_to_the_limit_and_simulate_reuses_it(tmp_path):
     with pytest.raises(SceneError, match=r"^\[actuation\].pressure_kpa.c: 2000 kPa is past"):
         run_limits_stage(ball_scene(tmp_path, size=8.0, nu=0.45, p=2000.0), mesh, tmp_path / "l2")
     assert not (tmp_path / "l2").exists()
+
+
+def test_a_line_search_that_rejects_every_trial_fails_cleanly(monkeypatch):
+    """When every trial step of the line search is rejected before its evaluation (a
+    spurious dilatation, `ContinuumModel.dilatation_step`), Newton ends with a named
+    SolverError, not an internal error (the state had no trial to report)."""
+    from fruitcli.fem import continuum
+
+    monkeypatch.setattr(continuum, "DILATATION_STEP", 1e-12)
+    model = octant_ball(1, 1, nu=0.49)
+    options = SolverOptions(max_subdivisions=0)
+    with pytest.raises(SolverError, match="no equilibrium"):
+        solve_state(model, Load.pressures([5.0]), options=options)

@@ -219,7 +219,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         dx = np.zeros(3 * m.n_nodes)
         dx[m.pattern.free] = dx_free
         dx = dx.reshape(-1, 3)
-        alpha, accepted = 1.0, False
+        alpha, accepted, trial = 1.0, False, None
         j_limit = getattr(m, "dilatation_step", 0.0)
         j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
         for _ in range(LINE_SEARCH_STEPS):
@@ -252,7 +252,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             if level < 2:
                 level += 1
                 continue
-            return False, x, p, it + 1, merit, trial[1]
+            return False, x, p, it + 1, merit, det_f if trial is None else trial[1]
         # a damped step says the tangent models the energy poorly here: take the next,
         # safer tangent until a full step is accepted again
         damped_escalates = getattr(m, "escalate_on_damping", True)
