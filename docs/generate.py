@@ -7,7 +7,10 @@
   the small sample docs/bench-sample.json);
 - fruit-limits.md and fruit-limits.png: the default Fruit's limit pressures and its
   chambers' pressure-volume curves, from docs/data/fruit-limits.{json,csv} (written by
-  `tests/performance/bench_limits.py --docs`).
+  `tests/performance/bench_limits.py --docs`);
+- stability-realistic.md: the stability study's rows on realistic bodies, from
+  docs/data/stability-realistic.json (written by
+  `tests/performance/stability_realistic.py --docs`).
 
 Run by `make docs` before Sphinx; `python docs/generate.py [--bench FILE]`.
 """
@@ -368,6 +371,28 @@ def limits_figure(info: dict, csv_path: Path, png: Path) -> None:
     plt.close(fig)
 
 
+STABILITY = DOCS / "data" / "stability-realistic.json"
+
+
+def stability_page(info: dict) -> str:
+    """The stability study's realistic rows: case, outcome, time."""
+    rows = ["| body | case | outcome | s |", "|---|---|---|---|"]
+    for r in info["rows"]:
+        body = r["group"].split(",")[0]
+        case = r["case"].rsplit(" (", 1)[0]
+        status = r["status"].removeprefix("failed: ")
+        if r["status"] == "converged" and r["note"]:
+            status = f"converged: {r['note']}"
+        rows.append(f"| {body} | {case} | {escape(status)} | {r['seconds']:.0f} |")
+    rows.append("")
+    rows.append(
+        f"`python tests/performance/stability_realistic.py --jobs {info['jobs']}` on "
+        f"{info['machine']}, {info['date']}, commit `{info['commit'][:12]}`: "
+        f"{info['wall_seconds']:.0f} s in all."
+    )
+    return "\n".join(rows)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Write docs/_generated/*.md from the code.")
     parser.add_argument(
@@ -398,6 +423,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Error: {LIMITS}.json: cannot read the limits: {exc}", file=sys.stderr)
         return 1
     pages["fruit-limits.md"] = limits_page(limits)
+    try:
+        stability = json.loads(STABILITY.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        print(f"Error: {STABILITY}: cannot read the stability rows: {exc}", file=sys.stderr)
+        return 1
+    pages["stability-realistic.md"] = stability_page(stability)
     limits_figure(limits, LIMITS.with_suffix(".csv"), OUT / "fruit-limits.png")
     from fruitcli.fsutil import write_text
 

@@ -43,11 +43,20 @@ def study() -> None:
 @out_option(
     "Output folder: stability.md, .csv, .json.", required=False, default="out/study-stability"
 )
+@click.option(
+    "--group",
+    "groups",
+    multiple=True,
+    metavar="NAME",
+    help="Run only this group of cases (repeatable), e.g. 'fruit, gmsh'. [default: all]",
+)
 @jobs_option()
 @scheduler_option("the cases")
-def stability(out_dir, jobs, scheduler) -> None:
-    """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.499, pressure until elements
-    would invert, jig stiffness 1e-3..1e6 N/mm, a sliver tet, an unsupported body.
+def stability(out_dir, groups, jobs, scheduler) -> None:
+    """Stiff and extreme FEM cases: E 1 kPa..1 GPa, nu 0..0.4999, pressure until elements
+    would invert, jig stiffness 1e-3..1e6 N/mm, a sliver tet, an unsupported body; and
+    realistic bodies meshed by gmsh (a thick sphere, the default Fruit) from 5 kPa to
+    2000 kPa and down to -500 kPa, each state checked against its chambers' limits.
 
     Each row: converged or the named failure, Newton iterations, load-step subdivisions,
     final residual, max displacement (mm), min det F, time (s).
@@ -58,18 +67,27 @@ def stability(out_dir, jobs, scheduler) -> None:
         HEADER,
         add_scaling_columns,
         default_cases,
+        machine_line,
         run_case,
         table_markdown,
     )
 
     with fruit_errors():
         cases = default_cases()
+        known = list(dict.fromkeys(c.group for c in cases))
+        unknown = [g for g in groups if g not in known]
+        if unknown:
+            raise click.BadParameter(
+                f"'{unknown[0]}' is not a group (groups: {'; '.join(known)})",
+                param_hint="--group",
+            )
+        cases = [c for c in cases if not groups or c.group in groups]
         with _cases_pool(jobs, scheduler, None) as pool:
             rows = run_cases(run_case, cases, progress=_bar("stability"), pool=pool)
         add_scaling_columns(rows)
         text = table_markdown(rows)
         with staged_dir(out_dir) as tmp:
-            write_text(tmp / "stability.md", "# Stability study\n\n" + text)
+            write_text(tmp / "stability.md", f"# Stability study\n\n{machine_line()}\n\n{text}")
             write_csv(
                 tmp / "stability.csv",
                 HEADER,

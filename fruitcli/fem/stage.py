@@ -188,6 +188,25 @@ def state_loads(scene, names: list[str]) -> list[Load]:
     return [Load(pressure[i], growth[i], vc.copy(), 1.0, 1.0) for i in range(s)]
 
 
+def check_closed_walls(chambers: dict[str, np.ndarray]) -> None:
+    """Refuse, in one MeshError line, a chamber whose wall triangles (t, 3) do not close
+    it: every edge shared by exactly two of them (its volume and pressure work are
+    otherwise not defined)."""
+    from fruitcli.geometry.mesh.load import edge_use
+
+    for name, tris in chambers.items():
+        if not len(tris):
+            raise MeshError(f"[[geometry.chamber]] '{name}': the mesh has no wall for it")
+        open_edges = int(np.count_nonzero(edge_use(tris) != 2))
+        if open_edges:
+            raise MeshError(
+                f"[[geometry.chamber]] '{name}': its wall in the mesh is not closed "
+                f"({open_edges} edges not shared by exactly two triangles): the chamber "
+                "must lie inside the body with a wall of at least one element; rerun "
+                "`fruit tetra` after moving or shrinking it"
+            )
+
+
 def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     """Model of a scene on a loaded mesh.npz: the paper's corotational `Model` on linear
     tets, or the hyperelastic `ContinuumModel` on the scene's [fem].element (quadratic
@@ -199,6 +218,7 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
         raise MeshError(
             f"mesh chambers {names} do not match the scene's {wanted}; rerun `fruit tetra`"
         )
+    check_closed_walls(io.chamber_dict(mesh))
     mat = scene.material
     material = materials.from_scene(mat)
     element = scene.fem.element

@@ -6,10 +6,14 @@ elements would invert, jig stiffness from 1e-3 to 1e6 N/mm, a sliver tet, a body
 support (the paper's model); and with the default element and material (p2,
 neo-Hookean): nu up to 0.4999, a chamber pressure past the inflation's limit point
 (pressure control fails there, naming it) and the same inflation followed under volume
-control. A realistic body (a gmsh thick sphere: cavity 10 mm, outer 20 mm, size 3 mm,
-free, default element, nu = 0.45) is pressurised from 5 kPa to 2000 kPa and down to
--500 kPa, each state checked against the cavity's limit and collapse pressures first
-(`fruitcli.fem.limits`) and given [solver] max_seconds = 60. Each row says whether it
+control. Two realistic bodies meshed by gmsh on the default element, a thick sphere
+(cavity 10 mm, outer 20 mm, size 3 mm, free, nu = 0.45) and the default Fruit (the
+bundled `fruit-breathing` scene: its mesh, material, gravity and base; chamber c1
+pressurised, the others at rest), are pressurised from 5 kPa to 2000 kPa and down to
+-500 kPa, and taken to E = 1 kPa, E = 1 GPa and nu = 0.4999 at 5 kPa; each state is
+checked against the chambers' limit and collapse pressures first (`fruitcli.fem.limits`)
+within a budget of 60 s per row (REALISTIC_SECONDS: the mesh, the check and the state
+together, the state's [solver] max_seconds being what is left). Each row says whether it
 converged or names the failure in one line, with
 Newton iterations, load-step subdivisions, final residual, max displacement, min det F
 and time. No NaN reaches a row: a non-finite result is itself a named failure.
@@ -82,12 +86,29 @@ def default_cases() -> list[Case]:
         Case("volume, p2", f"growth {g:g} V0 (p2)", "hollow_pressure", volume_growth=g, **p2)
         for g in (0.5, 1.0, 2.0)
     ]
-    cases += [
-        Case(
-            "sphere, gmsh", f"p = {p:g} kPa (sphere)", "gmsh_sphere", pressure_kpa=p, nu=0.45, **p2
+    for group, kind, tag, nu in (
+        ("sphere, gmsh", "gmsh_sphere", "sphere", 0.45),
+        ("fruit, gmsh", "gmsh_fruit", "fruit", FRUIT_NU),
+    ):
+        cases += [
+            Case(group, f"p = {p:g} kPa ({tag})", kind, pressure_kpa=p, nu=nu, **p2)
+            for p in (5.0, 20.0, 2000.0, -20.0, -500.0)
+        ]
+        cases += [
+            Case(
+                group,
+                f"E = {e:g} kPa, p = 5 kPa ({tag})",
+                kind,
+                E_kpa=e,
+                pressure_kpa=5.0,
+                nu=nu,
+                **p2,
+            )
+            for e in (1.0, 1e6)
+        ]
+        cases.append(
+            Case(group, f"nu = 0.4999, p = 5 kPa ({tag})", kind, pressure_kpa=5.0, nu=0.4999, **p2)
         )
-        for p in (5.0, 20.0, 2000.0, -20.0, -500.0)
-    ]
     cases += [
         Case("sliver", "one sliver tet", "sliver"),
         Case("free", "no support, chamber at 10 kPa", "free_pressure", pressure_kpa=10.0),
@@ -207,8 +228,14 @@ poisson_ratio = {nu}
 """
 
 
-SPHERE_SECONDS = 60.0
+REALISTIC_SECONDS = 60.0
 """[solver] max_seconds of the realistic bodies' states."""
+
+FRUIT_SCENE = "fruit-breathing"
+"""The bundled scene whose body, mesh, material, gravity and base the Fruit rows use."""
+
+FRUIT_NU = 0.49
+"""The Fruit's Poisson ratio in the bundled scene (the rows other than the nu row)."""
 
 
 def _gmsh_sphere(case: Case):
@@ -233,9 +260,50 @@ def _gmsh_sphere(case: Case):
     return model, Load.pressures([case.pressure_kpa])
 
 
+def _set_line(text: str, key: str, value: str) -> str:
+    """`text` (a TOML scene) with the line assigning `key` set to `key = value`."""
+    import re
+
+    line = re.compile(rf"^{re.escape(key)}\s*=.*$", re.M)
+    if not line.search(text):
+        raise FruitError(f"{FRUIT_SCENE}: no `{key} = ...` line to set")
+    return line.sub(lambda _: f"{key} = {value}", text, count=1)
+
+
+def _gmsh_fruit(case: Case):
+    """The default Fruit (bundled FRUIT_SCENE exported to a temporary folder, its stages
+    run up to the mesh) with the case's material and chamber c1 at the case's pressure
+    (the other chambers at rest), gravity and base as in the scene."""
+    import tempfile
+    from pathlib import Path
+
+    from fruitcli.bundled import export_scene
+    from fruitcli.fem import io
+    from fruitcli.fem.stage import build_model, state_loads
+    from fruitcli.scene import load_scene
+    from fruitcli.workflow import planner
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = export_scene(FRUIT_SCENE, Path(tmp))
+        text = _set_line(path.read_text(), "young_modulus_kpa", f"{case.E_kpa!r}")
+        text = _set_line(text, "poisson_ratio", f"{case.nu!r}")
+        text = _set_line(
+            text, "pressure_kpa", f"{{ c1 = [{case.pressure_kpa!r}], c2 = [0.0], c3 = [0.0] }}"
+        )
+        path.write_text(text)
+        scene = load_scene(path)
+        planner.run(scene, Path(tmp) / "out", until="tetra")
+        model = build_model(scene, io.load_mesh(Path(tmp) / "out" / "tetra" / "mesh.npz"))
+    return model, state_loads(scene, model.chamber_names)[0]
+
+
+REALISTIC = ("gmsh_sphere", "gmsh_fruit")
+"""The case kinds of the realistic bodies (meshed by gmsh, checked against the limits)."""
+
 BUILDERS = {
     "beam_gravity": _beam,
     "gmsh_sphere": _gmsh_sphere,
+    "gmsh_fruit": _gmsh_fruit,
     "hollow_pressure": _hollow,
     "jig": _jig,
     "sliver": _sliver,
@@ -264,16 +332,19 @@ def run_case(case: Case) -> dict:
         model, load = BUILDERS[case.kind](case)
         row["note"] = "; ".join(model.notes)
         options = SolverOptions()
-        if case.kind == "gmsh_sphere":
+        if case.kind in REALISTIC:
             from dataclasses import replace
 
             from fruitcli.fem import limits
 
-            options = replace(options, load_steps=4, max_seconds=SPHERE_SECONDS)
+            def left() -> float:  # the row's budget left (s), at least a second
+                return max(REALISTIC_SECONDS - (time.perf_counter() - t0), 1.0)
+
+            options = replace(options, load_steps=4, max_seconds=left())
             solver = model.make_solver()
-            limits.check_pressures(
-                model, load.pressure_kpa[None, :], ["cavity"], solver, SolverOptions()
-            )
+            keys = [f"[actuation].pressure_kpa.{n}" for n in model.chamber_names]
+            limits.check_pressures(model, load.pressure_kpa[None, :], keys, solver, options)
+            options = replace(options, max_seconds=left())
             row["note"] = ""
         else:
             solver = None
@@ -293,7 +364,7 @@ def run_case(case: Case) -> dict:
         )
         if case.kind == "beam_gravity":
             row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
-        if case.kind in ("hollow_pressure", "gmsh_sphere") and len(res.pressure_kpa):
+        if case.kind in ("hollow_pressure", *REALISTIC) and len(res.pressure_kpa):
             growth = res.chamber_volume_mm3[0] / model.chamber_rest_volume_mm3[0] - 1.0
             row["note"] = (
                 row["note"] + "; " if row["note"] else ""
@@ -354,3 +425,26 @@ def table_markdown(rows: list[dict]) -> str:
     for r in rows:
         lines.append("| " + " | ".join(_fmt(r.get(h)).replace("|", "/") for h in HEADER) + " |")
     return "\n".join(lines) + "\n"
+
+
+def machine_line() -> str:
+    """Where and when the study ran: UTC date, fruitcli version, processor and cores."""
+    import datetime
+    import importlib.metadata
+    import os
+    import platform
+
+    date = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo").read().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        version = importlib.metadata.version("fruitcli")
+    except importlib.metadata.PackageNotFoundError:
+        version = "(not installed)"
+    return f"Run {date}, fruitcli {version}, {cpu}, {os.cpu_count()} cores."

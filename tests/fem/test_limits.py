@@ -519,3 +519,23 @@ def test_a_line_search_that_rejects_every_trial_fails_cleanly(monkeypatch):
     options = SolverOptions(max_subdivisions=0)
     with pytest.raises(SolverError, match="no equilibrium"):
         solve_state(model, Load.pressures([5.0]), options=options)
+
+
+def test_a_chamber_wall_that_is_not_closed_is_refused_in_one_line():
+    """A chamber whose wall triangles in the mesh leave an edge open (here an octahedron
+    with one face missing) has no volume: one MeshError line naming the chamber."""
+    from fruitcli.errors import MeshError
+    from fruitcli.fem.stage import check_closed_walls
+
+    octahedron = np.array(
+        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    )
+    check_closed_walls({"c": octahedron})
+    with pytest.raises(MeshError) as info:
+        check_closed_walls({"c": octahedron[1:]})
+    assert str(info.value).startswith(
+        "[[geometry.chamber]] 'c': its wall in the mesh is not closed (3 edges not shared"
+    )
+    assert "\n" not in str(info.value)
+    with pytest.raises(MeshError, match="'c': the mesh has no wall for it"):
+        check_closed_walls({"c": octahedron[:0]})

@@ -74,6 +74,38 @@ def test_realistic_sphere_past_its_limit_is_a_named_failure():
     case = next(c for c in default_cases() if c.name == "p = 2000 kPa (sphere)")
     row = run_case(case)
     assert row["status"].startswith(
-        "failed: cavity: 2000 kPa is past this chamber's limit pressure"
+        "failed: [actuation].pressure_kpa.cavity: 2000 kPa is past this chamber's limit pressure"
     )
     assert "\n" not in row["status"]
+
+
+@pytest.mark.slow
+def test_the_default_fruit_sucked_past_its_collapse_is_a_named_failure():
+    """The default Fruit's chamber c1 at -500 kPa: a failed row naming the collapse of
+    the scene key's chamber within the row's budget, the other chambers at rest."""
+    case = next(c for c in default_cases() if c.name == "p = -500 kPa (fruit)")
+    row = run_case(case)
+    assert row["status"].startswith(
+        "failed: [actuation].pressure_kpa.c1: -500 kPa is past this chamber's collapse"
+    )
+    assert "\n" not in row["status"]
+
+
+def test_group_option_runs_only_those_cases(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from fruitcli.cli.main import cli
+
+    out = tmp_path / "s"
+    result = CliRunner().invoke(
+        cli, ["study", "stability", "--group", "jig", "--out", str(out), "--jobs", "1"]
+    )
+    assert result.exit_code == 0, result.output
+    rows = json.loads((out / "stability.json").read_text())
+    assert [r["group"] for r in rows] == ["jig"] * 5
+    assert (out / "stability.md").read_text().splitlines()[2].startswith("Run 20")
+    result = CliRunner().invoke(cli, ["study", "stability", "--group", "nope", "--out", str(out)])
+    assert result.exit_code == 2
+    assert "'nope' is not a group (groups: E; nu; pressure;" in result.output
