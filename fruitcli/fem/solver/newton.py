@@ -174,8 +174,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
-        if step.deadline is not None and time.perf_counter() > step.deadline:
-            raise OutOfTime("time budget", 0.0)
+        _check_time(step)  # before this step's tangent (its factorization)
         if step.report is not None:
             step.report(it, merit)
         if level == 0 and det_f.min() <= MIN_DET_F:
@@ -228,6 +227,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
                 alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
                 continue
+            _check_time(step)
             trial = step.evaluate(xt, pt)
             if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
                 alpha *= 0.5
@@ -262,6 +262,14 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             step.solver.newton_c = trial[5] / merit**2  # nonlinear part dominates: observe C
         rot, det_f, h, r, g, merit, energy, f = trial
     return False, x, p, options.max_iterations, merit, det_f
+
+
+def _check_time(step: _Step) -> None:
+    """Raise OutOfTime past the step's deadline: checked before each Newton step's
+    tangent and each line-search evaluation, so that a state overruns its budget by at
+    most one tangent's factorization and solve."""
+    if step.deadline is not None and time.perf_counter() > step.deadline:
+        raise OutOfTime("time budget", 0.0)
 
 
 def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptions) -> bool:
