@@ -139,6 +139,11 @@ def test_indefinite_hint_skips_the_positive_definite_analysis(monkeypatch):
         assert fac.mtype == pardiso.SYMMETRIC_INDEFINITE
         assert np.linalg.norm(k @ fac.solve(b) - b) < 1e-9 * np.linalg.norm(b)
     assert tried == [pardiso.SYMMETRIC_INDEFINITE] * 2
+    spd = pardiso.factorize_upper(upper_triangle(k))  # a positive definite analysis
+    assert spd.mtype == pardiso.SPD and tried[-1] == pardiso.SPD
+    hinted = pardiso.factorize_upper(upper_triangle(k), spd, indefinite=True)
+    assert hinted.mtype == pardiso.SYMMETRIC_INDEFINITE and not spd._alive
+    assert tried[-1] == pardiso.SYMMETRIC_INDEFINITE
 
 
 def test_a_positive_definite_refactorization_that_meets_a_negative_pivot_goes_indefinite(

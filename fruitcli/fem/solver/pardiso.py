@@ -252,14 +252,16 @@ def factorize_upper(
 ) -> Pardiso:
     """A Pardiso factor of the symmetric matrix with upper triangle `upper`, in single
     precision with `single`: the numerical refactorization of `previous` (as its type)
-    when it has the same pattern and precision; otherwise a new one, positive definite
-    first, then indefinite. Straight to the indefinite type (one analysis instead of
-    two: 0.8-1.4 s each on a quadratic sphere of 6,327 tets) with `indefinite` (the
-    caller knows the matrix is not positive definite), when `previous` was indefinite,
-    or when its positive definite refactorization met a non-positive pivot (then no
-    ordering makes it positive definite). `previous` is spent either way (freed unless
+    when it has the same pattern and precision (and is indefinite, with `indefinite`);
+    otherwise a new one, positive definite first, then indefinite. Straight to the
+    indefinite type (one analysis instead of two: 0.8-1.4 s each on a quadratic sphere
+    of 6,327 tets) with `indefinite` (the caller knows the matrix is not positive
+    definite), when `previous` was indefinite, or when its positive definite
+    refactorization met a non-positive pivot (then no ordering makes it positive
+    definite). `previous` is spent either way (freed unless
     returned). Raises PardisoError."""
-    if previous is not None and previous.single == single and previous.same_pattern(upper):
+    known = previous is not None and (previous.mtype == SYMMETRIC_INDEFINITE or not indefinite)
+    if known and previous.single == single and previous.same_pattern(upper):
         try:
             previous.refactor(upper)
             return previous
