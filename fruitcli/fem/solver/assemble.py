@@ -73,11 +73,8 @@ class CsrPattern:
         # element entry (e, 3 la + i, 3 lb + j) is pair (e, la, lb)'s entry (i, j)
         d = 3 * nen
         dtype = np.int32 if len(indices) < 2**31 else np.int64
-        entry_slot = (
-            slot[pair_of[: m * nen * nen].reshape(m, nen, nen)]
-            .transpose(0, 1, 3, 2, 4)
-            .reshape(m * d * d)
-            .astype(dtype)
+        entry_slot = _entry_slots(
+            pair_of[: m * nen * nen].reshape(m, nen, nen), slot.astype(dtype), d
         )
         diag = slot[pair_of[m * nen * nen :]][:, comp, comp].reshape(-1)  # (3 n_nodes,)
         return cls(
@@ -111,4 +108,21 @@ def _scatter(values, slots, nnz):
         k = slots[i]
         if k >= 0:
             out[k] += values[i]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _entry_slots(pair_of, slot, d):
+    """(m d d,) CSR slot of each element entry (e, 3 la + i, 3 lb + j): entry (i, j) of
+    node pair pair_of[e, la, lb]'s slots slot (P, 3, 3)."""
+    m, nen = pair_of.shape[0], pair_of.shape[1]
+    out = np.empty(m * d * d, slot.dtype)
+    for e in range(m):
+        for la in range(nen):
+            for lb in range(nen):
+                p = pair_of[e, la, lb]
+                for i in range(3):
+                    base = e * d * d + (3 * la + i) * d + 3 * lb
+                    for j in range(3):
+                        out[base + j] = slot[p, i, j]
     return out

@@ -174,7 +174,9 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
-        _check_time(step)  # before this step's tangent (its factorization)
+        # not a step whose tangent's factorization (as long as the solver's last) would
+        # end past the deadline
+        _check_time(step, getattr(step.solver, "factor_seconds", 0.0))
         if step.report is not None:
             step.report(it, merit)
         if level == 0 and det_f.min() <= MIN_DET_F:
@@ -264,11 +266,12 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     return False, x, p, options.max_iterations, merit, det_f
 
 
-def _check_time(step: _Step) -> None:
-    """Raise OutOfTime past the step's deadline: checked before each Newton step's
-    tangent and each line-search evaluation, so that a state overruns its budget by at
-    most one tangent's factorization and solve."""
-    if step.deadline is not None and time.perf_counter() > step.deadline:
+def _check_time(step: _Step, ahead: float = 0.0) -> None:
+    """Raise OutOfTime when the step's deadline is less than `ahead` seconds away:
+    checked before each Newton step's tangent (`ahead` one factorization) and each
+    line-search evaluation (0), so that a state overruns its budget by little more than
+    a factorization that takes longer than the last one."""
+    if step.deadline is not None and time.perf_counter() + ahead > step.deadline:
         raise OutOfTime("time budget", 0.0)
 
 
