@@ -165,9 +165,10 @@ def follow(
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
     options = options or SolverOptions(load_steps=1)
     if len(getattr(model, "pinned_dofs", ())) and hasattr(solver, "indefinite"):
-        # on the 3-2-1 support the loaded tangents had 3 negative eigenvalues from the
-        # first sample on (the thick sphere, inflated and sucked in): skip the positive
-        # definite factorization that fails (the indefinite type factors either)
+        # on the 3-2-1 support the tangents at the Newton iterates of the first sample
+        # already had 3 negative eigenvalues (the thick sphere, inflated and sucked in;
+        # the default Fruit on its fixed base none): skip the positive definite
+        # factorization that fails there (the indefinite type factors either kind)
         solver.indefinite = True
     stretches = [1.0]
     last = None  # s: the longest sample so far (the next one's budget, STEP_BUDGET)

@@ -164,14 +164,3 @@ def test_a_positive_definite_refactorization_that_meets_a_negative_pivot_goes_in
     other = pardiso.factorize_upper(upper_triangle(laplacian(5)), again)
     assert other.mtype == pardiso.SYMMETRIC_INDEFINITE
     assert tried == [pardiso.SYMMETRIC_INDEFINITE] * 2
-
-
-def test_inertia_of_the_indefinite_factor():
-    """PARDISO's symmetric indefinite factor reports the inertia (iparm[21] positive,
-    iparm[22] negative eigenvalues): the 4^3 Laplacian shifted by 1.5 has the
-    eigenvalues 2 (3 - cos a - cos b - cos c) - 1.5, a, b, c in {k pi / 5}."""
-    n = 4
-    lam = 2 - 2 * np.cos(np.arange(1, n + 1) * np.pi / (n + 1))
-    eig = (lam[:, None, None] + lam[None, :, None] + lam[None, None, :]).ravel() - 1.5
-    fac = pardiso.factorize_upper(upper_triangle(laplacian(n, shift=1.5)), indefinite=True)
-    assert (fac.iparm[21], fac.iparm[22]) == ((eig > 0).sum(), (eig < 0).sum())
