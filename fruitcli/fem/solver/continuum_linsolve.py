@@ -43,8 +43,8 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
     precision with `single` when it passes its probe, else double; the numerical
     refactorization of `previous`, a factor this returned before, when the pattern and
     precision are the same; straight to the indefinite type with `indefinite`;
-    SolverError when it fails), otherwise Cholesky when k is
-    positive definite (checked on a solve), otherwise LU."""
+    SolverError when it fails), otherwise Cholesky when k is positive definite (checked
+    on a solve), otherwise LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None

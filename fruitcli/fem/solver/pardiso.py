@@ -258,8 +258,8 @@ def factorize_upper(
     of 6,327 tets) with `indefinite` (the caller knows the matrix is not positive
     definite), when `previous` was indefinite, or when its positive definite
     refactorization met a non-positive pivot (then no ordering makes it positive
-    definite). `previous` is spent either way (freed unless
-    returned). Raises PardisoError."""
+    definite). `previous` is spent either way (freed unless returned). Raises
+    PardisoError."""
     known = previous is not None and (previous.mtype == SYMMETRIC_INDEFINITE or not indefinite)
     if known and previous.single == single and previous.same_pattern(upper):
         try:
