@@ -233,6 +233,22 @@ def test_time_budget_names_the_load_fraction():
     assert info.value.fraction == 0.0
 
 
+def test_time_budget_looks_one_factorization_ahead():
+    """A Newton step is not started when the solver's last factorization, taken again,
+    would end past the deadline: with a 30 s budget and a last factorization of 60 s the
+    state stops at once (OutOfTime at 0.000); with one of 0 s it converges."""
+    model = octant_ball(1, 1, nu=0.49)
+    solver = model.make_solver("pcg")
+    solver.factor_seconds = 60.0
+    options = SolverOptions(max_seconds=30.0)
+    with pytest.raises(OutOfTime) as info:
+        solve_state(model, Load.pressures([5.0]), options=options, solver=solver)
+    assert info.value.fraction == 0.0
+    solver = model.make_solver("pcg")
+    res = solve_state(model, Load.pressures([5.0]), options=options, solver=solver)
+    assert res.iterations > 0 and solver.factor_seconds > 0.0
+
+
 def test_progress_of_a_long_state(monkeypatch):
     """A state running past PROGRESS_SECONDS reports load fraction, Newton step and
     residual through `progress` (here every Newton step: PROGRESS_SECONDS = 0)."""

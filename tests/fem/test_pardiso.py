@@ -112,3 +112,55 @@ def test_single_precision_factor_solves_to_single_precision_and_refactors_in_kin
     double = pardiso.factorize_upper(upper_triangle(k2), again)
     assert double is not again and not double.single and not again._alive
     assert np.linalg.norm(k2 @ double.solve(b) - b) < 1e-10 * np.linalg.norm(b)
+
+
+def counting(monkeypatch) -> list:
+    """The mtypes of the new PARDISO factors (analyses) tried from now on, in order."""
+    tried = []
+
+    class Counted(pardiso.Pardiso):
+        def __init__(self, upper, mtype=pardiso.SPD, single=False):
+            tried.append(mtype)
+            super().__init__(upper, mtype, single)
+
+    monkeypatch.setattr(pardiso, "Pardiso", Counted)
+    return tried
+
+
+def test_indefinite_hint_skips_the_positive_definite_analysis(monkeypatch):
+    """With `indefinite`, an indefinite matrix costs one analysis (not a failed positive
+    definite one first) and a positive definite one is factored as indefinite, both
+    solved to 1e-9."""
+    tried = counting(monkeypatch)
+    b = np.arange(216, dtype=float)
+    for shift in (1.0, 0.0):
+        k = laplacian(6, shift=shift)
+        fac = pardiso.factorize_upper(upper_triangle(k), indefinite=True)
+        assert fac.mtype == pardiso.SYMMETRIC_INDEFINITE
+        assert np.linalg.norm(k @ fac.solve(b) - b) < 1e-9 * np.linalg.norm(b)
+    assert tried == [pardiso.SYMMETRIC_INDEFINITE] * 2
+    spd = pardiso.factorize_upper(upper_triangle(k))  # a positive definite analysis
+    assert spd.mtype == pardiso.SPD and tried[-1] == pardiso.SPD
+    hinted = pardiso.factorize_upper(upper_triangle(k), spd, indefinite=True)
+    assert hinted.mtype == pardiso.SYMMETRIC_INDEFINITE and not spd._alive
+    assert tried[-1] == pardiso.SYMMETRIC_INDEFINITE
+
+
+def test_a_positive_definite_refactorization_that_meets_a_negative_pivot_goes_indefinite(
+    monkeypatch,
+):
+    """A positive definite factor refactorized with an indefinite matrix of its pattern
+    (its zero-pivot error, -4) is replaced by one new indefinite analysis, not a
+    positive definite one first; an indefinite previous factor's replacement (another
+    pattern) is indefinite at once too."""
+    k = laplacian(6)
+    fac = pardiso.factorize_upper(upper_triangle(k))
+    tried = counting(monkeypatch)
+    shifted = laplacian(6, shift=1.0)
+    again = pardiso.factorize_upper(upper_triangle(shifted), fac)
+    assert again.mtype == pardiso.SYMMETRIC_INDEFINITE and not fac._alive
+    b = np.ones(216)
+    assert np.linalg.norm(shifted @ again.solve(b) - b) < 1e-9 * np.linalg.norm(b)
+    other = pardiso.factorize_upper(upper_triangle(laplacian(5)), again)
+    assert other.mtype == pardiso.SYMMETRIC_INDEFINITE
+    assert tried == [pardiso.SYMMETRIC_INDEFINITE] * 2

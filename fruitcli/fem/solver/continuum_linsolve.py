@@ -37,18 +37,19 @@ class Factor(Protocol):
     def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
-def factorize(k, previous=None, single: bool = False) -> Factor:
+def factorize(k, previous=None, single: bool = False, indefinite: bool = False) -> Factor:
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical
     refactorization of `previous`, a factor this returned before, when the pattern and
-    precision are the same; SolverError when it fails), otherwise Cholesky when k is
-    positive definite (checked on a solve), otherwise LU."""
+    precision are the same; straight to the indefinite type with `indefinite`;
+    SolverError when it fails), otherwise Cholesky when k is positive definite (checked
+    on a solve), otherwise LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
         try:
-            fac = pardiso.factorize_probed(k, upper_triangle(k), previous, single)
+            fac = pardiso.factorize_probed(k, upper_triangle(k), previous, single, indefinite)
         except pardiso.PardisoError as exc:
             fac, why = None, str(exc)
         else:
@@ -102,6 +103,9 @@ class ContinuumSolver:
         self.k = None
         self.factor = None
         self.single = method == "pcg" and linsolve.SINGLE_PRECISION  # of the next factor
+        # a tangent found indefinite (past a limit point, a wall buckling): the next
+        # factors skip the positive definite attempt, a failed analysis each
+        self.indefinite = False
         self.refresh = False
         self.fresh = False
         self.rtol = PCG_RELATIVE_TOLERANCE
@@ -112,6 +116,7 @@ class ContinuumSolver:
         self.history = []
         self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
         self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
+        self.factor_seconds = 0.0  # the last factorization's (Newton's deadline looks ahead)
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
@@ -135,14 +140,17 @@ class ContinuumSolver:
     def _factorize(self) -> None:
         t0 = time.perf_counter()
         try:
-            self.factor = factorize(self.k, self.factor, self.single)
+            self.factor = factorize(self.k, self.factor, self.single, self.indefinite)
+            mtype = getattr(self.factor, "mtype", pardiso.SPD)
+            self.indefinite = self.indefinite or mtype == pardiso.SYMMETRIC_INDEFINITE
             # a tangent too ill-conditioned for single precision stays so: later
             # refreshes go to double precision at once
             self.single = self.single and self.factor.single
         except SolverError:
             self.factor = None  # spent: the next update factorizes afresh
             raise
-        self.stats["factor_s"] += time.perf_counter() - t0
+        self.factor_seconds = time.perf_counter() - t0
+        self.stats["factor_s"] += self.factor_seconds
         self.stats["factorizations"] += 1
         self.refresh, self.fresh = False, True
 

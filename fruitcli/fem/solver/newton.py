@@ -174,8 +174,9 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return True, x, p, it, merit, det_f
         if it == options.max_iterations:
             break
-        if step.deadline is not None and time.perf_counter() > step.deadline:
-            raise OutOfTime("time budget", 0.0)
+        # not a step whose tangent's factorization (as long as the solver's last) would
+        # end past the deadline
+        _check_time(step, getattr(step.solver, "factor_seconds", 0.0))
         if step.report is not None:
             step.report(it, merit)
         if level == 0 and det_f.min() <= MIN_DET_F:
@@ -228,6 +229,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
                 alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
                 continue
+            _check_time(step)
             trial = step.evaluate(xt, pt)
             if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
                 alpha *= 0.5
@@ -262,6 +264,15 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             step.solver.newton_c = trial[5] / merit**2  # nonlinear part dominates: observe C
         rot, det_f, h, r, g, merit, energy, f = trial
     return False, x, p, options.max_iterations, merit, det_f
+
+
+def _check_time(step: _Step, ahead: float = 0.0) -> None:
+    """Raise OutOfTime when the step's deadline is less than `ahead` seconds away:
+    checked before each Newton step's tangent (`ahead` one factorization) and each
+    line-search evaluation (0), so that a state overruns its budget by little more than
+    a factorization that takes longer than the last one."""
+    if step.deadline is not None and time.perf_counter() + ahead > step.deadline:
+        raise OutOfTime("time budget", 0.0)
 
 
 def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptions) -> bool:

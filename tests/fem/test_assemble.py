@@ -1,0 +1,73 @@
+"""The CSR pattern of the free dofs (`assemble.CsrPattern`): built from the node pairs
+that share an element, it equals the one read off every dof pair, and assembling with
+it equals SciPy's sum of the element blocks."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from fruitcli.fem.meshing.grid import structured_box
+from fruitcli.fem.solver.assemble import CsrPattern, element_dofs
+
+
+def dof_pairs_pattern(tets, n_nodes, free_mask):
+    """(indptr, indices, entry_slot, diag_slot) from every element's dof pairs and the
+    free dofs' diagonal, sorted by (row, column): the definition of the pattern."""
+    free = np.flatnonzero(free_mask)
+    new = np.full(3 * n_nodes, -1)
+    new[free] = np.arange(len(free))
+    dofs = element_dofs(tets)
+    d = dofs.shape[1]
+    rows = new[np.repeat(dofs, d, axis=1)].ravel()
+    cols = new[np.tile(dofs, (1, d))].ravel()
+    keep = (rows >= 0) & (cols >= 0)
+    n = len(free)
+    key = np.concatenate([rows[keep] * n + cols[keep], np.arange(n) * (n + 1)])
+    uniq, inverse = np.unique(key, return_inverse=True)
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(uniq // n, minlength=n), out=indptr[1:])
+    slot = np.full(len(keep), -1)
+    slot[keep] = inverse[: keep.sum()]
+    return indptr, uniq % n, slot, inverse[keep.sum() :]
+
+
+def quadratic_box():
+    """A 3 x 2 x 2 box of tets with 6 extra node numbers per tet (edge nodes as the
+    quadratic element numbers them: shared between the tets of an edge) and one node
+    in no element."""
+    nodes, tets = structured_box([0, 0, 0], [3, 2, 2], (3, 2, 2))
+    pairs = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]
+    edges = np.sort(np.stack([tets[:, [a, b]] for a, b in pairs], axis=1), axis=2)
+    uniq, edge_of = np.unique(edges.reshape(-1, 2), axis=0, return_inverse=True)
+    conn = np.hstack([tets, len(nodes) + edge_of.reshape(len(tets), 6)])
+    return conn, len(nodes) + len(uniq) + 1
+
+
+@pytest.mark.parametrize("quadratic", [False, True])
+def test_pattern_equals_the_dof_pairs_pattern_and_assembles_like_scipy(quadratic):
+    """With a third of the dofs fixed at random (and none), indptr, indices, each
+    element entry's slot and each diagonal's slot equal the dof-pair definition's, and
+    the assembled matrix equals SciPy's COO sum of the blocks (plus a diagonal)."""
+    if quadratic:
+        conn, n_nodes = quadratic_box()
+    else:
+        nodes, conn = structured_box([0, 0, 0], [3, 2, 2], (3, 2, 2))
+        n_nodes = len(nodes)
+    rng = np.random.default_rng(4)
+    for free_mask in (rng.random(3 * n_nodes) > 0.33, np.ones(3 * n_nodes, bool)):
+        pattern = CsrPattern.build(conn, n_nodes, free_mask)
+        indptr, indices, slot, diag = dof_pairs_pattern(conn, n_nodes, free_mask)
+        assert np.array_equal(pattern.indptr, indptr)
+        assert np.array_equal(pattern.indices, indices)
+        assert np.array_equal(pattern.entry_slot, slot)
+        assert np.array_equal(pattern.diag_slot, diag)
+        d = 3 * conn.shape[1]
+        blocks = rng.standard_normal((len(conn), d, d))
+        diagonal = rng.standard_normal(len(pattern.free))
+        got = pattern.assemble(blocks, diagonal)
+        dofs = element_dofs(conn)
+        full = sp.coo_matrix(
+            (blocks.ravel(), (np.repeat(dofs, d, axis=1).ravel(), np.tile(dofs, (1, d)).ravel())),
+            shape=(3 * n_nodes, 3 * n_nodes),
+        ).tocsr()[free_mask][:, free_mask] + sp.diags(diagonal)
+        assert abs(got - full).max() < 1e-12 * abs(full).max()

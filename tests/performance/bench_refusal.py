@@ -1,0 +1,108 @@
+"""Benchmark: how soon `fruit simulate` refuses a chamber pressure past the chamber's
+limit pressure (inflation) or collapse (suction) (`fruitcli.fem.limits.check_pressures`).
+
+1. A thick sphere (outer radius 20 mm: an icosphere of 1,280 faces; cavity radius 10 mm;
+   E = 100 kPa, nu = 0.45, `[mesh] size_mm = 3`, the default quadratic element; no
+   support: the 3-2-1 one) with its cavity at -500 kPa and at 2000 kPa.
+2. The default Fruit (pipelines/fruit-breathing.toml: gravity, fixed base) with chamber
+   c1 at -500 kPa and at 2000 kPa, the others at 0 (skip with --no-fruit).
+
+Each line: the time from the mesh (the tetra stage's last line) to the refusal, the
+whole command's wall time, the exit code and the refusal's first words. The load
+average is printed before and after (2 cores shared: compare figures taken at a like
+load).
+
+Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit]
+"""
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+MAX_RUNS = 1  # four `fruit simulate` runs of 10-35 s each
+
+SPHERE = """[geometry]
+solid = "ball.stl"
+[[geometry.chamber]]
+name = "cavity"
+ellipsoid = {{center_mm = [0.0, 0.0, 0.0], radii_mm = [10.0, 10.0, 10.0]}}
+[mesh]
+size_mm = 3
+[material]
+young_modulus_kpa = 100
+poisson_ratio = 0.45
+[actuation]
+pressure_kpa = {{ cavity = [{p}] }}
+"""
+
+
+def fruit_scene(pressure: float) -> str:
+    """The default Fruit's scene with c1 at `pressure` (kPa), c2 and c3 at 0, one state."""
+    text = (ROOT / "pipelines" / "fruit-breathing.toml").read_text()
+    artist = ROOT / "data" / "generated" / "fruit_artist.ply"
+    text = re.sub(r'(?m)^artist = "[^"]*"', f'artist = "{artist}"', text)
+    return re.sub(
+        r"(?m)^pressure_kpa = .*$",
+        f"pressure_kpa = {{ c1 = [{pressure}], c2 = [0.0], c3 = [0.0] }}",
+        text,
+    )
+
+
+def refuse(scene: Path, out: Path) -> str:
+    """One line: `fruit simulate` on `scene`, timed from the mesh to its last line."""
+    fruit = Path(sys.executable).parent / "fruit"
+    t0 = time.monotonic()
+    proc = subprocess.Popen(
+        [str(fruit), "simulate", str(scene), "--out", str(out)],
+        cwd=scene.parent,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=os.environ | {"MPLBACKEND": "Agg"},
+    )
+    meshed, last = None, ""
+    for line in proc.stdout:
+        now = time.monotonic() - t0
+        if re.search(r"tetra: \d+ tets", line):
+            meshed = now
+        if line.strip():
+            last, at = line.strip(), now
+    code = proc.wait()
+    wall = time.monotonic() - t0
+    after = "?" if meshed is None else f"{at - meshed:.1f} s"
+    return f"{after} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--no-fruit", action="store_true")
+    args = parser.parse_args()
+    print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        import trimesh
+
+        trimesh.creation.icosphere(3, 20.0).export(tmp / "ball.stl")
+        for p in (-500.0, 2000.0):
+            scene = tmp / f"sphere_{p:g}.toml"
+            scene.write_text(SPHERE.format(p=p))
+            line = refuse(scene, tmp / f"o_sphere_{p:g}")
+            print(f"thick sphere, cavity at {p:g} kPa: {line}")
+        if not args.no_fruit:
+            for p in (-500.0, 2000.0):
+                scene = tmp / f"fruit_{p:g}.toml"
+                scene.write_text(fruit_scene(p))
+                line = refuse(scene, tmp / f"o_fruit_{p:g}")
+                print(f"default Fruit, c1 at {p:g} kPa: {line}")
+    print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
