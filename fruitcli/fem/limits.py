@@ -143,6 +143,7 @@ def follow(
     fall_steps: int = FALL_STEPS,
     budget: tuple[float, float] | None = None,
     stop_at_asked: bool = True,
+    halvings: int = 0,
     progress=None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
@@ -155,7 +156,10 @@ def follow(
     `deadline` (time.monotonic()) ends the curve where it is; `budget` (factor, floor)
     caps each sample after the first (default STEP_BUDGET). Without `stop_at_asked`,
     `stop_beyond_kpa` only ends an inflation whose curve levels off below it (the
-    curve otherwise goes on to its peak). `progress(msg)` is told each sample."""
+    curve otherwise goes on to its peak). A sample after the first that finds no
+    equilibrium is tried again up to `halvings` times, each time half as far from the
+    last sample (the step stays shorter afterwards), before the curve ends there.
+    `progress(msg)` is told each sample."""
     r = ratio_of(model, k)
     alone = isinstance(k, (int, np.integer))
     name = model.chamber_names[k] if alone else TOGETHER
@@ -206,6 +210,12 @@ def follow(
                 label=f"chamber {name}",
             )
         except SolverError as exc:
+            if halvings > 0 and last is not None:
+                halvings -= 1
+                s, step = stretches[-1], step / 2
+                if progress:
+                    progress(f"limits: chamber {name}: no equilibrium; a step of {step:.3g}")
+                continue
             why = (
                 "no equilibrium found within the time"
                 if isinstance(exc, OutOfTime)
@@ -402,6 +412,14 @@ def check_pressures(
                     f"{key}: {asked:g} kPa is past this chamber's limit pressure of "
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it"
+                )
+            if direction > 0 and curve.failed:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa was not reached: following this chamber's "
+                    "inflation by volume control found no equilibrium beyond "
+                    f"{kpa(max(curve.pressure_kpa))} kPa ({curve.end}; past a limit point, "
+                    "or the body does not hold under its other loads); lower it or give "
+                    "`volume_growth_mm3`"
                 )
             if direction < 0 and curve.failed:
                 raise SceneError(

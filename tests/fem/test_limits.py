@@ -555,3 +555,40 @@ def test_a_chamber_wall_that_is_not_closed_is_refused_in_one_line():
     assert "\n" not in str(info.value)
     with pytest.raises(MeshError, match="'c': the mesh has no wall for it"):
         check_closed_walls({"c": octahedron[:0]})
+
+
+def test_a_failed_sample_is_tried_again_with_half_the_step(monkeypatch):
+    """`follow(..., halvings=1)`: a sample that finds no equilibrium (here forced once, at
+    mean stretch 1.3) is tried again half as far from the last one; the curve goes on in
+    the shorter steps to the same limit. Without halvings the curve ends there, and the
+    check refuses the pressure asked in one line (no equilibrium beyond the last)."""
+    model = octant_ball(1, 1, nu=0.49)
+    real = limits.solve_state
+    failed = []
+
+    def flaky(model, load, **kw):
+        v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
+        if abs(v - 1.3**3) < 1e-9 and not failed:
+            failed.append(v)
+            raise SolverError("chamber c: no equilibrium (forced)")
+        return real(model, load, **kw)
+
+    whole = limits.follow(model, 0)
+    monkeypatch.setattr(limits, "solve_state", flaky)
+    curve = limits.follow(model, 0, halvings=1)
+    assert failed
+    stretch = (np.array(curve.growth_mm3) / curve.rest_volume_mm3 + 1.0) ** (1 / 3)
+    assert np.allclose(stretch[:4], [1.0, 1.1, 1.2, 1.25], atol=2e-3)
+    assert curve.limit_pressure_kpa == pytest.approx(whole.limit_pressure_kpa, rel=2e-3)
+    failed.clear()
+    ended = limits.follow(model, 0)
+    assert ended.failed and ended.end == "no equilibrium at 2.20 V0"
+    failed.clear()
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(
+            model, np.array([[26.0]]), ["k"], model.make_solver(), SolverOptions(), screen=0.0
+        )
+    assert str(info.value).startswith(
+        "k: 26 kPa was not reached: following this chamber's inflation by volume control "
+        "found no equilibrium beyond "
+    )
