@@ -11,8 +11,7 @@ others at rest (pressure 0).
   meet (self-contact is not modelled): the volume under COLLAPSE_VOLUME of its rest
   volume or the next sample's below it, an element at the wall about to invert (det F
   under COLLAPSE_DET_F), the pressure turning back towards 0 (the wall buckling in) or
-  no equilibrium; the
-  collapse pressure is the lowest pressure reached.
+  no equilibrium; the collapse pressure is the lowest pressure reached.
 
 Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
 of a spherical cavity). Units: mm, mm^3, kPa.

@@ -218,7 +218,8 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
         raise MeshError(
             f"mesh chambers {names} do not match the scene's {wanted}; rerun `fruit tetra`"
         )
-    check_closed_walls(io.chamber_dict(mesh))
+    chambers = io.chamber_dict(mesh)
+    check_closed_walls(chambers)
     mat = scene.material
     material = materials.from_scene(mat)
     element = scene.fem.element
@@ -234,7 +235,7 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
             density_kg_m3=mat.density_kg_m3,
             gravity_m_s2=gravity,
             fixed_nodes=fixed,
-            chambers=io.chamber_dict(mesh),
+            chambers=chambers,
             jigs=_jigs(scene, nodes),
             prescribed=moved,
         )
@@ -243,7 +244,6 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     if flip.any():
         tets = tets.copy()
         tets[flip] = tets[flip][:, [0, 2, 1, 3]]
-    chambers = io.chamber_dict(mesh)
     walls = [pressure.orient_outward(nodes, t) for t in chambers.values()]
     if ELEMENTS[element].order == 2:
         nodes, tets, walls = quadratic_mesh(nodes, tets, walls)

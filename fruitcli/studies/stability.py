@@ -229,7 +229,7 @@ poisson_ratio = {nu}
 
 
 REALISTIC_SECONDS = 60.0
-"""[solver] max_seconds of the realistic bodies' states."""
+"""Time budget (s) of a realistic body's row: mesh, check and state together."""
 
 ROW_MARGIN_SECONDS = 3.0
 """Of a realistic row's budget, the time kept back for a state's last Newton step to end
