@@ -62,12 +62,12 @@ def stability(out_dir, groups, jobs, scheduler) -> None:
     final residual, max displacement (mm), min det F, time (s).
     """
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    from fruitcli.studies.machine import machine_line
     from fruitcli.studies.parallel import run_cases
     from fruitcli.studies.stability import (
         HEADER,
         add_scaling_columns,
         default_cases,
-        machine_line,
         run_case,
         table_markdown,
     )

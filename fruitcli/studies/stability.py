@@ -430,26 +430,3 @@ def table_markdown(rows: list[dict]) -> str:
     for r in rows:
         lines.append("| " + " | ".join(_fmt(r.get(h)).replace("|", "/") for h in HEADER) + " |")
     return "\n".join(lines) + "\n"
-
-
-def machine_line() -> str:
-    """Where and when the study ran: UTC date, fruitcli version, processor and cores."""
-    import datetime
-    import importlib.metadata
-    import os
-    import platform
-
-    date = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in open("/proc/cpuinfo").read().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        version = importlib.metadata.version("fruitcli")
-    except importlib.metadata.PackageNotFoundError:
-        version = "(not installed)"
-    return f"Run {date}, fruitcli {version}, {cpu}, {os.cpu_count()} cores."

@@ -22,6 +22,8 @@ import sys
 import time
 from pathlib import Path
 
+from fruitcli.studies.machine import processor
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 NUMBER = re.compile(r"(?<![A-Za-z_\d.])[-+]?\d[\d,]*(?:\.\d+)?(?:[eE][-+]?\d+)?(?![A-Za-z_\d])")
@@ -71,16 +73,6 @@ def figures(outputs: list[str]) -> list[dict]:
             }
         )
     return out
-
-
-def processor() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def commit() -> str:
