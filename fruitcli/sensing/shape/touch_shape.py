@@ -86,19 +86,13 @@ def gap_law_shapes(
     """`touch_shapes` for a `heights.GapLaw`, compiled (`shape_kernel`)."""
     from fruitcli.sensing.shape.shape_kernel import gap_law_shapes as kernel
 
-    gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
     out = np.empty((len(v9), 4))
     kernel(
         np.ascontiguousarray(v9, dtype=float),
         np.ascontiguousarray(taxel9, np.int64),
         np.ascontiguousarray(pos9, dtype=float),
         np.ascontiguousarray(xyz, dtype=float),
-        float(law.contact),
-        float(law.gap_decay_mm),
-        float(law.sigma_mm),
-        float(law.noise_std_counts),
-        np.asarray(gain, dtype=float),
-        MIN_COUNTS,
+        *_law_arguments(law, taxel9),
         out,
     )
     return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
@@ -135,7 +129,6 @@ def frame_shapes(
     from fruitcli.sensing.shape.shape_kernel import gathered_shapes
 
     law = model
-    gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
     out = np.empty((len(taxel9), 4))
     gathered_shapes(
         counts,
@@ -147,15 +140,25 @@ def frame_shapes(
         np.ascontiguousarray(pos, dtype=float),
         np.ascontiguousarray(pos_row, np.int64),
         np.ascontiguousarray(xyz, dtype=float),
+        *_law_arguments(law, taxel9),
+        out,
+    )
+    return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
+
+
+def _law_arguments(law, taxel9: np.ndarray) -> tuple:
+    """The compiled kernels' trailing arguments for a `heights.GapLaw`: contact counts,
+    gap decay (mm), footprint sigma (mm), noise std (counts), gains per taxel (unit gains
+    up to taxel9's largest index when the law has none) and MIN_COUNTS."""
+    gain = law.gain if law.gain is not None else _ones(int(taxel9.max()) + 1)
+    return (
         float(law.contact),
         float(law.gap_decay_mm),
         float(law.sigma_mm),
         float(law.noise_std_counts),
         np.asarray(gain, dtype=float),
         MIN_COUNTS,
-        out,
     )
-    return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
 
 _ONES = np.ones(0)
