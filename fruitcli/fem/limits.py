@@ -143,6 +143,7 @@ def follow(
     budget: tuple[float, float] | None = None,
     stop_at_asked: bool = True,
     halvings: int = 0,
+    beyond: tuple | None = None,
     progress=None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
@@ -158,6 +159,8 @@ def follow(
     curve otherwise goes on to its peak). A sample after the first that finds no
     equilibrium is tried again up to `halvings` times, each time half as far from the
     last sample (the step stays shorter afterwards), before the curve ends there.
+    `beyond` = (budget, halvings): those of the samples after the pressure passed
+    `stop_beyond_kpa` (a check going on to the limit as `fruit limits` does).
     `progress(msg)` is told each sample."""
     r = ratio_of(model, k)
     alone = isinstance(k, (int, np.integer))
@@ -238,9 +241,12 @@ def follow(
                 f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
                 f"{res.solve_ms / 1e3:.1f} s)"
             )
-        if stop_at_asked and stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0:
+        passed = stop_beyond_kpa is not None and direction * (p - stop_beyond_kpa) >= 0
+        if passed and stop_at_asked:
             curve.end = f"the pressure asked ({stop_beyond_kpa:g} kPa)"
             break
+        if passed and beyond is not None:
+            (budget, halvings), beyond = beyond, None
         pr = np.array(curve.pressure_kpa)
         bound = levels_off_below(model, pr, s, step)
         if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
@@ -297,6 +303,12 @@ thick sphere's cavity buckling in at 0.34 V0) is the refusal's evidence, and it 
 reached in half the time (the converging samples take 3-4 Newton steps each, the
 first, from rest, the longest)."""
 
+CURVE_HALVINGS = 2
+"""Times an inflation sample of `fruit limits` that finds no equilibrium is tried again
+half as far from the last one: near a flat chamber's peak a step of 0.1 in the mean
+stretch can be too long (the default Fruit's chambers together found none at 4.9 V0
+after 4.1 V0)."""
+
 CHECK_SUBDIVISIONS = 2
 """Load-step halvings of a sample of `check_pressures` (the scene's [solver]
 max_subdivisions is for its states): a sample that needs more is past the range the
@@ -343,6 +355,7 @@ def _check_curve(model, which, direction: int, asked: float, solver, check, prog
         fall_steps=1,
         budget=CHECK_BUDGET,
         stop_at_asked=found is None,
+        beyond=(STEP_BUDGET, CURVE_HALVINGS if direction > 0 else 0),
         progress=progress,
     )
     forget(solver)
@@ -412,7 +425,7 @@ def check_pressures(
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it"
                 )
-            if direction > 0 and curve.failed:
+            if direction > 0 and curve.failed and max(curve.pressure_kpa) < asked:
                 raise SceneError(
                     f"{key}: {asked:g} kPa was not reached: following this chamber's "
                     "inflation by volume control found no equilibrium beyond "

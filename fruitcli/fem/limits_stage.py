@@ -48,13 +48,6 @@ past the peak of a flat chamber is its slowest (on the default Fruit, chamber c1
 second sample past its peak took 185 s of the curve's 420 s)."""
 
 
-CURVE_HALVINGS = 2
-"""Times an inflation sample of `fruit limits` that finds no equilibrium is tried again
-half as far from the last one: near a flat chamber's peak a step of 0.1 in the mean
-stretch can be too long (the default Fruit's chambers together found none at 4.9 V0
-after 4.1 V0)."""
-
-
 def curve_options(options) -> SolverOptions:
     """The scene's [solver] options for the samples of a curve: Newton's tolerance
     loosened to `limits.CHECK_TOLERANCE` (the pressure to four digits)."""
@@ -65,7 +58,9 @@ def follow_both(model, k: int, options, progress=_noop) -> tuple:
     """(suction curve, inflation curve) of chamber k, each on a fresh solver."""
     kw = {"options": options, "progress": progress}
     down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
-    up = limits.follow(model, k, 1, fall_steps=CURVE_FALL_STEPS, halvings=CURVE_HALVINGS, **kw)
+    up = limits.follow(
+        model, k, 1, fall_steps=CURVE_FALL_STEPS, halvings=limits.CURVE_HALVINGS, **kw
+    )
     return down, up
 
 
@@ -136,7 +131,7 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             1,
             options=options,
             fall_steps=CURVE_FALL_STEPS,
-            halvings=CURVE_HALVINGS,
+            halvings=limits.CURVE_HALVINGS,
             progress=progress,
         )
         together = {

@@ -537,6 +537,41 @@ def test_a_line_search_that_rejects_every_trial_fails_cleanly(monkeypatch):
         solve_state(model, Load.pressures([5.0]), options=options)
 
 
+def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
+    """The limits stage's check (`check_pressures` with a `found` list) goes on past the
+    pressure asked (20 kPa, reached at mean stretch 1.3) to the limit. A sample past it
+    that runs out of its time (forced once, at 1.5: a slower machine) is tried again at
+    half the step, as `fruit limits` does, and the curve reaches the same limit; the
+    pressure asked, which was reached, is not refused."""
+    model = octant_ball(1, 1, nu=0.49)
+    whole = limits.follow(model, 0)
+    real = limits.solve_state
+    failed = []
+
+    def slow(model, load, **kw):
+        v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
+        if abs(v - 1.5**3) < 1e-9 and not failed:
+            failed.append(v)
+            raise OutOfTime("chamber c: out of time (forced)", 0.5)
+        return real(model, load, **kw)
+
+    monkeypatch.setattr(limits, "solve_state", slow)
+    found = []
+    limits.check_pressures(
+        model,
+        np.array([[20.0]]),
+        ["k"],
+        model.make_solver(),
+        SolverOptions(),
+        screen=0.0,
+        found=found,
+    )
+    assert failed and len(found) == 1
+    ((direction, curve),) = found
+    assert direction == 1 and not curve.failed
+    assert curve.limit_pressure_kpa == pytest.approx(whole.limit_pressure_kpa, rel=2e-3)
+
+
 def test_a_chamber_wall_that_is_not_closed_is_refused_in_one_line():
     """A chamber whose wall triangles in the mesh leave an edge open (here an octahedron
     with one face missing) has no volume: one MeshError line naming the chamber."""
