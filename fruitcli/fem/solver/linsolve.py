@@ -145,7 +145,8 @@ class TangentSolver:
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
         self.history = []  # converged (load vector, x, p) for the next state's predictor
-        self.sensitivity = None  # (n, 3, K) dx/dp at the first state (newton.py)
+        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
+        self.sensitivity = None
         self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
         self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
         pardiso.available()  # MKL loaded here, not inside the first state's time

@@ -519,60 +519,57 @@ only start Newton, which the tangent's own staleness already limits to first ord
 
 
 def _remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: int) -> None:
-    """Keep on the solver dx/dp (n, 3, K) at the first converged state x: the nodes'
-    response to each pressure-controlled chamber's pressure, K^-1 H_k^T with the solver's
-    current tangent (one CG solve per chamber, counted in this state's time and the
-    solver's stats). `_sensitivity_guess` starts the next states with it while the
-    history is too short to span the load changes (a new animation's first states took
-    2-3 Newton steps instead of 1). Nothing is kept without pressure-controlled
-    chambers, or when the state needed no Newton step (the solver has no tangent yet).
-    A volume-controlled chamber is held at its pressure here, not at its volume: a
-    rougher start, which Newton corrects (or retries from the plain start)."""
+    """Keep on the solver, at the first converged state x, (dx/dp (n, 3, K), C (K, K)):
+    the nodes' response to each chamber's pressure, K^-1 H_k^T with the solver's current
+    tangent (one CG solve per chamber, counted in this state's time and the solver's
+    stats), and the chambers' volume compliance C = H dx/dp (mm^3/kPa).
+    `_sensitivity_guess` starts the next states with it while the history is too short
+    to span the load changes (a new animation's first states took 2-3 Newton steps
+    instead of 1; the second sample of a pressure-volume curve 10 instead of 4). Nothing
+    is kept without chambers, or when the state needed no Newton step (the solver has no
+    tangent yet)."""
     solver.sensitivity = None
-    if iterations == 0:
-        return
     k = len(model.chamber_tris)
-    pressure = ~np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
-    if not pressure.any():
+    if iterations == 0 or k == 0:
         return
     free = model.pattern.free
     h = model.chamber_gradients(x).reshape(k, -1)[:, free]
     rtol = solver.rtol
     solver.rtol = SENSITIVITY_RTOL
     try:
-        cols = solver.solve(np.ascontiguousarray(h[pressure].T))
+        cols = solver.solve(np.ascontiguousarray(h.T)).reshape(len(free), k)
     except SolverError:
         return
     finally:
         solver.rtol = rtol
     sens = np.zeros((3 * model.n_nodes, k))
-    sens[np.ix_(free, np.flatnonzero(pressure))] = cols.reshape(len(free), -1)
-    solver.sensitivity = sens.reshape(model.n_nodes, 3, k)
+    sens[free] = cols
+    solver.sensitivity = (sens.reshape(model.n_nodes, 3, k), h @ cols)
 
 
 def _sensitivity_guess(solver, x_start, load: Load):
     """Start of the next state when `_history_guess` has none: the kept states' secant as
-    far as they span the load change (least squares, bounded weights), the rest of the
-    change in pressure through the first state's dx/dp (`_remember_sensitivity`).
-    Only when x_start is the last state kept and nothing but pressure-controlled
-    chambers' pressures changed; None otherwise."""
-    sens = getattr(solver, "sensitivity", None)
+    far as they span the load change (least squares, bounded weights), the rest through
+    the first state's dx/dp (`_remember_sensitivity`): a pressure-controlled chamber's
+    pressure change directly, a volume-controlled one's volume change through the
+    pressure change dp_v = C_vv^-1 (dV_v - C_vp dp_p) that makes it (chambers together
+    along ratios r: dp = r (r.dV) / (r C r)). Only when x_start
+    is the last state kept and nothing but the chambers' pressures or volumes changed;
+    None otherwise."""
+    kept = getattr(solver, "sensitivity", None)
     history = solver.history
     if (
-        sens is None
+        kept is None
         or not history
         or x_start is None
         or not np.array_equal(x_start, history[-1][1])
     ):
         return None
+    sens, compliance = kept
     q_last, x_last, p_last = history[-1]
     dq = _load_vector(load) - q_last
     k = len(load.volume_controlled)
-    if len(dq) != len(q_last) or k != sens.shape[2] or not np.any(dq):
-        return None
-    pressure = np.zeros(len(dq), bool)
-    pressure[:k] = ~np.asarray(load.volume_controlled, bool)
-    if np.any(dq[~pressure]):
+    if len(dq) != len(q_last) or k != sens.shape[2] or not np.any(dq) or np.any(dq[k:]):
         return None
     prev = history[-2::-1]
     x, p = x_last, p_last.copy()
@@ -583,7 +580,21 @@ def _sensitivity_guess(solver, x_start, load: Load):
             c = np.zeros(len(prev))
         x, p = _secant(prev, c, x_last, p_last)
         dq = dq - d @ c
-    return x + sens @ dq[:k], p
+    vc = np.asarray(load.volume_controlled, bool)
+    dp = dq[:k].copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if load.ratio is not None:  # together: dp = r dlambda, r.dV = the growth's change
+            r = np.asarray(load.ratio, float)
+            dp = r * float(r @ dq[:k]) / float(r @ compliance @ r)
+        elif vc.any():
+            rest = dq[:k][vc] - compliance[np.ix_(vc, ~vc)] @ dp[~vc]
+            try:
+                dp[vc] = np.linalg.solve(compliance[np.ix_(vc, vc)], rest)
+            except np.linalg.LinAlgError:
+                return None
+    if not np.all(np.isfinite(dp)):
+        return None
+    return x + sens @ dp, p + np.where(vc, dp, 0.0)
 
 
 def _moments(d: np.ndarray, order: int) -> np.ndarray:
