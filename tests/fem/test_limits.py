@@ -537,6 +537,22 @@ def test_a_line_search_that_rejects_every_trial_fails_cleanly(monkeypatch):
         solve_state(model, Load.pressures([5.0]), options=options)
 
 
+def failing_once_at(stretch: float, error: Exception):
+    """(limits.solve_state that raises `error` once, at chamber 0's mean stretch
+    `stretch`, the list it notes that failure in; clear the list to fail again)."""
+    real = limits.solve_state
+    failed = []
+
+    def solve(model, load, **kw):
+        v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
+        if abs(v - stretch**3) < 1e-9 and not failed:
+            failed.append(v)
+            raise error
+        return real(model, load, **kw)
+
+    return solve, failed
+
+
 def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     """The limits stage's check (`check_pressures` with a `found` list) goes on past the
     pressure asked (20 kPa, reached at mean stretch 1.3) to the limit. A sample past it
@@ -545,16 +561,7 @@ def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     pressure asked, which was reached, is not refused."""
     model = octant_ball(1, 1, nu=0.49)
     whole = limits.follow(model, 0)
-    real = limits.solve_state
-    failed = []
-
-    def slow(model, load, **kw):
-        v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
-        if abs(v - 1.5**3) < 1e-9 and not failed:
-            failed.append(v)
-            raise OutOfTime("chamber c: out of time (forced)", 0.5)
-        return real(model, load, **kw)
-
+    slow, failed = failing_once_at(1.5, OutOfTime("chamber c: out of time (forced)", 0.5))
     monkeypatch.setattr(limits, "solve_state", slow)
     found = []
     limits.check_pressures(
@@ -598,16 +605,7 @@ def test_a_failed_sample_is_tried_again_with_half_the_step(monkeypatch):
     the shorter steps to the same limit. Without halvings the curve ends there, and the
     check refuses the pressure asked in one line (no equilibrium beyond the last)."""
     model = octant_ball(1, 1, nu=0.49)
-    real = limits.solve_state
-    failed = []
-
-    def flaky(model, load, **kw):
-        v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
-        if abs(v - 1.3**3) < 1e-9 and not failed:
-            failed.append(v)
-            raise SolverError("chamber c: no equilibrium (forced)")
-        return real(model, load, **kw)
-
+    flaky, failed = failing_once_at(1.3, SolverError("chamber c: no equilibrium (forced)"))
     whole = limits.follow(model, 0)
     monkeypatch.setattr(limits, "solve_state", flaky)
     curve = limits.follow(model, 0, halvings=1)

@@ -13,6 +13,17 @@ from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 
+def hollow_box(nu: float) -> Model:
+    """A 12 mm cube of 6 x 6 x 6 cells with a 4 mm cubic cavity "c" in its middle, E = 100
+    kPa, Poisson's ratio nu, its bottom face fixed."""
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
+    )
+    return Model.from_arrays(
+        nodes, tets, 100.0, nu, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
+    )
+
+
 def bent_pad(steps=8, solver="pcg"):
     """A 40 x 16 x 2 mm pad, left strip fixed, right strip carried 180 degrees over the
     y axis through a pivot 7.4 mm above the mid-plane (the touchpad scene's bend)."""
@@ -69,12 +80,7 @@ def test_state_sequence_continued_from_previous_states_matches_fresh_solves():
     secant start from the previous states) give the fresh solution of each state (1e-5
     of the displacement) in no more Newton iterations than without the secant start
     (here 22 against 24 in all)."""
-    nodes, tets, cav = structured_box_with_cavity(
-        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
-    )
-    m = Model.from_arrays(
-        nodes, tets, 100.0, 0.3, chambers={"c": cav}, fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0)
-    )
+    m = hollow_box(0.3)
     opts = SolverOptions(tolerance=1e-8)
     totals = []
     for secant in (True, False):
@@ -98,45 +104,43 @@ def test_state_sequence_continued_from_previous_states_matches_fresh_solves():
     assert totals[0] < totals[1]
 
 
+def second_state(m, a: Load, b: Load, opts, keep: bool):
+    """(the first state under a, `_sensitivity_guess`'s start for b, the state under b
+    from the first) on a fresh solver; without `keep`, the first state's sensitivity is
+    dropped (no guess)."""
+    from fruitcli.fem.solver.newton import _sensitivity_guess
+
+    solver = TangentSolver(m)
+    first = solve_state(m, a, options=opts, solver=solver)
+    assert solver.sensitivity is not None
+    if not keep:
+        solver.sensitivity = None
+    guess = _sensitivity_guess(solver, first.x, b)
+    assert (guess is not None) == keep
+    res = solve_state(
+        m,
+        b,
+        x_start=first.x,
+        load_start=a,
+        pressure_start=first.pressure_kpa,
+        options=opts,
+        solver=solver,
+    )
+    return first, guess, res
+
+
 def test_first_state_sensitivity_starts_the_next_state_to_first_order():
     """After the first state (4 kPa) the solver keeps dx/dp = K^-1 H^T; the next state
     (5 kPa), whose history is too short for the secant, starts from x + dx/dp dp: within
     3 % of the displacement between the two states (the start at the previous state is
     100 % off), and it converges in no more Newton iterations than from there, to the
     same solution (1e-6 of the displacement)."""
-    from fruitcli.fem.solver.newton import _sensitivity_guess
-
-    nodes, tets, cav = structured_box_with_cavity(
-        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
-    )
-    m = Model.from_arrays(
-        nodes,
-        tets,
-        100.0,
-        0.45,
-        chambers={"c": cav},
-        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
-    )
+    m = hollow_box(0.45)
     opts = SolverOptions(tolerance=1e-8)
     a, b = Load.pressures([4.0]), Load.pressures([5.0])
     results = []
     for keep in (True, False):
-        solver = TangentSolver(m)
-        first = solve_state(m, a, options=opts, solver=solver)
-        assert solver.sensitivity is not None
-        if not keep:
-            solver.sensitivity = None
-        guess = _sensitivity_guess(solver, first.x, b)
-        assert (guess is not None) == keep
-        res = solve_state(
-            m,
-            b,
-            x_start=first.x,
-            load_start=a,
-            pressure_start=first.pressure_kpa,
-            options=opts,
-            solver=solver,
-        )
+        first, guess, res = second_state(m, a, b, opts, keep)
         results.append(res)
         if keep:
             step = np.abs(res.x - first.x).max()
@@ -154,39 +158,13 @@ def test_first_state_sensitivity_starts_a_volume_change_to_first_order():
     change; 5 mm^3 further, both errors half as large (a first-order guess), and fewer
     Newton iterations than from the previous state."""
     from fruitcli.fem.limits import chamber_load
-    from fruitcli.fem.solver.newton import _sensitivity_guess
 
-    nodes, tets, cav = structured_box_with_cavity(
-        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
-    )
-    m = Model.from_arrays(
-        nodes,
-        tets,
-        100.0,
-        0.45,
-        chambers={"c": cav},
-        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
-    )
+    m = hollow_box(0.45)
     opts = SolverOptions(tolerance=1e-10)
     a = chamber_load(m, 0, 40.0)
     errors, iterations = [], []
     for further, keep in ((10.0, True), (5.0, True), (5.0, False)):
-        solver = TangentSolver(m)
-        first = solve_state(m, a, options=opts, solver=solver)
-        if not keep:
-            solver.sensitivity = None
-        b = chamber_load(m, 0, 40.0 + further)
-        guess = _sensitivity_guess(solver, first.x, b)
-        assert (guess is not None) == keep
-        res = solve_state(
-            m,
-            b,
-            x_start=first.x,
-            load_start=a,
-            pressure_start=first.pressure_kpa,
-            options=opts,
-            solver=solver,
-        )
+        first, guess, res = second_state(m, a, chamber_load(m, 0, 40.0 + further), opts, keep)
         iterations.append(res.iterations)
         if keep:
             step = np.abs(res.x - first.x).max()
@@ -291,17 +269,7 @@ def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(m
     on both paths."""
     from fruitcli.fem.solver import newton
 
-    nodes, tets, cav = structured_box_with_cavity(
-        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
-    )
-    m = Model.from_arrays(
-        nodes,
-        tets,
-        100.0,
-        0.49,
-        chambers={"c": cav},
-        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
-    )
+    m = hollow_box(0.49)
     pressures = [2.0, 5.0, 8.0, 10.0, 8.0, 5.0, 2.0, 0.5, 3.0, 7.0]
     ref = [
         solve_state(
@@ -349,17 +317,7 @@ def test_first_state_at_rest_keeps_no_sensitivity_and_the_next_solves():
     """A first state that needs no Newton step (zero pressure from the rest positions,
     as a scene starting at rest twice) leaves no dx/dp (the solver has no tangent yet)
     and no error; the next state converges."""
-    nodes, tets, cav = structured_box_with_cavity(
-        [0, 0, 0], [12, 12, 12], (6, 6, 6), [4, 4, 4], [8, 8, 8]
-    )
-    m = Model.from_arrays(
-        nodes,
-        tets,
-        100.0,
-        0.45,
-        chambers={"c": cav},
-        fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
-    )
+    m = hollow_box(0.45)
     solver = TangentSolver(m)
     rest = solve_state(m, Load.pressures([0.0]), x_start=m.rest.copy(), solver=solver)
     assert rest.iterations == 0 and solver.sensitivity is None
