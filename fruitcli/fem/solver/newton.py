@@ -525,7 +525,8 @@ def _remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: 
     stats), and the chambers' volume compliance C = H dx/dp (mm^3/kPa).
     `_sensitivity_guess` starts the next states with it while the history is too short
     to span the load changes (a new animation's first states took 2-3 Newton steps
-    instead of 1; the second sample of a pressure-volume curve 10 instead of 4). Nothing
+    instead of 1; the default Fruit's second sample of a pressure-volume curve 10 instead
+    of 3). Nothing
     is kept without chambers, or when the state needed no Newton step (the solver has no
     tangent yet)."""
     solver.sensitivity = None
@@ -553,9 +554,8 @@ def _sensitivity_guess(solver, x_start, load: Load):
     the first state's dx/dp (`_remember_sensitivity`): a pressure-controlled chamber's
     pressure change directly, a volume-controlled one's volume change through the
     pressure change dp_v = C_vv^-1 (dV_v - C_vp dp_p) that makes it (chambers together
-    along ratios r: dp = r (r.dV) / (r C r)). Only when x_start
-    is the last state kept and nothing but the chambers' pressures or volumes changed;
-    None otherwise."""
+    along ratios r: dp = r (r.dV) / (r C r)). Only when x_start is the last state kept
+    and nothing but the chambers' pressures or volumes changed; None otherwise."""
     kept = getattr(solver, "sensitivity", None)
     history = solver.history
     if (
