@@ -526,9 +526,8 @@ def _remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: 
     `_sensitivity_guess` starts the next states with it while the history is too short
     to span the load changes (a new animation's first states took 2-3 Newton steps
     instead of 1; the default Fruit's second sample of a pressure-volume curve 10 instead
-    of 3). Nothing
-    is kept without chambers, or when the state needed no Newton step (the solver has no
-    tangent yet)."""
+    of 3). Nothing is kept without chambers, or when the state needed no Newton step
+    (the solver has no tangent yet)."""
     solver.sensitivity = None
     k = len(model.chamber_tris)
     if iterations == 0 or k == 0:
