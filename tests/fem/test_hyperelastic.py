@@ -4,7 +4,8 @@ finite differences for every element x material pair, shape functions reproducin
 complete polynomial, the mechanical patch test, rigid motions, the cavity wall's
 volume, gradient and Hessian on curved 6-node triangles, uniaxial tension against the
 closed form, the cantilever under gravity at nu = 0.49, a sagging beam at nu = 0.4999
-solved through bulk-modulus stages, and the bad inputs."""
+solved through bulk-modulus stages (and without them when a stage fails), and the bad
+inputs."""
 
 import numpy as np
 import pytest
@@ -360,3 +361,18 @@ def test_nearly_incompressible_sag_converges_through_bulk_stages(monkeypatch):
     assert merits[-1] <= 0.01 * merits[-2] and merits[-2] <= 0.01 * merits[-3]
     direct = solve_state(m, Load.pressures([], gravity=1.0), m.rest.copy(), options=options)
     assert np.abs(res.x - direct.x).max() < 1e-3
+
+
+def test_a_failing_bulk_stage_falls_back_on_the_solve_without_stages():
+    """A stage that finds no equilibrium (here one at 10^4 times the bulk modulus, past
+    which Newton fails in 25 steps) leaves the state to the solve from rest without
+    stages: the same equilibrium to the last digit, the material restored."""
+    m = sagging_beam(0.4999)
+    mu, kappa = m.material.shear_modulus_kpa, m.material.bulk_modulus_kpa
+    m.bulk_stages = lambda: [50.0 * mu, 1e4 * kappa]
+    options = SolverOptions(load_steps=4, linear_solver=SOLVER)
+    load = Load.pressures([], gravity=0.25)
+    res = solve_state(m, load, options=options)
+    direct = solve_state(m, load, m.rest.copy(), options=options)
+    assert m.material.bulk_modulus_kpa == kappa
+    assert res.residual <= 1e-6 and np.array_equal(res.x, direct.x)

@@ -408,7 +408,7 @@ def _through_bulk_stages(
     (`solver` keeps only states of the body itself), then with the body's own bulk
     modulus from the last. A stage after the first changes no load, so it is not
     subdivided: when one fails, the state is solved from rest as without stages.
-    Iterations, subdivisions and time count every stage."""
+    Iterations and subdivisions count every stage that converged, the time all."""
     t0 = time.perf_counter()
 
     def budget(opts: SolverOptions) -> SolverOptions:  # the state's time budget left
@@ -418,22 +418,23 @@ def _through_bulk_stages(
 
     after = replace(options, load_steps=1, max_subdivisions=0)
     staged = model.make_solver(options.linear_solver)
-    x, p, iterations, subdivisions = None, pressure_start, 0, 0
+    x, p, start = model.rest.copy(), pressure_start, load_start
+    iterations, subdivisions = 0, 0
     try:
-        for kappa in stages:
+        for i, kappa in enumerate(stages):
             with model.bulk_modulus(kappa):
                 r = solve_state(
                     model,
                     load,
                     x,
-                    load_start if x is None else load,
+                    start,
                     p,
-                    budget(options if x is None else after),
+                    budget(after if i else options),
                     staged,
                     f"{label} (bulk modulus {kappa:.4g} kPa)",
                     progress,
                 )
-            x, p = r.x, r.pressure_kpa
+            x, p, start = r.x, r.pressure_kpa, load
             iterations, subdivisions = iterations + r.iterations, subdivisions + r.subdivisions
         r = solve_state(model, load, x, load, p, budget(after), solver, label, progress)
     except OutOfTime:
