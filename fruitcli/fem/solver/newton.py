@@ -16,7 +16,7 @@ from __future__ import annotations
 import functools
 import itertools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -315,6 +315,11 @@ def solve_state(
         load_start = Load.zero(k, vc)
     if x_start is None and (load.is_zero() or _unloaded(model, load)):
         return _result(model, model.rest.copy(), np.zeros(k), 0, 0.0, 0, t0)
+    stages = model.bulk_stages() if x_start is None and hasattr(model, "bulk_stages") else []
+    if stages:
+        return _through_bulk_stages(
+            model, load, load_start, pressure_start, stages, options, solver, label, progress
+        )
     x = model.rest.copy() if x_start is None else np.array(x_start, float)
     p = np.zeros(k) if pressure_start is None else np.array(pressure_start, float)
     if k:
@@ -392,6 +397,66 @@ def solve_state(
     if first:
         _remember_sensitivity(model, solver, x, load, iterations)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
+
+
+def _through_bulk_stages(
+    model, load, load_start, pressure_start, stages, options, solver, label, progress
+) -> StateResult:
+    """`solve_state` from rest of a body stiff in bulk (`continuum.FIRST_BULK_RATIO`):
+    with each bulk modulus of `stages` (kPa) in turn, the first from rest along
+    options.load_steps and each next from the last equilibrium, on a solver of their own
+    (`solver` keeps only states of the body itself), then with the body's own bulk
+    modulus from the last. A stage after the first changes no load, so it is not
+    subdivided: when one fails, the state is solved from rest as without stages.
+    Iterations and subdivisions count every stage that converged, the time all."""
+    t0 = time.perf_counter()
+
+    def budget(opts: SolverOptions) -> SolverOptions:  # the state's time budget left
+        if options.max_seconds <= 0:
+            return opts
+        return replace(opts, max_seconds=max(options.max_seconds - time.perf_counter() + t0, 1e-3))
+
+    after = replace(options, load_steps=1, max_subdivisions=0)
+    staged = model.make_solver(options.linear_solver)
+    x, p, start = model.rest.copy(), pressure_start, load_start
+    iterations, subdivisions = 0, 0
+    try:
+        for i, kappa in enumerate(stages):
+            with model.bulk_modulus(kappa):
+                r = solve_state(
+                    model,
+                    load,
+                    x,
+                    start,
+                    p,
+                    budget(after if i else options),
+                    staged,
+                    f"{label} (bulk modulus {kappa:.4g} kPa)",
+                    progress,
+                )
+            x, p, start = r.x, r.pressure_kpa, load
+            iterations, subdivisions = iterations + r.iterations, subdivisions + r.subdivisions
+        r = solve_state(model, load, x, load, p, budget(after), solver, label, progress)
+    except OutOfTime:
+        raise
+    except SolverError:
+        r = solve_state(
+            model,
+            load,
+            model.rest.copy(),
+            load_start,
+            pressure_start,
+            budget(options),
+            solver,
+            label,
+            progress,
+        )
+    return replace(
+        r,
+        iterations=iterations + r.iterations,
+        subdivisions=subdivisions + r.subdivisions,
+        solve_ms=1e3 * (time.perf_counter() - t0),
+    )
 
 
 def _report(
