@@ -425,6 +425,13 @@ def check_pressures(
                     f"{kpa(curve.limit_pressure_kpa)} kPa (no equilibrium above it); give "
                     "`volume_growth_mm3` to follow the inflation past it"
                 )
+            if direction > 0 and curve.failed and len(curve.pressure_kpa) == 1:
+                raise SceneError(
+                    f"{key}: {asked:g} kPa was not reached: following this chamber's "
+                    "inflation by volume control found no equilibrium at its first sample "
+                    f"({curve.end}): the body may not hold under its other loads (its "
+                    "weight, jigs); check them, or lower the pressure"
+                )
             if direction > 0 and curve.failed and max(curve.pressure_kpa) < asked:
                 raise SceneError(
                     f"{key}: {asked:g} kPa was not reached: following this chamber's "

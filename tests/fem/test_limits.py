@@ -579,6 +579,26 @@ def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     assert curve.limit_pressure_kpa == pytest.approx(whole.limit_pressure_kpa, rel=2e-3)
 
 
+def test_a_first_sample_without_equilibrium_is_refused_as_not_holding(monkeypatch):
+    """When the check's first sample (from rest) finds no equilibrium (forced here; a
+    body too soft for its own weight in the stability study), the pressure is refused in
+    one line that says so, not as a limit: no pressure was reached beyond rest."""
+    model = octant_ball(1, 1, nu=0.49)
+    flaky, failed = failing_once_at(1.1, SolverError("chamber c: no equilibrium (forced)"))
+    monkeypatch.setattr(limits, "solve_state", flaky)
+    with pytest.raises(SceneError) as info:
+        limits.check_pressures(
+            model, np.array([[5.0]]), ["k"], model.make_solver(), SolverOptions(), screen=0.0
+        )
+    assert failed
+    assert str(info.value) == (
+        "k: 5 kPa was not reached: following this chamber's inflation by volume control "
+        "found no equilibrium at its first sample (no equilibrium at 1.33 V0): the body "
+        "may not hold under its other loads (its weight, jigs); check them, or lower the "
+        "pressure"
+    )
+
+
 def test_a_chamber_wall_that_is_not_closed_is_refused_in_one_line():
     """A chamber whose wall triangles in the mesh leave an edge open (here an octahedron
     with one face missing) has no volume: one MeshError line naming the chamber."""
