@@ -27,7 +27,7 @@ from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig, nodes_in_box, rotation_matrix
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
 from fruitcli.fem.units import body_force_mn_mm3
 
 RNG = np.random.default_rng(7)
@@ -376,3 +376,18 @@ def test_a_failing_bulk_stage_falls_back_on_the_solve_without_stages():
     direct = solve_state(m, load, m.rest.copy(), options=options)
     assert m.material.bulk_modulus_kpa == kappa
     assert res.residual <= 1e-6 and np.array_equal(res.x, direct.x)
+
+
+def test_a_state_out_of_time_in_a_bulk_stage_says_so_in_one_line():
+    """The beam at nu = 0.4999 with a budget too short for anything: one OutOfTime line
+    with the label, the configured budget and the stage reached (the first, 50 mu)."""
+    m = sagging_beam(0.4999)
+    first = m.bulk_stages()[0]
+    options = SolverOptions(load_steps=4, linear_solver=SOLVER, max_seconds=1e-9)
+    with pytest.raises(OutOfTime) as info:
+        solve_state(m, Load.pressures([], gravity=1.0), options=options, label="state 0")
+    assert str(info.value) == (
+        f"state 0: stopped after 1e-09 s ([solver].max_seconds) at bulk modulus {first:.4g} "
+        "kPa (a body this stiff in bulk is solved through softer bulk moduli first); raise "
+        "[solver].max_seconds"
+    )

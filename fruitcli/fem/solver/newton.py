@@ -407,8 +407,9 @@ def _through_bulk_stages(
     options.load_steps and each next from the last equilibrium, on a solver of their own
     (`solver` keeps only states of the body itself), then with the body's own bulk
     modulus from the last. A stage after the first changes no load, so it is not
-    subdivided: when one fails, the state is solved from rest as without stages.
-    Iterations and subdivisions count every stage that converged, the time all."""
+    subdivided: when one fails, the state is solved from rest as without stages. Past
+    options.max_seconds, one OutOfTime line names the stage reached. Iterations and
+    subdivisions count every stage that converged, the time all."""
     t0 = time.perf_counter()
 
     def budget(opts: SolverOptions) -> SolverOptions:  # the state's time budget left
@@ -420,8 +421,11 @@ def _through_bulk_stages(
     staged = model.make_solver(options.linear_solver)
     x, p, start = model.rest.copy(), pressure_start, load_start
     iterations, subdivisions = 0, 0
+    own = model.material.bulk_modulus_kpa
+    at = f"bulk modulus {stages[0]:.4g} kPa"
     try:
         for i, kappa in enumerate(stages):
+            at = f"bulk modulus {kappa:.4g} kPa"
             with model.bulk_modulus(kappa):
                 r = solve_state(
                     model,
@@ -436,9 +440,15 @@ def _through_bulk_stages(
                 )
             x, p, start = r.x, r.pressure_kpa, load
             iterations, subdivisions = iterations + r.iterations, subdivisions + r.subdivisions
+        at = f"its own bulk modulus, {own:.4g} kPa"
         r = solve_state(model, load, x, load, p, budget(after), solver, label, progress)
-    except OutOfTime:
-        raise
+    except OutOfTime as exc:
+        raise OutOfTime(
+            f"{label}: stopped after {options.max_seconds:g} s ([solver].max_seconds) at "
+            f"{at} (a body this stiff in bulk is solved through softer bulk moduli first); "
+            "raise [solver].max_seconds",
+            exc.fraction,
+        ) from None
     except SolverError:
         r = solve_state(
             model,
