@@ -348,8 +348,8 @@ def _start_from_last(solver) -> None:
     `_sensitivity_guess`). Near a flat chamber's peak the wall turns, and a start
     extrapolated along straight lines dilates its elements: on the default Fruit's c1
     the sample past the peak took 21 Newton steps from the secant over the kept states,
-    16 from the last state's own tangent and 10 from the last state, and the curve 85 s
-    instead of 46 s. Suction keeps the secant (3 steps a sample on the same chamber, 4-7
+    16 from the last state's own tangent and 10 from the last state; the curve took 34 s
+    instead of 85 s. Suction keeps the secant (3 steps a sample on the same chamber, 4-7
     from the last state)."""
     solver.history, solver.sensitivity = solver.history[-1:], None
 

@@ -599,6 +599,37 @@ def test_a_first_sample_without_equilibrium_is_refused_as_not_holding(monkeypatc
     )
 
 
+def test_inflation_samples_start_from_the_last_one_and_suction_from_the_secant(monkeypatch):
+    """An inflation curve's samples from the third on start from the last sample (no
+    secant over the kept states: `_start_from_last`); the second starts from the first
+    state's tangent; a suction curve keeps the secant from its third sample on."""
+    from fruitcli.fem.solver import newton
+
+    model = octant_ball(1, 1, nu=0.49)
+    starts = []
+    secant, tangent = newton._history_guess, newton._sensitivity_guess
+
+    def spy_secant(history, x_start, load):
+        guess = secant(history, x_start, load)
+        starts.append("secant" if guess is not None else None)
+        return guess
+
+    def spy_tangent(solver, x_start, load):
+        guess = tangent(solver, x_start, load)
+        if guess is not None:
+            starts[-1] = "tangent"
+        return guess
+
+    monkeypatch.setattr(newton, "_history_guess", spy_secant)
+    monkeypatch.setattr(newton, "_sensitivity_guess", spy_tangent)
+    up = limits.follow(model, 0, 1)
+    assert up.limit_pressure_kpa is not None
+    assert starts[:2] == [None, "tangent"] and set(starts[2:]) == {None}
+    starts.clear()
+    limits.follow(model, 0, -1)
+    assert starts[:2] == [None, "tangent"] and set(starts[2:]) == {"secant"}
+
+
 def test_a_chamber_wall_that_is_not_closed_is_refused_in_one_line():
     """A chamber whose wall triangles in the mesh leave an edge open (here an octahedron
     with one face missing) has no volume: one MeshError line naming the chamber."""
