@@ -422,7 +422,6 @@ def _through_bulk_stages(
     x, p, start = model.rest.copy(), pressure_start, load_start
     iterations, subdivisions = 0, 0
     own = model.material.bulk_modulus_kpa
-    at = f"bulk modulus {stages[0]:.4g} kPa"
     try:
         for i, kappa in enumerate(stages):
             at = f"bulk modulus {kappa:.4g} kPa"
@@ -443,29 +442,39 @@ def _through_bulk_stages(
         at = f"its own bulk modulus, {own:.4g} kPa"
         r = solve_state(model, load, x, load, p, budget(after), solver, label, progress)
     except OutOfTime as exc:
-        raise OutOfTime(
-            f"{label}: stopped after {options.max_seconds:g} s ([solver].max_seconds) at "
-            f"{at} (a body this stiff in bulk is solved through softer bulk moduli first); "
-            "raise [solver].max_seconds",
-            exc.fraction,
-        ) from None
+        raise _stage_out_of_time(label, options, at, exc) from None
     except SolverError:
-        r = solve_state(
-            model,
-            load,
-            model.rest.copy(),
-            load_start,
-            pressure_start,
-            budget(options),
-            solver,
-            label,
-            progress,
-        )
+        at = f"its own bulk modulus, {own:.4g} kPa, from rest (a softer stage failed)"
+        try:
+            r = solve_state(
+                model,
+                load,
+                model.rest.copy(),
+                load_start,
+                pressure_start,
+                budget(options),
+                solver,
+                label,
+                progress,
+            )
+        except OutOfTime as exc:
+            raise _stage_out_of_time(label, options, at, exc) from None
     return replace(
         r,
         iterations=iterations + r.iterations,
         subdivisions=subdivisions + r.subdivisions,
         solve_ms=1e3 * (time.perf_counter() - t0),
+    )
+
+
+def _stage_out_of_time(label: str, options, at: str, exc: OutOfTime) -> OutOfTime:
+    """The one line of a state through bulk stages stopped at its time budget: the
+    configured budget and the stage it was in (`at`)."""
+    return OutOfTime(
+        f"{label}: stopped after {options.max_seconds:g} s ([solver].max_seconds) at "
+        f"{at} (a body this stiff in bulk is solved through softer bulk moduli first); "
+        "raise [solver].max_seconds",
+        exc.fraction,
     )
 
 
