@@ -378,6 +378,12 @@ def _check_curve(model, which, direction: int, asked: float, solver, check, prog
     return curve
 
 
+def pressure_keys(names: list[str]) -> list[str]:
+    """The scene keys of the chambers' pressures ([actuation].pressure_kpa.<name>), as
+    `check_pressures` names them in its refusals."""
+    return [f"[actuation].pressure_kpa.{name}" for name in names]
+
+
 def check_pressures(
     model,
     pressures: np.ndarray,

@@ -250,7 +250,7 @@ def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
     loads = state_loads(scene, names)
     limits.check_growth(model, loads)
     asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
-    keys = [f"[actuation].pressure_kpa.{c}" for c in names]
+    keys = limits.pressure_keys(names)
     found: list = []
     solver = model.make_solver(scene.solver.linear_solver)
     limits.check_pressures(

@@ -333,10 +333,11 @@ def run_simulate(
         table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
         loads = [Load.pressures(row) for row in table]
     solver = model.make_solver(scene.solver.linear_solver)
-    keys = [
-        f"--pressures {c}_kpa" if pressures is not None else f"[actuation].pressure_kpa.{c}"
-        for c in model.chamber_names
-    ]
+    keys = (
+        [f"--pressures {c}_kpa" for c in model.chamber_names]
+        if pressures is not None
+        else limits.pressure_keys(model.chamber_names)
+    )
     if model.chamber_tris:
         limits.check_growth(model, loads)
         asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])

@@ -347,7 +347,7 @@ def run_case(case: Case) -> dict:
 
             options = replace(options, load_steps=4, max_seconds=left())
             solver = model.make_solver()
-            keys = [f"[actuation].pressure_kpa.{n}" for n in model.chamber_names]
+            keys = limits.pressure_keys(model.chamber_names)
             limits.check_pressures(model, load.pressure_kpa[None, :], keys, solver, options)
             options = replace(options, max_seconds=left())
             row["note"] = ""
