@@ -29,6 +29,8 @@ from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
 from fruitcli.geometry.mesh.load import UNIT_TO_MM
+from fruitcli.sensing.detection.methods import METHODS as DETECTION_METHODS
+from fruitcli.sensing.detection.methods import method_help
 
 NUM = (int, float)
 
@@ -357,9 +359,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "method": Key(
             "str",
             "n9",
-            "n9 (paper), n9_floor, peaks or fit2 (two footprints "
-            "of the [skin] fitted around each peak: fingers close together)",
-            choices=("n9", "n9_floor", "peaks", "fit2"),
+            "how touches are found and placed: " + method_help(),
+            choices=tuple(DETECTION_METHODS),
         ),
         "noise_floor_counts": Key(
             "num",

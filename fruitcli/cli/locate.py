@@ -17,6 +17,7 @@ from fruitcli.cli.options import (
     taxels_option,
     threshold_option,
 )
+from fruitcli.sensing.detection.methods import METHODS, method_help
 
 
 @click.command()
@@ -36,10 +37,9 @@ from fruitcli.cli.options import (
 @threshold_option
 @click.option(
     "--method",
-    type=click.Choice(["n9", "n9_floor", "peaks", "fit2"]),
+    type=click.Choice(list(METHODS)),
     default=None,
-    help="n9: the paper's sequential N9 (default); n9_floor; peaks; fit2 (two "
-    "footprints of the skin fitted around each peak).",
+    help=method_help() + ".",
 )
 @click.option(
     "--surface",

@@ -247,8 +247,9 @@ def run_locate(
             if projector is not None:
                 table.xyz_mm, dist = projector.project(table.xyz_mm)
             keep = None if rec.sample is None else _sample_touches(table, rec.sample)
-            return touch_bytes(table, rec.t_s), len(table), keep, dist
+            return touch_bytes(table, rec.t_s, model), len(table), keep, dist
 
+        model = locator.model is not None
         with touch_csv(
             out_dir / "touches.csv",
             [
@@ -257,7 +258,15 @@ def run_locate(
                 "coordinates, x_mm, y_mm, z_mm in mm, peak in counts, height_mm "
                 "above the surface and height_err_mm its uncertainty in mm, strength "
                 "(1: contact), size_mm footprint sigma in mm, kind touch or hover"
+                + (
+                    "; pos_err_mm the model fit's 1-sigma radius in mm, residual its RMS "
+                    "weighted residual (1: at the noise), fit model or n9 (fit failed, N9 "
+                    "point kept)"
+                    if model
+                    else ""
+                )
             ],
+            model,
         ) as out:
             for data, count, keep, dist in locator.chunks(
                 rec.read, len(rec), baseline, pressure, chunk_frames, rows, workers

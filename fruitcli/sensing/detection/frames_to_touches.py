@@ -50,6 +50,8 @@ from fruitcli.sensing.detection.detect import (
 )
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
+from fruitcli.sensing.detection.methods import METHODS
+from fruitcli.sensing.detection.model_fit import FIT_MODEL, FootprintLaw, Window, refine
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
 from fruitcli.sensing.shape.two_footprints import fit2_touches
@@ -75,25 +77,21 @@ def detect(
     footprint=None,
 ) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
-    ``[detection].method``: n9 (paper), n9_floor, peaks or fit2 (with the skin's
-    `two_footprints.Footprint`); activations divided by `gain` (T,) when given."""
-    if method in ("n9", "n9_floor"):
-        return n9_sequential(
-            frames,
-            baseline,
-            layout,
-            threshold,
-            floor if method == "n9_floor" else 0.0,
-            max_touches,
-            gain,
-        )
-    if method in ("peaks", "fit2"):
-        values = np.take(frames, layout.frame_cell, axis=1)
-        flat = activation_grid(values, baseline, grid, gain)
-        if method == "fit2":
-            return fit2_touches(flat, grid, threshold, footprint, max_touches)
-        return n9_peaks(flat, grid, threshold, floor, max_touches)
-    raise FrameError(f"detection method: expected n9, n9_floor, peaks or fit2, got {method!r}")
+    ``[detection].method`` (`methods.METHODS`): the sequential N9 or every peak's, fit2's
+    footprints (with the skin's `two_footprints.Footprint`); the model method's touches
+    are the sequential N9's here, refined where the taxels' positions are known
+    (`Locator`). Activations are divided by `gain` (T,) when given."""
+    m = METHODS.get(method)
+    if m is None:
+        raise FrameError(f"detection method: expected one of {', '.join(METHODS)}, got {method!r}")
+    floor = floor if m.floor else 0.0
+    if m.extract == "sequential":
+        return n9_sequential(frames, baseline, layout, threshold, floor, max_touches, gain)
+    values = np.take(frames, layout.frame_cell, axis=1)
+    flat = activation_grid(values, baseline, grid, gain)
+    if m.refine == "fit2":
+        return fit2_touches(flat, grid, threshold, footprint, max_touches)
+    return n9_peaks(flat, grid, threshold, floor, max_touches)
 
 
 @dataclass(frozen=True)
@@ -162,7 +160,7 @@ class Settings:
 
     @property
     def floor(self) -> float:
-        return self.noise_floor_counts if self.method != "n9" else 0.0
+        return self.noise_floor_counts if METHODS[self.method].floor else 0.0
 
 
 FIELDS = (
@@ -177,6 +175,9 @@ FIELDS = (
     "strength",
     "size_mm",
     "kind",
+    "pos_err_mm",
+    "residual",
+    "fit",
 )
 
 
@@ -184,8 +185,9 @@ FIELDS = (
 class TouchTable:
     """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak
     (counts), height above the surface and its 1-sigma uncertainty (mm), strength
-    (1: contact), footprint size (mm,
-    see `touch_shape`) and kind (TOUCH or HOVER). Shapes not given are NaN, kinds TOUCH."""
+    (1: contact), footprint size (mm, see `touch_shape`), kind (TOUCH or HOVER) and,
+    with the model method (`model_fit`), the point's 1-sigma radius (mm), the fit's
+    residual and its outcome. Shapes not given are NaN, kinds TOUCH, fits FIT_NONE."""
 
     frame: np.ndarray
     touch: np.ndarray
@@ -198,14 +200,19 @@ class TouchTable:
     strength: np.ndarray | None = None
     size_mm: np.ndarray | None = None
     kind: np.ndarray | None = None  # (n,) int8
+    pos_err_mm: np.ndarray | None = None  # (n,) the model fit's 1-sigma radius, NaN: none
+    residual: np.ndarray | None = None  # (n,) its RMS weighted residual, NaN: none
+    fit: np.ndarray | None = None  # (n,) int8 model_fit.FIT_NONE, FIT_MODEL or FIT_N9
 
     def __post_init__(self):
         n = len(self.frame)
-        for name in ("height_mm", "height_err_mm", "strength", "size_mm"):
+        for name in ("height_mm", "height_err_mm", "strength", "size_mm", "pos_err_mm", "residual"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(n, np.nan))
         if self.kind is None:
             self.kind = np.full(n, TOUCH, np.int8)
+        if self.fit is None:
+            self.fit = np.zeros(n, np.int8)
 
     def __len__(self) -> int:
         return int(self.frame.shape[0])
@@ -270,6 +277,16 @@ class Locator:
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
+        self.model = None  # (window, law) of the model method
+        if settings.method not in METHODS:
+            raise FrameError(
+                f"[detection].method: expected one of {', '.join(METHODS)}, got {settings.method!r}"
+            )
+        if METHODS[settings.method].refine == "model":
+            law = FootprintLaw.of(heights)
+            if self.gain is not None:  # activations divided by the gains already
+                law = FootprintLaw(law.profile, law.sigma_mm, law.noise_std_counts)
+            self.model = (Window(taxels.i, taxels.j), law)
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board.rows, board.cols)
@@ -371,14 +388,26 @@ class Locator:
             )
             end = start + frames.shape[0]
             tax = np.where(t.taxel < 0, 0, t.taxel)
+            s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
             if self.reduced is not None and pressure_kpa is not None:
                 pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
                 pos9 = pos[np.arange(len(tax))[:, None], tax]
                 xyz = np.einsum("nk,nkd->nd", t.weight, pos9)
+
+                def taxel_points(win):
+                    return pos[np.arange(len(win))[:, None], win]
             else:
-                s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
                 xyz = touches_3d(t, self.positions_mm, s0, f0)
                 pos9 = None if seg is None else self._taxel_points(tax, t.frame, s0, f0)
+
+                def taxel_points(win):
+                    return self._taxel_points(win, t.frame, s0, f0)
+
+            fitted = None
+            if self.model is not None and len(t):
+                v = np.take(frames.reshape(frames.shape[0], -1), self.layout.frame_cell, axis=1)
+                fitted = self._refine(t, v, baseline, taxel_points)
+                xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             if pos9 is None:  # one state: the N9 positions are rows of positions_mm
                 points, rows = self.positions_mm, tax
             else:
@@ -395,26 +424,46 @@ class Locator:
                 xyz,
                 self.heights,
             )
+            extra = {}
+            if fitted is not None:
+                extra = {
+                    "pos_err_mm": fitted.pos_err_mm,
+                    "residual": fitted.residual,
+                    "fit": fitted.fit,
+                }
             return finish(
                 TouchTable(
                     t.frame + start,
                     t.rank,
-                    t.i,
-                    t.j,
+                    t.i if fitted is None else fitted.i,
+                    t.j if fitted is None else fitted.j,
                     xyz,
                     t.peak,
                     sh.height_mm,
                     sh.height_err_mm,
                     sh.strength,
                     sh.size_mm,
+                    **extra,
                 )
             )
 
         yield from _in_order(job, starts, workers)
 
+    def _refine(self, t: Touches, values: np.ndarray, baseline: np.ndarray, taxel_points):
+        """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
+        counts are `values` (F, T); ``taxel_points(win)`` gives positions (n, K, 3)."""
+        v = np.maximum(values - baseline, 0.0)
+        if self.gain is not None:
+            v = v / self.gain
+        window, law = self.model
+        return refine(
+            t.frame, t.taxel[:, 4], t.i, t.j, t.peak, v, window, taxel_points, law, t.taxel
+        )
+
     def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
-        """Positions (n, 9, 3) mm of the N9 taxels `tax` (n, 9) of touches in frames
-        `frame` (n,) (on the state path `seg`, `frac` when positions are per state)."""
+        """Positions (n, K, 3) mm of taxels `tax` (n, K) (a touch's N9 or window) of
+        touches in frames `frame` (n,) (on the state path `seg`, `frac` when positions
+        are per state)."""
         pos = self.positions_mm
         if pos.ndim == 2:
             return pos[tax]
@@ -541,10 +590,11 @@ class Stream:
             if self.tracker is not None and len(self.tracker.prev_ids):
                 self.tracker.end_all()
             return self._empty
-        if s.method in ("peaks", "fit2"):
+        method = METHODS[s.method]
+        if method.extract == "peaks":
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
-            if s.method == "fit2":
+            if method.refine == "fit2":
                 from fruitcli.sensing.shape.two_footprints import fit2_touches
 
                 t = fit2_touches(flat, loc.grid, thr, loc.footprint, s.max_touches)
@@ -560,7 +610,7 @@ class Stream:
                 lay.ci,
                 lay.cj,
                 float(thr),
-                float(s.floor if s.method == "n9_floor" else 0.0),
+                float(s.floor),
                 int(s.max_touches),
                 self._scratch,
                 self._k,
@@ -576,7 +626,29 @@ class Stream:
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
         pos9 = pos[tax]
         xyz = (w[:, None, :] @ pos9)[:, 0, :]
-        tax9 = t.taxel if s.method in ("peaks", "fit2") else loc.layout.n9_taxel[self._k[:n]]
+        tax9 = t.taxel if method.extract == "peaks" else loc.layout.n9_taxel[self._k[:n]]
+        extra = {}
+        if loc.model is not None and n:
+            window, law = loc.model
+            fitted = refine(
+                np.zeros(n, np.int64),
+                tax9[:, 4],
+                i,
+                j,
+                peak,
+                v[None, :],
+                window,
+                lambda win: pos[win],
+                law,
+                tax9,
+            )
+            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
+            i, j = fitted.i, fitted.j
+            extra = {
+                "pos_err_mm": fitted.pos_err_mm,
+                "residual": fitted.residual,
+                "fit": fitted.fit,
+            }
         sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
@@ -592,6 +664,7 @@ class Stream:
             sh.strength,
             sh.size_mm,
             kind,
+            **extra,
         )
 
     def _positions(self, pressure_kpa) -> np.ndarray:

@@ -29,6 +29,7 @@ from fruitcli.sensing.detection.frames_to_touches import (
     TouchTable,
 )
 from fruitcli.sensing.detection.health import TaxelHealth
+from fruitcli.sensing.detection.model_fit import FIT_NAMES, FIT_NONE
 from fruitcli.sensing.detection.sessions import DEFAULT_GATE_MM, SessionStep, SessionTracker
 from fruitcli.sensing.live.serial_ports import LineReader, PortClosed, PressureState
 
@@ -188,6 +189,10 @@ def _shape(t: TouchTable, n: int) -> dict:
         )
     }
     out["kind"] = KIND_NAMES[int(t.kind[n])]
+    if t.fit[n] != FIT_NONE:  # the model method's fit
+        for k, v in (("pos_err_mm", t.pos_err_mm[n]), ("residual", t.residual[n])):
+            out[k] = None if np.isnan(v) else round(float(v), 4)
+        out["fit"] = FIT_NAMES[int(t.fit[n])]
     return out
 
 

@@ -1,0 +1,264 @@
+"""Touches placed by the skin's model (``[detection].method = "model"``).
+
+Units: mm, counts, grid units (taxel pitches).
+
+The paper's N9 centroid pulls every touch towards the nearest crossing: a weighted mean
+of three taxels per axis cannot reach past them, and the footprint's shape is ignored.
+Here each touch the paper's multitouch finds (`detect.n9_sequential`) is refined by a
+least-squares fit of the skin's footprint to the taxels around its peak (its N9 and the
+ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state puts it:
+
+- the contact point runs over the surface the window's taxels span: a quadratic map
+  c(a, b) of the grid coordinates fitted to the taxels' 3D positions (the N9 weighted
+  twice the ring), so it follows the deformed body as the taxels do;
+- taxel k reads A g_k f(|c - P_k| / s): f the skin's radial footprint (the Gaussian
+  law's or the crossing table's, `FootprintLaw.of`) at its calibrated width, A the
+  amplitude, s the width's scale (a wider object, a farther gap), g_k the taxel's gain;
+- s has a prior: 1 with a 1-sigma of ``WIDTH_PRIOR`` (an assumption: the calibrated
+  width is right to about that, the small and the medium indenter differ by 17 %);
+  without it a touch at the grid's edge trades width against distance off the edge;
+- each residual is weighted by the taxel's noise, with ``MODEL_ERROR`` of its
+  activation added in quadrature (an assumption: no calibrated footprint is exact to
+  better than about a tenth, so the peak taxel does not outweigh its neighbours);
+- the fit starts at the N9 point, amplitude the peak, width scale 1, and is bounded:
+  a, b within ``MAX_SHIFT`` pitches of the peak, s in ``WIDTH_BOUNDS``, A in
+  ``AMPLITUDE_BOUNDS`` times the peak.
+
+Taxels in another touch's N9 of the same frame are left out of a touch's fit. A touch
+keeps N9's position (``fit`` = ``FIT_N9``) when its fit fails a test: a result that is
+not finite, a point that left the peak's cell by more than one pitch from N9's or sits
+on a bound, a width scale more than ``MAX_WIDTH_SIGMAS`` priors from 1 (a spike, a
+stuck taxel, a palm: not the skin's footprint), fewer than ``MIN_TAXELS`` taxels in its window, or a reduced
+chi^2 above ``MAX_REDUCED_CHI2`` (the footprint does not explain the frame: a palm, two
+merged fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
+covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1; the residual
+is the RMS of the weighted residuals (1: at the noise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+
+HALF = 2  # window half-width (cells): the N9 and the ring beyond it
+MODEL_ERROR = 0.1  # share of a taxel's activation added to its noise (assumption)
+MAX_SHIFT = 1.5  # pitches from the peak taxel a fitted point may go
+WIDTH_BOUNDS = (0.5, 2.0)  # width scale s
+WIDTH_PRIOR = 0.15  # 1-sigma of the width scale's prior around 1 (assumption)
+MAX_WIDTH_SIGMAS = 2.5  # a width scale farther from 1 (in WIDTH_PRIOR): not the skin's
+AMPLITUDE_BOUNDS = (0.3, 10.0)  # amplitude A / peak
+ITERATIONS = 12  # Levenberg-Marquardt steps at most
+MAX_REDUCED_CHI2 = 9.0  # above: the footprint does not explain the frame
+MIN_TAXELS = 6  # taxels in the window at least (4 parameters and 2 to spare)
+RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
+PROFILE_STEP_MM = 0.05
+FIT_NONE, FIT_MODEL, FIT_N9 = 0, 1, 2  # TouchTable.fit: not fitted, model, N9 kept
+FIT_NAMES = ("", "model", "n9")
+
+
+@dataclass(frozen=True)
+class FootprintLaw:
+    """The skin's radial footprint f(d) (f(0) = 1) sampled every ``PROFILE_STEP_MM``,
+    its nominal width (mm), the noise (counts std) and the taxels' gains (T,) or None."""
+
+    profile: np.ndarray
+    sigma_mm: float
+    noise_std_counts: float
+    gain: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, heights) -> FootprintLaw:
+        """From a skin's height model (`fruitcli.sensing.skin.heights.HeightModel`: the
+        Gaussian law or the crossing table): its contact activation against distance."""
+        sigma = float(getattr(heights, "sigma_mm", np.nan))
+        if not np.isfinite(sigma) or sigma <= 0:
+            raise FrameError(
+                '[detection].method = "model": the skin has no footprint law '
+                "([skin].footprint_sigma_mm or the crossing's table)"
+            )
+        d = np.arange(0.0, 8.0 * WIDTH_BOUNDS[1] * sigma, PROFILE_STEP_MM)
+        c = np.asarray(heights.contact_counts(np.zeros(d.size, np.int64), d), dtype=float)
+        if not np.all(np.isfinite(c)) or c[0] <= 0:
+            raise FrameError(
+                '[detection].method = "model": the skin\'s footprint gives no activation at contact'
+            )
+        gain = getattr(heights, "gain", None)
+        return cls(
+            np.ascontiguousarray(np.maximum(c / c[0], 0.0)),
+            sigma,
+            float(heights.noise_std_counts),
+            None if gain is None else np.asarray(gain, dtype=float),
+        )
+
+
+class Window:
+    """The 5 x 5 window of grid cells around each taxel: its taxels (-1: none) and the
+    cells' offsets (di, dj) from the centre."""
+
+    def __init__(self, i: np.ndarray, j: np.ndarray, half: int = HALF):
+        i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
+        h, w = int(i.max()) + 1 + 2 * half, int(j.max()) + 1 + 2 * half
+        grid = np.full((h, w), -1, np.int64)
+        grid[i + half, j + half] = np.arange(i.size)
+        di, dj = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1), indexing="ij")
+        self.di, self.dj = di.ravel(), dj.ravel()
+        self.taxels = grid[i[:, None] + half + self.di, j[:, None] + half + self.dj]  # (T, K)
+        self.i, self.j = i, j
+        basis = [np.ones(self.di.size), self.di, self.dj, self.di**2, self.di * self.dj]
+        self.basis = np.stack([*basis, self.dj**2], axis=1).astype(float)  # (K, 6)
+        near = (np.abs(self.di) <= 1) & (np.abs(self.dj) <= 1)
+        self.map_weight = np.where(near, 1.0, RING_WEIGHT)
+
+
+@dataclass
+class Fitted:
+    """Per touch: grid coordinates i, j, point (n, 3) mm, its 1-sigma radius (mm), the
+    RMS weighted residual, the width scale and the fit's outcome (FIT_MODEL or FIT_N9)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    xyz_mm: np.ndarray
+    pos_err_mm: np.ndarray
+    residual: np.ndarray
+    width_scale: np.ndarray
+    fit: np.ndarray
+
+
+def surface_maps(window: Window, win: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Quadratic maps (n, 6, 3) from grid offsets to mm fitted to the window taxels'
+    positions pos (n, K, 3) (win (n, K): -1 where no taxel); a light ridge on the
+    non-constant terms keeps a window with few taxels (a grid's corner, a single row)
+    solvable: the map then stays affine, or flat, along what the taxels do not span."""
+    m = np.where(win >= 0, window.map_weight, 0.0)  # (n, K)
+    phi = window.basis
+    lhs = np.einsum("kp,nk,kq->npq", phi, m, phi)
+    ridge = 1e-9 * np.maximum(np.trace(lhs, axis1=1, axis2=2), 1e-12)
+    lhs[:, np.arange(1, 6), np.arange(1, 6)] += ridge[:, None]
+    rhs = np.einsum("kp,nk,nkd->npd", phi, m, pos)
+    return np.linalg.solve(lhs, rhs)
+
+
+def refine(
+    frame: np.ndarray,
+    centre: np.ndarray,
+    i0: np.ndarray,
+    j0: np.ndarray,
+    peak: np.ndarray,
+    v: np.ndarray,
+    window: Window,
+    positions,
+    law: FootprintLaw,
+    n9_taxels: np.ndarray | None = None,
+) -> Fitted:
+    """Fit the touches: frame (n,) row of `v` (F, T) activations (counts, gains divided
+    out or not as `law.gain` says), centre (n,) peak taxel, i0, j0 (n,) N9 grid
+    coordinates, peak (n,) counts; ``positions(win)`` gives the window taxels' positions
+    (n, K, 3) mm for win (n, K) (-1 entries: any position). `n9_taxels` (n, 9): each
+    touch's N9 taxels, left out of the other touches of its frame."""
+    from fruitcli.sensing.detection.model_kernel import fit_all, surface_point
+
+    n = frame.size
+    win = window.taxels[centre]  # (n, K)
+    has = win >= 0
+    ok = has.copy()
+    if n9_taxels is not None and n > 1:
+        _leave_out_others(frame, win, ok, n9_taxels)
+    safe = np.where(has, win, 0)
+    vw = np.where(ok, v[frame[:, None], safe], 0.0)
+    pos = np.ascontiguousarray(positions(safe), dtype=float)
+    coef = np.ascontiguousarray(surface_maps(window, np.where(has, win, -1), pos))
+    ci, cj = window.i[centre], window.j[centre]
+    a0 = np.asarray(i0, float) - ci
+    b0 = np.asarray(j0, float) - cj
+    pk = np.maximum(np.asarray(peak, float), 1e-9)
+    x0 = np.stack([a0, b0, pk, np.ones(n)], axis=1)
+    lo = np.stack(
+        [
+            np.full(n, -MAX_SHIFT),
+            np.full(n, -MAX_SHIFT),
+            AMPLITUDE_BOUNDS[0] * pk,
+            np.full(n, WIDTH_BOUNDS[0]),
+        ],
+        axis=1,
+    )
+    hi = np.stack(
+        [
+            np.full(n, MAX_SHIFT),
+            np.full(n, MAX_SHIFT),
+            AMPLITUDE_BOUNDS[1] * pk,
+            np.full(n, WIDTH_BOUNDS[1]),
+        ],
+        axis=1,
+    )
+    gain = np.ones((n, win.shape[1])) if law.gain is None else np.where(ok, law.gain[safe], 1.0)
+    err = np.sqrt(law.noise_std_counts**2 + (MODEL_ERROR * vw) ** 2)
+    inv_e = np.where(ok, 1.0 / np.maximum(err, 1e-9), 0.0)
+    out = np.empty((n, 6))
+    cov = np.empty((n, 4, 4))
+    fit_all(
+        np.ascontiguousarray(x0),
+        np.ascontiguousarray(lo),
+        np.ascontiguousarray(hi),
+        np.ascontiguousarray(vw),
+        np.ascontiguousarray(inv_e),
+        np.ascontiguousarray(gain),
+        pos,
+        coef,
+        law.profile,
+        PROFILE_STEP_MM,
+        WIDTH_PRIOR,
+        ITERATIONS,
+        out,
+        cov,
+    )
+    a, b, s, chi2 = out[:, 0], out[:, 1], out[:, 3], out[:, 4]
+    used = ok.sum(axis=1)
+    dof = np.maximum(ok.sum(axis=1) - 4, 1)
+    red = chi2 / dof
+    xyz = np.empty((n, 3))
+    err_mm = np.empty(n)
+    for t in range(n):
+        c, ca, cb = surface_point(coef[t], a[t], b[t])
+        jc = np.stack([ca, cb], axis=1)  # (3, 2)
+        cov_mm = jc @ cov[t, :2, :2] @ jc.T * max(red[t], 1.0)
+        xyz[t] = c
+        err_mm[t] = np.sqrt(max(np.trace(cov_mm), 0.0))
+    edge = 1e-6
+    kept = (
+        ~np.isfinite(out).all(axis=1)
+        | ~np.isfinite(err_mm)
+        | (np.hypot(a - a0, b - b0) > 1.0)
+        | (np.abs(a) >= MAX_SHIFT - edge)
+        | (np.abs(b) >= MAX_SHIFT - edge)
+        | (np.abs(s - 1.0) > MAX_WIDTH_SIGMAS * WIDTH_PRIOR)
+        | (used < MIN_TAXELS)
+        | (red > MAX_REDUCED_CHI2)
+    )
+    return Fitted(
+        np.where(kept, i0, ci + a),
+        np.where(kept, j0, cj + b),
+        xyz,
+        np.where(kept, np.nan, err_mm),
+        np.sqrt(red),
+        s,
+        np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
+    )
+
+
+def _leave_out_others(frame, win, ok, n9_taxels) -> None:
+    """Clear `ok` (n, K) where a window taxel lies in another touch's N9 of its frame."""
+    order = np.argsort(frame, kind="stable")
+    f = frame[order]
+    starts = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
+    ends = np.r_[starts[1:], f.size]
+    for s0, e0 in zip(starts, ends, strict=True):
+        if e0 - s0 < 2:
+            continue
+        rows = order[s0:e0]
+        for r in rows:
+            others = n9_taxels[rows[rows != r]].ravel()
+            others = others[others >= 0]
+            ok[r] &= ~np.isin(win[r], others)

@@ -1,0 +1,177 @@
+"""The model method (`model_fit`): frames made from a footprint at a known point come back
+within the fit's own uncertainty; frames no footprint explains keep N9's point, flagged;
+its columns round-trip through touches.csv and the live JSON lines."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from fruitcli.errors import FrameError
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.model_fit import (
+    FIT_MODEL,
+    FIT_N9,
+    FootprintLaw,
+    Window,
+    surface_maps,
+)
+from fruitcli.sensing.frames.board import default_board, taxel_cells
+from fruitcli.sensing.skin.heights import GapLaw
+from fruitcli.tables import Taxels
+
+BASE = 500.0
+SIGMA_MM = 6.5  # footprint of the frames and of the law the fit is given
+LAW = GapLaw(60.0, 2.0, SIGMA_MM, 1.0)
+
+
+def grid_taxels(rows=6, cols=7, bend_radius_mm=None):
+    """rows x cols taxels 16 mm (i) x 12 mm (j) apart, flat or wrapped around a cylinder."""
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij"))
+    x, y = 16.0 * i, 12.0 * j
+    if bend_radius_mm is None:
+        xyz = np.stack([x, y, np.zeros(i.size)], axis=1)
+    else:
+        th = (x - x.mean()) / bend_radius_mm
+        r = bend_radius_mm
+        xyz = np.stack([r * np.sin(th), y, r * np.cos(th) - r], axis=1)
+    return Taxels(np.arange(i.size), i, j, xyz)
+
+
+def frame_of(taxels, point, amplitude=100.0, sigma=SIGMA_MM, noise=0.0, seed=0):
+    """A board frame (21, 12) whose taxels read amplitude * Gaussian(3D distance)."""
+    d = np.linalg.norm(taxels.xyz_mm - point, axis=1)
+    v = amplitude * np.exp(-0.5 * (d / sigma) ** 2)
+    v = v + np.random.default_rng(seed).normal(0.0, noise, v.size)
+    rows, cols = taxel_cells(taxels, default_board(), "taxels")
+    f = np.full((21, 12), BASE)
+    f[rows, cols] += np.maximum(v, 0.0)
+    return np.round(f).astype(np.int64)
+
+
+def locate(taxels, frames, method="model", heights=LAW):
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method=method), heights=heights)
+    return loc.batch(np.asarray(frames), np.full(len(taxels), BASE))
+
+
+@pytest.mark.parametrize(
+    "point",
+    [
+        (40.0, 30.0, 0.0),  # between four crossings
+        (48.0, 18.0, 0.0),  # on a crossing's row, half way to the next
+        (2.0, 40.0, 0.0),  # the grid's first row, a little off it
+        (80.0, 71.0, 0.0),  # the grid's far corner
+    ],
+)
+def test_a_footprint_at_a_known_point_comes_back_within_its_uncertainty(point):
+    taxels = grid_taxels()
+    frames = [frame_of(taxels, np.array(point), noise=1.0, seed=s) for s in range(20)]
+    t = locate(taxels, frames)
+    n9 = locate(taxels, frames, method="n9")
+    assert len(t) == 20 and (t.fit == FIT_MODEL).all()
+    err = np.linalg.norm(t.xyz_mm - point, axis=1)
+    # within 3 sigma of its own uncertainty, and better than N9 on average
+    assert (err <= 3.0 * t.pos_err_mm + 0.05).all()
+    assert err.mean() < np.linalg.norm(n9.xyz_mm - point, axis=1).mean()
+    assert 0.3 < np.median(t.residual) < 2.0  # the noise is what is left
+
+
+def test_without_noise_the_point_is_exact():
+    taxels = grid_taxels()
+    point = np.array([37.3, 27.1, 0.0])
+    d = np.linalg.norm(taxels.xyz_mm - point, axis=1)
+    v = 60.0 * np.exp(-0.5 * (d / SIGMA_MM) ** 2)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="model"), heights=LAW)
+    stream = Stream(loc, np.zeros(len(taxels)))
+    t = stream.step(v)
+    assert t.fit[0] == FIT_MODEL
+    assert t.xyz_mm[0] == pytest.approx(point, abs=0.02)  # the profile's sampling
+    assert (t.i[0], t.j[0]) == pytest.approx((37.3 / 16.0, 27.1 / 12.0), abs=0.002)
+
+
+def test_on_a_bent_body_the_point_stays_on_the_taxels_surface():
+    radius = 50.0
+    taxels = grid_taxels(bend_radius_mm=radius)
+    th = (40.0 - 40.0) / radius + 0.13  # a point 6.5 mm round the cylinder from the middle
+    point = np.array([radius * np.sin(th), 30.0, radius * np.cos(th) - radius])
+    frames = [frame_of(taxels, point, noise=1.0, seed=s) for s in range(20)]
+    t = locate(taxels, frames)
+    assert (t.fit == FIT_MODEL).all()
+    err = np.linalg.norm(t.xyz_mm - point, axis=1)
+    assert (err <= 3.0 * t.pos_err_mm + 0.05).all()
+    # on the cylinder (radius 50 mm) to within a tenth of a millimetre
+    r = np.hypot(t.xyz_mm[:, 0], t.xyz_mm[:, 2] + radius)
+    assert np.abs(r - radius).max() < 0.15
+
+
+def test_frames_no_footprint_explains_keep_the_n9_point_flagged():
+    taxels = grid_taxels()
+    rows, cols = taxel_cells(taxels, default_board(), "taxels")
+    spike = np.full((21, 12), int(BASE))  # one taxel alone: narrower than any footprint
+    k = int(np.flatnonzero((taxels.i == 2) & (taxels.j == 3))[0])
+    spike[rows[k], cols[k]] += 100
+    # a touch under noise 12 times the skin's: the reduced chi^2 test
+    noisy = [frame_of(taxels, np.array([40.0, 30.0, 0.0]), noise=12.0, seed=s) for s in range(8)]
+    frames = [spike, *noisy]
+    t = locate(taxels, frames)
+    n9 = locate(taxels, frames, method="n9")
+    assert t.fit[t.frame == 0].tolist() == [FIT_N9]  # by the width test
+    first = (t.frame > 0) & (t.touch == 0)  # the touch, not the noise's peaks
+    assert first.sum() == 8
+    assert t.residual[first].min() ** 2 > 9.0
+    assert (t.fit[first] == FIT_N9).all()
+    kept = t.fit == FIT_N9
+    assert np.isnan(t.pos_err_mm[kept]).all()
+    np.testing.assert_array_equal(t.xyz_mm[kept], n9.xyz_mm[kept])
+    np.testing.assert_array_equal(t.i[kept], n9.i[kept])
+
+
+def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
+    taxels = grid_taxels(rows=5, cols=5)
+    i, j = taxels.i.astype(float), taxels.j.astype(float)
+    xyz = np.stack([16 * i, 12 * j, 0.3 * i**2 - 0.2 * i * j + 0.1 * j**2], axis=1)
+    w = Window(taxels.i, taxels.j)
+    centre = np.array([int(np.flatnonzero((taxels.i == 0) & (taxels.j == 0))[0])])
+    win = w.taxels[centre]
+    pos = xyz[np.where(win >= 0, win, 0)]
+    coef = surface_maps(w, win, pos)[0]
+    a, b = 0.4, 0.7  # grid offsets from the corner taxel
+    want = [16 * a, 12 * b, 0.3 * a**2 - 0.2 * a * b + 0.1 * b**2]
+    got = coef[0] + coef[1] * a + coef[2] * b + coef[3] * a * a + coef[4] * a * b + coef[5] * b * b
+    assert got == pytest.approx(want, abs=1e-4)
+
+
+def test_a_skin_without_a_footprint_law_is_one_error():
+    taxels = grid_taxels()
+    with pytest.raises(FrameError, match=r'method = "model".*footprint'):
+        locate(
+            taxels,
+            [frame_of(taxels, np.array([40.0, 30.0, 0.0]))],
+            heights=GapLaw(60, 2, np.nan, 1),
+        )
+    assert FootprintLaw.of(LAW).profile[0] == 1.0
+
+
+def test_the_model_columns_round_trip_through_touches_csv_and_json(tmp_path):
+    from fruitcli.sensing.live.loop import _shape
+    from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
+
+    taxels = grid_taxels()
+    frames = [frame_of(taxels, np.array([40.0, 30.0, 0.0]), noise=1.0, seed=s) for s in range(3)]
+    t = locate(taxels, frames)
+    with touch_csv(tmp_path / "touches.csv", ["c"], model=True) as out:
+        out.write(touch_bytes(t, np.arange(3) / 100.0, model=True), len(t))
+    with open(tmp_path / "touches.csv") as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    assert [r["fit"] for r in rows] == ["model"] * 3
+    np.testing.assert_allclose([float(r["pos_err_mm"]) for r in rows], t.pos_err_mm, atol=1e-6)
+    np.testing.assert_allclose([float(r["residual"]) for r in rows], t.residual, atol=1e-6)
+    np.testing.assert_allclose([float(r["x_mm"]) for r in rows], t.xyz_mm[:, 0], atol=1e-6)
+    line = json.loads(json.dumps(_shape(t, 0)))
+    assert line["fit"] == "model"
+    assert line["pos_err_mm"] == pytest.approx(t.pos_err_mm[0], abs=1e-4)
+    # other methods keep their columns and JSON keys
+    n9 = locate(taxels, frames, method="n9")
+    assert "fit" not in _shape(n9, 0)
+    assert touch_bytes(n9, np.arange(3) / 100.0).count(b"\n") == 3
