@@ -248,6 +248,74 @@ def bench_study(scene_file, out_dir, jobs) -> None:
     click.echo(f"written to {out}/")
 
 
+@study.command("locate")
+@click.argument(
+    "scene_file",
+    metavar="SCENE",
+    type=click.Path(dir_okay=False),
+    default="pipelines/fruit-rest.toml",
+)
+@out_option(
+    "Output folder: locate_methods.md, .csv, .json, .png.",
+    required=False,
+    default="out/study-locate",
+)
+@jobs_option()
+def locate_study(scene_file, out_dir, jobs) -> None:
+    """Error against run time of every detection method ([detection].method) on SCENE's
+    virtual bench, replayed with skins the locator does not assume (footprint wider or
+    narrower, other counts at contact, taxel gains spread +-20 %): per bench skin,
+    method and indenter, the mean error unregistered and translation-registered (mm)
+    and the time per frame of `fruit locate` (us). Use pipelines/fruit-deformed.toml for
+    the deformed states.
+    """
+    from fruitcli.cli.options import Progress
+    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    from fruitcli.scene import load_scene
+    from fruitcli.studies import locate_methods as lm
+    from fruitcli.studies.machine import machine_line
+    from fruitcli.studies.parallel import run_cases
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
+
+    with fruit_errors():
+        scene = load_scene(scene_file)
+        if not scene.has("bench"):
+            raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
+        out = Path(out_dir)
+        base = out / "scene"
+        planner.run(
+            scene, base, until="simulate", progress=Progress("   "), shared=out.resolve().parent
+        )
+        ctx = planner.Context(base)
+        taxels = taxels_path(scene, ctx)
+        if taxels is None:
+            raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
+        unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
+        work = out / "work"
+        work.mkdir(parents=True, exist_ok=True)
+        solid = solid_path(scene, ctx)
+        args = [
+            (scene.path, work, taxels, states_path(scene, ctx), solid, unit, name)
+            for name in lm.BENCH_SKINS
+        ]
+        results = run_cases(lm.run_case, args, jobs, _bar("locate study"))
+        rows = [r for res in results for r in res]
+        text = lm.table_markdown(rows, scene.name, machine_line())
+        with staged_dir(out) as tmp:
+            write_text(tmp / "locate_methods.md", text)
+            write_csv(
+                tmp / "locate_methods.csv",
+                lm.HEADER,
+                ([r[k] for k in lm.HEADER] for r in rows),
+                comments=[f"detection methods on {scene.name}: errors in mm, time in us"],
+            )
+            write_json(tmp / "locate_methods.json", {"scene": scene.name, "rows": rows})
+            lm.plot(tmp / "locate_methods.png", rows, scene.name)
+    click.echo(text, nl=False)
+    click.echo(f"written to {out}/")
+
+
 @study.command("two-fingers")
 @out_option(
     "Output folder: two_fingers.md, two_fingers.csv, single_fingers.csv, two_fingers.png.",

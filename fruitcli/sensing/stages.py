@@ -25,6 +25,8 @@ from fruitcli.sensing.detection.frames_to_touches import (
     TouchTable,
 )
 from fruitcli.sensing.detection.locate import States, load_states, match_chambers
+from fruitcli.sensing.detection.methods import METHODS
+from fruitcli.sensing.detection.model_fit import FIT_MODEL
 from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording, open_recording
@@ -137,11 +139,16 @@ def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
 
 
 def surface_projector(
-    scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str
+    scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str, method=None
 ) -> SurfaceProjector | None:
-    """The `SurfaceProjector` of ``[detection].project = "surface"`` (None otherwise)."""
-    if _or_defaults(scene).detection.project != "surface":
-        return None
+    """The `SurfaceProjector` of ``[detection].project = "surface"``, or of the model
+    method (its fitted points go onto the body's surface when the surface is known and
+    the recording stays at one state); None otherwise."""
+    detection = _or_defaults(scene).detection
+    if detection.project != "surface":
+        method = detection.method if method is None else method
+        if not (model_on_surface(method) and surface_path and pressure is None):
+            return None
     if surface_path is None:
         raise FrameError(
             f"{where}: [detection].project = surface needs the body's surface "
@@ -161,6 +168,11 @@ def surface_projector(
         state,
         locator_taxels(states, state, taxels),
     )
+
+
+def model_on_surface(method: str) -> bool:
+    """Whether `method` places its touches on the body's surface when it is known."""
+    return METHODS[method].refine == "model"
 
 
 def run_locate(
@@ -227,7 +239,10 @@ def run_locate(
             scene, taxels, states, rec, settings, where, reduced, gain, heights
         )
         projector = surface_projector(
-            scene, rec, states, pressure, taxels, surface_path, surface_unit, where
+            scene, rec, states, pressure, taxels, surface_path, surface_unit, where, settings.method
+        )
+        only_fitted = (
+            settings.method == "model" and _or_defaults(scene).detection.project != "surface"
         )
         say(
             f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped"
@@ -245,7 +260,10 @@ def run_locate(
         def rows(table: TouchTable):  # in the worker thread
             dist = None
             if projector is not None:
-                table.xyz_mm, dist = projector.project(table.xyz_mm)
+                rows = slice(None)
+                if only_fitted:  # the model's points; the N9 points it kept stay as they are
+                    rows = np.flatnonzero(table.fit == FIT_MODEL)
+                table.xyz_mm[rows], dist = projector.project(table.xyz_mm[rows])
             keep = None if rec.sample is None else _sample_touches(table, rec.sample)
             return touch_bytes(table, rec.t_s, model), len(table), keep, dist
 

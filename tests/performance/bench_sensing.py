@@ -8,6 +8,7 @@ Targets: `fruit locate` >= 200,000 frames/s end to end (the whole command on
 200,000 frames minus the whole command on 20,000; 252 taxels on the full 21 x 12 board,
 a touch in every frame) and < 2 GB peak memory on 1,000,000 frames.
 `python tests/performance/bench_sensing.py recordings` runs only the latter,
+`python tests/performance/bench_sensing.py model` only the model method's figures,
 `python tests/performance/bench_sensing.py latency` only the OSC latency.
 """
 
@@ -114,6 +115,48 @@ def main():
         f"board decoder (compiled fast path), {dt * 1e3:.4f} ms by parse_line (odd lines)"
     )
     recordings()
+
+
+def model_method(n: int = 100_000) -> None:
+    """The model method ([detection].method = "model"): batch frames/s on the same frames
+    as N9 (taxels moving through the states), and the live loop's time per frame with
+    10 touches on the full 21 x 12 board (target p99 <= 1 ms)."""
+    taxels = fruit_like_taxels()
+    states = np.stack([taxels.xyz_mm + [0, 0, 2.0 * s] for s in range(5)])
+    state_kpa = np.stack([np.linspace(0, 8, 5), np.linspace(0, 4, 5)], axis=1)
+    frames = frames_with_touches(n, taxels)
+    kpa = np.random.default_rng(1).uniform(0, 8, (n, 2))
+    for method in ("n9", "model"):
+        loc = Locator(taxels, default_board(), states, Settings(method=method), state_kpa)
+        base = loc.baseline(frames)
+        loc.batch(frames[:1000], base, kpa[:1000])  # warm up (numba's first compile)
+        t0 = time.perf_counter()
+        table = loc.batch(frames, base, kpa)
+        dt = time.perf_counter() - t0
+        print(
+            f"batch, method {method}: {n} frames, {len(table)} touches, {dt:.3f} s -> "
+            f"{n / dt:,.0f} frames/s (target >= 100,000)"
+        )
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(21), np.arange(12), indexing="ij"))
+    board = Taxels(np.arange(i.size), i, j, np.stack([16.0 * i, 12.0 * j, 0 * i], axis=1))
+    rng = np.random.default_rng(3)
+    centres = np.stack([rng.uniform(0, 320, (2000, 10)), rng.uniform(0, 132, (2000, 10))], -1)
+    d = np.linalg.norm(board.xyz_mm[None, None, :, :2] - centres[:, :, None, :], axis=3)
+    v = (60 * np.exp(-0.5 * (d / 6.18) ** 2)).sum(axis=1) + rng.normal(0, 1.2, (2000, i.size))
+    for method in ("n9", "model"):
+        loc = Locator(board, default_board(), board.xyz_mm, Settings(method=method))
+        stream = Stream(loc, np.zeros(i.size))
+        stream.step(v[0])
+        times, touches = np.empty(len(v)), 0
+        for k, frame in enumerate(v):
+            t = time.perf_counter()
+            touches += len(stream.step(frame, None, k))
+            times[k] = time.perf_counter() - t
+        print(
+            f"live loop, method {method}, 10 touches ({touches / len(v):.1f} found per "
+            f"frame): median {np.median(times) * 1e3:.3f} ms, p99 "
+            f"{np.percentile(times, 99) * 1e3:.3f} ms per frame (target p99 <= 1 ms)"
+        )
 
 
 def write_touch_recording(path: Path, n: int, seed: int = 0, chunk: int = 20_000) -> None:
@@ -438,12 +481,15 @@ def _readable(sock) -> bool:
 if __name__ == "__main__":
     if sys.argv[1:] == ["recordings"]:
         recordings()
+    elif sys.argv[1:] == ["model"]:
+        model_method()
     elif sys.argv[1:] == ["latency"]:
         bench_osc_latency()
         bench_osc_latency(live_defaults=True)
         bench_osc_latency(live_defaults=True, hovers=True)
     else:
         main()
+        model_method()
         bench_osc_latency()
         bench_osc_latency(live_defaults=True)
         bench_osc_latency(live_defaults=True, hovers=True)

@@ -8,9 +8,10 @@ Here each touch the paper's multitouch finds (`detect.n9_sequential`) is refined
 least-squares fit of the skin's footprint to the taxels around its peak (its N9 and the
 ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state puts it:
 
-- the contact point runs over the surface the window's taxels span: a quadratic map
-  c(a, b) of the grid coordinates fitted to the taxels' 3D positions (the N9 weighted
-  twice the ring), so it follows the deformed body as the taxels do;
+- the contact point runs over the surface the window's taxels span: a quadratic map of
+  the grid coordinates fitted to the taxels' 3D positions (the N9 weighted twice the
+  ring) plus the bilinear interpolation of its misfit at the taxels, so c(a, b) passes
+  through every taxel and follows the deformed body as they do;
 - taxel k reads A g_k f(|c - P_k| / s): f the skin's radial footprint (the Gaussian
   law's or the crossing table's, `FootprintLaw.of`) at its calibrated width, A the
   amplitude, s the width's scale (a wider object, a farther gap), g_k the taxel's gain;
@@ -26,11 +27,13 @@ ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state put
 
 Taxels in another touch's N9 of the same frame are left out of a touch's fit. A touch
 keeps N9's position (``fit`` = ``FIT_N9``) when its fit fails a test: a result that is
-not finite, a point that left the peak's cell by more than one pitch from N9's or sits
-on a bound, a width scale more than ``MAX_WIDTH_SIGMAS`` priors from 1 (a spike, a
-stuck taxel, a palm: not the skin's footprint), fewer than ``MIN_TAXELS`` taxels in its window, or a reduced
-chi^2 above ``MAX_REDUCED_CHI2`` (the footprint does not explain the frame: a palm, two
-merged fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
+not finite; a point more than one pitch from N9's or on a bound; a width scale more
+than ``MAX_WIDTH_SIGMAS`` priors from 1 (a spike, a stuck taxel: not the skin's
+footprint); fewer than ``MIN_TAXELS`` taxels in its window; a 1-sigma radius above
+``MAX_UNCERTAINTY_MM`` (the taxels do not place it: a weak touch off the grid's edge);
+or a reduced chi^2 above
+``MAX_REDUCED_CHI2`` (the footprint does not explain the frame: a palm, two merged
+fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
 covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1; the residual
 is the RMS of the weighted residuals (1: at the noise).
 """
@@ -52,7 +55,8 @@ MAX_WIDTH_SIGMAS = 2.5  # a width scale farther from 1 (in WIDTH_PRIOR): not the
 AMPLITUDE_BOUNDS = (0.3, 10.0)  # amplitude A / peak
 ITERATIONS = 12  # Levenberg-Marquardt steps at most
 MAX_REDUCED_CHI2 = 9.0  # above: the footprint does not explain the frame
-MIN_TAXELS = 6  # taxels in the window at least (4 parameters and 2 to spare)
+MAX_UNCERTAINTY_MM = 8.0  # a 1-sigma radius above this: the frame does not place the touch
+MIN_TAXELS = 5  # taxels in the window at least (4 parameters, one to spare)
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
 PROFILE_STEP_MM = 0.05
 FIT_NONE, FIT_MODEL, FIT_N9 = 0, 1, 2  # TouchTable.fit: not fitted, model, N9 kept
@@ -141,6 +145,16 @@ def surface_maps(window: Window, win: np.ndarray, pos: np.ndarray) -> np.ndarray
     return np.linalg.solve(lhs, rhs)
 
 
+def misfits(window: Window, has: np.ndarray, coef: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """The quadratic maps' misfit P_k - Q(k) at the window's cells (n, W, W, 3), 0 where
+    no taxel is: interpolated bilinearly, it makes the contact surface pass through the
+    taxels (a quadratic alone misses them by up to 5 mm on the Fruit's curved flanks)."""
+    fitted = np.einsum("kp,npd->nkd", window.basis, coef)
+    side = int(round(np.sqrt(window.di.size)))
+    out = np.where(has[:, :, None], pos - fitted, 0.0)
+    return out.reshape(len(pos), side, side, 3)
+
+
 def refine(
     frame: np.ndarray,
     centre: np.ndarray,
@@ -158,7 +172,7 @@ def refine(
     coordinates, peak (n,) counts; ``positions(win)`` gives the window taxels' positions
     (n, K, 3) mm for win (n, K) (-1 entries: any position). `n9_taxels` (n, 9): each
     touch's N9 taxels, left out of the other touches of its frame."""
-    from fruitcli.sensing.detection.model_kernel import fit_all, surface_point
+    from fruitcli.sensing.detection.model_kernel import fit_all
 
     n = frame.size
     win = window.taxels[centre]  # (n, K)
@@ -170,6 +184,7 @@ def refine(
     vw = np.where(ok, v[frame[:, None], safe], 0.0)
     pos = np.ascontiguousarray(positions(safe), dtype=float)
     coef = np.ascontiguousarray(surface_maps(window, np.where(has, win, -1), pos))
+    corr = np.ascontiguousarray(misfits(window, has, coef, pos))
     ci, cj = window.i[centre], window.j[centre]
     a0 = np.asarray(i0, float) - ci
     b0 = np.asarray(j0, float) - cj
@@ -198,6 +213,8 @@ def refine(
     inv_e = np.where(ok, 1.0 / np.maximum(err, 1e-9), 0.0)
     out = np.empty((n, 6))
     cov = np.empty((n, 4, 4))
+    xyz = np.empty((n, 3))
+    var_mm2 = np.empty(n)
     fit_all(
         np.ascontiguousarray(x0),
         np.ascontiguousarray(lo),
@@ -207,25 +224,21 @@ def refine(
         np.ascontiguousarray(gain),
         pos,
         coef,
+        corr,
         law.profile,
         PROFILE_STEP_MM,
         WIDTH_PRIOR,
         ITERATIONS,
         out,
         cov,
+        xyz,
+        var_mm2,
     )
     a, b, s, chi2 = out[:, 0], out[:, 1], out[:, 3], out[:, 4]
     used = ok.sum(axis=1)
     dof = np.maximum(ok.sum(axis=1) - 4, 1)
     red = chi2 / dof
-    xyz = np.empty((n, 3))
-    err_mm = np.empty(n)
-    for t in range(n):
-        c, ca, cb = surface_point(coef[t], a[t], b[t])
-        jc = np.stack([ca, cb], axis=1)  # (3, 2)
-        cov_mm = jc @ cov[t, :2, :2] @ jc.T * max(red[t], 1.0)
-        xyz[t] = c
-        err_mm[t] = np.sqrt(max(np.trace(cov_mm), 0.0))
+    err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0), 0.0))
     edge = 1e-6
     kept = (
         ~np.isfinite(out).all(axis=1)
@@ -235,6 +248,7 @@ def refine(
         | (np.abs(b) >= MAX_SHIFT - edge)
         | (np.abs(s - 1.0) > MAX_WIDTH_SIGMAS * WIDTH_PRIOR)
         | (used < MIN_TAXELS)
+        | (err_mm > MAX_UNCERTAINTY_MM)
         | (red > MAX_REDUCED_CHI2)
     )
     return Fitted(
@@ -252,13 +266,22 @@ def _leave_out_others(frame, win, ok, n9_taxels) -> None:
     """Clear `ok` (n, K) where a window taxel lies in another touch's N9 of its frame."""
     order = np.argsort(frame, kind="stable")
     f = frame[order]
-    starts = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
-    ends = np.r_[starts[1:], f.size]
-    for s0, e0 in zip(starts, ends, strict=True):
-        if e0 - s0 < 2:
-            continue
-        rows = order[s0:e0]
-        for r in rows:
-            others = n9_taxels[rows[rows != r]].ravel()
-            others = others[others >= 0]
-            ok[r] &= ~np.isin(win[r], others)
+    if not (f[1:] == f[:-1]).any():
+        return
+    # every ordered pair (r, q), r != q, of touches in one frame
+    start = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
+    size = np.diff(np.r_[start, f.size])
+    r_all, q_all = [], []
+    for m in np.unique(size[size > 1]):
+        firsts = start[size == m]
+        idx = firsts[:, None] + np.arange(m)  # (g, m) rows of `order`
+        r, q = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+        keep = r != q
+        r_all.append(order[idx[:, r[keep]]].ravel())
+        q_all.append(order[idx[:, q[keep]]].ravel())
+    r, q = np.concatenate(r_all), np.concatenate(q_all)
+    other = n9_taxels[q]  # (p, 9)
+    hit = ((win[r][:, :, None] == other[:, None, :]) & (other[:, None, :] >= 0)).any(axis=2)
+    cleared = np.zeros(ok.shape, bool)
+    np.logical_or.at(cleared, r, hit)
+    ok &= ~cleared

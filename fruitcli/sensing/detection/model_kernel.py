@@ -1,9 +1,10 @@
 """Compiled least-squares fit of one touch's footprint (numba), for `model_fit`.
 
 Units: grid units (taxel pitches), mm, counts. One touch at a time: the contact point
-c(a, b) = sum_m coef[m] phi_m(a, b), phi = (1, a, b, a^2, a b, b^2), on the surface the
-window's taxels span (a, b in grid units from the window's centre taxel); taxel k of
-the window reads
+c(a, b) = sum_m coef[m] phi_m(a, b) + r(a, b), phi = (1, a, b, a^2, a b, b^2), on the
+surface the window's taxels span (a, b in grid units from the window's centre taxel;
+r the bilinear interpolation of the quadratic's misfit at the taxels, so c passes
+through each of them); taxel k of the window reads
 
     m_k = A g_k f(|c(a, b) - P_k| / s)
 
@@ -20,6 +21,7 @@ import numpy as np
 from numba import njit
 
 N_PARAMS = 4  # a, b, A, s
+STEP_TOLERANCE = 1e-4  # a step smaller than this (grid units, width scale, A relative) ends
 
 
 @njit(cache=True, nogil=True)
@@ -35,12 +37,30 @@ def _profile(x, profile, step):
 
 
 @njit(cache=True, nogil=True)
-def _point(coef, a, b):
-    """c(a, b) (3,) and its derivatives dc/da, dc/db."""
+def _point(coef, corr, a, b):
+    """c(a, b) (3,) and its derivatives dc/da, dc/db: the quadratic map plus the bilinear
+    interpolation of its misfit at the window's cells `corr` (W, W, 3), so c passes
+    through every taxel of the window (a cell without a taxel has misfit 0)."""
+    half = (corr.shape[0] - 1) // 2
     c = np.empty(3)
     ca = np.empty(3)
     cb = np.empty(3)
+    u = min(max(a + half, 0.0), 2.0 * half)
+    w = min(max(b + half, 0.0), 2.0 * half)
+    i0 = min(int(u), 2 * half - 1)
+    j0 = min(int(w), 2 * half - 1)
+    tu = u - i0
+    tw = w - j0
+    inside_a = 1.0 if 0.0 < a + half < 2.0 * half else 0.0
+    inside_b = 1.0 if 0.0 < b + half < 2.0 * half else 0.0
     for d in range(3):
+        c00 = corr[i0, j0, d]
+        c10 = corr[i0 + 1, j0, d]
+        c01 = corr[i0, j0 + 1, d]
+        c11 = corr[i0 + 1, j0 + 1, d]
+        r = (1 - tu) * (1 - tw) * c00 + tu * (1 - tw) * c10 + (1 - tu) * tw * c01 + tu * tw * c11
+        ra = ((1 - tw) * (c10 - c00) + tw * (c11 - c01)) * inside_a
+        rb = ((1 - tu) * (c01 - c00) + tu * (c11 - c10)) * inside_b
         c[d] = (
             coef[0, d]
             + coef[1, d] * a
@@ -48,18 +68,19 @@ def _point(coef, a, b):
             + coef[3, d] * a * a
             + coef[4, d] * a * b
             + coef[5, d] * b * b
+            + r
         )
-        ca[d] = coef[1, d] + 2.0 * coef[3, d] * a + coef[4, d] * b
-        cb[d] = coef[2, d] + coef[4, d] * a + 2.0 * coef[5, d] * b
+        ca[d] = coef[1, d] + 2.0 * coef[3, d] * a + coef[4, d] * b + ra
+        cb[d] = coef[2, d] + coef[4, d] * a + 2.0 * coef[5, d] * b + rb
     return c, ca, cb
 
 
 @njit(cache=True, nogil=True)
-def _residuals(x, v, inv_e, gain, pos, coef, profile, step, width_prior, jac, res):
+def _residuals(x, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac, res):
     """Weighted residuals res (K + 1,) at x, the last the width prior (s - 1) /
     width_prior, and their Jacobian jac (K + 1, 4); returns chi^2."""
     a, b, amp, s = x[0], x[1], x[2], x[3]
-    c, ca, cb = _point(coef, a, b)
+    c, ca, cb = _point(coef, corr, a, b)
     kp = v.shape[0]
     res[kp] = (s - 1.0) / width_prior
     jac[kp, 0] = 0.0
@@ -90,67 +111,171 @@ def _residuals(x, v, inv_e, gain, pos, coef, profile, step, width_prior, jac, re
 
 
 @njit(cache=True, nogil=True)
+def _normal(jac, res, m, jtj, jtr):
+    """J^T J (4, 4) and J^T r (4,) over the first m rows, by loops (no allocation)."""
+    for p in range(N_PARAMS):
+        jtr[p] = 0.0
+        for q in range(N_PARAMS):
+            jtj[p, q] = 0.0
+    for k in range(m):
+        for p in range(N_PARAMS):
+            jp = jac[k, p]
+            jtr[p] += jp * res[k]
+            for q in range(p, N_PARAMS):
+                jtj[p, q] += jp * jac[k, q]
+    for p in range(N_PARAMS):
+        for q in range(p):
+            jtj[p, q] = jtj[q, p]
+
+
+@njit(cache=True, nogil=True)
+def _cholesky(a, low) -> bool:
+    """Lower Cholesky factor of the 4 x 4 matrix a into low; False when not positive."""
+    for i in range(N_PARAMS):
+        for j in range(i + 1):
+            t = a[i, j]
+            for k in range(j):
+                t -= low[i, k] * low[j, k]
+            if i == j:
+                if t <= 0.0:
+                    return False
+                low[i, i] = np.sqrt(t)
+            else:
+                low[i, j] = t / low[j, j]
+        for j in range(i + 1, N_PARAMS):
+            low[i, j] = 0.0
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _solve(low, b, x):
+    """x = (L L^T)^-1 b."""
+    y = np.empty(N_PARAMS)
+    for i in range(N_PARAMS):
+        t = b[i]
+        for k in range(i):
+            t -= low[i, k] * y[k]
+        y[i] = t / low[i, i]
+    for i in range(N_PARAMS - 1, -1, -1):
+        t = y[i]
+        for k in range(i + 1, N_PARAMS):
+            t -= low[k, i] * x[k]
+        x[i] = t / low[i, i]
+
+
+@njit(cache=True, nogil=True)
 def fit_one(
-    x0, lo, hi, v, inv_e, gain, pos, coef, profile, step, width_prior, iterations, out, cov
+    x0,
+    lo,
+    hi,
+    v,
+    inv_e,
+    gain,
+    pos,
+    coef,
+    corr,
+    profile,
+    step,
+    width_prior,
+    iterations,
+    out,
+    cov,
+    work_jac,
+    work_res,
 ) -> None:
     """Fit x = (a, b, A, s) from x0 within [lo, hi]; out = (a, b, A, s, chi^2 of the
     taxels, steps taken), cov (4, 4) = (J^T J)^-1 at the solution (zeros when
-    singular)."""
-    k = v.shape[0] + 1
+    singular). `work_jac` (2, K + 1, 4) and `work_res` (2, K + 1): scratch."""
+    m = v.shape[0] + 1
+    jac, jac_t = work_jac[0], work_jac[1]
+    res, res_t = work_res[0], work_res[1]
     x = x0.copy()
-    jac = np.empty((k, N_PARAMS))
-    res = np.empty(k)
-    jac_t = np.empty((k, N_PARAMS))
-    res_t = np.empty(k)
-    chi2 = _residuals(x, v, inv_e, gain, pos, coef, profile, step, width_prior, jac, res)
+    xt = np.empty(N_PARAMS)
+    dx = np.empty(N_PARAMS)
+    rhs = np.empty(N_PARAMS)
+    jtj = np.empty((N_PARAMS, N_PARAMS))
+    jtr = np.empty(N_PARAMS)
+    damped = np.empty((N_PARAMS, N_PARAMS))
+    low = np.empty((N_PARAMS, N_PARAMS))
+    chi2 = _residuals(x, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac, res)
     lam = 1e-3
     taken = 0
     for _ in range(iterations):
-        jtj = jac.T @ jac
-        jtr = jac.T @ res
+        _normal(jac, res, m, jtj, jtr)
         improved = False
+        biggest = 0.0
         for _try in range(8):
-            m = jtj.copy()
             for p in range(N_PARAMS):
-                m[p, p] += lam * (jtj[p, p] + 1e-12)
-            try:
-                dx = np.linalg.solve(m, -jtr)
-            except Exception:  # a singular system: damp more
+                for q in range(N_PARAMS):
+                    damped[p, q] = jtj[p, q]
+                damped[p, p] += lam * (jtj[p, p] + 1e-12)
+                rhs[p] = -jtr[p]
+            if not _cholesky(damped, low):
                 lam *= 10.0
                 continue
-            xt = np.minimum(np.maximum(x + dx, lo), hi)
+            _solve(low, rhs, dx)
+            biggest = 0.0
+            for p in range(N_PARAMS):
+                xt[p] = min(max(x[p] + dx[p], lo[p]), hi[p])
+                scale = max(abs(x[p]), 1.0) if p == 2 else 1.0  # the amplitude: relative
+                biggest = max(biggest, abs(xt[p] - x[p]) / scale)
             chi2_t = _residuals(
-                xt, v, inv_e, gain, pos, coef, profile, step, width_prior, jac_t, res_t
+                xt, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac_t, res_t
             )
             if chi2_t < chi2:
-                x, chi2 = xt, chi2_t
-                jac[:, :] = jac_t
-                res[:] = res_t
+                x[:] = xt
+                chi2 = chi2_t
+                jac[:m, :] = jac_t[:m, :]
+                res[:m] = res_t[:m]
                 lam = max(lam * 0.3, 1e-7)
                 improved = True
                 taken += 1
                 break
             lam *= 10.0
-        if not improved:
-            break
-        if np.abs(dx).max() < 1e-5:
+        if not improved or biggest < STEP_TOLERANCE:
             break
     for p in range(N_PARAMS):
         out[p] = x[p]
-    out[4] = chi2 - res[k - 1] * res[k - 1]
+    out[4] = chi2 - res[m - 1] * res[m - 1]
     out[5] = taken
-    jtj = jac.T @ jac
+    _normal(jac, res, m, jtj, jtr)
     cov[:, :] = 0.0
-    if abs(np.linalg.det(jtj)) > 1e-300:
-        cov[:, :] = np.linalg.inv(jtj)
+    if _cholesky(jtj, low):
+        e = np.zeros(N_PARAMS)
+        col = np.empty(N_PARAMS)
+        for p in range(N_PARAMS):
+            e[:] = 0.0
+            e[p] = 1.0
+            _solve(low, e, col)
+            for q in range(N_PARAMS):
+                cov[q, p] = col[q]
 
 
 @njit(cache=True, nogil=True)
 def fit_all(
-    x0, lo, hi, v, inv_e, gain, pos, coef, profile, step, width_prior, iterations, out, cov
+    x0,
+    lo,
+    hi,
+    v,
+    inv_e,
+    gain,
+    pos,
+    coef,
+    corr,
+    profile,
+    step,
+    width_prior,
+    iterations,
+    out,
+    cov,
+    xyz,
+    var_mm2,
 ) -> None:
     """`fit_one` for every touch: x0, lo, hi (n, 4), v, inv_e, gain (n, K), pos (n, K, 3),
-    coef (n, 6, 3); writes out (n, 6) and cov (n, 4, 4)."""
+    coef (n, 6, 3), corr (n, W, W, 3); writes out (n, 6), cov (n, 4, 4), the point xyz
+    (n, 3) mm and var_mm2 (n,), the trace of the point's covariance in mm^2."""
+    work_jac = np.empty((2, v.shape[1] + 1, N_PARAMS))
+    work_res = np.empty((2, v.shape[1] + 1))
     for t in range(x0.shape[0]):
         fit_one(
             x0[t],
@@ -161,16 +286,23 @@ def fit_all(
             gain[t],
             pos[t],
             coef[t],
+            corr[t],
             profile,
             step,
             width_prior,
             iterations,
             out[t],
             cov[t],
+            work_jac,
+            work_res,
         )
-
-
-@njit(cache=True, nogil=True)
-def surface_point(coef, a, b) -> tuple:
-    """c(a, b) (3,) mm and the tangents dc/da, dc/db, for the results."""
-    return _point(coef, a, b)
+        c, ca, cb = _point(coef[t], corr[t], out[t, 0], out[t, 1])
+        xyz[t, :] = c
+        var = 0.0
+        for d in range(3):
+            var += (
+                ca[d] * ca[d] * cov[t, 0, 0]
+                + 2.0 * ca[d] * cb[d] * cov[t, 0, 1]
+                + cb[d] * cb[d] * cov[t, 1, 1]
+            )
+        var_mm2[t] = var
