@@ -62,7 +62,10 @@ def test_minimal_keys_and_defaults():
             "no such chamber (the scene has no chambers)",
         ),
         ("[geometry]\nsolid = 'a.stl'\npad_size_mm = [1, 1, 1]", "give one of artist, solid"),
-        ("[detection]\nmethod = 'fancy'", "expected one of n9, n9_floor, peaks, fit2, got 'fancy'"),
+        (
+            "[detection]\nmethod = 'fancy'",
+            "expected one of n9, n9_floor, peaks, fit2, model, got 'fancy'",
+        ),
         (
             "[[jig]]\nregion_box_mm = [0, 0, 0, 1, 1, 1]\nstiffness_n_per_mm = 0",
             "stiffness_n_per_mm: expected > 0",
