@@ -145,16 +145,6 @@ def surface_maps(window: Window, win: np.ndarray, pos: np.ndarray) -> np.ndarray
     return np.linalg.solve(lhs, rhs)
 
 
-def misfits(window: Window, has: np.ndarray, coef: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """The quadratic maps' misfit P_k - Q(k) at the window's cells (n, W, W, 3), 0 where
-    no taxel is: interpolated bilinearly, it makes the contact surface pass through the
-    taxels (a quadratic alone misses them by up to 5 mm on the Fruit's curved flanks)."""
-    fitted = np.einsum("kp,npd->nkd", window.basis, coef)
-    side = int(round(np.sqrt(window.di.size)))
-    out = np.where(has[:, :, None], pos - fitted, 0.0)
-    return out.reshape(len(pos), side, side, 3)
-
-
 def refine(
     frame: np.ndarray,
     centre: np.ndarray,
@@ -172,56 +162,57 @@ def refine(
     coordinates, peak (n,) counts; ``positions(win)`` gives the window taxels' positions
     (n, K, 3) mm for win (n, K) (-1 entries: any position). `n9_taxels` (n, 9): each
     touch's N9 taxels, left out of the other touches of its frame."""
-    from fruitcli.sensing.detection.model_kernel import fit_all
+    from fruitcli.sensing.detection.model_kernel import fit_all, prepare
 
     n = frame.size
-    win = window.taxels[centre]  # (n, K)
-    has = win >= 0
-    ok = has.copy()
-    if n9_taxels is not None and n > 1:
-        _leave_out_others(frame, win, ok, n9_taxels)
-    safe = np.where(has, win, 0)
-    vw = np.where(ok, v[frame[:, None], safe], 0.0)
-    pos = np.ascontiguousarray(positions(safe), dtype=float)
-    coef = np.ascontiguousarray(surface_maps(window, np.where(has, win, -1), pos))
-    corr = np.ascontiguousarray(misfits(window, has, coef, pos))
+    k = window.basis.shape[0]
+    side = int(round(np.sqrt(k)))
+    win = np.ascontiguousarray(window.taxels[centre])  # (n, K)
+    pos = np.ascontiguousarray(positions(np.where(win >= 0, win, 0)), dtype=float)
+    n9 = np.full((n, 9), -1, np.int64) if n9_taxels is None else n9_taxels
+    vw, inv_e, gain = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
+    coef, corr = np.empty((n, 6, 3)), np.empty((n, side, side, 3))
+    used = np.empty(n, np.int64)
+    taxel_gain = np.ones(v.shape[1]) if law.gain is None else law.gain
+    prepare(
+        np.ascontiguousarray(frame, dtype=np.int64),
+        win,
+        np.ascontiguousarray(n9, dtype=np.int64),
+        np.ascontiguousarray(v, dtype=float),
+        np.ascontiguousarray(taxel_gain, dtype=float),
+        float(law.noise_std_counts),
+        MODEL_ERROR,
+        pos,
+        window.basis,
+        window.map_weight,
+        vw,
+        inv_e,
+        gain,
+        coef,
+        corr,
+        used,
+    )
     ci, cj = window.i[centre], window.j[centre]
     a0 = np.asarray(i0, float) - ci
     b0 = np.asarray(j0, float) - cj
     pk = np.maximum(np.asarray(peak, float), 1e-9)
-    x0 = np.stack([a0, b0, pk, np.ones(n)], axis=1)
-    lo = np.stack(
-        [
-            np.full(n, -MAX_SHIFT),
-            np.full(n, -MAX_SHIFT),
-            AMPLITUDE_BOUNDS[0] * pk,
-            np.full(n, WIDTH_BOUNDS[0]),
-        ],
-        axis=1,
-    )
-    hi = np.stack(
-        [
-            np.full(n, MAX_SHIFT),
-            np.full(n, MAX_SHIFT),
-            AMPLITUDE_BOUNDS[1] * pk,
-            np.full(n, WIDTH_BOUNDS[1]),
-        ],
-        axis=1,
-    )
-    gain = np.ones((n, win.shape[1])) if law.gain is None else np.where(ok, law.gain[safe], 1.0)
-    err = np.sqrt(law.noise_std_counts**2 + (MODEL_ERROR * vw) ** 2)
-    inv_e = np.where(ok, 1.0 / np.maximum(err, 1e-9), 0.0)
+    x0 = np.empty((n, 4))
+    x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3] = a0, b0, pk, 1.0
+    lo, hi = np.empty((n, 4)), np.empty((n, 4))
+    lo[:, :2], hi[:, :2] = -MAX_SHIFT, MAX_SHIFT
+    lo[:, 2], hi[:, 2] = AMPLITUDE_BOUNDS[0] * pk, AMPLITUDE_BOUNDS[1] * pk
+    lo[:, 3], hi[:, 3] = WIDTH_BOUNDS
     out = np.empty((n, 6))
     cov = np.empty((n, 4, 4))
     xyz = np.empty((n, 3))
     var_mm2 = np.empty(n)
     fit_all(
-        np.ascontiguousarray(x0),
-        np.ascontiguousarray(lo),
-        np.ascontiguousarray(hi),
-        np.ascontiguousarray(vw),
-        np.ascontiguousarray(inv_e),
-        np.ascontiguousarray(gain),
+        x0,
+        lo,
+        hi,
+        vw,
+        inv_e,
+        gain,
         pos,
         coef,
         corr,
@@ -235,8 +226,7 @@ def refine(
         var_mm2,
     )
     a, b, s, chi2 = out[:, 0], out[:, 1], out[:, 3], out[:, 4]
-    used = ok.sum(axis=1)
-    dof = np.maximum(ok.sum(axis=1) - 4, 1)
+    dof = np.maximum(used - 4, 1)
     red = chi2 / dof
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0), 0.0))
     edge = 1e-6
@@ -260,28 +250,3 @@ def refine(
         s,
         np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
     )
-
-
-def _leave_out_others(frame, win, ok, n9_taxels) -> None:
-    """Clear `ok` (n, K) where a window taxel lies in another touch's N9 of its frame."""
-    order = np.argsort(frame, kind="stable")
-    f = frame[order]
-    if not (f[1:] == f[:-1]).any():
-        return
-    # every ordered pair (r, q), r != q, of touches in one frame
-    start = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
-    size = np.diff(np.r_[start, f.size])
-    r_all, q_all = [], []
-    for m in np.unique(size[size > 1]):
-        firsts = start[size == m]
-        idx = firsts[:, None] + np.arange(m)  # (g, m) rows of `order`
-        r, q = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-        keep = r != q
-        r_all.append(order[idx[:, r[keep]]].ravel())
-        q_all.append(order[idx[:, q[keep]]].ravel())
-    r, q = np.concatenate(r_all), np.concatenate(q_all)
-    other = n9_taxels[q]  # (p, 9)
-    hit = ((win[r][:, :, None] == other[:, None, :]) & (other[:, None, :] >= 0)).any(axis=2)
-    cleared = np.zeros(ok.shape, bool)
-    np.logical_or.at(cleared, r, hit)
-    ok &= ~cleared

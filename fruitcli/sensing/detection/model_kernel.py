@@ -306,3 +306,120 @@ def fit_all(
                 + cb[d] * cb[d] * cov[t, 1, 1]
             )
         var_mm2[t] = var
+
+
+@njit(cache=True, nogil=True)
+def _spd_solve(a, b, out) -> bool:
+    """out = a^-1 b for a small symmetric positive definite a (p, p) and b (p, d), by
+    Cholesky (a is overwritten); False when a is not positive definite."""
+    p = a.shape[0]
+    for i in range(p):
+        for j in range(i + 1):
+            t = a[i, j]
+            for k in range(j):
+                t -= a[i, k] * a[j, k]
+            if i == j:
+                if t <= 0.0:
+                    return False
+                a[i, i] = np.sqrt(t)
+            else:
+                a[i, j] = t / a[j, j]
+    for d in range(b.shape[1]):
+        for i in range(p):
+            t = b[i, d]
+            for k in range(i):
+                t -= a[i, k] * out[k, d]
+            out[i, d] = t / a[i, i]
+        for i in range(p - 1, -1, -1):
+            t = out[i, d]
+            for k in range(i + 1, p):
+                t -= a[k, i] * out[k, d]
+            out[i, d] = t / a[i, i]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def prepare(
+    frame,
+    win,
+    n9_taxels,
+    v,
+    taxel_gain,
+    noise,
+    model_error,
+    pos,
+    basis,
+    map_weight,
+    vw,
+    inv_e,
+    gain,
+    coef,
+    corr,
+    used,
+) -> None:
+    """Each touch's window (n rows, touches of one frame next to each other): its
+    activations vw, inverse errors inv_e and gains (n, K) (0 weight where no taxel, or
+    where a taxel lies in another touch's N9 of the frame), the surface map coef (n, 6, 3)
+    fitted to its taxels' positions pos (n, K, 3) (N9 weight 1, ring `map_weight`, a
+    light ridge on the non-constant terms) and its misfit corr (n, W, W, 3) at the
+    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain (T,)."""
+    n, kk = win.shape
+    side = corr.shape[1]
+    nb = basis.shape[1]
+    lhs = np.empty((nb, nb))
+    rhs = np.empty((nb, 3))
+    for t in range(n):
+        lo = t
+        while lo > 0 and frame[lo - 1] == frame[t]:
+            lo -= 1
+        hi = t
+        while hi < n - 1 and frame[hi + 1] == frame[t]:
+            hi += 1
+        count = 0
+        lhs[:, :] = 0.0
+        rhs[:, :] = 0.0
+        for k in range(kk):
+            w = win[t, k]
+            vw[t, k] = 0.0
+            inv_e[t, k] = 0.0
+            gain[t, k] = 1.0
+            if w < 0:
+                continue
+            for p in range(nb):
+                for q in range(nb):
+                    lhs[p, q] += basis[k, p] * map_weight[k] * basis[k, q]
+                for d in range(3):
+                    rhs[p, d] += basis[k, p] * map_weight[k] * pos[t, k, d]
+            other = False
+            for u in range(lo, hi + 1):
+                if u == t:
+                    continue
+                for m in range(n9_taxels.shape[1]):
+                    if n9_taxels[u, m] == w:
+                        other = True
+            if other:
+                continue
+            x = v[frame[t], w]
+            vw[t, k] = x
+            gain[t, k] = taxel_gain[w]
+            inv_e[t, k] = 1.0 / max(np.sqrt(noise * noise + (model_error * x) ** 2), 1e-9)
+            count += 1
+        used[t] = count
+        trace = 0.0
+        for p in range(nb):
+            trace += lhs[p, p]
+        for p in range(1, nb):
+            lhs[p, p] += 1e-9 * max(trace, 1e-12)
+        if not _spd_solve(lhs, rhs, coef[t]):
+            coef[t, :, :] = 0.0
+        for k in range(kk):
+            i = k // side
+            j = k % side
+            for d in range(3):
+                if win[t, k] < 0:
+                    corr[t, i, j, d] = 0.0
+                    continue
+                q = 0.0
+                for p in range(nb):
+                    q += basis[k, p] * coef[t, p, d]
+                corr[t, i, j, d] = pos[t, k, d] - q
