@@ -8,7 +8,12 @@ a board whose skin the locator does not know:
 - ``calibrated``: the board's taxel gains spread +-20 % (seeded); the locator uses the
   skin `fruit calibrate` fitted to another run of the same board at other sample points
   (half a pitch off the taxels, the small indenter): its footprint width, counts at
-  contact, gap decay, noise and gains (the issue's case (a) with (c));
+  contact, gap decay, noise and gains;
+- ``electrostatic``: the board is the crossing table's (``[skin] model =
+  "electrostatic"``, gains +-20 %); the locator uses the Gaussian law calibrated on
+  another run of it, as above;
+- ``gaussian, table fitted``: the reverse, a Gaussian board located with the crossing
+  table whose counts per fF and gains were calibrated on another run of it;
 - ``wider``: a field sigma of 7 mm where the locator assumes the scene's 6, 75 counts at
   contact where it assumes 60, gains spread +-20 % that it does not know;
 - ``narrower``: a field sigma of 5 mm, 50 counts at contact, gains spread +-20 %;
@@ -32,10 +37,23 @@ import numpy as np
 GAIN_SPREAD = 0.2
 BENCH_SKINS = {
     "calibrated": {"field_sigma_mm": None, "contact_counts": None, "gain_spread": GAIN_SPREAD},
+    "electrostatic": {"field_sigma_mm": None, "contact_counts": None, "gain_spread": GAIN_SPREAD},
+    "gaussian, table fitted": {
+        "field_sigma_mm": None,
+        "contact_counts": None,
+        "gain_spread": GAIN_SPREAD,
+    },
     "wider": {"field_sigma_mm": 7.0, "contact_counts": 75.0, "gain_spread": GAIN_SPREAD},
     "narrower": {"field_sigma_mm": 5.0, "contact_counts": 50.0, "gain_spread": GAIN_SPREAD},
 }
 CALIBRATION_INDENTER = "small"
+# the cases whose locator is calibrated on another run, and the skin model of the board and
+# of the locator's calibration
+CALIBRATED = {
+    "calibrated": ("gaussian", "gaussian"),
+    "electrostatic": ("electrostatic", "gaussian"),
+    "gaussian, table fitted": ("gaussian", "electrostatic"),
+}
 REPEATS = 3
 HEADER = [
     "bench_skin",
@@ -57,8 +75,13 @@ def bench_skin_values(name: str, indenters) -> dict:
     from fruitcli.sensing.skin import forward
 
     case = BENCH_SKINS[name]
-    if case["field_sigma_mm"] is None:
-        return {"skin.gain_spread": case["gain_spread"], "skin.taxel_gain": None}
+    if name in CALIBRATED:
+        board = CALIBRATED[name][0]
+        return {
+            "skin.gain_spread": case["gain_spread"],
+            "skin.taxel_gain": None,
+            "skin.model": board,
+        }
     feet = {
         i: float(np.hypot(case["field_sigma_mm"], forward.INDENTER_RADIUS_MM[i]))
         for i in indenters
@@ -82,12 +105,31 @@ def run_case(args) -> list[dict]:
     scene_path, work, taxels, states, surface, unit, name = args
     scene = load_scene(scene_path)
     bench_scene = scene.with_values(bench_skin_values(name, scene.bench.indenters))
-    base = Path(work) / name
-    run_bench(bench_scene, taxels, states, base / "bench", surface_path=surface, surface_unit=unit)
-    skin_table = None
-    if name == "calibrated":
+    base = Path(work) / name.replace(" ", "_").replace(",", "")
+    board, fitted = CALIBRATED.get(name, ("gaussian", "gaussian"))
+    table = {}  # the crossing's table, where the board or the locator needs one
+    if "electrostatic" in (board, fitted):
+        table["electrostatic"] = crossing_table(bench_scene, Path(work))
+    run_bench(
+        bench_scene,
+        taxels,
+        states,
+        base / "bench",
+        surface_path=surface,
+        surface_unit=unit,
+        crossing_dir=table.get(board),
+    )
+    skin_table, located_table = None, table.get(fitted)
+    if name in CALIBRATED:
         skin_table = calibrated_skin(
-            bench_scene, taxels, states, surface, unit, base / "calibration"
+            bench_scene,
+            taxels,
+            states,
+            surface,
+            unit,
+            base / "calibration",
+            table.get(board),
+            located_table,
         )
     rows = []
     for method in METHODS:
@@ -108,6 +150,7 @@ def run_case(args) -> list[dict]:
                     surface_path=surface,
                     surface_unit=unit,
                     skin_table=skin_table,
+                    crossing_dir=located_table,
                 )
                 times.append(time.perf_counter() - t0)
             with np.load(frames, allow_pickle=False) as f:
@@ -137,12 +180,35 @@ def run_case(args) -> list[dict]:
     return rows
 
 
-def calibrated_skin(bench_scene, taxels, states, surface, unit, work: Path) -> object:
-    """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene` at
-    other sample points (half a pitch off each taxel, ``CALIBRATION_INDENTER``)."""
+def crossing_table(scene, work: Path) -> Path:
+    """The skin stage's folder (the crossing's table) of `scene` with an electrostatic
+    skin, run once under `work`."""
+    from fruitcli.workflow import planner
+
+    es = scene.with_values({"skin.model": "electrostatic"})
+    root = work / "crossing"
+    planner.run(es, root, until="skin", shared=work.resolve().parent)
+    return planner.Context(root).dir("skin")
+
+
+def calibrated_skin(
+    bench_scene,
+    taxels,
+    states,
+    surface,
+    unit,
+    work: Path,
+    board_table: Path | None = None,
+    fitted_table: Path | None = None,
+) -> object:
+    """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene`
+    (its crossing table `board_table` when electrostatic) at other sample points (half a
+    pitch off each taxel, ``CALIBRATION_INDENTER``): the Gaussian law, or with
+    `fitted_table` the crossing table's counts per fF and the gains."""
     from fruitcli.fsutil import write_csv
     from fruitcli.scene import load_skin_table
     from fruitcli.sensing.skin.calibrate import run_calibrate
+    from fruitcli.sensing.skin.crossing_skin import crossing_skin
     from fruitcli.sensing.stages import run_bench
     from fruitcli.tables import read_taxels
 
@@ -154,10 +220,29 @@ def calibrated_skin(bench_scene, taxels, states, surface, unit, work: Path) -> o
     run = bench_scene.with_values(
         {"bench.samples": str(points.resolve()), "bench.indenters": [CALIBRATION_INDENTER]}
     )
-    run_bench(run, taxels, states, work / "bench", surface_path=surface, surface_unit=unit)
+    run_bench(
+        run,
+        taxels,
+        states,
+        work / "bench",
+        surface_path=surface,
+        surface_unit=unit,
+        crossing_dir=board_table,
+    )
     ind = work / "bench" / CALIBRATION_INDENTER
+    fitter = run
+    response = None
+    if fitted_table is not None:
+        fitter = run.with_values({"skin.model": "electrostatic"})
+        response = crossing_skin(fitter, fitted_table)
     run_calibrate(
-        run, ind / "frames.npz", ind / "truth.csv", taxels, work / "skin", CALIBRATION_INDENTER
+        fitter,
+        ind / "frames.npz",
+        ind / "truth.csv",
+        taxels,
+        work / "skin",
+        CALIBRATION_INDENTER,
+        response=response,
     )
     return load_skin_table(work / "skin" / "skin.toml")
 
@@ -195,7 +280,9 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
         "Bench skins differ from the skin the locator assumes: calibrated: the board's gains "
         f"spread +-{100 * GAIN_SPREAD:.0f} %, the locator uses `fruit calibrate`'s fit to "
         "another run at other sample points (half a pitch off the taxels, the "
-        f"{CALIBRATION_INDENTER} indenter); "
+        f"{CALIBRATION_INDENTER} indenter); electrostatic: the board is the crossing "
+        "table's, the locator a Gaussian law calibrated as above; gaussian, table "
+        "fitted: a Gaussian board, the locator the crossing table calibrated as above; "
         + "; ".join(
             f"{k}: field sigma {v['field_sigma_mm']:g} mm, {v['contact_counts']:g} counts at "
             f"contact, gains +-{100 * v['gain_spread']:.0f} %, the locator assumes the scene's "
