@@ -184,3 +184,24 @@ def test_a_run_folder_from_before_the_marker_is_recognised(tmp_path):
     (mine / "sub").mkdir(parents=True)
     (mine / "sub" / "manifest.json").write_text('{"name": "my package"}')
     assert not is_own(mine)
+
+
+def test_a_default_out_is_claimed_as_a_given_one(tmp_path, monkeypatch):
+    """`fruit run SCENE` writes into out/<scene name>: a folder of the user's there is
+    refused too."""
+    monkeypatch.chdir(tmp_path)
+    scene = ROOT / "pipelines" / "paper-table.toml"
+    mine = tmp_path / "out" / "paper-table"
+    mine.mkdir(parents=True)
+    (mine / "evaluate").write_text("my notes\n")
+    res = _run("run", scene)
+    assert res.exit_code == 1
+    assert res.output.splitlines() == [
+        "Error: --out out/paper-table: holds files fruit did not write; choose a new folder "
+        "or empty it (nothing written)"
+    ]
+    assert (mine / "evaluate").read_text() == "my notes\n"
+    (mine / "evaluate").unlink()
+    res = _run("run", scene)
+    assert res.exit_code == 0, res.output
+    assert (mine / "evaluate" / "table.md").exists() and (mine / MARKER).exists()

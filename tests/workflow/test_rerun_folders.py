@@ -176,3 +176,25 @@ def test_the_manifest_holds_each_output_s_sha256(fresh):
     data = (fresh["after"] / "bench" / "small" / "frames.npz").read_bytes()
     assert manifest["files"]["small/frames.npz"] == hashlib.sha256(data).hexdigest()
     assert np.load(fresh["after"] / "bench" / "small" / "frames.npz")["frames"].ndim == 3
+
+
+def test_a_stage_that_fails_on_a_rerun_keeps_its_earlier_folder_whole(tmp_path):
+    from tests.conftest import PAPER
+
+    measured = tmp_path / "m.csv"
+    measured.write_text((PAPER / "paper_rest_measured.csv").read_text())
+    text = (
+        f'[[evaluate]]\nlabel = "Rest, small"\ntruth = "{PAPER / "paper_rest_truth.csv"}"\n'
+        f'measured = "{measured}"\n'
+    )
+    scene = parse_scene(text, tmp_path / "s.toml")
+    out = tmp_path / "out"
+    planner.run(scene, out)
+    before = {p: p.read_bytes() for p in (out / "evaluate").rglob("*") if p.is_file()}
+    measured.write_text("sample,x_mm\n1,2\n")  # no y column: the evaluation fails
+    with pytest.raises(Exception, match="m.csv"):
+        planner.run(scene, out)
+    after = {p: p.read_bytes() for p in (out / "evaluate").rglob("*") if p.is_file()}
+    assert after == before
+    assert [p.name for p in out.iterdir()] == ["evaluate"]  # no temporary folder left
+    assert _actions(planner.plan(scene, out)) == {"evaluate": "run"}
