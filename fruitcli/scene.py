@@ -1044,6 +1044,35 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
     return scene
 
 
+def _one_folder_per_row(scene: Scene, where: str) -> None:
+    """Each bench indenter once, and each evaluation row (an [[evaluate]] label, or
+    "<configuration>, <indenter>" of the bench) with a folder name of its own."""
+    from fruitcli.evaluation.report import slug
+
+    rows = [(ev.label, "[[evaluate]].label") for ev in scene.evaluate]
+    if scene.has("bench"):
+        names = list(scene.bench.indenters)
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:
+            raise SceneError(
+                f"{where}: [bench].indenters: {twice[0]!r} is given twice; expected each "
+                "indenter once (it names its folders)"
+            )
+        config = scene.scene.configuration
+        rows += [
+            (f"{config}, {name}", "[scene].configuration with [bench].indenters") for name in names
+        ]
+    seen = {}
+    for label, key in rows:
+        first = seen.setdefault(slug(label), (label, key))
+        if first != (label, key):
+            raise SceneError(
+                f"{where}: {key} {label!r} and {first[1]} {first[0]!r} both name the folder "
+                f"evaluate/{slug(label)}; expected row labels that differ in more than case "
+                "and punctuation"
+            )
+
+
 def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     """The checks that involve several keys (one key's choices and range are the schema's)."""
     labels = [ev.label for ev in scene.evaluate]
@@ -1053,6 +1082,7 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
             f"{where}: [[evaluate]].label: {twice[0]!r} is given twice; expected "
             "one label per row (it names the row's folder and table line)"
         )
+    _one_folder_per_row(scene, where)
     geo = scene.geometry
     given = {"artist": geo.artist, "solid": geo.solid, "pad_size_mm": geo.pad_size_mm}
     sources = [k for k, v in given.items() if v is not None]

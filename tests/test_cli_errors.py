@@ -29,7 +29,8 @@ def test_unwritable_output_is_one_line(tmp_path):
         "--out",
         tmp_path / "a_file" / "sub",
     )
-    assert res.exit_code == 1 and last_line(res).startswith(f"Error: {tmp_path / 'a_file'}")
+    assert res.exit_code == 1
+    assert last_line(res).startswith(f"Error: --out {tmp_path / 'a_file' / 'sub'}: ")
     assert "Traceback" not in res.output
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -111,6 +112,38 @@ divide_by_gain_option = click.option(
 # does); each command says what it writes, reads or paces with them.
 
 
+class OutFolder(click.Path):
+    """An output folder: an existing file is left to `claim_out` to refuse in one line
+    (click's own check would print its usage too)."""
+
+    def __init__(self, path_type=None):
+        super().__init__(file_okay=False, path_type=path_type)
+
+    def convert(self, value, param, ctx) -> Any:
+        import os
+
+        if os.path.isfile(value):
+            return self.coerce_path_result(value)
+        return super().convert(value, param, ctx)
+
+
+@contextlib.contextmanager
+def claim_out(folder, option: str = "--out") -> Iterator[None]:
+    """Run the block with `folder` as this command's output folder
+    (`fruitcli.output_folder.claimed`): a file, an unwritable folder or one holding
+    the user's files is refused in one line before anything is written."""
+    from fruitcli.output_folder import OutputFolderError, claimed
+
+    ctx = click.get_current_context(silent=True)
+    command = f"fruit {ctx.command_path.partition(' ')[2]}".strip() if ctx else "fruit"
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(claimed(folder, command, option))
+        except OutputFolderError as exc:
+            raise click.ClickException(str(exc)) from None
+        yield
+
+
 def out_option(
     written: str,
     *,
@@ -120,13 +153,11 @@ def out_option(
     dest: str = "out_dir",
     path_type=None,
 ) -> Callable[[FC], FC]:
-    """``--out``: the folder (a file with `file`) the command writes; `written` says what."""
-    kind = (
-        click.Path(dir_okay=False, path_type=path_type)
-        if file
-        else click.Path(file_okay=False, path_type=path_type)
-    )
-    return click.option(
+    """``--out``: the folder (a file with `file`) the command writes; `written` says what.
+    A folder is claimed (`claim_out`) before the command runs; a command whose folder
+    is computed when --out is not given claims it itself."""
+    kind = click.Path(dir_okay=False, path_type=path_type) if file else OutFolder(path_type)
+    option = click.option(
         "--out",
         dest,
         required=required,
@@ -135,6 +166,20 @@ def out_option(
         show_default=default is not None,
         help=written,
     )
+    if file:
+        return option
+
+    def decorate(command: FC) -> FC:
+        @functools.wraps(command)
+        def claiming(*args, **kwargs):
+            if kwargs.get(dest) is None:
+                return command(*args, **kwargs)
+            with claim_out(kwargs[dest]):
+                return command(*args, **kwargs)
+
+        return option(claiming)
+
+    return decorate
 
 
 def taxels_option(*, required: bool = False, path_type=None) -> Callable[[FC], FC]:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, out_option
+from fruitcli.cli.options import Progress, claim_out, fruit_errors, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
@@ -36,7 +37,9 @@ def run(scene_file, out_dir, dry_run, until, force) -> None:
 
     with fruit_errors():
         scene = load_scene(scene_file)
-        out = Path(out_dir) if out_dir else default_out(scene)
+    out = Path(out_dir) if out_dir else default_out(scene)
+    # a given --out is claimed before the command runs; the default one here
+    with claim_out(out) if out_dir is None else contextlib.nullcontext(), fruit_errors():
         if dry_run:
             steps = planner.plan(scene, out, until=until, shared=shared_outputs(out))
             click.echo(f"plan for {scene_file} -> {out}/")

@@ -6,18 +6,12 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors
+from fruitcli.cli.options import Progress, fruit_errors, out_option
 
 
 @click.command(name="skin")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--out",
-    "out_dir",
-    required=True,
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Output folder: crossing.npz, summary.json.",
-)
+@out_option("Output folder: crossing.npz, summary.json.", path_type=Path)
 def skin(scene, out_dir) -> None:
     """C0 of SCENE's Tx-Rx crossing, its change dC under the bench's indenters and a
     finger over gaps and offsets, and C_delta under stretch and bend.

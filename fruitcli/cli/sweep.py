@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import click
 
 from fruitcli.cli.options import (
     FiniteFloat,
+    claim_out,
     fruit_errors,
     jobs_option,
     out_option,
@@ -113,6 +115,8 @@ def sweep(
         except SweepError as exc:
             raise click.BadParameter(str(exc).removeprefix("--set "), param_hint="--set") from None
         out = Path(out_dir) if out_dir else Path("out") / f"sweep-{scene.name}"
+    # a given --out is claimed before the command runs; the default one here
+    with claim_out(out) if out_dir is None else contextlib.nullcontext(), fruit_errors():
         if dry_run:
             _dry_run(variants, out)
             return

@@ -2,8 +2,11 @@
 them can reuse their previous outputs.
 
 Each stage writes into `OUT/<stage>/` and leaves a `manifest.json` holding a content
-hash of everything that went in (scene parameters, input files, upstream manifests).
-A stage is reused while that hash is unchanged and its outputs are all present.
+hash of everything that went in (scene parameters, input files, upstream manifests) and
+the sha256 of every file it wrote. A stage is reused while that hash is unchanged and
+its outputs are all present and unchanged. A stage that runs is built whole in a folder
+of its own beside `OUT/<stage>/` and then swapped in, so its folder holds exactly what
+a fresh run's would (nothing of an earlier run's), and never half of it.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import functools
 import hashlib
 import importlib
 import json
+import os
 import shutil
 import tempfile
 import time
@@ -24,7 +28,8 @@ from fruitcli.workflow.stage_types import Context, Stage, Step
 from fruitcli.workflow.stages import STAGES
 
 MANIFEST = "manifest.json"
-PLANNER_VERSION = 2  # 2: scene inputs from the stages' declared reads, files by content
+PLANNER_VERSION = 3  # 2: scene inputs from the stages' declared reads, files by content
+# 3: the manifest holds its outputs' sha256 ("files")
 
 
 def _canonical(obj):
@@ -86,46 +91,137 @@ def file_hash_many(paths) -> str:
     return h.hexdigest()
 
 
-def _holds(folder: Path, stage: Stage, scene: Scene, digest: str) -> bool:
-    """True when `folder` has this stage's manifest with `digest` and all its outputs."""
+def output_hashes(folder: Path) -> dict[str, str]:
+    """sha256 of every file in a stage folder (path relative to it -> hex digest), its
+    manifest and hidden temporary files aside."""
+    out = {}
+    for path in sorted(Path(folder).rglob("*")):
+        rel = path.relative_to(folder)
+        if path.is_file() and rel.as_posix() != MANIFEST and not rel.name.startswith("."):
+            out[rel.as_posix()] = file_sha256(path)
+    return out
+
+
+def file_sha256(path: Path) -> str:
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+def _unlike(folder: Path, stage: Stage, scene: Scene, digest: str) -> str | None:
+    """None when `folder` holds this stage's manifest with `digest` and all its outputs
+    as they were written; else "" (no such run) or which output is missing or changed."""
     try:
         old = json.loads((folder / MANIFEST).read_text())
     except (OSError, json.JSONDecodeError):
-        return False
-    return old.get("hash") == digest and all((folder / o).exists() for o in stage.outputs(scene))
+        return ""
+    if not isinstance(old, dict) or old.get("hash") != digest:
+        return ""
+    files = old.get("files")
+    if not isinstance(files, dict):
+        return ""
+    for name in [*stage.outputs(scene), *files]:
+        if not (folder / name).exists():
+            return f"{name} is missing"
+    for name, sha in files.items():
+        try:
+            if file_sha256(folder / name) != sha:
+                return f"{name} changed since it was written"
+        except OSError:
+            return f"{name} cannot be read"
+    return None
 
 
-def _reusable(stage: Stage, scene: Scene, ctx: Context, digest: str) -> bool:
-    return _holds(ctx.dir(stage.name), stage, scene, digest)
+def _holds(folder: Path, stage: Stage, scene: Scene, digest: str) -> bool:
+    """True when `folder` has this stage's manifest with `digest` and all its outputs,
+    unchanged."""
+    return _unlike(folder, stage, scene, digest) is None
 
 
-def _copy_in(source: Path, folder: Path) -> None:
-    """Copy the stage folder `source` whole beside `folder` under a name of this process
-    (concurrent runs never share it), then swap it in. A run that swapped in the same
-    stage meanwhile wins: its copy has the same inputs."""
+def _swap_in(folder: Path, fill, kind: str) -> None:
+    """Build a stage folder whole beside `folder` under a name of this process (`fill`
+    writes it; concurrent runs never share it), then swap it in: the old folder moves
+    aside whole and is removed. A run that swapped in the same stage meanwhile wins: its
+    folder has the same inputs. `kind` names the temporary folder (".<stage>.<kind>.")."""
     from fruitcli.fsutil import owned_prefix, sweep_orphans
 
     folder.parent.mkdir(parents=True, exist_ok=True)
-    sweep_orphans(folder.parent, f".{folder.name}.copying.")
+    sweep_orphans(folder.parent, f".{folder.name}.{kind}.")
     holder = Path(
-        tempfile.mkdtemp(prefix=owned_prefix(f".{folder.name}.copying."), dir=folder.parent)
+        tempfile.mkdtemp(prefix=owned_prefix(f".{folder.name}.{kind}."), dir=folder.parent)
     )
     try:
-        shutil.copytree(source, holder / folder.name)
+        fill(holder / folder.name)
         for attempt in range(10):
-            try:  # the old folder moved aside whole, then the copy moved in whole
+            try:  # the old folder moved aside whole, then the new one moved in whole
                 folder.rename(holder / f"old{attempt}")
             except FileNotFoundError:
                 pass
             try:
                 (holder / folder.name).rename(folder)
                 return
-            except OSError:  # another run's copy moved in meanwhile: the same inputs
+            except OSError:  # another run's folder moved in meanwhile: the same inputs
                 if (folder / MANIFEST).exists():
                     return
         raise FruitError(f"{folder}: another run keeps replacing it; run again")
     finally:
         shutil.rmtree(holder, ignore_errors=True)
+
+
+def _copy_in(source: Path, folder: Path) -> None:
+    """Copy the stage folder `source` whole in place of `folder` (`_swap_in`)."""
+    _swap_in(folder, lambda target: shutil.copytree(source, target), "copying")
+
+
+def _run_in(stage: Stage, scene: Scene, ctx: Context, folder: Path, digest: str, reason: str):
+    """Run `stage` into a fresh folder swapped in place of `folder` (`_swap_in`); its
+    manifest is written last, with the outputs' hashes."""
+    from fruitcli.fsutil import write_json
+
+    def fill(target: Path) -> None:
+        t0 = time.perf_counter()
+        target.mkdir()
+        summary = _moved(stage.run(scene, ctx, target) or {}, str(target), str(folder))
+        write_json(
+            target / MANIFEST,
+            {
+                "stage": stage.name,
+                "hash": digest,
+                "reason": reason,
+                "seconds": round(time.perf_counter() - t0, 3),
+                "outputs": list(stage.outputs(scene)),
+                "files": output_hashes(target),
+                "summary": summary,
+            },
+        )
+
+    _swap_in(folder, fill, "partial")
+
+
+def _moved(obj, built: str, final: str):
+    """`obj` (a stage's summary) with the paths into the folder it was built in pointing
+    into its final folder."""
+    if isinstance(obj, dict):
+        return {k: _moved(v, built, final) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_moved(v, built, final) for v in obj]
+    if isinstance(obj, (str, Path)) and str(obj).startswith(built):
+        return type(obj)(final + str(obj)[len(built) :])
+    return obj
+
+
+def _no_link_out(folder: Path, root: Path) -> None:
+    """Refuse a stage folder that is a symbolic link leading out of the output folder:
+    the planner never writes through it."""
+    if folder.is_symlink() and not folder.resolve().is_relative_to(root.resolve()):
+        raise FruitError(
+            f"{folder}: a symbolic link to {folder.resolve()}, outside {root}; fruit writes "
+            "only inside its output folder: remove the link or choose another --out"
+        )
+
+
+def _changed(reason: str, why: str | None) -> str:
+    """A stage's reason to run, with the output found changed when that is why."""
+    return f"{reason}; rerun: {why}" if why else reason
 
 
 def plan(
@@ -155,7 +251,8 @@ def plan(
         except FileNotFoundError:
             digest = ""
         ctx.hashes[stage.name] = digest
-        if digest and _reusable(stage, scene, ctx, digest):
+        why = _unlike(ctx.dir(stage.name), stage, scene, digest) if digest else ""
+        if why is None:
             steps.append(Step(stage.name, "reuse", reason, digest))
         elif digest and (source := _borrow(stage, scene, ctx, digest)) is not None:
             ctx.lent[stage.name] = source
@@ -163,18 +260,24 @@ def plan(
                 Step(stage.name, "reuse", f"{reason} (same inputs as {source.parent.name})", digest)
             )
         else:
-            steps.append(Step(stage.name, "run", reason, digest))
+            steps.append(Step(stage.name, "run", _changed(reason, why), digest))
     return steps
 
 
-def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str) -> Path | None:
-    """A sibling scene's folder (under ctx.shared) holding this stage with the same hash."""
+def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str, say=None) -> Path | None:
+    """A sibling scene's folder (under ctx.shared) holding this stage with the same hash
+    and its outputs unchanged; `say` hears of a sibling whose outputs changed."""
     if ctx.shared is None:
         return None
     for manifest in sorted(ctx.shared.glob(f"*/{stage.name}/{MANIFEST}")):
         folder = manifest.parent
-        if folder != ctx.dir(stage.name) and _holds(folder, stage, scene, digest):
+        if folder == ctx.dir(stage.name):
+            continue
+        why = _unlike(folder, stage, scene, digest)
+        if why is None:
             return folder
+        if why and say:
+            say(f"{stage.name}: {folder}{os.sep}{why}: not copied from there")
     return None
 
 
@@ -204,12 +307,16 @@ def run(
             continue
         digest = fingerprint(stage, scene, ctx)
         ctx.hashes[stage.name] = digest
-        if not force and _reusable(stage, scene, ctx, digest):
+        folder = ctx.dir(stage.name)
+        why = "" if force else _unlike(folder, stage, scene, digest)
+        if why is None:
             done.append(Step(stage.name, "reuse", reason, digest))
             ctx.progress(f"{stage.name}: reuse (inputs unchanged)")
             continue
-        folder = ctx.dir(stage.name)
-        source = None if force else _borrow(stage, scene, ctx, digest)
+        if why:
+            ctx.progress(f"{stage.name}: {folder}{os.sep}{why}: run again")
+        _no_link_out(folder, ctx.out_root)
+        source = None if force else _borrow(stage, scene, ctx, digest, ctx.progress)
         if source is not None:  # copied whole beside it, then swapped in: never half
             _copy_in(source, folder)
             done.append(
@@ -218,24 +325,9 @@ def run(
             ctx.progress(f"{stage.name}: reuse (same inputs as {source.parent.name})")
             continue
         ctx.progress(f"{stage.name}: run ({reason})")
-        t0 = time.perf_counter()
-        (folder / MANIFEST).unlink(missing_ok=True)
-        summary = stage.run(scene, ctx, folder) or {}
-        # the manifest is written last: a stage interrupted before this point reruns
-        from fruitcli.fsutil import write_json
-
-        write_json(
-            folder / MANIFEST,
-            {
-                "stage": stage.name,
-                "hash": digest,
-                "reason": reason,
-                "seconds": round(time.perf_counter() - t0, 3),
-                "outputs": list(stage.outputs(scene)),
-                "summary": summary,
-            },
-        )
-        done.append(Step(stage.name, "run", reason, digest))
+        # built whole beside its folder, the manifest last, then swapped in
+        _run_in(stage, scene, ctx, folder, digest, reason)
+        done.append(Step(stage.name, "run", _changed(reason, why), digest))
     return done
 
 

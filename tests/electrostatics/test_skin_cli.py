@@ -8,6 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from fruitcli.output_folder import MARKER
+
 SMALL_CELL = """
 [grid]
 spacing_x_mm = 6.0
@@ -112,12 +114,13 @@ def test_mesh_time_limit_is_named_and_nothing_is_written(tmp_path, fruit):
     it was (complete, with its own inputs) and no temporary file is left."""
     out = tmp_path / "out"
     out.mkdir()
+    (out / MARKER).write_text("{}\n")  # the folder of an earlier run
     (out / "summary.json").write_text("{}\n")
     text = SMALL_CELL + "\n[mesh]\ntime_limit_s = 0.05\n"
     result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
     assert result.exit_code == 1
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and "[mesh].time_limit_s" in lines[0]
-    assert sorted(p.name for p in out.iterdir()) == ["summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "summary.json"]
     assert (out / "summary.json").read_text() == "{}\n"
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

@@ -3,6 +3,7 @@
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.output_folder import MARKER
 
 
 def run(*args):
@@ -48,10 +49,11 @@ def test_locate_removes_a_measured_csv_of_another_run(tmp_path):
     write_muca_log(log, Recording(frames, np.arange(20) / 10.0))
     out = tmp_path / "o"
     out.mkdir()
+    (out / MARKER).write_text("{}\n")  # the folder of an earlier run
     (out / "measured.csv").write_text("sample,x_mm,y_mm,z_mm\n0,1,2,3\n")
     res = run("locate", log, "--taxels", taxels, "--out", out)
     assert res.exit_code == 0, res.output
-    assert sorted(p.name for p in out.iterdir()) == ["touches.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "touches.csv"]
     rows = [
         line
         for line in (out / "touches.csv").read_text().splitlines()

@@ -41,7 +41,8 @@ def test_demo_in_an_unwritable_folder_is_one_line(fruit, tmp_path):
     res = fruit("demo", "--out", blocker / "out", "--scenes", "paper-table")
     assert res.exit_code == 1
     assert res.output.strip().splitlines() == [
-        f"Error: {blocker}/out/scenes/data/paper: Not a directory"
+        f"Error: --out {blocker}/out: {blocker} is a file, not a folder; choose another "
+        "folder (nothing written)"
     ]
     read_only = tmp_path / "read-only"
     read_only.mkdir(mode=0o555)

@@ -7,6 +7,7 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
+from fruitcli.output_folder import MARKER
 from fruitcli.sensing.detection.frames_to_touches import (
     HOVER,
     TOUCH,
@@ -169,6 +170,7 @@ def test_cli_bad_hover_threshold_and_a_skin_without_gap_law(tmp_path):
     taxel_csv(tmp_path / "t.csv")
     (tmp_path / "s.toml").write_text("[detection]\nhovers = true\nhover_threshold_counts = 20\n")
     (tmp_path / "o").mkdir()
+    (tmp_path / "o" / MARKER).write_text("{}\n")  # the folder of an earlier run
     (tmp_path / "o" / "touches.csv").write_text("kept\n")
     r = CliRunner().invoke(
         cli,

@@ -7,6 +7,7 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.fsutil import write_csv
+from fruitcli.output_folder import MARKER
 from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import descent_gaps
@@ -340,9 +341,10 @@ def test_a_recording_without_what_calibration_needs_is_one_line(tmp_path, change
         Recording(rec.frames, rec.t_s, sample=sample, meta=change.get("meta", rec.meta)),
     )
     (tmp_path / "cal").mkdir()
+    (tmp_path / "cal" / MARKER).write_text("{}\n")  # the folder of an earlier run
     (tmp_path / "cal" / "skin.toml").write_text("kept\n")
     res = calibrate(tmp_path)
     assert res.exit_code == 1 and res.output.count("\n") == 1, res.output
     assert message in res.output and "Traceback" not in res.output
-    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == ["skin.toml"]
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == [MARKER, "skin.toml"]
     assert (tmp_path / "cal" / "skin.toml").read_text() == "kept\n"
