@@ -42,6 +42,7 @@ OUTPUTS = {
     "study stability": ([], ["stability.md", "stability.csv", "stability.json"]),
     "study runtime": (["s.toml"], ["runtime.md", "runtime.json", "runtime.png"]),
     "study bench": (["s.toml"], ["bench.md", "bench.csv", "bench.json", "bench.png"]),
+    "study locate": (["s.toml"], ["locate_methods.md", "locate_methods.csv", "locate_methods.png"]),
     "study two-fingers": ([], ["two_fingers.md", "two_fingers.csv", "single_fingers.csv"]),
     "study heights": ([], ["hover_heights.md", "hover_heights.csv"]),
     "sweep": (["s.toml"], ["sweep.csv", "sweep.md", "sweep.png"]),
