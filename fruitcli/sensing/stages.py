@@ -408,7 +408,7 @@ def run_bench(
     from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import write_npz
     from fruitcli.sensing.skin import forward
-    from fruitcli.sensing.skin.virtual_bench import BENCH_FPS, cell_counts, descend
+    from fruitcli.sensing.skin.virtual_bench import BENCH_FPS, bench_bytes, cell_counts, descend
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
@@ -464,6 +464,11 @@ def run_bench(
             f"points lies over {truth_surface}; expected points (x, y) over the "
             "body"
         )
+    require(
+        bench_bytes(bench.step_mm, len(contact), len(taxels), board.rows * board.cols),
+        f"{scene.path.name}: [bench].step_mm = {bench.step_mm:g} over {len(contact)} samples",
+        FrameError,
+    )
     result = {
         "samples": int(len(xy)),
         "off_surface": int(len(xy) - len(contact)),

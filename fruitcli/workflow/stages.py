@@ -161,10 +161,11 @@ def _pad_needed(scene):
 
 
 def _pad_run(scene, ctx, out_dir):
-    from fruitcli.geometry.padgrid import write_pad_taxels, write_pad_tracks
+    from fruitcli.geometry.padgrid import check_pad_size, write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
     args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
+    check_pad_size(args[0], args[1], scene.path.name)
     n = write_pad_taxels(out_dir / "taxels.csv", *args)
     return {"taxels": n, "tracks": write_pad_tracks(out_dir / "tracks.csv", *args)}
 

@@ -77,7 +77,7 @@ def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
         )
     if extent > MAX_EXTENT_MM:
         raise GeometryError(
-            f"{what} is {extent:.4g} mm across in {unit}, more than "
+            f"{what} is {extent:.4g} mm across{'' if unit == 'any' else f' in {unit}'}, more than "
             f"{MAX_EXTENT_MM:g} mm: is that its unit?"
         )
     far = float(np.abs(verts_mm).max())
