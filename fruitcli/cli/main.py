@@ -116,7 +116,7 @@ def cli(ctx, verbose, quiet) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: FruitErrors become one line on stderr and exit code 1."""
-    from fruitcli.errors import FruitError
+    from fruitcli.errors import FruitError, one_line
 
     try:
         return cli.main(args=argv, standalone_mode=False)
@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> None:
     except FruitError as exc:
         if "-vv" in (argv or sys.argv):
             raise
-        click.echo(f"Error: {exc}", err=True)
+        click.echo(f"Error: {one_line(str(exc))}", err=True)
         sys.exit(1)
     except OSError as exc:  # an unwritable output folder, a full disk, ...
         if "-vv" in (argv or sys.argv):

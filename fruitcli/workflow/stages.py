@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fruitcli.scene import Scene, has_deformation, has_gravity, n_states
+from fruitcli.scene import Scene, gravity_left_out, has_deformation, has_gravity, n_states
 from fruitcli.workflow.stage_types import Context, Stage
 
 
@@ -173,7 +173,8 @@ def _pad_run(scene, ctx, out_dir):
 # ----------------------------------------------------------------------------- tetra / simulate
 def _fem_needed(scene):
     if not has_deformation(scene):
-        return False, "no deformation: taxels at rest, no FEM"
+        dropped = gravity_left_out(scene)
+        return False, "no deformation: taxels at rest, no FEM" + (f"; {dropped}" if dropped else "")
     if _geometry_kind(scene) == "none":
         return False, "no geometry to mesh"
     return True, _fem_reason(scene)
@@ -199,6 +200,8 @@ def _fem_reason(scene):
         parts.append("gravity on the held body")
     elif not scene.has("gravity"):
         parts.append("no gravity")
+    else:
+        parts.append(gravity_left_out(scene) or "gravity vector zero: no gravity")
     return "; ".join(parts)
 
 
