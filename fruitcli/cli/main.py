@@ -3,8 +3,11 @@ are imported only when used, so `fruit --help` stays fast."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
+import os
+import signal
 import sys
 
 import click
@@ -115,7 +118,30 @@ def cli(ctx, verbose, quiet) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: FruitErrors become one line on stderr and exit code 1."""
+    """Console entry point: FruitErrors become one line on stderr and exit code 1; Ctrl-C,
+    up to the process's last instant, "Interrupted." and exit code 130."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # while an error or the result was being reported
+        click.echo("Interrupted.", err=True)
+        sys.exit(130)
+    finally:
+        if argv is None:  # the console script: the interpreter's shutdown follows
+            signal.signal(signal.SIGINT, _interrupted_at_exit)
+
+
+def _interrupted_at_exit(signum, frame) -> None:
+    """Ctrl-C once the command is over (threads joined, files closed at exit): what was
+    printed is flushed, then "Interrupted." and exit code 130 at once."""
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    with contextlib.suppress(Exception):
+        sys.stderr.write("Interrupted.\n")
+        sys.stderr.flush()
+    os._exit(130)
+
+
+def _main(argv: list[str] | None) -> None:
     from fruitcli.errors import FruitError, one_line
 
     try:
