@@ -48,9 +48,10 @@ DESCENT_ARRAYS = 6
 activation, mean, noise, counts and a mask)."""
 
 
-def descent_steps(step_mm: float) -> int:
-    """Frames of one full descent, from START_GAP_MM above contact to PRESS_MM into it."""
-    return int((START_GAP_MM + PRESS_MM) / step_mm) + 1
+def descent_steps(step_mm: float) -> float:
+    """Frames of one full descent, from START_GAP_MM above contact to PRESS_MM into it
+    (about; a float, so that any step > 0 gives a number)."""
+    return (START_GAP_MM + PRESS_MM) / step_mm + 1.0
 
 
 def bench_bytes(step_mm: float, samples: int, taxels: int, cells: int) -> float:
