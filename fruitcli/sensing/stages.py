@@ -558,6 +558,18 @@ def run_sensitivity(
     taxels = read_taxels(taxels_csv, FrameError)
     states = None if states_npz is None else load_states(states_npz, len(taxels))
     sens = scene.sensitivity
+    from fruitcli.memory import require
+
+    # frames at rest, then the animation's: noise, mean and counts per taxel (float, int)
+    for key, frames in (
+        ("noise_frames", sens.noise_frames),
+        ("animation_frames", sens.animation_frames),
+    ):
+        require(
+            frames * len(taxels) * 8.0 * 4,
+            f"{scene.path.name}: [sensitivity].{key} = {frames} over {len(taxels)} taxels",
+            FrameError,
+        )
     skin = forward.make_skin(
         len(taxels),
         scene.bench.seed,

@@ -315,3 +315,13 @@ def test_a_solid_far_too_large_is_refused_by_tetra(tmp_path):
     assert last_line(res) == (
         "Error: --solid: big.stl is 1e+08 mm across, more than 5000 mm: is that its unit?"
     )
+
+
+def test_sensitivity_frames_too_many_for_memory_are_one_line(tmp_path, one_gib):
+    path = scene_file(tmp_path, "[sensitivity]\nnoise_frames = 100000000\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == (
+        "Error: s.toml: [sensitivity].noise_frames = 100000000 over 4 taxels needs about "
+        "11.9 GiB of memory, 1.0 GiB is available"
+    )
