@@ -73,7 +73,8 @@ class Key:
             forms = {f"{self.max:g}", f"{self.max:,}"}
             if float(self.max).is_integer():
                 forms.add(f"{int(self.max):,}")
-            said = any(form in self.expected for form in forms)
+            # the text already gives an upper end: the max itself, or "lo < value < hi"
+            said = any(form in self.expected for form in forms) or self.expected.count("<") >= 2
             return f"{self.expected} and{hi}" if above and not said else self.expected
         if self.expected is not None:
             return self.expected
@@ -90,7 +91,7 @@ class Key:
 
 
 POSITIVE = {"min": 0.0, "min_exclusive": True}
-SEED = {"min": 0, "max": 2**63 - 1, "expected": "a seed >= 0"}
+SEED = {"min": 0, "max": 2**63 - 1, "expected": "a seed 0 <= seed < 2^63"}
 MAX_FACES = 10_000_000
 """Most triangles a reduced surface may ask for (a 10 M triangle surface is ~1 GB)."""
 OPEN_FRACTION = {"min": 0.0, "max": 1.0, "min_exclusive": True, "max_exclusive": True}

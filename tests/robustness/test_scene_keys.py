@@ -27,7 +27,7 @@ def scene_file(tmp_path, body):
 @pytest.mark.parametrize(
     "body, message",
     [
-        ("[bench]\nseed = -1\n", "[bench].seed: expected a seed >= 0, got -1"),
+        ("[bench]\nseed = -1\n", "[bench].seed: expected a seed 0 <= seed < 2^63, got -1"),
         (
             "[sensitivity]\nanimation_frames = 0\n",
             "[sensitivity].animation_frames: expected frames >= 1, got 0",
