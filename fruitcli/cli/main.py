@@ -126,7 +126,9 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("Interrupted.", err=True)
         sys.exit(130)
     finally:
-        if argv is None:  # the console script: the interpreter's shutdown follows
+        # the console script (the interpreter's shutdown follows), unless Ctrl-C is ignored
+        # (a background job)
+        if argv is None and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             signal.signal(signal.SIGINT, _interrupted_at_exit)
 
 
