@@ -149,6 +149,8 @@ def _type(key) -> str:
         left = f"{low:g} {'<' if key.min_exclusive else '≤'} " if low is not None else ""
         right = f" {'<' if key.max_exclusive else '≤'} {high:g}" if high is not None else ""
         text += f", {left}value{right}"
+    if getattr(key, "max_items", None) is not None:
+        text += f", at most {key.max_items:,} entries"
     return text
 
 
@@ -162,7 +164,7 @@ def key_table(keys: dict, lines: list[str]) -> None:
 
 
 def scene_page() -> str:
-    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, SUBTABLES
+    from fruitcli.scene import ARRAY_SCHEMA, MAX_ITEMS, SCHEMA, SUBTABLES
 
     lines = [
         "# Scene keys",
@@ -174,19 +176,23 @@ def scene_page() -> str:
         "against the scene file's folder, then against the project root (the nearest "
         "folder above holding `pyproject.toml`). `none` means optional: the stage that "
         "reads the key then does without it or computes a default (the meaning says "
-        "which).",
+        "which). A section written with no key (`[gravity]` alone) means its defaults. "
+        "Every number has its range; sizes that follow from several keys (a bench's "
+        "frames, a pad's taxels, a mesh's tetrahedra, the reducer's grid) are estimated "
+        "before the stage allocates, and refused in one line when they would not fit "
+        "the memory available.",
         "",
     ]
     for section, keys in SCHEMA.items():
         if section in ARRAY_SCHEMA:
-            lines += [f"## \\[\\[{section}\\]\\] (any number of tables)", ""]
+            lines += [f"## \\[\\[{section}\\]\\] (at most {MAX_ITEMS:,} tables)", ""]
             key_table(ARRAY_SCHEMA[section], lines)
             continue
         lines += [f"## \\[{section}\\]", ""]
         key_table(keys, lines)
         nested = f"{section}.chamber"
         if nested in ARRAY_SCHEMA:
-            lines += [f"### \\[\\[{nested}\\]\\] (any number of tables)", ""]
+            lines += [f"### \\[\\[{nested}\\]\\] (at most {MAX_ITEMS:,} tables)", ""]
             key_table(ARRAY_SCHEMA[nested], lines)
             for sub, subkeys in SUBTABLES.items():
                 if sub in ARRAY_SCHEMA[nested]:

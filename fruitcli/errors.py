@@ -27,3 +27,27 @@ class FrameError(FruitError):
 
 class EvaluationError(FruitError):
     """Truth and measured points cannot be compared."""
+
+
+ECHO_CHARS = 80
+"""Longest echo of a user's value in an error message (characters), so that one line stays
+one readable line whatever was given."""
+
+LINE_CHARS = 2000
+"""Longest error line printed (characters); longer ones are cut in their middle."""
+
+
+def echo(value, limit: int = ECHO_CHARS) -> str:
+    """`repr(value)`, cut to `limit` characters with "…" when longer."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def one_line(text: str, limit: int = LINE_CHARS) -> str:
+    """`text` on one line of at most `limit` characters: the start and the end kept (they
+    name the input and what was expected), the middle cut to "…"."""
+    text = " ".join(text.splitlines())
+    if len(text) <= limit:
+        return text
+    half = (limit - 1) // 2
+    return text[:half] + "…" + text[len(text) - (limit - 1 - half) :]

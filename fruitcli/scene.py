@@ -24,11 +24,11 @@ from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, 
 from pathlib import Path
 from typing import Any
 
-from fruitcli.errors import SceneError
+from fruitcli.errors import SceneError, echo
 from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
-from fruitcli.geometry.mesh.load import UNIT_TO_MM
+from fruitcli.geometry.mesh.load import MAX_EXTENT_MM, UNIT_TO_MM
 from fruitcli.sensing.detection.methods import METHODS as DETECTION_METHODS
 from fruitcli.sensing.detection.methods import method_help
 
@@ -56,6 +56,8 @@ class Key:
     max_exclusive: bool = False
     valid: Callable[[Any], bool] | None = None
     expected: str | None = None
+    max_items: int | None = None  # most entries of a list or table
+    unbounded: str = ""  # why a number has no declared min or max (where it is checked)
 
     def in_range(self, value: float) -> bool:
         """True when `value` lies in [min, max] (ends excluded as declared)."""
@@ -63,14 +65,26 @@ class Key:
             return False
         return self.max is None or (value < self.max if self.max_exclusive else value <= self.max)
 
-    def expectation(self) -> str:
-        """What a valid value is, for error messages."""
+    def expectation(self, value: Any = None) -> str:
+        """What a valid value is, for error messages; given the number refused, the side of
+        the range it broke (a number too small: the lower bound only)."""
+        hi = "" if self.max is None else f" {'<' if self.max_exclusive else '<='} {self.max:g}"
+        above = isinstance(value, NUM) and self.max is not None and not self.in_range(value)
+        above = above and (value >= self.max if self.max_exclusive else value > self.max)
+        if self.expected is not None and self.max is not None:
+            forms = {f"{self.max:g}", f"{self.max:,}"}
+            if float(self.max).is_integer():
+                forms.add(f"{int(self.max):,}")
+            # the text already gives an upper end: the max itself, or "lo < value < hi"
+            said = any(form in self.expected for form in forms) or self.expected.count("<") >= 2
+            return f"{self.expected} and{hi}" if above and not said else self.expected
         if self.expected is not None:
             return self.expected
         if self.choices is not None:
             return f"one of {', '.join(self.choices)}"
         lo = "" if self.min is None else f"{self.min:g} {'<' if self.min_exclusive else '<='} "
-        hi = "" if self.max is None else f" {'<' if self.max_exclusive else '<='} {self.max:g}"
+        if isinstance(value, NUM) and not above:
+            hi = ""
         if lo and hi:
             return f"{lo}value{hi}"
         if lo:
@@ -79,10 +93,35 @@ class Key:
 
 
 POSITIVE = {"min": 0.0, "min_exclusive": True}
-SEED = {"min": 0, "max": 2**63 - 1, "expected": "a seed >= 0"}
+SEED = {"min": 0, "max": 2**63 - 1, "expected": "a seed 0 <= seed < 2^63"}
 MAX_FACES = 10_000_000
 """Most triangles a reduced surface may ask for (a 10 M triangle surface is ~1 GB)."""
 OPEN_FRACTION = {"min": 0.0, "max": 1.0, "min_exclusive": True, "max_exclusive": True}
+LENGTH = {"min": 0.0, "max": MAX_EXTENT_MM}
+"""A length in mm: no longer than the largest body (`geometry.mesh.load.MAX_EXTENT_MM`)."""
+POSITIVE_LENGTH = {**POSITIVE, "max": MAX_EXTENT_MM}
+FAR_MM = 1e6
+"""Farthest coordinate (mm) of a point or box: any body (at most MAX_EXTENT_MM across, near
+the origin) and any box drawn around it fit within it."""
+COORDINATE = {"min": -FAR_MM, "max": FAR_MM}
+ANGLE = {"min": -360.0, "max": 360.0}
+MAX_COUNTS = 65535
+"""Largest CDC count a board reports (16-bit)."""
+COUNTS = {"min": 0.0, "max": MAX_COUNTS}
+MODULUS_KPA = 1e9
+"""Largest modulus (kPa): 1 TPa, stiffer than any solid."""
+PRESSURE_KPA = 1e5
+"""Largest chamber pressure, either sign (kPa): 100 MPa, far past any silicone's burst."""
+MAX_SECONDS = 1e6
+"""Longest time budget or period (s): about 11 days."""
+MAX_FRAMES = 10**8
+"""Most frames a key may ask for (a bench's idle frames are also sized by `memory`)."""
+MAX_STATES = 10_000
+"""Most actuation states (each one a quasi-static solve)."""
+MAX_ITEMS = 1000
+"""Most tables in an array ([[fixed]], [[geometry.chamber]], ...) and entries of a list."""
+MAX_INDENTERS = 64
+"""Most indenters a bench may replay, or [skin] may give a width."""
 
 
 def _plain_folder_name(name: str) -> bool:
@@ -91,8 +130,12 @@ def _plain_folder_name(name: str) -> bool:
 
 def _two_positive_ints(count: list) -> bool:
     return len(count) == 2 and all(
-        isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in count
+        isinstance(c, int) and not isinstance(c, bool) and 0 < c <= MAX_GRID_LINES for c in count
     )
+
+
+MAX_GRID_LINES = 10_000
+"""Most taxels along one axis of a flat pad's grid (its rows are also sized by `memory`)."""
 
 
 def _increasing_pair(pair: list[float]) -> bool:
@@ -113,7 +156,7 @@ def _gap_table(gaps) -> bool:
     return (
         isinstance(gaps, (list, tuple))
         and len(gaps) >= 2
-        and all(isinstance(g, NUM) and not isinstance(g, bool) and math.isfinite(g) for g in gaps)
+        and all(_number(g) and g <= MAX_EXTENT_MM for g in gaps)
         and gaps[0] == 0
         and all(b > a for a, b in zip(gaps[:-1], gaps[1:], strict=False))
     )
@@ -157,17 +200,26 @@ SCHEMA: dict[str, dict[str, Key]] = {
             None,
             "scale the artist mesh (after unit) so that its largest "
             "extent is this (mm); chambers stay as given (mm)",
+            **POSITIVE_LENGTH,
         ),
         "solid": Key("path", None, "closed surface used as the FEM body as is ([geometry].unit)"),
-        "pad_size_mm": Key("vec3", None, "flat pad [x, y, thickness] in mm, centred at x=y=0"),
-        "chamber": Key("list", [], "pneumatic chambers ([[geometry.chamber]])"),
+        "pad_size_mm": Key(
+            "vec3",
+            None,
+            "flat pad [x, y, thickness] in mm, centred at x=y=0",
+            **POSITIVE_LENGTH,
+            expected=f"[x, y, thickness] each > 0 and <= {MAX_EXTENT_MM:g} mm",
+        ),
+        "chamber": Key(
+            "list", [], "pneumatic chambers ([[geometry.chamber]])", max_items=MAX_ITEMS
+        ),
     },
     "tracks": {
         "cover_mm": Key(
             "num",
             2.0,
             "inward offset for the cover layer (mm)",
-            min=0.0,
+            **LENGTH,
             expected="a thickness >= 0 mm",
         ),
         "faces": Key(
@@ -179,9 +231,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
             expected=f"a triangle count 4 <= faces <= {MAX_FACES:,}",
         ),
         "track_radius_mm": Key(
-            "num", 0.6, "radius of the yarn tubes (mm)", **POSITIVE, expected="a radius > 0 mm"
+            "num",
+            0.6,
+            "radius of the yarn tubes (mm)",
+            **POSITIVE_LENGTH,
+            expected="a radius > 0 mm",
         ),
-        "split_z_mm": Key("num", None, "casting split plane height (mm; default: automatic)"),
+        "split_z_mm": Key(
+            "num", None, "casting split plane height (mm; default: automatic)", **COORDINATE
+        ),
         "yarn_max_stretch": Key(
             "num",
             0.25,
@@ -195,7 +253,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             4.0,
             "zig-zag pitch of the sewn yarn (mm): the warnings' "
             "amplitude and the length of the local stretch",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="> 0 (mm)",
         ),
         "file": Key(
@@ -206,32 +264,97 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
     },
     "grid": {
-        "spacing_x_mm": Key("num", 16.0, "distance between x = const planes (mm)", **POSITIVE),
-        "spacing_y_mm": Key("num", 12.0, "distance between y = const planes (mm)", **POSITIVE),
-        "origin_mm": Key("vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)"),
+        "spacing_x_mm": Key(
+            "num", 16.0, "distance between x = const planes (mm)", **POSITIVE_LENGTH
+        ),
+        "spacing_y_mm": Key(
+            "num", 12.0, "distance between y = const planes (mm)", **POSITIVE_LENGTH
+        ),
+        "origin_mm": Key(
+            "vec2", None, "[x0, y0] of plane (0, 0) (mm; default: centred)", **COORDINATE
+        ),
         "count": Key(
             "list",
             None,
             "[nx, ny] taxels on a flat pad",
             valid=_two_positive_ints,
-            expected="two positive integers [nx, ny]",
+            expected=f"two positive integers [nx, ny], each at most {MAX_GRID_LINES:,}",
+            max_items=2,
         ),
         "taxels": Key("path", None, "taxel CSV given directly (id,i,j,x_mm,y_mm,z_mm)"),
     },
     "mold": {
-        "wall_mm": Key("num", 4.0, "mold wall thickness (mm, at least 1)"),
-        "clearance_mm": Key("num", 0.3, "gap between keys and sockets, pins and holes (mm)"),
-        "key_radius_mm": Key("num", 3.0, "radius of the registration keys (mm)"),
-        "pour_diameter_mm": Key("num", 8.0, "pour hole diameter (mm)"),
-        "vent_diameter_mm": Key("num", 2.0, "vent diameter (mm)"),
-        "pin_diameter_mm": Key("num", 3.0, "diameter of the pins holding chamber cores (mm)"),
-        "vents": Key("int", 4, "vents at the cavity's highest points besides the pour hole"),
+        "wall_mm": Key(
+            "num",
+            4.0,
+            "mold wall thickness (mm, at least 1)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "clearance_mm": Key(
+            "num",
+            0.3,
+            "gap between keys and sockets, pins and holes (mm)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "key_radius_mm": Key(
+            "num",
+            3.0,
+            "radius of the registration keys (mm)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "pour_diameter_mm": Key(
+            "num",
+            8.0,
+            "pour hole diameter (mm)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "vent_diameter_mm": Key(
+            "num",
+            2.0,
+            "vent diameter (mm)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "pin_diameter_mm": Key(
+            "num",
+            3.0,
+            "diameter of the pins holding chamber cores (mm)",
+            max=MAX_EXTENT_MM,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
+        "vents": Key(
+            "int",
+            4,
+            "vents at the cavity's highest points besides the pour hole",
+            max=16,
+            unbounded="its lower bound is the mold's (fabrication.mold.MoldOptions.check)",
+        ),
     },
     "mesh": {
-        "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)", **POSITIVE),
-        "min_size_mm": Key("num", None, "smallest edge near chambers and taxels (mm)"),
-        "time_limit_s": Key("num", 120.0, "gmsh is killed after this many seconds"),
-        "min_quality": Key("num", 0.05, "refuse meshes whose worst SICN is below this"),
+        "size_mm": Key("num", 3.0, "target tetrahedron edge length (mm)", **POSITIVE_LENGTH),
+        "min_size_mm": Key(
+            "num", None, "smallest edge near chambers and taxels (mm)", **POSITIVE_LENGTH
+        ),
+        "time_limit_s": Key(
+            "num",
+            120.0,
+            "gmsh is killed after this many seconds",
+            **POSITIVE,
+            max=MAX_SECONDS,
+            expected="a time limit > 0 s",
+        ),
+        "min_quality": Key(
+            "num",
+            0.05,
+            "refuse meshes whose worst SICN is below this",
+            min=-1.0,
+            max=1.0,
+            expected="a SICN -1 <= value <= 1",
+        ),
     },
     "fem": {
         "element": Key(
@@ -251,11 +374,25 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)",
             choices=MATERIAL_MODELS,
         ),
-        "c10_kpa": Key("num", None, "yeoh: C10 (kPa; the shear modulus is 2 C10)"),
-        "c20_kpa": Key("num", 0.0, "yeoh: C20 (kPa)"),
-        "c30_kpa": Key("num", 0.0, "yeoh: C30 (kPa)"),
-        "bulk_modulus_kpa": Key("num", None, "bulk modulus kappa (kPa; default from E, nu)"),
-        "young_modulus_kpa": Key("num", 100.0, "Young's modulus E (kPa)", **POSITIVE),
+        "c10_kpa": Key(
+            "num",
+            None,
+            "yeoh: C10 (kPa; the shear modulus is 2 C10)",
+            max=MODULUS_KPA,
+            unbounded="its lower bound is the material's (materials.build.from_scene)",
+        ),
+        "c20_kpa": Key("num", 0.0, "yeoh: C20 (kPa)", min=-MODULUS_KPA, max=MODULUS_KPA),
+        "c30_kpa": Key("num", 0.0, "yeoh: C30 (kPa)", min=-MODULUS_KPA, max=MODULUS_KPA),
+        "bulk_modulus_kpa": Key(
+            "num",
+            None,
+            "bulk modulus kappa (kPa; default from E, nu)",
+            max=MODULUS_KPA,
+            unbounded="its lower bound is the material's (materials.build.from_scene)",
+        ),
+        "young_modulus_kpa": Key(
+            "num", 100.0, "Young's modulus E (kPa)", **POSITIVE, max=MODULUS_KPA
+        ),
         "poisson_ratio": Key(
             "num",
             0.45,
@@ -266,23 +403,54 @@ SCHEMA: dict[str, dict[str, Key]] = {
             max_exclusive=True,
             expected="-1 < nu < 0.5",
         ),
-        "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)", min=0.0),
+        "density_kg_m3": Key("num", 1070.0, "density (kg/m^3)", min=0.0, max=1e5),
     },
     "gravity": {
-        "vector_m_s2": Key("vec3", [0.0, 0.0, -9.81], "gravity acceleration (m/s^2)"),
+        "vector_m_s2": Key(
+            "vec3",
+            [0.0, 0.0, -9.81],
+            "gravity acceleration (m/s^2); an empty [gravity] means this default",
+            min=-1e4,
+            max=1e4,
+        ),
     },
     "fixed": {},  # array of tables, see ARRAY_SCHEMA
     "jig": {},
     "actuation": {
-        "pressure_kpa": Key("table", None, "per chamber: one pressure per state (kPa)"),
-        "volume_growth_mm3": Key("table", None, "per chamber: one volume growth per state (mm^3)"),
+        "pressure_kpa": Key(
+            "table",
+            None,
+            "per chamber: one pressure per state (kPa)",
+            min=-PRESSURE_KPA,
+            max=PRESSURE_KPA,
+            expected=f"pressures -{PRESSURE_KPA:g} <= p <= {PRESSURE_KPA:g} kPa, one per state",
+            max_items=MAX_ITEMS,
+        ),
+        "volume_growth_mm3": Key(
+            "table",
+            None,
+            "per chamber: one volume growth per state (mm^3)",
+            min=-(MAX_EXTENT_MM**3),
+            max=MAX_EXTENT_MM**3,
+            expected=f"volume growths of at most {MAX_EXTENT_MM**3:g} mm^3 either way, one per "
+            "state",
+            max_items=MAX_ITEMS,
+        ),
         "period_s": Key(
-            "num", None, "duration of one cycle of the states (s), for animations", **POSITIVE
+            "num",
+            None,
+            "duration of one cycle of the states (s), for animations",
+            **POSITIVE,
+            max=MAX_SECONDS,
         ),
     },
     "solver": {
         "tolerance": Key(
-            "num", 1e-6, "Newton stops when |residual| <= tolerance * |load|", **POSITIVE
+            "num",
+            1e-6,
+            "Newton stops when |residual| <= tolerance * |load|",
+            **POSITIVE,
+            max=1.0,
         ),
         "displacement_tolerance_mm": Key(
             "num",
@@ -290,22 +458,27 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "... or when the kept factor estimates "
             "the correction left within half this (mm; 0 = "
             "off)",
-            min=0.0,
+            **LENGTH,
         ),
-        "max_iterations": Key("int", 25, "Newton iterations per load step", min=1),
-        "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
+        "max_iterations": Key("int", 25, "Newton iterations per load step", min=1, max=1000),
+        "max_subdivisions": Key("int", 6, "times a failing load step may be halved", min=0, max=30),
         "linear_solver": Key(
             "str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi", choices=LINEAR_SOLVERS
         ),
-        "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1),
+        "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1, max=10_000),
         "first_steps": Key(
-            "int", 4, "load steps of the state solved from rest (hyperelastic models)", min=1
+            "int",
+            4,
+            "load steps of the state solved from rest (hyperelastic models)",
+            min=1,
+            max=10_000,
         ),
         "max_seconds": Key(
             "num",
             300.0,
             "time budget of one state (s); past it the state fails, saying how far its load got",
             **POSITIVE,
+            max=MAX_SECONDS,
             expected="a time budget > 0 s",
         ),
     },
@@ -316,21 +489,35 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "[lo, hi] kPa for every chamber (default: "
             "each chamber's [actuation] pressures plus the margin)",
             valid=_increasing_pair,
-            expected="[lo, hi] with lo < hi",
+            min=-PRESSURE_KPA,
+            max=PRESSURE_KPA,
+            expected=f"[lo, hi] with -{PRESSURE_KPA:g} <= lo < hi <= {PRESSURE_KPA:g}",
         ),
         "margin": Key(
-            "num", 0.1, "fraction of each chamber's [actuation] span added on either side", min=0.0
+            "num",
+            0.1,
+            "fraction of each chamber's [actuation] span added on either side",
+            min=0.0,
+            max=10.0,
         ),
-        "points_per_axis": Key("int", 5, "Chebyshev-Lobatto full solves per chamber", min=2),
-        "max_degree": Key("int", 4, "highest total degree tried (chosen by leave-one-out)", min=1),
-        "validation": Key("int", 50, "held-out random pressure vectors solved in full", min=1),
+        "points_per_axis": Key(
+            "int", 5, "Chebyshev-Lobatto full solves per chamber", min=2, max=64
+        ),
+        "max_degree": Key(
+            "int", 4, "highest total degree tried (chosen by leave-one-out)", min=1, max=32
+        ),
+        "validation": Key(
+            "int", 50, "held-out random pressure vectors solved in full", min=1, max=100_000
+        ),
         "seed": Key("int", 0, "seed of the held-out pressure vectors", **SEED),
     },
     "board": {
-        "rows": Key("int", 21, "frame rows (Tx lines of the FocalTech FT5316, MuCa)"),
-        "cols": Key("int", 12, "frame columns (Rx lines)"),
-        "offset_i": Key("int", 0, "frame row of taxel i = 0"),
-        "offset_j": Key("int", 0, "frame column of taxel j = 0"),
+        "rows": Key(
+            "int", 21, "frame rows (Tx lines of the FocalTech FT5316, MuCa)", min=1, max=1024
+        ),
+        "cols": Key("int", 12, "frame columns (Rx lines)", min=1, max=1024),
+        "offset_i": Key("int", 0, "frame row of taxel i = 0", min=0, max=1023),
+        "offset_j": Key("int", 0, "frame column of taxel j = 0", min=0, max=1023),
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
         "flip_j": Key("bool", False, "taxel j counts down the frame columns"),
         "transpose": Key("bool", False, "taxel i runs along frame columns"),
@@ -354,8 +541,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
     },
     "detection": {
-        "threshold_counts": Key("num", 20.0, "touch threshold on v = C - C0 (counts)", **POSITIVE),
-        "baseline_frames": Key("int", 10, "frames averaged into the baseline C0", min=1),
+        "threshold_counts": Key(
+            "num",
+            20.0,
+            "touch threshold on v = C - C0 (counts)",
+            **POSITIVE,
+            max=MAX_COUNTS,
+        ),
+        "baseline_frames": Key(
+            "int", 10, "frames averaged into the baseline C0", min=1, max=MAX_FRAMES
+        ),
         "method": Key(
             "str",
             "n9",
@@ -366,14 +561,23 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "num",
             0.0,
             "subtracted from v before weighting (n9_floor)",
-            min=0.0,
+            **COUNTS,
             expected="counts >= 0",
         ),
         "hysteresis_counts": Key(
-            "num", 0.0, "touch ends below threshold - hysteresis", min=0.0, expected="counts >= 0"
+            "num",
+            0.0,
+            "touch ends below threshold - hysteresis",
+            **COUNTS,
+            expected="counts >= 0",
         ),
         "debounce_frames": Key(
-            "int", 0, "frames above threshold before a touch starts", min=0, expected="frames >= 0"
+            "int",
+            0,
+            "frames above threshold before a touch starts",
+            min=0,
+            max=MAX_FRAMES,
+            expected="frames >= 0",
         ),
         "drift_rate": Key(
             "num",
@@ -387,7 +591,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "num",
             0.0,
             "touch IDs across frames within this distance (0: off)",
-            min=0.0,
+            **LENGTH,
             expected="a distance >= 0 mm",
         ),
         "project": Key(
@@ -409,12 +613,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "num",
             None,
             "hover threshold (counts; default 8 x the [skin] noise std); below threshold_counts",
+            **POSITIVE,
+            max=MAX_COUNTS,
         ),
         "hover_hysteresis_counts": Key(
             "num",
             None,
             "a hover ends below its threshold minus "
             "this (counts; default 3 x the [skin] noise std)",
+            **COUNTS,
         ),
         "footprint": Key(
             "str",
@@ -424,14 +631,27 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
     },
     "bench": {
-        "indenters": Key("list", ["small", "medium"], "indenters to replay: small, medium"),
+        "indenters": Key(
+            "list",
+            ["small", "medium"],
+            "indenters to replay: small, medium",
+            max_items=MAX_INDENTERS,
+        ),
         "samples": Key("str", "quarter", "quarter (a quarter taxel off the grid) or a CSV path"),
-        "state": Key("int", 0, "FEM state the bench runs on"),
-        "step_mm": Key("num", 0.1, "indenter descent step (mm)", **POSITIVE),
+        "state": Key("int", 0, "FEM state the bench runs on", min=0, max=MAX_STATES - 1),
+        "step_mm": Key(
+            "num",
+            0.1,
+            "indenter descent step (mm; its frames are sized by `memory` first)",
+            **POSITIVE,
+            max=7.0,
+        ),
         "seed": Key("int", 0, "seed of the noise", **SEED),
-        "baseline_frames": Key("int", 10, "idle frames recorded before each descent", min=1),
+        "baseline_frames": Key(
+            "int", 10, "idle frames recorded before each descent", min=1, max=MAX_FRAMES
+        ),
         "reference_length_mm": Key(
-            "num", None, "for % errors (default: largest truth span)", **POSITIVE
+            "num", None, "for % errors (default: largest truth span)", **POSITIVE_LENGTH
         ),
         "register": Key(
             "str",
@@ -446,17 +666,19 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "table",
             None,
             "per indenter: lateral Gaussian width (mm); default small 6.18, medium 7.21",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="a width > 0 mm",
+            max_items=MAX_INDENTERS,
         ),
         "contact_counts": Key(
             "num",
             60.0,
             "activation of the taxel under the indenter at contact (counts)",
             **POSITIVE,
+            max=MAX_COUNTS,
         ),
         "gap_decay_mm": Key(
-            "num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)", **POSITIVE
+            "num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)", **POSITIVE_LENGTH
         ),
         "gain_spread": Key(
             "num",
@@ -471,6 +693,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "range",
             [0.5, 1.85],
             "noise std (counts): one value, or [lo, hi] drawn per taxel (seeded)",
+            max=MAX_COUNTS,
+            expected=f"a std 0 <= value <= {MAX_COUNTS} counts, or [lo, hi] within it",
+            unbounded="its lower bound 0 is its kind's (`range`)",
         ),
         "taxel_gain": Key(
             "path",
@@ -493,20 +718,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "2.8, as quoted for platinum-cure silicones at low "
             "frequency, 2.5-3)",
             min=1.0,
+            max=1e4,
             expected="a relative permittivity >= 1 (Ecoflex: about 2.8)",
         ),
         "yarn_radius_mm": Key(
             "num",
             None,
             "radius of the conductive yarn (mm; default [tracks].track_radius_mm)",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="> 0 (mm)",
         ),
         "insulation_mm": Key(
             "num",
             0.1,
             "insulating layer between Tx and Rx where they cross (mm)",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="> 0 (mm; the yarns must not touch)",
         ),
         "counts_per_ff": Key(
@@ -516,6 +742,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "bent as the paper's pad shifts 10 counts; fruit calibrate fits it to a "
             "bench recording)",
             **POSITIVE,
+            max=1e6,
             expected="> 0 (counts per fF)",
         ),
         "gaps_mm": Key(
@@ -523,7 +750,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
             [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0],
             "object gaps of the crossing's table (mm, increasing from 0: contact)",
             valid=_gap_table,
-            expected="at least two gaps in mm, increasing and starting at 0 (contact)",
+            expected=f"at least two gaps in mm, increasing, starting at 0 (contact), "
+            f"at most {MAX_EXTENT_MM:g}",
+            max_items=MAX_ITEMS,
         ),
     },
     "printer": {  # the real bench: a Marlin printer with an indenter (fruit bench --printer)
@@ -531,13 +760,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "vec3",
             None,
             "where the model's origin is, printer coordinates (mm; required with [printer])",
+            **COORDINATE,
         ),
-        "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)"),
+        "rotate_z_deg": Key("num", 0.0, "model rotated about z on the bed (degrees)", **ANGLE),
         "safe_height_mm": Key(
             "num",
             20.0,
             "tip height above the model's highest point between samples (mm)",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="> 0 (mm above the model's highest point; lower "
             "would drag the tip through the model)",
         ),
@@ -550,13 +780,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
             expected="0 < step <= 1 mm",
         ),
         "feed_mm_min": Key(
-            "num", 600.0, "feed rate of every move (mm/min)", **POSITIVE, expected="> 0 mm/min"
+            "num",
+            600.0,
+            "feed rate of every move (mm/min)",
+            **POSITIVE,
+            max=1e6,
+            expected="> 0 mm/min",
         ),
         "max_press_mm": Key(
             "num",
             1.5,
             "deepest press below the expected surface before the sample is an error (mm)",
-            **POSITIVE,
+            **POSITIVE_LENGTH,
             expected="> 0 mm",
         ),
         "bed_mm": Key(
@@ -564,15 +799,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
             [0.0, 0.0, 0.0, 220.0, 220.0, 250.0],
             "reachable volume [xmin, ymin, zmin, xmax, ymax, zmax], printer coordinates (mm)",
             valid=_nonempty_box,
-            expected="[xmin, ymin, zmin, xmax, ymax, zmax] with min < max",
+            **COORDINATE,
+            expected=f"[xmin, ymin, zmin, xmax, ymax, zmax] with min < max, within +-{FAR_MM:g} mm",
         ),
-        "baud": Key("int", 115200, "the printer's serial baud rate", **POSITIVE),
+        "baud": Key("int", 115200, "the printer's serial baud rate", **POSITIVE, max=10**8),
         "home": Key("bool", False, "send G28 (home all axes) first"),
         "timeout_s": Key(
             "num",
             30.0,
             "longest wait for an 'ok' (s; busy lines extend it)",
             **POSITIVE,
+            max=MAX_SECONDS,
             expected="> 0 s",
         ),
     },
@@ -582,14 +819,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
             300,
             "frames at rest for the per-taxel noise std",
             min=2,
+            max=MAX_FRAMES,
             expected="frames >= 2 (a standard deviation needs two)",
         ),
         "animation_frames": Key(
-            "int", 60, "frames over one animation cycle", min=1, expected="frames >= 1"
+            "int",
+            60,
+            "frames over one animation cycle",
+            min=1,
+            max=100_000,
+            expected="frames >= 1",
         ),
     },
     "report": {
-        "paper_rows": Key("list", [], "paper Table I rows to show next to ours"),
+        "paper_rows": Key(
+            "list", [], "paper Table I rows to show next to ours", max_items=MAX_ITEMS
+        ),
     },
     "evaluate": {},
 }
@@ -601,34 +846,49 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
         "surface": Key("path", None, "closed surface of the cavity ([geometry].unit)"),
     },
     "fixed": {
-        "box_mm": Key("box", None, "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)", required=True),
+        "box_mm": Key(
+            "box",
+            None,
+            "[xmin, ymin, zmin, xmax, ymax, zmax] (mm)",
+            required=True,
+            **COORDINATE,
+        ),
         "displacement_mm": Key(
             "vec3",
             None,
             "the clamp moved by [dx, dy, dz] (mm), ramped "
             "with the load steps (default: held at rest)",
+            min=-MAX_EXTENT_MM,
+            max=MAX_EXTENT_MM,
         ),
     },
     "jig": {
-        "region_box_mm": Key("box", None, "nodes pulled by the springs (mm)", required=True),
-        "rotate_deg": Key("num", 0.0, "rotation of the target about `axis` (degrees)"),
+        "region_box_mm": Key(
+            "box", None, "nodes pulled by the springs (mm)", required=True, **COORDINATE
+        ),
+        "rotate_deg": Key("num", 0.0, "rotation of the target about `axis` (degrees)", **ANGLE),
         "axis": Key(
             "vec3",
             [0.0, 0.0, 1.0],
             "rotation axis",
             valid=_nonzero_vector,
-            expected="a non-zero vector",
+            **COORDINATE,
+            expected=f"a non-zero vector, each component within +-{FAR_MM:g}",
         ),
-        "pivot_mm": Key("vec3", [0.0, 0.0, 0.0], "point on the rotation axis (mm)"),
-        "translate_mm": Key("vec3", [0.0, 0.0, 0.0], "translation after the rotation (mm)"),
-        "stiffness_n_per_mm": Key("num", 10.0, "spring stiffness per node (N/mm)", **POSITIVE),
+        "pivot_mm": Key("vec3", [0.0, 0.0, 0.0], "point on the rotation axis (mm)", **COORDINATE),
+        "translate_mm": Key(
+            "vec3", [0.0, 0.0, 0.0], "translation after the rotation (mm)", **COORDINATE
+        ),
+        "stiffness_n_per_mm": Key(
+            "num", 10.0, "spring stiffness per node (N/mm)", **POSITIVE, max=1e9
+        ),
     },
     "evaluate": {
         "label": Key("str", None, "row label, e.g. 'Rest, small'", required=True),
         "truth": Key("path", None, "ground-truth CSV (sample,x_mm,y_mm[,z_mm])", required=True),
         "measured": Key("path", None, "measured CSV (same samples)", required=True),
         "reference_length_mm": Key(
-            "num", None, "for % errors (default: largest truth span)", **POSITIVE
+            "num", None, "for % errors (default: largest truth span)", **POSITIVE_LENGTH
         ),
         "register": Key(
             "str",
@@ -642,8 +902,13 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
 ARRAY_SECTIONS = {"fixed", "jig", "evaluate"}
 SUBTABLES = {
     "ellipsoid": {
-        "center_mm": Key("vec3", required=True),
-        "radii_mm": Key("vec3", required=True, **POSITIVE, expected="positive radii"),
+        "center_mm": Key("vec3", required=True, **COORDINATE),
+        "radii_mm": Key(
+            "vec3",
+            required=True,
+            **POSITIVE_LENGTH,
+            expected="positive radii",
+        ),
     }
 }
 ITEM_LABELS = {"geometry.chamber": "name", "evaluate": "label"}
@@ -804,7 +1069,7 @@ class Scene:
                 if not isinstance(value, SECTION_TYPES[section]):
                     raise SceneError(
                         f"{where}: [{section}]: expected a "
-                        f"{SECTION_TYPES[section].__name__}, got {value!r}"
+                        f"{SECTION_TYPES[section].__name__}, got {echo(value)}"
                     )
                 sections[section] = value
                 continue
@@ -852,7 +1117,7 @@ def resolve_path(scene_path: Path, value: str) -> Path:
 
 def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_exist: bool):
     def fail(expected: str):
-        raise SceneError(f"{where}.{key}: expected {expected}, got {value!r}")
+        raise SceneError(f"{where}.{key}: expected {expected}, got {echo(value)}")
 
     k = spec.kind
     if k == "str":
@@ -909,12 +1174,25 @@ def _check(where: str, key: str, spec: Key, value: Any, scene_path: Path, must_e
     if k == "list":
         if not isinstance(value, list):
             fail("a list")
+        _check_items(where, key, spec, value)
         return value
     if k == "table":
         if not isinstance(value, dict):
             fail("a table {key = value}")
+        _check_items(where, key, spec, value)
         return value
     raise AssertionError(k)
+
+
+def _check_items(where: str, key: str, spec: Key, value: list | dict) -> None:
+    if spec.max_items is not None and len(value) > spec.max_items:
+        raise SceneError(
+            f"{where}.{key}: expected at most {spec.max_items:,} entries, got {len(value):,}"
+        )
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, NUM) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _check_value(where: str, key: str, spec: Key, value: Any) -> None:
@@ -922,24 +1200,27 @@ def _check_value(where: str, key: str, spec: Key, value: Any) -> None:
     if value is None:
         return
 
-    def fail(name: str = key, got: Any = value, hint: str = ""):
-        raise SceneError(f"{where}.{name}: expected {spec.expectation()}, got {got!r}{hint}")
+    def fail(name: str = key, got: Any = value, hint: str = "", number: Any = None):
+        expected = spec.expectation(got if number is None else number)
+        raise SceneError(f"{where}.{name}: expected {expected}, got {echo(got)}{hint}")
 
     if spec.choices is not None and value not in spec.choices:
         fail(hint=_closest(str(value), spec.choices))
     if spec.min is not None or spec.max is not None:
         if isinstance(value, dict):
             for entry, v in value.items():
-                if (
-                    isinstance(v, bool)
-                    or not isinstance(v, NUM)
-                    or not math.isfinite(v)
-                    or not spec.in_range(v)
-                ):
+                # a table's entry: a number, or a list of numbers (one per state)
+                if isinstance(v, list) and spec.kind == "table" and spec.valid is None:
+                    bad = [x for x in v if _number(x) and not spec.in_range(x)]
+                    if bad:
+                        fail(f"{key}.{entry}", bad[0])
+                elif not _number(v) or not spec.in_range(v):
                     fail(f"{key}.{entry}", v)
         elif isinstance(value, list):
-            if not all(spec.in_range(v) for v in value):
-                fail()
+            # numbers out of range (anything else is the `valid` condition's to refuse)
+            out = [v for v in value if _number(v) and not spec.in_range(v)]
+            if out:
+                fail(number=out[0])
         elif not spec.in_range(value):
             fail()
     if spec.valid is not None and not spec.valid(value):
@@ -982,6 +1263,10 @@ def _validate_table(where, table, spec, scene_path, must_exist):
 def _items(where0: str, array: str, items: list, scene_path: Path, must_exist: bool) -> tuple:
     """Validate an array of tables into a tuple of typed records."""
     spec, label = ARRAY_SCHEMA[array], ITEM_LABELS.get(array)
+    if len(items) > MAX_ITEMS:
+        raise SceneError(
+            f"{where0}: [[{array}]]: expected at most {MAX_ITEMS:,} tables, got {len(items):,}"
+        )
     records = []
     for n, item in enumerate(items):
         out = _validate_table(f"{where0}: [[{array}]] #{n + 1}", item, spec, scene_path, must_exist)
@@ -1038,7 +1323,8 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
     scene = Scene(
         path=path,
         sections=sections,
-        declared=frozenset(s for s, v in raw.items() if v not in ([], {})),
+        # an empty table declares its section at its defaults; an empty array declares none
+        declared=frozenset(s for s, v in raw.items() if v != []),
     )
     _cross_checks(scene, where0, must_exist)
     return scene
@@ -1140,6 +1426,11 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
                     f"{where}: [actuation].{key}.{cname}: expected a non-empty "
                     "list of numbers, one per state"
                 )
+            if len(values) > MAX_STATES:
+                raise SceneError(
+                    f"{where}: [actuation].{key}.{cname}: expected at most {MAX_STATES:,} "
+                    f"states, got {len(values):,}"
+                )
             lengths.add(len(values))
     if len(lengths) > 1:
         raise SceneError(
@@ -1217,6 +1508,21 @@ def has_gravity(scene: Scene) -> bool:
         and scene.material.density_kg_m3 > 0
         and bool(scene.fixed or scene.jig)
     )
+
+
+def gravity_left_out(scene: Scene) -> str | None:
+    """Why a declared [gravity] loads nothing (None when it applies or is not declared):
+    a weightless body, or no [[fixed]] region nor [[jig]] holding it."""
+    if not scene.has("gravity") or not any(scene.gravity.vector_m_s2):
+        return None
+    if scene.material.density_kg_m3 == 0:
+        return "[gravity] left out: [material].density_kg_m3 = 0 (a weightless body)"
+    if not (scene.fixed or scene.jig):
+        return (
+            "[gravity] left out: no [[fixed]] region or [[jig]] holds the body "
+            "(a free body would only fall)"
+        )
+    return None
 
 
 def has_deformation(scene: Scene) -> bool:

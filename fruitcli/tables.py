@@ -129,27 +129,38 @@ class Taxels:
         return int(self.ids.shape[0])
 
 
+EXACT_INTEGER = 2**53
+"""Largest integer a CSV column holds exactly (it is read as float64): ids and indices
+beyond it would be rounded into each other, or not fit a 64-bit integer."""
+
+
+def integer_column(path: Path, cols: dict, name: str, error=FruitError) -> np.ndarray:
+    """Column `name` of a `read_table` result as int64: every value an integer within
+    +-EXACT_INTEGER, else one `error` naming the file, data row and column."""
+    values = cols[name]
+    bad = np.nonzero((values != np.round(values)) | (np.abs(values) > EXACT_INTEGER))[0]
+    if bad.size:
+        v = float(values[bad[0]])
+        what = "an integer"
+        if v == round(v):
+            what = f"an integer within +-{EXACT_INTEGER} (2^53, exact in a CSV)"
+        raise error(f"{path}: data row {bad[0] + 1}: column {name}: expected {what}, got {v!r}")
+    return values.astype(np.int64)
+
+
 def read_taxels(path: str | os.PathLike, error=FruitError) -> Taxels:
     """Read a taxel CSV (``#`` comments, header with at least id,i,j,x_mm,y_mm,z_mm, and
     optionally nx,ny,nz): integer grid indices >= 0, unique ids and grid indices. Every
     problem is one `error` naming the file and the data row."""
     path = Path(path)
     cols = read_table(path, TAXEL_COLUMNS, error=error)
-    for name in ("id", "i", "j"):
-        bad = np.nonzero(cols[name] != np.round(cols[name]))[0]
-        if bad.size:
-            raise error(
-                f"{path}: data row {bad[0] + 1}: column {name}: expected an "
-                f"integer, got {cols[name][bad[0]]}"
-            )
-    i, j = cols["i"].astype(np.int64), cols["j"].astype(np.int64)
+    ids, i, j = (integer_column(path, cols, name, error) for name in ("id", "i", "j"))
     bad = np.nonzero((i < 0) | (j < 0))[0]
     if bad.size:
         raise error(
             f"{path}: data row {bad[0] + 1}: i, j: expected grid indices >= 0, "
             f"got ({i[bad[0]]}, {j[bad[0]]})"
         )
-    ids = cols["id"].astype(np.int64)
     _, first = np.unique(ids, return_index=True)
     if first.size < ids.size:
         k = int(np.setdiff1d(np.arange(ids.size), first)[0])

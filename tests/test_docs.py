@@ -63,13 +63,14 @@ def test_scene_page_has_every_key_with_its_unit_and_default():
         for key in spec:
             assert key in rows, key
     young = rows["young_modulus_kpa"][0]
-    assert young[1:4] == ["number, 0 < value", "`100.0`", "kPa"]
+    assert young[1:4] == ["number, 0 < value ≤ 1e+09", "`100.0`", "kPa"]
     assert rows["vector_m_s2"][0][2:4] == ["`[0.0, 0.0, -9.81]`", "m/s²"]
     assert rows["stiffness_n_per_mm"][0][3] == "N/mm"
     assert rows["box_mm"][0][2] == "`required`"
     assert rows["element"][0][1] == "text: one of `p2`, `p2-pure`, `p1`"
     assert rows["poisson_ratio"][0][1] == "number, -1 < value < 0.5"
-    assert "## \\[\\[evaluate\\]\\] (any number of tables)" in page
+    assert "## \\[\\[evaluate\\]\\] (at most 1,000 tables)" in page
+    assert rows["indenters"][0][1].endswith(", at most 64 entries")
 
 
 def test_bench_lines_split_into_template_and_numbers():

@@ -295,9 +295,10 @@ REQUIRED = {"box": [0, 0, 0, 1, 1, 1], "str": "x", "path": "t.csv"}
 
 
 def _bad_values(where: tuple, spec):
-    """Values the key's declared choices, range or condition refuse."""
+    """Values the key's declared choices, range or condition refuse, each with the number
+    that breaks the range (None: not a range's)."""
     if spec.choices is not None:
-        yield "not-a-choice"
+        yield "not-a-choice", None
     for bound, exclusive, step in (
         (spec.min, spec.min_exclusive, -1),
         (spec.max, spec.max_exclusive, 1),
@@ -306,15 +307,19 @@ def _bad_values(where: tuple, spec):
             continue
         v = bound if exclusive else bound + step
         v = int(v) if spec.kind == "int" else float(v)
-        yield (
-            {"small": v}
-            if spec.kind == "table"
-            else [1.0, 1.0, v]
-            if spec.kind.startswith("vec")
-            else v
-        )
+        if spec.kind == "table":
+            yield {"small": v}, v
+        elif spec.kind == "box":
+            lo, hi = (v, 0.0) if step < 0 else (0.0, v)
+            yield [lo, lo, lo, hi, hi, hi], v
+        elif spec.kind == "vec2":
+            yield [1.0, v], v
+        elif spec.kind.startswith("vec"):
+            yield [1.0, 1.0, v], v
+        else:
+            yield v, v
     if spec.valid is not None:
-        yield BAD_FOR_CONDITION[where]
+        yield BAD_FOR_CONDITION[where], None
 
 
 def _declared_keys():
@@ -326,7 +331,9 @@ def _declared_keys():
     for array, keys in ARRAY_SCHEMA.items():
         out += [(array, key, spec) for key, spec in keys.items()]
     out += [("ellipsoid", key, spec) for key, spec in SUBTABLES["ellipsoid"].items()]
-    return [(s, k, spec, bad) for s, k, spec in out for bad in _bad_values((s, k), spec)]
+    return [
+        (s, k, spec, bad, number) for s, k, spec in out for bad, number in _bad_values((s, k), spec)
+    ]
 
 
 def _scene_with(section: str, key: str, value) -> str:
@@ -343,29 +350,36 @@ def _scene_with(section: str, key: str, value) -> str:
 
 
 CHECKED_KEYS = {
-    "actuation": "period_s",
-    "bench": "baseline_frames reference_length_mm register seed step_mm",
-    "board": "format",
-    "detection": "baseline_frames debounce_frames drift_rate hysteresis_counts method "
-    "noise_floor_counts project threshold_counts track_gate_mm",
-    "ellipsoid": "radii_mm",
+    "actuation": "period_s pressure_kpa volume_growth_mm3",
+    "bench": "baseline_frames reference_length_mm register seed state step_mm",
+    "board": "cols format offset_i offset_j rows",
+    "detection": "baseline_frames debounce_frames drift_rate hover_hysteresis_counts "
+    "hover_threshold_counts hysteresis_counts method noise_floor_counts project "
+    "threshold_counts track_gate_mm",
+    "ellipsoid": "center_mm radii_mm",
     "evaluate": "reference_length_mm register",
     "fem": "element",
+    "fixed": "box_mm displacement_mm",
     "frames": "model",
-    "geometry": "unit",
-    "grid": "count spacing_x_mm spacing_y_mm",
-    "jig": "axis stiffness_n_per_mm",
-    "material": "density_kg_m3 model poisson_ratio young_modulus_kpa",
-    "mesh": "size_mm",
-    "printer": "baud bed_mm feed_mm_min max_press_mm safe_height_mm step_mm timeout_s",
+    "geometry": "fit_mm pad_size_mm unit",
+    "gravity": "vector_m_s2",
+    "grid": "count origin_mm spacing_x_mm spacing_y_mm",
+    "jig": "axis pivot_mm region_box_mm rotate_deg stiffness_n_per_mm translate_mm",
+    "material": "bulk_modulus_kpa c10_kpa c20_kpa c30_kpa density_kg_m3 model poisson_ratio "
+    "young_modulus_kpa",
+    "mesh": "min_quality min_size_mm size_mm time_limit_s",
+    "mold": "clearance_mm key_radius_mm pin_diameter_mm pour_diameter_mm vent_diameter_mm vents "
+    "wall_mm",
+    "printer": "baud bed_mm feed_mm_min max_press_mm model_origin_mm rotate_z_deg safe_height_mm "
+    "step_mm timeout_s",
     "reduced": "margin max_degree points_per_axis pressure_range_kpa seed validation",
     "scene": "name",
     "sensitivity": "animation_frames noise_frames",
     "skin": "contact_counts counts_per_ff footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
-    "insulation_mm model permittivity yarn_radius_mm",
+    "insulation_mm model noise_std_counts permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
-    "max_seconds tolerance",
-    "tracks": "cover_mm faces track_radius_mm yarn_max_stretch zigzag_pitch_mm",
+    "max_seconds max_subdivisions tolerance",
+    "tracks": "cover_mm faces split_z_mm track_radius_mm yarn_max_stretch zigzag_pitch_mm",
 }
 
 
@@ -375,15 +389,109 @@ def test_the_schema_declares_the_checks_of_these_keys():
 
 
 @pytest.mark.parametrize(
-    "section, key, spec, bad", _declared_keys(), ids=lambda v: v if isinstance(v, str) else None
+    "section, key, spec, bad, number",
+    _declared_keys(),
+    ids=lambda v: v if isinstance(v, str) else None,
 )
-def test_every_declared_range_and_choice_refuses_a_bad_value(section, key, spec, bad):
-    """One line naming the file and the key, what was expected and what was given."""
+def test_every_declared_range_and_choice_refuses_a_bad_value(section, key, spec, bad, number):
+    """One line naming the file and the key, what was expected (the side of the range the
+    value broke) and what was given."""
     with pytest.raises(SceneError) as err:
         parse_scene(_scene_with(section, key, bad), Path("/tmp/s.toml"), must_exist=False)
     msg = str(err.value)
     assert msg.startswith("s.toml: ") and "\n" not in msg
+    expected = spec.expectation(number)
     assert (
-        f".{key}: expected {spec.expectation()}, got " in msg
-        or f".{key}.small: expected {spec.expectation()}, got 0.0" in msg
+        f".{key}: expected {expected}, got " in msg
+        or f".{key}.small: expected {expected}, got {number!r}" in msg
     )
+
+
+NUMERIC_KINDS = {"num", "int", "vec2", "vec3", "box", "range"}
+NUMERIC_TABLES = {"footprint_sigma_mm", "pressure_kpa", "volume_growth_mm3"}
+
+
+def _all_keys():
+    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, SUBTABLES
+
+    for group in (SCHEMA, ARRAY_SCHEMA, SUBTABLES):
+        for section, keys in group.items():
+            yield from ((section, key, spec) for key, spec in keys.items())
+
+
+def test_no_numeric_key_is_unbounded_without_a_reason():
+    """Every number, vector and table of numbers has both ends of its range in the schema,
+    or says in `unbounded` where the missing end is checked."""
+    open_ended = [
+        f"{section}.{key}"
+        for section, key, spec in _all_keys()
+        if (spec.kind in NUMERIC_KINDS or key in NUMERIC_TABLES)
+        and (spec.min is None or spec.max is None)
+        and not spec.unbounded
+    ]
+    assert open_ended == []
+
+
+def test_every_list_and_table_key_has_a_length_bound():
+    unbounded = [
+        f"{section}.{key}"
+        for section, key, spec in _all_keys()
+        if spec.kind in ("list", "table") and key != "ellipsoid" and spec.max_items is None
+    ]
+    assert unbounded == []
+
+
+@pytest.mark.parametrize(
+    "text, line",
+    [
+        (
+            "[bench]\nindenters = [" + ", ".join(['"small"'] * 100_000) + "]",
+            "s.toml: [bench].indenters: expected at most 64 entries, got 100,000",
+        ),
+        (
+            "[[fixed]]\nbox_mm = [0, 0, 0, 1, 1, 1]\n" * 1001,
+            "s.toml: [[fixed]]: expected at most 1,000 tables, got 1,001",
+        ),
+        (
+            "[[geometry.chamber]]\nname = 'c'\nsurface = 'c.stl'\n"
+            "[actuation]\npressure_kpa = { c = [" + ", ".join(["1.0"] * 10_001) + "] }",
+            "s.toml: [actuation].pressure_kpa.c: expected at most 10,000 states, got 10,001",
+        ),
+        ("[solver]\nmax_subdivisions = -1", "s.toml: [solver].max_subdivisions: expected >= 0"),
+        ("[mesh]\ntime_limit_s = -1", "s.toml: [mesh].time_limit_s: expected a time limit > 0 s"),
+        ("[board]\nrows = 0", "s.toml: [board].rows: expected >= 1, got 0"),
+        (
+            "[skin]\ncontact_counts = 1e300",
+            "s.toml: [skin].contact_counts: expected 0 < value <= 65535, got 1e+300",
+        ),
+        (
+            "[solver]\nmax_seconds = 1e300",
+            "s.toml: [solver].max_seconds: expected a time budget > 0 s and <= 1e+06, got 1e+300",
+        ),
+        (
+            "[geometry]\npad_size_mm = [1e9, 1e9, 3.0]",
+            "s.toml: [geometry].pad_size_mm: expected [x, y, thickness] each > 0 and <= 5000 mm",
+        ),
+        (
+            "[actuation]\npressure_kpa = { c = [1.0, 1e7] }",
+            "s.toml: [actuation].pressure_kpa.c: expected pressures -100000 <= p <= 100000 kPa, "
+            "one per state, got 10000000.0",
+        ),
+    ],
+    ids=lambda v: v[:40],
+)
+def test_sizes_and_ranges_are_refused_in_one_line(text, line):
+    with pytest.raises(SceneError) as err:
+        parse_scene(text, Path("/tmp/s.toml"), must_exist=False)
+    assert str(err.value).startswith(line) and "\n" not in str(err.value)
+
+
+def test_a_long_value_is_echoed_cut():
+    """A value echoed in an error is cut to a readable length."""
+    from fruitcli.errors import ECHO_CHARS
+
+    with pytest.raises(SceneError) as err:
+        parse_scene("[scene]\nname = [" + "1, " * 1_000_000 + "]", Path("/tmp/s.toml"), False)
+    msg = str(err.value)
+    assert msg.startswith("s.toml: [scene].name: expected a string, got [1, 1, ")
+    assert msg.endswith("…") and len(msg) < 60 + ECHO_CHARS

@@ -3,8 +3,11 @@ are imported only when used, so `fruit --help` stays fast."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
+import os
+import signal
 import sys
 
 import click
@@ -115,8 +118,33 @@ def cli(ctx, verbose, quiet) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: FruitErrors become one line on stderr and exit code 1."""
-    from fruitcli.errors import FruitError
+    """Console entry point: FruitErrors become one line on stderr and exit code 1; Ctrl-C,
+    up to the process's last instant, "Interrupted." and exit code 130."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # while an error or the result was being reported
+        click.echo("Interrupted.", err=True)
+        sys.exit(130)
+    finally:
+        # the console script (the interpreter's shutdown follows), unless Ctrl-C is ignored
+        # (a background job)
+        if argv is None and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+            signal.signal(signal.SIGINT, _interrupted_at_exit)
+
+
+def _interrupted_at_exit(signum, frame) -> None:
+    """Ctrl-C once the command is over (threads joined, files closed at exit): what was
+    printed is flushed, then "Interrupted." and exit code 130 at once."""
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    with contextlib.suppress(Exception):
+        sys.stderr.write("Interrupted.\n")
+        sys.stderr.flush()
+    os._exit(130)
+
+
+def _main(argv: list[str] | None) -> None:
+    from fruitcli.errors import FruitError, one_line
 
     try:
         return cli.main(args=argv, standalone_mode=False)
@@ -131,7 +159,7 @@ def main(argv: list[str] | None = None) -> None:
     except FruitError as exc:
         if "-vv" in (argv or sys.argv):
             raise
-        click.echo(f"Error: {exc}", err=True)
+        click.echo(f"Error: {one_line(str(exc))}", err=True)
         sys.exit(1)
     except OSError as exc:  # an unwritable output folder, a full disk, ...
         if "-vv" in (argv or sys.argv):

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from fruitcli.errors import FruitError
+from fruitcli.errors import FruitError, one_line
 
 if TYPE_CHECKING:
     from click._termui_impl import ProgressBar
@@ -47,7 +47,7 @@ def fruit_errors() -> Iterator[None]:
     try:
         yield
     except FruitError as exc:
-        raise click.ClickException(str(exc)) from None
+        raise click.ClickException(one_line(str(exc))) from None
     except OSError as exc:
         raise click.ClickException(os_error_line(exc)) from None
 

@@ -32,11 +32,14 @@ def run(scene_file, out_dir, dry_run, until, force) -> None:
     manifest.json with a content hash of what went in). Stages a scene does not need
     (no chambers, no deformation, no artist mesh, ...) are left out and the plan says why.
     """
-    from fruitcli.scene import load_scene
+    from fruitcli.scene import gravity_left_out, load_scene
     from fruitcli.workflow import planner
 
     with fruit_errors():
         scene = load_scene(scene_file)
+        dropped = gravity_left_out(scene)
+        if dropped:
+            click.echo(f"warning: {dropped}", err=True)
     out = Path(out_dir) if out_dir else default_out(scene)
     # a given --out is claimed before the command runs; the default one here
     with claim_out(out) if out_dir is None else contextlib.nullcontext(), fruit_errors():

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import EvaluationError
-from fruitcli.tables import read_table
+from fruitcli.tables import integer_column, read_table
 
 AXES_3D = ("x_mm", "y_mm", "z_mm")
 
@@ -39,10 +39,7 @@ def read_points(path: str | Path) -> PointSet:
     if "z_mm" in table:
         ztab = read_table(path, ["sample", *AXES_3D], error=EvaluationError)
         table = ztab
-    sample = table["sample"]
-    if np.any(sample != np.round(sample)):
-        raise EvaluationError(f"{path}: column sample: expected integers")
-    sample = sample.astype(int)
+    sample = integer_column(path, table, "sample", EvaluationError)
     uniq, counts = np.unique(sample, return_counts=True)
     if np.any(counts > 1):
         raise EvaluationError(f"{path}: column sample: duplicate sample {uniq[counts > 1][0]}")

@@ -26,7 +26,7 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
-from fruitcli.fem.meshing import shells, tetra
+from fruitcli.fem.meshing import estimate, shells, tetra
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
@@ -57,6 +57,7 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     )
     if not own and solid_path is not None:
         v, f = shells.load_surface(solid_path, "solid")
+        check_extent(v, "any", f"--solid: {Path(solid_path).name}", "")
         outer = shells.surface_shell(solid_path.name, v, f)
     elif geo.solid is not None:
         v, f = scene_surface(geo.solid, f"{where}: [geometry].solid")
@@ -95,7 +96,11 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     min_size = float(mesh_cfg.min_size_mm or size)
     if not 0 < min_size <= size:
         raise SceneError(f"[mesh].min_size_mm: expected 0 < min_size_mm <= size_mm = {size}")
-    progress(f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), {len(chambers)} chamber(s)")
+    tets = estimate.check_mesh_size(outer, size, mesh_cfg.time_limit_s, scene.path.name)
+    progress(
+        f"tetra: gmsh at size {size:g} mm (min {min_size:g} mm), {len(chambers)} chamber(s), "
+        f"about {tets:.3g} tets expected"
+    )
     raw = tetra.run_gmsh(
         [outer, *chambers],
         size,

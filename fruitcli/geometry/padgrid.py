@@ -4,6 +4,7 @@ and its yarn tracks: the grid lines through the taxels, edge to edge on the top 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,32 @@ TAXEL_HEADER = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
 TRACK_HEADER = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
 TRACK_STEP_MM = 0.5
 """Largest distance between two points of a track (mm)."""
+
+
+ROW_BYTES = 400.0
+"""Memory one taxel or track row takes while it is built and written (bytes: a Python list
+of nine numbers and its array row)."""
+
+
+def pad_rows(pad_size_mm, count) -> tuple[int, int]:
+    """Rows of a pad's taxels.csv (nx * ny) and tracks.csv (points of its grid lines)."""
+    nx, ny = (int(c) for c in count)
+    sx, sy, _ = pad_size_mm
+    points = nx * (math.ceil(sy / TRACK_STEP_MM) + 1) + ny * (math.ceil(sx / TRACK_STEP_MM) + 1)
+    return nx * ny, points
+
+
+def check_pad_size(pad_size_mm, count, where: str) -> None:
+    """Refuse (SceneError naming `where`) a grid whose rows would not fit in memory."""
+    from fruitcli.memory import require
+
+    taxels, points = pad_rows(pad_size_mm, count)
+    require(
+        (taxels + points) * ROW_BYTES,
+        f"{where}: [grid].count = {list(count)} on pad_size_mm = {list(pad_size_mm)} "
+        f"({taxels:,} taxels, {points:,} track points)",
+        SceneError,
+    )
 
 
 def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> np.ndarray:

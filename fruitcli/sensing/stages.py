@@ -435,7 +435,7 @@ def run_bench(
     from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import write_npz
     from fruitcli.sensing.skin import forward
-    from fruitcli.sensing.skin.virtual_bench import BENCH_FPS, cell_counts, descend
+    from fruitcli.sensing.skin.virtual_bench import BENCH_FPS, bench_bytes, cell_counts, descend
 
     say = progress or (lambda msg: None)
     out_dir = Path(out_dir)
@@ -491,6 +491,11 @@ def run_bench(
             f"points lies over {truth_surface}; expected points (x, y) over the "
             "body"
         )
+    require(
+        bench_bytes(bench.step_mm, len(contact), len(taxels), board.rows * board.cols),
+        f"{scene.path.name}: [bench].step_mm = {bench.step_mm:g} over {len(contact)} samples",
+        FrameError,
+    )
     result = {
         "samples": int(len(xy)),
         "off_surface": int(len(xy) - len(contact)),
@@ -580,6 +585,18 @@ def run_sensitivity(
     taxels = read_taxels(taxels_csv, FrameError)
     states = None if states_npz is None else load_states(states_npz, len(taxels))
     sens = scene.sensitivity
+    from fruitcli.memory import require
+
+    # frames at rest, then the animation's: noise, mean and counts per taxel (float, int)
+    for key, frames in (
+        ("noise_frames", sens.noise_frames),
+        ("animation_frames", sens.animation_frames),
+    ):
+        require(
+            frames * len(taxels) * 8.0 * 4,
+            f"{scene.path.name}: [sensitivity].{key} = {frames} over {len(taxels)} taxels",
+            FrameError,
+        )
     skin = forward.make_skin(
         len(taxels),
         scene.bench.seed,

@@ -6,13 +6,20 @@ have finished) on any of them and reports each result as its future finishes. A 
 whose worker process dies is run again: by Dask's scheduler itself (up to its
 `distributed.scheduler.allowed-failures`, 3 by default), and for local processes by
 starting a fresh pool (up to `MAX_ATTEMPTS` times).
+
+Ctrl-C is the parent's alone: local workers are started with SIGINT blocked (and ignore
+it once running), so a Ctrl-C in the terminal, sent to every process of the group, prints
+no worker's traceback; the parent stops its workers (`abort`) and says "Interrupted.".
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import os
-from collections.abc import Callable, Hashable
+import signal
+import threading
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,10 +49,26 @@ def default_jobs() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT held pending in this thread for the block (a process started inside it
+    inherits the mask: it never sees Ctrl-C); a Ctrl-C that came is delivered after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _share_cores(jobs: int) -> None:
-    """A worker's share of the cores for numba's parallel element loops (jobs workers
-    each running as many threads as there are cores would spin against each other;
-    `fruitcli.fem.threads`)."""
+    """In a new worker: Ctrl-C ignored (the parent handles it), and the worker's share of
+    the cores for numba's parallel element loops (jobs workers each running as many
+    threads as there are cores would spin against each other; `fruitcli.fem.threads`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # ignored from now on
     import numba
 
     from fruitcli.fem import threads
@@ -62,6 +85,9 @@ class Serial:
     name = "serial"
 
     def close(self) -> None:
+        pass
+
+    def abort(self) -> None:
         pass
 
 
@@ -82,10 +108,19 @@ class LocalPool:
         )
 
     def submit(self, func: Callable[..., Any], *args: Any) -> cf.Future:
-        return self.pool.submit(func, *args)
+        with _sigint_blocked():  # a worker started here is deaf to Ctrl-C
+            return self.pool.submit(func, *args)
 
     def lost(self, exc: BaseException) -> bool:
         return isinstance(exc, cf.process.BrokenProcessPool)
+
+    def abort(self) -> None:
+        """Ctrl-C: stop the workers now (they ignore SIGINT), so `close` need not wait for
+        their tasks."""
+        # the executor's own table of its processes (it offers no public one)
+        for process in list((getattr(self.pool, "_processes", None) or {}).values()):
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                process.terminate()
 
     def renew(self) -> None:
         """A worker died: the pool is broken for every task in it; start a new one."""
@@ -186,6 +221,9 @@ class DaskPool:
         self.executor.shutdown(wait=False)
         self.client.close()
 
+    def abort(self) -> None:
+        pass  # closing does not wait for the cluster's tasks
+
 
 def _check_address(address: str) -> None:
     """A malformed address is refused before a Client is made (a half-made one would
@@ -260,6 +298,16 @@ def run_graph(
             results[key] = task.func(task.arg, {d: results[d] for d in task.deps})
             on_done(key, results[key])
         return results
+    try:
+        _run_pooled(pool, tasks, on_done, on_lost, results)
+    except KeyboardInterrupt:
+        pool.abort()
+        raise
+    return results
+
+
+def _run_pooled(pool, tasks, on_done, on_lost, results: dict) -> None:
+    """`run_graph` on a pool of workers (local or Dask), filling `results`."""
     waiting = dict(tasks)
     running: dict = {}
 
@@ -305,7 +353,6 @@ def run_graph(
             results[key] = on_lost(key, message)
             on_done(key, results[key])
         launch_ready()
-    return results
 
 
 def _topological(tasks: dict) -> list:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fruitcli.scene import Scene, has_deformation, has_gravity, n_states
+from fruitcli.scene import Scene, gravity_left_out, has_deformation, has_gravity, n_states
 from fruitcli.workflow.stage_types import Context, Stage
 
 
@@ -161,10 +161,11 @@ def _pad_needed(scene):
 
 
 def _pad_run(scene, ctx, out_dir):
-    from fruitcli.geometry.padgrid import write_pad_taxels, write_pad_tracks
+    from fruitcli.geometry.padgrid import check_pad_size, write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
     args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
+    check_pad_size(args[0], args[1], scene.path.name)
     n = write_pad_taxels(out_dir / "taxels.csv", *args)
     return {"taxels": n, "tracks": write_pad_tracks(out_dir / "tracks.csv", *args)}
 
@@ -172,7 +173,8 @@ def _pad_run(scene, ctx, out_dir):
 # ----------------------------------------------------------------------------- tetra / simulate
 def _fem_needed(scene):
     if not has_deformation(scene):
-        return False, "no deformation: taxels at rest, no FEM"
+        dropped = gravity_left_out(scene)
+        return False, "no deformation: taxels at rest, no FEM" + (f"; {dropped}" if dropped else "")
     if _geometry_kind(scene) == "none":
         return False, "no geometry to mesh"
     return True, _fem_reason(scene)
@@ -198,6 +200,8 @@ def _fem_reason(scene):
         parts.append("gravity on the held body")
     elif not scene.has("gravity"):
         parts.append("no gravity")
+    else:
+        parts.append(gravity_left_out(scene) or "gravity vector zero: no gravity")
     return "; ".join(parts)
 
 

@@ -360,8 +360,111 @@ def check_reply(reply: bytes) -> None:
         assert len(got) == 3
 
 
+# ------------------------------------------------------------------------ sizes and ranges
+SIZES = st.one_of(
+    st.integers(-(2**63), 2**63 - 1),
+    st.integers(-3, 300).map(lambda k: 10.0**k),
+    st.integers(-3, 300).map(lambda k: -(10.0**k)),
+    st.sampled_from([0, 1, -1, 0.0, 5e-324, 1.7e308, 2**53 + 1]),
+)
+
+
+def _key_strategy():
+    """One key of the schema with an extreme value: a number, a vector of them, or a list
+    or table far longer than most (sizes and lengths)."""
+    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA
+
+    keys = [(s, k, spec) for s, d in SCHEMA.items() for k, spec in d.items()]
+    keys += [(s, k, spec) for s, d in ARRAY_SCHEMA.items() for k, spec in d.items()]
+    keys = [(s, k, spec) for s, k, spec in keys if spec.kind not in ("str", "path", "bool")]
+
+    def value(spec):
+        if spec.kind in ("vec2", "vec3", "box"):
+            n = {"vec2": 2, "vec3": 3, "box": 6}[spec.kind]
+            return st.lists(SIZES, min_size=n, max_size=n)
+        if spec.kind == "list":
+            return st.one_of(
+                st.lists(SIZES, max_size=4),
+                st.integers(0, 3000).map(lambda n: ["small"] * n),
+                st.integers(0, 3000).map(lambda n: [float(i) for i in range(n)]),
+            )
+        if spec.kind == "table":
+            return st.dictionaries(st.sampled_from(["small", "c1"]), SIZES, max_size=2)
+        return SIZES
+
+    return st.sampled_from(keys).flatmap(
+        lambda key: value(key[2]).map(lambda v: (key[0], key[1], v))
+    )
+
+
+def check_key_range(item) -> None:
+    """A value is refused in one line naming its key, or accepted within its declared
+    range and length."""
+    from fruitcli.scene import ARRAY_SCHEMA, SCHEMA, parse_scene
+
+    section, key, value = item
+    if section in ARRAY_SCHEMA:
+        spec = ARRAY_SCHEMA[section][key]
+        required = {"box": [0, 0, 0, 1, 1, 1], "str": "x", "path": "t.csv"}
+        table = {k: required[s.kind] for k, s in ARRAY_SCHEMA[section].items() if s.required}
+        table[key] = value
+        text = f"[[{section}]]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items())
+    else:
+        spec = SCHEMA[section][key]
+        text = f"[{section}]\n{key} = {_toml_value(value)}\n"
+    path = WORK / "sizes.toml"
+    got = outcome(lambda: parse_scene(text, path, must_exist=False), path.name)
+    if got is None:
+        return
+    held = getattr(
+        got.sections[section][0] if section in ARRAY_SCHEMA else got.sections[section], key
+    )
+    if isinstance(held, (list, tuple, dict)) and spec.max_items is not None:
+        assert len(held) <= spec.max_items, (section, key, len(held))
+    numbers = held.values() if isinstance(held, dict) else held
+    numbers = numbers if isinstance(numbers, (list, tuple)) else [numbers]
+    for v in numbers:
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            assert spec.in_range(v), (section, key, v)
+
+
+def _estimate_strategy():
+    pad = st.tuples(SIZES, SIZES, SIZES)
+    size = st.one_of(SIZES, st.floats(min_value=0.0, exclude_min=True, max_value=1e-100))
+    return st.tuples(pad, st.tuples(SIZES, SIZES), size)
+
+
+def check_estimates(item) -> None:
+    """A flat pad's size, grid and mesh size from the fuzzer: each estimate is a number
+    (no overflow, no warning) and what `memory` accepts fits the memory available."""
+    import warnings
+
+    from fruitcli import memory
+    from fruitcli.fem.meshing.estimate import BYTES_PER_TET, expected_tets
+    from fruitcli.geometry.padgrid import ROW_BYTES, check_pad_size, pad_rows
+    from fruitcli.sensing.skin.virtual_bench import bench_bytes
+
+    pad, count, size = item
+    if size > 0:  # a mesh size or a bench step: the estimates are numbers, inf at worst
+        bench = bench_bytes(size, 1000, 1000, 252)
+        assert bench > 0 and not math.isnan(bench)
+        tets = expected_tets(1200.0, size)
+        assert tets >= 0 and not math.isnan(tets)
+        outcome(lambda: memory.require(tets * BYTES_PER_TET, "fuzz.toml"), "fuzz.toml")
+    if min(pad) <= 0 or min(count) < 1 or max(pad) > 5000 or max(count) > 10_000:
+        return  # the schema refuses these first
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        taxels, points = pad_rows(pad, count)
+        accepted = outcome(lambda: check_pad_size(pad, count, "fuzz.toml") or True, "fuzz.toml")
+        if accepted:
+            assert (taxels + points) * ROW_BYTES <= memory.SHARE * memory.available_bytes()
+
+
 TARGETS = {
     "scene TOML": (_scene_strategy, check_scene),
+    "scene sizes and ranges": (_key_strategy, check_key_range),
+    "size estimates": (_estimate_strategy, check_estimates),
     "points CSV": (lambda: _csv_strategy(["sample", "x_mm", "y_mm"]), check_table),
     "taxel CSV": (lambda: _csv_strategy(["id", "i", "j", "x_mm", "y_mm", "z_mm"]), check_taxels),
     "pressure table": (lambda: _csv_strategy(["c1_kpa", "c2_kpa"]), check_pressures),

@@ -89,3 +89,75 @@ def test_gmsh_leaves_sigpipe_ignored():
     finally:
         gmsh.finalize()
     assert _ignored(signal.SIGPIPE)
+
+
+TAXELS = "id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,1,0,16,0,0\n2,0,1,0,12,0\n3,1,1,16,12,0\n"
+
+
+def _fruit(args, cwd, **kwargs):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import fruitcli
+
+    env = dict(os.environ, PYTHONPATH=str(Path(fruitcli.__file__).parents[1]))
+    return subprocess.Popen(
+        [sys.executable, "-c", "from fruitcli.cli.main import main; main()", *args],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+        **kwargs,
+    )
+
+
+@pytest.mark.parametrize("seconds", [1.0, 2.5, 4.0])
+def test_ctrl_c_in_a_sweep_with_workers_is_one_line(tmp_path, seconds):
+    """Ctrl-C reaches every process of the group (as from a terminal): the workers ignore
+    it, the parent stops them and says "Interrupted." (exit 130), no worker's traceback.
+    Whenever it comes: a sweep already finished exits 0."""
+    import os
+    import signal
+    import time
+
+    (tmp_path / "taxels.csv").write_text(TAXELS)
+    (tmp_path / "s.toml").write_text(
+        '[scene]\nname = "s"\n[grid]\ntaxels = "taxels.csv"\n[bench]\nstep_mm = 0.01\n'
+    )
+    args = ["sweep", "s.toml", "--set", "bench.seed=0,1,2,3,4,5", "--jobs", "2", "--out", "o"]
+    proc = _fruit(args, tmp_path)
+    time.sleep(seconds)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert proc.returncode in (0, 130), err
+    if proc.returncode == 130:
+        assert err.rstrip().splitlines()[-1] == "Interrupted."
+
+
+def test_ctrl_c_at_the_last_instant_is_interrupted(tmp_path):
+    """A Ctrl-C while the interpreter shuts down (after the command's work, at exit) is
+    "Interrupted." and exit 130, not a process ended by the signal."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import fruitcli
+
+    code = (
+        "import atexit, os, signal, time\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(1)))\n"
+        "import sys; sys.argv = ['fruit', 'scenes']\n"
+        "from fruitcli.cli.main import main; main()\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(Path(fruitcli.__file__).parents[1]))
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 130 and done.stderr == "Interrupted.\n", done.stderr
+    assert "touchpad-4x4" in done.stdout  # what the command printed is kept

@@ -140,3 +140,47 @@ def test_a_run_killed_anywhere_and_run_again_equals_a_clean_run(tmp_path):
         plan = _plan(again.stdout)
         for stage in finished:  # a stage that had finished is not run again
             assert plan.get(stage) == "reuse", f"{where}: {stage} {plan.get(stage)}"
+
+
+def test_a_sweep_interrupted_at_random_instants_and_run_again_equals_a_clean_sweep(tmp_path):
+    """`fruit sweep --jobs 2` stopped by a terminal's Ctrl-C (the signal to its whole
+    process group) at random instants: one line "Interrupted." and exit 130, no worker's
+    traceback; the sweep run again gives each variant's outputs of a clean sweep."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE)
+    sweep = ["sweep", scene, "--set", "bench.seed=0,1", "--jobs", "2", "--out"]
+    clean = tmp_path / "clean" / "out"
+    done = subprocess.run(_fruit(*sweep, clean), capture_output=True, text=True, env=_env())
+    assert done.returncode == 0, done.stdout + done.stderr
+    variants = sorted(p.name for p in (clean / "variants").iterdir())
+    assert len(variants) == 2
+    rng = random.Random(41)
+    for i in range(3):
+        out = tmp_path / f"stopped-{i}" / "out"
+        delay = rng.uniform(0.5, 8.0)
+        proc = subprocess.Popen(
+            _fruit(*sweep, out),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=_env(),
+            start_new_session=True,  # its own process group, as a terminal's foreground job
+        )
+        time.sleep(delay)
+        os.killpg(proc.pid, signal.SIGINT)
+        output = proc.communicate(timeout=300)[0]
+        where = f"Ctrl-C {delay:.2f} s into the sweep"
+        assert proc.returncode in (130, 0), f"{where}: exit {proc.returncode}\n{output}"
+        assert "Traceback" not in output and "KeyboardInterrupt" not in output, output
+        if proc.returncode == 130:
+            assert output.rstrip().splitlines()[-1] == "Interrupted.", output
+        again = subprocess.run(_fruit(*sweep, out), capture_output=True, text=True, env=_env())
+        assert again.returncode == 0, f"{where}: the rerun failed:\n{again.stdout}{again.stderr}"
+        for name in variants:
+            differ = [  # a variant's logs hold its process ids and times
+                d
+                for d in compare(clean / "variants" / name, out / "variants" / name)
+                if not d.startswith(("attempts.log:", "log.txt:"))
+            ]
+            assert differ == [], f"{where}: variant {name} differs from a clean sweep: {differ}"
+        assert _leftovers(out) == [], f"{where}: temporary files left"

@@ -27,7 +27,7 @@ def scene_file(tmp_path, body):
 @pytest.mark.parametrize(
     "body, message",
     [
-        ("[bench]\nseed = -1\n", "[bench].seed: expected a seed >= 0, got -1"),
+        ("[bench]\nseed = -1\n", "[bench].seed: expected a seed 0 <= seed < 2^63, got -1"),
         (
             "[sensitivity]\nanimation_frames = 0\n",
             "[sensitivity].animation_frames: expected frames >= 1, got 0",
@@ -182,3 +182,146 @@ def test_a_moved_clamp_is_a_deformation(tmp_path):
         if line.split() and line.split()[0] in ("tetra", "simulate", "sensitivity")
     }
     assert plan == {"tetra": "run", "simulate": "run", "sensitivity": "run"}
+
+
+PAD = '[scene]\nname = "g"\n[geometry]\npad_size_mm = [20.0, 20.0, 3.0]\n'
+HOLD = "[[fixed]]\nbox_mm = [-11, -11, -1, 11, 11, 0.1]\n"
+
+
+def test_an_empty_gravity_section_is_its_default(tmp_path):
+    """An empty [gravity] means vector_m_s2 = [0, 0, -9.81]: a held body is simulated."""
+    path = tmp_path / "g.toml"
+    path.write_text(PAD + "[gravity]\n" + HOLD)
+    scene = load_scene(path)
+    assert scene.has("gravity") and scene.gravity.vector_m_s2 == [0.0, 0.0, -9.81]
+    res = run("run", path, "--dry-run", "--out", tmp_path / "o")
+    assert res.exit_code == 0, res.output
+    lines = {line.split()[0]: line for line in res.output.splitlines()[1:]}
+    assert "run" in lines["simulate"] and "gravity on the held body" in lines["simulate"]
+
+
+def test_gravity_without_a_hold_is_said(tmp_path):
+    """Gravity on a body nothing holds is left out, and the plan and one warning say so."""
+    path = tmp_path / "g.toml"
+    path.write_text(PAD + "[gravity]\n")
+    res = CliRunner().invoke(cli, ["run", str(path), "--dry-run", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 0, res.output
+    why = (
+        "[gravity] left out: no [[fixed]] region or [[jig]] holds the body (a free body would "
+        "only fall)"
+    )
+    assert res.output.count(f"warning: {why}") == 1
+    (line,) = [ln for ln in res.output.splitlines() if ln.startswith("simulate ")]
+    assert line.split()[1:3] == ["not", "needed"] and line.endswith(why)
+
+
+@pytest.fixture
+def one_gib(monkeypatch):
+    from fruitcli import memory
+
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1024**3)
+
+
+def last_line(res) -> str:
+    return res.output.strip().splitlines()[-1]
+
+
+def test_a_tiny_bench_step_is_refused_before_it_allocates(tmp_path, one_gib):
+    path = scene_file(tmp_path, "[bench]\nstep_mm = 1e-9\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res).startswith("Error: s.toml: [bench].step_mm = 1e-09 over ")
+    assert last_line(res).endswith(" TiB of memory, 1.0 GiB is available")
+
+
+def test_a_pad_grid_too_large_for_memory_is_one_line(tmp_path, one_gib):
+    path = tmp_path / "p.toml"
+    path.write_text(
+        '[scene]\nname = "p"\n[geometry]\npad_size_mm = [100.0, 100.0, 3.0]\n'
+        "[grid]\ncount = [10000, 10000]\nspacing_x_mm = 0.001\nspacing_y_mm = 0.001\n"
+    )
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == (
+        "Error: p.toml: [grid].count = [10000, 10000] on pad_size_mm = [100.0, 100.0, 3.0] "
+        "(100,000,000 taxels, 4,020,000 track points) needs about 38.8 GiB of memory, "
+        "1.0 GiB is available"
+    )
+
+
+@pytest.mark.parametrize(
+    "size, line",
+    [
+        (
+            "1e-3",
+            "Error: t.toml: [mesh].size_mm = 0.001 on pad (1200 mm^3): about 5.4e+12 tets "
+            "needs about 9822.5 TiB of memory, 1.0 GiB is available",
+        ),
+        (
+            "0.05",
+            "Error: t.toml: [mesh].size_mm = 0.05 on pad (1200 mm^3): about 4.32e+07 tets "
+            "needs about 80.5 GiB of memory, 1.0 GiB is available",
+        ),
+    ],
+)
+def test_a_mesh_too_fine_is_refused_before_gmsh(tmp_path, one_gib, size, line):
+    path = tmp_path / "t.toml"
+    path.write_text(
+        f'[scene]\nname = "t"\n[geometry]\npad_size_mm = [20.0, 20.0, 3.0]\n[mesh]\n'
+        f"size_mm = {size}\n"
+    )
+    res = run("tetra", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1 and last_line(res).startswith(line), res.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_mesh_gmsh_cannot_make_in_time_is_refused(tmp_path):
+    path = tmp_path / "t.toml"
+    path.write_text(
+        '[scene]\nname = "t"\n[geometry]\npad_size_mm = [20.0, 20.0, 3.0]\n[mesh]\n'
+        "size_mm = 0.2\ntime_limit_s = 1\n"
+    )
+    res = run("tetra", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == (
+        "Error: t.toml: [mesh].size_mm = 0.2 on pad (1200 mm^3): about 6.75e+05 tets take "
+        "gmsh at least 13.5 s, more than [mesh].time_limit_s = 1 s; use a larger size_mm"
+    )
+
+
+def test_a_reduction_too_fine_for_memory_is_one_line(tmp_path, one_gib):
+    import trimesh
+
+    trimesh.creation.icosphere(3, 20.0).export(tmp_path / "sphere.stl")
+    res = run(
+        "make-tracks", tmp_path / "sphere.stl", "--faces", 10_000_000, "--out", tmp_path / "o"
+    )
+    assert res.exit_code == 1
+    assert last_line(res).startswith(
+        "Error: --faces = 10,000,000 on sphere.stl (a distance grid of 2.85e+10 points) needs "
+        "about 1.7 TiB of memory, 1.0 GiB is available"
+    )
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_solid_far_too_large_is_refused_by_tetra(tmp_path):
+    import trimesh
+
+    trimesh.creation.box([1e8, 1e8, 1e8]).export(tmp_path / "big.stl")
+    path = tmp_path / "t.toml"
+    path.write_text('[scene]\nname = "t"\n')
+    res = run("tetra", path, "--solid", tmp_path / "big.stl", "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == (
+        "Error: --solid: big.stl is 1e+08 mm across, more than 5000 mm: is that its unit?"
+    )
+
+
+def test_sensitivity_frames_too_many_for_memory_are_one_line(tmp_path, one_gib):
+    path = scene_file(tmp_path, "[sensitivity]\nnoise_frames = 100000000\n")
+    res = run("run", path, "--out", tmp_path / "o")
+    assert res.exit_code == 1
+    assert last_line(res) == (
+        "Error: s.toml: [sensitivity].noise_frames = 100000000 over 4 taxels needs about "
+        "11.9 GiB of memory, 1.0 GiB is available"
+    )

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fruitcli.errors import MeshError, SceneError
+from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem.tolerances import INSIDE_VOLUME_MM3
 
 
@@ -26,6 +26,13 @@ def load_surface(
     path = Path(path)
     if not path.exists():
         raise error(f"{what}: file not found: {path}")
+    if path.suffix.lower() == ".stl":
+        from fruitcli.geometry.mesh.load import check_binary_stl
+
+        try:
+            check_binary_stl(path)
+        except GeometryError as exc:
+            raise error(f"{what}: {exc}") from None
     try:
         mesh = trimesh.load_mesh(path, process=True, force="mesh")
     except Exception as exc:  # trimesh raises many types for unreadable files

@@ -77,7 +77,7 @@ def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
         )
     if extent > MAX_EXTENT_MM:
         raise GeometryError(
-            f"{what} is {extent:.4g} mm across in {unit}, more than "
+            f"{what} is {extent:.4g} mm across{'' if unit == 'any' else f' in {unit}'}, more than "
             f"{MAX_EXTENT_MM:g} mm: is that its unit?"
         )
     far = float(np.abs(verts_mm).max())
@@ -86,6 +86,36 @@ def check_extent(verts_mm: np.ndarray, unit: str, what: str, hint: str) -> None:
             f"{what} lies up to {far:.4g} mm from the origin, more than "
             f"{MAX_EXTENT_MM:g} mm; move it near the origin (the outputs "
             "are in the mesh's own coordinates)"
+        )
+
+
+STL_HEADER_BYTES = 84  # 80 bytes of text, then the triangle count (uint32, little-endian)
+STL_TRIANGLE_BYTES = 50
+
+
+def check_binary_stl(path: Path) -> None:
+    """Refuse a binary STL whose header's triangle count does not match its size (a
+    truncated file, or a header that lies), naming both; ASCII STL is left to the reader."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(1024)
+    text = head.lstrip().lower().startswith(b"solid") and all(
+        32 <= c < 127 or c in b"\t\r\n" for c in head
+    )
+    if text:
+        return
+    if size < STL_HEADER_BYTES:
+        raise GeometryError(
+            f"{path}: {size} bytes, shorter than a binary STL header ({STL_HEADER_BYTES} bytes)"
+        )
+    count = int.from_bytes(head[80:84], "little")
+    expected = STL_HEADER_BYTES + STL_TRIANGLE_BYTES * count
+    if size < expected or (count == 0 and size > STL_HEADER_BYTES):
+        room = (size - STL_HEADER_BYTES) // STL_TRIANGLE_BYTES
+        raise GeometryError(
+            f"{path}: binary STL header says {count:,} triangles ({expected:,} bytes), "
+            f"the file has {size:,} bytes (room for {room:,}): truncated, or its header's "
+            "count is wrong"
         )
 
 
@@ -107,6 +137,8 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         )
     if path.stat().st_size == 0:
         raise GeometryError(f"{path}: empty file (expected a triangle mesh)")
+    if path.suffix.lower() == ".stl":
+        check_binary_stl(path)
     try:
         scene = trimesh.load(path, process=False, force="scene")
         parts = list(scene.dump()) if isinstance(scene, trimesh.Scene) else [scene]

@@ -243,6 +243,15 @@ def make_tracks(
     av, af = surf.vertices, surf.faces
     lap("load")
 
+    from fruitcli.memory import require
+
+    points = reduce.grid_points(av, af, int(faces))
+    require(
+        points * reduce.GRID_BYTES_PER_POINT,
+        f"{opt['faces']} = {int(faces):,} on {Path(src).name} (a distance grid of "
+        f"{points:.3g} points)",
+        GeometryError,
+    )
     # long triangles are split so that nearest-vertex distances bound the exact ones closely
     want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces))
     split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)

@@ -185,6 +185,19 @@ def grid_for_faces(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -
     return GRID_PER_EDGE * edge_for_faces(surface_area(vertices, faces), OVERSAMPLE * target_faces)
 
 
+GRID_BYTES_PER_POINT = 64.0
+"""Memory the signed-distance grid and its reduction take per grid point (bytes; measured:
+1.0 GB for 12.7 M points, 5.6 GB for 83 M, the process's baseline included)."""
+
+
+def grid_points(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> float:
+    """Points of the signed-distance grid `reduce_body` samples for `target_faces`
+    (its spacing over the surface's bounding box padded as `reduce_body` pads it)."""
+    h = grid_for_faces(vertices, faces, target_faces)
+    extent = np.ptp(vertices, axis=0) + 4.0 * h
+    return float(np.prod(np.ceil(extent / h) + 1.0))
+
+
 def densify(
     vertices: np.ndarray, faces: np.ndarray, max_edge_mm: float, max_faces: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, float | None]:

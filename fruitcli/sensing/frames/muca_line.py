@@ -63,7 +63,8 @@ def parse_line(line: str, n_cells: int) -> tuple[np.ndarray | None, float | None
                 int(f)
             except ValueError:
                 return None, None, f"value: field {k + 1}: expected an integer count, got {f!r}"
-        return None, None, "value: count out of range"
+        big = next(k for k, f in enumerate(fields) if abs(int(f)) > 2**62)
+        return None, None, f"value: field {big + 1}: count beyond the board's range (0 to 65535)"
     if counts.min() < 0:
         k = int(np.argmax(counts < 0))
         return None, None, f"value: field {k + 1}: negative count {counts[k]}"

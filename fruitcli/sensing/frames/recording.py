@@ -62,6 +62,10 @@ class Recording:
         return int(self.frames.shape[0])
 
 
+BOARD_MAX_COUNTS = 65535
+"""Largest count a board reports (16-bit, as `detection.health.SATURATION_COUNTS`)."""
+
+
 def check_frames(frames, where: str, first: int = 0) -> np.ndarray:
     """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64.
     `first`: index of frames[0] in its recording (a chunk's offset), for the messages."""
@@ -79,7 +83,17 @@ def check_frames(frames, where: str, first: int = 0) -> np.ndarray:
             raise FrameError(f"{where}: frame {n}: non-integer count")
     elif arr.dtype.kind not in "iu":
         raise FrameError(f"{where}: frames: expected integer counts, got dtype {arr.dtype}")
-    if arr.dtype.kind == "u" and arr.dtype.itemsize < 8:
+    if arr.dtype.itemsize > 2 or arr.dtype.kind == "f":  # 16-bit integers are in range
+        high = arr > BOARD_MAX_COUNTS
+        if np.any(high):
+            n, *cell = (int(i) for i in np.argwhere(high)[0])
+            value = arr[(n, *cell)].item()
+            value = f"{value:.6g}" if isinstance(value, float) else str(value)
+            raise FrameError(
+                f"{where}: frame {first + n}: count {value} beyond the board's "
+                f"range (expected counts 0 to {BOARD_MAX_COUNTS})"
+            )
+    if arr.dtype.kind == "u":
         return arr.astype(np.int64)  # never negative
     arr = arr.astype(np.int64, copy=False)
     if arr.min() < 0:

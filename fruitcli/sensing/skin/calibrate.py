@@ -26,7 +26,7 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
-from fruitcli.tables import read_taxels
+from fruitcli.tables import integer_column, read_taxels
 
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
@@ -183,7 +183,7 @@ def run_calibrate(
     rec = read_recording(frames_path, board.rows, board.cols, board.format)
     where = str(frames_path)
     truth = read_table(Path(truth_csv), ["sample", "x_mm", "y_mm", "z_mm"], error=FrameError)
-    ids = truth["sample"].astype(np.int64)
+    ids = integer_column(Path(truth_csv), truth, "sample", FrameError)
     if rec.sample is None:
         raise FrameError(f"{where}: no 'sample' key: not a bench recording")
     check_samples(rec.sample, ids, where, str(truth_csv))

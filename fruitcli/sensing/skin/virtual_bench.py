@@ -43,6 +43,25 @@ def quarter_samples(
     return taxels_xy_mm + np.array([spacing_x_mm, spacing_y_mm]) / 4.0
 
 
+DESCENT_ARRAYS = 6
+"""Arrays of one descent's shape (steps, T) alive at once in `descend` (distances,
+activation, mean, noise, counts and a mask)."""
+
+
+def descent_steps(step_mm: float) -> float:
+    """Frames of one full descent, from START_GAP_MM above contact to PRESS_MM into it
+    (about; a float, so that any step > 0 gives a number)."""
+    return (START_GAP_MM + PRESS_MM) / step_mm + 1.0
+
+
+def bench_bytes(step_mm: float, samples: int, taxels: int, cells: int) -> float:
+    """Most memory (bytes) one indenter's bench may take: one descent's arrays (float64
+    per taxel) and, at worst, every sample's full descent kept as frames (int64 per taxel,
+    then float64 and uint16 per board cell)."""
+    steps = descent_steps(step_mm)
+    return steps * taxels * 8.0 * DESCENT_ARRAYS + samples * steps * (8.0 * taxels + 10.0 * cells)
+
+
 @dataclass
 class BenchRun:
     """One indenter's bench recording: taxel counts per frame and the samples' truth."""
