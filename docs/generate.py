@@ -43,6 +43,8 @@ UNITS = [  # key-name suffix -> unit (longest first)
     ("_s", "s"),
     ("_counts", "counts"),
 ]
+OPTION = re.compile(r"(?<![\w`-])(--[a-z][a-z0-9-]*)")
+"""A long option named in plain text (--out, --dry-run)."""
 KINDS = {
     "str": "text",
     "path": "file path",
@@ -59,10 +61,13 @@ KINDS = {
 
 
 def escape(text: str) -> str:
-    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept."""
+    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept,
+    and options such as --out made code spans (Sphinx would render its two hyphens as an
+    en dash)."""
     parts = re.split(r"(`[^`]+`)", text)
     for k in range(0, len(parts), 2):  # outside code spans
         parts[k] = re.sub(r"([\\*_<>\[\]|#])", r"\\\1", parts[k])
+        parts[k] = OPTION.sub(r"`\1`", parts[k])
     return "".join(parts)
 
 
@@ -118,7 +123,7 @@ def cli_page() -> str:
         "them.",
         "",
     ]
-    ctx = click.Context(cli, info_name="fruit")
+    ctx = click.Context(cli, info_name="fruit", **cli.context_settings)  # -h, --help
     lines += ["```text", cli.get_help(ctx), "```", ""]
     for name in cli.list_commands(ctx):
         command_section(cli.get_command(ctx, name), ["fruit", name], ctx, lines)
