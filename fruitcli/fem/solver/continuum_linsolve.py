@@ -37,6 +37,13 @@ class Factor(Protocol):
     def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
+SYMMETRIC_PIVOT_THRESHOLD = 0.01
+"""Without PARDISO, a tangent that is not positive definite is first factorized by
+SuperLU in symmetric mode: a diagonal pivot is kept unless it is smaller than this
+fraction of its column's largest entry, so the symmetric fill-reducing ordering mostly
+holds (a partial-pivoting LU, pivoting on the largest entry, fills far more)."""
+
+
 def factorize(k, previous=None, single: bool = False, indefinite: bool = False) -> Factor:
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
@@ -44,7 +51,8 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
     refactorization of `previous`, a factor this returned before, when the pattern and
     precision are the same; straight to the indefinite type with `indefinite`;
     SolverError when it fails), otherwise Cholesky when k is positive definite (checked
-    on a solve), otherwise LU."""
+    on a solve), otherwise SuperLU in symmetric mode (checked on a solve), otherwise
+    SuperLU's general LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
@@ -71,6 +79,19 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
                 return fac
         except (RuntimeError, ValueError):
             pass
+    try:  # symmetric indefinite: SuperLU keeping the symmetric ordering where it can
+        fac = _Exact(
+            spla.splu(
+                k,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=SYMMETRIC_PIVOT_THRESHOLD,
+                options={"SymmetricMode": True},
+            )
+        )
+        if pardiso.passes_probe(k, fac, pardiso.DOUBLE_PROBE):
+            return fac
+    except RuntimeError:
+        pass
     try:
         lu = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
     except RuntimeError as exc:

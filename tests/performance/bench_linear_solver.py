@@ -1,0 +1,125 @@
+"""Benchmark: `fruit simulate` of a bundled scene with MKL PARDISO (the optional extra
+`fruitcli[pardiso]`) and without it (the default install: cholespy's Cholesky, then
+SciPy's SuperLU; `tests/performance/without_pardiso.py`), on the same mesh and taxels.
+
+Each line: the path, the whole command's wall time, the sum of the states' solve times
+(states.npz solve_ms), the Newton iterations, and the largest node distance from the
+PARDISO run's states (mm). The load average is printed before and after (2 cores shared:
+compare figures taken at a like load). With --docs the figures, date, commit and machine
+go to docs/data/linear-solvers.json, from which `make docs` writes a section of the
+performance page.
+
+Run: .venv/bin/python tests/performance/bench_linear_solver.py [--scene FILE]
+[--paths pardiso cholespy superlu] [--docs]
+"""
+
+import argparse
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+MAX_RUNS = 1  # the default install's run of the breathing takes about 10 minutes
+
+PATHS = {
+    "pardiso": ("MKL PARDISO (pip install 'fruitcli[pardiso]')", None),
+    "cholespy": ("default install: cholespy, then SuperLU", "0"),
+    "superlu": ("SuperLU only (no cholespy)", "1"),
+}
+"""name -> (what it is, FRUIT_BENCH_NO_CHOLESPY for without_pardiso.py, or None: fruit)."""
+
+
+def fruit(args: list, no_cholespy: str | None) -> tuple[float, subprocess.CompletedProcess]:
+    """Run `fruit args` (through without_pardiso.py unless no_cholespy is None)."""
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT))
+    if no_cholespy is None:
+        cmd = [sys.executable, "-c", "from fruitcli.cli.main import main; main()"]
+    else:
+        cmd = [sys.executable, str(HERE / "without_pardiso.py")]
+        env["FRUIT_BENCH_NO_CHOLESPY"] = no_cholespy
+    t0 = time.perf_counter()
+    res = subprocess.run([*cmd, *map(str, args)], env=env, capture_output=True, text=True)
+    return time.perf_counter() - t0, res
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", type=Path, default=ROOT / "pipelines" / "fruit-breathing.toml")
+    ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
+    ap.add_argument("--docs", action="store_true", help="write docs/data/linear-solvers.json")
+    args = ap.parse_args()
+    sys.path.insert(0, str(HERE))
+    from run_all import commit, processor
+
+    version = commit()
+    load0 = os.getloadavg()
+    print(f"load average before: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
+    rows, reference = [], None
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        wall, res = fruit(["run", args.scene, "--until", "make-tracks", "--out", tmp / "s"], None)
+        if res.returncode != 0:
+            sys.exit(f"make-tracks failed: {res.stderr.strip().splitlines()[-1:]}")
+        tracks = tmp / "s" / "make-tracks"
+        common = ["--solid", tracks / "reduced.stl", "--taxels", tracks / "taxels.csv"]
+        for name in args.paths:
+            what, no_cholespy = PATHS[name]
+            out = tmp / name
+            wall, res = fruit(["simulate", args.scene, *common, "--out", out], no_cholespy)
+            if res.returncode != 0:
+                print(f"{name}: failed ({res.stderr.strip().splitlines()[-1:]})")
+                continue
+            with np.load(out / "states.npz") as z:
+                solve_s = float(np.sum(z["solve_ms"])) / 1000.0
+                iterations = int(np.sum(z["iterations"]))
+                nodes = z["rest_nodes"][None] + z["displacement_mm"]
+            reference = nodes if reference is None else reference
+            diff = float(np.abs(nodes - reference).max())
+            rows.append(
+                {
+                    "path": name,
+                    "what": what,
+                    "wall_s": round(wall, 1),
+                    "solve_s": round(solve_s, 1),
+                    "states": len(nodes),
+                    "newton_iterations": iterations,
+                    "max_node_difference_mm": diff,
+                }
+            )
+            print(
+                f"{name}: wall {wall:.1f} s, states' solves {solve_s:.1f} s, "
+                f"{len(nodes)} states, {iterations} Newton iterations, "
+                f"largest node difference from the first path {diff:.2g} mm"
+            )
+    load1 = os.getloadavg()
+    print(f"load average after: {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+    if args.docs:
+        data = ROOT / "docs" / "data" / "linear-solvers.json"
+        data.write_text(
+            json.dumps(
+                {
+                    "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                    "commit": version,
+                    "machine": f"{processor()}, {os.cpu_count()} cores",
+                    "load_average_before": [round(v, 2) for v in load0],
+                    "load_average_after": [round(v, 2) for v in load1],
+                    "scene": args.scene.resolve().relative_to(ROOT).as_posix(),
+                    "rows": rows,
+                },
+                indent=1,
+            )
+            + "\n"
+        )
+        print(f"wrote {data}")
+
+
+if __name__ == "__main__":
+    main()
