@@ -4,7 +4,9 @@
 - scene-keys.md: every scene key with its type, default, unit and meaning (from
   `fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`);
 - performance.md: the figures of `make bench` (build/bench/bench.json when present, else
-  the small sample docs/bench-sample.json);
+  the small sample docs/bench-sample.json), and `fruit simulate` with and without PARDISO
+  from docs/data/linear-solvers.json (written by
+  `tests/performance/bench_linear_solver.py --docs`);
 - fruit-limits.md and fruit-limits.png: the default Fruit's limit pressures and its
   chambers' pressure-volume curves, from docs/data/fruit-limits.{json,csv} (written by
   `tests/performance/bench_limits.py --docs`);
@@ -278,6 +280,41 @@ def performance_page(result: dict, source: str) -> str:
     return "\n".join(lines)
 
 
+SOLVERS = DOCS / "data" / "linear-solvers.json"
+
+
+def solvers_section(info: dict) -> str:
+    """The performance page's section on the optional extra `pardiso`: `fruit simulate`
+    with and without MKL PARDISO (`tests/performance/bench_linear_solver.py --docs`)."""
+    load0 = ", ".join(f"{v:.2f}" for v in info["load_average_before"])
+    load1 = ", ".join(f"{v:.2f}" for v in info["load_average_after"])
+    lines = [
+        "## With and without PARDISO",
+        "",
+        "MKL PARDISO factorizes the FEM's tangent when the optional extra is installed "
+        "(`pip install 'fruitcli[pardiso]'`; Linux and Windows: MKL has no macOS wheels); "
+        "the default install uses cholespy's Cholesky, then SciPy's SuperLU. "
+        f"`fruit simulate {info['scene']}` on the same mesh and taxels, each path once:",
+        "",
+        "| linear solver | wall s | states' solves s | states | Newton iterations | "
+        "largest node difference from the first row (mm) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in info["rows"]:
+        lines.append(
+            f"| {escape(r['what'])} | {r['wall_s']:.0f} | {r['solve_s']:.0f} | {r['states']} | "
+            f"{r['newton_iterations']} | {r['max_node_difference_mm']:.1g} |"
+        )
+    lines += [
+        "",
+        f"`python tests/performance/bench_linear_solver.py --docs` on {info['machine']} "
+        f"(shared with other work: load average {load0} before, {load1} after), "
+        f"{info['date']}, commit `{info['commit'][:12]}`.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
 LIMITS = DOCS / "data" / "fruit-limits"
 
 
@@ -422,6 +459,17 @@ def main(argv: list[str] | None = None) -> int:
         "scene-keys.md": scene_page(),
         "performance.md": performance_page(result, source),
     }
+    if SOLVERS.exists():
+        try:
+            solvers = json.loads(SOLVERS.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            print(
+                f"Error: {SOLVERS}: cannot read the linear solvers' figures: {exc}", file=sys.stderr
+            )
+            return 1
+        pages["performance.md"] = (
+            pages["performance.md"].rstrip() + "\n\n" + solvers_section(solvers)
+        )
     try:
         limits = json.loads(LIMITS.with_suffix(".json").read_text())
     except (OSError, json.JSONDecodeError) as exc:
