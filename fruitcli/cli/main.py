@@ -101,6 +101,11 @@ class LazyGroup(click.Group):
                 ctx.fail(f"No such command {name!r}. Did you mean {hint}?")
         return super().resolve_command(ctx, args)
 
+    def format_commands(self, ctx, formatter) -> None:
+        rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
 
 def log_level(verbose: int, quiet: bool) -> int:
     """The logging level of -v (counted) and -q."""
@@ -141,11 +146,6 @@ def accept_late_options(cmd: click.Command) -> click.Command:
     for sub in getattr(cmd, "commands", {}).values():
         accept_late_options(sub)
     return cmd
-
-    def format_commands(self, ctx, formatter) -> None:
-        rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
-        with formatter.section("Commands"):
-            formatter.write_dl(rows)
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
