@@ -158,3 +158,17 @@ def test_verbose_and_quiet_also_after_the_subcommand(tmp_path):
         root.setLevel(level)
     assert log_level(2, False) == logging.DEBUG
     assert "-v" not in run("scenes", "--help").output  # the group's options, not the command's
+
+
+def test_help_lists_the_commands_without_importing_them():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from fruitcli.cli.main import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "print(sorted(m for m in sys.modules if m.startswith('fruitcli.cli.')))"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert "  simulate         Quasi-static FEM of a scene's states" in res.stdout
+    assert res.stdout.strip().splitlines()[-1] == "['fruitcli.cli.main']"
