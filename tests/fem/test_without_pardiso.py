@@ -1,7 +1,7 @@
 """The default install, without the optional extra `pardiso` (MKL): `pardiso.available`
-says so instead of failing, and the FEM's factors are cholespy's Cholesky, then SuperLU
-in symmetric mode (a tangent that is not positive definite: past a limit point, a
-collapsing wall), then SuperLU's general LU, with the results PARDISO gives."""
+says so instead of failing, and the hyperelastic model's factors are SuperLU's
+in symmetric mode (positive definite or not: past a limit point, a collapsing wall),
+then SuperLU's general LU, with the results PARDISO gives."""
 
 import glob
 import sys
@@ -11,9 +11,9 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from fruitcli.errors import SceneError
+from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import limits
-from fruitcli.fem.solver import continuum_linsolve, linsolve, pardiso
+from fruitcli.fem.solver import continuum_linsolve, pardiso
 from fruitcli.fem.solver.newton import SolverOptions
 from tests.fem.test_limits import LIMIT_B_OVER_A_2
 from tests.fem.test_mesh import octant_ball
@@ -43,10 +43,8 @@ def test_available_is_false_without_mkl_or_pypardiso(monkeypatch):
 
 
 def test_factors_without_pardiso(no_pardiso, monkeypatch):
-    """Positive definite: cholespy; indefinite: SuperLU in symmetric mode, not the general
-    LU; each solve exact to 1e-10."""
-    if linsolve._cholesky is None:
-        pytest.skip("cholespy not installed")
+    """Positive definite or not: SuperLU in symmetric mode, not the general LU; each solve
+    exact to 1e-10."""
     calls = []
     splu = spla.splu
 
@@ -56,13 +54,21 @@ def test_factors_without_pardiso(no_pardiso, monkeypatch):
 
     monkeypatch.setattr(continuum_linsolve.spla, "splu", counted)
     rng = np.random.default_rng(0)
-    for shift, used in ((0.0, []), (1.0, [True])):
+    for shift in (0.0, 1.0):  # positive definite, then indefinite
         k = laplacian(12, shift)
         b = rng.standard_normal(k.shape[0])
         calls.clear()
         fac = continuum_linsolve.factorize(k, single=True, indefinite=shift > 0)
-        assert not fac.single and calls == used
+        assert not fac.single and calls == [True]
         assert np.linalg.norm(k @ fac.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def test_a_singular_tangent_is_one_line_without_pardiso(no_pardiso):
+    k = laplacian(6).tolil()
+    k[0, :] = 0.0
+    k[:, 0] = 0.0
+    with pytest.raises(SolverError, match=r"^tangent stiffness is singular \(.*\); is the body"):
+        continuum_linsolve.factorize(k.tocsc())
 
 
 def test_limit_and_refusals_are_the_same_without_pardiso(monkeypatch):

@@ -1,6 +1,6 @@
 """Benchmark: `fruit simulate` of a bundled scene with MKL PARDISO (the optional extra
-`fruitcli[pardiso]`) and without it (the default install: cholespy's Cholesky, then
-SciPy's SuperLU; `tests/performance/without_pardiso.py`), on the same mesh and taxels.
+`fruitcli[pardiso]`) and without it (the default install: SciPy's SuperLU for the
+quadratic elements; `tests/performance/without_pardiso.py`), on the same mesh and taxels.
 
 Each line: the path, the whole command's wall time, the sum of the states' solve times
 (states.npz solve_ms), the Newton iterations, and the largest node distance from the
@@ -10,7 +10,7 @@ go to docs/data/linear-solvers.json, from which `make docs` writes a section of 
 performance page.
 
 Run: .venv/bin/python tests/performance/bench_linear_solver.py [--scene FILE]
-[--paths pardiso cholespy superlu] [--docs]
+[--paths pardiso default] [--docs]
 """
 
 import argparse
@@ -27,24 +27,22 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-MAX_RUNS = 1  # the default install's run of the breathing takes about 10 minutes
+MAX_RUNS = 1  # the breathing takes 1-3 minutes per path
 
 PATHS = {
-    "pardiso": ("MKL PARDISO (pip install 'fruitcli[pardiso]')", None),
-    "cholespy": ("default install: cholespy, then SuperLU", "0"),
-    "superlu": ("SuperLU only (no cholespy)", "1"),
+    "pardiso": ("MKL PARDISO (pip install 'fruitcli[pardiso]')", True),
+    "default": ("default install: SuperLU in symmetric mode", False),
 }
-"""name -> (what it is, FRUIT_BENCH_NO_CHOLESPY for without_pardiso.py, or None: fruit)."""
+"""name -> (what it is, whether PARDISO is used: else through without_pardiso.py)."""
 
 
-def fruit(args: list, no_cholespy: str | None) -> tuple[float, subprocess.CompletedProcess]:
-    """Run `fruit args` (through without_pardiso.py unless no_cholespy is None)."""
+def fruit(args: list, with_pardiso: bool) -> tuple[float, subprocess.CompletedProcess]:
+    """Run `fruit args`, through without_pardiso.py unless with_pardiso."""
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT))
-    if no_cholespy is None:
+    if with_pardiso:
         cmd = [sys.executable, "-c", "from fruitcli.cli.main import main; main()"]
     else:
         cmd = [sys.executable, str(HERE / "without_pardiso.py")]
-        env["FRUIT_BENCH_NO_CHOLESPY"] = no_cholespy
     t0 = time.perf_counter()
     res = subprocess.run([*cmd, *map(str, args)], env=env, capture_output=True, text=True)
     return time.perf_counter() - t0, res
@@ -65,15 +63,15 @@ def main() -> None:
     rows, reference = [], None
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        wall, res = fruit(["run", args.scene, "--until", "make-tracks", "--out", tmp / "s"], None)
+        wall, res = fruit(["run", args.scene, "--until", "make-tracks", "--out", tmp / "s"], True)
         if res.returncode != 0:
             sys.exit(f"make-tracks failed: {res.stderr.strip().splitlines()[-1:]}")
         tracks = tmp / "s" / "make-tracks"
         common = ["--solid", tracks / "reduced.stl", "--taxels", tracks / "taxels.csv"]
         for name in args.paths:
-            what, no_cholespy = PATHS[name]
+            what, with_pardiso = PATHS[name]
             out = tmp / name
-            wall, res = fruit(["simulate", args.scene, *common, "--out", out], no_cholespy)
+            wall, res = fruit(["simulate", args.scene, *common, "--out", out], with_pardiso)
             if res.returncode != 0:
                 print(f"{name}: failed ({res.stderr.strip().splitlines()[-1:]})")
                 continue
