@@ -209,3 +209,33 @@ def test_description_renders(wheel):
     )
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.count("PASSED") == 2
+
+
+def test_wheel_check_tags_and_reason():
+    """.ci/check_wheels.py (run by CI, with network): the tags each machine accepts, and
+    pip's failure told in one line naming the package without a wheel."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("check_wheels", ROOT / ".ci" / "check_wheels.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    mac = check.macos_tags(14, "arm64")
+    assert mac[:2] == ["macosx_14_0_arm64", "macosx_14_0_universal2"]
+    assert {"macosx_11_0_arm64", "macosx_10_9_universal2"} <= set(mac)
+    assert "macosx_10_16_arm64" not in mac and "macosx_15_0_arm64" not in mac
+    linux = check.manylinux_tags(28, "x86_64")
+    assert {"manylinux_2_28_x86_64", "manylinux2014_x86_64", "manylinux1_x86_64"} <= set(linux)
+    assert "manylinux_2_29_x86_64" not in linux
+    pip_output = (
+        "ERROR: Cannot install pypardiso==0.4.7 because these package versions have "
+        "conflicting dependencies.\n\nThe conflict is caused by:\n"
+        "    pypardiso 0.4.7 depends on mkl!=2024.0\n\nAdditionally, some packages in these "
+        "conflicts have no matching distributions available for your environment:\n"
+        "    mkl\n\nTo fix this you could try to:\n"
+        "ERROR: ResolutionImpossible: for help visit https://pip.pypa.io/\n"
+    )
+    assert check.why(pip_output) == "no wheel for mkl"
+    assert check.why("ERROR: No matching distribution found for gmsh==9\n") == (
+        "no wheel for gmsh==9"
+    )
+    assert check.why("ERROR: something else\n") == "ERROR: something else"
