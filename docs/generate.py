@@ -306,9 +306,31 @@ def solvers_section(info: dict) -> str:
             f"| {escape(r['what'])} | {r['wall_s']:.0f} | {r['solve_s']:.0f} | {r['states']} | "
             f"{r['newton_iterations']} | {r['max_node_difference_mm']:.1g} |"
         )
+    if info.get("refusals"):
+        lines += [
+            "",
+            "The hard cases: the default Fruit with chamber c1 at -500 kPa (past its "
+            "collapse) and at 2000 kPa (past its limit), refused by the limits check "
+            "(`tests/performance/bench_refusal.py`):",
+            "",
+            "| linear solver | c1 | s from the mesh to the refusal | exit code | "
+            "the same line as the first row's |",
+            "|---|---|---|---|---|",
+        ]
+        for r in info["refusals"]:
+            after = "–" if r["after_mesh_s"] is None else f"{r['after_mesh_s']:.0f}"
+            lines.append(
+                f"| {escape(r['what'])} | {r['c1_kpa']:g} kPa | {after} | {r['exit_code']} | "
+                f"{'yes' if r['same_line'] else 'no'} |"
+            )
+    command = (
+        "bench_linear_solver.py --refusals --docs"
+        if info.get("refusals")
+        else ("bench_linear_solver.py --docs")
+    )
     lines += [
         "",
-        f"`python tests/performance/bench_linear_solver.py --docs` on {info['machine']} "
+        f"`python tests/performance/{command}` on {info['machine']} "
         f"(shared with other work: load average {load0} before, {load1} after), "
         f"{info['date']}, commit `{info['commit'][:12]}`.",
         "",

@@ -89,6 +89,17 @@ def test_solvers_section_is_a_table_of_the_bench_rows():
     assert "| cholespy\\_x | 600 | 570 | 13 | 31 | 3e-07 |" in section
     assert "load average 1.00, 2.00, 3.00 before, 4.00, 5.00, 6.00 after" in section
     assert "commit `0123456789ab`" in section
+    assert "--refusals" not in section
+    info["refusals"] = [
+        {"what": "MKL PARDISO", "c1_kpa": -500.0, "after_mesh_s": 31.5, "exit_code": 1,
+         "same_line": True},
+        {"what": "default", "c1_kpa": 2000.0, "after_mesh_s": 64.1, "exit_code": 1,
+         "same_line": False},
+    ]  # fmt: skip
+    section = generate.solvers_section(info)
+    assert "| MKL PARDISO | -500 kPa | 32 | 1 | yes |" in section
+    assert "| default | 2000 kPa | 64 | 1 | no |" in section
+    assert "bench_linear_solver.py --refusals --docs` on a CPU" in section
 
 
 def test_scene_page_has_every_key_with_its_unit_and_default():

@@ -9,8 +9,11 @@ compare figures taken at a like load). With --docs the figures, date, commit and
 go to docs/data/linear-solvers.json, from which `make docs` writes a section of the
 performance page.
 
+With --refusals, also the default Fruit's refusals of a pressure past a chamber's
+collapse and limit (`bench_refusal.py`), per path.
+
 Run: .venv/bin/python tests/performance/bench_linear_solver.py [--scene FILE]
-[--paths pardiso default] [--docs]
+[--paths pardiso default] [--refusals] [--docs]
 """
 
 import argparse
@@ -48,11 +51,47 @@ def fruit(args: list, with_pardiso: bool) -> tuple[float, subprocess.CompletedPr
     return time.perf_counter() - t0, res
 
 
+def refusal_rows(paths: list[str], tmp: Path) -> list[dict]:
+    """`fruit simulate` of the default Fruit with c1 at -500 kPa (past its collapse) and
+    2000 kPa (past its limit), refused by the limits check (`bench_refusal.py`), per
+    path: the seconds from the mesh to the refusal and whether its line is the first
+    path's."""
+    from bench_refusal import fruit_scene, refusal
+
+    rows, first = [], {}
+    for name in paths:
+        for p in (-500.0, 2000.0):
+            scene = tmp / f"refuse_{name}_{p:g}.toml"
+            scene.write_text(fruit_scene(p))
+            after, wall, code, last = refusal(scene, tmp / f"o_{name}_{p:g}", PATHS[name][1])
+            first.setdefault(p, last)
+            rows.append(
+                {
+                    "path": name,
+                    "what": PATHS[name][0],
+                    "c1_kpa": p,
+                    "after_mesh_s": None if after is None else round(after, 1),
+                    "exit_code": code,
+                    "same_line": last == first[p],
+                }
+            )
+            print(
+                f"{name}: c1 at {p:g} kPa refused in {after or 0:.1f} s after the mesh, "
+                f"exit {code}, the same line as the first path's: {last == first[p]}"
+            )
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scene", type=Path, default=ROOT / "pipelines" / "fruit-breathing.toml")
     ap.add_argument("--paths", nargs="+", default=list(PATHS), choices=list(PATHS))
     ap.add_argument("--docs", action="store_true", help="write docs/data/linear-solvers.json")
+    ap.add_argument(
+        "--refusals",
+        action="store_true",
+        help="also bench_refusal's default Fruit cases (c1 at -500 and 2000 kPa) per path",
+    )
     args = ap.parse_args()
     sys.path.insert(0, str(HERE))
     from run_all import commit, processor
@@ -97,6 +136,7 @@ def main() -> None:
                 f"{len(nodes)} states, {iterations} Newton iterations, "
                 f"largest node difference from the first path {diff:.2g} mm"
             )
+        refusals = refusal_rows(args.paths, tmp) if args.refusals else []
     load1 = os.getloadavg()
     print(f"load average after: {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
     if args.docs:
@@ -111,6 +151,7 @@ def main() -> None:
                     "load_average_after": [round(v, 2) for v in load1],
                     "scene": args.scene.resolve().relative_to(ROOT).as_posix(),
                     "rows": rows,
+                    "refusals": refusals,
                 },
                 indent=1,
             )

@@ -56,9 +56,10 @@ def fruit_scene(pressure: float) -> str:
     )
 
 
-def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
-    """One line: `fruit simulate` on `scene`, timed from the mesh to its last line
-    (without MKL PARDISO, as the default install, unless `pardiso`)."""
+def refusal(scene: Path, out: Path, pardiso: bool = True) -> tuple[float | None, float, int, str]:
+    """`fruit simulate` on `scene` (without MKL PARDISO, as the default install, unless
+    `pardiso`): (seconds from the mesh to its last line or None, wall seconds, exit code,
+    last line)."""
     fruit = [str(Path(sys.executable).parent / "fruit")]
     if not pardiso:
         fruit = [sys.executable, str(HERE / "without_pardiso.py")]
@@ -71,7 +72,7 @@ def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
         text=True,
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
-    meshed, last = None, ""
+    meshed, last, at = None, "", 0.0
     for line in proc.stdout:
         now = time.monotonic() - t0
         if re.search(r"tetra: \d+ tets", line):
@@ -79,9 +80,14 @@ def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
         if line.strip():
             last, at = line.strip(), now
     code = proc.wait()
-    wall = time.monotonic() - t0
-    after = "?" if meshed is None else f"{at - meshed:.1f} s"
-    return f"{after} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
+    return (None if meshed is None else at - meshed), time.monotonic() - t0, code, last
+
+
+def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
+    """One line: `refusal` of `scene`, timed from the mesh to its last line."""
+    after, wall, code, last = refusal(scene, out, pardiso)
+    when = "?" if after is None else f"{after:.1f} s"
+    return f"{when} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
 
 
 def main() -> None:
