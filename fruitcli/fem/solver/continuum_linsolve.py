@@ -43,9 +43,9 @@ pivot is kept unless it is smaller than this fraction of its column's largest en
 the symmetric fill-reducing ordering mostly holds, whether or not the tangent is
 positive definite (a partial-pivoting LU fills far more). On the default Fruit's
 breathing (quadratic elements, 44,403 dofs; `tests/performance/bench_linear_solver.py`)
-the 13 states took 154 s of solves this way against 45 s with PARDISO, while cholespy's
-Cholesky (BLAS-free: 28-54 s per factorization) did not finish the first state within
-its 300 s budget."""
+the 13 states took 113-154 s of solves this way against 33-45 s with PARDISO (three
+runs on a shared 2-core machine), while cholespy's Cholesky (BLAS-free: 28-54 s per
+factorization) did not finish the first state within its 300 s budget."""
 
 
 def factorize(k, previous=None, single: bool = False, indefinite: bool = False) -> Factor:
