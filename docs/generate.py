@@ -314,7 +314,7 @@ def solvers_section(info: dict) -> str:
             "(`tests/performance/bench_refusal.py`):",
             "",
             "| linear solver | c1 | s from the mesh to the refusal | exit code | "
-            "the same line as the first row's |",
+            "the same refusal line as the first path's |",
             "|---|---|---|---|---|",
         ]
         for r in info["refusals"]:
