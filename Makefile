@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) setuptools
-	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) -e '.[dev,cluster,docs]'
+	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) -e '.[dev,cluster,docs,pardiso]'
 	touch $(STAMP)
 
 lint: $(STAMP)

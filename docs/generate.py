@@ -4,7 +4,9 @@
 - scene-keys.md: every scene key with its type, default, unit and meaning (from
   `fruitcli.scene.SCHEMA` and `ARRAY_SCHEMA`);
 - performance.md: the figures of `make bench` (build/bench/bench.json when present, else
-  the small sample docs/bench-sample.json);
+  the small sample docs/bench-sample.json), and `fruit simulate` with and without PARDISO
+  from docs/data/linear-solvers.json (written by
+  `tests/performance/bench_linear_solver.py --docs`);
 - fruit-limits.md and fruit-limits.png: the default Fruit's limit pressures and its
   chambers' pressure-volume curves, from docs/data/fruit-limits.{json,csv} (written by
   `tests/performance/bench_limits.py --docs`);
@@ -43,6 +45,8 @@ UNITS = [  # key-name suffix -> unit (longest first)
     ("_s", "s"),
     ("_counts", "counts"),
 ]
+OPTION = re.compile(r"(?<![\w`-])(--[a-z][a-z0-9-]*)")
+"""A long option named in plain text (--out, --dry-run)."""
 KINDS = {
     "str": "text",
     "path": "file path",
@@ -59,10 +63,13 @@ KINDS = {
 
 
 def escape(text: str) -> str:
-    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept."""
+    """Plain text made safe for Markdown (MyST): no markup, no raw HTML; `code spans` kept,
+    and options such as --out made code spans (Sphinx would render its two hyphens as an
+    en dash)."""
     parts = re.split(r"(`[^`]+`)", text)
     for k in range(0, len(parts), 2):  # outside code spans
         parts[k] = re.sub(r"([\\*_<>\[\]|#])", r"\\\1", parts[k])
+        parts[k] = OPTION.sub(r"`\1`", parts[k])
     return "".join(parts)
 
 
@@ -118,7 +125,7 @@ def cli_page() -> str:
         "them.",
         "",
     ]
-    ctx = click.Context(cli, info_name="fruit")
+    ctx = click.Context(cli, info_name="fruit", **cli.context_settings)  # -h, --help
     lines += ["```text", cli.get_help(ctx), "```", ""]
     for name in cli.list_commands(ctx):
         command_section(cli.get_command(ctx, name), ["fruit", name], ctx, lines)
@@ -279,6 +286,64 @@ def performance_page(result: dict, source: str) -> str:
     return "\n".join(lines)
 
 
+SOLVERS = DOCS / "data" / "linear-solvers.json"
+
+
+def solvers_section(info: dict) -> str:
+    """The performance page's section on the optional extra `pardiso`: `fruit simulate`
+    with and without MKL PARDISO (`tests/performance/bench_linear_solver.py --docs`)."""
+    load0 = ", ".join(f"{v:.2f}" for v in info["load_average_before"])
+    load1 = ", ".join(f"{v:.2f}" for v in info["load_average_after"])
+    lines = [
+        "## With and without PARDISO",
+        "",
+        "MKL PARDISO factorizes the FEM's tangent when the optional extra is installed "
+        "(`pip install 'fruitcli[pardiso]'`; Linux and Windows: MKL has no macOS wheels); "
+        "the default install uses SciPy's SuperLU in symmetric mode (and cholespy's "
+        "Cholesky for the paper's linear elements). "
+        f"`fruit simulate {info['scene']}` on the same mesh and taxels, each path once:",
+        "",
+        "| linear solver | wall s | states' solves s | states | Newton iterations | "
+        "largest node difference from the first row (mm) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in info["rows"]:
+        lines.append(
+            f"| {escape(r['what'])} | {r['wall_s']:.0f} | {r['solve_s']:.0f} | {r['states']} | "
+            f"{r['newton_iterations']} | {r['max_node_difference_mm']:.1g} |"
+        )
+    if info.get("refusals"):
+        lines += [
+            "",
+            "The hard cases: the default Fruit with chamber c1 at -500 kPa (past its "
+            "collapse) and at 2000 kPa (past its limit), refused by the limits check "
+            "(`tests/performance/bench_refusal.py`):",
+            "",
+            "| linear solver | c1 | s from the mesh to the refusal | exit code | "
+            "the same refusal line as the first path's |",
+            "|---|---|---|---|---|",
+        ]
+        for r in info["refusals"]:
+            after = "–" if r["after_mesh_s"] is None else f"{r['after_mesh_s']:.0f}"
+            lines.append(
+                f"| {escape(r['what'])} | {r['c1_kpa']:g} kPa | {after} | {r['exit_code']} | "
+                f"{'yes' if r['same_line'] else 'no'} |"
+            )
+    command = (
+        "bench_linear_solver.py --refusals --docs"
+        if info.get("refusals")
+        else ("bench_linear_solver.py --docs")
+    )
+    lines += [
+        "",
+        f"`python tests/performance/{command}` on {info['machine']} "
+        f"(shared with other work: load average {load0} before, {load1} after), "
+        f"{info['date']}, commit `{info['commit'][:12]}`.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
 LIMITS = DOCS / "data" / "fruit-limits"
 
 
@@ -423,6 +488,17 @@ def main(argv: list[str] | None = None) -> int:
         "scene-keys.md": scene_page(),
         "performance.md": performance_page(result, source),
     }
+    if SOLVERS.exists():
+        try:
+            solvers = json.loads(SOLVERS.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            print(
+                f"Error: {SOLVERS}: cannot read the linear solvers' figures: {exc}", file=sys.stderr
+            )
+            return 1
+        pages["performance.md"] = (
+            pages["performance.md"].rstrip() + "\n\n" + solvers_section(solvers)
+        )
     try:
         limits = json.loads(LIMITS.with_suffix(".json").read_text())
     except (OSError, json.JSONDecodeError) as exc:

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, 
 from pathlib import Path
 from typing import Any
 
-from fruitcli.errors import SceneError, echo
+from fruitcli.errors import FruitError, SceneError, echo
 from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
@@ -1536,11 +1536,29 @@ def has_deformation(scene: Scene) -> bool:
     return bool(scene.jig) or moved or has_gravity(scene)
 
 
+def _bundled_hint(path: Path) -> str:
+    """For a missing scene given by a bundled scene's name (`fruit run fruit-rest`): how
+    to get an editable copy of it; else ""."""
+    from fruitcli import bundled
+
+    name = path.name.removesuffix(".toml")
+    try:
+        known = len(path.parts) == 1 and name in bundled.scene_names()
+    except FruitError:  # no bundled scenes (a broken install)
+        known = False
+    if not known:
+        return ""
+    return (
+        f"; {name!r} is a bundled scene: copy it with `fruit scenes copy {name} DIR`, "
+        f"then run DIR/{name}.toml"
+    )
+
+
 def load_scene(path: str | Path, must_exist: bool = True) -> Scene:
     """Read and validate a scene file."""
     path = Path(path)
     if not path.exists():
-        raise SceneError(f"{path}: scene file not found")
+        raise SceneError(f"{path}: scene file not found{_bundled_hint(path)}")
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:

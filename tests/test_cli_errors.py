@@ -103,3 +103,73 @@ def test_mesh_far_too_large_for_its_unit_is_refused(tmp_path):
     assert last_line(res) == (
         f"Error: {art}: the mesh is 8e+04 mm across in m, more than 5000 mm: is that its unit?"
     )
+
+
+def test_a_mistyped_command_gets_the_closest_names():
+    res = run("scene")
+    assert res.exit_code == 2
+    assert last_line(res) == "Error: No such command 'scene'. Did you mean 'scenes'?"
+    assert (
+        last_line(run("simualte")) == "Error: No such command 'simualte'. Did you mean 'simulate'?"
+    )
+    assert last_line(run("xyz")) == "Error: No such command 'xyz'."
+
+
+def test_a_bundled_scene_name_points_to_scenes_copy(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for given in ("fruit-rest", "fruit-rest.toml"):
+        res = run("run", given, "--out", "o")
+        assert res.exit_code == 1
+        assert last_line(res) == (
+            f"Error: {given}: scene file not found; 'fruit-rest' is a bundled scene: copy it "
+            "with `fruit scenes copy fruit-rest DIR`, then run DIR/fruit-rest.toml"
+        )
+    res = run("simulate", "nosuch", "--out", "o")
+    assert res.exit_code == 1 and last_line(res) == "Error: nosuch: scene file not found"
+    res = run("run", "elsewhere/fruit-rest.toml")  # a path: the user's own file, no hint
+    assert last_line(res) == "Error: elsewhere/fruit-rest.toml: scene file not found"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_verbose_and_quiet_also_after_the_subcommand(tmp_path):
+    """-v and -q after the subcommand count with those before it (the log level is set
+    again; before it, logging.basicConfig set it in a fresh process)."""
+    import logging
+
+    from fruitcli.cli.main import log_level
+
+    root = logging.getLogger()
+    level = root.level
+    try:
+        for args, expected in (
+            (["scenes", "-vv"], log_level(2, False)),
+            (["-v", "scenes", "-v"], log_level(2, False)),
+            (["scenes", "copy", "-q", "paper-table", tmp_path / "a"], logging.ERROR),
+            (["study", "stability", "-v", "--jobs", "0"], None),  # a group's subcommand
+        ):
+            root.setLevel(logging.WARNING)
+            res = run(*args)
+            if expected is None:
+                assert res.exit_code == 2 and "No such option" not in res.output
+                assert root.level == log_level(1, False)
+            else:
+                assert res.exit_code == 0, res.output
+                assert root.level == expected, args
+    finally:
+        root.setLevel(level)
+    assert log_level(2, False) == logging.DEBUG
+    assert "-v" not in run("scenes", "--help").output  # the group's options, not the command's
+
+
+def test_help_lists_the_commands_without_importing_them():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from fruitcli.cli.main import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "print(sorted(m for m in sys.modules if m.startswith('fruitcli.cli.')))"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert "  simulate         Quasi-static FEM of a scene's states" in res.stdout
+    assert res.stdout.strip().splitlines()[-1] == "['fruitcli.cli.main']"

@@ -52,6 +52,56 @@ def test_cli_page_has_every_command_and_option():
     assert "- `SCENE`" in run_section
 
 
+def test_cli_page_shows_the_help_option_and_options_in_text_as_code():
+    """`-h, --help` as the CLI has it; an option named in a help text is a code span
+    (Sphinx would turn the two hyphens of a bare --out into an en dash)."""
+    page = generate.cli_page()
+    assert "  -h, --help     Show this message and exit." in page
+    assert "- `--overwrite`: Replace an existing `--out` file." in page
+    bare, fenced = [], False
+    for line in page.splitlines():
+        fenced = fenced != line.startswith("```")
+        text = re.sub(r"`[^`]*`", "", line)  # outside code spans
+        if not fenced and re.search(r"(?<![\w-])--[a-z]", text):
+            bare.append(line)
+    assert bare == []
+    assert generate.escape("give --out or -v; a - b -- c") == "give `--out` or -v; a - b -- c"
+
+
+def test_solvers_section_is_a_table_of_the_bench_rows():
+    info = {
+        "date": "2026-12-06T04:30:00+00:00",
+        "commit": "0123456789abcdef",
+        "machine": "a CPU, 2 cores",
+        "load_average_before": [1.0, 2.0, 3.0],
+        "load_average_after": [4.0, 5.0, 6.0],
+        "scene": "pipelines/fruit-breathing.toml",
+        "rows": [
+            {"what": "MKL PARDISO", "wall_s": 68.1, "solve_s": 44.9, "states": 13,
+             "newton_iterations": 30, "max_node_difference_mm": 0.0},
+            {"what": "cholespy_x", "wall_s": 600.4, "solve_s": 570.0, "states": 13,
+             "newton_iterations": 31, "max_node_difference_mm": 2.6e-7},
+        ],
+    }  # fmt: skip
+    section = generate.solvers_section(info)
+    assert section.startswith("## With and without PARDISO\n")
+    assert "| MKL PARDISO | 68 | 45 | 13 | 30 | 0 |" in section
+    assert "| cholespy\\_x | 600 | 570 | 13 | 31 | 3e-07 |" in section
+    assert "load average 1.00, 2.00, 3.00 before, 4.00, 5.00, 6.00 after" in section
+    assert "commit `0123456789ab`" in section
+    assert "--refusals" not in section
+    info["refusals"] = [
+        {"what": "MKL PARDISO", "c1_kpa": -500.0, "after_mesh_s": 31.5, "exit_code": 1,
+         "same_line": True},
+        {"what": "default", "c1_kpa": 2000.0, "after_mesh_s": 64.1, "exit_code": 1,
+         "same_line": False},
+    ]  # fmt: skip
+    section = generate.solvers_section(info)
+    assert "| MKL PARDISO | -500 kPa | 32 | 1 | yes |" in section
+    assert "| default | 2000 kPa | 64 | 1 | no |" in section
+    assert "bench_linear_solver.py --refusals --docs` on a CPU" in section
+
+
 def test_scene_page_has_every_key_with_its_unit_and_default():
     page = generate.scene_page()
     rows = {}

@@ -33,13 +33,13 @@ def wheel(tmp_path_factory) -> Path:
     for name in ("fruitcli", "pipelines", "data"):
         shutil.copytree(ROOT / name, src / name, ignore=skip)
     out = tmp_path_factory.mktemp("wheel")
-    subprocess.run(
+    build = subprocess.run(
         [
             sys.executable,
             "-m",
             "pip",
             "wheel",
-            "--quiet",
+            "--verbose",  # the build backend's warnings, kept in build.log
             "--no-deps",
             "--no-build-isolation",
             "--wheel-dir",
@@ -48,9 +48,14 @@ def wheel(tmp_path_factory) -> Path:
         ],
         check=True,
         capture_output=True,
+        text=True,
         cwd=out,
     )
+    (out / "build.log").write_text(build.stdout + build.stderr)
     (found,) = out.glob("fruitcli-*.whl")
+    # the source distribution from the same copy, beside the wheel
+    code = "import sys; from setuptools import build_meta; build_meta.build_sdist(sys.argv[1])"
+    subprocess.run([sys.executable, "-c", code, str(out)], check=True, capture_output=True, cwd=src)
     return found
 
 
@@ -168,3 +173,69 @@ def test_lower_bounds_are_the_tested_versions():
     for spec in wanted:
         name, bound = re.fullmatch(r"([A-Za-z0-9_.-]+)>=([0-9.]+)", spec).groups()
         assert pins[name.lower().replace("_", "-")] == bound, spec
+
+
+def test_metadata_is_ready_to_publish(wheel):
+    """License, classifiers, keywords; MKL (pypardiso) only in the extra `pardiso`; no
+    setuptools warning about a package missing from the configuration."""
+    from email.parser import HeaderParser
+
+    with zipfile.ZipFile(wheel) as z:
+        meta = HeaderParser().parsestr(z.read("fruitcli-0.1.0.dist-info/METADATA").decode())
+    assert meta["License-Expression"] == "GPL-3.0-or-later"
+    assert meta["Description-Content-Type"] == "text/markdown"
+    assert meta["Keywords"] and meta["Author"]
+    classifiers = meta.get_all("Classifier")
+    for system in ("MacOS", "Microsoft :: Windows", "POSIX :: Linux"):
+        assert f"Operating System :: {system}" in classifiers
+    requires = meta.get_all("Requires-Dist")
+    assert 'pypardiso>=0.4.7; extra == "pardiso"' in requires
+    assert [r for r in requires if r.startswith(("pypardiso", "mkl")) and "extra" not in r] == []
+    assert (
+        "is absent from the `packages` configuration"
+        not in (wheel.parent / "build.log").read_text()
+    )
+
+
+def test_description_renders(wheel):
+    """`twine check --strict` on the wheel and the source distribution: the README
+    renders as the package index's long description."""
+    pytest.importorskip("twine")
+    (sdist,) = wheel.parent.glob("fruitcli-*.tar.gz")
+    res = subprocess.run(
+        [sys.executable, "-m", "twine", "check", "--strict", str(wheel), str(sdist)],
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert res.stdout.count("PASSED") == 2
+
+
+def test_wheel_check_tags_and_reason():
+    """.ci/check_wheels.py (run by CI, with network): the tags each machine accepts, and
+    pip's failure told in one line naming the package without a wheel."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("check_wheels", ROOT / ".ci" / "check_wheels.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    mac = check.macos_tags(14, "arm64")
+    assert mac[:2] == ["macosx_14_0_arm64", "macosx_14_0_universal2"]
+    assert {"macosx_11_0_arm64", "macosx_10_9_universal2"} <= set(mac)
+    assert "macosx_10_16_arm64" not in mac and "macosx_15_0_arm64" not in mac
+    linux = check.manylinux_tags(28, "x86_64")
+    assert {"manylinux_2_28_x86_64", "manylinux2014_x86_64", "manylinux1_x86_64"} <= set(linux)
+    assert "manylinux_2_29_x86_64" not in linux
+    pip_output = (
+        "ERROR: Cannot install pypardiso==0.4.7 because these package versions have "
+        "conflicting dependencies.\n\nThe conflict is caused by:\n"
+        "    pypardiso 0.4.7 depends on mkl!=2024.0\n\nAdditionally, some packages in these "
+        "conflicts have no matching distributions available for your environment:\n"
+        "    mkl\n\nTo fix this you could try to:\n"
+        "ERROR: ResolutionImpossible: for help visit https://pip.pypa.io/\n"
+    )
+    assert check.why(pip_output) == "no wheel for mkl"
+    assert check.why("ERROR: No matching distribution found for gmsh==9\n") == (
+        "no wheel for gmsh==9"
+    )
+    assert check.why("ERROR: something else\n") == "ERROR: something else"

@@ -4,6 +4,7 @@ are imported only when used, so `fruit --help` stays fast."""
 from __future__ import annotations
 
 import contextlib
+import difflib
 import importlib
 import logging
 import os
@@ -91,12 +92,63 @@ class LazyGroup(click.Group):
         if name not in COMMANDS:
             return None
         module, attr, _ = COMMANDS[name]
-        return getattr(importlib.import_module(module), attr)
+        return accept_late_options(getattr(importlib.import_module(module), attr))
+
+    def resolve_command(self, ctx: click.Context, args: list[str]):  # noqa: ANN201
+        """click's, with the closest command names suggested for an unknown one."""
+        name = args[0] if args else ""
+        if name and not name.startswith("-") and name not in COMMANDS:
+            close = difflib.get_close_matches(name, list(COMMANDS), n=3, cutoff=0.7)
+            if close and not ctx.resilient_parsing:
+                hint = " or ".join(repr(c) for c in close)
+                ctx.fail(f"No such command {name!r}. Did you mean {hint}?")
+        return super().resolve_command(ctx, args)
 
     def format_commands(self, ctx, formatter) -> None:
         rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
+
+
+def log_level(verbose: int, quiet: bool) -> int:
+    """The logging level of -v (counted) and -q."""
+    return logging.ERROR if quiet else max(logging.WARNING - 10 * verbose, logging.DEBUG)
+
+
+def _late_option(ctx: click.Context, param: click.Parameter, value) -> None:
+    """-v or -q given after the subcommand: the same as given before it."""
+    if not value:
+        return
+    obj = ctx.find_root().ensure_object(dict)
+    if param.name == "verbose":
+        obj["verbose"] = obj.get("verbose", 0) + value
+    else:
+        obj["quiet"] = True
+    logging.getLogger().setLevel(log_level(obj.get("verbose", 0), obj.get("quiet", False)))
+
+
+def accept_late_options(cmd: click.Command) -> click.Command:
+    """`cmd` (and the commands of a group, at every level) also taking the group's -v and
+    -q after its name (hidden from its --help: they are the group's options)."""
+    if getattr(cmd, "_late_options", False):
+        return cmd
+    names = {n for p in cmd.params for n in getattr(p, "opts", [])}
+    for flags, kind in ((("-v", "--verbose"), {"count": True}), (("-q", "--quiet"), {})):
+        if names.isdisjoint(flags):
+            cmd.params.append(
+                click.Option(
+                    flags,
+                    is_flag=not kind,
+                    hidden=True,
+                    expose_value=False,
+                    callback=_late_option,
+                    **kind,
+                )
+            )
+    cmd._late_options = True
+    for sub in getattr(cmd, "commands", {}).values():
+        accept_late_options(sub)
+    return cmd
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -113,8 +165,7 @@ def cli(ctx, verbose, quiet) -> None:
     ctx.ensure_object(dict)
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
-    level = logging.WARNING - 10 * verbose if not quiet else logging.ERROR
-    logging.basicConfig(level=max(level, logging.DEBUG), format="%(message)s", stream=sys.stderr)
+    logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -176,7 +176,7 @@ class CellSolver:
         if pardiso.available():
             self._factor = pardiso.factorize_upper(a, self._factor)
             x = self._factor.solve(rhs)
-        else:  # pragma: no cover - MKL comes with pypardiso, a dependency
+        else:  # without the optional extra `pardiso` (no MKL)
             full = (a + sp.triu(a, 1).T).tocsr()
             x = capacitance.factorized(full)(rhs)
         if not np.all(np.isfinite(x)):

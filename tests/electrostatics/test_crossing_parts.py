@@ -187,3 +187,15 @@ def test_counts_per_ff_refuses_a_bend_without_shift():
 
     with pytest.raises(SolverError, match="bent pad"):
         equivalents.counts_per_ff(_table([[800.0, 800.0], [800.0, 800.0]]))
+
+
+def test_kept_pattern_solve_without_pardiso(small_cell, monkeypatch):
+    """Without MKL (the default install) the crossing's solves take SciPy's factorization:
+    the same C0 and C with an object as with PARDISO."""
+    from fruitcli.fem.solver import pardiso
+
+    s = small_cell
+    c0, c_obj = s.capacitance(), s.with_object("medium", 1.5, 0.0, 0.0)
+    monkeypatch.setattr(pardiso, "_MISSING", True)
+    assert s.capacitance() == pytest.approx(c0, rel=1e-9)
+    assert s.with_object("medium", 1.5, 0.0, 0.0) == pytest.approx(c_obj, rel=1e-9)

@@ -458,6 +458,9 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
             out = fn(*args)
         return out, 1e3 * (time.perf_counter() - t0) / n
 
+    if not pardiso.available():
+        print("\nkept factor of the rest tangent: skipped, MKL PARDISO is not installed")
+        return
     print("\nkept factor of the rest tangent (MKL PARDISO on one thread, no refinement):")
     for label, scene in (("p1", paper_model(scene0)), ("p2", scene0)):
         model = build_model(scene, io.load_mesh(mesh_npz))

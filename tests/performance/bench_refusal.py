@@ -12,7 +12,8 @@ whole command's wall time, the exit code and the refusal's first words. The load
 average is printed before and after (2 cores shared: compare figures taken at a like
 load).
 
-Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit]
+Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit] [--without-pardiso]
+(--without-pardiso: as the default install, through tests/performance/without_pardiso.py)
 """
 
 import argparse
@@ -55,19 +56,23 @@ def fruit_scene(pressure: float) -> str:
     )
 
 
-def refuse(scene: Path, out: Path) -> str:
-    """One line: `fruit simulate` on `scene`, timed from the mesh to its last line."""
-    fruit = Path(sys.executable).parent / "fruit"
+def refusal(scene: Path, out: Path, pardiso: bool = True) -> tuple[float | None, float, int, str]:
+    """`fruit simulate` on `scene` (without MKL PARDISO, as the default install, unless
+    `pardiso`): (seconds from the mesh to its last line or None, wall seconds, exit code,
+    last line)."""
+    fruit = [str(Path(sys.executable).parent / "fruit")]
+    if not pardiso:
+        fruit = [sys.executable, str(HERE / "without_pardiso.py")]
     t0 = time.monotonic()
     proc = subprocess.Popen(
-        [str(fruit), "simulate", str(scene), "--out", str(out)],
+        [*fruit, "simulate", str(scene), "--out", str(out)],
         cwd=scene.parent,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
-    meshed, last = None, ""
+    meshed, last, at = None, "", 0.0
     for line in proc.stdout:
         now = time.monotonic() - t0
         if re.search(r"tetra: \d+ tets", line):
@@ -75,15 +80,24 @@ def refuse(scene: Path, out: Path) -> str:
         if line.strip():
             last, at = line.strip(), now
     code = proc.wait()
-    wall = time.monotonic() - t0
-    after = "?" if meshed is None else f"{at - meshed:.1f} s"
-    return f"{after} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
+    return (None if meshed is None else at - meshed), time.monotonic() - t0, code, last
+
+
+def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
+    """One line: `refusal` of `scene`, timed from the mesh to its last line."""
+    after, wall, code, last = refusal(scene, out, pardiso)
+    when = "?" if after is None else f"{after:.1f} s"
+    return f"{when} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--no-fruit", action="store_true")
+    parser.add_argument(
+        "--without-pardiso", action="store_true", help="as the default install: no MKL PARDISO"
+    )
     args = parser.parse_args()
+    pardiso = not args.without_pardiso
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -93,13 +107,13 @@ def main() -> None:
         for p in (-500.0, 2000.0):
             scene = tmp / f"sphere_{p:g}.toml"
             scene.write_text(SPHERE.format(p=p))
-            line = refuse(scene, tmp / f"o_sphere_{p:g}")
+            line = refuse(scene, tmp / f"o_sphere_{p:g}", pardiso)
             print(f"thick sphere, cavity at {p:g} kPa: {line}")
         if not args.no_fruit:
             for p in (-500.0, 2000.0):
                 scene = tmp / f"fruit_{p:g}.toml"
                 scene.write_text(fruit_scene(p))
-                line = refuse(scene, tmp / f"o_fruit_{p:g}")
+                line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso)
                 print(f"default Fruit, c1 at {p:g} kPa: {line}")
     print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 

@@ -2,7 +2,7 @@
 tangent is assembled at every Newton step (its element blocks come from the compiled
 element loop); `pcg` (default) solves it by CG preconditioned with a sparse factor
 (MKL PARDISO in single precision, `pardiso.py`, refactorized numerically on its kept
-analysis; cholespy or SuperLU without it) kept across Newton steps and states and
+analysis; SuperLU in symmetric mode without it) kept across Newton steps and states and
 refreshed when CG slows down, `direct` factorizes it (double precision) at every step.
 With PARDISO there is no other factorization: a tangent it cannot factor (singular)
 fails the Newton step, which then takes the next tangent (`newton.TANGENTS`).
@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 from fruitcli.errors import SolverError
 from fruitcli.fem import threads
 from fruitcli.fem.solver import linsolve, pardiso
-from fruitcli.fem.solver.linsolve import _cholesky, kept_estimate, pcg, upper_triangle
+from fruitcli.fem.solver.linsolve import kept_estimate, pcg, upper_triangle
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
@@ -37,14 +37,25 @@ class Factor(Protocol):
     def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
+SYMMETRIC_PIVOT_THRESHOLD = 0.01
+"""Without PARDISO the tangent is factorized by SuperLU in symmetric mode: a diagonal
+pivot is kept unless it is smaller than this fraction of its column's largest entry, so
+the symmetric fill-reducing ordering mostly holds, whether or not the tangent is
+positive definite (a partial-pivoting LU fills far more). On the default Fruit's
+breathing (quadratic elements, 44,403 dofs; `tests/performance/bench_linear_solver.py`)
+the 13 states took 113-154 s of solves this way against 33-45 s with PARDISO (three
+runs on a shared 2-core machine), while cholespy's Cholesky (BLAS-free: 28-54 s per
+factorization) did not finish the first state within its 300 s budget."""
+
+
 def factorize(k, previous=None, single: bool = False, indefinite: bool = False) -> Factor:
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical
     refactorization of `previous`, a factor this returned before, when the pattern and
     precision are the same; straight to the indefinite type with `indefinite`;
-    SolverError when it fails), otherwise Cholesky when k is positive definite (checked
-    on a solve), otherwise LU."""
+    SolverError when it fails), otherwise SuperLU in symmetric mode (checked on a solve),
+    otherwise SuperLU's general LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
@@ -64,13 +75,19 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
             "[[fixed]], [[jig]] or its rigid modes pinned?"
         )
     k = k.tocsc()
-    if _cholesky is not None:
-        try:
-            fac = _cholesky(k)
-            if pardiso.passes_probe(k, fac, pardiso.DOUBLE_PROBE):
-                return fac
-        except (RuntimeError, ValueError):
-            pass
+    try:  # SuperLU keeping the symmetric ordering where it can
+        fac = _Exact(
+            spla.splu(
+                k,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=SYMMETRIC_PIVOT_THRESHOLD,
+                options={"SymmetricMode": True},
+            )
+        )
+        if pardiso.passes_probe(k, fac, pardiso.DOUBLE_PROBE):
+            return fac
+    except RuntimeError:
+        pass
     try:
         lu = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
     except RuntimeError as exc:
