@@ -280,7 +280,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "solver": {
         "tolerance": Key(
-            "num", 1e-6, "Newton stops when |residual| <= tolerance * |load|", **POSITIVE
+            "num",
+            1e-6,
+            "Newton stops when |residual| <= tolerance * |load|",
+            **OPEN_FRACTION,
+            expected="0 < tolerance < 1 (a residual relative to the load)",
         ),
         "displacement_tolerance_mm": Key(
             "num",
@@ -291,7 +295,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             min=0.0,
         ),
         "max_iterations": Key("int", 25, "Newton iterations per load step", min=1),
-        "max_subdivisions": Key("int", 6, "times a failing load step may be halved"),
+        "max_subdivisions": Key("int", 6, "times a failing load step may be halved", min=0),
         "linear_solver": Key(
             "str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi", choices=LINEAR_SOLVERS
         ),
