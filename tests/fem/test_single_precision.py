@@ -184,3 +184,25 @@ def test_columns_in_lockstep_are_each_columns_own_cg():
             xj, its_j, ok_j = linsolve.pcg(matrix.__matmul__, jacobi, b[:, j], 1e-9, 400)
             assert (its[j], ok[j]) == (its_j, ok_j)
             assert np.abs(x[:, j] - xj).max() <= 1e-8 * max(np.abs(xj).max(), 1e-300)
+
+
+def test_gmres_solves_an_indefinite_system_with_an_indefinite_preconditioner():
+    """`gmres_right` (the solver's Krylov method once its factor is symmetric
+    indefinite, past a limit point) reaches the asked residual on an indefinite matrix
+    preconditioned by a nearby indefinite one, in one step with the exact inverse, and
+    reports a residual it did not reach as not converged."""
+    import scipy.sparse.linalg as spla
+
+    n = 300
+    k = (chain(n) - 0.05 * sp.identity(n)).tocsc()
+    assert np.linalg.eigvalsh(k.toarray()).min() < 0 < np.linalg.eigvalsh(k.toarray()).max()
+    near = spla.splu((k + 1e-3 * sp.diags(np.cos(np.arange(n)))).tocsc())
+    b = np.sin(np.arange(n) + 1.0)
+    for rtol in (1e-4, 1e-10):
+        x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, near.solve, b, rtol, 60)
+        assert ok and np.linalg.norm(k @ x - b) <= 1.01 * rtol * np.linalg.norm(b)
+    exact = spla.splu(k)
+    x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, exact.solve, b, 1e-10, 60)
+    assert ok and its == 1
+    x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, lambda v: v, b, 1e-10, 3)
+    assert not ok and its == 3

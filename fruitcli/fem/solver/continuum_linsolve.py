@@ -184,8 +184,7 @@ class ContinuumSolver:
         product per step instead of k of each."""
         if self.fresh and not self.factor.single:
             return self.factor.solve(b)
-        limit = 2 * PCG_REFRESH_ITERATIONS
-        x, its, ok = pcg_columns(self._products, self.factor.solve, b, self.rtol, limit)
+        x, its, ok = self._krylov(b, 2 * PCG_REFRESH_ITERATIONS)
         self.stats["cg_iterations"] += int(its.sum())
         self.refresh = self.refresh or bool(np.any(its[ok] > PCG_REFRESH_ITERATIONS))
         if ok.all():
@@ -194,14 +193,24 @@ class ContinuumSolver:
             self.single = False
         self._factorize()
         bad = np.flatnonzero(~ok)
-        xb, its, ok = pcg_columns(
-            self._products, self.factor.solve, b[:, bad], self.rtol, PCG_MAX_ITERATIONS
-        )
+        xb, its, ok = self._krylov(b[:, bad], PCG_MAX_ITERATIONS)
         self.stats["cg_iterations"] += int(its.sum())
         if not ok.all():
             xb[:, ~ok] = self.factor.solve(np.ascontiguousarray(b[:, bad[~ok]]))
         x[:, bad] = xb
         return x
+
+    def _krylov(self, b: np.ndarray, limit: int):
+        """(x, iterations, converged) of each column of b: CG in lockstep
+        (`pcg_columns`) preconditioned by a positive definite factor; GMRES
+        (`gmres_right`) by a symmetric indefinite one (past a limit point the tangent is
+        indefinite: CG stopped at negative curvature and each Newton step then cost a
+        refactorization)."""
+        if getattr(self.factor, "mtype", pardiso.SPD) != pardiso.SYMMETRIC_INDEFINITE:
+            return pcg_columns(self._products, self.factor.solve, b, self.rtol, limit)
+        out = [gmres_right(self.k.__matmul__, self.factor.solve, c, self.rtol, limit) for c in b.T]
+        x = np.column_stack([o[0] for o in out])
+        return x, np.array([o[1] for o in out]), np.array([o[2] for o in out])
 
     def _products(self, p: np.ndarray) -> np.ndarray:
         """K p for p (n_free, k), column by column (SciPy's product with a block of
@@ -212,6 +221,8 @@ class ContinuumSolver:
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.fresh and not self.factor.single:
             return self.factor.solve(b) if z0 is None else z0
+        if getattr(self.factor, "mtype", pardiso.SPD) == pardiso.SYMMETRIC_INDEFINITE:
+            return self._solve_columns(b[:, None])[:, 0]
         x, its, ok = pcg(
             self.k.__matmul__, self.factor.solve, b, self.rtol, 2 * PCG_REFRESH_ITERATIONS, z0
         )
@@ -273,3 +284,51 @@ def pcg_columns(
         rz = rz_new
     its[run] = maxiter
     return x, its, ok
+
+
+def gmres_right(
+    matvec, precond, b: np.ndarray, rtol: float, maxiter: int
+) -> tuple[np.ndarray, int, bool]:
+    """GMRES from zero (no restart) with right preconditioning, A M^-1 y = b, x = M^-1 y,
+    for any nonsingular A and M (indefinite ones too): stops once |b - A x| <= rtol |b|
+    (the least-squares residual, exact in exact arithmetic) or after `maxiter` steps.
+    Returns (x, iterations, converged)."""
+    nb = float(np.linalg.norm(b))
+    if nb == 0.0:
+        return np.zeros_like(b), 0, True
+    v = [b / nb]
+    z = []
+    h = np.zeros((maxiter + 1, maxiter))
+    g = np.zeros(maxiter + 1)
+    g[0] = nb
+    cs, sn = np.zeros(maxiter), np.zeros(maxiter)
+    ok = False
+    for j in range(maxiter):
+        z.append(np.asarray(precond(v[j])).reshape(-1))
+        w = np.asarray(matvec(z[j]), float).copy()
+        for i in range(j + 1):  # modified Gram-Schmidt
+            h[i, j] = float(w @ v[i])
+            w -= h[i, j] * v[i]
+        beta = float(np.linalg.norm(w))
+        h[j + 1, j] = beta
+        for i in range(j):  # the earlier Givens rotations on the new column
+            h[i, j], h[i + 1, j] = (
+                cs[i] * h[i, j] + sn[i] * h[i + 1, j],
+                -sn[i] * h[i, j] + cs[i] * h[i + 1, j],
+            )
+        rho = float(np.hypot(h[j, j], beta))
+        if rho == 0.0:  # A M^-1 singular on the Krylov space: keep the steps before
+            z.pop()
+            break
+        cs[j], sn[j] = h[j, j] / rho, beta / rho
+        h[j, j], h[j + 1, j] = rho, 0.0
+        g[j], g[j + 1] = cs[j] * g[j], -sn[j] * g[j]
+        ok = abs(g[j + 1]) <= rtol * nb
+        if ok or beta == 0.0:  # converged, or the Krylov space is invariant (exact)
+            ok = True
+            break
+        v.append(w / beta)
+    n = len(z)
+    y = np.linalg.solve(np.triu(h[:n, :n]), g[:n]) if n else np.zeros(0)
+    x = np.column_stack(z) @ y if n else np.zeros_like(b)
+    return x, n, bool(ok)
