@@ -9,6 +9,8 @@ fails the Newton step, which then takes the next tangent (`newton.TANGENTS`). Se
 right-hand sides (a volume-controlled chamber's Newton step solves for the residual and
 the chamber's volume gradient) run their CG in lockstep (`pcg_columns`): PARDISO's
 solve with two right-hand sides took 60 % of two solves on the quadratic default Fruit.
+Once the kept factor is symmetric indefinite (a tangent past a limit point), the Krylov
+method is GMRES (`gmres_right`) instead of CG; `stats["cg_iterations"]` counts both.
 Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 
 from __future__ import annotations
