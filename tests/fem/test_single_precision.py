@@ -206,3 +206,42 @@ def test_gmres_solves_an_indefinite_system_with_an_indefinite_preconditioner():
     assert ok and its == 1
     x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, lambda v: v, b, 1e-10, 3)
     assert not ok and its == 3
+
+
+def test_a_stale_indefinite_factor_takes_gmres_a_definite_one_cg(monkeypatch):
+    """Past a limit point (negative pivots in the kept symmetric indefinite factor) the
+    solver's Krylov method is GMRES, and it reaches the asked residual with a stale
+    factor on an indefinite tangent, one column or two; a positive definite tangent
+    factored as indefinite keeps CG."""
+    calls = []
+    real = continuum_linsolve.gmres_right
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(continuum_linsolve, "gmres_right", counted)
+    n = 300
+    old = (chain(n) - 0.05 * sp.identity(n)).tocsr()
+    model = _Model(old)
+    solver = continuum_linsolve.ContinuumSolver(model)
+    solver.indefinite = True
+    solver.update(np.zeros((1, 3)))
+    assert solver.factor.mtype == pardiso.SYMMETRIC_INDEFINITE and solver.factor.iparm[22] > 0
+    model.k = (old + 1e-3 * sp.diags(np.cos(np.arange(n)))).tocsr()  # the tangent moved on
+    solver.update(np.zeros((1, 3)))
+    assert not solver.fresh
+    solver.rtol = 1e-8
+    b = np.column_stack([np.sin(np.arange(n) + 1.0), np.cos(np.arange(n))])
+    for rhs in (b[:, 0], b):
+        x = solver.solve(rhs)
+        assert np.linalg.norm(model.k @ x - rhs) <= 1.01e-8 * np.linalg.norm(rhs)
+    assert len(calls) == 3
+    spd = _Model((chain(n) + 1e-3 * sp.identity(n)).tocsr())
+    solver = continuum_linsolve.ContinuumSolver(spd)
+    solver.indefinite = True
+    solver.update(np.zeros((1, 3)))
+    spd.k = (spd.k + 1e-4 * sp.identity(n)).tocsr()
+    solver.update(np.zeros((1, 3)))
+    solver.solve(b)
+    assert solver.factor.mtype == pardiso.SYMMETRIC_INDEFINITE and len(calls) == 3

@@ -208,11 +208,21 @@ class ContinuumSolver:
         (`gmres_right`) by a symmetric indefinite one (past a limit point the tangent is
         indefinite: CG stopped at negative curvature and each Newton step then cost a
         refactorization)."""
-        if getattr(self.factor, "mtype", pardiso.SPD) != pardiso.SYMMETRIC_INDEFINITE:
+        if not self._indefinite_factor():
             return pcg_columns(self._products, self.factor.solve, b, self.rtol, limit)
         out = [gmres_right(self.k.__matmul__, self.factor.solve, c, self.rtol, limit) for c in b.T]
         x = np.column_stack([o[0] for o in out])
         return x, np.array([o[1] for o in out]), np.array([o[2] for o in out])
+
+    def _indefinite_factor(self) -> bool:
+        """True when the kept factor is PARDISO's symmetric indefinite one with negative
+        pivots (iparm[22]): a positive definite tangent factored as indefinite (the
+        solver's `indefinite` flag, a 3-2-1 support) keeps CG."""
+        f = self.factor
+        return (
+            getattr(f, "mtype", pardiso.SPD) == pardiso.SYMMETRIC_INDEFINITE
+            and int(f.iparm[22]) > 0
+        )
 
     def _products(self, p: np.ndarray) -> np.ndarray:
         """K p for p (n_free, k), column by column (SciPy's product with a block of
@@ -223,7 +233,7 @@ class ContinuumSolver:
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.fresh and not self.factor.single:
             return self.factor.solve(b) if z0 is None else z0
-        if getattr(self.factor, "mtype", pardiso.SPD) == pardiso.SYMMETRIC_INDEFINITE:
+        if self._indefinite_factor():
             return self._solve_columns(b[:, None])[:, 0]
         x, its, ok = pcg(
             self.k.__matmul__, self.factor.solve, b, self.rtol, 2 * PCG_REFRESH_ITERATIONS, z0
