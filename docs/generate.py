@@ -217,6 +217,56 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}"
 
 
+SOLVER_STEPS = """
+## Where a quadratic state's time goes, and what the solver's steps bought
+
+Measured on the default Fruit (`pipelines/fruit-breathing.toml`: 8,865 quadratic tets,
+44,403 free dofs) on 2026-12-06, AMD EPYC, 2 cores shared with other work (load average
+3-8 throughout: the wall times below compare runs taken at a like load, and are about
+twice a quiet machine's).
+
+A breathing state from the previous one (`tests/performance/bench_fem.py`, profiled with
+cProfile over the first cycle's 12 states, commit 473b28b): the kept factor's triangular
+solves take 51 % of the time (about 12 a state: CG's preconditioner, its factor kept
+across states and refreshed when CG needs more than 12 iterations), the element kernels
+29 % (the tangent, one or two a state, about 25 %), the scatter of the element blocks into
+the kept sparsity pattern 6 %, the sparse products 5 %. Measured on the same states and
+not adopted, as they did not pay: a CG start from the Galerkin projection on the previous
+states' solutions (at most 1-2 of the 10-16 CG iterations saved); a factor refreshed at 6
+CG iterations instead of 12 (80 CG iterations instead of 143 over the 12 states, but 5
+factorizations instead of 2: CPU 7.8 s instead of 7.0 s); a double-precision factor (141
+CG iterations instead of 143: the factor's age, not its precision, sets their number);
+PARDISO's other orderings (minimum degree: 20.5 M entries in the factor instead of
+METIS's 18.2 M); computing half of each element's symmetric tangent block (no change
+measurable). The design's floor is then about one tangent and a dozen solves with the
+kept factor a state.
+
+`fruit limits` (every sample volume controlled: each Newton step solves for the residual
+and the chamber's volume gradient):
+
+- the two right-hand sides' CG in lockstep (one PARDISO solve with both: 60-79 ms
+  against 98-128 ms for two): chamber c1's first three samples 30.8-33.1 s instead of
+  36.1-37.4 s (load 7-9);
+- GMRES instead of CG once the kept symmetric indefinite factor has negative pivots (past
+  a limit point CG stopped at negative curvature, and each Newton step refactorized):
+  c1's sample past
+  its peak 3 factorizations and 17.5 s instead of 9 and 24.9 s; c1's inflation curve
+  80.5 s (load 7.5) instead of 85.9 s (load 5.5);
+- both, the whole `fruit limits` (`tests/performance/bench_limits.py --no-sphere`):
+  506 s following the curves instead of 600 s with the code before both (commit
+  38e1075; the two runs the same hour, load average 3-7), against 384 s on a quiet
+  machine on 2026-12-03 (`docs/data/fruit-limits.json`).
+
+The limits stay those of `docs/data/fruit-limits.json` within 1e-6 relative (c3's limit
+38.03356 kPa instead of 38.03359), the collapse pressures within 1e-9. A pressure past a
+limit is refused no sooner than before (`tests/performance/bench_refusal.py`, twice each,
+load 3-4): c1 at 2000 kPa 10.8-13.6 s after the mesh against 12.4-12.9 s, at -500 kPa
+18.6 s against 14.0-21.6 s; most of it is the first sample from rest under the body's
+weight. The breathing's states keep their Newton steps (17) and CG iterations (143) over
+the first cycle, and their nodes within 1e-7 mm.
+"""
+
+
 def performance_page(result: dict, source: str) -> str:
     load0 = ", ".join(f"{v:.2f}" for v in result["load_average_before"])
     load1 = ", ".join(f"{v:.2f}" for v in result.get("load_average_after", []))
@@ -242,6 +292,7 @@ def performance_page(result: dict, source: str) -> str:
         f"| load average after | {load1} |",
         "",
     ]
+    lines += SOLVER_STEPS.strip().splitlines() + [""]
     if "sample" in source:
         lines += [
             "This is the small sample shipped with the sources (two benchmarks, "

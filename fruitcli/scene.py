@@ -449,8 +449,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "num",
             1e-6,
             "Newton stops when |residual| <= tolerance * |load|",
-            **POSITIVE,
-            max=1.0,
+            **OPEN_FRACTION,
+            expected="0 < tolerance < 1 (a residual relative to the load)",
         ),
         "displacement_tolerance_mm": Key(
             "num",

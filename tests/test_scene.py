@@ -73,6 +73,11 @@ def test_minimal_keys_and_defaults():
         ("[[evaluate]]\nlabel = 'x'\ntruth = 't.csv'", "missing key 'measured'"),
         ("x = [", "not valid TOML"),
         ("[solver]\ndisplacement_tolerance_mm = -1", "displacement_tolerance_mm: expected >= 0"),
+        ("[solver]\ntolerance = 0", "[solver].tolerance: expected 0 < tolerance < 1"),
+        ("[solver]\ntolerance = 1.5", "[solver].tolerance: expected 0 < tolerance < 1"),
+        ("[solver]\nmax_seconds = 0", "[solver].max_seconds: expected a time budget > 0 s"),
+        ("[solver]\nmax_iterations = 0", "[solver].max_iterations: expected >= 1"),
+        ("[solver]\nmax_subdivisions = -1", "[solver].max_subdivisions: expected >= 0"),
     ],
 )
 def test_bad_scenes_name_the_field(text, expected):

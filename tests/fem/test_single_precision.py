@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from fruitcli.fem.solver import continuum_linsolve, pardiso
+from fruitcli.fem.solver import continuum_linsolve, linsolve, pardiso
 
 pytestmark = pytest.mark.skipif(not pardiso.available(), reason="MKL PARDISO not installed")
 
@@ -161,3 +161,87 @@ def test_fresh_single_factor_that_fails_cg_is_replaced_by_double(monkeypatch):
     x = solver.solve(b)
     assert not solver.single and not solver.factor.single
     assert np.linalg.norm(k @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def test_columns_in_lockstep_are_each_columns_own_cg():
+    """`pcg_columns` gives each column the iterate, iteration count and verdict of CG on
+    that column alone: converged columns (one of them 1e-3 times smaller), a zero
+    column, and negative curvature on an indefinite matrix."""
+    n = 300
+    k = (chain(n) + 1e-2 * sp.identity(n)).tocsr()
+    d = k.diagonal()
+
+    def jacobi(r):
+        return (r.T / d).T
+
+    rng = np.random.default_rng(0)
+    b = rng.standard_normal((n, 3))
+    b[:, 1] *= 1e-3
+    b[:, 2] = 0.0
+    for matrix in (k, (k - 0.5 * sp.identity(n)).tocsr()):
+        x, its, ok = continuum_linsolve.pcg_columns(matrix.__matmul__, jacobi, b, 1e-9, 400)
+        for j in range(3):
+            xj, its_j, ok_j = linsolve.pcg(matrix.__matmul__, jacobi, b[:, j], 1e-9, 400)
+            assert (its[j], ok[j]) == (its_j, ok_j)
+            assert np.abs(x[:, j] - xj).max() <= 1e-8 * max(np.abs(xj).max(), 1e-300)
+
+
+def test_gmres_solves_an_indefinite_system_with_an_indefinite_preconditioner():
+    """`gmres_right` (the solver's Krylov method once its factor is symmetric
+    indefinite, past a limit point) reaches the asked residual on an indefinite matrix
+    preconditioned by a nearby indefinite one, in one step with the exact inverse, and
+    reports a residual it did not reach as not converged."""
+    import scipy.sparse.linalg as spla
+
+    n = 300
+    k = (chain(n) - 0.05 * sp.identity(n)).tocsc()
+    assert np.linalg.eigvalsh(k.toarray()).min() < 0 < np.linalg.eigvalsh(k.toarray()).max()
+    near = spla.splu((k + 1e-3 * sp.diags(np.cos(np.arange(n)))).tocsc())
+    b = np.sin(np.arange(n) + 1.0)
+    for rtol in (1e-4, 1e-10):
+        x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, near.solve, b, rtol, 60)
+        assert ok and np.linalg.norm(k @ x - b) <= 1.01 * rtol * np.linalg.norm(b)
+    exact = spla.splu(k)
+    x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, exact.solve, b, 1e-10, 60)
+    assert ok and its == 1
+    x, its, ok = continuum_linsolve.gmres_right(k.__matmul__, lambda v: v, b, 1e-10, 3)
+    assert not ok and its == 3
+
+
+def test_a_stale_indefinite_factor_takes_gmres_a_definite_one_cg(monkeypatch):
+    """Past a limit point (negative pivots in the kept symmetric indefinite factor) the
+    solver's Krylov method is GMRES, and it reaches the asked residual with a stale
+    factor on an indefinite tangent, one column or two; a positive definite tangent
+    factored as indefinite keeps CG."""
+    calls = []
+    real = continuum_linsolve.gmres_right
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(continuum_linsolve, "gmres_right", counted)
+    n = 300
+    old = (chain(n) - 0.05 * sp.identity(n)).tocsr()
+    model = _Model(old)
+    solver = continuum_linsolve.ContinuumSolver(model)
+    solver.indefinite = True
+    solver.update(np.zeros((1, 3)))
+    assert solver.factor.mtype == pardiso.SYMMETRIC_INDEFINITE and solver.factor.iparm[22] > 0
+    model.k = (old + 1e-3 * sp.diags(np.cos(np.arange(n)))).tocsr()  # the tangent moved on
+    solver.update(np.zeros((1, 3)))
+    assert not solver.fresh
+    solver.rtol = 1e-8
+    b = np.column_stack([np.sin(np.arange(n) + 1.0), np.cos(np.arange(n))])
+    for rhs in (b[:, 0], b):
+        x = solver.solve(rhs)
+        assert np.linalg.norm(model.k @ x - rhs) <= 1.01e-8 * np.linalg.norm(rhs)
+    assert len(calls) == 3
+    spd = _Model((chain(n) + 1e-3 * sp.identity(n)).tocsr())
+    solver = continuum_linsolve.ContinuumSolver(spd)
+    solver.indefinite = True
+    solver.update(np.zeros((1, 3)))
+    spd.k = (spd.k + 1e-4 * sp.identity(n)).tocsr()
+    solver.update(np.zeros((1, 3)))
+    solver.solve(b)
+    assert solver.factor.mtype == pardiso.SYMMETRIC_INDEFINITE and len(calls) == 3

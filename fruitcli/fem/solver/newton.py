@@ -64,6 +64,22 @@ class SolverOptions:
     displacement_tolerance_mm: float = 0.0
     max_seconds: float = 0.0
 
+    def __post_init__(self) -> None:
+        """Refuse, with one line naming the [solver] key, an option that would make a
+        state diverge, stop before solving or never end (SolverError)."""
+        checks = (
+            ("tolerance", 0.0 < self.tolerance < 1.0, "0 < tolerance < 1"),
+            ("max_iterations", self.max_iterations >= 1, ">= 1"),
+            ("max_subdivisions", self.max_subdivisions >= 0, ">= 0"),
+            ("load_steps", self.load_steps >= 1, ">= 1"),
+            ("displacement_tolerance_mm", self.displacement_tolerance_mm >= 0.0, ">= 0"),
+            ("max_seconds", self.max_seconds >= 0.0, "a time budget > 0 s (0: none)"),
+        )
+        for key, ok, expected in checks:
+            value = getattr(self, key)
+            if not (ok and np.isfinite(value)):
+                raise SolverError(f"[solver].{key}: expected {expected}, got {value!r}")
+
 
 class OutOfTime(SolverError):
     """A state stopped at its time budget (`SolverOptions.max_seconds`); `fraction` is
