@@ -8,29 +8,15 @@ in an installed package as in a source checkout. A checkout is read in place.
 
 from __future__ import annotations
 
-import importlib.resources
 import re
 import shutil
 import tomllib
 from pathlib import Path
 
+from fruitcli.bundled_files import SCENES, root, scene_names
 from fruitcli.errors import FruitError
 
-SCENES = "pipelines"
-
-
-def root() -> Path:
-    """The folder holding `pipelines/` and `data/`: the package's copy, else the checkout's."""
-    package = Path(str(importlib.resources.files("fruitcli")))
-    for candidate in (package / "_bundled", package.parent):
-        if (candidate / SCENES).is_dir():
-            return candidate
-    raise FruitError(f"{package}: the bundled scenes are missing (reinstall fruitcli)")
-
-
-def scene_names() -> list[str]:
-    """Names of the bundled scenes, sorted."""
-    return sorted(p.stem for p in (root() / SCENES).glob("*.toml"))
+__all__ = ["SCENES", "root", "scene_names"]  # re-exported: where the bundled files are
 
 
 def scene_path(name: str) -> Path:

@@ -1539,11 +1539,11 @@ def has_deformation(scene: Scene) -> bool:
 def _bundled_hint(path: Path) -> str:
     """For a missing scene given by a bundled scene's name (`fruit run fruit-rest`): how
     to get an editable copy of it; else ""."""
-    from fruitcli import bundled
+    from fruitcli.bundled_files import scene_names
 
     name = path.name.removesuffix(".toml")
     try:
-        known = len(path.parts) == 1 and name in bundled.scene_names()
+        known = len(path.parts) == 1 and name in scene_names()
     except FruitError:  # no bundled scenes (a broken install)
         known = False
     if not known:
