@@ -127,6 +127,7 @@ def test_ctrl_c_in_a_sweep_with_workers_is_one_line(tmp_path, seconds):
     (tmp_path / "taxels.csv").write_text(TAXELS)
     (tmp_path / "s.toml").write_text(
         '[scene]\nname = "s"\n[grid]\ntaxels = "taxels.csv"\n[bench]\nstep_mm = 0.01\n'
+        "reference_length_mm = 20.0\n"  # the sweep may end before Ctrl-C: it must succeed
     )
     args = ["sweep", "s.toml", "--set", "bench.seed=0,1,2,3,4,5", "--jobs", "2", "--out", "o"]
     proc = _fruit(args, tmp_path)
