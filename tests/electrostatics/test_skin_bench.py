@@ -108,7 +108,8 @@ def test_bench_activation_is_the_tables_counts(pad_run):
         assert np.all(np.abs(approach - expected) <= 0.5 + 1e-9)
         # at the table's gaps the table's own counts; between them, linear
         dc = -summary["counts_per_ff"] * np.load(out / "skin" / "crossing.npz")["dc_ff"]
-        centre = dc[k, :, 2, 2]
+        centre = dc[k, :, len(table.dx_mm) // 2, len(table.dy_mm) // 2]
+        assert table.dx_mm[len(table.dx_mm) // 2] == 0 == table.dy_mm[len(table.dy_mm) // 2]
         assert table.drop(name, 0.0, 0.0, 0.0) == pytest.approx(
             summary["objects"][name]["contact_counts"], rel=1e-9
         )
