@@ -31,7 +31,7 @@ themselves get `crossing_size_mm`)."""
 YARN_REACH_COVERS = 1.0
 """Distance from the yarns (in covers) over which the size grows to the far size."""
 
-OUTER_BALL_RADII = 0.5
+OUTER_BALL_RADII = 1.0
 """Radius (in yarn radii) of the ball of `crossing_size_mm` at the crossings around the
 centre one, whose is 2 radii: they keep the size in the insulation's gap and coarsen
 sooner (they see the object from afar, where dC is a change in the fringing field)."""

@@ -1,14 +1,16 @@
 """One Tx-Rx crossing's capacitance, its change under a touching object and under
 deformation (paper Sec. III-C, Figs. 4-5), from the electrostatics of the cell.
 
-Units: mm, fF, counts. The cell (`cell_geometry`) is meshed once; the Tx yarn is driven
-at 1 V, the Rx yarn, the neighbouring yarns and the object are grounded (a CDC holds
-every line but the driven one at ground), and the mutual capacitance is the charge drawn
-onto Rx. C0 is that without an object. An object (`touch_objects`) is the set of mesh
-nodes inside it, so every position is solved on the same mesh and dC = C - C0 carries
-no remeshing noise; positions are the table's (gap, dx, dy), computed on dx, dy >= 0 and
-mirrored (the cell is symmetric in x and in y). C_delta is C0 of the cell's nodes
-stretched or bent (`deform`).
+Units: mm, fF, counts. The cell (`cell_geometry`) holds 3 x 3 crossings and is meshed
+once; each Tx yarn inside it is driven at 1 V in turn, every other yarn and the object
+grounded (a CDC holds every line but the driven one at ground), and each crossing's
+mutual capacitance is the charge drawn onto its Rx yarn. C0 is that without an object.
+An object (`touch_objects`) is a conductor meshed to its surface by moving the air nodes
+next to it onto it (`CellSolver.conform`), so every position is solved on the same mesh
+and pattern; the object visits the quarter cell next to the centre crossing and the
+nine crossings give the table's offsets out to TABLE_PITCHES pitches (`touch_table`),
+mirrored (the cell is symmetric in x and in y). C_delta is C0 of the one-crossing cell's
+nodes stretched or bent (`deform`).
 
 Counts: v = -counts_per_ff * dC (a touch takes field from Rx: dC < 0, v > 0) and a
 baseline shift -counts_per_ff * (C_delta - C0) (positive: towards a false touch).

@@ -93,9 +93,6 @@ def crossing_inputs(scene) -> CrossingInputs:
     )
 
 
-DEFAULT_NODES = 21_000
-"""Nodes of the default Fruit's cell (pitch 16 x 12 mm; `fruit skin` prints them)."""
-
 DEFAULT_SOLVE_S = 0.35
 """One position's solve on the default cell (s, 2 shared cores; bench_skin.py)."""
 
