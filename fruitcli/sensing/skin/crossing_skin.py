@@ -281,8 +281,9 @@ def _cell(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cubic(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 4) node indices and Catmull-Rom weights of `x` (N,) inside the equally spaced
-    `nodes`; the end nodes stand for the ones beyond (the weights still sum to 1)."""
+    """(N, 4) node indices and Catmull-Rom weights of `x` (N,) inside `nodes` (equally
+    spaced in a table; otherwise the same weights at the fraction of the interval); the
+    end nodes stand for the ones beyond (the weights still sum to 1)."""
     i, t = _cell(nodes, x)
     t2, t3 = t * t, t * t * t
     w = 0.5 * np.stack(
