@@ -5,14 +5,16 @@ below, air above). The Tx yarn runs along y at x = 0 (its neighbours at x = -+pi
 the Rx yarn along x at y = 0 (neighbours at y = -+pitch_y); the Rx yarn is the upper one
 (nearer the surface). The two touch the middle of their insulation at the cover depth:
 Rx's axis at z = -(cover - r - t/2), Tx's at z = -(cover + r + t/2) (t: insulation).
-The cell spans one pitch either side, x in [-px, px], y in [-py, py], so the
-neighbouring yarns are half cylinders on its side faces (insulating faces mirror them
-into whole ones); silicone reaches `BELOW_MM` under the Tx yarn, air `air_mm` above the
-surface. Every outer face is insulating (zero normal field).
+The cell spans `reach` pitches either side, x in [-n px, n px], y in [-n py, n py]
+(n = reach), with a yarn every pitch: the yarns at -+n pitches are half cylinders on its
+side faces (insulating faces mirror them into whole ones), the others whole, so the
+cell holds (2n - 1)^2 crossings; silicone reaches `BELOW_MM` under the Tx yarns, air
+`air_mm` above the surface. Every outer face is insulating (zero normal field).
 
 Physical groups: volumes ``silicone`` and ``air``; surfaces ``tx`` and ``rx`` (the
-crossing's yarns), ``tx_side`` and ``rx_side`` (the neighbours), ``top`` (the air's
-top face).
+centre crossing's yarns), ``tx+1``, ``tx-1``, ``rx+1``, ... (the yarns a pitch, two
+pitches, ... from it inside the cell), ``tx_side`` and ``rx_side`` (the yarns on the
+side faces), ``top`` (the air's top face).
 """
 
 from __future__ import annotations
@@ -21,6 +23,22 @@ from dataclasses import asdict, dataclass
 
 BELOW_MM = 3.0
 """Silicone under the lower yarn (mm); its bottom face is insulating."""
+
+YARN_SIZE_RADII = 0.5
+"""Element size along the yarns away from the crossings, in yarn radii (the crossings
+themselves get `crossing_size_mm`)."""
+
+YARN_REACH_COVERS = 1.0
+"""Distance from the yarns (in covers) over which the size grows to the far size."""
+
+OUTER_BALL_RADII = 1.0
+"""Radius (in yarn radii) of the ball of `crossing_size_mm` at the crossings around the
+centre one, whose is 2 radii: they keep the size in the insulation's gap and coarsen
+sooner (they see the object from afar, where dC is a change in the fringing field)."""
+
+AIR_GROWTH_MM = 10.0
+"""Height over which the air's elements grow from the surface size to the far size above
+the touch box (where the objects' tips are at the table's gaps)."""
 
 FAR_SIZE_FACTOR = 3.0
 """Element size far from the crossing and the surface: this times `surface_size_mm`."""
@@ -40,6 +58,14 @@ class CellSpec:
     surface_size_mm: float  # element size at the surface near the crossing
     levels_mm: tuple = ()  # air planes z = level > 0 that get a node layer
     points_mm: tuple = ()  # (x, y, z) points on z = 0 or a level that get a node
+    reach: int = 1  # pitches either side of the centre crossing
+    touch_box_mm: tuple = (0.0, 0.0)  # the surface is fine over [0, bx] x [0, by] and near
+
+    @property
+    def yarn_names(self) -> tuple[list[str], list[str]]:
+        """(Tx, Rx) names of the yarns inside the cell, from -(n - 1) to n - 1 pitches."""
+        ks = range(-(self.reach - 1), self.reach)
+        return [_yarn("tx", k) for k in ks], [_yarn("rx", k) for k in ks]
 
     @property
     def rx_z_mm(self) -> float:
@@ -57,25 +83,28 @@ class CellSpec:
         return asdict(self)
 
 
+def _yarn(kind: str, k: int) -> str:
+    return kind if k == 0 else f"{kind}{k:+d}"
+
+
 def build(gmsh, spec: CellSpec) -> None:
     """Create the cell in the current (empty) gmsh model with its physical groups and
     size fields."""
     occ = gmsh.model.occ
+    n = spec.reach
     px, py, r = spec.pitch_x_mm, spec.pitch_y_mm, spec.yarn_radius_mm
+    wx, wy = n * px, n * py  # half widths
     z0 = spec.bottom_z_mm
-    sil = occ.addBox(-px, -py, z0, 2 * px, 2 * py, -z0)
+    sil = occ.addBox(-wx, -wy, z0, 2 * wx, 2 * wy, -z0)
     tops = sorted({float(z) for z in spec.levels_mm if 0 < z < spec.air_mm})
     air = [
-        occ.addBox(-px, -py, z_lo, 2 * px, 2 * py, z_hi - z_lo)
+        occ.addBox(-wx, -wy, z_lo, 2 * wx, 2 * wy, z_hi - z_lo)
         for z_lo, z_hi in zip([0.0, *tops], [*tops, spec.air_mm], strict=True)
     ]
     pad = 1.0  # cylinders overshoot the cell; cut back by the box
-    tx = [
-        occ.addCylinder(x, -py - pad, spec.tx_z_mm, 0, 2 * (py + pad), 0, r) for x in (0.0, -px, px)
-    ]
-    rx = [
-        occ.addCylinder(-px - pad, y, spec.rx_z_mm, 2 * (px + pad), 0, 0, r) for y in (0.0, -py, py)
-    ]
+    ks = range(-n, n + 1)
+    tx = [occ.addCylinder(k * px, -wy - pad, spec.tx_z_mm, 0, 2 * (wy + pad), 0, r) for k in ks]
+    rx = [occ.addCylinder(-wx - pad, k * py, spec.rx_z_mm, 2 * (wx + pad), 0, 0, r) for k in ks]
     cut, _ = occ.cut([(3, sil)], [(3, t) for t in tx + rx])
     both, _ = occ.fragment(cut, [(3, a) for a in air])
     occ.synchronize()
@@ -84,7 +113,9 @@ def build(gmsh, spec: CellSpec) -> None:
     vols_air = [t for d, t in both if occ.getCenterOfMass(d, t)[2] > 0]
     gmsh.model.addPhysicalGroup(3, vols_sil, name="silicone")
     gmsh.model.addPhysicalGroup(3, vols_air, name="air")
-    groups: dict[str, list[int]] = {k: [] for k in ("tx", "rx", "tx_side", "rx_side", "top")}
+    tx_names, rx_names = spec.yarn_names
+    names = (*tx_names, *rx_names, "tx_side", "rx_side", "top")
+    groups: dict[str, list[int]] = {k: [] for k in names}
     tol = 1e-6
     for _, s in gmsh.model.getBoundary(
         [(3, t) for t in vols_sil + vols_air], oriented=False, combined=False
@@ -96,16 +127,19 @@ def build(gmsh, spec: CellSpec) -> None:
         if za > spec.air_mm - tol:
             name = "top"
         elif abs(zc - spec.tx_z_mm) < r + tol and zb - za <= 2 * r + tol and za > z0 + tol:
-            name = "tx" if max(abs(xa), abs(xb)) < px / 2 else "tx_side"
+            k = round(0.5 * (xa + xb) / px)
+            name = "tx_side" if abs(k) == n else _yarn("tx", k)
         elif abs(zc - spec.rx_z_mm) < r + tol and zb - za <= 2 * r + tol and zb < -tol:
-            name = "rx" if max(abs(ya), abs(yb)) < py / 2 else "rx_side"
+            k = round(0.5 * (ya + yb) / py)
+            name = "rx_side" if abs(k) == n else _yarn("rx", k)
         else:
             continue
         if s not in groups[name]:
             groups[name].append(s)
     for name, tags in groups.items():
         gmsh.model.addPhysicalGroup(2, tags, name=name)
-    _size_fields(gmsh, spec, groups["tx"] + groups["rx"])
+    inner = [t for name in (*tx_names, *rx_names) for t in groups[name]]
+    _size_fields(gmsh, spec, inner)
 
 
 def _embed_points(gmsh, spec: CellSpec) -> None:
@@ -128,44 +162,52 @@ def _embed_points(gmsh, spec: CellSpec) -> None:
 
 
 def _size_fields(gmsh, spec: CellSpec, yarn_surfaces: list[int]) -> None:
-    """Fine at the crossing, `surface_size_mm` along the yarns and on the surface near
-    the crossing, coarser away from both."""
+    """Fine at each crossing, `surface_size_mm` along the yarns and on the surface over
+    the touch box (and the crossing), coarser away from them."""
     f = gmsh.model.mesh.field
     r = spec.yarn_radius_mm
     far = FAR_SIZE_FACTOR * spec.surface_size_mm
-    ball = f.add("Ball")
-    for key, val in (
-        ("XCenter", 0.0),
-        ("YCenter", 0.0),
-        ("ZCenter", -spec.cover_mm),
-        ("Radius", 2 * r),
-        ("Thickness", 2 * r),
-        ("VIn", spec.crossing_size_mm),
-        ("VOut", far),
-    ):
-        f.setNumber(ball, key, val)
+    balls = []
+    ks = range(-(spec.reach - 1), spec.reach)
+    for i in ks:
+        for j in ks:
+            ball = f.add("Ball")
+            for key, val in (
+                ("XCenter", i * spec.pitch_x_mm),
+                ("YCenter", j * spec.pitch_y_mm),
+                ("ZCenter", -spec.cover_mm),
+                ("Radius", (2 if i == j == 0 else OUTER_BALL_RADII) * r),
+                ("Thickness", 2 * r),
+                ("VIn", spec.crossing_size_mm),
+                ("VOut", far),
+            ):
+                f.setNumber(ball, key, val)
+            balls.append(ball)
     dist = f.add("Distance")
     f.setNumbers(dist, "SurfacesList", yarn_surfaces)
     yarn = f.add("Threshold")
     for key, val in (
-        ("SizeMin", min(r / 2, spec.surface_size_mm)),
+        ("SizeMin", min(YARN_SIZE_RADII * r, spec.surface_size_mm)),
         ("SizeMax", far),
         ("DistMin", 0.0),
-        ("DistMax", 3 * spec.cover_mm),
+        ("DistMax", YARN_REACH_COVERS * spec.cover_mm),
     ):
         f.setNumber(yarn, key, val)
     f.setNumber(yarn, "InField", dist)
     near = f.add("MathEval")
     reach = max(spec.pitch_x_mm, spec.pitch_y_mm) / 2
+    bx, by = spec.touch_box_mm
+    out_x = f"Max(Max(-x, x - {bx}), 0)"
+    out_y = f"Max(Max(-y, y - {by}), 0)"
     f.setString(
         near,
         "F",
         f"{spec.surface_size_mm} + {far - spec.surface_size_mm} * "
-        f"Min(1, Max(Abs(z) - 1, 0) / {spec.cover_mm} "
-        f"+ Sqrt(x*x + y*y) / {reach} / 2)",
+        f"Min(1, Max(-z - 1, 0) / {spec.cover_mm} + Max(z - 1, 0) / {AIR_GROWTH_MM} "
+        f"+ Sqrt({out_x} * {out_x} + {out_y} * {out_y}) / {reach})",
     )
     mn = f.add("Min")
-    f.setNumbers(mn, "FieldsList", [ball, yarn, near])
+    f.setNumbers(mn, "FieldsList", [*balls, yarn, near])
     f.setAsBackgroundMesh(mn)
     for key in ("MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary"):
         gmsh.option.setNumber(f"Mesh.{key}", 0)

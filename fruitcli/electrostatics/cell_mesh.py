@@ -50,6 +50,7 @@ def main(argv: list[str]) -> int:
             **raw,
             "levels_mm": tuple(raw["levels_mm"]),
             "points_mm": tuple(map(tuple, raw["points_mm"])),
+            "touch_box_mm": tuple(raw["touch_box_mm"]),
         }
     )
     gmsh = start("fruit-cell")

@@ -23,6 +23,10 @@ if TYPE_CHECKING:
     from fruitcli.electrostatics.crossing import CrossingTable
 
 
+TABLE_VERSION = 2
+"""crossing.npz's format (`table_arrays`)."""
+
+
 @dataclass(frozen=True)
 class CrossingInputs:
     """Everything the crossing's table depends on (mm; permittivity relative)."""
@@ -76,6 +80,7 @@ def crossing_inputs(scene) -> CrossingInputs:
     limit = scene.mesh.time_limit_s
     if not limit > 0:
         raise SceneError(f"{where}: [mesh].time_limit_s: expected > 0 (s), got {limit:g}")
+    _check_cost(where, grid.spacing_x_mm, grid.spacing_y_mm, len(skin.gaps_mm))
     return CrossingInputs(
         float(grid.spacing_x_mm),
         float(grid.spacing_y_mm),
@@ -86,6 +91,50 @@ def crossing_inputs(scene) -> CrossingInputs:
         tuple(float(g) for g in skin.gaps_mm),
         float(limit),
     )
+
+
+DEFAULT_SOLVE_S = 0.35
+"""One position's solve on the default cell (s, 2 shared cores; bench_skin.py)."""
+
+DEFAULT_FACTOR_MB = 150.0
+"""Memory of the default cell's factorization and arrays (MB)."""
+
+MOST_TABLE_S = 1800.0
+"""Longest estimated table `fruit skin` starts (s)."""
+
+MOST_MEMORY_MB = 8000.0
+"""Most estimated memory `fruit skin` starts with (MB)."""
+
+
+def table_cost(pitch_x_mm: float, pitch_y_mm: float, gaps: int) -> tuple[float, float]:
+    """(seconds, MB) a table is estimated to take: the cell's nodes grow with the pitch's
+    area (the cell is 4 x 4 pitches), a solve as nodes^1.5 and the factor as
+    nodes^1.33 (a 3D sparse Cholesky), one solve per object, gap and position."""
+    from fruitcli.electrostatics.crossing import STEPS_PER_HALF_PITCH
+    from fruitcli.electrostatics.touch_objects import OBJECTS
+
+    ratio = max(pitch_x_mm * pitch_y_mm / (16.0 * 12.0), 0.05)
+    solves = len(OBJECTS) * gaps * (STEPS_PER_HALF_PITCH + 1) ** 2
+    seconds = solves * DEFAULT_SOLVE_S * ratio**1.5
+    return seconds, DEFAULT_FACTOR_MB * ratio ** (4 / 3)
+
+
+def _check_cost(where: str, pitch_x_mm: float, pitch_y_mm: float, gaps: int) -> None:
+    """SceneError naming the key that makes the table too long or too large."""
+    seconds, mb = table_cost(pitch_x_mm, pitch_y_mm, gaps)
+    if mb > MOST_MEMORY_MB:
+        raise SceneError(
+            f"{where}: [grid].spacing_x_mm / spacing_y_mm: a crossing cell of "
+            f"{pitch_x_mm:g} x {pitch_y_mm:g} mm is estimated at {mb / 1000:.1f} GB "
+            f"(at most {MOST_MEMORY_MB / 1000:g} GB)"
+        )
+    if seconds > MOST_TABLE_S:
+        key = "[skin].gaps_mm" if gaps > 10 else "[grid].spacing_x_mm / spacing_y_mm"
+        raise SceneError(
+            f"{where}: {key}: the crossing's table ({gaps} gaps, pitch {pitch_x_mm:g} x "
+            f"{pitch_y_mm:g} mm) is estimated at {seconds / 60:.0f} min (at most "
+            f"{MOST_TABLE_S / 60:g} min)"
+        )
 
 
 def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, dict]:
@@ -136,8 +185,11 @@ def _finite(obj):
 
 
 def table_arrays(table) -> dict[str, np.ndarray]:
-    """crossing.npz's arrays."""
+    """crossing.npz's arrays. Version 2: offsets out to `crossing.TABLE_PITCHES`
+    pitches, solved on a cell of 3 x 3 crossings (version 1, without the key: half a
+    pitch, one mirrored crossing); the arrays are the same."""
     return {
+        "version": np.array(TABLE_VERSION),
         "c0_ff": np.array(table.c0_ff),
         "objects": np.array(table.objects),
         "gap_mm": table.gap_mm,

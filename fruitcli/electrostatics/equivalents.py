@@ -2,7 +2,8 @@
 models compare number to number (`fruitcli.sensing.skin.forward`).
 
 Units: mm, fF, counts. For each object: the footprint sigma of a Gaussian
-A exp(-(dx^2 + dy^2) / (2 sigma^2)) fitted (least squares) to -dC at contact; the gap at
+A exp(-(dx^2 + dy^2) / (2 sigma^2)) fitted (least squares) to -dC at contact over
+offsets up to a pitch (the reach of an N9 window); the gap at
 which -dC under the crossing falls to 1/e of its contact value (log-linear between the
 table's gaps; beyond the table, the exponential through its last two gaps); the
 activation at contact in counts; the gap at which it falls to the threshold. A gap
@@ -16,6 +17,7 @@ import numpy as np
 from fruitcli.electrostatics.crossing import (
     BEND_SHIFT_COUNTS,
     PAD_BEND_CURVATURE_PER_MM,
+    TABLE_PITCHES,
     THRESHOLD_COUNTS,
     CrossingTable,
 )
@@ -83,8 +85,10 @@ def counts_per_ff(table: CrossingTable) -> tuple[float, dict]:
 def summarize(table: CrossingTable) -> dict:
     """summary.json's content (without the run's inputs)."""
     scale, fit = counts_per_ff(table)
-    quad_x = table.dx_mm >= 0
-    quad_y = table.dy_mm >= 0
+    pitch_x = table.dx_mm.max() / TABLE_PITCHES
+    pitch_y = table.dy_mm.max() / TABLE_PITCHES
+    quad_x = (table.dx_mm >= 0) & (table.dx_mm <= pitch_x + 1e-9)  # an N9 window's reach
+    quad_y = (table.dy_mm >= 0) & (table.dy_mm <= pitch_y + 1e-9)
     centre_x = int(np.flatnonzero(table.dx_mm == 0)[0])
     centre_y = int(np.flatnonzero(table.dy_mm == 0)[0])
     objects = {}

@@ -54,3 +54,39 @@ OBJECTS = {
     "finger": TouchObject("finger", FINGER_RADIUS_MM, True),
 }
 """The objects of the crossing's table, by name."""
+
+
+def nearest_on_surface(
+    obj: TouchObject, points: np.ndarray, dx: float, dy: float, gap: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(signed distance (p,) mm, nearest surface point (p, 3)) of points (p, 3) to
+    `obj` with its tip at (dx, dy, gap): negative inside. The rod is taken as endless
+    upwards (the cell's top cuts it)."""
+    rel = points - np.array([dx, dy, 0.0])
+    rho = np.hypot(rel[:, 0], rel[:, 1])
+    safe = np.where(rho > 0, rho, 1.0)
+    ux, uy = rel[:, 0] / safe, rel[:, 1] / safe  # radial direction (any at the axis)
+    ux = np.where(rho > 0, ux, 1.0)
+    r, z = obj.radius_mm, points[:, 2]
+    near = points.copy()
+    if obj.rounded:
+        centre = gap + r
+        below = z < centre
+        cap = np.stack([rel[:, 0], rel[:, 1], z - centre], axis=1)
+        dist_c = np.linalg.norm(cap, axis=1)
+        scale = r / np.where(dist_c > 0, dist_c, 1.0)
+        cap_pt = np.array([dx, dy, centre]) + cap * scale[:, None]
+        cap_pt[dist_c == 0] = [dx, dy, gap]
+        side = np.stack([dx + r * ux, dy + r * uy, z], axis=1)
+        near = np.where(below[:, None], cap_pt, side)
+        signed = np.where(below, dist_c - r, rho - r)
+        return signed, near
+    out_r, out_z = rho - r, gap - z  # > 0: outside across the side, under the end
+    corner = (out_r > 0) & (out_z > 0)
+    signed = np.where(corner, np.hypot(out_r, out_z), np.maximum(out_r, out_z))
+    to_side = corner | (out_r >= out_z)
+    to_end = corner | (out_r < out_z)
+    near[:, 0] = np.where(to_side, dx + r * ux, points[:, 0])
+    near[:, 1] = np.where(to_side, dy + r * uy, points[:, 1])
+    near[:, 2] = np.where(to_end, gap, z)
+    return signed, near

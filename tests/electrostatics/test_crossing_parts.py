@@ -65,8 +65,43 @@ def test_objects_hold_their_shapes():
     assert medium.contains(q, 0.0, 0.0, 1.0).tolist() == [True, False, False, True]
 
 
-def test_offsets_cover_the_cell_with_both_signs():
-    assert np.allclose(crossing.offsets_mm(16.0), [-8, -4, 0, 4, 8])
+def test_offsets_reach_a_pitch_and_a_half_with_both_signs():
+    assert np.allclose(crossing.offsets_mm(16.0), np.arange(-24.0, 24.5, 4.0))
+    assert np.allclose(crossing.offsets_mm(12.0, steps=4), np.arange(-18.0, 18.1, 1.5))
+    assert np.allclose(crossing.positions_mm(12.0), [0.0, 3.0, 6.0])
+
+
+class _TranslatedSolver:
+    """A cell whose crossing (i, j) sees law(X - i px, Y - j py) for an object at (X, Y)."""
+
+    tx_names = ["tx-1", "tx", "tx+1"]
+    rx_names = ["rx-1", "rx", "rx+1"]
+
+    def __init__(self, law, px, py):
+        self.law, self.px, self.py = law, px, py
+
+    def crossings(self):
+        return np.full((3, 3), 100.0)
+
+    def object_crossings(self, name, x, y, gap):
+        k = np.array([-1.0, 0.0, 1.0])
+        return 100.0 + self.law(x - k[:, None] * self.px, y - k[None, :] * self.py, gap)
+
+
+def test_touch_table_reads_each_offset_off_the_crossing_that_sees_it():
+    def law(dx, dy, gap):
+        return -np.exp(-(dx**2 / 50.0 + dy**2 / 30.0) - gap)
+
+    spec = crossing.cell_spec(16.0, 12.0, 2.0, 0.6, 0.1, [0.0, 1.0])
+    solver = _TranslatedSolver(law, 16.0, 12.0)
+    dx, dy, dc, mismatch = crossing.touch_table(
+        solver, spec, ["small"], [0.0, 1.0], solver.crossings()
+    )
+    assert np.allclose(dx, crossing.offsets_mm(16.0)) and np.allclose(dy, crossing.offsets_mm(12.0))
+    gx, gy = np.meshgrid(dx, dy, indexing="ij")
+    for g, gap in enumerate((0.0, 1.0)):
+        assert np.allclose(dc[0, g], law(gx, gy, gap), rtol=0, atol=1e-12)
+    assert mismatch == pytest.approx(0.0, abs=1e-12)
 
 
 def test_footprint_fit_recovers_a_gaussian():
@@ -93,7 +128,8 @@ def test_mesh_sizes_follow_the_insulation_within_their_range():
     assert thin.crossing_size_mm == pytest.approx(0.06)
     assert thick.crossing_size_mm == pytest.approx(0.1)
     assert thin.levels_mm == (1.0,)
-    assert len(thin.points_mm) == 2 * 3 * 3  # gaps x offsets >= 0 in x and y
+    assert thin.points_mm == ()  # the objects are meshed by moving nodes
+    assert thin.reach == 2 and thin.touch_box_mm == (8.0, 6.0)
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +150,9 @@ def test_kept_pattern_solve_matches_a_plain_dirichlet_solve(small_cell):
     s = small_cell
     obj = np.flatnonzero(OBJECTS["medium"].contains(s.mesh.nodes, 1.5, 0.0, 0.0) & s.air)
     assert obj.size > 0
-    sides = np.concatenate([s.mesh.surfaces["tx_side"], s.mesh.surfaces["rx_side"]])
+    others = [n for n in (*s.tx_names, *s.rx_names) if n not in ("tx", "rx")]
+    assert len(others) == 4  # the crossings a pitch away
+    sides = np.concatenate([s.mesh.surfaces[n] for n in ("tx_side", "rx_side", *others)])
     plain = capacitance.mutual_capacitance(s.k, s.tx, s.rx, np.concatenate([sides, obj]))
     assert s.with_object("medium", 1.5, 0.0, 0.0) == pytest.approx(plain, rel=1e-9)
     c0 = s.capacitance()

@@ -108,7 +108,8 @@ def test_bench_activation_is_the_tables_counts(pad_run):
         assert np.all(np.abs(approach - expected) <= 0.5 + 1e-9)
         # at the table's gaps the table's own counts; between them, linear
         dc = -summary["counts_per_ff"] * np.load(out / "skin" / "crossing.npz")["dc_ff"]
-        centre = dc[k, :, 2, 2]
+        centre = dc[k, :, len(table.dx_mm) // 2, len(table.dy_mm) // 2]
+        assert table.dx_mm[len(table.dx_mm) // 2] == 0 == table.dy_mm[len(table.dy_mm) // 2]
         assert table.drop(name, 0.0, 0.0, 0.0) == pytest.approx(
             summary["objects"][name]["contact_counts"], rel=1e-9
         )
@@ -153,7 +154,11 @@ def test_offsets_and_gaps_beyond_the_table_continue_it():
     assert t.drop("small", 6.0, 0.0, 0.0) == pytest.approx(edge * np.exp(-0.5 * 20 / 9.0))
     assert t.drop("small", 0.0, 0.0, 3.0) == pytest.approx(40.0 * np.exp(-1.5))
     assert t.drop("small", 0.0, 0.0, -1.0) == pytest.approx(40.0 * np.exp(0.5))  # pressed
-    assert t.drop("small", 1.0, 0.0, 0.0) == pytest.approx(40.0 * (1 + np.exp(-4 / 18)) / 2)
+    # between offsets Catmull-Rom: at the middle -1/16, 9/16, 9/16, -1/16 of four nodes
+    near, far = np.exp(-4 / 18), np.exp(-16 / 18)
+    middle = 40.0 * (-near + 9.0 + 9.0 * near - far) / 16.0
+    assert t.drop("small", 1.0, 0.0, 0.0) == pytest.approx(middle, rel=1e-12)
+    assert t.drop("small", 2.0, 2.0, 0.0) == pytest.approx(40.0 * np.exp(-8 / 18), rel=1e-12)
     with pytest.raises(Exception, match="indenter"):
         t.drop("finger", 0.0, 0.0, 0.0)
 

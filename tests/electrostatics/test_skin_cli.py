@@ -41,14 +41,15 @@ def test_skin_writes_the_table_and_summary(tmp_path, fruit):
         assert float(data["c0_ff"]) > 0
         assert list(data["objects"]) == ["small", "medium", "finger"]
         assert np.array_equal(data["gap_mm"], [0.0, 1.0])
-        assert np.allclose(data["dx_mm"], [-3.0, -1.5, 0.0, 1.5, 3.0])
-        assert np.allclose(data["dy_mm"], [-2.5, -1.25, 0.0, 1.25, 2.5])
+        assert int(data["version"]) == 2
+        assert np.allclose(data["dx_mm"], np.arange(-9.0, 9.1, 1.5))  # 1.5 pitches
+        assert np.allclose(data["dy_mm"], np.arange(-7.5, 7.6, 1.25))
         dc = data["dc_ff"]
-        assert dc.shape == (3, 2, 5, 5)
+        assert dc.shape == (3, 2, 13, 13)
         assert np.all(dc < 0)  # a grounded object takes field from Rx
         assert np.allclose(dc, dc[:, :, ::-1, :]) and np.allclose(dc, dc[:, :, :, ::-1])
         assert np.all(np.abs(dc[:, 1]) < np.abs(dc[:, 0]))  # weaker further away
-        assert np.abs(dc[:, 0, 2, 2]).min() >= np.abs(dc[:, 0]).min()
+        assert np.all(np.abs(dc[:, 0, 6, 6]) >= 0.9 * np.abs(dc[:, 0]).max(axis=(1, 2)))
         assert data["c_stretch_ff"].shape == (2, len(data["strain"]))
         assert data["c_bend_ff"].shape == (2, len(data["curvature_per_mm"]))
         assert data["c_stretch_ff"][0, 0] == pytest.approx(float(data["c0_ff"]))
@@ -96,6 +97,37 @@ def test_bad_skin_inputs_are_one_line_naming_the_key(tmp_path, fruit, edit, key)
     assert result.exit_code == 1
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and key in lines[0], result.output
+    assert not out.exists()
+
+
+def test_a_table_too_long_is_refused_with_its_estimate(tmp_path, fruit):
+    """So many gaps on the Fruit's pitch that the table would take hours: one line naming
+    [skin].gaps_mm with the estimate, nothing written."""
+    gaps = [round(0.01 * k, 2) for k in range(1000)]
+    text = (
+        SMALL_CELL.replace("spacing_x_mm = 6.0", "spacing_x_mm = 16.0")
+        .replace("spacing_y_mm = 5.0", "spacing_y_mm = 12.0")
+        .replace("gaps_mm = [0.0, 1.0]", f"gaps_mm = {gaps}")
+    )
+    out = tmp_path / "out"
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "[skin].gaps_mm" in lines[0] and "min" in lines[0], lines
+    assert not out.exists()
+
+
+def test_a_cell_too_large_is_refused_with_its_estimate(tmp_path, fruit):
+    """A pitch whose cell would not fit in memory: one line naming the pitch's keys with
+    the estimate, nothing written."""
+    text = SMALL_CELL.replace("spacing_x_mm = 6.0", "spacing_x_mm = 400.0").replace(
+        "spacing_y_mm = 5.0", "spacing_y_mm = 300.0"
+    )
+    out = tmp_path / "out"
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "[grid].spacing_x_mm" in lines[0] and "GB" in lines[0]
     assert not out.exists()
 
 

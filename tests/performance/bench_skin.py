@@ -46,6 +46,7 @@ FRAME_RATIO_TARGET = 2.0
 
 
 def table() -> None:
+    from fruitcli.electrostatics.crossing import STEPS_PER_HALF_PITCH
     from fruitcli.electrostatics.design import table_arrays
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
@@ -53,7 +54,7 @@ def table() -> None:
     tab, summary = run_crossing(DEFAULT)
     wall = time.perf_counter() - t0
     mesh = summary["mesh"]
-    quadrant = (tab.dx_mm >= 0).sum() * (tab.dy_mm >= 0).sum()
+    quadrant = (STEPS_PER_HALF_PITCH + 1) ** 2  # positions; each solve gives 3 x 3 crossings
     solves = (
         1
         + len(tab.objects) * len(tab.gap_mm) * quadrant

@@ -7,13 +7,15 @@ a touch gives positive counts) and ``-counts_per_ff * (C_delta - C0)``.
 
 - Activation of a taxel at ``t`` for an object whose tip is ``gap`` above the contact
   point ``p``: the table's drop at the lateral offset (p - t)[:2] and the gap
-  ``gap + p_z - t_z`` (the indenter comes down vertically), linear in (gap, dx, dy)
+  ``gap + p_z - t_z`` (the indenter comes down vertically), linear in the gap
   between the table's nodes. Below 0 (pressing in: the tip nearer the yarns by as much)
   the drop grows exponentially with the decay of the table's first two gaps under the
   crossing (the indented surface is not modelled); beyond the table's last gap it falls
-  exponentially with the decay of its last two gaps; beyond
-  the table's offsets (half a pitch) as the Gaussian fitted to the contact row
-  (summary ``footprint_sigma_mm``), continuous at the table's edge.
+  exponentially with the decay of its last two gaps; cubic (Catmull-Rom) in (dx, dy)
+  within the table's offsets (1.5 pitches either way since version 2 of crossing.npz: every taxel
+  of an N9 window and the ring beyond it is solved, not extrapolated); beyond them as
+  the Gaussian fitted to the contact row (summary ``footprint_sigma_mm``), continuous
+  at the table's edge.
 - Baseline shift: per taxel, from the FEM surface around it (the triangles `forward`
   weighs for its strain), the stretch along each yarn (x, y: the grid's axes carried
   onto the surface) and the surface's curvature along it, taken to the neutral plane
@@ -128,7 +130,10 @@ class CrossingSkin:
         return self.objects.index(indenter)
 
     def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
-        """Activation (counts) at lateral offsets dx, dy and gaps (broadcast together)."""
+        """The forward law: activation (counts) of a taxel with `indenter` at lateral
+        offsets dx, dy (mm, the touch's point less the taxel's) and gaps (mm, tip above
+        the surface; below 0 pressing in), arrays broadcast together; interpolated in
+        the table as `activation` is."""
         k = self.object_index(indenter)
         dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
         profile = self._lateral(k, dx.ravel(), dy.ravel())
@@ -139,7 +144,7 @@ class CrossingSkin:
     ) -> np.ndarray:
         """(G, T) counts of taxels (T, 3) with the indenter `gaps_mm` (G,) above the
         contact point (3,). The table is interpolated across (dx, dy) once per taxel, then
-        along the gap for every frame: the same trilinear values as `drop`."""
+        along the gap for every frame: the same values as `drop`."""
         k = self.object_index(indenter)
         off = np.asarray(contact_mm, float) - taxels_mm  # (T, 3)
         profile = self._lateral(k, off[:, 0], off[:, 1])
@@ -172,18 +177,20 @@ class CrossingSkin:
 
     def _lateral(self, k: int, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
         """(N, u + 1) the table's column at each of N offsets, on the uniform gap grid
-        (`_uniform`): bilinear within the table's offsets, beyond them its edge value
+        (`_uniform`): cubic convolution (Catmull-Rom: through the table's values, with
+        a continuous slope) within the table's offsets, beyond them its edge value
         times the contact Gaussian's fall-off."""
         cx = np.minimum(np.maximum(dx, self.dx_mm[0]), self.dx_mm[-1])
         cy = np.minimum(np.maximum(dy, self.dy_mm[0]), self.dy_mm[-1])
-        ix, wx = _cell(self.dx_mm, cx)
-        iy, wy = _cell(self.dy_mm, cy)
+        ix, wx = _cubic(self.dx_mm, cx)  # (N, 4) each
+        iy, wy = _cubic(self.dy_mm, cy)
         table = self._uniform[1][k]  # (x y, u)
         ny = len(self.dy_mm)
-        corners = (ix * ny + iy)[:, None] + np.array([0, 1, ny, ny + 1])  # (N, 4)
-        ux, uy = 1.0 - wx, 1.0 - wy
-        weights = np.stack([ux * uy, ux * wy, wx * uy, wx * wy], axis=1)
-        v = np.einsum("nc,ncu->nu", weights, table[corners])
+        corners = (ix[:, :, None] * ny + iy[:, None, :]).reshape(len(dx), 16)
+        weights = (wx[:, :, None] * wy[:, None, :]).reshape(len(dx), 16)
+        v = weights[:, :1] * table[corners[:, 0]]
+        for c in range(1, 16):  # a corner at a time: (N, u) in memory, not (N, 16, u)
+            v += weights[:, c : c + 1] * table[corners[:, c]]
         outside = (dx**2 - cx**2) + (dy**2 - cy**2)
         if outside.any():
             v *= np.exp(-0.5 * outside / self.sigma_mm[k] ** 2)[:, None]
@@ -271,6 +278,19 @@ def _cell(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     the weight of its upper node."""
     i = np.minimum(np.maximum(np.searchsorted(nodes, x, side="right") - 1, 0), len(nodes) - 2)
     return i, (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+
+def _cubic(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 4) node indices and Catmull-Rom weights of `x` (N,) inside `nodes` (equally
+    spaced in a table; otherwise the same weights at the fraction of the interval); the
+    end nodes stand for the ones beyond (the weights still sum to 1)."""
+    i, t = _cell(nodes, x)
+    t2, t3 = t * t, t * t * t
+    w = 0.5 * np.stack(
+        [-t3 + 2 * t2 - t, 3 * t3 - 5 * t2 + 2, -3 * t3 + 4 * t2 + t, t3 - t2], axis=1
+    )
+    idx = np.clip(i[:, None] + np.arange(-1, 3), 0, len(nodes) - 1)
+    return idx, w
 
 
 def _common_step(gaps: np.ndarray, most: int = 4096) -> float:

@@ -78,7 +78,8 @@ def test_the_printer_emulators_board_gives_the_tables_counts(tmp_path):
     )
 
     def by_hand(dx, dy, gap):
-        """Trilinear interpolation of the table's -dC (fF), clamped to its offsets."""
+        """The table's -dC (fF) linear in the gap, Catmull-Rom across the offsets (the
+        end nodes repeated beyond), clamped to them."""
         n = len(OFFSETS)
         ex = np.exp(-0.5 * np.array([[x * x + y * y for y in OFFSETS] for x in OFFSETS]) / 64)
         at_gap = [
@@ -87,8 +88,8 @@ def test_the_printer_emulators_board_gives_the_tables_counts(tmp_path):
             for j in range(n)
         ]
         grid = np.reshape(at_gap, (n, n))
-        along_y = [np.interp(dy, OFFSETS, grid[i]) for i in range(n)]
-        return np.interp(dx, OFFSETS, along_y)
+        along_y = [_catmull_rom(dy, OFFSETS, grid[i]) for i in range(n)]
+        return _catmull_rom(dx, OFFSETS, np.array(along_y))
 
     off = np.array([3.0, -2.0]) - taxels.xyz_mm[:, :2]
     inside = np.all(np.abs(off) <= 16.0, axis=1)  # beyond the table: the Gaussian tail
@@ -202,19 +203,26 @@ def test_calibrate_refuses_an_indenter_the_table_lacks(tmp_path):
 
 
 @pytest.mark.parametrize("gaps", [[0.0, 1.0, 2.0, 4.0], [0.0, 0.3, 0.7, 2.0, 5.0]])
-def test_drop_and_activation_are_trilinear_on_the_table(gaps):
-    """Within the table's offsets and gaps the activation is scipy's trilinear
-    interpolation of counts_per_ff * -dC (the bench's fast path on a uniform gap grid
-    changes nothing), and `activation` gives `drop`'s values."""
-    from scipy.interpolate import RegularGridInterpolator
-
+def test_drop_and_activation_are_cubic_across_and_linear_along_the_gap(gaps):
+    """Within the table's offsets and gaps the activation is counts_per_ff * -dC linear
+    in the gap and Catmull-Rom across the offsets (the bench's fast path on a uniform
+    gap grid changes nothing), and `activation` gives `drop`'s values."""
     t = table(0.5, gaps)
     rng = np.random.default_rng(5)
     dx, dy = rng.uniform(-16, 16, (2, 500))
     gap = rng.uniform(0, gaps[-1], 500)
+    n = len(OFFSETS)
     for k, name in enumerate(t.objects):
-        ref = RegularGridInterpolator((t.gap_mm, OFFSETS, OFFSETS), t.drop_counts[k])
-        want = ref(np.stack([gap, dx, dy], axis=1))
+        want = []
+        for x, y, g in zip(dx, dy, gap, strict=True):
+            grid = np.array(
+                [
+                    [np.interp(g, t.gap_mm, t.drop_counts[k, :, i, j]) for j in range(n)]
+                    for i in range(n)
+                ]
+            )
+            along_y = np.array([_catmull_rom(y, OFFSETS, grid[i]) for i in range(n)])
+            want.append(_catmull_rom(x, OFFSETS, along_y))
         np.testing.assert_allclose(t.drop(name, dx, dy, gap), want, rtol=1e-12, atol=1e-12)
         taxels = np.column_stack([dx[:30], dy[:30], rng.uniform(-0.5, 0.5, 30)])
         gaps_g = np.linspace(3.0, -1.0, 17)
@@ -243,3 +251,18 @@ def test_the_benchs_descents_are_the_activation(monkeypatch):
             np.testing.assert_allclose(
                 descent(p, gaps), t.activation("medium", contact[p], taxels, gaps), rtol=1e-12
             )
+
+
+def _catmull_rom(x: float, nodes: np.ndarray, values: np.ndarray) -> float:
+    """Cubic convolution through `values` at `nodes` (Catmull-Rom's weights at the
+    fraction of the interval holding x), x clamped to them."""
+    x = min(max(x, nodes[0]), nodes[-1])
+    i = min(max(int(np.searchsorted(nodes, x, side="right")) - 1, 0), len(nodes) - 2)
+    t = (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+    p = [values[min(max(k, 0), len(nodes) - 1)] for k in range(i - 1, i + 3)]
+    return 0.5 * (
+        2 * p[1]
+        + (p[2] - p[0]) * t
+        + (2 * p[0] - 5 * p[1] + 4 * p[2] - p[3]) * t * t
+        + (3 * p[1] - p[0] - 3 * p[2] + p[3]) * t**3
+    )
