@@ -173,3 +173,16 @@ def test_help_lists_the_commands_without_importing_them():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert "  simulate         Quasi-static FEM of a scene's states" in res.stdout
     assert res.stdout.strip().splitlines()[-1] == "['fruitcli.cli.main']"
+
+
+def test_a_library_warning_is_one_line(capsys):
+    import warnings
+
+    from fruitcli.cli.main import show_warning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = show_warning
+        warnings.warn("overflow encountered\nin multiply", RuntimeWarning, stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == "warning: RuntimeWarning: overflow encountered in multiply\n"

@@ -10,6 +10,7 @@ import logging
 import os
 import signal
 import sys
+import warnings
 
 import click
 
@@ -194,9 +195,19 @@ def _interrupted_at_exit(signum, frame) -> None:
     os._exit(130)
 
 
+def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library's warning as one line on stderr, "warning: Category: text" (its file,
+    line and source left out; -vv keeps Python's own form)."""
+    from fruitcli.errors import one_line
+
+    click.echo(f"warning: {one_line(f'{category.__name__}: {message}')}", err=True)
+
+
 def _main(argv: list[str] | None) -> None:
     from fruitcli.errors import FruitError, one_line
 
+    if "-vv" not in (argv or sys.argv):
+        warnings.showwarning = show_warning
     try:
         return cli.main(args=argv, standalone_mode=False)
     except click.exceptions.Abort as exc:  # click turns Ctrl-C into Abort; EOF at a prompt too
