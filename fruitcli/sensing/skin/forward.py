@@ -48,7 +48,7 @@ rows depend on the assumed ones):
   into the 10-16 counts of the outliers of Fig. 11). The shift is positive (towards a
   false touch, the worst case). The breathing animation's shifts are an output of the
   model, reported by `fruit` (sensitivity.json), to compare with Fig. 11 (5 mean, 16 max).
-- Counts are rounded to integers and clipped at 0.
+- Counts are rounded to integers and clipped to the board's 16-bit range 0 .. 65535.
 """
 
 from __future__ import annotations
@@ -327,7 +327,11 @@ def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = Non
     return g * skin.fab * np.asarray(strain)
 
 
+BOARD_MAX_COUNTS = 65535  # the board's counts are 16-bit: they saturate there
+
+
 def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray, rng) -> np.ndarray:
-    """Integer counts >= 0 from mean counts (..., T) plus Gaussian noise of std (T,)."""
+    """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,), within the
+    board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a 16-bit counter does)."""
     noisy = mean_counts + rng.standard_normal(mean_counts.shape) * noise_std
-    return np.maximum(np.round(noisy), 0).astype(np.int64)
+    return np.clip(np.round(noisy), 0, BOARD_MAX_COUNTS).astype(np.int64)

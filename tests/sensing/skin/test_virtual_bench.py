@@ -381,3 +381,10 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
 
     with pytest.raises(SceneError, match=r"\[detection\].project: expected one of none, surface"):
         scene(tmp_path, '[detection]\nproject = "nearest"\n')
+
+
+def test_frame_counts_saturate_at_the_boards_16_bit_range():
+    from fruitcli.sensing.skin.forward import frame_counts
+
+    got = frame_counts(np.array([[-5.0, 10.0, 1e6]]), np.zeros(3), np.random.default_rng(0))
+    assert got.tolist() == [[0, 10, 65535]]
