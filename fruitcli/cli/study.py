@@ -171,6 +171,31 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     click.echo((out / "runtime.md").read_text(), nl=False)
 
 
+def _bench_scene(scene_file, out: Path):
+    """The scene with a [bench] and its stages up to the bench, run (or copied from the
+    demo's out/<scene>) into OUT/scene -> (scene, taxels, states, solid, unit, work)."""
+    from fruitcli.cli.options import Progress
+    from fruitcli.scene import load_scene
+    from fruitcli.workflow import planner
+    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
+
+    scene = load_scene(scene_file)
+    if not scene.has("bench"):
+        raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
+    base = out / "scene"
+    planner.run(
+        scene, base, until="simulate", progress=Progress("   "), shared=out.resolve().parent
+    )
+    ctx = planner.Context(base)
+    taxels = taxels_path(scene, ctx)
+    if taxels is None:
+        raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
+    unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
+    work = out / "work"
+    work.mkdir(parents=True, exist_ok=True)
+    return scene, taxels, states_path(scene, ctx), solid_path(scene, ctx), unit, work
+
+
 @study.command("bench")
 @click.argument(
     "scene_file",
@@ -194,35 +219,16 @@ def bench_study(scene_file, out_dir, jobs) -> None:
     translation-registered (the paper's protocol, mm), and the registered mean's
     bootstrap 95 % interval. The plot has one panel per parameter.
     """
-    from fruitcli.cli.options import Progress
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
-    from fruitcli.scene import load_scene
     from fruitcli.studies import virtual_bench_study as bs
     from fruitcli.studies.parallel import run_cases
-    from fruitcli.workflow import planner
     from fruitcli.workflow.report import PAPER_TABLE_I
-    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
 
     with fruit_errors():
-        scene = load_scene(scene_file)
-        if not scene.has("bench"):
-            raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
         out = Path(out_dir)
-        base = out / "scene"
-        # the scene's own stages up to the bench: copied from the demo's out/<scene>
-        planner.run(
-            scene, base, until="simulate", progress=Progress("   "), shared=out.resolve().parent
-        )
-        ctx = planner.Context(base)
-        taxels = taxels_path(scene, ctx)
-        if taxels is None:
-            raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
-        unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
-        work = out / "work"
-        work.mkdir(parents=True, exist_ok=True)
-        solid = solid_path(scene, ctx)
+        scene, taxels, states, solid, unit, work = _bench_scene(scene_file, out)
         args = [
-            (scene.path, work, taxels, states_path(scene, ctx), solid, unit, c)
+            (scene.path, work, taxels, states, solid, unit, c)
             for c in bs.cases(scene.skin, list(scene.bench.indenters), solid is not None)
         ]
         results = run_cases(bs.run_case, args, jobs, _bar("bench study"))
@@ -263,42 +269,22 @@ def bench_study(scene_file, out_dir, jobs) -> None:
 @jobs_option()
 def locate_study(scene_file, out_dir, jobs) -> None:
     """Error against run time of every detection method ([detection].method) on SCENE's
-    virtual bench, replayed with skins the locator does not assume (footprint wider or
-    narrower, other counts at contact, taxel gains spread +-20 %): per bench skin,
-    method and indenter, the mean error unregistered and translation-registered (mm)
-    and the time per frame of `fruit locate` (us). Use pipelines/fruit-deformed.toml for
-    the deformed states.
+    virtual bench, replayed on boards whose skin the locator does not assume: taxel gains
+    spread +-20 % with the skin calibrated on another run, an electrostatic board located
+    with a calibrated Gaussian and the reverse, a wider and a narrower footprint. Per
+    board, method and indenter: the mean error unregistered and translation-registered
+    (mm) and the time per frame of `fruit locate`'s loop (us). Use
+    pipelines/fruit-deformed.toml for the deformed states.
     """
-    from fruitcli.cli.options import Progress
     from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
-    from fruitcli.scene import load_scene
     from fruitcli.studies import locate_methods as lm
     from fruitcli.studies.machine import machine_line
     from fruitcli.studies.parallel import run_cases
-    from fruitcli.workflow import planner
-    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
 
     with fruit_errors():
-        scene = load_scene(scene_file)
-        if not scene.has("bench"):
-            raise click.UsageError(f"{scene_file}: the scene has no [bench] to study")
         out = Path(out_dir)
-        base = out / "scene"
-        planner.run(
-            scene, base, until="simulate", progress=Progress("   "), shared=out.resolve().parent
-        )
-        ctx = planner.Context(base)
-        taxels = taxels_path(scene, ctx)
-        if taxels is None:
-            raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
-        unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
-        work = out / "work"
-        work.mkdir(parents=True, exist_ok=True)
-        solid = solid_path(scene, ctx)
-        args = [
-            (scene.path, work, taxels, states_path(scene, ctx), solid, unit, name)
-            for name in lm.BENCH_SKINS
-        ]
+        scene, taxels, states, solid, unit, work = _bench_scene(scene_file, out)
+        args = [(scene.path, work, taxels, states, solid, unit, name) for name in lm.BENCH_SKINS]
         results = run_cases(lm.run_case, args, jobs, _bar("locate study"))
         rows = [r for res in results for r in res]
         text = lm.table_markdown(rows, scene.name, machine_line())

@@ -130,8 +130,10 @@ def _normal(jac, res, m, jtj, jtr):
 
 @njit(cache=True, nogil=True)
 def _cholesky(a, low) -> bool:
-    """Lower Cholesky factor of the 4 x 4 matrix a into low; False when not positive."""
-    for i in range(N_PARAMS):
+    """Lower Cholesky factor of the small symmetric matrix a (p, p) into low; False when
+    a is not positive definite."""
+    p = a.shape[0]
+    for i in range(p):
         for j in range(i + 1):
             t = a[i, j]
             for k in range(j):
@@ -142,23 +144,24 @@ def _cholesky(a, low) -> bool:
                 low[i, i] = np.sqrt(t)
             else:
                 low[i, j] = t / low[j, j]
-        for j in range(i + 1, N_PARAMS):
+        for j in range(i + 1, p):
             low[i, j] = 0.0
     return True
 
 
 @njit(cache=True, nogil=True)
 def _solve(low, b, x):
-    """x = (L L^T)^-1 b."""
-    y = np.empty(N_PARAMS)
-    for i in range(N_PARAMS):
+    """x = (L L^T)^-1 b for b, x (p,)."""
+    p = low.shape[0]
+    y = np.empty(p)
+    for i in range(p):
         t = b[i]
         for k in range(i):
             t -= low[i, k] * y[k]
         y[i] = t / low[i, i]
-    for i in range(N_PARAMS - 1, -1, -1):
+    for i in range(p - 1, -1, -1):
         t = y[i]
-        for k in range(i + 1, N_PARAMS):
+        for k in range(i + 1, p):
             t -= low[k, i] * x[k]
         x[i] = t / low[i, i]
 
@@ -310,31 +313,16 @@ def fit_all(
 
 @njit(cache=True, nogil=True)
 def _spd_solve(a, b, out) -> bool:
-    """out = a^-1 b for a small symmetric positive definite a (p, p) and b (p, d), by
-    Cholesky (a is overwritten); False when a is not positive definite."""
+    """out = a^-1 b for a small symmetric positive definite a (p, p) and b (p, d);
+    False when a is not positive definite."""
     p = a.shape[0]
-    for i in range(p):
-        for j in range(i + 1):
-            t = a[i, j]
-            for k in range(j):
-                t -= a[i, k] * a[j, k]
-            if i == j:
-                if t <= 0.0:
-                    return False
-                a[i, i] = np.sqrt(t)
-            else:
-                a[i, j] = t / a[j, j]
+    low = np.empty((p, p))
+    if not _cholesky(a, low):
+        return False
+    col = np.empty(p)
     for d in range(b.shape[1]):
-        for i in range(p):
-            t = b[i, d]
-            for k in range(i):
-                t -= a[i, k] * out[k, d]
-            out[i, d] = t / a[i, i]
-        for i in range(p - 1, -1, -1):
-            t = out[i, d]
-            for k in range(i + 1, p):
-                t -= a[k, i] * out[k, d]
-            out[i, d] = t / a[i, i]
+        _solve(low, b[:, d].copy(), col)
+        out[:, d] = col
     return True
 
 
