@@ -296,8 +296,8 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
 
 
 def plot(path: Path, rows: list[dict], scene_name: str) -> None:
-    """Registered mean error against time per frame, a point per method, bench skin and
-    indenter."""
+    """Registered mean error against time per frame: a colour per method, a marker per
+    bench skin, filled for the first indenter and hollow for the others."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -308,31 +308,39 @@ def plot(path: Path, rows: list[dict], scene_name: str) -> None:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     skins = list(dict.fromkeys(r["bench_skin"] for r in rows))
     inds = list(dict.fromkeys(r["indenter"] for r in rows))
-    markers = "osD^v"
+    markers = "osD^vP*X"
     colors = plt.get_cmap("tab10")
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = plt.subplots(figsize=(9, 5))
     for r in rows:
+        color = colors(methods.index(r["method"]))
+        filled = inds.index(r["indenter"]) == 0
         ax.scatter(
             r["us_per_frame"],
             r["reg_mean_mm"],
-            color=colors(methods.index(r["method"])),
-            marker=markers[
-                (skins.index(r["bench_skin"]) * len(inds) + inds.index(r["indenter"])) % 5
-            ],
-            s=45,
+            marker=markers[skins.index(r["bench_skin"]) % len(markers)],
+            s=50,
+            facecolors=color if filled else "none",
+            edgecolors=color,
+            linewidths=1.5,
         )
     for k, m in enumerate(methods):
-        ax.scatter([], [], color=colors(k), marker="o", label=m)
-    for si, s in enumerate(skins):
-        for ii, ind in enumerate(inds):
-            ax.scatter(
-                [], [], color="0.4", marker=markers[(si * len(inds) + ii) % 5], label=f"{s}, {ind}"
-            )
+        ax.scatter([], [], color=colors(k), marker="o", label=f"method {m}")
+    for k, name in enumerate(skins):
+        ax.scatter([], [], color="0.35", marker=markers[k % len(markers)], label=f"board: {name}")
+    for k, ind in enumerate(inds):
+        ax.scatter(
+            [],
+            [],
+            marker="o",
+            facecolors="0.35" if k == 0 else "none",
+            edgecolors="0.35",
+            label=f"{ind} indenter ({'filled' if k == 0 else 'hollow'})",
+        )
     ax.set_xscale("log")
-    ax.set_xlabel("time per frame, fruit locate (us)")
-    ax.set_ylabel("registered mean error (mm)")
+    ax.set_xlabel("time per frame of fruit locate's loop (us, log scale)")
+    ax.set_ylabel("translation-registered mean error (mm)")
     ax.set_ylim(bottom=0)
-    ax.set_title(f"Detection methods on {scene_name}: bench skins the locator does not assume")
+    ax.set_title(f"Detection methods on {scene_name}, on boards the locator does not assume")
     ax.grid(True, which="both", color="0.88")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
