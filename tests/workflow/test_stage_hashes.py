@@ -132,7 +132,7 @@ generate_artist = true
 [tracks]
 faces = 1500
 [bench]
-indenters = ["small"]
+indenters = ["medium"]
 samples = "samples.csv"
 step_mm = 0.5
 [detection]

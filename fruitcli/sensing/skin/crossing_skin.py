@@ -137,7 +137,10 @@ class CrossingSkin:
         k = self.object_index(indenter)
         dx, dy, gap = np.broadcast_arrays(*(np.asarray(v, float) for v in (dx_mm, dy_mm, gap_mm)))
         profile = self._lateral(k, dx.ravel(), dy.ravel())
-        return self._along_gap(k, profile, np.zeros(1), gap.ravel())[0].reshape(dx.shape)
+        g = gap.ravel()
+        out = self._along_gap(k, profile, np.zeros(1), np.maximum(g, 0.0))[0]
+        out *= np.exp(np.maximum(-g, 0.0) / self.press_decay_mm[k])  # pressing in
+        return out.reshape(dx.shape)
 
     def activation(
         self, indenter: str, contact_mm: np.ndarray, taxels_mm: np.ndarray, gaps_mm: np.ndarray
@@ -197,13 +200,16 @@ class CrossingSkin:
         return v
 
     def _along_gap(self, k: int, profile: np.ndarray, rows: np.ndarray, cols: np.ndarray):
-        """(G, N) `profile` (N, u + 1) at the gaps rows (G,) + cols (N,): linear between
-        the grid's gaps, exponential below 0 and beyond the last. The grid is uniform, so
-        a gap's interval is arithmetic; the passes over (G, N) are few and in place (the
-        bench calls this for every frame)."""
+        """(G, N) `profile` (N, u + 1) at the indenter's gaps `rows` (G,) above its contact
+        point (negative: pressing in) and the contact point's heights `cols` (N,) over each
+        crossing: linear between the grid's gaps at max(row, 0) + |col| (a crossing above
+        the contact point, on a body curving away under the indenter, is as far from it as
+        one below), exponential beyond the last gap, and a press below contact raising
+        every crossing alike. The grid is uniform, so a gap's interval is arithmetic; the
+        passes over (G, N) are few and in place (the bench calls this for every frame)."""
         step, _ = self._uniform
         top, n = float(self.gap_mm[-1]), profile.shape[1]
-        gap = rows[:, None] + cols
+        gap = np.maximum(rows, 0.0)[:, None] + np.abs(cols)
         u = np.clip(gap, 0.0, top)
         u *= 1.0 / step
         at = u.astype(np.intp)  # up to u's last node: the profile repeats it
@@ -216,10 +222,10 @@ class CrossingSkin:
         upper -= v
         upper *= u
         v += upper
-        pressed = np.flatnonzero(rows + cols.min() < 0)  # rows with a gap below contact
+        pressed = np.flatnonzero(rows < 0)  # rows with the indenter below contact
         if pressed.size:
-            v[pressed] *= np.exp(np.maximum(-gap[pressed], 0.0) / self.press_decay_mm[k])
-        far = np.flatnonzero(rows + cols.max() > top)
+            v[pressed] *= np.exp(-rows[pressed] / self.press_decay_mm[k])[:, None]
+        far = np.flatnonzero(rows + np.abs(cols).max() > top)
         if far.size:
             v[far] *= np.exp(-np.maximum(gap[far] - top, 0.0) / self.tail_decay_mm[k])
         return v

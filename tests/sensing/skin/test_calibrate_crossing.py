@@ -227,9 +227,18 @@ def test_drop_and_activation_are_cubic_across_and_linear_along_the_gap(gaps):
         taxels = np.column_stack([dx[:30], dy[:30], rng.uniform(-0.5, 0.5, 30)])
         gaps_g = np.linspace(3.0, -1.0, 17)
         off = np.array([0.5, -0.5, 0.2]) - taxels
+        # a crossing as far from the indenter above the contact point as below it; a
+        # press below contact raises every crossing alike
+        press = np.exp(np.maximum(-gaps_g, 0.0) / t.press_decay_mm[k])[:, None]
         np.testing.assert_allclose(
             t.activation(name, [0.5, -0.5, 0.2], taxels, gaps_g),
-            t.drop(name, off[None, :, 0], off[None, :, 1], gaps_g[:, None] + off[None, :, 2]),
+            t.drop(
+                name,
+                off[None, :, 0],
+                off[None, :, 1],
+                np.maximum(gaps_g, 0.0)[:, None] + np.abs(off[None, :, 2]),
+            )
+            * press,
             rtol=1e-12,
         )
 
