@@ -3,6 +3,7 @@ are imported only when used, so `fruit --help` stays fast."""
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import difflib
 import importlib
@@ -182,6 +183,16 @@ def main(argv: list[str] | None = None) -> None:
         # (a background job)
         if argv is None and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             signal.signal(signal.SIGINT, _interrupted_at_exit)
+            atexit.register(_hold_interrupts)  # runs first of the exit functions
+
+
+def _hold_interrupts() -> None:
+    """At the interpreter's exit, hold Ctrl-C back: late in shutdown Python gives SIGINT its
+    default action again, and a Ctrl-C there ended the process by the signal, with no
+    line. Held, it is dropped with the process: the command, already done, exits with its
+    own code."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
 
 
 def _interrupted_at_exit(signum, frame) -> None:
