@@ -131,20 +131,6 @@ class Fitted:
     fit: np.ndarray
 
 
-def surface_maps(window: Window, win: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Quadratic maps (n, 6, 3) from grid offsets to mm fitted to the window taxels'
-    positions pos (n, K, 3) (win (n, K): -1 where no taxel); a light ridge on the
-    non-constant terms keeps a window with few taxels (a grid's corner, a single row)
-    solvable: the map then stays affine, or flat, along what the taxels do not span."""
-    m = np.where(win >= 0, window.map_weight, 0.0)  # (n, K)
-    phi = window.basis
-    lhs = np.einsum("kp,nk,kq->npq", phi, m, phi)
-    ridge = 1e-9 * np.maximum(np.trace(lhs, axis1=1, axis2=2), 1e-12)
-    lhs[:, np.arange(1, 6), np.arange(1, 6)] += ridge[:, None]
-    rhs = np.einsum("kp,nk,nkd->npd", phi, m, pos)
-    return np.linalg.solve(lhs, rhs)
-
-
 def refine(
     frame: np.ndarray,
     centre: np.ndarray,

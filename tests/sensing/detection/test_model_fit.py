@@ -15,8 +15,8 @@ from fruitcli.sensing.detection.model_fit import (
     FIT_N9,
     FootprintLaw,
     Window,
-    surface_maps,
 )
+from fruitcli.sensing.detection.model_kernel import prepare
 from fruitcli.sensing.frames.board import default_board, taxel_cells
 from fruitcli.sensing.skin.heights import GapLaw
 from fruitcli.tables import Taxels
@@ -135,7 +135,26 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
     centre = np.array([int(np.flatnonzero((taxels.i == 0) & (taxels.j == 0))[0])])
     win = w.taxels[centre]
     pos = xyz[np.where(win >= 0, win, 0)]
-    coef = surface_maps(w, win, pos)[0]
+    n, k = win.shape
+    coef, corr = np.empty((n, 6, 3)), np.empty((n, 5, 5, 3))
+    scratch = [np.empty((n, k)) for _ in range(3)]
+    prepare(
+        np.zeros(n, np.int64),
+        win,
+        np.full((n, 9), -1, np.int64),
+        np.zeros((1, len(taxels))),
+        np.ones(len(taxels)),
+        1.0,
+        0.1,
+        pos,
+        w.basis,
+        w.map_weight,
+        *scratch,
+        coef,
+        corr,
+        np.empty(n, np.int64),
+    )
+    coef = coef[0]
     a, b = 0.4, 0.7  # grid offsets from the corner taxel
     want = [16 * a, 12 * b, 0.3 * a**2 - 0.2 * a * b + 0.1 * b**2]
     got = coef[0] + coef[1] * a + coef[2] * b + coef[3] * a * a + coef[4] * a * b + coef[5] * b * b
