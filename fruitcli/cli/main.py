@@ -187,12 +187,12 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _hold_interrupts() -> None:
-    """At the interpreter's exit, hold Ctrl-C back: late in shutdown Python gives SIGINT its
-    default action again, and a Ctrl-C there ended the process by the signal, with no
-    line. Held, it is dropped with the process: the command, already done, exits with its
-    own code."""
-    if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    """At the interpreter's exit, ignore Ctrl-C in the whole process: late in shutdown
+    Python gives a handled SIGINT its default action again, and a Ctrl-C delivered there
+    (to any thread: a mask holds only the thread that set it) ended the process by the
+    signal, with no line. Ignored, it stays ignored: the command, already done, exits
+    with its own code."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _interrupted_at_exit(signum, frame) -> None:

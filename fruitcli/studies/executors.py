@@ -128,7 +128,11 @@ class LocalPool:
         self.pool = self._new()
 
     def close(self) -> None:
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        """Wait for the workers to end (their tasks are done, cancelled, or stopped by
+        `abort`), with Ctrl-C held until they have: a pool left half shut down keeps its
+        threads into the interpreter's exit, where they crashed it."""
+        with _sigint_blocked():
+            self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 class DaskPool:
