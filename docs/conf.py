@@ -24,8 +24,11 @@ source_suffix = {".md": "markdown"}
 myst_heading_anchors = 3
 myst_enable_extensions = ["dollarmath"]
 exclude_patterns = ["_build", "README.md", "data/*.md"]  # data/: fragments that pages include
-html_theme = "alabaster"
+# Furo, the theme of many scientific Python projects; _static/fruit.css wraps code lines
+# wider than its content column (none scrolls at 1280 px).
+html_theme = "furo"
 html_title = f"fruit {release}"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["fruit.css"]
 suppress_warnings: list[str] = []
 nitpicky = True

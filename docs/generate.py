@@ -12,7 +12,9 @@
   `tests/performance/bench_limits.py --docs`);
 - stability-realistic.md: the stability study's rows on realistic bodies, from
   docs/data/stability-realistic.json (written by
-  `tests/performance/stability_realistic.py --docs`).
+  `tests/performance/stability_realistic.py --docs`);
+- gallery.md and gallery/*.png: the pipeline's pictures, by docs/gallery.py (which runs
+  the demo's scenes it needs into build/gallery/demo when they are not there).
 
 Run by `make docs` before Sphinx; `python docs/generate.py [--bench FILE]`.
 """
@@ -568,7 +570,10 @@ def main(argv: list[str] | None = None) -> int:
     for name, text in pages.items():
         write_text(OUT / name, text.rstrip() + "\n")
     print(f"wrote {', '.join(pages)} into {OUT.relative_to(ROOT)}/")
-    return 0
+    sys.path.insert(0, str(DOCS))
+    from gallery import main as gallery  # the gallery's pictures, from a demo's outputs
+
+    return gallery([])
 
 
 if __name__ == "__main__":

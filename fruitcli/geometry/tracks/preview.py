@@ -51,7 +51,7 @@ def write_preview(
     ax3.set_title("view from the front left, above (35 degrees)")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight", pad_inches=0.15)  # tight_layout alone cut the x label
     plt.close(fig)
 
 
