@@ -4,13 +4,13 @@ touches located on it, and Table I.
 
     python docs/gallery.py [--demo OUT] [--into DIR] [--hero PNG]
 
-OUT is a `fruit demo` output folder (default build/gallery/demo). When it lacks the
-scenes the pictures need, the script runs `fruit demo --scenes paper-table,fruit-rest,
-fruit-deformed --out OUT` first; `fruit` reuses every unchanged stage, so a second build
-costs seconds. The pictures, and gallery.md (what the build cost, where it ran), go to DIR (default
-docs/_generated/, where docs/gallery.md shows them); --hero also writes the touches
-picture, smaller, to PNG (the README's picture). `make docs` runs it through
-docs/generate.py.
+Without --demo the script first runs `fruit demo --scenes paper-table,fruit-rest,
+fruit-deformed --out build/gallery/demo`, which reuses every stage whose inputs and code
+are unchanged (a few seconds then, about a minute of CPU the first time); --demo OUT draws
+from the outputs of an earlier `fruit demo` as they are. The pictures, and gallery.md
+(what it cost, where it ran), go to DIR (default docs/_generated/, where docs/gallery.md
+shows them); --hero also writes the touches picture, smaller, to PNG (the README's
+picture). `make docs` runs it through docs/generate.py.
 """
 
 from __future__ import annotations
@@ -42,19 +42,21 @@ FIGURE_DATA = "the paper's figure data, evaluated by fruit"
 
 
 # ------------------------------------------------------------------------------ inputs
-def ensure_demo(out: Path) -> float:
-    """Run the demo's scenes into `out` unless every file the pictures read is there.
-    Returns the seconds it took (0 when nothing ran)."""
+def run_demo(out: Path) -> float:
+    """`fruit demo` of the scenes the pictures need, into `out`; the seconds it took."""
     import time
 
-    if all((out / p).exists() for p in NEEDS):
-        return 0.0
-    print(f"gallery: running fruit demo --scenes {','.join(SCENES)} --out {out}", flush=True)
+    print(f"gallery: fruit demo --scenes {','.join(SCENES)} --out {out}", flush=True)
     t0 = time.perf_counter()
     cmd = [sys.executable, "-c", "from fruitcli.cli.main import main; main()", "demo"]
     cmd += ["--scenes", ",".join(SCENES)]
     subprocess.run([*cmd, "--out", str(out)], check=True)
     return time.perf_counter() - t0
+
+
+def missing(out: Path) -> list[str]:
+    """The files the pictures read that `out` lacks."""
+    return [p for p in NEEDS if not (out / p).is_file()]
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -309,7 +311,7 @@ def table_picture(path: Path, demo: Path, note: str) -> None:
 # ------------------------------------------------------------------------------ main
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Draw the gallery from a demo's outputs.")
-    parser.add_argument("--demo", type=Path, default=DEMO, help="fruit demo output folder")
+    parser.add_argument("--demo", type=Path, default=None, help="an earlier demo's folder")
     parser.add_argument("--into", type=Path, default=DOCS / "_generated", help="page folder")
     parser.add_argument("--hero", type=Path, default=None, help="also the README's picture")
     args = parser.parse_args(argv)
@@ -319,22 +321,32 @@ def main(argv: list[str] | None = None) -> int:
     from fruitcli.fsutil import write_text
     from fruitcli.studies.machine import machine_line
 
-    try:
-        seconds = ensure_demo(args.demo)
-    except subprocess.CalledProcessError as exc:
+    demo, seconds = args.demo or DEMO, None
+    if args.demo is None:
+        try:
+            seconds = run_demo(demo)
+        except subprocess.CalledProcessError as exc:
+            print(
+                f"Error: gallery: fruit demo into {demo} failed (exit code {exc.returncode})",
+                file=sys.stderr,
+            )
+            return 1
+    if lack := missing(demo):
         print(
-            f"Error: gallery: fruit demo into {args.demo} failed (exit code {exc.returncode})",
+            f"Error: gallery: {demo / lack[0]}: not there (give --demo a folder written by "
+            f"fruit demo --scenes {','.join(SCENES)}, or leave --demo out)",
             file=sys.stderr,
         )
         return 1
     t0 = time.perf_counter()
     note = f"Drawn by docs/gallery.py. {machine_line()}"
-    run = args.demo / "fruit-deformed"
+    run = demo / "fruit-deformed"
     pics = args.into / "gallery"
     pics.mkdir(parents=True, exist_ok=True)
     artist = Path(json.loads((run / "make-tracks" / "report.json").read_text())["artist"])
-    if not artist.is_absolute():
-        artist = run / "make-tracks" / artist
+    if not artist.is_file():
+        print(f"Error: gallery: {artist}: the demo's artist mesh is not there", file=sys.stderr)
+        return 1
     artist_picture(pics / "artist.png", artist, note)
     tracks_picture(pics / "tracks.png", run, note)
     mesh_picture(pics / "mesh.png", run, note)
@@ -343,14 +355,11 @@ def main(argv: list[str] | None = None) -> int:
     touches_picture(pics / "touches.png", d, run, note)
     if args.hero:
         touches_picture(args.hero, d, run, note, dpi=90)
-    table_picture(pics / "table-1.png", args.demo, note)
+    table_picture(pics / "table-1.png", demo, note)
     drawn = time.perf_counter() - t0
-    cost = (
-        f"this build ran the scenes' stages in {seconds:.0f} s and drew the pictures in "
-        f"{drawn:.0f} s"
-        if seconds
-        else f"the stages were reused; the pictures took {drawn:.0f} s"
-    )
+    cost = f"the pictures took {drawn:.0f} s"
+    if seconds is not None:
+        cost = f"the demo's stages took {seconds:.0f} s (unchanged ones reused), {cost}"
     page = f"Drawn from `fruit demo` outputs: {cost}. {machine_line()}\n"
     write_text(args.into / "gallery.md", page)
     print(f"gallery: {cost}; wrote {pics.relative_to(ROOT) if pics.is_relative_to(ROOT) else pics}")

@@ -13,8 +13,8 @@
 - stability-realistic.md: the stability study's rows on realistic bodies, from
   docs/data/stability-realistic.json (written by
   `tests/performance/stability_realistic.py --docs`);
-- gallery.md and gallery/*.png: the pipeline's pictures, by docs/gallery.py (which runs
-  the demo's scenes it needs into build/gallery/demo when they are not there).
+- gallery.md and gallery/*.png: the pipeline's pictures, by docs/gallery.py (after
+  `fruit demo` of the scenes it needs into build/gallery/demo, unchanged stages reused).
 
 Run by `make docs` before Sphinx; `python docs/generate.py [--bench FILE]`.
 """

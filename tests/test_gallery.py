@@ -34,8 +34,8 @@ def test_error_columns_read_by_prefix(tmp_path):
     np.testing.assert_array_equal(gallery.xyz(rows, "measured_"), [[4.0, 5.0, 6.0]])
 
 
-def test_demo_not_run_when_its_outputs_are_there(tmp_path, monkeypatch):
-    for name in gallery.NEEDS:
+def test_an_earlier_demo_lacking_a_file_is_one_line(tmp_path, monkeypatch, capsys):
+    for name in gallery.NEEDS[1:]:
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text("")
 
@@ -43,7 +43,11 @@ def test_demo_not_run_when_its_outputs_are_there(tmp_path, monkeypatch):
         raise AssertionError("the demo ran")
 
     monkeypatch.setattr(gallery.subprocess, "run", no_run)
-    assert gallery.ensure_demo(tmp_path) == 0.0
+    into = tmp_path / "pages"
+    assert gallery.main(["--demo", str(tmp_path), "--into", str(into)]) == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"Error: gallery: {tmp_path / gallery.NEEDS[0]}: not there")
+    assert not into.exists()
 
 
 def test_a_failed_demo_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
@@ -54,9 +58,9 @@ def test_a_failed_demo_is_one_line_and_writes_nothing(tmp_path, monkeypatch, cap
         raise subprocess.CalledProcessError(1, cmd)
 
     monkeypatch.setattr(gallery.subprocess, "run", failing)
+    monkeypatch.setattr(gallery, "DEMO", tmp_path / "demo")
     into = tmp_path / "pages"
-    code = gallery.main(["--demo", str(tmp_path / "demo"), "--into", str(into)])
-    assert code == 1
+    assert gallery.main(["--into", str(into)]) == 1
     (cmd,) = calls
     assert cmd[-5:] == [
         "demo",
