@@ -43,8 +43,8 @@ PAD_CROSSING = "touchpad-4x4-crossing"
 """OUT's folder of the pad's crossing table (built once)."""
 
 VARIANTS = (
-    ("yarn_radius_mm", 0.4),
-    ("yarn_radius_mm", 0.8),
+    ("yarn_radius_mm", 0.5),
+    ("yarn_radius_mm", 0.7),
     ("insulation_mm", 0.05),
     ("insulation_mm", 0.3),
     ("permittivity", 2.5),
@@ -228,6 +228,7 @@ def assumption_variants(scene_path: Path) -> list[dict]:
     """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
     per fF (fitted to the bend), counts at contact, pre-touch gaps, both bends."""
     from fruitcli.electrostatics import design
+    from fruitcli.errors import FruitError
     from fruitcli.scene import load_scene
 
     scene = load_scene(scene_path)
@@ -236,7 +237,11 @@ def assumption_variants(scene_path: Path) -> list[dict]:
     for key, value in VARIANTS:
         inputs = replace(base, **{key: value})
         print(f"  crossing with {key} = {value}")
-        _, summary = design.run_crossing(inputs)
+        try:
+            _, summary = design.run_crossing(inputs)
+        except FruitError as exc:  # e.g. gmsh fails on the cell: a row saying so
+            rows.append({"key": key, "value": value, "error": str(exc)})
+            continue
         fit, cpf = summary["counts_fit"], summary["counts_per_ff"]
         rows.append(
             {
@@ -458,6 +463,9 @@ def markdown(report: dict) -> str:
             "|---|---|---|---|---|",
         ]
         for v in e["variants"]:
+            if "error" in v:
+                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | |")
+                continue
             lines.append(
                 f"| {v['key']} = {v['value']:g} | {v['counts_per_ff']:.3f} | "
                 + _pair({k: p[0] for k, p in v["pretouch"].items()}, "", 2).strip()
