@@ -52,7 +52,11 @@ def table_i(root: Path) -> dict[str, dict]:
         if reg is None and row.get("register") == "translation":
             reg = row
         if reg is not None:
-            rows[row["label"]] = {"n": row["n"], "mean_mm": reg["mean_mm"], "std_mm": reg["std_mm"]}
+            rows[row["label"]] = {
+                "n": row["n"],
+                "mean_mm": reg["mean_mm"],
+                "std_mm": reg["std_mm"],
+            }
     return rows
 
 
@@ -134,3 +138,91 @@ def fmt_where(where: dict) -> str:
     if "xyz_mm" in where:
         at = " at (" + ", ".join(f"{v:.0f}" for v in where["xyz_mm"]) + ") mm"
     return f"taxel ({where['i']}, {where['j']}){at}, fabrication factor {where['fab']:.2f}"
+
+
+def _scene(out: Path, name: str):
+    """The scene a run of `name` ran from (``OUT/scenes/NAME.toml``, as `fruit demo`
+    writes it), or None."""
+    from fruitcli.errors import FruitError
+    from fruitcli.scene import load_scene
+
+    path = Path(out) / "scenes" / f"{name}.toml"
+    try:
+        return load_scene(path) if path.exists() else None
+    except FruitError:
+        return None
+
+
+def run_rows(out: Path, names: list[str]) -> list[tuple[str, str, str]]:
+    """(observation, paper, this run) for the scenes `names` run into `out` (the demo's
+    fruit-rest, fruit-deformed, fruit-breathing and touchpad-4x4), from their outputs;
+    an observation whose scene did not run says so."""
+    out = Path(out)
+    have = set(names)
+    rows = []
+    rest = out / "fruit-rest"
+    if "fruit-rest" in have:
+        gaps, counts = fmt_pretouch(pretouch(rest, _scene(out, "fruit-rest")))
+        rows.append(
+            (
+                "pre-touch: gap at which the crossing under the indenter reads 20 counts "
+                f"(counts at contact: {counts})",
+                PAPER["pretouch"],
+                gaps,
+            )
+        )
+    else:
+        rows.append(("pre-touch", PAPER["pretouch"], "not run (fruit-rest)"))
+    pad = sensitivity(out / "touchpad-4x4") if "touchpad-4x4" in have else None
+    rows.append(
+        (
+            "4 x 4 pad bent 180 deg (the jig bends it along x): largest shift",
+            PAPER["bent_pad"],
+            f"{pad['played_max']:.1f} counts with noise, {pad['model_max']:.1f} from the "
+            "model alone; along y: `python tests/performance/compare_skins.py`"
+            if pad
+            else "not run (touchpad-4x4)",
+        )
+    )
+    rows.append(
+        (
+            "finger behind the bent pad",
+            PAPER["finger_back"],
+            "not part of the demo: `python tests/performance/compare_skins.py`",
+        )
+    )
+    breath = sensitivity(out / "fruit-breathing") if "fruit-breathing" in have else None
+    rows.append(
+        (
+            "the Fruit breathing: each taxel's largest shift, max and mean over taxels",
+            PAPER["breathing"],
+            f"max {breath['played_max']:.1f}, mean {breath['played_mean']:.1f} counts "
+            f"with noise (the model alone: max {breath['model_max']:.1f}, mean "
+            f"{breath['model_mean']:.1f}); the largest at {fmt_where(breath['where'])}"
+            if breath
+            else "not run (fruit-breathing)",
+        )
+    )
+    rows.append(
+        (
+            "noise: std of each taxel at rest",
+            PAPER["noise"],
+            f"max {breath['noise_max']:.2f}, mean {breath['noise_mean']:.2f} counts "
+            "(an input: `[skin].noise_std_counts`)"
+            if breath
+            else "not run (fruit-breathing)",
+        )
+    )
+    table = {}
+    for name in ("fruit-rest", "fruit-deformed"):
+        if name in have:
+            table.update(table_i(out / name))
+    for label, (mean, std) in PAPER_TABLE_I.items():
+        rows.append(
+            (
+                f"Table I, {label}: translation-registered error",
+                f"{mean:.1f} ± {std:.1f} mm",
+                fmt_table_i(table, label),
+            )
+        )
+    return rows

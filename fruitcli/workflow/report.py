@@ -99,6 +99,27 @@ def table_section(out: Path, scenes: list[str]) -> list[str]:
     return lines + [""]
 
 
+def observations_section(out: Path, scenes: list[str]) -> list[str]:
+    """The paper's observations next to this run's numbers for them (from the scenes'
+    outputs; the other skin and what each depends on: docs, the skin model)."""
+    from fruitcli.workflow.observations import _scene, run_rows
+
+    models = {s.skin.model for n in scenes if (s := _scene(out, n)) is not None}
+    skin = ", ".join(sorted(models)) or "as the scenes set it"
+    lines = [
+        "## The paper's observations against this run",
+        "",
+        f"Skin model: {skin} (`[skin].model`). Both skins against every observation, and "
+        "the parameters each depends on: `python tests/performance/compare_skins.py` "
+        "(the documentation's skin-model page).",
+        "",
+        "| observation | paper | this run |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {a} | {b} | {c} |" for a, b, c in run_rows(out, scenes)]
+    return lines + [""]
+
+
 def views_section(out: Path, scenes: list[str]) -> list[str]:
     lines = ["## Top and side views (Figs. 12-14)", ""]
     for name in scenes:
@@ -237,6 +258,7 @@ def write_report(
         "|---|---|---|---|",
     ]
     lines += [f"| {n} | {s:.1f} | {r} | {u} |" for n, (s, r, u) in timings.items()] + [""]
+    lines += observations_section(out, scenes)
     lines += table_section(out, scenes)
     lines += views_section(out, scenes)
     lines += sensitivity_section(out, scenes)

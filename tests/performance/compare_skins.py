@@ -224,9 +224,10 @@ def breathing_shifts(root: Path, model: str) -> dict:
     }
 
 
-def assumption_variants(scene_path: Path) -> list[dict]:
+def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
     """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
-    per fF (fitted to the bend), counts at contact, pre-touch gaps, both bends."""
+    per fF (fitted to the bend), counts at contact, pre-touch gaps, both bends and a 10 %
+    stretch along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
     from fruitcli.electrostatics import design
     from fruitcli.errors import FruitError
     from fruitcli.scene import load_scene
@@ -235,27 +236,29 @@ def assumption_variants(scene_path: Path) -> list[dict]:
     base = design.crossing_inputs(scene)
     rows = []
     for key, value in VARIANTS:
-        inputs = replace(base, **{key: value})
-        print(f"  crossing with {key} = {value}")
-        try:
-            _, summary = design.run_crossing(inputs)
-        except FruitError as exc:  # e.g. gmsh fails on the cell: a row saying so
-            rows.append({"key": key, "value": value, "error": str(exc)})
-            continue
-        fit, cpf = summary["counts_fit"], summary["counts_per_ff"]
+        folder = out / f"crossing-{key}-{value:g}"
+        if not (folder / "summary.json").exists():
+            print(f"  crossing with {key} = {value}")
+            try:
+                table, summary = design.run_crossing(replace(base, **{key: value}))
+            except FruitError as exc:  # e.g. gmsh fails on the cell: a row saying so
+                rows.append({"key": key, "value": value, "error": str(exc)})
+                continue
+            design.write_outputs(folder, table, summary)
+        summary = json.loads((folder / "summary.json").read_text())
+        shifts = summary["deformation_shift_counts"]
+        at = shifts["strain"].index(0.1)
         rows.append(
             {
                 "key": key,
                 "value": value,
-                "counts_per_ff": cpf,
+                "counts_per_ff": summary["counts_per_ff"],
                 "pretouch": {
                     n: (o["threshold_gap_mm"], o["contact_counts"])
                     for n, o in summary["objects"].items()
                 },
-                "bend_counts": {
-                    fit["deformation"][-1]: fit["counts"],
-                    "xy".replace(fit["deformation"][-1], ""): -cpf * fit["other_bend_shift_ff"],
-                },
+                "bend_counts": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
+                "stretch_10pct_counts": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
             }
         )
     return rows
@@ -294,6 +297,12 @@ def observe(out: Path, assumptions: bool) -> dict:
             summary = json.loads((rest / "skin" / "summary.json").read_text())
             other_ff = abs(summary["counts_fit"]["other_bend_shift_ff"])
             entry["counts_per_ff"] = summary["counts_per_ff"]
+            shifts = summary["deformation_shift_counts"]
+            at = shifts["strain"].index(0.1)
+            entry["crossing_shifts"] = {
+                "bend": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
+                "stretch_10pct": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
+            }
             entry["counts_per_ff_other_bend"] = 10.0 / other_ff
             entry["pretouch"] = electrostatic_pretouch(rest / "skin")
             entry["pretouch_other_bend"] = electrostatic_pretouch(
@@ -304,7 +313,7 @@ def observe(out: Path, assumptions: bool) -> dict:
                 rest / "skin", pad.counts_per_ff
             )
             if assumptions:
-                entry["variants"] = assumption_variants(rest.parent / f"{rest.name}.toml")
+                entry["variants"] = assumption_variants(rest.parent / f"{rest.name}.toml", out)
         report[model] = entry
     return report
 
@@ -441,7 +450,10 @@ def markdown(report: dict) -> str:
         f"({e['counts_per_ff_other_bend']:.3f} instead of {e['counts_per_ff']:.3f}): "
         f"pre-touch {_pair({k: v[0] for k, v in e['pretouch_other_bend'].items()}, 'mm', 2)}"
         f", at contact {_pair({k: v[1] for k, v in e['pretouch_other_bend'].items()}, 'counts')}"
-        f"; the pad bent along y then shifts "
+        f"; the Fruit's breathing (the shifts scale with it) max "
+        f"{e['breathing']['max'] * e['counts_per_ff_other_bend'] / e['counts_per_ff']:.1f}, "
+        f"mean {e['breathing']['mean'] * e['counts_per_ff_other_bend'] / e['counts_per_ff']:.2f}"
+        f" counts; the pad bent along y then shifts "
         f"{e['bent_pad']['y'] * 10.0 / abs(e['bent_pad']['x']):+.1f} counts (the pad "
         f"fitted alike: bent along x to -10).",
         f"- Electrostatic, the counts per fF of the pad's own crossing (pitch 16 x 16 mm, "
@@ -450,7 +462,10 @@ def markdown(report: dict) -> str:
         f"pre-touch "
         f"{_pair({k: v[0] for k, v in e['pretouch_pad_calibration'].items()}, 'mm', 2)}, "
         f"at contact "
-        f"{_pair({k: v[1] for k, v in e['pretouch_pad_calibration'].items()}, 'counts')}.",
+        f"{_pair({k: v[1] for k, v in e['pretouch_pad_calibration'].items()}, 'counts')}; "
+        f"the Fruit's breathing max "
+        f"{e['breathing']['max'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.1f}, mean "
+        f"{e['breathing']['mean'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.2f} counts.",
     ]
     if e.get("variants"):
         lines += [
@@ -459,19 +474,31 @@ def markdown(report: dict) -> str:
             "counts per fF to its bend along y, as the default does):",
             "",
             "| input moved | counts per fF | pre-touch gap (mm) | counts at contact | "
-            "crossing bent as the pad, along x / y (counts) |",
-            "|---|---|---|---|---|",
+            "crossing bent as the pad, along x / y (counts) | stretched 10 %, along x / y "
+            "(counts) |",
+            "|---|---|---|---|---|---|",
         ]
+        c = e["crossing_shifts"]
+        lines.append(
+            f"| none (the default) | {e['counts_per_ff']:.3f} | "
+            + _pair({k: p[0] for k, p in e["pretouch"].items()}, "", 2).strip()
+            + " | "
+            + _pair({k: p[1] for k, p in e["pretouch"].items()}, "", 1).strip()
+            + f" | {c['bend']['x']:+.1f} / {c['bend']['y']:+.1f} | "
+            f"{c['stretch_10pct']['x']:+.1f} / {c['stretch_10pct']['y']:+.1f} |"
+        )
         for v in e["variants"]:
             if "error" in v:
-                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | |")
+                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | |")
                 continue
             lines.append(
                 f"| {v['key']} = {v['value']:g} | {v['counts_per_ff']:.3f} | "
                 + _pair({k: p[0] for k, p in v["pretouch"].items()}, "", 2).strip()
                 + " | "
                 + _pair({k: p[1] for k, p in v["pretouch"].items()}, "", 1).strip()
-                + f" | {v['bend_counts']['x']:+.1f} / {v['bend_counts']['y']:+.1f} |"
+                + f" | {v['bend_counts']['x']:+.1f} / {v['bend_counts']['y']:+.1f} | "
+                f"{v['stretch_10pct_counts']['x']:+.1f} / "
+                f"{v['stretch_10pct_counts']['y']:+.1f} |"
             )
     lines += [
         "",
