@@ -116,7 +116,8 @@ def observations_section(out: Path, scenes: list[str]) -> list[str]:
         "| observation | paper | this run |",
         "|---|---|---|",
     ]
-    lines += [f"| {a} | {b} | {c} |" for a, b, c in run_rows(out, scenes)]
+    for row in run_rows(out, scenes):
+        lines.append("| " + " | ".join(c.replace("|", r"\|") for c in row) + " |")
     return lines + [""]
 
 

@@ -402,7 +402,7 @@ def markdown(report: dict) -> str:
             "(assumed), the bend direction",
         ),
         (
-            "the Fruit breathing (13 states, 0-12 kPa): each taxel's largest |shift|",
+            "the Fruit breathing (13 states, 0-12 kPa): each taxel's largest absolute shift",
             obs.PAPER["breathing"],
             _breathing(g["breathing"], g["sensitivity"]),
             _breathing(e["breathing"], e["sensitivity"]),
@@ -438,7 +438,7 @@ def markdown(report: dict) -> str:
         "values, counts per fF from the bent pad) | depends on |",
         "|---|---|---|---|---|",
     ]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    lines += ["| " + " | ".join(c.replace("|", r"\|") for c in r) + " |" for r in rows]
     lines += [
         "",
         "What the rows depend on, one parameter at a time:",
