@@ -151,6 +151,26 @@ def test_an_object_wider_than_the_cell_is_refused(tmp_path, fruit, key):
     assert not out.exists()
 
 
+def test_fruit_run_refuses_the_narrow_cell_at_its_skin_stage(tmp_path, fruit):
+    """Through the planner: the same one line, the stage before it complete, no skin
+    folder."""
+    scene = tmp_path / "pad.toml"
+    scene.write_text(
+        '[scene]\nname = "pad"\n[geometry]\npad_size_mm = [20.0, 20.0, 3.0]\n'
+        "[grid]\ncount = [2, 2]\nspacing_x_mm = 3.5\nspacing_y_mm = 6.0\n"
+        "[tracks]\ncover_mm = 1.5\n"
+        '[skin]\nmodel = "electrostatic"\nyarn_radius_mm = 0.4\n'
+        "[sensitivity]\nnoise_frames = 10\n"
+    )
+    out = tmp_path / "out"
+    result = fruit("-q", "run", scene, "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "[grid].spacing_x_mm" in lines[0], lines
+    assert (out / "pad-grid" / "taxels.csv").exists()
+    assert not (out / "skin").exists()
+
+
 def test_the_widest_object_fits_at_the_smallest_pitch_allowed():
     """At a pitch just above half the finger's radius, each pitch's key passes the check."""
     from fruitcli.electrostatics import design
