@@ -201,6 +201,7 @@ def breathing_shifts(root: Path, model: str) -> dict:
     else:
         shift = shift_counts(states, CrossingSkin.load(root / "skin"), skin.fab)
     per_taxel = np.abs(shift).max(axis=0)
+    strain = forward.taxel_strain(states).max(axis=0)  # each taxel's largest
     k = int(np.argmax(per_taxel))
     centres = {c.name: np.asarray(c.ellipsoid.center_mm) for c in scene.chambers}
     near = min(centres, key=lambda n: np.hypot(*(centres[n][:2] - taxels.xyz_mm[k, :2])))
@@ -219,6 +220,8 @@ def breathing_shifts(root: Path, model: str) -> dict:
             "chamber": f"{far:.0f} mm from chamber {near}'s centre in x, y",
         },
         "without_defects_max": float((per_taxel / skin.fab).max()),
+        "strain_max": float(strain.max()),
+        "strain_mean": float(strain.mean()),
         "top_z_mm": float(taxels.xyz_mm[:, 2].max()),
         "span_mm": [float(v) for v in np.ptp(taxels.xyz_mm, axis=0)],
     }
@@ -406,9 +409,11 @@ def markdown(report: dict) -> str:
             obs.PAPER["breathing"],
             _breathing(g["breathing"], g["sensitivity"]),
             _breathing(e["breathing"], e["sensitivity"]),
-            "the FEM (E = 100 kPa, nu = 0.49, 5 mm P2 mesh: design and assumed), 5 % of "
-            "crossings deforming 1.5-2.5 times more (assumed), Gaussian: the strain gain; "
-            "electrostatic: the crossing's stretch and bend, counts per fF",
+            "the FEM (E = 100 kPa, nu = 0.49, 5 mm P2 mesh: design and assumed; the "
+            "surface's Green strain norm around a taxel, each taxel's largest: max "
+            f"{g['breathing']['strain_max']:.3f}, mean {g['breathing']['strain_mean']:.3f}), "
+            "5 % of crossings deforming 1.5-2.5 times more (assumed); Gaussian: the strain "
+            "gain; electrostatic: the crossing's stretch and bend, counts per fF",
         ),
         (
             "noise: std of each taxel over 300 frames at rest",
