@@ -73,8 +73,9 @@ def sensitivity(root: Path) -> dict | None:
     taxels = data["taxels"]
     top = max(taxels, key=lambda t: t["max_shift"])
     where = {"i": top["i"], "j": top["j"], "fab": top["fab"]}
-    csv = Path(root) / "make-tracks" / "taxels.csv"
-    if csv.exists():
+    csvs = [Path(root) / stage / "taxels.csv" for stage in ("make-tracks", "pad-grid")]
+    csv = next((c for c in csvs if c.exists()), None)
+    if csv is not None:
         from fruitcli.tables import read_taxels
 
         tax = read_taxels(csv)
