@@ -6,13 +6,7 @@ import json
 from pathlib import Path
 
 from fruitcli.fsutil import write_text
-
-# The paper's Table I (published values, for comparison only): mean mm, mean %, std mm, std %.
-PAPER_TABLE_I = {
-    "Rest, small": (2.6, 1.7, 1.3, 0.8),
-    "Rest, medium": (3.3, 2.2, 1.7, 1.1),
-    "Deformed, small": (4.4, 2.8, 1.8, 1.1),
-}
+from fruitcli.workflow.observations import PAPER_TABLE_I
 
 
 def _load(path: Path):

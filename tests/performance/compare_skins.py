@@ -426,7 +426,7 @@ def markdown(report: dict) -> str:
             "1.85] (assumed, set so the largest is near the paper's)",
         ),
     ]
-    for label, (mean, std) in obs.PAPER_TABLE_I.items():
+    for label, (mean, _, std, _) in obs.PAPER_TABLE_I.items():
         rows.append(
             (
                 f"Table I, {label}: N9, translation-registered error",
