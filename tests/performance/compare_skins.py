@@ -181,10 +181,11 @@ def electrostatic_pretouch(folder: Path, counts_per_ff: float | None = None) -> 
     return out
 
 
-def breathing_shifts(root: Path, model: str) -> dict:
+def breathing_shifts(root: Path, model: str, response=None) -> dict:
     """Each taxel's largest |baseline shift| (counts) over the breathing states, from the
-    run's states and its skin (fabrication factors as the sensitivity stage draws them):
-    max and mean over taxels, and the taxel of the largest."""
+    run's states and its skin (fabrication factors as the sensitivity stage draws them;
+    the electrostatic skin's `response`, default the run's table): max and mean over
+    taxels, and the taxel of the largest."""
     from fruitcli.scene import load_scene
     from fruitcli.sensing.detection.locate import load_states
     from fruitcli.sensing.skin import forward
@@ -199,7 +200,8 @@ def breathing_shifts(root: Path, model: str) -> dict:
     if model == "gaussian":
         shift = forward.strain_shift_counts(forward.taxel_strain(states), skin)
     else:
-        shift = shift_counts(states, CrossingSkin.load(root / "skin"), skin.fab)
+        response = response or CrossingSkin.load(root / "skin")
+        shift = shift_counts(states, response, skin.fab)
     per_taxel = np.abs(shift).max(axis=0)
     strain = forward.taxel_strain(states).max(axis=0)  # each taxel's largest
     k = int(np.argmax(per_taxel))
