@@ -180,8 +180,8 @@ def run_rows(out: Path, names: list[str]) -> list[tuple[str, str, str]]:
         (
             "4 x 4 pad bent 180 deg (the jig bends it along x): largest shift",
             PAPER["bent_pad"],
-            f"{pad['played_max']:.1f} counts with noise, {pad['model_max']:.1f} from the "
-            "model alone; along y: `python tests/performance/compare_skins.py`"
+            f"{pad['played_max']:.1f} counts with noise, {pad['model_max']:.1f} the model "
+            "alone's largest rise; along y: `python tests/performance/compare_skins.py`"
             if pad
             else "not run (touchpad-4x4)",
         )
@@ -199,7 +199,7 @@ def run_rows(out: Path, names: list[str]) -> list[tuple[str, str, str]]:
             "the Fruit breathing: each taxel's largest shift, max and mean over taxels",
             PAPER["breathing"],
             f"max {breath['played_max']:.1f}, mean {breath['played_mean']:.1f} counts "
-            f"with noise (the model alone: max {breath['model_max']:.1f}, mean "
+            f"with noise (the model alone, its largest rise: max {breath['model_max']:.1f}, mean "
             f"{breath['model_mean']:.1f}); the largest at {fmt_where(breath['where'])}"
             if breath
             else "not run (fruit-breathing)",

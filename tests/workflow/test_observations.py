@@ -72,10 +72,11 @@ def test_rows_from_a_gaussian_run(tmp_path):
     rows = {a.split(":")[0]: c for a, _, c in obs.run_rows(tmp_path, NAMES)}
     assert rows["pre-touch"] == "small 2.20, medium 2.20 mm"
     assert rows["4 x 4 pad bent 180 deg (the jig bends it along x)"].startswith(
-        "11.2 counts with noise, 10.0 from the model alone"
+        "11.2 counts with noise, 10.0 the model alone's largest rise"
     )
     assert rows["the Fruit breathing"] == (
-        "max 12.9, mean 5.2 counts with noise (the model alone: max 11.5, mean 2.9); the "
+        "max 12.9, mean 5.2 counts with noise (the model alone, its largest rise: max 11.5, mean "
+        "2.9); the "
         "largest at taxel (3, 4) at (10, -20, 5) mm, fabrication factor 2.00"
     )
     assert rows["noise"].startswith("max 1.91, mean 1.21 counts")
