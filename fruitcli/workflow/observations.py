@@ -10,8 +10,12 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
 
 THRESHOLD_COUNTS = 20.0
 """The paper's touch threshold (Sec. V-A)."""
@@ -142,7 +146,7 @@ def fmt_where(where: dict) -> str:
     return f"taxel ({where['i']}, {where['j']}){at}, fabrication factor {where['fab']:.2f}"
 
 
-def _scene(out: Path, name: str):
+def scene_of(out: Path, name: str) -> Scene | None:
     """The scene a run of `name` ran from (``OUT/scenes/NAME.toml``, as `fruit demo`
     writes it), or None."""
     from fruitcli.errors import FruitError
@@ -164,7 +168,7 @@ def run_rows(out: Path, names: list[str]) -> list[tuple[str, str, str]]:
     rows = []
     rest = out / "fruit-rest"
     if "fruit-rest" in have:
-        gaps, counts = fmt_pretouch(pretouch(rest, _scene(out, "fruit-rest")))
+        gaps, counts = fmt_pretouch(pretouch(rest, scene_of(out, "fruit-rest")))
         rows.append(
             (
                 "pre-touch: gap at which the crossing under the indenter reads 20 counts "

@@ -96,9 +96,9 @@ def table_section(out: Path, scenes: list[str]) -> list[str]:
 def observations_section(out: Path, scenes: list[str]) -> list[str]:
     """The paper's observations next to this run's numbers for them (from the scenes'
     outputs; the other skin and what each depends on: docs, the skin model)."""
-    from fruitcli.workflow.observations import _scene, run_rows
+    from fruitcli.workflow.observations import run_rows, scene_of
 
-    models = {s.skin.model for n in scenes if (s := _scene(out, n)) is not None}
+    models = {s.skin.model for n in scenes if (s := scene_of(out, n)) is not None}
     skin = ", ".join(sorted(models)) or "as the scenes set it"
     lines = [
         "## The paper's observations against this run",
