@@ -231,8 +231,9 @@ def breathing_shifts(root: Path, model: str, response=None) -> dict:
 
 def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
     """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
-    per fF (fitted to the bend), counts at contact, pre-touch gaps, both bends and a 10 %
-    stretch along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
+    per fF (fitted to the bend), counts at contact, pre-touch gaps (as
+    `electrostatic_pretouch` gives them for the default), both bends and a 10 % stretch
+    along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
     from fruitcli.electrostatics import design
     from fruitcli.errors import FruitError
     from fruitcli.scene import load_scene
@@ -258,10 +259,7 @@ def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
                 "key": key,
                 "value": value,
                 "counts_per_ff": summary["counts_per_ff"],
-                "pretouch": {
-                    n: (o["threshold_gap_mm"], o["contact_counts"])
-                    for n, o in summary["objects"].items()
-                },
+                "pretouch": electrostatic_pretouch(folder),
                 "bend_counts": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
                 "stretch_10pct_counts": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
             }
