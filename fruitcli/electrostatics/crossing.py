@@ -396,22 +396,28 @@ def touch_table(
 
 
 def deformation_table(
-    solver: CellSolver, spec: CellSpec, c0: float
+    solver: CellSolver, spec: CellSpec, c0: float, glued: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(c_stretch (2, s), c_bend (2, c)) fF, strain and curvature lists with 0 first."""
+    """(c_stretch (2, s), c_bend (2, c)) fF, strain and curvature lists with 0 first.
+    Glued (the paper's crossing, the default): nothing within two yarn radii and the
+    insulation of the crossing's axis moves, the deformation ramps in over half a pitch
+    beyond; not glued: every node moves with the silicone (the yarns too)."""
     nodes = solver.mesh.nodes
     glue = 2 * spec.yarn_radius_mm + spec.insulation_mm
     ramp = min(spec.pitch_x_mm, spec.pitch_y_mm) / 2
+
+    def move(target: np.ndarray) -> np.ndarray:
+        return deform.deformed(nodes, target, glue, ramp) if glued else target
+
     strains = np.array([0.0, *STRAINS])
     curvatures = np.array([0.0, *CURVATURES_PER_MM])
     c_stretch = np.full((2, len(strains)), c0)
     c_bend = np.full((2, len(curvatures)), c0)
     for a, axis in enumerate(("x", "y")):
         for i, s in enumerate(strains[1:], 1):
-            moved = deform.deformed(nodes, deform.stretched(nodes, axis, s), glue, ramp)
-            c_stretch[a, i] = solver.capacitance(nodes=moved)
+            c_stretch[a, i] = solver.capacitance(nodes=move(deform.stretched(nodes, axis, s)))
         for i, kappa in enumerate(curvatures[1:], 1):
-            moved = deform.deformed(nodes, deform.bent(nodes, axis, kappa, NEUTRAL_MM), glue, ramp)
+            moved = move(deform.bent(nodes, axis, kappa, NEUTRAL_MM))
             c_bend[a, i] = solver.capacitance(nodes=moved)
     solver.capacitance(nodes=nodes)  # back to the cell at rest
     return strains, c_stretch, curvatures, c_bend

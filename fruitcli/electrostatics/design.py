@@ -77,6 +77,7 @@ def crossing_inputs(scene) -> CrossingInputs:
             f"against [tracks].cover_mm = {cover:g} mm); expected a radius "
             f"below {(cover - ins / 2) / 2:g} mm"
         )
+    _check_objects_fit(where, grid.spacing_x_mm, grid.spacing_y_mm)
     limit = scene.mesh.time_limit_s
     if not limit > 0:
         raise SceneError(f"{where}: [mesh].time_limit_s: expected > 0 (s), got {limit:g}")
@@ -91,6 +92,27 @@ def crossing_inputs(scene) -> CrossingInputs:
         tuple(float(g) for g in skin.gaps_mm),
         float(limit),
     )
+
+
+def _check_objects_fit(where: str, pitch_x_mm: float, pitch_y_mm: float) -> None:
+    """SceneError naming the pitch's key when an object of the table is as wide as the
+    crossing's cell or wider (the cell spans `crossing.REACH_PITCHES` pitches either
+    side; its insulating side faces would mirror such an object into a ground plane)."""
+    from fruitcli.electrostatics.crossing import REACH_PITCHES
+    from fruitcli.electrostatics.touch_objects import OBJECTS
+
+    key, pitch = min(
+        (("[grid].spacing_x_mm", pitch_x_mm), ("[grid].spacing_y_mm", pitch_y_mm)),
+        key=lambda kp: kp[1],
+    )
+    widest = max(OBJECTS.values(), key=lambda o: o.radius_mm)
+    if widest.radius_mm >= REACH_PITCHES * pitch:
+        raise SceneError(
+            f"{where}: {key}: the {widest.name} ({2 * widest.radius_mm:g} mm wide) does not "
+            f"fit in the crossing's cell ({REACH_PITCHES} pitches either side of the "
+            f"crossing: {2 * REACH_PITCHES * pitch:g} mm); expected a pitch above "
+            f"{widest.radius_mm / REACH_PITCHES:g} mm, got {pitch:g}"
+        )
 
 
 DEFAULT_SOLVE_S = 0.35

@@ -6,13 +6,7 @@ import json
 from pathlib import Path
 
 from fruitcli.fsutil import write_text
-
-# The paper's Table I (published values, for comparison only): mean mm, mean %, std mm, std %.
-PAPER_TABLE_I = {
-    "Rest, small": (2.6, 1.7, 1.3, 0.8),
-    "Rest, medium": (3.3, 2.2, 1.7, 1.1),
-    "Deformed, small": (4.4, 2.8, 1.8, 1.1),
-}
+from fruitcli.workflow.observations import PAPER_TABLE_I
 
 
 def _load(path: Path):
@@ -96,6 +90,28 @@ def table_section(out: Path, scenes: list[str]) -> list[str]:
             f"| {label} | {st['rmse_mm']:.2f} | {st['median_mm']:.2f} | "
             f"{st['p95_mm']:.2f} | {st['max_mm']:.2f} | {lo:.2f}-{hi:.2f} |"
         )
+    return lines + [""]
+
+
+def observations_section(out: Path, scenes: list[str]) -> list[str]:
+    """The paper's observations next to this run's numbers for them (from the scenes'
+    outputs; the other skin and what each depends on: docs, the skin model)."""
+    from fruitcli.workflow.observations import run_rows, scene_of
+
+    models = {s.skin.model for n in scenes if (s := scene_of(out, n)) is not None}
+    skin = ", ".join(sorted(models)) or "as the scenes set it"
+    lines = [
+        "## The paper's observations against this run",
+        "",
+        f"Skin model: {skin} (`[skin].model`). Both skins against every observation, and "
+        "the parameters each depends on: `python tests/performance/compare_skins.py` "
+        "(the documentation's skin-model page).",
+        "",
+        "| observation | paper | this run |",
+        "|---|---|---|",
+    ]
+    for row in run_rows(out, scenes):
+        lines.append("| " + " | ".join(c.replace("|", r"\|") for c in row) + " |")
     return lines + [""]
 
 
@@ -237,6 +253,7 @@ def write_report(
         "|---|---|---|---|",
     ]
     lines += [f"| {n} | {s:.1f} | {r} | {u} |" for n, (s, r, u) in timings.items()] + [""]
+    lines += observations_section(out, scenes)
     lines += table_section(out, scenes)
     lines += views_section(out, scenes)
     lines += sensitivity_section(out, scenes)

@@ -131,6 +131,55 @@ def test_a_cell_too_large_is_refused_with_its_estimate(tmp_path, fruit):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("key", ["spacing_x_mm", "spacing_y_mm"])
+def test_an_object_wider_than_the_cell_is_refused(tmp_path, fruit, key):
+    """A pitch of 3.5 mm: the cell spans 2 pitches either side (14 mm), the finger is 16
+    mm wide: one line naming the smaller pitch's key, exit 1, nothing written."""
+    other = "spacing_y_mm" if key == "spacing_x_mm" else "spacing_x_mm"
+    text = SMALL_CELL.replace("spacing_x_mm = 6.0", "spacing_x_mm = 6.0X").replace(
+        "spacing_y_mm = 5.0", "spacing_y_mm = 6.0Y"
+    )
+    text = text.replace("6.0X" if key == "spacing_x_mm" else "6.0Y", "3.5")
+    text = text.replace("6.0Y" if key == "spacing_x_mm" else "6.0X", "6.0")
+    assert f"{key} = 3.5" in text and f"{other} = 6.0" in text
+    out = tmp_path / "out"
+    result = fruit("-q", "skin", _scene(tmp_path, text), "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and f"[grid].{key}" in lines[0] and "finger" in lines[0], lines
+    assert "16 mm wide" in lines[0] and "14 mm" in lines[0] and "above 4 mm" in lines[0]
+    assert not out.exists()
+
+
+def test_fruit_run_refuses_the_narrow_cell_at_its_skin_stage(tmp_path, fruit):
+    """Through the planner: the same one line, the stage before it complete, no skin
+    folder."""
+    scene = tmp_path / "pad.toml"
+    scene.write_text(
+        '[scene]\nname = "pad"\n[geometry]\npad_size_mm = [20.0, 20.0, 3.0]\n'
+        "[grid]\ncount = [2, 2]\nspacing_x_mm = 3.5\nspacing_y_mm = 6.0\n"
+        "[tracks]\ncover_mm = 1.5\n"
+        '[skin]\nmodel = "electrostatic"\nyarn_radius_mm = 0.4\n'
+        "[sensitivity]\nnoise_frames = 10\n"
+    )
+    out = tmp_path / "out"
+    result = fruit("-q", "run", scene, "--out", out)
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "[grid].spacing_x_mm" in lines[0], lines
+    assert (out / "pad-grid" / "taxels.csv").exists()
+    assert not (out / "skin").exists()
+
+
+def test_the_widest_object_fits_at_the_smallest_pitch_allowed():
+    """At a pitch just above half the finger's radius, each pitch's key passes the check."""
+    from fruitcli.electrostatics import design
+
+    design._check_objects_fit("cell.toml", 4.01, 4.01)
+    with pytest.raises(design.SceneError, match="spacing_x_mm"):
+        design._check_objects_fit("cell.toml", 4.0, 4.01)
+
+
 def test_track_radius_is_named_when_it_is_the_yarn(tmp_path, fruit):
     """Without [skin].yarn_radius_mm the yarn is [tracks].track_radius_mm: that key is named."""
     text = SMALL_CELL.replace("yarn_radius_mm = 0.4\n", "").replace(

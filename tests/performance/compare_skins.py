@@ -1,20 +1,28 @@
-"""The assumed (Gaussian) and the electrostatic skin side by side, against the paper.
+"""The assumed (Gaussian) and the electrostatic skin against the paper's observations.
 
-Units: mm, counts. Prints, for both ``[skin].model`` values:
+Units: mm, counts. For both ``[skin].model`` values:
 
-- Table I's rows (translation-registered) of the bench on ``pipelines/fruit-rest.toml``;
-- the bent pad's largest baseline shift (Fig. 9: 10 counts): the 80 x 80 x 3 mm pad's
-  mesh bent 180 deg over its 48 mm active length (`forward.bend_nodes`, the Gaussian
-  model's own calibration case) on the cell of ``pipelines/touchpad-4x4.toml``;
-- with ``--breathing``, the breathing animation's shifts (Fig. 11: mean 5, max 16
-  counts) of ``pipelines/fruit-breathing.toml`` (13 FEM states: slow);
-- the gap at which each object crosses the threshold of 20 counts (Sec. V-B: "very
-  light touch or even pre-touch").
+- pre-touch: the gap at which each object under a crossing reads the threshold of 20
+  counts (Sec. V-A: "very light touch or even pre-touch"), and its counts at contact;
+- the 80 x 80 x 3 mm pad (Fig. 9: at most 10 counts) bent 180 deg over its 48 mm active
+  length (`forward.bend_nodes`) along x and along y, the crossing of
+  ``pipelines/touchpad-4x4.toml``: its largest baseline shift each way;
+- a finger behind that bent pad (Fig. 8 (c): it triggers a touch);
+- the Fruit's breathing (Fig. 11: max 16, mean 5.0 counts) over the 13 FEM states of
+  ``pipelines/fruit-breathing.toml``: each taxel's largest |shift|, model alone and as
+  played with noise, and where the largest is; the noise (Fig. 10: std up to 1.9);
+- Table I (translation-registered) at rest (``pipelines/fruit-rest.toml``) and deformed
+  (``pipelines/fruit-deformed.toml``);
+- what the rows depend on: the electrostatic skin under the other bend's calibration,
+  the Gaussian skin's pre-touch over its contact counts and gap decay, and with
+  ``--assumptions`` the crossing's own numbers with the yarn radius, the insulation and
+  the permittivity moved off their assumed values (a table each, about a minute).
 
 Each scene runs through the planner in OUT/<scene>-<model> with OUT as the shared
-folder, so the stages the two models have in common run once.
+folder, so the stages the two models have in common run once and a second run reuses
+them. ``--markdown PATH`` writes the table with the run's date, commit and machine.
 
-    python tests/bench/compare_skins.py --out OUT [--breathing]
+    python tests/performance/compare_skins.py --out OUT [--assumptions] [--markdown PATH]
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ import argparse
 import json
 import math
 import shutil
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -30,6 +39,18 @@ import numpy as np
 
 MODELS = ("gaussian", "electrostatic")
 PIPELINES = Path(__file__).resolve().parents[2] / "pipelines"
+PAD_CROSSING = "touchpad-4x4-crossing"
+"""OUT's folder of the pad's crossing table (built once)."""
+
+VARIANTS = (
+    ("yarn_radius_mm", 0.5),
+    ("yarn_radius_mm", 0.7),
+    ("insulation_mm", 0.05),
+    ("insulation_mm", 0.3),
+    ("permittivity", 2.5),
+    ("permittivity", 3.0),
+)
+"""The crossing's assumed inputs moved one at a time (defaults 0.6 mm, 0.1 mm, 2.8)."""
 
 
 def variant(name: str, model: str, out: Path, extra_bench: str = "") -> Path:
@@ -62,86 +83,452 @@ def run_scene(path: Path, out: Path) -> Path:
     return root
 
 
-def bent_pad_shift(model: str) -> float:
-    """Largest baseline shift (counts) of the pad bent 180 deg (fabrication factor 1)."""
+# ------------------------------------------------------------------------------ the pad
+def pad_crossing(out: Path):
+    """The crossing of ``pipelines/touchpad-4x4.toml`` (pitch 16 x 16 mm, cover 2 mm) in
+    counts, its counts per fF fitted to its own bend; built once into OUT."""
+    from fruitcli.electrostatics import design
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
+    folder = out / PAD_CROSSING
+    if not (folder / "summary.json").exists():
+        scene = load_scene(PIPELINES / "touchpad-4x4.toml")
+        table, summary = design.run_crossing(design.crossing_inputs(scene))
+        design.write_outputs(folder, table, summary)
+    return CrossingSkin.load(folder)
+
+
+def _bent(nodes: np.ndarray, along: str) -> np.ndarray:
+    """The pad's nodes bent 180 deg over its active length along x or along y."""
+    from fruitcli.sensing.skin import forward
+
+    swap = [1, 0, 2] if along == "y" else [0, 1, 2]
+    radius = forward.PAD_ACTIVE_MM / np.pi
+    return forward.bend_nodes(nodes[:, swap], radius, forward.PAD_SIZE_MM[2])[:, swap]
+
+
+def bent_pad_shifts(model: str, response=None) -> dict[str, float]:
+    """Per bending direction (x, y): the signed largest baseline shift (counts) of the
+    pad's 16 taxels, fabrication factor 1."""
     from fruitcli.fem.elements.barycentric import locate
     from fruitcli.fem.meshing.topology import boundary_faces
     from fruitcli.sensing.skin import forward
-
-    if model == "gaussian":
-        return float(forward.calibrate_strain_gain() * forward.bent_pad_taxel_strain().max())
-    from fruitcli.scene import load_scene
-    from fruitcli.sensing.skin.crossing_skin import crossing_skin, shift_counts
+    from fruitcli.sensing.skin.crossing_skin import shift_counts
 
     nodes, tets = forward.pad_mesh()
+    tris = boundary_faces(nodes, tets)
     taxels = forward.pad_taxels_mm(z_mm=forward.PAD_SIZE_MM[2] - 1e-6)
-    k, bary, _ = locate(nodes, tets, taxels)
-    bent = forward.bend_nodes(nodes, forward.PAD_ACTIVE_MM / np.pi, forward.PAD_SIZE_MM[2])
-    states = SimpleNamespace(
-        rest_nodes=nodes,
-        tets=tets,
-        displacement_mm=(bent - nodes)[None],
-        surface_tris=boundary_faces(nodes, tets),
-        taxel_tet=k,
-        taxel_bary=bary,
-    )
-    response = crossing_skin(load_scene(PIPELINES / "touchpad-4x4.toml"))
-    shift = shift_counts(states, response, np.ones(len(taxels)), 0)
-    return float(shift[np.argmax(np.abs(shift))])
+    out = {}
+    for along in ("x", "y"):
+        bent = _bent(nodes, along)
+        if model == "gaussian":
+            w = forward.taxel_surface_weights(nodes, tris, forward.pad_taxels_mm())
+            strain = forward.surface_green_strain(nodes, bent, tris) @ w.T
+            shift = forward.calibrate_strain_gain() * strain
+        else:
+            k, bary, _ = locate(nodes, tets, taxels)
+            states = SimpleNamespace(
+                rest_nodes=nodes,
+                tets=tets,
+                displacement_mm=(bent - nodes)[None],
+                surface_tris=tris,
+                taxel_tet=k,
+                taxel_bary=bary,
+            )
+            shift = shift_counts(states, response, np.ones(len(taxels)), 0)
+        out[along] = float(shift[np.argmax(np.abs(shift))])
+    return out
 
 
-def threshold_gaps(skin_dir: Path | None) -> dict:
-    """Gap (mm) at which each object's activation under the crossing is 20 counts."""
+def finger_behind(model: str, response=None) -> dict:
+    """Counts of the crossing with a finger on the pad's back face (Fig. 8 (c)), for the
+    yarns at the pad scene's cover (2 mm under the front: 1 mm from the back) and in the
+    middle of the 3 mm pad. The field is taken as the same on both sides of the yarns,
+    so a finger d from the yarns reads as one at the gap d - cover in front (below 0:
+    the table's press, extrapolated). Gaussian: its contact counts and gap decay (it has
+    no finger; its law does not depend on the object under the crossing)."""
+    from fruitcli.scene import load_scene
     from fruitcli.sensing.skin import forward
 
-    if skin_dir is None:
-        gap = forward.GAP_DECAY_MM * math.log(forward.CONTACT_COUNTS / forward.THRESHOLD_COUNTS)
-        return {name: gap for name in forward.INDENTER_RADIUS_MM}
-    summary = json.loads((skin_dir / "summary.json").read_text())
-    return {name: o["threshold_gap_mm"] for name, o in summary["objects"].items()}
+    thick = forward.PAD_SIZE_MM[2]
+    cover = load_scene(PIPELINES / "touchpad-4x4.toml").tracks.cover_mm
+    out = {}
+    for label, depth in (("cover", cover), ("middle", thick / 2)):
+        gap = (thick - depth) - depth
+        if model == "gaussian":
+            counts = forward.CONTACT_COUNTS * math.exp(-gap / forward.GAP_DECAY_MM)
+        else:
+            counts = float(response.drop("finger", 0.0, 0.0, gap))
+        out[label] = {"yarn_depth_mm": depth, "front_gap_mm": gap, "counts": counts}
+    return out
+
+
+# ------------------------------------------------------------------------- the Fruit
+def electrostatic_pretouch(folder: Path, counts_per_ff: float | None = None) -> dict:
+    """Per object of the table in `folder`: (gap mm at which the crossing under it reads
+    20 counts, counts at contact), in `counts_per_ff` (default: the table's)."""
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
+    response = CrossingSkin.load(folder, counts_per_ff)
+    gaps = np.linspace(0.0, float(response.gap_mm[-1]), 8001)
+    out = {}
+    for name in response.objects:
+        counts = response.drop(name, 0.0, 0.0, gaps)
+        above = np.flatnonzero(counts >= 20.0)
+        gap = float(gaps[above[-1]]) if above.size else 0.0
+        out[name] = (math.inf if gap >= gaps[-1] else gap, float(counts[0]))
+    return out
+
+
+def breathing_shifts(root: Path, model: str, response=None) -> dict:
+    """Each taxel's largest |baseline shift| (counts) over the breathing states, from the
+    run's states and its skin (fabrication factors as the sensitivity stage draws them;
+    the electrostatic skin's `response`, default the run's table): max and mean over
+    taxels, and the taxel of the largest."""
+    from fruitcli.scene import load_scene
+    from fruitcli.sensing.detection.locate import load_states
+    from fruitcli.sensing.skin import forward
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin, shift_counts
+    from fruitcli.tables import read_taxels
+
+    scene = load_scene(root.parent / f"{root.name}.toml")
+    taxels = read_taxels(root / "make-tracks" / "taxels.csv")
+    states = load_states(root / "simulate" / "states.npz", len(taxels))
+    params = forward.SkinParams.from_table(scene.skin)
+    skin = forward.make_skin(len(taxels), scene.bench.seed, params, taxels.ids)
+    if model == "gaussian":
+        shift = forward.strain_shift_counts(forward.taxel_strain(states), skin)
+    else:
+        response = response or CrossingSkin.load(root / "skin")
+        shift = shift_counts(states, response, skin.fab)
+    per_taxel = np.abs(shift).max(axis=0)
+    strain = forward.taxel_strain(states).max(axis=0)  # each taxel's largest
+    k = int(np.argmax(per_taxel))
+    centres = {c.name: np.asarray(c.ellipsoid.center_mm) for c in scene.chambers}
+    near = min(centres, key=lambda n: np.hypot(*(centres[n][:2] - taxels.xyz_mm[k, :2])))
+    far = np.hypot(*(centres[near][:2] - taxels.xyz_mm[k, :2]))
+    signed = shift[:, k][np.argmax(np.abs(shift[:, k]))]
+    return {
+        "max": float(per_taxel.max()),
+        "mean": float(per_taxel.mean()),
+        "negative_share": float(np.mean(np.abs(shift.min(axis=0)) > shift.max(axis=0))),
+        "where": {
+            "i": int(taxels.i[k]),
+            "j": int(taxels.j[k]),
+            "fab": float(skin.fab[k]),
+            "xyz_mm": [float(v) for v in taxels.xyz_mm[k]],
+            "signed": float(signed),
+            "chamber": f"{far:.0f} mm from chamber {near}'s centre in x, y",
+        },
+        "without_defects_max": float((per_taxel / skin.fab).max()),
+        "strain_max": float(strain.max()),
+        "strain_mean": float(strain.mean()),
+        "top_z_mm": float(taxels.xyz_mm[:, 2].max()),
+        "span_mm": [float(v) for v in np.ptp(taxels.xyz_mm, axis=0)],
+    }
+
+
+def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
+    """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
+    per fF (fitted to the bend), counts at contact, pre-touch gaps (as
+    `electrostatic_pretouch` gives them for the default), both bends and a 10 % stretch
+    along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
+    from fruitcli.electrostatics import design
+    from fruitcli.errors import FruitError
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(scene_path)
+    base = design.crossing_inputs(scene)
+    rows = []
+    for key, value in VARIANTS:
+        folder = out / f"crossing-{key}-{value:g}"
+        if not (folder / "summary.json").exists():
+            print(f"  crossing with {key} = {value}")
+            try:
+                table, summary = design.run_crossing(replace(base, **{key: value}))
+            except FruitError as exc:  # e.g. gmsh fails on the cell: a row saying so
+                rows.append({"key": key, "value": value, "error": str(exc)})
+                continue
+            design.write_outputs(folder, table, summary)
+        summary = json.loads((folder / "summary.json").read_text())
+        shifts = summary["deformation_shift_counts"]
+        at = shifts["strain"].index(0.1)
+        rows.append(
+            {
+                "key": key,
+                "value": value,
+                "counts_per_ff": summary["counts_per_ff"],
+                "pretouch": electrostatic_pretouch(folder),
+                "bend_counts": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
+                "stretch_10pct_counts": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
+            }
+        )
+    return rows
+
+
+def observe(out: Path, assumptions: bool) -> dict:
+    """Every observation for both skins (runs the scenes that are not yet in OUT)."""
+    from fruitcli.workflow import observations as obs
+
+    report = {}
+    pad = pad_crossing(out)
+    for model in MODELS:
+        reg = '\nregister = "translation"\n'
+        rest = run_scene(variant("fruit-rest", model, out, reg), out)
+        deformed = run_scene(variant("fruit-deformed", model, out, reg), out)
+        breathing = run_scene(variant("fruit-breathing", model, out), out)
+        response = pad if model == "electrostatic" else None
+        entry = {
+            "table_i": {**obs.table_i(rest), **obs.table_i(deformed)},
+            "bent_pad": bent_pad_shifts(model, response),
+            "finger_behind": finger_behind(model, response),
+            "breathing": breathing_shifts(breathing, model),
+            "sensitivity": obs.sensitivity(breathing),
+        }
+        if model == "gaussian":
+            from fruitcli.sensing.skin import forward
+
+            gap = obs.gaussian_pretouch_mm(forward.CONTACT_COUNTS, forward.GAP_DECAY_MM)
+            entry["pretouch"] = {n: (gap, forward.CONTACT_COUNTS) for n in ("small", "medium")}
+            entry["pretouch_range"] = {
+                f"{c:g} counts, decay {d:g} mm": obs.gaussian_pretouch_mm(c, d)
+                for c in (40.0, 60.0, 80.0)
+                for d in (1.0, 2.0, 3.0)
+            }
+        else:
+            summary = json.loads((rest / "skin" / "summary.json").read_text())
+            other_ff = abs(summary["counts_fit"]["other_bend_shift_ff"])
+            entry["counts_per_ff"] = summary["counts_per_ff"]
+            shifts = summary["deformation_shift_counts"]
+            at = shifts["strain"].index(0.1)
+            entry["crossing_shifts"] = {
+                "bend": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
+                "stretch_10pct": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
+            }
+            entry["counts_per_ff_other_bend"] = 10.0 / other_ff
+            entry["pretouch"] = electrostatic_pretouch(rest / "skin")
+            entry["pretouch_other_bend"] = electrostatic_pretouch(
+                rest / "skin", entry["counts_per_ff_other_bend"]
+            )
+            entry["pad_counts_per_ff"] = pad.counts_per_ff
+            entry["pretouch_pad_calibration"] = electrostatic_pretouch(
+                rest / "skin", pad.counts_per_ff
+            )
+            if assumptions:
+                entry["variants"] = assumption_variants(rest.parent / f"{rest.name}.toml", out)
+        report[model] = entry
+    return report
+
+
+# --------------------------------------------------------------------------- the table
+def _pair(d: dict, unit: str, digits: int = 1) -> str:
+    """'small 0.30, medium 3.69 mm' (inf: beyond the table's last gap)."""
+    return (
+        ", ".join(
+            f"{k} {v:.{digits}f}" if math.isfinite(v) else f"{k} beyond the table"
+            for k, v in d.items()
+        )
+        + f" {unit}"
+    )
+
+
+def _bends(b: dict) -> str:
+    return f"bent along x {b['x']:+.1f}, along y {b['y']:+.1f} counts"
+
+
+def _finger(f: dict, bends: dict) -> str:
+    def one(c: float) -> str:
+        return f"{c:.0f} ({c + bends['x']:.0f} / {c + bends['y']:.0f} bent along x / y)"
+
+    cov, mid = f["cover"], f["middle"]
+    return (
+        f"yarns {cov['yarn_depth_mm']:g} mm deep (1 mm from the back): "
+        f"{one(cov['counts'])}; in the middle: {one(mid['counts'])} counts"
+    )
+
+
+def _breathing(b: dict, sens: dict) -> str:
+    w = b["where"]
+    at = ", ".join(f"{v:.0f}" for v in w["xyz_mm"])
+    return (
+        f"model: max {b['max']:.1f}, mean {b['mean']:.2f} counts; the largest at taxel "
+        f"({w['i']}, {w['j']}), ({at}) mm, {w['chamber']}, {w['signed']:+.1f} counts, "
+        f"fabrication factor {w['fab']:.2f} (largest without the factor "
+        f"{b['without_defects_max']:.1f}); {100 * b['negative_share']:.0f} % of taxels "
+        f"shift mostly negative. Played with noise: max {sens['played_max']:.1f}, mean "
+        f"{sens['played_mean']:.1f} counts"
+    )
+
+
+def markdown(report: dict) -> str:
+    """The observations table (and what its rows depend on) as Markdown, stamped with
+    the run's date, commit and machine."""
+    from fruitcli.studies.machine import machine_line
+    from fruitcli.workflow import observations as obs
+
+    g, e = report["gaussian"], report["electrostatic"]
+    rows = [
+        (
+            "pre-touch: gap (mm) at which the crossing under the object reads 20 counts",
+            obs.PAPER["pretouch"],
+            _pair({k: v[0] for k, v in g["pretouch"].items()}, "mm", 2),
+            _pair({k: v[0] for k, v in e["pretouch"].items()}, "mm", 2),
+            "Gaussian: contact counts and gap decay (assumed; see below). Electrostatic: "
+            "counts per fF (calibrated, bent pad), indenter radii (assumed), yarn radius, "
+            "insulation, permittivity (assumed; see below), cover 2 mm (design)",
+        ),
+        (
+            "counts at contact, object over the crossing",
+            "not given",
+            _pair({k: v[1] for k, v in g["pretouch"].items()}, "counts"),
+            _pair({k: v[1] for k, v in e["pretouch"].items()}, "counts"),
+            "as above",
+        ),
+        (
+            "4 x 4 pad, 3 mm, bent 180 deg over 48 mm: largest taxel shift",
+            obs.PAPER["bent_pad"],
+            _bends(g["bent_pad"]),
+            _bends(e["bent_pad"]),
+            "Gaussian: strain gain (fitted to 10 counts on this pad; the strain norm "
+            "does not tell the directions apart). Electrostatic: counts per fF (fitted so "
+            "the pad's crossing bent along y shifts +10), glue radius and neutral plane "
+            "1.5 mm (assumed)",
+        ),
+        (
+            "finger behind the bent pad: counts at the crossing under it",
+            obs.PAPER["finger_back"],
+            _finger(g["finger_behind"], g["bent_pad"]),
+            _finger(e["finger_behind"], e["bent_pad"]),
+            "where the yarns sit in the pad (not given: the pad scene's cover 2 mm, or "
+            "the middle), the field taken as the same on both sides of the yarns "
+            "(assumed), the bend direction",
+        ),
+        (
+            "the Fruit breathing (13 states, 0-12 kPa): each taxel's largest absolute shift",
+            obs.PAPER["breathing"],
+            _breathing(g["breathing"], g["sensitivity"]),
+            _breathing(e["breathing"], e["sensitivity"]),
+            "the FEM (E = 100 kPa, nu = 0.49, 5 mm P2 mesh: design and assumed; the "
+            "surface's Green strain norm around a taxel, each taxel's largest: max "
+            f"{g['breathing']['strain_max']:.3f}, mean {g['breathing']['strain_mean']:.3f}), "
+            "5 % of crossings deforming 1.5-2.5 times more (assumed); Gaussian: the strain "
+            "gain; electrostatic: the crossing's stretch and bend, counts per fF",
+        ),
+        (
+            "noise: std of each taxel over 300 frames at rest",
+            obs.PAPER["noise"],
+            f"max {g['sensitivity']['noise_max']:.2f}, mean "
+            f"{g['sensitivity']['noise_mean']:.2f} counts",
+            f"max {e['sensitivity']['noise_max']:.2f}, mean "
+            f"{e['sensitivity']['noise_mean']:.2f} counts",
+            "an input of both skins: `noise_std_counts`, per-taxel std drawn in [0.5, "
+            "1.85] (assumed, set so the largest is near the paper's)",
+        ),
+    ]
+    for label, (mean, _, std, _) in obs.PAPER_TABLE_I.items():
+        rows.append(
+            (
+                f"Table I, {label}: N9, translation-registered error",
+                f"{mean:.1f} ± {std:.1f} mm",
+                obs.fmt_table_i(g["table_i"], label),
+                obs.fmt_table_i(e["table_i"], label),
+                "everything above; no parameter fitted to Table I",
+            )
+        )
+    lines = [
+        machine_line(),
+        "",
+        "| observation | paper | Gaussian skin (assumed) | electrostatic skin (design "
+        "values, counts per fF from the bent pad) | depends on |",
+        "|---|---|---|---|---|",
+    ]
+    lines += ["| " + " | ".join(c.replace("|", r"\|") for c in r) + " |" for r in rows]
+    lines += [
+        "",
+        "What the rows depend on, one parameter at a time:",
+        "",
+        "- Gaussian pre-touch gap over contact counts and gap decay: "
+        + "; ".join(f"{k}: {v:.2f} mm" for k, v in g["pretouch_range"].items())
+        + ".",
+        f"- Electrostatic, counts per fF fitted to the bend along x instead of y "
+        f"({e['counts_per_ff_other_bend']:.3f} instead of {e['counts_per_ff']:.3f}): "
+        f"pre-touch {_pair({k: v[0] for k, v in e['pretouch_other_bend'].items()}, 'mm', 2)}"
+        f", at contact {_pair({k: v[1] for k, v in e['pretouch_other_bend'].items()}, 'counts')}"
+        f"; the Fruit's breathing (the shifts scale with it) max "
+        f"{e['breathing']['max'] * e['counts_per_ff_other_bend'] / e['counts_per_ff']:.1f}, "
+        f"mean {e['breathing']['mean'] * e['counts_per_ff_other_bend'] / e['counts_per_ff']:.2f}"
+        f" counts; the pad bent along y then shifts "
+        f"{e['bent_pad']['y'] * 10.0 / abs(e['bent_pad']['x']):+.1f} counts (the pad "
+        f"fitted alike: bent along x to -10).",
+        f"- Electrostatic, the counts per fF of the pad's own crossing (pitch 16 x 16 mm, "
+        f"{e['pad_counts_per_ff']:.3f}: one number for the board, fitted on the pad the "
+        f"paper bent) on the Fruit's crossing (whose own fit gives {e['counts_per_ff']:.3f}): "
+        f"pre-touch "
+        f"{_pair({k: v[0] for k, v in e['pretouch_pad_calibration'].items()}, 'mm', 2)}, "
+        f"at contact "
+        f"{_pair({k: v[1] for k, v in e['pretouch_pad_calibration'].items()}, 'counts')}; "
+        f"the Fruit's breathing max "
+        f"{e['breathing']['max'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.1f}, mean "
+        f"{e['breathing']['mean'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.2f} counts.",
+    ]
+    if e.get("variants"):
+        lines += [
+            "",
+            "The Fruit's crossing with one assumed input moved (each table fits its own "
+            "counts per fF to its bend along y, as the default does):",
+            "",
+            "| input moved | counts per fF | pre-touch gap (mm) | counts at contact | "
+            "crossing bent as the pad, along x / y (counts) | stretched 10 %, along x / y "
+            "(counts) |",
+            "|---|---|---|---|---|---|",
+        ]
+        c = e["crossing_shifts"]
+        lines.append(
+            f"| none (the default) | {e['counts_per_ff']:.3f} | "
+            + _pair({k: p[0] for k, p in e["pretouch"].items()}, "", 2).strip()
+            + " | "
+            + _pair({k: p[1] for k, p in e["pretouch"].items()}, "", 1).strip()
+            + f" | {c['bend']['x']:+.1f} / {c['bend']['y']:+.1f} | "
+            f"{c['stretch_10pct']['x']:+.1f} / {c['stretch_10pct']['y']:+.1f} |"
+        )
+        for v in e["variants"]:
+            if "error" in v:
+                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | |")
+                continue
+            lines.append(
+                f"| {v['key']} = {v['value']:g} | {v['counts_per_ff']:.3f} | "
+                + _pair({k: p[0] for k, p in v["pretouch"].items()}, "", 2).strip()
+                + " | "
+                + _pair({k: p[1] for k, p in v["pretouch"].items()}, "", 1).strip()
+                + f" | {v['bend_counts']['x']:+.1f} / {v['bend_counts']['y']:+.1f} | "
+                f"{v['stretch_10pct_counts']['x']:+.1f} / "
+                f"{v['stretch_10pct_counts']['y']:+.1f} |"
+            )
+    lines += [
+        "",
+        "Made by `python tests/performance/compare_skins.py --out OUT --assumptions "
+        "--markdown docs/data/skin-observations.md`.",
+    ]
+    return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, required=True)
-    ap.add_argument("--breathing", action="store_true", help="also the breathing animation")
+    ap.add_argument("--assumptions", action="store_true", help="also vary the crossing's inputs")
+    ap.add_argument("--markdown", type=Path, help="write the table here (e.g. docs/data/)")
     args = ap.parse_args(argv)
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
-    report = {}
-    for model in MODELS:
-        rest = run_scene(variant("fruit-rest", model, out, '\nregister = "translation"\n'), out)
-        entry = {
-            "table_i": [
-                {
-                    k: r.get(k)
-                    for k in ("label", "n", "register", "mean_mm", "std_mm", "mean_pct", "std_pct")
-                }
-                for r in _rows(rest)
-            ],
-            "bent_pad_max_shift": bent_pad_shift(model),
-            "threshold_gap_mm": threshold_gaps(rest / "skin" if model != "gaussian" else None),
-        }
-        if args.breathing:
-            root = run_scene(variant("fruit-breathing", model, out), out)
-            sens = json.loads((root / "sensitivity" / "sensitivity.json").read_text())
-            model_shift = np.array([t["max_shift_model"] for t in sens["taxels"]])
-            entry["breathing"] = {
-                "played_max_shift": sens["summary"]["max_shift"],
-                "model_max_shift": sens["summary"]["max_shift_model"],
-                "model_max_abs_shift": {
-                    "max": float(np.abs(model_shift).max()),
-                    "mean": float(np.abs(model_shift).mean()),
-                },
-            }
-        report[model] = entry
+    report = observe(out, args.assumptions)
     (out / "comparison.json").write_text(json.dumps(report, indent=2))
     print(json.dumps(report, indent=2))
+    if args.markdown:
+        from fruitcli.fsutil import write_text
 
-
-def _rows(root: Path) -> list[dict]:
-    summary = json.loads((root / "evaluate" / "summary.json").read_text())
-    return [{"label": label, **row} for label, row in summary.items()]
+        write_text(args.markdown, markdown(report))
+        print(f"wrote {args.markdown}")
 
 
 if __name__ == "__main__":
