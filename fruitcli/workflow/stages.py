@@ -233,6 +233,7 @@ def _simulate_run(scene, ctx, out_dir):
         progress=ctx.progress,
         tracks_csv=tracks_path(scene, ctx),
         limits_dir=ctx.dir("limits") if _limits_needed(scene)[0] else None,
+        taxels_source=None if tax is None else str(tax),
     )
 
 
