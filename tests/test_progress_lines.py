@@ -15,8 +15,7 @@ from tests.conftest import ROOT
 def test_state_line_names_its_figures_and_the_time_left():
     res = SimpleNamespace(iterations=1, solve_ms=2500.0, residual=4.9e-7)
     assert state_line(0, 3, [9000.0], res) == (
-        "state 1/3: equilibrium after 1 Newton iteration in 2.5 s "
-        "(relative force residual 4.9e-07)"
+        "state 1/3: equilibrium after 1 Newton iteration in 2.5 s (relative force residual 4.9e-07)"
     )
     # after the second state: the mean of the states after the first, times those left
     res = SimpleNamespace(iterations=4, solve_ms=3000.0, residual=1e-7)
