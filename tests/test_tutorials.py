@@ -52,7 +52,8 @@ def test_tutorial_1_as_written(fruit, tmp_path, monkeypatch):
     # "table.md gives the paper's row exactly: 29 samples at rest, 2.56 mm mean error
     # (1.7 % of 152 mm) and 1.28 mm standard deviation"; the deformed row 3.81 mm (2D)
     table = outputs["cat out/paper-table/evaluate/table.md"]
-    assert "| 29 |" in table and "2.56 (1.7 %) / 1.28" in table and "3.81" in table
+    assert "| Rest, small | 29 | 3D | none | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table
+    assert "| Deformed, small (top view) | 29 | top view (x, y) | none | 3.81 mm " in table
     # "--dry-run prints the plan: make-artist writes the default Fruit ..."; no FEM
     plan = _plan(outputs["fruit run rest/fruit-rest.toml --out out/fruit-rest --dry-run"])
     assert plan["make-artist"] == "run" and plan["tetra"] == "not needed"
