@@ -70,3 +70,12 @@ def test_a_compile_after_numba_is_imported_is_announced(tmp_path):
             env={"PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path)},
         )
         assert out.stdout.strip() == repr(expect)
+
+
+def test_time_left_at_the_rate_since_the_first_mark():
+    from fruitcli.time_left import time_left
+
+    assert time_left((10.0, 100), 300, 1000, now=14.0) == "; about 14 s left"  # 50/s
+    assert time_left(None, 300, 1000) == ""
+    assert time_left((10.0, 100), 100, 1000, now=14.0) == ""  # no rate yet
+    assert time_left((10.0, 100), 1000, 1000, now=14.0) == ""  # done

@@ -241,3 +241,18 @@ def test_a_scene_copied_elsewhere_keeps_the_stages_after_make_artist(tmp_path):
     assert (tmp_path / "rest" / "fruit_artist.ply").read_bytes() == (
         tmp_path / "out" / "scenes" / "fruit_artist.ply"
     ).read_bytes()
+
+
+def test_run_prints_the_plan_once(fruit, tmp_path):
+    """While running, a line per stage that runs or is reused; at the end the plan, with
+    the stages not needed, once."""
+    from tests.conftest import ROOT
+
+    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--out", tmp_path / "o")
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert [line for line in lines if "make-artist" in line] == [
+        "make-artist  not needed      no geometry: evaluation only"
+    ]
+    assert len([line for line in lines if "evaluate" in line]) == 2  # progress, plan
+    assert lines[-13] == f"paper-table: done -> {tmp_path / 'o'}/"
