@@ -7,7 +7,7 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
-from fruitcli.cli import compile_notice
+from fruitcli import compile_notice
 from fruitcli.fem.stage import state_line
 from tests.conftest import ROOT
 
@@ -52,7 +52,7 @@ def test_a_compile_after_numba_is_imported_is_announced(tmp_path):
     """In a fresh interpreter: the listener installed before numba's import hears a
     kernel compiled (no disk cache), and nothing when no kernel compiles."""
     code = (
-        "from fruitcli.cli import compile_notice as c\n"
+        "from fruitcli import compile_notice as c\n"
         "said = []\n"
         "c.install(said.append)\n"
         "import numba\n"

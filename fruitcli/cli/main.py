@@ -15,7 +15,7 @@ import warnings
 
 import click
 
-from fruitcli.cli import compile_notice
+from fruitcli import compile_notice
 
 # name -> (module, attribute, one-line help shown by `fruit --help`)
 COMMANDS: dict[str, tuple[str, str, str]] = {
