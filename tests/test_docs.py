@@ -376,3 +376,40 @@ def test_every_file_path_the_docs_name_exists():
     assert len(named) >= 10
     missing = sorted(p for p in named if not (ROOT / p).exists())
     assert missing == []
+
+
+def howto_commands() -> list[tuple[str, list[str]]]:
+    """(page, argv) of every `fruit` command in the how-to pages' code blocks (lines
+    continued with a backslash joined, comments dropped)."""
+    import shlex
+
+    found = []
+    for page in sorted((DOCS / "howto").glob("*.md")):
+        for block in re.findall(r"```(?:sh|shell)\n(.*?)```", page.read_text(), re.S):
+            for line in block.replace("\\\n", " ").splitlines():
+                argv = shlex.split(line, comments=True)
+                if argv and argv[0] == "fruit":
+                    found.append((page.name, argv[1:]))
+    return found
+
+
+def test_howto_commands_name_real_commands_and_options():
+    """The how-tos are templates (SCENE, T.csv, PORT stand for the reader's files), so
+    they are not run; every command and option they write exists, as the CLI spells it."""
+    import click
+
+    from fruitcli.cli.main import cli
+
+    cmds = howto_commands()
+    assert len(cmds) >= 15
+    ctx = click.Context(cli)
+    for page, argv in cmds:
+        cmd = cli.get_command(ctx, argv[0])
+        assert cmd is not None, (page, argv)
+        if isinstance(cmd, click.Group) and len(argv) > 1 and not argv[1].startswith("-"):
+            sub = cmd.get_command(ctx, argv[1])
+            cmd = sub if sub is not None else cmd
+        names = {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)}
+        for token in argv[1:]:
+            if token.startswith("--"):
+                assert token.split("=")[0] in names, (page, token)
