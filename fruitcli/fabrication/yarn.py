@@ -231,10 +231,10 @@ def follow_tracks(
     if far:
         progress(
             f"simulate: warning: {len(far)} of {len(tracks)} tracks of {source} (tracks "
-            f"{', '.join(map(str, far))}) have points off the body's surface: "
+            f"{', '.join(map(str, far))}) have points off the body: "
             f"{int((beyond > 0).sum())} of {len(pts)} points, up to {beyond.max():.2f} mm "
-            "beyond the mesh's own fit to it; they follow by extrapolation (check "
-            f"{source} or [mesh].size_mm)"
+            "farther outside the mesh than the surface it meshes; they follow by "
+            f"extrapolation (check {source} or [mesh].size_mm)"
         )
     rows, _, warnings = stretch_table(tracks, np.split(xs, cut, axis=1), max_stretch, pitch_mm)
     for msg in warnings:

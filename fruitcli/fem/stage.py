@@ -436,8 +436,9 @@ def run_simulate(
         for k in np.flatnonzero(beyond > 0):
             progress(
                 f"simulate: warning: taxel {k} (row {k + 1} of {where}) lies "
-                f"{beyond[k]:.2f} mm off the body's surface, beyond the mesh's own fit to "
-                f"it; it follows by extrapolation (check {where} or [mesh].size_mm)"
+                f"{beyond[k]:.2f} mm farther outside the mesh than the surface it meshes "
+                f"does: off the body; it follows by extrapolation (check {where} or "
+                "[mesh].size_mm)"
             )
         states_x = np.stack([r.x for r in results])
         out.update(

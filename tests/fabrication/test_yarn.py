@@ -185,8 +185,11 @@ def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
         model, [inside, above], model.rest[None], 0.25, 4.0, above_top, said.append, "t.csv"
     )
     assert [r[4] for r in rows] == pytest.approx([0.0, 0.0], abs=1e-9)
-    assert len(said) == 1 and "1 of 2 tracks of t.csv (tracks 1) have points off" in said[0]
-    assert "up to 0.50 mm beyond" in said[0] and "(check t.csv or [mesh].size_mm)" in said[0]
+    assert said == [
+        "simulate: warning: 1 of 2 tracks of t.csv (tracks 1) have points off the body: 1 "
+        "of 18 points, up to 0.50 mm farther outside the mesh than the surface it meshes; "
+        "they follow by extrapolation (check t.csv or [mesh].size_mm)"
+    ]
     assert summary["tracks_outside_mesh"] == [1] and summary["warnings"] == []
     assert summary["off_body_max_mm"] == pytest.approx(0.5)
 
