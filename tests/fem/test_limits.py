@@ -265,7 +265,7 @@ def test_progress_of_a_long_state(monkeypatch):
     assert told[0].startswith(
         "state 3: 50% of the load, Newton iteration 0, relative force residual "
     )
-    assert told[0].endswith(" (converged at 1e-06)")
+    assert told[0].endswith(" (tolerance 1e-06)")
     assert any(t.startswith("state 3: 100% of the load, Newton iteration 1, ") for t in told)
 
 

@@ -513,7 +513,7 @@ def _report(
         told[0] = now
         progress(
             f"{label}: {fraction:.0%} of the load, Newton iteration {iteration}, "
-            f"relative force residual {merit:.1e} (converged at {tolerance:.0e})"
+            f"relative force residual {merit:.1e} (tolerance {tolerance:.0e})"
         )
 
 
