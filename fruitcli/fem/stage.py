@@ -295,14 +295,15 @@ def state_line(i: int, total: int, solve_ms: list, res) -> str:
     return line
 
 
-def _off_body(mesh: dict, size_mm: float):
+def _off_body(mesh: dict):
     """off_body(points, outside) -> (t,) mm by which points outside the mesh lie beyond
     its boundary's own distance from the body's surface (`surface_fit`; a mesh.npz
-    written before tetra measured that distance allows none; `size_mm` the element
-    size): > 0 is off the body."""
+    written before tetra measured that distance allows none): > 0 is off the body."""
     deviation = float(mesh.get("surface_deviation_mm", 0.0))
     nodes = np.asarray(mesh["nodes"], float)
-    allowed = surface_fit.tolerance_mm(deviation, size_mm)
+    tris = np.asarray(mesh["surface_tris"])
+    edge = float(np.median(np.linalg.norm(nodes[tris[:, 1]] - nodes[tris[:, 0]], axis=1)))
+    allowed = surface_fit.tolerance_mm(deviation, edge)
 
     def off_body(points, outside):
         d = surface_fit.outside_mm(nodes, mesh["surface_tris"], points, outside)
@@ -427,7 +428,7 @@ def run_simulate(
         "subdivisions": np.array([r.subdivisions for r in results]),
         "min_det_f": np.array([r.min_det_f for r in results]),
     }
-    off_body = _off_body(mesh, float(scene.mesh.size_mm))
+    off_body = _off_body(mesh)
     if taxels_xyz is not None:
         taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
         tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)

@@ -17,10 +17,10 @@ from fruitcli.tables import read_taxels
 from fruitcli.workflow import planner
 
 
-def _off(scene, out, points):
+def _off(out, points):
     mesh = io.load_mesh(out / "tetra" / "mesh.npz")
     _, _, outside = locate(mesh["nodes"], mesh["tets"], points)
-    return _off_body(mesh, float(scene.mesh.size_mm))(points, outside)
+    return _off_body(mesh)(points, outside)
 
 
 @pytest.mark.slow
@@ -33,11 +33,11 @@ def test_bundled_taxels_and_tracks_lie_on_the_body(tmp_path, name, source):
     planner.run(scene, out, until="tetra")
     table = read_taxels(out / source / "taxels.csv")
     points = np.concatenate([t.points for t in read_tracks(out / source / "tracks.csv")])
-    assert not _off(scene, out, table.xyz_mm).any()
-    assert not _off(scene, out, points).any()
+    assert not _off(out, table.xyz_mm).any()
+    assert not _off(out, points).any()
     # the pad's taxels lie on its top face (z = thickness); the Fruit's file has normals
     normal = table.normals[0] if table.normals is not None else np.array([0.0, 0.0, 1.0])
-    assert _off(scene, out, table.xyz_mm[:1] + 2.0 * normal)[0] > 0.5
+    assert _off(out, table.xyz_mm[:1] + 2.0 * normal)[0] > 0.5
 
 
 def test_fruit_breathing_meshes_what_fruit_deformed_meshes(tmp_path):

@@ -20,8 +20,8 @@ MARGIN = 0.1
 (the deviation is measured at the surface's vertices and face centres, not everywhere)."""
 
 FLOOR = 1e-3
-"""...and up to FLOOR times the element size: a planar face, meshed exactly, still
-leaves points on it outside by rounding."""
+"""...and up to FLOOR times the boundary's edge length: a planar face, meshed exactly,
+still leaves points on it outside by rounding."""
 
 
 def deviation_mm(
@@ -41,9 +41,10 @@ def deviation_mm(
     return float(d.max()) if len(d) else 0.0
 
 
-def tolerance_mm(deviation: float, size_mm: float) -> float:
-    """How far outside the mesh a point on the meshed surface may lie (mm)."""
-    return (1.0 + MARGIN) * deviation + FLOOR * size_mm
+def tolerance_mm(deviation: float, edge_mm: float) -> float:
+    """How far outside the mesh a point on the meshed surface may lie (mm), for a mesh
+    whose boundary lies within `deviation` of it and has edges of about `edge_mm`."""
+    return (1.0 + MARGIN) * deviation + FLOOR * edge_mm
 
 
 def outside_mm(
