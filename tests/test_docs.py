@@ -312,12 +312,57 @@ def test_tutorial_commands_run(name, tmp_path):
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     for rel in EXPECTED[name]:
         assert (work / rel).is_file() and (work / rel).stat().st_size > 0, rel
+    made = {p.name for p in work.iterdir()}
+    for rel in named_paths(name):  # what the page's prose names among what it made
+        if rel.split("/")[0] in made:
+            assert (work / rel).exists(), rel
     if name == "fruit-to-table-1":
-        table = (work / "out" / "paper-table" / "evaluate" / "table.md").read_text()
-        assert "| Rest, small | 29 | 3D | none | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table
+        claims_of_tutorial_1(work, res.stdout, bin_dir / "fruit", env)
     if name == "installation":
         assert '"touches": [{"touch": 0' in (work / "touches.jsonl").read_text()
         assert " down 0 " in (work / "fruit.log").read_text()
+
+
+def named_paths(name: str) -> list[str]:
+    """Paths a tutorial's prose names in code spans (no placeholders such as <indenter>)."""
+    text = (DOCS / "tutorials" / f"{name}.md").read_text()
+    prose = re.sub(r"```.*?```", "", text, flags=re.S)
+    return [p for p in re.findall(r"`([^`\s]+)`", prose) if "/" in p and "<" not in p]
+
+
+def _plan(text: str) -> dict[str, str]:
+    """stage -> action of a printed plan (its lines `name  action  reason`)."""
+    return dict(re.findall(r"^([a-z-]+) +(run|reuse|not needed) ", text, re.M))
+
+
+def claims_of_tutorial_1(work: Path, stdout: str, fruit: Path, env: dict) -> None:
+    """What tutorial 1 says of its runs (a stage "reused" or "taken over" is one the
+    planner reports as reuse)."""
+    out = work / "out"
+    table = (out / "paper-table" / "evaluate" / "table.md").read_text()
+    # "29 samples at rest, 2.56 mm mean error (1.7 % of 152 mm) and 1.28 mm standard
+    # deviation"; "that row is a 2D error (3.81 mm)"
+    assert "| Rest, small | 29 | 3D | none | 2.56 mm (1.7 %) | 1.28 mm (0.8 %) |" in table
+    assert "| Deformed, small (top view) | 29 | top view (x, y) | none | 3.81 mm " in table
+    # "the 3D row has side.png too": the top view's has not
+    assert not (out / "paper-table/evaluate/deformed-small-top-view/side.png").exists()
+    # "--dry-run prints the plan: make-artist writes the default Fruit ...; there is no FEM"
+    dry = stdout.split("plan for rest/fruit-rest.toml -> out/fruit-rest/", 1)[1]
+    plan = _plan(dry.split("done ->", 1)[0])
+    assert plan["make-artist"] == "run" and plan["tetra"] == "not needed", dry
+    # "make-artist runs once more ... every other stage that ran above is reused"
+    report = (out / "report.md").read_text()
+    assert re.findall(r"^([a-z-]+) +run ", report, re.M) == ["make-artist"], report
+    # "Run the last command again: every stage is reused" (after the demo too)
+    again = subprocess.run(
+        [str(fruit), "run", "rest/fruit-rest.toml", "--out", "out/fruit-rest", "--dry-run"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert "run" not in _plan(again).values() and _plan(again)["bench"] == "reuse", again
 
 
 def test_every_file_path_the_docs_name_exists():
@@ -331,3 +376,40 @@ def test_every_file_path_the_docs_name_exists():
     assert len(named) >= 10
     missing = sorted(p for p in named if not (ROOT / p).exists())
     assert missing == []
+
+
+def howto_commands() -> list[tuple[str, list[str]]]:
+    """(page, argv) of every `fruit` command in the how-to pages' code blocks (lines
+    continued with a backslash joined, comments dropped)."""
+    import shlex
+
+    found = []
+    for page in sorted((DOCS / "howto").glob("*.md")):
+        for block in re.findall(r"```(?:sh|shell)\n(.*?)```", page.read_text(), re.S):
+            for line in block.replace("\\\n", " ").splitlines():
+                argv = shlex.split(line, comments=True)
+                if argv and argv[0] == "fruit":
+                    found.append((page.name, argv[1:]))
+    return found
+
+
+def test_howto_commands_name_real_commands_and_options():
+    """The how-tos are templates (SCENE, T.csv, PORT stand for the reader's files), so
+    they are not run; every command and option they write exists, as the CLI spells it."""
+    import click
+
+    from fruitcli.cli.main import cli
+
+    cmds = howto_commands()
+    assert len(cmds) >= 15
+    ctx = click.Context(cli)
+    for page, argv in cmds:
+        cmd = cli.get_command(ctx, argv[0])
+        assert cmd is not None, (page, argv)
+        if isinstance(cmd, click.Group) and len(argv) > 1 and not argv[1].startswith("-"):
+            sub = cmd.get_command(ctx, argv[1])
+            cmd = sub if sub is not None else cmd
+        names = {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)}
+        for token in argv[1:]:
+            if token.startswith("--"):
+                assert token.split("=")[0] in names, (page, token)

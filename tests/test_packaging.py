@@ -176,8 +176,8 @@ def test_lower_bounds_are_the_tested_versions():
 
 
 def test_metadata_is_ready_to_publish(wheel):
-    """License, classifiers, keywords; MKL (pypardiso) only in the extra `pardiso`; no
-    setuptools warning about a package missing from the configuration."""
+    """License, classifiers, keywords, project URLs; MKL (pypardiso) only in the extra
+    `pardiso`; no setuptools warning about a package missing from the configuration."""
     from email.parser import HeaderParser
 
     with zipfile.ZipFile(wheel) as z:
@@ -188,6 +188,8 @@ def test_metadata_is_ready_to_publish(wheel):
     classifiers = meta.get_all("Classifier")
     for system in ("MacOS", "Microsoft :: Windows", "POSIX :: Linux"):
         assert f"Operating System :: {system}" in classifiers
+    urls = [u.split(",")[0] for u in meta.get_all("Project-URL")]
+    assert urls == ["Documentation", "Source", "Issues", "Changelog"]
     requires = meta.get_all("Requires-Dist")
     assert 'pypardiso>=0.4.7; extra == "pardiso"' in requires
     assert [r for r in requires if r.startswith(("pypardiso", "mkl")) and "extra" not in r] == []

@@ -15,6 +15,8 @@ import warnings
 
 import click
 
+from fruitcli import compile_notice
+
 # name -> (module, attribute, one-line help shown by `fruit --help`)
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "run": ("fruitcli.cli.run", "run", "Run every stage a scene needs (planner, reuse)."),
@@ -167,6 +169,7 @@ def cli(ctx, verbose, quiet) -> None:
     ctx.ensure_object(dict)
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
+    compile_notice.silence(quiet)
     logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
 
 
@@ -219,6 +222,7 @@ def _main(argv: list[str] | None) -> None:
 
     if "-vv" not in (argv or sys.argv):
         warnings.showwarning = show_warning
+    compile_notice.install(lambda line: click.echo(line, err=True))
     try:
         return cli.main(args=argv, standalone_mode=False)
     except click.exceptions.Abort as exc:  # click turns Ctrl-C into Abort; EOF at a prompt too

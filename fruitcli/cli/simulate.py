@@ -115,7 +115,8 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
             solid = out_dir / "make-tracks" / "reduced.stl"
             tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
             if xyz is None:
-                xyz = read_taxels(out_dir / "make-tracks" / "taxels.csv").xyz_mm
+                taxel_csv = out_dir / "make-tracks" / "taxels.csv"
+                xyz = read_taxels(taxel_csv).xyz_mm
         elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
@@ -138,6 +139,7 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
                 vtu=vtu,
                 tracks_csv=tracks_csv,
                 pressures=None if table is None else dict(zip(names, table.T, strict=True)),
+                taxels_source=None if taxel_csv is None else str(taxel_csv),
             )
     click.echo(
         f"{out_dir / 'states.npz'}: {info['states']} state(s), Newton iterations "

@@ -209,32 +209,32 @@ def follow_tracks(
     states_x: np.ndarray,
     max_stretch: float,
     pitch_mm: float,
-    outside_warning: float,
+    off_body,
     progress,
+    source: str = "the tracks file",
 ) -> tuple[list, dict]:
     """The tracks through a solved FEM: every point located in the model's corner tets
     at rest and moved with the model's own shape functions (`model.map_points`, quadratic
-    on p2, as the taxels). states_x (s, n, 3) mm. Points outside the mesh by more than
-    `outside_warning` of an element's size are warned about in one line through
-    `progress`, and overstretched tracks one line each. Returns (rows for YARN_COLUMNS, summary)."""
+    on p2, as the taxels). states_x (s, n, 3) mm. `off_body(points, outside)` gives how
+    far (mm) each point lies beyond what the mesh's fit to the body's surface explains
+    (`outside`: barycentric, from `locate`); points with a positive value are warned
+    about in one line through `progress`, naming `source`, and overstretched tracks one
+    line each. Returns (rows for YARN_COLUMNS, summary)."""
     from fruitcli.fem.elements.barycentric import locate
 
     pts = np.concatenate([t.points for t in tracks])
     tet, w, outside = locate(model.rest, model.tets, pts)
     xs = model.map_points(tet, w, states_x)  # (s, p, 3)
     cut = np.cumsum([len(t.points) for t in tracks])[:-1]
-    far = [
-        t.track
-        for t, d in zip(tracks, np.split(outside, cut), strict=True)
-        if d.max() > outside_warning
-    ]
+    beyond = np.asarray(off_body(pts, outside), float)
+    far = [t.track for t, d in zip(tracks, np.split(beyond, cut), strict=True) if d.max() > 0]
     if far:
         progress(
-            f"simulate: warning: {len(far)} of {len(tracks)} tracks (tracks "
-            f"{', '.join(map(str, far))}) have points outside the mesh: "
-            f"{int((outside > outside_warning).sum())} of {len(pts)} points, up to "
-            f"{outside.max():.2f} of the nearest element's size; they follow by "
-            "extrapolation (check the tracks file or [mesh].size_mm)"
+            f"simulate: warning: {len(far)} of {len(tracks)} tracks of {source} (tracks "
+            f"{', '.join(map(str, far))}) have points off the body: "
+            f"{int((beyond > 0).sum())} of {len(pts)} points, up to {beyond.max():.2f} mm "
+            "farther outside the mesh than the surface it meshes; they follow by "
+            f"extrapolation (check {source} or [mesh].size_mm)"
         )
     rows, _, warnings = stretch_table(tracks, np.split(xs, cut, axis=1), max_stretch, pitch_mm)
     for msg in warnings:
@@ -251,6 +251,7 @@ def follow_tracks(
         "warnings": warnings,
         "tracks_outside_mesh": far,
         "outside_max": round(float(outside.max()), 3),
+        "off_body_max_mm": round(float(max(beyond.max(), 0.0)), 3),
     }
 
 

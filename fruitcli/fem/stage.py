@@ -26,7 +26,7 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
-from fruitcli.fem.meshing import estimate, shells, tetra
+from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
@@ -113,6 +113,13 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     )
     mesh = tetra.assemble_mesh(raw, [c["name"] for c in chambers], size, taxels_xyz)
     report = tetra.quality_report(mesh, mesh_cfg.min_quality)
+    # how far the straight-sided boundary lies from the surface it meshes (chord sag):
+    # points on that surface lie outside the mesh by up to this much (surface_fit)
+    deviation = surface_fit.deviation_mm(
+        outer["vertices"], outer["faces"], mesh["nodes"], mesh["surface_tris"]
+    )
+    mesh["surface_deviation_mm"] = np.float64(deviation)
+    report["surface_deviation_mm"] = round(deviation, 4)
     for k, ch in enumerate(chambers):
         if not np.any(mesh["chamber_tri_owner"] == k):
             raise MeshError(
@@ -127,7 +134,7 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
         )
     progress(
         f"tetra: {report['n_tets']} tets, {report['n_nodes']} nodes, "
-        f"SICN min {report['sicn_min']:.2f}"
+        f"SICN min {report['sicn_min']:.2f}, boundary within {deviation:.2f} mm of the surface"
     )
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "mesh.npz", mesh)
@@ -273,9 +280,36 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     )
 
 
-OUTSIDE_WARNING = 0.1
-"""A taxel outside every element by more than this fraction of the element's size (in
-barycentric terms) is warned about: its position is extrapolated."""
+def state_line(i: int, total: int, solve_ms: list, res) -> str:
+    """The progress line of state i (0-based) of `total` solved: its Newton iterations,
+    time and relative residual, and, after the second state, the time left at the mean
+    of the states after the first (the first, from rest, takes its own load steps)."""
+    n = res.iterations
+    line = (
+        f"state {i + 1}/{total}: equilibrium after {n} Newton iteration{'' if n == 1 else 's'}"
+        f" in {res.solve_ms / 1e3:.1f} s (relative force residual {res.residual:.1e})"
+    )
+    left = total - i - 1
+    if left and i >= 1:
+        line += f"; about {left * np.mean(solve_ms[1:]) / 1e3:.0f} s left for {left} more"
+    return line
+
+
+def _off_body(mesh: dict):
+    """off_body(points, outside) -> (t,) mm by which points outside the mesh lie beyond
+    its boundary's own distance from the body's surface (`surface_fit`; a mesh.npz
+    written before tetra measured that distance allows none): > 0 is off the body."""
+    deviation = float(mesh.get("surface_deviation_mm", 0.0))
+    nodes = np.asarray(mesh["nodes"], float)
+    tris = np.asarray(mesh["surface_tris"])
+    edge = float(np.median(np.linalg.norm(nodes[tris[:, 1]] - nodes[tris[:, 0]], axis=1)))
+    allowed = surface_fit.tolerance_mm(deviation, edge)
+
+    def off_body(points, outside):
+        d = surface_fit.outside_mm(nodes, mesh["surface_tris"], points, outside)
+        return np.where(d > allowed, d - allowed, 0.0)
+
+    return off_body
 
 
 def element_name(model) -> str:
@@ -315,6 +349,7 @@ def run_simulate(
     tracks_csv=None,
     pressures=None,
     limits_dir=None,
+    taxels_source: str | None = None,
 ) -> dict:
     """Solve every actuation state, or with `pressures` {chamber: (S,) kPa} those
     pressure vectors; write out_dir/states.npz (see module docstring), and
@@ -369,10 +404,7 @@ def run_simulate(
             limits.explain_failure(model, load, keys, solver, solver_options(scene), exc, progress)
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
-        progress(
-            f"state {i + 1}/{len(loads)}: {res.iterations} iterations, "
-            f"{res.solve_ms:.0f} ms, residual {res.residual:.1e}"
-        )
+        progress(state_line(i, len(loads), [r.solve_ms for r in results], res))
     out = {
         "model": np.array("full"),
         "rest_nodes": model.rest,
@@ -396,14 +428,18 @@ def run_simulate(
         "subdivisions": np.array([r.subdivisions for r in results]),
         "min_det_f": np.array([r.min_det_f for r in results]),
     }
+    off_body = _off_body(mesh)
     if taxels_xyz is not None:
         taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
         tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
-        for k in np.flatnonzero(outside > OUTSIDE_WARNING):
+        beyond = off_body(taxels, outside)
+        where = taxels_source or "the taxels"
+        for k in np.flatnonzero(beyond > 0):
             progress(
-                f"simulate: warning: taxel {k} (row {k + 1} of the taxels) lies outside "
-                f"the mesh by {outside[k]:.2f} of its nearest element's size; it follows "
-                "by extrapolation (check the grid or [mesh].size_mm)"
+                f"simulate: warning: taxel {k} (row {k + 1} of {where}) lies "
+                f"{beyond[k]:.2f} mm farther outside the mesh than the surface it meshes "
+                f"does: off the body; it follows by extrapolation (check {where} or "
+                "[mesh].size_mm)"
             )
         states_x = np.stack([r.x for r in results])
         out.update(
@@ -421,8 +457,9 @@ def run_simulate(
             np.stack([r.x for r in results]),
             tr.yarn_max_stretch,
             tr.zigzag_pitch_mm,
-            OUTSIDE_WARNING,
+            off_body,
             progress,
+            source=str(tracks_csv),
         )
     with staged_dir(out_dir) as tmp:
         io.save_npz(tmp / "states.npz", out)

@@ -32,6 +32,7 @@ from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording, open_recording
 from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
 from fruitcli.tables import Taxels, read_taxels
+from fruitcli.time_left import time_left
 
 if TYPE_CHECKING:
     from fruitcli.sensing.skin.crossing_heights import CrossingHeights
@@ -254,7 +255,7 @@ def run_locate(
         )
         t0 = time.perf_counter()
         baseline = locator.baseline(rec.read(0, settings.baseline_frames), where, len(rec))
-        sampled, done, shown = [], 0, t0
+        sampled, done, shown, first = [], 0, t0, None
         moved = [0, 0.0, 0.0]  # touches projected, sum and max of the distances (mm)
 
         def rows(table: TouchTable):  # in the worker thread
@@ -299,9 +300,14 @@ def run_locate(
                         max(moved[2], float(dist.max())),
                     ]
                 done = min(done + chunk_frames, len(rec))
+                if first is None:  # the rate is taken after the first chunk (compiles)
+                    first = (time.perf_counter(), done)
                 if time.perf_counter() - shown > 2.0:
                     shown = time.perf_counter()
-                    say(f"{done} of {len(rec)} frames, {out.rows} touches")
+                    say(
+                        f"{done} of {len(rec)} frames, {out.rows} touches"
+                        + time_left(first, done, len(rec))
+                    )
             rec.verify()  # the frames' CRC-32, before touches.csv appears
         dt = time.perf_counter() - t0
     result = {

@@ -15,6 +15,7 @@ import functools
 import hashlib
 import importlib
 import json
+import logging
 import os
 import shutil
 import tempfile
@@ -303,7 +304,8 @@ def run(
         needed, reason = stage.needed(scene)
         if not needed:
             done.append(Step(stage.name, "not needed", reason))
-            ctx.progress(f"{stage.name}: not needed ({reason})")
+            # the plan printed at the end says so; while running, only under -v
+            logging.getLogger(__name__).info(f"{stage.name}: not needed ({reason})")
             continue
         digest = fingerprint(stage, scene, ctx)
         ctx.hashes[stage.name] = digest

@@ -233,6 +233,7 @@ def _simulate_run(scene, ctx, out_dir):
         progress=ctx.progress,
         tracks_csv=tracks_path(scene, ctx),
         limits_dir=ctx.dir("limits") if _limits_needed(scene)[0] else None,
+        taxels_source=None if tax is None else str(tax),
     )
 
 
@@ -521,9 +522,10 @@ STAGES: list[Stage] = [
         [],
         "fruitcli.geometry.artist",
         _artist_needed,
-        # the path it writes (not a file it reads: hashing its content would change the
-        # hash once the mesh is written)
-        lambda s, c: {"artist": str(s.geometry.artist)},
+        # nothing but the code: the mesh it writes is the same wherever it goes, so a scene
+        # copied elsewhere (`fruit demo`'s OUT/scenes/) keeps every later stage's hash; a
+        # path without the file fails the outputs check and the stage runs again
+        no_inputs,
         _artist_run,
         lambda s: [str(s.geometry.artist)],
         reads=("geometry.generate_artist",),

@@ -166,7 +166,8 @@ def test_bad_tracks_file_is_one_line_naming_it(tmp_path, text, says):
 
 def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
     """On a model of linear tets at rest: no stretch; a track with a point 0.5 mm above a
-    plate of 0.5 mm elements is named in one warning line, the one inside is not."""
+    plate of 0.5 mm elements (exactly meshed: no point of its surface lies outside) is
+    named in one warning line with the file, the one inside is not."""
     from fruitcli.fem.corotational_model import Model
 
     nodes, tets = plate_tets(4.0, 2.0, 1.0, 0.5)
@@ -176,12 +177,21 @@ def test_follow_tracks_warns_of_points_outside_the_mesh_in_one_line():
     above = Track(1, "y", 1, inside.points + [0.0, 0.0, 0.0])
     above.points[4, 2] = 1.0
     said = []
+
+    def above_top(points, outside):  # mm above the plate's top face (z = 0.5)
+        return np.where(outside > 0, points[:, 2] - 0.5, 0.0)
+
     rows, summary = follow_tracks(
-        model, [inside, above], model.rest[None], 0.25, 4.0, 0.1, said.append
+        model, [inside, above], model.rest[None], 0.25, 4.0, above_top, said.append, "t.csv"
     )
     assert [r[4] for r in rows] == pytest.approx([0.0, 0.0], abs=1e-9)
-    assert len(said) == 1 and "1 of 2 tracks (tracks 1) have points outside" in said[0]
+    assert said == [
+        "simulate: warning: 1 of 2 tracks of t.csv (tracks 1) have points off the body: 1 "
+        "of 18 points, up to 0.50 mm farther outside the mesh than the surface it meshes; "
+        "they follow by extrapolation (check t.csv or [mesh].size_mm)"
+    ]
     assert summary["tracks_outside_mesh"] == [1] and summary["warnings"] == []
+    assert summary["off_body_max_mm"] == pytest.approx(0.5)
 
 
 # ------------------------------------------------------------------ through `fruit simulate`

@@ -262,8 +262,11 @@ def test_progress_of_a_long_state(monkeypatch):
         label="state 3",
         progress=told.append,
     )
-    assert told[0].startswith("state 3: load 0.500, Newton step 0, residual ")
-    assert any(t.startswith("state 3: load 1.000, Newton step 1, ") for t in told)
+    assert told[0].startswith(
+        "state 3: 50% of the load, Newton iteration 0, relative force residual "
+    )
+    assert told[0].endswith(" (tolerance 1e-06)")
+    assert any(t.startswith("state 3: 100% of the load, Newton iteration 1, ") for t in told)
 
 
 def test_c_library_output_is_caught(capfd):

@@ -240,16 +240,34 @@ pressure_kpa = {a = [0.0, 2.0, 4.0]}
     chamber = 4 / 3 * np.pi * 8 * 6 * 2.5
     assert vol == pytest.approx(40 * 30 * 10 - chamber, rel=0.01)
     assert mesh["surface_tri_tag"].sum() > 0  # base faces tagged
-    taxels = np.array([[0.0, 0.0, 10.0], [10.0, 5.0, 9.5], [-15.0, -10.0, 10.0]])
-    run_simulate(scene, tmp_path / "m" / "mesh.npz", taxels, tmp_path / "s", vtu=True)
+    # the box is meshed exactly: its boundary is its surface
+    assert q["surface_deviation_mm"] < 1e-9 and float(mesh["surface_deviation_mm"]) < 1e-9
+    # the last taxel 2 mm above the top face (z = 10): off the body, warned about once
+    taxels = np.array([[0.0, 0.0, 10.0], [10.0, 5.0, 9.5], [-15.0, -10.0, 10.0], [5.0, 5.0, 12.0]])
+    said = []
+    run_simulate(
+        scene,
+        tmp_path / "m" / "mesh.npz",
+        taxels,
+        tmp_path / "s",
+        vtu=True,
+        progress=said.append,
+        taxels_source="mine.csv",
+    )
+    warned = [m for m in said if "warning" in m]
+    assert len(warned) == 1 and warned[0].startswith(
+        "simulate: warning: taxel 3 (row 4 of mine.csv) lies 2.00 mm farther outside the mesh"
+    )
+    assert warned[0].endswith("(check mine.csv or [mesh].size_mm)")
+    taxels = taxels[:3]
     st = np.load(tmp_path / "s" / "states.npz", allow_pickle=False)
     n, s = len(st["rest_nodes"]), 3
     assert st["displacement_mm"].shape == (s, n, 3)
     assert st["pressure_kpa"].shape == (s, 1) and st["chamber_volume_mm3"].shape == (s, 1)
     assert st["chamber_names"].tolist() == ["a"] and st["chamber_names"].dtype.kind == "U"
-    assert st["taxels_mm"].shape == (s, 3, 3)
+    assert st["taxels_mm"].shape == (s, 4, 3)
     assert np.array_equal(st["displacement_mm"][0], np.zeros((n, 3)))
-    assert np.allclose(st["taxels_mm"][0], taxels, atol=1e-9)
+    assert np.allclose(st["taxels_mm"][0, :3], taxels, atol=1e-9)
     # the chamber grows with pressure and lifts the top above it
     assert (
         st["chamber_volume_mm3"][2, 0]

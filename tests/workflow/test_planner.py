@@ -216,3 +216,43 @@ def test_stage_code_hash_covers_the_packages_it_imports():
     } <= files
     files = {p.parent.name for p in planner.code_files("fruitcli.evaluation.report")}
     assert "fem" not in files and "evaluation" in files
+
+
+def test_a_scene_copied_elsewhere_keeps_the_stages_after_make_artist(tmp_path):
+    """`fruit demo` runs its own copy of a bundled scene (OUT/scenes/) into the folder a
+    tutorial's copy ran into: make-artist runs again only because its mesh is missing at
+    the new path, and the mesh it writes gives make-tracks the same hash as before."""
+    from fruitcli import bundled
+    from fruitcli.scene import load_scene
+
+    out = tmp_path / "out" / "fruit-rest"
+    first = load_scene(bundled.export_scene("fruit-rest", tmp_path / "rest"))
+    planner.run(first, out, until="make-artist")
+    second = load_scene(bundled.export_scene("fruit-rest", tmp_path / "out" / "scenes"))
+    moved = planner.plan(second, out, until="make-tracks")
+    assert [(s.stage, s.action) for s in moved] == [("make-artist", "run"), ("make-tracks", "run")]
+    assert "fruit_artist.ply is missing" in moved[0].reason
+    planner.run(second, out, until="make-artist")
+    again = planner.plan(first, out, until="make-tracks")
+    assert _actions(again)["make-artist"] == "reuse"
+    assert [s.hash for s in planner.plan(second, out, until="make-tracks")] == [
+        s.hash for s in again
+    ]
+    assert (tmp_path / "rest" / "fruit_artist.ply").read_bytes() == (
+        tmp_path / "out" / "scenes" / "fruit_artist.ply"
+    ).read_bytes()
+
+
+def test_run_prints_the_plan_once(fruit, tmp_path):
+    """While running, a line per stage that runs or is reused; at the end the plan, with
+    the stages not needed, once."""
+    from tests.conftest import ROOT
+
+    res = fruit("run", ROOT / "pipelines" / "paper-table.toml", "--out", tmp_path / "o")
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert [line for line in lines if "make-artist" in line] == [
+        "make-artist  not needed      no geometry: evaluation only"
+    ]
+    assert len([line for line in lines if "evaluate" in line]) == 2  # progress, plan
+    assert lines[-13] == f"paper-table: done -> {tmp_path / 'o'}/"

@@ -91,8 +91,8 @@ class OutOfTime(SolverError):
 
 
 PROGRESS_SECONDS = 2.0
-"""A state running longer than this reports where it is (load fraction, Newton step,
-residual) this often through `solve_state`'s `progress`."""
+"""A state running longer than this reports where it is (part of the load, Newton
+iteration, relative residual) this often through `solve_state`'s `progress`."""
 
 
 @dataclass
@@ -372,7 +372,9 @@ def solve_state(
         step = _Step(model, solver, step_load, ref)
         step.deadline = deadline
         if progress is not None:
-            step.report = functools.partial(_report, progress, told, label, t_new)
+            step.report = functools.partial(
+                _report, progress, told, label, t_new, options.tolerance
+            )
         try:
             ok, x_new, p_new, its, merit, det_f = _newton(step, x_try, p_try, options)
         except OutOfTime:
@@ -495,13 +497,24 @@ def _stage_out_of_time(label: str, options, at: str, exc: OutOfTime) -> OutOfTim
 
 
 def _report(
-    progress, told: list, label: str, fraction: float, iteration: int, merit: float
+    progress,
+    told: list,
+    label: str,
+    fraction: float,
+    tolerance: float,
+    iteration: int,
+    merit: float,
 ) -> None:
-    """Tell `progress` where the state is, at most every PROGRESS_SECONDS."""
+    """Tell `progress` where the state is, at most every PROGRESS_SECONDS: the part of
+    the load its load step goes to, the Newton iteration, and the residual force
+    relative to the step's load (converged at `tolerance`)."""
     now = time.perf_counter()
     if now - told[0] >= PROGRESS_SECONDS:
         told[0] = now
-        progress(f"{label}: load {fraction:.3f}, Newton step {iteration}, residual {merit:.1e}")
+        progress(
+            f"{label}: {fraction:.0%} of the load, Newton iteration {iteration}, "
+            f"relative force residual {merit:.1e} (tolerance {tolerance:.0e})"
+        )
 
 
 def _out_of_time(
