@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -154,3 +155,8 @@ def staged_dir(final: str | os.PathLike) -> Iterator[Path]:
                 os.replace(item, target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def slug(label: str) -> str:
+    """A file-system friendly version of a row label ('Rest, small' -> 'rest-small')."""
+    return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-") or "row"

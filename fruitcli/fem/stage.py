@@ -26,6 +26,7 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
+from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, tetra
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
@@ -229,7 +230,7 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     material = materials.from_scene(mat)
     element = scene.fem.element
     gravity = scene.gravity.vector_m_s2 if scene.has("gravity") else None
-    if material.model == "corotational":
+    if MATERIAL_MODELS[material.model].corotational:
         nodes = mesh["nodes"]
         fixed, moved = _fixed(scene, nodes)
         return Model.from_arrays(
@@ -292,7 +293,7 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
     steps = 1
     if first_state:
         steps = cfg.jig_steps if jig else 1
-        if materials.from_scene(scene.material).model != "corotational":
+        if not MATERIAL_MODELS[scene.material.model].corotational:
             steps = max(steps, cfg.first_steps)
     return SolverOptions(
         cfg.tolerance,
