@@ -326,7 +326,7 @@ def run_simulate(
     tracks_csv = scene.tracks.file or tracks_csv
     tracks = None
     if tracks_csv is not None:  # read before solving: a bad file fails fast
-        from fruitcli.fabrication import yarn
+        from fruitcli.fem import yarn
 
         tracks = yarn.read_tracks(tracks_csv)
     mesh = io.load_mesh(Path(mesh_npz))
