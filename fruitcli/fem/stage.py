@@ -279,11 +279,6 @@ OUTSIDE_WARNING = 0.1
 barycentric terms) is warned about: its position is extrapolated."""
 
 
-def element_name(model) -> str:
-    """[fem].element of a built model."""
-    return model.family.name if isinstance(model, ContinuumModel) else "p1"
-
-
 def solver_options(scene, first_state: bool = False, jig: bool = True) -> SolverOptions:
     """The scene's [solver] settings; the state solved from rest (`first_state`) takes
     `jig_steps` load steps under a jig, and at least `first_steps` with the hyperelastic
@@ -379,11 +374,9 @@ def run_simulate(
         "rest_nodes": model.rest,
         "tets": model.tets,
         "surface_tris": mesh["surface_tris"],
-        "element": np.array(element_name(model)),
-        "material_model": np.array(
-            model.material.model if hasattr(model, "material") else "corotational"
-        ),
-        "elements": getattr(model, "conn", model.tets),
+        "element": np.array(model.element_name),
+        "material_model": np.array(model.material_name),
+        "elements": model.elements,
         "displacement_mm": np.stack([r.displacement_mm for r in results]),
         "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(len(loads), -1),
         "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(
