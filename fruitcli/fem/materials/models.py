@@ -14,14 +14,12 @@ from dataclasses import dataclass
 class MaterialModel:
     """A material model: `corotational` when it is the paper's corotational Hooke model
     (solved by `fruitcli.fem.corotational_model`; else the hyperelastic
-    `fruitcli.fem.continuum`), `elements` the [fem].element values it runs on (empty: all),
-    `constants` the scene keys that set it."""
+    `fruitcli.fem.continuum`), `elements` the [fem].element values it runs on (empty: all)."""
 
     name: str
     doc: str
     corotational: bool = False
     elements: tuple[str, ...] = ()
-    constants: tuple[str, ...] = ("young_modulus_kpa", "poisson_ratio")
 
     def runs_on(self, element: str) -> bool:
         """Whether this model runs on [fem].element `element`."""
@@ -36,7 +34,6 @@ MATERIAL_MODELS: dict[str, MaterialModel] = {
             "yeoh",
             "Yeoh with its constants (c10_kpa, c20_kpa, c30_kpa; bulk modulus from "
             "bulk_modulus_kpa or E and nu)",
-            constants=("c10_kpa", "c20_kpa", "c30_kpa", "bulk_modulus_kpa"),
         ),
         MaterialModel(
             "corotational",

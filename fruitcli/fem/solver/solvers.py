@@ -11,18 +11,16 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class LinearSolver:
-    """A strategy for K_t dx = b: `factor_kept` when one factorization is kept across
-    Newton iterations and states (refreshed when CG falls behind)."""
+    """A strategy for K_t dx = b (see `linsolve`'s docstring for each)."""
 
     name: str
     doc: str
-    factor_kept: bool = False
 
 
 LINEAR_SOLVERS: dict[str, LinearSolver] = {
     s.name: s
     for s in (
-        LinearSolver("pcg", "CG preconditioned by a kept Cholesky factor (default)", True),
+        LinearSolver("pcg", "CG preconditioned by a kept Cholesky factor (default)"),
         LinearSolver("direct", "the tangent assembled and factorized at every iteration"),
         LinearSolver("jacobi", "CG with a Jacobi preconditioner, no factorization"),
     )
