@@ -80,3 +80,21 @@ def test_the_command_line_reads_each_table(command, option, table):
     params = {p.name: p for p in cli.get_command(click.Context(cli), command).params}
     choices = tuple(c for c in params[option].type.choices if c != "auto")
     assert choices == table
+
+
+def test_the_board_module_builds_no_scene_at_import():
+    """`sensing.frames.board` takes the [board] defaults from its table, not from a scene
+    built at import (a fresh interpreter counts the calls of `default_scene`)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import fruitcli.scene as s\n"
+        "calls = []\n"
+        "real = s.default_scene\n"
+        "s.default_scene = lambda: calls.append(1) or real()\n"
+        "import fruitcli.sensing.frames.board as b\n"
+        "print(len(calls), b.BOARD_ROWS, b.BOARD_COLS)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["0", "21", "12"]
