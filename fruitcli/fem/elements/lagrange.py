@@ -83,13 +83,13 @@ def tri_rule(degree: int) -> tuple[np.ndarray, np.ndarray]:
         return pts, np.full(3, 1.0 / 6.0)
     a, wa = 0.445948490915965, 0.223381589678011
     b, wb = 0.091576213509771, 0.109951743655322
-    pts = []
+    rows = []
     for s, _ in ((a, wa), (b, wb)):
         for k in range(3):
             p = np.full(3, s)
             p[k] = 1.0 - 2.0 * s
-            pts.append(p)
-    return np.array(pts), 0.5 * np.repeat([wa, wb], 3)
+            rows.append(p)
+    return np.array(rows), 0.5 * np.repeat([wa, wb], 3)
 
 
 @dataclass(frozen=True)
