@@ -121,10 +121,10 @@ def paragraph(text: str, lead: str) -> str:
 
 @dataclass(frozen=True)
 class Rule:
-    """What a package's modules may import: its own modules (`own`: the package and all
-    below it, or for `fruitcli` its top modules only), the listed names and all below them
-    (`names`), the modules directly in a listed package (`tops`), or, for "every package",
-    anything but `but`."""
+    """What a package's modules may import: the package's own modules (all below it; for
+    `fruitcli` its top modules only), the listed names and all below them (`names`), the
+    modules directly in a listed package (`tops`), or, for "every package", anything but
+    `but`."""
 
     package: str
     names: tuple[str, ...] = ()
@@ -181,7 +181,7 @@ def rules() -> dict[str, Rule]:
 
 
 def outside_the_rules(graph: dict[str, set[str]], rules: dict[str, Rule]) -> list[str]:
-    """ "module imports dep" for every import its package's rule does not allow."""
+    """One line "module imports dep" per import its package's rule does not allow."""
     bad = []
     for module, deps in sorted(graph.items()):
         package = module if is_package(module) else module.rpartition(".")[0]
