@@ -19,6 +19,7 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 lint: $(STAMP)
 	$(BIN)/ruff check fruitcli tests docs
 	$(BIN)/ruff format --check fruitcli tests docs
+	$(BIN)/mypy  # the modules [tool.mypy] in pyproject.toml lists
 
 test: $(STAMP) lint
 	MPLBACKEND=Agg $(BIN)/python -m pytest

@@ -5,8 +5,23 @@ Packages, each with its own docstring: `geometry` (meshes, make-tracks), `fabric
 (frames to touches in 3D, the skin model), `printer` (the printer bench), `evaluation`
 (error tables against ground truth), `studies` (runtime, stability and bench studies,
 sweeps), `workflow` (the planner and its stages), `cli` (one module per command).
-Shared by all: `errors`, `fsutil` (atomic writes), `tables` (CSV, npz, taxels), `scene`.
+
+Shared by all: `fruitcli.errors`, `fruitcli.fsutil` (atomic writes), `fruitcli.tables`
+(CSV, npz, taxels), `fruitcli.interrupts` (Ctrl-C), `fruitcli.memory` (memory estimates);
+they import only one another, and every module may import them.
+
+Tables of choices, one per variation point, each importing nothing of `fruitcli`, so that
+the scene schema (`scene`) and every module may read them:
+`fruitcli.sensing.detection.methods`, `fruitcli.sensing.skin.models`,
+`fruitcli.sensing.frames.formats`, `fruitcli.fem.materials.models`,
+`fruitcli.fem.elements.families`, `fruitcli.fem.solver.solvers`,
+`fruitcli.evaluation.registrations`, `fruitcli.geometry.mesh.units`.
+
+The top modules (the shared ones, `scene`, `bundled`, `bundled_files`, `output_folder`)
+May import: one another, the tables of choices and `fruitcli.fem.materials.build` (the
+scene's check of its [material], which imports only `fruitcli.errors` and a table).
 
 Imports run one way: `cli` uses `workflow`, which uses the packages of each stage;
-`tests/test_imports.py` checks the rules each package's docstring states.
+`tests/test_imports.py` reads the "May import" rule of each package's docstring and fails
+on any import outside it.
 """

@@ -11,9 +11,10 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 
@@ -68,7 +69,9 @@ def _json_default(obj):
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 
-def write_csv(path: str | os.PathLike, header: list[str], rows, comments: list[str] = ()) -> None:
+def write_csv(
+    path: str | os.PathLike, header: list[str], rows, comments: Sequence[str] = ()
+) -> None:
     """Write a CSV atomically; `comments` become leading `# ` lines (units, provenance)."""
     buf = io.StringIO()
     for line in comments:
@@ -105,7 +108,7 @@ def sweep_orphans(folder: Path, prefix: str) -> list[Path]:
     """Remove the temporary files and folders `prefix` + "<pid>-..." in `folder` whose
     process has ended (a run killed with SIGKILL leaves them); a live run's are left
     alone. Returns the entries removed."""
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
@@ -154,3 +157,8 @@ def staged_dir(final: str | os.PathLike) -> Iterator[Path]:
                 os.replace(item, target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def slug(label: str) -> str:
+    """A file-system friendly version of a row label ('Rest, small' -> 'rest-small')."""
+    return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-") or "row"

@@ -95,7 +95,7 @@ def claimed(
     the marker and the folders made here are removed again."""
     folder = Path(folder)
     check(folder, option)
-    made = []
+    made: list[Path] = []
     for parent in reversed([folder, *folder.parents]):
         if not parent.exists():
             try:

@@ -25,12 +25,17 @@ from pathlib import Path
 from typing import Any
 
 from fruitcli.errors import FruitError, SceneError, echo
-from fruitcli.evaluation.register import METHODS as REGISTER_METHODS
-from fruitcli.fem.elements.lagrange import ELEMENTS
-from fruitcli.fem.materials.build import MATERIAL_MODELS, from_scene
-from fruitcli.geometry.mesh.load import MAX_EXTENT_MM, UNIT_TO_MM
+from fruitcli.evaluation.registrations import REGISTRATIONS
+from fruitcli.fem.elements.families import ELEMENT_FAMILIES
+from fruitcli.fem.materials.build import from_scene
+from fruitcli.fem.materials.models import MATERIAL_MODELS
+from fruitcli.fem.solver.solvers import LINEAR_SOLVERS
+from fruitcli.fsutil import slug
+from fruitcli.geometry.mesh.units import MAX_EXTENT_MM, UNIT_TO_MM
 from fruitcli.sensing.detection.methods import METHODS as DETECTION_METHODS
 from fruitcli.sensing.detection.methods import method_help
+from fruitcli.sensing.frames.formats import BOARD_COLS, BOARD_FORMATS, BOARD_ROWS
+from fruitcli.sensing.skin.models import SKIN_MODELS
 
 NUM = (int, float)
 
@@ -146,11 +151,6 @@ def _nonzero_vector(v: list[float]) -> bool:
     return math.hypot(*v) != 0
 
 
-SKIN_MODELS = ("gaussian", "electrostatic")
-"""[skin].model values: the assumed skin (`fruitcli.sensing.skin.forward`) or the computed
-crossing (`fruitcli.electrostatics`)."""
-
-
 def _gap_table(gaps) -> bool:
     """At least two finite gaps (mm), increasing from 0 (contact)."""
     return (
@@ -165,13 +165,6 @@ def _gap_table(gaps) -> bool:
 def _nonempty_box(box: list[float]) -> bool:
     return all(box[a] < box[a + 3] for a in range(3))
 
-
-BOARD_FORMATS = ("ascii", "binary")
-"""The stock MuCa firmware's two frame formats: Muca_Raw's ASCII lines and SendRawByte's
-binary packets (`fruitcli.sensing.frames.muca`); readers also take "auto"."""
-
-LINEAR_SOLVERS = ("pcg", "direct", "jacobi")
-"""[solver].linear_solver values (see `fruitcli.fem.solver.linsolve`)."""
 
 # Sections that are tables (one per scene).
 SCHEMA: dict[str, dict[str, Key]] = {
@@ -363,7 +356,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "p2 (quadratic tets, P2/P0 mean dilatation: no locking), "
             "p2-pure (quadratic, displacement only) or p1 (linear tets, the "
             "paper's SOFA element)",
-            choices=tuple(ELEMENTS),
+            choices=tuple(ELEMENT_FAMILIES),
         ),
     },
     "material": {
@@ -372,7 +365,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "neo-hookean",
             "neo-hookean (from E and nu), yeoh (c10_kpa, "
             "c20_kpa, c30_kpa) or corotational (the paper's SOFA Hooke, p1 only)",
-            choices=MATERIAL_MODELS,
+            choices=tuple(MATERIAL_MODELS),
         ),
         "c10_kpa": Key(
             "num",
@@ -463,7 +456,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "max_iterations": Key("int", 25, "Newton iterations per load step", min=1, max=1000),
         "max_subdivisions": Key("int", 6, "times a failing load step may be halved", min=0, max=30),
         "linear_solver": Key(
-            "str", "pcg", "pcg (CG on a kept Cholesky), direct or jacobi", choices=LINEAR_SOLVERS
+            "str",
+            "pcg",
+            "pcg (CG on a kept Cholesky), direct or jacobi",
+            choices=tuple(LINEAR_SOLVERS),
         ),
         "jig_steps": Key("int", 1, "load steps to apply the jig rotation", min=1, max=10_000),
         "first_steps": Key(
@@ -513,9 +509,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "board": {
         "rows": Key(
-            "int", 21, "frame rows (Tx lines of the FocalTech FT5316, MuCa)", min=1, max=1024
+            "int",
+            BOARD_ROWS,
+            "frame rows (Tx lines of the FocalTech FT5316, MuCa)",
+            min=1,
+            max=1024,
         ),
-        "cols": Key("int", 12, "frame columns (Rx lines)", min=1, max=1024),
+        "cols": Key("int", BOARD_COLS, "frame columns (Rx lines)", min=1, max=1024),
         "offset_i": Key("int", 0, "frame row of taxel i = 0", min=0, max=1023),
         "offset_j": Key("int", 0, "frame column of taxel j = 0", min=0, max=1023),
         "flip_i": Key("bool", False, "taxel i counts down the frame rows"),
@@ -658,7 +658,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "none",
             "registration of the bench rows: none, translation, "
             "rigid or similarity (see [[evaluate]].register)",
-            choices=REGISTER_METHODS,
+            choices=tuple(REGISTRATIONS),
         ),
     },
     "skin": {  # the skin's forward model (fruitcli.sensing.skin.forward); defaults: its assumptions
@@ -709,7 +709,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "gaussian",
             "gaussian (the assumed footprint, gap decay and strain "
             "gain above) or electrostatic (the crossing's field)",
-            choices=SKIN_MODELS,
+            choices=tuple(SKIN_MODELS),
         ),
         "permittivity": Key(
             "num",
@@ -895,7 +895,7 @@ ARRAY_SCHEMA: dict[str, dict[str, Key]] = {
             "none",
             "none, translation (the paper's protocol), rigid or "
             "similarity: measurement mapped onto the truth first",
-            choices=REGISTER_METHODS,
+            choices=tuple(REGISTRATIONS),
         ),
     },
 }
@@ -1333,8 +1333,6 @@ def parse_scene(text: str, path: Path, must_exist: bool = True) -> Scene:
 def _one_folder_per_row(scene: Scene, where: str) -> None:
     """Each bench indenter once, and each evaluation row (an [[evaluate]] label, or
     "<configuration>, <indenter>" of the bench) with a folder name of its own."""
-    from fruitcli.evaluation.report import slug
-
     rows = [(ev.label, "[[evaluate]].label") for ev in scene.evaluate]
     if scene.has("bench"):
         names = list(scene.bench.indenters)
@@ -1395,7 +1393,7 @@ def _cross_checks(scene: Scene, where: str, must_exist: bool) -> None:
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
     element = scene.fem.element
-    if material.model == "corotational" and element != "p1":
+    if not MATERIAL_MODELS[material.model].runs_on(element):
         raise SceneError(
             f'{where}: [material].model = "corotational" is the paper\'s SOFA '
             f'model on linear tets: set [fem].element = "p1" (got '

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from fruitcli.cli.options import FiniteFloat, fruit_errors, out_option
+from fruitcli.evaluation.registrations import REGISTRATIONS
 
 
 @click.command()
@@ -31,7 +32,7 @@ from fruitcli.cli.options import FiniteFloat, fruit_errors, out_option
 @click.option("--label", default="result", show_default=True, help="Row label, e.g. 'Rest, small'.")
 @click.option(
     "--register",
-    type=click.Choice(["none", "translation", "rigid", "similarity"]),
+    type=click.Choice(list(REGISTRATIONS)),
     default="none",
     show_default=True,
     help="Map the measurement onto the truth before the errors are taken: "

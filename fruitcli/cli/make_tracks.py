@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from fruitcli.cli.options import FiniteFloat, Progress, fruit_errors, out_option
+from fruitcli.geometry.mesh.units import UNIT_TO_MM
 from fruitcli.scene import MAX_FACES
 
 
@@ -17,7 +18,7 @@ from fruitcli.scene import MAX_FACES
 )
 @click.option(
     "--unit",
-    type=click.Choice(["mm", "cm", "m"]),
+    type=click.Choice(list(UNIT_TO_MM)),
     default=None,
     help="Unit of the mesh file (default: mm; read in mm, a mesh under 2 mm across "
     "is refused as being in m or cm).",

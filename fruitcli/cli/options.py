@@ -213,7 +213,7 @@ def states_option(follows: str) -> Callable[[FC], FC]:
 def format_option(*, default: str | None, auto: bool = True, what: str = "") -> Callable[[FC], FC]:
     """``--format``: the board's frame format (stock Muca_Raw ASCII lines or SendRawByte
     binary packets); `auto` adds auto-detection; `what` says what it applies to."""
-    from fruitcli.scene import BOARD_FORMATS
+    from fruitcli.sensing.frames.formats import BOARD_FORMATS
 
     choices = (["auto"] if auto else []) + list(BOARD_FORMATS)
     if default is None:

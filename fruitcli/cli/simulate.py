@@ -103,7 +103,7 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
         xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
         tracks_csv = sc.tracks.file
         if tracks_csv is not None:
-            from fruitcli.fabrication.yarn import read_tracks
+            from fruitcli.fem.yarn import read_tracks
 
             read_tracks(tracks_csv)
         if solid is None and geo.artist is not None:

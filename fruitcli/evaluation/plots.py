@@ -31,7 +31,7 @@ def pairs(
         title = f"{title} ({PLOT_MAX_PAIRS} of {len(truth)} pairs)" if title else title
         truth, measured = truth[keep], measured[keep]
     segments = np.stack([truth[:, [a, b]], measured[:, [a, b]]], axis=1)
-    ax.add_collection(LineCollection(segments, colors="black", linewidths=0.8, zorder=1))
+    ax.add_collection(LineCollection(list(segments), colors="black", linewidths=0.8, zorder=1))
     ax.scatter(
         truth[:, a], truth[:, b], marker="s", color="red", s=22, label="Ground truth", zorder=2
     )

@@ -21,10 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from fruitcli.errors import EvaluationError
+from fruitcli.evaluation.registrations import REGISTRATIONS
 
-METHODS = ("none", "translation", "rigid", "similarity")
-METHODS_2D = ("none", "translation")
-MIN_SAMPLES = {"none": 0, "translation": 1, "rigid": 3, "similarity": 3}
+METHODS = tuple(REGISTRATIONS)
+METHODS_2D = tuple(r.name for r in REGISTRATIONS.values() if r.top_view)
+MIN_SAMPLES = {r.name: r.min_samples for r in REGISTRATIONS.values()}
 COLLINEAR_RATIO = 1e-9
 """A point set whose second singular value (centred) is below this fraction of the first
 lies on one line: its rotation about that line is undetermined."""

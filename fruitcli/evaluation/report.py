@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 
 from fruitcli.evaluation.metrics import match, read_points, summarize
 from fruitcli.evaluation.plots import save_pair_views
-from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+from fruitcli.fsutil import slug, staged_dir, write_csv, write_json, write_text
 
 TABLE_HEADER = [
     "label",
@@ -53,11 +52,6 @@ SUMMARY_KEYS = [
     "transform_text",
     "compare",
 ]
-
-
-def slug(label: str) -> str:
-    """A file-system friendly version of a row label ('Rest, small' -> 'rest-small')."""
-    return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-") or "row"
 
 
 def evaluate_pair(

@@ -80,12 +80,12 @@ class Mold:
     piece: str
     parts: dict = field(default_factory=dict)
     pull: dict = field(default_factory=dict)  # part -> unit pull direction or None
-    silicone: object = None  # the cast piece (piece - cores)
+    silicone: mf.Manifold = None  # the cast piece (piece - cores)
     pour_mm: list = field(default_factory=list)
     vents_mm: list = field(default_factory=list)
     box_mm: list = field(default_factory=list)
     cores: list = field(default_factory=list)
-    channels: object = None  # pour hole and vents (Manifold)
+    channels: mf.Manifold = None  # pour hole and vents
 
 
 def box(lo, hi) -> mf.Manifold:

@@ -150,6 +150,19 @@ class ContinuumModel:
         return self.conn[:, :4]
 
     @property
+    def elements(self) -> np.ndarray:
+        """(m, nodes per tet) nodes of each element."""
+        return self.conn
+
+    @property
+    def element_name(self) -> str:
+        return self.family.name
+
+    @property
+    def material_name(self) -> str:
+        return self.material.model
+
+    @property
     def young_modulus_kpa(self) -> float:
         return self.material.young_modulus_kpa
 

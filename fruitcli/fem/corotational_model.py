@@ -130,7 +130,16 @@ def prescribed_dofs(prescribed) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class Model:
-    """A body ready to solve. Build it with `Model.from_arrays`."""
+    """A body ready to solve (a `fem_model.FemModel`): the paper's corotational Hooke
+    model on linear tets. Build it with `Model.from_arrays`."""
+
+    element_name = "p1"
+    material_name = "corotational"
+    escalate_on_damping = True
+    """Newton takes the next, safer tangent after a damped step."""
+    secant_while_rotating = True
+    dilatation_step = 0.0
+    """No limit on an element's volume change per Newton step."""
 
     rest: np.ndarray
     tets: np.ndarray
@@ -155,6 +164,15 @@ class Model:
     @property
     def n_nodes(self) -> int:
         return len(self.rest)
+
+    @property
+    def elements(self) -> np.ndarray:
+        """(m, 4) nodes of each element: the linear tets."""
+        return self.tets
+
+    def bulk_stages(self) -> list[float]:
+        """None: the corotational model is solved at its own bulk modulus from rest."""
+        return []
 
     @classmethod
     def from_arrays(

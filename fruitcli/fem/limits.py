@@ -27,6 +27,7 @@ import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
 
 TOGETHER = "together"
@@ -81,7 +82,7 @@ class ChamberCurve:
     failed: bool = False  # the curve ended without equilibrium at its next sample
 
 
-def chamber_load(model, k: int, growth_mm3: float) -> Load:
+def chamber_load(model: FemModel, k: int, growth_mm3: float) -> Load:
     """Chamber k held at rest volume + growth_mm3, the other chambers at pressure 0;
     gravity and jigs as in the scene's states (full)."""
     n = len(model.chamber_tris)
@@ -103,7 +104,7 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
     return s_top, float(np.polyval([a, b, c], s_top))
 
 
-def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -> float:
+def levels_off_below(model: FemModel, pressure: np.ndarray, stretch: float, step: float) -> float:
     """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
     MAX_STRETCH, from its samples so far (the last at mean stretch `stretch`, `step`
     apart): once its increments shrink (the curve is concave in the stretch, as before a
@@ -111,8 +112,7 @@ def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -
     slope from there on, so the curve stays below the secant continued to MAX_STRETCH.
     Infinite with fewer than three samples, increments that do not shrink, or another
     material (Yeoh's stiffening can bend the curve up again)."""
-    material = getattr(model, "material", None)
-    if material is None or material.model != "neo-hookean" or len(pressure) < 3:
+    if model.material_name != "neo-hookean" or len(pressure) < 3:
         return np.inf
     d1, d2 = pressure[-2] - pressure[-3], pressure[-1] - pressure[-2]
     if not 0 < d2 < d1:
@@ -120,7 +120,7 @@ def levels_off_below(model, pressure: np.ndarray, stretch: float, step: float) -
     return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
 
 
-def ratio_of(model, k) -> np.ndarray:
+def ratio_of(model: FemModel, k) -> np.ndarray:
     """(K,) pressure ratios of a curve: chamber k alone (an int), or the given ratios
     scaled to a largest of 1."""
     if isinstance(k, (int, np.integer)):
@@ -532,7 +532,7 @@ def explain_failure(
     raise error
 
 
-def check_growth(model, loads: list[Load]) -> None:
+def check_growth(model: FemModel, loads: list[Load]) -> None:
     """Refuse, with one SceneError line, a volume growth that would take a chamber to no
     volume or less (growth <= -V0)."""
     v0 = model.chamber_rest_volume_mm3

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fruitcli.fem import io, limits
-from fruitcli.fem.stage import build_model, element_name, solver_options, state_loads
+from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 if TYPE_CHECKING:
@@ -84,7 +84,7 @@ def _write_limits(out_dir, model, t0: float, chambers, together, rows, curves) -
     info = {
         "chambers": chambers,
         "together": together,
-        "element": element_name(model),
+        "element": model.element_name,
         "mesh": {"nodes": int(model.n_nodes), "elements": int(len(model.tets))},
         "seconds": round(time.perf_counter() - t0, 2),
     }

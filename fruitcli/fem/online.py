@@ -18,7 +18,8 @@ import numba
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
 MIN_CHANGE_KPA = 0.05
@@ -34,7 +35,7 @@ class OnlineSolver:
 
     def __init__(
         self,
-        model: Model,
+        model: FemModel,
         taxel_tet: np.ndarray,
         taxel_bary: np.ndarray,
         options: SolverOptions,

@@ -26,6 +26,7 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
+from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
 from fruitcli.fem.units import spring_mn_per_mm
@@ -236,7 +237,7 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     material = materials.from_scene(mat)
     element = scene.fem.element
     gravity = scene.gravity.vector_m_s2 if scene.has("gravity") else None
-    if material.model == "corotational":
+    if MATERIAL_MODELS[material.model].corotational:
         nodes = mesh["nodes"]
         fixed, moved = _fixed(scene, nodes)
         return Model.from_arrays(
@@ -312,11 +313,6 @@ def _off_body(mesh: dict):
     return off_body
 
 
-def element_name(model) -> str:
-    """[fem].element of a built model."""
-    return model.family.name if isinstance(model, ContinuumModel) else "p1"
-
-
 def solver_options(scene, first_state: bool = False, jig: bool = True) -> SolverOptions:
     """The scene's [solver] settings; the state solved from rest (`first_state`) takes
     `jig_steps` load steps under a jig, and at least `first_steps` with the hyperelastic
@@ -326,7 +322,7 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
     steps = 1
     if first_state:
         steps = cfg.jig_steps if jig else 1
-        if materials.from_scene(scene.material).model != "corotational":
+        if not MATERIAL_MODELS[scene.material.model].corotational:
             steps = max(steps, cfg.first_steps)
     return SolverOptions(
         cfg.tolerance,
@@ -360,7 +356,7 @@ def run_simulate(
     tracks_csv = scene.tracks.file or tracks_csv
     tracks = None
     if tracks_csv is not None:  # read before solving: a bad file fails fast
-        from fruitcli.fabrication import yarn
+        from fruitcli.fem import yarn
 
         tracks = yarn.read_tracks(tracks_csv)
     mesh = io.load_mesh(Path(mesh_npz))
@@ -410,11 +406,9 @@ def run_simulate(
         "rest_nodes": model.rest,
         "tets": model.tets,
         "surface_tris": mesh["surface_tris"],
-        "element": np.array(element_name(model)),
-        "material_model": np.array(
-            model.material.model if hasattr(model, "material") else "corotational"
-        ),
-        "elements": getattr(model, "conn", model.tets),
+        "element": np.array(model.element_name),
+        "material_model": np.array(model.material_name),
+        "elements": model.elements,
         "displacement_mm": np.stack([r.displacement_mm for r in results]),
         "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(len(loads), -1),
         "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(

@@ -1,15 +1,13 @@
 """Sensing: from raw CDC frames to touches in 3D, and the skin model behind the virtual bench.
 
-Sub-packages, by concept (each may import only those listed before it, plus
-`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`, `fruitcli.geometry`,
-`fruitcli.fem` and `fruitcli.scene`, whose typed sections they read):
+Sub-packages, by concept (each states what it may import in its own docstring):
 
 - `frames`: the board (21 x 12 cells, taxel <-> cell), its stock firmware's formats and
   recordings of frames (`.npz`, MuCa ASCII logs), read whole or chunk by chunk.
-- `detection`: baseline, threshold, N9 centroid, multitouch (paper Sec. III-B), 3D
-  location (eq. 7), baseline drift, touch sessions, taxel health, gain division.
-- `shape`: a touch's strength, size and hover height, and two footprints fitted to
-  separate fingers close together.
+- `detection`: baseline, threshold, N9 centroid, multitouch (paper Sec. III-B), two
+  footprints fitted to separate fingers close together, 3D location (eq. 7), baseline
+  drift, touch sessions, taxel health, gain division.
+- `shape`: a touch's strength, size and hover height.
 - `skin`: the skin's forward model, the virtual 3D-printer bench, its calibration,
   sensitivity analysis and heat maps.
 - `outputs`: where touches go: touches CSV, TUIO 1.1 and plain OSC, the live view.
@@ -17,4 +15,6 @@ Sub-packages, by concept (each may import only those listed before it, plus
   log, an emulated board on a pseudo-terminal.
 
 `stages` holds the sensing stages as file-to-file functions (locate, bench, sensitivity).
+May import: the sub-packages above, `fruitcli.geometry`, `fruitcli.fem`,
+`fruitcli.electrostatics`, `fruitcli.scene`; never `fruitcli.workflow` or `fruitcli.cli`.
 """

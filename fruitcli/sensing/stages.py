@@ -31,6 +31,7 @@ from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording, open_recording
 from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
+from fruitcli.sensing.skin.models import SKIN_MODELS
 from fruitcli.tables import Taxels, read_taxels
 from fruitcli.time_left import time_left
 
@@ -416,7 +417,7 @@ def _sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
 def electrostatic_skin(scene, crossing_dir, progress=None) -> CrossingSkin | None:
     """The crossing's table in counts with ``[skin].model = "electrostatic"`` (from
     `crossing_dir`, the skin stage's folder, or computed now without one), else None."""
-    if _or_defaults(scene).skin.model != "electrostatic":
+    if not SKIN_MODELS[_or_defaults(scene).skin.model].computed:
         return None
     from fruitcli.sensing.skin.crossing_skin import crossing_skin
 

@@ -68,13 +68,20 @@ def _code_hash(module: str) -> str:
     return file_hash_many(code_files(module))
 
 
+def _folder_of(module: str) -> Path:
+    """The folder of an imported module's source file."""
+    file = importlib.import_module(module).__file__
+    if file is None:  # a namespace package: no file of its own
+        raise ImportError(f"{module}: no source file to hash")
+    return Path(file).parent
+
+
 def code_files(module: str) -> list[Path]:
     """The source files `_code_hash` covers for `module` (sorted)."""
     import re
 
     root = module.split(".")[0]
-    pkg_dir = Path(importlib.import_module(module).__file__).parent
-    top = Path(importlib.import_module(root).__file__).parent
+    pkg_dir, top = _folder_of(module), _folder_of(root)
     files = set(pkg_dir.rglob("*.py"))  # with its subpackages (fem/elements, ...)
     pattern = re.compile(rf"^\s*(?:from|import)\s+{root}\.(\w+)", re.MULTILINE)
     for name in {m for f in list(files) for m in pattern.findall(f.read_text())}:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from fruitcli.scene import Scene, gravity_left_out, has_deformation, has_gravity, n_states
+from fruitcli.sensing.skin.models import SKIN_MODELS
 from fruitcli.workflow.stage_types import Context, Stage
 
 
@@ -343,7 +344,8 @@ def reduced_path(scene: Scene, ctx: Context) -> Path:
 
 # ----------------------------------------------------------------------------- skin
 def electrostatic(scene: Scene) -> bool:
-    return scene.skin.model == "electrostatic"
+    """Whether the scene's skin is the computed crossing's (`skin.models.SkinModel.computed`)."""
+    return SKIN_MODELS[scene.skin.model].computed
 
 
 def _skin_needed(scene):

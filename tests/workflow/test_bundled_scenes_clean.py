@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fruitcli import bundled
-from fruitcli.fabrication.yarn import read_tracks
+from fruitcli.fem.yarn import read_tracks
 from fruitcli.fem import io
 from fruitcli.fem.elements.barycentric import locate
 from fruitcli.fem.stage import _off_body

@@ -8,9 +8,11 @@ Node order (VTK's): corners 0-3, then the edges (0,1), (1,2), (0,2), (0,3), (1,3
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
+
+from fruitcli.fem.elements.families import ELEMENT_FAMILIES, ElementFamily
 
 TET10_EDGES = np.array([[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]])
 TRI6_EDGES = np.array([[0, 1], [1, 2], [2, 0]])
@@ -81,28 +83,19 @@ def tri_rule(degree: int) -> tuple[np.ndarray, np.ndarray]:
         return pts, np.full(3, 1.0 / 6.0)
     a, wa = 0.445948490915965, 0.223381589678011
     b, wb = 0.091576213509771, 0.109951743655322
-    pts = []
+    rows = []
     for s, _ in ((a, wa), (b, wb)):
         for k in range(3):
             p = np.full(3, s)
             p[k] = 1.0 - 2.0 * s
-            pts.append(p)
-    return np.array(pts), 0.5 * np.repeat([wa, wb], 3)
+            rows.append(p)
+    return np.array(rows), 0.5 * np.repeat([wa, wb], 3)
 
 
 @dataclass(frozen=True)
-class Family:
-    """An element family: `order` 1 (linear) or 2 (quadratic) Lagrange tets, with the
-    volume rule for stiffness and the surface rule for cavity volumes."""
-
-    name: str
-    order: int
-    nodes_per_tet: int
-    nodes_per_tri: int
-    volume_degree: int
-    surface_degree: int
-    mean_dilatation: bool
-    doc: str
+class Family(ElementFamily):
+    """An element family (`families.ElementFamily`) with its quadrature rules: the volume
+    rule for stiffness and the surface rule for cavity volumes."""
 
     def volume_rule(self) -> tuple[np.ndarray, np.ndarray]:
         return tet_rule(self.volume_degree)
@@ -111,31 +104,8 @@ class Family:
         return tri_rule(self.surface_degree)
 
 
-ELEMENTS = {
-    "p2": Family(
-        "p2",
-        2,
-        10,
-        6,
-        2,
-        4,
-        True,
-        "quadratic tets (10 nodes), curved on analytic chambers, with the volume "
-        "change constant per element (P2/P0 mean dilatation: no volumetric locking)",
-    ),
-    "p2-pure": Family(
-        "p2-pure",
-        2,
-        10,
-        6,
-        2,
-        4,
-        False,
-        "quadratic tets, displacement only (locks as nu -> 0.5; for comparison)",
-    ),
-    "p1": Family("p1", 1, 4, 3, 1, 2, False, "linear tets (4 nodes): the paper's SOFA element"),
-}
-"""[fem].element values."""
+ELEMENTS = {name: Family(**asdict(f)) for name, f in ELEMENT_FAMILIES.items()}
+"""[fem].element values (`families.ELEMENT_FAMILIES`), with their rules."""
 
 
 def family(name: str) -> Family:

@@ -8,11 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fruitcli.errors import SceneError
-
-MATERIAL_MODELS = ("neo-hookean", "yeoh", "corotational")
-"""[material].model values: neo-Hookean from E and nu (default), Yeoh with its
-constants (c10_kpa, c20_kpa, c30_kpa; bulk modulus from bulk_modulus_kpa or E and nu),
-and the paper's corotational Hooke (SOFA's), linear tets only."""
+from fruitcli.fem.materials.models import MATERIAL_MODELS
 
 
 @dataclass(frozen=True)

@@ -205,10 +205,10 @@ def exact_stiffness(
     k = k.reshape(m, 12, 12)
     if not warped_only:
         t = skew_stiffness(f, rot, lam, mu, project)
-        x = np.zeros((m, 3, 4, 3))  # [h_a]x side by side
-        x[:, 0, :, 1], x[:, 0, :, 2] = -h[:, :, 2], h[:, :, 1]
-        x[:, 1, :, 0], x[:, 1, :, 2] = h[:, :, 2], -h[:, :, 0]
-        x[:, 2, :, 0], x[:, 2, :, 1] = -h[:, :, 1], h[:, :, 0]
-        x = x.reshape(m, 3, 12)
+        x4 = np.zeros((m, 3, 4, 3))  # [h_a]x side by side
+        x4[:, 0, :, 1], x4[:, 0, :, 2] = -h[:, :, 2], h[:, :, 1]
+        x4[:, 1, :, 0], x4[:, 1, :, 2] = h[:, :, 2], -h[:, :, 0]
+        x4[:, 2, :, 0], x4[:, 2, :, 1] = -h[:, :, 1], h[:, :, 0]
+        x = x4.reshape(m, 3, 12)
         k += 0.5 * (np.transpose(x, (0, 2, 1)) @ (t @ x))
     return k * volumes[:, None, None]

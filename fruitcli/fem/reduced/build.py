@@ -282,7 +282,7 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
 
     from fruitcli.fem import io
     from fruitcli.fem.elements import barycentric
-    from fruitcli.fem.stage import build_model, element_name, solver_options
+    from fruitcli.fem.stage import build_model, solver_options
     from fruitcli.fsutil import staged_dir, write_json
 
     progress = progress or _noop
@@ -303,12 +303,10 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
     )
     extra = {
         "tets": model.tets,
-        "elements": getattr(model, "conn", model.tets),
+        "elements": model.elements,
         "surface_tris": mesh["surface_tris"],
-        "element": np.array(element_name(model)),
-        "material_model": np.array(
-            getattr(getattr(model, "material", None), "model", "corotational")
-        ),
+        "element": np.array(model.element_name),
+        "material_model": np.array(model.material_name),
         "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
         "taxel_outside": outside,
     }

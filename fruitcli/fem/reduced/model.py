@@ -65,7 +65,7 @@ class ReducedModel:
         """Basis at one pressure vector (K,) -> (M,), or at (n, K) -> (n, M)."""
         p = np.asarray(pressure_kpa, float)
         if p.ndim == 1 and self.degree >= 1:
-            vals = []
+            vals: list[float] = []
             for x, a, b in zip(p.tolist(), self._a, self._b, strict=True):
                 x = x * a - b  # scaled to [-1, 1]
                 l0, l1 = 1.0, x

@@ -25,12 +25,12 @@ from fruitcli.errors import SolverError
 from fruitcli.fem import threads
 from fruitcli.fem.solver import linsolve, pardiso
 from fruitcli.fem.solver.linsolve import kept_estimate, pcg, upper_triangle
+from fruitcli.fem.solver.solvers import LINEAR_SOLVERS
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
 )
-from fruitcli.scene import LINEAR_SOLVERS
 
 
 class Factor(Protocol):

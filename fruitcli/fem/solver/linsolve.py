@@ -34,12 +34,12 @@ from fruitcli.fem import threads
 from fruitcli.fem.materials import corotation
 from fruitcli.fem.materials import corotation_kernels as kernels
 from fruitcli.fem.solver import pardiso
+from fruitcli.fem.solver.solvers import LINEAR_SOLVERS
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
     PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
 )
-from fruitcli.scene import LINEAR_SOLVERS
 
 if TYPE_CHECKING:
     import scipy.sparse as sp

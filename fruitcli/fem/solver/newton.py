@@ -21,7 +21,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.tolerances import (
     ARMIJO,
@@ -111,7 +112,7 @@ class StateResult:
 class _Step:
     """Newton on one load step; holds the work arrays of the current iterate."""
 
-    def __init__(self, model: Model, solver: TangentSolver, load: Load, ref: float):
+    def __init__(self, model: FemModel, solver: TangentSolver, load: Load, ref: float):
         self.m, self.solver, self.load, self.ref = model, solver, load, ref
         self.vc = np.flatnonzero(load.volume_controlled)
         # the controlled volumes c V (one row per constraint; p moves along c^T):
@@ -237,7 +238,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         dx[m.pattern.free] = dx_free
         dx = dx.reshape(-1, 3)
         alpha, accepted, trial = 1.0, False, None
-        j_limit = getattr(m, "dilatation_step", 0.0)
+        j_limit = m.dilatation_step
         j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
         for _ in range(LINE_SEARCH_STEPS):
             xt, pt = x + alpha * dx, p.copy()
@@ -273,7 +274,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
             return False, x, p, it + 1, merit, det_f if trial is None else trial[1]
         # a damped step says the tangent models the energy poorly here: take the next,
         # safer tangent until a full step is accepted again
-        damped_escalates = getattr(m, "escalate_on_damping", True)
+        damped_escalates = m.escalate_on_damping
         level = 0 if alpha == 1.0 or not damped_escalates else min(level + 1, 2)
         x, p = xt, pt
         if it == 0 and alpha == 1.0 and merit > 0 and trial[5] > 3.0 * step.solver.rtol * merit:
@@ -306,7 +307,7 @@ def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptio
 
 
 def solve_state(
-    model: Model,
+    model: FemModel,
     load: Load,
     x_start: np.ndarray | None = None,
     load_start: Load | None = None,
@@ -331,7 +332,7 @@ def solve_state(
         load_start = Load.zero(k, vc)
     if x_start is None and (load.is_zero() or _unloaded(model, load)):
         return _result(model, model.rest.copy(), np.zeros(k), 0, 0.0, 0, t0)
-    stages = model.bulk_stages() if x_start is None and hasattr(model, "bulk_stages") else []
+    stages = model.bulk_stages() if x_start is None else []
     if stages:
         return _through_bulk_stages(
             model, load, load_start, pressure_start, stages, options, solver, label, progress
@@ -352,7 +353,7 @@ def solve_state(
         if guess is None:
             guess = _sensitivity_guess(solver, x_start, load)
     rotating = load.jig != load_start.jig and any(j.rotate_deg for j in model.jigs)
-    secant = getattr(model, "secant_while_rotating", True) or not rotating
+    secant = model.secant_while_rotating or not rotating
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
@@ -793,7 +794,7 @@ def _lift_prescribed(model, solver, x: np.ndarray, load_a: Load, load_b: Load) -
     return out
 
 
-def _unloaded(model: Model, load: Load) -> bool:
+def _unloaded(model: FemModel, load: Load) -> bool:
     """True when the load is zero in effect: no chamber load, gravity or jig scale
     multiplying zero, a jig whose target is its rest position, no moved region."""
     if np.any(load.pressure_kpa) or np.any(load.volume_growth_mm3):
@@ -805,7 +806,7 @@ def _unloaded(model: Model, load: Load) -> bool:
     return not (load.jig and any(j.rotate_deg or np.any(j.translate_mm) for j in model.jigs))
 
 
-def _result(model: Model, x, p, iterations, merit, subdivisions, t0, det_f=None) -> StateResult:
+def _result(model: FemModel, x, p, iterations, merit, subdivisions, t0, det_f=None) -> StateResult:
     if det_f is None:
         det_f = model.min_det_f(x)
     volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
@@ -822,7 +823,7 @@ def _result(model: Model, x, p, iterations, merit, subdivisions, t0, det_f=None)
     )
 
 
-def _reference_force(model: Model, x, p, load_a: Load, load_b: Load, floor: float) -> float:
+def _reference_force(model: FemModel, x, p, load_a: Load, load_b: Load, floor: float) -> float:
     """Force scale of a load step: the largest of the external loads at both ends (the
     elastic force at the start joins it at the step's first evaluation) (mN)."""
     free = model.pattern.free

@@ -17,16 +17,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fruitcli.errors import GeometryError
+from fruitcli.geometry.mesh.units import MAX_EXTENT_MM, UNIT_TO_MM
 
 if TYPE_CHECKING:
     import manifold3d
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
-UNIT_TO_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
-MAX_EXTENT_MM = 5000.0
-"""A mesh larger than this (after its unit) is refused: a touch skin for a soft robot is
-not 5 m across, so the unit is wrong (a mm file read with --unit m took minutes)."""
-
 MIN_EXTENT_MM = 2.0
 """A mesh read in mm and smaller than this across is refused: it is in m or cm."""
 CLI_UNIT_HINT = "give its unit (--unit m or --unit cm) or its size (--fit-mm)"

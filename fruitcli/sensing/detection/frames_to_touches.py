@@ -52,9 +52,9 @@ from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
 from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.detection.model_fit import FIT_MODEL, FootprintLaw, Window, refine
+from fruitcli.sensing.detection.two_footprints import fit2_touches
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
-from fruitcli.sensing.shape.two_footprints import fit2_touches
 from fruitcli.tables import Taxels
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
@@ -269,7 +269,7 @@ class Locator:
         )
         self.footprint = None
         if settings.method == "fit2":
-            from fruitcli.sensing.shape.two_footprints import Footprint
+            from fruitcli.sensing.detection.two_footprints import Footprint
 
             self.footprint = Footprint.from_taxels(
                 heights.sigma_mm, heights.noise_std_counts, taxels.i, taxels.j, taxels.xyz_mm
@@ -595,7 +595,7 @@ class Stream:
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
             if method.refine == "fit2":
-                from fruitcli.sensing.shape.two_footprints import fit2_touches
+                from fruitcli.sensing.detection.two_footprints import fit2_touches
 
                 t = fit2_touches(flat, loc.grid, thr, loc.footprint, s.max_touches)
             else:

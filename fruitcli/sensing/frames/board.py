@@ -16,10 +16,10 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.scene import Record, default_scene
+from fruitcli.sensing.frames.formats import BOARD_COLS, BOARD_ROWS
 from fruitcli.tables import Taxels
 
-BOARD_ROWS = default_scene().board.rows  # Tx lines of the FocalTech FT5316 (MuCa): frame rows
-BOARD_COLS = default_scene().board.cols  # Rx lines: frame columns
+__all__ = ["BOARD_COLS", "BOARD_ROWS", "check_frame_shape", "default_board", "taxel_cells"]
 
 
 def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarray, np.ndarray]:

@@ -47,7 +47,7 @@ from collections import Counter
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.scene import BOARD_FORMATS
+from fruitcli.sensing.frames.formats import BOARD_FORMATS
 from fruitcli.sensing.frames.muca_line import format_line, parse_line
 
 FORMATS = ("auto", *BOARD_FORMATS)  # what a reader accepts: auto-detected or named

@@ -2,6 +2,8 @@
 model), the virtual 3D-printer bench built on it, its calibration from a bench recording,
 sensitivity analysis and per-taxel heat maps.
 
-May import: `fruitcli.sensing.frames`, `fruitcli.fem`, `fruitcli.geometry`, and
-`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
+May import: `fruitcli.sensing.frames`, `fruitcli.fem`, `fruitcli.geometry`,
+`fruitcli.electrostatics` (the computed crossing of the electrostatic skin),
+`fruitcli.scene` (the [skin] defaults and skin tables), and `fruitcli.errors`,
+`fruitcli.fsutil`, `fruitcli.tables`.
 """

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import GeometryError
-from fruitcli.fabrication.yarn import (
+from fruitcli.fem.yarn import (
     DEFAULT_MAX_STRETCH,
     YARN_COLUMNS,
     Track,
@@ -290,9 +290,9 @@ def test_simulate_bent_plate_top_yarn_stretches_h_over_r(bent):
 def test_simulate_yarn_follows_the_quadratic_elements_as_the_taxels(bent):
     """yarns.csv's stretch is that of the track's points moved by the p2 shape functions
     (which move the taxels too), not by the corner tets' linear interpolation."""
-    from fruitcli.fabrication.yarn import polyline_lengths
     from fruitcli.fem.elements.barycentric import locate
     from fruitcli.fem.elements.lagrange import tet_shape
+    from fruitcli.fem.yarn import polyline_lengths
     from fruitcli.tables import read_table
 
     folder, _ = bent

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fruitcli.fabrication.yarn import YARN_COLUMNS, polyline_lengths, read_tracks
+from fruitcli.fem.yarn import YARN_COLUMNS, polyline_lengths, read_tracks
 from fruitcli.geometry.padgrid import pad_tracks, write_pad_tracks
 from tests.conftest import ROOT
 

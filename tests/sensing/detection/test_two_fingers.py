@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.two_footprints import Footprint, bilinear_window
 from fruitcli.sensing.frames.board import default_board
-from fruitcli.sensing.shape.two_footprints import Footprint, bilinear_window
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.heights import GapLaw
 from fruitcli.tables import Taxels
