@@ -177,8 +177,9 @@ def test_lower_bounds_are_the_tested_versions():
 
 def test_metadata_is_ready_to_publish(wheel):
     """License, classifiers, keywords; no project URL until the project has a public
-    address (a placeholder would be published as the project's own); MKL (pypardiso) only in the extra
-    `pardiso`; no setuptools warning about a package missing from the configuration."""
+    address (a placeholder would be published as the project's own); MKL (pypardiso)
+    only in the extra `pardiso`; no setuptools warning about a package missing from the
+    configuration."""
     from email.parser import HeaderParser
 
     with zipfile.ZipFile(wheel) as z:

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from fruitcli import bundled
-from fruitcli.fem.yarn import read_tracks
 from fruitcli.fem import io
 from fruitcli.fem.elements.barycentric import locate
 from fruitcli.fem.stage import _off_body
+from fruitcli.fem.yarn import read_tracks
 from fruitcli.scene import load_scene
 from fruitcli.tables import read_taxels
 from fruitcli.workflow import planner
