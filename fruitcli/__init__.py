@@ -7,8 +7,9 @@ Packages, each with its own docstring: `geometry` (meshes, make-tracks), `fabric
 sweeps), `workflow` (the planner and its stages), `cli` (one module per command).
 
 Shared by all: `fruitcli.errors`, `fruitcli.fsutil` (atomic writes), `fruitcli.tables`
-(CSV, npz, taxels), `fruitcli.interrupts` (Ctrl-C), `fruitcli.memory` (memory estimates);
-they import only one another, and every module may import them.
+(CSV, npz, taxels), `fruitcli.interrupts` (Ctrl-C), `fruitcli.memory` (memory estimates),
+`fruitcli.time_left` (a long loop's time left), `fruitcli.compile_notice` (numba's first
+compile announced); they import only one another, and every module may import them.
 
 Tables of choices, one per variation point, each importing nothing of `fruitcli`, so that
 the scene schema (`scene`) and every module may read them:
