@@ -32,7 +32,9 @@ def demo(out_dir, scenes) -> None:
     from fruitcli import bundled
     from fruitcli.scene import load_scene
     from fruitcli.workflow import planner
+    from fruitcli.workflow.model_rows import MODEL_ROWS
     from fruitcli.workflow.report import write_report
+    from fruitcli.workflow.stages import STAGES
 
     out = Path(out_dir)
     plans, seconds = {}, {}
@@ -48,7 +50,13 @@ def demo(out_dir, scenes) -> None:
         for name, scene in zip(names, loaded, strict=True):
             click.echo(f"== {name} ==", err=True)
             t0 = time.perf_counter()
-            steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
+            steps = planner.run(
+                scene,
+                out / scene.name,
+                progress=Progress("   "),
+                stages=[*STAGES, MODEL_ROWS],
+                shared=out,
+            )
             plans[scene.name] = planner.format_plan(steps)
             seconds[scene.name] = (
                 time.perf_counter() - t0,
