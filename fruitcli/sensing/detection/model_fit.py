@@ -236,3 +236,25 @@ def refine(
         s,
         np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
     )
+
+
+def check_skin_file(path, method: str | None) -> None:
+    """A [skin] file given for detection (``--skin``, `fruit calibrate`'s skin.toml) must
+    state the footprint the model method fits: without ``footprint_sigma_mm`` its table
+    would silently take the default width. FrameError naming the file and key."""
+    import tomllib
+
+    from fruitcli.sensing.detection.methods import METHODS
+
+    if method not in METHODS or METHODS[method].refine != "model":
+        return
+    try:
+        with open(path, "rb") as fh:
+            given = tomllib.load(fh).get("skin", {})
+    except (OSError, tomllib.TOMLDecodeError):
+        return  # the skin file's own reader reports it
+    if isinstance(given, dict) and "footprint_sigma_mm" not in given:
+        raise FrameError(
+            f'{path}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
+            "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
+        )
