@@ -40,6 +40,8 @@ is the RMS of the weighted residuals (1: at the noise).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,10 +101,11 @@ class FootprintLaw:
 
 
 class Window:
-    """The 5 x 5 window of grid cells around each taxel: its taxels (-1: none) and the
-    cells' offsets (di, dj) from the centre."""
+    """The window of grid cells around each taxel (5 x 5 with ``HALF`` = 2): its taxels
+    (-1: none) and the cells' offsets (di, dj) from the centre."""
 
-    def __init__(self, i: np.ndarray, j: np.ndarray, half: int = HALF):
+    def __init__(self, i: np.ndarray, j: np.ndarray, half: int | None = None):
+        half = HALF if half is None else int(half)
         i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
         h, w = int(i.max()) + 1 + 2 * half, int(j.max()) + 1 + 2 * half
         grid = np.full((h, w), -1, np.int64)
@@ -258,3 +261,22 @@ def check_skin_file(path, method: str | None) -> None:
             f'{path}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
             "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
         )
+
+
+@contextmanager
+def tuned(half: int, iterations: int) -> Iterator[None]:
+    """The model method with another window (``half``: 1 for 3 x 3, 2 for 5 x 5) and
+    iteration cap while the block runs (`fruit study locate`'s settings rows). It sets
+    this module's ``HALF`` and ``ITERATIONS``, which Locators built and fits run inside
+    the block read: not for concurrent use with other settings."""
+    global HALF, ITERATIONS
+    if half < 1 or iterations < 1:
+        raise ValueError(
+            f"model settings: expected half >= 1 and iterations >= 1, got {half}, {iterations}"
+        )
+    saved = HALF, ITERATIONS
+    HALF, ITERATIONS = int(half), int(iterations)
+    try:
+        yield
+    finally:
+        HALF, ITERATIONS = saved
