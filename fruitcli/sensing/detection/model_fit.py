@@ -76,20 +76,22 @@ class FootprintLaw:
     gain: np.ndarray | None = None
 
     @classmethod
-    def of(cls, heights) -> FootprintLaw:
+    def of(cls, heights, method: str = "model") -> FootprintLaw:
         """From a skin's height model (`fruitcli.sensing.skin.heights.HeightModel`: the
-        Gaussian law or the crossing table): its contact activation against distance."""
+        Gaussian law or the crossing table): its contact activation against distance.
+        `method`: the detection method that needs it, for the error."""
         sigma = float(getattr(heights, "sigma_mm", np.nan))
         if not np.isfinite(sigma) or sigma <= 0:
             raise FrameError(
-                '[detection].method = "model": the skin has no footprint law '
+                f'[detection].method = "{method}": the skin has no footprint law '
                 "([skin].footprint_sigma_mm or the crossing's table)"
             )
         d = np.arange(0.0, 8.0 * WIDTH_BOUNDS[1] * sigma, PROFILE_STEP_MM)
         c = np.asarray(heights.contact_counts(np.zeros(d.size, np.int64), d), dtype=float)
         if not np.all(np.isfinite(c)) or c[0] <= 0:
             raise FrameError(
-                '[detection].method = "model": the skin\'s footprint gives no activation at contact'
+                f'[detection].method = "{method}": the skin\'s footprint gives no activation '
+                "at contact"
             )
         gain = getattr(heights, "gain", None)
         return cls(
