@@ -36,3 +36,19 @@ def test_a_skin_file_without_the_footprint_is_one_line_for_the_model(tmp_path):
     # the other methods do not fit the footprint: the same file serves them
     res = locate(bare, "n9")
     assert res.exit_code == 0, res.output
+
+
+def test_live_with_the_model_and_a_skin_file_without_the_footprint_is_one_line(tmp_path):
+    """Checked before any port is opened: the port here does not exist."""
+    virtual_bench_scene(tmp_path)
+    scene = tmp_path / "s.toml"
+    scene.write_text(scene.read_text() + '[detection]\nmethod = "model"\n')
+    bare = tmp_path / "no-footprint.toml"
+    bare.write_text("[skin]\ncontact_counts = 70.0\ngap_decay_mm = 2.0\n")
+    args = ["live", str(scene), "--port", str(tmp_path / "no-port"), "--taxels"]
+    res = CliRunner().invoke(cli, [*args, str(tmp_path / "t.csv"), "--skin", str(bare)])
+    assert res.exit_code == 1
+    assert res.output.strip().splitlines() == [
+        f'Error: {bare}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
+        "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
+    ]
