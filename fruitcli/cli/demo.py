@@ -24,6 +24,10 @@ def demo(out_dir, scenes) -> None:
     """Run the default experiments (the paper's Table I, the Fruit at rest, in its jig,
     breathing, and the bent 4x4 pad) and write OUT/report.md.
 
+    Table I also gets, under each bench scene's N9 rows, rows located by the model
+    method with a skin `fruit calibrate` fitted to a second bench run at other sample
+    points (stage model-rows, OUT/<scene>/model-rows/).
+
     The scenes run from copies written to OUT/scenes/ (with the data they read), so
     the demo works from any folder; they are rewritten on every run (start an
     experiment of your own with `fruit scenes copy`). Unchanged stages are reused, so a
