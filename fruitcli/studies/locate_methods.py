@@ -32,6 +32,7 @@ scene's: run the study on ``pipelines/fruit-deformed.toml`` for them.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -241,9 +242,12 @@ def calibrated_skin(
     xy = read_taxels(taxels).xyz_mm[:, :2] + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2
     points = work / "samples.csv"
     write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
-    run = bench_scene.with_values(
-        {"bench.samples": str(points.resolve()), "bench.indenters": [CALIBRATION_INDENTER]}
+    # the two [bench] keys replaced as they are, without `with_values`' checks across
+    # keys: those read every section, and the demo's stage declares only what it reads
+    bench = replace(
+        bench_scene.bench, samples=str(points.resolve()), indenters=[CALIBRATION_INDENTER]
     )
+    run = replace(bench_scene, sections={**bench_scene.sections, "bench": bench})
     run_bench(
         run,
         taxels,

@@ -42,16 +42,16 @@ def _run(scene, ctx, out_dir):
     skin = calibrated_skin(
         scene, taxels, states, surface, unit, out_dir / "calibration", board_table
     )
-    located = scene.with_values({"detection.method": MODEL_METHOD})
     results = []
     for ind in st.indenters(scene):
         ctx.progress(f"model-rows: locating {ind} with the model")
         run_locate(
-            located,
+            scene,
             ctx.dir("bench") / ind / "frames.npz",
             taxels,
             states,
             out_dir / "locate" / ind,
+            method=MODEL_METHOD,
             surface_path=surface,
             surface_unit=unit,
             skin_table=skin,
@@ -107,8 +107,9 @@ def model_share(touches_csv: Path) -> float:
 def _reads():
     from fruitcli.workflow.stages import DEFORMS
 
-    return (*DEFORMS, "frames", "bench", "board", "detection", "skin", "grid", "geometry") + (
+    return (*DEFORMS, "bench", "board", "detection", "skin", "grid", "geometry") + (
         "scene.configuration",
+        "scene.name",
     )
 
 

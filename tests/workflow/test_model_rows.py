@@ -18,6 +18,11 @@ from tests.sensing.skin.test_calibrate import HIDDEN_SKIN, virtual_bench_scene
 
 
 def test_model_rows_locate_the_bench_frames_with_a_calibrated_skin(tmp_path):
+    """Run under the read recorder of `test_stage_hashes`: every scene key the stage
+    reads is declared, and every stage folder it opens is one of its deps."""
+    from tests.workflow.read_recorder import recording
+    from tests.workflow.test_stage_hashes import _covered
+
     (tmp_path / "scene").mkdir()
     path = virtual_bench_scene(tmp_path / "scene", HIDDEN_SKIN.replace("4.5", "6.5"))
     c = np.linspace(-15.0, 15.0, 4)  # over the pad's inner taxels: every sample found
@@ -28,8 +33,21 @@ def test_model_rows_locate_the_bench_frames_with_a_calibrated_skin(tmp_path):
     )
     scene = load_scene(path)
     out = tmp_path / "out"
-    steps = planner.run(scene, out / "pad", stages=[*STAGES, MODEL_ROWS])
+    mp = pytest.MonkeyPatch()
+    try:
+        with recording(mp) as reads:
+            reads.watch(scene)
+            steps = planner.run(scene, out / "pad", stages=reads.wrap([*STAGES, MODEL_ROWS]))
+    finally:
+        mp.undo()
     assert [s.action for s in steps if s.stage in ("evaluate", "model-rows")] == ["run", "run"]
+    seen = reads.seen["model-rows"]
+    assert "skin.footprint_sigma_mm" in seen["run"]  # the recorder sees the stage's reads
+    undeclared = [
+        (phase, e) for phase, es in seen.items() for e in es if not _covered(e, MODEL_ROWS, phase)
+    ]
+    assert undeclared == [], str(sorted(undeclared))
+    assert reads.dirs["model-rows"] <= set(MODEL_ROWS.deps)
     data = json.loads((out / "pad" / "model-rows" / "summary.json").read_text())
     cal = data["calibration"]
     # fitted to the second run of the hidden skin (6.5 mm, 80 counts), not handed it
