@@ -136,6 +136,16 @@ def test_fit2_fits_the_skins_own_footprint_not_a_gaussian(offset):
         t = loc.batch(frames, np.full(252, 500.0))
         return len(t), [np.linalg.norm(t.xyz_mm - p, axis=1).min() for p in points]
 
+    wide = Locator(
+        taxels,
+        default_board(),
+        taxels.xyz_mm,
+        Settings(method="fit2"),
+        heights=WideLaw(60, 2, 6, 1),
+    )
+    assert wide.footprint.profile is not None
+    gauss = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="fit2"), heights=LAW)
+    assert gauss.footprint.profile is None  # the Gaussian law: its closed form
     n, err = errors(WideLaw(60.0, 2.0, half_width, 1.0))
     assert n == 2 and max(err) < 0.4
     _, gauss = errors(GapLaw(60.0, 2.0, half_width, 1.0))
