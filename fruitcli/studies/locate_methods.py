@@ -191,14 +191,20 @@ def run_case(args) -> list[dict]:
 
 def variants() -> list[tuple]:
     """(row label, [detection].method, a context manager factory for its settings): every
-    method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`."""
+    method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`; every model
+    row runs inside `model_fit.tuned` (its defaults too), so cases run on threads of one
+    process (a Dask worker) do not mix their settings."""
     from contextlib import nullcontext
     from functools import partial
 
     from fruitcli.sensing.detection import model_fit
     from fruitcli.sensing.detection.methods import METHODS
 
-    out = [(m, m, nullcontext) for m in METHODS]
+    model_defaults = partial(model_fit.tuned, model_fit.HALF, model_fit.ITERATIONS)
+    out = [
+        (m, m, model_defaults if spec.refine == "model" else nullcontext)
+        for m, spec in METHODS.items()
+    ]
     for label, (half, iterations) in MODEL_SETTINGS.items():
         cap = model_fit.ITERATIONS if iterations is None else iterations
         out.append((label, "model", partial(model_fit.tuned, half, cap)))

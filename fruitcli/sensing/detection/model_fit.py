@@ -40,6 +40,7 @@ is the RMS of the weighted residuals (1: at the noise).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -270,15 +271,21 @@ def tuned(half: int, iterations: int) -> Iterator[None]:
     """The model method with another window (``half``: 1 for 3 x 3, 2 for 5 x 5) and
     iteration cap while the block runs (`fruit study locate`'s settings rows). It sets
     this module's ``HALF`` and ``ITERATIONS``, which Locators built and fits run inside
-    the block read: not for concurrent use with other settings."""
+    the block read. Blocks in other threads of the process wait for it (`_TUNED`), so
+    model locates run inside such blocks never see another block's settings; a model
+    locate run outside any block while one is open would."""
     global HALF, ITERATIONS
     if half < 1 or iterations < 1:
         raise ValueError(
             f"model settings: expected half >= 1 and iterations >= 1, got {half}, {iterations}"
         )
-    saved = HALF, ITERATIONS
-    HALF, ITERATIONS = int(half), int(iterations)
-    try:
-        yield
-    finally:
-        HALF, ITERATIONS = saved
+    with _TUNED:
+        saved = HALF, ITERATIONS
+        HALF, ITERATIONS = int(half), int(iterations)
+        try:
+            yield
+        finally:
+            HALF, ITERATIONS = saved
+
+
+_TUNED = threading.RLock()

@@ -67,3 +67,34 @@ def test_the_study_rows_are_every_method_then_the_model_settings():
         assert model_fit.HALF == half
         assert model_fit.ITERATIONS == (cap or 12)
     assert model_fit.ITERATIONS == 12
+
+
+def test_tuned_blocks_in_two_threads_do_not_mix():
+    """A second thread's block waits for the first's end: the first sees its own settings
+    throughout (without the lock the second would overwrite them while it sleeps)."""
+    import threading
+    import time
+
+    seen = {}
+    entered = threading.Event()
+
+    def first():
+        with model_fit.tuned(1, 3):
+            entered.set()
+            start = (model_fit.HALF, model_fit.ITERATIONS)
+            time.sleep(0.2)  # the second thread tries to enter meanwhile
+            seen["first"] = (start, (model_fit.HALF, model_fit.ITERATIONS))
+
+    def second():
+        entered.wait()
+        with model_fit.tuned(2, 7):
+            seen["second"] = (model_fit.HALF, model_fit.ITERATIONS)
+            time.sleep(0.4)  # still inside when the first looks again (without the lock)
+
+    threads = [threading.Thread(target=first), threading.Thread(target=second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert seen == {"first": ((1, 3), (1, 3)), "second": (2, 7)}
+    assert (model_fit.HALF, model_fit.ITERATIONS) == (2, 12)
