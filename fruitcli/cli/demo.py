@@ -24,6 +24,10 @@ def demo(out_dir, scenes) -> None:
     """Run the default experiments (the paper's Table I, the Fruit at rest, in its jig,
     breathing, and the bent 4x4 pad) and write OUT/report.md.
 
+    Table I also gets, under each bench scene's N9 rows, rows located by the model
+    method with a skin `fruit calibrate` fitted to a second bench run at other sample
+    points (stage model-rows, OUT/<scene>/model-rows/).
+
     The scenes run from copies written to OUT/scenes/ (with the data they read), so
     the demo works from any folder; they are rewritten on every run (start an
     experiment of your own with `fruit scenes copy`). Unchanged stages are reused, so a
@@ -32,7 +36,9 @@ def demo(out_dir, scenes) -> None:
     from fruitcli import bundled
     from fruitcli.scene import load_scene
     from fruitcli.workflow import planner
+    from fruitcli.workflow.model_rows import MODEL_ROWS
     from fruitcli.workflow.report import write_report
+    from fruitcli.workflow.stages import STAGES
 
     out = Path(out_dir)
     plans, seconds = {}, {}
@@ -48,7 +54,13 @@ def demo(out_dir, scenes) -> None:
         for name, scene in zip(names, loaded, strict=True):
             click.echo(f"== {name} ==", err=True)
             t0 = time.perf_counter()
-            steps = planner.run(scene, out / scene.name, progress=Progress("   "), shared=out)
+            steps = planner.run(
+                scene,
+                out / scene.name,
+                progress=Progress("   "),
+                stages=[*STAGES, MODEL_ROWS],
+                shared=out,
+            )
             plans[scene.name] = planner.format_plan(steps)
             seconds[scene.name] = (
                 time.perf_counter() - t0,

@@ -211,9 +211,11 @@ def live(
         )
         skin_table = scene.skin
         if skin_toml is not None:
+            from fruitcli.sensing.detection.model_fit import check_skin_file
             from fruitcli.sensing.skin.heights import skin_with_gap_law
 
             skin_table = skin_with_gap_law(skin_toml)
+            check_skin_file(skin_toml, settings.method)
         if n_frames is not None and n_frames <= settings.baseline_frames:
             raise FrameError(
                 f"--frames {n_frames}: expected more than the "

@@ -268,7 +268,8 @@ def bench_study(scene_file, out_dir, jobs) -> None:
 )
 @jobs_option()
 def locate_study(scene_file, out_dir, jobs) -> None:
-    """Error against run time of every detection method ([detection].method) on SCENE's
+    """Error against run time of every detection method ([detection].method), and of the
+    model method with a 3x3 window and other iteration caps, on SCENE's
     virtual bench, replayed on boards whose skin the locator does not assume: taxel gains
     spread +-20 % with the skin calibrated on another run, an electrostatic board located
     with a calibrated Gaussian and the reverse, a wider and a narrower footprint. Per

@@ -19,18 +19,22 @@ a board whose skin the locator does not know:
 - ``narrower``: a field sigma of 5 mm, 50 counts at contact, gains spread +-20 %;
 - the noise is the scene's (by default the per-taxel std of Fig. 10) in all.
 
-Every method of `fruitcli.sensing.detection.methods.METHODS` locates the same frames;
-each row gives the Table I figures per indenter (mean error unregistered and
-translation-registered, the paper's protocol, and the registered median) and the time
-per frame of `fruit locate`'s loop on them (reading, detecting, locating and writing,
-one thread; its set-up, such as loading the body's surface, left out; the median of
-``REPEATS`` runs). The deformed and breathing states are the
+Every method of `fruitcli.sensing.detection.methods.METHODS` locates the same frames,
+and so does the model method with other settings (`MODEL_SETTINGS`: a 3 x 3 window, the
+N9 alone, instead of 5 x 5, and other iteration caps, `model_fit.tuned`); each row gives
+the Table I figures per indenter (mean error unregistered and translation-registered,
+the paper's protocol, and the registered median) and the time per frame of `fruit
+locate`'s loop on them (reading, detecting, locating and writing, one thread; its
+set-up, such as loading the body's surface, left out; the median of ``REPEATS`` runs).
+The deformed and breathing states are the
 scene's: run the study on ``pipelines/fruit-deformed.toml`` for them.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +59,14 @@ CALIBRATED = {
     "gaussian, table fitted": ("gaussian", "electrostatic"),
 }
 REPEATS = 3
+# the model method's settings rows: label -> (window half-width in cells, iteration cap);
+# the plain "model" row is the defaults (5 x 5, `model_fit.ITERATIONS`)
+MODEL_SETTINGS = {
+    "model 3x3": (1, None),
+    "model 3x3, 4 it": (1, 4),
+    "model 5x5, 4 it": (2, 4),
+    "model 5x5, 30 it": (2, 30),
+}
 HEADER = [
     "bench_skin",
     "method",
@@ -99,7 +111,6 @@ def run_case(args) -> list[dict]:
     """Bench one skin case, then locate and evaluate it with every method: rows."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.detection.methods import METHODS
     from fruitcli.sensing.stages import run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, name = args
@@ -132,25 +143,26 @@ def run_case(args) -> list[dict]:
             located_table,
         )
     rows = []
-    for method in METHODS:
+    for label, method, setting in variants():
         located = scene.with_values({"detection.method": method})
         for ind in scene.bench.indenters:
             frames = base / "bench" / ind / "frames.npz"
-            out = base / method / ind
+            out = base / label.replace(" ", "_").replace(",", "") / ind
             times = []
             for _ in range(REPEATS):
-                summary = run_locate(
-                    located,
-                    frames,
-                    taxels,
-                    states,
-                    out,
-                    workers=1,
-                    surface_path=surface,
-                    surface_unit=unit,
-                    skin_table=skin_table,
-                    crossing_dir=located_table,
-                )
+                with setting():
+                    summary = run_locate(
+                        located,
+                        frames,
+                        taxels,
+                        states,
+                        out,
+                        workers=1,
+                        surface_path=surface,
+                        surface_unit=unit,
+                        skin_table=skin_table,
+                        crossing_dir=located_table,
+                    )
                 times.append(summary["seconds"])
             with np.load(frames, allow_pickle=False) as f:
                 n_frames = len(f["frames"])
@@ -158,13 +170,13 @@ def run_case(args) -> list[dict]:
                 base / "bench" / ind / "truth.csv",
                 out / "measured.csv",
                 scene.bench.reference_length_mm,
-                f"{name}, {method}, {ind}",
+                f"{name}, {label}, {ind}",
             )
             c = s["compare"]
             rows.append(
                 {
                     "bench_skin": name,
-                    "method": method,
+                    "method": label,
                     "indenter": ind,
                     "n": s["n"],
                     "mean_mm": c["none"]["mean_mm"],
@@ -176,6 +188,28 @@ def run_case(args) -> list[dict]:
                 }
             )
     return rows
+
+
+def variants() -> list[tuple]:
+    """(row label, [detection].method, a context manager factory for its settings): every
+    method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`; every model
+    row runs inside `model_fit.tuned` (its defaults too), so cases run on threads of one
+    process (a Dask worker) do not mix their settings."""
+    from contextlib import nullcontext
+    from functools import partial
+
+    from fruitcli.sensing.detection import model_fit
+    from fruitcli.sensing.detection.methods import METHODS
+
+    model_defaults = partial(model_fit.tuned, model_fit.HALF, model_fit.ITERATIONS)
+    out = [
+        (m, m, model_defaults if spec.refine == "model" else nullcontext)
+        for m, spec in METHODS.items()
+    ]
+    for label, (half, iterations) in MODEL_SETTINGS.items():
+        cap = model_fit.ITERATIONS if iterations is None else iterations
+        out.append((label, "model", partial(model_fit.tuned, half, cap)))
+    return out
 
 
 def crossing_table(scene, work: Path) -> Path:
@@ -198,7 +232,7 @@ def calibrated_skin(
     work: Path,
     board_table: Path | None = None,
     fitted_table: Path | None = None,
-) -> object:
+) -> Any:
     """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene`
     (its crossing table `board_table` when electrostatic) at other sample points (half a
     pitch off each taxel, ``CALIBRATION_INDENTER``): the Gaussian law, or with
@@ -215,9 +249,12 @@ def calibrated_skin(
     xy = read_taxels(taxels).xyz_mm[:, :2] + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2
     points = work / "samples.csv"
     write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
-    run = bench_scene.with_values(
-        {"bench.samples": str(points.resolve()), "bench.indenters": [CALIBRATION_INDENTER]}
+    # the two [bench] keys replaced as they are, without `with_values`' checks across
+    # keys: those read every section, and the demo's stage declares only what it reads
+    bench = replace(
+        bench_scene.bench, samples=str(points.resolve()), indenters=[CALIBRATION_INDENTER]
     )
+    run = replace(bench_scene, sections={**bench_scene.sections, "bench": bench})
     run_bench(
         run,
         taxels,
@@ -290,9 +327,23 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
         )
         + ". Registered: translation (the paper's protocol). Time per frame: `fruit locate`'s "
         "loop on one thread, file reading and writing included, set-up left out, median of "
-        f"{REPEATS} runs.",
+        f"{REPEATS} runs. "
+        + "Model settings: model is the 5x5 window (the N9 and the ring beyond) with at most "
+        + f"{_default_iterations()} Levenberg-Marquardt iterations; "
+        + ", ".join(
+            f"{k}: a {2 * h + 1}x{2 * h + 1} window, "
+            + (f"at most {it} iterations" if it else "the default cap")
+            for k, (h, it) in MODEL_SETTINGS.items()
+        )
+        + ".",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _default_iterations() -> int:
+    from fruitcli.sensing.detection.model_fit import ITERATIONS
+
+    return ITERATIONS
 
 
 def plot(path: Path, rows: list[dict], scene_name: str) -> None:

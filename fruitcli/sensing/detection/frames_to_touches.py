@@ -51,7 +51,13 @@ from fruitcli.sensing.detection.detect import (
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
 from fruitcli.sensing.detection.methods import METHODS
-from fruitcli.sensing.detection.model_fit import FIT_MODEL, FootprintLaw, Window, refine
+from fruitcli.sensing.detection.model_fit import (
+    FIT_MODEL,
+    PROFILE_STEP_MM,
+    FootprintLaw,
+    Window,
+    refine,
+)
 from fruitcli.sensing.detection.two_footprints import fit2_touches
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
@@ -271,8 +277,15 @@ class Locator:
         if settings.method == "fit2":
             from fruitcli.sensing.detection.two_footprints import Footprint
 
+            law = FootprintLaw.of(heights, settings.method)  # the skin's own, as the model's
             self.footprint = Footprint.from_taxels(
-                heights.sigma_mm, heights.noise_std_counts, taxels.i, taxels.j, taxels.xyz_mm
+                law.sigma_mm,
+                law.noise_std_counts,
+                taxels.i,
+                taxels.j,
+                taxels.xyz_mm,
+                law.profile,
+                PROFILE_STEP_MM,
             )
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings

@@ -40,6 +40,9 @@ is the RMS of the weighted residuals (1: at the noise).
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,20 +77,22 @@ class FootprintLaw:
     gain: np.ndarray | None = None
 
     @classmethod
-    def of(cls, heights) -> FootprintLaw:
+    def of(cls, heights, method: str = "model") -> FootprintLaw:
         """From a skin's height model (`fruitcli.sensing.skin.heights.HeightModel`: the
-        Gaussian law or the crossing table): its contact activation against distance."""
+        Gaussian law or the crossing table): its contact activation against distance.
+        `method`: the detection method that needs it, for the error."""
         sigma = float(getattr(heights, "sigma_mm", np.nan))
         if not np.isfinite(sigma) or sigma <= 0:
             raise FrameError(
-                '[detection].method = "model": the skin has no footprint law '
+                f'[detection].method = "{method}": the skin has no footprint law '
                 "([skin].footprint_sigma_mm or the crossing's table)"
             )
         d = np.arange(0.0, 8.0 * WIDTH_BOUNDS[1] * sigma, PROFILE_STEP_MM)
         c = np.asarray(heights.contact_counts(np.zeros(d.size, np.int64), d), dtype=float)
         if not np.all(np.isfinite(c)) or c[0] <= 0:
             raise FrameError(
-                '[detection].method = "model": the skin\'s footprint gives no activation at contact'
+                f'[detection].method = "{method}": the skin\'s footprint gives no activation '
+                "at contact"
             )
         gain = getattr(heights, "gain", None)
         return cls(
@@ -99,10 +104,11 @@ class FootprintLaw:
 
 
 class Window:
-    """The 5 x 5 window of grid cells around each taxel: its taxels (-1: none) and the
-    cells' offsets (di, dj) from the centre."""
+    """The window of grid cells around each taxel (5 x 5 with ``HALF`` = 2): its taxels
+    (-1: none) and the cells' offsets (di, dj) from the centre."""
 
-    def __init__(self, i: np.ndarray, j: np.ndarray, half: int = HALF):
+    def __init__(self, i: np.ndarray, j: np.ndarray, half: int | None = None):
+        half = HALF if half is None else int(half)
         i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
         h, w = int(i.max()) + 1 + 2 * half, int(j.max()) + 1 + 2 * half
         grid = np.full((h, w), -1, np.int64)
@@ -236,3 +242,50 @@ def refine(
         s,
         np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
     )
+
+
+def check_skin_file(path, method: str | None) -> None:
+    """A [skin] file given for detection (``--skin``, `fruit calibrate`'s skin.toml) must
+    state the footprint the model method fits: without ``footprint_sigma_mm`` its table
+    would silently take the default width. FrameError naming the file and key."""
+    import tomllib
+
+    from fruitcli.sensing.detection.methods import METHODS
+
+    if method not in METHODS or METHODS[method].refine != "model":
+        return
+    try:
+        with open(path, "rb") as fh:
+            given = tomllib.load(fh).get("skin", {})
+    except (OSError, tomllib.TOMLDecodeError):
+        return  # the skin file's own reader reports it
+    if isinstance(given, dict) and "footprint_sigma_mm" not in given:
+        raise FrameError(
+            f'{path}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
+            "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
+        )
+
+
+@contextmanager
+def tuned(half: int, iterations: int) -> Iterator[None]:
+    """The model method with another window (``half``: 1 for 3 x 3, 2 for 5 x 5) and
+    iteration cap while the block runs (`fruit study locate`'s settings rows). It sets
+    this module's ``HALF`` and ``ITERATIONS``, which Locators built and fits run inside
+    the block read. Blocks in other threads of the process wait for it (`_TUNED`), so
+    model locates run inside such blocks never see another block's settings; a model
+    locate run outside any block while one is open would."""
+    global HALF, ITERATIONS
+    if half < 1 or iterations < 1:
+        raise ValueError(
+            f"model settings: expected half >= 1 and iterations >= 1, got {half}, {iterations}"
+        )
+    with _TUNED:
+        saved = HALF, ITERATIONS
+        HALF, ITERATIONS = int(half), int(iterations)
+        try:
+            yield
+        finally:
+            HALF, ITERATIONS = saved
+
+
+_TUNED = threading.RLock()

@@ -1,6 +1,8 @@
 """fit2: two footprints of the skin fitted around each peak separate fingers that the
 paper's N9 multitouch merges, and leaves single touches where N9 puts them."""
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
@@ -101,3 +103,64 @@ def test_fingers_at_the_board_edges_stay_on_the_grid():
     assert (t.xyz_mm[:, 0] >= 0).all() and (t.xyz_mm[:, 0] <= 320).all()
     assert (t.xyz_mm[:, 1] >= 0).all() and (t.xyz_mm[:, 1] <= 132).all()
     assert np.isfinite(t.strength).all()
+
+
+WIDE_MM = 9.0  # a footprint with heavier tails than a Gaussian: (1 + (d / w)^2)^-1.5
+
+
+@dataclass(frozen=True)
+class WideLaw(GapLaw):
+    """A skin whose footprint is not Gaussian (as the crossing table's is not)."""
+
+    def contact_counts(self, taxel, dist_mm):
+        return self.contact * (1.0 + (np.asarray(dist_mm) / WIDE_MM) ** 2) ** -1.5
+
+
+@pytest.mark.parametrize("offset", [(16.0, 0.0), (0.0, 12.0), (16.0, 12.0), (8.0, 6.0)])
+def test_fit2_fits_the_skins_own_footprint_not_a_gaussian(offset):
+    """Two fingers of a skin whose footprint has heavy tails: fit2 given that law finds
+    both within 0.4 mm; assuming a Gaussian of the same half-width instead, it misses
+    them by millimetres (or merges them). The law's width sigma_mm only sets how far the
+    profile is sampled."""
+    taxels = grid_taxels()
+    points = [np.array([80.0, 60.0, 0.0]), np.array([80.0 + offset[0], 60.0 + offset[1], 0.0])]
+    v = sum(
+        60.0 * (1.0 + (np.linalg.norm(taxels.xyz_mm - p, axis=1) / WIDE_MM) ** 2) ** -1.5
+        for p in points
+    )
+    frames = np.round(500.0 + v).astype(np.int64).reshape(1, 21, 12)
+    half_width = 0.651 * WIDE_MM  # the Gaussian sigma with the same half maximum
+
+    def errors(law):
+        loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="fit2"), heights=law)
+        t = loc.batch(frames, np.full(252, 500.0))
+        return len(t), [np.linalg.norm(t.xyz_mm - p, axis=1).min() for p in points]
+
+    wide = Locator(
+        taxels,
+        default_board(),
+        taxels.xyz_mm,
+        Settings(method="fit2"),
+        heights=WideLaw(60, 2, 6, 1),
+    )
+    assert wide.footprint.profile is not None
+    gauss = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="fit2"), heights=LAW)
+    assert gauss.footprint.profile is None  # the Gaussian law: its closed form
+    n, err = errors(WideLaw(60.0, 2.0, half_width, 1.0))
+    assert n == 2 and max(err) < 0.4
+    _, gauss = errors(GapLaw(60.0, 2.0, half_width, 1.0))
+    assert min(gauss) > 3.0
+
+
+def test_fit2_without_a_footprint_law_is_one_error_naming_the_method():
+    from fruitcli.errors import FrameError
+
+    taxels = grid_taxels()
+    with pytest.raises(FrameError, match=r'method = "fit2": the skin has no footprint law'):
+        Locator(
+            taxels,
+            default_board(),
+            taxels.xyz_mm,
+            Settings(method="fit2"),
+            heights=GapLaw(60.0, 2.0, np.nan, 1.0),
+        )
