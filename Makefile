@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 CONSTRAINTS := requirements/constraints.txt
 BENCH_RUNS ?= 3
 
-.PHONY: test demo bench studies lint docs constraints fuzz clean distclean
+.PHONY: test test-slow demo bench studies lint docs constraints fuzz clean distclean
 
 $(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -21,8 +21,13 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check fruitcli tests docs
 	$(BIN)/mypy  # the modules [tool.mypy] in pyproject.toml lists
 
+# The tests but the slow end-to-end cases (pytest's mark `slow`); `make test-slow` runs
+# those, and CI runs both.
 test: $(STAMP) lint
-	MPLBACKEND=Agg $(BIN)/python -m pytest
+	MPLBACKEND=Agg $(BIN)/python -m pytest -m "not slow"
+
+test-slow: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python -m pytest -m slow
 
 demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/fruit demo --out out

@@ -131,6 +131,7 @@ def inflation_pressure(mu, la, ratio=0.5):
     return mu * ((2 / lb + 1 / (2 * lb**4)) - (2 / la + 1 / (2 * la**4)))
 
 
+@pytest.mark.slow
 def test_thick_sphere_large_inflation_gmsh_ball(tmp_path):
     """The meshing pipeline's ball (gmsh at size 6 mm on the icosphere STL, default
     element, nu = 0.499), pressure control at the closed form's pressure for la = 1.2

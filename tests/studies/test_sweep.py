@@ -445,6 +445,7 @@ def _kill_first_variant(out: Path, proc: subprocess.Popen, timeout_s: float = 30
     raise AssertionError("no variant started")
 
 
+@pytest.mark.slow
 def test_jobs_2_with_a_worker_killed_during_a_variant_gives_the_serial_sweep_csv(
     serial, pad, tmp_path
 ):
@@ -475,6 +476,7 @@ def cluster():
         yield c
 
 
+@pytest.mark.slow
 def test_a_dask_cluster_gives_the_serial_sweep_csv(serial, pad, tmp_path, cluster, fruit):
     out = tmp_path / "sweep"
     result = fruit("sweep", pad, *SETS, "--out", out, "--scheduler", cluster.scheduler_address)
@@ -488,6 +490,7 @@ def test_a_dask_cluster_gives_the_serial_sweep_csv(serial, pad, tmp_path, cluste
     assert str(os.getpid()) not in hosts  # the variants ran on the workers
 
 
+@pytest.mark.slow
 def test_a_dask_worker_killed_during_a_variant_the_sweep_completes(serial, pad, tmp_path, cluster):
     out = tmp_path / "sweep"
     proc = subprocess.Popen(

@@ -81,6 +81,7 @@ def test_a_single_finger_is_where_n9_puts_it():
         np.testing.assert_allclose(a.xyz_mm, b.xyz_mm, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_fingers_at_the_board_edges_stay_on_the_grid():
     """Up to four fingers anywhere, at corners and past the edges too (noisy counts): no
     footprint is placed off the taxel grid (it would have no taxels to weigh), every
