@@ -48,6 +48,20 @@ class Touches:
     def __len__(self) -> int:
         return int(self.frame.shape[0])
 
+    @classmethod
+    def empty(cls) -> Touches:
+        """No touch."""
+        e = np.zeros(0)
+        return cls(
+            e.astype(np.int64),
+            e.astype(np.int64),
+            e,
+            e,
+            e,
+            np.zeros((0, 9), np.int64),
+            np.zeros((0, 9)),
+        )
+
 
 def baseline_counts(
     frames: np.ndarray, k: int, where: str = "frames", n_frames: int | None = None
@@ -156,16 +170,7 @@ def _centroids(flat: np.ndarray, rows: np.ndarray, centre: np.ndarray, grid: Gri
 
 def _collect(parts: list[tuple]) -> Touches:
     if not parts:
-        e = np.zeros(0)
-        return Touches(
-            e.astype(np.int64),
-            e.astype(np.int64),
-            e,
-            e,
-            e,
-            np.zeros((0, 9), np.int64),
-            np.zeros((0, 9)),
-        )
+        return Touches.empty()
     cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
     frame, rank = cols[0], cols[1]
     order = np.lexsort((rank, frame))

@@ -263,16 +263,7 @@ def fit2_touches(
             for key, val in zip(rows, (frame, rank, i, j, pk, tax, wt), strict=True):
                 rows[key].append(val)
     if not rows["frame"]:
-        e = np.zeros(0)
-        return Touches(
-            e.astype(np.int64),
-            e.astype(np.int64),
-            e,
-            e,
-            e,
-            np.zeros((0, 9), np.int64),
-            np.zeros((0, 9)),
-        )
+        return Touches.empty()
     return Touches(
         np.array(rows["frame"], np.int64),
         np.array(rows["rank"], np.int64),
