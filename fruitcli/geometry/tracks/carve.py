@@ -5,6 +5,7 @@ dropped (mm, mm^3)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +28,7 @@ def change_tracks(opt: dict) -> str:
     )
 
 
-def drop_slivers(piece, top_volume: float) -> tuple[object, list[float]]:
+def drop_slivers(piece, top_volume: float) -> tuple[Any, list[float]]:
     """Drop the small bodies that tubes running along a sharp edge cut off the piece.
 
     Returns (the piece without them, [their volumes in mm^3]).
@@ -86,7 +87,7 @@ class Carved:
     closed: list
     curve_ids: list
     tube_meshes: list
-    tracked: object
+    tracked: Any  # manifold3d.Manifold
     kv: np.ndarray
     kf: np.ndarray
     slivers: list

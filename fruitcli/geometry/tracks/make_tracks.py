@@ -11,13 +11,18 @@ them.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.mesh import load, winding
+
+if TYPE_CHECKING:
+    from fruitcli.geometry.tracks.reduce import Inside
 
 # artist edges longer than this many distance-grid spacings are split before the offset
 MAX_EDGE_PER_GRID = 3.0
@@ -98,7 +103,7 @@ def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radiu
 class Laps:
     """Wall and CPU seconds per step, each said as it ends (``laps("load")``)."""
 
-    say: object
+    say: Callable[[str], None]
     times: dict[str, float] = field(default_factory=dict)
     cpu_times: dict[str, float] = field(default_factory=dict)
     clock: list[float] = field(default_factory=lambda: [time.perf_counter(), time.process_time()])
@@ -135,7 +140,7 @@ class Bounding:
     split_edge: float | None
     want_edge: float
     split_cap: int
-    inside: object
+    inside: Inside
     dropped: int
 
 
