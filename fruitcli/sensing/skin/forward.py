@@ -330,8 +330,9 @@ def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = Non
 BOARD_MAX_COUNTS = 65535  # the board's counts are 16-bit: they saturate there
 
 
-def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray, rng) -> np.ndarray:
-    """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,), within the
-    board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a 16-bit counter does)."""
+def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray | float, rng) -> np.ndarray:
+    """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,) (or one
+    std for all), within the board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a
+    16-bit counter does)."""
     noisy = mean_counts + rng.standard_normal(mean_counts.shape) * noise_std
     return np.clip(np.round(noisy), 0, BOARD_MAX_COUNTS).astype(np.int64)
