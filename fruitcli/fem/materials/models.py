@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 from importlib import import_module
 
 _HERE = "fruitcli.fem.materials"
@@ -36,8 +37,7 @@ class MaterialModel:
 
     def builder(self) -> Callable:
         """The function `constants` names (imported on first use)."""
-        module, _, function = self.constants.partition(":")
-        return getattr(import_module(module), function)
+        return _load(self.constants)
 
     def runs_on(self, element: str) -> bool:
         """Whether this model runs on [fem].element `element`."""
@@ -62,3 +62,10 @@ MATERIAL_MODELS: dict[str, MaterialModel] = {
         ),
     )
 }
+
+
+@cache
+def _load(ref: str) -> Callable:
+    """The function ``"module:function"`` names (imported once)."""
+    module, _, function = ref.partition(":")
+    return getattr(import_module(module), function)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 from importlib import import_module
 
 
@@ -38,8 +39,7 @@ class Method:
 
     def finder(self) -> Callable:
         """The function `find` names (imported on first use)."""
-        module, _, function = self.find.partition(":")
-        return getattr(import_module(module), function)
+        return _load(self.find)
 
 
 _HERE = "fruitcli.sensing.detection"
@@ -70,3 +70,10 @@ METHODS: dict[str, Method] = {
 def method_help() -> str:
     """One line per method, for --help and the schema's doc."""
     return "; ".join(f"{m.name}: {m.doc}" for m in METHODS.values())
+
+
+@cache
+def _load(ref: str) -> Callable:
+    """The function ``"module:function"`` names (imported once)."""
+    module, _, function = ref.partition(":")
+    return getattr(import_module(module), function)
