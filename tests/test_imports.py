@@ -252,3 +252,36 @@ def test_every_module_imports_on_its_own():
     )
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.strip() == ""
+
+
+def test_no_module_builds_a_scene_at_import():
+    """Importing every fruitcli module builds no `Scene` (module-level constants take
+    their defaults from the tables and the schema's keys, not from a scene): a fresh
+    interpreter counts the Scenes made while the modules are imported, and one made
+    afterwards, so the count is seen to work."""
+    code = (
+        "import importlib, sys\n"
+        "import fruitcli.scene as s\n"
+        "made = []\n"
+        "init = s.Scene.__init__\n"
+        "def counting(self, *a, **k):\n"
+        "    made.append(1)\n"
+        "    init(self, *a, **k)\n"
+        "s.Scene.__init__ = counting\n"
+        "for name in sys.argv[1:]:\n"
+        "    before = len(made)\n"
+        "    importlib.import_module(name)\n"
+        "    if len(made) > before:\n"
+        "        print('at import:', name)\n"
+        "s.default_scene()\n"
+        "print('made:', len(made))\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code, *module_names()],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.stdout.splitlines() == ["made: 1"]

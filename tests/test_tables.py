@@ -98,3 +98,18 @@ def test_the_board_module_builds_no_scene_at_import():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["0", "21", "12"]
+
+
+def test_every_function_a_table_names_loads():
+    """Each detection method's `find` and each material model's `constants` names a
+    function that imports, with the calling convention's parameters."""
+    import inspect
+
+    named = [(m.name, m.finder()) for m in METHODS.values() if m.find]
+    assert [n for n, _ in named] == ["peaks", "fit2"]
+    for _, f in named:
+        assert list(inspect.signature(f).parameters) == [
+            "flat", "grid", "threshold", "floor", "max_touches", "footprint"
+        ]  # fmt: skip
+    for m in MATERIAL_MODELS.values():
+        assert list(inspect.signature(m.builder()).parameters) == ["keys", "where"], m.name

@@ -53,8 +53,7 @@ def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> 
     half_x, half_y = (nx - 1) * spacing_x_mm / 2, (ny - 1) * spacing_y_mm / 2
     if half_x > sx / 2 or half_y > sy / 2:
         raise SceneError(f"[grid]: {nx} x {ny} taxels do not fit on a {sx} x {sy} mm pad")
-    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-    i, j = i.ravel(), j.ravel()
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"))
     x = i * spacing_x_mm - half_x
     y = j * spacing_y_mm - half_y
     rows = np.column_stack(

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -116,7 +117,7 @@ class BoardStream:
         import threading
 
         self.reader = reader
-        self.frames = collections.deque(maxlen=256)
+        self.frames: collections.deque = collections.deque(maxlen=256)
         self.error: FruitError | None = None
         self.stop = threading.Event()
         self.cond = threading.Condition()
@@ -172,10 +173,16 @@ class BoardStream:
         self.thread.join(1.0)
 
 
+def _move(printer: Marlin, tip: np.ndarray, feed: float) -> None:
+    """Queue a move of the tip to `tip` (x, y, z) mm at `feed` mm/min."""
+    printer.move(float(tip[0]), float(tip[1]), float(tip[2]), feed)
+
+
 def check_reach(
-    pr: dict, placement: Placement, contact_mm: np.ndarray, top_z: float, where: str
+    pr: Any, placement: Placement, contact_mm: np.ndarray, top_z: float, where: str
 ) -> float:
-    """The safe height in printer z (mm); it must be reachable."""
+    """The safe height in printer z (mm); it must be reachable (`pr`: the scene's
+    [printer] record)."""
     z_safe = float(placement.origin[2] + top_z + pr.safe_height_mm)
     bed = pr.bed_mm
     if z_safe > bed[5]:
@@ -275,7 +282,7 @@ def run_printer_bench(
             printer.command("G28")
         x0, y0, _ = printer.position()
         tip = np.array([x0, y0, z_safe])
-        printer.move(*tip, feed)
+        _move(printer, tip, feed)
         printer.finish_moves()
         for _ in range(n_base):
             counts, t_s = stream.next_frame_after()
@@ -293,9 +300,9 @@ def run_printer_bench(
                     f"{pr.bed_mm}"
                 )
             tip = np.array([p[0], p[1], z_safe])
-            printer.move(*tip, feed)
+            _move(printer, tip, feed)
             tip = np.array([p[0], p[1], p[2] + START_GAP_MM])
-            printer.move(*tip, feed)
+            _move(printer, tip, feed)
             printer.finish_moves()
             check_position(printer, tip, where)
             while True:
@@ -314,10 +321,10 @@ def run_printer_bench(
                         "below the expected surface"
                     )
                 tip = np.array([p[0], p[1], z])
-                printer.move(*tip, feed)
+                _move(printer, tip, feed)
                 printer.finish_moves()
             tip = np.array([p[0], p[1], z_safe])
-            printer.move(*tip, feed)
+            _move(printer, tip, feed)
             say(f"{where}: touch at printer z {log.printer_mm[-1][2]:.2f} mm ({n + 1}/{len(ids)})")
         printer.finish_moves()
     except (FruitError, KeyboardInterrupt) as exc:

@@ -201,7 +201,8 @@ class Marlin:
         for line in self.command("M114"):
             m = _POS.search(line)
             if m:
-                return tuple(float(v) for v in m.groups())
+                x, y, z = (float(v) for v in m.groups())
+                return x, y, z
         raise PrinterError(f"{self.name}: M114 gave no 'X:.. Y:.. Z:..' position")
 
     def move(self, x: float, y: float, z: float, feed_mm_min: float) -> None:

@@ -31,6 +31,22 @@ class Material:
         return np.array([self.c10_kpa, self.c20_kpa, self.c30_kpa, self.bulk_modulus_kpa])
 
 
+@dataclass(frozen=True)
+class MaterialKeys:
+    """The scene's [material] keys as a model's `constants` function reads them: the
+    model's name, Young's modulus E (kPa), Poisson's ratio nu, the Yeoh constants (kPa;
+    c10 None when not given) and the bulk modulus kappa (kPa) already fixed:
+    ``bulk_modulus_kpa`` when given, else from E and nu, and > 0."""
+
+    model: str
+    young_modulus_kpa: float
+    poisson_ratio: float
+    c10_kpa: float | None
+    c20_kpa: float
+    c30_kpa: float
+    kappa_kpa: float
+
+
 def lame_from(e_kpa: float, nu: float) -> tuple[float, float]:
     """(mu, kappa) in kPa from Young's modulus and Poisson's ratio."""
     return e_kpa / (2.0 * (1.0 + nu)), e_kpa / (3.0 * (1.0 - 2.0 * nu))
@@ -46,7 +62,8 @@ def material(
     bulk_modulus_kpa=None,
     where: str = "[material]",
 ) -> Material:
-    """A checked Material; errors name the scene field."""
+    """A checked Material, from the `constants` function of `model`'s entry in
+    `MATERIAL_MODELS`; errors name the scene field."""
     if model not in MATERIAL_MODELS:
         from difflib import get_close_matches
 
@@ -55,7 +72,7 @@ def material(
         raise SceneError(
             f"{where}.model: expected one of {', '.join(MATERIAL_MODELS)}, got {model!r}{hint}"
         )
-    mu, kappa = lame_from(young_modulus_kpa, poisson_ratio)
+    _, kappa = lame_from(young_modulus_kpa, poisson_ratio)
     if bulk_modulus_kpa is not None:
         kappa = float(bulk_modulus_kpa)
     if not kappa > 0:
@@ -63,31 +80,16 @@ def material(
             f"{where}.bulk_modulus_kpa: expected > 0 (a material with a "
             f"negative bulk modulus is unstable), got {kappa}"
         )
-    if model == "yeoh":
-        if c10_kpa is None:
-            raise SceneError(
-                f"{where}.c10_kpa: the yeoh model needs its constants "
-                "(c10_kpa > 0, c20_kpa, c30_kpa in kPa)"
-            )
-        c10, c20, c30 = float(c10_kpa), float(c20_kpa), float(c30_kpa)
-        if not c10 > 0:
-            raise SceneError(
-                f"{where}.c10_kpa: expected > 0 (the small-strain shear "
-                f"modulus is 2 c10), got {c10}"
-            )
-        if c30 < 0:
-            raise SceneError(
-                f"{where}.c30_kpa: expected >= 0 (a negative c30 makes the "
-                f"material unstable at large stretch), got {c30}"
-            )
-        e = 9.0 * kappa * 2 * c10 / (3.0 * kappa + 2 * c10)
-        nu = (3.0 * kappa - 4 * c10) / (2.0 * (3.0 * kappa + 2 * c10))
-        return Material(model, e, nu, c10, c20, c30, kappa)
-    if not mu > 0:
-        raise SceneError(f"{where}: the shear modulus E / (2 (1 + nu)) must be > 0")
-    return Material(
-        model, float(young_modulus_kpa), float(poisson_ratio), 0.5 * mu, 0.0, 0.0, kappa
+    keys = MaterialKeys(
+        model,
+        float(young_modulus_kpa),
+        float(poisson_ratio),
+        None if c10_kpa is None else float(c10_kpa),
+        float(c20_kpa),
+        float(c30_kpa),
+        kappa,
     )
+    return MATERIAL_MODELS[model].builder()(keys, where)
 
 
 def from_scene(mat) -> Material:

@@ -6,11 +6,34 @@ points (no rtree needed). Points are `(n, 2)` or `(n, 3)` float64 in mm.
 
 from __future__ import annotations
 
+from typing import Literal, overload
+
 import numpy as np
 
 # Query points are nudged by this much (mm) so that a ray never runs exactly through an
 # edge or a vertex of a mesh whose coordinates are round numbers (a double count).
 RAY_JITTER_MM = np.array([3.1e-7, 1.7e-7])
+
+
+@overload
+def vertical_hits(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    xy: np.ndarray,
+    cell_mm: float | None = None,
+    upward: Literal[False] = False,
+) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@overload
+def vertical_hits(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    xy: np.ndarray,
+    cell_mm: float | None = None,
+    *,
+    upward: Literal[True],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 def vertical_hits(

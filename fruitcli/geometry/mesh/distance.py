@@ -91,7 +91,8 @@ class SurfaceDistance:
                 self._closest(points[i : i + CHUNK_POINTS])
                 for i in range(0, len(points), CHUNK_POINTS)
             ]
-            return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+            p, d, f = (np.concatenate(x) for x in zip(*parts, strict=True))
+            return p, d, f
         return self._closest(points)
 
     def _closest(self, points: np.ndarray):

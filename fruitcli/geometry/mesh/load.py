@@ -167,10 +167,10 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         faces.append(f + offset)
         offset += len(v)
     notes = [f"merged the {len(meshes)} meshes of the file into one"] if len(meshes) > 1 else []
-    verts, faces = np.concatenate(verts), np.concatenate(faces)
-    if not np.isfinite(verts).all():
+    all_v, all_f = np.concatenate(verts), np.concatenate(faces)
+    if not np.isfinite(all_v).all():
         raise GeometryError(f"{path}: vertices contain NaN or infinite coordinates")
-    return verts, faces, notes
+    return all_v, all_f, notes
 
 
 def load_mesh(

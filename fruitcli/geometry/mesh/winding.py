@@ -14,7 +14,12 @@ Points are `(n, 3)` float64 in mm.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.geometry.mesh.solid_angle import SolidAngleTree
 
 INSIDE = 0.5
 """A point is inside where its winding number exceeds this."""
@@ -49,7 +54,7 @@ class Winding:
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.closed = is_closed(self.faces)
-        self._tree = None
+        self._tree: SolidAngleTree | None = None
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Winding numbers (k,) at `points` (k, 3)."""
@@ -113,6 +118,8 @@ def grid_winding(wn: Winding, axes, near: np.ndarray | None) -> np.ndarray:
     """
     if wn.closed:
         return column_winding(wn, axes)
+    if near is None:
+        raise ValueError("grid_winding: an open surface needs `near`")
     h = float(axes[0][1] - axes[0][0])
     shape = tuple(len(a) for a in axes)
     coarse = [a[0] + 2.0 * h * np.arange((len(a) + 2) // 2 + 1) for a in axes]

@@ -1,35 +1,33 @@
 """make-tracks: artist mesh -> reduced body, carved yarn tracks, taxels (paper III-D, Fig. 6).
 
-All outputs of one run appear together in the output folder, or none of them.
+The stage in its steps: load the artist mesh, find the faces that bound its inside
+(`_bounding_faces`), offset it inwards by the cover (`reduce`), cut the casting piece
+above the split plane (`_top_piece`), section it along the grid (`curves`), find the
+taxels at the crossings (`taxels`), carve the tracks (`carve`) and write the outputs
+(`outputs`). All outputs of one run appear together in the output folder, or none of
+them.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.mesh import load, winding
 
-# a face takes part in the track curves when its normal's z component exceeds this
-UP_NZ_MIN = 0.05
-# pieces of section curves shorter than this many track radii are not carved
-MIN_PIECE_RADII = 4.0
-# gaps in a track curve's upward-facing part shorter than this many track radii are bridged
-MAX_GAP_RADII = 6.0
+if TYPE_CHECKING:
+    from fruitcli.geometry.tracks.reduce import Inside
+
 # artist edges longer than this many distance-grid spacings are split before the offset
 MAX_EDGE_PER_GRID = 3.0
 # the split adds at most this many times the target triangle count (else edges stay longer)
 MAX_SPLIT_FACES_PER_TARGET = 16
-# track curves keep this many track radii above the split plane (no tube cuts the cap)
-SPLIT_CLEARANCE_RADII = 2.0
-# the tracked piece may lose at most this fraction of its volume to the tubes
-MAX_TRACK_VOLUME_FRACTION = 0.25
-# bodies cut off by the tubes (along a sharp edge) are dropped below this fraction of the
-# piece's volume, in total; larger ones make the carving fail
-MAX_SLIVER_VOLUME_FRACTION = 1e-3
 CLI_NAMES = {
     "cover_mm": "--cover-mm",
     "faces": "--faces",
@@ -54,8 +52,6 @@ SCENE_NAMES = {
     "unit_hint": load.SCENE_ARTIST_HINT,
 }
 """The same for a scene's make-tracks stage (pass as `make_tracks(..., names=SCENE_NAMES)`)."""
-TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
-TRACK_COLUMNS = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
 
 
 def _surface_line(surf, dropped: int, w_range) -> str:
@@ -78,15 +74,7 @@ def _surface_line(surf, dropped: int, w_range) -> str:
     )
 
 
-def _change_tracks(opt: dict) -> str:
-    """What to change when the tracks cut the piece apart (`opt`: CLI_NAMES or SCENE_NAMES)."""
-    return (
-        f"try a smaller {opt['track_radius_mm']}, or move the grid lines ({opt['origin_mm']}, "
-        f"{opt['spacing_x_mm']}, {opt['spacing_y_mm']})"
-    )
-
-
-def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm):
+def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm, origin_mm):
     if not cover_mm >= 0:
         raise GeometryError(f"{opt['cover_mm']}: expected a thickness >= 0 mm, got {cover_mm}")
     if faces < 100:
@@ -105,156 +93,73 @@ def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radiu
             f"the grid spacing ({half:g} mm); use a smaller radius or larger "
             "spacings"
         )
-
-
-def _planes(lo: float, hi: float, spacing: float, origin: float | None) -> dict[int, float]:
-    """Plane index -> coordinate for the planes origin + k * spacing inside (lo, hi)."""
-    if origin is None:
-        n = int(np.floor((hi - lo) / spacing))
-        origin = 0.5 * (lo + hi) - 0.5 * n * spacing
-    k0, k1 = int(np.ceil((lo - origin) / spacing)), int(np.floor((hi - origin) / spacing))
-    return {k: origin + k * spacing for k in range(k0, k1 + 1)}
-
-
-def _upward_nz(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Per face, the smaller z component of its unit normal and of the area-weighted mean
-    normal of the faces sharing a vertex with it.
-
-    A level-set wall is a sawtooth of facets tilted alternately up and down by a few
-    degrees; face by face about half of a vertical wall looks upward-facing, and bridging
-    the gaps between those faces would run tracks down the wall. The neighbourhood mean
-    cancels the sawtooth; taking the smaller value only ever drops faces from the mask.
-    """
-    tri = vertices[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    vn = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(vn, faces[:, k], fn)
-    out = []
-    for n in (fn, vn[faces].sum(axis=1)):
-        out.append(n[:, 2] / np.maximum(np.linalg.norm(n, axis=1), 1e-300))
-    return np.minimum(*out)
-
-
-def _drop_slivers(piece, top_volume: float):
-    """Drop the small bodies that tubes running along a sharp edge cut off the piece.
-
-    Returns (the piece without them, [their volumes in mm^3]).
-    """
-    import manifold3d
-
-    if piece.is_empty() or piece.status() != manifold3d.Error.NoError:
-        return piece, []
-    parts = sorted(piece.decompose(), key=lambda m: -m.volume())
-    small = [float(p.volume()) for p in parts[1:]]
-    if not small or sum(small) >= MAX_SLIVER_VOLUME_FRACTION * top_volume:
-        return piece, []
-    return parts[0], small
-
-
-def _drop_edge_slivers(vertices: np.ndarray, faces: np.ndarray, top_volume: float):
-    """Faces of the largest edge-connected shell, and the volumes (mm^3) of the others.
-
-    manifold3d counts shells touching at a vertex as one body, and welding for a float32
-    STL can remove the zero-volume fin that joined them; an STL reader sees separate bodies.
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    _, edge_id = np.unique(e[:, 0] * len(vertices) + e[:, 1], return_inverse=True)
-    owner = np.tile(np.arange(len(faces)), 3)
-    graph = coo_matrix(
-        (np.ones(len(owner)), (owner, edge_id.ravel() + len(faces))),
-        shape=(len(faces) + edge_id.max() + 1,) * 2,
-    )
-    n, labels = connected_components(graph, directed=False)
-    labels = labels[: len(faces)]
-    if len(np.unique(labels)) == 1:
-        return faces, []
-    tri = vertices[faces]
-    six_vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
-    vol = np.bincount(labels, six_vol, minlength=n) / 6.0
-    big = int(np.argmax(vol))
-    others = [float(v) for k, v in enumerate(vol) if k != big and np.any(labels == k)]
-    if sum(abs(v) for v in others) >= MAX_SLIVER_VOLUME_FRACTION * top_volume:
-        return faces, []
-    return faces[labels == big], others
-
-
-OFFSET_WARN_FRACTION = 0.5
-"""Warn when the reduced surface's Hausdorff distance to the ideal offset exceeds this
-fraction of the cover thickness (the default Fruit: 0.81 mm against 2 mm)."""
-
-
-def make_tracks(
-    artist_path,
-    out_dir,
-    *,
-    unit=None,
-    cover_mm=2.0,
-    faces=5000,
-    spacing_x_mm=16.0,
-    spacing_y_mm=12.0,
-    origin_mm=None,
-    track_radius_mm=0.6,
-    split_z_mm=None,
-    fit_mm=None,
-    progress=None,
-    names=None,
-) -> dict:
-    """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict.
-    `names` (default CLI_NAMES; SCENE_NAMES from a scene) names the options in errors."""
-    import manifold3d
-
-    from fruitcli.fsutil import staged_dir, write_csv, write_json
-    from fruitcli.geometry.mesh import export
-    from fruitcli.geometry.mesh.distance import TreeDistance
-    from fruitcli.geometry.tracks import reduce, sections, taxels, tubes
-    from fruitcli.geometry.tracks.preview import write_preview
-
-    say = progress or (lambda msg: None)
-    opt = names or CLI_NAMES
-    src = str(artist_path)
-    _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm)
     if origin_mm is not None and not np.all(np.isfinite(np.asarray(origin_mm, float))):
         raise GeometryError(
             f"{opt['origin_mm']}: expected two finite numbers (mm), got {list(origin_mm)}"
         )
-    times: dict[str, float] = {}
-    cpu_times: dict[str, float] = {}
-    clock = [time.perf_counter(), time.process_time()]
 
-    def lap(step):
+
+@dataclass
+class Laps:
+    """Wall and CPU seconds per step, each said as it ends (``laps("load")``)."""
+
+    say: Callable[[str], None]
+    times: dict[str, float] = field(default_factory=dict)
+    cpu_times: dict[str, float] = field(default_factory=dict)
+    clock: list[float] = field(default_factory=lambda: [time.perf_counter(), time.process_time()])
+
+    def __call__(self, step: str) -> None:
         now, cpu = time.perf_counter(), time.process_time()
-        times[step] = round(now - clock[0], 4)
-        cpu_times[step] = round(cpu - clock[1], 4)
-        clock[:] = [now, cpu]
-        say(f"{step}: {times[step]:.2f} s ({cpu_times[step]:.2f} s CPU)")
+        self.times[step] = round(now - self.clock[0], 4)
+        self.cpu_times[step] = round(cpu - self.clock[1], 4)
+        self.clock[:] = [now, cpu]
+        self.say(f"{step}: {self.times[step]:.2f} s ({self.cpu_times[step]:.2f} s CPU)")
 
+
+def _load_artist(artist_path, unit, fit_mm, opt: dict, say):
+    """The artist mesh (`load.Surface`), its repairs and notes said."""
     surf = load.load_mesh(artist_path, unit, opt["unit_hint"], fit_mm, opt["fit_mm"])
-    repairs = surf.repairs
-    for r in repairs:
+    for r in surf.repairs:
         if r.startswith("merged") and Path(artist_path).suffix.lower() == ".stl":
             continue  # STL stores each triangle's corners apart: welding them is normal
         say(f"make-tracks: {r}" if r.startswith("scaled") else f"make-tracks: repaired: {r}")
     for note in surf.notes:
         say(f"make-tracks: {note}")
-    av, af = surf.vertices, surf.faces
-    lap("load")
+    return surf
 
+
+@dataclass
+class Bounding:
+    """The artist surface made ready for the offset: its long triangles split (dv, df;
+    `split_edge` the edge length reached, None: none split, `want_edge` the one asked,
+    `split_cap` the triangles allowed), its inside test and the faces dropped because
+    they bound nothing."""
+
+    dv: np.ndarray
+    df: np.ndarray
+    split_edge: float | None
+    want_edge: float
+    split_cap: int
+    inside: Inside
+    dropped: int
+
+
+def _bounding_faces(surf, faces: int, opt: dict, src: str) -> Bounding:
+    """The artist surface split finely enough for the distance grid of a `faces`-triangle
+    reduced body, keeping the faces that have the inside on one side only."""
+    from fruitcli.geometry.tracks import reduce
     from fruitcli.memory import require
 
-    points = reduce.grid_points(av, af, int(faces))
+    av, af = surf.vertices, surf.faces
+    points = reduce.grid_points(av, af, faces)
     require(
         points * reduce.GRID_BYTES_PER_POINT,
-        f"{opt['faces']} = {int(faces):,} on {Path(src).name} (a distance grid of "
-        f"{points:.3g} points)",
+        f"{opt['faces']} = {faces:,} on {Path(src).name} (a distance grid of {points:.3g} points)",
         GeometryError,
     )
     # long triangles are split so that nearest-vertex distances bound the exact ones closely
-    want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, int(faces))
-    split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * int(faces)
+    want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, faces)
+    split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * faces
     dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
     # one part, every edge shared by at most two faces: every face bounds the inside (the
     # holes are closed by caps); overlapping parts or non-manifold edges: faces inside the
@@ -275,26 +180,12 @@ def make_tracks(
             )
         used, kf_ = np.unique(df[bound], return_inverse=True)
         dv, df = dv[used], kf_.reshape(-1, 3)
-    lap("winding")
-    dist = TreeDistance(dv, df)
-    red = reduce.reduce_body(
-        dv, df, float(cover_mm), int(faces), src, dist, opt["cover_mm"], inside
-    )
-    rv, rf = reduce.manifold_arrays(red.body)
-    surface = {
-        **surf.facts(),
-        "parts_merged": surf.parts if surf.parts > 1 else 0,
-        "faces_dropped_inside_or_outside": dropped,
-        "winding_number_min": round(red.winding_range[0], 4),
-        "winding_number_max": round(red.winding_range[1], 4),
-        "inside_volume_mm3": red.inside_volume_mm3,
-    }
-    if not surf.closed:
-        say(f"make-tracks: {_surface_line(surf, dropped, red.winding_range)}")
-    lap("reduce")
-    offset = reduce.offset_error(rv, rf, dv, df, float(cover_mm), dist=dist, caps=inside.cap_points)
-    lap("hausdorff")
+    return Bounding(dv, df, split_edge, want_edge, split_cap, inside, dropped)
 
+
+def _top_piece(red, rv: np.ndarray, split_z_mm, opt: dict, src: str):
+    """(split z in mm, the reduced body's one piece above it: a manifold3d.Manifold);
+    `split_z_mm` None: the body's equator."""
     zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
     split = red.equator_z_mm if split_z_mm is None else float(split_z_mm)
     if not zlo < split < zhi:
@@ -309,252 +200,184 @@ def make_tracks(
             f"{src}: the part above the split plane z = {split:.2f} mm has "
             f"{n_top} pieces (expected one casting piece); set {opt['split_z_mm']}"
         )
+    return split, top
+
+
+def _taxel_rows(tx: dict, ii: np.ndarray, jj: np.ndarray) -> list:
+    """taxels.csv's rows (id, i, j, x, y, z, nx, ny, nz), ordered by i then j."""
+    order = np.lexsort((jj, ii))
+    rows = []
+    for t, o in enumerate(order):
+        p, n = tx["xyz"][o], tx["normals"][o]
+        rows.append([t, int(ii[o]), int(jj[o]), *map(float, p), *map(float, n)])
+    return rows
+
+
+@dataclass
+class Options:
+    """make-tracks' options, as given (mm; `faces` the reduced body's triangles)."""
+
+    unit: str | None
+    cover_mm: float
+    faces: int
+    spacing_x_mm: float
+    spacing_y_mm: float
+    origin_mm: object
+    track_radius_mm: float
+    split_z_mm: float | None
+    fit_mm: float | None
+
+
+def _report(o: Options, src: str, surf, surface: dict, b: Bounding, red, rf, tf, top) -> dict:
+    """report.json's first part: the options, the artist surface, the reduction."""
+    return {
+        "artist": src,
+        "unit": o.unit or "mm",
+        "fit_mm": o.fit_mm,
+        "repairs": surf.repairs,
+        "notes": surf.notes,
+        "artist_surface": surface,
+        "triangles": {
+            "artist": int(len(surf.faces)),
+            "split": int(len(b.df)),
+            "reduced": int(len(rf)),
+            "reduced_top": int(len(tf)),
+        },
+        "cover_mm": float(o.cover_mm),
+        "faces_target": int(o.faces),
+        "level_set_edge_mm": red.edge_mm,
+        "distance_grid_mm": red.grid_mm,
+        "dropped_islands": red.dropped_islands,
+        "islands": red.islands,
+        "filled_pinches_at_mm": red.filled_pinches,
+        "split_long_triangles": b.split_edge is not None,
+        "split_edge_mm": b.split_edge,
+    }
+
+
+def _report_tracks(report: dict, o: Options, grid: dict, rows, top, carved, warnings, tx, red):
+    """report.json's second part, added to `report`: the split, grid, taxels, genus,
+    slivers, warnings and volumes."""
+    tracked = carved.tracked
+    report["triangles"]["tracked_top"] = int(len(carved.kf))
+    report["triangles"]["tracks"] = int(sum(len(f) for _, f in carved.tube_meshes))
+    report.update(
+        {
+            "split_z_automatic": o.split_z_mm is None,
+            "grid": grid,
+            "track_radius_mm": float(o.track_radius_mm),
+            "taxels": len(rows),
+            "genus": {
+                "reduced_top": int(top.genus()),
+                "tracked_top": int(tracked.genus()),
+                "tunnels": max(int(tracked.genus()) - int(top.genus()), 0),
+            },
+            "dropped_slivers_mm3": carved.slivers,
+            "warnings": warnings,
+            "taxel_curve_mismatch_mm": tx["mismatch_mm"],
+            "volume_mm3": {
+                "artist": red.inside_volume_mm3,
+                "reduced": float(red.body.volume()),
+                "reduced_top": float(top.volume()),
+                "tracked_top": float(tracked.volume()),
+            },
+        }
+    )
+
+
+def make_tracks(
+    artist_path,
+    out_dir,
+    *,
+    unit=None,
+    cover_mm=2.0,
+    faces=5000,
+    spacing_x_mm=16.0,
+    spacing_y_mm=12.0,
+    origin_mm=None,
+    track_radius_mm=0.6,
+    split_z_mm=None,
+    fit_mm=None,
+    progress=None,
+    names=None,
+) -> dict:
+    """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict.
+    `names` (default CLI_NAMES; SCENE_NAMES from a scene) names the options in errors."""
+    from fruitcli.geometry.mesh.distance import TreeDistance
+    from fruitcli.geometry.tracks import curves, outputs, reduce, taxels
+    from fruitcli.geometry.tracks.carve import carve
+
+    say = progress or (lambda msg: None)
+    opt = names or CLI_NAMES
+    src = str(artist_path)
+    o = Options(
+        unit, cover_mm, faces, spacing_x_mm, spacing_y_mm, origin_mm, track_radius_mm,
+        split_z_mm, fit_mm,
+    )  # fmt: skip
+    _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm, origin_mm)
+    laps = Laps(say)
+    surf = _load_artist(artist_path, unit, fit_mm, opt, say)
+    laps("load")
+    b = _bounding_faces(surf, int(faces), opt, src)
+    laps("winding")
+    dist = TreeDistance(b.dv, b.df)
+    red = reduce.reduce_body(
+        b.dv, b.df, float(cover_mm), int(faces), src, dist, opt["cover_mm"], b.inside
+    )
+    rv, rf = reduce.manifold_arrays(red.body)
+    surface = {
+        **surf.facts(),
+        "parts_merged": surf.parts if surf.parts > 1 else 0,
+        "faces_dropped_inside_or_outside": b.dropped,
+        "winding_number_min": round(red.winding_range[0], 4),
+        "winding_number_max": round(red.winding_range[1], 4),
+        "inside_volume_mm3": red.inside_volume_mm3,
+    }
+    if not surf.closed:
+        say(f"make-tracks: {_surface_line(surf, b.dropped, red.winding_range)}")
+    laps("reduce")
+    offset = reduce.offset_error(
+        rv, rf, b.dv, b.df, float(cover_mm), dist=dist, caps=b.inside.cap_points
+    )
+    laps("hausdorff")
+
+    split, top = _top_piece(red, rv, split_z_mm, opt, src)
     _, tf = reduce.manifold_arrays(top)
     # curves and taxels lie on the reduced surface itself (reduced.stl, what the FEM uses):
     # trim_by_plane may re-triangulate the top, so its faces can differ by a fraction of a mm
-    sv, sf = rv, rf
-    tri = sv[sf]
-    up = (_upward_nz(sv, sf) > UP_NZ_MIN) & (
-        tri[:, :, 2].min(axis=1) > split + SPLIT_CLEARANCE_RADII * track_radius_mm
+    x_pieces, y_pieces, x_planes, y_planes = curves.track_curves(
+        rv, rf, split, (spacing_x_mm, spacing_y_mm), origin_mm, track_radius_mm, src
     )
-    if not up.any():
-        raise GeometryError(f"{src}: no upward-facing surface above z = {split:.2f} mm")
-    upv = sv[np.unique(sf[up])]
-    ox, oy = (None, None) if origin_mm is None else (float(origin_mm[0]), float(origin_mm[1]))
-    x_planes = _planes(upv[:, 0].min(), upv[:, 0].max(), spacing_x_mm, ox)
-    y_planes = _planes(upv[:, 1].min(), upv[:, 1].max(), spacing_y_mm, oy)
-    min_len = MIN_PIECE_RADII * track_radius_mm
-
-    max_gap = MAX_GAP_RADII * track_radius_mm
-    below = tri[:, :, 2].max(axis=1) < split  # sections stay on the top half
-
-    def cut(axis, planes):
-        out = {}
-        for k, value in planes.items():
-            ps = [
-                q
-                for p in sections.section_pieces(sv, sf, axis, value, ~below)
-                for q in sections.masked_runs(p, up[p.faces], max_gap, min_len)
-            ]
-            if ps:
-                out[k] = ps
-        return out
-
-    x_pieces, y_pieces = cut(0, x_planes), cut(1, y_planes)
-    lap("sections")
-    tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, sv, sf)
+    laps("sections")
+    tx = taxels.find_taxels(x_pieces, y_pieces, x_planes, y_planes, rv, rf)
     if len(tx["k"]) == 0:
         raise GeometryError(
             f"{src}: the grid misses the shape (no crossing of x- and y-curves "
             f"on the top surface); check {opt['origin_mm']} and the spacings"
         )
     k0, l0 = int(tx["k"].min()), int(tx["l"].min())
-    ii, jj = tx["k"] - k0, tx["l"] - l0
-    origin_used = [float(x_planes[k0]), float(y_planes[l0])]
-    lap("taxels")
+    rows = _taxel_rows(tx, tx["k"] - k0, tx["l"] - l0)
+    laps("taxels")
 
-    curves = [p.points for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
-    closed = [p.closed for d in (x_pieces, y_pieces) for k in sorted(d) for p in d[k]]
-    # each curve's axis (x: a plane x = const, index i; y: y = const, index j)
-    curve_ids = [
-        (axis, k - k_min)
-        for axis, d, k_min in (("x", x_pieces, k0), ("y", y_pieces, l0))
-        for k in sorted(d)
-        for _ in d[k]
-    ]
-    tube_meshes = []
-    for pts, cl in zip(curves, closed, strict=True):
-        for line in tubes.track_polylines(pts, cl):
-            tube_meshes.append(tubes.tube_arrays(line, track_radius_mm))
-    tube_manifolds = [load.to_manifold(v, f) for v, f in tube_meshes]
-    bad = [m.status().name for m in tube_manifolds if m.status() != manifold3d.Error.NoError]
-    if bad:
-        raise GeometryError(
-            f"{src}: {len(bad)} track tube(s) are not valid solids ({bad[0]}); "
-            f"try a smaller {opt['track_radius_mm']}"
-        )
-    tracked = manifold3d.Manifold.batch_boolean([top, *tube_manifolds], manifold3d.OpType.Subtract)
-    tracked, slivers = _drop_slivers(tracked, top.volume())
-    lost = 1.0 - tracked.volume() / top.volume()
-    n_tracked = len(tracked.decompose()) if not tracked.is_empty() else 0
-    if (
-        tracked.status() != manifold3d.Error.NoError
-        or n_tracked != 1
-        or not 0 < lost < MAX_TRACK_VOLUME_FRACTION
-    ):
-        raise GeometryError(
-            f"{src}: carving the tracks gave an invalid piece ({n_tracked} "
-            f"bodies, genus {tracked.genus()}, {100 * lost:.1f} % removed); "
-            f"{_change_tracks(opt)}"
-        )
-    kv, kf = export.weld_float32(*reduce.manifold_arrays(tracked))
-    kf, more = _drop_edge_slivers(kv, kf, top.volume())
-    slivers += more
-    warnings = []
-    if split_edge is not None and split_edge > want_edge:
-        warnings.append(
-            f"long triangles were split to {split_edge:.2f} mm edges, not "
-            f"{want_edge:.2f} mm (at most {split_cap} triangles); the offset "
-            "may be less accurate (check offset_error)"
-        )
-    if red.islands:
-        big = max(red.islands, key=lambda i: i["volume_mm3"])
-        warnings.append(
-            f"the {cover_mm:g} mm offset cut off {len(red.islands)} small piece(s) "
-            f"of {sum(i['volume_mm3'] for i in red.islands):.3g} mm^3 (the largest "
-            f"at {big['at_mm']} mm): a feature there is thinner than twice the "
-            "cover; they are not in the reduced body"
-        )
-    if red.filled_pinches:
-        warnings.append(
-            f"the {cover_mm:g} mm offset surface touched itself along "
-            f"{len(red.filled_pinches)} edge(s) (first at {red.filled_pinches[0]} mm), "
-            "where a feature is about twice the cover thick; each was filled with a "
-            "capsule so the reduced body is closed"
-        )
-    if slivers:
-        warnings.append(
-            f"dropped {len(slivers)} sliver(s) of {sum(slivers):.3g} mm^3 that "
-            "tracks along a sharp edge cut off the piece"
-        )
-    tunnels = int(tracked.genus()) - int(top.genus())
-    if tunnels > 0:
-        warnings.append(
-            f"the tracks tunnel through the piece ({tunnels} new handle(s), genus "
-            f"{top.genus()} -> {tracked.genus()}); try another {opt['origin_mm']} "
-            f"or a smaller {opt['track_radius_mm']}"
-        )
-    if offset["hausdorff_mm"] > OFFSET_WARN_FRACTION * float(cover_mm):
-        at = ", ".join(f"{x:.1f}" for x in offset["worst_at_mm"])
-        warnings.append(
-            f"the reduced surface departs from the ideal {cover_mm:g} mm offset by "
-            f"up to {offset['hausdorff_mm']:.2f} mm (mean "
-            f"{offset['reduced_to_ideal_mean_mm']:.2f} mm, worst at ({at}) mm): "
-            f"a feature there is thinner than twice the cover or finer than the "
-            f"reduced mesh; raise {opt['faces']} or lower {opt['cover_mm']}"
-        )
+    carved = carve(top, x_pieces, y_pieces, k0, l0, track_radius_mm, opt, src)
+    warnings = outputs.reduce_warnings(b.split_edge, b.want_edge, b.split_cap, red, cover_mm)
+    warnings += outputs.carve_warnings(carved, top, offset, cover_mm, opt)
     for w in warnings:
         say(f"warning: {w}")
-    lap("tracks")
+    laps("tracks")
 
-    order = np.lexsort((jj, ii))
-    rows = []
-    for t, o in enumerate(order):
-        p, n = tx["xyz"][o], tx["normals"][o]
-        rows.append([t, int(ii[o]), int(jj[o]), *map(float, p), *map(float, n)])
-    report = {
-        "artist": src,
-        "unit": unit or "mm",
-        "fit_mm": fit_mm,
-        "repairs": repairs,
-        "notes": surf.notes,
-        "artist_surface": surface,
-        "triangles": {
-            "artist": int(len(af)),
-            "split": int(len(df)),
-            "reduced": int(len(rf)),
-            "reduced_top": int(len(tf)),
-            "tracked_top": int(len(kf)),
-            "tracks": int(sum(len(f) for _, f in tube_meshes)),
-        },
-        "cover_mm": float(cover_mm),
-        "faces_target": int(faces),
-        "level_set_edge_mm": red.edge_mm,
-        "distance_grid_mm": red.grid_mm,
-        "dropped_islands": red.dropped_islands,
-        "islands": red.islands,
-        "filled_pinches_at_mm": red.filled_pinches,
-        "split_long_triangles": split_edge is not None,
-        "split_edge_mm": split_edge,
-        "offset_error": offset,
-        "split_z_mm": split,
-        "split_z_automatic": split_z_mm is None,
-        "grid": {
-            "spacing_x_mm": float(spacing_x_mm),
-            "spacing_y_mm": float(spacing_y_mm),
-            "origin_mm": origin_used,
-            "x_planes": len(x_pieces),
-            "y_planes": len(y_pieces),
-            "curves": len(curves),
-        },
-        "track_radius_mm": float(track_radius_mm),
-        "taxels": len(rows),
-        "genus": {
-            "reduced_top": int(top.genus()),
-            "tracked_top": int(tracked.genus()),
-            "tunnels": max(tunnels, 0),
-        },
-        "dropped_slivers_mm3": slivers,
-        "warnings": warnings,
-        "taxel_curve_mismatch_mm": tx["mismatch_mm"],
-        "volume_mm3": {
-            "artist": red.inside_volume_mm3,
-            "reduced": float(red.body.volume()),
-            "reduced_top": float(top.volume()),
-            "tracked_top": float(tracked.volume()),
-        },
-        "times_s": times,
-        "cpu_times_s": cpu_times,
+    report = _report(o, src, surf, surface, b, red, rf, tf, top)
+    report["offset_error"] = offset
+    report["split_z_mm"] = split
+    grid = {
+        "spacing_x_mm": float(spacing_x_mm),
+        "spacing_y_mm": float(spacing_y_mm),
+        "origin_mm": [float(x_planes[k0]), float(y_planes[l0])],
+        "x_planes": len(x_pieces),
+        "y_planes": len(y_pieces),
+        "curves": len(carved.curves),
     }
-    with staged_dir(out_dir) as tmp:
-        tmp = Path(tmp)
-        closed, bodies = export.write_stl(tmp / "reduced.stl", rv, rf)
-        if not closed or bodies != 1:
-            raise GeometryError(
-                f"{src}: reduced.stl does not reload as one closed mesh ("
-                f"{'closed' if closed else 'open'}, {bodies} edge-connected "
-                f"bodies)"
-            )
-        closed, bodies = export.write_stl(tmp / "tracked_top.stl", kv, kf)
-        if not closed or bodies != 1:
-            raise GeometryError(
-                f"{src}: the tracked piece does not reload as one closed body ({bodies} "
-                f"bodies{'' if closed else ', open'}); {_change_tracks(opt)}"
-            )
-        report["tracked_top_reloads_watertight"] = closed
-        report["tracked_top_bodies"] = bodies
-        tube_v = np.concatenate([v for v, _ in tube_meshes])
-        offs = np.cumsum([0] + [len(v) for v, _ in tube_meshes[:-1]])
-        tube_f = np.concatenate([f + o for (_, f), o in zip(tube_meshes, offs, strict=True)])
-        export.write_stl(tmp / "tracks.stl", tube_v, tube_f)
-        track_rows = [
-            [t, axis, idx, n, *map(float, q)]
-            for t, ((axis, idx), pts) in enumerate(zip(curve_ids, curves, strict=True))
-            for n, q in enumerate(pts)
-        ]
-        write_csv(
-            tmp / "tracks.csv",
-            TRACK_COLUMNS,
-            track_rows,
-            comments=[
-                f"yarn track centre lines of {Path(src).name} on the reduced surface (mm)",
-                "track: curve number; axis x: the section x = const of grid index i (index), "
-                "axis y: y = const of index j; point: order along the curve",
-            ],
-        )
-        write_csv(
-            tmp / "taxels.csv",
-            TAXEL_COLUMNS,
-            rows,
-            comments=[
-                f"taxels of {Path(src).name}: crossings of the track curves on the reduced surface",
-                "x_mm, y_mm, z_mm in mm; nx, ny, nz: outward unit normal; i along x, j along y",
-                f"grid origin (plane i=0, j=0) {origin_used[0]:.6f} {origin_used[1]:.6f} mm; "
-                f"spacing {spacing_x_mm:g} x {spacing_y_mm:g} mm",
-            ],
-        )
-        lap("export")
-        write_preview(
-            tmp / "preview.png",
-            kv,
-            kf,
-            curves,
-            np.array([r[3:6] for r in rows]),
-            f"{Path(src).name}: {len(rows)} taxels, cover {cover_mm:g} mm, "
-            f"tracks r = {track_radius_mm:g} mm",
-        )
-        lap("preview")
-        report["times_s"]["total"] = round(sum(times.values()), 4)
-        report["cpu_times_s"]["total"] = round(sum(cpu_times.values()), 4)
-        write_json(tmp / "report.json", report)
+    _report_tracks(report, o, grid, rows, top, carved, warnings, tx, red)
+    report["times_s"], report["cpu_times_s"] = laps.times, laps.cpu_times
+    outputs.write_outputs(out_dir, rv, rf, carved, rows, report, laps, opt)
     return report

@@ -28,7 +28,7 @@ def write_preview(
     ax = fig.add_subplot(1, 2, 1)
     t = top_v[top_f]
     facing_up = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])[:, 2] > 0
-    ax.tripcolor(
+    ax.tripcolor(  # type: ignore[call-overload]  # stubs lack (x, y, triangles, c)
         top_v[:, 0],
         top_v[:, 1],
         top_f[facing_up],
@@ -117,7 +117,7 @@ def draw_perspective(
         )
     else:
         shade = 0.25 + 0.75 * np.clip(vn @ light, 0, 1)
-        ax.tripcolor(
+        ax.tripcolor(  # type: ignore[call-overload]  # stubs lack (x, y, triangles, c)
             q[:, 0], q[:, 1], front, shade, cmap="Greys_r", vmin=0.0, vmax=1.15, shading="gouraud"
         )
     for c in curves:

@@ -108,12 +108,12 @@ def signed_distance_grid(
             d = np.minimum(d, cap_tree.query(pts, distance_upper_bound=band)[0])
     is_in = w.ravel() > winding.INSIDE
     sdf = np.where(is_in, d, -d)
-    near = np.nonzero(np.abs(sdf - level_mm) < 2.0 * spacing_mm)[0]
-    if len(near):
-        _, exact, _ = dist.closest(pts[near])
+    level = np.nonzero(np.abs(sdf - level_mm) < 2.0 * spacing_mm)[0]
+    if len(level):
+        _, exact, _ = dist.closest(pts[level])
         if cap_tree is not None:
-            exact = np.minimum(exact, cap_tree.query(pts[near])[0])
-        sdf[near] = np.where(is_in[near], exact, -exact)
+            exact = np.minimum(exact, cap_tree.query(pts[level])[0])
+        sdf[level] = np.where(is_in[level], exact, -exact)
     return axes, sdf.reshape(shape), w
 
 
@@ -168,7 +168,7 @@ def _trilinear(axes, sdf: np.ndarray):
     return f
 
 
-def edge_for_faces(area_mm2: float, faces: int) -> float:
+def edge_for_faces(area_mm2: float, faces: float) -> float:
     """Level-set edge length (mm) expected to give about `faces` triangles on `area_mm2`."""
     return float(np.sqrt(TRIANGLES_PER_AREA * area_mm2 / max(int(faces), 1)))
 
@@ -464,8 +464,8 @@ def _drop_pinched_shells(body):
     if labels.max() == 0:
         return body, []
     tri = v[f]
-    vol = np.bincount(labels, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
-    vol /= 6.0
+    six_vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    vol = np.bincount(labels, six_vol) / 6.0
     big = int(np.argmax(vol))
     out = []
     for k in range(len(vol)):

@@ -60,14 +60,14 @@ def plane_segments(
         p = np.where((t == 1)[:, None], vertices[hi], p)
         nodes.append(np.where(pos[a] != pos[b], node, -1))
         pts.append(p)
-    nodes, pts = np.stack(nodes, axis=1), np.stack(pts, axis=1)
-    has = nodes >= 0
+    edge_nodes, edge_pts = np.stack(nodes, axis=1), np.stack(pts, axis=1)
+    has = edge_nodes >= 0
     # exactly two crossing edges per face: pick them in edge order
     first = np.argmax(has, axis=1)
     second = 2 - np.argmax(has[:, ::-1], axis=1)
     r = np.arange(len(f))
-    seg_nodes = np.stack([nodes[r, first], nodes[r, second]], axis=1)
-    seg_pts = np.stack([pts[r, first], pts[r, second]], axis=1)
+    seg_nodes = np.stack([edge_nodes[r, first], edge_nodes[r, second]], axis=1)
+    seg_pts = np.stack([edge_pts[r, first], edge_pts[r, second]], axis=1)
     keep = seg_nodes[:, 0] != seg_nodes[:, 1]
     return seg_nodes[keep], seg_pts[keep], fid[keep]
 

@@ -45,7 +45,6 @@ from fruitcli.sensing.detection.detect import (
     Touches,
     activation_grid,
     baseline_counts,
-    n9_peaks,
     n9_sequential,
 )
 from fruitcli.sensing.detection.drift import DriftTracker
@@ -58,7 +57,6 @@ from fruitcli.sensing.detection.model_fit import (
     Window,
     refine,
 )
-from fruitcli.sensing.detection.two_footprints import fit2_touches
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
 from fruitcli.tables import Taxels
@@ -83,21 +81,20 @@ def detect(
     footprint=None,
 ) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
-    ``[detection].method`` (`methods.METHODS`): the sequential N9 or every peak's, fit2's
-    footprints (with the skin's `two_footprints.Footprint`); the model method's touches
+    ``[detection].method`` (`methods.METHODS`): the sequential N9, or the method's `find`
+    function on the activation grids (fit2's with the skin's `two_footprints.Footprint`
+    `footprint`); the model method's touches
     are the sequential N9's here, refined where the taxels' positions are known
     (`Locator`). Activations are divided by `gain` (T,) when given."""
     m = METHODS.get(method)
     if m is None:
         raise FrameError(f"detection method: expected one of {', '.join(METHODS)}, got {method!r}")
     floor = floor if m.floor else 0.0
-    if m.extract == "sequential":
+    if not m.find:
         return n9_sequential(frames, baseline, layout, threshold, floor, max_touches, gain)
     values = np.take(frames, layout.frame_cell, axis=1)
     flat = activation_grid(values, baseline, grid, gain)
-    if m.refine == "fit2":
-        return fit2_touches(flat, grid, threshold, footprint, max_touches)
-    return n9_peaks(flat, grid, threshold, floor, max_touches)
+    return m.finder()(flat, grid, threshold, floor, max_touches, footprint)
 
 
 @dataclass(frozen=True)
@@ -273,8 +270,12 @@ class Locator:
         self.hover_levels = (
             settings.hover_levels(heights.noise_std_counts) if settings.hovers else None
         )
+        if settings.method not in METHODS:
+            raise FrameError(
+                f"[detection].method: expected one of {', '.join(METHODS)}, got {settings.method!r}"
+            )
         self.footprint = None
-        if settings.method == "fit2":
+        if METHODS[settings.method].refine == "fit2":
             from fruitcli.sensing.detection.two_footprints import Footprint
 
             law = FootprintLaw.of(heights, settings.method)  # the skin's own, as the model's
@@ -291,10 +292,6 @@ class Locator:
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
         self.model = None  # (window, law) of the model method
-        if settings.method not in METHODS:
-            raise FrameError(
-                f"[detection].method: expected one of {', '.join(METHODS)}, got {settings.method!r}"
-            )
         if METHODS[settings.method].refine == "model":
             law = FootprintLaw.of(heights)
             if self.gain is not None:  # activations divided by the gains already
@@ -604,15 +601,10 @@ class Stream:
                 self.tracker.end_all()
             return self._empty
         method = METHODS[s.method]
-        if method.extract == "peaks":
+        if method.find:
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
-            if method.refine == "fit2":
-                from fruitcli.sensing.detection.two_footprints import fit2_touches
-
-                t = fit2_touches(flat, loc.grid, thr, loc.footprint, s.max_touches)
-            else:
-                t = n9_peaks(flat, loc.grid, thr, s.floor, s.max_touches)
+            t = method.finder()(flat, loc.grid, thr, s.floor, s.max_touches, loc.footprint)
             i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
         else:
             lay = loc.layout
@@ -639,7 +631,7 @@ class Stream:
         # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
         pos9 = pos[tax]
         xyz = (w[:, None, :] @ pos9)[:, 0, :]
-        tax9 = t.taxel if method.extract == "peaks" else loc.layout.n9_taxel[self._k[:n]]
+        tax9 = t.taxel if method.find else loc.layout.n9_taxel[self._k[:n]]
         extra = {}
         if loc.model is not None and n:
             window, law = loc.model

@@ -19,7 +19,9 @@ from fruitcli.sensing.live.run_log import STATUS_EVERY_S
 if TYPE_CHECKING:
     from serial import SerialBase
 
+    from fruitcli.sensing.live.run_log import RunLog
     from fruitcli.sensing.live.serial_ports import FrameReader
+    from fruitcli.sensing.outputs.tuio import TuioSender
 
 
 def _finite(x) -> float | None:
@@ -39,8 +41,8 @@ class Outputs:
         self.recent = deque(maxlen=32)  # host times of the latest frames (frames/s)
         self.scale = time_scale
         self.t0 = time.monotonic()
-        self.tuio = None
-        self.log = None
+        self.tuio: TuioSender | None = None
+        self.log: RunLog | None = None
         self.reconnects = 0
         self.skipped = 0  # lines skipped by earlier connections' readers
         self.frames = 0

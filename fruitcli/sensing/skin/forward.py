@@ -60,17 +60,17 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.scene import default_scene
+from fruitcli.scene import SCHEMA, default_scene
 
-_SKIN = default_scene().skin  # the [skin] defaults, declared in the scene schema
+_SKIN = SCHEMA["skin"]  # the [skin] keys, whose defaults the scene schema declares
 THRESHOLD_COUNTS = 20.0
-CONTACT_COUNTS = _SKIN.contact_counts
-GAP_DECAY_MM = _SKIN.gap_decay_mm
+CONTACT_COUNTS = float(_SKIN["contact_counts"].default)
+GAP_DECAY_MM = float(_SKIN["gap_decay_mm"].default)
 FIELD_SIGMA_MM = 6.0
 INDENTER_RADIUS_MM = {"small": 1.5, "medium": 4.0}
 BASELINE_COUNTS = 500.0
 BASELINE_SPREAD_COUNTS = 30.0
-NOISE_STD_RANGE_COUNTS = tuple(_SKIN.noise_std_counts)
+NOISE_STD_RANGE_COUNTS = tuple(_SKIN["noise_std_counts"].default)
 DEFECT_PROBABILITY = 0.05  # share of crossings that deform more than intended
 DEFECT_FACTOR_RANGE = (1.5, 2.5)
 BEND_SHIFT_COUNTS = 10.0  # Fig. 9: 4 x 4 pad bent 180 deg
@@ -97,14 +97,14 @@ class SkinParams:
     footprint_sigma_mm: dict  # indenter name -> lateral Gaussian width (mm)
     contact_counts: float = CONTACT_COUNTS
     gap_decay_mm: float = GAP_DECAY_MM
-    gain_spread: float = _SKIN.gain_spread  # taxel gains uniform in 1 +- spread
+    gain_spread: float = float(_SKIN["gain_spread"].default)  # gains uniform in 1 +- spread
     noise_std_counts: float | tuple = NOISE_STD_RANGE_COUNTS  # one std, or (lo, hi) per taxel
-    taxel_gain: Path | None = _SKIN.taxel_gain  # CSV (id, gain) of measured gains
+    taxel_gain: Path | None = _SKIN["taxel_gain"].default  # CSV (id, gain) of measured gains
 
     @classmethod
     def from_table(cls, skin=None) -> SkinParams:
         """From a scene's [skin] (a `fruitcli.scene.SkinSection`; None: the defaults)."""
-        skin = _SKIN if skin is None else skin
+        skin = default_scene().skin if skin is None else skin
         feet = {**default_footprints_mm(), **(skin.footprint_sigma_mm or {})}
         noise = skin.noise_std_counts
         return cls(
@@ -330,8 +330,9 @@ def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = Non
 BOARD_MAX_COUNTS = 65535  # the board's counts are 16-bit: they saturate there
 
 
-def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray, rng) -> np.ndarray:
-    """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,), within the
-    board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a 16-bit counter does)."""
+def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray | float, rng) -> np.ndarray:
+    """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,) (or one
+    std for all), within the board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a
+    16-bit counter does)."""
     noisy = mean_counts + rng.standard_normal(mean_counts.shape) * noise_std
     return np.clip(np.round(noisy), 0, BOARD_MAX_COUNTS).astype(np.int64)
