@@ -1,6 +1,7 @@
-"""Newton's trial evaluations bring the element tangents along when the next step will
-need them (`newton.TANGENT_AHEAD`): on a hollow cube of quadratic neo-Hookean tets under
-6, 9 then 12 kPa, the same iterates bit for bit as without, in fewer element loops."""
+"""A load step's first evaluation brings the element tangents along (`newton._Step.
+evaluate`): on a hollow cube of quadratic neo-Hookean tets under 6, 9 then 12 kPa, the
+same iterates bit for bit as with the tangent in a loop of its own, in fewer element
+loops."""
 
 import numpy as np
 
@@ -39,7 +40,7 @@ def three_states(m):
     return states, len(calls), sum(calls)
 
 
-def test_the_tangent_brought_along_changes_no_iterate_and_saves_element_loops(monkeypatch):
+def test_the_tangent_at_the_start_changes_no_iterate_and_saves_element_loops(monkeypatch):
     ahead, loops_ahead, _ = three_states(hollow_cube("p2"))
     evaluate = newton._Step.evaluate  # never ahead: each tangent in a loop of its own
     monkeypatch.setattr(newton._Step, "evaluate", lambda s, x, p, t=False: evaluate(s, x, p))

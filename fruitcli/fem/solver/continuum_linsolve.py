@@ -135,7 +135,6 @@ class ContinuumSolver:
         # default Fruit's breathing the 12 states took 4.6-5.4 s instead of 6.2-6.4 s
         self.near_tolerance = linsolve.NEAR_TOLERANCE
         self.newton_c = 0.0
-        self.stop_merit = 0.0  # the residual Newton last stopped at on the displacement tol.
         self.history = []
         # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
         self.sensitivity = None

@@ -144,7 +144,6 @@ class TangentSolver:
         # read by Newton (`newton._newton`, 0.0 there without it: no chord steps)
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
-        self.stop_merit = 0.0  # the residual Newton last stopped at on the displacement tol.
         self.history = []  # converged (load vector, x, p) for the next state's predictor
         # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
         self.sensitivity = None

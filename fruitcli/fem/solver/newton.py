@@ -123,14 +123,17 @@ class _Step:
         self.v_ref = np.maximum(np.abs(self.c) @ model.chamber_rest_volume_mm3, 1.0)
         self.f_int_norm = 0.0
         self.deadline = None  # time.perf_counter() past which Newton stops (OutOfTime)
-        # whether the start's evaluation brings the tangent along (`TANGENT_AHEAD`)
+        # whether the start's evaluation brings the tangent along (`evaluate`)
         self.tangent_at_start = True
         self.report = None  # report(iteration, merit) when progress is asked for
 
     def evaluate(self, x, p, tangent: bool = False):
         """(rot, det_f, h, r, g, merit, energy, f) at x with chamber pressures p; with
-        `tangent`, the model evaluates the element tangents in the same pass (see
-        TANGENT_AHEAD)."""
+        `tangent`, the model evaluates the element tangents in the same pass (a load
+        step's start, whose tangent Newton's first step needs: on the quadratic default
+        Fruit one element loop of 60-100 ms instead of that and a forces loop of 9-14
+        ms; trial iterates do not, as a tangent evaluated for an iterate that then
+        converges costs far more than the forces loop it would save)."""
         m = self.m
         f, rot, det_f = m.kinematics(x, tangent)
         h = m.chamber_gradients(x) if m.chamber_tris else None
@@ -206,10 +209,6 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         # residual this step will leave, C merit^2 (C observed on earlier full steps)
         # (first iteration of a step only: later ones converge less regularly)
         goal = PCG_TARGET * options.tolerance
-        if it > 0 and _displacement_stop(step, options):
-            # the displacement tolerance, not the residual tolerance, ends this state:
-            # no need to solve past a fraction of the residual it last stopped at
-            goal = max(goal, STOP_MARGIN * step.solver.stop_merit)
         if it == 0:
             goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
         # near the tolerance (within the solver's `near_tolerance` factor, 0 = never) the
@@ -248,7 +247,6 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         alpha, accepted, trial = 1.0, False, None
         j_limit = m.dilatation_step
         j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
-        ahead = _tangent_ahead(step, merit, options)
         for _ in range(LINE_SEARCH_STEPS):
             xt, pt = x + alpha * dx, p.copy()
             pt += alpha * dp
@@ -256,7 +254,7 @@ def _newton(step: _Step, x, p, options: SolverOptions):
                 alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
                 continue
             _check_time(step)
-            trial = step.evaluate(xt, pt, ahead)
+            trial = step.evaluate(xt, pt)
             if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
                 alpha *= 0.5
                 continue
@@ -292,24 +290,6 @@ def _newton(step: _Step, x, p, options: SolverOptions):
     return False, x, p, options.max_iterations, merit, det_f
 
 
-TANGENT_AHEAD = 0.1
-"""Newton's trial evaluations bring the element tangents along (one element loop
-instead of a forces loop now and a tangent loop at the next step: on the quadratic
-default Fruit 168 ms instead of 64 + 168 ms) when the residual the step is expected to
-leave, newton_c merit^2, is above this fraction of the largest residual at which Newton
-may stop (the tolerance, or ESTIMATE_WINDOW times it under a displacement tolerance):
-the next step will then need the tangent there."""
-
-
-def _tangent_ahead(step: _Step, merit: float, options: SolverOptions) -> bool:
-    """True when the iterate this Newton step reaches will most likely need its tangent
-    (see TANGENT_AHEAD)."""
-    stop = options.tolerance
-    if _displacement_stop(step, options):
-        stop *= ESTIMATE_WINDOW
-    return step.solver.newton_c * merit**2 > TANGENT_AHEAD * stop
-
-
 def _check_time(step: _Step, ahead: float = 0.0) -> None:
     """Raise OutOfTime when the step's deadline is less than `ahead` seconds away:
     checked before each Newton step's tangent (`ahead` one factorization) and each
@@ -327,27 +307,10 @@ def _close_enough(step: _Step, r: np.ndarray, merit: float, options: SolverOptio
     bound of its own) and once the residual is within ESTIMATE_WINDOW of the tolerance
     (each estimate costs one solve with the factor)."""
     dtol = options.displacement_tolerance_mm
-    if not (_displacement_stop(step, options) and merit <= ESTIMATE_WINDOW * options.tolerance):
+    if not (dtol > 0.0 and not len(step.vc) and merit <= ESTIMATE_WINDOW * options.tolerance):
         return False
     z = step.solver.estimate(r)
-    done = z is not None and ESTIMATE_SAFETY * float(np.abs(z).max(initial=0.0)) <= dtol
-    if done:
-        step.solver.stop_merit = merit
-    return done
-
-
-def _displacement_stop(step: _Step, options: SolverOptions) -> bool:
-    """True when Newton may stop this load step on the displacement tolerance."""
-    return options.displacement_tolerance_mm > 0.0 and not len(step.vc)
-
-
-STOP_MARGIN = 0.1
-"""Under a displacement tolerance, a Newton step after a load step's first solves only
-to this fraction of the relative residual at which the last state stopped on the
-displacement tolerance (`solver.stop_merit`, 0 before any), when that is looser than
-PCG_TARGET times the tolerance: the state will stop there again rather than at the
-residual tolerance (on the quadratic default Fruit's breathing: at 2e-5 to 5e-5 with
-the tolerance 1e-6), so the linear solve need not go ten times further."""
+    return z is not None and ESTIMATE_SAFETY * float(np.abs(z).max(initial=0.0)) <= dtol
 
 
 def solve_state(
