@@ -5,8 +5,11 @@ Two load paths, each solved in order with one solver (as `fruit simulate`): the 
 breathing states (the first from rest, then each from the previous one), and a pressure
 sweep of chamber c1 from 0 to the breathing's largest c1 pressure in --sweep equal steps
 with the other chambers at 0. Prints, per path, the median wall time of a state from the
-previous one, the state from rest, Newton steps, CG iterations and factorizations, and
-where the solver's time went (assembly, factorizations), each figure stamped with the
+previous one and its CPU time (all threads; less sensitive to other users' load than
+the wall time), the state from rest, Newton steps, CG iterations and factorizations, and
+where the solver's time went (assembly: the solver's tangent updates, which do not
+include a load step's first element tangents, evaluated with the forces at Newton's
+start; factorizations), each figure stamped with the
 date, commit, machine and the load average before and after (the machine may be shared:
 compare figures taken at a like load). --repeat N runs each path N times (fresh solver
 each time) and prints every run's median; --mesh DIR keeps the tetrahedral mesh there
