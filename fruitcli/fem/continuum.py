@@ -337,12 +337,16 @@ class ContinuumModel:
         """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
         return node_incidence(self.conn, self.n_nodes)
 
-    def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def kinematics(
+        self, x: np.ndarray, tangent: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(state, state, smallest det F per element): the state is x itself, evaluated
-        once here and reused by `forces_and_energy` (Newton's interface)."""
+        once here and reused by `forces_and_energy` (Newton's interface); with `tangent`
+        the element tangents too, kept for `tangent` at this state (one element loop
+        instead of two when Newton knows it will need the tangent here)."""
         x = np.array(x, float)
-        forces, energy, jmin, _ = self.evaluate(x)
-        self.__dict__["_last"] = (x, forces, energy)
+        forces, energy, jmin, blocks = self.evaluate(x, tangent=tangent)
+        self.__dict__["_last"] = (x, forces, energy, blocks)
         return x, x, jmin
 
     def forces_and_energy(self, f: np.ndarray, rot=None) -> tuple[np.ndarray, float]:
@@ -357,7 +361,11 @@ class ContinuumModel:
     def tangent(self, x: np.ndarray, project: bool = False) -> sp.csr_matrix:
         """Material and geometric tangent over the free dofs (mN/mm) plus the springs;
         with `project`, each element's block clamped to positive semi-definite."""
-        _, _, _, blocks = self.evaluate(x, tangent=True)
+        last = self.__dict__.get("_last")
+        if last is not None and last[0] is x and last[3] is not None:
+            blocks = last[3]  # evaluated with the forces by `kinematics(x, tangent=True)`
+        else:
+            _, _, _, blocks = self.evaluate(x, tangent=True)
         if project:
             w, v = np.linalg.eigh(blocks)
             blocks = np.einsum("mij,mj,mkj->mik", v, np.maximum(w, 0.0), v)

@@ -308,10 +308,14 @@ class Model:
         _, rot, det = self.kinematics(x)
         return rot, det
 
-    def kinematics(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def kinematics(
+        self, x: np.ndarray, tangent: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Deformation gradients F (m, 3, 3), rotations R (m, 3, 3), det F (m,) at x. R is
         warm-started from the last call's (`kernels.kinematics`); elements it leaves, and
-        all on the first call, take `corotation.polar_rotations`."""
+        all on the first call, take `corotation.polar_rotations`. `tangent` is Newton's
+        hint that the tangent at x comes next (nothing to do here: it is applied
+        matrix-free from F and R)."""
         guess = self.__dict__.get("_rot_guess")
         warm = guess is not None and guess.shape == (len(self.tets), 3, 3)
         f, rot, det, cold = kernels.kinematics(

@@ -394,3 +394,23 @@ def test_a_state_out_of_time_in_a_bulk_stage_says_so_in_one_line():
         "kPa (a body this stiff in bulk is solved through softer bulk moduli first); raise "
         "[solver].max_seconds"
     )
+
+
+def test_the_tangent_evaluated_with_the_forces_is_the_tangent_of_that_state_only():
+    """`kinematics(x, tangent=True)` keeps the element tangents of x for `tangent`: the
+    same matrix, entry for entry, as the tangent evaluated afresh, and another state's
+    tangent asked afterwards is that state's own (not the kept one)."""
+    nodes, conn = mesh_of("p2")
+    held = np.flatnonzero(nodes[:, 0] == 0.0)
+    m = ContinuumModel.from_arrays(nodes, conn, MATERIALS["neo-hookean"], "p2", fixed_nodes=held)
+    x = nodes + 0.04 * RNG.standard_normal(nodes.shape)
+    y = nodes + 0.04 * RNG.standard_normal(nodes.shape)
+    fresh_x, fresh_y = m.tangent(x.copy()), m.tangent(y.copy())
+    xs = m.kinematics(x, tangent=True)[0]
+    forces, energy = m.forces_and_energy(xs)
+    assert np.array_equal(forces, m.evaluate(x)[0]) and energy == m.evaluate(x)[1]
+    assert np.array_equal(m.tangent(xs).toarray(), fresh_x.toarray())
+    assert np.array_equal(m.tangent(y).toarray(), fresh_y.toarray())
+    projected = m.tangent(xs, project=True).toarray()
+    assert np.array_equal(projected, m.tangent(x.copy(), project=True).toarray())
+    assert not np.array_equal(projected, fresh_x.toarray())

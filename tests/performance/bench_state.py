@@ -1,0 +1,167 @@
+"""Benchmark: a quadratic state from the previous one on the default Fruit
+(pipelines/fruit-breathing.toml as it stands: p2, neo-Hookean, 3 chambers).
+
+Two load paths, each solved in order with one solver (as `fruit simulate`): the scene's
+breathing states (the first from rest, then each from the previous one), and a pressure
+sweep of chamber c1 from 0 to the breathing's largest c1 pressure in --sweep equal steps
+with the other chambers at 0. Prints, per path, the median wall time of a state from the
+previous one and its CPU time (all threads; less sensitive to other users' load than
+the wall time), the state from rest, Newton steps, CG iterations and factorizations, and
+where the solver's time went (assembly: the solver's tangent updates, which do not
+include a load step's first element tangents, evaluated with the forces at Newton's
+start; factorizations), each figure stamped with the
+date, commit, machine and the load average before and after (the machine may be shared:
+compare figures taken at a like load). --repeat N runs each path N times (fresh solver
+each time) and prints every run's median; --mesh DIR keeps the tetrahedral mesh there
+(built once, about a minute) so that later runs skip the meshing.
+
+--save PREFIX writes each path's states (nodes, mm) to PREFIX-breathing.npz and
+PREFIX-sweep.npz, to compare the equilibria of two versions.
+
+Run: .venv/bin/python tests/performance/bench_state.py [--mesh DIR] [--repeat N]
+     [--sweep 10] [--only breathing|sweep] [--save PREFIX]
+"""
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+
+
+def load_text() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def default_mesh(mesh_dir: Path, scene) -> Path:
+    """The default Fruit's tetrahedral mesh (mesh.npz) in mesh_dir, built when missing."""
+    from bench_fem import fruit_solid
+
+    from fruitcli.fem.stage import run_tetra
+
+    npz = mesh_dir / "mesh.npz"
+    if not npz.exists():
+        run_tetra(scene, fruit_solid(mesh_dir), mesh_dir)
+    return npz
+
+
+def run_path(scene, mesh_npz: Path, loads_of) -> dict:
+    """Solve the loads (a function of the chamber names) in order with one solver."""
+    from fruitcli.fem import io
+    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.stage import build_model, solver_options
+
+    model = build_model(scene, io.load_mesh(mesh_npz))
+    loads = loads_of(model.chamber_names)
+    solver = model.make_solver(solver_options(scene).linear_solver)
+    x = p = prev = None
+    ms, cpu, its, states = [], [], [], []
+    stats0 = None
+    for i, load in enumerate(loads):
+        opts = solver_options(scene, first_state=i == 0)
+        cpu0 = time.process_time()
+        res = solve_state(
+            model, load, x_start=x, load_start=prev, pressure_start=p, options=opts, solver=solver
+        )
+        if stats0 is None:
+            stats0 = dict(solver.stats)
+        ms.append(res.solve_ms)
+        cpu.append(1e3 * (time.process_time() - cpu0))
+        its.append(res.iterations)
+        states.append(res)
+        x, p, prev = res.x, res.pressure_kpa, load
+    later = {k: solver.stats[k] - stats0[k] for k in solver.stats}
+    return {
+        "model": model,
+        "ms": np.array(ms),
+        "cpu_ms": np.array(cpu),
+        "iterations": np.array(its),
+        "later_stats": later,
+        "states": states,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--sweep", type=int, default=10, help="steps of the c1 pressure sweep")
+    ap.add_argument("--only", choices=("breathing", "sweep"), default=None)
+    ap.add_argument(
+        "--save", type=Path, default=None, help="write each path's nodes (mm) to SAVE-path.npz"
+    )
+    args = ap.parse_args()
+    from bench_fem import scene_loads
+    from run_all import commit, processor
+
+    from fruitcli.fem.corotational_model import Load
+    from fruitcli.fem.stage import state_loads
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    stamp = (
+        f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, commit {commit()}, "
+        f"{processor()}, {os.cpu_count()} cores"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        mesh_dir = args.mesh or Path(tmp)
+        mesh_dir.mkdir(parents=True, exist_ok=True)
+        npz = default_mesh(mesh_dir, scene)
+
+        def breathing(names):
+            return scene_loads(scene, names, 10**6)
+
+        def sweep(names):
+            peak = max(load.pressure_kpa[0] for load in state_loads(scene, names))
+            out = []
+            for t in np.linspace(0.0, 1.0, args.sweep + 1)[1:]:
+                pk = np.zeros(len(names))
+                pk[0] = t * peak
+                out.append(Load.pressures(pk))
+            return out
+
+        paths = [("breathing", breathing), ("sweep", sweep)]
+        print(f"quadratic state from the previous one, default Fruit; {stamp}")
+        for name, loads_of in paths:
+            if args.only and name != args.only:
+                continue
+            medians = []
+            for _ in range(args.repeat):
+                before = load_text()
+                run = run_path(scene, npz, loads_of)
+                after = load_text()
+                later_ms = run["ms"][1:]
+                st = run["later_stats"]
+                med = float(np.median(later_ms))
+                medians.append(med)
+                if args.save is not None:
+                    xs = np.stack([s.x for s in run["states"]])
+                    np.savez(f"{args.save}-{name}.npz", x=xs)
+                print(
+                    f"{name}: {len(later_ms)} states after the one from rest "
+                    f"({len(run['model'].conn)} tets, {len(run['model'].pattern.free)} dofs): "
+                    f"median {med:.0f} ms (min {later_ms.min():.0f}, max {later_ms.max():.0f}), "
+                    f"CPU median {np.median(run['cpu_ms'][1:]):.0f} ms (both cores), "
+                    f"from rest {run['ms'][0]:.0f} ms; Newton {run['iterations'][1:].mean():.2f}"
+                    f" per state, CG {st['cg_iterations'] / len(later_ms):.1f} per state, "
+                    f"{st['factorizations']} factorizations; assembly "
+                    f"{1e3 * st['assembly_s'] / len(later_ms):.0f} ms, factor "
+                    f"{1e3 * st['factor_s'] / len(later_ms):.0f} ms per state; "
+                    f"load average {before} -> {after}",
+                    flush=True,
+                )
+            if args.repeat > 1:
+                runs = " ".join(f"{m:.0f}" for m in medians)
+                print(f"{name}: medians of {args.repeat} runs: {runs}")
+
+
+if __name__ == "__main__":
+    main()
