@@ -28,7 +28,7 @@ YARN_SIZE_RADII = 0.5
 """Element size along the yarns away from the crossings, in yarn radii (the crossings
 themselves get `crossing_size_mm`)."""
 
-YARN_REACH_COVERS = 1.0
+YARN_REACH_COVERS = 2.0
 """Distance from the yarns (in covers) over which the size grows to the far size."""
 
 OUTER_BALL_RADII = 1.0
@@ -42,6 +42,22 @@ the touch box (where the objects' tips are at the table's gaps)."""
 
 FAR_SIZE_FACTOR = 3.0
 """Element size far from the crossing and the surface: this times `surface_size_mm`."""
+
+COLUMN_SIZE_FACTOR = 1.0
+"""Element size in the air column over the touch box (where the objects' tips come, up
+to the highest level): this times `surface_size_mm`."""
+
+CONTACT_SIZE_FACTOR = 0.6
+"""Element size over the touch box from the yarns to `CONTACT_HEIGHT_MM` above the
+surface (where the objects touch and come near): this times `surface_size_mm`."""
+
+CONTACT_HEIGHT_MM = 1.0
+"""Height of the finer part of the column (mm)."""
+
+COLUMN_MARGIN_MM = 2.0
+"""The column reaches this far beyond the touch box on each side and above the highest
+level (the small indenter's radius and a little); its size grows to the far size over
+as much."""
 
 
 @dataclass(frozen=True)
@@ -206,8 +222,30 @@ def _size_fields(gmsh, spec: CellSpec, yarn_surfaces: list[int]) -> None:
         f"Min(1, Max(-z - 1, 0) / {spec.cover_mm} + Max(z - 1, 0) / {AIR_GROWTH_MM} "
         f"+ Sqrt({out_x} * {out_x} + {out_y} * {out_y}) / {reach})",
     )
+    fields = [*balls, yarn, near]
+    if bx > 0 or by > 0:
+        m = COLUMN_MARGIN_MM
+        top = min(max((float(z) for z in spec.levels_mm), default=0.0) + m, spec.air_mm)
+        for factor, z_top in (
+            (COLUMN_SIZE_FACTOR, top),
+            (CONTACT_SIZE_FACTOR, min(CONTACT_HEIGHT_MM, top)),
+        ):
+            column = f.add("Box")
+            for key, val in (
+                ("VIn", factor * spec.surface_size_mm),
+                ("VOut", far),
+                ("XMin", -m),
+                ("XMax", bx + m),
+                ("YMin", -m),
+                ("YMax", by + m),
+                ("ZMin", -spec.cover_mm),
+                ("ZMax", z_top),
+                ("Thickness", m),
+            ):
+                f.setNumber(column, key, val)
+            fields.append(column)
     mn = f.add("Min")
-    f.setNumbers(mn, "FieldsList", [*balls, yarn, near])
+    f.setNumbers(mn, "FieldsList", fields)
     f.setAsBackgroundMesh(mn)
     for key in ("MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary"):
         gmsh.option.setNumber(f"Mesh.{key}", 0)

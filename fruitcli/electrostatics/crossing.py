@@ -81,7 +81,8 @@ CROSSING_SIZE_RANGE = (0.1, 1.0 / 6.0)
 thickness clipped to this range (finer would not mesh in time, coarser misses the gap)."""
 
 SURFACE_SIZE_MM = 0.8
-"""Element size at the surface near the crossing, where the objects come (mm)."""
+"""Element size at the surface near the crossing (mm); over the quarter cell the objects
+visit, a fraction of it (`cell_geometry.CONTACT_SIZE_FACTOR`, `COLUMN_SIZE_FACTOR`)."""
 
 
 @dataclass

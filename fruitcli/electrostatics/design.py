@@ -118,8 +118,9 @@ def _check_objects_fit(where: str, pitch_x_mm: float, pitch_y_mm: float) -> None
 DEFAULT_SOLVE_S = 0.35
 """One position's solve on the default cell (s, 2 shared cores; bench_skin.py)."""
 
-DEFAULT_FACTOR_MB = 150.0
-"""Memory of the default cell's factorization and arrays (MB)."""
+DEFAULT_FACTOR_MB = 270.0
+"""Memory of the default cell's factorization and arrays (MB): the 150 MB of the
+25,000-node cell it had, scaled as nodes^1.33 to its 39,000 nodes (`table_cost`)."""
 
 MOST_TABLE_S = 1800.0
 """Longest estimated table `fruit skin` starts (s)."""

@@ -166,6 +166,24 @@ def test_kept_pattern_solve_matches_a_plain_dirichlet_solve(small_cell):
     assert 0 < plain < c0  # the grounded object takes field from Rx
 
 
+def test_the_cell_is_finer_where_the_objects_touch(small_cell):
+    """The air's tets just above the touch box are at the contact size
+    (`cell_geometry.CONTACT_SIZE_FACTOR` of the surface size), finer than those at the
+    same height a pitch and more away."""
+    mesh = small_cell.mesh
+    air = np.array(mesh.regions)[mesh.region] == "air"
+    x = mesh.nodes[mesh.tets[:, :4]]
+    centre = x.mean(axis=1)
+    edge = np.linalg.norm(x[:, 1:] - x[:, :1], axis=2).mean(axis=1)
+    low = air & (centre[:, 2] < 0.5)
+    over = low & (centre[:, 0] > 0) & (centre[:, 0] < 3) & (centre[:, 1] > 0) & (centre[:, 1] < 2.5)
+    away = low & (centre[:, 0] > 9)
+    size = crossing.SURFACE_SIZE_MM
+    assert over.sum() > 50 and away.sum() > 50
+    assert np.median(edge[over]) < 0.8 * size  # gmsh's edges run about 1.25 times its size
+    assert np.median(edge[over]) < 0.75 * np.median(edge[away]), np.median(edge[away])
+
+
 def test_deformed_cell_is_solved_and_restored(small_cell):
     """C of a moved cell, then the cell at rest again gives C0 back; no motion, no change."""
     s = small_cell

@@ -4,8 +4,9 @@ footprint sigma and the gap decay, at three element sizes at the surface.
 Units: mm, fF. The default Fruit's crossing (pitch 16 x 12 mm, cover 2 mm, yarn radius
 0.6 mm, insulation 0.1 mm, eps_r 2.8, the default gaps), the objects meshed to their
 surface (`CellSolver.conform`). Sizes: the default `crossing.SURFACE_SIZE_MM`, 0.8 and
-0.6 times it (the far size follows it, the crossing's own size does not; a coarser
-cell fails in gmsh: overlapping facets at the yarns). The footprint sigma is fitted
+0.6 times it (the far size and the column over the touch box follow it, the crossing's
+own size and the yarns' do not; a coarser cell fails in gmsh: overlapping facets at the
+yarns). The footprint sigma is fitted
 to the contact row over the centre crossing's quarter of the table (offsets up to half a pitch, as
 `equivalents.footprint_sigma_mm`), the gap decay under the crossing is the gap at
 which dC falls to 1/e of contact. Prints each and the default's departure from the
