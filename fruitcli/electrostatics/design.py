@@ -20,6 +20,7 @@ import numpy as np
 from fruitcli.errors import SceneError
 
 if TYPE_CHECKING:
+    from fruitcli.electrostatics.cell_geometry import CellSpec
     from fruitcli.electrostatics.crossing import CrossingTable
 
 
@@ -160,11 +161,11 @@ def _check_cost(where: str, pitch_x_mm: float, pitch_y_mm: float, gaps: int) -> 
         )
 
 
-def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, dict]:
-    """(CrossingTable, summary dict) of a design."""
-    from fruitcli.electrostatics import crossing, equivalents
+def cell_spec(inputs: CrossingInputs) -> CellSpec:
+    """The crossing cell of a design (`crossing.cell_spec`)."""
+    from fruitcli.electrostatics import crossing
 
-    spec = crossing.cell_spec(
+    return crossing.cell_spec(
         inputs.pitch_x_mm,
         inputs.pitch_y_mm,
         inputs.cover_mm,
@@ -172,6 +173,13 @@ def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, 
         inputs.insulation_mm,
         inputs.gaps_mm,
     )
+
+
+def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, dict]:
+    """(CrossingTable, summary dict) of a design."""
+    from fruitcli.electrostatics import crossing, equivalents
+
+    spec = cell_spec(inputs)
     table = crossing.compute(
         spec,
         inputs.permittivity,

@@ -22,7 +22,7 @@ import numpy as np
 def main(argv=None) -> None:
     from fruitcli.electrostatics import crossing
     from fruitcli.electrostatics.cell_mesh import mesh_cell
-    from fruitcli.electrostatics.design import crossing_inputs
+    from fruitcli.electrostatics.design import cell_spec, crossing_inputs
     from fruitcli.scene import load_scene
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
     from fruitcli.studies.machine import machine_line
@@ -33,14 +33,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     root = args.out.resolve() / "fruit-breathing-electrostatic"
     inputs = crossing_inputs(load_scene(root.parent / f"{root.name}.toml"))
-    spec = crossing.cell_spec(
-        inputs.pitch_x_mm,
-        inputs.pitch_y_mm,
-        inputs.cover_mm,
-        inputs.yarn_radius_mm,
-        inputs.insulation_mm,
-        inputs.gaps_mm,
-    )
+    spec = cell_spec(inputs)
     small = crossing.deformation_spec(spec)
     solver = crossing.CellSolver(mesh_cell(small, 1, inputs.time_limit_s), inputs.permittivity)
     c0_def = solver.capacitance()
