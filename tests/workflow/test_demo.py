@@ -108,3 +108,48 @@ def test_scenes_copy_refuses_a_non_empty_folder_and_unknown_names(fruit, tmp_pat
     res = fruit("scenes", "copy", "paper", tmp_path / "new")
     assert res.exit_code == 1 and "unknown scene 'paper' (bundled scenes: " in res.output
     assert not (tmp_path / "new").exists()
+
+
+@pytest.mark.slow
+def test_the_whole_demo_runs_every_bundled_scene_without_a_warning(tmp_path):
+    """`fruit demo` as `make demo` runs it (all five bundled scenes into an empty folder):
+    exit 0, no warning, a report with the observations, Table I's N9 and model rows and
+    every picture it links; run again, every stage of every scene is reused."""
+    import re
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+
+    def demo() -> str:
+        done = subprocess.run(
+            [sys.executable, "-c", "from fruitcli.cli.main import main; main()", "demo"],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=1800,
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert "warning" not in done.stderr.lower(), done.stderr
+        return (tmp_path / "out" / "report.md").read_text()
+
+    report = demo()
+    assert "## The paper's observations against this run" in report
+    for row in ("Rest, small", "Rest, medium", "Deformed, small", "Deformed, medium"):
+        scene = "fruit-rest" if row.startswith("Rest") else "fruit-deformed"
+        assert f"| {row} (ours: {scene}) |" in report
+        assert re.search(rf"\| {row} \(ours: {scene}, model, \d+ % placed by the fit\) \|", report)
+    for picture in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report):
+        assert (tmp_path / "out" / picture).is_file(), picture
+    stages = re.findall(r"^\| ([a-z0-9-]+) \| [0-9.]+ \| (\d+) \| (\d+) \|$", report, re.M)
+    assert [name for name, _, _ in stages] == [
+        "paper-table",
+        "fruit-rest",
+        "fruit-deformed",
+        "fruit-breathing",
+        "touchpad-4x4",
+    ]
+    again = demo()
+    rerun = re.findall(r"^\| ([a-z0-9-]+) \| [0-9.]+ \| (\d+) \| (\d+) \|$", again, re.M)
+    assert [int(ran) for _, ran, _ in rerun] == [0] * 5, again
