@@ -318,6 +318,10 @@ def test_tutorial_commands_run(name, tmp_path):
             assert (work / rel).exists(), rel
     if name == "fruit-to-table-1":
         claims_of_tutorial_1(work, res.stdout, bin_dir / "fruit", env)
+    if name == "own-sculpture":
+        claims_of_tutorial_2(work, res.stdout)
+    if name == "lab":
+        claims_of_tutorial_3(work)
     if name == "installation":
         assert '"touches": [{"touch": 0' in (work / "touches.jsonl").read_text()
         assert " down 0 " in (work / "fruit.log").read_text()
@@ -333,6 +337,54 @@ def named_paths(name: str) -> list[str]:
 def _plan(text: str) -> dict[str, str]:
     """stage -> action of a printed plan (its lines `name  action  reason`)."""
     return dict(re.findall(r"^([a-z-]+) +(run|reuse|not needed) ", text, re.M))
+
+
+def claims_of_tutorial_2(work: Path, stdout: str) -> None:
+    """What tutorial 2 says of its runs."""
+    # make-tracks' outputs, as the page lists them
+    for name in ("reduced.stl", "tracked_top.stl", "tracks.stl", "tracks.csv", "report.json"):
+        assert (work / "tracks" / name).is_file(), name
+    # "The planner runs make-tracks, tetra, simulate (three states, ...), the bench,
+    # locate, evaluate and the sensitivity stage" (the dry run's plan)
+    dry = stdout.split("plan for sculpture.toml -> out/sculpture/", 1)[1]
+    plan = _plan(dry.split("\n\n", 1)[0])
+    runs = ["make-tracks", "tetra", "simulate", "bench", "locate", "evaluate", "sensitivity"]
+    assert [stage for stage, action in plan.items() if action == "run"] == runs, dry
+    import numpy as np
+
+    with np.load(work / "out/sculpture/simulate/states.npz") as states:
+        assert states["taxels_mm"].shape[0] == 3
+    # yarns.csv: per track its rest length and its largest stretch
+    header = (work / "out/sculpture/simulate/yarns.csv").read_text().splitlines()
+    columns = next(line for line in header if not line.startswith("#")).split(",")
+    assert "track" in columns and any("rest" in c for c in columns), columns
+    assert any("stretch" in c for c in columns), columns
+    # "mold.json gives volumes and the silicone to mix"
+    mold = (work / "molds" / "mold.json").read_text()
+    assert "volume" in mold and "silicone" in mold
+
+
+def claims_of_tutorial_3(work: Path) -> None:
+    """What tutorial 3 says of its runs."""
+    import numpy as np
+
+    # "`--until pad-grid` makes the taxels only"
+    assert (work / "out/pad/pad-grid/taxels.csv").is_file()
+    assert not (work / "out/pad/tetra").exists() and not (work / "out/pad/simulate").exists()
+    # "frames.npz (with the printer position of every frame) and truth.csv"
+    with np.load(work / "out/lab-bench/small/frames.npz") as bench:
+        assert len(bench["printer_mm"]) == len(bench["frames"]) > 0
+    assert (work / "out/lab-bench/small/truth.csv").is_file()
+    # skin.toml: "the footprint width, the activation at contact, the gap decay, a gain
+    # per taxel and the noise", as a [skin] table
+    skin = (work / "out/calibration/skin.toml").read_text()
+    assert re.search(r"^\[skin\]$", skin, re.M), skin
+    for key in ("footprint_sigma_mm", "contact_counts", "gap_decay_mm", "noise_std_counts"):
+        assert key in skin, key
+    assert (work / "out/calibration/gains.csv").is_file()
+    # "fruit record ... --frames 200"
+    with np.load(work / "recording.npz") as recording:
+        assert len(recording["frames"]) == 200
 
 
 def claims_of_tutorial_1(work: Path, stdout: str, fruit: Path, env: dict) -> None:
