@@ -18,9 +18,11 @@ the scene schema (`scene`) and every module may read them:
 `fruitcli.fem.elements.families`, `fruitcli.fem.solver.solvers`,
 `fruitcli.evaluation.registrations`, `fruitcli.geometry.mesh.units`.
 
-The top modules (the shared ones, `scene`, `bundled`, `bundled_files`, `output_folder`)
-May import: one another, the tables of choices and `fruitcli.fem.materials.build` (the
-scene's check of its [material], which imports only `fruitcli.errors` and a table).
+The scene files' package `fruitcli.scene` sits at the bottom with them: it imports only
+the shared modules, the tables and the two modules its docstring names.
+
+The top modules (the shared ones, `bundled`, `bundled_files`, `output_folder`)
+May import: one another, the tables of choices and `fruitcli.scene`.
 
 Imports run one way: `cli` uses `workflow`, which uses the packages of each stage;
 `tests/test_imports.py` reads the "May import" rule of each package's docstring and fails

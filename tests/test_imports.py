@@ -203,6 +203,41 @@ def test_the_bottom_imports_only_the_bottom():
     assert {s: graph[s] - set(shared) for s in shared if graph[s] - set(shared)} == {}
 
 
+SCENE_SCHEMA = ("key", "limits", "sections_body", "sections_mechanics", "sections_sensing")
+SCENE_SCHEMA += ("schema", "records")
+"""The modules of `fruitcli.scene` that define the keys and their records."""
+
+
+def test_the_scene_schema_imports_only_the_bottom():
+    """The scene's keys, schema and records import only one another, the shared modules
+    and the tables of choices (so every package may read them)."""
+    shared, tables = the_bottom()
+    graph = import_graph()
+    schema = {f"fruitcli.scene.{m}" for m in SCENE_SCHEMA}
+    allowed = schema | set(shared) | set(tables)
+    assert {m: graph[m] - allowed for m in schema if graph[m] - allowed} == {}
+
+
+def test_importing_the_scene_loads_only_the_bottom():
+    """In a fresh interpreter, `import fruitcli.scene` loads no fruitcli module but its
+    own, the shared ones, the tables of choices (with their packages, whose `__init__`
+    then imports nothing else) and `fem.materials.build` (the [material] check)."""
+    shared, tables = the_bottom()
+    code = (
+        "import sys\n"
+        "import fruitcli.scene\n"
+        "print(' '.join(m for m in sys.modules if m.startswith('fruitcli')))\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=600
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    packages = {t.rsplit(".", k)[0] for t in tables for k in range(1, t.count(".") + 1)}
+    allowed = set(shared) | set(tables) | packages | {"fruitcli.fem.materials.build"}
+    loaded = {m for m in res.stdout.split() if not m.startswith("fruitcli.scene")}
+    assert "fruitcli.fem.elements.families" in loaded and loaded - allowed == set()
+
+
 def test_the_rules_are_read_as_written():
     """The docstring forms the rules are read from, on toy packages."""
     fem = parse_rule(

@@ -16,7 +16,7 @@ import numpy as np
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.geometry.body_surface import SurfaceProjector, body_surface, contact_heights
-from fruitcli.scene import Scene, default_scene
+from fruitcli.scene import Scene, SkinSection, default_scene
 from fruitcli.sensing.detection.frames_to_touches import (
     CHUNK_FRAMES,
     TOUCH,
@@ -193,7 +193,7 @@ def run_locate(
     workers: int | None = None,
     reduced=None,
     gains_csv=None,
-    skin_table: dict | None = None,
+    skin_table: SkinSection | None = None,
     hovers: bool | None = None,
     crossing_dir=None,
 ) -> dict:
@@ -383,7 +383,7 @@ def _sample_touches(table: TouchTable, sample: np.ndarray) -> TouchTable:
 
 
 def skin_heights(
-    skin: dict | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
+    skin: SkinSection | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
 ) -> GapLaw | CrossingHeights:
     """The height model of a [skin] table (None: the defaults) for these taxels
     (`heights.gap_law`), or of the crossing's table `crossing` (a `CrossingSkin`) with

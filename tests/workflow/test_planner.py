@@ -203,7 +203,7 @@ def test_bench_samples_csv_is_hashed_by_content(tmp_path):
 
 def test_stage_code_hash_covers_the_packages_it_imports():
     """The FEM stages' hash covers fruitcli/fem with its subpackages and what it
-    imports (geometry/mesh/load.py for the unit check, scene.py), so a change there reruns
+    imports (geometry/mesh/load.py for the unit check, the scene package), so a change there reruns
     them; evaluation's does not cover the FEM."""
     files = {f"{p.parent.name}/{p.name}" for p in planner.code_files("fruitcli.fem.stage")}
     assert {
@@ -212,7 +212,8 @@ def test_stage_code_hash_covers_the_packages_it_imports():
         "elements/integrate.py",
         "solver/newton.py",
         "mesh/load.py",
-        "fruitcli/scene.py",
+        "scene/schema.py",
+        "scene/records.py",
     } <= files
     files = {p.parent.name for p in planner.code_files("fruitcli.evaluation.report")}
     assert "fem" not in files and "evaluation" in files

@@ -17,11 +17,14 @@ methods.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from fruitcli.errors import FrameError
+
+if TYPE_CHECKING:
+    from fruitcli.scene import SkinSection
 
 
 class HeightModel(Protocol):
@@ -92,7 +95,7 @@ def gap_law(params, taxel_ids=None, footprint: str | None = None, divided: bool 
     )
 
 
-def skin_with_gap_law(path) -> dict:
+def skin_with_gap_law(path) -> SkinSection:
     """The [skin] table of a skin file (`fruit calibrate`'s skin.toml) that must give
     heights: it has to state its gap law (gap_decay_mm, contact_counts)."""
     import tomllib
