@@ -20,11 +20,11 @@ as plain data (stage hashes), `Scene.with_values` a checked copy with values cha
 
 May import: `fruitcli.errors`, `fruitcli.fsutil`, the tables of choices (listed in the
 top package's docstring), `fruitcli.fem.materials.build` (the [material] check across
-keys in `cross_checks`, a module that imports only `fruitcli.errors` and a table) and
+keys in `cross_checks`, which imports of `fruitcli` only `fruitcli.errors` and a table) and
 `fruitcli.bundled_files` (the bundled scenes' names, for a missing scene's hint); never
 `fruitcli.workflow`, `fruitcli.cli` or any other module of a stage's package. The
 schema, its keys and its records (`key`, `limits`, `sections_*`, `schema`, `records`)
-import only `fruitcli.errors` and the tables.
+import nothing of `fruitcli` but the tables.
 """
 
 from fruitcli.scene.key import Key
