@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from fruitcli.scene import ARRAY_SCHEMA, ARRAY_SECTIONS, SCHEMA, SUBTABLES, Key
+from fruitcli.scene import ARRAY_SCHEMA, ARRAY_SECTIONS, SCHEMA, SUBTABLES, Key, default_scene
 from fruitcli.scene.key import KIND_TYPES
 from fruitcli.scene.records import ITEM_TYPES, SECTION_TYPES, SUBTABLE_TYPES, Record, Sections
 
@@ -86,6 +86,17 @@ def test_the_sections_are_typed_as_the_schema_lists_them():
         for name in SCHEMA
     }
     assert Sections.__annotations__ == {**want, "declared": "frozenset[str]"}
+
+
+def test_every_section_names_the_closest_key_at_run_time():
+    """At run time a misspelt key of any section is an AttributeError naming the record
+    and the closest key (a type checker sees it before: the test below)."""
+    scene = default_scene()
+    for name, record in SECTION_TYPES.items():
+        key = next(iter(SCHEMA[name]))
+        with pytest.raises(AttributeError) as err:
+            getattr(getattr(scene, name), key + "z")
+        assert str(err.value) == (f"{record.__name__} has no key '{key}z' (did you mean '{key}'?)")
 
 
 def test_a_record_unlike_its_keys_is_reported():
