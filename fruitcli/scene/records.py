@@ -1,10 +1,10 @@
 """The scene's typed records: one frozen dataclass per section (`FemSection`), per table of
 an array of tables (`FixedTable`) and per table inside one (`EllipsoidTable`), each with
 the schema's keys in its order, typed by their kind (`key.KIND_TYPES`; `| None` when the
-default is None) and defaulting as the schema says (a required key has no default). `Sections` types the sections a
-`Scene` holds. Written out from the schema so that a type checker sees every key;
-tests/test_scene_records.py checks that they match it (a key added to the schema gets its
-field here)."""
+default is None) and defaulting as the schema says (a required key has no default).
+`Sections` types the sections a `Scene` holds. Written out from the schema so that a
+type checker sees every key; tests/test_scene_records.py checks that they match it (a
+key added to the schema gets its field here)."""
 
 from __future__ import annotations
 
