@@ -66,6 +66,10 @@ HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 
 HOVER_HYSTERESIS_SIGMAS = 3.0  # default hover hysteresis: ends 5 std up, above the noise
 TOUCH, HOVER = 0, 1  # TouchTable.kind
 KIND_NAMES = ("touch", "hover")
+# the model method weighs each taxel by its own noise, measured in the baseline frames
+# when there are at least this many (else the skin's one value)
+MIN_NOISE_FRAMES = 10
+MIN_NOISE_COUNTS = 0.3  # a floor: the std of a count rounded to an integer
 
 
 def detect(
@@ -297,6 +301,8 @@ class Locator:
             if self.gain is not None:  # activations divided by the gains already
                 law = FootprintLaw(law.profile, law.sigma_mm, law.noise_std_counts)
             self.model = (Window(taxels.i, taxels.j), law)
+        self.chart = None  # the body's surface for the model method (`use_surface`)
+        self.noise_counts = None  # (T,) each taxel's noise std in its baseline frames
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board.rows, board.cols)
@@ -305,6 +311,18 @@ class Locator:
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
             raise FrameError("per-state positions need the states' pressures")
+
+    def use_surface(self, vertices: np.ndarray, triangles: np.ndarray) -> None:
+        """Let the model method run its touches over the body's surface (vertices (V, 3)
+        mm in this locator's one state, triangles (F, 3)) instead of the surface its
+        taxels span (`surface_chart`). Only for one state and no reduced model: a chart
+        is made once per peak taxel and kept."""
+        if self.model is None or self.positions_mm.ndim != 2 or self.reduced is not None:
+            return
+        from fruitcli.sensing.detection.surface_chart import SurfaceChart
+
+        half = int(self.model[0].di.max())
+        self.chart = SurfaceChart(vertices, triangles, half)
 
     def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray:
         """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
@@ -321,14 +339,18 @@ class Locator:
         self, frames: np.ndarray, where: str = "frames", n_frames: int | None = None
     ) -> np.ndarray:
         """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
-        `n_frames` the recording's length."""
+        `n_frames` the recording's length. For the model method it also keeps each
+        taxel's noise std in those frames (`noise_counts`, gains divided out as the
+        activations are)."""
         k = self.settings.baseline_frames
-        return baseline_counts(
-            self.values(frames[: max(k, 1)]),
-            k,
-            where,
-            frames.shape[0] if n_frames is None else n_frames,
-        )
+        values = self.values(frames[: max(k, 1)])
+        c0 = baseline_counts(values, k, where, frames.shape[0] if n_frames is None else n_frames)
+        if self.model is not None and k >= MIN_NOISE_FRAMES:
+            std = values[:k].std(axis=0, ddof=1)
+            self.noise_counts = np.maximum(
+                std if self.gain is None else std / self.gain, MIN_NOISE_COUNTS
+            )
+        return c0
 
     def _path(self, pressure_kpa: np.ndarray | None, n: int):
         if self.positions_mm.ndim == 2:
@@ -467,7 +489,18 @@ class Locator:
             v = v / self.gain
         window, law = self.model
         return refine(
-            t.frame, t.taxel[:, 4], t.i, t.j, t.peak, v, window, taxel_points, law, t.taxel
+            t.frame,
+            t.taxel[:, 4],
+            t.i,
+            t.j,
+            t.peak,
+            v,
+            window,
+            taxel_points,
+            law,
+            t.taxel,
+            self.chart,
+            self.noise_counts,
         )
 
     def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
@@ -646,6 +679,8 @@ class Stream:
                 lambda win: pos[win],
                 law,
                 tax9,
+                loc.chart,
+                loc.noise_counts,
             )
             xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             i, j = fitted.i, fitted.j

@@ -144,7 +144,7 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
         np.full((n, 9), -1, np.int64),
         np.zeros((1, len(taxels))),
         np.ones(len(taxels)),
-        1.0,
+        np.ones(len(taxels)),
         0.1,
         pos,
         w.basis,
@@ -194,3 +194,20 @@ def test_the_model_columns_round_trip_through_touches_csv_and_json(tmp_path):
     n9 = locate(taxels, frames, method="n9")
     assert "fit" not in _shape(n9, 0)
     assert touch_bytes(n9, np.arange(3) / 100.0).count(b"\n") == 3
+
+
+def test_each_taxel_is_weighed_by_its_own_noise_in_the_baseline_frames():
+    taxels = grid_taxels()
+    std = np.where(np.arange(len(taxels)) % 3 == 0, 3.0, 1.0)
+    rng = np.random.default_rng(4)
+    values = BASE + rng.normal(0.0, std, (400, len(taxels)))
+    rows, cols = taxel_cells(taxels, default_board(), "taxels")
+    frames = np.full((400, 21, 12), BASE)
+    frames[:, rows, cols] = values
+    settings = Settings(method="model", baseline_frames=300)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, settings, heights=LAW)
+    loc.baseline(frames)
+    assert loc.noise_counts == pytest.approx(std, rel=0.15)
+    n9 = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="n9"), heights=LAW)
+    n9.baseline(frames)
+    assert n9.noise_counts is None  # only the model method weighs the taxels
