@@ -38,6 +38,7 @@ from fruitcli.sensing.frames.formats import BOARD_COLS, BOARD_FORMATS, BOARD_ROW
 from fruitcli.sensing.skin.models import SKIN_MODELS
 
 NUM = (int, float)
+MAX_MODEL_FRAMES = 60  # a second at the board's 60 frames/s
 
 
 @dataclass(frozen=True)
@@ -556,6 +557,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "n9",
             "how touches are found and placed: " + method_help(),
             choices=tuple(DETECTION_METHODS),
+        ),
+        "model_frames": Key(
+            "int",
+            1,
+            "frames whose mean activation the model method fits: a touch's frame and "
+            "those just before it (1: the frame alone); a still touch's noise falls by "
+            "its square root, a moving one lags by half as many frames",
+            min=1,
+            max=MAX_MODEL_FRAMES,
+            expected="frames >= 1",
         ),
         "noise_floor_counts": Key(
             "num",

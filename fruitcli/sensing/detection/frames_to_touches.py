@@ -118,6 +118,7 @@ class Settings:
     hover_threshold_counts: float | None = None  # None: from the skin's noise
     hover_hysteresis_counts: float | None = None  # None: from the skin's noise
     footprint: str | None = None  # [skin] footprint heights assume (None: see heights)
+    model_frames: int = 1  # the model method fits the mean of a touch's frame and those before
 
     @classmethod
     def from_scene(cls, detection, **overrides) -> Settings:
@@ -438,7 +439,7 @@ class Locator:
             fitted = None
             if self.model is not None and len(t):
                 v = np.take(frames.reshape(frames.shape[0], -1), self.layout.frame_cell, axis=1)
-                fitted = self._refine(t, v, baseline, taxel_points)
+                fitted = self._refine(t, self._recent_mean(read, start, v), baseline, taxel_points)
                 xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             if pos9 is None:  # one state: the N9 positions are rows of positions_mm
                 points, rows = self.positions_mm, tax
@@ -481,6 +482,36 @@ class Locator:
 
         yield from _in_order(job, starts, workers)
 
+    def _recent_mean(
+        self, read: Callable[[int, int], np.ndarray], start: int, values: np.ndarray
+    ) -> np.ndarray:
+        """Taxel counts (F, T) of the frames from `start` averaged with the frames before
+        each (``model_frames`` in all; fewer at the recording's start), the frames before
+        the chunk read again."""
+        k = self.settings.model_frames
+        if k <= 1:
+            return values
+        before = min(k - 1, start)
+        if before:
+            earlier = read(start - before, before)
+            cells = earlier.reshape(earlier.shape[0], -1)
+            values = np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values])
+        total = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
+        end = np.arange(before, values.shape[0]) + 1
+        first = np.maximum(end - k, 0)
+        return (total[end] - total[first]) / (end - first)[:, None]
+
+    def fit_noise(self) -> np.ndarray | None:
+        """Each taxel's noise (counts std) in the activations the model method fits: the
+        baseline frames' (`baseline`), else the skin's one value, over the square root of
+        ``model_frames``; None: the skin's one value as it is (`model_fit.refine`)."""
+        root = np.sqrt(self.settings.model_frames)
+        if self.noise_counts is not None:
+            return self.noise_counts / root
+        if self.model is None or root == 1:
+            return None
+        return np.full(len(self.rows), self.model[1].noise_std_counts / root)
+
     def _refine(self, t: Touches, values: np.ndarray, baseline: np.ndarray, taxel_points):
         """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
         counts are `values` (F, T); ``taxel_points(win)`` gives positions (n, K, 3)."""
@@ -500,7 +531,7 @@ class Locator:
             law,
             t.taxel,
             self.chart,
-            self.noise_counts,
+            self.fit_noise(),
         )
 
     def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
@@ -570,6 +601,7 @@ class Stream:
             self.tracker = SessionTracker(self.s.track_gate_mm, reuse_ids=True)
         self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
         self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
+        self._recent: deque[np.ndarray] = deque(maxlen=self.s.model_frames)  # for the model
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
         from fruitcli.sensing.detection.n9_kernel import n9_frame
@@ -606,6 +638,8 @@ class Stream:
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
         v = values - self.baseline
+        if loc.model is not None:  # the model averages counts before they are clipped
+            self._recent.append(v / loc.gain if loc.gain is not None else v.copy())
         np.maximum(v, 0.0, out=v)
         self.activation = v  # (T,) counts, for the live view
         if loc.gain is not None:
@@ -674,13 +708,13 @@ class Stream:
                 i,
                 j,
                 peak,
-                v[None, :],
+                np.maximum(np.mean(self._recent, axis=0), 0.0)[None, :],
                 window,
                 lambda win: pos[win],
                 law,
                 tax9,
                 loc.chart,
-                loc.noise_counts,
+                loc.fit_noise(),
             )
             xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             i, j = fitted.i, fitted.j
