@@ -359,7 +359,7 @@ CHECKED_KEYS = {
     "bench": "baseline_frames reference_length_mm register seed state step_mm",
     "board": "cols format offset_i offset_j rows",
     "detection": "baseline_frames debounce_frames drift_rate hover_hysteresis_counts "
-    "hover_threshold_counts hysteresis_counts method noise_floor_counts project "
+    "hover_threshold_counts hysteresis_counts method model_frames noise_floor_counts project "
     "threshold_counts track_gate_mm",
     "ellipsoid": "center_mm radii_mm",
     "evaluate": "reference_length_mm register",

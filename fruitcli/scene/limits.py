@@ -35,6 +35,7 @@ PRESSURE_KPA = 1e5
 MAX_SECONDS = 1e6
 """Longest time budget or period (s): about 11 days."""
 MAX_FRAMES = 10**8
+MAX_MODEL_FRAMES = 60  # a second at the board's 60 frames/s
 """Most frames a key may ask for (a bench's idle frames are also sized by `memory`)."""
 MAX_STATES = 10_000
 """Most actuation states (each one a quasi-static solve)."""

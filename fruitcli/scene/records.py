@@ -237,6 +237,7 @@ class DetectionSection(Record):
     threshold_counts: float = 20.0
     baseline_frames: int = 10
     method: str = "n9"
+    model_frames: int = 1
     noise_floor_counts: float = 0.0
     hysteresis_counts: float = 0.0
     debounce_frames: int = 0

@@ -17,6 +17,7 @@ from fruitcli.scene.limits import (
     MAX_FRAMES,
     MAX_INDENTERS,
     MAX_ITEMS,
+    MAX_MODEL_FRAMES,
     MAX_SECONDS,
     MAX_STATES,
     POSITIVE,
@@ -80,6 +81,16 @@ SECTIONS: dict[str, dict[str, Key]] = {
             "n9",
             "how touches are found and placed: " + method_help(),
             choices=tuple(DETECTION_METHODS),
+        ),
+        "model_frames": Key(
+            "int",
+            1,
+            "frames whose mean activation the model method fits: a touch's frame and "
+            "those just before it (1: the frame alone); a still touch's noise falls by "
+            "its square root, a moving one lags by half as many frames",
+            min=1,
+            max=MAX_MODEL_FRAMES,
+            expected="frames >= 1",
         ),
         "noise_floor_counts": Key(
             "num",

@@ -243,6 +243,8 @@ def run_locate(
         projector = surface_projector(
             scene, rec, states, pressure, taxels, surface_path, surface_unit, where, settings.method
         )
+        if projector is not None:
+            locator.use_surface(projector.verts, projector.tris)
         only_fitted = (
             settings.method == "model" and _or_defaults(scene).detection.project != "surface"
         )

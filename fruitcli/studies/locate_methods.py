@@ -59,13 +59,16 @@ CALIBRATED = {
     "gaussian, table fitted": ("gaussian", "electrostatic"),
 }
 REPEATS = 3
-# the model method's settings rows: label -> (window half-width in cells, iteration cap);
-# the plain "model" row is the defaults (5 x 5, `model_fit.ITERATIONS`)
+# the model method's settings rows: label -> (window half-width in cells, iteration cap,
+# `[detection].model_frames`); the plain "model" row is the defaults (5 x 5,
+# `model_fit.ITERATIONS`, the frame alone)
 MODEL_SETTINGS = {
-    "model 3x3": (1, None),
-    "model 3x3, 4 it": (1, 4),
-    "model 5x5, 4 it": (2, 4),
-    "model 5x5, 30 it": (2, 30),
+    "model 3x3": (1, None, 1),
+    "model 3x3, 4 it": (1, 4, 1),
+    "model 5x5, 4 it": (2, 4, 1),
+    "model 5x5, 30 it": (2, 30, 1),
+    "model, 4 frames": (2, None, 4),
+    "model, 8 frames": (2, None, 8),
 }
 HEADER = [
     "bench_skin",
@@ -143,8 +146,8 @@ def run_case(args) -> list[dict]:
             located_table,
         )
     rows = []
-    for label, method, setting in variants():
-        located = scene.with_values({"detection.method": method})
+    for label, changes, setting in variants():
+        located = scene.with_values(changes)
         for ind in scene.bench.indenters:
             frames = base / "bench" / ind / "frames.npz"
             out = base / label.replace(" ", "_").replace(",", "") / ind
@@ -191,10 +194,10 @@ def run_case(args) -> list[dict]:
 
 
 def variants() -> list[tuple]:
-    """(row label, [detection].method, a context manager factory for its settings): every
-    method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`; every model
-    row runs inside `model_fit.tuned` (its defaults too), so cases run on threads of one
-    process (a Dask worker) do not mix their settings."""
+    """(row label, its [detection] keys, a context manager factory for its settings):
+    every method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`; every
+    model row runs inside `model_fit.tuned` (its defaults too), so cases run on threads
+    of one process (a Dask worker) do not mix their settings."""
     from contextlib import nullcontext
     from functools import partial
 
@@ -203,12 +206,13 @@ def variants() -> list[tuple]:
 
     model_defaults = partial(model_fit.tuned, model_fit.HALF, model_fit.ITERATIONS)
     out = [
-        (m, m, model_defaults if spec.refine == "model" else nullcontext)
+        (m, {"detection.method": m}, model_defaults if spec.refine == "model" else nullcontext)
         for m, spec in METHODS.items()
     ]
-    for label, (half, iterations) in MODEL_SETTINGS.items():
+    for label, (half, iterations, frames) in MODEL_SETTINGS.items():
         cap = model_fit.ITERATIONS if iterations is None else iterations
-        out.append((label, "model", partial(model_fit.tuned, half, cap)))
+        keys = {"detection.method": "model", "detection.model_frames": frames}
+        out.append((label, keys, partial(model_fit.tuned, half, cap)))
     return out
 
 
@@ -333,7 +337,8 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
         + ", ".join(
             f"{k}: a {2 * h + 1}x{2 * h + 1} window, "
             + (f"at most {it} iterations" if it else "the default cap")
-            for k, (h, it) in MODEL_SETTINGS.items()
+            + (f", the mean of the touch's frame and the {f - 1} before it" if f > 1 else "")
+            for k, (h, it, f) in MODEL_SETTINGS.items()
         )
         + ".",
     ]

@@ -133,18 +133,32 @@ def model_rows(out: Path, name: str, stats_rows: list) -> tuple[list[str], list[
         f"sigma (mm) {sigma or '-'}, {cal['contact_counts']:.1f} counts at contact, gap "
         f"decay {cal['gap_decay_mm']:.2f} mm"
     )
+    by_frames = data.get("rows_by_frames") or {"1": data["rows"]}
+    chosen = str(data.get("model_frames", {}).get("chosen", 1))
     rows = []
-    for label, row in data["rows"].items():
-        compare, ref = row["compare"], row["reference_length_mm"]
-        share = row.get("model_share")
-        placed = "" if share is None else f", {100 * share:.0f} % placed by the fit"
-        source = f"ours: {name}, model{placed}"
-        bias = ", ".join(f"{round(v, 2) + 0.0:+.2f}" for v in compare["none"]["bias_mm"])
-        rows.append(
-            f"| {label} ({source}) | {row['n']} | {_mm_pct(compare['none'], ref)} | "
-            f"{_mm_pct(compare['translation'], ref)} | - | ({bias}) |"
+    for frames in sorted(by_frames, key=int):
+        for label, row in by_frames[frames].items():
+            compare, ref = row["compare"], row["reference_length_mm"]
+            share = row.get("model_share")
+            placed = "" if share is None else f", {100 * share:.0f} % placed by the fit"
+            mean_of = "the frame at the threshold" if frames == "1" else f"mean of {frames} frames"
+            pick = (
+                ", chosen on the calibration run" if len(by_frames) > 1 and frames == chosen else ""
+            )
+            source = f"ours: {name}, model, {mean_of}{pick}{placed}"
+            bias = ", ".join(f"{round(v, 2) + 0.0:+.2f}" for v in compare["none"]["bias_mm"])
+            rows.append(
+                f"| {label} ({source}) | {row['n']} | {_mm_pct(compare['none'], ref)} | "
+                f"{_mm_pct(compare['translation'], ref)} | - | ({bias}) |"
+            )
+            stats_rows.append((f"{label} ({source})", compare["translation"]))
+    tried = data.get("model_frames", {}).get("calibration_error_mm")
+    if tried:
+        how += (
+            "; the calibration run's touches placed by the mean of "
+            + ", ".join(f"{k} frame(s) {v:.2f} mm" for k, v in tried.items())
+            + " (translation-registered mean error)"
         )
-        stats_rows.append((f"{label} ({source})", compare["translation"]))
     return rows, [how]
 
 
@@ -158,7 +172,11 @@ def model_note(calibrations: list[str]) -> list[str]:
         "around each peak; N9's point kept where the fit fails its tests). The locator is "
         "not handed the bench's skin: `fruit calibrate` fitted it to a second bench run of "
         "the same board at other sample points (half a pitch off each taxel, the small "
-        "indenter), which gave:",
+        "indenter). The indenter is still in x and y while it descends to the threshold, "
+        "so the model may fit the mean activation of the frame at the threshold and the "
+        "frames before it (`[detection].model_frames`); how many is chosen on the same "
+        "calibration run, and the rows with the frame alone stay for comparison. The "
+        "calibration gave:",
         "",
         *calibrations,
         "",

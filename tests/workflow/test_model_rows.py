@@ -115,13 +115,35 @@ def test_the_report_puts_the_model_rows_under_their_scene_and_says_how(tmp_path)
         "2.54 (1.7 %) / 1.00 (0.7 %) | 2.6 (1.7 %) / 1.3 (0.8 %) | (+0.50, -0.25, +0.00) |"
     )
     assert lines[n9 + 1] == (
-        "| Rest, small (ours: fruit-rest, model, 90 % placed by the fit) | 10 | "
-        "1.52 (1.0 %) / 1.00 (0.7 %) | 1.02 (0.7 %) / 1.00 (0.7 %) | - | (+0.50, -0.25, +0.00) |"
+        "| Rest, small (ours: fruit-rest, model, the frame at the threshold, 90 % placed by "
+        "the fit) | 10 | 1.52 (1.0 %) / 1.00 (0.7 %) | 1.02 (0.7 %) / 1.00 (0.7 %) | - | "
+        "(+0.50, -0.25, +0.00) |"
     )
     assert (
         "- fruit-rest (board's skin: gaussian; fitted: the Gaussian law): footprint sigma (mm) "
         "small 6.38, 55.3 counts at contact, gap decay 2.02 mm"
     ) in lines
+    # with a mean of frames chosen on the calibration run: both settings' rows, and the
+    # calibration's errors in the line that says how
+    four = {k: v for k, v in _summary(1.20).items() if k != "label"}
+    data |= {
+        "model_frames": {"chosen": 4, "calibration_error_mm": {"1": 1.5, "4": 1.3}},
+        "rows_by_frames": {
+            "1": data["rows"],
+            "4": {"Rest, small": {"model_share": 0.9, **four}},
+        },
+    }
+    (mr / "summary.json").write_text(json.dumps(data))
+    lines = table_section(tmp_path, ["fruit-rest"])
+    assert lines[n9 + 2].startswith(
+        "| Rest, small (ours: fruit-rest, model, mean of 4 frames, chosen on the calibration "
+        "run, 90 % placed by the fit) | 10 | 1.20 (0.8 %)"
+    )
+    assert any(
+        "the calibration run's touches placed by the mean of 1 frame(s) 1.50 mm, 4 frame(s) "
+        "1.30 mm" in line
+        for line in lines
+    )
     # a summary of another form (an older run's) leaves the rows out, no error
     (mr / "summary.json").write_text(json.dumps({"rows": {}}))
     assert not any(", model" in line for line in table_section(tmp_path, ["fruit-rest"]))

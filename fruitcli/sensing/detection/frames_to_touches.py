@@ -66,6 +66,10 @@ HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 
 HOVER_HYSTERESIS_SIGMAS = 3.0  # default hover hysteresis: ends 5 std up, above the noise
 TOUCH, HOVER = 0, 1  # TouchTable.kind
 KIND_NAMES = ("touch", "hover")
+# the model method weighs each taxel by its own noise, measured in the baseline frames
+# when there are at least this many (else the skin's one value)
+MIN_NOISE_FRAMES = 10
+MIN_NOISE_COUNTS = 0.3  # a floor: the std of a count rounded to an integer
 
 
 def detect(
@@ -114,6 +118,7 @@ class Settings:
     hover_threshold_counts: float | None = None  # None: from the skin's noise
     hover_hysteresis_counts: float | None = None  # None: from the skin's noise
     footprint: str | None = None  # [skin] footprint heights assume (None: see heights)
+    model_frames: int = 1  # the model method fits the mean of a touch's frame and those before
 
     @classmethod
     def from_scene(cls, detection, **overrides) -> Settings:
@@ -297,6 +302,8 @@ class Locator:
             if self.gain is not None:  # activations divided by the gains already
                 law = FootprintLaw(law.profile, law.sigma_mm, law.noise_std_counts)
             self.model = (Window(taxels.i, taxels.j), law)
+        self.chart = None  # the body's surface for the model method (`use_surface`)
+        self.noise_counts = None  # (T,) each taxel's noise std in its baseline frames
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board.rows, board.cols)
@@ -305,6 +312,18 @@ class Locator:
         self.state_pressure_kpa = state_pressure_kpa
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
             raise FrameError("per-state positions need the states' pressures")
+
+    def use_surface(self, vertices: np.ndarray, triangles: np.ndarray) -> None:
+        """Let the model method run its touches over the body's surface (vertices (V, 3)
+        mm in this locator's one state, triangles (F, 3)) instead of the surface its
+        taxels span (`surface_chart`). Only for one state and no reduced model: a chart
+        is made once per peak taxel and kept."""
+        if self.model is None or self.positions_mm.ndim != 2 or self.reduced is not None:
+            return
+        from fruitcli.sensing.detection.surface_chart import SurfaceChart
+
+        half = int(self.model[0].di.max())
+        self.chart = SurfaceChart(vertices, triangles, half)
 
     def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray:
         """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
@@ -321,14 +340,18 @@ class Locator:
         self, frames: np.ndarray, where: str = "frames", n_frames: int | None = None
     ) -> np.ndarray:
         """C0 per taxel (T,) from the first K frames; `frames` may hold only those, with
-        `n_frames` the recording's length."""
+        `n_frames` the recording's length. For the model method it also keeps each
+        taxel's noise std in those frames (`noise_counts`, gains divided out as the
+        activations are)."""
         k = self.settings.baseline_frames
-        return baseline_counts(
-            self.values(frames[: max(k, 1)]),
-            k,
-            where,
-            frames.shape[0] if n_frames is None else n_frames,
-        )
+        values = self.values(frames[: max(k, 1)])
+        c0 = baseline_counts(values, k, where, frames.shape[0] if n_frames is None else n_frames)
+        if self.model is not None and k >= MIN_NOISE_FRAMES:
+            std = values[:k].std(axis=0, ddof=1)
+            self.noise_counts = np.maximum(
+                std if self.gain is None else std / self.gain, MIN_NOISE_COUNTS
+            )
+        return c0
 
     def _path(self, pressure_kpa: np.ndarray | None, n: int):
         if self.positions_mm.ndim == 2:
@@ -416,7 +439,7 @@ class Locator:
             fitted = None
             if self.model is not None and len(t):
                 v = np.take(frames.reshape(frames.shape[0], -1), self.layout.frame_cell, axis=1)
-                fitted = self._refine(t, v, baseline, taxel_points)
+                fitted = self._refine(t, self._recent_mean(read, start, v), baseline, taxel_points)
                 xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             if pos9 is None:  # one state: the N9 positions are rows of positions_mm
                 points, rows = self.positions_mm, tax
@@ -459,6 +482,36 @@ class Locator:
 
         yield from _in_order(job, starts, workers)
 
+    def _recent_mean(
+        self, read: Callable[[int, int], np.ndarray], start: int, values: np.ndarray
+    ) -> np.ndarray:
+        """Taxel counts (F, T) of the frames from `start` averaged with the frames before
+        each (``model_frames`` in all; fewer at the recording's start), the frames before
+        the chunk read again."""
+        k = self.settings.model_frames
+        if k <= 1:
+            return values
+        before = min(k - 1, start)
+        if before:
+            earlier = read(start - before, before)
+            cells = earlier.reshape(earlier.shape[0], -1)
+            values = np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values])
+        total = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
+        end = np.arange(before, values.shape[0]) + 1
+        first = np.maximum(end - k, 0)
+        return (total[end] - total[first]) / (end - first)[:, None]
+
+    def fit_noise(self) -> np.ndarray | None:
+        """Each taxel's noise (counts std) in the activations the model method fits: the
+        baseline frames' (`baseline`), else the skin's one value, over the square root of
+        ``model_frames``; None: the skin's one value as it is (`model_fit.refine`)."""
+        root = np.sqrt(self.settings.model_frames)
+        if self.noise_counts is not None:
+            return self.noise_counts / root
+        if self.model is None or root == 1:
+            return None
+        return np.full(len(self.rows), self.model[1].noise_std_counts / root)
+
     def _refine(self, t: Touches, values: np.ndarray, baseline: np.ndarray, taxel_points):
         """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
         counts are `values` (F, T); ``taxel_points(win)`` gives positions (n, K, 3)."""
@@ -467,7 +520,18 @@ class Locator:
             v = v / self.gain
         window, law = self.model
         return refine(
-            t.frame, t.taxel[:, 4], t.i, t.j, t.peak, v, window, taxel_points, law, t.taxel
+            t.frame,
+            t.taxel[:, 4],
+            t.i,
+            t.j,
+            t.peak,
+            v,
+            window,
+            taxel_points,
+            law,
+            t.taxel,
+            self.chart,
+            self.fit_noise(),
         )
 
     def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
@@ -537,6 +601,7 @@ class Stream:
             self.tracker = SessionTracker(self.s.track_gate_mm, reuse_ids=True)
         self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
         self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
+        self._recent: deque[np.ndarray] = deque(maxlen=self.s.model_frames)  # for the model
         self._pos, self._pos_key, self._path = None, None, None
         self._empty = TouchTable.concat([])
         from fruitcli.sensing.detection.n9_kernel import n9_frame
@@ -573,6 +638,8 @@ class Stream:
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
         v = values - self.baseline
+        if loc.model is not None:  # the model averages counts before they are clipped
+            self._recent.append(v / loc.gain if loc.gain is not None else v.copy())
         np.maximum(v, 0.0, out=v)
         self.activation = v  # (T,) counts, for the live view
         if loc.gain is not None:
@@ -641,11 +708,13 @@ class Stream:
                 i,
                 j,
                 peak,
-                v[None, :],
+                np.maximum(np.mean(self._recent, axis=0), 0.0)[None, :],
                 window,
                 lambda win: pos[win],
                 law,
                 tax9,
+                loc.chart,
+                loc.fit_noise(),
             )
             xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             i, j = fitted.i, fitted.j

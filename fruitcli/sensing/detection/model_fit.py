@@ -11,14 +11,18 @@ ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state put
 - the contact point runs over the surface the window's taxels span: a quadratic map of
   the grid coordinates fitted to the taxels' 3D positions (the N9 weighted twice the
   ring) plus the bilinear interpolation of its misfit at the taxels, so c(a, b) passes
-  through every taxel and follows the deformed body as they do;
+  through every taxel and follows the deformed body as they do; where the body's surface
+  is known and the recording stays at one state (`Locator.use_surface`), the point runs
+  over the body itself instead (`surface_chart`), so a touch past the last taxels can
+  follow the body down its flank;
 - taxel k reads A g_k f(|c - P_k| / s): f the skin's radial footprint (the Gaussian
   law's or the crossing table's, `FootprintLaw.of`) at its calibrated width, A the
   amplitude, s the width's scale (a wider object, a farther gap), g_k the taxel's gain;
 - s has a prior: 1 with a 1-sigma of ``WIDTH_PRIOR`` (an assumption: the calibrated
   width is right to about that, the small and the medium indenter differ by 17 %);
   without it a touch at the grid's edge trades width against distance off the edge;
-- each residual is weighted by the taxel's noise, with ``MODEL_ERROR`` of its
+- each residual is weighted by the taxel's noise (its std in the recording's baseline
+  frames, `Locator.baseline`; else the skin's one value), with ``MODEL_ERROR`` of its
   activation added in quadrature (an assumption: no calibrated footprint is exact to
   better than about a tenth, so the peak taxel does not outweigh its neighbours);
 - the fit starts at the N9 point, amplitude the peak, width scale 1, and is bounded:
@@ -148,12 +152,17 @@ def refine(
     positions,
     law: FootprintLaw,
     n9_taxels: np.ndarray | None = None,
+    chart=None,
+    noise: np.ndarray | None = None,
 ) -> Fitted:
     """Fit the touches: frame (n,) row of `v` (F, T) activations (counts, gains divided
     out or not as `law.gain` says), centre (n,) peak taxel, i0, j0 (n,) N9 grid
     coordinates, peak (n,) counts; ``positions(win)`` gives the window taxels' positions
     (n, K, 3) mm for win (n, K) (-1 entries: any position). `n9_taxels` (n, 9): each
-    touch's N9 taxels, left out of the other touches of its frame."""
+    touch's N9 taxels, left out of the other touches of its frame. `chart`: the body's
+    surface (`surface_chart.SurfaceChart`, same state), on which the points then run;
+    None: on the surface the window's taxels span. `noise` (T,): each taxel's noise
+    (counts std, on the scale of `v`); None: the law's one value for all."""
     from fruitcli.sensing.detection.model_kernel import fit_all, prepare
 
     n = frame.size
@@ -172,7 +181,9 @@ def refine(
         np.ascontiguousarray(n9, dtype=np.int64),
         np.ascontiguousarray(v, dtype=float),
         np.ascontiguousarray(taxel_gain, dtype=float),
-        float(law.noise_std_counts),
+        np.ascontiguousarray(
+            np.full(v.shape[1], law.noise_std_counts) if noise is None else noise, dtype=float
+        ),
         MODEL_ERROR,
         pos,
         window.basis,
@@ -184,6 +195,11 @@ def refine(
         corr,
         used,
     )
+    sub = 1
+    if chart is not None:
+        from fruitcli.sensing.detection.surface_chart import SUB
+
+        corr, sub = chart.corrections(centre, coef), SUB
     ci, cj = window.i[centre], window.j[centre]
     a0 = np.asarray(i0, float) - ci
     b0 = np.asarray(j0, float) - cj
@@ -208,6 +224,7 @@ def refine(
         pos,
         coef,
         corr,
+        sub,
         law.profile,
         PROFILE_STEP_MM,
         WIDTH_PRIOR,

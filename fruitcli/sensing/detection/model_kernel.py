@@ -4,7 +4,9 @@ Units: grid units (taxel pitches), mm, counts. One touch at a time: the contact 
 c(a, b) = sum_m coef[m] phi_m(a, b) + r(a, b), phi = (1, a, b, a^2, a b, b^2), on the
 surface the window's taxels span (a, b in grid units from the window's centre taxel;
 r the bilinear interpolation of the quadratic's misfit at the taxels, so c passes
-through each of them); taxel k of the window reads
+through each of them, or, where the body's surface is known, of the way from the
+quadratic to the surface on a finer lattice, so c runs over the body itself); taxel k
+of the window reads
 
     m_k = A g_k f(|c(a, b) - P_k| / s)
 
@@ -37,22 +39,25 @@ def _profile(x, profile, step):
 
 
 @njit(cache=True, nogil=True)
-def _point(coef, corr, a, b):
+def _point(coef, corr, sub, a, b):
     """c(a, b) (3,) and its derivatives dc/da, dc/db: the quadratic map plus the bilinear
-    interpolation of its misfit at the window's cells `corr` (W, W, 3), so c passes
-    through every taxel of the window (a cell without a taxel has misfit 0)."""
-    half = (corr.shape[0] - 1) // 2
+    interpolation of the corrections `corr` (L, L, 3), a lattice of `sub` nodes per
+    grid cell over the window (L = 2 half sub + 1): the map's misfit at the taxels
+    (sub = 1; a cell without a taxel has misfit 0), so c passes through every taxel, or
+    the way from the map to the body's surface (`surface_chart`)."""
+    last = corr.shape[0] - 1
+    half = last / (2.0 * sub)
     c = np.empty(3)
     ca = np.empty(3)
     cb = np.empty(3)
-    u = min(max(a + half, 0.0), 2.0 * half)
-    w = min(max(b + half, 0.0), 2.0 * half)
-    i0 = min(int(u), 2 * half - 1)
-    j0 = min(int(w), 2 * half - 1)
+    u = min(max((a + half) * sub, 0.0), float(last))
+    w = min(max((b + half) * sub, 0.0), float(last))
+    i0 = min(int(u), last - 1)
+    j0 = min(int(w), last - 1)
     tu = u - i0
     tw = w - j0
-    inside_a = 1.0 if 0.0 < a + half < 2.0 * half else 0.0
-    inside_b = 1.0 if 0.0 < b + half < 2.0 * half else 0.0
+    inside_a = float(sub) if 0.0 < (a + half) * sub < last else 0.0
+    inside_b = float(sub) if 0.0 < (b + half) * sub < last else 0.0
     for d in range(3):
         c00 = corr[i0, j0, d]
         c10 = corr[i0 + 1, j0, d]
@@ -76,11 +81,11 @@ def _point(coef, corr, a, b):
 
 
 @njit(cache=True, nogil=True)
-def _residuals(x, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac, res):
+def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res):
     """Weighted residuals res (K + 1,) at x, the last the width prior (s - 1) /
     width_prior, and their Jacobian jac (K + 1, 4); returns chi^2."""
     a, b, amp, s = x[0], x[1], x[2], x[3]
-    c, ca, cb = _point(coef, corr, a, b)
+    c, ca, cb = _point(coef, corr, sub, a, b)
     kp = v.shape[0]
     res[kp] = (s - 1.0) / width_prior
     jac[kp, 0] = 0.0
@@ -177,6 +182,7 @@ def fit_one(
     pos,
     coef,
     corr,
+    sub,
     profile,
     step,
     width_prior,
@@ -200,7 +206,7 @@ def fit_one(
     jtr = np.empty(N_PARAMS)
     damped = np.empty((N_PARAMS, N_PARAMS))
     low = np.empty((N_PARAMS, N_PARAMS))
-    chi2 = _residuals(x, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac, res)
+    chi2 = _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res)
     lam = 1e-3
     taken = 0
     for _ in range(iterations):
@@ -223,7 +229,7 @@ def fit_one(
                 scale = max(abs(x[p]), 1.0) if p == 2 else 1.0  # the amplitude: relative
                 biggest = max(biggest, abs(xt[p] - x[p]) / scale)
             chi2_t = _residuals(
-                xt, v, inv_e, gain, pos, coef, corr, profile, step, width_prior, jac_t, res_t
+                xt, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac_t, res_t
             )
             if chi2_t < chi2:
                 x[:] = xt
@@ -265,6 +271,7 @@ def fit_all(
     pos,
     coef,
     corr,
+    sub,
     profile,
     step,
     width_prior,
@@ -275,8 +282,9 @@ def fit_all(
     var_mm2,
 ) -> None:
     """`fit_one` for every touch: x0, lo, hi (n, 4), v, inv_e, gain (n, K), pos (n, K, 3),
-    coef (n, 6, 3), corr (n, W, W, 3); writes out (n, 6), cov (n, 4, 4), the point xyz
-    (n, 3) mm and var_mm2 (n,), the trace of the point's covariance in mm^2."""
+    coef (n, 6, 3), corr (n, L, L, 3) with `sub` lattice nodes per cell; writes out
+    (n, 6), cov (n, 4, 4), the point xyz (n, 3) mm and var_mm2 (n,), the trace of the
+    point's covariance in mm^2."""
     work_jac = np.empty((2, v.shape[1] + 1, N_PARAMS))
     work_res = np.empty((2, v.shape[1] + 1))
     for t in range(x0.shape[0]):
@@ -290,6 +298,7 @@ def fit_all(
             pos[t],
             coef[t],
             corr[t],
+            sub,
             profile,
             step,
             width_prior,
@@ -299,7 +308,7 @@ def fit_all(
             work_jac,
             work_res,
         )
-        c, ca, cb = _point(coef[t], corr[t], out[t, 0], out[t, 1])
+        c, ca, cb = _point(coef[t], corr[t], sub, out[t, 0], out[t, 1])
         xyz[t, :] = c
         var = 0.0
         for d in range(3):
@@ -350,7 +359,8 @@ def prepare(
     where a taxel lies in another touch's N9 of the frame), the surface map coef (n, 6, 3)
     fitted to its taxels' positions pos (n, K, 3) (N9 weight 1, ring `map_weight`, a
     light ridge on the non-constant terms) and its misfit corr (n, W, W, 3) at the
-    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain (T,)."""
+    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain and noise (T,)
+    (counts std of each taxel)."""
     n, kk = win.shape
     side = corr.shape[1]
     nb = basis.shape[1]
@@ -390,7 +400,8 @@ def prepare(
             x = v[frame[t], w]
             vw[t, k] = x
             gain[t, k] = taxel_gain[w]
-            inv_e[t, k] = 1.0 / max(np.sqrt(noise * noise + (model_error * x) ** 2), 1e-9)
+            e = noise[w]
+            inv_e[t, k] = 1.0 / max(np.sqrt(e * e + (model_error * x) ** 2), 1e-9)
             count += 1
         used[t] = count
         trace = 0.0

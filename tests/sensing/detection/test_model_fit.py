@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream, TouchTable
 from fruitcli.sensing.detection.model_fit import (
     FIT_MODEL,
     FIT_N9,
@@ -144,7 +144,7 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
         np.full((n, 9), -1, np.int64),
         np.zeros((1, len(taxels))),
         np.ones(len(taxels)),
-        1.0,
+        np.ones(len(taxels)),
         0.1,
         pos,
         w.basis,
@@ -194,3 +194,66 @@ def test_the_model_columns_round_trip_through_touches_csv_and_json(tmp_path):
     n9 = locate(taxels, frames, method="n9")
     assert "fit" not in _shape(n9, 0)
     assert touch_bytes(n9, np.arange(3) / 100.0).count(b"\n") == 3
+
+
+def test_each_taxel_is_weighed_by_its_own_noise_in_the_baseline_frames():
+    taxels = grid_taxels()
+    std = np.where(np.arange(len(taxels)) % 3 == 0, 3.0, 1.0)
+    rng = np.random.default_rng(4)
+    values = BASE + rng.normal(0.0, std, (400, len(taxels)))
+    rows, cols = taxel_cells(taxels, default_board(), "taxels")
+    frames = np.full((400, 21, 12), BASE)
+    frames[:, rows, cols] = values
+    settings = Settings(method="model", baseline_frames=300)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, settings, heights=LAW)
+    loc.baseline(frames)
+    assert loc.noise_counts == pytest.approx(std, rel=0.15)
+    n9 = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="n9"), heights=LAW)
+    n9.baseline(frames)
+    assert n9.noise_counts is None  # only the model method weighs the taxels
+
+
+def still_touch_frames(point, n=60, noise=2.0):
+    """n frames of one still touch (a weak one: 40 counts at its point) under noise, as a
+    board reports them (counts around the baseline, not clipped at it)."""
+    taxels = grid_taxels()
+    v = 40.0 * np.exp(-0.5 * (np.linalg.norm(taxels.xyz_mm - point, axis=1) / SIGMA_MM) ** 2)
+    rows, cols = taxel_cells(taxels, default_board(), "taxels")
+    frames = np.full((n, 21, 12), BASE)
+    frames[:, rows, cols] += v + np.random.default_rng(7).normal(0.0, noise, (n, v.size))
+    return taxels, np.round(frames)
+
+
+def test_a_still_touch_fitted_over_several_frames_is_placed_better():
+    point = np.array([36.0, 27.0, 0.0])
+    taxels, frames = still_touch_frames(point)
+    err = {}
+    for k in (1, 8):
+        loc = Locator(
+            taxels,
+            default_board(),
+            taxels.xyz_mm,
+            Settings(method="model", model_frames=k),
+            heights=LAW,
+        )
+        t = loc.batch(np.asarray(frames), np.full(len(taxels), BASE))
+        late = (t.frame >= 8) & (t.fit == FIT_MODEL)  # each fitted on 8 frames when k = 8
+        err[k] = np.linalg.norm(t.xyz_mm[late] - point, axis=1)
+        assert late.sum() > 40
+    # the mean of 8 frames has a third of one frame's noise: the error falls with it
+    assert err[8].mean() < 0.6 * err[1].mean()
+
+
+def test_the_frames_before_a_chunk_are_read_again_and_the_stream_agrees():
+    point = np.array([35.0, 28.0, 0.0])
+    taxels, frames = still_touch_frames(point, n=30)
+    settings = Settings(method="model", model_frames=4)
+    loc = Locator(taxels, default_board(), taxels.xyz_mm, settings, heights=LAW)
+    base = np.full(len(taxels), BASE)
+    whole = loc.batch(np.asarray(frames), base)
+    chunked = loc.batch(np.asarray(frames), base, size=7)
+    np.testing.assert_array_equal(whole.frame, chunked.frame)
+    np.testing.assert_allclose(whole.xyz_mm, chunked.xyz_mm, atol=1e-9)
+    stream = Stream(loc, base)
+    live = TouchTable.concat([stream.step(f) for f in np.asarray(frames, float)])
+    np.testing.assert_allclose(live.xyz_mm, whole.xyz_mm, atol=1e-6)

@@ -60,9 +60,12 @@ def test_the_study_rows_are_every_method_then_the_model_settings():
 
     rows = lm.variants()
     assert [r[0] for r in rows] == [*METHODS, *lm.MODEL_SETTINGS]
-    assert {r[1] for r in rows[len(METHODS) :]} == {"model"}
+    assert {r[1]["detection.method"] for r in rows[len(METHODS) :]} == {"model"}
+    assert [r[1]["detection.model_frames"] for r in rows[len(METHODS) :]] == [
+        f for _, _, f in lm.MODEL_SETTINGS.values()
+    ]
     label, _, setting = rows[len(METHODS)]
-    half, cap = lm.MODEL_SETTINGS[label]
+    half, cap, _ = lm.MODEL_SETTINGS[label]
     with setting():
         assert model_fit.HALF == half
         assert model_fit.ITERATIONS == (cap or 12)
