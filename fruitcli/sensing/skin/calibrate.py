@@ -99,9 +99,14 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     t = v.shape[1]
 
     def model(x):
-        a, s, lam = np.exp(x[:3])
-        g = np.exp(x[3:])
-        return g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
+        # a trial step far out (the log-gain of a taxel no sample reached) overflows to
+        # inf; its residual is then inf and the step is turned down
+        with np.errstate(over="ignore", invalid="ignore"):
+            a, s, lam = np.exp(x[:3])
+            g = np.exp(x[3:])
+            return (
+                g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
+            )
 
     def residual(x):
         return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
