@@ -277,14 +277,16 @@ def breathing_shifts(root: Path, model: str, response=None) -> dict:
     }
 
 
-def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
+def assumption_variants(scene_path: Path, out: Path, breathing: Path) -> list[dict]:
     """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
     per fF (fitted to the bend), counts at contact, pre-touch gaps (as
-    `electrostatic_pretouch` gives them for the default), both bends and a 10 % stretch
-    along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
+    `electrostatic_pretouch` gives them for the default), both bends, a 10 % stretch
+    along each yarn and the breathing run's shifts (`breathing_shifts`). Each table is
+    built once into OUT/crossing-KEY-VALUE."""
     from fruitcli.electrostatics import design
     from fruitcli.errors import FruitError
     from fruitcli.scene import load_scene
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
     scene = load_scene(scene_path)
     base = design.crossing_inputs(scene)
@@ -310,9 +312,16 @@ def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
                 "pretouch": electrostatic_pretouch(folder),
                 "bend_counts": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
                 "stretch_10pct_counts": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
+                "breathing": _max_mean(breathing, CrossingSkin.load(folder)),
             }
         )
     return rows
+
+
+def _max_mean(breathing: Path, response) -> tuple[float, float]:
+    """(max, mean) of the breathing run's per-taxel largest |shift| under `response`."""
+    b = breathing_shifts(breathing, "electrostatic", response)
+    return b["max"], b["mean"]
 
 
 def _threshold_gap(gaps: np.ndarray, counts: np.ndarray) -> float:
@@ -354,13 +363,20 @@ def radius_variants(inputs, counts_per_ff: float) -> list[dict]:
     return rows
 
 
-def deformation_variants(inputs) -> list[dict]:
+def deformation_variants(inputs, table: Path, breathing: Path) -> list[dict]:
     """Per input of `DEFORMATION_VARIANTS` (and the default, a check against the table):
     the one-crossing cell stretched and bent, its counts per fF fitted to the larger of
     the two bends as the pad (as `equivalents.counts_per_ff` does), both bends and a 10 %
-    stretch along each yarn in those counts."""
+    stretch along each yarn in those counts, and the breathing run's shifts with the
+    crossing `table` (a `fruit skin` folder) given these stretches and bends (and the
+    neutral plane)."""
     from fruitcli.electrostatics import crossing, design
     from fruitcli.electrostatics.cell_mesh import mesh_cell
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
+    with np.load(table / "crossing.npz") as data:
+        arrays = {k: data[k] for k in data.files}
+    summary = json.loads((table / "summary.json").read_text())
 
     spec = crossing.deformation_spec(design.cell_spec(inputs))
     solver = crossing.CellSolver(mesh_cell(spec, 1, inputs.time_limit_s), inputs.permittivity)
@@ -383,6 +399,12 @@ def deformation_variants(inputs) -> list[dict]:
                 a: float(-cpf * (c_s[n, at] - c0)) for n, a in enumerate("xy")
             },
         }
+        moved = {**arrays, "c_stretch_ff": c_s - c0 + arrays["c0_ff"]}
+        moved["c_bend_ff"] = c_b - c0 + arrays["c0_ff"]
+        response = CrossingSkin.from_table(moved, summary, cpf)
+        if key == "neutral_mm":
+            response = replace(response, neutral_mm=value)
+        row["breathing"] = _max_mean(breathing, response)
         print(f"  {key} = {value}: {row}")
         rows.append(row)
     return rows
@@ -440,10 +462,12 @@ def observe(out: Path, assumptions: bool) -> dict:
             )
             if assumptions:
                 scene_path = rest.parent / f"{rest.name}.toml"
-                entry["variants"] = assumption_variants(scene_path, out)
+                entry["variants"] = assumption_variants(scene_path, out, breathing)
                 inputs = design.crossing_inputs(load_scene(scene_path))
                 entry["radius_variants"] = radius_variants(inputs, entry["counts_per_ff"])
-                entry["deformation_variants"] = deformation_variants(inputs)
+                entry["deformation_variants"] = deformation_variants(
+                    inputs, rest / "skin", breathing
+                )
                 for row in entry["deformation_variants"][1:]:
                     row["pretouch"] = electrostatic_pretouch(rest / "skin", row["counts_per_ff"])
         report[model] = entry
@@ -490,7 +514,9 @@ def _breathing(b: dict, sens: dict) -> str:
     )
 
 
-def _variant_row(label: str, cpf: float, pretouch: dict, bend: dict, stretch: dict) -> str:
+def _variant_row(
+    label: str, cpf: float, pretouch: dict, bend: dict, stretch: dict, breathing
+) -> str:
     """One row of the assumed inputs' table."""
     return (
         f"| {label} | {cpf:.3f} | "
@@ -498,7 +524,7 @@ def _variant_row(label: str, cpf: float, pretouch: dict, bend: dict, stretch: di
         + " | "
         + _pair({k: p[1] for k, p in pretouch.items()}, "", 1).strip()
         + f" | {bend['x']:+.1f} / {bend['y']:+.1f} | "
-        f"{stretch['x']:+.1f} / {stretch['y']:+.1f} |"
+        f"{stretch['x']:+.1f} / {stretch['y']:+.1f} | {breathing[0]:.1f} / {breathing[1]:.2f} |"
     )
 
 
@@ -625,15 +651,16 @@ def markdown(report: dict) -> str:
             "",
             "| input moved | counts per fF | pre-touch gap (mm) | counts at contact | "
             "crossing bent as the pad, along x / y (counts) | stretched 10 %, along x / y "
-            "(counts) |",
-            "|---|---|---|---|---|---|",
+            "(counts) | the Fruit breathing, max / mean (counts) |",
+            "|---|---|---|---|---|---|---|",
         ]
         c = e["crossing_shifts"]
-        default = (e["counts_per_ff"], e["pretouch"], c["bend"], c["stretch_10pct"])
+        b = (e["breathing"]["max"], e["breathing"]["mean"])
+        default = (e["counts_per_ff"], e["pretouch"], c["bend"], c["stretch_10pct"], b)
         lines.append(_variant_row("none (the default)", *default))
         for v in e["variants"]:
             if "error" in v:
-                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | |")
+                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | | |")
                 continue
             lines.append(
                 _variant_row(
@@ -642,6 +669,7 @@ def markdown(report: dict) -> str:
                     v["pretouch"],
                     v["bend_counts"],
                     v["stretch_10pct_counts"],
+                    v["breathing"],
                 )
             )
         for v in e.get("radius_variants", []):
@@ -658,6 +686,7 @@ def markdown(report: dict) -> str:
                     v["pretouch"],
                     v["bend_counts"],
                     v["stretch_10pct_counts"],
+                    v["breathing"],
                 )
             )
         lines += [
@@ -666,10 +695,11 @@ def markdown(report: dict) -> str:
             "table of its own); the objects' radii small 1.5, medium 4, finger 8 mm (their "
             "rows solve the default cell over the crossing at the table's gaps; the "
             "deformation cell holds no object, so their counts per fF and shifts are the "
-            "default's); the glued radius 1.3 mm (two yarn radii and the insulation) and "
-            "the neutral plane 1.5 mm under the surface (their rows solve the one-crossing "
-            "cell's stretch and bend again; the touch table does not change, so their "
-            "pre-touch gaps and contact counts move with the counts per fF alone).",
+            "default's, the breathing's too); the glued radius 1.3 mm (two yarn radii and "
+            "the insulation) and the neutral plane 1.5 mm under the surface (their rows "
+            "solve the one-crossing cell's stretch and bend again; the touch table does "
+            "not change, so their pre-touch gaps and contact counts move with the counts "
+            "per fF alone).",
         ]
         checks = [v for v in e.get("radius_variants", []) if v["default"]]
         checks += [v for v in e.get("deformation_variants", []) if v["key"] == "default"]
@@ -679,7 +709,8 @@ def markdown(report: dict) -> str:
                 "",
                 "Check: the same solves with the default inputs give contact counts "
                 + _pair({k: p[1] for k, p in r["pretouch"].items()}, "counts")
-                + f" and counts per fF {d['counts_per_ff']:.3f}, as the table.",
+                + f" and counts per fF {d['counts_per_ff']:.3f}, breathing max "
+                f"{d['breathing'][0]:.1f}, mean {d['breathing'][1]:.2f} counts, as the table.",
             ]
     lines += [
         "",
