@@ -84,3 +84,23 @@ def contact_drops_ff(
             raise ValueError(f"pad: the {side} touch's drop is not finite")
         out[side] = {"c0": c0, "dc": dc}
     return out
+
+
+def bend_counts_per_ff(pad: Pad, time_limit_s: float = 120.0) -> tuple[float, dict[str, float]]:
+    """(counts per fF, {"x": dC, "y": dC} fF) of the pad's own crossing bent as the
+    paper's pad (`crossing.PAD_BEND_CURVATURE_PER_MM`, neutral plane `crossing.NEUTRAL_MM`
+    under the front), fitted as `equivalents.counts_per_ff` fits a table: the larger
+    bend shifts `crossing.BEND_SHIFT_COUNTS`. Solved on the one-crossing cell of the
+    pad with its back face insulating (air behind it would be folded by the bend)."""
+    from fruitcli.electrostatics.cell_mesh import mesh_cell
+
+    spec = replace(crossing.deformation_spec(pad_spec(pad, "front")), back_air_mm=0.0)
+    solver = crossing.CellSolver(mesh_cell(spec, 1, time_limit_s), pad.permittivity)
+    c0 = solver.capacitance()
+    _, _, curvatures, c_bend = crossing.deformation_table(solver, spec, c0)
+    i = int(np.argmin(np.abs(curvatures - crossing.PAD_BEND_CURVATURE_PER_MM)))
+    shift = c_bend[:, i] - c0
+    return crossing.BEND_SHIFT_COUNTS / float(np.abs(shift).max()), {
+        "x": float(shift[0]),
+        "y": float(shift[1]),
+    }

@@ -46,3 +46,17 @@ def test_a_finger_behind_the_pad_drops_less_than_in_front():
     assert front["dc"] < 0 and back["dc"] < 0
     assert back["dc"] > 0.8 * front["dc"]  # smaller in size: at least 20 % less
     assert back["c0"] == pytest.approx(front["c0"], rel=0.06)
+
+
+def test_the_pad_bent_shifts_a_crossing_over_and_under_its_neutral_plane_oppositely():
+    """Bent as the paper's pad about the plane 1.5 mm under the front, the crossing 1 mm
+    deep (stretched side) and 2.5 mm deep (compressed side) of the 3.5 mm pad shift C in
+    opposite directions along each yarn; the larger shift is fitted to 10 counts."""
+    from fruitcli.electrostatics.back_touch import bend_counts_per_ff
+
+    over_cpf, over = bend_counts_per_ff(PAD, time_limit_s=60.0)
+    under_cpf, under = bend_counts_per_ff(Pad(8.0, 8.0, 3.5, 2.5, 0.4, 0.1, 2.8), 60.0)
+    for a in "xy":
+        assert over[a] * under[a] < 0, (over, under)
+    for cpf, shift in ((over_cpf, over), (under_cpf, under)):
+        assert cpf * max(abs(shift["x"]), abs(shift["y"])) == pytest.approx(10.0)

@@ -202,11 +202,15 @@ def finger_behind(model: str, response=None) -> dict:
         )
         drops = back_touch.contact_drops_ff(pad, "finger", inputs.time_limit_s)
         cpf = response.counts_per_ff
+        own_cpf, own_bend = back_touch.bend_counts_per_ff(pad, inputs.time_limit_s)
         out[f"{depth:g}"] = {
             "depth_mm": depth,
             "back": float(-cpf * drops["back"]["dc"]),
             "front": float(-cpf * drops["front"]["dc"]),
             "drops_ff": drops,
+            "own_counts_per_ff": own_cpf,
+            "own_bend_ff": own_bend,
+            "back_own": float(-own_cpf * drops["back"]["dc"]),
             "symmetric_assumption": float(response.drop("finger", 0.0, 0.0, thick - 2 * depth)),
         }
     return out
@@ -642,6 +646,21 @@ def markdown(report: dict) -> str:
         f"{e['breathing']['max'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.1f}, mean "
         f"{e['breathing']['mean'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.2f} counts.",
     ]
+    own = [f for f in e["finger_behind"].values() if "own_counts_per_ff" in f]
+    if own:
+        lines.append(
+            "- Electrostatic, the finger behind the pad in the counts per fF of the pad's "
+            "crossing at each depth instead of the pad scene's (its one-crossing cell, "
+            "3 mm thick with its back face insulating, bent as Fig. 9; the larger bend "
+            "fitted to 10 counts): "
+            + "; ".join(
+                f"{f['depth_mm']:g} mm deep: {f['own_counts_per_ff']:.3f} counts per fF "
+                f"(bend along x {f['own_bend_ff']['x']:+.2f}, along y "
+                f"{f['own_bend_ff']['y']:+.2f} fF), back {f['back_own']:.0f} counts"
+                for f in own
+            )
+            + "."
+        )
     if e.get("variants"):
         lines += [
             "",
