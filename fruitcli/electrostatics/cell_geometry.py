@@ -8,8 +8,10 @@ Rx's axis at z = -(cover - r - t/2), Tx's at z = -(cover + r + t/2) (t: insulati
 The cell spans `reach` pitches either side, x in [-n px, n px], y in [-n py, n py]
 (n = reach), with a yarn every pitch: the yarns at -+n pitches are half cylinders on its
 side faces (insulating faces mirror them into whole ones), the others whole, so the
-cell holds (2n - 1)^2 crossings; silicone reaches `BELOW_MM` under the Tx yarns, air
-`air_mm` above the surface. Every outer face is insulating (zero normal field).
+cell holds (2n - 1)^2 crossings; silicone reaches `below_mm` (default `BELOW_MM`) under
+the Tx yarns, air `air_mm` above the surface and, for a pad with air behind it,
+`back_air_mm` under the silicone (default none: the silicone's bottom face is the
+cell's). Every outer face is insulating (zero normal field): no ground plane anywhere.
 
 Physical groups: volumes ``silicone`` and ``air``; surfaces ``tx`` and ``rx`` (the
 centre crossing's yarns), ``tx+1``, ``tx-1``, ``rx+1``, ... (the yarns a pitch, two
@@ -22,7 +24,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 BELOW_MM = 3.0
-"""Silicone under the lower yarn (mm); its bottom face is insulating."""
+"""Silicone under the lower yarn (mm) by default; its bottom face is insulating."""
 
 YARN_SIZE_RADII = 0.5
 """Element size along the yarns away from the crossings, in yarn radii (the crossings
@@ -76,6 +78,8 @@ class CellSpec:
     points_mm: tuple = ()  # (x, y, z) points on z = 0 or a level that get a node
     reach: int = 1  # pitches either side of the centre crossing
     touch_box_mm: tuple = (0.0, 0.0)  # the surface is fine over [0, bx] x [0, by] and near
+    below_mm: float = BELOW_MM  # silicone under the lower (Tx) yarn
+    back_air_mm: float = 0.0  # air under the silicone (0: none, the silicone's face insulates)
 
     @property
     def yarn_names(self) -> tuple[list[str], list[str]]:
@@ -93,7 +97,7 @@ class CellSpec:
 
     @property
     def bottom_z_mm(self) -> float:
-        return self.tx_z_mm - self.yarn_radius_mm - BELOW_MM
+        return self.tx_z_mm - self.yarn_radius_mm - self.below_mm
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -117,6 +121,8 @@ def build(gmsh, spec: CellSpec) -> None:
         occ.addBox(-wx, -wy, z_lo, 2 * wx, 2 * wy, z_hi - z_lo)
         for z_lo, z_hi in zip([0.0, *tops], [*tops, spec.air_mm], strict=True)
     ]
+    if spec.back_air_mm > 0:
+        air.append(occ.addBox(-wx, -wy, z0 - spec.back_air_mm, 2 * wx, 2 * wy, spec.back_air_mm))
     pad = 1.0  # cylinders overshoot the cell; cut back by the box
     ks = range(-n, n + 1)
     tx = [occ.addCylinder(k * px, -wy - pad, spec.tx_z_mm, 0, 2 * (wy + pad), 0, r) for k in ks]
@@ -125,8 +131,8 @@ def build(gmsh, spec: CellSpec) -> None:
     both, _ = occ.fragment(cut, [(3, a) for a in air])
     occ.synchronize()
     _embed_points(gmsh, spec)
-    vols_sil = [t for d, t in both if occ.getCenterOfMass(d, t)[2] < 0]
-    vols_air = [t for d, t in both if occ.getCenterOfMass(d, t)[2] > 0]
+    vols_sil = [t for d, t in both if z0 < occ.getCenterOfMass(d, t)[2] < 0]
+    vols_air = [t for d, t in both if t not in vols_sil]
     gmsh.model.addPhysicalGroup(3, vols_sil, name="silicone")
     gmsh.model.addPhysicalGroup(3, vols_air, name="air")
     tx_names, rx_names = spec.yarn_names

@@ -165,8 +165,9 @@ class CellSolver:
     numerical refactorization (`fruitcli.fem.solver.pardiso`; without MKL, a fresh
     Cholesky per solve)."""
 
-    def __init__(self, mesh: TetMesh, permittivity: float):
+    def __init__(self, mesh: TetMesh, permittivity: float, objects=None):
         self.mesh = mesh
+        self.objects = OBJECTS if objects is None else objects  # name -> TouchObject
         regions = np.array(mesh.regions)[mesh.region]
         self.eps = np.where(regions == "silicone", permittivity, 1.0)
         names = sorted(mesh.surfaces, key=_yarn_order)
@@ -217,7 +218,7 @@ class CellSolver:
         surface than SNAP_FRACTION of their shortest edge are moved onto it (not those
         on the skin's surface, which stay in its plane; none that would flatten a tet
         below KEEP_VOLUME of its volume), and every node inside or on it is held."""
-        obj = OBJECTS[name]
+        obj = self.objects[name]
         nodes = self.mesh.nodes
         tol = 1e-9
         lifted = self.air & (nodes[:, 2] > tol)
@@ -321,7 +322,7 @@ class CellSolver:
 
     def object_nodes(self, name: str, dx: float, dy: float, gap: float) -> np.ndarray:
         """Air nodes inside object `name` with its tip at (dx, dy, gap)."""
-        return np.flatnonzero(OBJECTS[name].contains(self.mesh.nodes, dx, dy, gap) & self.air)
+        return np.flatnonzero(self.objects[name].contains(self.mesh.nodes, dx, dy, gap) & self.air)
 
     def with_object(self, name: str, dx: float, dy: float, gap: float) -> float:
         return self.capacitance(self.object_nodes(name, dx, dy, gap))
@@ -396,15 +397,27 @@ def touch_table(
     return dx, dy, quarter[:, :, src_x][:, :, :, src_y], float(mismatch)
 
 
+def glue_radius_mm(spec: CellSpec) -> float:
+    """The glued crossing's radius about its vertical axis (mm): two yarn radii and the
+    insulation (an assumption: the paper gives no size for its glue)."""
+    return 2 * spec.yarn_radius_mm + spec.insulation_mm
+
+
 def deformation_table(
-    solver: CellSolver, spec: CellSpec, c0: float, glued: bool = True
+    solver: CellSolver,
+    spec: CellSpec,
+    c0: float,
+    glued: bool = True,
+    glue_mm: float | None = None,
+    neutral_mm: float = NEUTRAL_MM,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(c_stretch (2, s), c_bend (2, c)) fF, strain and curvature lists with 0 first.
-    Glued (the paper's crossing, the default): nothing within two yarn radii and the
-    insulation of the crossing's axis moves, the deformation ramps in over half a pitch
-    beyond; not glued: every node moves with the silicone (the yarns too)."""
+    Glued (the paper's crossing, the default): nothing within `glue_mm` (default
+    `glue_radius_mm`) of the crossing's axis moves, the deformation ramps in over half a
+    pitch beyond; not glued: every node moves with the silicone (the yarns too). Bent
+    about a neutral plane `neutral_mm` under the surface."""
     nodes = solver.mesh.nodes
-    glue = 2 * spec.yarn_radius_mm + spec.insulation_mm
+    glue = glue_radius_mm(spec) if glue_mm is None else glue_mm
     ramp = min(spec.pitch_x_mm, spec.pitch_y_mm) / 2
 
     def move(target: np.ndarray) -> np.ndarray:
@@ -418,7 +431,7 @@ def deformation_table(
         for i, s in enumerate(strains[1:], 1):
             c_stretch[a, i] = solver.capacitance(nodes=move(deform.stretched(nodes, axis, s)))
         for i, kappa in enumerate(curvatures[1:], 1):
-            moved = move(deform.bent(nodes, axis, kappa, NEUTRAL_MM))
+            moved = move(deform.bent(nodes, axis, kappa, neutral_mm))
             c_bend[a, i] = solver.capacitance(nodes=moved)
     solver.capacitance(nodes=nodes)  # back to the cell at rest
     return strains, c_stretch, curvatures, c_bend

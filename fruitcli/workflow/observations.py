@@ -194,7 +194,9 @@ def run_rows(out: Path, names: list[str]) -> list[tuple[str, str, str]]:
         (
             "finger behind the bent pad",
             PAPER["finger_back"],
-            "not part of the demo: `python tests/performance/compare_skins.py`",
+            "not part of the demo: the electrostatic crossing is solved with a finger on "
+            "the back and on the front of the 3 mm pad by `python "
+            "tests/performance/compare_skins.py` (the skin model page's observations)",
         )
     )
     breath = sensitivity(out / "fruit-breathing") if "fruit-breathing" in have else None

@@ -255,3 +255,20 @@ def test_kept_pattern_solve_without_pardiso(small_cell, monkeypatch):
     monkeypatch.setattr(pardiso, "_MISSING", True)
     assert s.capacitance() == pytest.approx(c0, rel=1e-9)
     assert s.with_object("medium", 1.5, 0.0, 0.0) == pytest.approx(c_obj, rel=1e-9)
+
+
+def test_glue_and_neutral_plane_move_the_deformation_table(small_cell):
+    """A glue radius wider than the cell keeps every node still: C stays C0 under each
+    stretch and bend; the default glue shifts C, and bending about another neutral
+    plane changes the bend's C but not the stretch's."""
+    s = small_cell
+    c0 = s.capacitance()
+    spec = crossing.cell_spec(6.0, 5.0, 1.5, 0.4, 0.1, [0.0, 1.0])
+    _, c_s, _, c_b = crossing.deformation_table(s, spec, c0, glue_mm=100.0)
+    assert np.allclose(c_s, c0, rtol=1e-9) and np.allclose(c_b, c0, rtol=1e-9)
+    _, d_s, _, d_b = crossing.deformation_table(s, spec, c0)
+    _, n_s, _, n_b = crossing.deformation_table(s, spec, c0, neutral_mm=0.5)
+    assert not np.allclose(d_b[:, 1:], c0, rtol=1e-6)
+    assert np.allclose(n_s, d_s, rtol=1e-12)
+    assert not np.allclose(n_b[:, 1:], d_b[:, 1:], rtol=1e-6)
+    assert s.capacitance() == pytest.approx(c0, rel=1e-12)  # the cell at rest again

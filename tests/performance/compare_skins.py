@@ -7,7 +7,9 @@ Units: mm, counts. For both ``[skin].model`` values:
 - the 80 x 80 x 3 mm pad (Fig. 9: at most 10 counts) bent 180 deg over its 48 mm active
   length (`forward.bend_nodes`) along x and along y, the crossing of
   ``pipelines/touchpad-4x4.toml``: its largest baseline shift each way;
-- a finger behind that bent pad (Fig. 8 (c): it triggers a touch);
+- a finger behind that bent pad (Fig. 8 (c): it triggers a touch), solved on the 3 mm
+  pad with air on both sides (`fruitcli.electrostatics.back_touch`) for three depths of
+  its crossing, the front touch of the same pad beside it;
 - the Fruit's breathing (Fig. 11: max 16, mean 5.0 counts) over the 13 FEM states of
   ``pipelines/fruit-breathing.toml``: each taxel's largest |shift|, model alone and as
   played with noise, and where the largest is; the noise (Fig. 10: std up to 1.9);
@@ -16,7 +18,9 @@ Units: mm, counts. For both ``[skin].model`` values:
 - what the rows depend on: the electrostatic skin under the other bend's calibration,
   the Gaussian skin's pre-touch over its contact counts and gap decay, and with
   ``--assumptions`` the crossing's own numbers with the yarn radius, the insulation and
-  the permittivity moved off their assumed values (a table each, about a minute).
+  the permittivity moved off their assumed values (a table each, about a minute), the
+  objects' radii (the touch cell over the crossing), the glued radius and the neutral
+  plane (the one-crossing cell's stretch and bend).
 
 Each scene runs through the planner in OUT/<scene>-<model> with OUT as the shared
 folder, so the stages the two models have in common run once and a second run reuses
@@ -50,7 +54,25 @@ VARIANTS = (
     ("permittivity", 2.5),
     ("permittivity", 3.0),
 )
-"""The crossing's assumed inputs moved one at a time (defaults 0.6 mm, 0.1 mm, 2.8)."""
+"""The crossing's assumed inputs moved one at a time (defaults 0.6 mm, 0.1 mm, 2.8): a
+table each."""
+
+RADII_VARIANTS = (
+    {"small": 1.0, "medium": 3.0, "finger": 6.0},
+    {"small": 2.0, "medium": 5.0, "finger": 10.0},
+)
+"""The objects' radii (mm) moved off their assumed 1.5, 4 and 8 mm: the touch cell solved
+over the crossing at the table's gaps."""
+
+DEFORMATION_VARIANTS = (
+    ("glue_mm", 0.65),
+    ("glue_mm", 2.6),
+    ("neutral_mm", 1.0),
+    ("neutral_mm", 2.0),
+)
+"""The glued radius (default two yarn radii and the insulation, 1.3 mm) halved and
+doubled, and the bent pad's neutral plane (default 1.5 mm under the surface) moved by
+0.5 mm: the one-crossing cell's stretch and bend solved again."""
 
 
 def variant(name: str, model: str, out: Path, extra_bench: str = "") -> Path:
@@ -141,26 +163,56 @@ def bent_pad_shifts(model: str, response=None) -> dict[str, float]:
     return out
 
 
+FINGER_DEPTHS_MM = (1.35, 1.5, 1.65)
+"""Depths of the pad's crossing under its front face for the finger behind it: the
+middle of the 3 mm pad and 0.15 mm either side (the yarns of 0.6 mm radius and the
+insulation reach 1.25 mm either side of the crossing, so it fits 1.25 to 1.75 mm deep;
+the pad scene's 2 mm cover would put the lower yarn out of the back)."""
+
+
 def finger_behind(model: str, response=None) -> dict:
-    """Counts of the crossing with a finger on the pad's back face (Fig. 8 (c)), for the
-    yarns at the pad scene's cover (2 mm under the front: 1 mm from the back) and in the
-    middle of the 3 mm pad. The field is taken as the same on both sides of the yarns,
-    so a finger d from the yarns reads as one at the gap d - cover in front (below 0:
-    the table's press, extrapolated). Gaussian: its contact counts and gap decay (it has
-    no finger; its law does not depend on the object under the crossing)."""
+    """Per depth of the pad's crossing (`FINGER_DEPTHS_MM`): counts of the crossing with a
+    finger touching the 3 mm pad's back face over it (Fig. 8 (c)), and touching its
+    front. Electrostatic: solved on the pad with air on both sides
+    (`fruitcli.electrostatics.back_touch`), the pad's crossing's inputs (pitch 16 x 16
+    mm, yarn radius, insulation, permittivity) and counts per fF (`response`). Gaussian:
+    it has no back; its contact counts and gap decay at the distance through the pad
+    less the depth in front (front gap = thickness - 2 depth)."""
+    from fruitcli.electrostatics import back_touch, design
     from fruitcli.scene import load_scene
     from fruitcli.sensing.skin import forward
 
     thick = forward.PAD_SIZE_MM[2]
-    cover = load_scene(PIPELINES / "touchpad-4x4.toml").tracks.cover_mm
     out = {}
-    for label, depth in (("cover", cover), ("middle", thick / 2)):
-        gap = (thick - depth) - depth
+    for depth in FINGER_DEPTHS_MM:
         if model == "gaussian":
+            gap = thick - 2 * depth
             counts = forward.CONTACT_COUNTS * math.exp(-gap / forward.GAP_DECAY_MM)
-        else:
-            counts = float(response.drop("finger", 0.0, 0.0, gap))
-        out[label] = {"yarn_depth_mm": depth, "front_gap_mm": gap, "counts": counts}
+            out[f"{depth:g}"] = {"depth_mm": depth, "back": counts, "front_gap_mm": gap}
+            continue
+        inputs = design.crossing_inputs(load_scene(PIPELINES / "touchpad-4x4.toml"))
+        pad = back_touch.Pad(
+            inputs.pitch_x_mm,
+            inputs.pitch_y_mm,
+            thick,
+            depth,
+            inputs.yarn_radius_mm,
+            inputs.insulation_mm,
+            inputs.permittivity,
+        )
+        drops = back_touch.contact_drops_ff(pad, "finger", inputs.time_limit_s)
+        cpf = response.counts_per_ff
+        own_cpf, own_bend = back_touch.bend_counts_per_ff(pad, inputs.time_limit_s)
+        out[f"{depth:g}"] = {
+            "depth_mm": depth,
+            "back": float(-cpf * drops["back"]["dc"]),
+            "front": float(-cpf * drops["front"]["dc"]),
+            "drops_ff": drops,
+            "own_counts_per_ff": own_cpf,
+            "own_bend_ff": own_bend,
+            "back_own": float(-own_cpf * drops["back"]["dc"]),
+            "symmetric_assumption": float(response.drop("finger", 0.0, 0.0, thick - 2 * depth)),
+        }
     return out
 
 
@@ -229,14 +281,16 @@ def breathing_shifts(root: Path, model: str, response=None) -> dict:
     }
 
 
-def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
+def assumption_variants(scene_path: Path, out: Path, breathing: Path) -> list[dict]:
     """The Fruit's crossing with each of `VARIANTS` moved off its assumed value: counts
     per fF (fitted to the bend), counts at contact, pre-touch gaps (as
-    `electrostatic_pretouch` gives them for the default), both bends and a 10 % stretch
-    along each yarn. Each table is built once into OUT/crossing-KEY-VALUE."""
+    `electrostatic_pretouch` gives them for the default), both bends, a 10 % stretch
+    along each yarn and the breathing run's shifts (`breathing_shifts`). Each table is
+    built once into OUT/crossing-KEY-VALUE."""
     from fruitcli.electrostatics import design
     from fruitcli.errors import FruitError
     from fruitcli.scene import load_scene
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
     scene = load_scene(scene_path)
     base = design.crossing_inputs(scene)
@@ -262,13 +316,108 @@ def assumption_variants(scene_path: Path, out: Path) -> list[dict]:
                 "pretouch": electrostatic_pretouch(folder),
                 "bend_counts": {a: shifts[f"bend_{a}"][-1] for a in "xy"},
                 "stretch_10pct_counts": {a: shifts[f"stretch_{a}"][at] for a in "xy"},
+                "breathing": _max_mean(breathing, CrossingSkin.load(folder)),
             }
         )
     return rows
 
 
+def _max_mean(breathing: Path, response) -> tuple[float, float]:
+    """(max, mean) of the breathing run's per-taxel largest |shift| under `response`."""
+    b = breathing_shifts(breathing, "electrostatic", response)
+    return b["max"], b["mean"]
+
+
+def _threshold_gap(gaps: np.ndarray, counts: np.ndarray) -> float:
+    """Gap (mm) at which `counts` (g,), linear between the gaps as `CrossingSkin.drop`
+    is, falls to 20; inf beyond the last gap."""
+    above = np.flatnonzero(counts >= 20.0)
+    if not above.size:
+        return 0.0
+    j = int(above[-1])
+    if j == len(gaps) - 1:
+        return math.inf
+    return float(np.interp(20.0, counts[[j + 1, j]], gaps[[j + 1, j]]))
+
+
+def radius_variants(inputs, counts_per_ff: float) -> list[dict]:
+    """Per radii of `RADII_VARIANTS` (and the default's, a check against the table):
+    each object over the crossing at the table's gaps on the default touch cell, in the
+    default's counts per fF (the deformation cell has no object): pre-touch gap and
+    counts at contact."""
+    from fruitcli.electrostatics import crossing, design
+    from fruitcli.electrostatics.cell_mesh import mesh_cell
+    from fruitcli.electrostatics.touch_objects import OBJECTS
+
+    mesh = mesh_cell(design.cell_spec(inputs), 1, inputs.time_limit_s)
+    gaps = np.asarray(inputs.gaps_mm, float)
+    rows = []
+    default = {k: o.radius_mm for k, o in OBJECTS.items()}
+    for radii in (default, *RADII_VARIANTS):
+        objects = {k: replace(o, radius_mm=radii[k]) for k, o in OBJECTS.items()}
+        solver = crossing.CellSolver(mesh, inputs.permittivity, objects)
+        c0 = solver.capacitance()
+        pretouch = {}
+        for name in objects:
+            dc = [solver.object_crossings(name, 0.0, 0.0, g)[solver.centre] - c0 for g in gaps]
+            counts = -counts_per_ff * np.array(dc)
+            pretouch[name] = (_threshold_gap(gaps, counts), float(counts[0]))
+        print(f"  radii {radii}: {pretouch}")
+        rows.append({"radii": radii, "pretouch": pretouch, "default": radii is default})
+    return rows
+
+
+def deformation_variants(inputs, table: Path, breathing: Path) -> list[dict]:
+    """Per input of `DEFORMATION_VARIANTS` (and the default, a check against the table):
+    the one-crossing cell stretched and bent, its counts per fF fitted to the larger of
+    the two bends as the pad (as `equivalents.counts_per_ff` does), both bends and a 10 %
+    stretch along each yarn in those counts, and the breathing run's shifts with the
+    crossing `table` (a `fruit skin` folder) given these stretches and bends (and the
+    neutral plane)."""
+    from fruitcli.electrostatics import crossing, design
+    from fruitcli.electrostatics.cell_mesh import mesh_cell
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
+    with np.load(table / "crossing.npz") as data:
+        arrays = {k: data[k] for k in data.files}
+    summary = json.loads((table / "summary.json").read_text())
+
+    spec = crossing.deformation_spec(design.cell_spec(inputs))
+    solver = crossing.CellSolver(mesh_cell(spec, 1, inputs.time_limit_s), inputs.permittivity)
+    c0 = solver.capacitance()
+    rows = []
+    for key, value in (("default", None), *DEFORMATION_VARIANTS):
+        kwargs = {} if value is None else {key: value}
+        strains, c_s, curvatures, c_b = crossing.deformation_table(solver, spec, c0, **kwargs)
+        i = int(np.argmin(np.abs(curvatures - crossing.PAD_BEND_CURVATURE_PER_MM)))
+        bend = c_b[:, i] - c0
+        cpf = crossing.BEND_SHIFT_COUNTS / float(np.abs(bend).max())
+        at = int(np.argmin(np.abs(strains - 0.1)))
+        row = {
+            "key": key,
+            "value": value,
+            "counts_per_ff": cpf,
+            "fitted_to": "xy"[int(np.argmax(np.abs(bend)))],
+            "bend_counts": {a: float(-cpf * bend[n]) for n, a in enumerate("xy")},
+            "stretch_10pct_counts": {
+                a: float(-cpf * (c_s[n, at] - c0)) for n, a in enumerate("xy")
+            },
+        }
+        moved = {**arrays, "c_stretch_ff": c_s - c0 + arrays["c0_ff"]}
+        moved["c_bend_ff"] = c_b - c0 + arrays["c0_ff"]
+        response = CrossingSkin.from_table(moved, summary, cpf)
+        if key == "neutral_mm":
+            response = replace(response, neutral_mm=value)
+        row["breathing"] = _max_mean(breathing, response)
+        print(f"  {key} = {value}: {row}")
+        rows.append(row)
+    return rows
+
+
 def observe(out: Path, assumptions: bool) -> dict:
     """Every observation for both skins (runs the scenes that are not yet in OUT)."""
+    from fruitcli.electrostatics import design
+    from fruitcli.scene import load_scene
     from fruitcli.workflow import observations as obs
 
     report = {}
@@ -316,7 +465,15 @@ def observe(out: Path, assumptions: bool) -> dict:
                 rest / "skin", pad.counts_per_ff
             )
             if assumptions:
-                entry["variants"] = assumption_variants(rest.parent / f"{rest.name}.toml", out)
+                scene_path = rest.parent / f"{rest.name}.toml"
+                entry["variants"] = assumption_variants(scene_path, out, breathing)
+                inputs = design.crossing_inputs(load_scene(scene_path))
+                entry["radius_variants"] = radius_variants(inputs, entry["counts_per_ff"])
+                entry["deformation_variants"] = deformation_variants(
+                    inputs, rest / "skin", breathing
+                )
+                for row in entry["deformation_variants"][1:]:
+                    row["pretouch"] = electrostatic_pretouch(rest / "skin", row["counts_per_ff"])
         report[model] = entry
     return report
 
@@ -341,11 +498,11 @@ def _finger(f: dict, bends: dict) -> str:
     def one(c: float) -> str:
         return f"{c:.0f} ({c + bends['x']:.0f} / {c + bends['y']:.0f} bent along x / y)"
 
-    cov, mid = f["cover"], f["middle"]
-    return (
-        f"yarns {cov['yarn_depth_mm']:g} mm deep (1 mm from the back): "
-        f"{one(cov['counts'])}; in the middle: {one(mid['counts'])} counts"
-    )
+    parts = []
+    for row in f.values():
+        front = f", front {row['front']:.0f}" if "front" in row else ""
+        parts.append(f"crossing {row['depth_mm']:g} mm deep: back {one(row['back'])}{front}")
+    return "; ".join(parts) + " counts"
 
 
 def _breathing(b: dict, sens: dict) -> str:
@@ -358,6 +515,20 @@ def _breathing(b: dict, sens: dict) -> str:
         f"{b['without_defects_max']:.1f}); {100 * b['negative_share']:.0f} % of taxels "
         f"shift mostly negative. Played with noise: max {sens['played_max']:.1f}, mean "
         f"{sens['played_mean']:.1f} counts"
+    )
+
+
+def _variant_row(
+    label: str, cpf: float, pretouch: dict, bend: dict, stretch: dict, breathing
+) -> str:
+    """One row of the assumed inputs' table."""
+    return (
+        f"| {label} | {cpf:.3f} | "
+        + _pair({k: p[0] for k, p in pretouch.items()}, "", 2).strip()
+        + " | "
+        + _pair({k: p[1] for k, p in pretouch.items()}, "", 1).strip()
+        + f" | {bend['x']:+.1f} / {bend['y']:+.1f} | "
+        f"{stretch['x']:+.1f} / {stretch['y']:+.1f} | {breathing[0]:.1f} / {breathing[1]:.2f} |"
     )
 
 
@@ -400,9 +571,12 @@ def markdown(report: dict) -> str:
             obs.PAPER["finger_back"],
             _finger(g["finger_behind"], g["bent_pad"]),
             _finger(e["finger_behind"], e["bent_pad"]),
-            "where the yarns sit in the pad (not given: the pad scene's cover 2 mm, or "
-            "the middle), the field taken as the same on both sides of the yarns "
-            "(assumed), the bend direction",
+            "where the crossing sits in the pad (not given; 0.6 mm yarns fit the 3 mm pad "
+            "only 1.25 to 1.75 mm deep), the finger (a grounded rounded rod 16 mm wide, "
+            "assumed), air on both sides of the pad (no ground plane, assumed), the "
+            "counts per fF of the pad's crossing, the bend direction (its shift added). "
+            "Electrostatic: solved on the pad, both faces; Gaussian: its gap law through "
+            "the pad (it has no back)",
         ),
         (
             "the Fruit breathing (13 states, 0-12 kPa): each taxel's largest absolute shift",
@@ -472,39 +646,91 @@ def markdown(report: dict) -> str:
         f"{e['breathing']['max'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.1f}, mean "
         f"{e['breathing']['mean'] * e['pad_counts_per_ff'] / e['counts_per_ff']:.2f} counts.",
     ]
+    own = [f for f in e["finger_behind"].values() if "own_counts_per_ff" in f]
+    if own:
+        lines.append(
+            "- Electrostatic, the finger behind the pad in the counts per fF of the pad's "
+            "crossing at each depth instead of the pad scene's (its one-crossing cell, "
+            "3 mm thick with its back face insulating, bent as Fig. 9; the larger bend "
+            "fitted to 10 counts): "
+            + "; ".join(
+                f"{f['depth_mm']:g} mm deep: {f['own_counts_per_ff']:.3f} counts per fF "
+                f"(bend along x {f['own_bend_ff']['x']:+.2f}, along y "
+                f"{f['own_bend_ff']['y']:+.2f} fF), back {f['back_own']:.0f} counts"
+                for f in own
+            )
+            + "."
+        )
     if e.get("variants"):
         lines += [
             "",
-            "The Fruit's crossing with one assumed input moved (each table fits its own "
-            "counts per fF to its bend along y, as the default does):",
+            "The Fruit's crossing with one assumed input moved (each fits its own counts "
+            "per fF to the larger of its two bends as the pad, as the default does: the "
+            "bend at 10 counts in the bend column):",
             "",
             "| input moved | counts per fF | pre-touch gap (mm) | counts at contact | "
             "crossing bent as the pad, along x / y (counts) | stretched 10 %, along x / y "
-            "(counts) |",
-            "|---|---|---|---|---|---|",
+            "(counts) | the Fruit breathing, max / mean (counts) |",
+            "|---|---|---|---|---|---|---|",
         ]
         c = e["crossing_shifts"]
-        lines.append(
-            f"| none (the default) | {e['counts_per_ff']:.3f} | "
-            + _pair({k: p[0] for k, p in e["pretouch"].items()}, "", 2).strip()
-            + " | "
-            + _pair({k: p[1] for k, p in e["pretouch"].items()}, "", 1).strip()
-            + f" | {c['bend']['x']:+.1f} / {c['bend']['y']:+.1f} | "
-            f"{c['stretch_10pct']['x']:+.1f} / {c['stretch_10pct']['y']:+.1f} |"
-        )
+        b = (e["breathing"]["max"], e["breathing"]["mean"])
+        default = (e["counts_per_ff"], e["pretouch"], c["bend"], c["stretch_10pct"], b)
+        lines.append(_variant_row("none (the default)", *default))
         for v in e["variants"]:
             if "error" in v:
-                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | |")
+                lines.append(f"| {v['key']} = {v['value']:g} | {v['error']} | | | | | |")
                 continue
             lines.append(
-                f"| {v['key']} = {v['value']:g} | {v['counts_per_ff']:.3f} | "
-                + _pair({k: p[0] for k, p in v["pretouch"].items()}, "", 2).strip()
-                + " | "
-                + _pair({k: p[1] for k, p in v["pretouch"].items()}, "", 1).strip()
-                + f" | {v['bend_counts']['x']:+.1f} / {v['bend_counts']['y']:+.1f} | "
-                f"{v['stretch_10pct_counts']['x']:+.1f} / "
-                f"{v['stretch_10pct_counts']['y']:+.1f} |"
+                _variant_row(
+                    f"{v['key']} = {v['value']:g}",
+                    v["counts_per_ff"],
+                    v["pretouch"],
+                    v["bend_counts"],
+                    v["stretch_10pct_counts"],
+                    v["breathing"],
+                )
             )
+        for v in e.get("radius_variants", []):
+            if v["default"]:
+                continue
+            label = "radii " + ", ".join(f"{k} {r:g}" for k, r in v["radii"].items()) + " mm"
+            lines.append(_variant_row(label, e["counts_per_ff"], v["pretouch"], *default[2:]))
+        names = {"glue_mm": "glued radius", "neutral_mm": "neutral plane"}
+        for v in e.get("deformation_variants", [])[1:]:
+            lines.append(
+                _variant_row(
+                    f"{names[v['key']]} {v['value']:g} mm",
+                    v["counts_per_ff"],
+                    v["pretouch"],
+                    v["bend_counts"],
+                    v["stretch_10pct_counts"],
+                    v["breathing"],
+                )
+            )
+        lines += [
+            "",
+            "Defaults: yarn radius 0.6 mm, insulation 0.1 mm, permittivity 2.8 (each row a "
+            "table of its own); the objects' radii small 1.5, medium 4, finger 8 mm (their "
+            "rows solve the default cell over the crossing at the table's gaps; the "
+            "deformation cell holds no object, so their counts per fF and shifts are the "
+            "default's, the breathing's too); the glued radius 1.3 mm (two yarn radii and "
+            "the insulation) and the neutral plane 1.5 mm under the surface (their rows "
+            "solve the one-crossing cell's stretch and bend again; the touch table does "
+            "not change, so their pre-touch gaps and contact counts move with the counts "
+            "per fF alone).",
+        ]
+        checks = [v for v in e.get("radius_variants", []) if v["default"]]
+        checks += [v for v in e.get("deformation_variants", []) if v["key"] == "default"]
+        if len(checks) == 2:
+            r, d = checks
+            lines += [
+                "",
+                "Check: the same solves with the default inputs give contact counts "
+                + _pair({k: p[1] for k, p in r["pretouch"].items()}, "counts")
+                + f" and counts per fF {d['counts_per_ff']:.3f}, breathing max "
+                f"{d['breathing'][0]:.1f}, mean {d['breathing'][1]:.2f} counts, as the table.",
+            ]
     lines += [
         "",
         "Made by `python tests/performance/compare_skins.py --out OUT --assumptions "

@@ -4,7 +4,9 @@ indenter's rod the cell holds) and a grounded against a floating indenter.
 
 Units: mm, fF. The default Fruit's crossing (pitch 16 x 12 mm, cover 2 mm, yarn radius
 0.6 mm, insulation 0.1 mm, eps_r 2.8) with node layers at the gaps 0, 1 and 2 mm; the
-small indenter and the medium one centred over the crossing. A floating indenter is an
+small indenter and the medium one centred over the crossing, each as the set of mesh
+nodes inside it (not meshed to its surface as the table's objects are: these checks
+compare choices on one mesh, not absolute drops). A floating indenter is an
 equipotential with no net charge: with u1 (Tx 1 V, indenter 0 V) and u2 (Tx 0 V,
 indenter 1 V), its potential is V = -Q_ind(u1) / Q_ind(u2) and C = -(Q_rx(u1) + V
 Q_rx(u2)).
@@ -56,6 +58,9 @@ def floating_dc(solver, obj: np.ndarray, c0: float) -> tuple[float, float]:
 def main(argv: list[str]) -> None:
     crossing.SURFACE_SIZE_MM = float(argv[0]) if argv else crossing.SURFACE_SIZE_MM
     crossing.OBJECT_LENGTH_MM = float(argv[1]) if len(argv) > 1 else crossing.OBJECT_LENGTH_MM
+    from fruitcli.studies.machine import machine_line
+
+    print(machine_line())
     spec = crossing.cell_spec(16.0, 12.0, 2.0, 0.6, 0.1, (0.0, 1.0, 2.0))
     t0 = time.perf_counter()
     solver = crossing.CellSolver(mesh_cell(spec, 1, 600.0), 2.8)
