@@ -14,7 +14,7 @@ project = "fruit"
 author = "The fruit developers"
 copyright = "the fruit developers, GPL-3.0-or-later"
 try:
-    release = package_version("fruitcli")
+    release = package_version("fruit-touch")
 except PackageNotFoundError:
     release = "unknown"
 version = release

@@ -351,7 +351,7 @@ def solvers_section(info: dict) -> str:
         "## With and without PARDISO",
         "",
         "MKL PARDISO factorizes the FEM's tangent when the optional extra is installed "
-        "(`pip install 'fruitcli[pardiso]'`; Linux and Windows: MKL has no macOS wheels); "
+        "(`pip install 'fruit-touch[pardiso]'`; Linux and Windows: MKL has no macOS wheels); "
         "the default install uses SciPy's SuperLU in symmetric mode (and cholespy's "
         "Cholesky for the paper's linear elements). "
         f"`fruit simulate {info['scene']}` on the same mesh and taxels, each path once:",

@@ -24,7 +24,12 @@ the shared modules, the tables and the two modules its docstring names.
 The top modules (the shared ones, `bundled`, `bundled_files`, `output_folder`)
 May import: one another, the tables of choices and `fruitcli.scene`.
 
+The distribution's name on the package index is `DISTRIBUTION`; the import package and
+its command keep theirs (`fruitcli`, `fruit`).
+
 Imports run one way: `cli` uses `workflow`, which uses the packages of each stage;
 `tests/test_imports.py` reads the "May import" rule of each package's docstring and fails
 on any import outside it.
 """
+
+DISTRIBUTION = "fruit-touch"  # pip install fruit-touch

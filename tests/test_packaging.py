@@ -52,7 +52,7 @@ def wheel(tmp_path_factory) -> Path:
         cwd=out,
     )
     (out / "build.log").write_text(build.stdout + build.stderr)
-    (found,) = out.glob("fruitcli-*.whl")
+    (found,) = out.glob("fruit_touch-*.whl")
     # the source distribution from the same copy, beside the wheel
     code = "import sys; from setuptools import build_meta; build_meta.build_sdist(sys.argv[1])"
     subprocess.run([sys.executable, "-c", code, str(out)], check=True, capture_output=True, cwd=src)
@@ -183,7 +183,7 @@ def test_metadata_is_ready_to_publish(wheel):
     from email.parser import HeaderParser
 
     with zipfile.ZipFile(wheel) as z:
-        meta = HeaderParser().parsestr(z.read("fruitcli-0.1.0.dist-info/METADATA").decode())
+        meta = HeaderParser().parsestr(z.read("fruit_touch-0.1.0.dist-info/METADATA").decode())
     assert meta["License-Expression"] == "GPL-3.0-or-later"
     assert meta["Description-Content-Type"] == "text/markdown"
     assert meta["Keywords"] and meta["Author"]
@@ -204,7 +204,7 @@ def test_description_renders(wheel):
     """`twine check --strict` on the wheel and the source distribution: the README
     renders as the package index's long description."""
     pytest.importorskip("twine")
-    (sdist,) = wheel.parent.glob("fruitcli-*.tar.gz")
+    (sdist,) = wheel.parent.glob("fruit_touch-*.tar.gz")
     res = subprocess.run(
         [sys.executable, "-m", "twine", "check", "--strict", str(wheel), str(sdist)],
         capture_output=True,
@@ -242,3 +242,26 @@ def test_wheel_check_tags_and_reason():
         "no wheel for gmsh==9"
     )
     assert check.why("ERROR: something else\n") == "ERROR: something else"
+
+
+def _index_lookalike(name: str) -> str:
+    """A name as the package index compares it with existing projects before it accepts a
+    new one: case, separators (. _ -) and the look-alikes l, i -> 1 and o -> 0 ignored."""
+    name = name.lower()
+    for sep in "._-":
+        name = name.replace(sep, "")
+    return name.replace("l", "1").replace("i", "1").replace("o", "0")
+
+
+def test_the_distribution_name_is_not_refused_as_too_like_an_existing_project():
+    """`fruit-cli` (an unrelated tool) is on the package index, so `fruitcli` would be
+    refused as too similar; the distribution is `fruit-touch` (the package and the
+    command keep their names)."""
+    import tomllib
+
+    from fruitcli import DISTRIBUTION
+
+    with open(ROOT / "pyproject.toml", "rb") as fh:
+        assert tomllib.load(fh)["project"]["name"] == DISTRIBUTION
+    assert _index_lookalike("fruitcli") == _index_lookalike("fruit-cli")
+    assert _index_lookalike(DISTRIBUTION) != _index_lookalike("fruit-cli")

@@ -15,7 +15,7 @@ import warnings
 
 import click
 
-from fruitcli import compile_notice
+from fruitcli import DISTRIBUTION, compile_notice
 
 # name -> (module, attribute, one-line help shown by `fruit --help`)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -158,7 +158,7 @@ def accept_late_options(cmd: click.Command) -> click.Command:
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output; -vv shows tracebacks.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress output on stderr.")
-@click.version_option(package_name="fruitcli", prog_name="fruit")
+@click.version_option(package_name=DISTRIBUTION, prog_name="fruit")
 @click.pass_context
 def cli(ctx, verbose, quiet) -> None:
     """fruit: model-based capacitive touch sensing on soft robots.

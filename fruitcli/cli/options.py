@@ -266,7 +266,7 @@ def scheduler_option(what: str) -> Callable[[FC], FC]:
         help=f"Run {what} on the workers of this Dask distributed scheduler "
         "(tcp://host:8786), e.g. one started by dask-jobqueue on SLURM "
         "or PBS; --out must be on a file system they share. Needs pip "
-        "install 'fruitcli[cluster]'.",
+        "install 'fruit-touch[cluster]'.",
     )
 
 

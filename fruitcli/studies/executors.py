@@ -143,7 +143,7 @@ class DaskPool:
             from distributed import Client
         except ImportError:
             raise FruitError(
-                "--scheduler needs the Dask extra: pip install 'fruitcli[cluster]'"
+                "--scheduler needs the Dask extra: pip install 'fruit-touch[cluster]'"
             ) from None
         self.address = address
         _check_address(address)

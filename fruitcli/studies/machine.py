@@ -8,6 +8,8 @@ import os
 import platform
 from pathlib import Path
 
+from fruitcli import DISTRIBUTION
+
 
 def processor() -> str:
     """The processor's model name (Linux's /proc/cpuinfo), else what `platform` says."""
@@ -53,7 +55,7 @@ def machine_line() -> str:
     processor, cores and load average."""
     date = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     try:
-        version = importlib.metadata.version("fruitcli")
+        version = importlib.metadata.version(DISTRIBUTION)
     except importlib.metadata.PackageNotFoundError:
         version = "(not installed)"
     commit = source_commit()

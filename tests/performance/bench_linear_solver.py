@@ -1,5 +1,5 @@
 """Benchmark: `fruit simulate` of a bundled scene with MKL PARDISO (the optional extra
-`fruitcli[pardiso]`) and without it (the default install: SciPy's SuperLU for the
+`fruit-touch[pardiso]`) and without it (the default install: SciPy's SuperLU for the
 quadratic elements; `tests/performance/without_pardiso.py`), on the same mesh and taxels.
 
 Each line: the path, the whole command's wall time, the sum of the states' solve times
@@ -33,7 +33,7 @@ ROOT = HERE.parents[1]
 MAX_RUNS = 1  # the breathing takes 1-3 minutes per path
 
 PATHS = {
-    "pardiso": ("MKL PARDISO (pip install 'fruitcli[pardiso]')", True),
+    "pardiso": ("MKL PARDISO (pip install 'fruit-touch[pardiso]')", True),
     "default": ("default install: SuperLU in symmetric mode", False),
 }
 """name -> (what it is, whether PARDISO is used: else through without_pardiso.py)."""

@@ -1,6 +1,6 @@
 """MKL PARDISO called directly (ctypes) for the factor the tangent solvers keep as CG's
 preconditioner; the library is the one pip's `mkl` installs with pypardiso (the optional
-extra `pardiso`: `pip install 'fruitcli[pardiso]'`; `available` is False without it).
+extra `pardiso`: `pip install 'fruit-touch[pardiso]'`; `available` is False without it).
 
 Why not pypardiso's `solve`: on every call it compares the whole matrix with the one it
 factorized and converts its index arrays to one-based int32, and MKL's default of two
