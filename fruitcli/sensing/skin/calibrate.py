@@ -99,14 +99,9 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     t = v.shape[1]
 
     def model(x):
-        # a trial step far out (the log-gain of a taxel no sample reached) overflows to
-        # inf; its residual is then inf and the step is turned down
-        with np.errstate(over="ignore", invalid="ignore"):
-            a, s, lam = np.exp(x[:3])
-            g = np.exp(x[3:])
-            return (
-                g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
-            )
+        a, s, lam = np.exp(x[:3])
+        g = np.exp(x[3:])
+        return g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
 
     def residual(x):
         return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
@@ -127,7 +122,10 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
 
     peak = max(float(v.max()), 1.0)
     x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), np.zeros(t)]
-    res = least_squares(residual, x0, jac=jacobian, method="trf", x_scale="jac")
+    # a trial step far out (the log-gain of a taxel no sample reached) overflows; its
+    # cost is then inf or huge and the step is turned down, without numpy's warning
+    with np.errstate(over="ignore", invalid="ignore"):
+        res = least_squares(residual, x0, jac=jacobian, method="trf", x_scale="jac")
     a, s, lam = np.exp(res.x[:3])
     g = np.exp(res.x[3:])
     pred = model(res.x)
