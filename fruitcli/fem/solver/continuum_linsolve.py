@@ -131,6 +131,8 @@ class ContinuumSolver:
         self.refresh = False
         self.fresh = False
         self.rtol = PCG_RELATIVE_TOLERANCE
+        # CG's displacement goal (`linsolve.pcg`; set by Newton)
+        self.displacement_goal = (0.0, 1.0)
         # Newton's chord steps near the tolerance (`linsolve.NEAR_TOLERANCE`): on the
         # default Fruit's breathing the 12 states took 4.6-5.4 s instead of 6.2-6.4 s
         self.near_tolerance = linsolve.NEAR_TOLERANCE
@@ -253,7 +255,13 @@ class ContinuumSolver:
         if self._indefinite_factor():
             return self._solve_columns(b[:, None])[:, 0]
         x, its, ok = pcg(
-            self.k.__matmul__, self.factor.solve, b, self.rtol, 2 * PCG_REFRESH_ITERATIONS, z0
+            self.k.__matmul__,
+            self.factor.solve,
+            b,
+            self.rtol,
+            2 * PCG_REFRESH_ITERATIONS,
+            z0,
+            self.displacement_goal,
         )
         self.stats["cg_iterations"] += its
         if ok:
@@ -262,7 +270,15 @@ class ContinuumSolver:
         if self.fresh:  # a fresh single-precision factor that failed: double from now on
             self.single = False
         self._factorize()
-        x, its, ok = pcg(self.k.__matmul__, self.factor.solve, b, self.rtol, PCG_MAX_ITERATIONS)
+        x, its, ok = pcg(
+            self.k.__matmul__,
+            self.factor.solve,
+            b,
+            self.rtol,
+            PCG_MAX_ITERATIONS,
+            None,
+            self.displacement_goal,
+        )
         self.stats["cg_iterations"] += its
         return x if ok else self.factor.solve(b)
 
