@@ -47,8 +47,7 @@ def evaluate(
 ) -> float:
     """Strain energy (mN mm) at node positions x (n, 3); writes the internal forces
     dPsi/dx (n, 3, mN) into `forces`, element tangents (m, 3 nen, 3 nen, mN/mm) into
-    `blocks` when want_tangent (exactly symmetric: the upper triangle is computed, the
-    lower mirrored), and each element's smallest det F into jmin (m,).
+    `blocks` when want_tangent, and each element's smallest det F into jmin (m,).
     Returns -1.0 when some det F <= 0 (energy undefined). The elements run over every
     core in blocks; each node sums its elements' force rows in element order (ptr,
     rows: `element_sums.node_incidence`) and the energy sums the elements' in
@@ -67,8 +66,7 @@ def evaluate(
         a = np.empty((9, 9))
         fe = np.empty((nen, 3))
         b = np.empty((nen, 3))
-        ad = np.empty((3, 3, 3 * nen))
-        ke = np.empty((3 * nen, 3 * nen))  # the element's tangent, rows 3 a + i, columns >= 3 a
+        ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
         lo_e, hi_e = block_range(blk, nblocks, m)
         for e in range(lo_e, hi_e):
             lo = 1e300
@@ -96,7 +94,7 @@ def evaluate(
             fe[:, :] = 0.0
             b[:, :] = 0.0
             if want_tangent:
-                ke[:, :] = 0.0
+                blocks[e, :, :] = 0.0
             for q in range(nq):
                 w = wq[e, q]
                 jq = det[q]
@@ -138,33 +136,29 @@ def evaluate(
                                 )
                                 if not mean_dilatation:
                                     a[r, c] += u2 * jq * jq * finv[q, jj, i] * finv[q, ll, k]
-                # ad[i, J, 3 b + k] = sum_L A_iJkL dN_bL; the block's rows 3 a + i
-                # from column 3 a on (the node pairs b >= a: the block is symmetric,
-                # A_iJkL = A_kLiJ), each a contiguous sum over the columns
                 for i in range(3):
                     for jj in range(3):
                         for k in range(3):
-                            row = 3 * i + jj
-                            r0, r1, r2 = a[row, 3 * k], a[row, 3 * k + 1], a[row, 3 * k + 2]
                             for n in range(nen):
-                                ad[i, jj, 3 * n + k] = (
-                                    r0 * dn[e, q, n, 0] + r1 * dn[e, q, n, 1] + r2 * dn[e, q, n, 2]
-                                )
+                                s = 0.0
+                                for ll in range(3):
+                                    s += a[3 * i + jj, 3 * k + ll] * dn[e, q, n, ll]
+                                ad[i, jj, k, n] = s
                 for na in range(nen):
-                    g0, g1, g2 = w * dn[e, q, na, 0], w * dn[e, q, na, 1], w * dn[e, q, na, 2]
                     for i in range(3):
-                        r = 3 * na + i
-                        for c in range(3 * na, 3 * nen):
-                            ke[r, c] += g0 * ad[i, 0, c] + g1 * ad[i, 1, c] + g2 * ad[i, 2, c]
-            if want_tangent:
-                # the upper triangle with the mean dilatation's pressure term, mirrored
-                scale = u2_e / ve if mean_dilatation else 0.0
-                for r in range(3 * nen):
-                    br = scale * b[r // 3, r % 3]
-                    for c in range(r, 3 * nen):
-                        v = ke[r, c] + br * b[c // 3, c % 3]
-                        blocks[e, r, c] = v
-                        blocks[e, c, r] = v
+                        for nb in range(nen):
+                            for k in range(3):
+                                s = 0.0
+                                for jj in range(3):
+                                    s += dn[e, q, na, jj] * ad[i, jj, k, nb]
+                                blocks[e, 3 * na + i, 3 * nb + k] += w * s
+            if mean_dilatation and want_tangent:
+                scale = u2_e / ve
+                for na in range(nen):
+                    for i in range(3):
+                        for nb in range(nen):
+                            for k in range(3):
+                                blocks[e, 3 * na + i, 3 * nb + k] += scale * b[na, i] * b[nb, k]
             for n in range(nen):
                 for i in range(3):
                     e_rows[e * nen + n, i] = fe[n, i]
