@@ -63,6 +63,14 @@ def reference_gradients(
     return np.ascontiguousarray(dn), np.ascontiguousarray(det * w)
 
 
+def loop_order(rest: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """(m,) the elements sorted by their centroid's x (mm; stable): the order of the
+    element loop, so that consecutive elements share nodes and the scatter of their
+    tangent blocks adds into nearby entries of the sparse matrix (on the quadratic
+    default Fruit 10-12 ms of CPU instead of 16-19 ms, in the mesh's order)."""
+    return np.argsort(rest[conn[:, :4]].mean(axis=1)[:, 0], kind="stable")
+
+
 def support_check(rest: np.ndarray, held: np.ndarray, what: str) -> None:
     """Refuse a support whose nodes lie on one line (rotations about it stay free)."""
     pts = rest[held]
@@ -270,7 +278,7 @@ class ContinuumModel:
         free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
         free_mask[p_dofs] = False
         free_mask[pinned] = False
-        pattern = CsrPattern.build(conn, n, free_mask)
+        pattern = CsrPattern.build(conn[loop_order(rest, conn)], n, free_mask)
         spring = np.zeros(3 * n)
         for jig in jigs:
             np.add.at(
@@ -307,35 +315,44 @@ class ContinuumModel:
         self, x: np.ndarray, tangent: bool = False
     ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray | None]:
         """(internal forces (n, 3) mN, strain energy mN mm or nan when an element is
-        inverted, smallest det F per element (m,), element tangents (m, d, d) or None)."""
+        inverted, smallest det F per element (m,), element tangents (m, d, d) or None;
+        the tangents in `loop_order`, as `pattern` assembles them)."""
         x = np.ascontiguousarray(x, dtype=float)
         forces = np.zeros((self.n_nodes, 3))
         d = 3 * self.conn.shape[1]
         blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
         jmin = np.empty(len(self.conn))
+        order, conn, dn, wq, incidence = self._loop
         energy = evaluate(
             x,
-            self.conn,
-            self.dn,
-            self.wq,
+            conn,
+            dn,
+            wq,
             self.material.constants(),
             self.family.mean_dilatation,
             tangent,
             forces,
             blocks,
             jmin,
-            *self.node_incidence,
+            *incidence,
         )
         if energy == -1.0:
             energy = np.nan
-        return forces, energy, jmin, (blocks if tangent else None)
+        det_f = np.empty_like(jmin)
+        det_f[order] = jmin
+        return forces, energy, det_f, (blocks if tangent else None)
 
     extent_mm = Model.extent_mm  # the same cached rest extent (mm)
 
     @functools.cached_property
-    def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
-        """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
-        return node_incidence(self.conn, self.n_nodes)
+    def _loop(self):
+        """(order, conn, dn, wq, node incidence) of the element loop: the elements in
+        `loop_order`, the order of the tangent blocks `evaluate` returns and `pattern`
+        assembles."""
+        order = loop_order(self.rest, self.conn)
+        conn = np.ascontiguousarray(self.conn[order])
+        dn, wq = np.ascontiguousarray(self.dn[order]), np.ascontiguousarray(self.wq[order])
+        return order, conn, dn, wq, node_incidence(conn, self.n_nodes)
 
     def kinematics(
         self, x: np.ndarray, tangent: bool = False
