@@ -31,7 +31,7 @@ from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shap
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.solver.assemble import CsrPattern
+from fruitcli.fem.solver.assemble import CsrPattern, scatter
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
 
@@ -405,13 +405,51 @@ class ContinuumModel:
         d2V_k/dx2 (mN/mm), or None without chamber pressure."""
         if not self.walls or not np.any(pressure_kpa):
             return None
-        free = self.pattern.free
-        h = sum(
-            -pk * w.hessian(x, self.n_nodes)
-            for pk, w in zip(pressure_kpa, self.walls, strict=True)
+        slots = self._wall_slots
+        if slots is None:  # a wall pair in no element: the general sparse sum
+            free = self.pattern.free
+            h = sum(
+                -pk * w.hessian(x, self.n_nodes)
+                for pk, w in zip(pressure_kpa, self.walls, strict=True)
+                if pk
+            )
+            return sp.csr_matrix(h)[free][:, free]
+        # the walls' entries added into the tangent's own pattern (`add_in_pattern`)
+        pairs = [
+            (kept, slot, -pk * w.hessian(x, self.n_nodes).data[kept])
+            for pk, w, (kept, slot) in zip(pressure_kpa, self.walls, slots, strict=True)
             if pk
+        ]
+        pat = self.pattern
+        data = scatter(
+            np.concatenate([v for _, _, v in pairs]),
+            np.concatenate([slot for _, slot, _ in pairs]),
+            pat.nnz,
         )
-        return sp.csr_matrix(h)[free][:, free]
+        n = len(pat.free)
+        return sp.csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+
+    @functools.cached_property
+    def _wall_slots(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Per wall, (entries of its Hessian's COO data between free dofs, their slots in
+        the CSR data of `pattern`); None when some pair of a wall's nodes shares no
+        element (then the pattern has no slot for it)."""
+        pat = self.pattern
+        n = len(pat.free)
+        new = np.full(3 * self.n_nodes, -1, np.int64)
+        new[pat.free] = np.arange(n)
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(pat.indptr)) * n + pat.indices
+        out = []
+        for w in self.walls:
+            h = w.hessian(self.rest, self.n_nodes)
+            i, j = new[h.row], new[h.col]
+            kept = np.flatnonzero((i >= 0) & (j >= 0))
+            want = i[kept] * n + j[kept]
+            slot = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+            if not np.array_equal(keys[slot], want):
+                return None
+            out.append((kept, slot.astype(pat.entry_slot.dtype)))
+        return out
 
     # the loads are written once, on the paper's model: they only use the rest
     # positions, body force, jigs and the chamber volumes and gradients above

