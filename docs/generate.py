@@ -269,6 +269,83 @@ the first cycle, and their nodes within 1e-7 mm.
 """
 
 
+STATE_STEPS = """
+## A quadratic state from the previous one, and the 100 ms target
+
+`python tests/performance/bench_state.py --mesh DIR` solves the default Fruit's breathing
+(12 states after the one from rest) and a sweep of chamber c1 (9 states after the first)
+in order with one solver, and prints each path's median wall and CPU time per state,
+Newton steps, CG iterations, factorizations and the time of the solver's tangent updates
+(assembly, with the follower-pressure stiffness). On 2026-12-06 on AMD EPYC, 2 cores
+shared with other work, the code before (commit 82334ef) and after run alternately, twice
+each: A, 09:59-10:02 UTC at load average 2.8-3.8, after = commit d5d8439; B, 10:13-10:16
+UTC at load average 4.2-4.8, after = commit 1be61e2 (the follower-pressure stiffness
+added in the tangent's pattern too):
+
+| | A: before | A: after | B: before | B: after |
+|---|---|---|---|---|
+| breathing: median, ms | 614, 496 | 477, 350 | 585, 606 | 392, 544 |
+| breathing: CPU median (both cores), ms | 408, 378 | 323, 347 | 399, 391 | 328, 356 |
+| breathing: tangent updates per state, ms | 119, 102 | 108, 71 | 119, 120 | 74, 89 |
+| sweep: median, ms | 486, 326 | 192, 224 | 484, 468 | 301, 322 |
+| sweep: CPU median (both cores), ms | 290, 296 | 176, 175 | 296, 304 | 195, 198 |
+| sweep: tangent updates per state, ms | 65, 37 | 28, 30 | 75, 71 | 36, 38 |
+
+In every run the breathing took 1.50 Newton steps and 10.3 CG iterations a state before,
+1.42 and 8.4 after, and the sweep 1.11 and 7.2 before, 1.11 and 3.8 after; before, each
+path refactorized once after its first state, after, neither did. On the quiet machine
+earlier that day (09:32 UTC, load average 0.9-1.1) commit 82334ef took a median 309 ms
+per breathing state and 218 ms per sweep state. The states of both paths (`--save`) are
+within 5.1e-5 mm (breathing) and 5.5e-5 mm (sweep) of the code before, under the
+displacement tolerance of 1e-4 mm; through `fruit run` the paper's model (`element =
+"p1"`) within 6.2e-5 mm.
+
+What each step bought:
+
+- CG stops at the displacement tolerance (`LINEAR_DISPLACEMENT_SHARE`): a Newton step's
+  CG stops once the kept factor estimates the error it leaves within 0.8 of what Newton's
+  own estimate accepts. The breathing's first cycle took 101 CG iterations and no
+  refactorization instead of 124 and one (the shorter solves no longer reach the 12
+  iterations that refresh the factor); the sweep 3.8 iterations a state instead of 7.2.
+- The element loop in `loop_order` (elements sorted by their centroid's x): the scatter
+  of the tangent blocks into the kept sparsity pattern 10-13 ms of CPU instead of 16-19
+  ms, about 1.4 times a state.
+- The follower-pressure stiffness scattered into the tangent's own pattern and added to
+  it in place: 3-4 ms instead of 5 ms for the stiffness and 2 ms instead of 4.4-9.6 ms
+  for SciPy's sum, per Newton step.
+
+Where a state's time still goes, from the parts timed one by one on one thread (CPU): an
+element loop with the tangent 52 ms, its scatter 10-13 ms, the follower-pressure
+stiffness 5-6 ms and a forces loop 9 ms per Newton step; a single-precision PARDISO
+solve 15 ms and a sparse product 2 ms per CG iteration, and one more solve for Newton's
+displacement estimate. With 1.42 Newton steps and 8.4 CG iterations that is about 110 ms
+of element loops and assembly and 160 ms of solves: the 100 ms target is not reached. It
+would take about one tangent and two solves a state; the CG iterations are set by the
+kept factor's age (1-2 right after a refactorization, 9-14 four to six states later) and
+a refactorization costs 0.36-0.53 s. The breathing's first six states take two Newton
+steps because the predictor, with few kept states, starts them 0.009-0.029 mm from the
+equilibrium (0.001-0.003 mm later in the cycle); each Newton step needs its own tangent
+(the previous state's last tangent kept for the first step cut the residual to
+1e-2-1e-1 instead of 1e-3: three steps instead of two). The state from rest (7.0-10.2 s
+after, 9.0-14.2 s before, in runs A and B) was not worked on.
+
+Measured on the same states and not adopted: the upper triangle of each element block
+only (52-55 ms of CPU per tangent against 52-53 ms); packed upper triangles gathered per
+CSR entry over both cores (38 ms on one thread against the scatter's 20 ms); a limited-
+memory BFGS update of the preconditioner from CG's own step pairs (96-98 iterations
+instead of 109 with 8-30 pairs, each preconditioning 16-60 vector operations longer);
+a chord second step with a BFGS secant update (on the one state it applied to, the
+residual 2.0e-5 after it instead of 2.3e-5 without the update); PARDISO's variable
+block format (solves 17-18 ms instead of 15); a reverse Cuthill-McKee order for the
+sparse product (2.05 ms instead of 2.16 ms).
+
+The paper's model through `fruit run` (`element = "p1"`, corotational, 8,865 tets, the
+same scene): median 9.7 ms a state from the previous one at load average 1.8-2.3 (10:03
+UTC, commit d5d8439), against the 10 ms target; 20-25 ms for the code before and after
+alike at load average 3.6-4.8.
+"""
+
+
 def performance_page(result: dict, source: str) -> str:
     load0 = ", ".join(f"{v:.2f}" for v in result["load_average_before"])
     load1 = ", ".join(f"{v:.2f}" for v in result.get("load_average_after", []))
@@ -295,6 +372,7 @@ def performance_page(result: dict, source: str) -> str:
         "",
     ]
     lines += SOLVER_STEPS.strip().splitlines() + [""]
+    lines += STATE_STEPS.strip().splitlines() + [""]
     if "sample" in source:
         lines += [
             "This is the small sample shipped with the sources (two benchmarks, "

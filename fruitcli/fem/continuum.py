@@ -31,7 +31,7 @@ from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shap
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.solver.assemble import CsrPattern
+from fruitcli.fem.solver.assemble import CsrPattern, scatter
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
 
@@ -61,6 +61,14 @@ def reference_gradients(
     inv = np.linalg.inv(jac)
     dn = np.einsum("qaj,mqji->mqai", dref, inv)
     return np.ascontiguousarray(dn), np.ascontiguousarray(det * w)
+
+
+def loop_order(rest: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """(m,) the elements sorted by their centroid's x (mm; stable): the order of the
+    element loop, so that consecutive elements share nodes and the scatter of their
+    tangent blocks adds into nearby entries of the sparse matrix (on the quadratic
+    default Fruit 10-13 ms of CPU instead of 16-19 ms in the mesh's order)."""
+    return np.argsort(rest[conn[:, :4]].mean(axis=1)[:, 0], kind="stable")
 
 
 def support_check(rest: np.ndarray, held: np.ndarray, what: str) -> None:
@@ -270,7 +278,7 @@ class ContinuumModel:
         free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
         free_mask[p_dofs] = False
         free_mask[pinned] = False
-        pattern = CsrPattern.build(conn, n, free_mask)
+        pattern = CsrPattern.build(conn[loop_order(rest, conn)], n, free_mask)
         spring = np.zeros(3 * n)
         for jig in jigs:
             np.add.at(
@@ -307,35 +315,44 @@ class ContinuumModel:
         self, x: np.ndarray, tangent: bool = False
     ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray | None]:
         """(internal forces (n, 3) mN, strain energy mN mm or nan when an element is
-        inverted, smallest det F per element (m,), element tangents (m, d, d) or None)."""
+        inverted, smallest det F per element (m,), element tangents (m, d, d) or None;
+        the tangents in `loop_order`, as `pattern` assembles them)."""
         x = np.ascontiguousarray(x, dtype=float)
         forces = np.zeros((self.n_nodes, 3))
         d = 3 * self.conn.shape[1]
         blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
         jmin = np.empty(len(self.conn))
+        order, conn, dn, wq, incidence = self._loop
         energy = evaluate(
             x,
-            self.conn,
-            self.dn,
-            self.wq,
+            conn,
+            dn,
+            wq,
             self.material.constants(),
             self.family.mean_dilatation,
             tangent,
             forces,
             blocks,
             jmin,
-            *self.node_incidence,
+            *incidence,
         )
         if energy == -1.0:
             energy = np.nan
-        return forces, energy, jmin, (blocks if tangent else None)
+        det_f = np.empty_like(jmin)
+        det_f[order] = jmin
+        return forces, energy, det_f, (blocks if tangent else None)
 
     extent_mm = Model.extent_mm  # the same cached rest extent (mm)
 
     @functools.cached_property
-    def node_incidence(self) -> tuple[np.ndarray, np.ndarray]:
-        """(ptr, rows): each node's element rows in element order (`node_incidence`)."""
-        return node_incidence(self.conn, self.n_nodes)
+    def _loop(self):
+        """(order, conn, dn, wq, node incidence) of the element loop: the elements in
+        `loop_order`, the order of the tangent blocks `evaluate` returns and `pattern`
+        assembles."""
+        order = loop_order(self.rest, self.conn)
+        conn = np.ascontiguousarray(self.conn[order])
+        dn, wq = np.ascontiguousarray(self.dn[order]), np.ascontiguousarray(self.wq[order])
+        return order, conn, dn, wq, node_incidence(conn, self.n_nodes)
 
     def kinematics(
         self, x: np.ndarray, tangent: bool = False
@@ -388,13 +405,51 @@ class ContinuumModel:
         d2V_k/dx2 (mN/mm), or None without chamber pressure."""
         if not self.walls or not np.any(pressure_kpa):
             return None
-        free = self.pattern.free
-        h = sum(
-            -pk * w.hessian(x, self.n_nodes)
-            for pk, w in zip(pressure_kpa, self.walls, strict=True)
+        slots = self._wall_slots
+        if slots is None:  # a wall pair in no element: the general sparse sum
+            free = self.pattern.free
+            h = sum(
+                -pk * w.hessian(x, self.n_nodes)
+                for pk, w in zip(pressure_kpa, self.walls, strict=True)
+                if pk
+            )
+            return sp.csr_matrix(h)[free][:, free]
+        # the walls' entries added into the tangent's own pattern (`add_in_pattern`)
+        pairs = [
+            (kept, slot, -pk * w.hessian(x, self.n_nodes).data[kept])
+            for pk, w, (kept, slot) in zip(pressure_kpa, self.walls, slots, strict=True)
             if pk
+        ]
+        pat = self.pattern
+        data = scatter(
+            np.concatenate([v for _, _, v in pairs]),
+            np.concatenate([slot for _, slot, _ in pairs]),
+            pat.nnz,
         )
-        return sp.csr_matrix(h)[free][:, free]
+        n = len(pat.free)
+        return sp.csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+
+    @functools.cached_property
+    def _wall_slots(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Per wall, (entries of its Hessian's COO data between free dofs, their slots in
+        the CSR data of `pattern`); None when some pair of a wall's nodes shares no
+        element (then the pattern has no slot for it)."""
+        pat = self.pattern
+        n = len(pat.free)
+        new = np.full(3 * self.n_nodes, -1, np.int64)
+        new[pat.free] = np.arange(n)
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(pat.indptr)) * n + pat.indices
+        out = []
+        for w in self.walls:
+            h = w.hessian(self.rest, self.n_nodes)
+            i, j = new[h.row], new[h.col]
+            kept = np.flatnonzero((i >= 0) & (j >= 0))
+            want = i[kept] * n + j[kept]
+            slot = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+            if not np.array_equal(keys[slot], want):
+                return None
+            out.append((kept, slot.astype(pat.entry_slot.dtype)))
+        return out
 
     # the loads are written once, on the paper's model: they only use the rest
     # positions, body force, jigs and the chamber volumes and gradients above

@@ -414,3 +414,75 @@ def test_the_tangent_evaluated_with_the_forces_is_the_tangent_of_that_state_only
     projected = m.tangent(xs, project=True).toarray()
     assert np.array_equal(projected, m.tangent(x.copy(), project=True).toarray())
     assert not np.array_equal(projected, fresh_x.toarray())
+
+
+def test_the_loop_order_leaves_det_f_and_forces_in_the_mesh_order():
+    """The element loop runs in `loop_order` (here not the mesh's order): each element's
+    smallest det F comes back in the mesh's order (equal to the quadrature points' det F
+    computed directly), and the forces and energy equal those of a model whose mesh is
+    given in the loop's order already."""
+    nodes, conn = mesh_of("p2", hi=(4, 1, 1), cells=(4, 1, 1))
+    conn = conn[::-1].copy()  # the mesh's order runs against the centroids' x
+    held = np.flatnonzero(nodes[:, 0] == 0.0)
+    m = ContinuumModel.from_arrays(nodes, conn, MATERIALS["neo-hookean"], "p2", fixed_nodes=held)
+    order = continuum.loop_order(m.rest, m.conn)
+    assert not np.array_equal(order, np.arange(len(conn)))
+    x = nodes + 0.04 * RNG.standard_normal(nodes.shape)
+    forces, energy, det_f, _ = m.evaluate(x)
+    f = np.einsum("mai,mqaj->mqij", x[conn], m.dn)
+    assert np.allclose(det_f, np.linalg.det(f).min(axis=1), rtol=1e-12, atol=0)
+    ordered = ContinuumModel.from_arrays(
+        nodes, conn[order], MATERIALS["neo-hookean"], "p2", fixed_nodes=held
+    )
+    forces_o, energy_o, det_o, _ = ordered.evaluate(x)
+    assert np.array_equal(forces, forces_o) and energy == energy_o
+    assert np.array_equal(det_f[order], det_o)
+
+
+def test_follower_pressure_stiffness_in_the_tangents_pattern():
+    """On a quadratic hollow cube deformed at random: the load stiffness -p d2V/dx2,
+    added into the tangent's sparsity pattern, equals the central-difference derivative
+    of the pressure forces (1e-7 rel.) and the general sparse sum of the walls' Hessians
+    (1e-12 rel.); the solver's sum with the tangent, in place, equals SciPy's."""
+    from fruitcli.fem.meshing.grid import structured_box_with_cavity
+    from fruitcli.fem.solver.continuum_linsolve import add_in_pattern
+
+    nodes, tets, cav = structured_box_with_cavity(
+        [0, 0, 0], [12, 12, 12], (4, 4, 4), [3, 3, 3], [9, 9, 9]
+    )
+    nodes, conn, walls = quadratic_mesh(nodes, tets, [cav])
+
+    def cube():
+        return ContinuumModel.from_arrays(
+            nodes,
+            conn,
+            MATERIALS["neo-hookean"],
+            "p2",
+            chambers={"c": walls[0]},
+            fixed_nodes=np.flatnonzero(nodes[:, 2] == 0.0),
+        )
+
+    m, general = cube(), cube()
+    general.__dict__["_wall_slots"] = None  # as for a wall pair in no element
+    x = nodes + 0.2 * RNG.standard_normal(nodes.shape)
+    p = np.array([7.0])
+    k = m.load_stiffness(x, p)
+    assert k.nnz == m.pattern.nnz
+    free = m.pattern.free
+    v = RNG.standard_normal(nodes.shape)
+    load = Load.pressures(p, gravity=0.0, jig=0.0)
+
+    def force(y):
+        return m.external_forces(y, p, load).reshape(-1)[free]
+
+    eps = 1e-6
+    fd = -(force(x + eps * v) - force(x - eps * v)) / (2 * eps)
+    kv = k @ v.reshape(-1)[free]
+    assert np.linalg.norm(kv - fd) < 1e-7 * np.linalg.norm(fd)
+    ref = general.load_stiffness(x, p)
+    assert abs(k - ref).max() <= 1e-12 * abs(ref).max()
+    tangent = m.tangent(x)
+    expected = (tangent + ref).toarray()
+    summed = add_in_pattern(tangent, k, m.pattern.indices)
+    assert summed is tangent  # added in place, on the shared pattern
+    assert np.abs(summed.toarray() - expected).max() <= 1e-12 * np.abs(expected).max()

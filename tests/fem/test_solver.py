@@ -371,3 +371,28 @@ def test_a_repeated_load_within_the_kept_states_starts_at_its_own_state():
             assert res.iterations == 0
             assert np.array_equal(res.x, first[i - 13 + 1])
         x, p, prev = res.x, res.pressure_kpa, load
+
+
+def test_cg_stops_at_its_displacement_goal_only_within_its_residual_bound():
+    """CG on a 1-D chain of springs (stiffness 1, 100 dofs, load 1 at one end) with a
+    Jacobi preconditioner: asked for rtol 1e-12, with the goal (1e-2, 1.0) it stops at the
+    first iterate whose preconditioned residual is within 1e-2 and counts as converged;
+    with the residual bound 1e-12 the goal never applies and it runs to rtol."""
+    n = 100
+    k = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
+    b = np.zeros(n)
+    b[-1] = 1.0
+    jacobi = 1.0 / np.diag(k)
+
+    def precond(r):
+        return jacobi * r
+
+    full, its_full, ok_full = linsolve.pcg(k.__matmul__, precond, b, 1e-12, 400)
+    early, its, ok = linsolve.pcg(k.__matmul__, precond, b, 1e-12, 400, None, (1e-2, 1.0))
+    assert ok and ok_full and its < its_full
+    assert np.abs(precond(b - k @ early)).max() <= 1e-2
+    previous, _, _ = linsolve.pcg(k.__matmul__, precond, b, 1e-12, its - 1)
+    assert np.abs(precond(b - k @ previous)).max() > 1e-2
+    bounded, its_b, _ = linsolve.pcg(k.__matmul__, precond, b, 1e-12, 400, None, (1e-2, 1e-12))
+    assert its_b == its_full
+    assert np.allclose(bounded, full, rtol=0, atol=1e-9)

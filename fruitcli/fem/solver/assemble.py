@@ -100,6 +100,12 @@ class CsrPattern:
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
 
 
+def scatter(values: np.ndarray, slots: np.ndarray, nnz: int) -> np.ndarray:
+    """(nnz,) CSR data: the sums of values into their slots, in order (slot -1:
+    dropped)."""
+    return _scatter(values, slots, nnz)
+
+
 @njit(cache=True, nogil=True)
 def _scatter(values, slots, nnz):
     """(nnz,) sums of values into their slots, in order (slot -1: dropped)."""

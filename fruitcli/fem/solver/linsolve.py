@@ -141,6 +141,8 @@ class TangentSolver:
         self.refresh = False
         self.fresh = False  # the factorization is of the current configuration
         self.rtol = PCG_RELATIVE_TOLERANCE
+        # CG's displacement goal (`pcg`; set by Newton per step)
+        self.displacement_goal = (0.0, 1.0)
         # read by Newton (`newton._newton`, 0.0 there without it: no chord steps)
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
@@ -300,7 +302,9 @@ class TangentSolver:
                 )
             return x
         limit = PCG_MAX_ITERATIONS if self.fresh else 2 * PCG_REFRESH_ITERATIONS
-        x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, limit, z0)
+        x, its, ok = pcg(
+            self.matvec, self.precondition, b, self.rtol, limit, z0, self.displacement_goal
+        )
         self.stats["cg_iterations"] += its
         if ok:
             # slow but done: keep x, refresh the factorization at the next update
@@ -308,7 +312,15 @@ class TangentSolver:
             return x
         if not self.fresh:  # stale preconditioner: refresh it here and retry
             self._refresh()
-            x, its, ok = pcg(self.matvec, self.precondition, b, self.rtol, PCG_MAX_ITERATIONS)
+            x, its, ok = pcg(
+                self.matvec,
+                self.precondition,
+                b,
+                self.rtol,
+                PCG_MAX_ITERATIONS,
+                None,
+                self.displacement_goal,
+            )
             self.stats["cg_iterations"] += its
         if not ok:
             self.refresh = True
@@ -326,13 +338,24 @@ def kept_estimate(estimated, b: np.ndarray, factorizations: int) -> np.ndarray |
 
 
 def pcg(
-    matvec, precond, b: np.ndarray, rtol: float, maxiter: int, z0: np.ndarray | None = None
+    matvec,
+    precond,
+    b: np.ndarray,
+    rtol: float,
+    maxiter: int,
+    z0: np.ndarray | None = None,
+    displacement_goal: tuple[float, float] = (0.0, 1.0),
 ) -> tuple[np.ndarray, int, bool]:
-    """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|,
-    after `maxiter` iterations or on negative curvature (an indefinite tangent); then it
-    returns the last iterate, or the preconditioned residual if there is none, which
-    is still a descent direction. z0: precond(b) if already at hand. Returns (x,
-    iterations, converged)."""
+    """Preconditioned CG from zero for a symmetric operator. Stops at |r| <= rtol |b|;
+    with displacement_goal (ztol, zrtol), ztol > 0, also once |r| <= zrtol |b| and the
+    preconditioned residual moves no entry by more than ztol (max |precond(r)|: the
+    preconditioner's estimate of the error left, mm for a force residual); both count
+    as converged.
+    Otherwise after `maxiter` iterations or on negative curvature (an indefinite
+    tangent); then it returns the last iterate, or the preconditioned residual if there
+    is none, which is still a descent direction. z0: precond(b) if already at hand.
+    Returns (x, iterations, converged)."""
+    ztol, zrtol = displacement_goal
     x = np.zeros_like(b)
     r = b.copy()
     nb = float(np.linalg.norm(b))
@@ -349,9 +372,12 @@ def pcg(
         alpha = rz / pq
         x += alpha * p
         r -= alpha * q
-        if np.linalg.norm(r) <= rtol * nb:
+        rn = float(np.linalg.norm(r))
+        if rn <= rtol * nb:
             return x, it, True
         z = precond(r)
+        if ztol > 0.0 and rn <= zrtol * nb and np.abs(z).max() <= ztol:
+            return x, it, True
         rz_new = float(r @ z)
         p = z + (rz_new / rz) * p
         rz = rz_new

@@ -31,6 +31,7 @@ from fruitcli.fem.tolerances import (
     ESTIMATE_WINDOW,
     FORCE_FLOOR,
     LINE_SEARCH_STEPS,
+    LINEAR_DISPLACEMENT_SHARE,
     LINEAR_MARGIN,
     MIN_DET_F,
     PCG_RELATIVE_TOLERANCE,
@@ -226,6 +227,15 @@ def _newton(step: _Step, x, p, options: SolverOptions):
         chord, last_merit = near, merit
         cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
         step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
+        # with a displacement tolerance, CG also stops once the factor estimates its
+        # error within a share of what `_close_enough` accepts, with a residual within
+        # that share of the window where it is asked (pressure control only)
+        if options.displacement_tolerance_mm > 0.0 and not len(step.vc):
+            share = LINEAR_DISPLACEMENT_SHARE
+            step.solver.displacement_goal = (
+                share * options.displacement_tolerance_mm / ESTIMATE_SAFETY,
+                share * ESTIMATE_WINDOW * options.tolerance / max(merit, 1e-300),
+            )
         try:
             dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
         except SolverError:
@@ -233,6 +243,8 @@ def _newton(step: _Step, x, p, options: SolverOptions):
                 level += 1
                 continue
             raise
+        finally:
+            step.solver.displacement_goal = (0.0, 1.0)  # Newton's steps only
         if (
             merit <= STALL_RESIDUAL_FACTOR * options.tolerance
             and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size
