@@ -55,6 +55,7 @@ from fruitcli.sensing.detection.model_fit import (
     PROFILE_STEP_MM,
     FootprintLaw,
     Window,
+    recent_frames,
     refine,
 )
 from fruitcli.sensing.frames.board import taxel_cells
@@ -439,7 +440,7 @@ class Locator:
             fitted = None
             if self.model is not None and len(t):
                 v = np.take(frames.reshape(frames.shape[0], -1), self.layout.frame_cell, axis=1)
-                fitted = self._refine(t, self._recent_mean(read, start, v), baseline, taxel_points)
+                fitted = self._refine(t, self._history(read, start, v), baseline, taxel_points)
                 xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             if pos9 is None:  # one state: the N9 positions are rows of positions_mm
                 points, rows = self.positions_mm, tax
@@ -482,56 +483,51 @@ class Locator:
 
         yield from _in_order(job, starts, workers)
 
-    def _recent_mean(
+    def _history(
         self, read: Callable[[int, int], np.ndarray], start: int, values: np.ndarray
-    ) -> np.ndarray:
-        """Taxel counts (F, T) of the frames from `start` averaged with the frames before
-        each (``model_frames`` in all; fewer at the recording's start), the frames before
-        the chunk read again."""
-        k = self.settings.model_frames
-        if k <= 1:
-            return values
-        before = min(k - 1, start)
-        if before:
-            earlier = read(start - before, before)
-            cells = earlier.reshape(earlier.shape[0], -1)
-            values = np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values])
-        total = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
-        end = np.arange(before, values.shape[0]) + 1
-        first = np.maximum(end - k, 0)
-        return (total[end] - total[first]) / (end - first)[:, None]
+    ) -> tuple[np.ndarray, int]:
+        """Taxel counts (H, T) of the frames from `start` with up to ``model_frames - 1``
+        frames before the chunk read again (fewer at the recording's start), and how many
+        came before."""
+        before = min(self.settings.model_frames - 1, start)
+        if before <= 0:
+            return values, 0
+        earlier = read(start - before, before)
+        cells = earlier.reshape(earlier.shape[0], -1)
+        return np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values]), before
 
     def fit_noise(self) -> np.ndarray | None:
-        """Each taxel's noise (counts std) in the activations the model method fits: the
-        baseline frames' (`baseline`), else the skin's one value, over the square root of
-        ``model_frames``; None: the skin's one value as it is (`model_fit.refine`)."""
-        root = np.sqrt(self.settings.model_frames)
-        if self.noise_counts is not None:
-            return self.noise_counts / root
-        if self.model is None or root == 1:
-            return None
-        return np.full(len(self.rows), self.model[1].noise_std_counts / root)
+        """Each taxel's noise (counts std) in one frame's activations, as the model method
+        weighs them: the baseline frames' (`baseline`); None: the skin's one value."""
+        return self.noise_counts
 
-    def _refine(self, t: Touches, values: np.ndarray, baseline: np.ndarray, taxel_points):
+    def _refine(self, t: Touches, history: tuple, baseline: np.ndarray, taxel_points):
         """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
-        counts are `values` (F, T); ``taxel_points(win)`` gives positions (n, K, 3)."""
-        v = np.maximum(values - baseline, 0.0)
+        counts are history[0] (H, T), the chunk's frames after its first history[1] rows
+        (`_history`); ``taxel_points(win)`` gives positions (n, K, 3)."""
+        values, before = history
+        v = values - baseline
         if self.gain is not None:
             v = v / self.gain
         window, law = self.model
+        mean, taken = recent_frames(
+            v, t.frame + before, t.taxel[:, 4], window, self.settings.model_frames
+        )
         return refine(
             t.frame,
             t.taxel[:, 4],
             t.i,
             t.j,
             t.peak,
-            v,
+            mean,
             window,
             taxel_points,
             law,
             t.taxel,
             self.chart,
             self.fit_noise(),
+            taken,
+            np.arange(len(t)),
         )
 
     def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
@@ -702,19 +698,25 @@ class Stream:
         extra = {}
         if loc.model is not None and n:
             window, law = loc.model
+            history = np.asarray(self._recent)
+            mean, taken = recent_frames(
+                history, np.full(n, len(history) - 1), tax9[:, 4], window, s.model_frames
+            )
             fitted = refine(
                 np.zeros(n, np.int64),
                 tax9[:, 4],
                 i,
                 j,
                 peak,
-                np.maximum(np.mean(self._recent, axis=0), 0.0)[None, :],
+                mean,
                 window,
                 lambda win: pos[win],
                 law,
                 tax9,
                 loc.chart,
                 loc.fit_noise(),
+                taken,
+                np.arange(n),
             )
             xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
             i, j = fitted.i, fitted.j

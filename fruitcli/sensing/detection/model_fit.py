@@ -154,6 +154,8 @@ def refine(
     n9_taxels: np.ndarray | None = None,
     chart=None,
     noise: np.ndarray | None = None,
+    frames_taken: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
 ) -> Fitted:
     """Fit the touches: frame (n,) row of `v` (F, T) activations (counts, gains divided
     out or not as `law.gain` says), centre (n,) peak taxel, i0, j0 (n,) N9 grid
@@ -162,7 +164,10 @@ def refine(
     touch's N9 taxels, left out of the other touches of its frame. `chart`: the body's
     surface (`surface_chart.SurfaceChart`, same state), on which the points then run;
     None: on the surface the window's taxels span. `noise` (T,): each taxel's noise
-    (counts std, on the scale of `v`); None: the law's one value for all."""
+    (counts std, on the scale of `v`); None: the law's one value for all.
+    `frames_taken` (n,): how many frames each touch's row of `v` is the mean of
+    (`recent_frames`; its noise falls by their square root); None: one. `rows` (n,):
+    each touch's row of `v`; None: its frame."""
     from fruitcli.sensing.detection.model_kernel import fit_all, prepare
 
     n = frame.size
@@ -177,13 +182,12 @@ def refine(
     taxel_gain = np.ones(v.shape[1]) if law.gain is None else law.gain
     prepare(
         np.ascontiguousarray(frame, dtype=np.int64),
+        np.ascontiguousarray(frame if rows is None else rows, dtype=np.int64),
         win,
         np.ascontiguousarray(n9, dtype=np.int64),
         np.ascontiguousarray(v, dtype=float),
         np.ascontiguousarray(taxel_gain, dtype=float),
-        np.ascontiguousarray(
-            np.full(v.shape[1], law.noise_std_counts) if noise is None else noise, dtype=float
-        ),
+        _touch_noise(noise, law, v.shape[1], frame, frames_taken),
         MODEL_ERROR,
         pos,
         window.basis,
@@ -259,6 +263,41 @@ def refine(
         s,
         np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
     )
+
+
+def recent_frames(
+    history: np.ndarray, rows: np.ndarray, centre: np.ndarray, window: Window, frames: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each touch's activations (n, T) averaged over its frame and up to ``frames - 1``
+    frames before it: rows (n,) of `history` (H, T) (counts over the baseline, gains
+    divided out or not as the fit's law says, not clipped at 0) are the touches' frames,
+    centre (n,) their peak taxels. A frame before is taken only while the touch's
+    window still peaks at its centre taxel, so another touch's frames, or a moving
+    touch's older ones, are left out. -> (means clipped at 0, frames taken (n,))."""
+    rows = np.asarray(rows, np.int64)
+    total = history[rows].copy()
+    taken = np.ones(len(rows), np.int64)
+    if frames > 1 and len(rows):
+        win = window.taxels[centre]  # (n, K)
+        inside = win >= 0
+        middle = window.di.size // 2  # the centre cell of the window
+        going = np.ones(len(rows), bool)
+        for lag in range(1, frames):
+            going &= rows - lag >= 0
+            earlier = history[np.maximum(rows - lag, 0)]  # (n, T)
+            seen = np.where(inside, np.take_along_axis(earlier, np.maximum(win, 0), 1), -np.inf)
+            going &= np.argmax(seen, axis=1) == middle
+            total[going] += earlier[going]
+            taken += going
+    return np.maximum(total / taken[:, None], 0.0), taken
+
+
+def _touch_noise(noise, law: FootprintLaw, taxels: int, frame, frames_taken) -> np.ndarray:
+    """Each touch's taxel noise (n, T) (counts std): `noise` (T,) or the law's value, over
+    the square root of the frames each touch's activations are the mean of."""
+    base = np.full(taxels, law.noise_std_counts) if noise is None else np.asarray(noise, float)
+    taken = np.ones(len(frame)) if frames_taken is None else np.asarray(frames_taken, float)
+    return np.ascontiguousarray(base[None, :] / np.sqrt(taken)[:, None])
 
 
 def check_skin_file(path, method: str | None) -> None:

@@ -338,6 +338,7 @@ def _spd_solve(a, b, out) -> bool:
 @njit(cache=True, nogil=True)
 def prepare(
     frame,
+    row,
     win,
     n9_taxels,
     v,
@@ -354,13 +355,14 @@ def prepare(
     corr,
     used,
 ) -> None:
-    """Each touch's window (n rows, touches of one frame next to each other): its
+    """Each touch's window (n rows, touches of one frame next to each other, `frame` (n,)
+    their frames, `row` (n,) their rows of `v`): its
     activations vw, inverse errors inv_e and gains (n, K) (0 weight where no taxel, or
     where a taxel lies in another touch's N9 of the frame), the surface map coef (n, 6, 3)
     fitted to its taxels' positions pos (n, K, 3) (N9 weight 1, ring `map_weight`, a
     light ridge on the non-constant terms) and its misfit corr (n, W, W, 3) at the
-    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain and noise (T,)
-    (counts std of each taxel)."""
+    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain (T,), noise
+    (n, T) (counts std of each taxel in each touch's activations)."""
     n, kk = win.shape
     side = corr.shape[1]
     nb = basis.shape[1]
@@ -397,10 +399,10 @@ def prepare(
                         other = True
             if other:
                 continue
-            x = v[frame[t], w]
+            x = v[row[t], w]
             vw[t, k] = x
             gain[t, k] = taxel_gain[w]
-            e = noise[w]
+            e = noise[t, w]
             inv_e[t, k] = 1.0 / max(np.sqrt(e * e + (model_error * x) ** 2), 1e-9)
             count += 1
         used[t] = count

@@ -140,11 +140,12 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
     scratch = [np.empty((n, k)) for _ in range(3)]
     prepare(
         np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
         win,
         np.full((n, 9), -1, np.int64),
         np.zeros((1, len(taxels))),
         np.ones(len(taxels)),
-        np.ones(len(taxels)),
+        np.ones((n, len(taxels))),
         0.1,
         pos,
         w.basis,
@@ -257,3 +258,29 @@ def test_the_frames_before_a_chunk_are_read_again_and_the_stream_agrees():
     stream = Stream(loc, base)
     live = TouchTable.concat([stream.step(f) for f in np.asarray(frames, float)])
     np.testing.assert_allclose(live.xyz_mm, whole.xyz_mm, atol=1e-6)
+
+
+def test_frames_of_another_touch_before_are_left_out_of_the_mean():
+    """A touch at one place for 10 frames, then one elsewhere: the second's first frame is
+    fitted on itself alone (the frames before peak at another taxel of its window)."""
+    taxels = grid_taxels()
+    first, second = np.array([36.0, 27.0, 0.0]), np.array([52.0, 52.0, 0.0])
+    frames = [frame_of(taxels, first, 60.0, noise=1.0, seed=s) for s in range(10)]
+    frames += [frame_of(taxels, second, 60.0, noise=1.0, seed=s) for s in range(10, 14)]
+    base = np.full(len(taxels), BASE)
+    one, eight = (
+        Locator(
+            taxels,
+            default_board(),
+            taxels.xyz_mm,
+            Settings(method="model", model_frames=k),
+            heights=LAW,
+        ).batch(np.asarray(frames), base)
+        for k in (1, 8)
+    )
+    at = eight.frame == 10
+    np.testing.assert_array_equal(eight.xyz_mm[at], one.xyz_mm[one.frame == 10])
+    assert np.linalg.norm(eight.xyz_mm[at][0] - second) < 1.5
+    # the first touch's 10th frame is the mean of 8 of its own frames: closer than one
+    late = np.linalg.norm(eight.xyz_mm[eight.frame == 9][0] - first)
+    assert late < 1.0
