@@ -65,6 +65,10 @@ MAX_REDUCED_CHI2 = 9.0  # above: the footprint does not explain the frame
 MAX_UNCERTAINTY_MM = 30.0  # a 1-sigma radius above two pitches: the taxels do not place it
 MIN_TAXELS = 5  # taxels in the window at least (4 parameters, one to spare)
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
+# an earlier frame shows the same touch when its window's activations point the same way
+# (cosine, an assumption: a still touch 20 counts strong over noise of 1-2 counts gives
+# 0.9 and more; the same touch one pitch away, about 0.2)
+SAME_TOUCH_COSINE = 0.8
 PROFILE_STEP_MM = 0.05
 FIT_NONE, FIT_MODEL, FIT_N9 = 0, 1, 2  # TouchTable.fit: not fitted, model, N9 kept
 FIT_NAMES = ("", "model", "n9")
@@ -268,27 +272,32 @@ def refine(
 def recent_frames(
     history: np.ndarray, rows: np.ndarray, centre: np.ndarray, window: Window, frames: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Each touch's activations (n, T) averaged over its frame and up to ``frames - 1``
-    frames before it: rows (n,) of `history` (H, T) (counts over the baseline, gains
-    divided out or not as the fit's law says, not clipped at 0) are the touches' frames,
-    centre (n,) their peak taxels. A frame before is taken only while the touch's
-    window still peaks at its centre taxel, so another touch's frames, or a moving
-    touch's older ones, are left out. -> (means clipped at 0, frames taken (n,))."""
+    """Each touch's activations (n, T) averaged over its frame and those of the
+    ``frames - 1`` before it that show the same touch: rows (n,) of `history` (H, T)
+    (counts over the baseline, gains divided out or not as the fit's law says, not
+    clipped at 0) are the touches' frames, centre (n,) their peak taxels. A frame before
+    is taken when its activations over the touch's window point the same way as the
+    touch's own (cosine at least ``SAME_TOUCH_COSINE``): another touch's frames, a moving
+    touch's older ones and frames with little more than noise are left out.
+    -> (means clipped at 0, frames taken (n,))."""
     rows = np.asarray(rows, np.int64)
     total = history[rows].copy()
     taken = np.ones(len(rows), np.int64)
     if frames > 1 and len(rows):
         win = window.taxels[centre]  # (n, K)
         inside = win >= 0
-        middle = window.di.size // 2  # the centre cell of the window
-        going = np.ones(len(rows), bool)
+        own = np.where(inside, np.take_along_axis(total, np.maximum(win, 0), 1), 0.0)
+        own_norm = np.linalg.norm(own, axis=1)
         for lag in range(1, frames):
-            going &= rows - lag >= 0
+            there = rows - lag >= 0
             earlier = history[np.maximum(rows - lag, 0)]  # (n, T)
-            seen = np.where(inside, np.take_along_axis(earlier, np.maximum(win, 0), 1), -np.inf)
-            going &= np.argmax(seen, axis=1) == middle
-            total[going] += earlier[going]
-            taken += going
+            seen = np.where(inside, np.take_along_axis(earlier, np.maximum(win, 0), 1), 0.0)
+            cosine = np.sum(seen * own, axis=1) / np.maximum(
+                np.linalg.norm(seen, axis=1) * own_norm, 1e-12
+            )
+            same = there & (cosine >= SAME_TOUCH_COSINE)
+            total[same] += earlier[same]
+            taken += same
     return np.maximum(total / taken[:, None], 0.0), taken
 
 
