@@ -117,6 +117,9 @@ def main():
     recordings()
 
 
+METHOD_FRAMES = (("n9", 1), ("model", 1), ("model", 8))  # method, [detection].model_frames
+
+
 def model_method(n: int = 100_000) -> None:
     """The model method ([detection].method = "model"): batch frames/s on the same frames
     as N9 (taxels moving through the states), and the live loop's time per frame with
@@ -126,9 +129,11 @@ def model_method(n: int = 100_000) -> None:
     state_kpa = np.stack([np.linspace(0, 8, 5), np.linspace(0, 4, 5)], axis=1)
     frames = frames_with_touches(n, taxels)
     kpa = np.random.default_rng(1).uniform(0, 8, (n, 2))
-    for method in ("n9", "model"):
-        loc = Locator(taxels, default_board(), states, Settings(method=method), state_kpa)
+    for method, k in METHOD_FRAMES:
+        settings = Settings(method=method, model_frames=k)
+        loc = Locator(taxels, default_board(), states, settings, state_kpa)
         base = loc.baseline(frames)
+        method = method if k == 1 else f"{method}, mean of {k} frames"
         loc.batch(frames[:1000], base, kpa[:1000])  # warm up (numba's first compile)
         t0 = time.perf_counter()
         table = loc.batch(frames, base, kpa)
@@ -154,9 +159,11 @@ def model_method(n: int = 100_000) -> None:
     centres = np.stack([rng.uniform(0, 320, (2000, 10)), rng.uniform(0, 132, (2000, 10))], -1)
     d = np.linalg.norm(board.xyz_mm[None, None, :, :2] - centres[:, :, None, :], axis=3)
     v = (60 * np.exp(-0.5 * (d / 6.18) ** 2)).sum(axis=1) + rng.normal(0, 1.2, (2000, i.size))
-    for method in ("n9", "model"):
-        loc = Locator(board, default_board(), board.xyz_mm, Settings(method=method))
+    for method, k in METHOD_FRAMES:
+        settings = Settings(method=method, model_frames=k)
+        loc = Locator(board, default_board(), board.xyz_mm, settings)
         stream = Stream(loc, np.zeros(i.size))
+        method = method if k == 1 else f"{method}, mean of {k} frames"
         stream.step(v[0])
         times, touches = np.empty(len(v)), 0
         for k, frame in enumerate(v):
