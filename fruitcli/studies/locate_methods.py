@@ -351,6 +351,15 @@ def _default_iterations() -> int:
     return ITERATIONS
 
 
+def _method_colours(plt, n: int) -> list:
+    """n colours, one per method: tab10's without its grey (the boards' markers are grey
+    in the legend), then tab20's darker ones, repeating past 17."""
+    tab10, tab20b = plt.get_cmap("tab10"), plt.get_cmap("tab20b")
+    palette = [tab10(i) for i in range(10) if i != 7] + [tab20b(i) for i in range(0, 20, 4)]
+    palette += [tab20b(i) for i in range(2, 20, 4)]
+    return [palette[k % len(palette)] for k in range(n)]
+
+
 def plot(path: Path, rows: list[dict], scene_name: str) -> None:
     """Registered mean error against time per frame: a colour per method, a marker per
     bench skin, filled for the first indenter and hollow for the others."""
@@ -365,10 +374,10 @@ def plot(path: Path, rows: list[dict], scene_name: str) -> None:
     skins = list(dict.fromkeys(r["bench_skin"] for r in rows))
     inds = list(dict.fromkeys(r["indenter"] for r in rows))
     markers = "osD^vP*X"
-    colors = plt.get_cmap("tab10")
+    colors = _method_colours(plt, len(methods))
     fig, ax = plt.subplots(figsize=(9, 5))
     for r in rows:
-        color = colors(methods.index(r["method"]))
+        color = colors[methods.index(r["method"])]
         filled = inds.index(r["indenter"]) == 0
         ax.scatter(
             r["us_per_frame"],
@@ -380,7 +389,7 @@ def plot(path: Path, rows: list[dict], scene_name: str) -> None:
             linewidths=1.5,
         )
     for k, m in enumerate(methods):
-        ax.scatter([], [], color=colors(k), marker="o", label=f"method {m}")
+        ax.scatter([], [], color=colors[k], marker="o", label=f"method {m}")
     for k, name in enumerate(skins):
         ax.scatter([], [], color="0.35", marker=markers[k % len(markers)], label=f"board: {name}")
     for k, ind in enumerate(inds):
