@@ -172,36 +172,15 @@ def refine(
     `frames_taken` (n,): how many frames each touch's row of `v` is the mean of
     (`recent_frames`; its noise falls by their square root); None: one. `rows` (n,):
     each touch's row of `v`; None: its frame."""
-    from fruitcli.sensing.detection.model_kernel import fit_all, prepare
+    from fruitcli.sensing.detection.model_kernel import fit_all
 
     n = frame.size
-    k = window.basis.shape[0]
-    side = int(round(np.sqrt(k)))
     win = np.ascontiguousarray(window.taxels[centre])  # (n, K)
     pos = np.ascontiguousarray(positions(np.where(win >= 0, win, 0)), dtype=float)
-    n9 = np.full((n, 9), -1, np.int64) if n9_taxels is None else n9_taxels
-    vw, inv_e, gain = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
-    coef, corr = np.empty((n, 6, 3)), np.empty((n, side, side, 3))
-    used = np.empty(n, np.int64)
-    taxel_gain = np.ones(v.shape[1]) if law.gain is None else law.gain
-    prepare(
-        np.ascontiguousarray(frame, dtype=np.int64),
-        np.ascontiguousarray(frame if rows is None else rows, dtype=np.int64),
-        win,
-        np.ascontiguousarray(n9, dtype=np.int64),
-        np.ascontiguousarray(v, dtype=float),
-        np.ascontiguousarray(taxel_gain, dtype=float),
-        _touch_noise(noise, law, v.shape[1], frame, frames_taken),
-        MODEL_ERROR,
-        pos,
-        window.basis,
-        window.map_weight,
-        vw,
-        inv_e,
-        gain,
-        coef,
-        corr,
-        used,
+    rows = frame if rows is None else rows
+    noise_t = _touch_noise(noise, law, v.shape[1], frame, frames_taken)
+    vw, inv_e, gain, coef, corr, used = _windows(
+        frame, rows, win, n9_taxels, v, law, noise_t, pos, window
     )
     sub = 1
     if chart is not None:
@@ -211,13 +190,7 @@ def refine(
     ci, cj = window.i[centre], window.j[centre]
     a0 = np.asarray(i0, float) - ci
     b0 = np.asarray(j0, float) - cj
-    pk = np.maximum(np.asarray(peak, float), 1e-9)
-    x0 = np.empty((n, 4))
-    x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3] = a0, b0, pk, 1.0
-    lo, hi = np.empty((n, 4)), np.empty((n, 4))
-    lo[:, :2], hi[:, :2] = -MAX_SHIFT, MAX_SHIFT
-    lo[:, 2], hi[:, 2] = AMPLITUDE_BOUNDS[0] * pk, AMPLITUDE_BOUNDS[1] * pk
-    lo[:, 3], hi[:, 3] = WIDTH_BOUNDS
+    x0, lo, hi = _start_and_bounds(a0, b0, peak)
     out = np.empty((n, 6))
     cov = np.empty((n, 4, 4))
     xyz = np.empty((n, 3))
@@ -242,12 +215,77 @@ def refine(
         xyz,
         var_mm2,
     )
-    a, b, s, chi2 = out[:, 0], out[:, 1], out[:, 3], out[:, 4]
-    dof = np.maximum(used - 4, 1)
-    red = chi2 / dof
+    a, b, s = out[:, 0], out[:, 1], out[:, 3]
+    red = out[:, 4] / np.maximum(used - 4, 1)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0), 0.0))
+    kept = _failed(out, err_mm, red, a0, b0, used)
+    return Fitted(
+        np.where(kept, i0, ci + a),
+        np.where(kept, j0, cj + b),
+        xyz,
+        np.where(kept, np.nan, err_mm),
+        np.sqrt(red),
+        s,
+        np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
+    )
+
+
+def _windows(frame, rows, win, n9_taxels, v, law: FootprintLaw, noise, pos, window: Window):
+    """`model_kernel.prepare` on the touches' windows: -> their activations, inverse
+    errors and gains (n, K), surface maps (n, 6, 3), the maps' misfits at the taxels
+    (n, W, W, 3) and the taxels fitted (n,)."""
+    from fruitcli.sensing.detection.model_kernel import prepare
+
+    n, k = win.shape
+    side = int(round(np.sqrt(k)))
+    n9 = np.full((n, 9), -1, np.int64) if n9_taxels is None else n9_taxels
+    vw, inv_e, gain = np.empty((n, k)), np.empty((n, k)), np.empty((n, k))
+    coef, corr = np.empty((n, 6, 3)), np.empty((n, side, side, 3))
+    used = np.empty(n, np.int64)
+    taxel_gain = np.ones(v.shape[1]) if law.gain is None else law.gain
+    prepare(
+        np.ascontiguousarray(frame, dtype=np.int64),
+        np.ascontiguousarray(rows, dtype=np.int64),
+        win,
+        np.ascontiguousarray(n9, dtype=np.int64),
+        np.ascontiguousarray(v, dtype=float),
+        np.ascontiguousarray(taxel_gain, dtype=float),
+        noise,
+        MODEL_ERROR,
+        pos,
+        window.basis,
+        window.map_weight,
+        vw,
+        inv_e,
+        gain,
+        coef,
+        corr,
+        used,
+    )
+    return vw, inv_e, gain, coef, corr, used
+
+
+def _start_and_bounds(a0, b0, peak) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fits' start (n, 4) (a, b, A, s: the N9 point, the peak's counts, width scale 1)
+    and their lower and upper bounds (n, 4)."""
+    n = len(a0)
+    pk = np.maximum(np.asarray(peak, float), 1e-9)
+    x0 = np.empty((n, 4))
+    x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3] = a0, b0, pk, 1.0
+    lo, hi = np.empty((n, 4)), np.empty((n, 4))
+    lo[:, :2], hi[:, :2] = -MAX_SHIFT, MAX_SHIFT
+    lo[:, 2], hi[:, 2] = AMPLITUDE_BOUNDS[0] * pk, AMPLITUDE_BOUNDS[1] * pk
+    lo[:, 3], hi[:, 3] = WIDTH_BOUNDS
+    return x0, lo, hi
+
+
+def _failed(out, err_mm, red, a0, b0, used) -> np.ndarray:
+    """Which fits (n,) fail a test of the module's list, so that N9's point is kept: out
+    (n, 6) `fit_all`'s results, err_mm the 1-sigma radii, red the reduced chi^2, a0, b0
+    the N9 start, used the taxels fitted."""
+    a, b, s = out[:, 0], out[:, 1], out[:, 3]
     edge = 1e-6
-    kept = (
+    return (
         ~np.isfinite(out).all(axis=1)
         | ~np.isfinite(err_mm)
         | (np.hypot(a - a0, b - b0) > 1.0)
@@ -257,15 +295,6 @@ def refine(
         | (used < MIN_TAXELS)
         | (err_mm > MAX_UNCERTAINTY_MM)
         | (red > MAX_REDUCED_CHI2)
-    )
-    return Fitted(
-        np.where(kept, i0, ci + a),
-        np.where(kept, j0, cj + b),
-        xyz,
-        np.where(kept, np.nan, err_mm),
-        np.sqrt(red),
-        s,
-        np.where(kept, FIT_N9, FIT_MODEL).astype(np.int8),
     )
 
 
