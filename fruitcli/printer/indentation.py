@@ -52,20 +52,20 @@ class BenchStopped(FruitError):
 def bench_samples(scene, taxels, states_npz) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(sample ids (m,), contact points (m, 3) model mm, highest model z mm, samples in
     all): the virtual bench's sample points over the surface."""
+    from fruitcli.sensing.bench_stage import sample_points
     from fruitcli.sensing.detection.locate import load_states
-    from fruitcli.sensing.stages import _sample_points
 
     if states_npz is not None:
         states = load_states(states_npz, len(taxels))
         state = scene.bench.state
         taxels_mm = states.taxels_mm[state]
-        xy = _sample_points(scene, taxels_mm)
+        xy = sample_points(scene, taxels_mm)
         nodes = states.nodes_mm(state)
         z = surface_heights(xy, nodes, states.surface_tris)
         top = float(nodes[:, 2].max())
     else:
         taxels_mm = taxels.xyz_mm
-        xy = _sample_points(scene, taxels_mm)
+        xy = sample_points(scene, taxels_mm)
         z = taxel_surface_heights(xy, taxels_mm)
         top = float(taxels_mm[:, 2].max())
     ids = np.flatnonzero(np.isfinite(z))
