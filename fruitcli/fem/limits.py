@@ -223,9 +223,7 @@ def follow(
             (budget, halvings), beyond = beyond, None
         if _levels_off(model, curve, s, step, direction, stop_beyond_kpa):
             break
-        if direction > 0 and _past_limit(curve, stretches, fall_steps):
-            break
-        if direction < 0 and _collapsing(model, curve, res, fall_steps):
+        if _turned(model, curve, stretches, res, direction, fall_steps):
             break
     return curve
 
@@ -291,25 +289,21 @@ def _levels_off(model, curve, s, step, direction, stop_beyond_kpa) -> bool:
     return False
 
 
-def _past_limit(curve, stretches, fall_steps) -> bool:
-    """Whether an inflation is `fall_steps` samples past its peak; then the limit point
-    (`peak`) and the end are the curve's."""
+def _turned(model, curve, stretches, res, direction: int, fall_steps: int) -> bool:
+    """Whether the curve turned at its last sample `res`: an inflation `fall_steps`
+    samples past its peak (the limit point, `peak`), or a suction collapsing (the
+    cavity's volume gone, elements about to invert, or `fall_steps` samples past the
+    lowest pressure); then the limit or collapse and the end are the curve's."""
     pr = np.array(curve.pressure_kpa)
-    top = int(np.argmax(pr))
-    if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
-        s_top, p_top = peak(np.array(stretches), pr, top)
-        curve.limit_pressure_kpa = p_top
-        curve.limit_growth_mm3 = curve.rest_volume_mm3 * (s_top**3 - 1.0)
-        curve.end = "past the limit point"
-        return True
-    return False
-
-
-def _collapsing(model, curve, res, fall_steps) -> bool:
-    """Whether a suction collapses at its last sample `res` (the cavity's volume gone,
-    elements about to invert, or `fall_steps` samples past the lowest pressure); then
-    the collapse pressure and the end are the curve's."""
-    pr = np.array(curve.pressure_kpa)
+    if direction > 0:
+        top = int(np.argmax(pr))
+        if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
+            s_top, p_top = peak(np.array(stretches), pr, top)
+            curve.limit_pressure_kpa = p_top
+            curve.limit_growth_mm3 = curve.rest_volume_mm3 * (s_top**3 - 1.0)
+            curve.end = "past the limit point"
+            return True
+        return False
     low = int(np.argmin(pr))
     why = None
     if np.any(res.chamber_volume_mm3 <= COLLAPSE_VOLUME * model.chamber_rest_volume_mm3):
