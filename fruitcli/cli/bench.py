@@ -28,7 +28,7 @@ def scene_surface(scene: Scene) -> tuple[Path | None, str]:
     from pathlib import Path
 
     from fruitcli.workflow.planner import Context
-    from fruitcli.workflow.stages import solid_path
+    from fruitcli.workflow.stage_paths import solid_path
 
     path = solid_path(scene, Context(Path("out") / scene.name))
     unit = scene.geometry.unit if scene.geometry.solid is not None else "mm"

@@ -93,7 +93,7 @@ def locator(scene, scene_path: str, settings, o: LiveOptions, progress: Progress
     from fruitcli.sensing.detection.gain_division import detection_gain
     from fruitcli.sensing.detection.locate import load_states
     from fruitcli.sensing.live.serial_ports import PressureState
-    from fruitcli.sensing.stages import skin_heights
+    from fruitcli.sensing.locator_setup import skin_heights
     from fruitcli.tables import read_taxels
     from fruitcli.workflow.online_model import online_solver, reduced_source
 

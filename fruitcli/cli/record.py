@@ -99,16 +99,7 @@ def record(
     interrupted = False
     with fruit_errors():
         check_limits(n_frames, seconds)
-        names = tuple(c.strip() for c in chambers.split(",")) if chambers else ()
-        if pressure_port and not names:
-            raise FrameError(
-                f"--pressure-port {pressure_port}: give --chambers, the names "
-                "of the pressures' columns (e.g. --chambers c1,c2,c3)"
-            )
-        if names and not pressure_port:
-            raise FrameError("--chambers: needs --pressure-port, the source of the pressures")
-        if any(not c for c in names) or len(set(names)) != len(names):
-            raise FrameError(f"--chambers {chambers}: expected distinct non-empty names")
+        names = _chamber_names(chambers, pressure_port)
         check_out_path(out_path, overwrite, pressures=bool(pressure_port))
         from pathlib import Path
 
@@ -168,24 +159,60 @@ def record(
         unit = "damaged packets" if reader.format == "binary" else "lines"
         skipped = f"{res['skipped']} {unit} skipped" + (f": {why}" if why else "")
         if frames == 0:
-            how = (
-                "port closed"
-                if res["closed"]
-                else "interrupted"
-                if interrupted
-                else f"stopped after {seconds:g} s"
-                if seconds
-                else "stopped"
-            )
-            got = skipped if res["skipped"] or why else "nothing received"
-            if interrupted:
-                click.echo(
-                    f"Interrupted: no frame received from {port}; {untouched} ({got})", err=True
-                )
-                raise SystemExit(130)
-            raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
+            _no_frames(port, res, interrupted, seconds, skipped, why, untouched)
+    summary = _summary(frames, reader.format, res, skipped, out_path, pressure, names)
+    if res["closed"]:
+        raise click.ClickException(
+            f"{port}: port closed after {frames} frames; {out_path} holds them ({skipped})"
+        )
+    click.echo(summary, err=True)
+    if interrupted:
+        click.echo("Interrupted.", err=True)
+        raise SystemExit(130)
+
+
+def _chamber_names(chambers: str | None, pressure_port: str | None) -> tuple[str, ...]:
+    """The names of --chambers (comma-separated), checked against --pressure-port."""
+    from fruitcli.errors import FrameError
+
+    names = tuple(c.strip() for c in chambers.split(",")) if chambers else ()
+    if pressure_port and not names:
+        raise FrameError(
+            f"--pressure-port {pressure_port}: give --chambers, the names "
+            "of the pressures' columns (e.g. --chambers c1,c2,c3)"
+        )
+    if names and not pressure_port:
+        raise FrameError("--chambers: needs --pressure-port, the source of the pressures")
+    if any(not c for c in names) or len(set(names)) != len(names):
+        raise FrameError(f"--chambers {chambers}: expected distinct non-empty names")
+    return names
+
+
+def _no_frames(port, res, interrupted, seconds, skipped, why, untouched) -> None:
+    """Stop a recording that got no frame: exit 130 when interrupted, else a FrameError
+    saying how it stopped and what it skipped."""
+    from fruitcli.errors import FrameError
+
+    how = (
+        "port closed"
+        if res["closed"]
+        else "interrupted"
+        if interrupted
+        else f"stopped after {seconds:g} s"
+        if seconds
+        else "stopped"
+    )
+    got = skipped if res["skipped"] or why else "nothing received"
+    if interrupted:
+        click.echo(f"Interrupted: no frame received from {port}; {untouched} ({got})", err=True)
+        raise SystemExit(130)
+    raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
+
+
+def _summary(frames, fmt, res, skipped, out_path, pressure, names) -> str:
+    """The line a recording ends with: frames, rate, lines skipped and cut, pressures."""
     summary = (
-        f"{frames} {reader.format} frames ({res['frames_per_s']:.1f} frames/s), "
+        f"{frames} {fmt} frames ({res['frames_per_s']:.1f} frames/s), "
         f"{skipped}, "
         f"{res['cut']} cut -> {out_path}"
     )
@@ -195,11 +222,4 @@ def record(
             f"(not 'P name=kPa ...' with chambers {', '.join(names)})"
             + ("; the pressure port closed during the recording" if pressure.closed else "")
         )
-    if res["closed"]:
-        raise click.ClickException(
-            f"{port}: port closed after {frames} frames; {out_path} holds them ({skipped})"
-        )
-    click.echo(summary, err=True)
-    if interrupted:
-        click.echo("Interrupted.", err=True)
-        raise SystemExit(130)
+    return summary

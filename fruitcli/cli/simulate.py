@@ -65,7 +65,6 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
     from fruitcli.errors import SceneError
     from fruitcli.fem.stage import run_simulate, run_tetra
     from fruitcli.scene import load_scene, n_states
-    from fruitcli.tables import read_taxels
 
     log = Progress("simulate ")
     with fruit_errors():
@@ -97,28 +96,9 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
                 f"model, {info['us_per_state']:.1f} us per state; {info['describe']}"
             )
             return
-        geo = sc.geometry
-        taxel_csv = taxels_csv or sc.grid.taxels
-        # given taxels are checked before any stage runs
-        xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
-        tracks_csv = sc.tracks.file
-        if tracks_csv is not None:
-            from fruitcli.fem.yarn import read_tracks
-
-            read_tracks(tracks_csv)
-        if solid is None and geo.artist is not None:
-            from fruitcli.workflow import planner
-
-            planner.run(
-                sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs(out_dir)
-            )
-            solid = out_dir / "make-tracks" / "reduced.stl"
-            tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
-            if xyz is None:
-                taxel_csv = out_dir / "make-tracks" / "taxels.csv"
-                xyz = read_taxels(taxel_csv).xyz_mm
-        elif solid is None and geo.solid is None and geo.pad_size_mm is None:
-            raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
+        solid, xyz, taxel_csv, tracks_csv = _body_and_taxels(
+            sc, scene, solid, taxels_csv, out_dir, log
+        )
         run_tetra(sc, solid, out_dir, progress=log, taxels_xyz=xyz)
         with progressbar(
             length=n_states(sc) if table is None else len(table), label="states"
@@ -146,11 +126,45 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
         f"{info['iterations']}, solve ms {[round(t) for t in info['solve_ms']]}"
     )
     if "yarns" in info:
-        y = info["yarns"]
-        click.echo(
-            f"{out_dir / 'yarns.csv'}: {y['tracks']} track(s), largest stretch "
-            f"{y['max_stretch_pct']:.2f} % over a track, {y['max_local_stretch_pct']:.2f}"
-            f" % over {y['zigzag_pitch_mm']:g} mm (track {y['worst_track']}, state "
-            f"{y['state_of_max']}); {len(y['warnings'])} over [tracks] yarn_max_stretch "
-            f"{100 * y['yarn_max_stretch']:g} %"
-        )
+        _say_yarns(out_dir / "yarns.csv", info["yarns"])
+
+
+def _body_and_taxels(sc, scene, solid, taxels_csv, out_dir, log) -> tuple:
+    """(the solid to mesh, the taxels (T, 3) mm or None, their CSV, the tracks' CSV): the
+    given ones, checked before any stage runs, else an artist's from make-tracks (run
+    into out_dir)."""
+    from fruitcli.errors import SceneError
+    from fruitcli.tables import read_taxels
+
+    geo = sc.geometry
+    taxel_csv = taxels_csv or sc.grid.taxels
+    # given taxels are checked before any stage runs
+    xyz = read_taxels(taxel_csv).xyz_mm if taxel_csv is not None else None
+    tracks_csv = sc.tracks.file
+    if tracks_csv is not None:
+        from fruitcli.fem.yarn import read_tracks
+
+        read_tracks(tracks_csv)
+    if solid is None and geo.artist is not None:
+        from fruitcli.workflow import planner
+
+        planner.run(sc, out_dir, until="make-tracks", progress=log, shared=shared_outputs(out_dir))
+        solid = out_dir / "make-tracks" / "reduced.stl"
+        tracks_csv = tracks_csv or out_dir / "make-tracks" / "tracks.csv"
+        if xyz is None:
+            taxel_csv = out_dir / "make-tracks" / "taxels.csv"
+            xyz = read_taxels(taxel_csv).xyz_mm
+    elif solid is None and geo.solid is None and geo.pad_size_mm is None:
+        raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
+    return solid, xyz, taxel_csv, tracks_csv
+
+
+def _say_yarns(path, y: dict) -> None:
+    """The line on yarns.csv: the tracks and their largest stretch."""
+    click.echo(
+        f"{path}: {y['tracks']} track(s), largest stretch "
+        f"{y['max_stretch_pct']:.2f} % over a track, {y['max_local_stretch_pct']:.2f}"
+        f" % over {y['zigzag_pitch_mm']:g} mm (track {y['worst_track']}, state "
+        f"{y['state_of_max']}); {len(y['warnings'])} over [tracks] yarn_max_stretch "
+        f"{100 * y['yarn_max_stretch']:g} %"
+    )

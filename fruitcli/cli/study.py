@@ -126,7 +126,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     from fruitcli.studies import runtime as rt
     from fruitcli.studies.parallel import run_cases
     from fruitcli.workflow import planner
-    from fruitcli.workflow.stages import solid_path, states_path, taxels_path
+    from fruitcli.workflow.stage_paths import solid_path, states_path, taxels_path
 
     with fruit_errors(), contextlib.ExitStack() as stack:
         scene = load_scene(scene_file)
@@ -177,7 +177,7 @@ def _bench_scene(scene_file, out: Path):
     from fruitcli.cli.options import Progress
     from fruitcli.scene import load_scene
     from fruitcli.workflow import planner
-    from fruitcli.workflow.stages import _geometry_kind, solid_path, states_path, taxels_path
+    from fruitcli.workflow.stage_paths import geometry_kind, solid_path, states_path, taxels_path
 
     scene = load_scene(scene_file)
     if not scene.has("bench"):
@@ -190,7 +190,7 @@ def _bench_scene(scene_file, out: Path):
     taxels = taxels_path(scene, ctx)
     if taxels is None:
         raise click.UsageError(f"{scene_file}: the scene has no taxels to study")
-    unit = scene.geometry.unit if _geometry_kind(scene) == "solid" else "mm"
+    unit = scene.geometry.unit if geometry_kind(scene) == "solid" else "mm"
     work = out / "work"
     work.mkdir(parents=True, exist_ok=True)
     return scene, taxels, states_path(scene, ctx), solid_path(scene, ctx), unit, work

@@ -171,20 +171,10 @@ def make_mold(
     x0, y0, x1, y1 = lo[0] - room, lo[1] - room, hi[0] + room, hi[1] + room
     far = hi[2] + w if side > 0 else lo[2] - w  # the shell's far face
     near = zp - side * w  # the plate's far face
+    top_z = max(far, near) + 1.0  # where the pour hole and vents open
     shell_box = box((x0, y0, min(zp, far)), (x1, y1, max(zp, far)))
     plate_box = box((x0, y0, min(zp, near)), (x1, y1, max(zp, near)))
-    keys, sockets = [], []
-    for kx, ky in (
-        (x0 + w / 2 + kr, y0 + w / 2 + kr),
-        (x1 - w / 2 - kr, y0 + w / 2 + kr),
-        (x1 - w / 2 - kr, y1 - w / 2 - kr),
-        (x0 + w / 2 + kr, y1 - w / 2 - kr),
-    ):
-        key = mf.Manifold.sphere(kr, CIRCLE_SEGMENTS).translate((kx, ky, zp))
-        if not (key ^ piece).is_empty():
-            continue  # the piece reaches this corner: no key there
-        keys.append(key)
-        sockets.append(mf.Manifold.sphere(kr + c, CIRCLE_SEGMENTS).translate((kx, ky, zp)))
+    keys, sockets = _keys(piece, (x0, y0, x1, y1), zp, w, kr, c)
     if len(keys) < 2:
         raise GeometryError(
             f"{name}: no room for two registration keys in the mold's corners; use a thicker wall"
@@ -200,6 +190,75 @@ def make_mold(
             float(max(far, near)),
         ],
     )
+    cores, pin_holes, pin_xy = _cores(name, piece, chambers, opts, near, zp, shell_box)
+    shell = mf.Manifold.batch_boolean([shell_box, piece, *sockets], mf.OpType.Subtract)
+    # whole spheres centred on the plate's face: their lower halves vanish in the plate (no
+    # coplanar faces for the union to weld), their upper halves are the keys
+    plate = mf.Manifold.batch_boolean([plate_box, *keys], mf.OpType.Add)
+    # where the piece's surface dips below the parting plane (a hollow in the face that
+    # should be flat) the shell box leaves an island between the piece and the plane: it
+    # belongs to the plate
+    loose = sorted(shell.decompose(), key=lambda m: -m.volume())
+    if len(loose) > 1:
+        shell = loose[0]
+        # each island with a copy TOUCH_MM into the plate, so that the union welds
+        grown = [i + i.translate((0.0, 0.0, -side * TOUCH_MM)) for i in loose[1:]]
+        plate = mf.Manifold.batch_boolean([plate, *grown], mf.OpType.Add)
+    if pin_holes:
+        plate = mf.Manifold.batch_boolean([plate, *pin_holes], mf.OpType.Subtract)
+    silicone = mf.Manifold.batch_boolean([piece, *[k for _, k in cores]], mf.OpType.Subtract)
+    pts, channels = _channels(name, piece, opts, tracks_xy, track_radius_mm, pin_xy, top_z)
+    mold.channels = mf.Manifold.batch_boolean(channels, mf.OpType.Add)
+    shell = mf.Manifold.batch_boolean([shell, *channels], mf.OpType.Subtract)
+    plate = mf.Manifold.batch_boolean([plate, *channels], mf.OpType.Subtract)
+    mold.parts = {f"{name}_shell": shell, f"{name}_plate": plate}
+    mold.pull = {
+        f"{name}_shell": [0.0, 0.0, float(side)],
+        f"{name}_plate": [0.0, 0.0, float(-side)],
+    }
+    for cname, core in cores:
+        core = mf.Manifold.batch_boolean([core, *channels], mf.OpType.Subtract)
+        mold.parts[f"{name}_core_{cname}"] = core
+        mold.pull[f"{name}_core_{cname}"] = None
+    mold.cores = [cname for cname, _ in cores]
+    mold.silicone = silicone
+    mold.pour_mm = [round(v, 3) for v in pts[0]]
+    mold.vents_mm = [[round(v, 3) for v in p] for p in pts[1:]]
+    for pname, part in mold.parts.items():
+        if part.status() != mf.Error.NoError or part.is_empty():
+            raise GeometryError(
+                f"{name}: the mold part {pname} came out invalid ({part.status().name})"
+            )
+    return mold
+
+
+def _keys(piece, outline, zp: float, w: float, kr: float, c: float) -> tuple[list, list]:
+    """(keys, sockets): a registration sphere of radius `kr` mm in each corner of the
+    mold's `outline` (x0, y0, x1, y1) mm on the parting plane z = zp that the piece leaves
+    free, and its socket `c` mm wider; `w` the wall (mm)."""
+    import manifold3d as mf
+
+    x0, y0, x1, y1 = outline
+    keys, sockets = [], []
+    for kx, ky in (
+        (x0 + w / 2 + kr, y0 + w / 2 + kr),
+        (x1 - w / 2 - kr, y0 + w / 2 + kr),
+        (x1 - w / 2 - kr, y1 - w / 2 - kr),
+        (x0 + w / 2 + kr, y1 - w / 2 - kr),
+    ):
+        key = mf.Manifold.sphere(kr, CIRCLE_SEGMENTS).translate((kx, ky, zp))
+        if not (key ^ piece).is_empty():
+            continue  # the piece reaches this corner: no key there
+        keys.append(key)
+        sockets.append(mf.Manifold.sphere(kr + c, CIRCLE_SEGMENTS).translate((kx, ky, zp)))
+    return keys, sockets
+
+
+def _cores(name: str, piece, chambers: list, opts: MoldOptions, near: float, zp: float, shell_box):
+    """(cores [(chamber, Manifold)], pin holes [Manifold], pin centres [(x, y)] mm): each
+    chamber's part inside the piece with its locating pin to the plate's face z = `near`,
+    and the pins' holes through the plate."""
+    c = opts.clearance_mm
     cores, pin_holes, pin_xy = [], [], []
     for cname, whole in chambers:
         ch = whole ^ piece  # a chamber across the parting plane: a core in each half
@@ -223,22 +282,12 @@ def make_mold(
         cores.append((cname, core))
         pin_xy.append((cx, cy))
         pin_holes.append(vertical_cylinder(cx, cy, min(zp, near) - 1, max(zp, near) + 1, r + c))
-    shell = mf.Manifold.batch_boolean([shell_box, piece, *sockets], mf.OpType.Subtract)
-    # whole spheres centred on the plate's face: their lower halves vanish in the plate (no
-    # coplanar faces for the union to weld), their upper halves are the keys
-    plate = mf.Manifold.batch_boolean([plate_box, *keys], mf.OpType.Add)
-    # where the piece's surface dips below the parting plane (a hollow in the face that
-    # should be flat) the shell box leaves an island between the piece and the plane: it
-    # belongs to the plate
-    loose = sorted(shell.decompose(), key=lambda m: -m.volume())
-    if len(loose) > 1:
-        shell = loose[0]
-        # each island with a copy TOUCH_MM into the plate, so that the union welds
-        grown = [i + i.translate((0.0, 0.0, -side * TOUCH_MM)) for i in loose[1:]]
-        plate = mf.Manifold.batch_boolean([plate, *grown], mf.OpType.Add)
-    if pin_holes:
-        plate = mf.Manifold.batch_boolean([plate, *pin_holes], mf.OpType.Subtract)
-    silicone = mf.Manifold.batch_boolean([piece, *[k for _, k in cores]], mf.OpType.Subtract)
+    return cores, pin_holes, pin_xy
+
+
+def _channels(name: str, piece, opts: MoldOptions, tracks_xy, track_radius_mm, pin_xy, top):
+    """(points, channels): the pour hole (first) and vents straight up from the cavity's
+    highest points to z = `top` mm, off the track centre points and the pins."""
     # pour hole and vents: straight up from the cavity's highest points
     reach = opts.pour_diameter_mm / 2 + 0.3  # the widest channel, and a little
     avoid = [
@@ -251,35 +300,13 @@ def make_mold(
     pts = highest_points(piece, 1 + opts.vents, opts.pour_diameter_mm / 2 + 0.5, avoid)
     if not pts:
         raise GeometryError(f"{name}: no room for a pour hole in the piece's outline")
-    top = max(far, near) + 1.0
     channels = [
         vertical_cylinder(
             x, y, z - 0.5, top, (opts.pour_diameter_mm if k == 0 else opts.vent_diameter_mm) / 2
         )
         for k, (x, y, z) in enumerate(pts)
     ]
-    mold.channels = mf.Manifold.batch_boolean(channels, mf.OpType.Add)
-    shell = mf.Manifold.batch_boolean([shell, *channels], mf.OpType.Subtract)
-    plate = mf.Manifold.batch_boolean([plate, *channels], mf.OpType.Subtract)
-    mold.parts = {f"{name}_shell": shell, f"{name}_plate": plate}
-    mold.pull = {
-        f"{name}_shell": [0.0, 0.0, float(side)],
-        f"{name}_plate": [0.0, 0.0, float(-side)],
-    }
-    for cname, core in cores:
-        core = mf.Manifold.batch_boolean([core, *channels], mf.OpType.Subtract)
-        mold.parts[f"{name}_core_{cname}"] = core
-        mold.pull[f"{name}_core_{cname}"] = None
-    mold.cores = [cname for cname, _ in cores]
-    mold.silicone = silicone
-    mold.pour_mm = [round(v, 3) for v in pts[0]]
-    mold.vents_mm = [[round(v, 3) for v in p] for p in pts[1:]]
-    for pname, part in mold.parts.items():
-        if part.status() != mf.Error.NoError or part.is_empty():
-            raise GeometryError(
-                f"{name}: the mold part {pname} came out invalid ({part.status().name})"
-            )
-    return mold
+    return pts, channels
 
 
 def undercut_area(piece, zp: float, side: int, pull: dict) -> dict:

@@ -82,16 +82,7 @@ def run_make_mold(
     say = progress or (lambda msg: None)
     opts.check(names or CLI_NAMES)
     tracks_dir = Path(tracks_dir)
-    rep_path = tracks_dir / "report.json"
-    if not rep_path.exists():
-        raise GeometryError(f"{tracks_dir}: no report.json (run make-tracks first)")
-    try:
-        tr_rep = json.loads(rep_path.read_text())
-        zp, r_track = float(tr_rep["split_z_mm"]), float(tr_rep["track_radius_mm"])
-    except (ValueError, KeyError, TypeError):
-        raise GeometryError(
-            f"{rep_path}: no split_z_mm or track_radius_mm (expected make-tracks' report)"
-        ) from None
+    zp, r_track = _parting_plane(tracks_dir)
     tracks_xy = _track_points(tracks_dir / "tracks.csv")
     t0 = time.perf_counter()
     top = load_solid(tracks_dir / "tracked_top.stl", "make-tracks")
@@ -115,38 +106,8 @@ def run_make_mold(
         mold = make_mold(
             name, piece, zp, side, chambers, opts, tracks_xy if name == "top" else None, r_track
         )
-        cavity = assembled_cavity(mold)
+        entries.append(_mold_entry(name, mold, piece, zp, side, opts, density_kg_m3))
         sil = mold.silicone.volume()
-        extra = (cavity - mold.silicone).volume()
-        missing = (mold.silicone - cavity).volume()
-        entries.append(
-            {
-                "piece": name,
-                "parts": [f"{p}.stl" for p in mold.parts],
-                "cores": mold.cores,
-                "part_volumes_mm3": {
-                    f"{p}.stl": round(m.volume(), 3) for p, m in mold.parts.items()
-                },
-                "pull_direction": {f"{p}.stl": d for p, d in mold.pull.items()},
-                "undercut_area_mm2": {
-                    f"{p}.stl": a for p, a in undercut_area(piece, zp, side, mold.pull).items()
-                },
-                "piece_volume_mm3": round(sil, 3),
-                "cavity_volume_mm3": round(cavity.volume(), 3),
-                "channels_volume_mm3": round(mold.channels.volume(), 3),
-                "cavity_outside_piece_mm3": round(extra, 3),
-                "piece_outside_cavity_mm3": round(missing, 3),
-                "cavity_vs_piece": round(cavity.volume() / sil, 5),
-                "silicone_ml": round(sil / 1000.0, 2),
-                "silicone_g": round(sil / 1000.0 * density_kg_m3 / 1000.0, 1),
-                "pour_hole_mm": mold.pour_mm,
-                "vents_mm": mold.vents_mm,
-                "pour_diameter_mm": opts.pour_diameter_mm,
-                "vent_diameter_mm": opts.vent_diameter_mm,
-                "parting_plane_z_mm": zp,
-                "box_mm": [round(v, 3) for v in mold.box_mm],
-            }
-        )
         molds.append(mold)
         say(
             f"{name} mold: {len(mold.parts)} parts, {sil / 1000:.1f} ml, "
@@ -173,6 +134,54 @@ def run_make_mold(
         write_json(tmp / "mold.json", report)
     del mf
     return report
+
+
+def _parting_plane(tracks_dir: Path) -> tuple[float, float]:
+    """(the parting plane's z, the tracks' radius) mm from make-tracks' report.json."""
+    rep_path = tracks_dir / "report.json"
+    if not rep_path.exists():
+        raise GeometryError(f"{tracks_dir}: no report.json (run make-tracks first)")
+    try:
+        tr_rep = json.loads(rep_path.read_text())
+        zp, r_track = float(tr_rep["split_z_mm"]), float(tr_rep["track_radius_mm"])
+    except (ValueError, KeyError, TypeError):
+        raise GeometryError(
+            f"{rep_path}: no split_z_mm or track_radius_mm (expected make-tracks' report)"
+        ) from None
+    return zp, r_track
+
+
+def _mold_entry(name, mold, piece, zp, side, opts: MoldOptions, density_kg_m3: float) -> dict:
+    """mold.json's entry of a mold: its parts, volumes (mm^3), pull directions,
+    undercuts, silicone (ml, g), pour hole and vents."""
+    cavity = assembled_cavity(mold)
+    sil = mold.silicone.volume()
+    extra = (cavity - mold.silicone).volume()
+    missing = (mold.silicone - cavity).volume()
+    return {
+        "piece": name,
+        "parts": [f"{p}.stl" for p in mold.parts],
+        "cores": mold.cores,
+        "part_volumes_mm3": {f"{p}.stl": round(m.volume(), 3) for p, m in mold.parts.items()},
+        "pull_direction": {f"{p}.stl": d for p, d in mold.pull.items()},
+        "undercut_area_mm2": {
+            f"{p}.stl": a for p, a in undercut_area(piece, zp, side, mold.pull).items()
+        },
+        "piece_volume_mm3": round(sil, 3),
+        "cavity_volume_mm3": round(cavity.volume(), 3),
+        "channels_volume_mm3": round(mold.channels.volume(), 3),
+        "cavity_outside_piece_mm3": round(extra, 3),
+        "piece_outside_cavity_mm3": round(missing, 3),
+        "cavity_vs_piece": round(cavity.volume() / sil, 5),
+        "silicone_ml": round(sil / 1000.0, 2),
+        "silicone_g": round(sil / 1000.0 * density_kg_m3 / 1000.0, 1),
+        "pour_hole_mm": mold.pour_mm,
+        "vents_mm": mold.vents_mm,
+        "pour_diameter_mm": opts.pour_diameter_mm,
+        "vent_diameter_mm": opts.vent_diameter_mm,
+        "parting_plane_z_mm": zp,
+        "box_mm": [round(v, 3) for v in mold.box_mm],
+    }
 
 
 def _track_points(path) -> np.ndarray:

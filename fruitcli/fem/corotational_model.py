@@ -193,32 +193,7 @@ class Model:
         """Validate and precompute. nodes (n, 3) mm, tets (m, 4), E (kPa), nu, chambers
         {name: (t, 3) triangles}, fixed_nodes indices, jigs with node indices,
         prescribed [(node indices, (3,) displacement mm)] (moved clamps)."""
-        rest = np.ascontiguousarray(nodes, dtype=float)
-        tets = np.ascontiguousarray(tets, dtype=np.int64)
-        if rest.ndim != 2 or rest.shape[1] != 3 or not np.isfinite(rest).all():
-            raise MeshError("nodes: expected a finite (N, 3) array in mm")
-        if tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
-            raise MeshError("tets: expected a non-empty (M, 4) array")
-        if tets.min() < 0 or tets.max() >= len(rest):
-            raise MeshError("tets: node index out of range")
-        if not E_kpa > 0:
-            raise SolverError(f"[material].young_modulus_kpa: expected > 0, got {E_kpa}")
-        if not -1.0 < nu < 0.5:
-            raise SolverError(f"[material].poisson_ratio: expected -1 < nu < 0.5, got {nu}")
-        vol = tet4.signed_volumes(rest, tets)
-        flip = vol < 0
-        if flip.any():
-            tets = tets.copy()
-            tets[flip] = tets[flip][:, [0, 2, 1, 3]]
-        quality = tet4.tet_quality(rest, tets)
-        worst = int(np.argmin(quality))
-        if quality[worst] < min_quality:
-            c = rest[tets[worst]].mean(axis=0)
-            raise MeshError(
-                f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-                f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-                "remesh before solving"
-            )
+        rest, tets, vol = _checked_mesh(nodes, tets, E_kpa, nu, min_quality)
         vol = np.abs(vol)
         lam, mu = tet4.lame_parameters(E_kpa, nu)
         grads = tet4.shape_gradients(rest, tets)
@@ -232,19 +207,7 @@ class Model:
                 "and under pressure)"
             )
 
-        names, tris_list = [], []
-        for name, tris in (chambers or {}).items():
-            tris = np.asarray(tris, dtype=np.int64)
-            if tris.ndim != 2 or tris.shape[1] != 3 or len(tris) < 4:
-                raise MeshError(f"chamber {name}: expected a closed (T, 3) triangle surface")
-            if tris.min() < 0 or tris.max() >= n:
-                raise MeshError(f"chamber {name}: node index out of range")
-            try:
-                tris = pressure.orient_outward(rest, tris)
-            except ValueError as exc:
-                raise MeshError(f"chamber {name}: {exc}") from None
-            names.append(str(name))
-            tris_list.append(tris)
+        names, tris_list = _chamber_surfaces(rest, chambers)
         v_rest = np.array([pressure.cavity_volume(rest, t) for t in tris_list])
 
         body = np.zeros((n, 3))
@@ -575,3 +538,55 @@ class Model:
         i = int(np.argmin(det_f))
         c = self.rest[self.tets[i]].mean(axis=0)
         return f"tet {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"
+
+
+def _checked_mesh(nodes, tets, E_kpa: float, nu: float, min_quality: float) -> tuple:
+    """(rest (n, 3) mm, tets (m, 4) each with a positive volume, signed volumes (m,)
+    mm^3 before the flips), or MeshError / SolverError naming what is wrong: the arrays,
+    a sliver, E (kPa) or nu."""
+    rest = np.ascontiguousarray(nodes, dtype=float)
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+    if rest.ndim != 2 or rest.shape[1] != 3 or not np.isfinite(rest).all():
+        raise MeshError("nodes: expected a finite (N, 3) array in mm")
+    if tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
+        raise MeshError("tets: expected a non-empty (M, 4) array")
+    if tets.min() < 0 or tets.max() >= len(rest):
+        raise MeshError("tets: node index out of range")
+    if not E_kpa > 0:
+        raise SolverError(f"[material].young_modulus_kpa: expected > 0, got {E_kpa}")
+    if not -1.0 < nu < 0.5:
+        raise SolverError(f"[material].poisson_ratio: expected -1 < nu < 0.5, got {nu}")
+    vol = tet4.signed_volumes(rest, tets)
+    flip = vol < 0
+    if flip.any():
+        tets = tets.copy()
+        tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    quality = tet4.tet_quality(rest, tets)
+    worst = int(np.argmin(quality))
+    if quality[worst] < min_quality:
+        c = rest[tets[worst]].mean(axis=0)
+        raise MeshError(
+            f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+            "remesh before solving"
+        )
+    return rest, tets, vol
+
+
+def _chamber_surfaces(rest: np.ndarray, chambers: dict | None) -> tuple[list, list]:
+    """(names, (t, 3) triangles oriented outward) of the chambers {name: triangles}."""
+    n = len(rest)
+    names, tris_list = [], []
+    for name, tris in (chambers or {}).items():
+        tris = np.asarray(tris, dtype=np.int64)
+        if tris.ndim != 2 or tris.shape[1] != 3 or len(tris) < 4:
+            raise MeshError(f"chamber {name}: expected a closed (T, 3) triangle surface")
+        if tris.min() < 0 or tris.max() >= n:
+            raise MeshError(f"chamber {name}: node index out of range")
+        try:
+            tris = pressure.orient_outward(rest, tris)
+        except ValueError as exc:
+            raise MeshError(f"chamber {name}: {exc}") from None
+        names.append(str(name))
+        tris_list.append(tris)
+    return names, tris_list

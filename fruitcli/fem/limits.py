@@ -168,38 +168,18 @@ def follow(
     v0 = float(r @ model.chamber_rest_volume_mm3)
     curve = ChamberCurve(name, v0, [0.0], [0.0])
     budget = budget or STEP_BUDGET
-    solver = solver or model.make_solver(options.linear_solver if options else "pcg")
+    solver = _curve_solver(model, solver, options)
     options = options or SolverOptions(load_steps=1)
-    if len(getattr(model, "pinned_dofs", ())) and hasattr(solver, "indefinite"):
-        # on the 3-2-1 support the tangents at the Newton iterates of the first sample
-        # already had 3 negative eigenvalues (the thick sphere, inflated and sucked in;
-        # the default Fruit on its fixed base none): skip the positive definite
-        # factorization that fails there (the indefinite type factors either kind)
-        solver.indefinite = True
     stretches = [1.0]
     last = None  # s: the longest sample so far (the next one's budget, STEP_BUDGET)
     x, prev, p_start = None, None, None
     s = 1.0
     while True:
         s = s + direction * step
-        if direction > 0 and s > MAX_STRETCH + 1e-9:
-            curve.end = f"the range followed (mean stretch {s - step:.2f})"
-            break
-        if direction < 0 and s < MIN_STRETCH - 1e-9:
-            # the next sample would leave under COLLAPSE_VOLUME: the walls about to meet
-            curve.collapse_pressure_kpa = min(curve.pressure_kpa)
-            curve.end = f"the cavity is nearly empty, at {stretches[-1] ** 3:.3f} V0"
-            break
-        if deadline is not None and time.monotonic() > deadline:
-            curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
+        if _out_of_range(curve, s, step, direction, stretches, deadline):
             break
         growth = v0 * (s**3 - 1.0)
         load = chamber_load(model, k, growth) if alone else Load.together(r, growth)
-        timed = options
-        if last is not None:
-            timed = replace(options, max_seconds=max(budget[0] * last, budget[1]))
-        elif np.any(getattr(model, "body_force_mn", 0.0)):
-            timed = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
         try:
             res = solve_state(
                 model,
@@ -207,7 +187,7 @@ def follow(
                 x_start=x,
                 load_start=prev,
                 pressure_start=p_start,
-                options=timed,
+                options=_sample_options(model, options, last, budget),
                 solver=solver,
                 label=f"chamber {name}",
             )
@@ -218,15 +198,7 @@ def follow(
                 if progress:
                     progress(f"limits: chamber {name}: no equilibrium; a step of {step:.3g}")
                 continue
-            why = (
-                "no equilibrium found within the time"
-                if isinstance(exc, OutOfTime)
-                else "no equilibrium"
-            )
-            curve.end = f"{why} at {s**3:.2f} V0"
-            curve.failed = True
-            if direction < 0:
-                curve.collapse_pressure_kpa = min(curve.pressure_kpa)
+            _no_equilibrium(curve, exc, s, direction)
             break
         x, prev, p_start = res.x, load, res.pressure_kpa
         last = max(last or 0.0, res.solve_ms / 1e3)
@@ -249,34 +221,102 @@ def follow(
             break
         if passed and beyond is not None:
             (budget, halvings), beyond = beyond, None
-        pr = np.array(curve.pressure_kpa)
-        bound = levels_off_below(model, pr, s, step)
-        if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
-            curve.limit_bound_kpa = bound
-            curve.end = f"the pressure levels off below {bound:.3g} kPa"
+        if _levels_off(model, curve, s, step, direction, stop_beyond_kpa):
             break
-        if direction > 0:
-            top = int(np.argmax(pr))
-            if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
-                s_top, p_top = peak(np.array(stretches), pr, top)
-                curve.limit_pressure_kpa = p_top
-                curve.limit_growth_mm3 = v0 * (s_top**3 - 1.0)
-                curve.end = "past the limit point"
-                break
-        else:
-            low = int(np.argmin(pr))
-            why = None
-            if np.any(res.chamber_volume_mm3 <= COLLAPSE_VOLUME * model.chamber_rest_volume_mm3):
-                why = "the cavity's volume is gone"
-            elif res.min_det_f <= COLLAPSE_DET_F:
-                why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
-            elif low < len(pr) - 1 and len(pr) - 1 - low >= fall_steps:
-                why = "the wall buckles in (the suction falls off)"
-            if why:
-                curve.collapse_pressure_kpa = float(pr[low])
-                curve.end = why
-                break
+        if _turned(model, curve, stretches, res, direction, fall_steps):
+            break
     return curve
+
+
+def _curve_solver(model, solver, options: SolverOptions | None):
+    """The linear solver a curve's samples share: `solver`, or the model's of the
+    options' kind (PCG without options)."""
+    solver = solver or model.make_solver(options.linear_solver if options else "pcg")
+    if len(getattr(model, "pinned_dofs", ())) and hasattr(solver, "indefinite"):
+        # on the 3-2-1 support the tangents at the Newton iterates of the first sample
+        # already had 3 negative eigenvalues (the thick sphere, inflated and sucked in;
+        # the default Fruit on its fixed base none): skip the positive definite
+        # factorization that fails there (the indefinite type factors either kind)
+        solver.indefinite = True
+    return solver
+
+
+def _out_of_range(curve, s, step, direction, stretches, deadline) -> bool:
+    """Whether the next sample, at mean stretch `s`, leaves the range followed or comes
+    after the deadline; then the curve's end (and collapse pressure) says so."""
+    if direction > 0 and s > MAX_STRETCH + 1e-9:
+        curve.end = f"the range followed (mean stretch {s - step:.2f})"
+        return True
+    if direction < 0 and s < MIN_STRETCH - 1e-9:
+        # the next sample would leave under COLLAPSE_VOLUME: the walls about to meet
+        curve.collapse_pressure_kpa = min(curve.pressure_kpa)
+        curve.end = f"the cavity is nearly empty, at {stretches[-1] ** 3:.3f} V0"
+        return True
+    if deadline is not None and time.monotonic() > deadline:
+        curve.end = f"the time budget (mean stretch {stretches[-1]:.2f})"
+        return True
+    return False
+
+
+def _sample_options(model, options: SolverOptions, last, budget) -> SolverOptions:
+    """A sample's solver options: after the first, at most budget[0] times the longest
+    sample so far `last` (s) or budget[1] s; the first, under a body force, in at least
+    FIRST_STEPS load steps."""
+    if last is not None:
+        return replace(options, max_seconds=max(budget[0] * last, budget[1]))
+    if np.any(getattr(model, "body_force_mn", 0.0)):
+        return replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
+    return options
+
+
+def _no_equilibrium(curve, exc, s, direction) -> None:
+    """End the curve at the sample at mean stretch `s` that found no equilibrium."""
+    why = "no equilibrium found within the time" if isinstance(exc, OutOfTime) else "no equilibrium"
+    curve.end = f"{why} at {s**3:.2f} V0"
+    curve.failed = True
+    if direction < 0:
+        curve.collapse_pressure_kpa = min(curve.pressure_kpa)
+
+
+def _levels_off(model, curve, s, step, direction, stop_beyond_kpa) -> bool:
+    """Whether an inflation's curve levels off below the pressure asked
+    (`levels_off_below`); then the bound and the end are the curve's."""
+    bound = levels_off_below(model, np.array(curve.pressure_kpa), s, step)
+    if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
+        curve.limit_bound_kpa = bound
+        curve.end = f"the pressure levels off below {bound:.3g} kPa"
+        return True
+    return False
+
+
+def _turned(model, curve, stretches, res, direction: int, fall_steps: int) -> bool:
+    """Whether the curve turned at its last sample `res`: an inflation `fall_steps`
+    samples past its peak (the limit point, `peak`), or a suction collapsing (the
+    cavity's volume gone, elements about to invert, or `fall_steps` samples past the
+    lowest pressure); then the limit or collapse and the end are the curve's."""
+    pr = np.array(curve.pressure_kpa)
+    if direction > 0:
+        top = int(np.argmax(pr))
+        if 0 < top < len(pr) - 1 and len(pr) - 1 - top >= fall_steps:
+            s_top, p_top = peak(np.array(stretches), pr, top)
+            curve.limit_pressure_kpa = p_top
+            curve.limit_growth_mm3 = curve.rest_volume_mm3 * (s_top**3 - 1.0)
+            curve.end = "past the limit point"
+            return True
+        return False
+    low = int(np.argmin(pr))
+    why = None
+    if np.any(res.chamber_volume_mm3 <= COLLAPSE_VOLUME * model.chamber_rest_volume_mm3):
+        why = "the cavity's volume is gone"
+    elif res.min_det_f <= COLLAPSE_DET_F:
+        why = f"elements are about to invert (det F = {res.min_det_f:.2f})"
+    elif low < len(pr) - 1 and len(pr) - 1 - low >= fall_steps:
+        why = "the wall buckles in (the suction falls off)"
+    if why:
+        curve.collapse_pressure_kpa = float(pr[low])
+        curve.end = why
+        return True
+    return False
 
 
 SCREEN_GROWTH = 1.0

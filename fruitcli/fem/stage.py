@@ -363,11 +363,7 @@ def run_simulate(
     model = build_model(scene, mesh)
     for note in model.notes:
         progress(f"simulate: {note}")
-    if pressures is None:
-        loads = state_loads(scene, model.chamber_names)
-    else:
-        table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
-        loads = [Load.pressures(row) for row in table]
+    loads = _loads(scene, model, pressures)
     solver = model.make_solver(scene.solver.linear_solver)
     keys = (
         [f"--pressures {c}_kpa" for c in model.chamber_names]
@@ -381,67 +377,11 @@ def run_simulate(
             limits.check_pressures(
                 model, asked, keys, solver, solver_options(scene), progress=progress
             )
-    results, x, p, prev = [], None, None, None
-    for i, load in enumerate(loads):
-        opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
-        try:
-            res = solve_state(
-                model,
-                load,
-                x_start=x,
-                load_start=prev,
-                pressure_start=p,
-                options=opts,
-                solver=solver,
-                label=f"state {i}",
-                progress=lambda msg: progress(f"simulate: {msg}"),
-            )
-        except SolverError as exc:  # past a limit the check screened out? name it
-            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc, progress)
-        results.append(res)
-        x, p, prev = res.x, res.pressure_kpa, load
-        progress(state_line(i, len(loads), [r.solve_ms for r in results], res))
-    out = {
-        "model": np.array("full"),
-        "rest_nodes": model.rest,
-        "tets": model.tets,
-        "surface_tris": mesh["surface_tris"],
-        "element": np.array(model.element_name),
-        "material_model": np.array(model.material_name),
-        "elements": model.elements,
-        "displacement_mm": np.stack([r.displacement_mm for r in results]),
-        "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(len(loads), -1),
-        "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(
-            len(loads), -1
-        ),
-        "chamber_names": np.array(model.chamber_names, dtype=str).reshape(-1),
-        "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
-        "iterations": np.array([r.iterations for r in results]),
-        "residual": np.array([r.residual for r in results]),
-        "solve_ms": np.array([r.solve_ms for r in results]),
-        "subdivisions": np.array([r.subdivisions for r in results]),
-        "min_det_f": np.array([r.min_det_f for r in results]),
-    }
+    results = _solve_states(scene, model, loads, keys, solver, progress)
+    out = _states_arrays(model, mesh, results)
     off_body = _off_body(mesh)
     if taxels_xyz is not None:
-        taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
-        tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
-        beyond = off_body(taxels, outside)
-        where = taxels_source or "the taxels"
-        for k in np.flatnonzero(beyond > 0):
-            progress(
-                f"simulate: warning: taxel {k} (row {k + 1} of {where}) lies "
-                f"{beyond[k]:.2f} mm farther outside the mesh than the surface it meshes "
-                f"does: off the body; it follows by extrapolation (check {where} or "
-                "[mesh].size_mm)"
-            )
-        states_x = np.stack([r.x for r in results])
-        out.update(
-            taxel_tet=tet,
-            taxel_bary=w,
-            taxel_outside=outside,
-            taxels_mm=model.map_points(tet, w, states_x),
-        )
+        out.update(_taxel_arrays(model, results, taxels_xyz, off_body, taxels_source, progress))
     summary_yarns = None
     if tracks is not None:
         tr = scene.tracks
@@ -476,3 +416,86 @@ def run_simulate(
         "notes": model.notes,
         "linear_solver": solver.stats | {"method": solver.method},
     } | ({"yarns": summary_yarns} if summary_yarns else {})
+
+
+def _loads(scene, model, pressures) -> list:
+    """The states' loads: the scene's actuation states, or the pressure vectors of
+    `pressures` {chamber: (S,) kPa}."""
+    if pressures is None:
+        return state_loads(scene, model.chamber_names)
+    table = np.stack([np.asarray(pressures[c], float) for c in model.chamber_names], 1)
+    return [Load.pressures(row) for row in table]
+
+
+def _solve_states(scene, model, loads, keys, solver, progress) -> list:
+    """Each load's equilibrium, from the last one's (a failure past a chamber's limit
+    named by `limits.explain_failure`); one progress line per state."""
+    results, x, p, prev = [], None, None, None
+    for i, load in enumerate(loads):
+        opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
+        try:
+            res = solve_state(
+                model,
+                load,
+                x_start=x,
+                load_start=prev,
+                pressure_start=p,
+                options=opts,
+                solver=solver,
+                label=f"state {i}",
+                progress=lambda msg: progress(f"simulate: {msg}"),
+            )
+        except SolverError as exc:  # past a limit the check screened out? name it
+            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc, progress)
+        results.append(res)
+        x, p, prev = res.x, res.pressure_kpa, load
+        progress(state_line(i, len(loads), [r.solve_ms for r in results], res))
+    return results
+
+
+def _states_arrays(model, mesh, results) -> dict:
+    """The arrays of states.npz but the taxels' (see the module docstring)."""
+    n = len(results)
+    return {
+        "model": np.array("full"),
+        "rest_nodes": model.rest,
+        "tets": model.tets,
+        "surface_tris": mesh["surface_tris"],
+        "element": np.array(model.element_name),
+        "material_model": np.array(model.material_name),
+        "elements": model.elements,
+        "displacement_mm": np.stack([r.displacement_mm for r in results]),
+        "pressure_kpa": np.stack([r.pressure_kpa for r in results]).reshape(n, -1),
+        "chamber_volume_mm3": np.stack([r.chamber_volume_mm3 for r in results]).reshape(n, -1),
+        "chamber_names": np.array(model.chamber_names, dtype=str).reshape(-1),
+        "chamber_rest_volume_mm3": model.chamber_rest_volume_mm3,
+        "iterations": np.array([r.iterations for r in results]),
+        "residual": np.array([r.residual for r in results]),
+        "solve_ms": np.array([r.solve_ms for r in results]),
+        "subdivisions": np.array([r.subdivisions for r in results]),
+        "min_det_f": np.array([r.min_det_f for r in results]),
+    }
+
+
+def _taxel_arrays(model, results, taxels_xyz, off_body, taxels_source, progress) -> dict:
+    """The taxels' arrays of states.npz: each taxel's tet, barycentric weights, whether
+    it lies outside the mesh, and its positions (S, T, 3) mm in every state; a warning
+    for each taxel off the body."""
+    taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
+    tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
+    beyond = off_body(taxels, outside)
+    where = taxels_source or "the taxels"
+    for k in np.flatnonzero(beyond > 0):
+        progress(
+            f"simulate: warning: taxel {k} (row {k + 1} of {where}) lies "
+            f"{beyond[k]:.2f} mm farther outside the mesh than the surface it meshes "
+            f"does: off the body; it follows by extrapolation (check {where} or "
+            "[mesh].size_mm)"
+        )
+    states_x = np.stack([r.x for r in results])
+    return {
+        "taxel_tet": tet,
+        "taxel_bary": w,
+        "taxel_outside": outside,
+        "taxels_mm": model.map_points(tet, w, states_x),
+    }

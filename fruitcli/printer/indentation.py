@@ -52,20 +52,20 @@ class BenchStopped(FruitError):
 def bench_samples(scene, taxels, states_npz) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(sample ids (m,), contact points (m, 3) model mm, highest model z mm, samples in
     all): the virtual bench's sample points over the surface."""
+    from fruitcli.sensing.bench_stage import sample_points
     from fruitcli.sensing.detection.locate import load_states
-    from fruitcli.sensing.stages import _sample_points
 
     if states_npz is not None:
         states = load_states(states_npz, len(taxels))
         state = scene.bench.state
         taxels_mm = states.taxels_mm[state]
-        xy = _sample_points(scene, taxels_mm)
+        xy = sample_points(scene, taxels_mm)
         nodes = states.nodes_mm(state)
         z = surface_heights(xy, nodes, states.surface_tris)
         top = float(nodes[:, 2].max())
     else:
         taxels_mm = taxels.xyz_mm
-        xy = _sample_points(scene, taxels_mm)
+        xy = sample_points(scene, taxels_mm)
         z = taxel_surface_heights(xy, taxels_mm)
         top = float(taxels_mm[:, 2].max())
     ids = np.flatnonzero(np.isfinite(z))
@@ -223,16 +223,12 @@ def run_printer_bench(
 ) -> dict:
     """Run the bench on a printer and a board; -> summary. Raises BenchStopped (after
     saving what was recorded) when it cannot finish."""
-    from fruitcli.sensing.live.serial_ports import FrameReader, open_port
+    from fruitcli.sensing.live.serial_ports import FrameReader
 
     say = progress or (lambda msg: None)
     pr = scene.printer
     out = Path(out_dir) / indenter
-    if (out / "frames.npz").exists() and not overwrite:
-        raise BenchStopped(
-            f"{out / 'frames.npz'}: exists; give --overwrite to replace it "
-            "(it is replaced once the new run has frames)"
-        )
+    _check_overwrite(out / "frames.npz", overwrite)
     taxels = read_taxels(taxels_csv, FrameError)
     board = scene.board
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
@@ -244,33 +240,16 @@ def run_printer_bench(
     if not len(ids):
         raise BenchStopped(f"{scene.path.name}: no sample point over the taxels' surface")
     z_safe = check_reach(pr, placement, contact, top, scene.path.name)
-    feed, step = pr.feed_mm_min, pr.step_mm
+    feed = pr.feed_mm_min
     say(
         f"{len(ids)} samples ({n_all - len(ids)} off the surface left out), safe height "
         f"z = {z_safe:.2f} mm, {indenter} indenter"
     )
-    ser = open_port(printer_port, pr.baud)
-    try:
-        bser = open_port(board_port, board_baud)
-    except FrameError:
-        ser.close()
-        raise
+    ser, bser = _open_ports(printer_port, pr.baud, board_port, board_baud)
     printer = Marlin(ser, printer_port, pr.timeout_s, log=say)
     stream = BoardStream(FrameReader(bser, board.rows, board.cols, board_port, fmt))
     log = BenchLog()
-    meta = {
-        "source": "printer bench",
-        "scene": scene.name,
-        "indenter": indenter,
-        "printer_port": printer_port,
-        "board_port": board_port,
-        "step_mm": step,
-        "threshold_counts": threshold,
-        "baseline_frames": n_base,
-        "model_origin_mm": list(placement.origin),
-        "rotate_z_deg": pr.rotate_z_deg,
-        "stopped": "",
-    }
+    meta = _bench_meta(scene, indenter, (printer_port, board_port), n_base, placement)
     where = "start-up"
     tip = None
     try:
@@ -284,10 +263,7 @@ def run_printer_bench(
         tip = np.array([x0, y0, z_safe])
         _move(printer, tip, feed)
         printer.finish_moves()
-        for _ in range(n_base):
-            counts, t_s = stream.next_frame_after()
-            log.add(counts, t_s, tip)
-        c0 = np.mean([f[rows, cols] for f in log.frames], axis=0)
+        c0 = _baseline(stream, log, tip, n_base, (rows, cols))
         say(f"baseline from {n_base} frames ({stream.reader.format} board)")
         for n, (k, p_model) in enumerate(zip(ids, contact, strict=True)):
             where = f"sample {k} (model x {p_model[0]:.2f}, y {p_model[1]:.2f} mm)"
@@ -305,43 +281,18 @@ def run_printer_bench(
             _move(printer, tip, feed)
             printer.finish_moves()
             check_position(printer, tip, where)
-            while True:
-                counts, t_s = stream.next_frame_after()
-                if np.any(counts[rows, cols] - c0 > threshold):
-                    log.add(counts, t_s, tip, int(k))
-                    check_position(printer, tip, where)
-                    log.truth.append((int(k), p_model))
-                    break
-                log.add(counts, t_s, tip)
-                z = tip[2] - step
-                if z < z_low - 1e-9:
-                    raise BenchStopped(
-                        f"{where}: no touch registered down to "
-                        f"[printer].max_press_mm = {pr.max_press_mm:g} mm "
-                        "below the expected surface"
-                    )
-                tip = np.array([p[0], p[1], z])
-                _move(printer, tip, feed)
-                printer.finish_moves()
+            # the descent keeps x, y: a stop within it retracts from the same place
+            bar = (c0, (rows, cols), threshold)
+            _press(printer, stream, log, tip, (int(k), p_model), bar, pr, z_low, where)
             tip = np.array([p[0], p[1], z_safe])
             _move(printer, tip, feed)
             say(f"{where}: touch at printer z {log.printer_mm[-1][2]:.2f} mm ({n + 1}/{len(ids)})")
         printer.finish_moves()
     except (FruitError, KeyboardInterrupt) as exc:
-        stopped = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else str(exc)
-        meta["stopped"] = f"{where}: {stopped}" if where not in stopped else stopped
+        meta["stopped"] = _stop_line(exc, where)
         retracted = retract(printer, tip, z_safe, feed, exc)
         log.save(out, meta, indenter)
-        kept = (
-            f"{len(log.frames)} frames and {len(log.truth)} samples kept in {out}"
-            if log.frames
-            else "no frame recorded"
-        )
-        tail = "" if retracted or tip is None else " (not retracted: the printer does not answer)"
-        if isinstance(exc, KeyboardInterrupt):
-            raise BenchInterrupted(f"interrupted at {where}; {kept}{tail}") from None
-        msg = str(exc) if where in str(exc) else f"{where}: {exc}"
-        raise BenchStopped(f"{msg}; {kept}{tail}") from None
+        raise _stopped(exc, where, log, out, retracted or tip is None) from None
     finally:
         stream.close()
         ser.close()
@@ -359,6 +310,119 @@ def run_printer_bench(
 
 class BenchInterrupted(BenchStopped):
     """Ctrl-C: everything recorded was saved and the tip retracted."""
+
+
+def _press(
+    printer: Marlin,
+    stream: BoardStream,
+    log: BenchLog,
+    tip: np.ndarray,
+    sample: tuple[int, np.ndarray],
+    bar: tuple,
+    pr: Any,
+    z_low: float,
+    where: str,
+) -> None:
+    """Lower the tip from `tip` (x, y, z) mm in [printer].step_mm steps until a frame
+    closes `sample` (id, model point mm): `bar` = (baseline counts c0 (T,), the taxels'
+    board cells (rows, cols), threshold counts), a touch when some taxel rises more than
+    the threshold over c0. BenchStopped below z = `z_low` mm (`pr`: the [printer] record)."""
+    c0, (rows, cols), threshold = bar
+    k, p_model = sample
+    while True:
+        counts, t_s = stream.next_frame_after()
+        if np.any(counts[rows, cols] - c0 > threshold):
+            log.add(counts, t_s, tip, k)
+            check_position(printer, tip, where)
+            log.truth.append((k, p_model))
+            return
+        log.add(counts, t_s, tip)
+        z = tip[2] - pr.step_mm
+        if z < z_low - 1e-9:
+            raise BenchStopped(
+                f"{where}: no touch registered down to "
+                f"[printer].max_press_mm = {pr.max_press_mm:g} mm "
+                "below the expected surface"
+            )
+        tip = np.array([tip[0], tip[1], z])
+        _move(printer, tip, pr.feed_mm_min)
+        printer.finish_moves()
+
+
+def _check_overwrite(frames_npz: Path, overwrite: bool) -> None:
+    """Refuse to replace an earlier run's frames without --overwrite."""
+    if frames_npz.exists() and not overwrite:
+        raise BenchStopped(
+            f"{frames_npz}: exists; give --overwrite to replace it "
+            "(it is replaced once the new run has frames)"
+        )
+
+
+def _open_ports(printer_port: str, baud: int, board_port: str, board_baud: int) -> tuple:
+    """(the printer's port, the board's port), open; neither is left open on a failure."""
+    from fruitcli.sensing.live.serial_ports import open_port
+
+    ser = open_port(printer_port, baud)
+    try:
+        bser = open_port(board_port, board_baud)
+    except FrameError:
+        ser.close()
+        raise
+    return ser, bser
+
+
+def _bench_meta(scene, indenter: str, ports: tuple[str, str], n_base: int, placement) -> dict:
+    """The recording's meta: the scene, indenter, ports (printer, board), the bench's
+    settings and the model's placement on the bed; "stopped" is set when it stops."""
+    pr = scene.printer
+    return {
+        "source": "printer bench",
+        "scene": scene.name,
+        "indenter": indenter,
+        "printer_port": ports[0],
+        "board_port": ports[1],
+        "step_mm": pr.step_mm,
+        "threshold_counts": scene.detection.threshold_counts,
+        "baseline_frames": n_base,
+        "model_origin_mm": list(placement.origin),
+        "rotate_z_deg": pr.rotate_z_deg,
+        "stopped": "",
+    }
+
+
+def _baseline(
+    stream: BoardStream, log: BenchLog, tip: np.ndarray, n_base: int, cells: tuple
+) -> np.ndarray:
+    """The taxels' idle counts C0 (T,): the mean of the next `n_base` frames at the
+    taxels' board `cells` (rows, cols), each frame logged at `tip`."""
+    for _ in range(n_base):
+        counts, t_s = stream.next_frame_after()
+        log.add(counts, t_s, tip)
+    rows, cols = cells
+    return np.mean([f[rows, cols] for f in log.frames], axis=0)
+
+
+def _stop_line(exc: BaseException, where: str) -> str:
+    """The recording's meta "stopped": where the bench stopped and why."""
+    stopped = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else str(exc)
+    return f"{where}: {stopped}" if where not in stopped else stopped
+
+
+def _stopped(
+    exc: BaseException, where: str, log: BenchLog, out: Path, retracted: bool
+) -> BenchStopped:
+    """The error a stopped bench ends with: where, why, what was kept in `out`, and
+    whether the tip was left down (`retracted` False)."""
+    kept = (
+        f"{len(log.frames)} frames and {len(log.truth)} samples kept in {out}"
+        if log.frames
+        else "no frame recorded"
+    )
+    tail = "" if retracted else " (not retracted: the printer does not answer)"
+    if isinstance(exc, KeyboardInterrupt):
+        return BenchInterrupted(f"interrupted at {where}; {kept}{tail}")
+    msg = str(exc) if where in str(exc) else f"{where}: {exc}"
+    return BenchStopped(f"{msg}; {kept}{tail}")
 
 
 def retract(printer: Marlin, tip, z_safe: float, feed: float, exc) -> bool:

@@ -14,7 +14,9 @@ Sub-packages, by concept (each states what it may import in its own docstring):
 - `live`: the live loop on a board over serial: ports, reconnecting, recording, the run
   log, an emulated board on a pseudo-terminal.
 
-`stages` holds the sensing stages as file-to-file functions (locate, bench, sensitivity).
+The sensing stages as file-to-file functions, one module each: `locate_stage`,
+`bench_stage`, `sensitivity_stage` (`stages` offers all three); `locator_setup` builds
+what locating a recording needs (the locator, the surface projector, the skin's heights).
 May import: the sub-packages above, `fruitcli.geometry`, `fruitcli.fem`,
 `fruitcli.electrostatics`, `fruitcli.scene`; never `fruitcli.workflow` or `fruitcli.cli`.
 """

@@ -37,7 +37,7 @@ def variant_figures(scene, folder: Path) -> dict:
     iterations, max displacement mm, median ms per state), Table I rows (n, mean and
     std error mm) and sensitivity (noise std, baseline shift, counts)."""
     from fruitcli.workflow.planner import Context
-    from fruitcli.workflow.stages import taxels_path
+    from fruitcli.workflow.stage_paths import taxels_path
 
     ctx = Context(Path(folder))
     out: dict = {}

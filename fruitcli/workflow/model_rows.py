@@ -39,12 +39,12 @@ def _run(scene, ctx, out_dir):
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.stages import run_locate
     from fruitcli.studies.locate_methods import CALIBRATION_INDENTER, calibrated_skin
-    from fruitcli.workflow import stages as st
+    from fruitcli.workflow import stage_paths as st
 
     out_dir = Path(out_dir)
     taxels, states = st.taxels_path(scene, ctx), st.states_path(scene, ctx)
     surface = st.solid_path(scene, ctx)
-    unit = scene.geometry.unit if st._geometry_kind(scene) == "solid" else "mm"
+    unit = scene.geometry.unit if st.geometry_kind(scene) == "solid" else "mm"
     board_table = st.crossing_dir(scene, ctx)
     ctx.progress("model-rows: calibrating the skin on another bench run")
     skin = calibrated_skin(
@@ -159,7 +159,7 @@ def model_share(touches_csv: Path) -> float | None:
 
 
 def _reads():
-    from fruitcli.workflow.stages import DEFORMS
+    from fruitcli.workflow.stage_paths import DEFORMS
 
     return (*DEFORMS, "bench", "board", "detection", "skin", "grid", "geometry") + (
         "scene.configuration",

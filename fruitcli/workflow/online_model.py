@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from fruitcli.errors import FrameError
 from fruitcli.workflow import planner
 from fruitcli.workflow.scene_outputs import shared_outputs
-from fruitcli.workflow.stages import taxels_path
+from fruitcli.workflow.stage_paths import taxels_path
 
 if TYPE_CHECKING:
     from fruitcli.fem.online import OnlineSolver, ReducedOnline

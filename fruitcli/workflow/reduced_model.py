@@ -24,8 +24,9 @@ def ensure_reduced(
     from fruitcli.errors import FruitError
     from fruitcli.fem.reduced import model as reduced
     from fruitcli.workflow import planner
+    from fruitcli.workflow.fem_stages import wanting_reduced
     from fruitcli.workflow.scene_outputs import shared_outputs
-    from fruitcli.workflow.stages import reduced_path, wanting_reduced
+    from fruitcli.workflow.stage_paths import reduced_path
 
     sc = wanting_reduced(scene)
     if taxels_csv is not None:

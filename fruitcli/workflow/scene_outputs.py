@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fruitcli.workflow import planner
-from fruitcli.workflow.stages import states_path, taxels_path
+from fruitcli.workflow.stage_paths import states_path, taxels_path
 
 if TYPE_CHECKING:
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
@@ -38,7 +38,7 @@ def crossing_response(scene, out_root=None, progress=None) -> CrossingSkin | Non
     out/<scene name>, reused while the cell's inputs are unchanged) or, when nothing in
     the scene needs that stage, computed now."""
     from fruitcli.sensing.skin.crossing_skin import crossing_skin
-    from fruitcli.workflow.stages import electrostatic
+    from fruitcli.workflow.stage_paths import electrostatic
 
     if not electrostatic(scene):
         return None

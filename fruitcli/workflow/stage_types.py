@@ -1,6 +1,6 @@
 """The types the planner and the stage table share: a stage, a planned step, and the
-context stages run in. Both `planner` and `stages` import this module; it imports
-neither.
+context stages run in. The planner and the stage modules import this module; it imports
+none of them.
 """
 
 from __future__ import annotations

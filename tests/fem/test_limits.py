@@ -24,7 +24,7 @@ from fruitcli.fem.solver.c_output import captured_output
 from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
 from fruitcli.fem.stage import run_simulate, run_tetra
 from fruitcli.scene import parse_scene
-from tests.fem.test_mesh import ball_scene, inflation_pressure, octant_ball
+from tests.fem.meshing.test_mesh import ball_scene, inflation_pressure, octant_ball
 
 LIMIT_B_OVER_A_2 = 0.8164  # max P / mu of the incompressible sphere, B / A = 2
 STRETCH_AT_LIMIT = 1.828

@@ -187,7 +187,7 @@ def test_orient_faces_without_networkx():
 
 
 def test_densify_splits_long_triangles_only():
-    from fruitcli.geometry.tracks.reduce import densify
+    from fruitcli.geometry.tracks.densify import densify
 
     box = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
     v, f, edge = densify(box.vertices, box.faces, 5.0)
@@ -198,7 +198,7 @@ def test_densify_splits_long_triangles_only():
 
 
 def test_densify_cuts_long_strips_along_their_length_only():
-    from fruitcli.geometry.tracks.reduce import densify
+    from fruitcli.geometry.tracks.densify import densify
 
     # a column's side: 128 strips 150 mm x 0.79 mm; cutting each face in four until the
     # 150 mm edges were short cut the strips across as well (281k faces, 0.006 mm edges)

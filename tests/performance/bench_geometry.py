@@ -113,11 +113,12 @@ def winding_step(v, f) -> None:
     """Time what make-tracks does for the inside on a mesh that is not closed."""
     from fruitcli.geometry.mesh import load, winding
     from fruitcli.geometry.tracks import reduce
+    from fruitcli.geometry.tracks.densify import densify
 
     t0, c0 = time.perf_counter(), time.process_time()
     s = load.clean(v, f)
     h = reduce.grid_for_faces(s.vertices, s.faces, 5000)
-    dv, df, _ = reduce.densify(s.vertices, s.faces, 3 * h)
+    dv, df, _ = densify(s.vertices, s.faces, 3 * h)
     t1, c1 = time.perf_counter(), time.process_time()
     one_sheet = s.parts == 1 and s.non_manifold_edges == 0  # as make-tracks decides
     inside = reduce.Inside(dv, df, all_faces_bound=False, holes=True)

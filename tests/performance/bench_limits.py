@@ -32,8 +32,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def sphere_refinement() -> None:
     from fruitcli.fem import limits
+    from tests.fem.meshing.test_mesh import octant_ball
     from tests.fem.test_limits import LIMIT_B_OVER_A_2, radial_pressure
-    from tests.fem.test_mesh import octant_ball
 
     print("thick sphere B/A = 2, nu = 0.49, p2 octant: limit pressure by volume control")
     print("cells  layers  tets  limit/mu  err vs closed form  err vs radial  s")

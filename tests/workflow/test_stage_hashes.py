@@ -159,7 +159,7 @@ def ball_scene(d: Path) -> Path:
     modulus: the limits stage follows its chamber to the limit before simulate."""
     import trimesh
 
-    from tests.fem.test_mesh import BALL
+    from tests.fem.meshing.test_mesh import BALL
 
     trimesh.creation.icosphere(3, 20.0).export(d / "ball.stl")
     text = BALL.format(size=8.0, half=4.0, element="p2", model="neo-hookean", nu=0.45, p=20.0)

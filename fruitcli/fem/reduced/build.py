@@ -167,66 +167,21 @@ def build(
     t0 = time.perf_counter()
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     k, n = len(lo), int(points_per_axis)
-    if k == 0:
-        raise SceneError("[reduced]: the body has no chambers: nothing to reduce")
-    if n < 2 or max_degree < 1 or validation < 1:
-        raise SceneError(
-            "[reduced]: expected points_per_axis >= 2, max_degree >= 1, validation >= 1"
-        )
-    if np.any(hi <= lo):
-        raise SceneError(f"[reduced]: empty pressure range {lo.tolist()}..{hi.tolist()} kPa")
+    _check_box(lo, hi, n, max_degree, validation)
     grid_idx = rs.snake_grid(k, n)
     xi_grid = rs.lobatto_points(n)[grid_idx]
     p_grid = lo + (xi_grid + 1.0) / 2.0 * (hi - lo)
     rng = np.random.default_rng(seed)
     p_val = lo + rng.random((validation, k)) * (hi - lo)
     solves = _Solves(model, options, first_options, progress, len(p_grid) + validation)
-    # the grid from its corner nearest rest (snake order from the zero-pressure end)
-    if np.linalg.norm(p_grid[-1]) < np.linalg.norm(p_grid[0]):
-        order = np.arange(len(p_grid))[::-1]
-    else:
-        order = np.arange(len(p_grid))
-    for i in order:
-        solves.solve(p_grid[i])
-    grid_rows = np.empty(len(p_grid), np.int64)
-    grid_rows[order] = np.arange(len(p_grid))
-    # held-out vectors along a nearest-neighbour path, each from the nearest solved state
-    todo, prev = list(range(validation)), p_grid[order[-1]]
-    val_rows = np.empty(validation, np.int64)
-    while todo:
-        j = min(todo, key=lambda v: np.linalg.norm(p_val[v] - prev))
-        todo.remove(j)
-        solves.solve(p_val[j])
-        val_rows[j] = len(solves.p) - 1
-        prev = p_val[j]
+    grid_rows, val_rows = _solve_samples(solves, p_grid, p_val)
     fit_s = time.perf_counter()
     tax_g, vol_g, u_g = _outputs(model, solves, grid_rows, taxel_tet, taxel_bary)
     tax_v, vol_v, u_v = _outputs(model, solves, val_rows, taxel_tet, taxel_bary)
     xi_val = rs.scale(p_val, lo, hi)
-    # degree by leave-one-out on the grid; the held-out figures for every degree and
-    # nested coarser grid are kept for the report
-    degrees = list(range(1, min(max_degree, n - 1) + 1))
-    loo_max, study = [], []
-    for d in degrees:
-        phi = rs.basis(xi_grid, rs.exponents(k, d))
-        loo = rs.leave_one_out(phi, np.hstack([tax_g, vol_g]))
-        loo_max.append(float(taxel_errors(loo[:, : tax_g.shape[1]], 0 * tax_g).max()))
-    for m in [m for m in range(2, n + 1) if (n - 1) % (m - 1) == 0]:
-        step = (n - 1) // (m - 1)
-        keep = np.all(grid_idx % step == 0, axis=1)
-        for d in range(1, min(max_degree, m - 1) + 1):
-            exps = rs.exponents(k, d)
-            c = rs.fit(rs.basis(xi_grid[keep], exps), np.hstack([tax_g[keep], vol_g[keep]]))
-            pred = rs.basis(xi_val, exps) @ c
-            study.append(
-                [
-                    m,
-                    d,
-                    int(keep.sum()),
-                    taxel_errors(pred[:, : tax_g.shape[1]], tax_v).max(),
-                    volume_errors(pred[:, tax_g.shape[1] :], vol_v).max(),
-                ]
-            )
+    degrees, loo_max, study = _degree_study(
+        xi_grid, grid_idx, xi_val, (tax_g, vol_g), (tax_v, vol_v), n, max_degree
+    )
     degree = degrees[int(np.argmin(loo_max))]
     exps = rs.exponents(k, degree)
     phi_g = rs.basis(xi_grid, exps)
@@ -272,6 +227,79 @@ def build(
     )
     arrays["build_s"] = np.array(time.perf_counter() - t0)
     return ReducedModel.from_arrays(arrays)
+
+
+def _check_box(lo, hi, n: int, max_degree: int, validation: int) -> None:
+    """Refuse a box [lo, hi] (K,) kPa without chambers or empty, and settings that fit
+    nothing."""
+    k = len(lo)
+    if k == 0:
+        raise SceneError("[reduced]: the body has no chambers: nothing to reduce")
+    if n < 2 or max_degree < 1 or validation < 1:
+        raise SceneError(
+            "[reduced]: expected points_per_axis >= 2, max_degree >= 1, validation >= 1"
+        )
+    if np.any(hi <= lo):
+        raise SceneError(f"[reduced]: empty pressure range {lo.tolist()}..{hi.tolist()} kPa")
+
+
+def _solve_samples(solves, p_grid, p_val) -> tuple[np.ndarray, np.ndarray]:
+    """Solve the grid's pressures (S, K) kPa, then the held-out ones (V, K); -> the rows
+    of `solves` that hold each."""
+    validation = len(p_val)
+    # the grid from its corner nearest rest (snake order from the zero-pressure end)
+    if np.linalg.norm(p_grid[-1]) < np.linalg.norm(p_grid[0]):
+        order = np.arange(len(p_grid))[::-1]
+    else:
+        order = np.arange(len(p_grid))
+    for i in order:
+        solves.solve(p_grid[i])
+    grid_rows = np.empty(len(p_grid), np.int64)
+    grid_rows[order] = np.arange(len(p_grid))
+    # held-out vectors along a nearest-neighbour path, each from the nearest solved state
+    todo, prev = list(range(validation)), p_grid[order[-1]]
+    val_rows = np.empty(validation, np.int64)
+    while todo:
+        j = min(todo, key=lambda v: np.linalg.norm(p_val[v] - prev))
+        todo.remove(j)
+        solves.solve(p_val[j])
+        val_rows[j] = len(solves.p) - 1
+        prev = p_val[j]
+    return grid_rows, val_rows
+
+
+def _degree_study(xi_grid, grid_idx, xi_val, grid, held_out, n: int, max_degree: int) -> tuple:
+    """(degrees, the grid's leave-one-out taxel error (mm) of each, the study rows
+    [points/axis, degree, samples, taxel mm, volume %] on held-out pressures) of the fits
+    to `grid` = (taxels, volumes) at the grid points `xi_grid` (S, K) in [-1, 1], checked
+    against `held_out` = (taxels, volumes) at `xi_val`; `n` points per axis."""
+    (tax_g, vol_g), (tax_v, vol_v) = grid, held_out
+    k = xi_grid.shape[1]
+    # degree by leave-one-out on the grid; the held-out figures for every degree and
+    # nested coarser grid are kept for the report
+    degrees = list(range(1, min(max_degree, n - 1) + 1))
+    loo_max, study = [], []
+    for d in degrees:
+        phi = rs.basis(xi_grid, rs.exponents(k, d))
+        loo = rs.leave_one_out(phi, np.hstack([tax_g, vol_g]))
+        loo_max.append(float(taxel_errors(loo[:, : tax_g.shape[1]], 0 * tax_g).max()))
+    for m in [m for m in range(2, n + 1) if (n - 1) % (m - 1) == 0]:
+        step = (n - 1) // (m - 1)
+        keep = np.all(grid_idx % step == 0, axis=1)
+        for d in range(1, min(max_degree, m - 1) + 1):
+            exps = rs.exponents(k, d)
+            c = rs.fit(rs.basis(xi_grid[keep], exps), np.hstack([tax_g[keep], vol_g[keep]]))
+            pred = rs.basis(xi_val, exps) @ c
+            study.append(
+                [
+                    m,
+                    d,
+                    int(keep.sum()),
+                    taxel_errors(pred[:, : tax_g.shape[1]], tax_v).max(),
+                    volume_errors(pred[:, tax_g.shape[1] :], vol_v).max(),
+                ]
+            )
+    return degrees, loo_max, study
 
 
 def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:

@@ -139,7 +139,15 @@ def _build_tree(cent, leaf):
 def _node_records(t, start, end, child):
     """Each node's centre, radius and expansion coefficients (n, _NODE_FIELDS), children
     first (moments shifted to the parent's centre), radii exact over the corners."""
-    n = start.shape[0]
+    va, area, cen, quad = _triangle_moments(t)
+    centre, big_n, big_m, big_t = _node_moments(start, end, child, va, area, cen, quad)
+    return _pack_records(t, start, end, centre, big_n, big_m, big_t)
+
+
+@njit(cache=True, nogil=True)
+def _triangle_moments(t):
+    """Per triangle of t (m, 9) mm: vector area A n (m, 3), area (m,), centroid (m, 3)
+    and second moment about the centroid per area (m, 3, 3)."""
     m = t.shape[0]
     va = np.zeros((m, 3))  # vector areas A n
     area = np.zeros(m)
@@ -160,6 +168,14 @@ def _node_records(t, start, end, child):
                 for v in range(3):
                     s += (t[k, 3 * v + j] - cen[k, j]) * (t[k, 3 * v + kk] - cen[k, kk])
                 quad[k, j, kk] = s / 12.0
+    return va, area, cen, quad
+
+
+@njit(cache=True, nogil=True)
+def _node_moments(start, end, child, va, area, cen, quad):
+    """Per tree node, children first: its area-weighted centre (n, 3) and the moments of
+    its triangles' vector areas about it, of order 0 (n, 3), 1 (n, 3, 3), 2 (n, 3, 3, 3)."""
+    n = start.shape[0]
     centre = np.zeros((n, 3))
     tot = np.zeros(n)
     big_n = np.zeros((n, 3))
@@ -216,6 +232,14 @@ def _node_records(t, start, end, child):
                                 + big_m[c, i, kk] * delta[j]
                                 + big_n[c, i] * delta[j] * delta[kk]
                             )
+    return centre, big_n, big_m, big_t
+
+
+@njit(cache=True, nogil=True)
+def _pack_records(t, start, end, centre, big_n, big_m, big_t):
+    """The records (n, _NODE_FIELDS): centre, radius exact over the node's corners, and
+    the expansion coefficients from the moments."""
+    n = start.shape[0]
     rec = np.zeros((n, _NODE_FIELDS))
     for nd in range(n):
         r2 = 0.0

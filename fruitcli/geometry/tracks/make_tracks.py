@@ -148,6 +148,7 @@ def _bounding_faces(surf, faces: int, opt: dict, src: str) -> Bounding:
     """The artist surface split finely enough for the distance grid of a `faces`-triangle
     reduced body, keeping the faces that have the inside on one side only."""
     from fruitcli.geometry.tracks import reduce
+    from fruitcli.geometry.tracks.densify import densify
     from fruitcli.memory import require
 
     av, af = surf.vertices, surf.faces
@@ -160,7 +161,7 @@ def _bounding_faces(surf, faces: int, opt: dict, src: str) -> Bounding:
     # long triangles are split so that nearest-vertex distances bound the exact ones closely
     want_edge = MAX_EDGE_PER_GRID * reduce.grid_for_faces(av, af, faces)
     split_cap = len(af) + MAX_SPLIT_FACES_PER_TARGET * faces
-    dv, df, split_edge = reduce.densify(av, af, want_edge, split_cap)
+    dv, df, split_edge = densify(av, af, want_edge, split_cap)
     # one part, every edge shared by at most two faces: every face bounds the inside (the
     # holes are closed by caps); overlapping parts or non-manifold edges: faces inside the
     # union, or fins outside it, are found by the winding number on both their sides

@@ -8,7 +8,7 @@ import numpy as np
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.solver import newton
 from fruitcli.fem.solver.newton import SolverOptions, solve_state
-from tests.fem.test_displacement_tolerance import hollow_cube
+from tests.fem.solver.test_displacement_tolerance import hollow_cube
 
 
 def three_states(m):

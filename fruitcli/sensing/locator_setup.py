@@ -1,0 +1,176 @@
+"""What locating a recording is built from: the `Locator` of its taxels (at rest, at its
+FEM state, along the states or from the reduced model), the projector onto the body's
+surface, and the skin's height model. Units: mm, counts, kPa.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fruitcli.errors import FrameError
+from fruitcli.geometry.body_surface import SurfaceProjector, body_surface
+from fruitcli.scene import Scene, SkinSection, default_scene
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.locate import States, match_chambers
+from fruitcli.sensing.detection.methods import METHODS
+from fruitcli.sensing.frames.board import check_frame_shape
+from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
+from fruitcli.sensing.skin.models import SKIN_MODELS
+from fruitcli.tables import Taxels
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.crossing_heights import CrossingHeights
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.heights import GapLaw
+
+
+def or_defaults(scene: Scene | None) -> Scene:
+    """The scene, or without one a scene at the schema's defaults."""
+    return default_scene() if scene is None else scene
+
+
+def build_locator(
+    scene,
+    taxels: Taxels,
+    states: States | None,
+    rec: ChunkedRecording,
+    settings: Settings,
+    where: str,
+    reduced=None,
+    gain: np.ndarray | None = None,
+    heights=None,
+) -> tuple[Locator, np.ndarray | None]:
+    """The Locator for a recording: rest positions, one state (meta "state", default 0)
+    or the state path when the recording carries chamber pressures; with `reduced` (a
+    ReducedModel of these taxels) and pressures in the recording, each frame's taxels
+    from the reduced model at its pressures; `gain` (T,): the gains detection divides
+    by (None: off); `heights`: the skin's height model (`Locator`). -> (locator,
+    pressure)."""
+    board = or_defaults(scene).board
+    check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
+    if reduced is not None and rec.pressure_kpa is not None:
+        names = tuple(rec.chamber_names)
+        missing = [c for c in reduced.chamber_names if c not in names]
+        if missing:
+            raise FrameError(
+                f"{where}: no pressure for chamber {missing[0]!r} (recording has "
+                f"{', '.join(names) or 'none'})"
+            )
+        cols = np.array([names.index(c) for c in reduced.chamber_names], np.int64)
+        if reduced.coef_taxels.shape[1] != 3 * len(taxels):
+            raise FrameError(
+                f"{where}: {len(taxels)} taxels, but the reduced model follows "
+                f"{reduced.coef_taxels.shape[1] // 3}"
+            )
+        rest = reduced.taxels(np.clip(np.zeros(len(cols)), reduced.lo, reduced.hi))
+        return (
+            Locator(
+                taxels,
+                board,
+                rest,
+                settings,
+                where=where,
+                reduced=reduced,
+                gain=gain,
+                heights=heights,
+            ),
+            rec.pressure_kpa[:, cols],
+        )
+    if states is None:
+        return Locator(
+            taxels, board, taxels.xyz_mm, settings, where=where, gain=gain, heights=heights
+        ), None
+    if rec.pressure_kpa is not None and states.n_states > 1:
+        cols = match_chambers(rec.chamber_names, states, where)
+        return (
+            Locator(
+                taxels,
+                board,
+                states.taxels_mm,
+                settings,
+                states.pressure_kpa,
+                where,
+                gain,
+                heights=heights,
+            ),
+            rec.pressure_kpa[:, cols],
+        )
+    state = int(rec.meta.get("state", 0))
+    if not 0 <= state < states.n_states:
+        raise FrameError(
+            f"{where}: meta state {state} not in the states (0..{states.n_states - 1})"
+        )
+    return Locator(
+        taxels, board, states.taxels_mm[state], settings, where=where, gain=gain, heights=heights
+    ), None
+
+
+def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
+    """Taxel positions (T, 3) mm of the recording's state (rest without states)."""
+    return taxels.xyz_mm if states is None else states.taxels_mm[state]
+
+
+def surface_projector(
+    scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str, method=None
+) -> SurfaceProjector | None:
+    """The `SurfaceProjector` of ``[detection].project = "surface"``, or of the model
+    method (its fitted points go onto the body's surface when the surface is known and
+    the recording stays at one state); None otherwise."""
+    detection = or_defaults(scene).detection
+    if detection.project != "surface":
+        method = detection.method if method is None else method
+        if not (model_on_surface(method) and surface_path and pressure is None):
+            return None
+    if surface_path is None:
+        raise FrameError(
+            f"{where}: [detection].project = surface needs the body's surface "
+            "(make-tracks' reduced.stl or [geometry].solid; `fruit locate "
+            "--surface`)"
+        )
+    if pressure is not None:
+        raise FrameError(
+            f"{where}: [detection].project = surface works on a recording at "
+            "one FEM state; this one follows the states by its pressures "
+            "(not supported)"
+        )
+    state = None if states is None else int(rec.meta.get("state", 0))
+    return SurfaceProjector(
+        body_surface(surface_path, surface_unit),
+        states,
+        state,
+        locator_taxels(states, state, taxels),
+    )
+
+
+def model_on_surface(method: str) -> bool:
+    """Whether `method` places its touches on the body's surface when it is known."""
+    return METHODS[method].refine == "model"
+
+
+def skin_heights(
+    skin: SkinSection | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
+) -> GapLaw | CrossingHeights:
+    """The height model of a [skin] table (None: the defaults) for these taxels
+    (`heights.gap_law`), or of the crossing's table `crossing` (a `CrossingSkin`) with
+    the table's noise and gains (`crossing_heights`)."""
+    from fruitcli.sensing.skin.forward import SkinParams
+    from fruitcli.sensing.skin.heights import gap_law
+
+    params = SkinParams.from_table(skin)
+    if crossing is not None:
+        from fruitcli.sensing.skin.crossing_heights import crossing_heights
+
+        return crossing_heights(crossing, params, taxels.ids, settings.footprint, divided)
+    return gap_law(params, taxels.ids, settings.footprint, divided)
+
+
+def electrostatic_skin(scene, crossing_dir, progress=None) -> CrossingSkin | None:
+    """The crossing's table in counts with ``[skin].model = "electrostatic"`` (from
+    `crossing_dir`, the skin stage's folder, or computed now without one), else None."""
+    if not SKIN_MODELS[or_defaults(scene).skin.model].computed:
+        return None
+    from fruitcli.sensing.skin.crossing_skin import crossing_skin
+
+    return crossing_skin(scene, crossing_dir, progress)
