@@ -139,7 +139,12 @@ def test_the_whole_demo_runs_every_bundled_scene_without_a_warning(tmp_path):
     for row in ("Rest, small", "Rest, medium", "Deformed, small", "Deformed, medium"):
         scene = "fruit-rest" if row.startswith("Rest") else "fruit-deformed"
         assert f"| {row} (ours: {scene}) |" in report
-        assert re.search(rf"\| {row} \(ours: {scene}, model, \d+ % placed by the fit\) \|", report)
+        model = rf"\| {row} \(ours: {scene}, model, "
+        placed = r"\d+ % placed by the fit\) \|"
+        assert re.search(model + r"the frame at the threshold, " + placed, report)
+        assert re.search(
+            model + r"mean of \d+ frames, chosen on the calibration run, " + placed, report
+        )
     for picture in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report):
         assert (tmp_path / "out" / picture).is_file(), picture
     stages = re.findall(r"^\| ([a-z0-9-]+) \| [0-9.]+ \| (\d+) \| (\d+) \|$", report, re.M)
