@@ -15,9 +15,10 @@ from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.scene import SkinSection
 from fruitcli.sensing.bench_stage import POINT_HEADER
-from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, TOUCH, Settings, TouchTable
+from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Settings
 from fruitcli.sensing.detection.locate import load_states
 from fruitcli.sensing.detection.model_fit import FIT_MODEL
+from fruitcli.sensing.detection.touch_table import TOUCH, TouchTable
 from fruitcli.sensing.frames.recording_chunks import open_recording
 from fruitcli.sensing.locator_setup import (
     build_locator,

@@ -112,13 +112,8 @@ def evaluate(
     params, fit, taxels, name: str, indenter: str, gain_spread: float, seed: int
 ) -> tuple[list[list], dict[str, float]]:
     """Rows of HEADER, and (largest hover height, hover and touch position errors)."""
-    from fruitcli.sensing.detection.frames_to_touches import (
-        HOVER,
-        TOUCH,
-        Locator,
-        Settings,
-        Stream,
-    )
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+    from fruitcli.sensing.detection.touch_table import HOVER, TOUCH
     from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.skin import forward
     from fruitcli.sensing.skin.heights import GapLaw

@@ -4,8 +4,9 @@ path bit for bit by tests/sensing/detection/test_stream_kernel.py)."""
 import numpy as np
 
 from fruitcli.sensing.detection.detect import n9_peaks
-from fruitcli.sensing.detection.frames_to_touches import Locator, TouchTable
+from fruitcli.sensing.detection.frames_to_touches import Locator
 from fruitcli.sensing.detection.locate import StatePath
+from fruitcli.sensing.detection.touch_table import TouchTable
 
 
 class ReferenceStream:

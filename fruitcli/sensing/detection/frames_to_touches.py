@@ -6,7 +6,7 @@ The batch path (`Locator.chunks`, `Locator.batch`) is vectorized over the frames
 chunk and used whenever no option needs state carried from frame to frame; a recording
 goes through it chunk by chunk, so its memory does not grow with its length. Drift
 tracking, hysteresis, debounce and touch IDs carry state, so they run frame by frame
-through `Stream` (also the live loop):
+through `Stream` (`stream`, also the live loop); both write a `touch_table.TouchTable`:
 
 - drift tracking (``drift_rate`` r > 0, `drift.DriftTracker.per_frame`): C0 += r (C - C0)
   on frames whose every v is at most threshold - hysteresis and that are not in a touch
@@ -47,8 +47,7 @@ from fruitcli.sensing.detection.detect import (
     baseline_counts,
     n9_sequential,
 )
-from fruitcli.sensing.detection.drift import DriftTracker
-from fruitcli.sensing.detection.locate import StatePath, state_path_position, touches_3d
+from fruitcli.sensing.detection.locate import state_path_position, touches_3d
 from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.detection.model_fit import (
     FIT_MODEL,
@@ -58,15 +57,15 @@ from fruitcli.sensing.detection.model_fit import (
     recent_frames,
     refine,
 )
+from fruitcli.sensing.detection.stream import Stream
+from fruitcli.sensing.detection.touch_table import TouchTable
 from fruitcli.sensing.frames.board import taxel_cells
-from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes
+from fruitcli.sensing.shape.touch_shape import frame_shapes
 from fruitcli.tables import Taxels
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
 HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 taxels: ~3)
 HOVER_HYSTERESIS_SIGMAS = 3.0  # default hover hysteresis: ends 5 std up, above the noise
-TOUCH, HOVER = 0, 1  # TouchTable.kind
-KIND_NAMES = ("touch", "hover")
 # the model method weighs each taxel by its own noise, measured in the baseline frames
 # when there are at least this many (else the skin's one value)
 MIN_NOISE_FRAMES = 10
@@ -170,76 +169,6 @@ class Settings:
     @property
     def floor(self) -> float:
         return self.noise_floor_counts if METHODS[self.method].floor else 0.0
-
-
-FIELDS = (
-    "frame",
-    "touch",
-    "i",
-    "j",
-    "xyz_mm",
-    "peak",
-    "height_mm",
-    "height_err_mm",
-    "strength",
-    "size_mm",
-    "kind",
-    "pos_err_mm",
-    "residual",
-    "fit",
-)
-
-
-@dataclass
-class TouchTable:
-    """One row per touch: frame index, touch (rank or ID), grid i, j, point (mm), peak
-    (counts), height above the surface and its 1-sigma uncertainty (mm), strength
-    (1: contact), footprint size (mm, see `touch_shape`), kind (TOUCH or HOVER) and,
-    with the model method (`model_fit`), the point's 1-sigma radius (mm), the fit's
-    residual and its outcome. Shapes not given are NaN, kinds TOUCH, fits FIT_NONE."""
-
-    frame: np.ndarray
-    touch: np.ndarray
-    i: np.ndarray
-    j: np.ndarray
-    xyz_mm: np.ndarray  # (n, 3)
-    peak: np.ndarray
-    height_mm: np.ndarray | None = None
-    height_err_mm: np.ndarray | None = None
-    strength: np.ndarray | None = None
-    size_mm: np.ndarray | None = None
-    kind: np.ndarray | None = None  # (n,) int8
-    pos_err_mm: np.ndarray | None = None  # (n,) the model fit's 1-sigma radius, NaN: none
-    residual: np.ndarray | None = None  # (n,) its RMS weighted residual, NaN: none
-    fit: np.ndarray | None = None  # (n,) int8 model_fit.FIT_NONE, FIT_MODEL or FIT_N9
-
-    def __post_init__(self):
-        n = len(self.frame)
-        for name in ("height_mm", "height_err_mm", "strength", "size_mm", "pos_err_mm", "residual"):
-            if getattr(self, name) is None:
-                setattr(self, name, np.full(n, np.nan))
-        if self.kind is None:
-            self.kind = np.full(n, TOUCH, np.int8)
-        if self.fit is None:
-            self.fit = np.zeros(n, np.int8)
-
-    def __len__(self) -> int:
-        return int(self.frame.shape[0])
-
-    def rows(self, keep: np.ndarray) -> TouchTable:
-        """The rows `keep` (a mask or indices)."""
-        return TouchTable(*(getattr(self, f)[keep] for f in FIELDS))
-
-    def touches_only(self) -> TouchTable:
-        """The touches, without the hovers."""
-        return self if not (self.kind == HOVER).any() else self.rows(self.kind == TOUCH)
-
-    @classmethod
-    def concat(cls, tables: list[TouchTable]) -> TouchTable:
-        if not tables:
-            e = np.zeros(0)
-            return cls(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
-        return cls(*(np.concatenate([getattr(t, f) for t in tables]) for f in FIELDS))
 
 
 class Locator:
@@ -577,191 +506,3 @@ def _in_order(job: Callable, items: Iterable, workers: int) -> Iterator:
         finally:
             for f in pending:
                 f.cancel()
-
-
-class Stream:
-    """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
-
-    def __init__(self, locator: Locator, baseline: np.ndarray):
-        self.loc = locator
-        self.s = locator.settings
-        self.baseline = np.asarray(baseline, dtype=float).copy()
-        self.touched = False
-        self.hovering = False
-        self.above = 0
-        self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 else None
-        self.tracker = None
-        if self.s.track_gate_mm > 0:
-            from fruitcli.sensing.detection.sessions import SessionTracker
-
-            self.tracker = SessionTracker(self.s.track_gate_mm, reuse_ids=True)
-        self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
-        self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
-        self._recent: deque[np.ndarray] = deque(maxlen=self.s.model_frames)  # for the model
-        self._pos, self._pos_key, self._path = None, None, None
-        self._empty = TouchTable.concat([])
-        from fruitcli.sensing.detection.n9_kernel import n9_frame
-
-        self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
-        # taxel of each N9 cell of each position, 0 where none (its weight is 0)
-        self._n9_taxel = np.where(locator.layout.n9_taxel < 0, 0, locator.layout.n9_taxel)
-        m = self.s.max_touches
-        self._scratch = np.empty(len(locator.rows))
-        self._k, self._peak = np.empty(m, np.int64), np.empty(m)
-        self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
-        self._n9_frame(
-            self.activation,
-            locator.layout.taxel,
-            locator.layout.n9,
-            locator.layout.ci,
-            locator.layout.cj,
-            np.inf,
-            0.0,
-            m,
-            self._scratch,
-            self._k,
-            self._peak,
-            self._i,
-            self._j,
-            self._w,
-        )  # load it now
-
-    def step(
-        self, values: np.ndarray, pressure_kpa: np.ndarray | None = None, frame: int = 0
-    ) -> TouchTable:
-        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
-        loc, s = self.loc, self.s
-        if values.ndim == 2:
-            values = values[loc.rows, loc.cols]
-        v = values - self.baseline
-        if loc.model is not None:  # the model averages counts before they are clipped
-            self._recent.append(v / loc.gain if loc.gain is not None else v.copy())
-        np.maximum(v, 0.0, out=v)
-        self.activation = v  # (T,) counts, for the live view
-        if loc.gain is not None:
-            v = v / loc.gain
-        vmax = float(v.max())
-        low = s.threshold_counts - s.hysteresis_counts
-        if self.touched:
-            on = vmax > low
-            thr = low
-        else:
-            self.above = self.above + 1 if vmax > s.threshold_counts else 0
-            on = self.above >= max(s.debounce_frames, 1)
-            thr = s.threshold_counts
-        self.touched = on
-        touch_thr = thr if on else np.inf
-        if loc.hover_levels is not None:
-            hover_on, hover_off = loc.hover_levels
-            self.hovering = vmax > (hover_off if self.hovering else hover_on)
-            if self.hovering:
-                thr = min(thr, hover_off)
-            on = on or self.hovering
-        if not on:
-            if self.drift is not None:
-                self.drift.update(self.baseline, values, 0.0, active=vmax > low)
-            if self.tracker is not None and len(self.tracker.prev_ids):
-                self.tracker.end_all()
-            return self._empty
-        method = METHODS[s.method]
-        if method.find:
-            flat = np.zeros((1, self._cells))
-            flat[0, loc.grid.cell] = v
-            t = method.finder()(flat, loc.grid, thr, s.floor, s.max_touches, loc.footprint)
-            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
-        else:
-            lay = loc.layout
-            n = self._n9_frame(
-                v,
-                lay.taxel,
-                lay.n9,
-                lay.ci,
-                lay.cj,
-                float(thr),
-                float(s.floor),
-                int(s.max_touches),
-                self._scratch,
-                self._k,
-                self._peak,
-                self._i,
-                self._j,
-                self._w,
-            )
-            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
-            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
-        pos = self._positions(pressure_kpa)
-        n = len(i)
-        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
-        pos9 = pos[tax]
-        xyz = (w[:, None, :] @ pos9)[:, 0, :]
-        tax9 = t.taxel if method.find else loc.layout.n9_taxel[self._k[:n]]
-        extra = {}
-        if loc.model is not None and n:
-            window, law = loc.model
-            history = np.asarray(self._recent)
-            mean, taken = recent_frames(
-                history, np.full(n, len(history) - 1), tax9[:, 4], window, s.model_frames
-            )
-            fitted = refine(
-                np.zeros(n, np.int64),
-                tax9[:, 4],
-                i,
-                j,
-                peak,
-                mean,
-                window,
-                lambda win: pos[win],
-                law,
-                tax9,
-                loc.chart,
-                loc.fit_noise(),
-                taken,
-                np.arange(n),
-            )
-            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
-            i, j = fitted.i, fitted.j
-            extra = {
-                "pos_err_mm": fitted.pos_err_mm,
-                "residual": fitted.residual,
-                "fit": fitted.fit,
-            }
-        sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
-        ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
-        kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
-        return TouchTable(
-            np.full(n, frame, np.int64),
-            ids,
-            i,
-            j,
-            xyz,
-            peak,
-            sh.height_mm,
-            sh.height_err_mm,
-            sh.strength,
-            sh.size_mm,
-            kind,
-            **extra,
-        )
-
-    def _positions(self, pressure_kpa) -> np.ndarray:
-        """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
-        pos = self.loc.positions_mm
-        if self.loc.reduced is not None and pressure_kpa is not None:
-            key = tuple(np.asarray(pressure_kpa, float).tolist())
-            if key != self._pos_key or self._pos is None:
-                self._pos, self._pos_key = self.loc.reduced_positions(np.array(key)), key
-            return self._pos
-        if pos.ndim == 2:
-            return pos
-        key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())
-        if key != self._pos_key or self._pos is None:
-            if key is None:
-                self._pos = pos[0]
-            else:
-                if self._path is None:
-                    self._path = StatePath(self.loc.state_pressure_kpa)
-                s0, t = self._path.locate(np.asarray(key))
-                s1 = min(s0 + 1, pos.shape[0] - 1)
-                self._pos = (1 - t) * pos[s0] + t * pos[s1]
-            self._pos_key = key
-        return self._pos

@@ -2,7 +2,7 @@
 what it adds (``[detection].method``, `fruit locate --method`, `fruit live`).
 
 The scene schema's choices, the command line's choices and the reference docs read
-`METHODS`; `frames_to_touches.detect` (batch) and `Stream.step` (per frame) dispatch on
+`METHODS`; `frames_to_touches.detect` (batch) and `stream.Stream.step` (per frame) dispatch on
 its fields. Adding a method is one module with its function and one entry here
 (docs/howto/add-a-detection-method.md). This module imports nothing of the library (a
 method's function is named by its module path and loaded when first used), so the scene

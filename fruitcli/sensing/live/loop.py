@@ -22,15 +22,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fruitcli.sensing.detection.drift import DriftTracker
-from fruitcli.sensing.detection.frames_to_touches import (
-    KIND_NAMES,
-    Locator,
-    Stream,
-    TouchTable,
-)
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
 from fruitcli.sensing.detection.health import TaxelHealth
 from fruitcli.sensing.detection.model_fit import FIT_NAMES, FIT_NONE
 from fruitcli.sensing.detection.sessions import DEFAULT_GATE_MM, SessionStep, SessionTracker
+from fruitcli.sensing.detection.touch_table import KIND_NAMES, TouchTable
 from fruitcli.sensing.live.serial_ports import LineReader, PortClosed, PressureState
 
 BROKEN_EVERY = 30  # frames between refreshes of the taxel flags the drift tracker ignores

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES
+from fruitcli.sensing.detection.touch_table import KIND_NAMES
 from fruitcli.sensing.live.run_log import STATUS_EVERY_S
 
 if TYPE_CHECKING:

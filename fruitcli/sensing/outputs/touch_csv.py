@@ -22,8 +22,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from fruitcli.fsutil import atomic_path
-from fruitcli.sensing.detection.frames_to_touches import KIND_NAMES, TouchTable
 from fruitcli.sensing.detection.model_fit import FIT_NAMES
+from fruitcli.sensing.detection.touch_table import KIND_NAMES, TouchTable
 from fruitcli.sensing.outputs.csv_rows import format_rows
 
 TOUCH_HEADER = [

@@ -6,14 +6,8 @@ import numpy as np
 import pytest
 
 from fruitcli.scene import default_scene
-from fruitcli.sensing.detection.frames_to_touches import (
-    HOVER,
-    KIND_NAMES,
-    TOUCH,
-    Locator,
-    Settings,
-    TouchTable,
-)
+from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.touch_table import HOVER, KIND_NAMES, TOUCH, TouchTable
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.outputs.touch_csv import TOUCH_HEADER, touch_bytes, touch_csv
 from fruitcli.sensing.shape.touch_shape import frame_shapes, touch_shapes

@@ -1,0 +1,209 @@
+"""Frame-by-frame detection (`Stream`): drift tracking, hysteresis, debounce, hovers and
+touch IDs, each frame through the locator's layout and model; also the live loop. What
+each option does: `frames_to_touches`.
+
+Units: counts, mm, kPa.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from fruitcli.sensing.detection.drift import DriftTracker
+from fruitcli.sensing.detection.locate import StatePath
+from fruitcli.sensing.detection.methods import METHODS
+from fruitcli.sensing.detection.model_fit import FIT_MODEL, recent_frames, refine
+from fruitcli.sensing.detection.touch_table import HOVER, TOUCH, TouchTable
+from fruitcli.sensing.shape.touch_shape import touch_shapes
+
+
+class Stream:
+    """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
+
+    def __init__(self, locator, baseline: np.ndarray):
+        """`locator`: a `frames_to_touches.Locator` (its layout, settings, model and
+        positions); `baseline` (T,) counts."""
+        self.loc = locator
+        self.s = locator.settings
+        self.baseline = np.asarray(baseline, dtype=float).copy()
+        self.touched = False
+        self.hovering = False
+        self.above = 0
+        self.drift = DriftTracker.per_frame(self.s.drift_rate) if self.s.drift_rate > 0 else None
+        self.tracker = None
+        if self.s.track_gate_mm > 0:
+            from fruitcli.sensing.detection.sessions import SessionTracker
+
+            self.tracker = SessionTracker(self.s.track_gate_mm, reuse_ids=True)
+        self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
+        self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
+        self._recent: deque[np.ndarray] = deque(maxlen=self.s.model_frames)  # for the model
+        self._pos, self._pos_key, self._path = None, None, None
+        self._empty = TouchTable.concat([])
+        from fruitcli.sensing.detection.n9_kernel import n9_frame
+
+        self._n9_frame = n9_frame  # the compiled N9 loop, and its buffers
+        # taxel of each N9 cell of each position, 0 where none (its weight is 0)
+        self._n9_taxel = np.where(locator.layout.n9_taxel < 0, 0, locator.layout.n9_taxel)
+        m = self.s.max_touches
+        self._scratch = np.empty(len(locator.rows))
+        self._k, self._peak = np.empty(m, np.int64), np.empty(m)
+        self._i, self._j, self._w = np.empty(m), np.empty(m), np.empty((m, 9))
+        self._n9_frame(
+            self.activation,
+            locator.layout.taxel,
+            locator.layout.n9,
+            locator.layout.ci,
+            locator.layout.cj,
+            np.inf,
+            0.0,
+            m,
+            self._scratch,
+            self._k,
+            self._peak,
+            self._i,
+            self._j,
+            self._w,
+        )  # load it now
+
+    def step(
+        self, values: np.ndarray, pressure_kpa: np.ndarray | None = None, frame: int = 0
+    ) -> TouchTable:
+        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
+        loc, s = self.loc, self.s
+        if values.ndim == 2:
+            values = values[loc.rows, loc.cols]
+        v = values - self.baseline
+        if loc.model is not None:  # the model averages counts before they are clipped
+            self._recent.append(v / loc.gain if loc.gain is not None else v.copy())
+        np.maximum(v, 0.0, out=v)
+        self.activation = v  # (T,) counts, for the live view
+        if loc.gain is not None:
+            v = v / loc.gain
+        vmax = float(v.max())
+        low = s.threshold_counts - s.hysteresis_counts
+        if self.touched:
+            on = vmax > low
+            thr = low
+        else:
+            self.above = self.above + 1 if vmax > s.threshold_counts else 0
+            on = self.above >= max(s.debounce_frames, 1)
+            thr = s.threshold_counts
+        self.touched = on
+        touch_thr = thr if on else np.inf
+        if loc.hover_levels is not None:
+            hover_on, hover_off = loc.hover_levels
+            self.hovering = vmax > (hover_off if self.hovering else hover_on)
+            if self.hovering:
+                thr = min(thr, hover_off)
+            on = on or self.hovering
+        if not on:
+            if self.drift is not None:
+                self.drift.update(self.baseline, values, 0.0, active=vmax > low)
+            if self.tracker is not None and len(self.tracker.prev_ids):
+                self.tracker.end_all()
+            return self._empty
+        method = METHODS[s.method]
+        if method.find:
+            flat = np.zeros((1, self._cells))
+            flat[0, loc.grid.cell] = v
+            t = method.finder()(flat, loc.grid, thr, s.floor, s.max_touches, loc.footprint)
+            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
+        else:
+            lay = loc.layout
+            n = self._n9_frame(
+                v,
+                lay.taxel,
+                lay.n9,
+                lay.ci,
+                lay.cj,
+                float(thr),
+                float(s.floor),
+                int(s.max_touches),
+                self._scratch,
+                self._k,
+                self._peak,
+                self._i,
+                self._j,
+                self._w,
+            )
+            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
+            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
+        pos = self._positions(pressure_kpa)
+        n = len(i)
+        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
+        pos9 = pos[tax]
+        xyz = (w[:, None, :] @ pos9)[:, 0, :]
+        tax9 = t.taxel if method.find else loc.layout.n9_taxel[self._k[:n]]
+        extra = {}
+        if loc.model is not None and n:
+            window, law = loc.model
+            history = np.asarray(self._recent)
+            mean, taken = recent_frames(
+                history, np.full(n, len(history) - 1), tax9[:, 4], window, s.model_frames
+            )
+            fitted = refine(
+                np.zeros(n, np.int64),
+                tax9[:, 4],
+                i,
+                j,
+                peak,
+                mean,
+                window,
+                lambda win: pos[win],
+                law,
+                tax9,
+                loc.chart,
+                loc.fit_noise(),
+                taken,
+                np.arange(n),
+            )
+            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
+            i, j = fitted.i, fitted.j
+            extra = {
+                "pos_err_mm": fitted.pos_err_mm,
+                "residual": fitted.residual,
+                "fit": fitted.fit,
+            }
+        sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
+        ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
+        kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
+        return TouchTable(
+            np.full(n, frame, np.int64),
+            ids,
+            i,
+            j,
+            xyz,
+            peak,
+            sh.height_mm,
+            sh.height_err_mm,
+            sh.strength,
+            sh.size_mm,
+            kind,
+            **extra,
+        )
+
+    def _positions(self, pressure_kpa) -> np.ndarray:
+        """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
+        pos = self.loc.positions_mm
+        if self.loc.reduced is not None and pressure_kpa is not None:
+            key = tuple(np.asarray(pressure_kpa, float).tolist())
+            if key != self._pos_key or self._pos is None:
+                self._pos, self._pos_key = self.loc.reduced_positions(np.array(key)), key
+            return self._pos
+        if pos.ndim == 2:
+            return pos
+        key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())
+        if key != self._pos_key or self._pos is None:
+            if key is None:
+                self._pos = pos[0]
+            else:
+                if self._path is None:
+                    self._path = StatePath(self.loc.state_pressure_kpa)
+                s0, t = self._path.locate(np.asarray(key))
+                s1 = min(s0 + 1, pos.shape[0] - 1)
+                self._pos = (1 - t) * pos[s0] + t * pos[s1]
+            self._pos_key = key
+        return self._pos
