@@ -9,7 +9,7 @@ import threading
 
 import numpy as np
 
-from fruitcli.geometry.mesh.distance import SurfaceDistance
+from fruitcli.geometry.mesh.distance import SurfaceDistance, unit_face_normals
 from fruitcli.geometry.mesh.load import load_mesh
 
 _INSIDE_EPS = 1e-9  # barycentric tolerance of the vertical ray test
@@ -101,11 +101,10 @@ class SurfaceProjector:
         verts, tris = surface
         if states is not None:
             verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
-        t = verts[tris]
-        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        self.normal = unit_face_normals(verts, tris)
         self.verts, self.tris = verts, tris
-        _, _, self.own = SurfaceDistance(verts, tris).closest(taxels_mm)
+        self.distance = SurfaceDistance(verts, tris)  # the whole surface (the model's chart)
+        _, _, self.own = self.distance.closest(taxels_mm)
         self.taxel_tree = cKDTree(taxels_mm)
         self._facing: dict[int, SurfaceDistance] = {}  # per taxel, made when first needed
         self._lock = threading.Lock()

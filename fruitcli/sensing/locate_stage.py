@@ -99,7 +99,7 @@ def run_locate(
             scene, rec, states, pressure, taxels, surface_path, surface_unit, where, settings.method
         )
         if projector is not None:
-            locator.use_surface(projector.verts, projector.tris)
+            locator.use_surface(projector.normal, projector.distance)
         only_fitted = (
             settings.method == "model" and or_defaults(scene).detection.project != "surface"
         )

@@ -17,6 +17,14 @@ CHUNK_POINTS = 20000
 MAX_SAMPLE_LEVEL = 24
 
 
+def unit_face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normals (F, 3) of triangles `faces` (F, 3) over `vertices` (V, 3), by their
+    winding (zero for a degenerate face)."""
+    t = np.asarray(vertices, float)[np.asarray(faces, np.int64)]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+
+
 def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Closest points (n, 3) on triangles (a, b, c) (each (n, 3)) to points p (n, 3).
 

@@ -8,7 +8,6 @@ the body's own surface where it is known: `surface_chart`), 3D location
 
 May import: `fruitcli.sensing.frames`, `fruitcli.sensing.shape` (each touch's strength,
 size and hover height), `fruitcli.sensing.skin.forward` (taxel gains),
-`fruitcli.sensing.skin.heights` (the height law), `fruitcli.geometry.mesh.distance` (the
-body's surface, for the model method's chart), and `fruitcli.errors`,
+`fruitcli.sensing.skin.heights` (the height law), and `fruitcli.errors`,
 `fruitcli.fsutil`, `fruitcli.tables`.
 """

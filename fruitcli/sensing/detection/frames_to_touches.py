@@ -243,17 +243,18 @@ class Locator:
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
             raise FrameError("per-state positions need the states' pressures")
 
-    def use_surface(self, vertices: np.ndarray, triangles: np.ndarray) -> None:
-        """Let the model method run its touches over the body's surface (vertices (V, 3)
-        mm in this locator's one state, triangles (F, 3)) instead of the surface its
-        taxels span (`surface_chart`). Only for one state and no reduced model: a chart
+    def use_surface(self, normal: np.ndarray, distance) -> None:
+        """Let the model method run its touches over the body's surface in this locator's
+        one state (its faces' unit normals (F, 3) and their `SurfaceDistance`, as a
+        `SurfaceProjector` keeps them) instead of the surface its taxels span
+        (`surface_chart`). Only for one state and no reduced model: a chart
         is made once per peak taxel and kept."""
         if self.model is None or self.positions_mm.ndim != 2 or self.reduced is not None:
             return
         from fruitcli.sensing.detection.surface_chart import SurfaceChart
 
         half = int(self.model[0].di.max())
-        self.chart = SurfaceChart(vertices, triangles, half)
+        self.chart = SurfaceChart(normal, distance, half)
 
     def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray:
         """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
@@ -425,11 +426,6 @@ class Locator:
         cells = earlier.reshape(earlier.shape[0], -1)
         return np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values]), before
 
-    def fit_noise(self) -> np.ndarray | None:
-        """Each taxel's noise (counts std) in one frame's activations, as the model method
-        weighs them: the baseline frames' (`baseline`); None: the skin's one value."""
-        return self.noise_counts
-
     def _refine(self, t: Touches, history: tuple, baseline: np.ndarray, taxel_points):
         """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
         counts are history[0] (H, T), the chunk's frames after its first history[1] rows
@@ -454,7 +450,7 @@ class Locator:
             law,
             t.taxel,
             self.chart,
-            self.fit_noise(),
+            self.noise_counts,
             taken,
             np.arange(len(t)),
         )

@@ -156,7 +156,7 @@ class Stream:
                 law,
                 tax9,
                 loc.chart,
-                loc.fit_noise(),
+                loc.noise_counts,
                 taken,
                 np.arange(n),
             )

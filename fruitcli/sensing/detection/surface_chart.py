@@ -29,19 +29,15 @@ STEPS_PER_CELL = 8  # steps of the walk over the surface per grid cell of the wa
 
 
 class SurfaceChart:
-    """Charts of the body's surface (vertices (V, 3), triangles (F, 3), in the frame's
-    state, mm) for model-method windows of `half` cells around each peak taxel.
-    `corrections` may run on several threads."""
+    """Charts of the body's surface in the frame's state for model-method windows of
+    `half` cells around each peak taxel: `normal` (F, 3) the faces' unit normals and
+    `distance` a `geometry.mesh.distance.SurfaceDistance` over the same faces (as
+    `geometry.body_surface.SurfaceProjector` keeps them). `corrections` may run on
+    several threads."""
 
-    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, half: int):
-        from fruitcli.geometry.mesh.distance import SurfaceDistance
-
-        verts = np.asarray(vertices, float)
-        tris = np.asarray(triangles, np.int64)
-        t = verts[tris]
-        normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        self.normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-        self.distance = SurfaceDistance(verts, tris)
+    def __init__(self, normal: np.ndarray, distance, half: int):
+        self.normal = np.asarray(normal, float)
+        self.distance = distance
         self.half = int(half)
         nodes = np.arange(2 * self.half * SUB + 1) / SUB - self.half
         self.a, self.b = (g.ravel() for g in np.meshgrid(nodes, nodes, indexing="ij"))

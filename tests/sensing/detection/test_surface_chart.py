@@ -4,7 +4,7 @@ taxels span would keep the touch on their plane."""
 
 import numpy as np
 
-from fruitcli.geometry.mesh.distance import SurfaceDistance
+from fruitcli.geometry.mesh.distance import SurfaceDistance, unit_face_normals
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
 from fruitcli.sensing.detection.model_fit import FIT_MODEL
 from fruitcli.sensing.detection.surface_chart import SUB, SurfaceChart
@@ -58,11 +58,15 @@ def frame_of(taxels, point, amplitude):
     return f
 
 
+def normals_and_distance(verts, tris):
+    return unit_face_normals(verts, tris), SurfaceDistance(verts, tris)
+
+
 def locate(taxels, frames, surface):
     law = GapLaw(60.0, 2.0, SIGMA_MM, 1.0)
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(method="model"), heights=law)
     if surface is not None:
-        loc.use_surface(*surface)
+        loc.use_surface(*normals_and_distance(*surface))
     return loc.batch(np.asarray(frames), np.full(len(taxels), BASE))
 
 
@@ -84,7 +88,7 @@ def test_a_touch_down_the_edge_comes_back_on_the_body_and_not_on_the_taxels_plan
 def test_the_chart_lies_on_the_surface_and_walks_a_pitch_per_grid_unit():
     verts, tris = ledge()
     taxels = taxels_on_top()
-    chart = SurfaceChart(verts, tris, 2)
+    chart = SurfaceChart(*normals_and_distance(verts, tris), 2)
     centre = int(np.flatnonzero((taxels.i == 2) & (taxels.j == 3))[0])  # at the edge
     coef = np.zeros((6, 3))  # the taxels' plane: c = P0 + 16 a x + 12 b y
     coef[0] = taxels.xyz_mm[centre]
