@@ -8,6 +8,7 @@ the body's own surface where it is known: `surface_chart`), 3D location
 
 May import: `fruitcli.sensing.frames`, `fruitcli.sensing.shape` (each touch's strength,
 size and hover height), `fruitcli.sensing.skin.forward` (taxel gains),
-`fruitcli.sensing.skin.heights` (the height law), and `fruitcli.errors`,
+`fruitcli.sensing.skin.heights` (the height law), `fruitcli.scene` (the [detection]
+defaults), and `fruitcli.errors`,
 `fruitcli.fsutil`, `fruitcli.tables`.
 """

@@ -34,10 +34,12 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from fruitcli.errors import FrameError
+from fruitcli.scene import SCHEMA
 from fruitcli.sensing.detection.detect import (
     MAX_TOUCHES,
     Grid,
@@ -101,24 +103,30 @@ def detect(
     return m.finder()(flat, grid, threshold, floor, max_touches, footprint)
 
 
+def _default(key: str) -> Any:
+    """The schema's default of ``[detection].key``."""
+    return SCHEMA["detection"][key].default
+
+
 @dataclass(frozen=True)
 class Settings:
-    """Detection settings, as the scene's ``[detection]`` section names them."""
+    """Detection settings, as the scene's ``[detection]`` section names them; each
+    default is the schema's (`fruitcli.scene`)."""
 
-    threshold_counts: float = 20.0
-    baseline_frames: int = 10
-    method: str = "n9"
-    noise_floor_counts: float = 0.0
-    hysteresis_counts: float = 0.0
-    debounce_frames: int = 0
-    drift_rate: float = 0.0
-    track_gate_mm: float = 0.0
+    threshold_counts: float = _default("threshold_counts")
+    baseline_frames: int = _default("baseline_frames")
+    method: str = _default("method")
+    noise_floor_counts: float = _default("noise_floor_counts")
+    hysteresis_counts: float = _default("hysteresis_counts")
+    debounce_frames: int = _default("debounce_frames")
+    drift_rate: float = _default("drift_rate")
+    track_gate_mm: float = _default("track_gate_mm")
     max_touches: int = MAX_TOUCHES
-    hovers: bool = False
-    hover_threshold_counts: float | None = None  # None: from the skin's noise
-    hover_hysteresis_counts: float | None = None  # None: from the skin's noise
-    footprint: str | None = None  # [skin] footprint heights assume (None: see heights)
-    model_frames: int = 1  # the model method fits the mean of a touch's frame and those before
+    hovers: bool = _default("hovers")
+    hover_threshold_counts: float | None = _default("hover_threshold_counts")  # None: noise's
+    hover_hysteresis_counts: float | None = _default("hover_hysteresis_counts")  # None: noise's
+    footprint: str | None = _default("footprint")  # [skin] footprint heights assume
+    model_frames: int = _default("model_frames")  # frames whose mean the model method fits
 
     @classmethod
     def from_scene(cls, detection, **overrides) -> Settings:
