@@ -148,7 +148,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
         default = scene.mesh.size_mm
         cases = rt.fem_cases(default)
         # meshes first (one per size, in parallel), then the solver variants reuse them
-        by_size = {}
+        by_size: dict[float, rt.FemCase] = {}
         for c in cases:
             by_size.setdefault(c.size_mm, c)
         first = list(by_size.values())

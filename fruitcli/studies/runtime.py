@@ -185,7 +185,7 @@ def default_reason(rows: list[dict], default_name: str) -> str:
     )
 
 
-DETECTION_VARIANTS = {
+DETECTION_VARIANTS: dict[str, dict[str, object]] = {
     "n9 (paper)": {"method": "n9"},
     "n9 + noise floor 6": {"method": "n9_floor", "noise_floor_counts": 6.0},
     "peaks": {"method": "peaks"},

@@ -269,7 +269,7 @@ def _closure(deps_of: dict, name: str) -> set[str]:
 
 def run_sweep(
     variants: list[Variant], out_dir: Path, pool, progress=None, on_row=None
-) -> tuple[list[dict], dict]:
+) -> tuple[list[dict], dict[str, int]]:
     """Run (or reuse) every variant on `pool`; returns the rows in variant order and
     counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
     after each variant, and with {"stage", "error"} after each shared stage;
@@ -318,13 +318,15 @@ def run_sweep(
         return {"error": f"{key[1]}: {message}"}
 
     run_graph(pool, tasks, on_done, on_lost)
+    finished = [r for r in rows if r is not None]
+    assert len(finished) == len(rows), "every variant has its row once the graph has run"
     stats = {
         "run": len(todo),
         "reused": reused,
-        "failed": sum(r["status"] != "ok" for r in rows),
+        "failed": sum(r["status"] != "ok" for r in finished),
         "shared_stages": sum(1 for key in tasks if key[0] == "stage"),
     }
-    return rows, stats
+    return finished, stats
 
 
 def _with_values(v: Variant, row: dict) -> dict:
