@@ -128,7 +128,7 @@ def run_case(args) -> list[dict]:
     """Bench one skin case, then locate and evaluate it with every method: rows."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.stages import run_bench, run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, name = args
     scene = load_scene(scene_path)
@@ -162,24 +162,15 @@ def run_case(args) -> list[dict]:
     rows = []
     for label, changes, setting in variants():
         located = scene.with_values(changes)
+        inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
         for ind in scene.bench.indenters:
             frames = base / "bench" / ind / "frames.npz"
             out = base / label.replace(" ", "_").replace(",", "") / ind
             times = []
             for _ in range(REPEATS):
                 with setting():
-                    summary = run_locate(
-                        located,
-                        frames,
-                        taxels,
-                        states,
-                        out,
-                        workers=1,
-                        surface_path=surface,
-                        surface_unit=unit,
-                        skin_table=skin_table,
-                        crossing_dir=located_table,
-                    )
+                    files = LocateFiles(frames, taxels, states, out, surface, unit)
+                    summary = run_locate(inputs, files, workers=1)
                 times.append(summary["seconds"])
             with np.load(frames, allow_pickle=False) as f:
                 n_frames = len(f["frames"])

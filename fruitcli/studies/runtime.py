@@ -195,7 +195,7 @@ DETECTION_VARIANTS: dict[str, dict[str, object]] = {
 def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Path) -> list[dict]:
     """Locate the bench frames with each detection variant; error and time per frame."""
     from fruitcli.evaluation.report import evaluate_pair
-    from fruitcli.sensing.stages import run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
 
     rows = []
     for name, params in DETECTION_VARIANTS.items():
@@ -204,7 +204,8 @@ def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Pat
         for ind_dir in sorted(p for p in bench_dir.iterdir() if (p / "frames.npz").exists()):
             out = work / "detect" / name.split()[0] / ind_dir.name
             t0 = time.perf_counter()
-            summary = run_locate(variant, ind_dir / "frames.npz", taxels_csv, states, out)
+            files = LocateFiles(ind_dir / "frames.npz", taxels_csv, states, out)
+            summary = run_locate(locate_inputs(variant), files)
             seconds += time.perf_counter() - t0
             with np.load(ind_dir / "frames.npz", allow_pickle=False) as f:
                 frames += len(f["frames"])
