@@ -20,6 +20,7 @@ from fruitcli.workflow.scene_outputs import scene_products
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from fruitcli.printer.indentation import PrinterBenchInputs
     from fruitcli.scene import Scene
 
 
@@ -186,7 +187,7 @@ def real_bench(
             states_npz = states_npz or found
         try:
             res = run_printer_bench(
-                scene,
+                printer_bench_inputs(scene),
                 taxels,
                 states_npz,
                 printer_port,
@@ -205,4 +206,21 @@ def real_bench(
         f"{name}: {res['samples']} samples, {res['frames']} frames "
         f"({res['resends']} lines resent) -> {res['out']}",
         err=True,
+    )
+
+
+def printer_bench_inputs(scene: Scene) -> PrinterBenchInputs:
+    """What the printer bench reads of `scene` (`indentation.PrinterBenchInputs`)."""
+    from fruitcli.printer.indentation import PrinterBenchInputs
+    from fruitcli.sensing.bench_stage import sample_spec
+
+    return PrinterBenchInputs(
+        scene_name=scene.name,
+        file_name=scene.path.name,
+        printer=scene.printer,
+        board=scene.board,
+        threshold_counts=scene.detection.threshold_counts,
+        baseline_frames=max(scene.bench.baseline_frames, scene.detection.baseline_frames),
+        state=scene.bench.state,
+        samples=sample_spec(scene),
     )

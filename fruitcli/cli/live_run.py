@@ -92,6 +92,7 @@ def locator(scene, scene_path: str, settings, o: LiveOptions, progress: Progress
     from fruitcli.sensing.detection.frames_to_touches import Locator
     from fruitcli.sensing.detection.gain_division import detection_gain
     from fruitcli.sensing.detection.locate import load_states
+    from fruitcli.sensing.inputs_stage import gain_inputs
     from fruitcli.sensing.live.serial_ports import PressureState
     from fruitcli.sensing.locator_setup import skin_heights
     from fruitcli.tables import read_taxels
@@ -107,7 +108,7 @@ def locator(scene, scene_path: str, settings, o: LiveOptions, progress: Progress
     taxels_csv, states_npz, reduced, mesh_npz = _taxel_products(scene, scene_path, o, progress)
     taxels = read_taxels(taxels_csv, FrameError)
     states = load_states(states_npz, len(taxels)) if states_npz else None
-    gain = detection_gain(scene, taxels, o.gains_csv)
+    gain = detection_gain(gain_inputs(scene), taxels, o.gains_csv)
     heights = skin_heights(skin_table, taxels, settings, gain is not None)
     pressure = solver = None
     positions, state_kpa = taxels.xyz_mm, None

@@ -87,7 +87,7 @@ def locate(
     """
     from fruitcli.scene import load_scene
     from fruitcli.sensing.frames.recording_chunks import has_pressures
-    from fruitcli.sensing.stages import run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
 
     progress = Progress("[locate] ")
     with fruit_errors():
@@ -118,26 +118,22 @@ def locate(
                 label=f"{scene_path}: --model reduced",
                 bar=reduced_build_bar,
             )
-        res = run_locate(
+        inputs = locate_inputs(
             scene,
-            frames,
-            taxels_csv,
-            states_npz,
-            out_dir,
-            progress,
             baseline_frames=baseline_frames,
             threshold_counts=threshold,
             method=method,
-            surface_path=surface,
-            reduced=reduced,
+            hovers=hovers,
             gains_csv=gains_csv,
             skin_table=skin_table,
-            hovers=hovers,
+            reduced=reduced,
         )
+        files = LocateFiles(frames, taxels_csv, states_npz, out_dir, surface)
+        res = run_locate(inputs, files, progress)
     model = {
         "reduced": "taxels from the reduced model",
         "full": "taxels along the simulated states",
-    }.get(res.get("model"), "")
+    }.get(res.get("model", ""), "")
     click.echo(
         f"{res['touches']} touches in {res['frames']} frames "
         f"({res['frames_per_s']:.0f} frames/s) -> {res['touches_csv']}"

@@ -12,6 +12,7 @@ import os
 import signal
 import sys
 import warnings
+import weakref
 
 import click
 
@@ -131,25 +132,29 @@ def _late_option(ctx: click.Context, param: click.Parameter, value) -> None:
     logging.getLogger().setLevel(log_level(obj.get("verbose", 0), obj.get("quiet", False)))
 
 
+_LATE_OPTIONS: weakref.WeakSet[click.Command] = weakref.WeakSet()
+"""The commands `accept_late_options` has given -v and -q."""
+
+
 def accept_late_options(cmd: click.Command) -> click.Command:
     """`cmd` (and the commands of a group, at every level) also taking the group's -v and
     -q after its name (hidden from its --help: they are the group's options)."""
-    if getattr(cmd, "_late_options", False):
+    if cmd in _LATE_OPTIONS:
         return cmd
     names = {n for p in cmd.params for n in getattr(p, "opts", [])}
-    for flags, kind in ((("-v", "--verbose"), {"count": True}), (("-q", "--quiet"), {})):
+    for flags, count in ((("-v", "--verbose"), True), (("-q", "--quiet"), False)):
         if names.isdisjoint(flags):
             cmd.params.append(
                 click.Option(
                     flags,
-                    is_flag=not kind,
+                    is_flag=not count,
+                    count=count,
                     hidden=True,
                     expose_value=False,
                     callback=_late_option,
-                    **kind,
                 )
             )
-    cmd._late_options = True
+    _LATE_OPTIONS.add(cmd)
     for sub in getattr(cmd, "commands", {}).values():
         accept_late_options(sub)
     return cmd
@@ -260,9 +265,10 @@ def _interrupted(exc: BaseException) -> bool:
     running when SIGINT came raises SystemError "returned a result with an exception set"
     with the KeyboardInterrupt as its cause or context."""
     seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
             return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
     return False

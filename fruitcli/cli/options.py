@@ -7,7 +7,7 @@ import functools
 import sys
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
 
@@ -30,7 +30,9 @@ class FiniteFloat(click.FloatRange):
     def convert(self, value, param, ctx) -> float:
         import math
 
-        number = click.types.FloatParamType.convert(self, value, param, ctx)
+        # float(value) with click's message; click's stubs give FloatRange two generic bases
+        # whose type parameters disagree, so this call does not match its own class's
+        number = click.types.FloatParamType.convert(self, value, param, ctx)  # type: ignore[arg-type]
         if not math.isfinite(number):
             self.fail(f"expected a finite number, got {value!r}", param, ctx)
         return super().convert(number, param, ctx)
@@ -177,7 +179,8 @@ def out_option(
             with claim_out(kwargs[dest]):
                 return command(*args, **kwargs)
 
-        return option(claiming)
+        # functools.wraps keeps the command's name and signature: still an FC to click
+        return cast(FC, option(claiming))
 
     return decorate
 

@@ -146,6 +146,7 @@ def record(
             stop.set()
             if p_thread is not None:
                 p_thread.join(1.0)
+            if pser is not None:
                 pser.close()
         meta = {"source": "fruit record", "port": port, "baud": baud, "format": reader.format}
         if pressure is not None:

@@ -148,7 +148,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
         default = scene.mesh.size_mm
         cases = rt.fem_cases(default)
         # meshes first (one per size, in parallel), then the solver variants reuse them
-        by_size = {}
+        by_size: dict[float, rt.FemCase] = {}
         for c in cases:
             by_size.setdefault(c.size_mm, c)
         first = list(by_size.values())
@@ -164,8 +164,10 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
         rt.add_errors(rows)
         det = []
         if scene.has("bench"):
+            from fruitcli.sensing.stages import locate_inputs
+
             det = rt.run_detection_variants(
-                scene, ctx.dir("bench"), taxels, states_path(scene, ctx), work
+                locate_inputs(scene), ctx.dir("bench"), taxels, states_path(scene, ctx), work
             )
         rt.write_outputs(out, rows, det, f"size {default:g} mm")
     click.echo((out / "runtime.md").read_text(), nl=False)

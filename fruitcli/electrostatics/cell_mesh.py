@@ -25,8 +25,8 @@ def mesh_cell(
     spec: CellSpec, order: int, time_limit_s: float, time_limit_key: str = "[mesh].time_limit_s"
 ) -> TetMesh:
     """The cell's tet mesh; MeshError naming `time_limit_key` when gmsh takes longer."""
-    with tempfile.TemporaryDirectory(prefix="fruit-cell-") as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix="fruit-cell-") as tmp_name:
+        tmp = Path(tmp_name)
         (tmp / "spec.json").write_text(json.dumps(spec.to_dict()))
         args = [str(tmp / "spec.json"), str(tmp / "mesh.npz"), str(order)]
         try:
@@ -65,7 +65,8 @@ def main(argv: list[str]) -> int:
         return 3
     finally:
         gmsh.finalize()
-    np.savez(argv[1], **mesh.to_arrays())
+    # numpy's stub: mypy matches **arrays against savez's allow_pickle (bool) too
+    np.savez(argv[1], **mesh.to_arrays())  # type: ignore[arg-type]
     return 0
 
 

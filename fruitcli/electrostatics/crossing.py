@@ -188,7 +188,7 @@ class CellSolver:
         self.fixed = np.flatnonzero(held)
         self.air = np.zeros(n, bool)
         self.air[np.unique(mesh.tets[regions == "air"])] = True
-        self._factor = None
+        self._factor: pardiso.Pardiso | None = None
         self._set_nodes(mesh.nodes)
         self._conform_setup()
 

@@ -240,5 +240,6 @@ def write_outputs(out_dir: Path, table, summary: dict) -> None:
     from fruitcli.fsutil import staged_dir, write_json
 
     with staged_dir(out_dir) as tmp:
-        np.savez(tmp / "crossing.npz", **table_arrays(table))
+        # numpy's stub: mypy matches **arrays against savez's allow_pickle (bool) too
+        np.savez(tmp / "crossing.npz", **table_arrays(table))  # type: ignore[arg-type]
         write_json(tmp / "summary.json", summary)

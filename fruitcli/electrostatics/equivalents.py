@@ -12,6 +12,8 @@ found beyond the table's last one is named under `extrapolated`.
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
 
 from fruitcli.electrostatics.crossing import (
@@ -82,6 +84,19 @@ def counts_per_ff(table: CrossingTable) -> tuple[float, dict]:
     }
 
 
+class ObjectEquivalent(TypedDict):
+    """A touch object's Gaussian equivalent in summary.json: footprint sigma (mm), gap
+    decay (mm), counts and drop (fF) at contact, the gap (mm) where it falls to the
+    threshold, and which of the two gaps lie beyond the table's largest gap."""
+
+    footprint_sigma_mm: float
+    gap_decay_mm: float
+    contact_counts: float
+    contact_dc_ff: float
+    threshold_gap_mm: float
+    extrapolated: list[str]
+
+
 def summarize(table: CrossingTable) -> dict:
     """summary.json's content (without the run's inputs)."""
     scale, fit = counts_per_ff(table)
@@ -91,24 +106,24 @@ def summarize(table: CrossingTable) -> dict:
     quad_y = (table.dy_mm >= 0) & (table.dy_mm <= pitch_y + 1e-9)
     centre_x = int(np.flatnonzero(table.dx_mm == 0)[0])
     centre_y = int(np.flatnonzero(table.dy_mm == 0)[0])
-    objects = {}
+    objects: dict[str, ObjectEquivalent] = {}
     for k, name in enumerate(table.objects):
         drop = -table.dc_ff[k]  # (g, x, y)
         contact = drop[0][np.ix_(quad_x, quad_y)]
         under = drop[:, centre_x, centre_y]
         counts = scale * under
-        objects[name] = {
-            "footprint_sigma_mm": footprint_sigma_mm(
-                table.dx_mm[quad_x], table.dy_mm[quad_y], contact
-            ),
-            "gap_decay_mm": decay_gap_mm(table.gap_mm, under, under[0] / np.e),
-            "contact_counts": float(counts[0]),
-            "contact_dc_ff": float(-under[0]),
-            "threshold_gap_mm": decay_gap_mm(table.gap_mm, counts, THRESHOLD_COUNTS),
-        }
-        objects[name]["extrapolated"] = [
-            k for k in ("gap_decay_mm", "threshold_gap_mm") if objects[name][k] > table.gap_mm[-1]
-        ]
+        sigma = footprint_sigma_mm(table.dx_mm[quad_x], table.dy_mm[quad_y], contact)
+        decay = decay_gap_mm(table.gap_mm, under, under[0] / np.e)
+        threshold = decay_gap_mm(table.gap_mm, counts, THRESHOLD_COUNTS)
+        gaps = (("gap_decay_mm", decay), ("threshold_gap_mm", threshold))
+        objects[name] = ObjectEquivalent(
+            footprint_sigma_mm=sigma,
+            gap_decay_mm=decay,
+            contact_counts=float(counts[0]),
+            contact_dc_ff=float(-under[0]),
+            threshold_gap_mm=threshold,
+            extrapolated=[k for k, gap in gaps if gap > table.gap_mm[-1]],
+        )
     shifts = {}
     for a, axis in enumerate(("x", "y")):
         shifts[f"stretch_{axis}"] = (-scale * (table.c_stretch_ff[a] - table.c0_ff)).tolist()

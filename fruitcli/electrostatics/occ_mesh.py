@@ -80,19 +80,21 @@ def mesh_model(gmsh, order: int = 1) -> TetMesh:
     index[tags.astype(np.int64)] = np.arange(len(tags))
     nodes = coords.reshape(-1, 3)
     per_tet = 4 if order == 1 else 10
-    tets, region, regions = [], [], []
+    blocks: list[np.ndarray] = []  # each region's tets
+    region: list[np.ndarray] = []
+    regions: list[str] = []
     for dim, ptag in gmsh.model.getPhysicalGroups(3):
         regions.append(gmsh.model.getPhysicalName(dim, ptag))
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
             _, enodes = gmsh.model.mesh.getElementsByType(GMSH_TET[order], ent)
             t = index[enodes.astype(np.int64)].reshape(-1, per_tet)
-            tets.append(t if order == 1 else t[:, GMSH_TO_VTK_TET10])
+            blocks.append(t if order == 1 else t[:, GMSH_TO_VTK_TET10])
             region.append(np.full(len(t), len(regions) - 1))
     surfaces = {}
     for dim, ptag in gmsh.model.getPhysicalGroups(2):
         ntags, _ = gmsh.model.mesh.getNodesForPhysicalGroup(dim, ptag)
         surfaces[gmsh.model.getPhysicalName(dim, ptag)] = np.unique(index[ntags.astype(np.int64)])
-    tets = np.concatenate(tets)
+    tets = np.concatenate(blocks)
     used = np.unique(tets)
     renumber = np.full(len(nodes), -1)
     renumber[used] = np.arange(len(used))

@@ -2,5 +2,6 @@
 board records (the paper's protocol, Sec. V-B, on real hardware), and an emulated printer.
 
 May import: `fruitcli.sensing`, `fruitcli.geometry.body_surface` (where the indenter
-meets the body), `fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
+meets the body), `fruitcli.scene` (the [printer] and [board] records its inputs hold),
+`fruitcli.errors`, `fruitcli.fsutil`, `fruitcli.tables`.
 """

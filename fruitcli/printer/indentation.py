@@ -23,8 +23,9 @@ the run stops with one line naming the sample. Outputs are those of the virtual 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,10 +34,14 @@ from fruitcli.fsutil import write_csv
 from fruitcli.geometry.body_surface import surface_heights, taxel_surface_heights
 from fruitcli.printer.marlin import Marlin, PrinterError, PrinterGone, PrinterHalted
 from fruitcli.printer.placement import Placement
+from fruitcli.scene import BoardSection, PrinterSection
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
 from fruitcli.tables import read_taxels
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.bench_stage import SampleSpec
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position
 FRAME_TIMEOUT_S = 5.0  # longest wait for a board frame after a move
@@ -49,23 +54,43 @@ class BenchStopped(FruitError):
     """The bench stopped at a sample (bed limit, no touch, printer or board failure)."""
 
 
-def bench_samples(scene, taxels, states_npz) -> tuple[np.ndarray, np.ndarray, float, int]:
+@dataclass(frozen=True)
+class PrinterBenchInputs:
+    """What the printer bench reads of the scene: its name and file name (for the
+    recording's meta and the messages), [printer], [board], the touch threshold
+    (``[detection].threshold_counts``), the idle frames before the first sample (the
+    larger of ``[bench].baseline_frames`` and ``[detection].baseline_frames``), the FEM
+    state the samples are on (``[bench].state``) and where they are (``[bench].samples``)."""
+
+    scene_name: str
+    file_name: str
+    printer: PrinterSection
+    board: BoardSection
+    threshold_counts: float
+    baseline_frames: int
+    state: int
+    samples: SampleSpec
+
+
+def bench_samples(
+    state: int, samples: SampleSpec, taxels, states_npz
+) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(sample ids (m,), contact points (m, 3) model mm, highest model z mm, samples in
-    all): the virtual bench's sample points over the surface."""
-    from fruitcli.sensing.bench_stage import sample_points
+    all): the virtual bench's sample points over the surface, at FEM `state` with
+    `states_npz`."""
+    from fruitcli.sensing.bench_stage import spec_points
     from fruitcli.sensing.detection.locate import load_states
 
     if states_npz is not None:
         states = load_states(states_npz, len(taxels))
-        state = scene.bench.state
         taxels_mm = states.taxels_mm[state]
-        xy = sample_points(scene, taxels_mm)
+        xy = spec_points(samples, taxels_mm)
         nodes = states.nodes_mm(state)
         z = surface_heights(xy, nodes, states.surface_tris)
         top = float(nodes[:, 2].max())
     else:
         taxels_mm = taxels.xyz_mm
-        xy = sample_points(scene, taxels_mm)
+        xy = spec_points(samples, taxels_mm)
         z = taxel_surface_heights(xy, taxels_mm)
         top = float(taxels_mm[:, 2].max())
     ids = np.flatnonzero(np.isfinite(z))
@@ -209,7 +234,7 @@ def outside_bed(p: np.ndarray, z_low: float, z_safe: float, bed) -> bool:
 
 
 def run_printer_bench(
-    scene,
+    inputs: PrinterBenchInputs,
     taxels_csv,
     states_npz,
     printer_port: str,
@@ -226,20 +251,20 @@ def run_printer_bench(
     from fruitcli.sensing.live.serial_ports import FrameReader
 
     say = progress or (lambda msg: None)
-    pr = scene.printer
+    pr = inputs.printer
     out = Path(out_dir) / indenter
     _check_overwrite(out / "frames.npz", overwrite)
     taxels = read_taxels(taxels_csv, FrameError)
-    board = scene.board
+    board = inputs.board
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
-    threshold = scene.detection.threshold_counts
+    threshold = inputs.threshold_counts
     # idle frames first: enough for the bench's C0 and for `fruit locate`'s baseline
-    n_base = max(scene.bench.baseline_frames, scene.detection.baseline_frames)
+    n_base = inputs.baseline_frames
     placement = Placement.from_printer(pr)
-    ids, contact, top, n_all = bench_samples(scene, taxels, states_npz)
+    ids, contact, top, n_all = bench_samples(inputs.state, inputs.samples, taxels, states_npz)
     if not len(ids):
-        raise BenchStopped(f"{scene.path.name}: no sample point over the taxels' surface")
-    z_safe = check_reach(pr, placement, contact, top, scene.path.name)
+        raise BenchStopped(f"{inputs.file_name}: no sample point over the taxels' surface")
+    z_safe = check_reach(pr, placement, contact, top, inputs.file_name)
     feed = pr.feed_mm_min
     say(
         f"{len(ids)} samples ({n_all - len(ids)} off the surface left out), safe height "
@@ -249,7 +274,7 @@ def run_printer_bench(
     printer = Marlin(ser, printer_port, pr.timeout_s, log=say)
     stream = BoardStream(FrameReader(bser, board.rows, board.cols, board_port, fmt))
     log = BenchLog()
-    meta = _bench_meta(scene, indenter, (printer_port, board_port), n_base, placement)
+    meta = _bench_meta(inputs, indenter, (printer_port, board_port), placement)
     where = "start-up"
     tip = None
     try:
@@ -371,19 +396,21 @@ def _open_ports(printer_port: str, baud: int, board_port: str, board_baud: int) 
     return ser, bser
 
 
-def _bench_meta(scene, indenter: str, ports: tuple[str, str], n_base: int, placement) -> dict:
+def _bench_meta(
+    inputs: PrinterBenchInputs, indenter: str, ports: tuple[str, str], placement
+) -> dict:
     """The recording's meta: the scene, indenter, ports (printer, board), the bench's
     settings and the model's placement on the bed; "stopped" is set when it stops."""
-    pr = scene.printer
+    pr = inputs.printer
     return {
         "source": "printer bench",
-        "scene": scene.name,
+        "scene": inputs.scene_name,
         "indenter": indenter,
         "printer_port": ports[0],
         "board_port": ports[1],
         "step_mm": pr.step_mm,
-        "threshold_counts": scene.detection.threshold_counts,
-        "baseline_frames": n_base,
+        "threshold_counts": inputs.threshold_counts,
+        "baseline_frames": inputs.baseline_frames,
         "model_origin_mm": list(placement.origin),
         "rotate_z_deg": pr.rotate_z_deg,
         "stopped": "",

@@ -15,8 +15,9 @@ Sub-packages, by concept (each states what it may import in its own docstring):
   log, an emulated board on a pseudo-terminal.
 
 The sensing stages as file-to-file functions, one module each: `locate_stage`,
-`bench_stage`, `sensitivity_stage` (`stages` offers all three); `locator_setup` builds
-what locating a recording needs (the locator, the surface projector, the skin's heights).
+`bench_stage`, `sensitivity_stage` (`stages` offers all three); `inputs_stage` turns the
+scene into their typed inputs; `locator_setup` builds what locating a recording needs
+(the locator, the surface projector, the skin's heights) from those inputs.
 May import: the sub-packages above, `fruitcli.geometry`, `fruitcli.fem`,
 `fruitcli.electrostatics`, `fruitcli.scene`; never `fruitcli.workflow` or `fruitcli.cli`.
 """

@@ -4,6 +4,7 @@ indenter (out_dir/<indenter>/frames.npz, truth.csv). Units: mm, counts, s.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -13,26 +14,50 @@ from fruitcli.fsutil import write_csv
 from fruitcli.geometry.body_surface import body_surface, contact_heights
 from fruitcli.sensing.detection.locate import load_states
 from fruitcli.sensing.frames.recording import Recording
-from fruitcli.sensing.locator_setup import electrostatic_skin, or_defaults
+from fruitcli.sensing.inputs_stage import crossing_skin_inputs
+from fruitcli.sensing.locator_setup import electrostatic_skin
 from fruitcli.tables import read_taxels
 
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 """The columns of the bench's point tables (truth.csv, measured.csv)."""
 
 
-def sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
-    """(x, y) mm of the bench samples: "quarter" or a CSV (sample,x_mm,y_mm)."""
-    from fruitcli.sensing.skin.virtual_bench import quarter_samples
-    from fruitcli.tables import read_table
+@dataclass(frozen=True)
+class SampleSpec:
+    """Where the bench samples (``[bench].samples``): a quarter pitch off each taxel
+    (`quarter`: the grid's spacings x, y in mm) or the points of a CSV (`csv`, its path
+    resolved; columns sample,x_mm,y_mm)."""
 
+    quarter: tuple[float, float] | None = None
+    csv: Path | None = None
+
+
+def sample_spec(scene) -> SampleSpec:
+    """The scene's `SampleSpec` (the grid's spacings are read for "quarter" only)."""
     spec = scene.bench.samples
     if spec == "quarter":
         g = scene.grid
-        return quarter_samples(taxels_mm[:, :2], g.spacing_x_mm, g.spacing_y_mm)
+        return SampleSpec(quarter=(g.spacing_x_mm, g.spacing_y_mm))
     from fruitcli.scene import resolve_path
 
-    cols = read_table(resolve_path(scene.path, spec), ["x_mm", "y_mm"], error=FrameError)
+    return SampleSpec(csv=resolve_path(scene.path, spec))
+
+
+def spec_points(spec: SampleSpec, taxels_mm: np.ndarray) -> np.ndarray:
+    """(x, y) mm of the bench samples of `spec` over the taxels (T, 3) mm."""
+    from fruitcli.sensing.skin.virtual_bench import quarter_samples
+    from fruitcli.tables import read_table
+
+    if spec.quarter is not None:
+        return quarter_samples(taxels_mm[:, :2], *spec.quarter)
+    assert spec.csv is not None, "the samples' CSV, or a quarter pitch off the taxels"
+    cols = read_table(spec.csv, ["x_mm", "y_mm"], error=FrameError)
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
+
+
+def sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
+    """(x, y) mm of the scene's bench samples: "quarter" or a CSV (sample,x_mm,y_mm)."""
+    return spec_points(sample_spec(scene), taxels_mm)
 
 
 def run_bench(
@@ -67,10 +92,10 @@ def run_bench(
         FrameError,
     )
     skin = forward.make_skin(
-        len(taxels), bench.seed, forward.SkinParams.from_table(or_defaults(scene).skin), taxels.ids
+        len(taxels), bench.seed, forward.SkinParams.from_table(scene.skin), taxels.ids
     )
     surface = None if surface_path is None else body_surface(surface_path, surface_unit)
-    response = electrostatic_skin(scene, crossing_dir, progress)
+    response = electrostatic_skin(crossing_skin_inputs(scene, crossing_dir), progress)
     states, taxels_mm, shift = _bench_state(scene, taxels, states_npz_or_none, skin, response)
     xy = sample_points(scene, taxels_mm)
     z, truth_surface = contact_heights(xy, taxels_mm, states, bench.state, surface)
@@ -90,17 +115,18 @@ def run_bench(
         f"{scene.path.name}: [bench].step_mm = {bench.step_mm:g} over {len(contact)} samples",
         FrameError,
     )
+    indenters: dict[str, dict[str, int]] = {}  # name -> frames, samples, dropped
     result = {
         "samples": int(len(xy)),
         "off_surface": int(len(xy) - len(contact)),
         "truth_surface": truth_surface,
-        "indenters": {},
+        "indenters": indenters,
     }
     at = (contact, taxels_mm, skin.baseline_counts + shift)  # points, taxels, baseline
     for n, name in enumerate(bench.indenters):
         run, frames = _run_indenter(scene, n, name, at, skin, response, cells)
         _write_run(scene, name, run, frames, truth_surface, out_dir / name)
-        result["indenters"][name] = {
+        indenters[name] = {
             "frames": run.counts.shape[0],
             "samples": int(len(run.truth_ids)),
             "dropped": run.dropped,

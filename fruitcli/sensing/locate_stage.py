@@ -6,24 +6,27 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Required, TypedDict
 
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
-from fruitcli.scene import SkinSection
+from fruitcli.geometry.body_surface import SurfaceProjector
 from fruitcli.sensing.bench_stage import POINT_HEADER
-from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES, Settings
+from fruitcli.sensing.detection.frames_to_touches import CHUNK_FRAMES
 from fruitcli.sensing.detection.locate import load_states
 from fruitcli.sensing.detection.model_fit import FIT_MODEL
 from fruitcli.sensing.detection.touch_table import TOUCH, TouchTable
 from fruitcli.sensing.frames.recording_chunks import open_recording
+from fruitcli.sensing.inputs_stage import LocateFiles, LocateInputs
 from fruitcli.sensing.locator_setup import (
+    SurfaceInputs,
     build_locator,
     electrostatic_skin,
-    or_defaults,
     skin_heights,
     surface_projector,
 )
@@ -32,77 +35,73 @@ from fruitcli.tables import read_taxels
 from fruitcli.time_left import time_left
 
 
+class LocateSummary(TypedDict, total=False):
+    """What `run_locate` did: frames, touches written, lines skipped, time (s) and
+    frames per second, the touches CSV; the projection onto the surface (touches moved,
+    mean and max distance, mm); how a recording with pressures was followed ("reduced"
+    or "full", with the frames outside the reduced model's range or the distances to the
+    state path); a bench's measured.csv with its samples and the samples missed."""
+
+    frames: Required[int]
+    touches: Required[int]
+    skipped_lines: Required[int]
+    seconds: Required[float]
+    frames_per_s: Required[float]
+    touches_csv: Required[str]
+    projected_to_surface: dict[str, float]
+    model: str
+    frames_outside_reduced_range: int
+    pressure_path: dict
+    measured_csv: str
+    samples: int
+    samples_missed: int
+
+
 def run_locate(
-    scene,
-    frames_path,
-    taxels_csv,
-    states_npz_or_none,
-    out_dir,
-    progress=None,
-    baseline_frames: int | None = None,
-    threshold_counts: float | None = None,
-    method: str | None = None,
-    surface_path=None,
-    surface_unit: str = "mm",
+    inputs: LocateInputs,
+    files: LocateFiles,
+    progress: Callable[[str], None] | None = None,
     chunk_frames: int = CHUNK_FRAMES,
     workers: int | None = None,
-    reduced=None,
-    gains_csv=None,
-    skin_table: SkinSection | None = None,
-    hovers: bool | None = None,
-    crossing_dir=None,
-) -> dict:
+) -> LocateSummary:
     """Detect and locate every frame of a recording; write touches.csv (+ measured.csv).
-    The recording is read, detected and written `chunk_frames` frames at a time, on
-    `workers` threads (default: the CPUs this process may use, at most 4). With
-    ``[detection].project = "surface"`` the located points are moved to the nearest
-    point of the body's surface (`surface_path`, at rest, in `surface_unit`; carried by
-    the recording's FEM state). With `reduced` (a ReducedModel), a recording with
-    chamber pressures takes each frame's taxels from it (`build_locator`). Activations
-    are divided by the taxels' gains with `gains_csv` or the scene's
-    ``[detection].divide_by_gain`` (`gain_division`). Heights, strengths and sizes
-    come from `skin_table` (a [skin] table, e.g. `fruit calibrate`'s) or the scene's
-    [skin] (`fruitcli.sensing.skin.heights.gap_law`; with ``[skin].model =
-    "electrostatic"``, the crossing's table from `crossing_dir` or computed now,
-    `crossing_heights`); hovers are written with kind hover and are never bench
-    samples."""
+    `inputs`: what it reads of the scene (`inputs_stage.locate_inputs`); `files`: the
+    recording, taxels, states, output folder and body surface. The recording is read,
+    detected and written `chunk_frames` frames at a time, on `workers` threads
+    (default: the CPUs this process may use, at most 4). With ``[detection].project =
+    "surface"`` the located points are moved to the nearest point of the body's surface
+    (`files.surface`, at rest, in `files.surface_unit`; carried by the recording's FEM
+    state). With `inputs.reduced` (a ReducedModel), a recording with chamber pressures
+    takes each frame's taxels from it (`build_locator`). Activations are divided by the
+    taxels' gains with `inputs.gains_csv` or the scene's ``[detection].divide_by_gain``
+    (`gain_division`). Heights, strengths and sizes come from `inputs.skin` (a [skin]
+    table: the scene's or e.g. `fruit calibrate`'s; `fruitcli.sensing.skin.heights.
+    gap_law`) or, for an electrostatic skin, the crossing's table (`crossing_heights`);
+    hovers are written with kind hover and are never bench samples."""
     from fruitcli.sensing.detection.gain_division import detection_gain
 
     say = progress or (lambda msg: None)
-    out_dir = Path(out_dir)
-    taxels = read_taxels(taxels_csv, FrameError)
-    board = or_defaults(scene).board
-    states = None if states_npz_or_none is None else load_states(states_npz_or_none, len(taxels))
-    settings = Settings.from_scene(
-        or_defaults(scene).detection,
-        baseline_frames=baseline_frames,
-        threshold_counts=threshold_counts,
-        method=method,
-        hovers=hovers,
-    )
+    frames_path, out_dir = files.frames, Path(files.out_dir)
+    taxels = read_taxels(files.taxels, FrameError)
+    board, settings = inputs.board, inputs.settings
+    states = None if files.states is None else load_states(files.states, len(taxels))
     if settings.threshold_counts <= 0:
         raise FrameError(f"threshold: expected > 0 counts, got {settings.threshold_counts}")
     where = str(frames_path)
-    gain = detection_gain(scene, taxels, gains_csv)
-    crossing = None
-    if skin_table is None and scene is not None:
-        skin_table = scene.skin
-        crossing = electrostatic_skin(scene, crossing_dir, say)
-    heights = skin_heights(skin_table, taxels, settings, gain is not None, crossing)
+    gain = detection_gain(inputs.gain, taxels, inputs.gains_csv)
+    crossing = electrostatic_skin(inputs.crossing, say)
+    heights = skin_heights(inputs.skin, taxels, settings, gain is not None, crossing)
     if workers is None:
         workers = min(4, _usable_cpus())
+    surface = SurfaceInputs(inputs.project, settings.method, files.surface, files.surface_unit)
     with open_recording(frames_path, board.rows, board.cols, board.format, "read") as rec:
         locator, pressure = build_locator(
-            scene, taxels, states, rec, settings, where, reduced, gain, heights
+            board, taxels, states, rec, settings, where, inputs.reduced, gain, heights
         )
-        projector = surface_projector(
-            scene, rec, states, pressure, taxels, surface_path, surface_unit, where, settings.method
-        )
+        projector = surface_projector(surface, rec, states, pressure, taxels, where)
         if projector is not None:
             locator.use_surface(projector.normal, projector.distance)
-        only_fitted = (
-            settings.method == "model" and or_defaults(scene).detection.project != "surface"
-        )
+        only_fitted = settings.method == "model" and inputs.project != "surface"
         say(
             f"{len(rec)} frames, {len(taxels)} taxels, {rec.skipped_lines} lines skipped"
             + (
@@ -117,7 +116,7 @@ def run_locate(
         run = _Written(out_dir / "touches.csv", header, projector, only_fitted, t0)
         _write_touches(locator, rec, baseline, pressure, run, chunk_frames, workers, say)
         dt = time.perf_counter() - t0
-    result = {
+    result: LocateSummary = {
         "frames": len(rec),
         "touches": run.rows,
         "skipped_lines": rec.skipped_lines,
@@ -128,8 +127,8 @@ def run_locate(
     if projector is not None:
         result["projected_to_surface"] = _projected(run.moved, say)
     if pressure is not None:
-        result.update(_followed(locator, rec, pressure, out_dir, say))
-    result.update(_measured(rec, run.sampled, out_dir, say))
+        _followed(result, locator, rec, pressure, out_dir, say)
+    _measured(result, rec, run.sampled, out_dir, say)
     say(f"{run.rows} touches, {result['frames_per_s']:.0f} frames/s")
     return result
 
@@ -144,7 +143,7 @@ class _Written:
 
     csv: Path
     header: list[str]
-    projector: object
+    projector: SurfaceProjector | None
     only_fitted: bool
     started: float
     rows: int = 0
@@ -162,10 +161,10 @@ def _write_touches(locator, rec, baseline, pressure, run, chunk_frames, workers,
     def rows(table: TouchTable):  # in the worker thread
         dist = None
         if projector is not None:
-            rows = slice(None)
+            picked: slice | np.ndarray = slice(None)
             if run.only_fitted:  # the model's points; the N9 points it kept stay as they are
-                rows = np.flatnonzero(table.fit == FIT_MODEL)
-            table.xyz_mm[rows], dist = projector.project(table.xyz_mm[rows])
+                picked = np.flatnonzero(table.fit == FIT_MODEL)
+            table.xyz_mm[picked], dist = projector.project(table.xyz_mm[picked])
         keep = None if rec.sample is None else _sample_touches(table, rec.sample)
         return touch_bytes(table, rec.t_s, model), len(table), keep, dist
 
@@ -214,7 +213,7 @@ def _touches_header(frames_path, model: bool) -> list[str]:
     ]
 
 
-def _projected(moved, say) -> dict:
+def _projected(moved, say) -> dict[str, float]:
     """The summary of the touches moved onto the body's surface."""
     projected = {"touches": moved[0], "mean_mm": moved[1] / max(moved[0], 1), "max_mm": moved[2]}
     say(
@@ -224,10 +223,10 @@ def _projected(moved, say) -> dict:
     return projected
 
 
-def _followed(locator, rec, pressure, out_dir, say) -> dict:
-    """How a recording with chamber pressures was followed: by the reduced model (frames
-    outside its range counted) or along the FEM states (frames far from the simulated
-    path counted, not hidden)."""
+def _followed(result: LocateSummary, locator, rec, pressure, out_dir, say) -> None:
+    """Into `result`: how a recording with chamber pressures was followed: by the
+    reduced model (frames outside its range counted) or along the FEM states (frames far
+    from the simulated path counted, not hidden)."""
     if locator.reduced is not None:
         outside = int(locator.reduced.outside(pressure).sum())
         say(
@@ -235,16 +234,20 @@ def _followed(locator, rec, pressure, out_dir, say) -> dict:
             f"({locator.reduced.describe()}); {outside} of {len(rec)} frames outside its "
             "range (clamped to it)"
         )
-        return {"model": "reduced", "frames_outside_reduced_range": outside}
+        result["model"] = "reduced"
+        result["frames_outside_reduced_range"] = outside
+        return
     from fruitcli.sensing.detection.pressure_path import report_off_path
 
     off_path = report_off_path(rec, pressure, locator.state_pressure_kpa, out_dir, say)
-    return {"model": "full", "pressure_path": off_path}
+    result["model"] = "full"
+    result["pressure_path"] = off_path
 
 
-def _measured(rec, sampled, out_dir, say) -> dict:
+def _measured(result: LocateSummary, rec, sampled, out_dir, say) -> None:
     """For a bench's frames, out_dir/measured.csv: the strongest touch of each sample's
-    frame, mm; without bench samples, an earlier run's measured.csv is removed."""
+    frame, mm, and its samples into `result`; without bench samples, an earlier run's
+    measured.csv is removed."""
     if rec.sample is not None:
         ids, pts = strongest_per_sample(TouchTable.concat(sampled), rec.sample)
         write_csv(
@@ -254,18 +257,16 @@ def _measured(rec, sampled, out_dir, say) -> dict:
             comments=["strongest touch of each bench sample's frame, mm"],
         )
         n_samples = int(np.unique(rec.sample[rec.sample >= 0]).size)
-        return {
-            "measured_csv": str(out_dir / "measured.csv"),
-            "samples": n_samples,
-            "samples_missed": n_samples - int(ids.size),
-        }
+        result["measured_csv"] = str(out_dir / "measured.csv")
+        result["samples"] = n_samples
+        result["samples_missed"] = n_samples - int(ids.size)
+        return
     if (out_dir / "measured.csv").exists():  # a bench run's, not of these frames
         (out_dir / "measured.csv").unlink()
         say(
             f"removed {out_dir / 'measured.csv'}: left by an earlier run (these frames have "
             "no bench samples)"
         )
-    return {}
 
 
 def strongest_per_sample(table: TouchTable, sample: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,38 +1,61 @@
 """What locating a recording is built from: the `Locator` of its taxels (at rest, at its
 FEM state, along the states or from the reduced model), the projector onto the body's
-surface, and the skin's height model. Units: mm, counts, kPa.
+surface, the skin's height model and an electrostatic skin's crossing table. Each takes
+typed inputs (the scene's sections, `SurfaceInputs`, `CrossingSkinInputs`) that the
+stages build (`inputs_stage`), never the scene. Units: mm, counts, kPa.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.geometry.body_surface import SurfaceProjector, body_surface
-from fruitcli.scene import Scene, SkinSection, default_scene
+from fruitcli.scene import BoardSection, SkinSection
 from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
 from fruitcli.sensing.detection.locate import States, match_chambers
 from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
-from fruitcli.sensing.skin.models import SKIN_MODELS
 from fruitcli.tables import Taxels
 
 if TYPE_CHECKING:
+    from fruitcli.electrostatics.design import CrossingInputs
     from fruitcli.sensing.skin.crossing_heights import CrossingHeights
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
     from fruitcli.sensing.skin.heights import GapLaw
 
 
-def or_defaults(scene: Scene | None) -> Scene:
-    """The scene, or without one a scene at the schema's defaults."""
-    return default_scene() if scene is None else scene
+@dataclass(frozen=True)
+class SurfaceInputs:
+    """What projecting located points onto the body's surface reads: ``[detection].project``
+    and the detection method (``[detection].method`` or the command's), and the body's
+    closed surface at rest (`path`, None: not known) in `unit`."""
+
+    project: str
+    method: str
+    path: str | Path | None = None
+    unit: str = "mm"
+
+
+@dataclass(frozen=True)
+class CrossingSkinInputs:
+    """What an electrostatic skin's crossing table in counts is made from: ``[skin].
+    counts_per_ff`` (None: the table's own fit) and either the skin stage's folder
+    (`folder`, its crossing.npz and summary.json) or, without one, the crossing cell's
+    inputs (`cell`, `fruitcli.electrostatics.design.crossing_inputs`), computed now."""
+
+    counts_per_ff: float | None
+    folder: Path | None = None
+    cell: CrossingInputs | None = None
 
 
 def build_locator(
-    scene,
+    board: BoardSection,
     taxels: Taxels,
     states: States | None,
     rec: ChunkedRecording,
@@ -46,9 +69,8 @@ def build_locator(
     or the state path when the recording carries chamber pressures; with `reduced` (a
     ReducedModel of these taxels) and pressures in the recording, each frame's taxels
     from the reduced model at its pressures; `gain` (T,): the gains detection divides
-    by (None: off); `heights`: the skin's height model (`Locator`). -> (locator,
-    pressure)."""
-    board = or_defaults(scene).board
+    by (None: off); `heights`: the skin's height model (`Locator`); `board`: the scene's
+    [board]. -> (locator, pressure)."""
     check_frame_shape(np.empty((0, *rec.frame_shape)), board, where)
     if reduced is not None and rec.pressure_kpa is not None:
         names = tuple(rec.chamber_names)
@@ -113,15 +135,14 @@ def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
 
 
 def surface_projector(
-    scene, rec, states, pressure, taxels, surface_path, surface_unit, where: str, method=None
+    surface: SurfaceInputs, rec, states, pressure, taxels, where: str
 ) -> SurfaceProjector | None:
     """The `SurfaceProjector` of ``[detection].project = "surface"``, or of the model
     method (its fitted points go onto the body's surface when the surface is known and
     the recording stays at one state); None otherwise."""
-    detection = or_defaults(scene).detection
-    if detection.project != "surface":
-        method = detection.method if method is None else method
-        if not (model_on_surface(method) and surface_path and pressure is None):
+    surface_path = surface.path
+    if surface.project != "surface":
+        if not (model_on_surface(surface.method) and surface_path and pressure is None):
             return None
     if surface_path is None:
         raise FrameError(
@@ -137,7 +158,7 @@ def surface_projector(
         )
     state = None if states is None else int(rec.meta.get("state", 0))
     return SurfaceProjector(
-        body_surface(surface_path, surface_unit),
+        body_surface(surface_path, surface.unit),
         states,
         state,
         locator_taxels(states, state, taxels),
@@ -166,11 +187,18 @@ def skin_heights(
     return gap_law(params, taxels.ids, settings.footprint, divided)
 
 
-def electrostatic_skin(scene, crossing_dir, progress=None) -> CrossingSkin | None:
-    """The crossing's table in counts with ``[skin].model = "electrostatic"`` (from
-    `crossing_dir`, the skin stage's folder, or computed now without one), else None."""
-    if not SKIN_MODELS[or_defaults(scene).skin.model].computed:
+def electrostatic_skin(crossing: CrossingSkinInputs | None, progress=None) -> CrossingSkin | None:
+    """The crossing's table in counts (from the skin stage's folder, or computed now
+    without one) for an electrostatic skin; None (a skin without a crossing table) for
+    another [skin].model."""
+    if crossing is None:
         return None
-    from fruitcli.sensing.skin.crossing_skin import crossing_skin
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
-    return crossing_skin(scene, crossing_dir, progress)
+    if crossing.folder is not None:
+        return CrossingSkin.load(crossing.folder, crossing.counts_per_ff)
+    from fruitcli.electrostatics import design
+
+    assert crossing.cell is not None, "a crossing table's folder or its cell's inputs"
+    table, summary = design.run_crossing(crossing.cell, progress=progress)
+    return CrossingSkin.from_table(design.table_arrays(table), summary, crossing.counts_per_ff)

@@ -10,7 +10,8 @@ import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.detection.locate import load_states
-from fruitcli.sensing.locator_setup import electrostatic_skin, or_defaults
+from fruitcli.sensing.inputs_stage import crossing_skin_inputs
+from fruitcli.sensing.locator_setup import electrostatic_skin
 from fruitcli.tables import read_taxels
 
 
@@ -44,7 +45,7 @@ def run_sensitivity(
     skin = forward.make_skin(
         len(taxels),
         scene.bench.seed,
-        forward.SkinParams.from_table(or_defaults(scene).skin),
+        forward.SkinParams.from_table(scene.skin),
         taxels.ids,
     )
     rng = np.random.default_rng([scene.bench.seed, 99])
@@ -54,7 +55,7 @@ def run_sensitivity(
         rng,
     )
     std = sensitivity.noise_std_counts(rest)
-    response = electrostatic_skin(scene, crossing_dir, progress)
+    response = electrostatic_skin(crossing_skin_inputs(scene, crossing_dir), progress)
     strain, gain, shift_model = _model_shift(states, skin, response, len(taxels))
     anim = sensitivity.animation_shift(shift_model, sens.animation_frames)
     played = forward.frame_counts(skin.baseline_counts + anim, skin.noise_std_counts, rng)

@@ -22,11 +22,13 @@ import threading
 from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from fruitcli.errors import FruitError
 
 MAX_ATTEMPTS = 3  # a task whose local worker died this often is given up (as Dask's default)
+K = TypeVar("K", bound=Hashable)  # a task graph's key
+
 CONNECT_TIMEOUT_S = 10.0  # waiting for a Dask scheduler to answer, and for its workers
 
 
@@ -73,9 +75,9 @@ def _share_cores(jobs: int) -> None:
 
     from fruitcli.fem import threads
 
-    numba.set_num_threads(
-        max(1, min(numba.config.NUMBA_NUM_THREADS, (os.cpu_count() or 1) // jobs))
-    )
+    # numba.config sets its settings from the environment at import, out of mypy's sight
+    most = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    numba.set_num_threads(max(1, min(most, (os.cpu_count() or 1) // jobs)))
     threads.AUTO = False  # the share holds; the solvers do not pick from the load
 
 
@@ -286,16 +288,16 @@ def open_executor(
 
 def run_graph(
     pool,
-    tasks: dict[Hashable, Task],
-    on_done: Callable[[Hashable, Any], None] | None = None,
-    on_lost: Callable[[Hashable, str], Any] | None = None,
-) -> dict:
+    tasks: dict[K, Task],
+    on_done: Callable[[K, Any], None] | None = None,
+    on_lost: Callable[[K, str], Any] | None = None,
+) -> dict[K, Any]:
     """Run `tasks` (in insertion order, each once its deps are done) on `pool`; returns
     key -> result. `on_done(key, result)` is called as each finishes. A task whose worker
     died `MAX_ATTEMPTS` times (or past Dask's own retries) gets `on_lost(key, message)`
     as its result, or raises `WorkerLost` without `on_lost`."""
     on_done = on_done or (lambda key, result: None)
-    results: dict = {}
+    results: dict[K, Any] = {}
     if isinstance(pool, Serial):
         for key in _topological(tasks):
             task = tasks[key]
@@ -328,7 +330,7 @@ def _run_pooled(pool, tasks, on_done, on_lost, results: dict) -> None:
     launch_ready()
     while running:
         done, _ = cf.wait(list(running), return_when=cf.FIRST_COMPLETED)
-        lost = []
+        lost: list[tuple[Hashable, BaseException | None]] = []
         for fut in done:
             key = running.pop(fut)
             exc = fut.exception()

@@ -133,7 +133,10 @@ def evaluate(
         params.noise_std_counts,
     )
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True), heights=law)
-    err, true, kind, pos = [], [], [], []
+    err_l: list[float] = []
+    true_l: list[float] = []
+    kind_l: list[int] = []
+    pos_l: list[float] = []
     top = []
     for k in range(len(points)):
         stream = Stream(loc, skin.baseline_counts.astype(float))
@@ -143,15 +146,16 @@ def evaluate(
             t = stream.step(counts[f].astype(float))
             if len(t) == 0:
                 continue
+            assert t.height_mm is not None and t.kind is not None  # filled on construction
             n = int(np.argmax(t.peak))
             g = max(gap[f], 0.0)
-            err.append(abs(t.height_mm[n] - g))
-            true.append(g)
-            kind.append(int(t.kind[n]))
-            pos.append(float(np.linalg.norm(t.xyz_mm[n] - points[k])))
+            err_l.append(abs(t.height_mm[n] - g))
+            true_l.append(g)
+            kind_l.append(int(t.kind[n]))
+            pos_l.append(float(np.linalg.norm(t.xyz_mm[n] - points[k])))
             seen.append(gap[f])
         top.append(max(seen) if seen else np.nan)
-    err, true, kind, pos = map(np.asarray, (err, true, kind, pos))
+    err, true, kind, pos = map(np.asarray, (err_l, true_l, kind_l, pos_l))
     out = []
     for lo, hi in BANDS:
         sel = (true >= lo) & (true < hi) if lo > 0 else (true <= hi)

@@ -32,14 +32,26 @@ scene's: run the study on ``pipelines/fruit-deformed.toml`` for them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
 GAIN_SPREAD = 0.2
-BENCH_SKINS = {
+
+
+class BenchSkin(TypedDict):
+    """A bench skin's [skin] keys: None keeps the scene's (the calibrated cases')."""
+
+    field_sigma_mm: float | None
+    contact_counts: float | None
+    gain_spread: float
+
+
+BENCH_SKINS: dict[str, BenchSkin] = {
     "calibrated": {"field_sigma_mm": None, "contact_counts": None, "gain_spread": GAIN_SPREAD},
     "electrostatic": {"field_sigma_mm": None, "contact_counts": None, "gain_spread": GAIN_SPREAD},
     "gaussian, table fitted": {
@@ -97,8 +109,10 @@ def bench_skin_values(name: str, indenters) -> dict:
             "skin.taxel_gain": None,
             "skin.model": board,
         }
+    sigma = case["field_sigma_mm"]
+    assert sigma is not None, f"bench skin {name!r}: a field sigma or a calibration"
     feet = {
-        i: float(np.hypot(case["field_sigma_mm"], forward.INDENTER_RADIUS_MM[i]))
+        i: float(np.hypot(sigma, forward.INDENTER_RADIUS_MM[i]))
         for i in indenters
         if i in forward.INDENTER_RADIUS_MM
     }
@@ -114,7 +128,7 @@ def run_case(args) -> list[dict]:
     """Bench one skin case, then locate and evaluate it with every method: rows."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.stages import run_bench, run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, name = args
     scene = load_scene(scene_path)
@@ -148,24 +162,15 @@ def run_case(args) -> list[dict]:
     rows = []
     for label, changes, setting in variants():
         located = scene.with_values(changes)
+        inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
         for ind in scene.bench.indenters:
             frames = base / "bench" / ind / "frames.npz"
             out = base / label.replace(" ", "_").replace(",", "") / ind
             times = []
             for _ in range(REPEATS):
                 with setting():
-                    summary = run_locate(
-                        located,
-                        frames,
-                        taxels,
-                        states,
-                        out,
-                        workers=1,
-                        surface_path=surface,
-                        surface_unit=unit,
-                        skin_table=skin_table,
-                        crossing_dir=located_table,
-                    )
+                    files = LocateFiles(frames, taxels, states, out, surface, unit)
+                    summary = run_locate(inputs, files, workers=1)
                 times.append(summary["seconds"])
             with np.load(frames, allow_pickle=False) as f:
                 n_frames = len(f["frames"])
@@ -193,7 +198,11 @@ def run_case(args) -> list[dict]:
     return rows
 
 
-def variants() -> list[tuple]:
+Variant = tuple[str, dict[str, object], Callable[[], AbstractContextManager[object]]]
+"""A locate row: its label, its [detection] keys, and the context its settings hold in."""
+
+
+def variants() -> list[Variant]:
     """(row label, its [detection] keys, a context manager factory for its settings):
     every method of `METHODS` with its defaults, then the model's `MODEL_SETTINGS`; every
     model row runs inside `model_fit.tuned` (its defaults too), so cases run on threads
@@ -205,7 +214,7 @@ def variants() -> list[tuple]:
     from fruitcli.sensing.detection.methods import METHODS
 
     model_defaults = partial(model_fit.tuned, model_fit.HALF, model_fit.ITERATIONS)
-    out = [
+    out: list[Variant] = [
         (m, {"detection.method": m}, model_defaults if spec.refine == "model" else nullcontext)
         for m, spec in METHODS.items()
     ]

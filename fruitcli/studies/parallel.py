@@ -4,20 +4,24 @@ callback, results in the order of the cases (identical to a serial run)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 from fruitcli.studies.executors import Task, default_jobs, open_executor, run_graph
 
 __all__ = ["default_jobs", "run_cases"]
 
+C = TypeVar("C")  # a case
+R = TypeVar("R")  # its result
+
 
 def run_cases(
-    func: Callable,
-    cases: Sequence,
+    func: Callable[[C], R],
+    cases: Sequence[C],
     jobs: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     scheduler: str | None = None,
     pool=None,
-) -> list:
+) -> list[R]:
     """`[func(c) for c in cases]`, spread over `jobs` processes (1: in this process), over
     the workers of the Dask `scheduler` at that address, or over an open `pool` (see
     `fruitcli.studies.executors.open_executor`). `func` is a module-level function."""

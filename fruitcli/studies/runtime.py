@@ -9,12 +9,16 @@ taxels' position error in the last (most deformed) state against the finest sett
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
 from fruitcli.scene import load_scene
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.inputs_stage import LocateInputs
 
 
 @dataclass(frozen=True)
@@ -185,26 +189,37 @@ def default_reason(rows: list[dict], default_name: str) -> str:
     )
 
 
-DETECTION_VARIANTS = {
+class DetectionChange(TypedDict, total=False):
+    """A detection variant's [detection] keys; the others stay as the scene gives them."""
+
+    method: str
+    noise_floor_counts: float
+
+
+DETECTION_VARIANTS: dict[str, DetectionChange] = {
     "n9 (paper)": {"method": "n9"},
     "n9 + noise floor 6": {"method": "n9_floor", "noise_floor_counts": 6.0},
     "peaks": {"method": "peaks"},
 }
 
 
-def run_detection_variants(scene, bench_dir: Path, taxels_csv, states, work: Path) -> list[dict]:
-    """Locate the bench frames with each detection variant; error and time per frame."""
+def run_detection_variants(
+    base: LocateInputs, bench_dir: Path, taxels_csv, states, work: Path
+) -> list[dict]:
+    """Locate the bench frames with each detection variant of the scene's locate inputs
+    `base`; error and time per frame."""
     from fruitcli.evaluation.report import evaluate_pair
-    from fruitcli.sensing.stages import run_locate
+    from fruitcli.sensing.stages import LocateFiles, run_locate
 
     rows = []
-    for name, params in DETECTION_VARIANTS.items():
-        variant = scene.with_values({f"detection.{k}": v for k, v in params.items()})
+    for name, change in DETECTION_VARIANTS.items():
+        variant = replace(base, settings=replace(base.settings, **change))
         errs, frames, seconds = [], 0, 0.0
         for ind_dir in sorted(p for p in bench_dir.iterdir() if (p / "frames.npz").exists()):
             out = work / "detect" / name.split()[0] / ind_dir.name
             t0 = time.perf_counter()
-            summary = run_locate(variant, ind_dir / "frames.npz", taxels_csv, states, out)
+            files = LocateFiles(ind_dir / "frames.npz", taxels_csv, states, out)
+            summary = run_locate(variant, files)
             seconds += time.perf_counter() - t0
             with np.load(ind_dir / "frames.npz", allow_pickle=False) as f:
                 frames += len(f["frames"])

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import NotRequired, TypedDict
 
 import numpy as np
 
@@ -37,6 +38,29 @@ CAVITY_LO_MM = (10.0, 10.0, 10.0)
 CAVITY_HI_MM = (20.0, 20.0, 20.0)
 DENSITY = 1070.0
 GRAVITY = (0.0, 0.0, -9.81)
+
+
+class ModelChoice(TypedDict):
+    """A case's element and material (scene [fem] element and material)."""
+
+    element: str
+    material: str
+
+
+class StabilityRow(TypedDict):
+    """One row of the table: what `run_case` measured (HEADER's columns, in that order)."""
+
+    group: str
+    case: str
+    status: str
+    iterations: int
+    subdivisions: int
+    residual: float | None
+    max_disp_mm: float | None
+    min_det_f: float | None
+    seconds: float
+    note: str
+    tip_deflection_mm: NotRequired[float]  # the beam cases'
 
 
 @dataclass(frozen=True)
@@ -73,7 +97,7 @@ def default_cases() -> list[Case]:
         Case("jig", f"k = {k:g} N/mm", "jig", stiffness_n_per_mm=k)
         for k in (1e-3, 1e-1, 10.0, 1e3, 1e6)
     ]
-    p2 = {"element": "p2", "material": "neo-hookean"}
+    p2 = ModelChoice(element="p2", material="neo-hookean")
     cases += [
         Case("nu, p2", f"nu = {nu:g} (p2)", "beam_gravity", nu=nu, **p2)
         for nu in (0.3, 0.45, 0.49, 0.499, 0.4999)
@@ -315,11 +339,11 @@ BUILDERS = {
 }
 
 
-def run_case(case: Case) -> dict:
+def run_case(case: Case) -> StabilityRow:
     """Solve one case; never raises: failures become a one-line `status`."""
     from fruitcli.fem.solver.newton import SolverOptions, solve_state
 
-    row = {
+    row: StabilityRow = {
         "group": case.group,
         "case": case.name,
         "status": "converged",
@@ -360,13 +384,11 @@ def run_case(case: Case) -> dict:
             raise FruitError(
                 f"{case.name}: non-finite result (residual {res.residual}, max displacement {disp})"
             )
-        row.update(
-            iterations=res.iterations,
-            subdivisions=res.subdivisions,
-            residual=float(res.residual),
-            max_disp_mm=disp,
-            min_det_f=float(res.min_det_f),
-        )
+        row["iterations"] = res.iterations
+        row["subdivisions"] = res.subdivisions
+        row["residual"] = float(res.residual)
+        row["max_disp_mm"] = disp
+        row["min_det_f"] = float(res.min_det_f)
         if case.kind == "beam_gravity":
             row["tip_deflection_mm"] = float(-res.displacement_mm[:, 2].min())
         if case.kind in ("hollow_pressure", *REALISTIC) and len(res.pressure_kpa):
@@ -382,7 +404,7 @@ def run_case(case: Case) -> dict:
     return row
 
 
-def add_scaling_columns(rows: list[dict]) -> None:
+def add_scaling_columns(rows: list[StabilityRow]) -> None:
     """E sweep: tip deflection x E (constant while the response is linear); nu sweep: tip
     deflection relative to nu = 0.3 (how much linear tets lock)."""
     e_rows = [r for r in rows if r["group"] == "E" and "tip_deflection_mm" in r]
@@ -425,7 +447,7 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def table_markdown(rows: list[dict]) -> str:
+def table_markdown(rows: list[StabilityRow]) -> str:
     lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     for r in rows:
         lines.append("| " + " | ".join(_fmt(r.get(h)).replace("|", "/") for h in HEADER) + " |")

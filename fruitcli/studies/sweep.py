@@ -19,6 +19,7 @@ import json
 import math
 import re
 import tomllib
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,7 +73,9 @@ def parse_set(option: str) -> SetSpec:
 
 def _split_top(text: str) -> list[str]:
     """Split at commas outside brackets, braces and quotes."""
-    out, depth, quote, cur = [], 0, "", []
+    out: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, ""
     for ch in text:
         if quote:
             quote = "" if ch == quote else quote
@@ -117,7 +120,7 @@ def combinations(specs: list[SetSpec], mode: str = "grid") -> list[dict]:
         if len(set(lengths.values())) > 1:
             listed = ", ".join(f"{k} has {n}" for k, n in lengths.items())
             raise SweepError(f"--zip needs lists of one length: {listed}")
-        rows = zip(*(s.values for s in specs), strict=True)
+        rows: Iterable[tuple] = zip(*(s.values for s in specs), strict=True)
     elif mode == "grid":
         rows = itertools.product(*(s.values for s in specs))
     else:

@@ -107,7 +107,7 @@ def plot(path: Path, rows: list[dict], keys: list[str], figure: str) -> str:
     )
     pos = {s: n for n, s in enumerate(order)}
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    groups = {}
+    groups: dict[str, list[dict]] = {}
     for r in ok:
         label = f"{keys[1]} = {fmt_value(r[keys[1]])}" if len(keys) == 2 else figure
         groups.setdefault(label, []).append(r)

@@ -17,6 +17,7 @@ import socket
 import threading
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,16 +33,38 @@ ONE_AT_A_TIME = threading.Lock()
 TIMING = ("state_ms", "variant_s")  # columns that vary between runs of the same sweep
 
 
-def variant_figures(scene, folder: Path) -> dict:
+@dataclass(frozen=True)
+class FigureInputs:
+    """What a finished variant's figures read of its scene: its taxel file (None: none),
+    ``[skin].counts_per_ff`` (None: the crossing's fitted scale) and
+    ``[detection].threshold_counts`` (counts)."""
+
+    taxels: Path | None
+    counts_per_ff: float | None
+    threshold_counts: float
+
+
+def figure_inputs(scene, folder: Path) -> FigureInputs:
+    """The `FigureInputs` of a variant's scene whose stages ran into `folder`."""
+    from fruitcli.workflow.planner import Context
+    from fruitcli.workflow.stage_paths import taxels_path
+
+    return FigureInputs(
+        taxels_path(scene, Context(Path(folder))),
+        scene.skin.counts_per_ff,
+        scene.detection.threshold_counts,
+    )
+
+
+def variant_figures(inputs: FigureInputs, folder: Path) -> dict:
     """The figures of a finished variant's stages: taxel count, tets, FEM states (Newton
     iterations, max displacement mm, median ms per state), Table I rows (n, mean and
     std error mm) and sensitivity (noise std, baseline shift, counts)."""
     from fruitcli.workflow.planner import Context
-    from fruitcli.workflow.stage_paths import taxels_path
 
     ctx = Context(Path(folder))
     out: dict = {}
-    tax = taxels_path(scene, ctx)
+    tax = inputs.taxels
     if tax is not None and Path(tax).exists():
         lines = [
             ln for ln in Path(tax).read_text().splitlines() if ln.strip() and not ln.startswith("#")
@@ -66,7 +89,7 @@ def variant_figures(scene, folder: Path) -> dict:
             out[f"{slug}_n"] = int(row["n"])
             out[f"{slug}_mean_mm"] = float(row["mean_mm"])
             out[f"{slug}_std_mm"] = float(row["std_mm"])
-    out.update(skin_figures(scene, ctx.dir("skin") / "summary.json"))
+    out.update(skin_figures(inputs, ctx.dir("skin") / "summary.json"))
     sens = ctx.dir("sensitivity") / "sensitivity.json"
     if sens.exists():
         s = json.loads(sens.read_text())["summary"]
@@ -78,7 +101,7 @@ def variant_figures(scene, folder: Path) -> dict:
     return out
 
 
-def skin_figures(scene, summary_json: Path) -> dict:
+def skin_figures(inputs: FigureInputs, summary_json: Path) -> dict:
     """The electrostatic crossing's figures (`fruit skin`'s summary.json), in counts of
     ``[skin].counts_per_ff`` when the scene gives it: C0 (fF), each object's activation
     at contact (counts), the bent pad's largest baseline shift (counts, the crossing bent
@@ -88,14 +111,14 @@ def skin_figures(scene, summary_json: Path) -> dict:
         return {}
     s = json.loads(Path(summary_json).read_text())
     fitted = float(s["counts_per_ff"])
-    scale = scene.skin.counts_per_ff or fitted
+    scale = inputs.counts_per_ff or fitted
     out = {"c0_ff": float(s["c0_ff"]), "counts_per_ff": scale}
     for name, o in s["objects"].items():
         out[f"contact_counts_{name}"] = float(o["contact_counts"]) * scale / fitted
     shifts = s["deformation_shift_counts"]
     bend = max(float(shifts[f"bend_{a}"][-1]) for a in ("x", "y")) * scale / fitted
     out["bend_shift_max_counts"] = bend
-    out["bend_margin_counts"] = scene.detection.threshold_counts - bend
+    out["bend_margin_counts"] = inputs.threshold_counts - bend
     return out
 
 
@@ -190,7 +213,7 @@ def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
     try:
         scene = rebuild(text, scene_path)
         planner.run(scene, folder, shared=shared, progress=log)
-        row = {**variant_figures(scene, folder), "status": "ok", "error": ""}
+        row = {**variant_figures(figure_inputs(scene, folder), folder), "status": "ok", "error": ""}
     except Exception as exc:
         (folder / "error.log").write_text(traceback.format_exc())
         row = {"status": "failed", "error": log.where(exc)}
@@ -212,7 +235,7 @@ def finished_row(variant: Variant, folder: Path) -> dict | None:
     steps = planner.plan(variant.scene, folder)
     if any(s.action not in ("reuse", "not needed") for s in steps):
         return None
-    return {**old["row"], **variant_figures(variant.scene, folder)}
+    return {**old["row"], **variant_figures(figure_inputs(variant.scene, folder), folder)}
 
 
 def build_tasks(variants: list[Variant], variants_dir: Path, todo: list[int]) -> dict:
@@ -269,7 +292,7 @@ def _closure(deps_of: dict, name: str) -> set[str]:
 
 def run_sweep(
     variants: list[Variant], out_dir: Path, pool, progress=None, on_row=None
-) -> tuple[list[dict], dict]:
+) -> tuple[list[dict], dict[str, int]]:
     """Run (or reuse) every variant on `pool`; returns the rows in variant order and
     counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
     after each variant, and with {"stage", "error"} after each shared stage;
@@ -318,13 +341,15 @@ def run_sweep(
         return {"error": f"{key[1]}: {message}"}
 
     run_graph(pool, tasks, on_done, on_lost)
+    finished = [r for r in rows if r is not None]
+    assert len(finished) == len(rows), "every variant has its row once the graph has run"
     stats = {
         "run": len(todo),
         "reused": reused,
-        "failed": sum(r["status"] != "ok" for r in rows),
+        "failed": sum(r["status"] != "ok" for r in finished),
         "shared_stages": sum(1 for key in tasks if key[0] == "stage"),
     }
-    return rows, stats
+    return finished, stats
 
 
 def _with_values(v: Variant, row: dict) -> dict:

@@ -90,7 +90,7 @@ def run_case(args) -> dict:
     """Bench, locate and evaluate one case; a row per indenter with the Table I figures."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
-    from fruitcli.sensing.stages import run_bench, run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_bench, run_locate
 
     scene_path, work, taxels, states, surface, unit, case = args
     scene = load_scene(scene_path).with_values(
@@ -104,14 +104,9 @@ def run_case(args) -> dict:
     config = scene.scene.configuration
     rows = []
     for ind in scene.bench.indenters:
+        frames = base / "bench" / ind / "frames.npz"
         run_locate(
-            scene,
-            base / "bench" / ind / "frames.npz",
-            taxels,
-            states,
-            base / ind,
-            surface_path=surface,
-            surface_unit=unit,
+            locate_inputs(scene), LocateFiles(frames, taxels, states, base / ind, surface, unit)
         )
         s, *_ = evaluate_pair(
             base / "bench" / ind / "truth.csv",

@@ -37,12 +37,13 @@ def _needed(scene):
 def _run(scene, ctx, out_dir):
     from fruitcli.evaluation.report import evaluate_pair, write_many
     from fruitcli.fsutil import write_json
-    from fruitcli.sensing.stages import run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
     from fruitcli.studies.locate_methods import CALIBRATION_INDENTER, calibrated_skin
     from fruitcli.workflow import stage_paths as st
 
     out_dir = Path(out_dir)
     taxels, states = st.taxels_path(scene, ctx), st.states_path(scene, ctx)
+    assert taxels is not None, "a scene with a bench has its taxels (the scene's checks)"
     surface = st.solid_path(scene, ctx)
     unit = scene.geometry.unit if st.geometry_kind(scene) == "solid" else "mm"
     board_table = st.crossing_dir(scene, ctx)
@@ -59,18 +60,8 @@ def _run(scene, ctx, out_dir):
                 "detection": replace(scene.detection, model_frames=frames),
             },
         )
-        run_locate(
-            run,
-            bench,
-            taxels,
-            states,
-            folder,
-            method=MODEL_METHOD,
-            surface_path=surface,
-            surface_unit=unit,
-            skin_table=skin,
-            crossing_dir=board_table,
-        )
+        inputs = locate_inputs(run, method=MODEL_METHOD, skin_table=skin, crossing_dir=board_table)
+        run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
         return evaluate_pair(
             truth,
             folder / "measured.csv",

@@ -95,7 +95,7 @@ def _locate_needed(scene):
 
 
 def _locate_run(scene, ctx, out_dir):
-    from fruitcli.sensing.stages import run_locate
+    from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
 
     out = {}
     unit = scene.geometry.unit if geometry_kind(scene) == "solid" else "mm"
@@ -105,18 +105,18 @@ def _locate_run(scene, ctx, out_dir):
 
         reduced = load(reduced_path(scene, ctx))
     for name, frames in _frame_sources(scene, ctx).items():
-        out[name] = run_locate(
-            scene,
+        taxels = taxels_path(scene, ctx)
+        assert taxels is not None, "a scene with frames has its taxels (the scene's checks)"
+        inputs = locate_inputs(scene, crossing_dir=crossing_dir(scene, ctx), reduced=reduced)
+        files = LocateFiles(
             frames,
-            taxels_path(scene, ctx),
+            taxels,
             states_path(scene, ctx),
             out_dir / name,
-            progress=ctx.progress,
-            surface_path=solid_path(scene, ctx),
-            surface_unit=unit,
-            reduced=reduced,
-            crossing_dir=crossing_dir(scene, ctx),
+            solid_path(scene, ctx),
+            unit,
         )
+        out[name] = run_locate(inputs, files, ctx.progress)
     return out
 
 

@@ -25,8 +25,9 @@ from fruitcli.fsutil import write_csv
 from fruitcli.scene import load_scene
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import run_calibrate
-from fruitcli.sensing.stages import run_bench, run_locate
+from fruitcli.sensing.stages import run_bench
 from fruitcli.tables import read_table
+from tests.helpers.locate import locate_scene
 from tests.sensing.skin.test_calibrate import HIDDEN_SKIN, virtual_bench_scene
 
 
@@ -60,7 +61,7 @@ def one_seed(tmp: Path, seed: int) -> dict:
         ("calibrated", tmp / "cal" / "gains.csv"),
         ("hidden", tmp / "hidden.csv"),
     ):
-        run_locate(
+        locate_scene(
             scene, rec / "frames.npz", tmp / "t.csv", None, tmp / name, gains_csv=gains, workers=1
         )
         out[name] = errors(tmp / name, rec / "truth.csv")

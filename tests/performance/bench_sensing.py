@@ -322,16 +322,16 @@ def one_thread_cpu(small: Path, big: Path, taxels: Path, out: Path, repeats: int
     """`run_locate` in this process on one thread: frames/s by the CPU time of the big
     recording less the small one's (best of `repeats`), steadier than wall time on a
     loaded machine."""
-    from fruitcli.sensing.stages import run_locate
+    from tests.helpers.locate import locate_scene
 
     cpu = {}
     for path in (small, big):
         n = int(path.stem[1:])
-        run_locate(None, path, taxels, None, out, workers=1)  # loaded and compiled
+        locate_scene(None, path, taxels, None, out, workers=1)  # loaded and compiled
         times = []
         for _ in range(repeats):
             t0 = time.process_time()
-            run_locate(None, path, taxels, None, out, workers=1)
+            locate_scene(None, path, taxels, None, out, workers=1)
             times.append(time.process_time() - t0)
         cpu[n] = min(times)
     (n0, c0), (n1, c1) = sorted(cpu.items())

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from fruitcli.cli.bench import printer_bench_inputs
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError
 from fruitcli.printer.emulator import PrinterEmulator
@@ -191,7 +192,7 @@ class Rig:
         """run_printer_bench itself (to inject Ctrl-C or a pulled cable via `progress`)."""
         try:
             return run_printer_bench(
-                self.scene,
+                printer_bench_inputs(self.scene),
                 self.scene.path.parent / "t.csv",
                 None,
                 self.printer.path,

@@ -135,7 +135,7 @@ def test_locate_checks_the_frames_crc_as_it_reads_and_writes_nothing(tmp_path, c
     """fruit locate reads the frames once, checking their CRC-32 on the way (in order,
     from several threads too); a flipped bit is one error and no touches.csv."""
     from fruitcli.errors import FrameError
-    from fruitcli.sensing.stages import run_locate
+    from tests.helpers.locate import locate_scene
 
     rng = np.random.default_rng(1)
     frames = np.full((300, 21, 12), 500, np.int64)
@@ -147,11 +147,11 @@ def test_locate_checks_the_frames_crc_as_it_reads_and_writes_nothing(tmp_path, c
     ]
     (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
     kw = {"chunk_frames": chunk, "workers": workers}
-    res = run_locate(None, path, tmp_path / "t.csv", None, tmp_path / "good", **kw)
+    res = locate_scene(None, path, tmp_path / "t.csv", None, tmp_path / "good", **kw)
     assert res["touches"] == 290
     flip_a_bit_in_member(path, "frames.npy")
     with pytest.raises(FrameError) as err:
-        run_locate(None, path, tmp_path / "t.csv", None, tmp_path / "bad", **kw)
+        locate_scene(None, path, tmp_path / "t.csv", None, tmp_path / "bad", **kw)
     assert str(err.value) == (
         f"{path}: not a readable .npz recording: member frames.npy "
         "fails its CRC check (the file is damaged)"

@@ -25,7 +25,7 @@ from fruitcli.studies.sweep import (
     short_labels,
     variant_name,
 )
-from fruitcli.studies.sweep_run import TIMING, variant_figures
+from fruitcli.studies.sweep_run import TIMING, figure_inputs, variant_figures
 
 # A 40 x 40 x 3 mm pad, 2 x 2 taxels, its right strip turned 30 degrees by jig springs:
 # pad-grid, tetra and simulate in about a second.
@@ -191,7 +191,7 @@ def test_figures_are_read_from_the_stage_outputs(tmp_path):
             }
         )
     )
-    assert variant_figures(scene, tmp_path) == {
+    assert variant_figures(figure_inputs(scene, tmp_path), tmp_path) == {
         "taxels": 2,
         "bent-small_n": 4,
         "bent-small_mean_mm": 2.5,
@@ -596,7 +596,7 @@ def test_skin_figures_are_the_crossings_in_the_scenes_counts(tmp_path):
     import json
 
     from fruitcli.scene import parse_scene
-    from fruitcli.studies.sweep_run import skin_figures
+    from fruitcli.studies.sweep_run import figure_inputs, skin_figures
 
     summary = {
         "c0_ff": 850.0,
@@ -607,7 +607,7 @@ def test_skin_figures_are_the_crossings_in_the_scenes_counts(tmp_path):
     path = tmp_path / "summary.json"
     path.write_text(json.dumps(summary))
     fitted = parse_scene('[skin]\nmodel = "electrostatic"\n', tmp_path / "a.toml")
-    assert skin_figures(fitted, path) == {
+    assert skin_figures(figure_inputs(fitted, tmp_path), path) == {
         "c0_ff": 850.0,
         "counts_per_ff": 0.5,
         "contact_counts_small": 22.0,
@@ -620,8 +620,8 @@ def test_skin_figures_are_the_crossings_in_the_scenes_counts(tmp_path):
         "[detection]\nthreshold_counts = 25\n",
         tmp_path / "b.toml",
     )
-    out = skin_figures(given, path)
+    out = skin_figures(figure_inputs(given, tmp_path), path)
     assert out["contact_counts_small"] == pytest.approx(44.0)
     assert out["bend_shift_max_counts"] == pytest.approx(20.0)
     assert out["bend_margin_counts"] == pytest.approx(5.0)
-    assert skin_figures(given, tmp_path / "none.json") == {}
+    assert skin_figures(figure_inputs(given, tmp_path), tmp_path / "none.json") == {}

@@ -9,8 +9,9 @@ import pytest
 
 from fruitcli.evaluation.report import evaluate_pair
 from fruitcli.scene import load_scene
-from fruitcli.sensing.stages import run_bench, run_locate
+from fruitcli.sensing.stages import run_bench
 from fruitcli.studies import virtual_bench_study as bs
+from tests.helpers.locate import locate_scene
 from tests.sensing.skin.test_virtual_bench import pad_taxel_csv
 
 
@@ -53,7 +54,7 @@ def test_study_bench_table_plot_and_the_default_row(fruit, tmp_path):
     # the default row is the scene's own bench, located and evaluated
     sc = load_scene(path)
     run_bench(sc, taxels, None, tmp_path / "b")
-    run_locate(sc, tmp_path / "b" / "small" / "frames.npz", taxels, None, tmp_path / "l")
+    locate_scene(sc, tmp_path / "b" / "small" / "frames.npz", taxels, None, tmp_path / "l")
     s, *_ = evaluate_pair(tmp_path / "b" / "small" / "truth.csv", tmp_path / "l" / "measured.csv")
     default = next(
         r for r in data["rows"] if r["setting"] == "default" and r["indenter"] == "small"

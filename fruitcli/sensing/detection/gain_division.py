@@ -11,18 +11,31 @@ other taxel (`forward.load_taxel_gains`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from fruitcli.tables import Taxels
 
 
-def detection_gain(scene, taxels: Taxels, gains_csv=None) -> np.ndarray | None:
+@dataclass(frozen=True)
+class GainInputs:
+    """What gain division reads of a scene: ``[detection].divide_by_gain`` and, when it
+    is on, ``[skin].taxel_gain`` (the scene's check made sure it is set). The default:
+    no scene, division off."""
+
+    divide_by_gain: bool = False
+    taxel_gain: Path | None = None
+
+
+def detection_gain(gain: GainInputs, taxels: Taxels, gains_csv=None) -> np.ndarray | None:
     """(T,) gains in the taxel file's order, or None when division is off. `gains_csv`
     (the command-line option) wins over the scene's ``[skin].taxel_gain``."""
     from fruitcli.sensing.skin.forward import load_taxel_gains
 
     if gains_csv is None:
-        if scene is None or not scene.detection.divide_by_gain:
+        if not gain.divide_by_gain:
             return None
-        gains_csv = scene.skin.taxel_gain  # the scene's check made sure it is set
+        gains_csv = gain.taxel_gain
     return load_taxel_gains(gains_csv, taxels.ids, only_these=True)

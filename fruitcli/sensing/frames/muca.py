@@ -43,6 +43,7 @@ the one before.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 
 import numpy as np
 
@@ -104,7 +105,8 @@ class AsciiDecoder:
         self.shifted = 0  # one field too many and no host timestamp in front
         self.bytes = 0  # fed so far
         self.starts: list[int] = []  # stream offsets of the frames last returned
-        self._plain = None  # the compiled fast path, loaded on the first line
+        # the compiled fast path (`ascii_kernel.plain_counts`), loaded on the first line
+        self._plain: Callable[[np.ndarray, np.ndarray], bool] | None = None
 
     def feed(self, chunk: bytes) -> list[np.ndarray]:
         """Frames completed by `chunk`; `self.starts` gets their stream offsets."""
@@ -127,7 +129,7 @@ class AsciiDecoder:
             at += len(p) + 1
         return out
 
-    def plain(self, raw: bytes) -> np.ndarray | None:
+    def plain(self, raw: bytes | bytearray) -> np.ndarray | None:
         """The frame of a line of digits and commas only (`ascii_kernel`), else None."""
         if self._plain is None:
             from fruitcli.sensing.frames.ascii_kernel import plain_counts
@@ -287,6 +289,7 @@ class BinaryDecoder:
             this = self._counts(0)
             if (
                 this is not None
+                and self.prev is not None  # set when synchronized
                 and self.agree(self.prev, this)
                 and abs(self._header(p) - int(this.min())) <= MAX_MIN_STEP_COUNTS
             ):
@@ -311,7 +314,7 @@ class BinaryDecoder:
         at = self.bytes - len(self.buf)
         if self.synced and len(self.buf) >= p:
             c = self._counts(0)
-            if c is not None and self.agree(self.prev, c):
+            if c is not None and self.prev is not None and self.agree(self.prev, c):
                 out.append(c.reshape(self.rows, self.cols))
                 self.starts.append(at)
                 del self.buf[:p]
@@ -358,8 +361,11 @@ class AutoDecoder:
 
     def __init__(self, rows: int, cols: int):
         self.rows, self.cols = rows, cols
-        self.candidates = [AsciiDecoder(rows, cols), BinaryDecoder(rows, cols)]
-        self.chosen = None
+        self.candidates: list[AsciiDecoder | BinaryDecoder] = [
+            AsciiDecoder(rows, cols),
+            BinaryDecoder(rows, cols),
+        ]
+        self.chosen: AsciiDecoder | BinaryDecoder | None = None
 
     @property
     def format(self) -> str | None:
@@ -369,7 +375,7 @@ class AutoDecoder:
     def starts(self) -> list[int]:
         return (self.chosen or self.candidates[0]).starts
 
-    def _pick(self, results):
+    def _pick(self, results: list[list[np.ndarray]]) -> list[np.ndarray]:
         best = max(range(len(results)), key=lambda k: len(results[k]))
         if results[best]:
             self.chosen = self.candidates[best]
@@ -414,7 +420,12 @@ class AutoDecoder:
 def make_decoder(fmt: str, rows: int, cols: int) -> AsciiDecoder | BinaryDecoder | AutoDecoder:
     """AsciiDecoder, BinaryDecoder or AutoDecoder for ``--format`` / ``[board].format``."""
     check_format(fmt)
-    return {"ascii": AsciiDecoder, "binary": BinaryDecoder, "auto": AutoDecoder}[fmt](rows, cols)
+    decoders: dict[str, type[AsciiDecoder | BinaryDecoder | AutoDecoder]] = {
+        "ascii": AsciiDecoder,
+        "binary": BinaryDecoder,
+        "auto": AutoDecoder,
+    }
+    return decoders[fmt](rows, cols)
 
 
 def decode_bytes(

@@ -132,7 +132,8 @@ def npz_extras(path: Path, data, n: int) -> tuple:
             meta = json.loads(str(data["meta"]))
         except json.JSONDecodeError as exc:
             raise FrameError(f"{path}: meta: not a JSON string: {exc}") from None
-    pressure, names = None, ()
+    pressure = None
+    names: tuple[str, ...] = ()
     if "pressure_kpa" in data:
         pressure = np.asarray(data["pressure_kpa"], dtype=float)
         if pressure.ndim != 2 or pressure.shape[0] != n or not np.all(np.isfinite(pressure)):
@@ -183,7 +184,8 @@ def write_npz(path: str | os.PathLike, rec: Recording) -> None:
     if rec.printer_mm is not None:
         arrays["printer_mm"] = np.asarray(rec.printer_mm, dtype=float)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
+        # numpy's stub: mypy matches **arrays against savez's allow_pickle (bool) too
+        np.savez(fh, **arrays)  # type: ignore[arg-type]
 
 
 def read_muca_log(

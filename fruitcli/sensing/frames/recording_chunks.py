@@ -19,6 +19,7 @@ capture is read whole and served in chunks.
 from __future__ import annotations
 
 import functools
+import io
 import os
 import struct
 import threading
@@ -57,7 +58,7 @@ class ChunkedRecording:
     sample: np.ndarray | None = None  # (N,) int, -1: not a sample frame
     meta: dict = field(default_factory=dict)
     skipped_lines: int = 0
-    _source: object = None  # _NpyMember or an in-memory (N, R, C) array
+    _source: _NpyMember | np.ndarray | None = None  # the frames: a member or an (N, R, C) array
     pressure_t_s: np.ndarray | None = None  # (N,) s, host time of each frame's pressures
     printer_mm: np.ndarray | None = None  # (N, 3) mm, the bench printer's tip
 
@@ -71,6 +72,7 @@ class ChunkedRecording:
         count = max(0, min(count, self.n_frames - start))
         if isinstance(self._source, np.ndarray):
             return self._source[start : start + count]
+        assert self._source is not None, "a recording is opened with its frames"
         return check_frames(self._source.read(start, count), str(self.path), first=start)
 
     def chunks(self, size: int) -> Iterator[tuple[int, np.ndarray]]:
@@ -105,6 +107,7 @@ class _NpyMember:
         self._zip = zf
         self._info = info
         self._crc = None  # running CRC-32 of the member's bytes read in order, when checked
+        self._fh: io.BufferedIOBase
         if info.compress_type == zipfile.ZIP_STORED:
             self._fh = open(path, "rb")
             self._fh.seek(info.header_offset)
@@ -115,7 +118,9 @@ class _NpyMember:
             begin = info.header_offset + _LOCAL_HEADER.size + fields[-2] + fields[-1]
             self._fh.seek(begin)
         else:
-            self._fh = zf.open(info)
+            member = zf.open(info)
+            assert isinstance(member, zipfile.ZipExtFile)  # what ZipFile.open reads with
+            self._fh = member
             begin = 0
         version = np.lib.format.read_magic(self._fh)
         if version == (1, 0):
@@ -152,7 +157,7 @@ class _NpyMember:
         buf = getattr(self._local, "buf", None)
         if buf is None or buf.size < size:
             buf = self._local.buf = np.empty(size, np.uint8)
-        view, got = memoryview(buf[:size]), 0
+        view, got = buf[:size].data, 0  # a memoryview of the uint8 buffer
         lo = start * self.frame_bytes
         with self._lock:
             if self._crc is not None and not self._crc_broken and lo > self._crc_upto:
@@ -283,7 +288,7 @@ def _open_npz(path: Path, verify: str = "open") -> ChunkedRecording:
     return ChunkedRecording(
         path,
         shape[0],
-        tuple(shape[1:]),
+        (shape[1], shape[2]),
         t_s,
         pressure,
         chambers,

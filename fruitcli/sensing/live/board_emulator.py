@@ -19,6 +19,7 @@ import termios
 import threading
 import time
 import tty
+from collections.abc import Callable
 
 import numpy as np
 
@@ -106,7 +107,7 @@ class BoardEmulator:
 
     def __init__(
         self,
-        frames: np.ndarray,
+        frames: np.ndarray | Callable[[int], np.ndarray | None],
         fps: float = 60.0,
         log_every: int = 0,
         cut_at=(),
@@ -120,8 +121,13 @@ class BoardEmulator:
         trailing_comma: bool = False,
         time_scale: float = 1.0,
     ):
-        self.source = frames if callable(frames) else None  # k -> frame, or None: the end
-        self.frames = None if callable(frames) else np.asarray(frames)
+        # k -> frame, or None: the end
+        self.source: Callable[[int], np.ndarray | None] | None = None
+        self.frames: np.ndarray | None = None
+        if callable(frames):
+            self.source = frames
+        else:
+            self.frames = np.asarray(frames)
         self.fps = fps * time_scale
         self.fmt = check_format(fmt)
         if fmt == "auto":
@@ -227,9 +233,10 @@ class BoardEmulator:
             self.close()
         return self.sent
 
-    def _frame(self, k: int):
+    def _frame(self, k: int) -> np.ndarray | None:
         if self.source is not None:
             return self.source(k)
+        assert self.frames is not None  # the frames, when not a function
         return self.frames[k] if k < len(self.frames) else None
 
     def _await_reader(self) -> None:

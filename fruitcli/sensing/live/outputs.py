@@ -19,8 +19,10 @@ from fruitcli.sensing.live.run_log import STATUS_EVERY_S
 if TYPE_CHECKING:
     from serial import SerialBase
 
+    from fruitcli.sensing.live.loop import LiveFrame
     from fruitcli.sensing.live.run_log import RunLog
     from fruitcli.sensing.live.serial_ports import FrameReader
+    from fruitcli.sensing.outputs.live_view import ViewServer
     from fruitcli.sensing.outputs.tuio import TuioSender
 
 
@@ -36,9 +38,9 @@ class Outputs:
     def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0, pressure=None):
         self.live, self.taxels, self.progress = live_loc, taxels, progress
         self.pressure = pressure
-        self.view = None
-        self.last = None  # the latest LiveFrame (for the view)
-        self.recent = deque(maxlen=32)  # host times of the latest frames (frames/s)
+        self.view: ViewServer | None = None
+        self.last: LiveFrame | None = None  # the latest frame (for the view)
+        self.recent: deque[float] = deque(maxlen=32)  # host times of the latest frames (frames/s)
         self.scale = time_scale
         self.t0 = time.monotonic()
         self.tuio: TuioSender | None = None
@@ -156,8 +158,8 @@ class Outputs:
             ],
             "threshold_counts": self.live.loc.settings.threshold_counts,
         }
-        self.view = ViewServer(host, port, layout, self.view_state)
-        self.progress(f"live view at {self.view.url}")
+        self.view = view = ViewServer(host, port, layout, self.view_state)
+        self.progress(f"live view at {view.url}")
 
     def view_state(self) -> dict:
         """The live view's state (called from the view's threads)."""
@@ -167,9 +169,10 @@ class Outputs:
             if len(recent) > 1 and recent[-1] > recent[0]
             else 0.0
         )
-        touches = []
+        touches: list[dict[str, object]] = []
         if f is not None:
             tt = f.touches
+            assert tt.kind is not None and tt.height_mm is not None  # filled on construction
             touches = [
                 {
                     "id": int(tt.touch[n]),

@@ -17,19 +17,28 @@ from pathlib import Path
 STATUS_EVERY_S = 60.0
 
 
+class _CountingHandler(logging.handlers.RotatingFileHandler):
+    """A rotating file whose failed writes go to `on_error` instead of a traceback."""
+
+    def __init__(self, path: str | Path, max_bytes: int, backups: int, on_error):
+        super().__init__(path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8")
+        self.on_error = on_error
+
+    def handleError(self, record: logging.LogRecord) -> None:
+        self.on_error(record)
+
+
 class RunLog:
     def __init__(self, path: str | Path, max_bytes: int, backups: int):
         self.logger = logging.getLogger(f"fruit.live.{id(self)}")
         self.logger.propagate = False
         self.logger.setLevel(logging.INFO)
-        self.handler = logging.handlers.RotatingFileHandler(
-            path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8"
-        )
+        # failed lines (a full disk) are counted instead of a traceback on stderr
+        self.handler = _CountingHandler(path, max_bytes, backups, self._count_failure)
         fmt = logging.Formatter("%(asctime)s.%(msecs)03dZ %(message)s", "%Y-%m-%dT%H:%M:%S")
         fmt.converter = time.gmtime
         self.handler.setFormatter(fmt)
         self.failed = 0  # lines that could not be written (a full disk): counted, not fatal
-        self.handler.handleError = self._count_failure  # instead of a traceback on stderr
         self.logger.addHandler(self.handler)
         self.open: dict[int, tuple[float, float]] = {}  # session -> (start t_s, max peak)
 

@@ -68,8 +68,8 @@ def format_rows(columns: list[np.ndarray], kinds: str, words: tuple[str, ...] = 
     if not bad.any():
         return flat
     pieces, start = [], 0
-    for r in np.flatnonzero(bad):
-        pieces += [flat[start : ends[r]], _python_row(columns, kinds, int(r), words)]
-        start = int(ends[r])
+    for row in np.flatnonzero(bad):
+        pieces += [flat[start : ends[row]], _python_row(columns, kinds, int(row), words)]
+        start = int(ends[row])
     pieces.append(flat[start:])
     return b"".join(pieces)

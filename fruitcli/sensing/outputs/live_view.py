@@ -31,6 +31,12 @@ KEEPALIVE_S = 5.0
 PAGE = Path(__file__).with_name("live_view.html")
 
 
+class _ServerV6(ThreadingHTTPServer):
+    """The view's server on an IPv6 address."""
+
+    address_family = socket.AF_INET6
+
+
 class ViewServer:
     """Serve the view on (host, port) until `close`. `layout` is the /layout JSON (a
     dict); `state()` returns the current state dict: ``frame``, ``t_s``, ``fps``,
@@ -74,12 +80,9 @@ class ViewServer:
                 self.wfile.write(body)
 
         where = f"{option} {host}:{port}"
-        server = ThreadingHTTPServer
+        server: type[ThreadingHTTPServer] = ThreadingHTTPServer
         if ":" in host:  # an IPv6 address, e.g. --view [::1]:8080
-
-            class server(ThreadingHTTPServer):
-                address_family = socket.AF_INET6
-
+            server = _ServerV6
         try:
             self.httpd = server((host, port), Handler)
         except socket.gaierror as exc:
@@ -94,7 +97,9 @@ class ViewServer:
                 raise FrameError(f"{where}: {host} is not an address of this machine") from None
             raise FrameError(f"{where}: cannot listen: {exc.strerror or exc}") from None
         self.httpd.daemon_threads = True
-        self.address = self.httpd.server_address[:2]
+        # the socket's own address: its host is text (typeshed allows bytes as an input)
+        bound, port_bound = self.httpd.server_address[:2]
+        self.address = (bound if isinstance(bound, str) else bytes(bound).decode(), port_bound)
         self.thread = threading.Thread(
             target=self.httpd.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True
         )

@@ -17,7 +17,7 @@ import contextlib
 import csv
 import io
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -53,8 +53,13 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray, model: bool = False) -> byte
     if len(table) == 0:
         return b""
     xyz = table.xyz_mm
-    extra = []
+    # every column is filled when the table is made (TouchTable.__post_init__)
+    assert table.height_mm is not None and table.height_err_mm is not None
+    assert table.strength is not None and table.size_mm is not None and table.kind is not None
+    extra: list[np.ndarray] = []
     if model:
+        assert table.pos_err_mm is not None and table.residual is not None
+        assert table.fit is not None
         extra = [table.pos_err_mm, table.residual, table.fit.astype(np.int64) + len(KIND_NAMES)]
     return format_rows(
         [
@@ -91,7 +96,7 @@ class _Rows:
 
 @contextlib.contextmanager
 def touch_csv(
-    path: str | os.PathLike, comments: list[str] = (), model: bool = False
+    path: str | os.PathLike, comments: Sequence[str] = (), model: bool = False
 ) -> Iterator[_Rows]:
     """``with touch_csv(path, comments) as out: out.write(touch_bytes(table, t_s),
     len(table))`` per chunk; `model`: with the model method's columns."""

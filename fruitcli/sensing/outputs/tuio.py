@@ -46,10 +46,10 @@ PROFILES_3D = ("3Dcur", "25Dcur")
 
 def parse_host_port(text: str, option: str, default_host: str | None = None) -> tuple[str, int]:
     """``HOST:PORT`` (or ``PORT`` when `default_host` is given) -> (host, port)."""
-    host, sep, port = text.rpartition(":")
+    given, sep, port = text.rpartition(":")
     if not sep:
-        host, port = default_host, text
-    host = (host or "").strip("[]")  # [::1]:9000
+        given, port = default_host or "", text
+    host = given.strip("[]")  # [::1]:9000
     if not host or not port.isdigit() or not 0 < int(port) < 65536:
         form = "[HOST:]PORT" if default_host else "HOST:PORT"
         raise FrameError(f"{option} {text}: expected {form} with a port in 1-65535")

@@ -146,7 +146,7 @@ def frame_shapes(
     return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
 
-def _law_arguments(law, taxel9: np.ndarray) -> tuple:
+def _law_arguments(law, taxel9: np.ndarray) -> tuple[float, float, float, float, np.ndarray, float]:
     """The compiled kernels' trailing arguments for a `heights.GapLaw`: contact counts,
     gap decay (mm), footprint sigma (mm), noise std (counts), gains per taxel (unit gains
     up to taxel9's largest index when the law has none) and MIN_COUNTS."""

@@ -288,7 +288,7 @@ def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_r
     equals run_locate's with that model, byte for byte); [frames].model = "full" takes
     them along the simulated states; without [reduced] the reduce stage is then needed."""
     from fruitcli.sensing.frames.recording import Recording, write_npz
-    from fruitcli.sensing.stages import run_locate
+    from tests.helpers.locate import locate_scene
     from tests.sensing.detection.test_locate_chunks import touch_frames
 
     root, out, _, _ = pad_run
@@ -313,7 +313,7 @@ def test_fruit_run_locates_a_recording_with_pressures_on_the_reduced_model(pad_r
     taxels, states = out / "pad-grid" / "taxels.csv", out / "simulate" / "states.npz"
     model = reduced_mod.load(out / "reduce" / "reduced.npz")
     for kind, reduced in (("reduced", model), ("full", None)):
-        res = run_locate(sc, root / "rec.npz", taxels, states, tmp_path / kind, reduced=reduced)
+        res = locate_scene(sc, root / "rec.npz", taxels, states, tmp_path / kind, reduced=reduced)
         assert res["model"] == kind and res["touches"] > 20
         assert (tmp_path / kind / "touches.csv").read_bytes() == got[kind]
     assert got["reduced"] != got["full"]  # the pressures move the taxels
@@ -389,7 +389,7 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
     import csv
 
     from fruitcli.sensing.frames.recording import Recording, write_npz
-    from fruitcli.sensing.stages import run_locate
+    from tests.helpers.locate import locate_scene
     from tests.sensing.detection.test_locate_chunks import (
         full_grid,
         located,
@@ -412,7 +412,7 @@ def test_locate_takes_each_frames_taxels_from_the_reduced_model(tmp_path, detect
     # on the rest taxels: the same recording without its pressures
     write_npz(tmp_path / "r.npz", Recording(frames, t_s))
     _, res0 = located(tmp_path, sc, tmp_path / "r.npz", taxels, out="rest")
-    res = run_locate(
+    res = locate_scene(
         sc, tmp_path / "f.npz", taxels, None, tmp_path / "red", chunk_frames=64, reduced=model
     )
     assert res0["touches"] > 50 and res["model"] == "reduced"

@@ -13,8 +13,8 @@ from fruitcli.scene import default_scene
 from fruitcli.sensing.frames.board import taxel_cells
 from fruitcli.sensing.frames.recording import Recording, write_muca_log, write_npz
 from fruitcli.sensing.outputs.csv_rows import format_rows
-from fruitcli.sensing.stages import run_locate
 from fruitcli.tables import read_taxels
+from tests.helpers.locate import locate_scene
 from tests.helpers.locate_reference import locate as reference_locate
 from tests.helpers.locate_reference import touches_csv_text
 
@@ -126,7 +126,7 @@ def paper_columns(data: bytes) -> bytes:
 
 def located(tmp_path, sc, frames_path, taxels_csv, states=None, chunk=None, out="o"):
     kw = {} if chunk is None else {"chunk_frames": chunk}
-    res = run_locate(sc, frames_path, taxels_csv, states, tmp_path / out, **kw)
+    res = locate_scene(sc, frames_path, taxels_csv, states, tmp_path / out, **kw)
     return paper_columns((tmp_path / out / "touches.csv").read_bytes()), res
 
 
@@ -276,13 +276,13 @@ def test_a_bad_count_late_in_the_recording_names_its_frame_and_writes_nothing(tm
     np.savez(tmp_path / "f.npz", frames=frames, t_s=np.arange(100) * 0.1)
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     with pytest.raises(FrameError, match=r"f.npz: frame 77: negative count"):
-        run_locate(scene(), tmp_path / "f.npz", taxels, None, tmp_path / "o", chunk_frames=16)
+        locate_scene(scene(), tmp_path / "f.npz", taxels, None, tmp_path / "o", chunk_frames=16)
     assert not (tmp_path / "o" / "touches.csv").exists()
     assert list((tmp_path / "o").glob("*")) == []  # no temporary file left either
     frames[77, 2, 2] = BASE
     np.savez(tmp_path / "g.npz", frames=frames.astype(float) + 0.5, t_s=np.arange(100) * 0.1)
     with pytest.raises(FrameError, match=r"g.npz: frame 0: non-integer count"):
-        run_locate(scene(), tmp_path / "g.npz", taxels, None, tmp_path / "o", chunk_frames=16)
+        locate_scene(scene(), tmp_path / "g.npz", taxels, None, tmp_path / "o", chunk_frames=16)
 
 
 def test_a_truncated_npz_is_one_error_line(tmp_path):
@@ -292,7 +292,7 @@ def test_a_truncated_npz_is_one_error_line(tmp_path):
     (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
     taxels = write_taxels(tmp_path / "t.csv", full_grid())
     with pytest.raises(FrameError, match=r"cut.npz: not a readable .npz recording"):
-        run_locate(scene(), tmp_path / "cut.npz", taxels, None, tmp_path / "o")
+        locate_scene(scene(), tmp_path / "cut.npz", taxels, None, tmp_path / "o")
     rng = np.random.default_rng(8)
     np.savez_compressed(
         tmp_path / "z.npz", frames=rng.integers(0, 900, (400, R, C)), t_s=np.arange(400) * 0.1
@@ -301,11 +301,11 @@ def test_a_truncated_npz_is_one_error_line(tmp_path):
     data[len(data) // 3 : len(data) // 3 + 64] = bytes(64)  # inside the compressed frames
     (tmp_path / "z.npz").write_bytes(bytes(data))
     with pytest.raises(FrameError, match=r"z\.npz: "):  # bad data, a bad CRC or zlib error
-        run_locate(scene(), tmp_path / "z.npz", taxels, None, tmp_path / "o", chunk_frames=16)
+        locate_scene(scene(), tmp_path / "z.npz", taxels, None, tmp_path / "o", chunk_frames=16)
     assert not (tmp_path / "o" / "touches.csv").exists()
     np.savez(tmp_path / "obj.npz", frames=np.array([None, 1], dtype=object), t_s=np.zeros(2))
     with pytest.raises(FrameError, match=r"obj.npz: not a readable .npz recording"):
-        run_locate(scene(), tmp_path / "obj.npz", taxels, None, tmp_path / "o")
+        locate_scene(scene(), tmp_path / "obj.npz", taxels, None, tmp_path / "o")
 
 
 def python_rows(columns, kinds):

@@ -14,8 +14,8 @@ from fruitcli.cli.main import cli
 from fruitcli.sensing.frames.recording import Recording, read_recording, write_npz
 from fruitcli.sensing.live.board_emulator import BoardEmulator, synthetic_frames
 from fruitcli.sensing.live.serial_ports import PressureState, parse_pressure_line
-from fruitcli.sensing.stages import run_locate
 from fruitcli.tables import read_table
+from tests.helpers.locate import locate_scene
 from tests.sensing.skin.test_virtual_bench import pad_states, pad_taxel_csv
 
 
@@ -144,7 +144,7 @@ def test_live_matches_batch_locate(tmp_path):
     write_npz(tmp_path / "f.npz", Recording(frames, np.arange(30.0)))
     from fruitcli.scene import load_scene
 
-    run_locate(load_scene(tmp_path / "s.toml"), tmp_path / "f.npz", taxels, None, tmp_path / "o")
+    locate_scene(load_scene(tmp_path / "s.toml"), tmp_path / "f.npz", taxels, None, tmp_path / "o")
     t = read_table(tmp_path / "o" / "touches.csv", ["frame", "i", "j", "x_mm", "peak"])
     assert t["frame"].tolist() == [d["frame"] for d in lines[:-1]]
     assert np.allclose(t["x_mm"], [d["touches"][0]["x_mm"] for d in lines[:-1]], atol=1e-3)

@@ -14,8 +14,8 @@ from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin.crossing_heights import CrossingHeights
 from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 from fruitcli.sensing.skin.heights import GapLaw
-from fruitcli.sensing.stages import run_locate
 from fruitcli.tables import Taxels
+from tests.helpers.locate import locate_scene
 
 A, SIGMA, DECAY = 60.0, 6.2, 2.0  # counts, mm, mm
 
@@ -108,7 +108,7 @@ def test_locate_on_an_electrostatic_scene_takes_heights_from_the_skin_stages_tab
     scene = default_scene().with_values(
         {"skin.model": "electrostatic", "detection.threshold_counts": 5.0}
     )
-    run_locate(
+    locate_scene(
         scene,
         tmp_path / "f.npz",
         tmp_path / "t.csv",

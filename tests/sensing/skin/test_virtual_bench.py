@@ -16,8 +16,9 @@ from fruitcli.sensing.detection.locate import load_states
 from fruitcli.sensing.frames.recording import read_npz
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.sensitivity import animation_shift, noise_std_counts
-from fruitcli.sensing.stages import run_bench, run_locate, run_sensitivity
+from fruitcli.sensing.stages import run_bench, run_sensitivity
 from fruitcli.tables import read_table
+from tests.helpers.locate import locate_scene
 
 PAD_SCENE = """
 [grid]
@@ -119,7 +120,7 @@ def test_bench_without_states_then_locate_recovers_the_samples(tmp_path):
     assert np.sum(rec.sample >= 0) == len(truth["sample"])
     assert np.allclose(truth["z_mm"], 3.0)
     assert np.allclose((truth["x_mm"] + 24) % 16, 4.0)
-    out = run_locate(
+    out = locate_scene(
         sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None, tmp_path / "loc"
     )
     assert out["samples_missed"] == 0
@@ -142,7 +143,7 @@ def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
     r = 48 / np.pi
     rad = np.hypot(truth["x_mm"], truth["z_mm"] - (1.5 - r))
     assert np.allclose(rad, r + 1.5, atol=0.2)  # faceted by 4 mm elements
-    out = run_locate(
+    out = locate_scene(
         sc, tmp_path / "bench" / "small" / "frames.npz", taxels, states, tmp_path / "loc"
     )
     m = read_table(tmp_path / "loc" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
@@ -151,7 +152,7 @@ def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
     tru = np.column_stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]])
     err = np.linalg.norm(pts - tru, axis=1)
     # the same frames located on the rest taxels (no model) are much farther off
-    run_locate(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None, tmp_path / "r")
+    locate_scene(sc, tmp_path / "bench" / "small" / "frames.npz", taxels, None, tmp_path / "r")
     r = read_table(tmp_path / "r" / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
     err_rest = np.linalg.norm(np.column_stack([r["x_mm"], r["y_mm"], r["z_mm"]]) - tru, axis=1)
     assert err.mean() < 5.0 and err_rest.mean() > err.mean() + 1.0
@@ -223,7 +224,7 @@ def test_one_truth_a_state_with_zero_displacement_gives_the_rest_row(tmp_path):
     for name, states in (("rest", None), ("held", still)):
         t = read_table(tmp_path / name / "small" / "truth.csv", ["sample", "x_mm", "y_mm", "z_mm"])
         assert np.allclose(t["z_mm"], 3.0, atol=1e-9)  # the pad's top face
-        run_locate(
+        locate_scene(
             sc, tmp_path / name / "small" / "frames.npz", taxels, states, tmp_path / f"loc-{name}"
         )
         rows[name], _, truth, _ = evaluate_pair(
@@ -348,15 +349,15 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
         m = read_table(folder / "measured.csv", ["sample", "x_mm", "y_mm", "z_mm"])
         return np.hypot(m["x_mm"], m["z_mm"] - (1.5 - r))
 
-    run_locate(sc, frames, taxels, states, tmp_path / "plain")
+    locate_scene(sc, frames, taxels, states, tmp_path / "plain")
     proj = scene(tmp_path, 'state = 1\n[detection]\nproject = "surface"\n')
-    res = run_locate(proj, frames, taxels, states, tmp_path / "proj", surface_path=surface)
+    res = locate_scene(proj, frames, taxels, states, tmp_path / "proj", surface_path=surface)
     assert np.all(radius(tmp_path / "plain") < r + 1.5 - 0.3)  # inside the body
     # on its outer face (4 mm facets), not the inner one 3 mm below
     assert np.allclose(radius(tmp_path / "proj"), r + 1.5, atol=0.2)
     assert res["projected_to_surface"]["mean_mm"] > 0.3
     # read in chunks of 7 frames on 2 threads: the same touches, the same figures
-    small = run_locate(
+    small = locate_scene(
         proj,
         frames,
         taxels,
@@ -376,7 +377,7 @@ def test_locate_project_surface_on_the_bent_pad(tmp_path):
         res["projected_to_surface"]["mean_mm"], rel=1e-12
     )
     with pytest.raises(FrameError, match="project = surface needs the body's surface"):
-        run_locate(proj, frames, taxels, states, tmp_path / "x")
+        locate_scene(proj, frames, taxels, states, tmp_path / "x")
     from fruitcli.errors import SceneError
 
     with pytest.raises(SceneError, match=r"\[detection\].project: expected one of none, surface"):
