@@ -93,6 +93,9 @@ HEADER = [
     "reg_median_mm",
     "us_per_frame",
     "model_share",
+    "model_sigma_mm",
+    "n_inside",
+    "reg_mean_inside_mm",
 ]
 
 
@@ -159,6 +162,7 @@ def run_case(args) -> list[dict]:
             table.get(board),
             located_table,
         )
+    outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
     for label, changes, setting in variants():
         located = scene.with_values(changes)
@@ -174,13 +178,15 @@ def run_case(args) -> list[dict]:
                 times.append(summary["seconds"])
             with np.load(frames, allow_pickle=False) as f:
                 n_frames = len(f["frames"])
-            s, *_ = evaluate_pair(
+            s, _, truth, measured = evaluate_pair(
                 base / "bench" / ind / "truth.csv",
                 out / "measured.csv",
                 scene.bench.reference_length_mm,
                 f"{name}, {label}, {ind}",
             )
             c = s["compare"]
+            inside = inside_outline(truth, outline)
+            share, sigma = model_fits(out / "touches.csv")
             rows.append(
                 {
                     "bench_skin": name,
@@ -192,7 +198,10 @@ def run_case(args) -> list[dict]:
                     "reg_std_mm": c["translation"]["std_mm"],
                     "reg_median_mm": c["translation"]["median_mm"],
                     "us_per_frame": 1e6 * float(np.median(times)) / max(n_frames, 1),
-                    "model_share": _model_share(out / "touches.csv"),
+                    "model_share": share,
+                    "model_sigma_mm": sigma,
+                    "n_inside": int(inside.sum()),
+                    "reg_mean_inside_mm": _registered_mean(truth[inside], measured[inside]),
                 }
             )
     return rows
@@ -295,14 +304,51 @@ def calibrated_skin(
     return load_skin_table(work / "skin" / "skin.toml")
 
 
-def _model_share(touches_csv: Path) -> float:
-    """Share of the touches the model method placed (NaN for other methods)."""
+def model_fits(touches_csv: Path) -> tuple[float, float]:
+    """(share of the touches the model method placed, the median of their 1-sigma radii
+    in mm); NaN, NaN for the other methods."""
+    from fruitcli.tables import read_table
+
     with open(touches_csv) as fh:
-        lines = [ln for ln in fh if not ln.startswith("#")]
-    if not lines or not lines[0].rstrip().endswith(",fit"):
+        header = next((ln for ln in fh if not ln.startswith("#")), "")
+    if not header.rstrip().endswith(",fit"):
+        return float("nan"), float("nan")
+    cols = read_table(touches_csv, ["pos_err_mm", "fit"], numeric=[])
+    placed = cols["fit"] == "model"
+    if not len(placed):
+        return float("nan"), float("nan")
+    radii = cols["pos_err_mm"][placed].astype(float)
+    sigma = float(np.median(radii)) if placed.any() else float("nan")
+    return float(placed.mean()), sigma
+
+
+def _bench_taxels(taxels, states, state: int) -> np.ndarray:
+    """The taxels' positions (T, 3) mm at the bench's FEM state (at rest without states)."""
+    from fruitcli.sensing.detection.locate import load_states
+    from fruitcli.tables import read_taxels
+
+    if states is None:
+        return read_taxels(taxels).xyz_mm
+    return load_states(states).taxels_mm[state]
+
+
+def inside_outline(points_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
+    """Which points (n, 3) lie inside the taxels' outline seen from above: the convex
+    hull of their x, y (a sample a quarter pitch past the last column of a curved body,
+    such as the Fruit's flank, lies outside)."""
+    from scipy.spatial import Delaunay
+
+    if len(points_mm) == 0:
+        return np.zeros(0, bool)
+    return Delaunay(taxels_mm[:, :2]).find_simplex(points_mm[:, :2]) >= 0
+
+
+def _registered_mean(truth: np.ndarray, measured: np.ndarray) -> float:
+    """Translation-registered mean error (mm) of matched points (n, 3); NaN for none."""
+    if len(truth) == 0:
         return float("nan")
-    fits = [ln.rstrip().rsplit(",", 1)[1] for ln in lines[1:]]
-    return float(np.mean([f == "model" for f in fits])) if fits else float("nan")
+    error = measured - truth
+    return float(np.linalg.norm(error - error.mean(axis=0), axis=1).mean())
 
 
 def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
@@ -313,15 +359,18 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
         stamp,
         "",
         "| bench skin | method | indenter | n | mean error | registered mean | registered std "
-        "| registered median | us per frame | placed by the model |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| registered median | inside the outline: n, registered mean | us per frame "
+        "| placed by the model | the model's 1-sigma radius |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         share = "" if np.isnan(r["model_share"]) else f"{100 * r['model_share']:.0f} %"
+        sigma = "" if np.isnan(r["model_sigma_mm"]) else f"{r['model_sigma_mm']:.2f} mm"
         lines.append(
             f"| {r['bench_skin']} | {r['method']} | {r['indenter']} | {r['n']} | "
             f"{r['mean_mm']:.2f} mm | {r['reg_mean_mm']:.2f} mm | {r['reg_std_mm']:.2f} mm | "
-            f"{r['reg_median_mm']:.2f} mm | {r['us_per_frame']:.1f} | {share} |"
+            f"{r['reg_median_mm']:.2f} mm | {r['n_inside']}, {r['reg_mean_inside_mm']:.2f} mm | "
+            f"{r['us_per_frame']:.1f} | {share} | {sigma} |"
         )
     lines += [
         "",
@@ -338,7 +387,10 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
             for k, v in BENCH_SKINS.items()
             if v["field_sigma_mm"] is not None
         )
-        + ". Registered: translation (the paper's protocol). Time per frame: `fruit locate`'s "
+        + ". Registered: translation (the paper's protocol). Inside the outline: the samples "
+        "within the convex hull of the taxels seen from above (at the bench's state), "
+        "registered on their own. The model's 1-sigma radius: the median of the fit's own "
+        "position uncertainty over the touches it placed. Time per frame: `fruit locate`'s "
         "loop on one thread, file reading and writing included, set-up left out, median of "
         f"{REPEATS} runs. "
         + "Model settings: model is the 5x5 window (the N9 and the ring beyond) with at most "

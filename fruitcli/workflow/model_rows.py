@@ -143,9 +143,9 @@ def model_share(touches_csv: Path) -> float | None:
     there are none."""
     import numpy as np
 
-    from fruitcli.studies.locate_methods import _model_share
+    from fruitcli.studies.locate_methods import model_fits
 
-    share = _model_share(touches_csv)
+    share, _ = model_fits(touches_csv)
     return None if np.isnan(share) else round(share, 4)
 
 

@@ -1,5 +1,6 @@
 """`fruit study locate`'s pieces: the bench skins differ from the locator's, the methods'
-table feeds the schema and the command line, the model's share is read from touches.csv."""
+table feeds the schema and the command line, the model's share and 1-sigma radius are read
+from touches.csv, the taxels' outline is seen from above."""
 
 import numpy as np
 import pytest
@@ -30,12 +31,21 @@ def test_the_methods_table_is_what_the_schema_and_the_cli_offer():
     assert "[n9|n9_floor|peaks|fit2|model]" in out.replace("\n", "").replace(" ", "")
 
 
-def test_model_share_reads_the_fit_column(tmp_path):
+def test_model_fits_reads_the_fit_and_radius_columns(tmp_path):
     p = tmp_path / "touches.csv"
-    p.write_text("# c\nframe,fit\n1,model\n2,n9\n3,model\n4,model\n")
-    assert lm._model_share(p) == pytest.approx(0.75)
+    p.write_text("# c\nframe,pos_err_mm,fit\n1,1.5,model\n2,nan,n9\n3,0.5,model\n4,2.5,model\n")
+    share, sigma = lm.model_fits(p)
+    assert share == pytest.approx(0.75)
+    assert sigma == pytest.approx(1.5)  # the median over the model's three
     p.write_text("# c\nframe,kind\n1,touch\n")
-    assert np.isnan(lm._model_share(p))
+    assert all(np.isnan(lm.model_fits(p)))
+
+
+def test_inside_outline_is_the_taxels_hull_seen_from_above():
+    taxels = np.array([[0, 0, 0], [16, 0, 1], [0, 16, 2], [16, 16, 3]], float)
+    points = np.array([[8, 8, -20], [15.9, 0.1, 5], [20, 8, 0], [-0.1, 8, 0]], float)
+    assert lm.inside_outline(points, taxels).tolist() == [True, True, False, False]
+    assert lm.inside_outline(np.zeros((0, 3)), taxels).size == 0
 
 
 def test_the_table_names_its_skins_and_stamp():
@@ -50,10 +60,13 @@ def test_the_table_names_its_skins_and_stamp():
         "reg_median_mm": 0.4,
         "us_per_frame": 12.0,
         "model_share": 1.0,
+        "model_sigma_mm": 0.8,
+        "n_inside": 2,
+        "reg_mean_inside_mm": 0.3,
     }
     text = lm.table_markdown([row], "pad", "Run now.")
     assert (
-        "| wider | model | small | 3 | 1.00 mm | 0.50 mm | 0.20 mm | 0.40 mm | 12.0 | 100 % |"
-        in text
+        "| wider | model | small | 3 | 1.00 mm | 0.50 mm | 0.20 mm | 0.40 mm | 2, 0.30 mm "
+        "| 12.0 | 100 % | 0.80 mm |" in text
     )
     assert "Run now." in text and "field sigma 7 mm" in text
