@@ -422,8 +422,9 @@ def _method_colours(plt, n: int) -> list:
 
 
 def plot(path: Path, rows: list[dict], scene_name: str) -> None:
-    """Registered mean error against time per frame: a colour per method, a marker per
-    bench skin, filled for the first indenter and hollow for the others."""
+    """Registered mean error against time per frame, one panel per bench skin: a marker
+    per method (its colour and shape), filled for the first indenter and hollow for the
+    others; N9's error per indenter is a dotted line across its panel."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -434,42 +435,75 @@ def plot(path: Path, rows: list[dict], scene_name: str) -> None:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     skins = list(dict.fromkeys(r["bench_skin"] for r in rows))
     inds = list(dict.fromkeys(r["indenter"] for r in rows))
-    markers = "osD^vP*X"
+    markers = "osD^vP*Xdph<>"
     colors = _method_colours(plt, len(methods))
-    fig, ax = plt.subplots(figsize=(9, 5))
-    for r in rows:
-        color = colors[methods.index(r["method"])]
-        filled = inds.index(r["indenter"]) == 0
-        ax.scatter(
-            r["us_per_frame"],
-            r["reg_mean_mm"],
-            marker=markers[skins.index(r["bench_skin"]) % len(markers)],
-            s=50,
-            facecolors=color if filled else "none",
-            edgecolors=color,
-            linewidths=1.5,
-        )
-    for k, m in enumerate(methods):
-        ax.scatter([], [], color=colors[k], marker="o", label=f"method {m}")
-    for k, name in enumerate(skins):
-        ax.scatter([], [], color="0.35", marker=markers[k % len(markers)], label=f"board: {name}")
-    for k, ind in enumerate(inds):
-        ax.scatter(
-            [],
-            [],
-            marker="o",
-            facecolors="0.35" if k == 0 else "none",
-            edgecolors="0.35",
-            label=f"{ind} indenter ({'filled' if k == 0 else 'hollow'})",
-        )
-    ax.set_xscale("log")
-    ax.set_xlabel("time per frame of fruit locate's loop (us, log scale)")
-    ax.set_ylabel("translation-registered mean error (mm)")
-    ax.set_ylim(bottom=0)
-    ax.set_title(f"Detection methods on {scene_name}, on boards the locator does not assume")
-    ax.grid(True, which="both", color="0.88")
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
+    ncols = min(3, len(skins))
+    nrows = -(-len(skins) // ncols)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(4.2 * ncols + 2.6, 3.4 * nrows), sharex=True, sharey=True
+    )
+    axes = np.atleast_1d(axes).ravel()
+    top = max((r["reg_mean_mm"] for r in rows if np.isfinite(r["reg_mean_mm"])), default=1.0)
+    for ax, skin in zip(axes, skins, strict=False):
+        for r in (r for r in rows if r["bench_skin"] == skin):
+            k = methods.index(r["method"])
+            filled = inds.index(r["indenter"]) == 0
+            ax.scatter(
+                r["us_per_frame"],
+                r["reg_mean_mm"],
+                marker=markers[k % len(markers)],
+                s=46,
+                facecolors=colors[k] if filled else "none",
+                edgecolors=colors[k],
+                linewidths=1.4,
+            )
+            if r["method"] == methods[0]:
+                ax.axhline(
+                    r["reg_mean_mm"],
+                    color=colors[k],
+                    linestyle=":" if filled else "--",
+                    linewidth=1,
+                )
+        ax.set_title(f"board: {skin}", fontsize=10)
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.1 * top)
+        ax.grid(True, which="both", color="0.9")
+    for ax in axes[(nrows - 1) * ncols :]:
+        ax.set_xlabel("us per frame (log scale)")
+    for ax in axes[::ncols]:
+        ax.set_ylabel("registered mean error (mm)")
+    handles = [
+        plt.Line2D([], [], marker=markers[k % len(markers)], color=colors[k], linestyle="",
+                   label=m)
+        for k, m in enumerate(methods)
+    ]  # fmt: skip
+    handles += [
+        plt.Line2D([], [], marker="o", linestyle="", color="0.3",
+                   markerfacecolor="0.3" if k == 0 else "none",
+                   label=f"{ind} indenter ({'filled' if k == 0 else 'hollow'})")
+        for k, ind in enumerate(inds)
+    ]  # fmt: skip
+    handles += [
+        plt.Line2D([], [], color="0.3", linestyle=":" if k == 0 else "--",
+                   label=f"{methods[0]}, {ind} indenter")
+        for k, ind in enumerate(inds)
+    ]  # fmt: skip
+    fig.suptitle(
+        f"Detection methods on {scene_name}: registered mean error against time per frame, "
+        "on boards the locator does not assume",
+        fontsize=11,
+    )
+    spare = axes[len(skins) :]
+    for ax in spare:
+        ax.set_visible(False)
+    if len(spare):  # the legend in the first empty panel
+        spare[0].set_visible(True)
+        spare[0].axis("off")
+        spare[0].legend(handles=handles, fontsize=8, loc="center", ncols=2, frameon=False)
+        fig.tight_layout()
+    else:
+        fig.legend(handles=handles, fontsize=8, loc="center right", frameon=False)
+        fig.tight_layout(rect=(0, 0, 0.8, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)

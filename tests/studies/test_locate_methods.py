@@ -5,6 +5,7 @@ from touches.csv, the taxels' outline is seen from above."""
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from matplotlib import pyplot as plt
 
 from fruitcli.cli.main import cli
 from fruitcli.scene import SCHEMA
@@ -70,3 +71,16 @@ def test_the_table_names_its_skins_and_stamp():
         "| 12.0 | 100 % | 0.80 mm |" in text
     )
     assert "Run now." in text and "field sigma 7 mm" in text
+
+
+def test_the_plot_has_a_panel_per_board(tmp_path):
+    rows = [
+        {"bench_skin": skin, "method": m, "indenter": ind, "reg_mean_mm": e, "us_per_frame": t}
+        for skin in ("calibrated", "wider")
+        for m, e, t in (("n9", 2.5, 3.0), ("model", 1.5, 900.0))
+        for ind in ("small", "medium")
+    ]
+    path = tmp_path / "methods.png"
+    lm.plot(path, rows, "pad")
+    image = plt.imread(path)
+    assert image.shape[1] > 2 * image.shape[0]  # two panels side by side, the legend beside
