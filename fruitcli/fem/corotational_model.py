@@ -5,7 +5,8 @@ Lower-level API (no files), for studies that sweep E, nu, pressure, jig stiffnes
 mesh size, tolerance or linear solver::
 
     from fruitcli.fem.corotational_model import Model, Load
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.options import SolverOptions
+    from fruitcli.fem.solver.state import solve_state
     model = Model.from_arrays(nodes, tets, E_kpa=100.0, nu=0.45,
                               fixed_nodes=idx, chambers={"c0": tris})
     res = solve_state(model, Load.pressures([5.0]), options=SolverOptions(tolerance=1e-6))

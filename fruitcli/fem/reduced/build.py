@@ -22,7 +22,7 @@ from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.reduced import response_surface as rs
 from fruitcli.fem.reduced.model import ReducedModel
-from fruitcli.fem.solver.newton import solve_state
+from fruitcli.fem.solver.state import solve_state
 
 POD_TOLERANCE_MM = 1e-4
 """The nodes' POD keeps modes until no sample's node moves by more than this (mm) from

@@ -160,7 +160,7 @@ class ContinuumSolver:
         self.near_tolerance = linsolve.NEAR_TOLERANCE
         self.newton_c = 0.0
         self.history = []
-        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
+        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (`predictor`)
         self.sensitivity = None
         self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
         self.factor_seconds = 0.0  # the last factorization's (Newton's deadline looks ahead)

@@ -143,11 +143,11 @@ class TangentSolver:
         self.rtol = PCG_RELATIVE_TOLERANCE
         # CG's displacement goal (`pcg`; set by Newton per step)
         self.displacement_goal = (0.0, 1.0)
-        # read by Newton (`newton._newton`, 0.0 there without it: no chord steps)
+        # read by Newton (`newton.iterate`, 0.0 there without it: no chord steps)
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
         self.history = []  # converged (load vector, x, p) for the next state's predictor
-        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
+        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (`predictor`)
         self.sensitivity = None
         self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
         self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
