@@ -13,6 +13,7 @@ system [K  -H^T; H  0] is solved by the Schur complement W = H K^-1 H^T (mm^3/kP
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,10 +37,19 @@ from fruitcli.fem.tolerances import (
     STEP_TOLERANCE,
 )
 
-Evaluation = tuple[
-    np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, float, float, np.ndarray
-]
-"""(rot, det_f, h, r, g, merit, energy, f) of an iterate (`NewtonStep.evaluate`)."""
+
+class Iterate(NamedTuple):
+    """An iterate evaluated at (x, p) (`NewtonStep.evaluate`): what a Newton step reads
+    of it."""
+
+    rot: np.ndarray  # the model's kinematics the tangent is built at (`kinematics`)
+    det_f: np.ndarray  # volume ratio J per element (or its smallest over the element)
+    h: np.ndarray | None  # (K, n, 3) chamber volume gradients dV/dx (mm^2); None: none
+    r: np.ndarray  # (n_free,) residual force f_ext - f_int over the free dofs (mN)
+    g: np.ndarray  # (kv,) controlled volume error c V - target (mm^3)
+    merit: float  # relative residual (force over its scale, or the volume error)
+    energy: float  # potential energy, strain minus external work (mN mm); nan: inverted
+    f: np.ndarray  # the model's deformation state the tangent is built at
 
 
 class NewtonStep:
@@ -60,8 +70,8 @@ class NewtonStep:
         self.tangent_at_start = True
         self.report = None  # report(iteration, merit) when progress is asked for
 
-    def evaluate(self, x, p, tangent: bool = False) -> Evaluation:
-        """(rot, det_f, h, r, g, merit, energy, f) at x with chamber pressures p; with
+    def evaluate(self, x, p, tangent: bool = False) -> Iterate:
+        """The iterate at x (n, 3) mm with chamber pressures p (K,) kPa; with
         `tangent`, the model evaluates the element tangents in the same pass (a load
         step's start, whose tangent Newton's first step needs: on the quadratic default
         Fruit one element loop of 60-100 ms instead of that and a forces loop of 9-14
@@ -82,30 +92,31 @@ class NewtonStep:
         merit = np.linalg.norm(r) / scale
         if len(g):
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref)))
-        return rot, det_f, h, r, g, merit, energy, f
+        return Iterate(rot, det_f, h, r, g, merit, energy, f)
 
     def direction(
-        self, x, p, rot, h, r, g, f, level, keep_tangent=False
+        self, x, p, now: Iterate, level: int, keep_tangent: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Newton direction with the tangent of `level` (see TANGENTS), or with the
-        solver's current tangent when `keep_tangent` (a chord step)."""
+        """Newton direction (dx over the free dofs (n_free,) mm, dp (K,) kPa) at the
+        iterate `now` with the tangent of `level` (see TANGENTS), or with the solver's
+        current tangent when `keep_tangent` (a chord step)."""
         m = self.m
         if keep_tangent:
             pass  # chord step: the solver keeps the tangent of the previous step
         elif TANGENTS[level] == "warped":
-            self.solver.update(rot)
+            self.solver.update(now.rot)
         else:
             exact = TANGENTS[level] == "exact"
             # assembled (about 1.5 ms here): a CSR product then costs next to nothing
             load_k = m.load_stiffness(x, p) if exact else None
-            self.solver.update(rot, f, load_k, not exact)
+            self.solver.update(now.rot, now.f, load_k, not exact)
         if not len(self.vc):
-            return self.solver.solve(r), np.zeros(len(p))
-        hv = (self.c @ h.reshape(len(self.c[0]), -1))[:, m.pattern.free]  # (kv, n_free)
-        sol = self.solver.solve(np.column_stack([r, hv.T]))
+            return self.solver.solve(now.r), np.zeros(len(p))
+        hv = (self.c @ now.h.reshape(len(self.c[0]), -1))[:, m.pattern.free]  # (kv, n_free)
+        sol = self.solver.solve(np.column_stack([now.r, hv.T]))
         kr, kh = sol[:, 0], sol[:, 1:]
         w = hv @ kh  # compliance dV/dp (mm^3/kPa)
-        dp = np.linalg.solve(w, -g - hv @ kr)
+        dp = np.linalg.solve(w, -now.g - hv @ kr)
         return kr + kh @ dp, self.c.T @ dp
 
 
@@ -117,125 +128,181 @@ semi-definite (Teran 2005; positive definite, so a descent direction), then SOFA
 warped R K0 R^T (robust far from equilibrium, linear convergence). The consistent one
 is skipped while an element is inverted or flat."""
 
+SAFEST = len(TANGENTS) - 1
+"""The level of the last tangent tried (`TANGENTS`)."""
+
 
 def iterate(
     step: NewtonStep, x, p, options: SolverOptions
 ) -> tuple[bool, np.ndarray, np.ndarray, int, float, np.ndarray]:
-    """Returns (converged, x, p, iterations, merit, det_f)."""
+    """Newton from x (n, 3) mm and chamber pressures p (K,) kPa to the equilibrium of the
+    step's load: (converged, x, p, iterations, relative residual, det F per element).
+    Each iteration: the convergence tests, the linear tolerance (`_ask_linear_solve`),
+    the direction with the tangent of `level` (the next, safer one when a tangent has
+    no factor or gives no descent), and a line search along it (`_line_search`)."""
     m = step.m
-    rot, det_f, h, r, g, merit, energy, f = step.evaluate(x, p, step.tangent_at_start)
-    if not np.isfinite(energy):  # an element inverted at the start (hyperelastic model)
-        return False, x, p, 0, np.inf, det_f
+    now = step.evaluate(x, p, step.tangent_at_start)
+    if not np.isfinite(now.energy):  # an element inverted at the start (hyperelastic model)
+        return False, x, p, 0, np.inf, now.det_f
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
-    size = m.extent_mm
     level = 0  # index into TANGENTS; raised for one step when a step fails
     chord, last_merit = False, np.inf  # whether the last step kept the tangent; its merit
     for it in range(options.max_iterations + 1):
-        if merit <= options.tolerance or _close_enough(step, r, merit, options):
-            return True, x, p, it, merit, det_f
+        if now.merit <= options.tolerance or _close_enough(step, now.r, now.merit, options):
+            return True, x, p, it, now.merit, now.det_f
         if it == options.max_iterations:
             break
         # not a step whose tangent's factorization (as long as the solver's last) would
         # end past the deadline
         _check_time(step, getattr(step.solver, "factor_seconds", 0.0))
         if step.report is not None:
-            step.report(it, merit)
-        if level == 0 and det_f.min() <= MIN_DET_F:
-            level = 2
-        # inexact Newton (Eisenstat-Walker): solve no more exactly than the nonlinear
-        # residual this step will leave, C merit^2 (C observed on earlier full steps)
-        # (first iteration of a step only: later ones converge less regularly)
-        goal = PCG_TARGET * options.tolerance
-        if it == 0:
-            goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
-        # near the tolerance (within the solver's `near_tolerance` factor, 0 = never) the
-        # last step only has to cross it: the linear solve may be as loose as the goal
-        # asks, and the tangent of the previous step is kept (chord step); only right
-        # after a step in Newton's quadratic regime (CHORD_CONTRACTION) and never twice
-        # in a row (see CHORD_CONTRACTION)
-        near = (
-            it > 0
-            and level == 0
-            and not chord
-            and merit <= CHORD_CONTRACTION * last_merit
-            and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance
-        )
-        chord, last_merit = near, merit
-        cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
-        step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
-        # with a displacement tolerance, CG also stops once the factor estimates its
-        # error within a share of what `_close_enough` accepts, with a residual within
-        # that share of the window where it is asked (pressure control only)
-        if options.displacement_tolerance_mm > 0.0 and not len(step.vc):
-            share = LINEAR_DISPLACEMENT_SHARE
-            step.solver.displacement_goal = (
-                share * options.displacement_tolerance_mm / ESTIMATE_SAFETY,
-                share * ESTIMATE_WINDOW * options.tolerance / max(merit, 1e-300),
-            )
+            step.report(it, now.merit)
+        if level == 0 and now.det_f.min() <= MIN_DET_F:
+            level = SAFEST
+        near = _chord_step(step, it, level, chord, now.merit, last_merit, options)
+        chord, last_merit = near, now.merit
+        _ask_linear_solve(step, it, now.merit, near, options)
         try:
-            dx_free, dp = step.direction(x, p, rot, h, r, g, f, level, keep_tangent=near)
+            dx_free, dp = step.direction(x, p, now, level, keep_tangent=near)
         except SolverError:
-            if level < 2:  # no factor of this tangent (singular): the next, safer one
+            if level < SAFEST:  # no factor of this tangent (singular): the next, safer one
                 level += 1
                 continue
             raise
         finally:
             step.solver.displacement_goal = (0.0, 1.0)  # Newton's steps only
-        if (
-            merit <= STALL_RESIDUAL_FACTOR * options.tolerance
-            and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * size
-        ):
-            return True, x, p, it, merit, det_f  # round-off stall: the correction is nil
-        if not len(step.vc) and level < 2 and not float(r @ dx_free) > 0.0:
+        if _stalled(step, now.merit, dx_free, options):
+            return True, x, p, it, now.merit, now.det_f  # round-off: the correction is nil
+        if not len(step.vc) and level < SAFEST and not float(now.r @ dx_free) > 0.0:
             level += 1  # not a descent direction: indefinite tangent
             continue
-        dx = np.zeros(3 * m.n_nodes)
-        dx[m.pattern.free] = dx_free
-        dx = dx.reshape(-1, 3)
-        alpha, accepted, trial = 1.0, False, None
-        j_limit = m.dilatation_step
-        j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
-        for _ in range(LINE_SEARCH_STEPS):
-            xt, pt = x + alpha * dx, p.copy()
-            pt += alpha * dp
-            if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
-                alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
-                continue
-            _check_time(step)
-            trial = step.evaluate(xt, pt)
-            if not (np.isfinite(trial[5]) and trial[1].min() > MIN_DET_F):
-                alpha *= 0.5
-                continue
-            descent = len(step.vc) == 0 and (
-                trial[6] <= energy - ARMIJO * alpha * float(r @ dx_free)
-            )
-            # volume control: a step's first full Newton step meets the volume but (a
-            # nearly incompressible body's bulk term weighing its second-order part)
-            # leaves a force residual above the volume error it started from; take it
-            descent = descent or (
-                len(step.vc) > 0
-                and it == 0
-                and alpha == 1.0
-                and np.abs(trial[4]).max() < np.abs(g).max()
-            )
-            if descent or trial[5] < merit:
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            if level < 2:
+        alpha, x_new, p_new, trial = _line_search(step, x, p, now, dx_free, dp, it)
+        if trial is None or alpha == 0.0:
+            if level < SAFEST:
                 level += 1
                 continue
-            return False, x, p, it + 1, merit, det_f if trial is None else trial[1]
+            return False, x, p, it + 1, now.merit, now.det_f if trial is None else trial.det_f
         # a damped step says the tangent models the energy poorly here: take the next,
         # safer tangent until a full step is accepted again
         damped_escalates = m.escalate_on_damping
-        level = 0 if alpha == 1.0 or not damped_escalates else min(level + 1, 2)
-        x, p = xt, pt
-        if it == 0 and alpha == 1.0 and merit > 0 and trial[5] > 3.0 * step.solver.rtol * merit:
-            step.solver.newton_c = trial[5] / merit**2  # nonlinear part dominates: observe C
-        rot, det_f, h, r, g, merit, energy, f = trial
-    return False, x, p, options.max_iterations, merit, det_f
+        level = 0 if alpha == 1.0 or not damped_escalates else min(level + 1, SAFEST)
+        x, p = x_new, p_new
+        merit = now.merit
+        if it == 0 and alpha == 1.0 and merit > 0 and trial.merit > 3.0 * step.solver.rtol * merit:
+            step.solver.newton_c = trial.merit / merit**2  # nonlinear part dominates: observe C
+        now = trial
+    return False, x, p, options.max_iterations, now.merit, now.det_f
+
+
+def _chord_step(
+    step: NewtonStep,
+    it: int,
+    level: int,
+    chord: bool,
+    merit: float,
+    last_merit: float,
+    options: SolverOptions,
+) -> bool:
+    """Whether Newton step `it` keeps the tangent of the step before (a chord step):
+    near the tolerance (within the solver's `near_tolerance` factor, 0 = never) the last
+    step only has to cross it, so the linear solve may be as loose as the goal asks and
+    the previous tangent will do; only right after a step in Newton's quadratic regime
+    (`merit` at most CHORD_CONTRACTION times `last_merit`), with the exact tangent
+    (`level` 0), and never twice in a row (`chord`: the step before was one)."""
+    return (
+        it > 0
+        and level == 0
+        and not chord
+        and merit <= CHORD_CONTRACTION * last_merit
+        and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance
+    )
+
+
+def _ask_linear_solve(
+    step: NewtonStep, it: int, merit: float, near: bool, options: SolverOptions
+) -> None:
+    """Set the solver's relative tolerance (and displacement goal) for Newton step `it`
+    at relative residual `merit`. Inexact Newton (Eisenstat-Walker): solve no more
+    exactly than the nonlinear residual this step will leave, C merit^2 (C observed on
+    earlier full steps; the first iteration of a step only: later ones converge less
+    regularly), never looser than PCG_RELATIVE_TOLERANCE (PCG_TARGET on a chord step,
+    `near`). With a displacement tolerance, CG also stops once the factor estimates its
+    error (mm) within a share of what `_close_enough` accepts, with a residual within
+    that share of the window where it is asked (pressure control only)."""
+    goal = PCG_TARGET * options.tolerance
+    if it == 0:
+        goal = max(goal, LINEAR_MARGIN * step.solver.newton_c * merit**2)
+    cap = PCG_TARGET if near else PCG_RELATIVE_TOLERANCE
+    step.solver.rtol = min(cap, max(goal / max(merit, 1e-300), 1e-12))
+    if options.displacement_tolerance_mm > 0.0 and not len(step.vc):
+        share = LINEAR_DISPLACEMENT_SHARE
+        step.solver.displacement_goal = (
+            share * options.displacement_tolerance_mm / ESTIMATE_SAFETY,
+            share * ESTIMATE_WINDOW * options.tolerance / max(merit, 1e-300),
+        )
+
+
+def _stalled(step: NewtonStep, merit: float, dx_free: np.ndarray, options: SolverOptions) -> bool:
+    """A round-off stall counted as converged: the relative residual within
+    STALL_RESIDUAL_FACTOR of the tolerance and the full Newton correction dx_free (mm)
+    moving no node by more than STEP_TOLERANCE times the body size."""
+    return bool(
+        merit <= STALL_RESIDUAL_FACTOR * options.tolerance
+        and np.abs(dx_free).max(initial=0.0) <= STEP_TOLERANCE * step.m.extent_mm
+    )
+
+
+def _line_search(
+    step: NewtonStep,
+    x: np.ndarray,
+    p: np.ndarray,
+    now: Iterate,
+    dx_free: np.ndarray,
+    dp: np.ndarray,
+    it: int,
+) -> tuple[float, np.ndarray, np.ndarray, Iterate | None]:
+    """Backtracking along the Newton direction (dx_free over the free dofs, mm; dp, kPa)
+    from (x, p) at the iterate `now`, halving the step up to LINE_SEARCH_STEPS times:
+    (alpha, x, p, trial) of the step accepted, or alpha 0.0 with the last trial
+    evaluated (None if none was) when none is. A step is refused when it changes an
+    element's volume ratio by more than the model's `dilatation_step`, inverts or
+    flattens an element (MIN_DET_F) or is not finite; accepted on sufficient decrease
+    of the energy (Armijo; pressure control), on a lower residual, or, for volume
+    control, as the first full step of a load step that lowers the volume error."""
+    m = step.m
+    dx = np.zeros(3 * m.n_nodes)
+    dx[m.pattern.free] = dx_free
+    dx = dx.reshape(-1, 3)
+    alpha, trial = 1.0, None
+    j_limit = m.dilatation_step
+    j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
+    for _ in range(LINE_SEARCH_STEPS):
+        xt, pt = x + alpha * dx, p.copy()
+        pt += alpha * dp
+        if j_limit and np.any(np.abs(m.mean_dilatation(xt) - 1.0) > j_now + j_limit):
+            alpha *= 0.5  # a spurious dilatation (see continuum.DILATATION_STEP)
+            continue
+        _check_time(step)
+        trial = step.evaluate(xt, pt)
+        if not (np.isfinite(trial.merit) and trial.det_f.min() > MIN_DET_F):
+            alpha *= 0.5
+            continue
+        descent = len(step.vc) == 0 and (
+            trial.energy <= now.energy - ARMIJO * alpha * float(now.r @ dx_free)
+        )
+        # volume control: a step's first full Newton step meets the volume but (a
+        # nearly incompressible body's bulk term weighing its second-order part)
+        # leaves a force residual above the volume error it started from; take it
+        descent = descent or (
+            len(step.vc) > 0
+            and it == 0
+            and alpha == 1.0
+            and np.abs(trial.g).max() < np.abs(now.g).max()
+        )
+        if descent or trial.merit < now.merit:
+            return alpha, xt, pt, trial
+        alpha *= 0.5
+    return 0.0, x, p, trial
 
 
 def _check_time(step: NewtonStep, ahead: float = 0.0) -> None:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,7 +40,7 @@ PROGRESS_SECONDS = 2.0
 iteration, relative residual) this often through `solve_state`'s `progress`."""
 
 
-def solve_state(  # noqa: C901 (taken apart next)
+def solve_state(
     model: FemModel,
     load: Load,
     x_start: np.ndarray | None = None,
@@ -48,17 +49,20 @@ def solve_state(  # noqa: C901 (taken apart next)
     options: SolverOptions = DEFAULT_OPTIONS,
     solver: TangentSolver | None = None,
     label: str = "state",
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> StateResult:
     """Equilibrium under `load`, continuing from `x_start` (default: rest) reached under
     `load_start` (default: zero load) with chamber pressures `pressure_start`. Pass the
     same `solver` across states to reuse its factorization. Raises SolverError naming
     `label`, the residual and the worst element when subdivision does not help, and
     OutOfTime past options.max_seconds. `progress(msg)`, when given, hears where a state
-    running longer than PROGRESS_SECONDS is (load fraction, Newton step, residual)."""
+    running longer than PROGRESS_SECONDS is (load fraction, Newton step, residual).
+
+    The load steps go from t = 0 (load_start) to 1 (load), options.load_steps of them
+    at first; a step Newton does not converge on is retried once from the last
+    equilibrium when its start was predicted, then halved (at most
+    options.max_subdivisions times in all)."""
     t0 = time.perf_counter()
-    deadline = t0 + options.max_seconds if options.max_seconds > 0 else None
-    told = [t0]
     k = len(model.chamber_tris)
     vc = np.asarray(load.volume_controlled, bool) if k else np.zeros(0, bool)
     if load_start is None:
@@ -75,83 +79,181 @@ def solve_state(  # noqa: C901 (taken apart next)
     if k:
         p[~vc] = load_start.pressure_kpa[~vc]
     solver = solver or model.make_solver(options.linear_solver)
-    scale = FORCE_FLOOR * model.young_modulus_kpa * model.extent_mm**2
     t, dt, det_ok = 0.0, 1.0 / max(1, options.load_steps), None
+    path = _LoadPath(
+        model,
+        load,
+        load_start,
+        solver,
+        options,
+        label,
+        progress,
+        deadline=t0 + options.max_seconds if options.max_seconds > 0 else None,
+        told=[t0],
+        kept=_kept_start(solver, x_start, load) if dt == 1.0 else None,
+    )
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     last = None  # (t, x, p) of the load step before the last one, for the predictor
     retry = False
-    guess = None
-    repeated = any(np.array_equal(h[0], load_vector(load)) for h in solver.history)
-    if dt == 1.0:
-        guess = history_guess(solver.history, x_start, load)
-        if guess is None:
-            guess = sensitivity_guess(solver, x_start, load)
-    rotating = load.jig != load_start.jig and any(j.rotate_deg for j in model.jigs)
-    secant = model.secant_while_rotating or not rotating
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
-        x_try, p_try = x, p.copy()
-        if last is not None and not retry and secant:  # secant predictor along the path
-            s = (t_new - t) / (t - last[0])
-            x_try, p_try = x + s * (x - last[1]), p + s * (p - last[2])
-        elif guess is not None and t_new == 1.0 and not retry:  # secant over the states
-            x_try, p_try = guess[0], guess[1].copy()
-        if k:
-            p_try[~vc] = step_load.pressure_kpa[~vc]
-        if x_try is x and len(model.prescribed_dofs) and not retry:
-            x_try = lift_prescribed(model, solver, x, load_start.lerp(load, t), step_load)
-        x_try = impose_prescribed(model, x_try, step_load)
-        lifted = x_try is not x
-        ref = _reference_force(model, x, p, load_start.lerp(load, t), step_load, scale)
-        step = NewtonStep(model, solver, step_load, ref)
-        step.deadline = deadline
-        # a kept state of this very load needs no Newton step: no tangent at its start
-        step.tangent_at_start = not (t_new == 1.0 and guess is not None and repeated)
-        if progress is not None:
-            step.report = functools.partial(
-                _report, progress, told, label, t_new, options.tolerance
-            )
-        try:
-            ok, x_new, p_new, its, merit, det_f = iterate(step, x_try, p_try, options)
-        except OutOfTime:
-            raise OutOfTime(
-                _out_of_time(model, label, options.max_seconds, t, p, load, load_start), t
-            ) from None
+        x_try, p_try = path.predict(t, t_new, step_load, x, p, last, retry)
+        step = path.step(t, t_new, step_load, x, p)
+        ok, x_new, p_new, its, merit, det_f = path.newton(step, x_try, p_try, t, p)
         iterations += its
         if ok:
             last = (t, x, p)
             x, p, t, det_ok, retry = x_new, p_new, t_new, det_f, False
             continue
-        if lifted and not retry:  # the predictor may have misled Newton: retry from x first
-            retry = True
+        if x_try is not x and not retry:  # the predictor may have misled Newton: retry
+            retry = True  # from x first
             continue
         retry = False
         subdivisions += 1
         if subdivisions > options.max_subdivisions:
-            hint = "lower the load or raise [solver].max_subdivisions"
-            if k and np.any(load.pressure_kpa[~vc]):
-                hint = (
-                    "a chamber pressure may be past the body's limit point (the largest "
-                    "pressure it can hold while inflating): control its volume "
-                    "([actuation].volume_growth_mm3) to follow the inflation past it"
-                )
-            if det_f.min() <= 1.01 * MIN_DET_F:
-                hint = (
-                    "elements are about to invert: the load is likely past what the body "
-                    "can carry (a chamber past its limit pressure: control its volume)"
-                )
-            raise SolverError(
-                f"{label}: no equilibrium after {subdivisions - 1} load subdivisions "
-                f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
-                f"{t_new:.3f}; worst element {model.worst_element(det_f)}); {hint}"
-            )
+            raise path.no_equilibrium(subdivisions - 1, t, t_new, merit, det_f)
         dt *= 0.5
     first = not solver.history
     solver.history = remember(solver.history, load_vector(load), x, p)
     if first:
         remember_sensitivity(model, solver, x, load, iterations)
     return _result(model, x, p, iterations, merit, subdivisions, t0, det_ok)
+
+
+def _kept_start(
+    solver: TangentSolver, x_start: np.ndarray | None, load: Load
+) -> tuple[tuple[np.ndarray, np.ndarray], bool] | None:
+    """(x (n, 3) mm, p (K,) kPa) a state's last load step starts from, guessed from the
+    states kept on the solver (`predictor.history_guess`, else
+    `predictor.sensitivity_guess`), and whether `load` is a kept state's own; None
+    without a guess."""
+    repeated = any(np.array_equal(h[0], load_vector(load)) for h in solver.history)
+    guess = history_guess(solver.history, x_start, load)
+    if guess is None:
+        guess = sensitivity_guess(solver, x_start, load)
+    return None if guess is None else (guess, repeated)
+
+
+@dataclass(frozen=True)
+class _LoadPath:
+    """What stays the same over the load steps of one state (`solve_state`): from
+    `load_start` (t = 0) to `load` (t = 1) on `model`, with `solver`."""
+
+    model: FemModel
+    load: Load
+    load_start: Load
+    solver: TangentSolver
+    options: SolverOptions
+    label: str
+    progress: Callable[[str], None] | None
+    deadline: float | None  # time.perf_counter() past which the state stops (s)
+    told: list[float]  # when `progress` last heard of the state (time.perf_counter(), s)
+    kept: tuple[tuple[np.ndarray, np.ndarray], bool] | None  # `_kept_start`
+
+    @property
+    def vc(self) -> np.ndarray:
+        """(K,) bool: the volume-controlled chambers (none without chambers)."""
+        if not len(self.model.chamber_tris):
+            return np.zeros(0, bool)
+        return np.asarray(self.load.volume_controlled, bool)
+
+    def predict(
+        self,
+        t: float,
+        t_new: float,
+        step_load: Load,
+        x: np.ndarray,
+        p: np.ndarray,
+        last: tuple[float, np.ndarray, np.ndarray] | None,
+        retry: bool,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Start (x (n, 3) mm, p (K,) kPa) of the load step from t to t_new (parts of
+        the load) from the equilibrium (x, p) at t: the secant through `last` (the
+        equilibrium before, at its t) and (x, p) along the load path; for a state's
+        only step, the guess from the kept states; x itself when `retry`. The
+        pressure-controlled chambers at the step's pressures, the moved regions where
+        the step puts them (the free dofs following a move from x, `lift_prescribed`)."""
+        model, vc = self.model, self.vc
+        x_try, p_try = x, p.copy()
+        rotating = self.load.jig != self.load_start.jig and any(j.rotate_deg for j in model.jigs)
+        secant = model.secant_while_rotating or not rotating
+        if last is not None and not retry and secant:  # secant predictor along the path
+            s = (t_new - t) / (t - last[0])
+            x_try, p_try = x + s * (x - last[1]), p + s * (p - last[2])
+        elif self.kept is not None and t_new == 1.0 and not retry:  # over the states
+            x_try, p_try = self.kept[0][0], self.kept[0][1].copy()
+        if len(model.chamber_tris):
+            p_try[~vc] = step_load.pressure_kpa[~vc]
+        if x_try is x and len(model.prescribed_dofs) and not retry:
+            at = self.load_start.lerp(self.load, t)
+            x_try = lift_prescribed(model, self.solver, x, at, step_load)
+        return impose_prescribed(model, x_try, step_load), p_try
+
+    def step(
+        self, t: float, t_new: float, step_load: Load, x: np.ndarray, p: np.ndarray
+    ) -> NewtonStep:
+        """Newton's load step from the equilibrium (x, p) at t to t_new, its force
+        scale the external loads at both ends (`_reference_force`), with the state's
+        deadline and progress."""
+        model = self.model
+        scale = FORCE_FLOOR * model.young_modulus_kpa * model.extent_mm**2
+        at = self.load_start.lerp(self.load, t)
+        step = NewtonStep(
+            model, self.solver, step_load, _reference_force(model, x, p, at, step_load, scale)
+        )
+        step.deadline = self.deadline
+        # a kept state of this very load needs no Newton step: no tangent at its start
+        step.tangent_at_start = not (t_new == 1.0 and self.kept is not None and self.kept[1])
+        if self.progress is not None:
+            step.report = functools.partial(
+                _report, self.progress, self.told, self.label, t_new, self.options.tolerance
+            )
+        return step
+
+    def newton(
+        self, step: NewtonStep, x: np.ndarray, p: np.ndarray, t: float, p_at_t: np.ndarray
+    ) -> tuple[bool, np.ndarray, np.ndarray, int, float, np.ndarray]:
+        """`newton.iterate` from (x, p) on `step`; past the deadline, OutOfTime with the
+        one line naming where the state stopped (t and the pressures p_at_t there)."""
+        try:
+            return iterate(step, x, p, self.options)
+        except OutOfTime:
+            line = _out_of_time(
+                self.model,
+                self.label,
+                self.options.max_seconds,
+                t,
+                p_at_t,
+                self.load,
+                self.load_start,
+            )
+            raise OutOfTime(line, t) from None
+
+    def no_equilibrium(
+        self, halvings: int, t: float, t_new: float, merit: float, det_f: np.ndarray
+    ) -> SolverError:
+        """The one line of a state whose load step from t to t_new failed after
+        `halvings` halvings: where it stopped, its relative residual `merit`, the worst
+        element (det_f per element) and a hint at the likely cause."""
+        vc = self.vc
+        hint = "lower the load or raise [solver].max_subdivisions"
+        if len(self.model.chamber_tris) and np.any(self.load.pressure_kpa[~vc]):
+            hint = (
+                "a chamber pressure may be past the body's limit point (the largest "
+                "pressure it can hold while inflating): control its volume "
+                "([actuation].volume_growth_mm3) to follow the inflation past it"
+            )
+        if det_f.min() <= 1.01 * MIN_DET_F:
+            hint = (
+                "elements are about to invert: the load is likely past what the body "
+                "can carry (a chamber past its limit pressure: control its volume)"
+            )
+        return SolverError(
+            f"{self.label}: no equilibrium after {halvings} load subdivisions "
+            f"(reached {t:.3f} of the load step, relative residual {merit:.2e} at "
+            f"{t_new:.3f}; worst element {self.model.worst_element(det_f)}); {hint}"
+        )
 
 
 def _through_bulk_stages(
