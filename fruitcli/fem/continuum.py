@@ -332,7 +332,9 @@ class ContinuumModel:
 
     def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
         """(K, n, 3) dV/dx per chamber (mm^2)."""
-        return np.stack([w.gradient(x) for w in self.walls]) if self.walls else None
+        if not self.walls:
+            return np.zeros((0, len(x), 3))
+        return np.stack([w.gradient(x) for w in self.walls])
 
     def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray) -> sp.csr_matrix | None:
         """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k

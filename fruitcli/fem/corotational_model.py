@@ -525,6 +525,10 @@ class Model:
         """(m,) det F per tet at x."""
         return corotation.det3(corotation.deformation_gradients(x, self.tets, self.dm_inv))
 
+    def mean_dilatation(self, x: np.ndarray) -> np.ndarray:
+        """(m,) volume ratio of each tet at x: its det F (constant over a linear tet)."""
+        return self.min_det_f(x)
+
     def make_solver(self, method: str = "pcg") -> TangentSolver:
         from fruitcli.fem.solver.linsolve import TangentSolver
 

@@ -13,14 +13,14 @@ system [K  -H^T; H  0] is solved by the Schur complement W = H K^-1 H^T (mm^3/kP
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.corotational_model import Load
-from fruitcli.fem.fem_model import FemModel
-from fruitcli.fem.solver.linsolve import TangentSolver
+from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions
 from fruitcli.fem.tolerances import (
     ARMIJO,
@@ -44,7 +44,7 @@ class Iterate(NamedTuple):
 
     rot: np.ndarray  # the model's kinematics the tangent is built at (`kinematics`)
     det_f: np.ndarray  # volume ratio J per element (or its smallest over the element)
-    h: np.ndarray | None  # (K, n, 3) chamber volume gradients dV/dx (mm^2); None: none
+    h: np.ndarray  # (K, n, 3) chamber volume gradients dV/dx (mm^2); K = 0 without chambers
     r: np.ndarray  # (n_free,) residual force f_ext - f_int over the free dofs (mN)
     g: np.ndarray  # (kv,) controlled volume error c V - target (mm^3)
     merit: float  # relative residual (force over its scale, or the volume error)
@@ -55,7 +55,7 @@ class Iterate(NamedTuple):
 class NewtonStep:
     """Newton on one load step; holds the work arrays of the current iterate."""
 
-    def __init__(self, model: FemModel, solver: TangentSolver, load: Load, ref: float):
+    def __init__(self, model: FemModel, solver: LinearSolver, load: Load, ref: float):
         self.m, self.solver, self.load, self.ref = model, solver, load, ref
         self.vc = np.flatnonzero(load.volume_controlled)
         # the controlled volumes c V (one row per constraint; p moves along c^T):
@@ -65,12 +65,14 @@ class NewtonStep:
         self.v_target = self.c @ (model.chamber_rest_volume_mm3 + load.volume_growth_mm3)
         self.v_ref = np.maximum(np.abs(self.c) @ model.chamber_rest_volume_mm3, 1.0)
         self.f_int_norm = 0.0
-        self.deadline = None  # time.perf_counter() past which Newton stops (OutOfTime)
+        # time.perf_counter() past which Newton stops (OutOfTime; s)
+        self.deadline: float | None = None
         # whether the start's evaluation brings the tangent along (`evaluate`)
         self.tangent_at_start = True
-        self.report = None  # report(iteration, merit) when progress is asked for
+        # report(iteration, merit) when progress is asked for
+        self.report: Callable[[int, float], None] | None = None
 
-    def evaluate(self, x, p, tangent: bool = False) -> Iterate:
+    def evaluate(self, x: np.ndarray, p: np.ndarray, tangent: bool = False) -> Iterate:
         """The iterate at x (n, 3) mm with chamber pressures p (K,) kPa; with
         `tangent`, the model evaluates the element tangents in the same pass (a load
         step's start, whose tangent Newton's first step needs: on the quadratic default
@@ -79,7 +81,7 @@ class NewtonStep:
         converges costs far more than the forces loop it would save)."""
         m = self.m
         f, rot, det_f = m.kinematics(x, tangent)
-        h = m.chamber_gradients(x) if m.chamber_tris else None
+        h = m.chamber_gradients(x) if m.chamber_tris else np.zeros((0, m.n_nodes, 3))
         f_int, energy = m.forces_and_energy(f, rot)
         r = m.external_forces(x, p, self.load, h) - f_int
         r = r.reshape(-1)[m.pattern.free]
@@ -89,13 +91,13 @@ class NewtonStep:
         # control starts with an unknown pressure and no external load)
         self.f_int_norm = float(np.linalg.norm(f_int.reshape(-1)[m.pattern.free]))
         scale = max(self.ref, self.f_int_norm)
-        merit = np.linalg.norm(r) / scale
+        merit = float(np.linalg.norm(r)) / scale
         if len(g):
             merit = max(merit, float(np.max(np.abs(g) / self.v_ref)))
         return Iterate(rot, det_f, h, r, g, merit, energy, f)
 
     def direction(
-        self, x, p, now: Iterate, level: int, keep_tangent: bool = False
+        self, x: np.ndarray, p: np.ndarray, now: Iterate, level: int, keep_tangent: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
         """Newton direction (dx over the free dofs (n_free,) mm, dp (K,) kPa) at the
         iterate `now` with the tangent of `level` (see TANGENTS), or with the solver's
@@ -133,7 +135,7 @@ SAFEST = len(TANGENTS) - 1
 
 
 def iterate(
-    step: NewtonStep, x, p, options: SolverOptions
+    step: NewtonStep, x: np.ndarray, p: np.ndarray, options: SolverOptions
 ) -> tuple[bool, np.ndarray, np.ndarray, int, float, np.ndarray]:
     """Newton from x (n, 3) mm and chamber pressures p (K,) kPa to the equilibrium of the
     step's load: (converged, x, p, iterations, relative residual, det F per element).
@@ -154,7 +156,7 @@ def iterate(
             break
         # not a step whose tangent's factorization (as long as the solver's last) would
         # end past the deadline
-        _check_time(step, getattr(step.solver, "factor_seconds", 0.0))
+        _check_time(step, step.solver.factor_seconds)
         if step.report is not None:
             step.report(it, now.merit)
         if level == 0 and now.det_f.min() <= MIN_DET_F:
@@ -214,7 +216,7 @@ def _chord_step(
         and level == 0
         and not chord
         and merit <= CHORD_CONTRACTION * last_merit
-        and merit <= getattr(step.solver, "near_tolerance", 0.0) * options.tolerance
+        and merit <= step.solver.near_tolerance * options.tolerance
     )
 
 
@@ -270,12 +272,12 @@ def _line_search(
     of the energy (Armijo; pressure control), on a lower residual, or, for volume
     control, as the first full step of a load step that lowers the volume error."""
     m = step.m
-    dx = np.zeros(3 * m.n_nodes)
-    dx[m.pattern.free] = dx_free
-    dx = dx.reshape(-1, 3)
+    flat = np.zeros(3 * m.n_nodes)
+    flat[m.pattern.free] = dx_free
+    dx = flat.reshape(-1, 3)
     alpha, trial = 1.0, None
     j_limit = m.dilatation_step
-    j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else None
+    j_now = np.abs(m.mean_dilatation(x) - 1.0) if j_limit else np.zeros(0)
     for _ in range(LINE_SEARCH_STEPS):
         xt, pt = x + alpha * dx, p.copy()
         pt += alpha * dp

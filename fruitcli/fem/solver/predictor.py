@@ -1,5 +1,5 @@
-"""The start of the next state from the states already converged on a TangentSolver
-(its `history`): the secant over the kept states, matching the load's moments up to
+"""The start of the next state from the states already converged on a model's linear
+solver (its `history`): the secant over the kept states, matching the load's moments up to
 PREDICTOR_ORDER (`history_guess`), or, while they are too few, the first state's
 response to each chamber's pressure (`remember_sensitivity`, `sensitivity_guess`).
 Newton retries from the plain start when a guess fails."""
@@ -13,9 +13,10 @@ import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel, Kept, LinearSolver
 
 HISTORY_STATES = 16
-"""Converged states kept (on the TangentSolver) for the predictor of the next: with 10,
+"""Converged states kept (on the linear solver) for the predictor of the next: with 10,
 a load path in a plane (e.g. phase-shifted sinusoids) is predicted to third order and
 beyond (the weights' moments up to PREDICTOR_ORDER); 16 hold a whole cycle of the
 breathing's 13 states, so that a repeated load finds its own earlier state (cycles
@@ -40,7 +41,7 @@ PREDICTOR_RCOND = 1e-8
 those combinations of the weights are left to the next order."""
 
 
-def remember(history: list, q: np.ndarray, x: np.ndarray, p: np.ndarray) -> list:
+def remember(history: list[Kept], q: np.ndarray, x: np.ndarray, p: np.ndarray) -> list[Kept]:
     """The kept states with (q, x, p) appended, an earlier state of the same load q
     dropped (a repeated load, e.g. an animation closing its cycle, would otherwise take
     two of the HISTORY_STATES slots and leave too few distinct loads for the
@@ -63,7 +64,9 @@ def load_vector(load: Load) -> np.ndarray:
     )
 
 
-def history_guess(history, x_start, load: Load) -> tuple[np.ndarray, np.ndarray] | None:
+def history_guess(
+    history: list[Kept], x_start: np.ndarray | None, load: Load
+) -> tuple[np.ndarray, np.ndarray] | None:
     """Start of the next state from the previous converged ones: with q the load vector,
     dq = q_new - q_last and dq_j = q_j - q_last over the kept states j, weights c with
     sum_j c_j dq_j = dq give x = x_last + sum_j c_j (x_j - x_last) (likewise the
@@ -94,7 +97,9 @@ def history_guess(history, x_start, load: Load) -> tuple[np.ndarray, np.ndarray]
     return _secant(prev, c, x_last, p_last)
 
 
-def _secant(prev, c, x_last, p_last):
+def _secant(
+    prev: list[Kept], c: np.ndarray, x_last: np.ndarray, p_last: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(x_last + sum_j c_j (x_j - x_last), the same of the pressures) over the kept states
     prev (load vector, x, p) with weights c."""
     x = x_last + sum(cj * (h[1] - x_last) for cj, h in zip(c, prev, strict=True))
@@ -107,7 +112,9 @@ SENSITIVITY_RTOL = 1e-2
 only start Newton, which the tangent's own staleness already limits to first order."""
 
 
-def remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: int) -> None:
+def remember_sensitivity(
+    model: FemModel, solver: LinearSolver, x: np.ndarray, load: Load, iterations: int
+) -> None:
     """Keep on the solver, at the first converged state x, (dx/dp (n, 3, K), C (K, K)):
     the nodes' response to each chamber's pressure, K^-1 H_k^T with the solver's current
     tangent (one CG solve per chamber, counted in this state's time and the solver's
@@ -136,7 +143,9 @@ def remember_sensitivity(model, solver, x: np.ndarray, load: Load, iterations: i
     solver.sensitivity = (sens.reshape(model.n_nodes, 3, k), h @ cols)
 
 
-def sensitivity_guess(solver, x_start, load: Load) -> tuple[np.ndarray, np.ndarray] | None:
+def sensitivity_guess(
+    solver: LinearSolver, x_start: np.ndarray | None, load: Load
+) -> tuple[np.ndarray, np.ndarray] | None:
     """Start of the next state when `history_guess` has none: the kept states' secant as
     far as they span the load change (least squares, bounded weights), the rest through
     the first state's dx/dp (`remember_sensitivity`): a pressure-controlled chamber's
@@ -144,7 +153,7 @@ def sensitivity_guess(solver, x_start, load: Load) -> tuple[np.ndarray, np.ndarr
     pressure change dp_v = C_vv^-1 (dV_v - C_vp dp_p) that makes it (chambers together
     along ratios r: dp = r (r.dV) / (r C r)). Only when x_start is the last state kept
     and nothing but the chambers' pressures or volumes changed; None otherwise."""
-    kept = getattr(solver, "sensitivity", None)
+    kept = solver.sensitivity
     history = solver.history
     if (
         kept is None
@@ -198,7 +207,7 @@ def _monomial_rows(n: int, order: int) -> np.ndarray:
     ).reshape(-1, order)
 
 
-def _moment_weights(d: np.ndarray, dq: np.ndarray):
+def _moment_weights(d: np.ndarray, dq: np.ndarray) -> np.ndarray | None:
     """Weights c (see `history_guess`) with d c = dq (to 1e-6 relative), then, order by
     order up to PREDICTOR_ORDER, the least-squares match of sum_j c_j d_j^(x k) =
     dq^(x k) (d_j the columns of d) among the weights the lower orders leave free; the

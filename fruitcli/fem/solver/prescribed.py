@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel, LinearSolver
 
 
-def impose_prescribed(model, x: np.ndarray, load: Load) -> np.ndarray:
+def impose_prescribed(model: FemModel, x: np.ndarray, load: Load) -> np.ndarray:
     """x with the prescribed dofs (moved [[fixed]] regions) at rest + load.prescribed *
     displacement (a copy when anything is prescribed)."""
     if not len(model.prescribed_dofs):
@@ -27,7 +28,9 @@ LIFT_FRACTION = 1e-3
 it (small enough to stay linear and invert nothing)."""
 
 
-def lift_prescribed(model, solver, x: np.ndarray, load_a: Load, load_b: Load) -> np.ndarray:
+def lift_prescribed(
+    model: FemModel, solver: LinearSolver, x: np.ndarray, load_a: Load, load_b: Load
+) -> np.ndarray:
     """Start of a load step that moves prescribed dofs: the free dofs follow the motion
     by one linear solve with the tangent at x, K_ff dx_f = -K_fp dx_p (K_fp dx_p from
     the forces over LIFT_FRACTION of the motion), so that moving a clamp inverts no

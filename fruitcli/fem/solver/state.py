@@ -1,7 +1,7 @@
 """Quasi-static equilibrium of one state (`solve_state`): load steps from the start's
 load to the state's, halved when Newton (`newton`) does not converge on one. Each load
 step starts from a secant predictor: along the load path from the two previous steps,
-or, for a new state, from the previous states kept on the TangentSolver (`predictor`);
+or, for a new state, from the previous states kept on the linear solver (`predictor`);
 Newton retries from the plain start if it fails. A body stiff in bulk is solved from
 rest through softer bulk moduli first (`continuum.FIRST_BULK_RATIO`). Also the lines
 a failing or overrunning state reports.
@@ -18,8 +18,7 @@ import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.corotational_model import Load
-from fruitcli.fem.fem_model import FemModel
-from fruitcli.fem.solver.linsolve import TangentSolver
+from fruitcli.fem.fem_model import BulkStaged, FemModel, LinearSolver
 from fruitcli.fem.solver.newton import NewtonStep, iterate
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions, StateResult
 from fruitcli.fem.solver.predictor import (
@@ -47,7 +46,7 @@ def solve_state(
     load_start: Load | None = None,
     pressure_start: np.ndarray | None = None,
     options: SolverOptions = DEFAULT_OPTIONS,
-    solver: TangentSolver | None = None,
+    solver: LinearSolver | None = None,
     label: str = "state",
     progress: Callable[[str], None] | None = None,
 ) -> StateResult:
@@ -70,7 +69,7 @@ def solve_state(
     if x_start is None and (load.is_zero() or _unloaded(model, load)):
         return _result(model, model.rest.copy(), np.zeros(k), 0, 0.0, 0, t0)
     stages = model.bulk_stages() if x_start is None else []
-    if stages:
+    if stages and isinstance(model, BulkStaged):
         return _through_bulk_stages(
             model, load, load_start, pressure_start, stages, options, solver, label, progress
         )
@@ -122,7 +121,7 @@ def solve_state(
 
 
 def _kept_start(
-    solver: TangentSolver, x_start: np.ndarray | None, load: Load
+    solver: LinearSolver, x_start: np.ndarray | None, load: Load
 ) -> tuple[tuple[np.ndarray, np.ndarray], bool] | None:
     """(x (n, 3) mm, p (K,) kPa) a state's last load step starts from, guessed from the
     states kept on the solver (`predictor.history_guess`, else
@@ -143,7 +142,7 @@ class _LoadPath:
     model: FemModel
     load: Load
     load_start: Load
-    solver: TangentSolver
+    solver: LinearSolver
     options: SolverOptions
     label: str
     progress: Callable[[str], None] | None
@@ -257,7 +256,15 @@ class _LoadPath:
 
 
 def _through_bulk_stages(
-    model, load, load_start, pressure_start, stages, options, solver, label, progress
+    model: BulkStaged,
+    load: Load,
+    load_start: Load,
+    pressure_start: np.ndarray | None,
+    stages: list[float],
+    options: SolverOptions,
+    solver: LinearSolver | None,
+    label: str,
+    progress: Callable[[str], None] | None,
 ) -> StateResult:
     """`solve_state` from rest of a body stiff in bulk (`continuum.FIRST_BULK_RATIO`):
     with each bulk modulus of `stages` (kPa) in turn, the first from rest along
@@ -324,7 +331,7 @@ def _through_bulk_stages(
     )
 
 
-def _stage_out_of_time(label: str, options, at: str, exc: OutOfTime) -> OutOfTime:
+def _stage_out_of_time(label: str, options: SolverOptions, at: str, exc: OutOfTime) -> OutOfTime:
     """The one line of a state through bulk stages stopped at its time budget: the
     configured budget and the stage it was in (`at`)."""
     return OutOfTime(
@@ -336,8 +343,8 @@ def _stage_out_of_time(label: str, options, at: str, exc: OutOfTime) -> OutOfTim
 
 
 def _report(
-    progress,
-    told: list,
+    progress: Callable[[str], None],
+    told: list[float],
     label: str,
     fraction: float,
     tolerance: float,
@@ -357,7 +364,13 @@ def _report(
 
 
 def _out_of_time(
-    model, label: str, seconds: float, t: float, p: np.ndarray, load: Load, load_start: Load
+    model: FemModel,
+    label: str,
+    seconds: float,
+    t: float,
+    p: np.ndarray,
+    load: Load,
+    load_start: Load,
 ) -> str:
     """The one line of a state stopped at its time budget."""
     reached = load_start.lerp(load, t)
@@ -389,7 +402,19 @@ def _unloaded(model: FemModel, load: Load) -> bool:
     return not (load.jig and any(j.rotate_deg or np.any(j.translate_mm) for j in model.jigs))
 
 
-def _result(model: FemModel, x, p, iterations, merit, subdivisions, t0, det_f=None) -> StateResult:
+def _result(
+    model: FemModel,
+    x: np.ndarray,
+    p: np.ndarray,
+    iterations: int,
+    merit: float,
+    subdivisions: int,
+    t0: float,
+    det_f: np.ndarray | None = None,
+) -> StateResult:
+    """The state at x (n, 3) mm with chamber pressures p (K,) kPa, reached in
+    `iterations` Newton steps and `subdivisions` halvings since time.perf_counter() t0
+    (s) at relative residual `merit`; det_f: det F per element at x, when known."""
     if det_f is None:
         det_f = model.min_det_f(x)
     volumes = model.chamber_volumes(x) if len(model.chamber_tris) else np.zeros(0)
@@ -406,7 +431,9 @@ def _result(model: FemModel, x, p, iterations, merit, subdivisions, t0, det_f=No
     )
 
 
-def _reference_force(model: FemModel, x, p, load_a: Load, load_b: Load, floor: float) -> float:
+def _reference_force(
+    model: FemModel, x: np.ndarray, p: np.ndarray, load_a: Load, load_b: Load, floor: float
+) -> float:
     """Force scale of a load step: the largest of the external loads at both ends (the
     elastic force at the start joins it at the step's first evaluation) (mN)."""
     free = model.pattern.free
@@ -416,4 +443,4 @@ def _reference_force(model: FemModel, x, p, load_a: Load, load_b: Load, floor: f
     if len(pb):
         pb[~load_b.volume_controlled] = load_b.pressure_kpa[~load_b.volume_controlled]
     fb = model.external_forces(x, pb, load_b, h).reshape(-1)[free]
-    return max(np.linalg.norm(fa), np.linalg.norm(fb), floor)
+    return max(float(np.linalg.norm(fa)), float(np.linalg.norm(fb)), floor)
