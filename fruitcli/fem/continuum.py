@@ -2,7 +2,7 @@
 with any material of `fruitcli.fem.materials`: the same loads as the paper's
 corotational `Model` (chamber pressure or volume as a Lagrange multiplier per chamber,
 follower pressure on curved walls, jig springs, gravity, fixed and moved regions) and
-the same interface to Newton (`fruitcli.fem.solver.newton`), so both are solved alike.
+the same interface to the solver (`fem_model.FemModel`), so both are solved alike.
 
     from fruitcli.fem.continuum import ContinuumModel
     model = ContinuumModel.from_arrays(nodes2, tets10, material("neo-hookean", 100, 0.49),
