@@ -2,7 +2,7 @@
 with any material of `fruitcli.fem.materials`: the same loads as the paper's
 corotational `Model` (chamber pressure or volume as a Lagrange multiplier per chamber,
 follower pressure on curved walls, jig springs, gravity, fixed and moved regions) and
-the same interface to Newton (`fruitcli.fem.solver.newton`), so both are solved alike.
+the same interface to the solver (`fem_model.FemModel`), so both are solved alike.
 
     from fruitcli.fem.continuum import ContinuumModel
     model = ContinuumModel.from_arrays(nodes2, tets10, material("neo-hookean", 100, 0.49),
@@ -199,81 +199,15 @@ class ContinuumModel:
         prescribed [(node indices, (3,) displacement mm[, (3,) components held])]
         (moved clamps, rollers; `fruitcli.fem.corotational_model.prescribed_dofs`)."""
         fam = ELEMENTS[element]
-        rest = np.ascontiguousarray(nodes, dtype=float)
-        conn = np.ascontiguousarray(conn, dtype=np.int64)
-        if conn.ndim != 2 or conn.shape[1] != fam.nodes_per_tet or len(conn) == 0:
-            raise MeshError(
-                f"elements: expected a non-empty (M, {fam.nodes_per_tet}) array "
-                f"for element {element!r}"
-            )
-        if conn.min() < 0 or conn.max() >= len(rest):
-            raise MeshError("elements: node index out of range")
-        corners = conn[:, :4]
-        quality = tet4.tet_quality(rest, corners)
-        worst = int(np.argmin(quality))
-        if quality[worst] < min_quality:
-            c = rest[corners[worst]].mean(axis=0)
-            raise MeshError(
-                f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-                f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-                "remesh before solving"
-            )
-        if (tet4.signed_volumes(rest, corners) < 0).any():
-            raise MeshError("elements: expected positively oriented tets")
+        rest, conn = _checked_elements(nodes, conn, fam, element, min_quality)
         dn, wq = reference_gradients(rest, conn, fam)
         n = len(rest)
-        names, tris_list, walls = [], [], []
-        for name, tris in (chambers or {}).items():
-            tris = np.asarray(tris, np.int64)
-            if tris.ndim != 2 or tris.shape[1] != fam.nodes_per_tri or len(tris) < 4:
-                raise MeshError(
-                    f"chamber {name}: expected a closed wall of (T, {fam.nodes_per_tri}) triangles"
-                )
-            names.append(str(name))
-            tris_list.append(tris)
-            walls.append(Wall(tris))
-        v_rest = np.array([w.volume(rest) for w in walls])
-        if (v_rest <= 0).any():
-            raise MeshError(
-                f"chamber {names[int(np.argmin(v_rest))]}: wall normals must "
-                "point out of the cavity"
-            )
-        body = np.zeros((n, 3))
-        if gravity_m_s2 is not None and density_kg_m3 > 0:
-            pts, w = fam.volume_rule()
-            shape = tet_shape(pts, fam.order)  # (q, nen)
-            per = np.einsum("mq,qa->ma", wq, shape)  # (m, nen) mm^3: int N_a dV
-            np.add.at(
-                body,
-                conn.ravel(),
-                per.reshape(-1, 1) * body_force_mn_mm3(density_kg_m3, gravity_m_s2),
-            )
+        names, tris_list, walls, v_rest = _chamber_walls(rest, chambers, fam)
+        body = _body_force(fam, conn, wq, n, density_kg_m3, gravity_m_s2)
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, np.int64))
         p_dofs, p_mm = prescribed_dofs(prescribed)
-        held = np.unique(np.concatenate([fixed, p_dofs // 3]))
         jigs = list(jigs or [])
-        notes: list[str] = []
-        pinned = np.zeros(0, np.int64)
-        gravity_on = bool(np.any(body))
-        if len(held) == 0 and not jigs:
-            if gravity_on:
-                raise SceneError(
-                    "[gravity]: nothing supports the body, so gravity has no "
-                    "equilibrium; add a [[fixed]] region or a [[jig]], or "
-                    "remove [gravity]"
-                )
-            pinned = pin_rigid_modes(rest[: int(conn[:, :4].max()) + 1])
-            notes.append(
-                "no fixed region and no jig: the six rigid modes are removed by a "
-                f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))} "
-                "(the loads are self-equilibrated)"
-            )
-        elif not jigs and len(p_dofs) < 3 * len(np.unique(p_dofs // 3)):
-            pass  # rollers: the caller's components hold the rigid modes
-        elif not jigs:
-            support_check(rest, held, "[[fixed]]")
-        elif len(held) == 0:
-            support_check(rest, np.unique(np.concatenate([j.nodes for j in jigs])), "[[jig]]")
+        pinned, notes = _supports(rest, conn, fixed, p_dofs, jigs, bool(np.any(body)))
         free_mask = np.ones(3 * n, bool)
         free_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = False
         free_mask[p_dofs] = False
@@ -398,7 +332,9 @@ class ContinuumModel:
 
     def chamber_gradients(self, x: np.ndarray) -> np.ndarray:
         """(K, n, 3) dV/dx per chamber (mm^2)."""
-        return np.stack([w.gradient(x) for w in self.walls]) if self.walls else None
+        if not self.walls:
+            return np.zeros((0, len(x), 3))
+        return np.stack([w.gradient(x) for w in self.walls])
 
     def load_stiffness(self, x: np.ndarray, pressure_kpa: np.ndarray) -> sp.csr_matrix | None:
         """Sparse (n_free, n_free) stiffness of the follower pressure, -sum_k p_k
@@ -513,3 +449,118 @@ class ContinuumModel:
         shape functions (quadratic on 10-node tets)."""
         shape = tet_shape(bary, self.family.order)  # (t, nen)
         return np.einsum("...tai,ta->...ti", x[..., self.conn[tet_index], :], shape)
+
+
+def _checked_elements(
+    nodes, conn, fam: Family, element: str, min_quality: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes (n, 3) mm, conn (m, nen)) as contiguous arrays, or MeshError in one line:
+    conn not (m, nen) of `element`'s family, a node index out of range, a sliver (tet
+    quality below min_quality) or a negatively oriented tet."""
+    rest = np.ascontiguousarray(nodes, dtype=float)
+    conn = np.ascontiguousarray(conn, dtype=np.int64)
+    if conn.ndim != 2 or conn.shape[1] != fam.nodes_per_tet or len(conn) == 0:
+        raise MeshError(
+            f"elements: expected a non-empty (M, {fam.nodes_per_tet}) array for element {element!r}"
+        )
+    if conn.min() < 0 or conn.max() >= len(rest):
+        raise MeshError("elements: node index out of range")
+    corners = conn[:, :4]
+    quality = tet4.tet_quality(rest, corners)
+    worst = int(np.argmin(quality))
+    if quality[worst] < min_quality:
+        c = rest[corners[worst]].mean(axis=0)
+        raise MeshError(
+            f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+            "remesh before solving"
+        )
+    if (tet4.signed_volumes(rest, corners) < 0).any():
+        raise MeshError("elements: expected positively oriented tets")
+    return rest, conn
+
+
+def _chamber_walls(
+    rest: np.ndarray, chambers: dict | None, fam: Family
+) -> tuple[list[str], list[np.ndarray], list[Wall], np.ndarray]:
+    """(names, wall triangles (t, 3 or 6), walls, rest volumes (K,) mm^3) of the chambers
+    {name: triangles, normals out of the cavity}; MeshError in one line for a wall that
+    is not (t, nodes per triangle) with t >= 4, or one whose normals point in."""
+    names, tris_list, walls = [], [], []
+    for name, tris in (chambers or {}).items():
+        tris = np.asarray(tris, np.int64)
+        if tris.ndim != 2 or tris.shape[1] != fam.nodes_per_tri or len(tris) < 4:
+            raise MeshError(
+                f"chamber {name}: expected a closed wall of (T, {fam.nodes_per_tri}) triangles"
+            )
+        names.append(str(name))
+        tris_list.append(tris)
+        walls.append(Wall(tris))
+    v_rest = np.array([w.volume(rest) for w in walls])
+    if (v_rest <= 0).any():
+        raise MeshError(
+            f"chamber {names[int(np.argmin(v_rest))]}: wall normals must point out of the cavity"
+        )
+    return names, tris_list, walls, v_rest
+
+
+def _body_force(
+    fam: Family,
+    conn: np.ndarray,
+    wq: np.ndarray,
+    n: int,
+    density_kg_m3: float,
+    gravity_m_s2,
+) -> np.ndarray:
+    """(n, 3) nodal gravity force (mN) at full load: the consistent load int N_a dV
+    (mm^3, from the quadrature weights wq (m, q)) times the body force density; zero
+    without gravity or density."""
+    body = np.zeros((n, 3))
+    if gravity_m_s2 is not None and density_kg_m3 > 0:
+        pts, w = fam.volume_rule()
+        shape = tet_shape(pts, fam.order)  # (q, nen)
+        per = np.einsum("mq,qa->ma", wq, shape)  # (m, nen) mm^3: int N_a dV
+        np.add.at(
+            body,
+            conn.ravel(),
+            per.reshape(-1, 1) * body_force_mn_mm3(density_kg_m3, gravity_m_s2),
+        )
+    return body
+
+
+def _supports(
+    rest: np.ndarray,
+    conn: np.ndarray,
+    fixed: np.ndarray,
+    p_dofs: np.ndarray,
+    jigs: list[Jig],
+    gravity_on: bool,
+) -> tuple[np.ndarray, list[str]]:
+    """(dofs pinned against the rigid modes, notes): a body held by nothing (no fixed
+    node, moved region or jig) gets a 3-2-1 support and a note saying so, or, under
+    gravity, SceneError in one line; a body held only by fixed nodes or only by jigs
+    must hold all six rigid modes (`support_check`); rollers (prescribed dofs with
+    components free) are trusted to."""
+    held = np.unique(np.concatenate([fixed, p_dofs // 3]))
+    notes: list[str] = []
+    pinned = np.zeros(0, np.int64)
+    if len(held) == 0 and not jigs:
+        if gravity_on:
+            raise SceneError(
+                "[gravity]: nothing supports the body, so gravity has no "
+                "equilibrium; add a [[fixed]] region or a [[jig]], or "
+                "remove [gravity]"
+            )
+        pinned = pin_rigid_modes(rest[: int(conn[:, :4].max()) + 1])
+        notes.append(
+            "no fixed region and no jig: the six rigid modes are removed by a "
+            f"3-2-1 support at nodes {sorted(set((pinned // 3).tolist()))} "
+            "(the loads are self-equilibrated)"
+        )
+    elif not jigs and len(p_dofs) < 3 * len(np.unique(p_dofs // 3)):
+        pass  # rollers: the caller's components hold the rigid modes
+    elif not jigs:
+        support_check(rest, held, "[[fixed]]")
+    elif len(held) == 0:
+        support_check(rest, np.unique(np.concatenate([j.nodes for j in jigs])), "[[jig]]")
+    return pinned, notes

@@ -5,7 +5,8 @@ Lower-level API (no files), for studies that sweep E, nu, pressure, jig stiffnes
 mesh size, tolerance or linear solver::
 
     from fruitcli.fem.corotational_model import Model, Load
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.options import SolverOptions
+    from fruitcli.fem.solver.state import solve_state
     model = Model.from_arrays(nodes, tets, E_kpa=100.0, nu=0.45,
                               fixed_nodes=idx, chambers={"c0": tris})
     res = solve_state(model, Load.pressures([5.0]), options=SolverOptions(tolerance=1e-6))
@@ -523,6 +524,10 @@ class Model:
     def min_det_f(self, x: np.ndarray) -> np.ndarray:
         """(m,) det F per tet at x."""
         return corotation.det3(corotation.deformation_gradients(x, self.tets, self.dm_inv))
+
+    def mean_dilatation(self, x: np.ndarray) -> np.ndarray:
+        """(m,) volume ratio of each tet at x: its det F (constant over a linear tet)."""
+        return self.min_det_f(x)
 
     def make_solver(self, method: str = "pcg") -> TangentSolver:
         from fruitcli.fem.solver.linsolve import TangentSolver

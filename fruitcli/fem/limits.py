@@ -28,7 +28,8 @@ import numpy as np
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel
-from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.solver.state import solve_state
 
 TOGETHER = "together"
 """The name of the curve of the chambers inflated together (`follow` with ratios)."""

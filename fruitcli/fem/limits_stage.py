@@ -30,7 +30,7 @@ from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 if TYPE_CHECKING:
-    from fruitcli.fem.solver.newton import SolverOptions
+    from fruitcli.fem.solver.options import SolverOptions
 
 
 def _noop(msg: str) -> None:

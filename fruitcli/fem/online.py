@@ -20,7 +20,8 @@ import numpy as np
 from fruitcli.errors import SolverError
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 
 MIN_CHANGE_KPA = 0.05
 """Pressures that differ from the last solved ones by less than this in every chamber

@@ -28,7 +28,8 @@ from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
 from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
 from fruitcli.geometry.mesh.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent

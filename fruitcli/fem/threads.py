@@ -89,6 +89,8 @@ def choose_element_threads() -> int:
     if time.monotonic() - _CHOICE[0] > KEEP_S:
         others = others_busy_cores()
         busy = others is not None and others > BUSY_CORES
-        _CHOICE = (time.monotonic(), 1 if busy else numba.config.NUMBA_NUM_THREADS)
+        # numba.config sets its options with setattr at import: its stubs do not list them
+        all_cores = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+        _CHOICE = (time.monotonic(), 1 if busy else all_cores)
     numba.set_num_threads(_CHOICE[1])
     return _CHOICE[1]

@@ -341,7 +341,8 @@ BUILDERS = {
 
 def run_case(case: Case) -> StabilityRow:
     """Solve one case; never raises: failures become a one-line `status`."""
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.options import SolverOptions
+    from fruitcli.fem.solver.state import solve_state
 
     row: StabilityRow = {
         "group": case.group,

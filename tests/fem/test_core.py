@@ -11,7 +11,8 @@ from fruitcli.fem.loads.springs import rotation_matrix
 from fruitcli.fem.materials import corotation
 from fruitcli.fem.meshing.grid import structured_box
 from fruitcli.fem.solver.linsolve import TangentSolver
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 
 RNG = np.random.default_rng(7)
 

@@ -8,7 +8,7 @@ import pytest
 from fruitcli.fem.continuum import DILATATION_STEP, ContinuumModel
 from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements.quadratic import quadratic_mesh
-from fruitcli.fem.fem_model import FemModel
+from fruitcli.fem.fem_model import BulkStaged, FemModel
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box
 
@@ -26,6 +26,9 @@ def test_the_corotational_model_keeps_the_protocol():
     assert (m.element_name, m.material_name) == ("p1", "corotational")
     assert m.bulk_stages() == [] and m.dilatation_step == 0.0
     assert m.escalate_on_damping and m.secant_while_rotating
+    assert not isinstance(m, BulkStaged)  # solved at its own bulk modulus
+    x = m.rest * 1.1  # a uniform 10 % stretch: each tet's volume ratio 1.1^3
+    np.testing.assert_allclose(m.mean_dilatation(x), 1.1**3, rtol=1e-12)
 
 
 @pytest.mark.parametrize(("element", "per_tet"), [("p1", 4), ("p2", 10)])
@@ -45,6 +48,8 @@ def test_the_hyperelastic_model_keeps_the_protocol(element, per_tet):
     assert m.bulk_stages() == pytest.approx([50.0 * mu, 500.0 * mu])
     assert m.dilatation_step == pytest.approx(DILATATION_STEP * mu / mat.bulk_modulus_kpa)
     assert not m.escalate_on_damping and not m.secant_while_rotating
+    assert isinstance(m, BulkStaged)
+    assert m.chamber_gradients(m.rest).shape == (0, m.n_nodes, 3)  # no chamber
 
 
 def test_an_object_missing_a_member_is_not_a_model():

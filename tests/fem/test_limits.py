@@ -19,9 +19,10 @@ from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.materials.build import material
-from fruitcli.fem.solver import linsolve, newton
+from fruitcli.fem.solver import linsolve, state
 from fruitcli.fem.solver.c_output import captured_output
-from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.stage import run_simulate, run_tetra
 from fruitcli.scene import parse_scene
 from tests.fem.meshing.test_mesh import ball_scene, inflation_pressure, octant_ball
@@ -252,7 +253,7 @@ def test_time_budget_looks_one_factorization_ahead():
 def test_progress_of_a_long_state(monkeypatch):
     """A state running past PROGRESS_SECONDS reports load fraction, Newton step and
     residual through `progress` (here every Newton step: PROGRESS_SECONDS = 0)."""
-    monkeypatch.setattr(newton, "PROGRESS_SECONDS", 0.0)
+    monkeypatch.setattr(state, "PROGRESS_SECONDS", 0.0)
     model = octant_ball(1, 1, nu=0.49)
     told = []
     solve_state(
@@ -606,11 +607,10 @@ def test_inflation_samples_start_from_the_last_one_and_suction_from_the_secant(m
     """An inflation curve's samples from the third on start from the last sample (no
     secant over the kept states: `_start_from_last`); the second starts from the first
     state's tangent; a suction curve keeps the secant from its third sample on."""
-    from fruitcli.fem.solver import newton
 
     model = octant_ball(1, 1, nu=0.49)
     starts = []
-    secant, tangent = newton._history_guess, newton._sensitivity_guess
+    secant, tangent = state.history_guess, state.sensitivity_guess
 
     def spy_secant(history, x_start, load):
         guess = secant(history, x_start, load)
@@ -623,8 +623,8 @@ def test_inflation_samples_start_from_the_last_one_and_suction_from_the_secant(m
             starts[-1] = "tangent"
         return guess
 
-    monkeypatch.setattr(newton, "_history_guess", spy_secant)
-    monkeypatch.setattr(newton, "_sensitivity_guess", spy_tangent)
+    monkeypatch.setattr(state, "history_guess", spy_secant)
+    monkeypatch.setattr(state, "sensitivity_guess", spy_tangent)
     up = limits.follow(model, 0, 1)
     assert up.limit_pressure_kpa is not None
     assert starts[:2] == [None, "tangent"] and set(starts[2:]) == {None}

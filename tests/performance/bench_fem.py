@@ -101,7 +101,7 @@ def time_states(
     the StateResults]); a copy of the solver's stats after each state goes to
     `stats_log`."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.solver.state import solve_state
     from fruitcli.fem.stage import build_model, solver_options
 
     model = build_model(scene, io.load_mesh(mesh_npz))
@@ -249,7 +249,7 @@ def one_direct_solve_ms(model) -> tuple[float, float]:
 def bench_pad(tmp: Path, tolerance: float | None) -> None:
     """The touchpad bend: tetra, then the one jig state in the scene's jig_steps."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.solver.state import solve_state
     from fruitcli.fem.stage import build_model, run_tetra, solver_options, state_loads
     from fruitcli.scene import load_scene
 

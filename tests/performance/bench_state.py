@@ -56,7 +56,7 @@ def default_mesh(mesh_dir: Path, scene) -> Path:
 def run_path(scene, mesh_npz: Path, loads_of) -> dict:
     """Solve the loads (a function of the chamber names) in order with one solver."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.newton import solve_state
+    from fruitcli.fem.solver.state import solve_state
     from fruitcli.fem.stage import build_model, solver_options
 
     model = build_model(scene, io.load_mesh(mesh_npz))

@@ -51,7 +51,12 @@ def evaluate(
     Returns -1.0 when some det F <= 0 (energy undefined). The elements run over every
     core in blocks; each node sums its elements' force rows in element order (ptr,
     rows: `element_sums.node_incidence`) and the energy sums the elements' in
-    element order, so the result does not depend on the number of threads."""
+    element order, so the result does not depend on the number of threads.
+
+    Per element: F (`_deformation`), then point by point the energy, the forces
+    (`_add_point_forces`) and the moduli (`isochoric`, `_add_volumetric_moduli`)
+    contracted with the shape gradients here: in a helper (inlined or not) that took
+    22 ms instead of 17 ms for 3,072 quadratic tets' tangents (one thread)."""
     m, nq, nen = dn.shape[0], dn.shape[1], dn.shape[2]
     c10, c20, c30, kappa = consts[0], consts[1], consts[2], consts[3]
     e_rows = np.zeros((m * nen, 3))
@@ -69,23 +74,14 @@ def evaluate(
         ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
         lo_e, hi_e = block_range(blk, nblocks, m)
         for e in range(lo_e, hi_e):
-            lo = 1e300
+            jmin[e] = _deformation(x, conn[e], dn[e], fq, finv, det)
+            if jmin[e] <= 0.0:
+                continue
             ve = 0.0
             theta = 0.0
             for q in range(nq):
-                for i in range(3):
-                    for jj in range(3):
-                        s = 0.0
-                        for n in range(nen):
-                            s += x[conn[e, n], i] * dn[e, q, n, jj]
-                        fq[q, i, jj] = s
-                det[q] = _inverse(fq[q], finv[q])
-                lo = min(lo, det[q])
                 ve += wq[e, q]
                 theta += wq[e, q] * det[q]
-            jmin[e] = lo
-            if lo <= 0.0:
-                continue
             theta /= ve
             energy = 0.0
             u_e, u1_e, u2_e = volumetric(theta, kappa)
@@ -106,36 +102,10 @@ def evaluate(
                 else:
                     u_q, u1, u2 = volumetric(jq, kappa)
                     energy += w * u_q
-                # P = P_iso + U'(.) J F^-T ; cof = J F^-T
-                for n in range(nen):
-                    for i in range(3):
-                        s = 0.0
-                        g = 0.0
-                        for jj in range(3):
-                            cof = jq * finv[q, jj, i]
-                            s += (p_iso[i, jj] + u1 * cof) * dn[e, q, n, jj]
-                            g += cof * dn[e, q, n, jj]
-                        fe[n, i] += w * s
-                        b[n, i] += w * g
+                _add_point_forces(dn[e, q], finv[q], jq, w, u1, p_iso, fe, b)
                 if not want_tangent:
                     continue
-                # A = A_iso + U' d2J/dF2 (+ U'' cof cof per point without mean dilatation)
-                for i in range(3):
-                    for jj in range(3):
-                        r = 3 * i + jj
-                        for k in range(3):
-                            for ll in range(3):
-                                c = 3 * k + ll
-                                a[r, c] += (
-                                    u1
-                                    * jq
-                                    * (
-                                        finv[q, jj, i] * finv[q, ll, k]
-                                        - finv[q, ll, i] * finv[q, jj, k]
-                                    )
-                                )
-                                if not mean_dilatation:
-                                    a[r, c] += u2 * jq * jq * finv[q, jj, i] * finv[q, ll, k]
+                _add_volumetric_moduli(finv[q], jq, u1, u2, mean_dilatation, a)
                 for i in range(3):
                     for jj in range(3):
                         for k in range(3):
@@ -172,6 +142,62 @@ def evaluate(
     if inverted:
         return -1.0
     return total
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _deformation(x, nodes, dn_e, fq, finv, det) -> float:
+    """One element's deformation gradients F = sum_a x_a (x) dN_a (nq, 3, 3) into fq,
+    their inverses into finv and det F (nq,) into det, at node positions x (n, 3) mm of
+    its `nodes` (nen,) with reference gradients dn_e (nq, nen, 3) 1/mm; returns the
+    smallest det F."""
+    nq, nen = dn_e.shape[0], dn_e.shape[1]
+    lo = 1e300
+    for q in range(nq):
+        for i in range(3):
+            for jj in range(3):
+                s = 0.0
+                for n in range(nen):
+                    s += x[nodes[n], i] * dn_e[q, n, jj]
+                fq[q, i, jj] = s
+        det[q] = _inverse(fq[q], finv[q])
+        lo = min(lo, det[q])
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_point_forces(dn_q, finv_q, jq, w, u1, p_iso, fe, b) -> None:
+    """One quadrature point's share (weight w, mm^3) of the element forces fe (nen, 3)
+    mN, with P = P_iso + U' J F^-T (kPa; U' = u1), and of the volume gradient b
+    (nen, 3) mm^2, J F^-T dN; dn_q (nen, 3) 1/mm, finv_q F^-1, jq det F."""
+    nen = dn_q.shape[0]
+    for n in range(nen):
+        for i in range(3):
+            s = 0.0
+            g = 0.0
+            for jj in range(3):
+                cof = jq * finv_q[jj, i]
+                s += (p_iso[i, jj] + u1 * cof) * dn_q[n, jj]
+                g += cof * dn_q[n, jj]
+            fe[n, i] += w * s
+            b[n, i] += w * g
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_volumetric_moduli(finv_q, jq, u1, u2, mean_dilatation, a) -> None:
+    """Add to the moduli a (9, 9) kPa, indexed (3 i + J, 3 k + L), U' d2J/dF2 (U' = u1,
+    kPa) and, without mean dilatation, U'' cof (x) cof (U'' = u2, kPa), cof = J F^-T;
+    finv_q is F^-1 and jq det F at the point."""
+    for i in range(3):
+        for jj in range(3):
+            r = 3 * i + jj
+            for k in range(3):
+                for ll in range(3):
+                    c = 3 * k + ll
+                    a[r, c] += (
+                        u1 * jq * (finv_q[jj, i] * finv_q[ll, k] - finv_q[ll, i] * finv_q[jj, k])
+                    )
+                    if not mean_dilatation:
+                        a[r, c] += u2 * jq * jq * finv_q[jj, i] * finv_q[ll, k]
 
 
 @njit(cache=True, nogil=True)

@@ -33,14 +33,14 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
     def node_id(i, j, k):
         return (i * (ny + 1) + j) * (nz + 1) + k
 
-    ci, cj, ck = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
-    ci, cj, ck = ci.ravel(), cj.ravel(), ck.ravel()
+    gi, gj, gk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+    ci, cj, ck = gi.ravel(), gj.ravel(), gk.ravel()
     pi, pj, pk = ci % 2, cj % 2, ck % 2
-    tets = []
+    parts = []  # (cells, 4) per tet of the Kuhn split
     for path in _KUHN:
         corners = [node_id(ci + (a ^ pi), cj + (b ^ pj), ck + (c ^ pk)) for a, b, c in path]
-        tets.append(np.stack(corners, axis=1))
-    tets = np.concatenate(tets)
+        parts.append(np.stack(corners, axis=1))
+    tets = np.concatenate(parts)
     p = nodes[tets]
     vol = np.einsum("mi,mi->m", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
     neg = vol < 0
@@ -86,10 +86,11 @@ def shell_octant(
         raise ValueError("shell_octant: expected 0 < inner_mm < outer_mm, cells, layers >= 1")
     t = np.tan(np.pi / 4 * np.arange(n + 1) / n)  # cube coordinate per index
     t[-1] = 1.0
-    keys, tets = {}, []
-    points = []
+    keys: dict[tuple[int, ...], int] = {}
+    rows: list[list[int]] = []  # each tet's nodes
+    points: list[np.ndarray] = []
 
-    def node(cube, k):  # cube: integer cube coordinates (one of them n)
+    def node(cube: tuple[int, ...], k: int) -> int:  # cube: integer cube coordinates
         key = (*cube, k)
         if key not in keys:
             c = t[list(cube)]
@@ -108,8 +109,8 @@ def shell_octant(
                     cube = [0, 0, 0]
                     cube[face], cube[a], cube[b] = n, i + (c[0] ^ p[0]), j + (c[1] ^ p[1])
                     ids.append(node(tuple(cube), k + (c[2] ^ p[2])))
-                tets.append(ids)
-    nodes, tets = np.array(points), np.array(tets, np.int64)
+                rows.append(ids)
+    nodes, tets = np.array(points), np.array(rows, np.int64)
     q = nodes[tets]
     vol = np.einsum("mi,mi->m", q[:, 1] - q[:, 0], np.cross(q[:, 2] - q[:, 0], q[:, 3] - q[:, 0]))
     tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]

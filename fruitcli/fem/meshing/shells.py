@@ -9,11 +9,15 @@ the checks: closed, positive volume, chambers inside the solid and apart.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem.tolerances import INSIDE_VOLUME_MM3
+
+if TYPE_CHECKING:
+    from manifold3d import Manifold
 
 
 def load_surface(
@@ -85,7 +89,7 @@ def ellipsoid_shell(name: str, center_mm, radii_mm) -> dict:
     }
 
 
-def _manifold(shell: dict):
+def _manifold(shell: dict) -> Manifold:
     import manifold3d
 
     mesh = manifold3d.Mesh(
@@ -111,7 +115,7 @@ def check_layout(outer: dict, chambers: list[dict], where: str = "scene") -> Non
 
 def _check_layout(outer: dict, chambers: list[dict], where: str) -> None:
     body = _manifold(outer)
-    mans = []
+    mans: list[Manifold] = []
     for ch in chambers:
         man = _manifold(ch)
         vol = man.volume()

@@ -228,8 +228,8 @@ def _run_once(job: dict, time_limit_s: float, label: str, work_dir: Path | None)
     from fruitcli.fsutil import owned_prefix, sweep_orphans
 
     sweep_orphans(Path(work_dir or tempfile.gettempdir()), "fruit-gmsh-")
-    with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix=owned_prefix("fruit-gmsh-"), dir=work_dir) as name:
+        tmp = Path(name)
         np.savez(tmp / "job.npz", **job)
         try:
             code, err = run_module(

@@ -10,19 +10,27 @@ material and pressure range (kPa, mm).
    (seeded), each from the nearest solved state; the errors of the chosen fit there
    are stored with the model, with the same figures for every degree and for the
    nested coarser grids (error against degree and number of samples).
+
+The reduce stage (`run_reduce`) reads the scene once, into `ReduceInputs`
+(`reduce_inputs`); everything below it takes those typed inputs.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
+from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.reduced import response_surface as rs
 from fruitcli.fem.reduced.model import ReducedModel
-from fruitcli.fem.solver.newton import solve_state
+from fruitcli.fem.solver.options import SolverOptions, StateResult
+from fruitcli.fem.solver.state import solve_state
 
 POD_TOLERANCE_MM = 1e-4
 """The nodes' POD keeps modes until no sample's node moves by more than this (mm) from
@@ -33,22 +41,52 @@ def _noop(msg: str) -> None:
     pass
 
 
+@dataclass(frozen=True)
+class PressureBoxInputs:
+    """What the pressure box is made of (`pressure_range`): [reduced].pressure_range_kpa
+    (lo, hi) kPa or None; [reduced].margin (a share of each chamber's span); the
+    [actuation] pressures per chamber (kPa, one per state); whether [actuation] grows
+    chamber volumes instead."""
+
+    range_kpa: tuple[float, float] | None
+    margin: float
+    pressure_kpa: dict[str, tuple[float, ...]]
+    volume_controlled: bool
+
+
+def pressure_box_inputs(scene) -> PressureBoxInputs:
+    """The pressure box's inputs from a validated scene."""
+    cfg, act = scene.reduced, scene.actuation
+    rng = cfg.pressure_range_kpa
+    table = act.pressure_kpa or {}
+    return PressureBoxInputs(
+        range_kpa=None if rng is None else (float(rng[0]), float(rng[1])),
+        margin=float(cfg.margin),
+        pressure_kpa={str(n): tuple(np.atleast_1d(np.asarray(v, float))) for n, v in table.items()},
+        volume_controlled=bool(act.volume_growth_mm3),
+    )
+
+
 def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) (K,) kPa: [reduced].pressure_range_kpa for every chamber, else each
-    chamber's [actuation] pressures widened by [reduced].margin of their span (of the
-    largest chamber's span for a chamber held at one pressure)."""
-    cfg = scene.reduced
+    """The scene's pressure box (`pressure_range` of `pressure_box_inputs`), which the
+    reduce stage's inputs hash (`workflow.fem_stages`)."""
+    return pressure_range(pressure_box_inputs(scene), names)
+
+
+def pressure_range(box: PressureBoxInputs, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (K,) kPa of the chambers `names`: the pressure range for every chamber,
+    else each chamber's [actuation] pressures widened by the margin of their span (of
+    the largest chamber's span for a chamber held at one pressure); SceneError in one
+    line when there is neither or [actuation] controls volumes."""
     k = len(names)
-    if cfg.pressure_range_kpa is not None:
-        lo, hi = cfg.pressure_range_kpa
-        return np.full(k, float(lo)), np.full(k, float(hi))
-    act = scene.actuation
-    if act.volume_growth_mm3:
+    if box.range_kpa is not None:
+        return np.full(k, box.range_kpa[0]), np.full(k, box.range_kpa[1])
+    if box.volume_controlled:
         raise SceneError(
             "[actuation].volume_growth_mm3: the reduced model maps pressures; "
             "give [reduced].pressure_range_kpa = [lo, hi] (kPa)"
         )
-    table = act.pressure_kpa or {}
+    table = box.pressure_kpa
     if not table:
         raise SceneError(
             "[reduced]: no pressure range: give [reduced].pressure_range_kpa = "
@@ -64,40 +102,73 @@ def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
             "[actuation].pressure_kpa: every chamber at one pressure: give "
             "[reduced].pressure_range_kpa = [lo, hi] (kPa)"
         )
-    m = cfg.margin
+    m = box.margin
     return lo - m * span, hi + m * span
 
 
-class _Solves:
-    """Full solves kept with their states, each started from the nearest solved one."""
+@dataclass(frozen=True)
+class ReduceInputs:
+    """What the reduce stage reads of the scene besides the model and the solver: the
+    pressure box's inputs and [reduced]'s points_per_axis, max_degree (of the response
+    surfaces), validation (held-out full solves) and seed (of their pressures)."""
 
-    def __init__(self, model, options, first_options, progress, total):
+    box: PressureBoxInputs
+    points_per_axis: int
+    max_degree: int
+    validation: int
+    seed: int
+
+
+def reduce_inputs(scene) -> ReduceInputs:
+    """The reduce stage's inputs from a validated scene."""
+    cfg = scene.reduced
+    return ReduceInputs(
+        pressure_box_inputs(scene),
+        int(cfg.points_per_axis),
+        int(cfg.max_degree),
+        int(cfg.validation),
+        int(cfg.seed),
+    )
+
+
+class _Solves:
+    """Full solves kept with their states, each started from the nearest solved one
+    (the first from rest with `first_options`); `progress` hears of each of the
+    `total`."""
+
+    def __init__(
+        self,
+        model: FemModel,
+        options: SolverOptions,
+        first_options: SolverOptions,
+        progress: Callable[[str], None],
+        total: int,
+    ):
         self.model, self.options, self.first = model, options, first_options
         self.solver = model.make_solver(options.linear_solver)
         self.progress, self.total = progress, total
         self.p: list[np.ndarray] = []
         self.x: list[np.ndarray] = []
-        self.results = []
+        self.results: list[StateResult] = []
 
-    def solve(self, p: np.ndarray):
+    def solve(self, p: np.ndarray) -> StateResult:
+        """The equilibrium under chamber pressures p (K,) kPa, kept."""
         load = Load.pressures(p)
+        x_start, load_start, pressure_start, options = None, None, None, self.first
         if self.p:
             j = int(np.argmin(np.linalg.norm(np.array(self.p) - p, axis=1)))
-            start = dict(
-                x_start=self.x[j],
-                load_start=Load.pressures(self.p[j]),
-                pressure_start=self.p[j],
-                options=self.options,
-            )
-        else:
-            start = dict(options=self.first)
+            x_start, pressure_start, options = self.x[j], self.p[j], self.options
+            load_start = Load.pressures(self.p[j])
         try:
             res = solve_state(
                 self.model,
                 load,
-                solver=self.solver,
-                label=f"reduced-model sample at {np.round(p, 3).tolist()} kPa",
-                **start,
+                x_start,
+                load_start,
+                pressure_start,
+                options,
+                self.solver,
+                f"reduced-model sample at {np.round(p, 3).tolist()} kPa",
             )
         except SolverError as exc:
             raise SolverError(
@@ -114,7 +185,9 @@ class _Solves:
         return res
 
 
-def _outputs(model, solves: _Solves, idx, tet, w):
+def _outputs(
+    model: FemModel, solves: _Solves, idx: np.ndarray, tet: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(taxels (n, 3T), volumes (n, K), displacements (n, 3N)) of solves[idx]."""
     x = np.stack([solves.x[i] for i in idx])
     taxels = model.map_points(tet, w, x).reshape(len(idx), -1)
@@ -144,25 +217,27 @@ def _pod(u: np.ndarray) -> np.ndarray:
 
 
 def build(
-    model,
-    taxel_tet,
-    taxel_bary,
-    lo,
-    hi,
-    options,
-    first_options,
+    model: FemModel,
+    taxel_tet: np.ndarray,
+    taxel_bary: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    options: SolverOptions,
+    first_options: SolverOptions,
     *,
-    points_per_axis=5,
-    max_degree=4,
-    validation=50,
-    seed=0,
-    surface_nodes=None,
-    extra=None,
-    progress=None,
+    points_per_axis: int = 5,
+    max_degree: int = 4,
+    validation: int = 50,
+    seed: int = 0,
+    surface_nodes: np.ndarray | None = None,
+    extra: dict[str, np.ndarray] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> ReducedModel:
-    """Fit and validate the reduced model of `model` over the box [lo, hi] (K,) kPa.
-    `extra`: arrays stored beside it (mesh, element names). Raises SolverError naming
-    the sample pressure when a full solve fails."""
+    """Fit and validate the reduced model of `model` over the box [lo, hi] (K,) kPa for
+    the taxels in elements taxel_tet (T,) at barycentric taxel_bary (T, 4); the solver
+    options of later samples and of the first (from rest). `extra`: arrays stored
+    beside it (mesh, element names). Raises SolverError naming the sample pressure
+    when a full solve fails."""
     progress = progress or _noop
     t0 = time.perf_counter()
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
@@ -229,7 +304,7 @@ def build(
     return ReducedModel.from_arrays(arrays)
 
 
-def _check_box(lo, hi, n: int, max_degree: int, validation: int) -> None:
+def _check_box(lo: np.ndarray, hi: np.ndarray, n: int, max_degree: int, validation: int) -> None:
     """Refuse a box [lo, hi] (K,) kPa without chambers or empty, and settings that fit
     nothing."""
     k = len(lo)
@@ -243,7 +318,9 @@ def _check_box(lo, hi, n: int, max_degree: int, validation: int) -> None:
         raise SceneError(f"[reduced]: empty pressure range {lo.tolist()}..{hi.tolist()} kPa")
 
 
-def _solve_samples(solves, p_grid, p_val) -> tuple[np.ndarray, np.ndarray]:
+def _solve_samples(
+    solves: _Solves, p_grid: np.ndarray, p_val: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Solve the grid's pressures (S, K) kPa, then the held-out ones (V, K); -> the rows
     of `solves` that hold each."""
     validation = len(p_val)
@@ -305,28 +382,51 @@ def _degree_study(xi_grid, grid_idx, xi_val, grid, held_out, n: int, max_degree:
 def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
     """The reduce stage: build the scene's reduced model on mesh.npz for the taxels
     (T, 3) mm; write out_dir/reduced.npz and out_dir/validation.json. Returns the
-    validation figures (a model past its bound is warned about through `progress`)."""
-    from pathlib import Path
-
+    validation figures (a model past its bound is warned about through `progress`).
+    Reads the scene here only: the model and the solver options (`fem.stage`) and
+    `reduce_inputs`, handed to `reduce_to`."""
     from fruitcli.fem import io
-    from fruitcli.fem.elements import barycentric
     from fruitcli.fem.stage import build_model, solver_options
-    from fruitcli.fsutil import staged_dir, write_json
 
-    progress = progress or _noop
     if taxels_xyz is None:
         raise SceneError("[reduced]: no taxels to follow ([grid].taxels or make-tracks)")
     mesh = io.load_mesh(Path(mesh_npz))
     model = build_model(scene, mesh)
-    lo, hi = pressure_box(scene, model.chamber_names)
-    cfg = scene.reduced
+    inputs = reduce_inputs(scene)
+    lo, hi = pressure_range(inputs.box, model.chamber_names)
+    options = (
+        solver_options(scene),
+        solver_options(scene, first_state=True, jig=bool(model.jigs)),
+    )
+    return reduce_to(out_dir, model, mesh, taxels_xyz, lo, hi, inputs, options, progress)
+
+
+def reduce_to(
+    out_dir: Path,
+    model: FemModel,
+    mesh: dict,
+    taxels_xyz: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    inputs: ReduceInputs,
+    options: tuple[SolverOptions, SolverOptions],
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """The reduced model of `model` (on `mesh`, a loaded mesh.npz) over the pressure box
+    [lo, hi] (K,) kPa for the taxels (T, 3) mm, with the sample counts of `inputs` and
+    the solver options (of later states, of the first from rest): written to
+    out_dir/reduced.npz and out_dir/validation.json; returns the validation figures."""
+    from fruitcli.fem.elements import barycentric
+    from fruitcli.fsutil import staged_dir
+
+    progress = progress or _noop
     taxels = np.asarray(taxels_xyz, float).reshape(-1, 3)
     tet, w, outside = barycentric.locate(model.rest, model.tets, taxels)
     box = ", ".join(
         f"{c} {a:g}..{b:g}" for c, a, b in zip(model.chamber_names, lo, hi, strict=True)
     )
     progress(
-        f"reduce: {cfg.points_per_axis}^{len(lo)} samples + {cfg.validation} "
+        f"reduce: {inputs.points_per_axis}^{len(lo)} samples + {inputs.validation} "
         f"held-out full solves over {box} kPa"
     )
     extra = {
@@ -344,12 +444,12 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
         w,
         lo,
         hi,
-        solver_options(scene),
-        solver_options(scene, first_state=True, jig=bool(model.jigs)),
-        points_per_axis=cfg.points_per_axis,
-        max_degree=cfg.max_degree,
-        validation=cfg.validation,
-        seed=cfg.seed,
+        options[0],
+        options[1],
+        points_per_axis=inputs.points_per_axis,
+        max_degree=inputs.max_degree,
+        validation=inputs.validation,
+        seed=inputs.seed,
         surface_nodes=np.unique(mesh["surface_tris"]),
         extra=extra,
         progress=progress,
@@ -358,37 +458,38 @@ def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
     progress(reduced.describe())
     with staged_dir(out_dir) as tmp:
         reduced.save(tmp / "reduced.npz")
-        write_json(
-            tmp / "validation.json",
-            figures
-            | {
-                "range_kpa": {
-                    c: [float(a), float(b)]
-                    for c, a, b in zip(model.chamber_names, lo, hi, strict=True)
-                },
-                "study": [
-                    dict(
-                        zip(
-                            (
-                                "points_per_axis",
-                                "degree",
-                                "samples",
-                                "taxel_max_mm",
-                                "volume_max_pct",
-                            ),
-                            row,
-                            strict=True,
-                        )
-                    )
-                    for row in reduced.arrays["study"].tolist()
-                ],
-                "loo_taxel_max_mm": dict(
-                    zip(
-                        map(str, reduced.arrays["loo_degrees"].tolist()),
-                        reduced.arrays["loo_taxel_max_mm"].tolist(),
-                        strict=True,
-                    )
-                ),
-            },
-        )
+        _write_validation(tmp / "validation.json", figures, reduced, model.chamber_names, lo, hi)
     return figures
+
+
+def _write_validation(
+    path: Path,
+    figures: dict,
+    reduced: ReducedModel,
+    names: list[str],
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> None:
+    """validation.json: the validation figures, the pressure box (kPa per chamber), the
+    study rows (error against points per axis and degree) and the leave-one-out taxel
+    error (mm) of each degree."""
+    from fruitcli.fsutil import write_json
+
+    study_keys = ("points_per_axis", "degree", "samples", "taxel_max_mm", "volume_max_pct")
+    write_json(
+        path,
+        figures
+        | {
+            "range_kpa": {c: [float(a), float(b)] for c, a, b in zip(names, lo, hi, strict=True)},
+            "study": [
+                dict(zip(study_keys, row, strict=True)) for row in reduced.arrays["study"].tolist()
+            ],
+            "loo_taxel_max_mm": dict(
+                zip(
+                    map(str, reduced.arrays["loo_degrees"].tolist()),
+                    reduced.arrays["loo_taxel_max_mm"].tolist(),
+                    strict=True,
+                )
+            ),
+        },
+    )

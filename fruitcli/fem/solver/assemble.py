@@ -61,7 +61,7 @@ class CsrPattern:
         n = len(free)
         indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(row_len.reshape(-1)[free], out=indptr[1:])
-        within = np.cumsum(kept, axis=2) - kept  # kept entries before j in the pair
+        within: np.ndarray = np.cumsum(kept, axis=2) - kept  # kept entries before j in the pair
         slot = (
             indptr[:-1][np.maximum(new[rows], 0)][:, :, None]
             + (before[:-1] - before[row_start[pa]])[:, :, None]

@@ -16,7 +16,7 @@ Same interface as `fruitcli.fem.solver.linsolve.TangentSolver`."""
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -24,7 +24,7 @@ import scipy.sparse.linalg as spla
 from fruitcli.errors import SolverError
 from fruitcli.fem import threads
 from fruitcli.fem.solver import linsolve, pardiso
-from fruitcli.fem.solver.linsolve import kept_estimate, pcg, upper_triangle
+from fruitcli.fem.solver.linsolve import Factor, kept_estimate, pcg, upper_triangle
 from fruitcli.fem.solver.solvers import LINEAR_SOLVERS
 from fruitcli.fem.tolerances import (
     PCG_MAX_ITERATIONS,
@@ -34,15 +34,6 @@ from fruitcli.fem.tolerances import (
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
-
-
-class Factor(Protocol):
-    """What `factorize` returns: `solve(b)` and `single` (whether its solves are only
-    approximate)."""
-
-    single: bool
-
-    def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
 SYMMETRIC_PIVOT_THRESHOLD = 0.01
@@ -56,7 +47,12 @@ runs on a shared 2-core machine), while cholespy's Cholesky (BLAS-free: 28-54 s 
 factorization) did not finish the first state within its 300 s budget."""
 
 
-def factorize(k, previous=None, single: bool = False, indefinite: bool = False) -> Factor:
+def factorize(
+    k: sp.csr_matrix,
+    previous: Factor | None = None,
+    single: bool = False,
+    indefinite: bool = False,
+) -> Factor:
     """A factor of the sparse symmetric k with `.solve` and `.single` (whether its
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical
@@ -84,7 +80,7 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
         )
     k = k.tocsc()
     try:  # SuperLU keeping the symmetric ordering where it can
-        fac = _Exact(
+        exact = _Exact(
             spla.splu(
                 k,
                 permc_spec="MMD_AT_PLUS_A",
@@ -92,8 +88,8 @@ def factorize(k, previous=None, single: bool = False, indefinite: bool = False) 
                 options={"SymmetricMode": True},
             )
         )
-        if pardiso.passes_probe(k, fac, pardiso.DOUBLE_PROBE):
-            return fac
+        if pardiso.passes_probe(k, exact, pardiso.DOUBLE_PROBE):
+            return exact
     except RuntimeError:
         pass
     try:
@@ -111,8 +107,11 @@ class _Exact:
 
     single = False
 
-    def __init__(self, lu):
-        self.solve = lu.solve
+    def __init__(self, lu) -> None:
+        self.lu = lu
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self.lu.solve(b)
 
 
 def add_in_pattern(k: sp.csr_matrix, other, indices: np.ndarray) -> sp.csr_matrix:
@@ -144,8 +143,8 @@ class ContinuumSolver:
                 f"{', '.join(LINEAR_SOLVERS)}, got {method!r}"
             )
         self.model, self.method = model, method
-        self.k = None
-        self.factor = None
+        self.k: sp.csr_matrix | None = None  # the tangent of the last `update` (mN/mm)
+        self.factor: Factor | None = None
         self.single = method == "pcg" and linsolve.SINGLE_PRECISION  # of the next factor
         # a tangent found indefinite (past a limit point, a wall buckling): the next
         # factors skip the positive definite attempt, a failed analysis each
@@ -159,17 +158,30 @@ class ContinuumSolver:
         # default Fruit's breathing the 12 states took 4.6-5.4 s instead of 6.2-6.4 s
         self.near_tolerance = linsolve.NEAR_TOLERANCE
         self.newton_c = 0.0
-        self.history = []
-        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
-        self.sensitivity = None
-        self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
+        # converged (load vector, x, p) for the next state's predictor (`fem_model.Kept`)
+        self.history: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (`predictor`)
+        self.sensitivity: tuple[np.ndarray, np.ndarray] | None = None
+        # the last `estimate`: (r, factorizations then, its solve)
+        self.estimated: tuple[np.ndarray, int, np.ndarray] | None = None
         self.factor_seconds = 0.0  # the last factorization's (Newton's deadline looks ahead)
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
-        self.stats = {"factorizations": 0, "cg_iterations": 0, "assembly_s": 0.0, "factor_s": 0.0}
+        self.stats: dict[str, float] = {
+            "factorizations": 0,
+            "cg_iterations": 0,
+            "assembly_s": 0.0,
+            "factor_s": 0.0,
+        }
 
-    def update(self, rot, f=None, load_stiffness=None, project: bool = False) -> None:
+    def update(
+        self,
+        rot: np.ndarray,
+        f: np.ndarray | None = None,
+        load_stiffness: sp.csr_matrix | None = None,
+        project: bool = False,
+    ) -> None:
         """Tangent at the configuration `rot` (= the model's state x, n x 3): the full
         tangent with the follower-pressure stiffness, or (project, or no f) each
         element's block clamped to positive semi-definite and no pressure stiffness."""
@@ -187,12 +199,14 @@ class ContinuumSolver:
     def _factorize(self) -> None:
         t0 = time.perf_counter()
         try:
-            self.factor = factorize(self.k, self.factor, self.single, self.indefinite)
-            mtype = getattr(self.factor, "mtype", pardiso.SPD)
+            self.factor = factor = factorize(
+                self._tangent, self.factor, self.single, self.indefinite
+            )
+            mtype = factor.mtype if isinstance(factor, pardiso.Pardiso) else pardiso.SPD
             self.indefinite = self.indefinite or mtype == pardiso.SYMMETRIC_INDEFINITE
             # a tangent too ill-conditioned for single precision stays so: later
             # refreshes go to double precision at once
-            self.single = self.single and self.factor.single
+            self.single = self.single and factor.single
         except SolverError:
             self.factor = None  # spent: the next update factorizes afresh
             raise
@@ -201,20 +215,34 @@ class ContinuumSolver:
         self.stats["factorizations"] += 1
         self.refresh, self.fresh = False, True
 
+    @property
+    def _kept(self) -> Factor:
+        """The kept factor (RuntimeError before the first `update` made one)."""
+        if self.factor is None:
+            raise RuntimeError("ContinuumSolver: no factor before the first update")
+        return self.factor
+
+    @property
+    def _tangent(self) -> sp.csr_matrix:
+        """The tangent of the last `update` (RuntimeError before it)."""
+        if self.k is None:
+            raise RuntimeError("ContinuumSolver: no tangent before the first update")
+        return self.k
+
     def estimate(self, r: np.ndarray) -> np.ndarray | None:
         """The kept factor's solve of r (n_free,): an estimate of K_t^-1 r (mm for r in
         mN), or None before the first update."""
         if self.factor is None:
             return None
         z = self.factor.solve(r)
-        self.estimated = (r, self.stats["factorizations"], z)
+        self.estimated = (r, int(self.stats["factorizations"]), z)
         return z
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        z0 = kept_estimate(self.estimated, rhs, self.stats["factorizations"])
+        z0 = kept_estimate(self.estimated, rhs, int(self.stats["factorizations"]))
         if self.method != "pcg":
-            return self.factor.solve(rhs) if z0 is None else z0
+            return self._kept.solve(rhs) if z0 is None else z0
         if z0 is not None or rhs.ndim == 1:
             return self._solve_one(rhs, z0)
         if rhs.shape[1] == 1:
@@ -225,8 +253,8 @@ class ContinuumSolver:
         """`_solve_one` of each column of b (n_free, k), the columns' CG run in lockstep
         (`pcg_columns`): one preconditioner solve with k right-hand sides and one sparse
         product per step instead of k of each."""
-        if self.fresh and not self.factor.single:
-            return self.factor.solve(b)
+        if self.fresh and not self._kept.single:
+            return self._kept.solve(b)
         x, its, ok = self._krylov(b, 2 * PCG_REFRESH_ITERATIONS)
         self.stats["cg_iterations"] += int(its.sum())
         self.refresh = self.refresh or bool(np.any(its[ok] > PCG_REFRESH_ITERATIONS))
@@ -239,19 +267,20 @@ class ContinuumSolver:
         xb, its, ok = self._krylov(b[:, bad], PCG_MAX_ITERATIONS)
         self.stats["cg_iterations"] += int(its.sum())
         if not ok.all():
-            xb[:, ~ok] = self.factor.solve(np.ascontiguousarray(b[:, bad[~ok]]))
+            xb[:, ~ok] = self._kept.solve(np.ascontiguousarray(b[:, bad[~ok]]))
         x[:, bad] = xb
         return x
 
-    def _krylov(self, b: np.ndarray, limit: int):
+    def _krylov(self, b: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, iterations, converged) of each column of b: CG in lockstep
         (`pcg_columns`) preconditioned by a positive definite factor; GMRES
         (`gmres_right`) by a symmetric indefinite one (past a limit point the tangent is
         indefinite: CG stopped at negative curvature and each Newton step then cost a
         refactorization)."""
         if not self._indefinite_factor():
-            return pcg_columns(self._products, self.factor.solve, b, self.rtol, limit)
-        out = [gmres_right(self.k.__matmul__, self.factor.solve, c, self.rtol, limit) for c in b.T]
+            return pcg_columns(self._products, self._kept.solve, b, self.rtol, limit)
+        k, solve = self._tangent, self._kept.solve
+        out = [gmres_right(k.__matmul__, solve, c, self.rtol, limit) for c in b.T]
         x = np.column_stack([o[0] for o in out])
         return x, np.array([o[1] for o in out]), np.array([o[2] for o in out])
 
@@ -260,25 +289,25 @@ class ContinuumSolver:
         pivots (iparm[22]): a positive definite tangent factored as indefinite (the
         solver's `indefinite` flag, a 3-2-1 support) keeps CG."""
         f = self.factor
-        return (
-            getattr(f, "mtype", pardiso.SPD) == pardiso.SYMMETRIC_INDEFINITE
-            and int(f.iparm[22]) > 0
+        return isinstance(f, pardiso.Pardiso) and (
+            f.mtype == pardiso.SYMMETRIC_INDEFINITE and int(f.iparm[22]) > 0
         )
 
     def _products(self, p: np.ndarray) -> np.ndarray:
         """K p for p (n_free, k), column by column (SciPy's product with a block of
         columns took 1.7-2.5 times as long as the separate products on the quadratic
         default Fruit)."""
-        return np.column_stack([self.k @ p[:, j] for j in range(p.shape[1])])
+        k = self._tangent
+        return np.column_stack([k @ p[:, j] for j in range(p.shape[1])])
 
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
-        if self.fresh and not self.factor.single:
-            return self.factor.solve(b) if z0 is None else z0
+        if self.fresh and not self._kept.single:
+            return self._kept.solve(b) if z0 is None else z0
         if self._indefinite_factor():
             return self._solve_columns(b[:, None])[:, 0]
         x, its, ok = pcg(
-            self.k.__matmul__,
-            self.factor.solve,
+            self._tangent.__matmul__,
+            self._kept.solve,
             b,
             self.rtol,
             2 * PCG_REFRESH_ITERATIONS,
@@ -293,8 +322,8 @@ class ContinuumSolver:
             self.single = False
         self._factorize()
         x, its, ok = pcg(
-            self.k.__matmul__,
-            self.factor.solve,
+            self._tangent.__matmul__,
+            self._kept.solve,
             b,
             self.rtol,
             PCG_MAX_ITERATIONS,
@@ -302,7 +331,7 @@ class ContinuumSolver:
             self.displacement_goal,
         )
         self.stats["cg_iterations"] += its
-        return x if ok else self.factor.solve(b)
+        return x if ok else self._kept.solve(b)
 
 
 def pcg_columns(

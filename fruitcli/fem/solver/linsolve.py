@@ -24,7 +24,8 @@ deformation gradient given it is SOFA's warped R K0 R^T. Strategies, chosen by n
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -43,6 +44,16 @@ from fruitcli.fem.tolerances import (
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
+
+
+class Factor(Protocol):
+    """A sparse factor: `solve(b)` and `single` (whether its solves are only approximate:
+    a single-precision one); SuperLU's factor, which lacks `single`, counts as exact."""
+
+    single: bool
+
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
+
 
 NEAR_TOLERANCE = 30.0
 """Newton's last step, once the residual is within this factor of the tolerance, keeps
@@ -78,7 +89,7 @@ def upper_triangle(k) -> sp.csr_matrix | sp.csr_array:
     return u
 
 
-def _cholesky(k):
+def _cholespy_factor(k: sp.csc_matrix) -> Factor:
     """A sparse Cholesky factorization of the SPD matrix k with a `.solve(b)` method
     (cholespy, whose solves are about twice as fast as SuperLU's here)."""
     from cholespy import CholeskySolverD, MatrixType
@@ -99,7 +110,7 @@ def _cholesky(k):
         single = False  # exact solves (see continuum_linsolve.factorize)
 
         @staticmethod
-        def solve(b):
+        def solve(b: np.ndarray) -> np.ndarray:
             b = np.ascontiguousarray(b, dtype=float)
             x = np.zeros_like(b)
             fac.solve(b, x)
@@ -108,6 +119,9 @@ def _cholesky(k):
     return _Factor()
 
 
+_cholesky: Callable[[sp.csc_matrix], Factor] | None = _cholespy_factor
+"""The positive definite tangent's factorization without PARDISO: cholespy's Cholesky
+when installed, else None (SuperLU in symmetric mode)."""
 try:
     import cholespy  # noqa: F401
 except ImportError:  # optional: SuperLU in symmetric mode instead
@@ -129,32 +143,35 @@ class TangentSolver:
             )
         self.model = model
         self.method = method
-        self.rot = None
-        self.f = None
-        self.load_k = None
-        self.t_world = None
-        self.rg = None
-        self.factor = None
+        self.rot: np.ndarray | None = None  # (m, 3, 3) element rotations of `update`
+        self.f: np.ndarray | None = None  # (m, 3, 3) deformation gradients, or None
+        self.load_k: sp.csr_matrix | None = None  # follower-pressure stiffness, or None
+        self.t_world: np.ndarray | None = None  # rotation-derivative term, or None
+        self.rg: np.ndarray | None = None  # rotated shape gradients
+        self.factor: Factor | None = None
         self.kind = "warped"
         self.project = False
-        self.diag = None
+        self.diag: np.ndarray | None = None  # the tangent's diagonal (`jacobi`)
         self.refresh = False
         self.fresh = False  # the factorization is of the current configuration
         self.rtol = PCG_RELATIVE_TOLERANCE
         # CG's displacement goal (`pcg`; set by Newton per step)
         self.displacement_goal = (0.0, 1.0)
-        # read by Newton (`newton._newton`, 0.0 there without it: no chord steps)
+        # read by Newton (`newton.iterate`, 0.0 there without it: no chord steps)
         self.near_tolerance = NEAR_TOLERANCE
         self.newton_c = 0.0  # Newton's merit_new / merit^2, kept across states (rtol)
-        self.history = []  # converged (load vector, x, p) for the next state's predictor
-        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (newton.py)
-        self.sensitivity = None
+        # converged (load vector, x, p) for the next state's predictor (`fem_model.Kept`)
+        self.history: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # (dx/dp (n, 3, K), volume compliance (K, K)) at the first state (`predictor`)
+        self.sensitivity: tuple[np.ndarray, np.ndarray] | None = None
         self.single = method == "pcg" and SINGLE_PRECISION  # asked of the next factor
-        self.estimated = None  # the last `estimate`: (r, factorizations then, its solve)
+        # the last `estimate`: (r, factorizations then, its solve)
+        self.estimated: tuple[np.ndarray, int, np.ndarray] | None = None
+        self.factor_seconds = 0.0  # Newton's deadline does not look ahead for this one
         pardiso.available()  # MKL loaded here, not inside the first state's time
         threads.one_blas_thread()
         threads.choose_element_threads()
-        self.stats = {
+        self.stats: dict[str, float] = {
             "factorizations": 0,
             "cg_iterations": 0,
             "assembly_s": 0.0,
@@ -168,7 +185,7 @@ class TangentSolver:
         self,
         rot: np.ndarray,
         f: np.ndarray | None = None,
-        load_stiffness=None,
+        load_stiffness: sp.csr_matrix | None = None,
         project: bool = False,
     ) -> None:
         """Set the current element rotations (m, 3, 3) and deformation gradients (m, 3, 3)
@@ -206,7 +223,9 @@ class TangentSolver:
         self._factorize(k)
         self.refresh, self.fresh = False, True
 
-    def _assemble(self, with_load: bool = True):
+    def _assemble(self, with_load: bool = True) -> sp.csr_matrix:
+        """The tangent assembled over the free dofs (mN/mm), with the follower-pressure
+        stiffness when `with_load`; timed."""
         t0 = time.perf_counter()
         m = self.model
         k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project), m.spring_diag)
@@ -215,7 +234,7 @@ class TangentSolver:
         self.stats["assembly_s"] += time.perf_counter() - t0
         return k
 
-    def _factorize(self, k) -> None:
+    def _factorize(self, k: sp.csr_matrix) -> None:
         k = k.tocsc()
         t0 = time.perf_counter()
         try:
@@ -246,10 +265,17 @@ class TangentSolver:
                 f"tangent stiffness is singular ({exc}); is the body held by "
                 "[[fixed]], [[jig]] or its rigid modes pinned?"
             ) from None
-        if not np.isfinite(self.factor.solve(np.ones(k.shape[0]))).all():
+        if not np.isfinite(self._kept.solve(np.ones(k.shape[0]))).all():
             self.factor = spla.splu(k, permc_spec="MMD_AT_PLUS_A")
         self.stats["factor_s"] += time.perf_counter() - t0
         self.stats["factorizations"] += 1
+
+    @property
+    def _kept(self) -> Factor:
+        """The kept factor (RuntimeError before the first `update` made one)."""
+        if self.factor is None:
+            raise RuntimeError("TangentSolver: no factor before the first update")
+        return self.factor
 
     def matvec(self, v_free: np.ndarray) -> np.ndarray:
         """K_t v (matrix-free) for v over the free dofs."""
@@ -265,7 +291,7 @@ class TangentSolver:
     def precondition(self, r: np.ndarray) -> np.ndarray:
         """The kept factorization's solve of r (two triangular solves), timed."""
         t0 = time.perf_counter()
-        z = self.factor.solve(r)
+        z = self._kept.solve(r)
         self.stats["precond_s"] += time.perf_counter() - t0
         return z
 
@@ -275,14 +301,14 @@ class TangentSolver:
         if self.method == "jacobi" or self.factor is None:
             return None
         z = self.precondition(r)
-        self.estimated = (r, self.stats["factorizations"], z)
+        self.estimated = (r, int(self.stats["factorizations"]), z)
         return z
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve K_t X = rhs for rhs (n_free,) or (n_free, k)."""
-        z0 = kept_estimate(self.estimated, rhs, self.stats["factorizations"])
+        z0 = kept_estimate(self.estimated, rhs, int(self.stats["factorizations"]))
         if self.method == "direct":
-            return self.factor.solve(rhs) if z0 is None else z0
+            return self._kept.solve(rhs) if z0 is None else z0
         if z0 is not None:
             return self._solve_one(rhs, z0)
         cols = rhs.reshape(len(rhs), -1)
@@ -291,6 +317,8 @@ class TangentSolver:
 
     def _solve_one(self, b: np.ndarray, z0: np.ndarray | None = None) -> np.ndarray:
         if self.method == "jacobi":
+            if self.diag is None:
+                raise RuntimeError("TangentSolver: no tangent before the first update")
             inv_d = 1.0 / self.diag
             x, its, ok = pcg(
                 self.matvec, lambda v: inv_d * v, b, self.rtol, 50 * 20 * PCG_MAX_ITERATIONS
@@ -328,7 +356,9 @@ class TangentSolver:
         return x
 
 
-def kept_estimate(estimated, b: np.ndarray, factorizations: int) -> np.ndarray | None:
+def kept_estimate(
+    estimated: tuple[np.ndarray, int, np.ndarray] | None, b: np.ndarray, factorizations: int
+) -> np.ndarray | None:
     """The solve kept by a solver's `estimate` (r, factorizations then, its solve) when b
     is that same r and no factorization happened since (CG then starts from it instead
     of solving again), else None."""

@@ -261,14 +261,14 @@ def factorize_upper(
     refactorization met a non-positive pivot (then no ordering makes it positive
     definite). `previous` is spent either way (freed unless returned). Raises
     PardisoError."""
-    known = previous is not None and (previous.mtype == SYMMETRIC_INDEFINITE or not indefinite)
-    if known and previous.single == single and previous.same_pattern(upper):
-        try:
-            previous.refactor(upper)
-            return previous
-        except PardisoError as exc:
-            indefinite = indefinite or previous.mtype == SYMMETRIC_INDEFINITE or exc.code == -4
     if previous is not None:
+        known = previous.mtype == SYMMETRIC_INDEFINITE or not indefinite
+        if known and previous.single == single and previous.same_pattern(upper):
+            try:
+                previous.refactor(upper)
+                return previous
+            except PardisoError as exc:
+                indefinite = indefinite or previous.mtype == SYMMETRIC_INDEFINITE or exc.code == -4
         indefinite = indefinite or previous.mtype == SYMMETRIC_INDEFINITE
         previous.free()  # before the new analysis: two p2 factors would double the peak
     message, code = "", 0

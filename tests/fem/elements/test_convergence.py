@@ -18,7 +18,8 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import shell_octant, structured_box
 from fruitcli.fem.meshing.topology import boundary_faces
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.units import body_force_mn_mm3
 
 ACCURATE = SolverOptions(tolerance=1e-10, linear_solver="direct")

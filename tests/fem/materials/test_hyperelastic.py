@@ -29,7 +29,8 @@ from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig, nodes_in_box, rotation_matrix
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box
-from fruitcli.fem.solver.newton import OutOfTime, SolverOptions, solve_state
+from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.units import body_force_mn_mm3
 
 RNG = np.random.default_rng(7)
@@ -347,9 +348,9 @@ def test_nearly_incompressible_sag_converges_through_bulk_stages(monkeypatch):
     bulk modulus restored, and the equilibrium of the same body solved without stages
     (start given as rest: 439 Newton steps and 4 subdivisions, the first quarter of the
     load failing in 25 steps four times) within 1e-3 mm."""
-    from fruitcli.fem.solver import newton
+    from fruitcli.fem.solver import state
 
-    monkeypatch.setattr(newton, "PROGRESS_SECONDS", 0.0)
+    monkeypatch.setattr(state, "PROGRESS_SECONDS", 0.0)
     m = sagging_beam(0.4999)
     kappa = m.material.bulk_modulus_kpa
     options = SolverOptions(load_steps=4, linear_solver=SOLVER)

@@ -15,7 +15,8 @@ from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import shell_octant
 from fruitcli.fem.meshing.topology import boundary_faces
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
 from fruitcli.fem.tolerances import ESTIMATE_WINDOW
 from fruitcli.scene import parse_scene

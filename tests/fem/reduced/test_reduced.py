@@ -14,7 +14,12 @@ from fruitcli.errors import FruitError, SolverError
 from fruitcli.fem.pressure_table import read_pressures, write_pressures
 from fruitcli.fem.reduced import model as reduced_mod
 from fruitcli.fem.reduced import response_surface as rs
-from fruitcli.fem.reduced.build import pressure_box
+from fruitcli.fem.reduced.build import (
+    PressureBoxInputs,
+    pressure_box,
+    pressure_range,
+    reduce_inputs,
+)
 from fruitcli.scene import parse_scene
 from fruitcli.tables import read_taxels
 from fruitcli.workflow import planner
@@ -95,6 +100,38 @@ def test_pressure_box_from_actuation_margin_and_range():
         parse_scene(
             PAD + "pressure_range_kpa = [5.0, 1.0]\n", Path("/tmp/pad.toml"), must_exist=False
         )
+
+
+def test_pressure_range_from_its_inputs_alone():
+    """The box from typed inputs, no scene: the range for every chamber; else each
+    chamber's pressures widened by the margin of its span, a chamber held at one
+    pressure by the largest span; one line when nothing spans or volumes are controlled."""
+    box = PressureBoxInputs(None, 0.5, {"a": (0.0, 2.0), "b": (1.0, 1.0)}, False)
+    lo, hi = pressure_range(box, ["a", "b", "c"])  # c: no pressures, held at 0 kPa
+    assert lo.tolist() == [-1.0, 0.0, -1.0] and hi.tolist() == [3.0, 2.0, 1.0]
+    lo, hi = pressure_range(PressureBoxInputs((-2.0, 4.0), 0.5, {}, True), ["a", "b"])
+    assert lo.tolist() == [-2.0, -2.0] and hi.tolist() == [4.0, 4.0]
+    with pytest.raises(FruitError, match=r"^\[actuation\].volume_growth_mm3: the reduced"):
+        pressure_range(PressureBoxInputs(None, 0.1, {"a": (0.0, 2.0)}, True), ["a"])
+    with pytest.raises(FruitError, match=r"^\[reduced\]: no pressure range"):
+        pressure_range(PressureBoxInputs(None, 0.1, {}, False), ["a"])
+    with pytest.raises(FruitError, match=r"every chamber at one pressure"):
+        pressure_range(PressureBoxInputs(None, 0.1, {"a": (2.0,)}, False), ["a"])
+
+
+def test_reduce_inputs_read_the_scene_once():
+    """The reduce stage's inputs hold the scene's [reduced] settings and its box."""
+    sc = parse_scene(PAD, Path("/tmp/pad.toml"), must_exist=False)
+    inputs = reduce_inputs(sc)
+    assert (inputs.points_per_axis, inputs.max_degree, inputs.validation, inputs.seed) == (
+        sc.reduced.points_per_axis,
+        sc.reduced.max_degree,
+        sc.reduced.validation,
+        sc.reduced.seed,
+    )
+    lo, hi = pressure_range(inputs.box, ["left", "right"])
+    assert np.array_equal(lo, pressure_box(sc, ["left", "right"])[0])
+    assert np.array_equal(hi, pressure_box(sc, ["left", "right"])[1])
 
 
 def test_pressure_csv_round_trip(tmp_path):

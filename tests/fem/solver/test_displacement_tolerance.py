@@ -13,7 +13,8 @@ from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements.quadratic import quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box_with_cavity
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 
 
 def hollow_cube(element: str):

@@ -81,7 +81,8 @@ def hollow_cube_states(
     from fruitcli.fem.materials.build import material
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
     from fruitcli.fem.solver import linsolve
-    from fruitcli.fem.solver.newton import SolverOptions, solve_state
+    from fruitcli.fem.solver.options import SolverOptions
+    from fruitcli.fem.solver.state import solve_state
 
     monkeypatch.setattr(linsolve, "SINGLE_PRECISION", single)
     nodes, tets, cav = structured_box_with_cavity(

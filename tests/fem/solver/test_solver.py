@@ -10,7 +10,8 @@ from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.solver import linsolve
 from fruitcli.fem.solver.linsolve import TangentSolver
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 
 
 def hollow_box(nu: float) -> Model:
@@ -105,17 +106,17 @@ def test_state_sequence_continued_from_previous_states_matches_fresh_solves():
 
 
 def second_state(m, a: Load, b: Load, opts, keep: bool):
-    """(the first state under a, `_sensitivity_guess`'s start for b, the state under b
+    """(the first state under a, `sensitivity_guess`'s start for b, the state under b
     from the first) on a fresh solver; without `keep`, the first state's sensitivity is
     dropped (no guess)."""
-    from fruitcli.fem.solver.newton import _sensitivity_guess
+    from fruitcli.fem.solver.predictor import sensitivity_guess
 
     solver = TangentSolver(m)
     first = solve_state(m, a, options=opts, solver=solver)
     assert solver.sensitivity is not None
     if not keep:
         solver.sensitivity = None
-    guess = _sensitivity_guess(solver, first.x, b)
+    guess = sensitivity_guess(solver, first.x, b)
     assert (guess is not None) == keep
     res = solve_state(
         m,
@@ -194,7 +195,7 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
     """Breathing-like loads (phase-shifted sinusoids: an ellipse in a plane of the
     pressure space): with 6 kept states the guess reproduces any response quadratic in
     the pressures; with 3 it falls back to the first-order weights."""
-    from fruitcli.fem.solver.newton import HISTORY_STATES, _history_guess, _load_vector
+    from fruitcli.fem.solver.predictor import HISTORY_STATES, history_guess, load_vector
 
     rng = np.random.default_rng(3)
     a, b, c = (
@@ -208,12 +209,12 @@ def test_history_guess_is_exact_for_a_quadratic_response_on_a_planar_load_path()
 
     theta = 2 * np.pi * np.arange(8) / 12
     loads = [Load.pressures(6 - 6 * np.cos(t + np.array([0.0, 2.1, 4.2]))) for t in theta]
-    hist = [(_load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:7]]
+    hist = [(load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:7]]
     hist = hist[-HISTORY_STATES:]
-    x, p = _history_guess(hist, hist[-1][1], loads[7])
+    x, p = history_guess(hist, hist[-1][1], loads[7])
     np.testing.assert_allclose(x, response(loads[7].pressure_kpa), atol=1e-8)
     np.testing.assert_allclose(p, loads[7].pressure_kpa, atol=1e-10)
-    x3, _ = _history_guess(hist[-3:], hist[-1][1], loads[7])  # affine only
+    x3, _ = history_guess(hist[-3:], hist[-1][1], loads[7])  # affine only
     assert np.abs(x3 - response(loads[7].pressure_kpa)).max() > 1e-3
 
 
@@ -221,7 +222,7 @@ def test_history_guess_is_exact_for_a_cubic_response_given_enough_states():
     """The same path with a response cubic in the pressures: 8 kept states leave weights
     free after the first and second moments, and matching the third makes the guess
     exact (1e-8); 6 kept states only reach the second order (off by more than 1e-3)."""
-    from fruitcli.fem.solver.newton import _history_guess, _load_vector
+    from fruitcli.fem.solver.predictor import history_guess, load_vector
 
     rng = np.random.default_rng(5)
     a, b = rng.standard_normal((4, 3, 3, 3, 3)), rng.standard_normal((4, 3, 3))
@@ -232,11 +233,11 @@ def test_history_guess_is_exact_for_a_cubic_response_given_enough_states():
 
     theta = 2 * np.pi * np.arange(9) / 12
     loads = [Load.pressures(6 - 6 * np.cos(t + np.array([0.0, 2.1, 4.2]))) for t in theta]
-    hist = [(_load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:8]]
+    hist = [(load_vector(ld), response(ld.pressure_kpa), ld.pressure_kpa) for ld in loads[:8]]
     exact = response(loads[8].pressure_kpa)
-    x, _ = _history_guess(hist, hist[-1][1], loads[8])
+    x, _ = history_guess(hist, hist[-1][1], loads[8])
     np.testing.assert_allclose(x, exact, atol=1e-8)
-    x6, _ = _history_guess(hist[-6:], hist[-1][1], loads[8])
+    x6, _ = history_guess(hist[-6:], hist[-1][1], loads[8])
     assert np.abs(x6 - exact).max() > 1e-3
 
 
@@ -244,18 +245,16 @@ def test_history_keeps_one_state_per_load():
     """A repeated load (an animation closing its cycle on its first state) replaces its
     earlier state in the kept history instead of taking a second slot; beyond
     HISTORY_STATES the oldest goes."""
-    from fruitcli.fem.solver.newton import HISTORY_STATES, _load_vector, _remember
+    from fruitcli.fem.solver.predictor import HISTORY_STATES, load_vector, remember
 
     hist = []
     for i, pk in enumerate((1.0, 2.0, 3.0, 1.0, 4.0)):
-        hist = _remember(
-            hist, _load_vector(Load.pressures([pk])), np.full((2, 3), i), np.array([pk])
-        )
+        hist = remember(hist, load_vector(Load.pressures([pk])), np.full((2, 3), i), np.array([pk]))
     assert [h[2][0] for h in hist] == [2.0, 3.0, 1.0, 4.0]
     assert hist[2][1][0, 0] == 3  # the repeated load keeps its newest state
     for pk in range(5, 5 + HISTORY_STATES):
-        hist = _remember(
-            hist, _load_vector(Load.pressures([pk])), np.zeros((2, 3)), np.array([float(pk)])
+        hist = remember(
+            hist, load_vector(Load.pressures([pk])), np.zeros((2, 3)), np.array([float(pk)])
         )
     assert [h[2][0] for h in hist] == [float(pk) for pk in range(5, 5 + HISTORY_STATES)]
 
@@ -279,13 +278,13 @@ def test_chord_steps_near_the_tolerance_keep_the_results_of_the_reference_path(m
     ]
     scale = max(np.abs(r.displacement_mm).max() for r in ref)
     chords = []
-    direction = newton._Step.direction
+    direction = newton.NewtonStep.direction
 
     def spy(self, *args, keep_tangent=False):
         chords.append(keep_tangent)
         return direction(self, *args, keep_tangent=keep_tangent)
 
-    monkeypatch.setattr(newton._Step, "direction", spy)
+    monkeypatch.setattr(newton.NewtonStep, "direction", spy)
     iterations = {}
     for near in (TangentSolver(m).near_tolerance, 0.0):
         solver = TangentSolver(m)
@@ -337,7 +336,7 @@ def test_a_repeated_load_within_the_kept_states_starts_at_its_own_state():
     solver: the history holds all 13 (HISTORY_STATES >= 13), and each state of the
     second cycle starts at its own state of the first, so it needs no Newton step and
     returns those nodes."""
-    from fruitcli.fem.solver.newton import HISTORY_STATES
+    from fruitcli.fem.solver.predictor import HISTORY_STATES
 
     assert HISTORY_STATES >= 13
     nodes, tets, cav = structured_box_with_cavity(

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.solver.newton import SolverOptions
+from fruitcli.fem.solver.options import SolverOptions
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""A load step's first evaluation brings the element tangents along (`newton._Step.
+"""A load step's first evaluation brings the element tangents along (`newton.NewtonStep.
 evaluate`): on a hollow cube of quadratic neo-Hookean tets under 6, 9 then 12 kPa, the
 same iterates bit for bit as with the tangent in a loop of its own, in fewer element
 loops."""
@@ -7,7 +7,8 @@ import numpy as np
 
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.solver import newton
-from fruitcli.fem.solver.newton import SolverOptions, solve_state
+from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.solver.state import solve_state
 from tests.fem.solver.test_displacement_tolerance import hollow_cube
 
 
@@ -42,8 +43,8 @@ def three_states(m):
 
 def test_the_tangent_at_the_start_changes_no_iterate_and_saves_element_loops(monkeypatch):
     ahead, loops_ahead, _ = three_states(hollow_cube("p2"))
-    evaluate = newton._Step.evaluate  # never ahead: each tangent in a loop of its own
-    monkeypatch.setattr(newton._Step, "evaluate", lambda s, x, p, t=False: evaluate(s, x, p))
+    evaluate = newton.NewtonStep.evaluate  # never ahead: each tangent in a loop of its own
+    monkeypatch.setattr(newton.NewtonStep, "evaluate", lambda s, x, p, t=False: evaluate(s, x, p))
     plain, loops_plain, _ = three_states(hollow_cube("p2"))
     for a, b in zip(ahead, plain, strict=True):
         assert np.array_equal(a.x, b.x) and np.array_equal(a.pressure_kpa, b.pressure_kpa)

@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import limits
 from fruitcli.fem.solver import continuum_linsolve, pardiso
-from fruitcli.fem.solver.newton import SolverOptions
+from fruitcli.fem.solver.options import SolverOptions
 from tests.fem.meshing.test_mesh import octant_ball
 from tests.fem.test_limits import LIMIT_B_OVER_A_2
 
