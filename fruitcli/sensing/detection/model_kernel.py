@@ -420,7 +420,7 @@ def prepare(
                 if win[t, k] < 0:
                     corr[t, i, j, d] = 0.0
                     continue
-                q = 0.0
+                fitted = 0.0
                 for p in range(nb):
-                    q += basis[k, p] * coef[t, p, d]
-                corr[t, i, j, d] = pos[t, k, d] - q
+                    fitted += basis[k, p] * coef[t, p, d]
+                corr[t, i, j, d] = pos[t, k, d] - fitted
