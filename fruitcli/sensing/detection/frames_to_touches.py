@@ -404,7 +404,7 @@ class Locator:
                     "fit": fitted.fit,
                 }
             return finish(
-                TouchTable(
+                TouchTable.make(
                     t.frame + start,
                     t.rank,
                     t.i if fitted is None else fitted.i,

@@ -170,7 +170,7 @@ class Stream:
         sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
-        return TouchTable(
+        return TouchTable.make(
             np.full(n, frame, np.int64),
             ids,
             i,
