@@ -53,7 +53,7 @@ def descent_gaps(
     for f in np.flatnonzero(rec.sample >= 0):
         k = int(rec.sample[f])
         idx = np.arange(start, f + 1)
-        start = f + 1
+        start = int(f) + 1
         if k not in truth_z:
             continue
         if origin_z is not None:

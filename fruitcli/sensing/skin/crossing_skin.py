@@ -163,7 +163,7 @@ class CrossingSkin:
         k = self.object_index(indenter)
         off = np.asarray(contact_mm, float)[:, None, :] - taxels_mm  # (P, T, 3)
         size = max(1, BLOCK_VALUES // (off.shape[1] * (len(self._uniform[1][k][0]))))
-        block = {}
+        block: dict[int, np.ndarray] = {}  # the block of contact points from a start
 
         def at_gaps(p: int, gaps_mm: np.ndarray) -> np.ndarray:
             start = p - p % size
@@ -264,7 +264,7 @@ class CrossingSkin:
         stretch = np.asarray(stretch, float)
         kappa = self._neutral(curvature_per_mm)
         kappa0 = np.broadcast_to(self._neutral(rest_curvature_per_mm), kappa.shape)
-        total = 0.0
+        total = np.zeros(kappa.shape[:-1])
         for a in range(2):
             left = stretch[..., a] - self.neutral_mm * (kappa[..., a] - kappa0[..., a])
             total = total + (
@@ -359,7 +359,8 @@ def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarr
     area_normal = np.cross(b_edges[..., 0], b_edges[..., 1])  # (S, F, 3)
     vertex_normal = np.zeros(moved.shape)
     for c in range(3):
-        np.add.at(vertex_normal, (slice(None), tris[:, c]), area_normal)
+        # numpy's stubs lack ufunc.at's tuple index (a slice, then indices)
+        np.add.at(vertex_normal, (slice(None), tris[:, c]), area_normal)  # type: ignore[arg-type]
     vertex_normal = _unit(vertex_normal)  # (S, N, 3)
     n_states, n_taxels = moved.shape[0], len(rest_taxels)
     stretch = np.zeros((n_states, n_taxels, 2))
