@@ -69,6 +69,7 @@ from fruitcli.tables import Taxels
 if TYPE_CHECKING:
     from fruitcli.sensing.detection.surface_chart import SurfaceChart
     from fruitcli.sensing.detection.two_footprints import Footprint
+    from fruitcli.sensing.skin.heights import HeightModel
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
 HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 taxels: ~3)
@@ -207,14 +208,14 @@ class Locator:
         where: str = "taxels",
         reduced=None,
         gain: np.ndarray | None = None,
-        heights=None,
+        heights: HeightModel | None = None,
     ):
         if heights is None:
             from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
             from fruitcli.sensing.skin.heights import gap_law
 
             heights = gap_law(DEFAULT_PARAMS, footprint=settings.footprint)
-        self.heights = heights
+        self.heights: HeightModel = heights
         self.hover_levels = (
             settings.hover_levels(heights.noise_std_counts) if settings.hovers else None
         )

@@ -8,7 +8,7 @@ Units: counts, mm, kPa.
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
@@ -27,7 +27,58 @@ from fruitcli.sensing.detection.touch_table import HOVER, TOUCH, TouchTable
 from fruitcli.sensing.shape.touch_shape import touch_shapes
 
 if TYPE_CHECKING:
-    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.detection.detect import Grid, Layout
+    from fruitcli.sensing.detection.surface_chart import SurfaceChart
+    from fruitcli.sensing.detection.two_footprints import Footprint
+    from fruitcli.sensing.skin.heights import HeightModel
+
+
+class StreamSettings(Protocol):
+    """What a `Stream` reads of the detection settings (`frames_to_touches.Settings`)."""
+
+    @property
+    def threshold_counts(self) -> float: ...
+    @property
+    def hysteresis_counts(self) -> float: ...
+    @property
+    def debounce_frames(self) -> int: ...
+    @property
+    def drift_rate(self) -> float: ...
+    @property
+    def track_gate_mm(self) -> float: ...
+    @property
+    def max_touches(self) -> int: ...
+    @property
+    def model_frames(self) -> int: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def floor(self) -> float: ...
+
+
+class StreamLocator(Protocol):
+    """What a `Stream` reads of its locator (`frames_to_touches.Locator`, which names
+    this module, so the stream names the locator by what it reads)."""
+
+    @property
+    def settings(self) -> StreamSettings: ...
+
+    rows: np.ndarray  # (T,) frame row of each taxel
+    cols: np.ndarray
+    grid: Grid
+    layout: Layout
+    gain: np.ndarray | None
+    hover_levels: tuple[float, float] | None
+    footprint: Footprint | None
+    model: tuple[Window, FootprintLaw] | None
+    chart: SurfaceChart | None
+    noise_counts: np.ndarray | None
+    heights: HeightModel
+    positions_mm: np.ndarray  # (T, 3) or (S, T, 3)
+    state_pressure_kpa: np.ndarray | None
+    reduced: object | None  # a `fruitcli.fem.reduced.model.ReducedModel`
+
+    def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray: ...
 
 
 class _Peaks(NamedTuple):
@@ -46,7 +97,7 @@ class _Peaks(NamedTuple):
 class Stream:
     """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
 
-    def __init__(self, locator: Locator, baseline: np.ndarray):
+    def __init__(self, locator: StreamLocator, baseline: np.ndarray):
         """`locator`: a `frames_to_touches.Locator` (its layout, settings, model and
         positions); `baseline` (T,) counts."""
         self.loc = locator

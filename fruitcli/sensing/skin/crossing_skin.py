@@ -43,6 +43,8 @@ from fruitcli.errors import FrameError
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from fruitcli.electrostatics.design import CrossingInputs
+
 AXES = ("x", "y")
 BLOCK_VALUES = 2_000_000
 """Most table values the bench interpolates across the offsets at once (16 MB)."""
@@ -404,14 +406,27 @@ def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=No
     return response.deformation_shift(stretch, curv, rest_curv[0]) * fab
 
 
-def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
-    """The scene's electrostatic skin: from `folder` (the skin stage's crossing.npz and
-    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`); in
-    counts of ``[skin].counts_per_ff`` when the scene gives it."""
-    scale = scene.skin.counts_per_ff
-    if folder is not None:
-        return CrossingSkin.load(folder, scale)
+@dataclass(frozen=True)
+class CrossingSkinInputs:
+    """What an electrostatic skin's crossing table in counts is made from: ``[skin].
+    counts_per_ff`` (None: the table's own fit) and its `source`, either the skin stage's
+    folder (its crossing.npz and summary.json) or the crossing cell's inputs
+    (`fruitcli.electrostatics.design.crossing_inputs`), computed now. The sensing stages
+    build it (`fruitcli.sensing.inputs_stage.crossing_skin_inputs`)."""
+
+    counts_per_ff: float | None
+    source: Path | CrossingInputs
+
+
+def crossing_skin(
+    inputs: CrossingSkinInputs, progress: Callable[[str], None] | None = None
+) -> CrossingSkin:
+    """The electrostatic skin's crossing table in counts (of ``counts_per_ff`` when
+    given): read from the skin stage's folder or computed now from the cell's inputs
+    (`fruitcli.electrostatics.design`, telling `progress`)."""
+    if isinstance(inputs.source, Path):
+        return CrossingSkin.load(inputs.source, inputs.counts_per_ff)
     from fruitcli.electrostatics import design
 
-    table, summary = design.run_crossing(design.crossing_inputs(scene), progress=progress)
-    return CrossingSkin.from_table(design.table_arrays(table), summary, scale)
+    table, summary = design.run_crossing(inputs.source, progress=progress)
+    return CrossingSkin.from_table(design.table_arrays(table), summary, inputs.counts_per_ff)
