@@ -33,7 +33,9 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir) -> N
 
     With the scene's [skin] model = "electrostatic": the crossing table's counts per fF
     (the table from the scene's skin stage), per-taxel gains and noise instead."""
+    from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene
+    from fruitcli.sensing.inputs_stage import calibrate_inputs
     from fruitcli.sensing.skin.calibrate import run_calibrate
     from fruitcli.workflow.scene_outputs import crossing_response
 
@@ -41,8 +43,13 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir) -> N
     with fruit_errors():
         scene = load_scene(scene_path)
         taxels = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
+        if taxels is None:
+            raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
         response = crossing_response(scene, progress=progress)
-        res = run_calibrate(scene, frames, truth_csv, taxels, out_dir, indenter, progress, response)
+        inputs = calibrate_inputs(scene)
+        res = run_calibrate(
+            inputs, frames, truth_csv, taxels, out_dir, indenter, progress, response
+        )
     fitted = (
         f"footprint sigma {res['footprint_sigma_mm']:.2f} mm, contact "
         f"{res['contact_counts']:.1f} counts, gap decay {res['gap_decay_mm']:.2f} mm"

@@ -1,8 +1,9 @@
 """What the sensing stages read of the scene, as the typed inputs of the functions below
 them: the gains detection divides by (`gain_inputs`), an electrostatic skin's crossing
-table (`crossing_skin_inputs`) and everything locating a recording reads
-(`locate_inputs` -> `LocateInputs`, with the files of `LocateFiles`). Only these take
-the scene; `run_locate`, `locator_setup` and `gain_division` take their records.
+table (`crossing_skin_inputs`), what calibrating the skin reads (`calibrate_inputs`) and
+everything locating a recording reads (`locate_inputs` -> `LocateInputs`, with the files
+of `LocateFiles`). Only these take the scene; `run_locate`, `locator_setup`,
+`gain_division`, `skin.crossing_skin` and `skin.calibrate` take their records.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from typing import TYPE_CHECKING
 from fruitcli.scene import BoardSection, Scene, SkinSection, default_scene
 from fruitcli.sensing.detection.frames_to_touches import Settings
 from fruitcli.sensing.detection.gain_division import GainInputs
-from fruitcli.sensing.locator_setup import CrossingSkinInputs
+from fruitcli.sensing.skin.calibrate import CalibrateInputs
+from fruitcli.sensing.skin.crossing_skin import CrossingSkinInputs
 from fruitcli.sensing.skin.models import SKIN_MODELS
 
 if TYPE_CHECKING:
@@ -45,10 +47,16 @@ def crossing_skin_inputs(
         return None
     scale = scene.skin.counts_per_ff
     if crossing_dir is not None:
-        return CrossingSkinInputs(scale, folder=Path(crossing_dir))
+        return CrossingSkinInputs(scale, Path(crossing_dir))
     from fruitcli.electrostatics.design import crossing_inputs
 
-    return CrossingSkinInputs(scale, cell=crossing_inputs(scene))
+    return CrossingSkinInputs(scale, crossing_inputs(scene))
+
+
+def calibrate_inputs(scene: Scene) -> CalibrateInputs:
+    """What `fruit calibrate` reads of the scene: its [board], ``[detection].
+    baseline_frames`` and its [skin]."""
+    return CalibrateInputs(scene.board, scene.detection.baseline_frames, scene.skin)
 
 
 @dataclass(frozen=True)

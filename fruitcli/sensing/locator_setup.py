@@ -24,9 +24,8 @@ from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
 from fruitcli.tables import Taxels
 
 if TYPE_CHECKING:
-    from fruitcli.electrostatics.design import CrossingInputs
     from fruitcli.sensing.skin.crossing_heights import CrossingHeights
-    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin, CrossingSkinInputs
     from fruitcli.sensing.skin.heights import GapLaw
 
 
@@ -40,18 +39,6 @@ class SurfaceInputs:
     method: str
     path: str | Path | None = None
     unit: str = "mm"
-
-
-@dataclass(frozen=True)
-class CrossingSkinInputs:
-    """What an electrostatic skin's crossing table in counts is made from: ``[skin].
-    counts_per_ff`` (None: the table's own fit) and either the skin stage's folder
-    (`folder`, its crossing.npz and summary.json) or, without one, the crossing cell's
-    inputs (`cell`, `fruitcli.electrostatics.design.crossing_inputs`), computed now."""
-
-    counts_per_ff: float | None
-    folder: Path | None = None
-    cell: CrossingInputs | None = None
 
 
 def build_locator(
@@ -188,17 +175,11 @@ def skin_heights(
 
 
 def electrostatic_skin(crossing: CrossingSkinInputs | None, progress=None) -> CrossingSkin | None:
-    """The crossing's table in counts (from the skin stage's folder, or computed now
-    without one) for an electrostatic skin; None (a skin without a crossing table) for
-    another [skin].model."""
+    """The crossing's table in counts (`crossing_skin.crossing_skin`: from the skin
+    stage's folder, or computed now without one) for an electrostatic skin; None (a skin
+    without a crossing table) for another [skin].model."""
     if crossing is None:
         return None
-    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.crossing_skin import crossing_skin
 
-    if crossing.folder is not None:
-        return CrossingSkin.load(crossing.folder, crossing.counts_per_ff)
-    from fruitcli.electrostatics import design
-
-    assert crossing.cell is not None, "a crossing table's folder or its cell's inputs"
-    table, summary = design.run_crossing(crossing.cell, progress=progress)
-    return CrossingSkin.from_table(design.table_arrays(table), summary, crossing.counts_per_ff)
+    return crossing_skin(crossing, progress)

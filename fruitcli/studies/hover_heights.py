@@ -146,7 +146,6 @@ def evaluate(
             t = stream.step(counts[f].astype(float))
             if len(t) == 0:
                 continue
-            assert t.height_mm is not None and t.kind is not None  # filled on construction
             n = int(np.argmax(t.peak))
             g = max(gap[f], 0.0)
             err_l.append(abs(t.height_mm[n] - g))

@@ -261,8 +261,9 @@ def calibrated_skin(
     `fitted_table` the crossing table's counts per fF and the gains."""
     from fruitcli.fsutil import write_csv
     from fruitcli.scene import load_skin_table
+    from fruitcli.sensing.inputs_stage import calibrate_inputs, crossing_skin_inputs
+    from fruitcli.sensing.locator_setup import electrostatic_skin
     from fruitcli.sensing.skin.calibrate import run_calibrate
-    from fruitcli.sensing.skin.crossing_skin import crossing_skin
     from fruitcli.sensing.stages import run_bench
     from fruitcli.tables import read_taxels
 
@@ -291,9 +292,9 @@ def calibrated_skin(
     response = None
     if fitted_table is not None:
         fitter = run.with_values({"skin.model": "electrostatic"})
-        response = crossing_skin(fitter, fitted_table)
+        response = electrostatic_skin(crossing_skin_inputs(fitter, fitted_table))
     run_calibrate(
-        fitter,
+        calibrate_inputs(fitter),
         ind / "frames.npz",
         ind / "truth.csv",
         taxels,

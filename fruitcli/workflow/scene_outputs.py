@@ -37,7 +37,8 @@ def crossing_response(scene, out_root=None, progress=None) -> CrossingSkin | Non
     "electrostatic"``, else None: the skin stage's table (run into `out_root`, default
     out/<scene name>, reused while the cell's inputs are unchanged) or, when nothing in
     the scene needs that stage, computed now."""
-    from fruitcli.sensing.skin.crossing_skin import crossing_skin
+    from fruitcli.sensing.inputs_stage import crossing_skin_inputs
+    from fruitcli.sensing.locator_setup import electrostatic_skin
     from fruitcli.workflow.stage_paths import electrostatic
 
     if not electrostatic(scene):
@@ -46,4 +47,4 @@ def crossing_response(scene, out_root=None, progress=None) -> CrossingSkin | Non
     steps = planner.run(scene, out, until="skin", progress=progress, shared=shared_outputs(out))
     made = any(s.stage == "skin" and s.action != "not needed" for s in steps)
     folder = planner.Context(out).dir("skin") if made else None
-    return crossing_skin(scene, folder, progress)
+    return electrostatic_skin(crossing_skin_inputs(scene, folder), progress)

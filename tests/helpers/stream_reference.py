@@ -69,7 +69,7 @@ class ReferenceStream:
         for k, (_, _, _, tax, w) in enumerate(rows):
             xyz[k] = w @ pos[np.where(tax < 0, 0, tax)]
         ids = self._ids(xyz) if s.track_gate_mm > 0 else np.arange(n)
-        return TouchTable(
+        return TouchTable.make(
             np.full(n, frame, np.int64),
             ids,
             np.array([r[0] for r in rows]),

@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from fruitcli.fsutil import write_csv
 from fruitcli.scene import load_scene
+from fruitcli.sensing.inputs_stage import calibrate_inputs
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import run_calibrate
 from fruitcli.sensing.stages import run_bench
@@ -52,7 +53,8 @@ def one_seed(tmp: Path, seed: int) -> dict:
     scene = load_scene(scene_path)
     run_bench(scene, tmp / "t.csv", None, tmp / "bench")
     rec = tmp / "bench" / "small"
-    run_calibrate(scene, rec / "frames.npz", rec / "truth.csv", tmp / "t.csv", tmp / "cal")
+    files = (rec / "frames.npz", rec / "truth.csv", tmp / "t.csv", tmp / "cal")
+    run_calibrate(calibrate_inputs(scene), *files)
     hidden = forward.make_skin(16, seed, forward.SkinParams.from_table(scene.skin)).gain
     write_csv(tmp / "hidden.csv", ["id", "gain"], ([k, float(g)] for k, g in enumerate(hidden)))
     out = {}

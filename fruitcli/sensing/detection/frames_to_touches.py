@@ -34,7 +34,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -54,6 +54,7 @@ from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.detection.model_fit import (
     FIT_MODEL,
     PROFILE_STEP_MM,
+    Fitted,
     FootprintLaw,
     Window,
     recent_frames,
@@ -62,8 +63,13 @@ from fruitcli.sensing.detection.model_fit import (
 from fruitcli.sensing.detection.stream import Stream
 from fruitcli.sensing.detection.touch_table import TouchTable
 from fruitcli.sensing.frames.board import taxel_cells
-from fruitcli.sensing.shape.touch_shape import frame_shapes
+from fruitcli.sensing.shape.touch_shape import Shapes, frame_shapes
 from fruitcli.tables import Taxels
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.surface_chart import SurfaceChart
+    from fruitcli.sensing.detection.two_footprints import Footprint
+    from fruitcli.sensing.skin.heights import HeightModel
 
 CHUNK_FRAMES = 8192  # frames read and detected together (16 MB of counts at 21 x 12)
 HOVER_NOISE_SIGMAS = 8.0  # default hover threshold, in noise std (max over 252 taxels: ~3)
@@ -202,14 +208,14 @@ class Locator:
         where: str = "taxels",
         reduced=None,
         gain: np.ndarray | None = None,
-        heights=None,
+        heights: HeightModel | None = None,
     ):
         if heights is None:
             from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
             from fruitcli.sensing.skin.heights import gap_law
 
             heights = gap_law(DEFAULT_PARAMS, footprint=settings.footprint)
-        self.heights = heights
+        self.heights: HeightModel = heights
         self.hover_levels = (
             settings.hover_levels(heights.noise_std_counts) if settings.hovers else None
         )
@@ -217,7 +223,7 @@ class Locator:
             raise FrameError(
                 f"[detection].method: expected one of {', '.join(METHODS)}, got {settings.method!r}"
             )
-        self.footprint = None
+        self.footprint: Footprint | None = None  # fit2's
         if METHODS[settings.method].refine == "fit2":
             from fruitcli.sensing.detection.two_footprints import Footprint
 
@@ -234,14 +240,14 @@ class Locator:
         self.reduced = reduced
         self.taxels, self.board, self.settings = taxels, board, settings
         self.gain = None if gain is None else np.asarray(gain, dtype=float)
-        self.model = None  # (window, law) of the model method
+        self.model: tuple[Window, FootprintLaw] | None = None  # the model method's
         if METHODS[settings.method].refine == "model":
             law = FootprintLaw.of(heights)
             if self.gain is not None:  # activations divided by the gains already
                 law = FootprintLaw(law.profile, law.sigma_mm, law.noise_std_counts)
             self.model = (Window(taxels.i, taxels.j), law)
-        self.chart = None  # the body's surface for the model method (`use_surface`)
-        self.noise_counts = None  # (T,) each taxel's noise std in its baseline frames
+        self.chart: SurfaceChart | None = None  # the body's surface, model method (`use_surface`)
+        self.noise_counts: np.ndarray | None = None  # (T,) noise std in the baseline frames
         self.rows, self.cols = taxel_cells(taxels, board, where)
         self.grid = Grid.from_ij(taxels.i, taxels.j)
         self.frame_shape = (board.rows, board.cols)
@@ -292,8 +298,12 @@ class Locator:
             )
         return c0
 
-    def _path(self, pressure_kpa: np.ndarray | None, n: int):
-        if self.positions_mm.ndim == 2:
+    def _path(
+        self, pressure_kpa: np.ndarray | None, n: int
+    ) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        """(segment (n,), fraction (n,)) of each of n frames on the state path at its
+        pressures (the first state without them); (None, None) for one state."""
+        if self.positions_mm.ndim == 2 or self.state_pressure_kpa is None:  # one state
             return None, None
         if pressure_kpa is None:
             return np.zeros(n, np.int64), np.zeros(n)
@@ -313,113 +323,170 @@ class Locator:
         gives frames (count, R, C); frame indices count over the whole recording and
         `pressure_kpa` (N, K) covers all N frames. Yields each chunk's `TouchTable`, or
         ``then(table)`` computed in the worker. Stateless settings spread the chunks over
-        `workers` threads (the compiled N9 loop and numpy release the GIL), in order;
-        stateful ones run through one `Stream` carried across the chunks."""
-        s = self.settings
+        `workers` threads (the compiled N9 loop and numpy release the GIL), in order
+        (`_chunk`); stateful ones run through one `Stream` carried across the chunks
+        (`_streamed`)."""
         finish = then or (lambda table: table)
         starts = range(0, n_frames, size)
-        if s.stateful:
-            stream = Stream(self, baseline)
-            for start in starts:
-                frames = read(start, size)
-                yield finish(
-                    TouchTable.concat(
-                        [
-                            stream.step(
-                                f,
-                                None if pressure_kpa is None else pressure_kpa[start + n],
-                                start + n,
-                            )
-                            for n, f in enumerate(self.values(frames))
-                        ]
-                    )
-                )
+        if self.settings.stateful:
+            yield from self._streamed(read, starts, size, baseline, pressure_kpa, finish)
             return
-        seg = frac = None
-        if self.positions_mm.ndim == 3:
-            seg, frac = self._path(pressure_kpa, n_frames)
+        path = self._path(pressure_kpa, n_frames)
 
         def job(start: int):
-            frames = read(start, size)
-            if tuple(frames.shape[1:]) != self.frame_shape:
-                raise FrameError(
-                    f"frames of shape {tuple(frames.shape[1:])}, expected "
-                    f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]"
-                )
-            t = detect(
-                frames.reshape(frames.shape[0], -1),
-                baseline,
-                self.grid,
-                self.layout,
-                s.threshold_counts,
-                s.method,
-                s.floor,
-                s.max_touches,
-                self.gain,
-                self.footprint,
-            )
-            end = start + frames.shape[0]
-            tax = np.where(t.taxel < 0, 0, t.taxel)
-            s0, f0 = (None, None) if seg is None else (seg[start:end], frac[start:end])
-            if self.reduced is not None and pressure_kpa is not None:
-                pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
-                pos9 = pos[np.arange(len(tax))[:, None], tax]
-                xyz = np.einsum("nk,nkd->nd", t.weight, pos9)
-
-                def taxel_points(win):
-                    return pos[np.arange(len(win))[:, None], win]
-            else:
-                xyz = touches_3d(t, self.positions_mm, s0, f0)
-                pos9 = None if seg is None else self._taxel_points(tax, t.frame, s0, f0)
-
-                def taxel_points(win):
-                    return self._taxel_points(win, t.frame, s0, f0)
-
-            fitted = None
-            if self.model is not None and len(t):
-                v = np.take(frames.reshape(frames.shape[0], -1), self.layout.frame_cell, axis=1)
-                fitted = self._refine(t, self._history(read, start, v), baseline, taxel_points)
-                xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
-            if pos9 is None:  # one state: the N9 positions are rows of positions_mm
-                points, rows = self.positions_mm, tax
-            else:
-                points, rows = pos9.reshape(-1, 3), np.arange(pos9.shape[0] * 9).reshape(-1, 9)
-            sh = frame_shapes(
-                frames.reshape(frames.shape[0], -1),
-                t.frame,
-                self.layout.frame_cell,
-                baseline,
-                self.gain,
-                t.taxel,
-                points,
-                rows,
-                xyz,
-                self.heights,
-            )
-            extra = {}
-            if fitted is not None:
-                extra = {
-                    "pos_err_mm": fitted.pos_err_mm,
-                    "residual": fitted.residual,
-                    "fit": fitted.fit,
-                }
-            return finish(
-                TouchTable(
-                    t.frame + start,
-                    t.rank,
-                    t.i if fitted is None else fitted.i,
-                    t.j if fitted is None else fitted.j,
-                    xyz,
-                    t.peak,
-                    sh.height_mm,
-                    sh.height_err_mm,
-                    sh.strength,
-                    sh.size_mm,
-                    **extra,
-                )
-            )
+            return finish(self._chunk(read, start, size, baseline, pressure_kpa, path))
 
         yield from _in_order(job, starts, workers)
+
+    def _streamed(
+        self,
+        read: Callable[[int, int], np.ndarray],
+        starts: range,
+        size: int,
+        baseline: np.ndarray,
+        pressure_kpa: np.ndarray | None,
+        finish: Callable,
+    ) -> Iterator:
+        """``finish(table)`` of each chunk's touches, its frames one by one through a
+        `Stream` that carries its state from chunk to chunk."""
+        stream = Stream(self, baseline)
+        for start in starts:
+            frames = read(start, size)
+            yield finish(
+                TouchTable.concat(
+                    [
+                        stream.step(
+                            f,
+                            None if pressure_kpa is None else pressure_kpa[start + n],
+                            start + n,
+                        )
+                        for n, f in enumerate(self.values(frames))
+                    ]
+                )
+            )
+
+    def _chunk(
+        self,
+        read: Callable[[int, int], np.ndarray],
+        start: int,
+        size: int,
+        baseline: np.ndarray,
+        pressure_kpa: np.ndarray | None,
+        path: tuple[np.ndarray, np.ndarray] | tuple[None, None],
+    ) -> TouchTable:
+        """Touches of the chunk of up to `size` frames from `start`, all at once: detected
+        (`detect`), placed at each frame's taxel positions (`_points`; `path`: each
+        frame's place on the state path, `_path`), fitted by the model method
+        (`_refine`) and given their shapes (`_shapes`)."""
+        frames = read(start, size)
+        if tuple(frames.shape[1:]) != self.frame_shape:
+            raise FrameError(
+                f"frames of shape {tuple(frames.shape[1:])}, expected "
+                f"{self.frame_shape[0]} x {self.frame_shape[1]} per [board]"
+            )
+        flat = frames.reshape(frames.shape[0], -1)
+        s = self.settings
+        t = detect(
+            flat,
+            baseline,
+            self.grid,
+            self.layout,
+            s.threshold_counts,
+            s.method,
+            s.floor,
+            s.max_touches,
+            self.gain,
+            self.footprint,
+        )
+        seg, frac = path
+        end = start + frames.shape[0]
+        if seg is not None and frac is not None:
+            seg, frac = seg[start:end], frac[start:end]
+        xyz, pos9, taxel_points = self._points(t, start, pressure_kpa, seg, frac)
+        i, j = t.i, t.j
+        extra: dict[str, np.ndarray] = {}
+        if self.model is not None and len(t):
+            v = np.take(flat, self.layout.frame_cell, axis=1)
+            history = self._history(read, start, v)
+            fitted = self._refine(self.model, t, history, baseline, taxel_points)
+            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
+            i, j = fitted.i, fitted.j
+            extra = {
+                "pos_err_mm": fitted.pos_err_mm,
+                "residual": fitted.residual,
+                "fit": fitted.fit,
+            }
+        sh = self._shapes(flat, t, pos9, xyz, baseline)
+        return TouchTable.make(
+            t.frame + start,
+            t.rank,
+            i,
+            j,
+            xyz,
+            t.peak,
+            sh.height_mm,
+            sh.height_err_mm,
+            sh.strength,
+            sh.size_mm,
+            **extra,
+        )
+
+    def _points(
+        self,
+        t: Touches,
+        start: int,
+        pressure_kpa: np.ndarray | None,
+        seg: np.ndarray | None,
+        frac: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray | None, Callable[[np.ndarray], np.ndarray]]:
+        """(points (n, 3) mm, N9 taxels' positions (n, 9, 3) mm or None where they are
+        rows of the one state's `positions_mm`, ``taxel_points(win)`` the positions (n,
+        K, 3) of taxels win (n, K) of each touch) of the chunk's touches `t` (its first
+        frame `start`): from the reduced model at each frame's pressures when there is
+        one, else on the state path (`seg`, `frac` per chunk frame) or the one state."""
+        tax = np.where(t.taxel < 0, 0, t.taxel)
+        if self.reduced is not None and pressure_kpa is not None:
+            pos = self.reduced_positions(pressure_kpa[start + t.frame])  # (n, T, 3)
+            pos9 = pos[np.arange(len(tax))[:, None], tax]
+
+            def reduced_points(win: np.ndarray) -> np.ndarray:
+                return pos[np.arange(len(win))[:, None], win]
+
+            return np.einsum("nk,nkd->nd", t.weight, pos9), pos9, reduced_points
+
+        def taxel_points(win: np.ndarray) -> np.ndarray:
+            return self._taxel_points(win, t.frame, seg, frac)
+
+        xyz = touches_3d(t, self.positions_mm, seg, frac)
+        return xyz, None if seg is None else taxel_points(tax), taxel_points
+
+    def _shapes(
+        self,
+        flat: np.ndarray,
+        t: Touches,
+        pos9: np.ndarray | None,
+        xyz: np.ndarray,
+        baseline: np.ndarray,
+    ) -> Shapes:
+        """Heights, strengths and sizes (`frame_shapes`) of touches `t` at points xyz (n,
+        3) mm of frames `flat` (N, R * C) counts, from their N9 taxels' positions pos9
+        (n, 9, 3) (None: rows of the one state's `positions_mm`)."""
+        if pos9 is None:
+            points, rows = self.positions_mm, np.where(t.taxel < 0, 0, t.taxel)
+        else:
+            points, rows = pos9.reshape(-1, 3), np.arange(pos9.shape[0] * 9).reshape(-1, 9)
+        return frame_shapes(
+            flat,
+            t.frame,
+            self.layout.frame_cell,
+            baseline,
+            self.gain,
+            t.taxel,
+            points,
+            rows,
+            xyz,
+            self.heights,
+        )
 
     def _history(
         self, read: Callable[[int, int], np.ndarray], start: int, values: np.ndarray
@@ -434,15 +501,23 @@ class Locator:
         cells = earlier.reshape(earlier.shape[0], -1)
         return np.vstack([np.take(cells, self.layout.frame_cell, axis=1), values]), before
 
-    def _refine(self, t: Touches, history: tuple, baseline: np.ndarray, taxel_points):
-        """The model method's fit (`model_fit.refine`) of touches `t` of frames whose taxel
-        counts are history[0] (H, T), the chunk's frames after its first history[1] rows
-        (`_history`); ``taxel_points(win)`` gives positions (n, K, 3)."""
+    def _refine(
+        self,
+        model: tuple[Window, FootprintLaw],
+        t: Touches,
+        history: tuple[np.ndarray, int],
+        baseline: np.ndarray,
+        taxel_points: Callable[[np.ndarray], np.ndarray],
+    ) -> Fitted:
+        """The model method's fit (`model_fit.refine`, its window and law `model`) of
+        touches `t` of frames whose taxel counts are history[0] (H, T), the chunk's frames
+        after its first history[1] rows (`_history`); ``taxel_points(win)`` gives
+        positions (n, K, 3)."""
         values, before = history
         v = values - baseline
         if self.gain is not None:
             v = v / self.gain
-        window, law = self.model
+        window, law = model
         mean, taken = recent_frames(
             v, t.frame + before, t.taxel[:, 4], window, self.settings.model_frames
         )
@@ -463,13 +538,21 @@ class Locator:
             np.arange(len(t)),
         )
 
-    def _taxel_points(self, tax: np.ndarray, frame: np.ndarray, seg, frac) -> np.ndarray:
+    def _taxel_points(
+        self,
+        tax: np.ndarray,
+        frame: np.ndarray,
+        seg: np.ndarray | None,
+        frac: np.ndarray | None,
+    ) -> np.ndarray:
         """Positions (n, K, 3) mm of taxels `tax` (n, K) (a touch's N9 or window) of
         touches in frames `frame` (n,) (on the state path `seg`, `frac` when positions
         are per state)."""
         pos = self.positions_mm
         if pos.ndim == 2:
             return pos[tax]
+        if seg is None or frac is None:
+            raise FrameError("per-state positions need each frame's place on the state path")
         s0 = seg[frame]
         s1 = np.minimum(s0 + 1, pos.shape[0] - 1)
         t = frac[frame][:, None, None]

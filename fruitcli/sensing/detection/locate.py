@@ -169,6 +169,8 @@ def touches_3d(
     w = touches.weight
     if positions_mm.ndim == 2:
         return np.einsum("nk,nkd->nd", w, positions_mm[tax])
+    if seg is None or frac is None:
+        raise FrameError("per-state positions need each frame's place on the state path")
     s_last = positions_mm.shape[0] - 1
     s0 = seg[touches.frame]
     s1 = np.minimum(s0 + 1, s_last)

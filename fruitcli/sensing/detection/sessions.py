@@ -86,10 +86,10 @@ class SessionTracker:
         new = ids < 0
         if self.reuse_ids:
             used, nxt = set(ids[~new].tolist()), 0
-            for k in np.flatnonzero(new):
+            for row in np.flatnonzero(new):
                 while nxt in used:
                     nxt += 1
-                ids[k] = nxt
+                ids[row] = nxt
                 used.add(nxt)
             return self._step(xyz_mm, ids, new)
         k = int(new.sum())

@@ -8,21 +8,96 @@ Units: counts, mm, kPa.
 from __future__ import annotations
 
 from collections import deque
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
 from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath
 from fruitcli.sensing.detection.methods import METHODS
-from fruitcli.sensing.detection.model_fit import FIT_MODEL, recent_frames, refine
+from fruitcli.sensing.detection.model_fit import (
+    FIT_MODEL,
+    Fitted,
+    FootprintLaw,
+    Window,
+    recent_frames,
+    refine,
+)
 from fruitcli.sensing.detection.touch_table import HOVER, TOUCH, TouchTable
 from fruitcli.sensing.shape.touch_shape import touch_shapes
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.detect import Grid, Layout
+    from fruitcli.sensing.detection.surface_chart import SurfaceChart
+    from fruitcli.sensing.detection.two_footprints import Footprint
+    from fruitcli.sensing.skin.heights import HeightModel
+
+
+class StreamSettings(Protocol):
+    """What a `Stream` reads of the detection settings (`frames_to_touches.Settings`)."""
+
+    @property
+    def threshold_counts(self) -> float: ...
+    @property
+    def hysteresis_counts(self) -> float: ...
+    @property
+    def debounce_frames(self) -> int: ...
+    @property
+    def drift_rate(self) -> float: ...
+    @property
+    def track_gate_mm(self) -> float: ...
+    @property
+    def max_touches(self) -> int: ...
+    @property
+    def model_frames(self) -> int: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def floor(self) -> float: ...
+
+
+class StreamLocator(Protocol):
+    """What a `Stream` reads of its locator (`frames_to_touches.Locator`, which names
+    this module, so the stream names the locator by what it reads)."""
+
+    @property
+    def settings(self) -> StreamSettings: ...
+
+    rows: np.ndarray  # (T,) frame row of each taxel
+    cols: np.ndarray
+    grid: Grid
+    layout: Layout
+    gain: np.ndarray | None
+    hover_levels: tuple[float, float] | None
+    footprint: Footprint | None
+    model: tuple[Window, FootprintLaw] | None
+    chart: SurfaceChart | None
+    noise_counts: np.ndarray | None
+    heights: HeightModel
+    positions_mm: np.ndarray  # (T, 3) or (S, T, 3)
+    state_pressure_kpa: np.ndarray | None
+    reduced: object | None  # a `fruitcli.fem.reduced.model.ReducedModel`
+
+    def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray: ...
+
+
+class _Peaks(NamedTuple):
+    """One frame's peaks: grid coordinates i, j (n,), peak counts (n,), their N9 taxels
+    `taxel9` (n, 9) (-1: none), the same with 0 for none (`tax`) and the N9 weights
+    (n, 9)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    peak: np.ndarray
+    taxel9: np.ndarray
+    tax: np.ndarray
+    weight: np.ndarray
 
 
 class Stream:
     """Frame-by-frame detection with drift tracking, hysteresis, debounce and touch IDs."""
 
-    def __init__(self, locator, baseline: np.ndarray):
+    def __init__(self, locator: StreamLocator, baseline: np.ndarray):
         """`locator`: a `frames_to_touches.Locator` (its layout, settings, model and
         positions); `baseline` (T,) counts."""
         self.loc = locator
@@ -40,7 +115,9 @@ class Stream:
         self._cells = locator.grid.shape[0] * locator.grid.shape[1]  # padded grid cells
         self.activation = np.zeros(len(locator.rows))  # the last frame's v, undivided
         self._recent: deque[np.ndarray] = deque(maxlen=self.s.model_frames)  # for the model
-        self._pos, self._pos_key, self._path = None, None, None
+        self._pos: np.ndarray | None = None  # (T, 3) mm at the pressures `_pos_key`
+        self._pos_key: tuple[float, ...] | None = None
+        self._path: StatePath | None = None
         self._empty = TouchTable.concat([])
         from fruitcli.sensing.detection.n9_kernel import n9_frame
 
@@ -71,10 +148,62 @@ class Stream:
     def step(
         self, values: np.ndarray, pressure_kpa: np.ndarray | None = None, frame: int = 0
     ) -> TouchTable:
-        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C))."""
-        loc, s = self.loc, self.s
+        """Touches of one frame given its taxel counts (T,) (or a whole frame (R, C)): its
+        activations (`_activation`), the touch and hover state it moves (`_levels`; a
+        frame with neither: `_idle`), its peaks (`_peaks`), their 3D points at the
+        frame's pressures, fitted by the model method (`_refine`), and their shapes,
+        IDs and kinds."""
+        loc = self.loc
         if values.ndim == 2:
             values = values[loc.rows, loc.cols]
+        v = self._activation(values)
+        vmax = float(v.max())
+        levels = self._levels(vmax)
+        if levels is None:
+            self._idle(values, vmax)
+            return self._empty
+        thr, touch_thr = levels
+        p = self._peaks(v, thr)
+        pos = self._positions(pressure_kpa)
+        n = len(p.i)
+        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
+        pos9 = pos[p.tax]
+        xyz = (p.weight[:, None, :] @ pos9)[:, 0, :]
+        i, j = p.i, p.j
+        extra: dict[str, np.ndarray] = {}
+        if loc.model is not None and n:
+            fitted = self._refine(loc.model, p, pos)
+            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
+            i, j = fitted.i, fitted.j
+            extra = {
+                "pos_err_mm": fitted.pos_err_mm,
+                "residual": fitted.residual,
+                "fit": fitted.fit,
+            }
+        sh = touch_shapes(v[p.tax] * (p.taxel9 >= 0), p.taxel9, pos9, xyz, loc.heights)
+        ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
+        kind = np.where(p.peak > touch_thr, TOUCH, HOVER).astype(np.int8)
+        return TouchTable.make(
+            np.full(n, frame, np.int64),
+            ids,
+            i,
+            j,
+            xyz,
+            p.peak,
+            sh.height_mm,
+            sh.height_err_mm,
+            sh.strength,
+            sh.size_mm,
+            kind,
+            **extra,
+        )
+
+    def _activation(self, values: np.ndarray) -> np.ndarray:
+        """The frame's activations v (T,) counts: its taxel counts over the baseline,
+        clipped at 0 (kept in `activation` for the live view) and divided by the gains
+        when detection divides; the model method keeps them unclipped in its recent
+        frames."""
+        loc = self.loc
         v = values - self.baseline
         if loc.model is not None:  # the model averages counts before they are clipped
             self._recent.append(v / loc.gain if loc.gain is not None else v.copy())
@@ -82,7 +211,14 @@ class Stream:
         self.activation = v  # (T,) counts, for the live view
         if loc.gain is not None:
             v = v / loc.gain
-        vmax = float(v.max())
+        return v
+
+    def _levels(self, vmax: float) -> tuple[float, float] | None:
+        """(level peaks are taken above, level of a touch) in counts for a frame whose
+        largest activation is `vmax`, moving the touch state (debounce, hysteresis) and
+        the hover state; the touch level is inf while no touch is on (every peak is a
+        hover). None when neither a touch nor a hover is on."""
+        s, loc = self.s, self.loc
         low = s.threshold_counts - s.hysteresis_counts
         if self.touched:
             on = vmax > low
@@ -99,101 +235,93 @@ class Stream:
             if self.hovering:
                 thr = min(thr, hover_off)
             on = on or self.hovering
-        if not on:
-            if self.drift is not None:
-                self.drift.update(self.baseline, values, 0.0, active=vmax > low)
-            if self.tracker is not None and len(self.tracker.prev_ids):
-                self.tracker.end_all()
-            return self._empty
+        return (thr, touch_thr) if on else None
+
+    def _idle(self, values: np.ndarray, vmax: float) -> None:
+        """A frame with neither a touch nor a hover: the baseline drifts toward its counts
+        `values` (T,) (frozen while `vmax` is above threshold - hysteresis) and the
+        touch IDs end."""
+        s = self.s
+        if self.drift is not None:
+            low = s.threshold_counts - s.hysteresis_counts
+            self.drift.update(self.baseline, values, 0.0, active=vmax > low)
+        if self.tracker is not None and len(self.tracker.prev_ids):
+            self.tracker.end_all()
+
+    def _peaks(self, v: np.ndarray, thr: float) -> _Peaks:
+        """The frame's peaks above `thr` counts in its activations v (T,): the method's
+        function on the activation grid, or the compiled sequential N9."""
+        loc, s = self.loc, self.s
         method = METHODS[s.method]
         if method.find:
             flat = np.zeros((1, self._cells))
             flat[0, loc.grid.cell] = v
             t = method.finder()(flat, loc.grid, thr, s.floor, s.max_touches, loc.footprint)
-            i, j, peak, tax, w = t.i, t.j, t.peak, np.where(t.taxel < 0, 0, t.taxel), t.weight
-        else:
-            lay = loc.layout
-            n = self._n9_frame(
-                v,
-                lay.taxel,
-                lay.n9,
-                lay.ci,
-                lay.cj,
-                float(thr),
-                float(s.floor),
-                int(s.max_touches),
-                self._scratch,
-                self._k,
-                self._peak,
-                self._i,
-                self._j,
-                self._w,
-            )
-            i, j, peak = self._i[:n].copy(), self._j[:n].copy(), self._peak[:n].copy()
-            tax, w = self._n9_taxel[self._k[:n]], self._w[:n]
-        pos = self._positions(pressure_kpa)
-        n = len(i)
-        # stacked (1, 9) @ (9, 3) products: numpy's per-touch ``w @ pos[tax]``, all at once
-        pos9 = pos[tax]
-        xyz = (w[:, None, :] @ pos9)[:, 0, :]
-        tax9 = t.taxel if method.find else loc.layout.n9_taxel[self._k[:n]]
-        extra = {}
-        if loc.model is not None and n:
-            window, law = loc.model
-            history = np.asarray(self._recent)
-            mean, taken = recent_frames(
-                history, np.full(n, len(history) - 1), tax9[:, 4], window, s.model_frames
-            )
-            fitted = refine(
-                np.zeros(n, np.int64),
-                tax9[:, 4],
-                i,
-                j,
-                peak,
-                mean,
-                window,
-                lambda win: pos[win],
-                law,
-                tax9,
-                loc.chart,
-                loc.noise_counts,
-                taken,
-                np.arange(n),
-            )
-            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
-            i, j = fitted.i, fitted.j
-            extra = {
-                "pos_err_mm": fitted.pos_err_mm,
-                "residual": fitted.residual,
-                "fit": fitted.fit,
-            }
-        sh = touch_shapes(v[tax] * (tax9 >= 0), tax9, pos9, xyz, loc.heights)
-        ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
-        kind = np.where(peak > touch_thr, TOUCH, HOVER).astype(np.int8)
-        return TouchTable(
-            np.full(n, frame, np.int64),
-            ids,
-            i,
-            j,
-            xyz,
-            peak,
-            sh.height_mm,
-            sh.height_err_mm,
-            sh.strength,
-            sh.size_mm,
-            kind,
-            **extra,
+            tax = np.where(t.taxel < 0, 0, t.taxel)
+            return _Peaks(t.i, t.j, t.peak, t.taxel, tax, t.weight)
+        lay = loc.layout
+        n = self._n9_frame(
+            v,
+            lay.taxel,
+            lay.n9,
+            lay.ci,
+            lay.cj,
+            float(thr),
+            float(s.floor),
+            int(s.max_touches),
+            self._scratch,
+            self._k,
+            self._peak,
+            self._i,
+            self._j,
+            self._w,
+        )
+        k = self._k[:n]
+        return _Peaks(
+            self._i[:n].copy(),
+            self._j[:n].copy(),
+            self._peak[:n].copy(),
+            lay.n9_taxel[k],
+            self._n9_taxel[k],
+            self._w[:n],
         )
 
-    def _positions(self, pressure_kpa) -> np.ndarray:
+    def _refine(self, model: tuple[Window, FootprintLaw], p: _Peaks, pos: np.ndarray) -> Fitted:
+        """The model method's fit (`model_fit.refine`) of the frame's peaks `p` to each
+        one's mean over the recent frames that show it, on taxel positions `pos` (T, 3)."""
+        window, law = model
+        history = np.asarray(self._recent)
+        n = len(p.i)
+        centre = p.taxel9[:, 4]
+        mean, taken = recent_frames(
+            history, np.full(n, len(history) - 1), centre, window, self.s.model_frames
+        )
+        return refine(
+            np.zeros(n, np.int64),
+            centre,
+            p.i,
+            p.j,
+            p.peak,
+            mean,
+            window,
+            lambda win: pos[win],
+            law,
+            p.taxel9,
+            self.loc.chart,
+            self.loc.noise_counts,
+            taken,
+            np.arange(n),
+        )
+
+    def _positions(self, pressure_kpa: np.ndarray | None) -> np.ndarray:
         """Taxel positions (T, 3) mm for this frame's pressures (cached while unchanged)."""
         pos = self.loc.positions_mm
         if self.loc.reduced is not None and pressure_kpa is not None:
-            key = tuple(np.asarray(pressure_kpa, float).tolist())
-            if key != self._pos_key or self._pos is None:
-                self._pos, self._pos_key = self.loc.reduced_positions(np.array(key)), key
+            at = tuple(np.asarray(pressure_kpa, float).tolist())
+            if at != self._pos_key or self._pos is None:
+                self._pos, self._pos_key = self.loc.reduced_positions(np.array(at)), at
             return self._pos
-        if pos.ndim == 2:
+        if pos.ndim == 2 or self.loc.state_pressure_kpa is None:  # one state (`Locator`)
             return pos
         key = None if pressure_kpa is None else tuple(np.asarray(pressure_kpa).tolist())
         if key != self._pos_key or self._pos is None:

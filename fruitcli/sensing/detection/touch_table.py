@@ -36,7 +36,8 @@ class TouchTable:
     (counts), height above the surface and its 1-sigma uncertainty (mm), strength
     (1: contact), footprint size (mm, see `touch_shape`), kind (TOUCH or HOVER) and,
     with the model method (`model_fit`), the point's 1-sigma radius (mm), the fit's
-    residual and its outcome. Shapes not given are NaN, kinds TOUCH, fits FIT_NONE."""
+    residual and its outcome. Every column is an array of the table's length: `make`
+    fills the ones a detection path does not give."""
 
     frame: np.ndarray
     touch: np.ndarray
@@ -44,24 +45,56 @@ class TouchTable:
     j: np.ndarray
     xyz_mm: np.ndarray  # (n, 3)
     peak: np.ndarray
-    height_mm: np.ndarray | None = None
-    height_err_mm: np.ndarray | None = None
-    strength: np.ndarray | None = None
-    size_mm: np.ndarray | None = None
-    kind: np.ndarray | None = None  # (n,) int8
-    pos_err_mm: np.ndarray | None = None  # (n,) the model fit's 1-sigma radius, NaN: none
-    residual: np.ndarray | None = None  # (n,) its RMS weighted residual, NaN: none
-    fit: np.ndarray | None = None  # (n,) int8 model_fit.FIT_NONE, FIT_MODEL or FIT_N9
+    height_mm: np.ndarray
+    height_err_mm: np.ndarray
+    strength: np.ndarray
+    size_mm: np.ndarray
+    kind: np.ndarray  # (n,) int8
+    pos_err_mm: np.ndarray  # (n,) the model fit's 1-sigma radius, NaN: none
+    residual: np.ndarray  # (n,) its RMS weighted residual, NaN: none
+    fit: np.ndarray  # (n,) int8 model_fit.FIT_NONE, FIT_MODEL or FIT_N9
 
-    def __post_init__(self):
-        n = len(self.frame)
-        for name in ("height_mm", "height_err_mm", "strength", "size_mm", "pos_err_mm", "residual"):
-            if getattr(self, name) is None:
-                setattr(self, name, np.full(n, np.nan))
-        if self.kind is None:
-            self.kind = np.full(n, TOUCH, np.int8)
-        if self.fit is None:
-            self.fit = np.zeros(n, np.int8)
+    @classmethod
+    def make(
+        cls,
+        frame: np.ndarray,
+        touch: np.ndarray,
+        i: np.ndarray,
+        j: np.ndarray,
+        xyz_mm: np.ndarray,
+        peak: np.ndarray,
+        height_mm: np.ndarray | None = None,
+        height_err_mm: np.ndarray | None = None,
+        strength: np.ndarray | None = None,
+        size_mm: np.ndarray | None = None,
+        kind: np.ndarray | None = None,
+        pos_err_mm: np.ndarray | None = None,
+        residual: np.ndarray | None = None,
+        fit: np.ndarray | None = None,
+    ) -> TouchTable:
+        """The table of the columns given; those not given (None) are NaN, kinds
+        TOUCH and fits FIT_NONE (0)."""
+        n = len(frame)
+
+        def nan(column: np.ndarray | None) -> np.ndarray:
+            return np.full(n, np.nan) if column is None else column
+
+        return cls(
+            frame,
+            touch,
+            i,
+            j,
+            xyz_mm,
+            peak,
+            nan(height_mm),
+            nan(height_err_mm),
+            nan(strength),
+            nan(size_mm),
+            np.full(n, TOUCH, np.int8) if kind is None else kind,
+            nan(pos_err_mm),
+            nan(residual),
+            np.zeros(n, np.int8) if fit is None else fit,
+        )
 
     def __len__(self) -> int:
         return int(self.frame.shape[0])
@@ -76,7 +109,8 @@ class TouchTable:
 
     @classmethod
     def concat(cls, tables: list[TouchTable]) -> TouchTable:
+        """The tables' rows one after another (none: an empty table)."""
         if not tables:
             e = np.zeros(0)
-            return cls(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
+            return cls.make(e.astype(np.int64), e.astype(np.int64), e, e, np.zeros((0, 3)), e)
         return cls(*(np.concatenate([getattr(t, f) for t in tables]) for f in FIELDS))

@@ -178,6 +178,8 @@ def split(
         x, rss = _fit(v, ci, cj, fp, x0)
         if rss < rss2:
             best, rss2 = x, rss
+    if best is None:
+        return None  # no start gave a finite residual
     two = best.reshape(2, 3)
     gain = rss1 - rss2
     sep = np.hypot(two[0, 1] - two[1, 1], two[0, 2] - two[1, 2])
@@ -218,7 +220,9 @@ def fit2_touches(
     """Touches of activation grids flat (N, H * W) (see the module docstring)."""
     h, w = grid.shape
     f, cells = local_peaks(flat, grid, threshold)
-    rows = {k: [] for k in ("frame", "rank", "i", "j", "peak", "taxel", "weight")}
+    rows: dict[str, list[float | np.ndarray]] = {
+        k: [] for k in ("frame", "rank", "i", "j", "peak", "taxel", "weight")
+    }
     ci_all, cj_all = np.divmod(np.arange(h * w), w)
     for frame in np.unique(f):
         mine = cells[f == frame]

@@ -51,7 +51,6 @@ class LiveFrame:
     def shape(self) -> np.ndarray:
         """(n, 3) height mm, strength, size mm of the touches."""
         t = self.touches
-        assert t.height_mm is not None and t.strength is not None and t.size_mm is not None
         return np.column_stack([t.height_mm, t.strength, t.size_mm])
 
 
@@ -176,10 +175,6 @@ class LiveLocator:
 
 def _shape(t: TouchTable, n: int) -> dict:
     """Height, strength, size and kind of touch n, for its JSON line (NaN: null)."""
-    # every column is filled when the table is made (TouchTable.__post_init__)
-    assert t.height_mm is not None and t.height_err_mm is not None and t.kind is not None
-    assert t.strength is not None and t.size_mm is not None and t.fit is not None
-    assert t.pos_err_mm is not None and t.residual is not None
     out: dict[str, float | str | None] = {
         k: (None if np.isnan(v) else round(float(v), 4))
         for k, v in (

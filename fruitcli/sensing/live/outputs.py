@@ -172,7 +172,6 @@ class Outputs:
         touches: list[dict[str, object]] = []
         if f is not None:
             tt = f.touches
-            assert tt.kind is not None and tt.height_mm is not None  # filled on construction
             touches = [
                 {
                     "id": int(tt.touch[n]),

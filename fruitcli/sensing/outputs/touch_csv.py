@@ -53,13 +53,8 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray, model: bool = False) -> byte
     if len(table) == 0:
         return b""
     xyz = table.xyz_mm
-    # every column is filled when the table is made (TouchTable.__post_init__)
-    assert table.height_mm is not None and table.height_err_mm is not None
-    assert table.strength is not None and table.size_mm is not None and table.kind is not None
     extra: list[np.ndarray] = []
     if model:
-        assert table.pos_err_mm is not None and table.residual is not None
-        assert table.fit is not None
         extra = [table.pos_err_mm, table.residual, table.fit.astype(np.int64) + len(KIND_NAMES)]
     return format_rows(
         [

@@ -22,11 +22,20 @@ the gains (`calibrate_crossing`), the same frames and noise.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.skin.virtual_bench import START_GAP_MM
-from fruitcli.tables import integer_column, read_taxels
+from fruitcli.tables import Taxels, integer_column, read_taxels
+
+if TYPE_CHECKING:
+    from fruitcli.scene import BoardSection, SkinSection
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
@@ -53,7 +62,7 @@ def descent_gaps(
     for f in np.flatnonzero(rec.sample >= 0):
         k = int(rec.sample[f])
         idx = np.arange(start, f + 1)
-        start = f + 1
+        start = int(f) + 1
         if k not in truth_z:
             continue
         if origin_z is not None:
@@ -164,23 +173,51 @@ def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.c
     )
 
 
-def run_calibrate(
-    scene, frames_path, truth_csv, taxels_csv, out_dir, indenter=None, progress=None, response=None
-) -> dict:
-    """Fit the skin to a bench recording; write DIR/skin.toml, DIR/gains.csv and
-    DIR/calibration.json. -> the summary. `response`: the electrostatic skin
-    (`crossing_skin.CrossingSkin`, ``[skin].model = "electrostatic"``): its counts per fF
-    and the gains are fitted (`calibrate_crossing`); None: the Gaussian model's
-    footprint, activation and gap decay."""
-    from pathlib import Path
+@dataclass(frozen=True)
+class CalibrateInputs:
+    """What calibrating reads of the scene: its [board] (the recording's frames and the
+    taxels' cells in them), ``[detection].baseline_frames`` (the idle frames when the
+    recording's meta does not give them) and its [skin] (an electrostatic calibration
+    carries its crossing keys over). The stages and the command build it
+    (`fruitcli.sensing.inputs_stage.calibrate_inputs`)."""
 
-    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+    board: BoardSection
+    baseline_frames: int
+    skin: SkinSection
+
+
+@dataclass(frozen=True)
+class BenchRun:
+    """A bench recording read for calibration: its taxels, their counts (N, T) in every
+    frame, how many idle frames it starts with, its indenter, how many samples it has,
+    and its descent frames (M,) with their contact points (M, 3) mm and gaps (M,) mm
+    (`descent_gaps`)."""
+
+    taxels: Taxels
+    counts: np.ndarray
+    n_idle: int
+    indenter: str
+    samples: int
+    frames: np.ndarray
+    contact: np.ndarray
+    gaps: np.ndarray
+
+
+def read_bench_run(
+    inputs: CalibrateInputs,
+    frames_path: str | Path,
+    truth_csv: str | Path,
+    taxels_csv: str | Path,
+    indenter: str | None = None,
+) -> BenchRun:
+    """The recording `frames_path` of taxels `taxels_csv` on the [board] and its
+    truth.csv, checked against each other; `indenter` (None: the recording's meta);
+    FrameError naming the file when they do not fit."""
     from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import read_recording
     from fruitcli.tables import read_table
 
-    say = progress or (lambda msg: None)
-    board = scene.board
+    board = inputs.board
     taxels = read_taxels(taxels_csv, FrameError)
     rows, cols = taxel_cells(taxels, board, str(taxels_csv))
     rec = read_recording(frames_path, board.rows, board.cols, board.format)
@@ -193,50 +230,105 @@ def run_calibrate(
     name = indenter or rec.meta.get("indenter")
     if not name:
         raise FrameError(f"{where}: meta names no indenter: give --indenter")
-    n_idle = int(rec.meta.get("baseline_frames", scene.detection.baseline_frames))
+    n_idle = int(rec.meta.get("baseline_frames", inputs.baseline_frames))
     if not 1 < n_idle < len(rec):
         raise FrameError(
             f"{where}: {n_idle} idle frames (meta baseline_frames): expected 2 .. {len(rec) - 1}"
         )
-    counts = rec.frames[:, rows, cols].astype(float)
-    idle = counts[:n_idle]
-    c0 = idle.mean(axis=0)
     pts = np.stack([truth["x_mm"], truth["y_mm"], truth["z_mm"]], axis=1)
     point = dict(zip(ids.tolist(), pts, strict=True))
     frames, samples, gaps = descent_gaps(rec, {k: p[2] for k, p in point.items()}, n_idle, where)
-    contact = np.stack([point[int(k)] for k in samples])
-    dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - contact[:, None, :], axis=2)
-    say(f"fitting {len(frames)} descent frames of {len(ids)} samples x {len(taxels)} taxels")
+    return BenchRun(
+        taxels,
+        rec.frames[:, rows, cols].astype(float),
+        n_idle,
+        str(name),
+        len(ids),
+        frames,
+        np.stack([point[int(k)] for k in samples]),
+        gaps,
+    )
+
+
+def run_calibrate(
+    inputs: CalibrateInputs,
+    frames_path: str | Path,
+    truth_csv: str | Path,
+    taxels_csv: str | Path,
+    out_dir: str | Path,
+    indenter: str | None = None,
+    progress: Callable[[str], None] | None = None,
+    response: CrossingSkin | None = None,
+) -> dict:
+    """Fit the skin to a bench recording (`read_bench_run`); write DIR/skin.toml,
+    DIR/gains.csv and DIR/calibration.json (`write_calibration`). -> the summary.
+    `response`: the electrostatic skin (`crossing_skin.CrossingSkin`, ``[skin].model =
+    "electrostatic"``): its counts per fF and the gains are fitted
+    (`calibrate_crossing`); None: the Gaussian model's footprint, activation and gap
+    decay."""
+    say = progress or (lambda msg: None)
+    run = read_bench_run(inputs, frames_path, truth_csv, taxels_csv, indenter)
+    taxels, name = run.taxels, run.indenter
+    idle = run.counts[: run.n_idle]
+    v = run.counts[run.frames] - idle.mean(axis=0)
+    say(f"fitting {len(run.frames)} descent frames of {run.samples} samples x {len(taxels)} taxels")
     noise, noise_per = noise_std_counts(idle)
     if response is None:
-        fit = fit_skin(counts[frames] - c0, dist, gaps)
+        dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - run.contact[:, None, :], axis=2)
+        fit = fit_skin(v, dist, run.gaps)
         toml = skin_toml(name, fit, noise)
         figures = {
             "footprint_sigma_mm": fit["sigma_mm"],
             "contact_counts": fit["contact_counts"],
             "gap_decay_mm": fit["gap_decay_mm"],
         }
+        fitted = (
+            f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
+            f"decay {fit['gap_decay_mm']:.2f} mm"
+        )
     else:
         from fruitcli.sensing.skin import calibrate_crossing as cc
 
         response.object_index(name)  # the table must hold the recording's indenter
-        drop = cc.drop_ff(response, name, contact, taxels.xyz_mm, gaps)
-        fit = cc.fit_scale(counts[frames] - c0, drop, MEASURED_MIN_COUNTS, GAUGE_WEIGHT)
-        toml = cc.skin_toml(scene.skin, fit, noise)
+        drop = cc.drop_ff(response, name, run.contact, taxels.xyz_mm, run.gaps)
+        fit = cc.fit_scale(v, drop, MEASURED_MIN_COUNTS, GAUGE_WEIGHT)
+        toml = cc.skin_toml(inputs.skin, fit, noise)
         figures = {"skin_model": "electrostatic", "counts_per_ff": fit["counts_per_ff"]}
+        fitted = f"{fit['counts_per_ff']:.4g} counts per fF"
     summary = {
         "indenter": name,
         **figures,
         "noise_std_counts": noise,
         "rms_residual_counts": fit["rms_counts"],
-        "frames": int(len(frames)),
-        "samples": int(len(ids)),
+        "frames": int(len(run.frames)),
+        "samples": run.samples,
         "taxels_measured": int(fit["measured"].sum()),
         "taxels": len(taxels),
-        "idle_frames": n_idle,
-        "recording": where,
+        "idle_frames": run.n_idle,
+        "recording": str(frames_path),
         "truth": str(truth_csv),
     }
+    write_calibration(out_dir, toml, taxels, fit, noise_per, summary)
+    say(
+        f"{fitted}, noise {noise:.2f} counts, {int(fit['measured'].sum())}/{len(taxels)} "
+        f"gains measured, rms residual {fit['rms_counts']:.2f} counts"
+    )
+    return summary
+
+
+def write_calibration(
+    out_dir: str | Path,
+    toml: str,
+    taxels: Taxels,
+    fit: dict,
+    noise_per: np.ndarray,
+    summary: dict,
+) -> None:
+    """DIR/skin.toml (`toml`), DIR/gains.csv (each taxel's fitted gain, noise std (T,)
+    counts and whether it was measured) and DIR/calibration.json (`summary`), all or
+    none."""
+    from fruitcli.fsutil import staged_dir, write_csv, write_json, write_text
+
     with staged_dir(out_dir) as tmp:
         write_text(tmp / "skin.toml", toml)
         write_csv(
@@ -259,14 +351,3 @@ def run_calibrate(
             ],
         )
         write_json(tmp / "calibration.json", summary)
-    fitted = (
-        f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
-        f"decay {fit['gap_decay_mm']:.2f} mm"
-        if response is None
-        else f"{fit['counts_per_ff']:.4g} counts per fF"
-    )
-    say(
-        f"{fitted}, noise {noise:.2f} counts, {int(fit['measured'].sum())}/{len(taxels)} "
-        f"gains measured, rms residual {fit['rms_counts']:.2f} counts"
-    )
-    return summary

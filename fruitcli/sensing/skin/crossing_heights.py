@@ -17,8 +17,12 @@ Units: mm, counts.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 PROFILE_POINTS = 400
 TAIL_DECAYS = 4.0
@@ -28,7 +32,7 @@ TAIL_DECAYS = 4.0
 class CrossingHeights:
     """Height model of a crossing table for one indenter (see the module docstring)."""
 
-    table: object  # crossing_skin.CrossingSkin
+    table: CrossingSkin
     indenter: str
     noise_std_counts: float
     sigma_mm: float
@@ -38,7 +42,9 @@ class CrossingHeights:
     gain: np.ndarray | None = None  # (T,) taxel gains, None: 1 (or activations divided)
 
     @classmethod
-    def of(cls, table, indenter: str, noise_std_counts: float, gain=None) -> CrossingHeights:
+    def of(
+        cls, table: CrossingSkin, indenter: str, noise_std_counts: float, gain=None
+    ) -> CrossingHeights:
         k = table.object_index(indenter)
         tail = float(table.tail_decay_mm[k])
         gaps = np.linspace(0.0, float(table.gap_mm[-1]) + TAIL_DECAYS * tail, PROFILE_POINTS)

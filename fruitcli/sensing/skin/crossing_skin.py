@@ -43,6 +43,8 @@ from fruitcli.errors import FrameError
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from fruitcli.electrostatics.design import CrossingInputs
+
 AXES = ("x", "y")
 BLOCK_VALUES = 2_000_000
 """Most table values the bench interpolates across the offsets at once (16 MB)."""
@@ -163,7 +165,7 @@ class CrossingSkin:
         k = self.object_index(indenter)
         off = np.asarray(contact_mm, float)[:, None, :] - taxels_mm  # (P, T, 3)
         size = max(1, BLOCK_VALUES // (off.shape[1] * (len(self._uniform[1][k][0]))))
-        block = {}
+        block: dict[int, np.ndarray] = {}  # the block of contact points from a start
 
         def at_gaps(p: int, gaps_mm: np.ndarray) -> np.ndarray:
             start = p - p % size
@@ -264,7 +266,7 @@ class CrossingSkin:
         stretch = np.asarray(stretch, float)
         kappa = self._neutral(curvature_per_mm)
         kappa0 = np.broadcast_to(self._neutral(rest_curvature_per_mm), kappa.shape)
-        total = 0.0
+        total = np.zeros(kappa.shape[:-1])
         for a in range(2):
             left = stretch[..., a] - self.neutral_mm * (kappa[..., a] - kappa0[..., a])
             total = total + (
@@ -359,7 +361,8 @@ def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarr
     area_normal = np.cross(b_edges[..., 0], b_edges[..., 1])  # (S, F, 3)
     vertex_normal = np.zeros(moved.shape)
     for c in range(3):
-        np.add.at(vertex_normal, (slice(None), tris[:, c]), area_normal)
+        # numpy's stubs lack ufunc.at's tuple index (a slice, then indices)
+        np.add.at(vertex_normal, (slice(None), tris[:, c]), area_normal)  # type: ignore[arg-type]
     vertex_normal = _unit(vertex_normal)  # (S, N, 3)
     n_states, n_taxels = moved.shape[0], len(rest_taxels)
     stretch = np.zeros((n_states, n_taxels, 2))
@@ -403,14 +406,27 @@ def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=No
     return response.deformation_shift(stretch, curv, rest_curv[0]) * fab
 
 
-def crossing_skin(scene, folder: Path | None = None, progress=None) -> CrossingSkin:
-    """The scene's electrostatic skin: from `folder` (the skin stage's crossing.npz and
-    summary.json) or, without one, computed now (`fruitcli.electrostatics.design`); in
-    counts of ``[skin].counts_per_ff`` when the scene gives it."""
-    scale = scene.skin.counts_per_ff
-    if folder is not None:
-        return CrossingSkin.load(folder, scale)
+@dataclass(frozen=True)
+class CrossingSkinInputs:
+    """What an electrostatic skin's crossing table in counts is made from: ``[skin].
+    counts_per_ff`` (None: the table's own fit) and its `source`, either the skin stage's
+    folder (its crossing.npz and summary.json) or the crossing cell's inputs
+    (`fruitcli.electrostatics.design.crossing_inputs`), computed now. The sensing stages
+    build it (`fruitcli.sensing.inputs_stage.crossing_skin_inputs`)."""
+
+    counts_per_ff: float | None
+    source: Path | CrossingInputs
+
+
+def crossing_skin(
+    inputs: CrossingSkinInputs, progress: Callable[[str], None] | None = None
+) -> CrossingSkin:
+    """The electrostatic skin's crossing table in counts (of ``counts_per_ff`` when
+    given): read from the skin stage's folder or computed now from the cell's inputs
+    (`fruitcli.electrostatics.design`, telling `progress`)."""
+    if isinstance(inputs.source, Path):
+        return CrossingSkin.load(inputs.source, inputs.counts_per_ff)
     from fruitcli.electrostatics import design
 
-    table, summary = design.run_crossing(design.crossing_inputs(scene), progress=progress)
-    return CrossingSkin.from_table(design.table_arrays(table), summary, scale)
+    table, summary = design.run_crossing(inputs.source, progress=progress)
+    return CrossingSkin.from_table(design.table_arrays(table), summary, inputs.counts_per_ff)

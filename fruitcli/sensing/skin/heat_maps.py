@@ -77,7 +77,9 @@ def taxel_topview(
     over the body's outline: its surface triangles projected on x-y (F, 3, 2), in grey."""
     from matplotlib.collections import PolyCollection
 
-    ax.add_collection(PolyCollection(outline_xy_mm, facecolors="0.88", edgecolors="none", zorder=0))
+    ax.add_collection(
+        PolyCollection(list(outline_xy_mm), facecolors="0.88", edgecolors="none", zorder=0)
+    )
     top = float(vmax if vmax is not None else np.max(values))
     sc = ax.scatter(
         xy_mm[:, 0],

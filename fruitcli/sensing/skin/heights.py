@@ -30,8 +30,13 @@ if TYPE_CHECKING:
 class HeightModel(Protocol):
     """What touch shapes need from a skin model."""
 
-    noise_std_counts: float
-    sigma_mm: float  # footprint width of the touching object (mm)
+    @property
+    def noise_std_counts(self) -> float:
+        """The skin's noise std (counts)."""
+
+    @property
+    def sigma_mm(self) -> float:
+        """Footprint width of the touching object (mm)."""
 
     def contact_counts(self, taxel: np.ndarray, dist_mm: np.ndarray) -> np.ndarray:
         """Activation (counts) of taxels `taxel` at `dist_mm` from a contact point."""

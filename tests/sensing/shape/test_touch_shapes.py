@@ -114,7 +114,7 @@ def test_gap_law_takes_the_skin_table_and_footprint():
 
 def test_touches_csv_round_trips_every_new_column(tmp_path):
     n = 4
-    table = TouchTable(
+    table = TouchTable.make(
         np.arange(n),
         np.array([0, 1, 1, 2]),
         np.linspace(1, 2, n),

@@ -10,6 +10,7 @@ from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.scene import parse_scene
 from fruitcli.sensing.frames.recording import Recording, write_npz
+from fruitcli.sensing.inputs_stage import calibrate_inputs
 from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.calibrate import run_calibrate
 from fruitcli.sensing.skin.crossing_skin import CrossingSkin
@@ -165,7 +166,7 @@ def test_calibrate_gives_back_the_counts_per_ff_and_the_gains(tmp_path):
     scene = hidden_bench(tmp_path, 0.7, gains)
     out = tmp_path / "cal"
     res = run_calibrate(
-        scene,
+        calibrate_inputs(scene),
         tmp_path / "frames.npz",
         tmp_path / "truth.csv",
         tmp_path / "t.csv",
@@ -191,7 +192,7 @@ def test_calibrate_refuses_an_indenter_the_table_lacks(tmp_path):
     scene = hidden_bench(tmp_path, 0.7, np.ones(16))
     with pytest.raises(FrameError, match="indenter: expected one of"):
         run_calibrate(
-            scene,
+            calibrate_inputs(scene),
             tmp_path / "frames.npz",
             tmp_path / "truth.csv",
             tmp_path / "t.csv",
