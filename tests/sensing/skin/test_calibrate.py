@@ -348,3 +348,21 @@ def test_a_recording_without_what_calibration_needs_is_one_line(tmp_path, change
     assert message in res.output and "Traceback" not in res.output
     assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == [MARKER, "skin.toml"]
     assert (tmp_path / "cal" / "skin.toml").read_text() == "kept\n"
+
+
+def test_calibrate_without_taxels_is_one_line(tmp_path):
+    """A scene with no taxels (no tracks, no [grid].taxels) and no --taxels: one line
+    naming the scene and what to give, exit 1, nothing written."""
+    from tests.sensing.skin.test_virtual_bench import PAD_SCENE
+
+    (tmp_path / "pad.toml").write_text(PAD_SCENE)
+    (tmp_path / "frames.npz").write_bytes(b"")
+    (tmp_path / "truth.csv").write_text("sample,x_mm,y_mm,z_mm\n")
+    res = CliRunner().invoke(
+        cli,
+        ["calibrate", str(tmp_path / "frames.npz"), "--truth", str(tmp_path / "truth.csv"),
+         "--scene", str(tmp_path / "pad.toml"), "--out", str(tmp_path / "skin")],
+    )  # fmt: skip
+    assert res.exit_code == 1
+    assert res.output.strip().endswith("pad.toml: no taxels: give --taxels or [grid].taxels")
+    assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "skin").exists()
