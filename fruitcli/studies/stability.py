@@ -153,7 +153,9 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
             else np.flatnonzero(np.abs(x[:, fixed_where[0]] - fixed_where[1]) < 1e-9)
         )
 
-    if case.element == "p1" and case.material == "corotational":
+    from fruitcli.fem.materials.models import MATERIAL_MODELS
+
+    if MATERIAL_MODELS[case.material].corotational:
         return Model.from_arrays(
             nodes, tets, case.E_kpa, case.nu, chambers=chambers, fixed_nodes=held(nodes), **kw
         )
