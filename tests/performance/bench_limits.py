@@ -18,6 +18,7 @@ Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-frui
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -63,24 +64,35 @@ def sphere_refinement() -> None:
         )
 
 
+def children_cpu() -> float:
+    """CPU seconds (user + system, all threads) of the finished child processes."""
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
+def load_average() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
 def fruit_limits(out: Path, docs: bool = False) -> None:
     scene = ROOT / "pipelines" / "fruit-breathing.toml"
-    t0 = time.perf_counter()
+    t0, cpu0, load0 = time.perf_counter(), children_cpu(), load_average()
     fruit = Path(sys.executable).parent / "fruit"
     code = subprocess.call(
         [str(fruit), "-q", "limits", str(scene), "--out", str(out)],
         cwd=ROOT,
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
-    wall = time.perf_counter() - t0
+    wall, cpu, load = time.perf_counter() - t0, children_cpu() - cpu0, (load0, load_average())
     if code:
         print(f"fruit limits: exit {code}")
         return
     info = json.loads((out / "limits.json").read_text())
     print(
         f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
-        f"tets): {wall:.1f} s wall (make-tracks and tetra included), {info['seconds']:.1f} s "
-        "following the curves"
+        f"tets): {wall:.1f} s wall, {cpu:.1f} s CPU (all threads; make-tracks and tetra "
+        f"included), {info['seconds']:.1f} s following the curves; load average "
+        f"{load[0]} -> {load[1]}"
     )
     import tomllib
 
@@ -103,12 +115,13 @@ def fruit_limits(out: Path, docs: bool = False) -> None:
             + ("none up to 27 V0" if lim is None else f"{lim:.4g} kPa (largest chamber)")
         )
     if docs:
-        write_docs(out, info, wall, asked)
+        write_docs(out, info, wall, asked, cpu, load)
 
 
-def write_docs(out: Path, info: dict, wall: float, asked: dict) -> None:
+def write_docs(out: Path, info: dict, wall: float, asked: dict, cpu: float, load) -> None:
     """docs/data/fruit-limits.csv (the pv.csv) and fruit-limits.json (the limits, the
-    breathing's largest pressures, the times, date, commit and machine)."""
+    breathing's largest pressures, the times (wall, CPU), load average before and after,
+    date, commit and machine)."""
     import datetime
     import shutil
 
@@ -125,6 +138,8 @@ def write_docs(out: Path, info: dict, wall: float, asked: dict) -> None:
         "machine": f"{processor()}, {os.cpu_count()} cores",
         "scene": "pipelines/fruit-breathing.toml",
         "wall_seconds": round(wall, 1),
+        "cpu_seconds": round(cpu, 1),
+        "load_average": list(load),
         "breathing_max_kpa": {c: max(v) for c, v in asked.items()},
         **info,
     }
