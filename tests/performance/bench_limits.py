@@ -10,9 +10,13 @@
    --docs, its pv.csv and a summary (the limits, the time, date, commit and machine)
    go to docs/data/fruit-limits.{csv,json}, from which `make docs` draws the figure of
    docs/explanation/limits.md.
+3. With --curves, instead of 2: each of the default Fruit's curves followed in this
+   process (`fruitcli.fem.limits.follow` as `fruit limits` does: the body under its
+   weight once, then each chamber's suction and inflation and the chambers together),
+   each with its wall and CPU time and its samples; --mesh DIR keeps the mesh there.
 
 Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-fruit]
-[--out DIR] [--docs]
+[--out DIR] [--docs] [--curves [--mesh DIR]]
 """
 
 import argparse
@@ -147,16 +151,69 @@ def write_docs(out: Path, info: dict, wall: float, asked: dict, cpu: float, load
     print(f"wrote {data / 'fruit-limits.csv'} and fruit-limits.json")
 
 
+def fruit_curves(mesh_dir: Path) -> None:
+    """Each curve of `fruit limits` on the default Fruit, timed (wall and CPU)."""
+    sys.path.insert(0, str(HERE))
+    from bench_state import default_mesh
+
+    from fruitcli.fem import io, limits
+    from fruitcli.fem.limits_stage import CURVE_FALL_STEPS, curve_options, scene_ratios
+    from fruitcli.fem.stage import build_model, solver_options
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    model = build_model(scene, io.load_mesh(default_mesh(mesh_dir, scene)))
+    options = curve_options(solver_options(scene))
+    print(f"the default Fruit's curves, one by one; load average {load_average()}")
+    t0, c0 = time.perf_counter(), time.process_time()
+    start = limits.start_state(model, model.make_solver(options.linear_solver), options)
+    print(
+        f"  the body under its weight: {time.perf_counter() - t0:.1f} s wall, "
+        f"{time.process_time() - c0:.1f} s CPU"
+    )
+    curves = [(name, k, d) for k, name in enumerate(model.chamber_names) for d in (-1, 1)]
+    curves.append((limits.TOGETHER, scene_ratios(scene, model.chamber_names), 1))
+    for name, k, d in curves:
+        t1, c1 = time.perf_counter(), time.process_time()
+        halvings = limits.CURVE_HALVINGS if d > 0 else 0
+        curve = limits.follow(
+            model,
+            k,
+            d,
+            options=options,
+            fall_steps=CURVE_FALL_STEPS,
+            halvings=halvings,
+            start=start,
+        )
+        value = curve.limit_pressure_kpa if d > 0 else curve.collapse_pressure_kpa
+        print(
+            f"  {name} {'inflation' if d > 0 else 'suction'}: {value} kPa ({curve.end}); "
+            f"{len(curve.pressure_kpa) - 1} samples, {time.perf_counter() - t1:.1f} s wall, "
+            f"{time.process_time() - c1:.1f} s CPU"
+        )
+    print(
+        f"all: {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s CPU; "
+        f"load average {load_average()}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--no-sphere", action="store_true")
     parser.add_argument("--no-fruit", action="store_true")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--docs", action="store_true", help="write docs/data/fruit-limits.*")
+    parser.add_argument("--curves", action="store_true", help="each curve timed in-process")
+    parser.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
     args = parser.parse_args()
     if not args.no_sphere:
         sphere_refinement()
-    if not args.no_fruit:
+    if args.curves:
+        with tempfile.TemporaryDirectory() as tmp:
+            mesh_dir = args.mesh or Path(tmp)
+            mesh_dir.mkdir(parents=True, exist_ok=True)
+            fruit_curves(mesh_dir)
+    elif not args.no_fruit:
         with tempfile.TemporaryDirectory() as tmp:
             fruit_limits(args.out or Path(tmp) / "limits", args.docs)
 
