@@ -6,7 +6,9 @@ others at rest (pressure 0).
 - Inflation: the pressure rises, peaks at the limit pressure (the largest pressure the
   chamber holds: pressure control has no equilibrium above it) and falls; the curve is
   followed until it has fallen for FALL_STEPS steps, and the peak is the vertex of the
-  parabola through the largest sample and its neighbours.
+  parabola through the largest sample and its neighbours (with one fall step, as `fruit
+  limits` follows it, the curve may end before its peak at the vertex just ahead of its
+  last three samples: `PEAK_AHEAD`).
 - Suction: the pressure falls (below 0) while the cavity shrinks, until its walls would
   meet (self-contact is not modelled): the volume under COLLAPSE_VOLUME of its rest
   volume or the next sample's below it, an element at the wall about to invert (det F
@@ -14,7 +16,8 @@ others at rest (pressure 0).
   no equilibrium; the collapse pressure is the lowest pressure reached.
 
 Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
-of a spherical cavity). Units: mm, mm^3, kPa.
+of a spherical cavity), shorter near an inflation's peak (`_next_step`). The curves of a
+body start from its equilibrium under its weight (`start_state`). Units: mm, mm^3, kPa.
 """
 
 from __future__ import annotations
@@ -530,12 +533,7 @@ within its budget."""
 def rest_compliance(model, solver) -> np.ndarray:
     """(K, K) dV_i/dp_j (mm^3/kPa) of the chambers at rest, from the solver's tangent
     there (its factor is then the one the first state starts with)."""
-    free = model.pattern.free
-    x = model.rest
-    kin = model.kinematics(x)
-    solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
-    h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
-    return h @ solver.solve(np.ascontiguousarray(h.T)).reshape(len(h[0]), -1)
+    return response(model, solver, model.rest)[1]
 
 
 def kpa(value: float) -> str:
