@@ -346,6 +346,67 @@ alike at load average 3.6-4.8.
 """
 
 
+LIMITS_STEPS = """
+## `fruit limits`: what each step bought
+
+Measured on the default Fruit (`pipelines/fruit-breathing.toml`, 8,865 quadratic tets) on
+2026-12-06, AMD EPYC, 2 cores shared with other work, each curve followed in-process as
+`fruit limits` does (`python tests/performance/bench_limits.py --no-sphere --curves`),
+CPU seconds of all threads (the wall time is up to twice that at the loads below). The
+code before (commit 0f5fd7f), 12:13-12:21 UTC at load average 1.5-4.3: 239 s of CPU and
+419 s wall in all; each chamber's first sample from rest took 10 Newton steps (5.5-6.6
+s), the sample past each peak 7-10, and the suction samples of chambers c2 and c3 that
+find no equilibrium 29 s and 18 s (their budget, 4 times the longest sample so far, the
+first).
+
+- The body's equilibrium under its weight solved once (9 Newton steps, 5.0-5.3 s) and
+  each curve's first sample from the linear response there (3 Newton steps, 1.4-1.8 s):
+  chamber c1's suction 7.3 s instead of 12.3 s, its inflation 24.8 s instead of 29.7 s.
+- An inflation ends at the vertex ahead of its last three samples instead of a sample
+  past the peak, samples the vertex when it is less than a step ahead, and brackets a
+  vertex already passed with half a step; a sample after the first has at most two
+  load-step halvings: chamber c3's inflation 22.6 s instead of 31.2 s (10 samples
+  instead of 11), its suction 12.5 s instead of 27.5 s, the chambers together 31.1 s
+  instead of 72.3 s (their failed sample at 4.9 V₀, 34 s, is no longer tried: the
+  vertex behind the sample at 4.1 V₀ takes half a step at once).
+- Samples at a relative residual of 10⁻³ instead of 10⁻⁴: chamber c3's inflation 34
+  Newton steps and 18.0 s instead of 42 and 22.6 s, the pressures the same to four
+  digits.
+- All: 111 s of CPU and 145 s wall at load 1.7-3.7 (12:31-12:33 UTC, commit 731c87d);
+  119 s of CPU and 192 s wall at load 6-7 (13:01-13:04 UTC, commit a9ff186: the body
+  under its weight 5.0 s, c1 6.9 + 18.2 s, c2 10.9 + 19.7 s, c3 15.1 + 17.6 s
+  (suction + inflation), the chambers together 25.7 s). The whole `fruit limits`
+  (`bench_limits.py --no-sphere --docs`, meshing included) took 205 s wall and 116 s of
+  CPU at load 5.9-7.2, against 391 s wall on a quiet machine on 2026-12-03.
+
+The limits are those of the code before within 0.03 % (c1 29.823 kPa instead of 29.828,
+c2 39.100 instead of 39.108, c3 38.022 instead of 38.034, together 29.8234 instead of
+29.8235), the collapse pressures within 0.001 %; the volume growth at each chamber's
+limit moves by up to 1.5 % (the peak is flat: its place is far less certain than its
+pressure). The 60 s target is not reached: what is left is about 30 Newton steps a
+chamber's inflation, 15 a suction and 40 the chambers together, each 0.4-0.7 s of CPU
+(PARDISO's solves and refactorizations with two right-hand sides, 70 % of it).
+
+Measured and not adopted: one solver (one PARDISO analysis) shared by all the curves
+(107 s of CPU against 111 s, within the run-to-run spread); the factor refreshed at
+each sample's start (chamber c3's inflation 18.1 s against 17.2-17.7 s); the secant over
+the kept samples as the start of an inflation sample far from the peak (1-2 Newton
+steps a sample at half the step, but the third sample at the full step found no
+equilibrium within its budget twice); a double step after a sample of at most 3
+Newton steps (c3's inflation 17.2 s with 8 samples against 18.3 s, c2's 19.6 s against
+18.4 s); a suction budget of twice the longest sample (c3's suction 7.2 s against
+10.3-11.1 s, c2's unchanged; a wall-time budget that tight could end a converging
+sample on a loaded machine and move a collapse pressure).
+
+A pressure past a limit is refused as soon as before
+(`python tests/performance/bench_refusal.py`, 12:52-12:56 UTC, load average 4.9-5.7):
+chamber c1 at 2000 kPa 12.3 s after the mesh (10.0 s of CPU for the whole command)
+against 10.5 s (11.2 s); at -500 kPa 16.3 s (16.8 s) against 16.5 s (19.0 s). The
+check follows one curve from rest; most of it is the first sample carrying the body's
+weight (10 Newton steps). The 3 s target is not reached.
+"""
+
+
 def performance_page(result: dict, source: str) -> str:
     load0 = ", ".join(f"{v:.2f}" for v in result["load_average_before"])
     load1 = ", ".join(f"{v:.2f}" for v in result.get("load_average_after", []))
@@ -373,6 +434,7 @@ def performance_page(result: dict, source: str) -> str:
     ]
     lines += SOLVER_STEPS.strip().splitlines() + [""]
     lines += STATE_STEPS.strip().splitlines() + [""]
+    lines += LIMITS_STEPS.strip().splitlines() + [""]
     if "sample" in source:
         lines += [
             "This is the small sample shipped with the sources (two benchmarks, "
@@ -517,8 +579,15 @@ def limits_page(info: dict) -> str:
     rows.append(
         f"`fruit limits {info['scene']}` on {info['machine']}, {info['date']}, commit "
         f"`{info['commit'][:12]}`: {info['wall_seconds']:.0f} s in all "
-        f"({info['seconds']:.0f} s following the curves; {info['element']} element, "
-        f"{mesh['elements']} tetrahedra)."
+        + (f"and {info['cpu_seconds']:.0f} s of CPU " if "cpu_seconds" in info else "")
+        + f"({info['seconds']:.0f} s following the curves; {info['element']} element, "
+        f"{mesh['elements']} tetrahedra)"
+        + (
+            f"; load average {info['load_average'][0]} before, {info['load_average'][1]} "
+            "after (the machine shared)."
+            if "load_average" in info
+            else "."
+        )
     )
     return "\n".join(rows)
 

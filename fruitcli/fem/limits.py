@@ -6,7 +6,9 @@ others at rest (pressure 0).
 - Inflation: the pressure rises, peaks at the limit pressure (the largest pressure the
   chamber holds: pressure control has no equilibrium above it) and falls; the curve is
   followed until it has fallen for FALL_STEPS steps, and the peak is the vertex of the
-  parabola through the largest sample and its neighbours.
+  parabola through the largest sample and its neighbours (with one fall step, as `fruit
+  limits` follows it, the curve may end before its peak at the vertex just ahead of its
+  last three samples: `PEAK_AHEAD`).
 - Suction: the pressure falls (below 0) while the cavity shrinks, until its walls would
   meet (self-contact is not modelled): the volume under COLLAPSE_VOLUME of its rest
   volume or the next sample's below it, an element at the wall about to invert (det F
@@ -14,7 +16,8 @@ others at rest (pressure 0).
   no equilibrium; the collapse pressure is the lowest pressure reached.
 
 Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
-of a spherical cavity). Units: mm, mm^3, kPa.
+of a spherical cavity), shorter near an inflation's peak (`_next_step`). The curves of a
+body start from its equilibrium under its weight (`start_state`). Units: mm, mm^3, kPa.
 """
 
 from __future__ import annotations
@@ -44,11 +47,12 @@ MAX_STRETCH = 3.0
 rises there has no limit in the range (limit null)."""
 
 FIRST_STEPS = 3
-"""Load steps of a curve's first sample (from rest) when the body carries its weight:
-the weight and the first volume step at once are the hardest solve of the curve. On
-the default Fruit's chamber c1 (gravity, fixed base) the first sample took 21 Newton
-steps (14 s) in one load step, 10 (7-8 s) in 3, 11 in 4, 15 in 6 and 19 in 2, with the
-same pressure to 5 digits."""
+"""Load steps of the body's equilibrium under its weight from rest (`start_state`), and
+of a first sample that finds none from the start's linear response: on the default
+Fruit (gravity, fixed base) the weight alone took 14 Newton steps in one load step, 9 in
+3 and 11 in 4; the weight and chamber c1's first volume step at once took 21 in one load
+step, 10 (7-8 s) in 3, 11 in 4, 15 in 6 and 19 in 2, with the same pressure to 5
+digits."""
 
 FALL_STEPS = 2
 """Samples below the largest pressure that end an inflation curve (past its peak)."""
@@ -105,20 +109,170 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
     return s_top, float(np.polyval([a, b, c], s_top))
 
 
-def levels_off_below(model: FemModel, pressure: np.ndarray, stretch: float, step: float) -> float:
+def levels_off_below(model: FemModel, pressure: np.ndarray, stretch: np.ndarray) -> float:
     """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
-    MAX_STRETCH, from its samples so far (the last at mean stretch `stretch`, `step`
-    apart): once its increments shrink (the curve is concave in the stretch, as before a
-    neo-Hookean chamber's limit point), the secant of the last step overestimates the
-    slope from there on, so the curve stays below the secant continued to MAX_STRETCH.
-    Infinite with fewer than three samples, increments that do not shrink, or another
-    material (Yeoh's stiffening can bend the curve up again)."""
+    MAX_STRETCH, from its samples so far (pressures at mean stretches `stretch`): once
+    its slopes shrink (the curve is concave in the stretch, as before a neo-Hookean
+    chamber's limit point), the secant of the last step overestimates the slope from
+    there on, so the curve stays below the secant continued to MAX_STRETCH. Infinite
+    with fewer than three samples, slopes that do not shrink, or another material
+    (Yeoh's stiffening can bend the curve up again)."""
     if model.material_name != "neo-hookean" or len(pressure) < 3:
         return np.inf
-    d1, d2 = pressure[-2] - pressure[-3], pressure[-1] - pressure[-2]
-    if not 0 < d2 < d1:
+    h1, h2 = stretch[-2] - stretch[-3], stretch[-1] - stretch[-2]
+    g1, g2 = (pressure[-2] - pressure[-3]) / h1, (pressure[-1] - pressure[-2]) / h2
+    if not 0 < g2 < g1:
         return np.inf
-    return float(pressure[-1] + d2 / step * (MAX_STRETCH - stretch))
+    return float(pressure[-1] + g2 * (MAX_STRETCH - stretch[-1]))
+
+
+PEAK_AHEAD = 0.5
+"""An inflation curve (neo-Hookean) ends without a sample past its peak once the
+parabola through its last three samples has its vertex less than this many steps ahead
+of the last sample, rising less than PEAK_RISE above it: the vertex is then the limit.
+On the default Fruit the sample past each chamber's peak was the slowest of its curve
+(7-10 Newton steps against 3-5), and the vertex ahead is the limit of the parabola
+through the top and its neighbours within 0.05 %."""
+
+PEAK_RISE = 1e-3
+"""Largest rise of the vertex ahead above the last sample (relative) that `PEAK_AHEAD`
+takes as the limit: the extrapolation's error is a fraction of it."""
+
+
+def vertex(stretch, pressure) -> tuple[float, float] | None:
+    """(stretch, pressure) of the vertex of the parabola through the last three samples
+    when it opens downward, else None."""
+    if len(pressure) < 3:
+        return None
+    a, b, c = np.polyfit(stretch[-3:], pressure[-3:], 2)
+    if not a < 0:
+        return None
+    top = -b / (2 * a)
+    return float(top), float(np.polyval([a, b, c], top))
+
+
+def _next_step(model, curve, stretches, step: float, fall_steps: int):
+    """(the next inflation step, or None to end the curve at an extrapolated limit):
+    with the parabola through the last three samples peaking behind the last one
+    (sample i the largest), half a step (a sample just past the peak brackets it); peaking
+    within PEAK_AHEAD steps ahead and PEAK_RISE above it, None after setting the curve's
+    limit there (neo-Hookean; curves that end FALL_STEPS or more past the peak go on);
+    within a step ahead, the step to the vertex; otherwise `step`."""
+    top = vertex(np.array(stretches), np.array(curve.pressure_kpa))
+    p = curve.pressure_kpa[-1]
+    if top is None or p < max(curve.pressure_kpa):
+        return step
+    ahead = top[0] - stretches[-1]
+    if ahead <= 0:
+        return step / 2
+    if (
+        ahead <= PEAK_AHEAD * step
+        and top[1] - p <= PEAK_RISE * abs(p)
+        and fall_steps < FALL_STEPS
+        and model.material_name == "neo-hookean"
+    ):
+        curve.limit_pressure_kpa = top[1]
+        curve.limit_growth_mm3 = curve.rest_volume_mm3 * (top[0] ** 3 - 1.0)
+        curve.end = "at the limit point (the vertex of the last three samples' parabola)"
+        return None
+    return min(step, max(ahead, step / 4))
+
+
+@dataclass
+class Start:
+    """Where every curve of a body starts: its equilibrium under its weight (rest when it
+    carries none), x (n, 3) mm with chamber volumes (K,) mm^3 there, and the chambers'
+    pressure response there: dx/dp (n, 3, K) mm/kPa and the compliance dV/dp (K, K)
+    mm^3/kPa (`response`)."""
+
+    x: np.ndarray
+    volume_mm3: np.ndarray
+    dx_dp: np.ndarray
+    compliance: np.ndarray
+
+
+def response(model, solver, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(dx/dp (n, 3, K) mm/kPa, dV/dp (K, K) mm^3/kPa) of the chambers at the
+    configuration x with their pressures at 0 (no follower-pressure stiffness), by one
+    solve with the tangent there on `solver` (its kept factor refreshed when CG needs
+    it)."""
+    free = model.pattern.free
+    k = len(model.chamber_tris)
+    kin = model.kinematics(x)
+    solver.update(kin[1], kin[0], None, False)
+    h = model.chamber_gradients(x).reshape(k, -1)[:, free]
+    cols = solver.solve(np.ascontiguousarray(h.T)).reshape(len(free), k)
+    dx = np.zeros((3 * model.n_nodes, k))
+    dx[free] = cols
+    return dx.reshape(model.n_nodes, 3, k), h @ cols
+
+
+def start_state(model, solver, options: SolverOptions, progress=None) -> Start:
+    """The `Start` of a body's curves, on `solver` (forgotten afterwards, `forget`): under
+    a body force its equilibrium under the weight alone (pressure 0 in every chamber),
+    solved from rest once for all the curves in FIRST_STEPS load steps (on the default
+    Fruit the weight sags the body by 20 mm: 9 Newton steps), instead of each curve's
+    first sample carrying the weight from rest (10 Newton steps each); rest otherwise."""
+    x = model.rest.copy()
+    k = len(model.chamber_tris)
+    if np.any(getattr(model, "body_force_mn", 0.0)):
+        res = solve_state(
+            model,
+            Load.pressures(np.zeros(k)),
+            options=replace(options, load_steps=max(options.load_steps, FIRST_STEPS)),
+            solver=solver,
+            label="the body under its weight",
+        )
+        x = res.x
+        if progress:
+            progress(
+                f"limits: the body under its weight ({res.iterations} Newton steps, "
+                f"{res.solve_ms / 1e3:.1f} s)"
+            )
+    dx_dp, compliance = response(model, solver, x)
+    forget(solver)
+    return Start(x, model.chamber_volumes(x), dx_dp, compliance)
+
+
+def _first_sample(model, k, r, start, load: Load, growth: float, options, solver, label):
+    """The first sample of a curve (chamber k alone, or the chambers along ratios r) at
+    volume growth `growth` over the rest volume, from the `Start` and its linear response
+    (the pressure that makes the volume, and the nodes moved by it) in one load step;
+    from the start itself in FIRST_STEPS load steps when that finds no equilibrium.
+    Without a start (None), from rest, in FIRST_STEPS load steps under a body force: a
+    single curve (`check_pressures`) takes 10 Newton steps so on the default Fruit,
+    against 9 for the weight alone (`start_state`) and 3 for the sample from there."""
+    if start is None:
+        if np.any(getattr(model, "body_force_mn", 0.0)):
+            options = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
+        return solve_state(model, load, options=options, solver=solver, label=label)
+    alone = isinstance(k, (int, np.integer))
+    grown = start.volume_mm3 - model.chamber_rest_volume_mm3
+    if alone:
+        before = chamber_load(model, k, float(grown[k]))
+        dp = np.zeros(len(r))
+        dp[k] = (growth - grown[k]) / start.compliance[k, k]
+    else:
+        before = Load.together(r, float(r @ grown))
+        dp = r * (growth - float(r @ grown)) / float(r @ start.compliance @ r)
+    kw = {"load_start": before, "solver": solver, "label": label}
+    try:
+        return solve_state(
+            model,
+            load,
+            x_start=start.x + start.dx_dp @ dp,
+            pressure_start=dp,
+            options=options,
+            **kw,
+        )
+    except OutOfTime:
+        raise
+    except SolverError:
+        forget(solver)
+        steps = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
+        return solve_state(
+            model, load, x_start=start.x, pressure_start=np.zeros(len(r)), options=steps, **kw
+        )
 
 
 def ratio_of(model: FemModel, k) -> np.ndarray:
@@ -146,6 +300,7 @@ def follow(
     halvings: int = 0,
     beyond: tuple | None = None,
     progress=None,
+    start: Start | None = None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
     ratios k, (K,), `Load.together`: the curve's pressure is then the largest chamber
@@ -162,7 +317,9 @@ def follow(
     last sample (the step stays shorter afterwards), before the curve ends there.
     `beyond` = (budget, halvings): those of the samples after the pressure passed
     `stop_beyond_kpa` (a check going on to the limit as `fruit limits` does).
-    `progress(msg)` is told each sample."""
+    `progress(msg)` is told each sample. `start`: the `Start` the first sample comes
+    from (`start_state`, shared among the curves of a body); without it the first
+    sample comes from rest, in FIRST_STEPS load steps under a body force."""
     r = ratio_of(model, k)
     alone = isinstance(k, (int, np.integer))
     name = model.chamber_names[k] if alone else TOGETHER
@@ -174,28 +331,34 @@ def follow(
     stretches = [1.0]
     last = None  # s: the longest sample so far (the next one's budget, STEP_BUDGET)
     x, prev, p_start = None, None, None
-    s = 1.0
+    s, ds = 1.0, step  # ds: the next step (shorter near an inflation's peak, `_next_step`)
     while True:
-        s = s + direction * step
+        s = s + direction * ds
         if _out_of_range(curve, s, step, direction, stretches, deadline):
             break
         growth = v0 * (s**3 - 1.0)
         load = chamber_load(model, k, growth) if alone else Load.together(r, growth)
         try:
-            res = solve_state(
-                model,
-                load,
-                x_start=x,
-                load_start=prev,
-                pressure_start=p_start,
-                options=_sample_options(model, options, last, budget),
-                solver=solver,
-                label=f"chamber {name}",
-            )
+            if x is None:
+                res = _first_sample(
+                    model, k, r, start, load, growth, options, solver, f"chamber {name}"
+                )
+            else:
+                res = solve_state(
+                    model,
+                    load,
+                    x_start=x,
+                    load_start=prev,
+                    pressure_start=p_start,
+                    options=_sample_options(options, last, budget),
+                    solver=solver,
+                    label=f"chamber {name}",
+                )
         except SolverError as exc:
             if halvings > 0 and last is not None:
                 halvings -= 1
-                s, step = stretches[-1], step / 2
+                s, step = stretches[-1], ds / 2
+                ds = step
                 if progress:
                     progress(f"limits: chamber {name}: no equilibrium; a step of {step:.3g}")
                 continue
@@ -222,10 +385,15 @@ def follow(
             break
         if passed and beyond is not None:
             (budget, halvings), beyond = beyond, None
-        if _levels_off(model, curve, s, step, direction, stop_beyond_kpa):
+        if _levels_off(model, curve, stretches, direction, stop_beyond_kpa):
             break
         if _turned(model, curve, stretches, res, direction, fall_steps):
             break
+        ds = step
+        if direction > 0 and len(stretches) >= 4:
+            ds = _next_step(model, curve, stretches, step, fall_steps)
+            if ds is None:
+                break
     return curve
 
 
@@ -259,15 +427,15 @@ def _out_of_range(curve, s, step, direction, stretches, deadline) -> bool:
     return False
 
 
-def _sample_options(model, options: SolverOptions, last, budget) -> SolverOptions:
-    """A sample's solver options: after the first, at most budget[0] times the longest
-    sample so far `last` (s) or budget[1] s; the first, under a body force, in at least
-    FIRST_STEPS load steps."""
-    if last is not None:
-        return replace(options, max_seconds=max(budget[0] * last, budget[1]))
-    if np.any(getattr(model, "body_force_mn", 0.0)):
-        return replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
-    return options
+def _sample_options(options: SolverOptions, last, budget) -> SolverOptions:
+    """A sample's solver options after the first: at most budget[0] times the longest
+    sample so far `last` (s) or budget[1] s, and at most SAMPLE_SUBDIVISIONS load-step
+    halvings."""
+    return replace(
+        options,
+        max_seconds=max(budget[0] * last, budget[1]),
+        max_subdivisions=min(options.max_subdivisions, SAMPLE_SUBDIVISIONS),
+    )
 
 
 def _no_equilibrium(curve, exc, s, direction) -> None:
@@ -279,10 +447,10 @@ def _no_equilibrium(curve, exc, s, direction) -> None:
         curve.collapse_pressure_kpa = min(curve.pressure_kpa)
 
 
-def _levels_off(model, curve, s, step, direction, stop_beyond_kpa) -> bool:
+def _levels_off(model, curve, stretches, direction, stop_beyond_kpa) -> bool:
     """Whether an inflation's curve levels off below the pressure asked
     (`levels_off_below`); then the bound and the end are the curve's."""
-    bound = levels_off_below(model, np.array(curve.pressure_kpa), s, step)
+    bound = levels_off_below(model, np.array(curve.pressure_kpa), np.array(stretches))
     if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
         curve.limit_bound_kpa = bound
         curve.end = f"the pressure levels off below {bound:.3g} kPa"
@@ -329,9 +497,11 @@ limit pressure a neo-Hookean sphere has grown 0.31 V0 by that linear measure whe
 following its chambers would cost every run minutes. A pressure screened out that is
 past a limit all the same fails in Newton, and `explain_failure` then names the limit."""
 
-CHECK_TOLERANCE = 1e-4
-"""Newton's relative residual on the samples of `check_pressures` (the pressure to three
-digits is all it needs)."""
+CHECK_TOLERANCE = 1e-3
+"""Newton's relative residual on the samples of a curve (`fruit limits`,
+`check_pressures`): on the default Fruit's chamber c3 the samples took 34 Newton steps
+(18.0 s of CPU) instead of 42 (22.6 s) at 1e-4, with the same pressures to four digits
+and the limit within 1e-5."""
 
 STEP_BUDGET = (4.0, 5.0)
 """Time budget of one sample of a curve: this many times the longest sample before it,
@@ -352,21 +522,19 @@ half as far from the last one: near a flat chamber's peak a step of 0.1 in the m
 stretch can be too long (the default Fruit's chambers together found none at 4.9 V0
 after 4.1 V0)."""
 
-CHECK_SUBDIVISIONS = 2
-"""Load-step halvings of a sample of `check_pressures` (the scene's [solver]
-max_subdivisions is for its states): a sample that needs more is past the range the
-check follows."""
+SAMPLE_SUBDIVISIONS = 2
+"""Load-step halvings of a sample of a curve after the first (the scene's [solver]
+max_subdivisions is for its states): a sample that needs more is past the range
+followed (the walls meeting, a step past a peak too long: `CURVE_HALVINGS` then tries a
+shorter one). With 6, the default Fruit's chambers c2 and c3 spent 29 s and 18 s of CPU
+(47 s and 42 s on a shared machine) on the suction sample that found no equilibrium
+within its budget."""
 
 
 def rest_compliance(model, solver) -> np.ndarray:
     """(K, K) dV_i/dp_j (mm^3/kPa) of the chambers at rest, from the solver's tangent
     there (its factor is then the one the first state starts with)."""
-    free = model.pattern.free
-    x = model.rest
-    kin = model.kinematics(x)
-    solver.update(kin[1], kin[0], None, False)  # at rest: positive semi-definite as is
-    h = model.chamber_gradients(x).reshape(len(model.chamber_tris), -1)[:, free]
-    return h @ solver.solve(np.ascontiguousarray(h.T)).reshape(len(h[0]), -1)
+    return response(model, solver, model.rest)[1]
 
 
 def kpa(value: float) -> str:
@@ -395,11 +563,14 @@ def _start_from_last(solver) -> None:
     solver.history, solver.sensitivity = solver.history[-1:], None
 
 
-def _check_curve(model, which, direction: int, asked: float, solver, check, progress, found):
+def _check_curve(
+    model, which, direction: int, asked: float, solver, check, progress, found, start=None
+):
     """The curve of chamber `which` (or of chambers along ratios `which`) followed as
     far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
-    (its analysis forgotten afterwards); with a `found` list, followed on to the limit
-    or collapse and appended to it as (direction, curve)."""
+    (its analysis forgotten afterwards) from `start` (`start_state`); with a `found`
+    list, followed on to the limit or collapse and appended to it as (direction,
+    curve)."""
     curve = follow(
         model,
         which,
@@ -412,6 +583,7 @@ def _check_curve(model, which, direction: int, asked: float, solver, check, prog
         stop_at_asked=found is None,
         beyond=(STEP_BUDGET, CURVE_HALVINGS if direction > 0 else 0),
         progress=progress,
+        start=start,
     )
     forget(solver)
     if found is not None:
@@ -442,7 +614,8 @@ def check_pressures(
     pressure, and only when that pressure's linearized growth passes SCREEN_GROWTH; on
     `solver` (the states' own: its analysis is kept, see `forget`). With a `found`
     list, the curves followed go on to the limit or collapse (unless a bound refuses
-    first) and are appended to it as (direction, curve)."""
+    first), all from the body's equilibrium under its weight (`start_state`), and are
+    appended to it as (direction, curve)."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -451,15 +624,25 @@ def check_pressures(
         options,
         tolerance=max(options.tolerance, CHECK_TOLERANCE),
         load_steps=1,
-        max_subdivisions=min(options.max_subdivisions, CHECK_SUBDIVISIONS),
+        max_subdivisions=min(options.max_subdivisions, SAMPLE_SUBDIVISIONS),
     )
     v0 = model.chamber_rest_volume_mm3
+    start: list = []  # the curves' `Start`, once one is followed on to its limit
+
+    def first():
+        if found is None:  # mostly one curve, a few samples: each from rest
+            return None
+        start[:] = start or [start_state(model, solver, check, progress)]
+        return start[0]
+
     for k, key in enumerate(keys):
         col = pressures[:, k][np.isfinite(pressures[:, k])]
         for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
             if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
                 continue
-            curve = _check_curve(model, k, direction, asked, solver, check, progress, found)
+            curve = _check_curve(
+                model, k, direction, asked, solver, check, progress, found, first()
+            )
             if (
                 direction > 0
                 and curve.limit_pressure_kpa is not None
@@ -515,17 +698,29 @@ def check_pressures(
                     "meet, and self-contact is not modelled); give `volume_growth_mm3` to "
                     "follow the suction"
                 )
-    check_together(model, pressures, keys, solver, check, compliance, screen, progress, found)
+    check_together(
+        model, pressures, keys, solver, check, compliance, screen, progress, found, first
+    )
 
 
 def check_together(
-    model, pressures, keys, solver, check, compliance, screen, progress=None, found=None
+    model,
+    pressures,
+    keys,
+    solver,
+    check,
+    compliance,
+    screen,
+    progress=None,
+    found=None,
+    start=None,
 ) -> None:
     """Refuse, in one line naming the state's keys, the state whose pressures, several
     chambers inflated together, are past the chambers' limit along their own ratios:
     the state with the largest chamber pressure among those with several (all pressure
     controlled), followed along its ratios (`follow` with ratios) as far as that
-    pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest."""
+    pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest.
+    `start()`, when given, returns the curves' `Start` (`start_state`)."""
     rows = np.nan_to_num(pressures, nan=-1.0)
     several = np.flatnonzero(((rows > 0).sum(1) >= 2) & (rows >= 0).all(1))
     if not len(several):
@@ -536,7 +731,7 @@ def check_together(
     v0 = model.chamber_rest_volume_mm3
     if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
         return
-    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found)
+    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found, start and start())
     if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
         return
     which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))

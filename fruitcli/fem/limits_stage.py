@@ -50,13 +50,14 @@ second sample past its peak took 185 s of the curve's 420 s)."""
 
 def curve_options(options) -> SolverOptions:
     """The scene's [solver] options for the samples of a curve: Newton's tolerance
-    loosened to `limits.CHECK_TOLERANCE` (the pressure to four digits)."""
+    loosened to `limits.CHECK_TOLERANCE`."""
     return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))
 
 
-def follow_both(model, k: int, options, progress=_noop) -> tuple:
-    """(suction curve, inflation curve) of chamber k, each on a fresh solver."""
-    kw = {"options": options, "progress": progress}
+def follow_both(model, k: int, options, progress=_noop, start=None) -> tuple:
+    """(suction curve, inflation curve) of chamber k, each on a fresh solver, from
+    `start` (`limits.start_state`)."""
+    kw = {"options": options, "progress": progress, "start": start}
     down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
     up = limits.follow(
         model, k, 1, fall_steps=CURVE_FALL_STEPS, halvings=limits.CURVE_HALVINGS, **kw
@@ -103,9 +104,10 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
     options = curve_options(solver_options(scene))
+    start = limits.start_state(model, model.make_solver(options.linear_solver), options, progress)
     chambers, rows, curves = {}, [], []
     for k, name in enumerate(model.chamber_names):
-        down, up = follow_both(model, k, options, progress)
+        down, up = follow_both(model, k, options, progress, start)
         curves.append((name, down, up))
         chambers[name] = {
             "limit_pressure_kpa": up.limit_pressure_kpa,
@@ -133,6 +135,7 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             fall_steps=CURVE_FALL_STEPS,
             halvings=limits.CURVE_HALVINGS,
             progress=progress,
+            start=start,
         )
         together = {
             "ratios": dict(zip(model.chamber_names, map(float, ratio), strict=True)),

@@ -10,14 +10,19 @@
    --docs, its pv.csv and a summary (the limits, the time, date, commit and machine)
    go to docs/data/fruit-limits.{csv,json}, from which `make docs` draws the figure of
    docs/explanation/limits.md.
+3. With --curves, instead of 2: each of the default Fruit's curves followed in this
+   process (`fruitcli.fem.limits.follow` as `fruit limits` does: the body under its
+   weight once, then each chamber's suction and inflation and the chambers together),
+   each with its wall and CPU time and its samples; --mesh DIR keeps the mesh there.
 
 Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-fruit]
-[--out DIR] [--docs]
+[--out DIR] [--docs] [--curves [--mesh DIR]]
 """
 
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -63,24 +68,35 @@ def sphere_refinement() -> None:
         )
 
 
+def children_cpu() -> float:
+    """CPU seconds (user + system, all threads) of the finished child processes."""
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
+def load_average() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
 def fruit_limits(out: Path, docs: bool = False) -> None:
     scene = ROOT / "pipelines" / "fruit-breathing.toml"
-    t0 = time.perf_counter()
+    t0, cpu0, load0 = time.perf_counter(), children_cpu(), load_average()
     fruit = Path(sys.executable).parent / "fruit"
     code = subprocess.call(
         [str(fruit), "-q", "limits", str(scene), "--out", str(out)],
         cwd=ROOT,
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
-    wall = time.perf_counter() - t0
+    wall, cpu, load = time.perf_counter() - t0, children_cpu() - cpu0, (load0, load_average())
     if code:
         print(f"fruit limits: exit {code}")
         return
     info = json.loads((out / "limits.json").read_text())
     print(
         f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
-        f"tets): {wall:.1f} s wall (make-tracks and tetra included), {info['seconds']:.1f} s "
-        "following the curves"
+        f"tets): {wall:.1f} s wall, {cpu:.1f} s CPU (all threads; make-tracks and tetra "
+        f"included), {info['seconds']:.1f} s following the curves; load average "
+        f"{load[0]} -> {load[1]}"
     )
     import tomllib
 
@@ -103,12 +119,13 @@ def fruit_limits(out: Path, docs: bool = False) -> None:
             + ("none up to 27 V0" if lim is None else f"{lim:.4g} kPa (largest chamber)")
         )
     if docs:
-        write_docs(out, info, wall, asked)
+        write_docs(out, info, wall, asked, cpu, load)
 
 
-def write_docs(out: Path, info: dict, wall: float, asked: dict) -> None:
+def write_docs(out: Path, info: dict, wall: float, asked: dict, cpu: float, load) -> None:
     """docs/data/fruit-limits.csv (the pv.csv) and fruit-limits.json (the limits, the
-    breathing's largest pressures, the times, date, commit and machine)."""
+    breathing's largest pressures, the times (wall, CPU), load average before and after,
+    date, commit and machine)."""
     import datetime
     import shutil
 
@@ -125,11 +142,59 @@ def write_docs(out: Path, info: dict, wall: float, asked: dict) -> None:
         "machine": f"{processor()}, {os.cpu_count()} cores",
         "scene": "pipelines/fruit-breathing.toml",
         "wall_seconds": round(wall, 1),
+        "cpu_seconds": round(cpu, 1),
+        "load_average": list(load),
         "breathing_max_kpa": {c: max(v) for c, v in asked.items()},
         **info,
     }
     (data / "fruit-limits.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(f"wrote {data / 'fruit-limits.csv'} and fruit-limits.json")
+
+
+def fruit_curves(mesh_dir: Path) -> None:
+    """Each curve of `fruit limits` on the default Fruit, timed (wall and CPU)."""
+    sys.path.insert(0, str(HERE))
+    from bench_state import default_mesh
+
+    from fruitcli.fem import io, limits
+    from fruitcli.fem.limits_stage import CURVE_FALL_STEPS, curve_options, scene_ratios
+    from fruitcli.fem.stage import build_model, solver_options
+    from fruitcli.scene import load_scene
+
+    scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
+    model = build_model(scene, io.load_mesh(default_mesh(mesh_dir, scene)))
+    options = curve_options(solver_options(scene))
+    print(f"the default Fruit's curves, one by one; load average {load_average()}")
+    t0, c0 = time.perf_counter(), time.process_time()
+    start = limits.start_state(model, model.make_solver(options.linear_solver), options)
+    print(
+        f"  the body under its weight: {time.perf_counter() - t0:.1f} s wall, "
+        f"{time.process_time() - c0:.1f} s CPU"
+    )
+    curves = [(name, k, d) for k, name in enumerate(model.chamber_names) for d in (-1, 1)]
+    curves.append((limits.TOGETHER, scene_ratios(scene, model.chamber_names), 1))
+    for name, k, d in curves:
+        t1, c1 = time.perf_counter(), time.process_time()
+        halvings = limits.CURVE_HALVINGS if d > 0 else 0
+        curve = limits.follow(
+            model,
+            k,
+            d,
+            options=options,
+            fall_steps=CURVE_FALL_STEPS,
+            halvings=halvings,
+            start=start,
+        )
+        value = curve.limit_pressure_kpa if d > 0 else curve.collapse_pressure_kpa
+        print(
+            f"  {name} {'inflation' if d > 0 else 'suction'}: {value} kPa ({curve.end}); "
+            f"{len(curve.pressure_kpa) - 1} samples, {time.perf_counter() - t1:.1f} s wall, "
+            f"{time.process_time() - c1:.1f} s CPU"
+        )
+    print(
+        f"all: {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s CPU; "
+        f"load average {load_average()}"
+    )
 
 
 def main() -> None:
@@ -138,10 +203,17 @@ def main() -> None:
     parser.add_argument("--no-fruit", action="store_true")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--docs", action="store_true", help="write docs/data/fruit-limits.*")
+    parser.add_argument("--curves", action="store_true", help="each curve timed in-process")
+    parser.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
     args = parser.parse_args()
     if not args.no_sphere:
         sphere_refinement()
-    if not args.no_fruit:
+    if args.curves:
+        with tempfile.TemporaryDirectory() as tmp:
+            mesh_dir = args.mesh or Path(tmp)
+            mesh_dir.mkdir(parents=True, exist_ok=True)
+            fruit_curves(mesh_dir)
+    elif not args.no_fruit:
         with tempfile.TemporaryDirectory() as tmp:
             fruit_limits(args.out or Path(tmp) / "limits", args.docs)
 

@@ -19,6 +19,7 @@ Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit] [--without
 import argparse
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -83,11 +84,20 @@ def refusal(scene: Path, out: Path, pardiso: bool = True) -> tuple[float | None,
     return (None if meshed is None else at - meshed), time.monotonic() - t0, code, last
 
 
+def children_cpu() -> float:
+    """CPU seconds (user + system, all threads) of the finished child processes."""
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
 def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
-    """One line: `refusal` of `scene`, timed from the mesh to its last line."""
+    """One line: `refusal` of `scene`, timed from the mesh to its last line (wall), and
+    the whole command's CPU time (all threads, meshing included)."""
+    cpu0 = children_cpu()
     after, wall, code, last = refusal(scene, out, pardiso)
+    cpu = children_cpu() - cpu0
     when = "?" if after is None else f"{after:.1f} s"
-    return f"{when} after the mesh, {wall:.1f} s in all, exit {code}: {last[:90]}"
+    return f"{when} after the mesh, {wall:.1f} s in all ({cpu:.1f} s CPU), exit {code}: {last[:90]}"
 
 
 def main() -> None:
