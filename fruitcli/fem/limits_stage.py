@@ -21,11 +21,11 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fruitcli.fem import io, limits
+from fruitcli.fem import io, limits, pressure_check
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
@@ -93,7 +93,7 @@ def _write_limits(out_dir, model, t0: float, chambers, together, rows, curves) -
         if curves:
             write_csv(tmp / "pv.csv", ["chamber", "volume_growth_mm3", "pressure_kpa"], rows)
             plot_curves(tmp / "pv.png", curves)
-        write_json(tmp / limits.LIMITS_FILE, info)
+        write_json(tmp / pressure_check.LIMITS_FILE, info)
     return info
 
 
@@ -143,8 +143,9 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
             "limit_volume_growth_mm3": up.limit_growth_mm3,
             "inflation_end": up.end,
         }
-        samples = zip(up.growth_mm3, up.pressure_kpa, strict=True)
-        rows += [(limits.TOGETHER, g, p) for g, p in samples]
+        rows += [
+            (limits.TOGETHER, g, p) for g, p in zip(up.growth_mm3, up.pressure_kpa, strict=True)
+        ]
         curves.append((limits.TOGETHER, limits.ChamberCurve(limits.TOGETHER, 0.0), up))
         progress(f"limits: chambers together: limit pressure {_kpa(up.limit_pressure_kpa)}")
     return _write_limits(out_dir, model, t0, chambers, together, rows, curves)
@@ -211,7 +212,7 @@ NEAR_SHEAR_FRACTION = 0.5
 reaches this fraction of the material's shear modulus: the incompressible neo-Hookean
 sphere's limit pressure is 0.49 mu when its wall is half its cavity radius thick (B/A
 = 1.5), 0.82 mu at B/A = 2. Below it `simulate` checks the pressures itself (its
-compliance screen, `limits.SCREEN_GROWTH`); the default Fruit's breathing (12 kPa,
+compliance screen, `pressure_check.SCREEN_GROWTH`); the default Fruit's breathing (12 kPa,
 0.36 mu) stays below."""
 
 
@@ -238,28 +239,28 @@ def near_limit(scene) -> tuple[bool, str]:
 
 def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
     """The planner's `limits` stage: the scene's pressures checked against the limits
-    (`limits.check_pressures` on the scene's states, without its screen: the planner
+    (`pressure_check.check_pressures` on the scene's states, without its screen: the planner
     runs this stage when the pressures come near a limit, `near_limit`), each
     pressurised chamber's curve followed on to its limit or collapse; raises the
     check's one line for a pressure past one, else writes out_dir/limits.json
     (chambers.<name>.{followed, limit_pressure_kpa, limit_volume_growth_mm3,
     collapse_pressure_kpa}, together (or None), element, mesh, seconds) and, when a
     curve was followed, pv.csv and pv.png. `simulate` then skips its own check
-    (`limits.checked_by`)."""
+    (`pressure_check.checked_by`)."""
     progress = progress or _noop
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
     names = model.chamber_names
     loads = state_loads(scene, names)
-    limits.check_growth(model, loads)
+    pressure_check.check_growth(model, loads)
     asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
-    keys = limits.pressure_keys(names)
+    keys = pressure_check.pressure_keys(names)
     found: list = []
     solver = model.make_solver(scene.solver.linear_solver)
-    limits.check_pressures(
+    pressure_check.check_pressures(
         model, asked, keys, solver, solver_options(scene), progress, screen=0.0, found=found
     )
-    chambers = {
+    chambers: dict[str, dict[str, Any]] = {
         c: {
             "followed": [],
             "limit_pressure_kpa": None,
@@ -268,13 +269,15 @@ def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
         }
         for c in names
     }
-    together, rows, curves = None, [], {}
+    together: dict[str, Any] | None = None
+    rows: list[tuple[str, float, float]] = []
+    by_name: dict[str, tuple[limits.ChamberCurve, limits.ChamberCurve]] = {}
     for direction, curve in found:
         samples = list(zip(curve.growth_mm3[1:], curve.pressure_kpa[1:], strict=True))
         rows += [(curve.name, g, p) for g, p in samples]
-        down, up = curves.get(curve.name, (limits.ChamberCurve(curve.name, 0.0),) * 2)
-        curves[curve.name] = (curve, up) if direction < 0 else (down, curve)
-        entry = {
+        down, up = by_name.get(curve.name, (limits.ChamberCurve(curve.name, 0.0),) * 2)
+        by_name[curve.name] = (curve, up) if direction < 0 else (down, curve)
+        entry: dict[str, Any] = {
             "followed": [],
             "limit_pressure_kpa": curve.limit_pressure_kpa,
             "limit_volume_growth_mm3": curve.limit_growth_mm3,
@@ -290,8 +293,8 @@ def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
         else:
             entry["collapse_pressure_kpa"] = curve.collapse_pressure_kpa
     if found:
-        rows = sorted([(c, 0.0, 0.0) for c in curves] + rows, key=lambda r: (r[0], r[1]))
-    curves = [(c, d, u) for c, (d, u) in curves.items()]
+        rows = sorted([(c, 0.0, 0.0) for c in by_name] + rows, key=lambda r: (r[0], r[1]))
+    curves = [(c, d, u) for c, (d, u) in by_name.items()]
     info = _write_limits(out_dir, model, t0, chambers, together, rows, curves)
     progress(
         "limits: "

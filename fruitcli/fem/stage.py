@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import MeshError, SceneError, SolverError
-from fruitcli.fem import io, limits
+from fruitcli.fem import io, pressure_check
 from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.corotational_model import Load, Model
 from fruitcli.fem.elements import barycentric, tet4
@@ -352,7 +352,7 @@ def run_simulate(
     pressure vectors; write out_dir/states.npz (see module docstring), and
     out_dir/yarns.csv from the tracks of [tracks] file, else of `tracks_csv`, when any.
     The pressures are checked against the chambers' limits first, unless `limits_dir`
-    holds the planner's limits stage output for them (`limits_stage.checked_by`)."""
+    holds the planner's limits stage output for them (`pressure_check.checked_by`)."""
     progress = progress or _noop
     tracks_csv = scene.tracks.file or tracks_csv
     tracks = None
@@ -369,13 +369,13 @@ def run_simulate(
     keys = (
         [f"--pressures {c}_kpa" for c in model.chamber_names]
         if pressures is not None
-        else limits.pressure_keys(model.chamber_names)
+        else pressure_check.pressure_keys(model.chamber_names)
     )
     if model.chamber_tris:
-        limits.check_growth(model, loads)
+        pressure_check.check_growth(model, loads)
         asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
-        if pressures is not None or not limits.checked_by(limits_dir):
-            limits.check_pressures(
+        if pressures is not None or not pressure_check.checked_by(limits_dir):
+            pressure_check.check_pressures(
                 model, asked, keys, solver, solver_options(scene), progress=progress
             )
     results = _solve_states(scene, model, loads, keys, solver, progress)
@@ -430,7 +430,7 @@ def _loads(scene, model, pressures) -> list:
 
 def _solve_states(scene, model, loads, keys, solver, progress) -> list:
     """Each load's equilibrium, from the last one's (a failure past a chamber's limit
-    named by `limits.explain_failure`); one progress line per state."""
+    named by `pressure_check.explain_failure`); one progress line per state."""
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
@@ -447,7 +447,9 @@ def _solve_states(scene, model, loads, keys, solver, progress) -> list:
                 progress=lambda msg: progress(f"simulate: {msg}"),
             )
         except SolverError as exc:  # past a limit the check screened out? name it
-            limits.explain_failure(model, load, keys, solver, solver_options(scene), exc, progress)
+            pressure_check.explain_failure(
+                model, load, keys, solver, solver_options(scene), exc, progress
+            )
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
         progress(state_line(i, len(loads), [r.solve_ms for r in results], res))

@@ -366,7 +366,7 @@ def run_case(case: Case) -> StabilityRow:
         if case.kind in REALISTIC:
             from dataclasses import replace
 
-            from fruitcli.fem import limits
+            from fruitcli.fem import pressure_check
 
             def left() -> float:  # the row's budget left (s), less the margin; >= 1 s
                 spent = time.perf_counter() - t0
@@ -374,8 +374,8 @@ def run_case(case: Case) -> StabilityRow:
 
             options = replace(options, load_steps=4, max_seconds=left())
             solver = model.make_solver()
-            keys = limits.pressure_keys(model.chamber_names)
-            limits.check_pressures(model, load.pressure_kpa[None, :], keys, solver, options)
+            keys = pressure_check.pressure_keys(model.chamber_names)
+            pressure_check.check_pressures(model, load.pressure_kpa[None, :], keys, solver, options)
             options = replace(options, max_seconds=left())
             row["note"] = ""
         else:

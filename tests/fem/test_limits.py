@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem import limits
+from fruitcli.fem import limits, pressure_check
 from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.limits_stage import run_limits
@@ -146,7 +146,7 @@ def test_suction_to_the_end_of_the_range_is_a_collapse(monkeypatch):
     assert curve.end == "the cavity is nearly empty, at 0.512 V0"
     assert curve.collapse_pressure_kpa == min(curve.pressure_kpa) < 0
     with pytest.raises(SceneError, match=r"-500 kPa is past this chamber's collapse pressure"):
-        limits.check_pressures(
+        pressure_check.check_pressures(
             model, np.array([[-500.0]]), ["k"], model.make_solver(), SolverOptions()
         )
 
@@ -172,7 +172,7 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     options = SolverOptions()
     key = ["[actuation].pressure_kpa.c"]
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(
+        pressure_check.check_pressures(
             model, np.array([[5.0], [28.0]]), key, model.make_solver(), options, screen=0.0
         )
     line = str(info.value)
@@ -180,12 +180,12 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     assert lim == pytest.approx(0.8052 * model.material.shear_modulus_kpa, rel=0.01)
     assert line == (
         f"[actuation].pressure_kpa.c: 28 kPa is past this chamber's limit "
-        f"pressure of {limits.kpa(lim)} kPa (no equilibrium above it); give "
+        f"pressure of {pressure_check.kpa(lim)} kPa (no equilibrium above it); give "
         "`volume_growth_mm3` to follow the inflation past it"
     )
     told = []
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(
+        pressure_check.check_pressures(
             model, np.array([[100.0]]), key, model.make_solver(), options, progress=told.append
         )
     line = str(info.value)
@@ -193,7 +193,7 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     assert lim < bound < 100.0
     assert line == (
         f"[actuation].pressure_kpa.c: 100 kPa is past this chamber's limit "
-        f"pressure, which is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume "
+        f"pressure, which is at most {pressure_check.kpa(bound)} kPa (a bound: its pressure-volume "
         "curve levels off, and there is no equilibrium above its peak; `fruit limits` "
         "computes the limit); give `volume_growth_mm3` to follow the inflation past it"
     )
@@ -203,12 +203,14 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
         match=r"^\[actuation\].pressure_kpa.c: -500 kPa is past "
         r"this chamber's collapse( pressure of -\d|: no equilibrium was found beyond -\d)",
     ):
-        limits.check_pressures(model, np.array([[-500.0]]), key, model.make_solver(), options)
-    limits.check_pressures(
+        pressure_check.check_pressures(
+            model, np.array([[-500.0]]), key, model.make_solver(), options
+        )
+    pressure_check.check_pressures(
         model, np.array([[10.0], [-10.0], [np.nan]]), key, model.make_solver(), options
     )
     told = []
-    limits.check_pressures(
+    pressure_check.check_pressures(
         model, np.array([[0.5]]), key, model.make_solver(), options, progress=told.append
     )
     assert told == []  # screened out: no sample followed
@@ -221,7 +223,7 @@ def test_a_failed_state_past_the_limit_is_named():
     model = octant_ball(1, 1, nu=0.49)
     key = ["[actuation].pressure_kpa.c"]
     solver = model.make_solver()
-    limits.check_pressures(model, np.array([[28.0]]), key, solver, SolverOptions())
+    pressure_check.check_pressures(model, np.array([[28.0]]), key, solver, SolverOptions())
     load = Load.pressures([28.0])
     with pytest.raises(SolverError) as failed:
         solve_state(model, load, options=SolverOptions(load_steps=4), solver=solver)
@@ -230,10 +232,10 @@ def test_a_failed_state_past_the_limit_is_named():
         match=r"^\[actuation\].pressure_kpa.c: 28 kPa is past "
         r"this chamber's limit pressure of 27.0 kPa ",
     ):
-        limits.explain_failure(model, load, key, solver, SolverOptions(), failed.value)
+        pressure_check.explain_failure(model, load, key, solver, SolverOptions(), failed.value)
     original = SolverError("state 0: no equilibrium")
     with pytest.raises(SolverError, match="^state 0: no equilibrium$"):
-        limits.explain_failure(
+        pressure_check.explain_failure(
             model, Load.pressures([10.0]), key, solver, SolverOptions(), original
         )
 
@@ -356,9 +358,9 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     assert cav["limit_pressure_kpa"] < bound < 2000.0
     assert line == (
         f"[actuation].pressure_kpa.c: 2000 kPa is past this chamber's limit pressure, which "
-        f"is at most {limits.kpa(bound)} kPa (a bound: its pressure-volume curve levels off, "
-        "and there is no equilibrium above its peak; `fruit limits` computes the limit); "
-        "give `volume_growth_mm3` to follow the inflation past it"
+        f"is at most {pressure_check.kpa(bound)} kPa (a bound: its pressure-volume curve "
+        "levels off, and there is no equilibrium above its peak; `fruit limits` computes the "
+        "limit); give `volume_growth_mm3` to follow the inflation past it"
     )
     assert not (tmp_path / "sim" / "states.npz").exists()
 
@@ -379,7 +381,7 @@ def test_volume_growth_below_minus_the_rest_volume_is_refused():
     model = octant_ball(1, 1, nu=0.49)
     v0 = model.chamber_rest_volume_mm3[0]
     ok = Load(np.zeros(1), np.array([-0.5 * v0]), np.array([True]))
-    limits.check_growth(model, [ok])
+    pressure_check.check_growth(model, [ok])
     bad = Load(np.zeros(1), np.array([-2 * v0]), np.array([True]))
     with pytest.raises(
         SceneError,
@@ -387,7 +389,7 @@ def test_volume_growth_below_minus_the_rest_volume_is_refused():
         r"mm\^3 would leave the chamber no volume \(its rest "
         r"volume is \d+(\.\d+)? mm\^3\): expected more than ",
     ):
-        limits.check_growth(model, [ok, bad])
+        pressure_check.check_growth(model, [ok, bad])
 
 
 def nested_octant_balls(nu=0.49):
@@ -442,11 +444,11 @@ def test_a_state_past_the_limit_together_is_refused():
     model = nested_octant_balls()
     keys = ["[actuation].pressure_kpa.c", "[actuation].pressure_kpa.d"]
     solver = model.make_solver()
-    compliance = limits.rest_compliance(model, solver)
+    compliance = pressure_check.rest_compliance(model, solver)
     assert compliance.shape == (2, 2) and abs(compliance[0, 1]) < 1e-9 * compliance[0, 0]
     options = SolverOptions(tolerance=limits.CHECK_TOLERANCE)
     with pytest.raises(SceneError) as info:
-        limits.check_together(
+        pressure_check.check_together(
             model, np.array([[5.0, 0.0], [28.0, 28.0]]), keys, solver, options, compliance, 0.0
         )
     line = str(info.value)
@@ -455,11 +457,11 @@ def test_a_state_past_the_limit_together_is_refused():
     assert line == (
         "state 1: [actuation].pressure_kpa.c 28 kPa, [actuation].pressure_kpa.d 28 kPa: "
         "together these are past the chambers' limit along these ratios, where the "
-        f"largest chamber pressure is {limits.kpa(lim)} kPa; no equilibrium above it; "
+        f"largest chamber pressure is {pressure_check.kpa(lim)} kPa; no equilibrium above it; "
         "lower them or give `volume_growth_mm3`"
     )
     for ok in ([[20.0, 10.0]], [[28.0, 0.0]]):
-        limits.check_together(model, np.array(ok), keys, solver, options, compliance, 0.0)
+        pressure_check.check_together(model, np.array(ok), keys, solver, options, compliance, 0.0)
 
 
 @pytest.mark.parametrize(
@@ -606,7 +608,7 @@ def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     slow, failed = failing_once_at(1.5, OutOfTime("chamber c: out of time (forced)", 0.5))
     monkeypatch.setattr(limits, "solve_state", slow)
     found = []
-    limits.check_pressures(
+    pressure_check.check_pressures(
         model,
         np.array([[20.0]]),
         ["k"],
@@ -632,7 +634,7 @@ def test_a_first_sample_without_equilibrium_is_refused_as_not_holding(monkeypatc
     flaky, failed = failing_once_at(1.1, error)
     monkeypatch.setattr(limits, "solve_state", flaky)
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(
+        pressure_check.check_pressures(
             model, np.array([[5.0]]), ["k"], model.make_solver(), SolverOptions(), screen=0.0
         )
     assert failed
@@ -718,7 +720,7 @@ def test_a_failed_sample_is_tried_again_with_half_the_step(monkeypatch):
     assert ended.failed and ended.end == "no equilibrium at 2.20 V0"
     failed.clear()
     with pytest.raises(SceneError) as info:
-        limits.check_pressures(
+        pressure_check.check_pressures(
             model, np.array([[26.0]]), ["k"], model.make_solver(), SolverOptions(), screen=0.0
         )
     assert str(info.value).startswith(

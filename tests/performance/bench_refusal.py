@@ -1,5 +1,5 @@
 """Benchmark: how soon `fruit simulate` refuses a chamber pressure past the chamber's
-limit pressure (inflation) or collapse (suction) (`fruitcli.fem.limits.check_pressures`).
+limit pressure (inflation) or collapse (suction) (`fruitcli.fem.pressure_check.check_pressures`).
 
 1. A thick sphere (outer radius 20 mm: an icosphere of 1,280 faces; cavity radius 10 mm;
    E = 100 kPa, nu = 0.45, `[mesh] size_mm = 3`, the default quadratic element; no

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem import limits
+from fruitcli.fem import limits, pressure_check
 from fruitcli.fem.solver import continuum_linsolve, pardiso
 from fruitcli.fem.solver.options import SolverOptions
 from tests.fem.meshing.test_mesh import octant_ball
@@ -86,7 +86,7 @@ def test_limit_and_refusals_are_the_same_without_pardiso(monkeypatch):
         lines = []
         for p in (28.0, -500.0):
             with pytest.raises(SceneError) as info:
-                limits.check_pressures(
+                pressure_check.check_pressures(
                     small, np.array([[p]]), key, small.make_solver(), SolverOptions(), screen=0.0
                 )
             lines.append(str(info.value))
