@@ -126,7 +126,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     from fruitcli.studies import runtime as rt
     from fruitcli.studies.parallel import run_cases
     from fruitcli.workflow import planner
-    from fruitcli.workflow.stage_paths import solid_path, states_path, taxels_path
+    from fruitcli.workflow.stage_paths import required_taxels_path, solid_path, states_path
 
     with fruit_errors(), contextlib.ExitStack() as stack:
         scene = load_scene(scene_file)
@@ -142,7 +142,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
         # the scene's own stages: copied from the demo's out/<scene> when identical
         planner.run(scene, base, progress=Progress("   "), shared=out.resolve().parent)
         ctx = planner.Context(base)
-        solid, taxels = solid_path(scene, ctx), taxels_path(scene, ctx)
+        solid, taxels = solid_path(scene, ctx), required_taxels_path(scene, ctx)
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
         default = scene.mesh.size_mm

@@ -38,7 +38,7 @@ def columns(rows: list[dict], keys: list[str]) -> list[str]:
     )
 
 
-def cell(value) -> str:
+def cell(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
@@ -163,5 +163,5 @@ def axis_label(figure: str) -> str:
     return LABELS.get(figure, figure)
 
 
-def _number(value) -> bool:
+def _number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
