@@ -76,7 +76,7 @@ def run_bench(
     states_npz_or_none: str | os.PathLike | None,
     out_dir: str | os.PathLike,
     progress: Callable[[str], None] | None = None,
-    surface_path: str | os.PathLike | None = None,
+    surface_path: str | Path | None = None,
     surface_unit: str = "mm",
     crossing_dir: str | Path | None = None,
 ) -> dict:

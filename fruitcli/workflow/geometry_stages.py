@@ -58,6 +58,7 @@ def _tracks_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 
     geo, tr, grid = scene.geometry, scene.tracks, scene.grid
+    assert geo.artist is not None  # `_tracks_needed`
     report = make_tracks(
         geo.artist,
         out_dir,
@@ -89,6 +90,7 @@ def _pad_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.geometry.padgrid import check_pad_size, write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
+    assert scene.geometry.pad_size_mm is not None  # `_pad_needed`
     args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
     check_pad_size(args[0], args[1], scene.path.name)
     n = write_pad_taxels(out_dir / "taxels.csv", *args)
