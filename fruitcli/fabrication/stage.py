@@ -44,7 +44,7 @@ def load_solid(path: str | Path, what: str) -> mf.Manifold:
     return m
 
 
-def scene_chambers(scene) -> list:
+def scene_chambers(scene) -> list:  # noqa: ANN001 (a Scene: fabrication may not import it)
     """[(name, Manifold)] of the scene's chambers (mm)."""
     import manifold3d as mf
 
