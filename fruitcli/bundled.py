@@ -52,7 +52,7 @@ def _first_clause(text: str) -> str:
     return text.rstrip(".")
 
 
-def _strings(node) -> list[str]:
+def _strings(node: object) -> list[str]:
     """Every string value in a parsed TOML document."""
     if isinstance(node, str):
         return [node]

@@ -17,6 +17,14 @@ import importlib.util
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from importlib.machinery import ModuleSpec
+    from types import ModuleType
+
+    from numba.core.event import Event as NumbaEvent
 
 ANNOUNCE = (
     "compiling fruit's numerical kernels (numba), once after an install or update; "
@@ -28,16 +36,16 @@ class Notice:
     """Counts top-level compiles and their time; `say(line)` hears the first and the
     total at exit."""
 
-    def __init__(self, say):
+    def __init__(self, say: Callable[[str], None]):
         self.say = say
         self.silent = False
         self.lock = threading.Lock()
         self.depth = threading.local()
-        self.started = None
+        self.started: float | None = None
         self.seconds = 0.0
         self.kernels = 0
 
-    def on_event(self, event) -> None:
+    def on_event(self, event: NumbaEvent) -> None:
         """numba's event listener: a compile's start and end (nested compiles, of the
         functions a kernel calls, count as part of it)."""
         depth = getattr(self.depth, "n", 0)
@@ -70,10 +78,10 @@ def _listen(notice: Notice) -> None:
     from numba.core import event
 
     class Listener(event.Listener):
-        def on_start(self, ev) -> None:
+        def on_start(self, ev: NumbaEvent) -> None:
             notice.on_event(ev)
 
-        def on_end(self, ev) -> None:
+        def on_end(self, ev: NumbaEvent) -> None:
             notice.on_event(ev)
 
     event.register("numba:compile", Listener())
@@ -87,7 +95,9 @@ class _AfterImport(importlib.abc.MetaPathFinder):
     def __init__(self, notice: Notice):
         self.notice = notice
 
-    def find_spec(self, name, path=None, target=None):
+    def find_spec(
+        self, name: str, path: Sequence[str] | None = None, target: ModuleType | None = None
+    ):
         if name != "numba":
             return None
         sys.meta_path.remove(self)
@@ -97,11 +107,13 @@ class _AfterImport(importlib.abc.MetaPathFinder):
         loader, notice = spec.loader, self.notice
 
         class Then(importlib.abc.Loader):
-            def create_module(self, spec):
+            def create_module(self, spec: ModuleSpec):
                 return loader.create_module(spec)
 
-            def exec_module(self, module) -> None:
-                module.__spec__.loader = module.__loader__ = loader
+            def exec_module(self, module: ModuleType) -> None:
+                if module.__spec__ is not None:
+                    module.__spec__.loader = loader
+                module.__loader__ = loader
                 loader.exec_module(module)
                 _listen(notice)
 
@@ -113,7 +125,7 @@ NOTICE: Notice | None = None
 """The process's notice, once `install` ran (the console entry point runs it)."""
 
 
-def install(say) -> Notice:
+def install(say: Callable[[str], None]) -> Notice:
     """Announce numba's compiles in this process through `say(line)` (once per process:
     a second call returns the first notice)."""
     global NOTICE

@@ -37,7 +37,7 @@ LINE_CHARS = 2000
 """Longest error line printed (characters); longer ones are cut in their middle."""
 
 
-def echo(value, limit: int = ECHO_CHARS) -> str:
+def echo(value: object, limit: int = ECHO_CHARS) -> str:
     """`repr(value)`, cut to `limit` characters with "…" when longer."""
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 1] + "…"

@@ -14,7 +14,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 
@@ -52,12 +52,12 @@ def write_text(path: str | os.PathLike, text: str) -> None:
         Path(tmp).write_text(text)
 
 
-def write_json(path: str | os.PathLike, obj) -> None:
+def write_json(path: str | os.PathLike, obj: object) -> None:
     """Write `obj` as indented JSON atomically."""
     write_text(path, json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n")
 
 
-def _json_default(obj):
+def _json_default(obj: object):
     import numpy as np
 
     if isinstance(obj, np.generic):
@@ -70,7 +70,10 @@ def _json_default(obj):
 
 
 def write_csv(
-    path: str | os.PathLike, header: list[str], rows, comments: Sequence[str] = ()
+    path: str | os.PathLike,
+    header: list[str],
+    rows: Iterable[Sequence[object]],
+    comments: Sequence[str] = (),
 ) -> None:
     """Write a CSV atomically; `comments` become leading `# ` lines (units, provenance)."""
     buf = io.StringIO()
@@ -83,7 +86,7 @@ def write_csv(
     write_text(path, buf.getvalue())
 
 
-def _fmt(value) -> str:
+def _fmt(value: object) -> str:
     if isinstance(value, float):
         return f"{value:.6f}"
     return str(value)

@@ -4,6 +4,7 @@ available is one line with the estimate, not a process killed by the kernel."""
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 
 from fruitcli.errors import FruitError
 
@@ -27,7 +28,7 @@ def available_bytes() -> int:
         return 2**63 - 1
 
 
-def require(nbytes: float, what: str, error=FruitError) -> None:
+def require(nbytes: float, what: str, error: Callable[[str], Exception] = FruitError) -> None:
     """Raise `error` naming `what` when `nbytes` exceeds SHARE of the available memory."""
     have = available_bytes()
     if nbytes > SHARE * have:

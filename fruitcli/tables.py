@@ -11,6 +11,7 @@ import math
 import os
 import zipfile
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,10 @@ from fruitcli.errors import FruitError
 
 
 def read_table(
-    path: str | Path, required: list[str], numeric: list[str] | None = None, error=FruitError
+    path: str | Path,
+    required: list[str],
+    numeric: list[str] | None = None,
+    error: Callable[[str], Exception] = FruitError,
 ) -> dict[str, np.ndarray]:
     """Read a CSV into columns. `required` columns must exist; `numeric` ones (default:
     all required) must be finite numbers. Returns {column: (n,) array} (str for others)."""
@@ -80,7 +84,12 @@ def read_table(
     }
 
 
-def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint: str = "") -> dict:
+def read_npz_arrays(
+    path: str | Path,
+    what: str,
+    error: Callable[[str], Exception] = FruitError,
+    missing_hint: str = "",
+) -> dict:
     """All arrays of an npz file (`allow_pickle=False`) as a dict. A missing or unreadable
     file is one `error` line naming it; `what` says what it should be ("states .npz")."""
     path = Path(path)
@@ -97,7 +106,7 @@ def read_npz_arrays(path: str | Path, what: str, error=FruitError, missing_hint:
         raise error(f"{path}: not a readable {what}: {why}") from None
 
 
-def check_zip(path: str | Path, what: str, error=FruitError) -> None:
+def check_zip(path: str | Path, what: str, error: Callable[[str], Exception] = FruitError) -> None:
     """Read every member of the zip archive `path` (an .npz) and compare it with its stored
     CRC-32, as `np.load` does not: a flipped bit is one `error` line naming the file and
     member instead of wrong numbers."""
@@ -134,7 +143,9 @@ EXACT_INTEGER = 2**53
 beyond it would be rounded into each other, or not fit a 64-bit integer."""
 
 
-def integer_column(path: Path, cols: dict, name: str, error=FruitError) -> np.ndarray:
+def integer_column(
+    path: Path, cols: dict, name: str, error: Callable[[str], Exception] = FruitError
+) -> np.ndarray:
     """Column `name` of a `read_table` result as int64: every value an integer within
     +-EXACT_INTEGER, else one `error` naming the file, data row and column."""
     values = cols[name]
@@ -148,7 +159,7 @@ def integer_column(path: Path, cols: dict, name: str, error=FruitError) -> np.nd
     return values.astype(np.int64)
 
 
-def read_taxels(path: str | os.PathLike, error=FruitError) -> Taxels:
+def read_taxels(path: str | os.PathLike, error: Callable[[str], Exception] = FruitError) -> Taxels:
     """Read a taxel CSV (``#`` comments, header with at least id,i,j,x_mm,y_mm,z_mm, and
     optionally nx,ny,nz): integer grid indices >= 0, unique ids and grid indices. Every
     problem is one `error` naming the file and the data row."""

@@ -152,16 +152,16 @@ def bench(
 
 
 def real_bench(
-    scene_path,
-    taxels_csv,
-    states_npz,
-    out_dir,
-    printer_port,
-    board_port,
-    indenter,
-    fmt,
-    board_baud,
-    overwrite,
+    scene_path: str | Path,
+    taxels_csv: Path | None,
+    states_npz: Path | None,
+    out_dir: Path,
+    printer_port: str | None,
+    board_port: str | None,
+    indenter: str | None,
+    fmt: str,
+    board_baud: int,
+    overwrite: bool,
 ) -> None:
     """`fruit bench --printer --board`: the protocol on hardware (fruitcli.bench)."""
     from fruitcli.errors import SceneError
@@ -185,6 +185,11 @@ def real_bench(
         if taxels is None:
             taxels, found = scene_products(scene, progress=progress)
             states_npz = states_npz or found
+        if taxels is None:
+            raise SceneError(
+                f"{scene_path}: no taxels: give --taxels or [grid].taxels (a CSV of "
+                "id,i,j,x_mm,y_mm,z_mm)"
+            )
         try:
             res = run_printer_bench(
                 printer_bench_inputs(scene),

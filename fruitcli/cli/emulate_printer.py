@@ -4,6 +4,7 @@ pseudo-terminals, the board's frames made by the skin's forward model at the tip
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable
 
 import click
 
@@ -17,7 +18,7 @@ from fruitcli.cli.options import (
 from fruitcli.workflow.scene_outputs import scene_products
 
 
-def parse_faults(specs) -> dict:
+def parse_faults(specs: Iterable[str]) -> dict:
     """``resend:5`` ``no-ok:12`` ``halt:20`` -> {"resend": [5], ...}."""
     from fruitcli.printer.emulator import FAULTS
 

@@ -17,8 +17,13 @@ from fruitcli.workflow.scene_outputs import scene_products
 if TYPE_CHECKING:
     from serial import SerialBase
 
+    from fruitcli.fem.online import OnlineSolver, ReducedOnline
+    from fruitcli.scene import BoardSection, Scene
+    from fruitcli.sensing.detection.frames_to_touches import Settings
+    from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.sensing.live.outputs import Outputs
-    from fruitcli.sensing.live.serial_ports import FrameReader
+    from fruitcli.sensing.live.serial_ports import FrameReader, PressureState
+    from fruitcli.tables import Taxels
 
 FEM_JOIN_S = 30.0
 """How long `fruit live` waits at exit for the online FEM's current state (a state takes
@@ -56,7 +61,7 @@ class LiveOptions:
     time_scale: float
 
 
-def _taxel_products(scene, scene_path: str, o: LiveOptions, progress: Progress) -> tuple:
+def _taxel_products(scene: Scene, scene_path: str, o: LiveOptions, progress: Progress) -> tuple:
     """(taxels.csv, states.npz or None, the reduced model or None, the mesh.npz or None):
     from the options, else the online model's products, else the scene's outputs."""
     from fruitcli.workflow.online_model import online_products, online_reduced
@@ -85,7 +90,9 @@ def _taxel_products(scene, scene_path: str, o: LiveOptions, progress: Progress) 
     return taxels_csv, states_npz, reduced, mesh_npz
 
 
-def locator(scene, scene_path: str, settings, o: LiveOptions, progress: Progress) -> tuple:
+def locator(
+    scene: Scene, scene_path: str, settings: Settings, o: LiveOptions, progress: Progress
+) -> tuple:
     """(the `Locator`, the `PressureState` or None, the online solver or None) of the
     scene's taxels: at rest, on the FEM states (following the pressure port when given),
     or on the online model."""
@@ -138,7 +145,14 @@ def locator(scene, scene_path: str, settings, o: LiveOptions, progress: Progress
     return loc, pressure, solver
 
 
-def outputs(live_loc, taxels, o: LiveOptions, osc_address, progress: Progress, pressure) -> Outputs:
+def outputs(
+    live_loc: LiveLocator,
+    taxels: Taxels,
+    o: LiveOptions,
+    osc_address: tuple | None,
+    progress: Progress,
+    pressure: PressureState | None,
+) -> Outputs:
     """The live outputs (`fruitcli.sensing.live.outputs.Outputs`) of `taxels`: JSON
     lines, and TUIO, the log and the view when asked."""
     from fruitcli.sensing.live.outputs import Outputs
@@ -187,7 +201,14 @@ class Run:
     seen: int = 0
 
 
-def run_frames(run: Run, out, o: LiveOptions, board, frame_format: str, progress) -> None:
+def run_frames(
+    run: Run,
+    out: Outputs,
+    o: LiveOptions,
+    board: BoardSection,
+    frame_format: str,
+    progress: Progress,
+) -> None:
     """Feed the board's frames to the outputs until --frames are seen (or forever);
     with --reconnect, a vanished port is waited for and reopened."""
     from fruitcli.sensing.live.idle_gc import FrameGC
@@ -227,7 +248,15 @@ def run_frames(run: Run, out, o: LiveOptions, board, frame_format: str, progress
         frame_gc.__exit__()
 
 
-def shut_down(run: Run, out, threads: tuple, pser, pressure, solver, progress) -> None:
+def shut_down(
+    run: Run,
+    out: Outputs,
+    threads: tuple,
+    pser: SerialBase | None,
+    pressure: PressureState | None,
+    solver: OnlineSolver | ReducedOnline | None,
+    progress: Progress,
+) -> None:
     """Close the port and the outputs, let the online FEM finish its state (at most
     FEM_JOIN_S) and the pressure thread end (`threads`: (FEM, pressure), each None when
     not running), and say the summary."""
@@ -243,12 +272,18 @@ def shut_down(run: Run, out, threads: tuple, pser, pressure, solver, progress) -
             progress(f"the online FEM is still solving after {FEM_JOIN_S:g} s; leaving it")
     if p_thread is not None:
         p_thread.join(1.0)
+    if pser is not None:
         pser.close()
     for line in summary(run.seen, run.reader, pressure, solver) + out.summary():
         progress(line)
 
 
-def summary(seen: int, reader, pressure, solver) -> list[str]:
+def summary(
+    seen: int,
+    reader: FrameReader,
+    pressure: PressureState | None,
+    solver: OnlineSolver | ReducedOnline | None,
+) -> list[str]:
     """The closing lines of `fruit live`: frames, skipped lines, online FEM."""
     why = reader.skip_reasons()
     lines = [f"{seen} frames, {reader.skipped} lines skipped" + (f": {why}" if why else "")]

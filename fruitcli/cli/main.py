@@ -13,10 +13,15 @@ import signal
 import sys
 import warnings
 import weakref
+from typing import TYPE_CHECKING
 
 import click
 
 from fruitcli import DISTRIBUTION, compile_notice
+
+if TYPE_CHECKING:
+    from types import FrameType
+    from typing import TextIO
 
 # name -> (module, attribute, one-line help shown by `fruit --help`)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -109,7 +114,7 @@ class LazyGroup(click.Group):
                 ctx.fail(f"No such command {name!r}. Did you mean {hint}?")
         return super().resolve_command(ctx, args)
 
-    def format_commands(self, ctx, formatter) -> None:
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
@@ -120,7 +125,7 @@ def log_level(verbose: int, quiet: bool) -> int:
     return logging.ERROR if quiet else max(logging.WARNING - 10 * verbose, logging.DEBUG)
 
 
-def _late_option(ctx: click.Context, param: click.Parameter, value) -> None:
+def _late_option(ctx: click.Context, param: click.Parameter, value: object) -> None:
     """-v or -q given after the subcommand: the same as given before it."""
     if not value:
         return
@@ -203,7 +208,7 @@ def _hold_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _interrupted_at_exit(signum, frame) -> None:
+def _interrupted_at_exit(signum: int, frame: FrameType | None) -> None:
     """Ctrl-C once the command is over (threads joined, files closed at exit): what was
     printed is flushed, then "Interrupted." and exit code 130 at once."""
     with contextlib.suppress(Exception):
@@ -214,7 +219,14 @@ def _interrupted_at_exit(signum, frame) -> None:
     os._exit(130)
 
 
-def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+def show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
     """A library's warning as one line on stderr, "warning: Category: text" (its file,
     line and source left out; -vv keeps Python's own form)."""
     from fruitcli.errors import one_line

@@ -10,7 +10,7 @@ from fruitcli.cli.options import Progress, fruit_errors, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
-def _opt(name, kind, help_):
+def _opt(name: str, kind: click.ParamType | type, help_: str):
     return click.option(f"--{name.replace('_', '-')}", name, type=kind, default=None, help=help_)
 
 

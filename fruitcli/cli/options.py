@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
@@ -27,7 +29,9 @@ class FiniteFloat(click.FloatRange):
 
     name = "finite float"
 
-    def convert(self, value, param, ctx) -> float:
+    def convert(
+        self, value: object, param: click.Parameter | None, ctx: click.Context | None
+    ) -> float:
         import math
 
         # float(value) with click's message; click's stubs give FloatRange two generic bases
@@ -84,7 +88,9 @@ class Progress:
             sys.stderr.flush()
 
 
-def progressbar(iterable=None, length=None, label="") -> ProgressBar[Any]:
+def progressbar(
+    iterable: Iterable | None = None, length: int | None = None, label: str = ""
+) -> ProgressBar[Any]:
     """A click progress bar on stderr, silent under --quiet."""
     file = open("/dev/null", "w") if quiet() else sys.stderr
     return click.progressbar(
@@ -118,19 +124,22 @@ class OutFolder(click.Path):
     """An output folder: an existing file is left to `claim_out` to refuse in one line
     (click's own check would print its usage too)."""
 
-    def __init__(self, path_type=None):
+    def __init__(self, path_type: type | None = None):
         super().__init__(file_okay=False, path_type=path_type)
 
-    def convert(self, value, param, ctx) -> Any:
-        import os
-
+    def convert(
+        self,
+        value: str | os.PathLike[str],
+        param: click.Parameter | None,
+        ctx: click.Context | None,
+    ) -> Any:
         if os.path.isfile(value):
             return self.coerce_path_result(value)
         return super().convert(value, param, ctx)
 
 
 @contextlib.contextmanager
-def claim_out(folder, option: str = "--out") -> Iterator[None]:
+def claim_out(folder: str | Path, option: str = "--out") -> Iterator[None]:
     """Run the block with `folder` as this command's output folder
     (`fruitcli.output_folder.claimed`): a file, an unwritable folder or one holding
     the user's files is refused in one line before anything is written."""
@@ -153,7 +162,7 @@ def out_option(
     default: str | None = None,
     file: bool = False,
     dest: str = "out_dir",
-    path_type=None,
+    path_type: type | None = None,
 ) -> Callable[[FC], FC]:
     """``--out``: the folder (a file with `file`) the command writes; `written` says what.
     A folder is claimed (`claim_out`) before the command runs; a command whose folder
@@ -185,7 +194,7 @@ def out_option(
     return decorate
 
 
-def taxels_option(*, required: bool = False, path_type=None) -> Callable[[FC], FC]:
+def taxels_option(*, required: bool = False, path_type: type | None = None) -> Callable[[FC], FC]:
     """``--taxels``: the taxel CSV; by default the scene's own."""
     where = (
         "."

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -15,6 +18,9 @@ from fruitcli.cli.options import (
     fruit_errors,
     out_option,
 )
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.live.serial_ports import PressureState
 
 
 @click.command()
@@ -189,7 +195,15 @@ def _chamber_names(chambers: str | None, pressure_port: str | None) -> tuple[str
     return names
 
 
-def _no_frames(port, res, interrupted, seconds, skipped, why, untouched) -> None:
+def _no_frames(
+    port: str,
+    res: dict,
+    interrupted: bool,
+    seconds: float | None,
+    skipped: str,
+    why: str,
+    untouched: str,
+) -> None:
     """Stop a recording that got no frame: exit 130 when interrupted, else a FrameError
     saying how it stopped and what it skipped."""
     from fruitcli.errors import FrameError
@@ -210,7 +224,15 @@ def _no_frames(port, res, interrupted, seconds, skipped, why, untouched) -> None
     raise FrameError(f"{port}: no frame received ({how}; {got}); {untouched}")
 
 
-def _summary(frames, fmt, res, skipped, out_path, pressure, names) -> str:
+def _summary(
+    frames: int,
+    fmt: str | None,
+    res: dict,
+    skipped: str,
+    out_path: str | Path,
+    pressure: PressureState | None,
+    names: Sequence[str],
+) -> str:
     """The line a recording ends with: frames, rate, lines skipped and cut, pressures."""
     summary = (
         f"{frames} {fmt} frames ({res['frames_per_s']:.1f} frames/s), "

@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import contextlib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from fruitcli.cli.options import Progress, claim_out, fruit_errors, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
 
-def default_out(scene) -> Path:
+
+def default_out(scene: Scene) -> Path:
     return Path("out") / scene.name
 
 

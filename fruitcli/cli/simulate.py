@@ -3,7 +3,9 @@ scene's [fem].element and [material].model."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -16,6 +18,9 @@ from fruitcli.cli.options import (
     taxels_option,
 )
 from fruitcli.workflow.scene_outputs import shared_outputs
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
 
 
 @click.command(name="simulate")
@@ -129,7 +134,14 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
         _say_yarns(out_dir / "yarns.csv", info["yarns"])
 
 
-def _body_and_taxels(sc, scene, solid, taxels_csv, out_dir, log) -> tuple:
+def _body_and_taxels(
+    sc: Scene,
+    scene: str | Path,
+    solid: Path | None,
+    taxels_csv: Path | None,
+    out_dir: Path,
+    log: Callable[[str], None],
+) -> tuple:
     """(the solid to mesh, the taxels (T, 3) mm or None, their CSV, the tracks' CSV): the
     given ones, checked before any stage runs, else an artist's from make-tracks (run
     into out_dir)."""
@@ -159,7 +171,7 @@ def _body_and_taxels(sc, scene, solid, taxels_csv, out_dir, log) -> tuple:
     return solid, xyz, taxel_csv, tracks_csv
 
 
-def _say_yarns(path, y: dict) -> None:
+def _say_yarns(path: str | Path, y: dict) -> None:
     """The line on yarns.csv: the tracks and their largest stretch."""
     click.echo(
         f"{path}: {y['tracks']} track(s), largest stretch "

@@ -10,10 +10,10 @@ import click
 from fruitcli.cli.options import fruit_errors, jobs_option, out_option, quiet, scheduler_option
 
 
-def _bar(label):
+def _bar(label: str):
     silent = quiet()
 
-    def progress(done, total):
+    def progress(done: int, total: int):
         if not silent:
             click.echo(f"\r{label}: {done}/{total} cases", err=True, nl=done == total)
 
@@ -21,7 +21,7 @@ def _bar(label):
 
 
 @contextlib.contextmanager
-def _cases_pool(jobs, scheduler, out):
+def _cases_pool(jobs: int | None, scheduler: str | None, out: Path | None):
     """Local processes (--jobs) or a Dask cluster (--scheduler) whose workers see `out`."""
     from fruitcli.studies.executors import open_executor
 
@@ -126,7 +126,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     from fruitcli.studies import runtime as rt
     from fruitcli.studies.parallel import run_cases
     from fruitcli.workflow import planner
-    from fruitcli.workflow.stage_paths import solid_path, states_path, taxels_path
+    from fruitcli.workflow.stage_paths import required_taxels_path, solid_path, states_path
 
     with fruit_errors(), contextlib.ExitStack() as stack:
         scene = load_scene(scene_file)
@@ -142,7 +142,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
         # the scene's own stages: copied from the demo's out/<scene> when identical
         planner.run(scene, base, progress=Progress("   "), shared=out.resolve().parent)
         ctx = planner.Context(base)
-        solid, taxels = solid_path(scene, ctx), taxels_path(scene, ctx)
+        solid, taxels = solid_path(scene, ctx), required_taxels_path(scene, ctx)
         work = out / "work"
         work.mkdir(parents=True, exist_ok=True)
         default = scene.mesh.size_mm
@@ -173,7 +173,7 @@ def runtime(scene_file, out_dir, jobs, scheduler) -> None:
     click.echo((out / "runtime.md").read_text(), nl=False)
 
 
-def _bench_scene(scene_file, out: Path):
+def _bench_scene(scene_file: str | Path, out: Path):
     """The scene with a [bench] and its stages up to the bench, run (or copied from the
     demo's out/<scene>) into OUT/scene -> (scene, taxels, states, solid, unit, work)."""
     from fruitcli.cli.options import Progress

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import contextlib
 import re
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -17,6 +19,9 @@ from fruitcli.cli.options import (
     quiet,
     scheduler_option,
 )
+
+if TYPE_CHECKING:
+    from fruitcli.studies.sweep import Variant
 
 FIGURES = (
     "taxels",
@@ -133,7 +138,7 @@ def sweep(
         )
 
 
-def _dry_run(variants, out: Path) -> None:
+def _dry_run(variants: list[Variant], out: Path) -> None:
     from fruitcli.studies.sweep_run import build_tasks, finished_row
 
     vdir = out.resolve() / "variants"
@@ -152,7 +157,17 @@ def _dry_run(variants, out: Path) -> None:
         click.echo(f"  shared: {key[1]} (run once, used by {users} variants)")
 
 
-def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure, mode):
+def _run(
+    scene_file: str | Path,
+    variants: list[Variant],
+    keys: list[str],
+    out: Path,
+    jobs: int | None,
+    scheduler: str | None,
+    timeout: float,
+    figure: str | None,
+    mode: str,
+):
     from fruitcli.fsutil import write_text
     from fruitcli.studies import sweep_report as report
     from fruitcli.studies.executors import open_executor
@@ -166,11 +181,11 @@ def _run(scene_file, variants, keys, out: Path, jobs, scheduler, timeout, figure
         f"{', '.join(keys)})"
     )
 
-    def write_tables(rows, head):
+    def write_tables(rows: Sequence[dict | None], head: list[str]):
         report.write_csv(out / "sweep.csv", rows, keys, comment)
         write_text(out / "sweep.md", report.markdown(rows, keys, head))
 
-    def progress(done, total, row):
+    def progress(done: int, total: int, row: dict | None):
         if silent:
             return
         if row is not None and "stage" in row:  # a stage several variants share

@@ -22,6 +22,10 @@ side faces), ``top`` (the air's top face).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from types import ModuleType
 
 BELOW_MM = 3.0
 """Silicone under the lower yarn (mm) by default; its bottom face is insulating."""
@@ -107,7 +111,7 @@ def _yarn(kind: str, k: int) -> str:
     return kind if k == 0 else f"{kind}{k:+d}"
 
 
-def build(gmsh, spec: CellSpec) -> None:
+def build(gmsh: ModuleType, spec: CellSpec) -> None:
     """Create the cell in the current (empty) gmsh model with its physical groups and
     size fields."""
     occ = gmsh.model.occ
@@ -164,7 +168,7 @@ def build(gmsh, spec: CellSpec) -> None:
     _size_fields(gmsh, spec, inner)
 
 
-def _embed_points(gmsh, spec: CellSpec) -> None:
+def _embed_points(gmsh: ModuleType, spec: CellSpec) -> None:
     """A mesh node at each of `points_mm`, on the horizontal plane through it."""
     tol = 1e-6
     planes = {}
@@ -183,7 +187,7 @@ def _embed_points(gmsh, spec: CellSpec) -> None:
         gmsh.model.mesh.embed(0, pts, 2, s)
 
 
-def _size_fields(gmsh, spec: CellSpec, yarn_surfaces: list[int]) -> None:
+def _size_fields(gmsh: ModuleType, spec: CellSpec, yarn_surfaces: list[int]) -> None:
     """Fine at each crossing, `surface_size_mm` along the yarns and on the surface over
     the touch box (and the crossing), coarser away from them."""
     f = gmsh.model.mesh.field

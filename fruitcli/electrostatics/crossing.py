@@ -24,7 +24,9 @@ everything else is predicted.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,6 +37,9 @@ from fruitcli.electrostatics.occ_mesh import TetMesh
 from fruitcli.electrostatics.touch_objects import INSIDE_TOL_MM, OBJECTS, nearest_on_surface
 from fruitcli.errors import SolverError
 from fruitcli.fem.solver import pardiso
+
+if TYPE_CHECKING:
+    from fruitcli.electrostatics.touch_objects import TouchObject
 
 OBJECT_LENGTH_MM = 10.0
 """Air above the table's largest gap: the objects reach through it to the cell's top."""
@@ -110,7 +115,7 @@ def cell_spec(
     cover_mm: float,
     yarn_radius_mm: float,
     insulation_mm: float,
-    gaps_mm,
+    gaps_mm: Sequence[float] | np.ndarray,
 ) -> CellSpec:
     """The cell of a design, with the mesh sizes this module uses and a node layer at
     each of the table's gaps (the objects are meshed to their surface by moving nodes:
@@ -165,7 +170,9 @@ class CellSolver:
     numerical refactorization (`fruitcli.fem.solver.pardiso`; without MKL, a fresh
     Cholesky per solve)."""
 
-    def __init__(self, mesh: TetMesh, permittivity: float, objects=None):
+    def __init__(
+        self, mesh: TetMesh, permittivity: float, objects: Mapping[str, TouchObject] | None = None
+    ):
         self.mesh = mesh
         self.objects = OBJECTS if objects is None else objects  # name -> TouchObject
         regions = np.array(mesh.regions)[mesh.region]
@@ -264,7 +271,7 @@ class CellSolver:
         u = self._solve(held_mask[self.free], data)
         return -(self.k_rx @ u).T
 
-    def _set_nodes(self, nodes) -> None:
+    def _set_nodes(self, nodes: np.ndarray) -> None:
         """Assemble on `nodes` (the mesh's, or moved) and split free and fixed parts."""
         try:
             k = assemble.stiffness(nodes, self.mesh.tets, self.eps, self.mesh.order)
@@ -280,7 +287,7 @@ class CellSolver:
         self.upper = upper
         self.row = np.repeat(np.arange(upper.shape[0]), np.diff(upper.indptr))
 
-    def _solve(self, held_free: np.ndarray, data=None) -> np.ndarray:
+    def _solve(self, held_free: np.ndarray, data: np.ndarray | None = None) -> np.ndarray:
         """Potentials (N, tx) with the free nodes `held_free` (mask over `free`) at 0 V,
         one column per driven Tx yarn; `data`: the upper triangle's values when not the
         cell's own (a moved object's tets)."""
@@ -304,7 +311,9 @@ class CellSolver:
         u[self.free] = x
         return u
 
-    def crossings(self, grounded=None, nodes=None) -> np.ndarray:
+    def crossings(
+        self, grounded: np.ndarray | None = None, nodes: np.ndarray | None = None
+    ) -> np.ndarray:
         """(tx, rx) mutual capacitances (fF) of the cell's crossings with extra `grounded`
         nodes (off the yarns), on the mesh's nodes or on moved `nodes` (which then stay
         in use)."""
@@ -316,7 +325,9 @@ class CellSolver:
         u = self._solve(held[self.free])
         return -(self.k_rx @ u).T
 
-    def capacitance(self, grounded=None, nodes=None) -> float:
+    def capacitance(
+        self, grounded: np.ndarray | None = None, nodes: np.ndarray | None = None
+    ) -> float:
         """The centre crossing's Tx-Rx mutual capacitance (fF) (`crossings`)."""
         return float(self.crossings(grounded, nodes)[self.centre])
 
@@ -342,10 +353,10 @@ def _yarn_order(name: str) -> tuple[str, int]:
 def touch_table(
     solver: CellSolver,
     spec: CellSpec,
-    objects,
-    gaps,
+    objects: Sequence[str],
+    gaps: np.ndarray,
     c0: np.ndarray,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
     steps: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(dx (x,), dy (y,), dC (k, g, x, y) fF, mismatch fF) over the table's offsets.
@@ -440,11 +451,11 @@ def deformation_table(
 def compute(
     spec: CellSpec,
     permittivity: float,
-    gaps_mm,
-    objects=tuple(OBJECTS),
+    gaps_mm: Sequence[float] | np.ndarray,
+    objects: Iterable[str] = tuple(OBJECTS),
     order: int = 1,
     time_limit_s: float = 120.0,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> CrossingTable:
     """The crossing's table for a cell (`cell_spec`); gmsh is killed after time_limit_s.
 

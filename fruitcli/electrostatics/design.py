@@ -11,6 +11,7 @@ the insulation, permittivity and gap table ([skin]), gmsh's time limit
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +23,7 @@ from fruitcli.errors import SceneError
 if TYPE_CHECKING:
     from fruitcli.electrostatics.cell_geometry import CellSpec
     from fruitcli.electrostatics.crossing import CrossingTable
+    from fruitcli.scene import Scene
 
 
 TABLE_VERSION = 2
@@ -47,7 +49,7 @@ class CrossingInputs:
         return d
 
 
-def crossing_inputs(scene) -> CrossingInputs:
+def crossing_inputs(scene: Scene) -> CrossingInputs:
     """The cell's inputs from a validated scene; SceneError naming the key when the
     yarns do not fit the design."""
     where = scene.path.name
@@ -175,7 +177,9 @@ def cell_spec(inputs: CrossingInputs) -> CellSpec:
     )
 
 
-def run_crossing(inputs: CrossingInputs, progress=None) -> tuple[CrossingTable, dict]:
+def run_crossing(
+    inputs: CrossingInputs, progress: Callable[[str], None] | None = None
+) -> tuple[CrossingTable, dict]:
     """(CrossingTable, summary dict) of a design."""
     from fruitcli.electrostatics import crossing, equivalents
 
@@ -204,7 +208,7 @@ def assumed_model() -> dict:
     }
 
 
-def _finite(obj):
+def _finite(obj: object):
     """JSON-safe: non-finite floats become None."""
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
@@ -215,7 +219,7 @@ def _finite(obj):
     return obj
 
 
-def table_arrays(table) -> dict[str, np.ndarray]:
+def table_arrays(table: CrossingTable) -> dict[str, np.ndarray]:
     """crossing.npz's arrays. Version 2: offsets out to `crossing.TABLE_PITCHES`
     pitches, solved on a cell of 3 x 3 crossings (version 1, without the key: half a
     pitch, one mirrored crossing); the arrays are the same."""
@@ -235,7 +239,7 @@ def table_arrays(table) -> dict[str, np.ndarray]:
     }
 
 
-def write_outputs(out_dir: Path, table, summary: dict) -> None:
+def write_outputs(out_dir: Path, table: CrossingTable, summary: dict) -> None:
     """crossing.npz and summary.json into `out_dir`, together or not at all."""
     from fruitcli.fsutil import staged_dir, write_json
 

@@ -33,7 +33,7 @@ def footprint_sigma_mm(dx: np.ndarray, dy: np.ndarray, drop: np.ndarray) -> floa
     gx, gy = np.meshgrid(dx, dy, indexing="ij")
     r2 = (gx**2 + gy**2).ravel()
 
-    def model(r2_, amp, sigma):
+    def model(r2_: np.ndarray, amp: float, sigma: float):
         return amp * np.exp(-0.5 * r2_ / sigma**2)
 
     guess = (float(drop.max()), float(max(np.ptp(dx), np.ptp(dy))) / 4)

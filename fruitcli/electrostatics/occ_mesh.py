@@ -8,6 +8,7 @@ surfaces (curved conductors), reordered to VTK's node order (`fruitcli.fem.eleme
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -53,7 +54,7 @@ class TetMesh:
         return out
 
     @classmethod
-    def from_arrays(cls, data) -> TetMesh:
+    def from_arrays(cls, data: Mapping[str, np.ndarray]) -> TetMesh:
         surfaces = {
             k.removeprefix("surface_"): np.asarray(data[k])
             for k in data
@@ -69,7 +70,7 @@ class TetMesh:
         )
 
 
-def mesh_model(gmsh, order: int = 1) -> TetMesh:
+def mesh_model(gmsh: ModuleType, order: int = 1) -> TetMesh:
     """Mesh the current gmsh model in 3D at `order` and collect its physical groups."""
     gmsh.model.mesh.generate(3)
     if order == 2:

@@ -3,6 +3,7 @@ a black line joining each pair; axes in mm with equal aspect. Functions take an 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,7 +55,9 @@ def pairs(
     return ax
 
 
-def save_pair_views(out_dir, truth: np.ndarray, measured: np.ndarray, label: str) -> list[str]:
+def save_pair_views(
+    out_dir: Path, truth: np.ndarray, measured: np.ndarray, label: str
+) -> list[str]:
     """Write top.png (x-y) and, for 3D data, side.png (y-z). Returns the file names."""
     import matplotlib
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -55,8 +56,8 @@ SUMMARY_KEYS = [
 
 
 def evaluate_pair(
-    truth_path,
-    measured_path,
+    truth_path: str | Path,
+    measured_path: str | Path,
     reference_length_mm: float | None = None,
     label: str = "result",
     register: str = "none",
@@ -71,7 +72,7 @@ def evaluate_pair(
     return summary, sample, t, m
 
 
-def _view(r) -> str:
+def _view(r: dict) -> str:
     return "3D" if r["dims"] == 3 else "top view (x, y)"
 
 
@@ -121,7 +122,7 @@ def table_markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _table_rows(rows):
+def _table_rows(rows: Iterable[dict]):
     out = []
     for r in rows:
         bias = list(r["bias_mm"]) + [""] * (3 - len(r["bias_mm"]))
@@ -152,7 +153,9 @@ def _table_rows(rows):
     return out
 
 
-def write_single(out_dir: str | Path, summary: dict, sample, truth, measured) -> None:
+def write_single(
+    out_dir: str | Path, summary: dict, sample: np.ndarray, truth: np.ndarray, measured: np.ndarray
+) -> None:
     """Write every output of one evaluation into `out_dir` (all or nothing)."""
     with staged_dir(out_dir) as tmp:
         _write_files(tmp, summary, sample, truth, measured)
@@ -160,7 +163,9 @@ def write_single(out_dir: str | Path, summary: dict, sample, truth, measured) ->
         write_csv(tmp / "table.csv", TABLE_HEADER, _table_rows([summary]))
 
 
-def _write_files(folder: Path, summary, sample, truth, measured):
+def _write_files(
+    folder: Path, summary: dict, sample: np.ndarray, truth: np.ndarray, measured: np.ndarray
+):
     d = truth.shape[1]
     axes = ["x", "y", "z"][:d]
     err = measured - truth

@@ -15,6 +15,7 @@ All lengths in mm, volumes in mm^3, as float64 manifold3d solids.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -88,12 +89,12 @@ class Mold:
     channels: mf.Manifold = None  # pour hole and vents
 
 
-def box(lo, hi) -> mf.Manifold:
+def box(lo: Sequence[float], hi: Sequence[float]) -> mf.Manifold:
     """An axis-aligned box Manifold from corner lo to corner hi (mm)."""
     import manifold3d as mf
 
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    return mf.Manifold.cube(tuple(hi - lo)).translate(tuple(lo))
+    lo_mm, hi_mm = np.asarray(lo, float), np.asarray(hi, float)
+    return mf.Manifold.cube(tuple(hi_mm - lo_mm)).translate(tuple(lo_mm))
 
 
 def vertical_cylinder(x: float, y: float, z0: float, z1: float, r: float) -> mf.Manifold:
@@ -103,7 +104,10 @@ def vertical_cylinder(x: float, y: float, z0: float, z1: float, r: float) -> mf.
 
 
 def highest_points(
-    piece: mf.Manifold, count: int, keep_off_mm: float, avoid=()
+    piece: mf.Manifold,
+    count: int,
+    keep_off_mm: float,
+    avoid: Iterable[tuple[np.ndarray, float]] = (),
 ) -> list[tuple[float, float, float]]:
     """The cavity's highest points: [(x, y, z)] mm, the highest first, then local maxima of
     the piece's top height at least VENT_SEPARATION_MM apart, at most `count` in all, each
@@ -148,12 +152,12 @@ def highest_points(
 
 def make_mold(
     name: str,
-    piece,
+    piece: mf.Manifold,
     zp: float,
     side: int,
     chambers: list,
     opts: MoldOptions,
-    tracks_xy=None,
+    tracks_xy: np.ndarray | None = None,
     track_radius_mm: float = 0.0,
 ) -> Mold:
     """The mold of `piece` (Manifold whose flat face lies on z = zp; `side` +1 if the piece
@@ -232,7 +236,9 @@ def make_mold(
     return mold
 
 
-def _keys(piece, outline, zp: float, w: float, kr: float, c: float) -> tuple[list, list]:
+def _keys(
+    piece: mf.Manifold, outline: Sequence[float], zp: float, w: float, kr: float, c: float
+) -> tuple[list, list]:
     """(keys, sockets): a registration sphere of radius `kr` mm in each corner of the
     mold's `outline` (x0, y0, x1, y1) mm on the parting plane z = zp that the piece leaves
     free, and its socket `c` mm wider; `w` the wall (mm)."""
@@ -254,7 +260,15 @@ def _keys(piece, outline, zp: float, w: float, kr: float, c: float) -> tuple[lis
     return keys, sockets
 
 
-def _cores(name: str, piece, chambers: list, opts: MoldOptions, near: float, zp: float, shell_box):
+def _cores(
+    name: str,
+    piece: mf.Manifold,
+    chambers: list,
+    opts: MoldOptions,
+    near: float,
+    zp: float,
+    shell_box: mf.Manifold,
+):
     """(cores [(chamber, Manifold)], pin holes [Manifold], pin centres [(x, y)] mm): each
     chamber's part inside the piece with its locating pin to the plate's face z = `near`,
     and the pins' holes through the plate."""
@@ -285,7 +299,15 @@ def _cores(name: str, piece, chambers: list, opts: MoldOptions, near: float, zp:
     return cores, pin_holes, pin_xy
 
 
-def _channels(name: str, piece, opts: MoldOptions, tracks_xy, track_radius_mm, pin_xy, top):
+def _channels(
+    name: str,
+    piece: mf.Manifold,
+    opts: MoldOptions,
+    tracks_xy: np.ndarray | None,
+    track_radius_mm: float,
+    pin_xy: list,
+    top: float,
+):
     """(points, channels): the pour hole (first) and vents straight up from the cavity's
     highest points to z = `top` mm, off the track centre points and the pins."""
     # pour hole and vents: straight up from the cavity's highest points
@@ -309,7 +331,7 @@ def _channels(name: str, piece, opts: MoldOptions, tracks_xy, track_radius_mm, p
     return pts, channels
 
 
-def undercut_area(piece, zp: float, side: int, pull: dict) -> dict:
+def undercut_area(piece: mf.Manifold, zp: float, side: int, pull: dict) -> dict:
     """Per part with a pull direction, the area (mm^2) of the piece's surface that part
     touches and that faces away from its pull (an undercut that locks the part): the shell
     touches what lies off the parting plane, the plate the flat face on it."""

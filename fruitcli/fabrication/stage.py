@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,6 +20,8 @@ from fruitcli.fabrication.mold import MoldOptions, assembled_cavity, make_mold, 
 
 if TYPE_CHECKING:
     import manifold3d as mf
+
+    from fruitcli.fabrication.mold import Mold
 
 CLI_NAMES = {k: "--" + k.replace("_", "-") for k in MoldOptions.__dataclass_fields__}
 SCENE_NAMES = {k: f"[mold].{k}" for k in MoldOptions.__dataclass_fields__}
@@ -41,7 +44,7 @@ def load_solid(path: str | Path, what: str) -> mf.Manifold:
     return m
 
 
-def scene_chambers(scene) -> list:
+def scene_chambers(scene) -> list:  # noqa: ANN001 (a Scene: fabrication may not import it)
     """[(name, Manifold)] of the scene's chambers (mm)."""
     import manifold3d as mf
 
@@ -64,13 +67,13 @@ def scene_chambers(scene) -> list:
 
 
 def run_make_mold(
-    tracks_dir,
-    out_dir,
+    tracks_dir: str | Path,
+    out_dir: str | Path,
     chambers: list,
     density_kg_m3: float,
     opts: MoldOptions,
     names: dict | None = None,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> dict:
     """Build the top and bottom molds from a make-tracks folder; write `out_dir`."""
     import manifold3d as mf
@@ -151,7 +154,15 @@ def _parting_plane(tracks_dir: Path) -> tuple[float, float]:
     return zp, r_track
 
 
-def _mold_entry(name, mold, piece, zp, side, opts: MoldOptions, density_kg_m3: float) -> dict:
+def _mold_entry(
+    name: str,
+    mold: Mold,
+    piece: mf.Manifold,
+    zp: float,
+    side: int,
+    opts: MoldOptions,
+    density_kg_m3: float,
+) -> dict:
     """mold.json's entry of a mold: its parts, volumes (mm^3), pull directions,
     undercuts, silicone (ml, g), pour hole and vents."""
     cavity = assembled_cavity(mold)
@@ -184,7 +195,7 @@ def _mold_entry(name, mold, piece, zp, side, opts: MoldOptions, density_kg_m3: f
     }
 
 
-def _track_points(path) -> np.ndarray:
+def _track_points(path: str | Path) -> np.ndarray:
     """Track centre points (k, 3) mm from make-tracks' tracks.csv."""
     from fruitcli.tables import read_table
 
@@ -194,7 +205,7 @@ def _track_points(path) -> np.ndarray:
     return np.c_[t["x_mm"], t["y_mm"], t["z_mm"]]
 
 
-def _snap(piece, zp: float, side: int):
+def _snap(piece: mf.Manifold, zp: float, side: int):
     """Move the piece's flat face exactly onto z = zp (it is within float32 of it)."""
     b = piece.bounding_box()
     dz = zp - (b[2] if side > 0 else b[5])
@@ -205,7 +216,7 @@ def _snap(piece, zp: float, side: int):
     return piece.translate((0.0, 0.0, dz))
 
 
-def _preview(path, molds, zp: float) -> None:
+def _preview(path: str | Path, molds: list[Mold], zp: float) -> None:
     """Each mold's parts side by side, each turned with its parting face up (the shell of
     the top piece upside down: its inner face with the track ridges shows), cut at the
     box's centre y so that the cavity shows in section; cores stay on their plate."""

@@ -197,7 +197,7 @@ def fruit_arrays(
     ring, up, _ = _body_vertices(n_along, n_around)
     faces = _ring_faces(n_along, n_around)
 
-    def assemble(rv):
+    def assemble(rv: np.ndarray):
         flat = rv.reshape(-1, 3)
         ends = np.array([rv[0].mean(axis=0), rv[-1].mean(axis=0)])
         return np.concatenate([flat, ends])
@@ -234,7 +234,7 @@ def make_fruit_artist(n_along: int = N_ALONG, n_around: int = N_AROUND) -> trime
     return trimesh.Trimesh(verts, faces, process=False)
 
 
-def write_artist(path, n_along: int = N_ALONG, n_around: int = N_AROUND) -> dict:
+def write_artist(path: str | Path, n_along: int = N_ALONG, n_around: int = N_AROUND) -> dict:
     """Write the default Fruit to `path` (.stl, .obj or .ply) atomically; returns a summary."""
     from fruitcli.errors import GeometryError
     from fruitcli.fsutil import atomic_path

@@ -6,6 +6,8 @@ and touch points projected onto the surface facing their taxel.
 from __future__ import annotations
 
 import threading
+from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -54,14 +56,32 @@ def taxel_surface_heights(xy_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarra
     return np.asarray(f(xy_mm), dtype=float)
 
 
-def body_surface(path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
+class StateMesh(Protocol):
+    """What the body's surface reads of the FEM states
+    (`fruitcli.sensing.detection.locate.States`): the rest mesh (mm), its surface
+    triangles and the nodes of a state (N, 3) mm."""
+
+    @property
+    def rest_nodes(self) -> np.ndarray: ...
+    @property
+    def tets(self) -> np.ndarray: ...
+    @property
+    def surface_tris(self) -> np.ndarray: ...
+    def nodes_mm(self, state: int) -> np.ndarray: ...
+
+
+def body_surface(path: str | Path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) mm and triangles (F, 3) of the body's closed surface at rest."""
     surf = load_mesh(path, unit)
     return np.asarray(surf.vertices, float), np.asarray(surf.faces, np.int64)
 
 
 def contact_heights(
-    xy: np.ndarray, taxels_mm: np.ndarray, states, state: int, surface
+    xy: np.ndarray,
+    taxels_mm: np.ndarray,
+    states: StateMesh | None,
+    state: int,
+    surface: tuple[np.ndarray, np.ndarray] | None,
 ) -> tuple[np.ndarray, str]:
     """z (P,) mm where vertical lines at `xy` (P, 2) meet the body from above (NaN: miss),
     and what the surface was. `surface`: (vertices, triangles) of the body at rest or None."""
@@ -95,11 +115,18 @@ class SurfaceProjector:
     that state), so a thin body is not crossed to its far side. The N9 average of 3D
     taxels lies on a chord, inside a curved body. `project` may run on several threads."""
 
-    def __init__(self, surface, states, state: int | None, taxels_mm: np.ndarray):
+    def __init__(
+        self,
+        surface: tuple[np.ndarray, np.ndarray],
+        states: StateMesh | None,
+        state: int | None,
+        taxels_mm: np.ndarray,
+    ):
         from scipy.spatial import cKDTree
 
         verts, tris = surface
         if states is not None:
+            assert state is not None  # states come with the state to carry the surface by
             verts = carried_vertices(states.rest_nodes, states.tets, states.nodes_mm(state), verts)
         self.normal = unit_face_normals(verts, tris)
         self.verts, self.tris = verts, tris
@@ -130,7 +157,11 @@ class SurfaceProjector:
 
 
 def project_to_surface(
-    xyz_mm: np.ndarray, surface, states, state: int | None, taxels_mm: np.ndarray
+    xyz_mm: np.ndarray,
+    surface: tuple[np.ndarray, np.ndarray],
+    states: StateMesh | None,
+    state: int | None,
+    taxels_mm: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Touch points (n, 3) mm moved onto the body's surface (`SurfaceProjector`).
     -> (points, distances (n,) mm)."""

@@ -5,6 +5,7 @@ and its yarn tracks: the grid lines through the taxels, edge to edge on the top 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ ROW_BYTES = 400.0
 of nine numbers and its array row)."""
 
 
-def pad_rows(pad_size_mm, count) -> tuple[int, int]:
+def pad_rows(pad_size_mm: Sequence[float], count: Sequence[int]) -> tuple[int, int]:
     """Rows of a pad's taxels.csv (nx * ny) and tracks.csv (points of its grid lines)."""
     nx, ny = (int(c) for c in count)
     sx, sy, _ = pad_size_mm
@@ -31,7 +32,7 @@ def pad_rows(pad_size_mm, count) -> tuple[int, int]:
     return nx * ny, points
 
 
-def check_pad_size(pad_size_mm, count, where: str) -> None:
+def check_pad_size(pad_size_mm: Sequence[float], count: Sequence[int], where: str) -> None:
     """Refuse (SceneError naming `where`) a grid whose rows would not fit in memory."""
     from fruitcli.memory import require
 
@@ -44,7 +45,9 @@ def check_pad_size(pad_size_mm, count, where: str) -> None:
     )
 
 
-def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> np.ndarray:
+def pad_taxels(
+    pad_size_mm: Sequence[float], count: Sequence[int], spacing_x_mm: float, spacing_y_mm: float
+) -> np.ndarray:
     """Rows (id, i, j, x, y, z, nx, ny, nz) in mm, i along x, j along y, normal +z."""
     nx, ny = (int(c) for c in count)
     if nx < 1 or ny < 1:
@@ -72,7 +75,13 @@ def pad_taxels(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> 
     return rows
 
 
-def write_pad_taxels(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm) -> int:
+def write_pad_taxels(
+    path: Path,
+    pad_size_mm: Sequence[float],
+    count: Sequence[int],
+    spacing_x_mm: float,
+    spacing_y_mm: float,
+) -> int:
     rows = pad_taxels(pad_size_mm, count, spacing_x_mm, spacing_y_mm)
     out = [[int(r[0]), int(r[1]), int(r[2]), *map(float, r[3:])] for r in rows]
     write_csv(
@@ -84,7 +93,9 @@ def write_pad_taxels(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm)
     return len(out)
 
 
-def pad_tracks(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> list[list]:
+def pad_tracks(
+    pad_size_mm: Sequence[float], count: Sequence[int], spacing_x_mm: float, spacing_y_mm: float
+) -> list[list]:
     """Rows (track, axis, index, point, x, y, z) mm of the pad's grid lines on its top
     face: axis x, the line x = const through taxels i = index (along y); axis y, the line
     y = const through taxels j = index (along x); each from edge to edge, points at most
@@ -103,7 +114,13 @@ def pad_tracks(pad_size_mm, count, spacing_x_mm: float, spacing_y_mm: float) -> 
     return out
 
 
-def write_pad_tracks(path: Path, pad_size_mm, count, spacing_x_mm, spacing_y_mm) -> int:
+def write_pad_tracks(
+    path: Path,
+    pad_size_mm: Sequence[float],
+    count: Sequence[int],
+    spacing_x_mm: float,
+    spacing_y_mm: float,
+) -> int:
     """tracks.csv of the pad's grid lines (as make-tracks writes); -> number of tracks."""
     rows = pad_tracks(pad_size_mm, count, spacing_x_mm, spacing_y_mm)
     write_csv(

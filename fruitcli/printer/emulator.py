@@ -19,6 +19,7 @@ import termios
 import threading
 import time
 import tty
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -43,11 +44,11 @@ class PrinterEmulator:
 
     def __init__(
         self,
-        bed_mm=(0, 0, 0, 220, 220, 250),
-        start_mm=(0.0, 0.0, 0.0),
+        bed_mm: Sequence[float] = (0, 0, 0, 220, 220, 250),
+        start_mm: Sequence[float] = (0.0, 0.0, 0.0),
         time_scale: float = 1.0,
         faults: dict | None = None,
-        log=None,
+        log: Callable[[str], None] | None = None,
     ):
         self.bed = np.asarray(bed_mm, float)
         self.time_scale = time_scale

@@ -23,6 +23,7 @@ the run stops with one line naming the sample. Outputs are those of the virtual 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -42,6 +43,8 @@ from fruitcli.tables import read_taxels
 
 if TYPE_CHECKING:
     from fruitcli.sensing.bench_stage import SampleSpec
+    from fruitcli.sensing.live.serial_ports import FrameReader
+    from fruitcli.tables import Taxels
 
 POSITION_TOL_MM = 0.02  # M114 against the commanded position
 FRAME_TIMEOUT_S = 5.0  # longest wait for a board frame after a move
@@ -73,7 +76,7 @@ class PrinterBenchInputs:
 
 
 def bench_samples(
-    state: int, samples: SampleSpec, taxels, states_npz
+    state: int, samples: SampleSpec, taxels: Taxels, states_npz: str | Path | None
 ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(sample ids (m,), contact points (m, 3) model mm, highest model z mm, samples in
     all): the virtual bench's sample points over the surface, at FEM `state` with
@@ -104,7 +107,7 @@ class BenchLog:
         self.frames, self.t_s, self.printer_mm, self.sample = [], [], [], []
         self.truth: list[tuple[int, np.ndarray]] = []
 
-    def add(self, counts: np.ndarray, t_s: float, tip_mm, sample: int = -1) -> None:
+    def add(self, counts: np.ndarray, t_s: float, tip_mm: np.ndarray, sample: int = -1) -> None:
         self.frames.append(counts)
         self.t_s.append(t_s)
         self.printer_mm.append(np.asarray(tip_mm, float))
@@ -137,7 +140,7 @@ class BoardStream:
     fills up sends stale frames), keeping the recent frames with the stream offset of
     their first byte."""
 
-    def __init__(self, reader):
+    def __init__(self, reader: FrameReader):
         import collections
         import threading
 
@@ -224,7 +227,7 @@ def check_reach(
     return z_safe
 
 
-def outside_bed(p: np.ndarray, z_low: float, z_safe: float, bed) -> bool:
+def outside_bed(p: np.ndarray, z_low: float, z_safe: float, bed: Sequence[float]) -> bool:
     return not (
         bed[0] <= p[0] <= bed[3]
         and bed[1] <= p[1] <= bed[4]
@@ -235,15 +238,15 @@ def outside_bed(p: np.ndarray, z_low: float, z_safe: float, bed) -> bool:
 
 def run_printer_bench(
     inputs: PrinterBenchInputs,
-    taxels_csv,
-    states_npz,
+    taxels_csv: str | Path,
+    states_npz: str | Path | None,
     printer_port: str,
     board_port: str,
-    out_dir,
+    out_dir: str | Path,
     indenter: str,
     fmt: str = "auto",
     board_baud: int = 115200,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
     overwrite: bool = False,
 ) -> dict:
     """Run the bench on a printer and a board; -> summary. Raises BenchStopped (after
@@ -397,7 +400,7 @@ def _open_ports(printer_port: str, baud: int, board_port: str, board_baud: int) 
 
 
 def _bench_meta(
-    inputs: PrinterBenchInputs, indenter: str, ports: tuple[str, str], placement
+    inputs: PrinterBenchInputs, indenter: str, ports: tuple[str, str], placement: Placement
 ) -> dict:
     """The recording's meta: the scene, indenter, ports (printer, board), the bench's
     settings and the model's placement on the bed; "stopped" is set when it stops."""
@@ -452,7 +455,9 @@ def _stopped(
     return BenchStopped(f"{msg}; {kept}{tail}")
 
 
-def retract(printer: Marlin, tip, z_safe: float, feed: float, exc) -> bool:
+def retract(
+    printer: Marlin, tip: np.ndarray | None, z_safe: float, feed: float, exc: BaseException
+) -> bool:
     """Lift the tip to the safe height when the printer can still take commands."""
     if tip is None or isinstance(exc, (PrinterGone, PrinterHalted)):
         return False

@@ -19,8 +19,13 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from fruitcli.errors import FruitError
+
+if TYPE_CHECKING:
+    from serial import SerialBase
 
 READY_TIMEOUT_S = 10.0  # wait this long for "start" after opening the port
 QUIET_S = 2.0  # ... or for the port to stay quiet this long (no reset on open)
@@ -58,7 +63,13 @@ def numbered(n: int, command: str) -> str:
 class Marlin:
     """One command at a time over an open pyserial port (`port`, named `name`)."""
 
-    def __init__(self, port, name: str = "printer", timeout_s: float = 30.0, log=None):
+    def __init__(
+        self,
+        port: SerialBase,
+        name: str = "printer",
+        timeout_s: float = 30.0,
+        log: Callable[[str], None] | None = None,
+    ):
         self.port, self.name, self.timeout_s = port, name, timeout_s
         self.line = 0  # number of the last line sent
         self.sent: dict[int, str] = {}

@@ -13,6 +13,9 @@ bench: the drop at the taxel's offset from the contact point and the tip's gap a
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fruitcli.printer.placement import Placement
@@ -21,6 +24,10 @@ from fruitcli.sensing.skin import forward
 from fruitcli.sensing.skin.virtual_bench import cell_counts
 from fruitcli.tables import Taxels
 
+if TYPE_CHECKING:
+    from fruitcli.scene import BoardSection
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+
 
 class SkinBoard:
     """`frame(k)` -> (rows, cols) counts for the tip where `tip_mm()` says it is now."""
@@ -28,13 +35,13 @@ class SkinBoard:
     def __init__(
         self,
         taxels: Taxels,
-        board,
+        board: BoardSection,
         placement: Placement,
-        tip_mm,
+        tip_mm: Callable[[], np.ndarray],
         indenter: str = "small",
         seed: int = 0,
         params: forward.SkinParams = forward.DEFAULT_PARAMS,
-        response=None,
+        response: CrossingSkin | None = None,
     ):
         from scipy.interpolate import LinearNDInterpolator
 
@@ -52,7 +59,7 @@ class SkinBoard:
         self.surface = LinearNDInterpolator(self.taxels_mm[:, :2], self.taxels_mm[:, 2])
         self.fill_std = float(np.median(self.skin.noise_std_counts))
 
-    def mean_counts(self, tip_printer_mm) -> np.ndarray:
+    def mean_counts(self, tip_printer_mm: np.ndarray) -> np.ndarray:
         """Noise-free taxel counts (T,) for the tip at printer coordinates (3,)."""
         tip = self.placement.to_model(tip_printer_mm)
         z = float(self.surface(tip[None, :2])[0])

@@ -4,8 +4,11 @@ indenter (out_dir/<indenter>/frames.npz, truth.csv). Units: mm, counts, s.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,6 +20,13 @@ from fruitcli.sensing.frames.recording import Recording
 from fruitcli.sensing.inputs_stage import crossing_skin_inputs
 from fruitcli.sensing.locator_setup import electrostatic_skin
 from fruitcli.tables import read_taxels
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.forward import Skin
+    from fruitcli.sensing.skin.virtual_bench import BenchRun
+    from fruitcli.tables import Taxels
 
 POINT_HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 """The columns of the bench's point tables (truth.csv, measured.csv)."""
@@ -32,7 +42,7 @@ class SampleSpec:
     csv: Path | None = None
 
 
-def sample_spec(scene) -> SampleSpec:
+def sample_spec(scene: Scene) -> SampleSpec:
     """The scene's `SampleSpec` (the grid's spacings are read for "quarter" only)."""
     spec = scene.bench.samples
     if spec == "quarter":
@@ -55,20 +65,20 @@ def spec_points(spec: SampleSpec, taxels_mm: np.ndarray) -> np.ndarray:
     return np.stack([cols["x_mm"], cols["y_mm"]], axis=1)
 
 
-def sample_points(scene, taxels_mm: np.ndarray) -> np.ndarray:
+def sample_points(scene: Scene, taxels_mm: np.ndarray) -> np.ndarray:
     """(x, y) mm of the scene's bench samples: "quarter" or a CSV (sample,x_mm,y_mm)."""
     return spec_points(sample_spec(scene), taxels_mm)
 
 
 def run_bench(
-    scene,
-    taxels_csv,
-    states_npz_or_none,
-    out_dir,
-    progress=None,
-    surface_path=None,
+    scene: Scene,
+    taxels_csv: str | os.PathLike,
+    states_npz_or_none: str | os.PathLike | None,
+    out_dir: str | os.PathLike,
+    progress: Callable[[str], None] | None = None,
+    surface_path: str | Path | None = None,
     surface_unit: str = "mm",
-    crossing_dir=None,
+    crossing_dir: str | Path | None = None,
 ) -> dict:
     """Virtual 3D-printer bench: per indenter, out_dir/<indenter>/frames.npz + truth.csv.
     `surface_path`: the body's closed surface at rest (the ground truth's surface; see
@@ -135,7 +145,13 @@ def run_bench(
     return result
 
 
-def _bench_state(scene, taxels, states_npz, skin, response) -> tuple:
+def _bench_state(
+    scene: Scene,
+    taxels: Taxels,
+    states_npz: str | os.PathLike | None,
+    skin: Skin,
+    response: CrossingSkin | None,
+) -> tuple:
     """(states or None, taxel positions (T, 3) mm, baseline shift (T,) counts) at
     [bench].state: the FEM state's taxels and their strain's (or the crossing table's)
     shift, or the taxels at rest and no shift without states."""
@@ -161,7 +177,15 @@ def _bench_state(scene, taxels, states_npz, skin, response) -> tuple:
     return states, states.taxels_mm[state], shift
 
 
-def _run_indenter(scene, n, name, at, skin, response, cells):
+def _run_indenter(
+    scene: Scene,
+    n: int,
+    name: str,
+    at: tuple[np.ndarray, np.ndarray, np.ndarray],
+    skin: Skin,
+    response: CrossingSkin | None,
+    cells: tuple[np.ndarray, np.ndarray],
+):
     """The bench run of indenter `name` (the n-th) down onto each contact point; `at`:
     (contact points (m, 3) mm, taxel positions (T, 3) mm, baseline (T,) counts); `cells`:
     the taxels' (rows, cols) on the board. -> (the run (`virtual_bench.descend`), its
@@ -204,7 +228,9 @@ def _run_indenter(scene, n, name, at, skin, response, cells):
     return run, cell_counts(run.counts, rows, cols, (board.rows, board.cols), fill)
 
 
-def _write_run(scene, name, run, frames, truth_surface, out_dir) -> None:
+def _write_run(
+    scene: Scene, name: str, run: BenchRun, frames: np.ndarray, truth_surface: str, out_dir: Path
+) -> None:
     """out_dir/frames.npz (the board frames of `run`, with the bench's settings as meta)
     and out_dir/truth.csv (its true contact points, mm)."""
     from fruitcli.sensing.frames.recording import write_npz

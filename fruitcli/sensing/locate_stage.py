@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Required, TypedDict
+from typing import TYPE_CHECKING, Required, TypedDict
 
 import numpy as np
 
@@ -33,6 +33,10 @@ from fruitcli.sensing.locator_setup import (
 from fruitcli.sensing.outputs.touch_csv import touch_bytes, touch_csv
 from fruitcli.tables import read_taxels
 from fruitcli.time_left import time_left
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
 
 
 class LocateSummary(TypedDict, total=False):
@@ -151,7 +155,16 @@ class _Written:
     moved: list = field(default_factory=lambda: [0, 0.0, 0.0])
 
 
-def _write_touches(locator, rec, baseline, pressure, run, chunk_frames, workers, say):
+def _write_touches(
+    locator: Locator,
+    rec: ChunkedRecording,
+    baseline: np.ndarray,
+    pressure: np.ndarray | None,
+    run: _Written,
+    chunk_frames: int,
+    workers: int,
+    say: Callable[[str], None],
+):
     """Detect the recording `chunk_frames` frames at a time on `workers` threads and
     write the touches CSV; progress every 2 s; the frames' CRC-32 checked before the
     file appears. Fills `run` (a `_Written`)."""
@@ -195,7 +208,7 @@ def _write_touches(locator, rec, baseline, pressure, run, chunk_frames, workers,
     run.rows = out.rows
 
 
-def _touches_header(frames_path, model: bool) -> list[str]:
+def _touches_header(frames_path: str | os.PathLike, model: bool) -> list[str]:
     """The comment lines at the top of touches.csv (units of every column)."""
     return [
         f"touches of {Path(frames_path).name}: frame index from 0 "
@@ -213,7 +226,7 @@ def _touches_header(frames_path, model: bool) -> list[str]:
     ]
 
 
-def _projected(moved, say) -> dict[str, float]:
+def _projected(moved: list, say: Callable[[str], None]) -> dict[str, float]:
     """The summary of the touches moved onto the body's surface."""
     projected = {"touches": moved[0], "mean_mm": moved[1] / max(moved[0], 1), "max_mm": moved[2]}
     say(
@@ -223,7 +236,14 @@ def _projected(moved, say) -> dict[str, float]:
     return projected
 
 
-def _followed(result: LocateSummary, locator, rec, pressure, out_dir, say) -> None:
+def _followed(
+    result: LocateSummary,
+    locator: Locator,
+    rec: ChunkedRecording,
+    pressure: np.ndarray,
+    out_dir: Path,
+    say: Callable[[str], None],
+) -> None:
     """Into `result`: how a recording with chamber pressures was followed: by the
     reduced model (frames outside its range counted) or along the FEM states (frames far
     from the simulated path counted, not hidden)."""
@@ -239,12 +259,20 @@ def _followed(result: LocateSummary, locator, rec, pressure, out_dir, say) -> No
         return
     from fruitcli.sensing.detection.pressure_path import report_off_path
 
-    off_path = report_off_path(rec, pressure, locator.state_pressure_kpa, out_dir, say)
+    state_pressure = locator.state_pressure_kpa
+    assert state_pressure is not None  # a recording with pressures follows the states' path
+    off_path = report_off_path(rec, pressure, state_pressure, out_dir, say)
     result["model"] = "full"
     result["pressure_path"] = off_path
 
 
-def _measured(result: LocateSummary, rec, sampled, out_dir, say) -> None:
+def _measured(
+    result: LocateSummary,
+    rec: ChunkedRecording,
+    sampled: list,
+    out_dir: Path,
+    say: Callable[[str], None],
+) -> None:
     """For a bench's frames, out_dir/measured.csv: the strongest touch of each sample's
     frame, mm, and its samples into `result`; without bench samples, an earlier run's
     measured.csv is removed."""

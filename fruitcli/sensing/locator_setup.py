@@ -7,6 +7,7 @@ stages build (`inputs_stage`), never the scene. Units: mm, counts, kPa.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -24,9 +25,10 @@ from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
 from fruitcli.tables import Taxels
 
 if TYPE_CHECKING:
+    from fruitcli.fem.reduced.model import ReducedModel
     from fruitcli.sensing.skin.crossing_heights import CrossingHeights
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin, CrossingSkinInputs
-    from fruitcli.sensing.skin.heights import GapLaw
+    from fruitcli.sensing.skin.heights import GapLaw, HeightModel
 
 
 @dataclass(frozen=True)
@@ -48,9 +50,9 @@ def build_locator(
     rec: ChunkedRecording,
     settings: Settings,
     where: str,
-    reduced=None,
+    reduced: ReducedModel | None = None,
     gain: np.ndarray | None = None,
-    heights=None,
+    heights: HeightModel | None = None,
 ) -> tuple[Locator, np.ndarray | None]:
     """The Locator for a recording: rest positions, one state (meta "state", default 0)
     or the state path when the recording carries chamber pressures; with `reduced` (a
@@ -101,7 +103,7 @@ def build_locator(
                 settings,
                 states.pressure_kpa,
                 where,
-                gain,
+                gain=gain,
                 heights=heights,
             ),
             rec.pressure_kpa[:, cols],
@@ -116,13 +118,18 @@ def build_locator(
     ), None
 
 
-def locator_taxels(states, state: int | None, taxels: Taxels) -> np.ndarray:
+def locator_taxels(states: States | None, state: int | None, taxels: Taxels) -> np.ndarray:
     """Taxel positions (T, 3) mm of the recording's state (rest without states)."""
     return taxels.xyz_mm if states is None else states.taxels_mm[state]
 
 
 def surface_projector(
-    surface: SurfaceInputs, rec, states, pressure, taxels, where: str
+    surface: SurfaceInputs,
+    rec: ChunkedRecording,
+    states: States | None,
+    pressure: np.ndarray | None,
+    taxels: Taxels,
+    where: str,
 ) -> SurfaceProjector | None:
     """The `SurfaceProjector` of ``[detection].project = "surface"``, or of the model
     method (its fitted points go onto the body's surface when the surface is known and
@@ -158,7 +165,11 @@ def model_on_surface(method: str) -> bool:
 
 
 def skin_heights(
-    skin: SkinSection | None, taxels: Taxels, settings: Settings, divided: bool, crossing=None
+    skin: SkinSection | None,
+    taxels: Taxels,
+    settings: Settings,
+    divided: bool,
+    crossing: CrossingSkin | None = None,
 ) -> GapLaw | CrossingHeights:
     """The height model of a [skin] table (None: the defaults) for these taxels
     (`heights.gap_law`), or of the crossing's table `crossing` (a `CrossingSkin`) with
@@ -174,7 +185,9 @@ def skin_heights(
     return gap_law(params, taxels.ids, settings.footprint, divided)
 
 
-def electrostatic_skin(crossing: CrossingSkinInputs | None, progress=None) -> CrossingSkin | None:
+def electrostatic_skin(
+    crossing: CrossingSkinInputs | None, progress: Callable[[str], None] | None = None
+) -> CrossingSkin | None:
     """The crossing's table in counts (`crossing_skin.crossing_skin`: from the skin
     stage's folder, or computed now without one) for an electrostatic skin; None (a skin
     without a crossing table) for another [skin].model."""

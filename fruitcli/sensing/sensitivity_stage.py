@@ -4,7 +4,10 @@ the states' animation (sensitivity.json and its pictures). Units: counts, mm.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,9 +17,21 @@ from fruitcli.sensing.inputs_stage import crossing_skin_inputs
 from fruitcli.sensing.locator_setup import electrostatic_skin
 from fruitcli.tables import read_taxels
 
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.sensing.detection.locate import States
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.forward import Skin
+    from fruitcli.tables import Taxels
+
 
 def run_sensitivity(
-    scene, taxels_csv, states_npz, out_dir, progress=None, crossing_dir=None
+    scene: Scene,
+    taxels_csv: str | os.PathLike,
+    states_npz: str | os.PathLike | None,
+    out_dir: str | os.PathLike,
+    progress: Callable[[str], None] | None = None,
+    crossing_dir: str | Path | None = None,
 ) -> dict:
     """Noise std per taxel at rest and max baseline shift per taxel over the states' animation
     (Figs. 10, 11; Fig. 9 for a bent pad): sensitivity.json, noise_std.png, max_shift.png.
@@ -103,7 +118,9 @@ def run_sensitivity(
     return out
 
 
-def _model_shift(states, skin, response, n_taxels: int) -> tuple:
+def _model_shift(
+    states: States | None, skin: Skin, response: CrossingSkin | None, n_taxels: int
+) -> tuple:
     """(strain (S, T) Green-Lagrange norm, the strain gain in counts or None, the model's
     baseline shift (S, T) counts) over the S states (one at rest without states): from
     the strain, or from the crossing's table `response` (an electrostatic skin)."""
@@ -124,7 +141,15 @@ def _model_shift(states, skin, response, n_taxels: int) -> tuple:
     return strain, gain, shift_model
 
 
-def _save_maps(out_dir, taxels, states, std, shift, noise_frames, threshold) -> None:
+def _save_maps(
+    out_dir: Path,
+    taxels: Taxels,
+    states: States | None,
+    std: np.ndarray,
+    shift: np.ndarray,
+    noise_frames: int,
+    threshold: float,
+) -> None:
     """The noise std and max shift (T,) counts as heat maps over the grid and top views
     over the body's outline (the states' surface, or the taxels' box without states)."""
     from fruitcli.sensing.skin.heat_maps import save_heatmap, save_topview

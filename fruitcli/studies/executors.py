@@ -287,7 +287,7 @@ def open_executor(
 
 
 def run_graph(
-    pool,
+    pool: Serial | LocalPool | DaskPool,
     tasks: dict[K, Task],
     on_done: Callable[[K, Any], None] | None = None,
     on_lost: Callable[[K, str], Any] | None = None,
@@ -312,12 +312,18 @@ def run_graph(
     return results
 
 
-def _run_pooled(pool, tasks, on_done, on_lost, results: dict) -> None:
+def _run_pooled(
+    pool: LocalPool | DaskPool,
+    tasks: dict[K, Task],
+    on_done: Callable[[K, Any], None],
+    on_lost: Callable[[K, str], Any] | None,
+    results: dict,
+) -> None:
     """`run_graph` on a pool of workers (local or Dask), filling `results`."""
     waiting = dict(tasks)
-    running: dict = {}
+    running: dict[cf.Future, K] = {}
 
-    def launch(key):
+    def launch(key: K):
         task = tasks[key]
         task.attempts += 1
         running[pool.submit(task.func, task.arg, {d: results[d] for d in task.deps})] = key
@@ -330,7 +336,7 @@ def _run_pooled(pool, tasks, on_done, on_lost, results: dict) -> None:
     launch_ready()
     while running:
         done, _ = cf.wait(list(running), return_when=cf.FIRST_COMPLETED)
-        lost: list[tuple[Hashable, BaseException | None]] = []
+        lost: list[tuple[K, BaseException | None]] = []
         for fut in done:
             key = running.pop(fut)
             exc = fut.exception()
@@ -361,10 +367,10 @@ def _run_pooled(pool, tasks, on_done, on_lost, results: dict) -> None:
         launch_ready()
 
 
-def _topological(tasks: dict) -> list:
+def _topological(tasks: dict[K, Task]) -> list[K]:
     order, seen = [], set()
 
-    def visit(key):
+    def visit(key: K):
         if key in seen:
             return
         seen.add(key)

@@ -26,12 +26,13 @@ contact point) of hovers and of touches.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from fruitcli.sensing.skin.forward import SkinParams
+    from fruitcli.sensing.skin.forward import Skin, SkinParams
     from fruitcli.tables import Taxels
 
 START_GAP_MM = 5.0
@@ -42,7 +43,9 @@ NEAR_MM = 20.0  # taxels this near a sample enter the calibration fit
 HEADER = ["run", "band_mm", "frames", "median_error_mm", "p95_error_mm"]
 
 
-def _descents(taxels, skin, indenter: str, points: np.ndarray, rng):
+def _descents(
+    taxels: Taxels, skin: Skin, indenter: str, points: np.ndarray, rng: np.random.Generator
+):
     """(counts (N, T), true gap (N,), sample (N,)) of descents over points (P, 3)."""
     from fruitcli.sensing.skin import forward
 
@@ -57,7 +60,7 @@ def _descents(taxels, skin, indenter: str, points: np.ndarray, rng):
     return np.concatenate(counts), np.concatenate(gap), np.concatenate(sample)
 
 
-def _points(taxels, frac: float) -> np.ndarray:
+def _points(taxels: Taxels, frac: float) -> np.ndarray:
     inner = (taxels.i >= 1) & (taxels.i <= 19) & (taxels.j >= 1) & (taxels.j <= 10)
     return taxels.xyz_mm[inner] + np.array([16.0, 12.0, 0.0]) * frac
 
@@ -72,7 +75,7 @@ def fit_gap_law(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
     rows = np.nonzero(near)
     vv, dd, gg = v[rows], dist_mm[rows], gap_mm[rows[0]]
 
-    def residual(x):
+    def residual(x: np.ndarray):
         a, s, lam = np.exp(x)
         return a * np.exp(-0.5 * (dd / s) ** 2) * np.exp(-gg / lam) - vv
 
@@ -109,7 +112,13 @@ def calibrated(seed: int = 0, gain_spread: float = 0.0) -> tuple[SkinParams, dic
 
 
 def evaluate(
-    params, fit, taxels, name: str, indenter: str, gain_spread: float, seed: int
+    params: SkinParams,
+    fit: dict[str, float],
+    taxels: Taxels,
+    name: str,
+    indenter: str,
+    gain_spread: float,
+    seed: int,
 ) -> tuple[list[list], dict[str, float]]:
     """Rows of HEADER, and (largest hover height, hover and touch position errors)."""
     from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
@@ -126,11 +135,13 @@ def evaluate(
     rng = np.random.default_rng(seed)
     points = _points(taxels, 0.375)
     counts, gap, sample = _descents(taxels, skin, indenter, points, rng)
+    noise = params.noise_std_counts
+    assert isinstance(noise, float)  # the calibration's one std
     law = GapLaw(
         params.contact_counts,
         params.gap_decay_mm,
         params.footprint_sigma_mm["small"],
-        params.noise_std_counts,
+        noise,
     )
     loc = Locator(taxels, default_board(), taxels.xyz_mm, Settings(hovers=True), heights=law)
     err_l: list[float] = []
@@ -185,7 +196,7 @@ RUNS = (  # name, indenter, gain spread of the skin, seed, gain spread of the ca
 )
 
 
-def write(out_dir) -> dict:
+def write(out_dir: str | Path) -> dict:
     """Calibrate, evaluate every run; write hover_heights.csv and hover_heights.md."""
     from fruitcli.fsutil import staged_dir, write_csv, write_text
 

@@ -32,13 +32,18 @@ scene's: run the study on ``pipelines/fruit-deformed.toml`` for them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from contextlib import AbstractContextManager
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from types import ModuleType
+
+    from fruitcli.scene import Scene
 
 GAIN_SPREAD = 0.2
 
@@ -99,7 +104,7 @@ HEADER = [
 ]
 
 
-def bench_skin_values(name: str, indenters) -> dict:
+def bench_skin_values(name: str, indenters: Iterable[str]) -> dict:
     """The [skin] keys of bench skin `name` for `indenters` (footprint hypot(field
     sigma, indenter radius), as `fruitcli.sensing.skin.forward` makes it)."""
     from fruitcli.sensing.skin import forward
@@ -127,7 +132,7 @@ def bench_skin_values(name: str, indenters) -> dict:
     }
 
 
-def run_case(args) -> list[dict]:
+def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) -> list[dict]:
     """Bench one skin case, then locate and evaluate it with every method: rows."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
@@ -234,7 +239,7 @@ def variants() -> list[Variant]:
     return out
 
 
-def crossing_table(scene, work: Path) -> Path:
+def crossing_table(scene: Scene, work: Path) -> Path:
     """The skin stage's folder (the crossing's table) of `scene` with an electrostatic
     skin, run once under `work`."""
     from fruitcli.workflow import planner
@@ -246,11 +251,11 @@ def crossing_table(scene, work: Path) -> Path:
 
 
 def calibrated_skin(
-    bench_scene,
-    taxels,
-    states,
-    surface,
-    unit,
+    bench_scene: Scene,
+    taxels: Path,
+    states: Path | None,
+    surface: Path | None,
+    unit: str,
     work: Path,
     board_table: Path | None = None,
     fitted_table: Path | None = None,
@@ -323,7 +328,7 @@ def model_fits(touches_csv: Path) -> tuple[float, float]:
     return float(placed.mean()), sigma
 
 
-def _bench_taxels(taxels, states, state: int) -> np.ndarray:
+def _bench_taxels(taxels: Path, states: Path | None, state: int) -> np.ndarray:
     """The taxels' positions (T, 3) mm at the bench's FEM state (at rest without states)."""
     from fruitcli.sensing.detection.locate import load_states
     from fruitcli.tables import read_taxels
@@ -413,7 +418,7 @@ def _default_iterations() -> int:
     return ITERATIONS
 
 
-def _method_colours(plt, n: int) -> list:
+def _method_colours(plt: ModuleType, n: int) -> list:
     """n colours, one per method: tab10's without its grey (the boards' markers are grey
     in the legend), then tab20's darker ones, repeating past 17."""
     tab10, tab20b = plt.get_cmap("tab10"), plt.get_cmap("tab20b")

@@ -4,9 +4,12 @@ callback, results in the order of the cases (identical to a serial run)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from fruitcli.studies.executors import Task, default_jobs, open_executor, run_graph
+
+if TYPE_CHECKING:
+    from fruitcli.studies.executors import DaskPool, LocalPool, Serial
 
 __all__ = ["default_jobs", "run_cases"]
 
@@ -20,7 +23,7 @@ def run_cases(
     jobs: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     scheduler: str | None = None,
-    pool=None,
+    pool: Serial | LocalPool | DaskPool | None = None,
 ) -> list[R]:
     """`[func(c) for c in cases]`, spread over `jobs` processes (1: in this process), over
     the workers of the Dask `scheduler` at that address, or over an open `pool` (see
@@ -28,12 +31,12 @@ def run_cases(
     if not cases:
         return []
     own = pool is None
-    if own:
+    if pool is None:
         pool = open_executor(1 if len(cases) == 1 and not scheduler else jobs, scheduler)
     tasks = {n: Task(_call, (func, case)) for n, case in enumerate(cases)}
     done = 0
 
-    def on_done(key, result):
+    def on_done(key: int, result: object):
         nonlocal done
         done += 1
         if progress:
@@ -47,6 +50,6 @@ def run_cases(
     return [results[n] for n in range(len(cases))]
 
 
-def _call(arg, deps):
+def _call(arg: tuple[Callable[[C], R], C], deps: dict):
     func, case = arg
     return func(case)

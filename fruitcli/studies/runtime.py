@@ -18,6 +18,7 @@ import numpy as np
 from fruitcli.scene import load_scene
 
 if TYPE_CHECKING:
+    from fruitcli.scene import Scene
     from fruitcli.sensing.inputs_stage import LocateInputs
 
 
@@ -75,7 +76,7 @@ def fem_cases(default_size: float) -> list[FemCase]:
     return cases
 
 
-def _scene_variant(scene, case: FemCase):
+def _scene_variant(scene: Scene, case: FemCase):
     changes = {
         "mesh.size_mm": case.size_mm,
         "solver.tolerance": case.tolerance,
@@ -89,7 +90,7 @@ def _scene_variant(scene, case: FemCase):
     return scene.with_values(changes)
 
 
-def run_fem_case(args) -> dict:
+def run_fem_case(args: tuple[Path, Path, Path | None, Path, FemCase]) -> dict:
     """Mesh (cached per size) and simulate one setting; returns timings and taxels."""
     from fruitcli.errors import FruitError
     from fruitcli.fem.stage import run_simulate, run_tetra
@@ -204,7 +205,7 @@ DETECTION_VARIANTS: dict[str, DetectionChange] = {
 
 
 def run_detection_variants(
-    base: LocateInputs, bench_dir: Path, taxels_csv, states, work: Path
+    base: LocateInputs, bench_dir: Path, taxels_csv: Path, states: Path | None, work: Path
 ) -> list[dict]:
     """Locate the bench frames with each detection variant of the scene's locate inputs
     `base`; error and time per frame."""

@@ -140,13 +140,21 @@ def default_cases() -> list[Case]:
     return cases
 
 
-def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
+def _build(
+    case: Case,
+    nodes: np.ndarray,
+    tets: np.ndarray,
+    chambers: dict[str, np.ndarray] | None = None,
+    fixed_where: tuple[int, float] | None = None,
+    density_kg_m3: float = 0.0,
+    gravity_m_s2: tuple[float, float, float] | None = None,
+):
     """The case's model: the paper's `Model` (p1, corotational) or the hyperelastic one
     on the case's element (quadratic meshes built from the linear one here). Nodes with
     coordinate `fixed_where` = (axis, value) are held."""
     from fruitcli.fem.corotational_model import Model
 
-    def held(x):
+    def held(x: np.ndarray):
         return (
             None
             if fixed_where is None
@@ -157,7 +165,14 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
 
     if MATERIAL_MODELS[case.material].corotational:
         return Model.from_arrays(
-            nodes, tets, case.E_kpa, case.nu, chambers=chambers, fixed_nodes=held(nodes), **kw
+            nodes,
+            tets,
+            case.E_kpa,
+            case.nu,
+            chambers=chambers,
+            fixed_nodes=held(nodes),
+            density_kg_m3=density_kg_m3,
+            gravity_m_s2=gravity_m_s2,
         )
     from fruitcli.fem.continuum import ContinuumModel
     from fruitcli.fem.elements.quadratic import quadratic_mesh
@@ -174,11 +189,12 @@ def _build(case: Case, nodes, tets, chambers=None, fixed_where=None, **kw):
         case.element,
         chambers=dict(zip(names, walls, strict=True)),
         fixed_nodes=held(nodes),
-        **kw,
+        density_kg_m3=density_kg_m3,
+        gravity_m_s2=gravity_m_s2,
     )
 
 
-def pressure_outward(nodes, tris) -> np.ndarray:
+def pressure_outward(nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
     from fruitcli.fem.loads.pressure import orient_outward
 
     return orient_outward(nodes, np.asarray(tris, np.int64))
@@ -442,7 +458,7 @@ HEADER = [
 ]
 
 
-def _fmt(v) -> str:
+def _fmt(v: object) -> str:
     if v is None:
         return "-"
     if isinstance(v, float):

@@ -129,7 +129,7 @@ def combinations(specs: list[SetSpec], mode: str = "grid") -> list[dict]:
 
 
 # ----------------------------------------------------------------------------- scene keys
-def apply_value(raw: dict, key: str, value) -> None:
+def apply_value(raw: dict, key: str, value: object) -> None:
     """Set `key` (scene notation) to `value` in the raw TOML dict of a scene."""
     parts = key.split(".")
     section = parts[0]
@@ -192,7 +192,7 @@ def _pick(key: str, section: str, items: list, which: str, by_name: bool = False
     raise SweepError(f"--set {key}: no [[{section}]] '{which}' ({what}; the scene has {have})")
 
 
-def _closest(name, options) -> str:
+def _closest(name: str, options: Iterable[str]) -> str:
     import difflib
 
     match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
@@ -208,7 +208,7 @@ def _toml_key(key: str) -> str:
     return key if re.match(r"^[A-Za-z0-9_-]+$", key) else json.dumps(key)
 
 
-def _toml_value(value) -> str:
+def _toml_value(value: object) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -229,7 +229,7 @@ def _toml_value(value) -> str:
 
 
 # ----------------------------------------------------------------------------- variants
-def fmt_value(value) -> str:
+def fmt_value(value: object) -> str:
     """A value as it appears in folder names and tables: 3, 0.45, 10x10x4, pcg."""
     if isinstance(value, bool):
         return str(value).lower()

@@ -5,6 +5,7 @@ keys)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 from fruitcli.studies.sweep import fmt_value
@@ -25,7 +26,7 @@ UNITS = (
 )
 
 
-def columns(rows: list[dict], keys: list[str]) -> list[str]:
+def columns(rows: Sequence[dict | None], keys: list[str]) -> list[str]:
     """variant, the swept keys, the figures present in some row (a stable order), status."""
     present = list(dict.fromkeys(c for r in rows if r for c in r))  # first seen first
     known = set(keys) | set(FIGURE_ORDER) | set(TAIL) | {"variant"}
@@ -38,7 +39,7 @@ def columns(rows: list[dict], keys: list[str]) -> list[str]:
     )
 
 
-def cell(value) -> str:
+def cell(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
@@ -52,7 +53,7 @@ def cell(value) -> str:
     return str(value)
 
 
-def write_csv(path: Path, rows: list[dict], keys: list[str], comment: str) -> None:
+def write_csv(path: Path, rows: Sequence[dict | None], keys: list[str], comment: str) -> None:
     from fruitcli.fsutil import write_csv as write
 
     cols = columns(rows, keys)
@@ -61,7 +62,7 @@ def write_csv(path: Path, rows: list[dict], keys: list[str], comment: str) -> No
     )
 
 
-def markdown(rows: list[dict], keys: list[str], head: list[str]) -> str:
+def markdown(rows: Sequence[dict | None], keys: list[str], head: list[str]) -> str:
     cols = columns(rows, keys)
     lines = [*head, "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
@@ -163,5 +164,5 @@ def axis_label(figure: str) -> str:
     return LABELS.get(figure, figure)
 
 
-def _number(value) -> bool:
+def _number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

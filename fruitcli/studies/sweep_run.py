@@ -17,13 +17,19 @@ import socket
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.studies.executors import Task, run_graph
 from fruitcli.studies.sweep import Variant, rebuild
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.studies.executors import DaskPool, LocalPool, Serial
 
 RESULT = "result.json"
 # One task at a time per process: a Dask worker with several threads would otherwise run
@@ -44,7 +50,7 @@ class FigureInputs:
     threshold_counts: float
 
 
-def figure_inputs(scene, folder: Path) -> FigureInputs:
+def figure_inputs(scene: Scene, folder: Path) -> FigureInputs:
     """The `FigureInputs` of a variant's scene whose stages ran into `folder`."""
     from fruitcli.workflow.planner import Context
     from fruitcli.workflow.stage_paths import taxels_path
@@ -166,7 +172,7 @@ def _failed_dep(deps: dict) -> str | None:
     return next((r["error"] for r in deps.values() if r.get("error")), None)
 
 
-def run_stage_task(arg, deps) -> dict:
+def run_stage_task(arg: tuple[str, str, str, str, str], deps: dict) -> dict:
     """On a worker: run a variant's stages up to `stage` (shared with other variants)."""
     text, scene_path, folder, stage, shared = arg
     if (failed := _failed_dep(deps)) is not None:
@@ -175,7 +181,7 @@ def run_stage_task(arg, deps) -> dict:
         return _run_stage(text, scene_path, Path(folder), stage, Path(shared))
 
 
-def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict:
+def _run_stage(text: str, scene_path: str, folder: Path, stage: str, shared: Path) -> dict:
     from fruitcli.workflow import planner
 
     _note_attempt(folder, f"stage {stage}")
@@ -188,13 +194,13 @@ def _run_stage(text, scene_path, folder: Path, stage: str, shared: Path) -> dict
     return {"error": None}
 
 
-def run_variant_task(arg, deps) -> dict:
+def run_variant_task(arg: tuple[str, str, str, str], deps: dict) -> dict:
     """On a worker: run every stage of one variant (copying the shared ones) and return
     its row: figures, status ("ok" or "failed"), error line, wall time (s)."""
     from fruitcli.fsutil import write_json
 
-    text, scene_path, folder, shared = arg
-    folder = Path(folder)
+    text, scene_path, folder_name, shared = arg
+    folder = Path(folder_name)
     if (failed := _failed_dep(deps)) is not None:
         row = {"status": "failed", "error": failed, "variant_s": 0.0}
     else:
@@ -204,7 +210,7 @@ def run_variant_task(arg, deps) -> dict:
     return row
 
 
-def _run_variant(text, scene_path, folder: Path, shared: Path) -> dict:
+def _run_variant(text: str, scene_path: str, folder: Path, shared: Path) -> dict:
     from fruitcli.workflow import planner
 
     t0 = time.perf_counter()
@@ -291,7 +297,11 @@ def _closure(deps_of: dict, name: str) -> set[str]:
 
 
 def run_sweep(
-    variants: list[Variant], out_dir: Path, pool, progress=None, on_row=None
+    variants: list[Variant],
+    out_dir: Path,
+    pool: Serial | LocalPool | DaskPool,
+    progress: Callable[[int, int, dict | None], None] | None = None,
+    on_row: Callable[[list[dict | None]], None] | None = None,
 ) -> tuple[list[dict], dict[str, int]]:
     """Run (or reuse) every variant on `pool`; returns the rows in variant order and
     counts {"run", "reused", "failed", "shared_stages"}. `progress(done, total, row)`
@@ -314,7 +324,7 @@ def run_sweep(
     if progress and reused:
         progress(done, len(variants), None)
 
-    def on_done(key, result):
+    def on_done(key: tuple, result: dict):
         nonlocal done
         if key[0] != "variant":
             if progress:
@@ -335,7 +345,7 @@ def run_sweep(
         if progress:
             progress(done, len(variants), rows[key[1]])
 
-    def on_lost(key, message):
+    def on_lost(key: tuple, message: str):
         if key[0] == "variant":
             return {"status": "failed", "error": message, "variant_s": 0.0}
         return {"error": f"{key[1]}: {message}"}

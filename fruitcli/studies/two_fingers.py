@@ -30,9 +30,15 @@ rest (fit2's footprint width in pitches comes from it) and the body's taxel posi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.touch_table import TouchTable
+    from fruitcli.sensing.skin.forward import Skin
 
 PITCH_I_MM = 16.0
 PITCH_J_MM = 12.0
@@ -107,7 +113,9 @@ def surface_points(positions: np.ndarray, fi: np.ndarray, fj: np.ndarray) -> np.
     )
 
 
-def _frames(positions, skin, points: np.ndarray, rng) -> np.ndarray:
+def _frames(
+    positions: np.ndarray, skin: Skin, points: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
     """Frames (N, 21, 12) of indenters at contact at points (N, K, 3) mm over taxels at
     positions (252, 3) mm."""
     from fruitcli.sensing.skin import forward
@@ -119,7 +127,7 @@ def _frames(positions, skin, points: np.ndarray, rng) -> np.ndarray:
     )
 
 
-def _pair_errors(t, truth: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray]:
+def _pair_errors(t: TouchTable, truth: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray]:
     """(touches per frame (N,), errors (M, 2) mm of the frames with exactly two)."""
     count = np.bincount(t.frame, minlength=frames)
     errs = []
@@ -135,8 +143,8 @@ def run(
     seed: int = 0,
     trials: int = TRIALS,
     singles: int = SINGLES,
-    distances=DISTANCES,
-    bodies=BODIES,
+    distances: Sequence[float] = DISTANCES,
+    bodies: Sequence[str] = BODIES,
 ) -> tuple[list[list], list[list]]:
     """-> (pair rows (HEADER), single rows [body, method, frames, one_rate, median, p95
     mm]), for each body of `bodies` (`BODIES`)."""
@@ -297,7 +305,9 @@ def plot(rows: list[list], path: Path) -> None:
     plt.close(fig)
 
 
-def write(out_dir, seed: int = 0, trials: int = TRIALS, bodies=BODIES) -> dict:
+def write(
+    out_dir: str | Path, seed: int = 0, trials: int = TRIALS, bodies: Sequence[str] = BODIES
+) -> dict:
     """Run the study; write two_fingers.csv, single_fingers.csv, two_fingers.md and
     two_fingers.png."""
     from fruitcli.fsutil import staged_dir, write_csv, write_text

@@ -17,6 +17,8 @@ import numpy as np
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
+    from fruitcli.scene import SkinSection
+
 FIELD_SIGMAS_MM = (4.0, 5.0, 6.0, 7.0, 8.0)
 CONTACT_COUNTS = (30.0, 45.0, 60.0, 90.0, 120.0)
 GAP_DECAYS_MM = (1.0, 1.5, 2.0, 3.0, 4.0)
@@ -53,7 +55,7 @@ class Case:
         return f"{self.parameter} {self.value:g}"
 
 
-def cases(skin, indenters: list[str], surface: bool = False) -> list[Case]:
+def cases(skin: SkinSection, indenters: list[str], surface: bool = False) -> list[Case]:
     """The default, then each parameter moved alone. The footprint of an indenter of
     radius r is hypot(field sigma, r), as in `fruitcli.sensing.skin.forward`. With the body's
     `surface`, also the default skin located with ``[detection].project = "surface"``.
@@ -86,7 +88,7 @@ def cases(skin, indenters: list[str], surface: bool = False) -> list[Case]:
     return out
 
 
-def run_case(args) -> dict:
+def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, Case]) -> dict:
     """Bench, locate and evaluate one case; a row per indenter with the Table I figures."""
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
@@ -213,7 +215,7 @@ def table_markdown(rows: list[dict], scene_name: str, paper: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def default_value(parameter: str, skin) -> float:
+def default_value(parameter: str, skin: SkinSection) -> float:
     """The default's x position in the plot."""
     from fruitcli.sensing.skin import forward
 
@@ -225,7 +227,7 @@ def default_value(parameter: str, skin) -> float:
     return float(v)
 
 
-def plot(path: Path, rows: list[dict], skin, paper: dict) -> None:
+def plot(path: Path, rows: list[dict], skin: SkinSection, paper: dict) -> None:
     """bench.png: one panel per parameter, mean error against its value per indenter,
     registered (solid) and unregistered (dashed); the default as a ring, the paper's
     Table I value as a dotted line."""

@@ -5,6 +5,9 @@ the chamber pressures). The heavy modules are imported only when a stage runs.
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 from fruitcli.scene import Scene, gravity_left_out, has_deformation, has_gravity, n_states
 from fruitcli.workflow.stage_paths import (
     DEFORMS,
@@ -18,9 +21,12 @@ from fruitcli.workflow.stage_paths import (
 )
 from fruitcli.workflow.stage_types import Stage
 
+if TYPE_CHECKING:
+    from fruitcli.workflow.stage_types import Context
+
 
 # ----------------------------------------------------------------------------- tetra / simulate
-def _fem_needed(scene):
+def _fem_needed(scene: Scene):
     if not has_deformation(scene):
         dropped = gravity_left_out(scene)
         return False, "no deformation: taxels at rest, no FEM" + (f"; {dropped}" if dropped else "")
@@ -29,7 +35,7 @@ def _fem_needed(scene):
     return True, _fem_reason(scene)
 
 
-def _fem_reason(scene):
+def _fem_reason(scene: Scene):
     parts = []
     k = len(scene.chambers)
     act = scene.actuation
@@ -54,7 +60,7 @@ def _fem_reason(scene):
     return "; ".join(parts)
 
 
-def _tetra_run(scene, ctx, out_dir):
+def _tetra_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fem.stage import run_tetra
     from fruitcli.tables import read_taxels
 
@@ -63,7 +69,7 @@ def _tetra_run(scene, ctx, out_dir):
     return run_tetra(scene, solid_path(scene, ctx), out_dir, progress=ctx.progress, taxels_xyz=xyz)
 
 
-def _simulate_run(scene, ctx, out_dir):
+def _simulate_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fem.stage import run_simulate
     from fruitcli.tables import read_taxels
 
@@ -87,14 +93,14 @@ def _simulate_run(scene, ctx, out_dir):
 
 
 # ----------------------------------------------------------------------------- limits
-def _limits_needed(scene):
+def _limits_needed(scene: Scene):
     from fruitcli.fem.limits_stage import near_limit
 
     fem, why = _fem_needed(scene)
     return near_limit(scene) if fem else (False, why)
 
 
-def _limits_run(scene, ctx, out_dir):
+def _limits_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fem.limits_stage import run_limits_stage
 
     mesh = ctx.dir("tetra") / "mesh.npz"
@@ -126,7 +132,7 @@ def wanting_reduced(scene: Scene) -> Scene:
     return replace(scene, declared=scene.declared | {"reduced"})
 
 
-def _reduce_needed(scene):
+def _reduce_needed(scene: Scene):
     if not scene.chambers:
         return False, "no chambers: no pressures to reduce"
     meshed, why = _fem_needed(scene)
@@ -148,7 +154,7 @@ def _reduce_needed(scene):
     )
 
 
-def locate_uses_reduced(scene) -> bool:
+def locate_uses_reduced(scene: Scene) -> bool:
     """Whether the locate stage takes the recording's taxels from the reduced model: a
     scene with chambers whose [frames].recording carries chamber pressures, unless
     [frames].model = "full" (then along the simulated states, as bench frames are)."""
@@ -163,7 +169,7 @@ def locate_uses_reduced(scene) -> bool:
         return False  # the locate stage reports the unreadable recording itself
 
 
-def _reduce_range(scene) -> dict:
+def _reduce_range(scene: Scene) -> dict:
     from fruitcli.fem.reduced.build import pressure_box
 
     names = [c.name for c in scene.chambers]
@@ -171,13 +177,13 @@ def _reduce_range(scene) -> dict:
     return {n: [float(a), float(b)] for n, a, b in zip(names, lo, hi, strict=True)}
 
 
-def _reduce_inputs(scene, ctx):
+def _reduce_inputs(scene: Scene, ctx: Context):
     # the pressure box from [actuation] and [reduced] pressure_range_kpa, margin, not
     # those keys: new states inside the same box keep the model
     return {"range_kpa": _reduce_range(scene)}
 
 
-def _reduce_run(scene, ctx, out_dir):
+def _reduce_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fem.reduced.build import run_reduce
     from fruitcli.tables import read_taxels
 

@@ -6,13 +6,18 @@ and grid lines). The heavy modules are imported only when a stage runs.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fruitcli.workflow.stage_paths import GEOMETRY_KIND, YARN_KEYS, geometry_kind, no_inputs
 from fruitcli.workflow.stage_types import Stage
 
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.workflow.stage_types import Context
+
 
 # ----------------------------------------------------------------------------- make-artist
-def _artist_needed(scene):
+def _artist_needed(scene: Scene):
     geo = scene.geometry
     if geo.artist is None:
         kind = geometry_kind(scene)
@@ -24,11 +29,12 @@ def _artist_needed(scene):
     return True, "default fruit generated on first use"
 
 
-def _artist_run(scene, ctx, out_dir):
+def _artist_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.geometry.artist import write_artist
 
     out_dir.mkdir(parents=True, exist_ok=True)
     artist = scene.geometry.artist
+    assert artist is not None  # `_artist_needed`
     if Path(artist).exists():  # "if missing": a mesh at `artist` is the user's, kept
         ctx.progress(f"{artist}: exists, kept (generate_artist writes it only when missing)")
         return {"artist": str(artist), "generated": False}
@@ -37,7 +43,7 @@ def _artist_run(scene, ctx, out_dir):
 
 
 # ----------------------------------------------------------------------------- make-tracks
-def _tracks_needed(scene):
+def _tracks_needed(scene: Scene):
     kind = geometry_kind(scene)
     if kind == "artist":
         return True, "artist mesh: reduce, carve yarn tracks, export taxels"
@@ -48,10 +54,11 @@ def _tracks_needed(scene):
     return False, "no geometry: evaluation only"
 
 
-def _tracks_run(scene, ctx, out_dir):
+def _tracks_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.geometry.tracks.make_tracks import SCENE_NAMES, make_tracks
 
     geo, tr, grid = scene.geometry, scene.tracks, scene.grid
+    assert geo.artist is not None  # `_tracks_needed`
     report = make_tracks(
         geo.artist,
         out_dir,
@@ -71,7 +78,7 @@ def _tracks_run(scene, ctx, out_dir):
 
 
 # ----------------------------------------------------------------------------- pad-grid
-def _pad_needed(scene):
+def _pad_needed(scene: Scene):
     if geometry_kind(scene) != "pad":
         return False, "not a flat pad"
     if scene.grid.taxels is not None:
@@ -79,10 +86,11 @@ def _pad_needed(scene):
     return True, "flat pad: taxels on a regular grid on its top face"
 
 
-def _pad_run(scene, ctx, out_dir):
+def _pad_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.geometry.padgrid import check_pad_size, write_pad_taxels, write_pad_tracks
 
     grid = scene.grid
+    assert scene.geometry.pad_size_mm is not None  # `_pad_needed`
     args = (scene.geometry.pad_size_mm, grid.count or [4, 4], grid.spacing_x_mm, grid.spacing_y_mm)
     check_pad_size(args[0], args[1], scene.path.name)
     n = write_pad_taxels(out_dir / "taxels.csv", *args)

@@ -19,8 +19,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fruitcli.workflow.stage_types import Stage
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.workflow.stage_types import Context
 
 MODEL_METHOD = "model"
 # `[detection].model_frames` tried on the calibration run; the rows are located with the
@@ -28,13 +33,13 @@ MODEL_METHOD = "model"
 MODEL_FRAMES = (1, 2, 4, 8, 16)
 
 
-def _needed(scene):
+def _needed(scene: Scene):
     if not scene.has("bench"):
         return False, "no [bench]: no frames to place by the model"
     return True, "bench frames located by the model with a skin calibrated on another run"
 
 
-def _run(scene, ctx, out_dir):
+def _run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.evaluation.report import evaluate_pair, write_many
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
@@ -131,7 +136,7 @@ def _folder(frames: int, what: str = "locate") -> str:
     return what if frames == 1 else f"{what}-{frames}-frames"
 
 
-def _plain(value):
+def _plain(value: object):
     """A calibrated [skin] value as JSON: numbers rounded, tables as dicts."""
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}

@@ -106,7 +106,7 @@ def gaussian_pretouch_mm(contact_counts: float, gap_decay_mm: float) -> float:
     return gap_decay_mm * math.log(contact_counts / THRESHOLD_COUNTS)
 
 
-def pretouch(root: Path, scene=None) -> dict | None:
+def pretouch(root: Path, scene: Scene | None = None) -> dict | None:
     """Per object: (gap mm at which it crosses the threshold, counts at contact) under
     the crossing: from the run's crossing table (``skin/summary.json``) for the
     electrostatic skin, else from the scene's ``[skin]`` (the same for every indenter)."""

@@ -5,8 +5,11 @@ chamber pressures (mm, kPa).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.workflow import planner
@@ -14,12 +17,20 @@ from fruitcli.workflow.scene_outputs import shared_outputs
 from fruitcli.workflow.stage_paths import taxels_path
 
 if TYPE_CHECKING:
+    from click._termui_impl import ProgressBar
+
     from fruitcli.fem.online import OnlineSolver, ReducedOnline
     from fruitcli.fem.reduced.model import ReducedModel
+    from fruitcli.scene import Scene
+    from fruitcli.tables import Taxels
 
 
 def online_products(
-    scene, scene_path, taxels_csv, pressure_port, progress
+    scene: Scene,
+    scene_path: str | Path,
+    taxels_csv: str | Path | None,
+    pressure_port: str | None,
+    progress: Callable[[str], None] | None,
 ) -> tuple[str | Path | None, Path]:
     """(taxels CSV, mesh.npz) for `fruit live --online`: the scene's stages up to tetra,
     run into out/<scene name> when needed (one planner run); given taxels are kept."""
@@ -41,7 +52,12 @@ def online_products(
 
 
 def online_reduced(
-    scene, scene_path, taxels_csv, pressure_port, progress, bar=None
+    scene: Scene,
+    scene_path: str | Path,
+    taxels_csv: str | Path | None,
+    pressure_port: str | None,
+    progress: Callable[[str], None],
+    bar: Callable[[int], ProgressBar[Any]] | None = None,
 ) -> tuple[str | Path | None, ReducedModel]:
     """(taxels CSV, ReducedModel) for `fruit live --online --model reduced`: the scene's
     reduced model, built into out/<scene name>/reduce when missing or stale."""
@@ -59,7 +75,9 @@ def online_reduced(
     return taxels_csv or taxels_path(scene, planner.Context(out)), reduced
 
 
-def reduced_source(reduced, taxels, taxels_csv) -> ReducedOnline:
+def reduced_source(
+    reduced: ReducedModel, taxels: Taxels, taxels_csv: str | Path | None
+) -> ReducedOnline:
     """The live loop's ReducedOnline; FrameError when the model follows other taxels."""
     from fruitcli.fem.online import ReducedOnline
 
@@ -72,7 +90,9 @@ def reduced_source(reduced, taxels, taxels_csv) -> ReducedOnline:
     return ReducedOnline(reduced)
 
 
-def online_solver(scene, mesh_npz, taxels_xyz, progress) -> OnlineSolver:
+def online_solver(
+    scene: Scene, mesh_npz: Path, taxels_xyz: np.ndarray, progress: Callable[[str], None]
+) -> OnlineSolver:
     """The OnlineSolver of `fruit live --online` on the scene's mesh, with the taxels
     mapped into it."""
     from fruitcli.fem import io

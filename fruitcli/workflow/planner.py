@@ -20,6 +20,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from fruitcli.errors import FruitError
@@ -33,7 +34,7 @@ PLANNER_VERSION = 3  # 2: scene inputs from the stages' declared reads, files by
 # 3: the manifest holds its outputs' sha256 ("files")
 
 
-def _canonical(obj):
+def _canonical(obj: object):
     if isinstance(obj, Path):
         return content(obj)
     if isinstance(obj, dict):
@@ -92,7 +93,7 @@ def code_files(module: str) -> list[Path]:
     return sorted(files)
 
 
-def file_hash_many(paths) -> str:
+def file_hash_many(paths: Iterable[str | Path]) -> str:
     h = hashlib.sha256()
     for p in paths:
         h.update(Path(p).read_bytes())
@@ -145,7 +146,7 @@ def _holds(folder: Path, stage: Stage, scene: Scene, digest: str) -> bool:
     return _unlike(folder, stage, scene, digest) is None
 
 
-def _swap_in(folder: Path, fill, kind: str) -> None:
+def _swap_in(folder: Path, fill: Callable[[Path], object], kind: str) -> None:
     """Build a stage folder whole beside `folder` under a name of this process (`fill`
     writes it; concurrent runs never share it), then swap it in: the old folder moves
     aside whole and is removed. A run that swapped in the same stage meanwhile wins: its
@@ -205,7 +206,7 @@ def _run_in(stage: Stage, scene: Scene, ctx: Context, folder: Path, digest: str,
     _swap_in(folder, fill, "partial")
 
 
-def _moved(obj, built: str, final: str):
+def _moved(obj: object, built: str, final: str):
     """`obj` (a stage's summary) with the paths into the folder it was built in pointing
     into its final folder."""
     if isinstance(obj, dict):
@@ -272,7 +273,9 @@ def plan(
     return steps
 
 
-def _borrow(stage: Stage, scene: Scene, ctx: Context, digest: str, say=None) -> Path | None:
+def _borrow(
+    stage: Stage, scene: Scene, ctx: Context, digest: str, say: Callable[[str], None] | None = None
+) -> Path | None:
     """A sibling scene's folder (under ctx.shared) holding this stage with the same hash
     and its outputs unchanged; `say` hears of a sibling whose outputs changed."""
     if ctx.shared is None:
@@ -293,7 +296,7 @@ def run(
     scene: Scene,
     out_root: Path,
     until: str | None = None,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
     force: bool = False,
     stages: list[Stage] | None = None,
     shared: Path | None = None,

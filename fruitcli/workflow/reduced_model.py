@@ -4,17 +4,26 @@ evaluated at pressure vectors (kPa) instead of solving the FEM."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 if TYPE_CHECKING:
+    from click._termui_impl import ProgressBar
+
     from fruitcli.fem.reduced.model import ReducedModel
+    from fruitcli.scene import Scene
 
 
 def ensure_reduced(
-    scene, out_root: Path, taxels_csv=None, progress=None, label=None, bar=None
+    scene: Scene,
+    out_root: Path,
+    taxels_csv: str | Path | None = None,
+    progress: Callable[[str], None] | None = None,
+    label: str | None = None,
+    bar: Callable[[int], ProgressBar[Any]] | None = None,
 ) -> ReducedModel:
     """The scene's ReducedModel, from OUT/reduce (built there first when missing or
     stale). `taxels_csv` replaces the scene's [grid].taxels. A scene without one (not
@@ -62,7 +71,7 @@ def ensure_reduced(
     return reduced.load(reduced_path(sc, planner.Context(Path(out_root))))
 
 
-def actuation_table(scene, names: list[str]) -> np.ndarray:
+def actuation_table(scene: Scene, names: list[str]) -> np.ndarray:
     """(S, K) kPa of the scene's [actuation] states in `names` order."""
     from fruitcli.errors import SceneError
     from fruitcli.scene import n_states
@@ -80,15 +89,15 @@ def actuation_table(scene, names: list[str]) -> np.ndarray:
 
 
 def simulate_reduced(
-    scene,
+    scene: Scene,
     out_dir: Path,
-    taxels_csv,
-    table,
-    rows,
-    pressures_csv,
-    progress,
+    taxels_csv: str | Path | None,
+    table: np.ndarray | None,
+    rows: np.ndarray | None,
+    pressures_csv: str | Path | None,
+    progress: Callable[[str], None],
     vtu: bool = False,
-    bar=None,
+    bar: Callable[[int], ProgressBar[Any]] | None = None,
 ) -> dict:
     """`fruit simulate --model reduced`: states.npz at the rows of `table` (S, K) kPa
     (in the scene's chamber order; default its [actuation] states). Rows outside the

@@ -12,6 +12,7 @@ file declares it (`scene.has`: [gravity] applies only when declared).
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Collection, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +58,7 @@ def split(entry: str) -> tuple[str, str]:
     return section, key
 
 
-def covers(entries, section: str, key: str = "") -> bool:
+def covers(entries: Collection[str], section: str, key: str = "") -> bool:
     """True when the declaration `entries` names `section.key` (or its whole section);
     with key "" (the section itself, as `scene.has` reads it), when it names the section
     or any of its keys."""
@@ -74,7 +75,7 @@ def _hashed(spec: Key, value: Any, item_schema: dict[str, Key] | None) -> Any:
     return value
 
 
-def scene_inputs(scene: Scene, reads, minus=()) -> dict:
+def scene_inputs(scene: Scene, reads: Iterable[str], minus: Collection[str] = ()) -> dict:
     """The hashed scene inputs of a stage that reads `reads` (minus `minus`): each
     entry's values as plain data with files by content, and which of the sections named
     the scene file declares."""

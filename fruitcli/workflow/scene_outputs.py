@@ -4,6 +4,7 @@ lend a stage's outputs, and the taxels and states a command needs, made on deman
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -11,10 +12,11 @@ from fruitcli.workflow import planner
 from fruitcli.workflow.stage_paths import states_path, taxels_path
 
 if TYPE_CHECKING:
+    from fruitcli.scene import Scene
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 
-def shared_outputs(out_dir) -> Path | None:
+def shared_outputs(out_dir: Path) -> Path | None:
     """The folder holding the scene output folder `out_dir` and its siblings (out/ for
     out/<scene>), when it exists: a stage whose inputs equal a sibling's is copied from
     there instead of run again (`planner.run(shared=...)`)."""
@@ -22,7 +24,9 @@ def shared_outputs(out_dir) -> Path | None:
     return parent if parent.is_dir() else None
 
 
-def scene_products(scene, out_root=None, progress=None) -> tuple[Path | None, Path | None]:
+def scene_products(
+    scene: Scene, out_root: Path | None = None, progress: Callable[[str], None] | None = None
+) -> tuple[Path | None, Path | None]:
     """Taxels CSV and states.npz (or None) of a scene, running the stages that make them
     (into `out_root`, default out/<scene name>) and reusing what is already there."""
     out = Path(out_root) if out_root else Path("out") / scene.name
@@ -32,7 +36,9 @@ def scene_products(scene, out_root=None, progress=None) -> tuple[Path | None, Pa
     return taxels_path(scene, ctx), states_path(scene, ctx)
 
 
-def crossing_response(scene, out_root=None, progress=None) -> CrossingSkin | None:
+def crossing_response(
+    scene: Scene, out_root: Path | None = None, progress: Callable[[str], None] | None = None
+) -> CrossingSkin | None:
     """The scene's electrostatic skin (`crossing_skin.CrossingSkin`) with ``[skin].model =
     "electrostatic"``, else None: the skin stage's table (run into `out_root`, default
     out/<scene name>, reused while the cell's inputs are unchanged) or, when nothing in

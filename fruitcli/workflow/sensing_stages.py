@@ -7,6 +7,7 @@ modules are imported only when a stage runs.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fruitcli.workflow.fem_stages import locate_uses_reduced
 from fruitcli.workflow.stage_paths import (
@@ -17,15 +18,20 @@ from fruitcli.workflow.stage_paths import (
     indenters,
     no_inputs,
     reduced_path,
+    required_taxels_path,
     solid_path,
     states_path,
     taxels_path,
 )
 from fruitcli.workflow.stage_types import Stage
 
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
+    from fruitcli.workflow.stage_types import Context
+
 
 # ----------------------------------------------------------------------------- skin
-def _skin_needed(scene):
+def _skin_needed(scene: Scene):
     if not electrostatic(scene):
         return False, f"[skin].model = {scene.skin.model!r}: no crossing table"
     users = [s for s in ("bench", "sensitivity") if scene.has(s)]
@@ -34,7 +40,7 @@ def _skin_needed(scene):
     return True, f"electrostatic skin for the {' and '.join(users)}: the crossing's table"
 
 
-def _skin_run(scene, ctx, out_dir):
+def _skin_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.electrostatics import design
 
     table, summary = design.run_crossing(design.crossing_inputs(scene), progress=ctx.progress)
@@ -47,13 +53,13 @@ def _skin_run(scene, ctx, out_dir):
 
 
 # ----------------------------------------------------------------------------- sensing
-def _bench_needed(scene):
+def _bench_needed(scene: Scene):
     if not scene.has("bench"):
         return False, "no [bench]: no virtual 3D-printer bench"
     return True, f"virtual bench, indenters: {', '.join(indenters(scene))}"
 
 
-def _bench_inputs(scene, ctx):
+def _bench_inputs(scene: Scene, ctx: Context):
     from fruitcli.scene import resolve_path
 
     # [bench].samples is a string key ("quarter" or a CSV path): the CSV by its content
@@ -61,14 +67,14 @@ def _bench_inputs(scene, ctx):
     return {} if spec == "quarter" else {"samples": Path(resolve_path(scene.path, spec))}
 
 
-def _bench_run(scene, ctx, out_dir):
+def _bench_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.sensing.stages import run_bench
 
     solid = solid_path(scene, ctx)
     unit = scene.geometry.unit if geometry_kind(scene) == "solid" else "mm"
     return run_bench(
         scene,
-        taxels_path(scene, ctx),
+        required_taxels_path(scene, ctx),
         states_path(scene, ctx),
         out_dir,
         progress=ctx.progress,
@@ -78,7 +84,7 @@ def _bench_run(scene, ctx, out_dir):
     )
 
 
-def _frame_sources(scene, ctx) -> dict[str, Path]:
+def _frame_sources(scene: Scene, ctx: Context) -> dict[str, Path]:
     if scene.has("bench"):
         return {ind: ctx.dir("bench") / ind / "frames.npz" for ind in indenters(scene)}
     if scene.frames.recording is not None:
@@ -86,7 +92,7 @@ def _frame_sources(scene, ctx) -> dict[str, Path]:
     return {}
 
 
-def _locate_needed(scene):
+def _locate_needed(scene: Scene):
     if scene.has("bench"):
         return True, "detect touches in the bench frames, map them to 3D"
     if scene.frames.recording is not None:
@@ -94,7 +100,7 @@ def _locate_needed(scene):
     return False, "no frames: no recording and no bench"
 
 
-def _locate_run(scene, ctx, out_dir):
+def _locate_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
 
     out = {}
@@ -120,14 +126,14 @@ def _locate_run(scene, ctx, out_dir):
     return out
 
 
-def _locate_outputs(scene):
+def _locate_outputs(scene: Scene):
     if scene.has("bench"):
         return [f"{ind}/touches.csv" for ind in indenters(scene)]
     return ["recording/touches.csv"]
 
 
 # ----------------------------------------------------------------------------- evaluate
-def _eval_rows(scene, ctx) -> list[dict]:
+def _eval_rows(scene: Scene, ctx: Context) -> list[dict]:
     rows = scene.values("evaluate")
     if scene.has("bench"):
         config = scene.scene.configuration
@@ -144,7 +150,7 @@ def _eval_rows(scene, ctx) -> list[dict]:
     return rows
 
 
-def _eval_needed(scene):
+def _eval_needed(scene: Scene):
     if scene.has("bench"):
         return True, "bench ground truth against located touches"
     if scene.evaluate:
@@ -152,7 +158,7 @@ def _eval_needed(scene):
     return False, "no ground truth"
 
 
-def _eval_run(scene, ctx, out_dir):
+def _eval_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.evaluation.report import evaluate_pair, write_many
 
     results = [
@@ -171,18 +177,18 @@ def _eval_run(scene, ctx, out_dir):
 
 
 # ----------------------------------------------------------------------------- sensitivity
-def _sens_needed(scene):
+def _sens_needed(scene: Scene):
     if not scene.has("sensitivity"):
         return False, "no [sensitivity]"
     return True, "noise std at rest and baseline shift over the states"
 
 
-def _sens_run(scene, ctx, out_dir):
+def _sens_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.sensing.stages import run_sensitivity
 
     return run_sensitivity(
         scene,
-        taxels_path(scene, ctx),
+        required_taxels_path(scene, ctx),
         states_path(scene, ctx),
         out_dir,
         progress=ctx.progress,

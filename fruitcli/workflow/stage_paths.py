@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fruitcli.errors import FruitError
 from fruitcli.scene import Scene, has_deformation
 from fruitcli.sensing.skin.models import SKIN_MODELS
 from fruitcli.workflow.stage_types import Context
@@ -34,6 +35,17 @@ def taxels_path(scene: Scene, ctx: Context) -> Path | None:
     if kind == "pad":
         return ctx.dir("pad-grid") / "taxels.csv"
     return None
+
+
+def required_taxels_path(scene: Scene, ctx: Context) -> Path:
+    """`taxels_path` for a stage that cannot run without taxels."""
+    path = taxels_path(scene, ctx)
+    if path is None:
+        raise FruitError(
+            f"{scene.path.name}: no taxels: a [geometry].solid scene takes them from "
+            "[grid].taxels (a CSV of id,i,j,x_mm,y_mm,z_mm)"
+        )
+    return path
 
 
 def solid_path(scene: Scene, ctx: Context) -> Path | None:

@@ -8,6 +8,8 @@ branch and bound, exact whatever the triangles' sizes. Points `(n, 3)` float64, 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numba import njit
 
@@ -341,7 +343,9 @@ def _tree_closest(points, t, perm, start, end, child, lo, hi, q, d2, fid):
         fid[i] = best_f
 
 
-def grid_vertex_distance(vertices: np.ndarray, axes, upper_mm: float) -> np.ndarray:
+def grid_vertex_distance(
+    vertices: np.ndarray, axes: Sequence[np.ndarray], upper_mm: float
+) -> np.ndarray:
     """Distance (nx * ny * nz,) from each point of the grid `axes` (x, y, z; uniform
     spacing, C order) to the nearest of `vertices` (n, 3), inf where none is nearer than
     `upper_mm`: what a KD-tree query bounded by `upper_mm` gives, found by visiting, for

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 
@@ -31,7 +33,7 @@ def weld_float32(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     return uniq.astype(float), f[counts[inv] % 2 == 1]
 
 
-def write_stl(path, vertices: np.ndarray, faces: np.ndarray) -> tuple[bool, int]:
+def write_stl(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> tuple[bool, int]:
     """Write a binary STL at `path` (welded first); returns how it reloads:
     (watertight and consistently wound, number of edge-connected bodies)."""
     import trimesh

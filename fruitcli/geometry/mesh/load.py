@@ -115,7 +115,7 @@ def check_binary_stl(path: Path) -> None:
         )
 
 
-def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def read_mesh_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Vertices (n, 3), faces (m, 3) and notes of a mesh file, in the file's own unit; the
     meshes of a scene (glTF, multi-object OBJ) are merged, with their transforms."""
     import trimesh
@@ -174,7 +174,7 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, list[str]]:
 
 
 def load_mesh(
-    path,
+    path: str | Path,
     unit: str | None = None,
     unit_hint: str = CLI_UNIT_HINT,
     fit_mm: float | None = None,

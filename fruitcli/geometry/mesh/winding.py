@@ -14,6 +14,7 @@ Points are `(n, 3)` float64 in mm.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -81,7 +82,7 @@ def is_closed(faces: np.ndarray) -> bool:
     return not np.bincount(inv.ravel(), sign).any()
 
 
-def column_winding(wn: Winding, axes) -> np.ndarray:
+def column_winding(wn: Winding, axes: Sequence[np.ndarray]) -> np.ndarray:
     """Winding number (nx, ny, nz) of a closed surface on the grid `axes`, exact: along
     each vertical line, w at z is the number of crossings above z through faces facing
     up minus those facing down. A line whose crossings do not add up to zero (it grazed
@@ -109,7 +110,7 @@ def column_winding(wn: Winding, axes) -> np.ndarray:
     return np.ascontiguousarray(w)
 
 
-def grid_winding(wn: Winding, axes, near: np.ndarray | None) -> np.ndarray:
+def grid_winding(wn: Winding, axes: Sequence[np.ndarray], near: np.ndarray | None) -> np.ndarray:
     """Winding number on the grid `axes` (x, y, z, uniform spacing), shape (nx, ny, nz).
 
     A closed surface's is exact along vertical lines (`column_winding`; `near` unused).
@@ -154,7 +155,9 @@ def boundary_faces(wn: Winding, vertices: np.ndarray, faces: np.ndarray) -> np.n
     return (w.min(axis=0) < INSIDE) & (w.max(axis=0) > INSIDE)
 
 
-def cap_points(axes, w: np.ndarray, surface_distance) -> np.ndarray:
+def cap_points(
+    axes: Sequence[np.ndarray], w: np.ndarray, surface_distance: Callable[[np.ndarray], np.ndarray]
+) -> np.ndarray:
     """Points (k, 3) where w crosses 1/2 along grid edges farther than
     CAP_CLEARANCE_SPACINGS from the surface: the caps that close the holes.
 

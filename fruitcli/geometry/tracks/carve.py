@@ -5,13 +5,16 @@ dropped (mm, mm^3)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.mesh import export, load
 from fruitcli.geometry.tracks import reduce, tubes
+
+if TYPE_CHECKING:
+    import manifold3d
 
 # the tracked piece may lose at most this fraction of its volume to the tubes
 MAX_TRACK_VOLUME_FRACTION = 0.25
@@ -28,7 +31,7 @@ def change_tracks(opt: dict) -> str:
     )
 
 
-def drop_slivers(piece, top_volume: float) -> tuple[Any, list[float]]:
+def drop_slivers(piece: manifold3d.Manifold, top_volume: float) -> tuple[Any, list[float]]:
     """Drop the small bodies that tubes running along a sharp edge cut off the piece.
 
     Returns (the piece without them, [their volumes in mm^3]).
@@ -93,7 +96,16 @@ class Carved:
     slivers: list
 
 
-def carve(top, x_pieces: dict, y_pieces: dict, k0: int, l0: int, radius_mm, opt, src) -> Carved:
+def carve(
+    top: manifold3d.Manifold,
+    x_pieces: dict,
+    y_pieces: dict,
+    k0: int,
+    l0: int,
+    radius_mm: float,
+    opt: dict,
+    src: str,
+) -> Carved:
     """Subtract tubes of `radius_mm` along every piece of `x_pieces` and `y_pieces` (plane
     index -> pieces; indices counted from k0 and l0) from the piece `top`; GeometryError
     when a tube or the result is not a valid solid, or the piece falls apart."""

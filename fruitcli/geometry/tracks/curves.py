@@ -3,6 +3,8 @@ upward-facing part above the split plane (mm)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from fruitcli.errors import GeometryError
@@ -52,7 +54,7 @@ def track_curves(
     sf: np.ndarray,
     split: float,
     spacing_mm: tuple[float, float],
-    origin_mm,
+    origin_mm: Sequence[float] | None,
     track_radius_mm: float,
     src: str,
 ) -> tuple[dict, dict, dict[int, float], dict[int, float]]:

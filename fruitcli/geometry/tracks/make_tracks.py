@@ -11,7 +11,7 @@ them.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,7 +22,11 @@ from fruitcli.errors import GeometryError
 from fruitcli.geometry.mesh import load, winding
 
 if TYPE_CHECKING:
-    from fruitcli.geometry.tracks.reduce import Inside
+    import manifold3d
+
+    from fruitcli.geometry.mesh.load import Surface
+    from fruitcli.geometry.tracks.carve import Carved
+    from fruitcli.geometry.tracks.reduce import Inside, Reduced
 
 # artist edges longer than this many distance-grid spacings are split before the offset
 MAX_EDGE_PER_GRID = 3.0
@@ -54,7 +58,7 @@ SCENE_NAMES = {
 """The same for a scene's make-tracks stage (pass as `make_tracks(..., names=SCENE_NAMES)`)."""
 
 
-def _surface_line(surf, dropped: int, w_range) -> str:
+def _surface_line(surf: Surface, dropped: int, w_range: tuple[float, float]) -> str:
     """One line on what the artist surface had and what was done about it."""
     parts = []
     if surf.holes:
@@ -74,7 +78,15 @@ def _surface_line(surf, dropped: int, w_range) -> str:
     )
 
 
-def _check_options(opt, cover_mm, faces, spacing_x_mm, spacing_y_mm, track_radius_mm, origin_mm):
+def _check_options(
+    opt: dict,
+    cover_mm: float,
+    faces: int,
+    spacing_x_mm: float,
+    spacing_y_mm: float,
+    track_radius_mm: float,
+    origin_mm: Sequence[float] | None,
+):
     if not cover_mm >= 0:
         raise GeometryError(f"{opt['cover_mm']}: expected a thickness >= 0 mm, got {cover_mm}")
     if faces < 100:
@@ -116,7 +128,13 @@ class Laps:
         self.say(f"{step}: {self.times[step]:.2f} s ({self.cpu_times[step]:.2f} s CPU)")
 
 
-def _load_artist(artist_path, unit, fit_mm, opt: dict, say):
+def _load_artist(
+    artist_path: str | Path,
+    unit: str | None,
+    fit_mm: float | None,
+    opt: dict,
+    say: Callable[[str], None],
+):
     """The artist mesh (`load.Surface`), its repairs and notes said."""
     surf = load.load_mesh(artist_path, unit, opt["unit_hint"], fit_mm, opt["fit_mm"])
     for r in surf.repairs:
@@ -144,7 +162,7 @@ class Bounding:
     dropped: int
 
 
-def _bounding_faces(surf, faces: int, opt: dict, src: str) -> Bounding:
+def _bounding_faces(surf: Surface, faces: int, opt: dict, src: str) -> Bounding:
     """The artist surface split finely enough for the distance grid of a `faces`-triangle
     reduced body, keeping the faces that have the inside on one side only."""
     from fruitcli.geometry.tracks import reduce
@@ -184,7 +202,7 @@ def _bounding_faces(surf, faces: int, opt: dict, src: str) -> Bounding:
     return Bounding(dv, df, split_edge, want_edge, split_cap, inside, dropped)
 
 
-def _top_piece(red, rv: np.ndarray, split_z_mm, opt: dict, src: str):
+def _top_piece(red: Reduced, rv: np.ndarray, split_z_mm: float | None, opt: dict, src: str):
     """(split z in mm, the reduced body's one piece above it: a manifold3d.Manifold);
     `split_z_mm` None: the body's equator."""
     zlo, zhi = float(rv[:, 2].min()), float(rv[:, 2].max())
@@ -229,7 +247,17 @@ class Options:
     fit_mm: float | None
 
 
-def _report(o: Options, src: str, surf, surface: dict, b: Bounding, red, rf, tf, top) -> dict:
+def _report(
+    o: Options,
+    src: str,
+    surf: Surface,
+    surface: dict,
+    b: Bounding,
+    red: Reduced,
+    rf: np.ndarray,
+    tf: np.ndarray,
+    top: manifold3d.Manifold,
+) -> dict:
     """report.json's first part: the options, the artist surface, the reduction."""
     return {
         "artist": src,
@@ -256,7 +284,17 @@ def _report(o: Options, src: str, surf, surface: dict, b: Bounding, red, rf, tf,
     }
 
 
-def _report_tracks(report: dict, o: Options, grid: dict, rows, top, carved, warnings, tx, red):
+def _report_tracks(
+    report: dict,
+    o: Options,
+    grid: dict,
+    rows: list,
+    top: manifold3d.Manifold,
+    carved: Carved,
+    warnings: list[str],
+    tx: dict,
+    red: Reduced,
+):
     """report.json's second part, added to `report`: the split, grid, taxels, genus,
     slivers, warnings and volumes."""
     tracked = carved.tracked
@@ -287,20 +325,20 @@ def _report_tracks(report: dict, o: Options, grid: dict, rows, top, carved, warn
 
 
 def make_tracks(
-    artist_path,
-    out_dir,
+    artist_path: str | Path,
+    out_dir: str | Path,
     *,
-    unit=None,
-    cover_mm=2.0,
-    faces=5000,
-    spacing_x_mm=16.0,
-    spacing_y_mm=12.0,
-    origin_mm=None,
-    track_radius_mm=0.6,
-    split_z_mm=None,
-    fit_mm=None,
-    progress=None,
-    names=None,
+    unit: str | None = None,
+    cover_mm: float = 2.0,
+    faces: int = 5000,
+    spacing_x_mm: float = 16.0,
+    spacing_y_mm: float = 12.0,
+    origin_mm: Sequence[float] | None = None,
+    track_radius_mm: float = 0.6,
+    split_z_mm: float | None = None,
+    fit_mm: float | None = None,
+    progress: Callable[[str], None] | None = None,
+    names: dict[str, str] | None = None,
 ) -> dict:
     """Run the whole stage on `artist_path`, writing into `out_dir`; returns the report dict.
     `names` (default CLI_NAMES; SCENE_NAMES from a scene) names the options in errors."""

@@ -5,11 +5,17 @@ together into the output folder or not at all (mm, mm^3)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
 from fruitcli.geometry.tracks.carve import Carved, change_tracks
+
+if TYPE_CHECKING:
+    import manifold3d
+
+    from fruitcli.geometry.tracks.reduce import Reduced
 
 OFFSET_WARN_FRACTION = 0.5
 """Warn when the reduced surface's Hausdorff distance to the ideal offset exceeds this
@@ -18,7 +24,19 @@ TAXEL_COLUMNS = ["id", "i", "j", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz"]
 TRACK_COLUMNS = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
 
 
-def reduce_warnings(split_edge, want_edge: float, split_cap: int, red, cover_mm) -> list[str]:
+class StepTimes(Protocol):
+    """The run's step clock (`make_tracks.Laps`): `laps("export")` ends a step; wall and
+    CPU seconds per step."""
+
+    times: dict[str, float]
+    cpu_times: dict[str, float]
+
+    def __call__(self, step: str) -> None: ...
+
+
+def reduce_warnings(
+    split_edge: float | None, want_edge: float, split_cap: int, red: Reduced, cover_mm: float
+) -> list[str]:
     """What the reduction could not do as asked: long triangles split less finely than
     `want_edge` mm (at most `split_cap` triangles), pieces the offset cut off, places
     where the offset touched itself (`red`: a `reduce.Reduced`)."""
@@ -47,7 +65,9 @@ def reduce_warnings(split_edge, want_edge: float, split_cap: int, red, cover_mm)
     return warnings
 
 
-def carve_warnings(carved: Carved, top, offset: dict, cover_mm, opt: dict) -> list[str]:
+def carve_warnings(
+    carved: Carved, top: manifold3d.Manifold, offset: dict, cover_mm: float, opt: dict
+) -> list[str]:
     """What the carving and the offset's accuracy left to check: slivers dropped, tracks
     tunnelling through the piece `top`, the reduced surface far from the ideal offset."""
     warnings = []
@@ -76,7 +96,9 @@ def carve_warnings(carved: Carved, top, offset: dict, cover_mm, opt: dict) -> li
     return warnings
 
 
-def _write_stls(tmp: Path, rv, rf, carved: Carved, report: dict, src: str, opt: dict) -> None:
+def _write_stls(
+    tmp: Path, rv: np.ndarray, rf: np.ndarray, carved: Carved, report: dict, src: str, opt: dict
+) -> None:
     """reduced.stl and tracked_top.stl, each checked to reload as one closed body, and
     tracks.stl (every tube in one mesh)."""
     from fruitcli.geometry.mesh import export
@@ -136,7 +158,16 @@ def _write_tables(tmp: Path, carved: Carved, rows: list, name: str, grid: dict) 
     )
 
 
-def write_outputs(out_dir, rv, rf, carved: Carved, rows: list, report: dict, laps, opt) -> None:
+def write_outputs(
+    out_dir: str | Path,
+    rv: np.ndarray,
+    rf: np.ndarray,
+    carved: Carved,
+    rows: list,
+    report: dict,
+    laps: StepTimes,
+    opt: dict,
+) -> None:
     """Every file of the run into `out_dir`, all or none (`laps`: the run's `Laps`, whose
     export and preview times, and totals, go into report.json)."""
     from fruitcli.fsutil import staged_dir, write_json

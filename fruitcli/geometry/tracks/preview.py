@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -11,7 +13,7 @@ if TYPE_CHECKING:
 
 
 def write_preview(
-    path,
+    path: str | Path,
     top_v: np.ndarray,
     top_f: np.ndarray,
     curves: list[np.ndarray],
@@ -55,12 +57,14 @@ def write_preview(
     plt.close(fig)
 
 
-def _numbers(ax, xy: np.ndarray, fontsize: float, offset_pt: float) -> None:
+def _numbers(ax: Axes, xy: np.ndarray, fontsize: float, offset_pt: float) -> None:
     """Label point k of `xy` (k, 2) with k, `offset_pt` points up and right of it (plain
     texts on an offset transform: much cheaper to lay out than annotations)."""
     from matplotlib.transforms import offset_copy
 
-    at = offset_copy(ax.transData, fig=ax.figure, x=offset_pt, y=offset_pt, units="points")
+    at = offset_copy(
+        ax.transData, fig=ax.get_figure(root=True), x=offset_pt, y=offset_pt, units="points"
+    )
     for k, p in enumerate(xy):
         ax.text(p[0], p[1], str(k), fontsize=fontsize, transform=at)
 
@@ -79,8 +83,8 @@ def draw_perspective(
     ax: Axes,
     v: np.ndarray,
     f: np.ndarray,
-    curves,
-    points,
+    curves: Sequence[np.ndarray],
+    points: np.ndarray,
     elev_deg: float = 35.0,
     azim_deg: float = -60.0,
     flat: bool = False,

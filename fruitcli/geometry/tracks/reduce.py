@@ -8,6 +8,7 @@ at `level = cover_mm` with an edge length chosen for the requested triangle coun
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -39,7 +40,7 @@ EQUATOR_AREA_FRACTION = 0.98
 class Reduced:
     """The reduced body: manifold3d.Manifold, plus facts for the report."""
 
-    body: object
+    body: manifold3d.Manifold
     edge_mm: float
     grid_mm: float
     dropped_islands: int
@@ -136,7 +137,7 @@ class Inside:
         self.cap_points = np.zeros((0, 3))
 
 
-def _trilinear(axes, sdf: np.ndarray):
+def _trilinear(axes: Sequence[np.ndarray], sdf: np.ndarray):
     """A Python callable f(x, y, z) interpolating `sdf` (what manifold's level set calls)."""
     x0, y0, z0 = (float(a[0]) for a in axes)
     h = float(axes[0][1] - axes[0][0])
@@ -146,7 +147,7 @@ def _trilinear(axes, sdf: np.ndarray):
     sy, sx = nz, ny * nz
     outside = float(sdf.min())
 
-    def f(x, y, z):
+    def f(x: np.ndarray, y: np.ndarray, z: np.ndarray):
         fx, fy, fz = (x - x0) * inv, (y - y0) * inv, (z - z0) * inv
         i, j, k = int(fx), int(fy), int(fz)
         if i < 0 or j < 0 or k < 0 or i >= nx - 1 or j >= ny - 1 or k >= nz - 1:
@@ -285,13 +286,13 @@ def reduce_body(
     )
 
 
-def _centre(m) -> str:
+def _centre(m: manifold3d.Manifold) -> str:
     """'(x, y, z)' of a Manifold's bounding-box centre, in mm."""
     b = m.bounding_box()
     return "(" + ", ".join(f"{0.5 * (b[k] + b[k + 3]):.1f}" for k in range(3)) + ")"
 
 
-def _drop_pinched_shells(body):
+def _drop_pinched_shells(body: manifold3d.Manifold):
     """Split a Manifold into its edge-connected shells (manifold3d keeps shells that touch
     at one vertex together; a mesh file reader does not) and keep the largest.
     Returns (body, [(volume mm^3, centre) of each shell dropped])."""
@@ -321,7 +322,7 @@ PINCH_RADIUS_EDGE = 0.25
 PINCH_RADIUS_MIN_MM = 0.2
 
 
-def _fill_pinched_edges(body, radius_mm: float, rounds: int = 5):
+def _fill_pinched_edges(body: manifold3d.Manifold, radius_mm: float, rounds: int = 5):
     """Fill the places where the offset surface touches itself along an edge.
 
     manifold3d keeps the two sheets of such a pinch apart by duplicated vertices; a mesh
@@ -364,7 +365,7 @@ def to_manifold64(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifol
     )
 
 
-def _xyz(axes, flat_index: int) -> str:
+def _xyz(axes: Sequence[np.ndarray], flat_index: int) -> str:
     """'(x, y, z)' of a grid point, in mm."""
     ijk = np.unravel_index(flat_index, tuple(len(a) for a in axes))
     return "(" + ", ".join(f"{float(axes[k][ijk[k]]):.1f}" for k in range(3)) + ")"
@@ -379,7 +380,7 @@ def neck(
     joined even inside the body: separate bodies around A and B."""
     from scipy import ndimage
 
-    def pieces(level):
+    def pieces(level: float):
         lab, n = ndimage.label(sdf > level)
         if n < 2:
             return lab, None
@@ -438,7 +439,7 @@ def simplify_to(
     return best
 
 
-def manifold_arrays(m) -> tuple[np.ndarray, np.ndarray]:
+def manifold_arrays(m: manifold3d.Manifold) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) float64 and faces (m, 3) int64 of a manifold3d.Manifold."""
     mesh = m.to_mesh64()
     v = np.asarray(mesh.vert_properties, dtype=float)[:, :3]
@@ -467,7 +468,7 @@ def offset_error(
     art = dist or TreeDistance(artist_v, artist_f)
     cap_tree = cKDTree(caps) if caps is not None and len(caps) else None
 
-    def to_artist(p):
+    def to_artist(p: np.ndarray):
         _, d, _ = art.closest(p)
         return d if cap_tree is None else np.minimum(d, cap_tree.query(p)[0])
 

@@ -34,7 +34,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -67,7 +67,8 @@ from fruitcli.sensing.shape.touch_shape import Shapes, frame_shapes
 from fruitcli.tables import Taxels
 
 if TYPE_CHECKING:
-    from fruitcli.sensing.detection.surface_chart import SurfaceChart
+    from fruitcli.scene import BoardSection, DetectionSection
+    from fruitcli.sensing.detection.surface_chart import ClosestPoints, SurfaceChart
     from fruitcli.sensing.detection.two_footprints import Footprint
     from fruitcli.sensing.skin.heights import HeightModel
 
@@ -90,7 +91,7 @@ def detect(
     floor: float = 0.0,
     max_touches: int = MAX_TOUCHES,
     gain: np.ndarray | None = None,
-    footprint=None,
+    footprint: Footprint | None = None,
 ) -> Touches:
     """Touches of frames (N, rows * cols) counts against C0 (T,) by the scene's
     ``[detection].method`` (`methods.METHODS`): the sequential N9, or the method's `find`
@@ -114,6 +115,20 @@ def _default(key: str) -> Any:
     return SCHEMA["detection"][key].default
 
 
+class ReducedTaxels(Protocol):
+    """What a `Locator` and its callers read of a reduced model
+    (`fruitcli.fem.reduced.model.ReducedModel`): its chambers' range lo, hi (K,) kPa
+    and the taxel positions at pressures."""
+
+    @property
+    def lo(self) -> np.ndarray: ...
+    @property
+    def hi(self) -> np.ndarray: ...
+    def taxels(self, pressure_kpa: np.ndarray) -> np.ndarray: ...
+    def outside(self, pressure_kpa: np.ndarray) -> np.ndarray: ...
+    def describe(self) -> str: ...
+
+
 @dataclass(frozen=True)
 class Settings:
     """Detection settings, as the scene's ``[detection]`` section names them; each
@@ -135,7 +150,7 @@ class Settings:
     model_frames: int = _default("model_frames")  # frames whose mean the model method fits
 
     @classmethod
-    def from_scene(cls, detection, **overrides) -> Settings:
+    def from_scene(cls, detection: DetectionSection, **overrides: object) -> Settings:
         """From a scene's [detection] (a `fruitcli.scene.DetectionSection`); `overrides`
         that are not None win."""
         keys = {
@@ -201,12 +216,12 @@ class Locator:
     def __init__(
         self,
         taxels: Taxels,
-        board,
+        board: BoardSection,
         positions_mm: np.ndarray,
         settings: Settings,
         state_pressure_kpa: np.ndarray | None = None,
         where: str = "taxels",
-        reduced=None,
+        reduced: ReducedTaxels | None = None,
         gain: np.ndarray | None = None,
         heights: HeightModel | None = None,
     ):
@@ -257,7 +272,7 @@ class Locator:
         if self.positions_mm.ndim == 3 and state_pressure_kpa is None:
             raise FrameError("per-state positions need the states' pressures")
 
-    def use_surface(self, normal: np.ndarray, distance) -> None:
+    def use_surface(self, normal: np.ndarray, distance: ClosestPoints) -> None:
         """Let the model method run its touches over the body's surface in this locator's
         one state (its faces' unit normals (F, 3) and their `SurfaceDistance`, as a
         `SurfaceProjector` keeps them) instead of the surface its taxels span
@@ -274,6 +289,7 @@ class Locator:
         """Taxel positions (T, 3), or (n, T, 3) for (n, K) kPa, from the reduced model at
         the pressures clamped to its range."""
         r = self.reduced
+        assert r is not None, "reduced_positions needs a reduced model"
         return r.taxels(np.clip(np.asarray(pressure_kpa, float), r.lo, r.hi))
 
     def values(self, frames: np.ndarray) -> np.ndarray:

@@ -29,7 +29,9 @@ class GainInputs:
     taxel_gain: Path | None = None
 
 
-def detection_gain(gain: GainInputs, taxels: Taxels, gains_csv=None) -> np.ndarray | None:
+def detection_gain(
+    gain: GainInputs, taxels: Taxels, gains_csv: str | Path | None = None
+) -> np.ndarray | None:
     """(T,) gains in the taxel file's order, or None when division is off. `gains_csv`
     (the command-line option) wins over the scene's ``[skin].taxel_gain``."""
     from fruitcli.sensing.skin.forward import load_taxel_gains
@@ -37,5 +39,6 @@ def detection_gain(gain: GainInputs, taxels: Taxels, gains_csv=None) -> np.ndarr
     if gains_csv is None:
         if not gain.divide_by_gain:
             return None
+        assert gain.taxel_gain is not None  # the scene's check made sure it is set
         gains_csv = gain.taxel_gain
     return load_taxel_gains(gains_csv, taxels.ids, only_these=True)

@@ -44,14 +44,20 @@ is the RMS of the weighted residuals (1: at the noise).
 
 from __future__ import annotations
 
+import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FrameError
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.surface_chart import SurfaceChart
+    from fruitcli.sensing.skin.heights import HeightModel
 
 HALF = 2  # window half-width (cells): the N9 and the ring beyond it
 MODEL_ERROR = 0.1  # share of a taxel's activation added to its noise (assumption)
@@ -85,7 +91,7 @@ class FootprintLaw:
     gain: np.ndarray | None = None
 
     @classmethod
-    def of(cls, heights, method: str = "model") -> FootprintLaw:
+    def of(cls, heights: HeightModel, method: str = "model") -> FootprintLaw:
         """From a skin's height model (`fruitcli.sensing.skin.heights.HeightModel`: the
         Gaussian law or the crossing table): its contact activation against distance.
         `method`: the detection method that needs it, for the error."""
@@ -153,10 +159,10 @@ def refine(
     peak: np.ndarray,
     v: np.ndarray,
     window: Window,
-    positions,
+    positions: Callable[[np.ndarray], np.ndarray],
     law: FootprintLaw,
     n9_taxels: np.ndarray | None = None,
-    chart=None,
+    chart: SurfaceChart | None = None,
     noise: np.ndarray | None = None,
     frames_taken: np.ndarray | None = None,
     rows: np.ndarray | None = None,
@@ -230,7 +236,17 @@ def refine(
     )
 
 
-def _windows(frame, rows, win, n9_taxels, v, law: FootprintLaw, noise, pos, window: Window):
+def _windows(
+    frame: np.ndarray,
+    rows: np.ndarray | None,
+    win: np.ndarray,
+    n9_taxels: np.ndarray | None,
+    v: np.ndarray,
+    law: FootprintLaw,
+    noise: np.ndarray,
+    pos: np.ndarray,
+    window: Window,
+):
     """`model_kernel.prepare` on the touches' windows: -> their activations, inverse
     errors and gains (n, K), surface maps (n, 6, 3), the maps' misfits at the taxels
     (n, W, W, 3) and the taxels fitted (n,)."""
@@ -265,7 +281,9 @@ def _windows(frame, rows, win, n9_taxels, v, law: FootprintLaw, noise, pos, wind
     return vw, inv_e, gain, coef, corr, used
 
 
-def _start_and_bounds(a0, b0, peak) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _start_and_bounds(
+    a0: np.ndarray, b0: np.ndarray, peak: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fits' start (n, 4) (a, b, A, s: the N9 point, the peak's counts, width scale 1)
     and their lower and upper bounds (n, 4)."""
     n = len(a0)
@@ -279,7 +297,14 @@ def _start_and_bounds(a0, b0, peak) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return x0, lo, hi
 
 
-def _failed(out, err_mm, red, a0, b0, used) -> np.ndarray:
+def _failed(
+    out: np.ndarray,
+    err_mm: np.ndarray,
+    red: np.ndarray,
+    a0: np.ndarray,
+    b0: np.ndarray,
+    used: np.ndarray,
+) -> np.ndarray:
     """Which fits (n,) fail a test of the module's list, so that N9's point is kept: out
     (n, 6) `fit_all`'s results, err_mm the 1-sigma radii, red the reduced chi^2, a0, b0
     the N9 start, used the taxels fitted."""
@@ -330,7 +355,13 @@ def recent_frames(
     return np.maximum(total / taken[:, None], 0.0), taken
 
 
-def _touch_noise(noise, law: FootprintLaw, taxels: int, frame, frames_taken) -> np.ndarray:
+def _touch_noise(
+    noise: np.ndarray | None,
+    law: FootprintLaw,
+    taxels: int,
+    frame: np.ndarray,
+    frames_taken: np.ndarray | None,
+) -> np.ndarray:
     """Each touch's taxel noise (n, T) (counts std): `noise` (T,) or the law's value, over
     the square root of the frames each touch's activations are the mean of."""
     base = np.full(taxels, law.noise_std_counts) if noise is None else np.asarray(noise, float)
@@ -338,7 +369,7 @@ def _touch_noise(noise, law: FootprintLaw, taxels: int, frame, frames_taken) -> 
     return np.ascontiguousarray(base[None, :] / np.sqrt(taken)[:, None])
 
 
-def check_skin_file(path, method: str | None) -> None:
+def check_skin_file(path: str | os.PathLike, method: str | None) -> None:
     """A [skin] file given for detection (``--skin``, `fruit calibrate`'s skin.toml) must
     state the footprint the model method fits: without ``footprint_sigma_mm`` its table
     would silently take the default width. FrameError naming the file and key."""

@@ -10,9 +10,16 @@ mistaken for a modelled state.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fruitcli.sensing.detection.locate import state_path_position
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
 
 OFF_PATH_KPA = 0.5  # assumption: well above a pump sensor's noise, well below a state step
 
@@ -72,7 +79,11 @@ def off_path_message(summary: dict, n_frames: int) -> str:
 
 
 def report_off_path(
-    rec, pressure_kpa: np.ndarray, state_pressure_kpa: np.ndarray, out_dir, say=None
+    rec: ChunkedRecording,
+    pressure_kpa: np.ndarray,
+    state_pressure_kpa: np.ndarray,
+    out_dir: str | os.PathLike,
+    say: Callable[[str], None] | None = None,
 ) -> dict:
     """Distances of a recording's frames to the state path: DIR/off_path.csv (frame, t_s,
     distance_kpa of every frame off the path), one progress line, and the summary."""

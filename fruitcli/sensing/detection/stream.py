@@ -76,7 +76,9 @@ class StreamLocator(Protocol):
     heights: HeightModel
     positions_mm: np.ndarray  # (T, 3) or (S, T, 3)
     state_pressure_kpa: np.ndarray | None
-    reduced: object | None  # a `fruitcli.fem.reduced.model.ReducedModel`
+
+    @property
+    def reduced(self) -> object | None: ...  # a `fruitcli.fem.reduced.model.ReducedModel`
 
     def reduced_positions(self, pressure_kpa: np.ndarray) -> np.ndarray: ...
 

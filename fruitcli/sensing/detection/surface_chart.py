@@ -21,11 +21,19 @@ state, so it is made once per peak taxel and kept.
 from __future__ import annotations
 
 import threading
+from typing import Protocol
 
 import numpy as np
 
 SUB = 4  # lattice nodes per grid cell
 STEPS_PER_CELL = 8  # steps of the walk over the surface per grid cell of the way
+
+
+class ClosestPoints(Protocol):
+    """The body's surface as a chart reads it (`fruitcli.geometry.mesh.distance`'s
+    `SurfaceDistance`)."""
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 class SurfaceChart:
@@ -35,7 +43,7 @@ class SurfaceChart:
     `geometry.body_surface.SurfaceProjector` keeps them). `corrections` may run on
     several threads."""
 
-    def __init__(self, normal: np.ndarray, distance, half: int):
+    def __init__(self, normal: np.ndarray, distance: ClosestPoints, half: int):
         self.normal = np.asarray(normal, float)
         self.distance = distance
         self.half = int(half)

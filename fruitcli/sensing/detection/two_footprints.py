@@ -89,7 +89,7 @@ class Footprint:
         return cls(sigma_mm / pi, sigma_mm / pj, noise_std_counts, profile, step_mm, pi, pj)
 
 
-def _shape(ci, cj, pi, pj, fp: Footprint):
+def _shape(ci: np.ndarray, cj: np.ndarray, pi: float, pj: float, fp: Footprint):
     """One footprint at (pi, pj) on cells (ci, cj): (g, dg/dpi, dg/dpj)."""
     if fp.profile is None:
         g = np.exp(-0.5 * (((ci - pi) / fp.sigma_i) ** 2 + ((cj - pj) / fp.sigma_j) ** 2))
@@ -108,7 +108,7 @@ def _shape(ci, cj, pi, pj, fp: Footprint):
     return g, -slope * dx * inv * fp.pitch_i, -slope * dy * inv * fp.pitch_j
 
 
-def _model(x, ci, cj, fp: Footprint):
+def _model(x: np.ndarray, ci: np.ndarray, cj: np.ndarray, fp: Footprint):
     """Sum of footprints (A, i, j) in x at cells (ci, cj)."""
     out = np.zeros(ci.shape)
     for k in range(0, len(x), 3):
@@ -117,7 +117,7 @@ def _model(x, ci, cj, fp: Footprint):
     return out
 
 
-def _jacobian(x, ci, cj, fp: Footprint):
+def _jacobian(x: np.ndarray, ci: np.ndarray, cj: np.ndarray, fp: Footprint):
     """d model / d (A, i, j) of each footprint, (cells, len(x))."""
     jac = np.empty((ci.size, len(x)))
     for k in range(0, len(x), 3):
@@ -129,7 +129,7 @@ def _jacobian(x, ci, cj, fp: Footprint):
     return jac
 
 
-def _fit(v, ci, cj, fp: Footprint, x0):
+def _fit(v: np.ndarray, ci: np.ndarray, cj: np.ndarray, fp: Footprint, x0: np.ndarray):
     from scipy.optimize import least_squares
 
     res = least_squares(
@@ -146,7 +146,7 @@ def split(
     v: np.ndarray,
     ci: np.ndarray,
     cj: np.ndarray,
-    peak_ij,
+    peak_ij: tuple[float, float],
     fp: Footprint,
     threshold: float,
     extent: tuple[float, float] = (np.inf, np.inf),

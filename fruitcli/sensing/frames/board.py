@@ -15,14 +15,16 @@ from dataclasses import replace
 import numpy as np
 
 from fruitcli.errors import FrameError
-from fruitcli.scene import Record, default_scene
+from fruitcli.scene import BoardSection, default_scene
 from fruitcli.sensing.frames.formats import BOARD_COLS, BOARD_ROWS
 from fruitcli.tables import Taxels
 
 __all__ = ["BOARD_COLS", "BOARD_ROWS", "check_frame_shape", "default_board", "taxel_cells"]
 
 
-def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarray, np.ndarray]:
+def taxel_cells(
+    taxels: Taxels, board: BoardSection, where: str = "taxels"
+) -> tuple[np.ndarray, np.ndarray]:
     """Frame (rows, cols) of every taxel per the scene's ``[board]`` (a
     `fruitcli.scene.BoardSection`); outside -> FrameError."""
     a, b = (taxels.j, taxels.i) if board.transpose else (taxels.i, taxels.j)
@@ -43,13 +45,13 @@ def taxel_cells(taxels: Taxels, board, where: str = "taxels") -> tuple[np.ndarra
     return rows.astype(np.int64), cols.astype(np.int64)
 
 
-def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS) -> Record:
+def default_board(rows: int = BOARD_ROWS, cols: int = BOARD_COLS) -> BoardSection:
     """The ``[board]`` defaults (a `fruitcli.scene.BoardSection`): frame[i, j] is taxel
     (i, j)."""
     return replace(default_scene().board, rows=rows, cols=cols)
 
 
-def check_frame_shape(frames: np.ndarray, board, where: str) -> None:
+def check_frame_shape(frames: np.ndarray, board: BoardSection, where: str) -> None:
     """Frames must be (N, rows, cols) as the board says."""
     want = (board.rows, board.cols)
     if tuple(frames.shape[1:]) != want:

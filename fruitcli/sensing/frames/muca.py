@@ -68,7 +68,7 @@ def check_format(fmt: str, where: str = "--format") -> str:
     return fmt
 
 
-def encode_packet(counts) -> bytes:
+def encode_packet(counts: np.ndarray) -> bytes:
     """One frame as the firmware's SendRawByte packet (2 + rows*cols bytes)."""
     g = np.asarray(counts).ravel().astype(np.int64)
     pos = g[g > 0]
@@ -77,13 +77,13 @@ def encode_packet(counts) -> bytes:
     return bytes((minimum >> 8, minimum & 0xFF)) + data.tobytes()
 
 
-def packet_counts(packet) -> np.ndarray:
+def packet_counts(packet: bytes | bytearray) -> np.ndarray:
     """Counts (rows*cols,) int64 of one packet: minimum + byte."""
     b = np.frombuffer(bytes(packet), dtype=np.uint8)
     return (int(b[0]) << 8 | int(b[1])) + b[HEADER_BYTES:].astype(np.int64)
 
 
-def format_ascii_line(counts, trailing_comma: bool = False) -> bytes:
+def format_ascii_line(counts: np.ndarray, trailing_comma: bool = False) -> bytes:
     """One frame as Muca_Raw prints it (CR LF); `trailing_comma` like some sketches do."""
     return (format_line(counts, trailing_comma=trailing_comma) + "\r\n").encode("ascii")
 

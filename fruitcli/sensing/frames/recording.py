@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -66,7 +67,7 @@ BOARD_MAX_COUNTS = 65535
 """Largest count a board reports (16-bit, as `detection.health.SATURATION_COUNTS`)."""
 
 
-def check_frames(frames, where: str, first: int = 0) -> np.ndarray:
+def check_frames(frames: np.ndarray, where: str, first: int = 0) -> np.ndarray:
     """Validate (N, R, C) counts: integers >= 0, at least one frame. Returns int64.
     `first`: index of frames[0] in its recording (a chunk's offset), for the messages."""
     arr = np.asarray(frames)
@@ -117,7 +118,7 @@ def read_npz(path: str | os.PathLike) -> Recording:
     )
 
 
-def npz_extras(path: Path, data, n: int) -> tuple:
+def npz_extras(path: Path, data: Mapping[str, np.ndarray], n: int) -> tuple:
     """Checked t_s, pressure_kpa, chamber_names, sample, meta, pressure_t_s, printer_mm of
     a recording's npz arrays `data` (a mapping) with `n` frames."""
     t_s = data.get("t_s")

@@ -28,6 +28,7 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,6 +41,9 @@ from fruitcli.sensing.frames.recording import (
     read_recording,
 )
 from fruitcli.tables import check_zip
+
+if TYPE_CHECKING:
+    from fruitcli.scene import BoardSection
 
 _LOCAL_HEADER = struct.Struct("<4s5H3L2H")  # zip local file header (30 bytes)
 _LOCAL_MAGIC = b"PK\x03\x04"
@@ -93,7 +97,7 @@ class ChunkedRecording:
     def __enter__(self) -> ChunkedRecording:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -320,7 +324,7 @@ def in_memory(rec: Recording, path: str | os.PathLike = "frames") -> ChunkedReco
     )
 
 
-def has_pressures(path: str | os.PathLike, board) -> bool:
+def has_pressures(path: str | os.PathLike, board: BoardSection) -> bool:
     """Whether the recording at `path` carries chamber pressures (`board`: the scene's
     [board]; an .npz is read from its header only, a MuCa log whole, so the answer is
     kept per file version: the planner asks several times for one run)."""

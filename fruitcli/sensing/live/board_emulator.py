@@ -19,7 +19,7 @@ import termios
 import threading
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 
@@ -62,7 +62,7 @@ def byte_rate(baud: int) -> float:
     return baud / BITS_PER_BYTE if baud else 0.0
 
 
-def frame_bytes(frame, fmt: str, trailing_comma: bool = False) -> bytes:
+def frame_bytes(frame: np.ndarray, fmt: str, trailing_comma: bool = False) -> bytes:
     """One frame as the firmware sends it: an ASCII line or a SendRawByte packet."""
     if fmt == "binary":
         return encode_packet(frame)
@@ -70,7 +70,11 @@ def frame_bytes(frame, fmt: str, trailing_comma: bool = False) -> bytes:
 
 
 def pacing_line(
-    fmt: str, baud: int, rows: int = BOARD_ROWS, cols: int = BOARD_COLS, frames=None
+    fmt: str,
+    baud: int,
+    rows: int = BOARD_ROWS,
+    cols: int = BOARD_COLS,
+    frames: np.ndarray | None = None,
 ) -> str:
     """What the pacing means, e.g. "115200 baud 8N1 = 11520 bytes/s: 254-byte binary
     packets, at most 45.4 frames/s"."""
@@ -110,14 +114,14 @@ class BoardEmulator:
         frames: np.ndarray | Callable[[int], np.ndarray | None],
         fps: float = 60.0,
         log_every: int = 0,
-        cut_at=(),
+        cut_at: Collection[int] = (),
         vanish_after: int | None = None,
         wait_for_reader: bool = False,
         fmt: str = "ascii",
         baud: int = 0,
-        lose_byte_at=(),
-        extra_byte_at=(),
-        reset_at=(),
+        lose_byte_at: Collection[int] = (),
+        extra_byte_at: Collection[int] = (),
+        reset_at: Collection[int] = (),
         trailing_comma: bool = False,
         time_scale: float = 1.0,
     ):

@@ -44,7 +44,7 @@ class FrameGC:
         gc.collect(gen)
         self.collections[gen] += 1
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         gc.unfreeze()
         if self._was_enabled:
             gc.enable()

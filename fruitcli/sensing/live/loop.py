@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import threading
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -29,7 +30,19 @@ from fruitcli.sensing.detection.sessions import DEFAULT_GATE_MM, SessionStep, Se
 from fruitcli.sensing.detection.touch_table import KIND_NAMES, TouchTable
 from fruitcli.sensing.live.serial_ports import LineReader, PortClosed, PressureState
 
+if TYPE_CHECKING:
+    from serial import SerialBase
+
+
 BROKEN_EVERY = 30  # frames between refreshes of the taxel flags the drift tracker ignores
+
+
+class OnlinePositions(Protocol):
+    """What the live loop reads of an online solver (`fruitcli.fem.online.OnlineSolver`):
+    the taxel positions (T, 3) mm at the last solved pressures."""
+
+    @property
+    def taxels_mm(self) -> np.ndarray: ...
 
 
 @dataclass
@@ -64,7 +77,7 @@ class LiveLocator:
         self,
         locator: Locator,
         pressure: PressureState | None = None,
-        online=None,
+        online: OnlinePositions | None = None,
         gate_mm: float = DEFAULT_GATE_MM,
         drift: DriftTracker | None = None,
         health: bool = False,
@@ -193,7 +206,7 @@ def _shape(t: TouchTable, n: int) -> dict:
 
 
 def pressure_thread(
-    port, state: PressureState, stop: threading.Event, name: str = "pressure port"
+    port: SerialBase, state: PressureState, stop: threading.Event, name: str = "pressure port"
 ) -> threading.Thread:
     """Read pressure lines from `port` into `state` until `stop` or the port closes."""
     reader = LineReader(port, name)

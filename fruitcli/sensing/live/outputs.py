@@ -9,7 +9,8 @@ from __future__ import annotations
 import sys
 import time
 from collections import deque
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -19,23 +20,40 @@ from fruitcli.sensing.live.run_log import STATUS_EVERY_S
 if TYPE_CHECKING:
     from serial import SerialBase
 
-    from fruitcli.sensing.live.loop import LiveFrame
+    from fruitcli.sensing.live.loop import LiveFrame, LiveLocator
     from fruitcli.sensing.live.run_log import RunLog
-    from fruitcli.sensing.live.serial_ports import FrameReader
+    from fruitcli.sensing.live.serial_ports import FrameReader, PressureState
     from fruitcli.sensing.outputs.live_view import ViewServer
     from fruitcli.sensing.outputs.tuio import TuioSender
+    from fruitcli.tables import Taxels
 
 
-def _finite(x) -> float | None:
+def _finite(x: float) -> float | None:
     """x as a float, None when NaN (JSON has no NaN)."""
     return None if np.isnan(x) else float(x)
+
+
+class BoardShape(Protocol):
+    """What a reconnect reads of the scene's ``[board]``: its frame's rows and columns."""
+
+    @property
+    def rows(self) -> int: ...
+    @property
+    def cols(self) -> int: ...
 
 
 class Outputs:
     """Where each located frame goes: stdout (JSON lines), TUIO/OSC, the run log; and
     the run's counters (reconnects, frames per second, status)."""
 
-    def __init__(self, live_loc, taxels, progress, time_scale: float = 1.0, pressure=None):
+    def __init__(
+        self,
+        live_loc: LiveLocator,
+        taxels: Taxels,
+        progress: Callable[[str], None],
+        time_scale: float = 1.0,
+        pressure: PressureState | None = None,
+    ):
         self.live, self.taxels, self.progress = live_loc, taxels, progress
         self.pressure = pressure
         self.view: ViewServer | None = None
@@ -57,7 +75,7 @@ class Outputs:
         """Host time of the run (s), scaled by --time-scale."""
         return (monotonic_s - self.t0) * self.scale
 
-    def frame(self, counts, monotonic_s: float) -> None:
+    def frame(self, counts: np.ndarray, monotonic_s: float) -> None:
         t = self.now(monotonic_s)
         f = self.live.step(counts, t)
         self.frames += 1
@@ -88,7 +106,7 @@ class Outputs:
             self.log.status(self.status(t))
             self.next_status = t + STATUS_EVERY_S
 
-    def _count_touches(self, f) -> None:
+    def _count_touches(self, f: LiveFrame) -> None:
         """Count each session once, on its first frame of kind touch."""
         ids = f.sessions.ids.tolist()
         touched = {s for s, k in zip(ids, f.touches.kind.tolist(), strict=True) if k == 0}
@@ -112,7 +130,12 @@ class Outputs:
         )
 
     def reconnect(
-        self, port: str, baud: int, board, fmt: str, wait_for_port
+        self,
+        port: str,
+        baud: int,
+        board: BoardShape,
+        fmt: str,
+        wait_for_port: Callable[[str, int], SerialBase],
     ) -> tuple[SerialBase, FrameReader]:
         """The port vanished: end the touches, wait for the port, start a new baseline."""
         from fruitcli.sensing.live.serial_ports import FrameReader

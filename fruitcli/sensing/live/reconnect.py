@@ -8,6 +8,7 @@ Units: s.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from fruitcli.errors import FrameError
@@ -19,7 +20,9 @@ if TYPE_CHECKING:
 POLL_S = 0.2  # between attempts to reopen
 
 
-def wait_for_port(port: str, baud: int, poll_s: float = POLL_S, on_wait=None) -> SerialBase:
+def wait_for_port(
+    port: str, baud: int, poll_s: float = POLL_S, on_wait: Callable[[str], object] | None = None
+) -> SerialBase:
     """Open `port`, retrying every `poll_s` while it does not exist or is busy; ->
     the open port. `on_wait(message)` is called once with the first failure's reason."""
     told = False

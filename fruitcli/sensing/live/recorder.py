@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +29,9 @@ from fruitcli.sensing.frames.recording import (
 )
 from fruitcli.sensing.live.serial_ports import FrameReader, PortClosed
 
+if TYPE_CHECKING:
+    from fruitcli.sensing.live.serial_ports import PressureState
+
 PROGRESS_EVERY_S = 1.0  # frames/s progress reports this often
 
 
@@ -36,7 +41,13 @@ class LogSink:
     received before the frame and the time of that reading (on the clock that started at
     monotonic `t0`, like the frames' t_s; ``nan`` before the first reading)."""
 
-    def __init__(self, path: str | os.PathLike, header: str = "", pressure=None, t0: float = 0.0):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        header: str = "",
+        pressure: PressureState | None = None,
+        t0: float = 0.0,
+    ):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.fh = open(self.path, "x")
@@ -49,8 +60,9 @@ class LogSink:
         if pressure is not None:
             self.pfh = open(pressure_path_for(self.path), "x")
 
-    def write(self, counts, t_s: float) -> None:
-        if self.pfh is not None:  # the pressures before the frame, written just after it
+    def write(self, counts: np.ndarray, t_s: float) -> None:
+        if self.pfh is not None and self.pressure is not None:  # the pressures before the
+            # frame, written just after it
             kpa, t = self.pressure.latest
             self.fh.write(format_line(counts, t_s) + "\n")
             self.pfh.write(
@@ -143,7 +155,7 @@ def record_stream(
     sink: LogSink,
     n_frames: int | None = None,
     seconds: float | None = None,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> dict:
     """Copy frames from `reader` to `sink` until `n_frames`, `seconds` or the port closes.
 

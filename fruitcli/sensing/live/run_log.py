@@ -12,7 +12,14 @@ from __future__ import annotations
 import logging
 import logging.handlers
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.detection.sessions import SessionStep
 
 STATUS_EVERY_S = 60.0
 
@@ -20,7 +27,13 @@ STATUS_EVERY_S = 60.0
 class _CountingHandler(logging.handlers.RotatingFileHandler):
     """A rotating file whose failed writes go to `on_error` instead of a traceback."""
 
-    def __init__(self, path: str | Path, max_bytes: int, backups: int, on_error):
+    def __init__(
+        self,
+        path: str | Path,
+        max_bytes: int,
+        backups: int,
+        on_error: Callable[[logging.LogRecord], None],
+    ):
         super().__init__(path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8")
         self.on_error = on_error
 
@@ -42,10 +55,17 @@ class RunLog:
         self.logger.addHandler(self.handler)
         self.open: dict[int, tuple[float, float]] = {}  # session -> (start t_s, max peak)
 
-    def _count_failure(self, record) -> None:
+    def _count_failure(self, record: logging.LogRecord) -> None:
         self.failed += 1
 
-    def frame(self, t_s: float, sessions, xyz_mm, ij, peak) -> None:
+    def frame(
+        self,
+        t_s: float,
+        sessions: SessionStep,
+        xyz_mm: np.ndarray,
+        ij: np.ndarray,
+        peak: np.ndarray,
+    ) -> None:
         """Log the frame's touch downs and ups (sessions: a SessionStep)."""
         for k in range(len(sessions.ids)):
             s = int(sessions.ids[k])
@@ -60,7 +80,7 @@ class RunLog:
                 self.open[s] = (t0, max(pk, float(peak[k])))
         self.ended(t_s, sessions.ended)
 
-    def ended(self, t_s: float, ids) -> None:
+    def ended(self, t_s: float, ids: Iterable[int]) -> None:
         for s in ids:
             t0, pk = self.open.pop(int(s), (t_s, 0.0))
             self.logger.info(f"up {int(s)} {t_s - t0:.3f} {pk:.1f}")

@@ -67,7 +67,7 @@ def open_port(port: str, baud: int = 115200, timeout_s: float = READ_TIMEOUT_S) 
         raise FrameError(f"{port}: cannot open serial port: {text}") from None
 
 
-def read_chunk(port, name: str) -> bytes:
+def read_chunk(port: SerialBase, name: str) -> bytes:
     """What the port has (b"" after a timeout); a vanished port raises PortClosed. Bytes
     already waiting on a device port are taken with one read(2) (pyserial's read adds a
     select loop and a timer: a tenth of a millisecond per line in the live loop)."""
@@ -89,7 +89,7 @@ def read_chunk(port, name: str) -> bytes:
 class LineReader:
     """Complete text lines from a port; a partial line at the end is counted as cut."""
 
-    def __init__(self, port, name: str = "port"):
+    def __init__(self, port: SerialBase, name: str = "port"):
         self.port, self.name = port, name
         self.buf = bytearray()
         self.cut = 0
@@ -120,7 +120,7 @@ class FrameReader:
 
     def __init__(
         self,
-        port,
+        port: SerialBase,
         rows: int = BOARD_ROWS,
         cols: int = BOARD_COLS,
         name: str = "port",
@@ -158,7 +158,7 @@ class FrameReader:
         20 x 12"; "" when none was."""
         return self.decoder.skip_reasons()
 
-    def _stamp(self, frames) -> list[tuple[np.ndarray, float, int]]:
+    def _stamp(self, frames: list[np.ndarray]) -> list[tuple[np.ndarray, float, int]]:
         t = time.monotonic() - self.t0
         return list(zip(frames, [t] * len(frames), self.decoder.starts, strict=True))
 

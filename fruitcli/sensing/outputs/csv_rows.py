@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def _field(value, kind: str, words: tuple[str, ...]) -> str:
+def _field(value: float | int, kind: str, words: tuple[str, ...]) -> str:
     if kind == "d":
         return str(int(value))
     if kind == "s":
@@ -26,7 +26,7 @@ def _field(value, kind: str, words: tuple[str, ...]) -> str:
     return f"{float(value):.6f}"
 
 
-def _python_row(columns: list[np.ndarray], kinds: str, r: int, words) -> bytes:
+def _python_row(columns: list[np.ndarray], kinds: str, r: int, words: tuple[str, ...]) -> bytes:
     fields = [_field(c[r], k, words) for c, k in zip(columns, kinds, strict=True)]
     return (",".join(fields) + "\n").encode()
 

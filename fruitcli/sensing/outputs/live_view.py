@@ -21,6 +21,7 @@ import json
 import socket
 import threading
 import time
+from collections.abc import Callable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
@@ -44,7 +45,9 @@ class ViewServer:
     ``touches`` (``id, x_mm, y_mm, z_mm, i, j, peak``), ``pressures`` ({chamber: kPa}),
     ``flags`` ({flag: [taxel ids]})."""
 
-    def __init__(self, host: str, port: int, layout: dict, state, option: str = "--view"):
+    def __init__(
+        self, host: str, port: int, layout: dict, state: Callable[[], dict], option: str = "--view"
+    ):
         self.layout = json.dumps(layout).encode()
         self.state = state
         self.stopping = threading.Event()
@@ -52,7 +55,7 @@ class ViewServer:
         view = self
 
         class Handler(BaseHTTPRequestHandler):
-            def log_message(self, *args):  # no request log on stderr
+            def log_message(self, *args: object):  # no request log on stderr
                 pass
 
             def do_GET(self):

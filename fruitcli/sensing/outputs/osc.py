@@ -37,11 +37,11 @@ class Template:
         size = len(self.prefix) + self._struct.size
         self._sized = size.to_bytes(4, "big") + self.prefix
 
-    def pack(self, *numbers) -> bytes:
+    def pack(self, *numbers: float) -> bytes:
         """The message alone."""
         return self.prefix + self._struct.pack(*numbers)
 
-    def element(self, *numbers) -> bytes:
+    def element(self, *numbers: float) -> bytes:
         """The message as an element of a bundle."""
         return self._sized + self._struct.pack(*numbers)
 

@@ -18,6 +18,7 @@ import csv
 import io
 import os
 from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from fruitcli.fsutil import atomic_path
 from fruitcli.sensing.detection.model_fit import FIT_NAMES
 from fruitcli.sensing.detection.touch_table import KIND_NAMES, TouchTable
 from fruitcli.sensing.outputs.csv_rows import format_rows
+
+if TYPE_CHECKING:
+    from _typeshed import SupportsWrite
 
 TOUCH_HEADER = [
     "frame",
@@ -80,7 +84,7 @@ def touch_bytes(table: TouchTable, t_s: np.ndarray, model: bool = False) -> byte
 
 
 class _Rows:
-    def __init__(self, fh):
+    def __init__(self, fh: SupportsWrite[bytes]):
         self._fh, self.rows = fh, 0
 
     def write(self, data: bytes, rows: int) -> None:

@@ -23,8 +23,12 @@ The reported position stays the N9 centroid; the fitted centre is used only here
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.heights import GapLaw, HeightModel
 
 MIN_COUNTS = 0.5  # a neighbour below this gives no log
 _AXES = ((1, 7), (3, 5))  # N9 cells either side of the centre (4): along i, along j
@@ -81,7 +85,7 @@ def footprint_fit(
 
 
 def gap_law_shapes(
-    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, law
+    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, law: GapLaw
 ) -> Shapes:
     """`touch_shapes` for a `heights.GapLaw`, compiled (`shape_kernel`)."""
     from fruitcli.sensing.shape.shape_kernel import gap_law_shapes as kernel
@@ -108,7 +112,7 @@ def frame_shapes(
     pos: np.ndarray,
     pos_row: np.ndarray,
     xyz: np.ndarray,
-    model,
+    model: HeightModel,
 ) -> Shapes:
     """`touch_shapes` of touches read from frames: counts (N, R * C), touch k in frame
     frame[k], taxel t in cell cell[t] with C0 baseline[t] counts and its activation divided
@@ -146,7 +150,9 @@ def frame_shapes(
     return Shapes(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
 
-def _law_arguments(law, taxel9: np.ndarray) -> tuple[float, float, float, float, np.ndarray, float]:
+def _law_arguments(
+    law: GapLaw, taxel9: np.ndarray
+) -> tuple[float, float, float, float, np.ndarray, float]:
     """The compiled kernels' trailing arguments for a `heights.GapLaw`: contact counts,
     gap decay (mm), footprint sigma (mm), noise std (counts), gains per taxel (unit gains
     up to taxel9's largest index when the law has none) and MIN_COUNTS."""
@@ -173,7 +179,7 @@ def _ones(n: int) -> np.ndarray:
 
 
 def touch_shapes(
-    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, model
+    v9: np.ndarray, taxel9: np.ndarray, pos9: np.ndarray, xyz: np.ndarray, model: HeightModel
 ) -> Shapes:
     """Shapes of touches from their N9 activations v9 (n, 9) counts (0 where no taxel),
     taxels taxel9 (n, 9) (-1: none), positions pos9 (n, 9, 3) mm and reported points xyz

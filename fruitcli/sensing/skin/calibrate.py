@@ -35,6 +35,7 @@ from fruitcli.tables import Taxels, integer_column, read_taxels
 
 if TYPE_CHECKING:
     from fruitcli.scene import BoardSection, SkinSection
+    from fruitcli.sensing.frames.recording import Recording
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
@@ -43,21 +44,21 @@ GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts t
 
 
 def descent_gaps(
-    rec, truth_z: dict[int, float], n_idle: int, where: str
+    rec: Recording, truth_z: dict[int, float], n_idle: int, where: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frame indices (M,), sample id per frame (M,), gap mm (M,)) of every descent frame."""
     if rec.sample is None:
         raise FrameError(f"{where}: no 'sample' key: not a bench recording")
     frames, samples, gaps = [], [], []
     start = n_idle
-    origin_z = None
+    printer_z = None  # the tip's height over the model's origin (N,) mm
     if rec.printer_mm is not None:
         origin = rec.meta.get("model_origin_mm")
         if origin is None:
             raise FrameError(f"{where}: printer_mm without meta model_origin_mm")
-        origin_z = float(origin[2])
+        printer_z = rec.printer_mm[:, 2] - float(origin[2])
     step = rec.meta.get("step_mm")
-    if origin_z is None and step is None:
+    if printer_z is None and step is None:
         raise FrameError(f"{where}: meta has no step_mm (virtual bench) and no printer_mm")
     for f in np.flatnonzero(rec.sample >= 0):
         k = int(rec.sample[f])
@@ -65,9 +66,10 @@ def descent_gaps(
         start = int(f) + 1
         if k not in truth_z:
             continue
-        if origin_z is not None:
-            gap = rec.printer_mm[idx, 2] - origin_z - truth_z[k]
+        if printer_z is not None:
+            gap: np.ndarray = printer_z[idx] - truth_z[k]
         else:
+            assert step is not None  # checked above
             gap = START_GAP_MM - np.arange(idx.size) * float(step)
         frames.append(idx)
         samples.append(np.full(idx.size, k))
@@ -107,15 +109,15 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
 
     t = v.shape[1]
 
-    def model(x):
+    def model(x: np.ndarray):
         a, s, lam = np.exp(x[:3])
         g = np.exp(x[3:])
         return g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
 
-    def residual(x):
+    def residual(x: np.ndarray):
         return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
 
-    def jacobian(x):
+    def jacobian(x: np.ndarray):
         """d residual / d log-parameters: m, m d^2/s^2, m gap/l, and m in taxel t's
         column for log g_t; the gauge row last."""
         m = model(x)

@@ -15,15 +15,27 @@ fitted activation never reaches the calibration's ``MEASURED_MIN_COUNTS`` keeps 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fruitcli.errors import FrameError
+
+if TYPE_CHECKING:
+    from fruitcli.scene import SkinSection
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 CROSSING_KEYS = ("permittivity", "yarn_radius_mm", "insulation_mm", "gaps_mm")
 """[skin] keys of the crossing's cell, carried into skin.toml so its table is the same."""
 
 
-def drop_ff(response, indenter: str, contact_mm, taxels_mm, gap_mm) -> np.ndarray:
+def drop_ff(
+    response: CrossingSkin,
+    indenter: str,
+    contact_mm: np.ndarray,
+    taxels_mm: np.ndarray,
+    gap_mm: np.ndarray,
+) -> np.ndarray:
     """The table's drop -dC (fF) (M, T) for contact points (M, 3), taxels (T, 3), gaps (M,)."""
     off = np.asarray(contact_mm, float)[:, None, :] - np.asarray(taxels_mm, float)[None]
     gap = np.asarray(gap_mm, float)[:, None] + off[..., 2]
@@ -41,13 +53,13 @@ def fit_scale(v: np.ndarray, drop: np.ndarray, measured_min: float, gauge: float
     if not np.any(drop > 0):
         raise FrameError("the crossing's table gives no activation at the recording's frames")
 
-    def model(x):
+    def model(x: np.ndarray):
         return np.exp(x[0]) * np.exp(x[1:])[None, :] * drop
 
-    def residual(x):
+    def residual(x: np.ndarray):
         return np.concatenate([(model(x) - v).ravel(), [gauge * x[1:].mean()]])
 
-    def jacobian(x):
+    def jacobian(x: np.ndarray):
         m = model(x)
         jac = np.zeros((m.size + 1, 1 + t))
         jac[:-1, 0] = m.ravel()
@@ -71,7 +83,7 @@ def fit_scale(v: np.ndarray, drop: np.ndarray, measured_min: float, gauge: float
     }
 
 
-def skin_toml(skin, fit: dict, noise: float, gains_name: str = "gains.csv") -> str:
+def skin_toml(skin: SkinSection, fit: dict, noise: float, gains_name: str = "gains.csv") -> str:
     """The ``[skin]`` table of an electrostatic calibration; `skin` the scene's [skin]
     (its crossing keys carried over)."""
     lines = [

@@ -23,6 +23,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
+    from fruitcli.sensing.skin.forward import SkinParams
 
 PROFILE_POINTS = 400
 TAIL_DECAYS = 4.0
@@ -43,7 +44,11 @@ class CrossingHeights:
 
     @classmethod
     def of(
-        cls, table: CrossingSkin, indenter: str, noise_std_counts: float, gain=None
+        cls,
+        table: CrossingSkin,
+        indenter: str,
+        noise_std_counts: float,
+        gain: np.ndarray | None = None,
     ) -> CrossingHeights:
         k = table.object_index(indenter)
         tail = float(table.tail_decay_mm[k])
@@ -88,7 +93,11 @@ class CrossingHeights:
 
 
 def crossing_heights(
-    table, params, taxel_ids=None, footprint: str | None = None, divided: bool = False
+    table: CrossingSkin,
+    params: SkinParams,
+    taxel_ids: np.ndarray | None = None,
+    footprint: str | None = None,
+    divided: bool = False,
 ) -> CrossingHeights:
     """The `CrossingHeights` of a crossing table with a `forward.SkinParams`' noise and
     measured gains (``taxel_gain``, for `taxel_ids`, unless the activations are already

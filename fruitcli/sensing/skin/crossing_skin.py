@@ -44,6 +44,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from fruitcli.electrostatics.design import CrossingInputs
+    from fruitcli.sensing.skin.forward import StatesMesh
 
 AXES = ("x", "y")
 BLOCK_VALUES = 2_000_000
@@ -131,7 +132,13 @@ class CrossingSkin:
             )
         return self.objects.index(indenter)
 
-    def drop(self, indenter: str, dx_mm, dy_mm, gap_mm) -> np.ndarray:
+    def drop(
+        self,
+        indenter: str,
+        dx_mm: np.ndarray | float,
+        dy_mm: np.ndarray | float,
+        gap_mm: np.ndarray | float,
+    ) -> np.ndarray:
         """The forward law: activation (counts) of a taxel with `indenter` at lateral
         offsets dx, dy (mm, the touch's point less the taxel's) and gaps (mm, tip above
         the surface; below 0 pressing in), arrays broadcast together; interpolated in
@@ -257,7 +264,10 @@ class CrossingSkin:
         return cached
 
     def deformation_shift(
-        self, stretch: np.ndarray, curvature_per_mm: np.ndarray, rest_curvature_per_mm=0.0
+        self,
+        stretch: np.ndarray,
+        curvature_per_mm: np.ndarray,
+        rest_curvature_per_mm: np.ndarray | float = 0.0,
     ) -> np.ndarray:
         """Baseline shift (counts) for the surface's stretches and curvatures (..., 2)
         along x, y, from its curvatures at rest (..., 2) (0: flat). The table's curvature
@@ -276,7 +286,7 @@ class CrossingSkin:
             total = total + _odd_interp(left, self.strain, self.stretch_counts[a])
         return total
 
-    def _neutral(self, surface_curvature_per_mm) -> np.ndarray:
+    def _neutral(self, surface_curvature_per_mm: np.ndarray | float) -> np.ndarray:
         surface = np.asarray(surface_curvature_per_mm, float)
         return surface / np.maximum(1.0 - self.neutral_mm * surface, 0.1)
 
@@ -329,7 +339,9 @@ def _odd_interp(x: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     return np.sign(x) * (v - ys[0])
 
 
-def yarn_deformation(states, state_index=None) -> tuple[np.ndarray, np.ndarray]:
+def yarn_deformation(
+    states: StatesMesh, state_index: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(stretch, curvature_per_mm), each (S, T, 2) (or (T, 2) for one state): the surface
     around each taxel (`forward.taxel_surface_weights`) stretched and curved along the
     yarns (the grid's x and y carried onto the surface). Stretch: the weighted mean of
@@ -344,7 +356,7 @@ def yarn_deformation(states, state_index=None) -> tuple[np.ndarray, np.ndarray]:
     return (stretch[0], curv[0]) if single else (stretch, curv)
 
 
-def surface_deformation(states, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def surface_deformation(states: StatesMesh, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`yarn_deformation` of the states' surface with its nodes at `moved` (S, N, 3):
     (stretch, curvature_per_mm), each (S, T, 2)."""
     from fruitcli.sensing.skin import forward
@@ -398,7 +410,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
 
 
-def shift_counts(states, response: CrossingSkin, fab: np.ndarray, state_index=None) -> np.ndarray:
+def shift_counts(
+    states: StatesMesh, response: CrossingSkin, fab: np.ndarray, state_index: int | None = None
+) -> np.ndarray:
     """Baseline shift (counts) of each taxel from the rest shape: (S, T) (or (T,) for
     one state)."""
     stretch, curv = yarn_deformation(states, state_index)

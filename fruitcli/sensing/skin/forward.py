@@ -56,11 +56,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.scene import SCHEMA, default_scene
+
+if TYPE_CHECKING:
+    from fruitcli.scene import SkinSection
 
 _SKIN = SCHEMA["skin"]  # the [skin] keys, whose defaults the scene schema declares
 THRESHOLD_COUNTS = 20.0
@@ -90,6 +94,25 @@ def default_footprints_mm() -> dict[str, float]:
     return {k: float(np.hypot(FIELD_SIGMA_MM, r)) for k, r in INDENTER_RADIUS_MM.items()}
 
 
+class StatesMesh(Protocol):
+    """What the skin reads of the FEM states (`fruitcli.sensing.detection.locate.States`):
+    the rest mesh (mm), its surface, the displacements (S, N, 3) mm and each taxel's tet
+    and barycentric weights."""
+
+    @property
+    def rest_nodes(self) -> np.ndarray: ...
+    @property
+    def tets(self) -> np.ndarray: ...
+    @property
+    def surface_tris(self) -> np.ndarray: ...
+    @property
+    def displacement_mm(self) -> np.ndarray: ...
+    @property
+    def taxel_tet(self) -> np.ndarray: ...
+    @property
+    def taxel_bary(self) -> np.ndarray: ...
+
+
 @dataclass(frozen=True)
 class SkinParams:
     """The touch response's parameters, a scene's [skin] table (mm, counts)."""
@@ -102,7 +125,7 @@ class SkinParams:
     taxel_gain: Path | None = _SKIN["taxel_gain"].default  # CSV (id, gain) of measured gains
 
     @classmethod
-    def from_table(cls, skin=None) -> SkinParams:
+    def from_table(cls, skin: SkinSection | None = None) -> SkinParams:
         """From a scene's [skin] (a `fruitcli.scene.SkinSection`; None: the defaults)."""
         skin = default_scene().skin if skin is None else skin
         feet = {**default_footprints_mm(), **(skin.footprint_sigma_mm or {})}
@@ -132,7 +155,10 @@ class Skin:
 
 
 def make_skin(
-    n_taxels: int, seed: int = 0, params: SkinParams = DEFAULT_PARAMS, taxel_ids=None
+    n_taxels: int,
+    seed: int = 0,
+    params: SkinParams = DEFAULT_PARAMS,
+    taxel_ids: np.ndarray | None = None,
 ) -> Skin:
     """Draw per-taxel baselines, noise std, fabrication factors and gains from `seed`;
     with ``params.taxel_gain`` the gains are read from it for `taxel_ids` (T,)."""
@@ -156,7 +182,9 @@ def make_skin(
     return Skin(np.round(base), std, fab, gain, params)
 
 
-def load_taxel_gains(path, taxel_ids, only_these: bool = False) -> np.ndarray:
+def load_taxel_gains(
+    path: str | Path, taxel_ids: np.ndarray, only_these: bool = False
+) -> np.ndarray:
     """Gains (T,) of the taxels `taxel_ids` (T,) from a CSV with columns id, gain (e.g.
     `fruit calibrate`'s gains.csv); every taxel must be in it, each gain > 0 and finite;
     with `only_these`, no other taxel either (a file made for another skin)."""
@@ -217,7 +245,7 @@ def surface_green_strain(rest_nodes: np.ndarray, nodes: np.ndarray, tris: np.nda
 
     rest_nodes (N, 3), nodes (..., N, 3) deformed, tris (F, 3) -> (..., F)."""
 
-    def metric(x):
+    def metric(x: np.ndarray):
         e1, e2 = x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :]
         g = np.stack(
             [
@@ -261,7 +289,7 @@ def taxel_surface_weights(
     return w / w.sum(axis=1, keepdims=True)
 
 
-def taxel_strain(states, state_index=None) -> np.ndarray:
+def taxel_strain(states: StatesMesh, state_index: int | None = None) -> np.ndarray:
     """Surface strain at each taxel per state: (S, T) (or (T,) for one state): the
     area-weighted in-plane Green strain norm of the surface around the crossing, the
     stretch the sewn yarn feels."""
@@ -275,7 +303,7 @@ def taxel_strain(states, state_index=None) -> np.ndarray:
 
 
 def pad_mesh(
-    size_mm=PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4
+    size_mm: tuple[float, float, float] = PAD_SIZE_MM, step_mm: float = 4.0, layers: int = 4
 ) -> tuple[np.ndarray, np.ndarray]:
     """A flat pad of tets (`fem.grid.structured_box`): nodes (N, 3), tets (M, 4),
     x and y centred on 0, z in [0, t]."""
@@ -330,7 +358,9 @@ def strain_shift_counts(strain: np.ndarray, skin: Skin, gain: float | None = Non
 BOARD_MAX_COUNTS = 65535  # the board's counts are 16-bit: they saturate there
 
 
-def frame_counts(mean_counts: np.ndarray, noise_std: np.ndarray | float, rng) -> np.ndarray:
+def frame_counts(
+    mean_counts: np.ndarray, noise_std: np.ndarray | float, rng: np.random.Generator
+) -> np.ndarray:
     """Integer counts from mean counts (..., T) plus Gaussian noise of std (T,) (or one
     std for all), within the board's range 0 .. ``BOARD_MAX_COUNTS`` (it saturates, as a
     16-bit counter does)."""

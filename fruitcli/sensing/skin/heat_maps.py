@@ -3,6 +3,7 @@ taxels' top-view positions over the body's outline. Functions take an Axes, retu
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,7 +20,7 @@ def grid_image(i: np.ndarray, j: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 def taxel_heatmap(
-    ax,
+    ax: Axes,
     i: np.ndarray,
     j: np.ndarray,
     values: np.ndarray,
@@ -47,7 +48,15 @@ def taxel_heatmap(
     return ax
 
 
-def save_heatmap(path, i, j, values, title, vmax=None, label="counts") -> None:
+def save_heatmap(
+    path: str | os.PathLike,
+    i: np.ndarray,
+    j: np.ndarray,
+    values: np.ndarray,
+    title: str,
+    vmax: float | None = None,
+    label: str = "counts",
+) -> None:
     """Write one heat map PNG (matplotlib Agg)."""
     import matplotlib
 
@@ -65,7 +74,7 @@ def save_heatmap(path, i, j, values, title, vmax=None, label="counts") -> None:
 
 
 def taxel_topview(
-    ax,
+    ax: Axes,
     xy_mm: np.ndarray,
     values: np.ndarray,
     outline_xy_mm: np.ndarray,
@@ -116,7 +125,15 @@ def taxel_topview(
     return ax
 
 
-def save_topview(path, xy_mm, values, outline_xy_mm, title, vmax=None, label="counts") -> None:
+def save_topview(
+    path: str | os.PathLike,
+    xy_mm: np.ndarray,
+    values: np.ndarray,
+    outline_xy_mm: np.ndarray,
+    title: str,
+    vmax: float | None = None,
+    label: str = "counts",
+) -> None:
     """Write one top-view heat map PNG (matplotlib Agg)."""
     import matplotlib
 

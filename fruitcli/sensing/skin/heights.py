@@ -17,6 +17,7 @@ methods.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -25,6 +26,7 @@ from fruitcli.errors import FrameError
 
 if TYPE_CHECKING:
     from fruitcli.scene import SkinSection
+    from fruitcli.sensing.skin.forward import SkinParams
 
 
 class HeightModel(Protocol):
@@ -69,7 +71,7 @@ class GapLaw:
         return h, self.gap_decay_mm * strength_err / s
 
 
-def footprint_name(params, footprint: str | None) -> str:
+def footprint_name(params: SkinParams, footprint: str | None) -> str:
     """The footprint heights assume: `footprint`, else the skin's only one, else small."""
     feet = params.footprint_sigma_mm
     if footprint is not None:
@@ -81,7 +83,12 @@ def footprint_name(params, footprint: str | None) -> str:
     return next(iter(feet)) if len(feet) == 1 else "small"
 
 
-def gap_law(params, taxel_ids=None, footprint: str | None = None, divided: bool = False) -> GapLaw:
+def gap_law(
+    params: SkinParams,
+    taxel_ids: np.ndarray | None = None,
+    footprint: str | None = None,
+    divided: bool = False,
+) -> GapLaw:
     """The `GapLaw` of a `forward.SkinParams`; its measured gains (``taxel_gain``) for
     `taxel_ids` unless the activations are already `divided` by them."""
     from fruitcli.sensing.skin.forward import load_taxel_gains
@@ -100,7 +107,7 @@ def gap_law(params, taxel_ids=None, footprint: str | None = None, divided: bool 
     )
 
 
-def skin_with_gap_law(path) -> SkinSection:
+def skin_with_gap_law(path: str | Path) -> SkinSection:
     """The [skin] table of a skin file (`fruit calibrate`'s skin.toml) that must give
     heights: it has to state its gap law (gap_decay_mm, contact_counts)."""
     import tomllib

@@ -25,11 +25,15 @@ then lifts for the next sample. A sample that does not cross the threshold even
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.skin import forward
+
+if TYPE_CHECKING:
+    from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 START_GAP_MM = 5.0  # indenter start above the contact point
 PRESS_MM = 2.0  # deepest press into the skin before a sample is given up
@@ -82,8 +86,8 @@ def descend(
     step_mm: float,
     idle_frames: int,
     threshold: float,
-    rng,
-    response=None,
+    rng: np.random.Generator,
+    response: CrossingSkin | None = None,
 ) -> BenchRun:
     """Replay the bench over contact points (P, 3) on taxels at `taxels_mm` (T, 3) whose
     mean counts without touch are `rest_counts` (T,) (baseline + deformation shift).
