@@ -52,7 +52,6 @@ from fruitcli.sensing.detection.detect import (
 from fruitcli.sensing.detection.locate import state_path_position, touches_3d
 from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.detection.model_fit import (
-    FIT_MODEL,
     PROFILE_STEP_MM,
     Fitted,
     FootprintLaw,
@@ -425,13 +424,7 @@ class Locator:
             v = np.take(flat, self.layout.frame_cell, axis=1)
             history = self._history(read, start, v)
             fitted = self._refine(self.model, t, history, baseline, taxel_points)
-            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
-            i, j = fitted.i, fitted.j
-            extra = {
-                "pos_err_mm": fitted.pos_err_mm,
-                "residual": fitted.residual,
-                "fit": fitted.fit,
-            }
+            xyz, i, j, extra = fitted.merged(xyz)
         sh = self._shapes(flat, t, pos9, xyz, baseline)
         return TouchTable.make(
             t.frame + start,

@@ -150,6 +150,15 @@ class Fitted:
     width_scale: np.ndarray
     fit: np.ndarray
 
+    def merged(
+        self, xyz: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """The touches' points (n, 3) mm (the model's where it placed them, `xyz`, N9's,
+        elsewhere), their grid coordinates i, j, and the touch table's fit columns."""
+        placed = (self.fit == FIT_MODEL)[:, None]
+        columns = {"pos_err_mm": self.pos_err_mm, "residual": self.residual, "fit": self.fit}
+        return np.where(placed, self.xyz_mm, xyz), self.i, self.j, columns
+
 
 def refine(
     frame: np.ndarray,

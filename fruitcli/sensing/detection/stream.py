@@ -16,7 +16,6 @@ from fruitcli.sensing.detection.drift import DriftTracker
 from fruitcli.sensing.detection.locate import StatePath
 from fruitcli.sensing.detection.methods import METHODS
 from fruitcli.sensing.detection.model_fit import (
-    FIT_MODEL,
     Fitted,
     FootprintLaw,
     Window,
@@ -175,13 +174,7 @@ class Stream:
         extra: dict[str, np.ndarray] = {}
         if loc.model is not None and n:
             fitted = self._refine(loc.model, p, pos)
-            xyz = np.where((fitted.fit == FIT_MODEL)[:, None], fitted.xyz_mm, xyz)
-            i, j = fitted.i, fitted.j
-            extra = {
-                "pos_err_mm": fitted.pos_err_mm,
-                "residual": fitted.residual,
-                "fit": fitted.fit,
-            }
+            xyz, i, j, extra = fitted.merged(xyz)
         sh = touch_shapes(v[p.tax] * (p.taxel9 >= 0), p.taxel9, pos9, xyz, loc.heights)
         ids = self.tracker.update(xyz).ids if self.tracker is not None else np.arange(n)
         kind = np.where(p.peak > touch_thr, TOUCH, HOVER).astype(np.int8)
