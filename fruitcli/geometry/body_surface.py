@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 
 from fruitcli.geometry.mesh.distance import SurfaceDistance, unit_face_normals
 from fruitcli.geometry.mesh.load import load_mesh
+from fruitcli.geometry.state_mesh import StateMesh
 
 _INSIDE_EPS = 1e-9  # barycentric tolerance of the vertical ray test
 
@@ -54,20 +54,6 @@ def taxel_surface_heights(xy_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarra
 
     f = LinearNDInterpolator(taxels_mm[:, :2], taxels_mm[:, 2])
     return np.asarray(f(xy_mm), dtype=float)
-
-
-class StateMesh(Protocol):
-    """What the body's surface reads of the FEM states
-    (`fruitcli.sensing.detection.locate.States`): the rest mesh (mm), its surface
-    triangles and the nodes of a state (N, 3) mm."""
-
-    @property
-    def rest_nodes(self) -> np.ndarray: ...
-    @property
-    def tets(self) -> np.ndarray: ...
-    @property
-    def surface_tris(self) -> np.ndarray: ...
-    def nodes_mm(self, state: int) -> np.ndarray: ...
 
 
 def body_surface(path: str | Path, unit: str = "mm") -> tuple[np.ndarray, np.ndarray]:

@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from fruitcli.errors import FrameError
+from fruitcli.geometry.state_mesh import StateMesh
 from fruitcli.scene import SCHEMA, default_scene
 
 if TYPE_CHECKING:
@@ -94,17 +95,11 @@ def default_footprints_mm() -> dict[str, float]:
     return {k: float(np.hypot(FIELD_SIGMA_MM, r)) for k, r in INDENTER_RADIUS_MM.items()}
 
 
-class StatesMesh(Protocol):
+class StatesMesh(StateMesh, Protocol):
     """What the skin reads of the FEM states (`fruitcli.sensing.detection.locate.States`):
-    the rest mesh (mm), its surface, the displacements (S, N, 3) mm and each taxel's tet
-    and barycentric weights."""
+    the body surface's (`StateMesh`: the rest mesh in mm, its surface, a state's nodes),
+    the displacements (S, N, 3) mm and each taxel's tet and barycentric weights."""
 
-    @property
-    def rest_nodes(self) -> np.ndarray: ...
-    @property
-    def tets(self) -> np.ndarray: ...
-    @property
-    def surface_tris(self) -> np.ndarray: ...
     @property
     def displacement_mm(self) -> np.ndarray: ...
     @property
