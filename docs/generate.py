@@ -343,6 +343,63 @@ The paper's model through `fruit run` (`element = "p1"`, corotational, 8,865 tet
 same scene): median 9.7 ms a state from the previous one at load average 1.8-2.3 (10:03
 UTC, commit d5d8439), against the 10 ms target; 20-25 ms for the code before and after
 alike at load average 3.6-4.8.
+
+### The element tangent, and where the time goes after it
+
+The hyperelastic element loop (`fruitcli/fem/elements/integrate.py`) computes the moduli
+A_iJkL at a quadrature point only for k >= i (the others follow by the symmetry A_iJkL =
+A_kLiJ), contracts them with the shape gradients along contiguous rows of nodes (the
+innermost loop over the 10 nodes b instead of the 3 components J) into the element's
+own tangent, and writes it out once with its other half by symmetry. On the default
+Fruit's 8,865 quadratic tets, one thread, the loop with forces and tangents timed alone
+(old and new alternately in one process, median of 11 runs each, 2026-12-06, load
+average 5.5): 39-40 ms instead of 51 ms in two runs, 45-49 ms instead of 56-62 ms in two
+busier ones (the forces alone 9 ms). Of the 49 ms of one such run: the forces 9-10,
+writing the 64 MB of element blocks 11 (about 6 of it page faults: the blocks are a new
+array at every tangent), the moduli 7, the contraction 21.
+
+`python tests/performance/bench_state.py --mesh DIR --save PREFIX`, the code before
+(commit 1637cc4) and after (commit 27b5afb) run alternately, twice each, 13:10-13:22 UTC
+at load average 5.5-6.7 (2 cores shared with other work; CPU medians of both cores):
+
+| | before | after |
+|---|---|---|
+| breathing: CPU median, ms | 349, 309, 329, 353 | 281, 302, 300, 320 |
+| sweep: CPU median, ms | 174, 199, 180, 222 | 160, 178, 210, 171 |
+
+The same Newton steps (1.42 and 1.11 a state), CG iterations (8.4 and 3.8) and
+factorizations (none after the first state); the states within 1.5e-6 mm (breathing)
+and 6.5e-7 mm (sweep) of the code before. Through `fruit demo` the nodes of every
+simulated state (fruit-breathing, fruit-deformed, touchpad-4x4) are within 6.4e-6 mm of
+the code before's, the taxels within 5.1e-6 mm (the breathing's state from rest took 13
+Newton steps instead of 12), and what follows from them differs in the last digits.
+
+Where a breathing state's CPU time goes after it (cProfile with the CPU clock over the
+first cycle's 12 states, before this change; per state): PARDISO's solves 153 ms (10.3
+solves of 15 ms: CG's preconditioner and Newton's displacement estimate), the element
+loops 100 ms (now about 85), the scatter into CSR 19 ms, CG's sparse products 19 ms,
+the chambers' volumes, gradients and follower-pressure stiffness about 15 ms. A
+numerical refactorization of the kept factor costs 410-460 ms of CPU, the price of 25-30
+CG iterations. The 100 ms target is not reached: it needs about one tangent and two or
+three solves a state, where the breathing takes 1.42 tangents and 10 solves, the sweep
+1.11 and 5.
+
+Measured in this round and not adopted:
+
+- a chord second Newton step whenever the first cut the residual 100-fold (not only
+  near the residual tolerance): on the breathing's first six states its estimate of
+  the correction left was 3.4e-5-1.9e-4 mm instead of 7e-6-3.8e-5 mm with the new
+  tangent, so five of the six took a third step (CPU 410-759 ms instead of 325-586 ms);
+- the first Newton step's CG to a relative residual of 1e-4 instead of 1e-2: the
+  breathing's states 1-6 still took two steps (the residual after the first is
+  nonlinear, 1e-4-2e-3: the predictor starts them 0.009-0.029 mm off), the same 101 CG
+  iterations over the cycle and one refactorization more; 3e-2 and 1e-1: 98 CG
+  iterations instead of 101, the same Newton steps;
+- predictors for the first states: the first state's dx/dp updated by Broyden's rule
+  along each state (errors 0.029-0.048 mm instead of 0.009-0.029 mm), a quadratic fit
+  around the first state with its dx/dp (0.011-0.025 mm), where the states that take
+  one Newton step start within 0.001-0.003 mm;
+- numba's fastmath on the element loop: no change measurable.
 """
 
 

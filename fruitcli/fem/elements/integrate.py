@@ -54,9 +54,12 @@ def evaluate(
     element order, so the result does not depend on the number of threads.
 
     Per element: F (`_deformation`), then point by point the energy, the forces
-    (`_add_point_forces`) and the moduli (`isochoric`, `_add_volumetric_moduli`)
-    contracted with the shape gradients here: in a helper (inlined or not) that took
-    22 ms instead of 17 ms for 3,072 quadratic tets' tangents (one thread)."""
+    (`_add_point_forces`) and the moduli (`isochoric`, `_add_volumetric_moduli`: the
+    blocks k >= i of A_iJkL only) contracted with the shape gradients
+    (`_add_point_tangent`) into the element's own tangent, written out once with its
+    other half by symmetry and the mean dilatation's rank-one term: on the default
+    Fruit's 8,865 quadratic tets (one thread) 40 ms instead of 51 ms for the forces
+    and tangents together (9 ms for the forces alone)."""
     m, nq, nen = dn.shape[0], dn.shape[1], dn.shape[2]
     c10, c20, c30, kappa = consts[0], consts[1], consts[2], consts[3]
     e_rows = np.zeros((m * nen, 3))
@@ -71,7 +74,9 @@ def evaluate(
         a = np.empty((9, 9))
         fe = np.empty((nen, 3))
         b = np.empty((nen, 3))
-        ad = np.empty((3, 3, 3, nen))  # A_iJkL dN_bL summed over L: [i, J, k, b]
+        gt = np.empty((3, nen))  # the point's shape gradients, transposed
+        ga = np.empty((nen, 3))  # dN_aJ A_iJkL summed over J: [a, L] for one (i, k)
+        kb = np.empty((3, 3, nen, nen))  # the element tangent as [i, k, a, b]
         lo_e, hi_e = block_range(blk, nblocks, m)
         for e in range(lo_e, hi_e):
             jmin[e] = _deformation(x, conn[e], dn[e], fq, finv, det)
@@ -90,7 +95,7 @@ def evaluate(
             fe[:, :] = 0.0
             b[:, :] = 0.0
             if want_tangent:
-                blocks[e, :, :] = 0.0
+                kb[:, :, :, :] = 0.0
             for q in range(nq):
                 w = wq[e, q]
                 jq = det[q]
@@ -106,29 +111,18 @@ def evaluate(
                 if not want_tangent:
                     continue
                 _add_volumetric_moduli(finv[q], jq, u1, u2, mean_dilatation, a)
-                for i in range(3):
-                    for jj in range(3):
-                        for k in range(3):
-                            for n in range(nen):
-                                s = 0.0
-                                for ll in range(3):
-                                    s += a[3 * i + jj, 3 * k + ll] * dn[e, q, n, ll]
-                                ad[i, jj, k, n] = s
+                _add_point_tangent(dn[e, q], w, a, gt, ga, kb)
+            if want_tangent:
+                scale = u2_e / ve if mean_dilatation else 0.0
                 for na in range(nen):
                     for i in range(3):
                         for nb in range(nen):
                             for k in range(3):
-                                s = 0.0
-                                for jj in range(3):
-                                    s += dn[e, q, na, jj] * ad[i, jj, k, nb]
-                                blocks[e, 3 * na + i, 3 * nb + k] += w * s
-            if mean_dilatation and want_tangent:
-                scale = u2_e / ve
-                for na in range(nen):
-                    for i in range(3):
-                        for nb in range(nen):
-                            for k in range(3):
-                                blocks[e, 3 * na + i, 3 * nb + k] += scale * b[na, i] * b[nb, k]
+                                if i <= k:
+                                    v = kb[i, k, na, nb]
+                                else:  # the tangent's symmetry: A_iJkL = A_kLiJ
+                                    v = kb[k, i, nb, na]
+                                blocks[e, 3 * na + i, 3 * nb + k] = v + scale * b[na, i] * b[nb, k]
             for n in range(nen):
                 for i in range(3):
                     e_rows[e * nen + n, i] = fe[n, i]
@@ -183,14 +177,40 @@ def _add_point_forces(dn_q, finv_q, jq, w, u1, p_iso, fe, b) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _add_point_tangent(dn_q, w, a, gt, ga, kb) -> None:
+    """Add one quadrature point's share (weight w, mm^3) of the element tangent,
+    w dN_aJ A_iJkL dN_bL (mN/mm), into kb [i, k, a, b] for i <= k only (the rest is
+    its transpose); dn_q (nen, 3) 1/mm, a (9, 9) kPa indexed (3 i + J, 3 k + L); gt
+    (3, nen) and ga (nen, 3) scratch. The innermost loops run over the nodes b along
+    contiguous rows, which the compiler vectorizes: 2.5 times faster than the
+    contraction over J innermost with every (i, k) computed."""
+    nen = dn_q.shape[0]
+    for n in range(nen):
+        for ll in range(3):
+            gt[ll, n] = dn_q[n, ll]
+    for i in range(3):
+        for k in range(i, 3):
+            for na in range(nen):
+                for ll in range(3):
+                    s = 0.0
+                    for jj in range(3):
+                        s += dn_q[na, jj] * a[3 * i + jj, 3 * k + ll]
+                    ga[na, ll] = w * s
+            for na in range(nen):
+                g0, g1, g2 = ga[na, 0], ga[na, 1], ga[na, 2]
+                for nb in range(nen):
+                    kb[i, k, na, nb] += g0 * gt[0, nb] + g1 * gt[1, nb] + g2 * gt[2, nb]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _add_volumetric_moduli(finv_q, jq, u1, u2, mean_dilatation, a) -> None:
     """Add to the moduli a (9, 9) kPa, indexed (3 i + J, 3 k + L), U' d2J/dF2 (U' = u1,
     kPa) and, without mean dilatation, U'' cof (x) cof (U'' = u2, kPa), cof = J F^-T;
-    finv_q is F^-1 and jq det F at the point."""
+    finv_q is F^-1 and jq det F at the point. Only the blocks k >= i (`isochoric`)."""
     for i in range(3):
         for jj in range(3):
             r = 3 * i + jj
-            for k in range(3):
+            for k in range(i, 3):
                 for ll in range(3):
                     c = 3 * k + ll
                     a[r, c] += (

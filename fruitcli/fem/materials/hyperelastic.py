@@ -20,8 +20,10 @@ from numba import njit
 @njit(cache=True, nogil=True)
 def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d) -> float:
     """W(I1bar) (kPa) at F (3, 3) with F^-1 `finv` and det F `det`; writes P (3, 3) into
-    p_out and, when want_tangent, dP/dF (9, 9) into a_out; d (3, 3): scratch (the
-    element loop runs on several threads, where an allocation per call is slow)."""
+    p_out and, when want_tangent, dP/dF (9, 9) into a_out, its blocks [3 i + J, 3 k + L]
+    with k >= i only (the others are their transposes, A_iJkL = A_kLiJ, and are left as
+    they were: the element loop reads only these); d (3, 3): scratch (the element loop
+    runs on several threads, where an allocation per call is slow)."""
     i1 = 0.0
     for i in range(3):
         for j in range(3):
@@ -40,7 +42,7 @@ def isochoric(f, finv, det, c10, c20, c30, want_tangent, p_out, a_out, d) -> flo
         for i in range(3):
             for jj in range(3):
                 r = 3 * i + jj
-                for k in range(3):
+                for k in range(i, 3):
                     for ll in range(3):
                         d2 = (
                             -(2.0 / 3.0) * finv[ll, k] * (f[i, jj] - i1 / 3.0 * finv[jj, i])
