@@ -70,7 +70,8 @@ import click
 import numpy as np
 from fruitcli.cli.main import cli
 from fruitcli.scene import SCHEMA, parse_scene
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.tables import Taxels
 from pathlib import Path

@@ -158,7 +158,7 @@ def live(scene_path: str, **given: Any) -> None:
 
     from fruitcli.scene import load_scene
     from fruitcli.sensing.detection.drift import DriftTracker
-    from fruitcli.sensing.detection.frames_to_touches import Settings
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.live.loop import LiveLocator, pressure_thread
     from fruitcli.sensing.live.serial_ports import FrameReader, PortClosed, open_port
 

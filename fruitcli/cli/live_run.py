@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
     from fruitcli.fem.online import OnlineSolver, ReducedOnline
     from fruitcli.scene import BoardSection, Scene
-    from fruitcli.sensing.detection.frames_to_touches import Settings
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.sensing.live.outputs import Outputs
     from fruitcli.sensing.live.serial_ports import FrameReader, PressureState

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fruitcli.scene import BoardSection, Scene, SkinSection, default_scene
-from fruitcli.sensing.detection.frames_to_touches import Settings
 from fruitcli.sensing.detection.gain_division import GainInputs
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.skin.calibrate import CalibrateInputs
 from fruitcli.sensing.skin.crossing_skin import CrossingSkinInputs
 from fruitcli.sensing.skin.models import SKIN_MODELS

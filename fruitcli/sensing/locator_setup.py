@@ -17,9 +17,10 @@ import numpy as np
 from fruitcli.errors import FrameError
 from fruitcli.geometry.body_surface import SurfaceProjector, body_surface
 from fruitcli.scene import BoardSection, SkinSection
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
 from fruitcli.sensing.detection.locate import States, match_chambers
 from fruitcli.sensing.detection.methods import METHODS
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import check_frame_shape
 from fruitcli.sensing.frames.recording_chunks import ChunkedRecording
 from fruitcli.tables import Taxels

@@ -121,7 +121,8 @@ def evaluate(
     seed: int,
 ) -> tuple[list[list], dict[str, float]]:
     """Rows of HEADER, and (largest hover height, hover and touch position errors)."""
-    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+    from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.detection.touch_table import HOVER, TOUCH
     from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.skin import forward

@@ -148,7 +148,8 @@ def run(
 ) -> tuple[list[list], list[list]]:
     """-> (pair rows (HEADER), single rows [body, method, frames, one_rate, median, p95
     mm]), for each body of `bodies` (`BODIES`)."""
-    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.skin import forward
     from fruitcli.sensing.skin.heights import gap_law

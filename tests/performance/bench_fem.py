@@ -174,7 +174,8 @@ def bench_online(scene, mesh_npz, taxels_csv, seconds: float = 6.0) -> None:
     from fruitcli.fem.elements import barycentric
     from fruitcli.fem.online import OnlineSolver
     from fruitcli.fem.stage import build_model, solver_options, state_loads
-    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.live.board_emulator import synthetic_frames
     from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.tables import read_taxels

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.frames.muca_line import format_line, parse_line
 from fruitcli.tables import Taxels, read_taxels

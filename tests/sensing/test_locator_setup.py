@@ -4,8 +4,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from fruitcli.sensing.detection.frames_to_touches import Settings
 from fruitcli.sensing.detection.locate import States
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.locator_setup import build_locator
 from fruitcli.tables import Taxels

@@ -4,7 +4,8 @@ method), the skin's footprint fitted around each peak (`model_fit`, the model me
 the body's own surface where it is known: `surface_chart`), 3D location
 (`frames_to_touches`: the batch path; `stream`: frame by frame; both write a
 `touch_table`), baseline drift, touch sessions, taxel health. The methods are one table
-(`methods`; the grid methods' functions in `finders`).
+(`methods`; the grid methods' functions in `finders`), read through the
+[detection] settings (`settings`).
 
 May import: `fruitcli.sensing.frames`, `fruitcli.sensing.shape` (each touch's strength,
 size and hover height), `fruitcli.sensing.skin.forward` (taxel gains),

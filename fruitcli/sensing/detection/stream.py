@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
 
 class StreamSettings(Protocol):
-    """What a `Stream` reads of the detection settings (`frames_to_touches.Settings`)."""
+    """What a `Stream` reads of the detection settings (`settings.Settings`)."""
 
     @property
     def threshold_counts(self) -> float: ...

@@ -7,7 +7,8 @@ import pytest
 
 from fruitcli.errors import FrameError
 from fruitcli.sensing.detection.detect import Grid, activation_grid, local_peaks
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board, taxel_cells
 from fruitcli.tables import Taxels
 

@@ -13,8 +13,9 @@ from click.testing import CliRunner
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
 from fruitcli.sensing.detection.drift import DriftTracker
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
 from fruitcli.sensing.detection.health import TaxelHealth
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.live.run_log import RunLog
 from fruitcli.tables import Taxels

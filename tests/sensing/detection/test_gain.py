@@ -7,7 +7,8 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.fsutil import write_csv
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.skin.forward import load_taxel_gains
 from fruitcli.tables import read_taxels

@@ -8,7 +8,8 @@ from click.testing import CliRunner
 from fruitcli.cli.main import cli
 from fruitcli.errors import FrameError
 from fruitcli.output_folder import MARKER
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.detection.touch_table import HOVER, TOUCH, TouchTable
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.frames.recording import Recording, write_npz

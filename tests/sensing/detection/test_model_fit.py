@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import FrameError
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
 from fruitcli.sensing.detection.model_fit import (
     FIT_MODEL,
     FIT_N9,
@@ -17,6 +17,7 @@ from fruitcli.sensing.detection.model_fit import (
     Window,
 )
 from fruitcli.sensing.detection.model_kernel import prepare
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.detection.touch_table import TouchTable
 from fruitcli.sensing.frames.board import default_board, taxel_cells
 from fruitcli.sensing.skin.heights import GapLaw

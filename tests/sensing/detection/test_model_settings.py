@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from fruitcli.sensing.detection import model_fit
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.studies import locate_methods as lm
 from tests.sensing.detection.test_model_fit import LAW, SIGMA_MM, grid_taxels

@@ -5,7 +5,8 @@ random multitouch frames, for every detection option."""
 import numpy as np
 import pytest
 
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings, Stream
+from fruitcli.sensing.detection.frames_to_touches import Locator, Stream
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.tables import Taxels
 from tests.helpers.stream_reference import ReferenceStream

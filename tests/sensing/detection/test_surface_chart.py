@@ -5,8 +5,9 @@ taxels span would keep the touch on their plane."""
 import numpy as np
 
 from fruitcli.geometry.mesh.distance import SurfaceDistance, unit_face_normals
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
 from fruitcli.sensing.detection.model_fit import FIT_MODEL
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.detection.surface_chart import SUB, SurfaceChart
 from fruitcli.sensing.frames.board import default_board, taxel_cells
 from fruitcli.sensing.skin.heights import GapLaw

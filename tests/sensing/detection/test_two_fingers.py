@@ -6,7 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.detection.two_footprints import Footprint, bilinear_window
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.skin import forward

@@ -103,7 +103,8 @@ def test_a_fixed_baseline_fails_the_soak_day_and_the_tracker_does_not():
     """The first connection (5 h) of the soak plan in process: with a fixed baseline the
     drift (past 20 counts after about 4 h) makes false touches; with the tracker none."""
     from fruitcli.sensing.detection.drift import DriftTracker
-    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.tables import Taxels

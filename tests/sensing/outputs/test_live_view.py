@@ -303,7 +303,8 @@ def test_view_port_in_use_is_one_line(tmp_path):
 
 def test_view_state_has_pressures_touches_fps_and_baseline(tmp_path, capsys):
     from fruitcli.sensing.detection.drift import DriftTracker
-    from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+    from fruitcli.sensing.detection.frames_to_touches import Locator
+    from fruitcli.sensing.detection.settings import Settings
     from fruitcli.sensing.frames.board import default_board
     from fruitcli.sensing.live.loop import LiveLocator
     from fruitcli.sensing.live.outputs import Outputs

@@ -11,7 +11,8 @@ from pythonosc import dispatcher, osc_server
 from pythonosc.osc_bundle import OscBundle
 
 from fruitcli.cli.main import cli
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.live.board_emulator import BoardEmulator, synthetic_frames
 from fruitcli.sensing.live.loop import LiveLocator

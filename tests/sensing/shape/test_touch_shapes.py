@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from fruitcli.scene import default_scene
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.detection.touch_table import HOVER, KIND_NAMES, TOUCH, TouchTable
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.outputs.touch_csv import TOUCH_HEADER, touch_bytes, touch_csv

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fruitcli.scene import default_scene
-from fruitcli.sensing.detection.frames_to_touches import Locator, Settings
+from fruitcli.sensing.detection.frames_to_touches import Locator
+from fruitcli.sensing.detection.settings import Settings
 from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.frames.recording import Recording, write_npz
 from fruitcli.sensing.skin.crossing_heights import CrossingHeights
