@@ -262,8 +262,9 @@ def calibrated_skin(
 ) -> Any:
     """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene`
     (its crossing table `board_table` when electrostatic) at other sample points (half a
-    pitch off each taxel, ``CALIBRATION_INDENTER``): the Gaussian law, or with
-    `fitted_table` the crossing table's counts per fF and the gains."""
+    pitch off each taxel, for the law, and right over each taxel, for its gain:
+    `taxel_gains`; ``CALIBRATION_INDENTER``): the Gaussian law, or with `fitted_table` the
+    crossing table's counts per fF, and the gains."""
     from fruitcli.fsutil import write_csv
     from fruitcli.scene import load_skin_table
     from fruitcli.sensing.inputs_stage import calibrate_inputs, crossing_skin_inputs
@@ -274,7 +275,8 @@ def calibrated_skin(
 
     work.mkdir(parents=True, exist_ok=True)
     g = bench_scene.grid
-    xy = read_taxels(taxels).xyz_mm[:, :2] + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2
+    over = read_taxels(taxels).xyz_mm[:, :2]
+    xy = np.vstack([over + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2, over])
     points = work / "samples.csv"
     write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
     # the two [bench] keys replaced as they are, without `with_values`' checks across

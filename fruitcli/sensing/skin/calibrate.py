@@ -17,7 +17,9 @@ common factor is contact_counts). The noise std is that of the idle frames, less
 rounding of integer counts (1/12 count^2). Taxels whose fitted activation never reaches
 ``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured. With ``[skin].model =
 "electrostatic"`` the model fitted is the crossing table's instead: its counts per fF and
-the gains (`calibrate_crossing`), the same frames and noise.
+the gains (`calibrate_crossing`), the same frames and noise. Where the run has samples
+right over taxels, those taxels' gains come from them instead (`taxel_gains`: compared at
+equal gaps, the law does not enter them; the fitted ones take up where the law is wrong).
 """
 
 from __future__ import annotations
@@ -277,7 +279,7 @@ def run_calibrate(
     noise, noise_per = noise_std_counts(idle)
     if response is None:
         dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - run.contact[:, None, :], axis=2)
-        fit = fit_skin(v, dist, run.gaps)
+        fit = _gains_over_taxels(fit_skin(v, dist, run.gaps), "contact_counts", v, run)
         toml = skin_toml(name, fit, noise)
         figures = {
             "footprint_sigma_mm": fit["sigma_mm"],
@@ -294,6 +296,7 @@ def run_calibrate(
         response.object_index(name)  # the table must hold the recording's indenter
         drop = cc.drop_ff(response, name, run.contact, taxels.xyz_mm, run.gaps)
         fit = cc.fit_scale(v, drop, MEASURED_MIN_COUNTS, GAUGE_WEIGHT)
+        fit = _gains_over_taxels(fit, "counts_per_ff", v, run)
         toml = cc.skin_toml(inputs.skin, fit, noise)
         figures = {"skin_model": "electrostatic", "counts_per_ff": fit["counts_per_ff"]}
         fitted = f"{fit['counts_per_ff']:.4g} counts per fF"
@@ -305,6 +308,7 @@ def run_calibrate(
         "frames": int(len(run.frames)),
         "samples": run.samples,
         "taxels_measured": int(fit["measured"].sum()),
+        "gains_over_taxels": int(fit["over"].sum()),
         "taxels": len(taxels),
         "idle_frames": run.n_idle,
         "recording": str(frames_path),
@@ -316,6 +320,20 @@ def run_calibrate(
         f"gains measured, rms residual {fit['rms_counts']:.2f} counts"
     )
     return summary
+
+
+def _gains_over_taxels(fit: dict, amplitude: str, v: np.ndarray, run: BenchRun) -> dict:
+    """`fit` with the gains of the taxels the run has samples right over taken from those
+    (`taxel_gains`: the law does not enter them), the others as fitted; the law's
+    `amplitude` key takes their common factor. Adds ``over`` (T,)."""
+    from fruitcli.sensing.skin.taxel_gains import combine, gains_over_taxels
+
+    gain, over = gains_over_taxels(v, run.contact, run.gaps, run.taxels.xyz_mm)
+    fit = {**fit, "over": over}
+    if over.any():
+        fit["gain"], fit["measured"], factor = combine(fit["gain"], fit["measured"], gain, over)
+        fit[amplitude] *= factor
+    return fit
 
 
 def write_calibration(
@@ -349,7 +367,8 @@ def write_calibration(
             ),
             comments=[
                 "per-taxel gain (mean 1 over measured taxels; 1 where not "
-                "measured) and noise std (counts) from fruit calibrate"
+                "measured; from the samples right over the taxel where the run has them) "
+                "and noise std (counts) from fruit calibrate"
             ],
         )
         write_json(tmp / "calibration.json", summary)

@@ -18,16 +18,27 @@ from tests.sensing.skin.test_virtual_bench import pad_taxel_csv
 HIDDEN = {"sigma_mm": 4.5, "contact_counts": 80.0, "gap_decay_mm": 2.0, "noise": 1.2}
 
 
-def hidden_bench(tmp_path, seed=0, step_mm=0.1, n_idle=10, threshold=20.0):
+def gaussian_footprint(d):
+    return np.exp(-0.5 * (d / HIDDEN["sigma_mm"]) ** 2)
+
+
+def hidden_bench(
+    tmp_path, seed=0, step_mm=0.1, n_idle=10, threshold=20.0, footprint=gaussian_footprint,
+    over=False, offsets=((3.0, 2.0), (-2.0, -3.0)),
+):  # fmt: skip
     """A bench recording in the virtual bench's format (idle frames, then per sample the
     descent from 5 mm in step_mm steps up to the first frame over the threshold), made by
-    the forward model's formula with HIDDEN parameters and taxel gains in 1 +- 20 %."""
+    the forward model's formula with HIDDEN parameters and taxel gains in 1 +- 20 %;
+    `footprint` (d mm -> 1 at 0) the lateral law; samples at `offsets` (mm) from each
+    taxel, and with `over` right over each taxel too."""
     rng = np.random.default_rng(seed)
     taxels = forward.pad_taxels_mm(z_mm=3.0)
     t = len(taxels)
     gains = rng.uniform(0.8, 1.2, t)
     base = np.round(500 + rng.uniform(-30, 30, t))
-    xy = np.concatenate([taxels[:, :2] + [3.0, 2.0], taxels[:, :2] - [2.0, 3.0]])
+    xy = np.concatenate([taxels[:, :2] + np.array(off) for off in offsets])
+    if over:
+        xy = np.concatenate([xy, taxels[:, :2]])
 
     def noisy(mean):
         return np.round(mean + rng.normal(0, HIDDEN["noise"], mean.shape)).astype(np.int64)
@@ -36,7 +47,7 @@ def hidden_bench(tmp_path, seed=0, step_mm=0.1, n_idle=10, threshold=20.0):
     c0 = rows[0].mean(axis=0)
     for k, p in enumerate(xy):
         d = np.linalg.norm(taxels - [p[0], p[1], 3.0], axis=1)
-        lateral = gains * HIDDEN["contact_counts"] * np.exp(-0.5 * (d / HIDDEN["sigma_mm"]) ** 2)
+        lateral = gains * HIDDEN["contact_counts"] * footprint(d)
         for gap in np.arange(START_GAP_MM, -2.0, -step_mm):
             c = noisy(base + lateral * np.exp(-gap / HIDDEN["gap_decay_mm"]))
             rows.append(c[None, :])
@@ -366,3 +377,27 @@ def test_calibrate_without_taxels_is_one_line(tmp_path):
     assert res.exit_code == 1
     assert res.output.strip().endswith("pad.toml: no taxels: give --taxels or [grid].taxels")
     assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "skin").exists()
+
+
+def heavy_footprint(d):
+    """A footprint with heavier tails than the Gaussian calibrate fits."""
+    return 1.0 / (1.0 + (d / 8.0) ** 2) ** 1.5
+
+
+@pytest.mark.parametrize("over", [False, True])
+def test_gains_from_samples_over_the_taxels(tmp_path, over):
+    """A board whose footprint is not the Gaussian calibrate fits, sampled half a pitch
+    off its taxels: with a sample right over each taxel too, the gains come from those
+    (calibration.json counts them) and are the board's within 4 % (the noise's share);
+    without, none is counted."""
+    import json
+
+    half = ((8.0, 8.0), (-8.0, -8.0))  # half a pitch off the taxels, as fruit study's run
+    gains = hidden_bench(tmp_path, footprint=heavy_footprint, over=over, offsets=half)
+    res = calibrate(tmp_path)
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert summary["gains_over_taxels"] == (16 if over else 0)
+    if over:
+        got = read_table(tmp_path / "cal" / "gains.csv", ["id", "gain"])["gain"]
+        assert np.sqrt(np.mean((got / (gains / gains.mean()) - 1.0) ** 2)) < 0.04
