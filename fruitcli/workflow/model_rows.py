@@ -5,7 +5,8 @@ Units: mm, counts. A fit handed the bench's own law and parameters would be scor
 model that made its frames, so the locator here is not given the scene's [skin]: `fruit
 calibrate` fits it (footprint width, counts at contact, gap decay, noise, gains) to a
 second bench run of the same board at other sample points, half a pitch off each taxel
-with the small indenter (`fruitcli.studies.locate_methods.calibrated_skin`), and the
+for the law and right over each taxel for its gain, with the small indenter
+(`fruitcli.studies.locate_methods.calibrated_skin`), and the
 model method locates the very frames the N9 rows were scored on. How many frames' mean
 it fits (``[detection].model_frames``: the bench's indenter is still in x and y while it
 descends) is chosen the same way, as the setting of ``MODEL_FRAMES`` that places the
@@ -57,7 +58,9 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         scene, taxels, states, surface, unit, out_dir / "calibration", board_table
     )
 
-    def locate(frames: int, bench: Path, folder: Path, truth: Path, label: str) -> tuple:
+    def locate(
+        frames: int, bench: Path, folder: Path, truth: Path, label: str, found_only: bool = False
+    ) -> tuple:
         run = replace(
             scene,
             sections={
@@ -67,6 +70,8 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         )
         inputs = locate_inputs(run, method=MODEL_METHOD, skin_table=skin, crossing_dir=board_table)
         run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
+        if found_only:
+            truth = _found(truth, folder)
         return evaluate_pair(
             truth,
             folder / "measured.csv",
@@ -79,12 +84,14 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
     tried = {}
     for k in MODEL_FRAMES:
         ctx.progress(f"model-rows: the calibration run located with the mean of {k} frame(s)")
+        folder = out_dir / "frames" / str(k)
         result = locate(
             k,
             calibration / "frames.npz",
-            out_dir / "frames" / str(k),
+            folder,
             calibration / "truth.csv",
             f"calibration, {k} frame(s)",
+            found_only=True,
         )
         tried[k] = float(result[0]["compare"]["translation"]["mean_mm"])
     chosen = min(tried, key=lambda k: (tried[k], k))
@@ -115,7 +122,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         "calibration": {
             "board": scene.skin.model,
             "indenter": CALIBRATION_INDENTER,
-            "samples": "half a pitch off each taxel",
+            "samples": "half a pitch off each taxel and right over each taxel",
             "footprint_sigma_mm": _plain(skin.footprint_sigma_mm),
             "contact_counts": _plain(skin.contact_counts),
             "gap_decay_mm": _plain(skin.gap_decay_mm),
@@ -152,6 +159,28 @@ def model_share(touches_csv: Path) -> float | None:
 
     share, _ = model_fits(touches_csv)
     return None if np.isnan(share) else round(share, 4)
+
+
+def _found(truth_csv: Path, folder: Path) -> Path:
+    """FOLDER/truth.csv: the calibration run's truth rows of the samples the locate found
+    a touch for (a sample whose peak ends on the threshold itself has none; which are
+    found does not depend on the frames' mean, so every setting is scored on the same)."""
+    from fruitcli.fsutil import write_csv
+    from fruitcli.tables import read_table
+
+    found = set(read_table(folder / "measured.csv", ["sample"])["sample"].astype(int).tolist())
+    truth = read_table(truth_csv, ["sample", "x_mm", "y_mm", "z_mm"])
+    keep = [k for k, s in enumerate(truth["sample"].astype(int)) if int(s) in found]
+    out = folder / "truth.csv"
+    write_csv(
+        out,
+        ["sample", "x_mm", "y_mm", "z_mm"],
+        (
+            [int(truth["sample"][k]), *(float(truth[c][k]) for c in ("x_mm", "y_mm", "z_mm"))]
+            for k in keep
+        ),
+    )
+    return out
 
 
 def _reads():

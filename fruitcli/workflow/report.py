@@ -171,11 +171,12 @@ def model_note(calibrations: list[str]) -> list[str]:
         'by `[detection] method = "model"` (the skin\'s footprint fitted to the taxels '
         "around each peak; N9's point kept where the fit fails its tests). The locator is "
         "not handed the bench's skin: `fruit calibrate` fitted it to a second bench run of "
-        "the same board at other sample points (half a pitch off each taxel, the small "
-        "indenter). The indenter is still in x and y while it descends to the threshold, "
-        "so the model may fit the mean activation of the frame at the threshold and the "
-        "frames before it (`[detection].model_frames`); how many is chosen on the same "
-        "calibration run, and the rows with the frame alone stay for comparison. The "
+        "the same board at other sample points (half a pitch off each taxel for the law, "
+        "right over each taxel for its gain; the small indenter). The indenter is still in "
+        "x and y while it descends to the threshold, so the model may fit the mean "
+        "activation of the frame at the threshold and the frames before it "
+        "(`[detection].model_frames`); how many is chosen on the same calibration run, "
+        "and the rows with the frame alone stay for comparison. The "
         "calibration gave:",
         "",
         *calibrations,

@@ -102,7 +102,7 @@ def test_the_report_puts_the_model_rows_under_their_scene_and_says_how(tmp_path)
     cal = {
         "board": "gaussian",
         "indenter": "small",
-        "samples": "half a pitch off each taxel",
+        "samples": "half a pitch off each taxel and right over each taxel",
         "footprint_sigma_mm": {"small": 6.38},
         "contact_counts": 55.3,
         "gap_decay_mm": 2.02,
