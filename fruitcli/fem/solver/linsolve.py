@@ -45,6 +45,8 @@ from fruitcli.fem.tolerances import (
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
+    from fruitcli.fem.solver.assemble import CsrPattern
+
 
 class Factor(Protocol):
     """A sparse factor: `solve(b)` and `single` (whether its solves are only approximate:
@@ -80,7 +82,7 @@ within 6e-7 mm); the same numbers of CG iterations. False (the tests' switch) ke
 double precision."""
 
 
-def upper_triangle(k) -> sp.csr_matrix | sp.csr_array:
+def upper_triangle(k: sp.spmatrix | sp.sparray) -> sp.csr_matrix | sp.csr_array:
     """The upper triangle of the symmetric sparse k in CSR with sorted indices."""
     import scipy.sparse as sp
 
@@ -128,6 +130,36 @@ except ImportError:  # optional: SuperLU in symmetric mode instead
     _cholesky = None
 
 
+class CorotationalBody(Protocol):
+    """What `TangentSolver` reads of the corotational model (`corotational_model.Model`):
+    its shape gradients (m, 4, 3) 1/mm, Lame constants (kPa), free-dof pattern, springs'
+    diagonal over the free dofs (mN/mm) and its tangent, assembled per element or applied."""
+
+    @property
+    def grads(self) -> np.ndarray: ...
+
+    @property
+    def lame_kpa(self) -> tuple[float, float]: ...
+
+    @property
+    def pattern(self) -> CsrPattern: ...
+
+    @property
+    def spring_diag(self) -> np.ndarray: ...
+
+    def tangent_blocks(
+        self, rot: np.ndarray, f: np.ndarray | None, project: bool = True
+    ) -> np.ndarray: ...
+
+    def apply_tangent_free(
+        self,
+        rot: np.ndarray,
+        t_world: np.ndarray | None,
+        v_free: np.ndarray,
+        rg: np.ndarray | None = None,
+    ) -> np.ndarray: ...
+
+
 class TangentSolver:
     """Solves with the tangent at the rotations given to `update`. Counts its work in
     `stats`: factorizations, cg_iterations, and wall seconds in assembly_s, factor_s,
@@ -135,7 +167,7 @@ class TangentSolver:
     products) and precond_s (CG's triangular solves). `rtol` is the relative residual the
     iterative strategies stop at (Newton sets it per step)."""
 
-    def __init__(self, model, method: str = "pcg"):
+    def __init__(self, model: CorotationalBody, method: str = "pcg"):
         if method not in LINEAR_SOLVERS:
             raise SolverError(
                 f"[solver].linear_solver: expected one of "
@@ -223,12 +255,20 @@ class TangentSolver:
         self._factorize(k)
         self.refresh, self.fresh = False, True
 
+    def _rotations(self) -> np.ndarray:
+        """The element rotations `update` set (m, 3, 3)."""
+        if self.rot is None:
+            raise SolverError("TangentSolver: update() gives the rotations before a solve")
+        return self.rot
+
     def _assemble(self, with_load: bool = True) -> sp.csr_matrix:
         """The tangent assembled over the free dofs (mN/mm), with the follower-pressure
         stiffness when `with_load`; timed."""
         t0 = time.perf_counter()
         m = self.model
-        k = m.pattern.assemble(m.tangent_blocks(self.rot, self.f, self.project), m.spring_diag)
+        k = m.pattern.assemble(
+            m.tangent_blocks(self._rotations(), self.f, self.project), m.spring_diag
+        )
         if with_load and self.f is not None and self.load_k is not None:
             k = k + self.load_k
         self.stats["assembly_s"] += time.perf_counter() - t0
@@ -281,7 +321,7 @@ class TangentSolver:
         """K_t v (matrix-free) for v over the free dofs."""
         t0 = time.perf_counter()
         m = self.model
-        out = m.apply_tangent_free(self.rot, self.t_world, v_free, self.rg)
+        out = m.apply_tangent_free(self._rotations(), self.t_world, v_free, self.rg)
         out += m.spring_diag * v_free
         if self.f is not None and self.load_k is not None:
             out = out + self.load_k @ v_free
@@ -368,8 +408,8 @@ def kept_estimate(
 
 
 def pcg(
-    matvec,
-    precond,
+    matvec: Callable[[np.ndarray], np.ndarray],
+    precond: Callable[[np.ndarray], np.ndarray],
     b: np.ndarray,
     rtol: float,
     maxiter: int,

@@ -27,10 +27,14 @@ import ctypes
 import glob
 import os
 import sys
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from fruitcli.errors import SolverError
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 SPD, SYMMETRIC_INDEFINITE = 2, -2  # PARDISO's mtype
 MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, GNU 3
@@ -148,7 +152,7 @@ class Pardiso:
     leaves a relative residual of about 1e-4 on the default Fruit's linear tets and 5e-4
     on its quadratic ones: a preconditioner, not a solver). Raises PardisoError."""
 
-    def __init__(self, upper, mtype: int = SPD, single: bool = False):
+    def __init__(self, upper: sp.csr_matrix, mtype: int = SPD, single: bool = False):
         self._pardiso, init = _functions()
         self.n = upper.shape[0]
         self.mtype = mtype
@@ -175,7 +179,7 @@ class Pardiso:
             self.free()  # a failed factor's memory now, not when collected
             raise
 
-    def same_pattern(self, upper) -> bool:
+    def same_pattern(self, upper: sp.csr_matrix) -> bool:
         """True when `upper` has this factor's sparsity pattern (then `refactor` applies)."""
         return (
             upper.shape[0] == self.n
@@ -184,7 +188,7 @@ class Pardiso:
             and np.array_equal(upper.indices, self.indices)
         )
 
-    def refactor(self, upper) -> None:
+    def refactor(self, upper: sp.csr_matrix) -> None:
         """Numerical factorization of `upper` (same pattern) on the kept analysis."""
         self.data = np.ascontiguousarray(upper.data, dtype=self.dtype)
         self._factor(22)
@@ -219,10 +223,12 @@ class Pardiso:
             pass
 
     @staticmethod
-    def _ptr(a: np.ndarray, ctype=ctypes.c_int32):
+    def _ptr(a: np.ndarray, ctype: type[ctypes._SimpleCData] = ctypes.c_int32):
         return a.ctypes.data_as(ctypes.POINTER(ctype))
 
-    def _call(self, phase: int, data, b, x, nrhs: int = 1) -> None:
+    def _call(
+        self, phase: int, data: np.ndarray, b: np.ndarray, x: np.ndarray, nrhs: int = 1
+    ) -> None:
         err = ctypes.c_int32(0)
         one = ctypes.c_int32(1)
         self._pardiso(
@@ -249,7 +255,10 @@ class Pardiso:
 
 
 def factorize_upper(
-    upper, previous: Pardiso | None = None, single: bool = False, indefinite: bool = False
+    upper: sp.csr_matrix,
+    previous: Pardiso | None = None,
+    single: bool = False,
+    indefinite: bool = False,
 ) -> Pardiso:
     """A Pardiso factor of the symmetric matrix with upper triangle `upper`, in single
     precision with `single`: the numerical refactorization of `previous` (as its type)
@@ -289,7 +298,13 @@ tets); a double-precision factor must reach DOUBLE_PROBE."""
 DOUBLE_PROBE = 1e-6
 
 
-def passes_probe(k, fac, bound: float) -> bool:
+class Solves(Protocol):
+    """A factor: anything with `solve(b)`."""
+
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
+
+
+def passes_probe(k: sp.spmatrix | sp.sparray, fac: Solves, bound: float) -> bool:
     """True when fac's solve of a vector of ones is finite and leaves a relative residual
     of at most `bound` on the sparse k (any factor with `.solve`)."""
     probe = np.ones(k.shape[0])
@@ -300,7 +315,11 @@ def passes_probe(k, fac, bound: float) -> bool:
 
 
 def factorize_probed(
-    k, upper, previous: Pardiso | None = None, single: bool = False, indefinite: bool = False
+    k: sp.spmatrix | sp.sparray,
+    upper: sp.csr_matrix,
+    previous: Pardiso | None = None,
+    single: bool = False,
+    indefinite: bool = False,
 ) -> Pardiso | None:
     """A factor of the symmetric k (sparse, upper its upper triangle) that passes its
     probe solve: single precision first when `single`, then double. None when the
