@@ -4,6 +4,8 @@ the chamber walls are curved (second-order accurate) instead of faceted."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from fruitcli.fem.elements.lagrange import TET10_EDGES, TRI6_EDGES
@@ -42,7 +44,9 @@ def quadratic_mesh(
     return nodes2, tets10, out
 
 
-def project_onto_ellipsoid(nodes: np.ndarray, idx: np.ndarray, center, radii) -> None:
+def project_onto_ellipsoid(
+    nodes: np.ndarray, idx: np.ndarray, center: Sequence[float], radii: Sequence[float]
+) -> None:
     """Move nodes[idx] radially (in the ellipsoid's scaled frame) onto the ellipsoid
     |(x - center) / radii| = 1, in place."""
     c, r = np.asarray(center, float), np.asarray(radii, float)
@@ -57,7 +61,11 @@ flat ellipsoid would otherwise fold its elements)."""
 
 
 def curve_onto_ellipsoid(
-    nodes: np.ndarray, tets10: np.ndarray, idx: np.ndarray, center, radii
+    nodes: np.ndarray,
+    tets10: np.ndarray,
+    idx: np.ndarray,
+    center: Sequence[float],
+    radii: Sequence[float],
 ) -> int:
     """Move the edge nodes idx onto the ellipsoid (in place), except those of elements
     the curving would distort past CURVED_MIN_JACOBIAN; returns how many stay straight."""

@@ -4,6 +4,7 @@ isochoric (C10, C20, C30) and bulk (kappa) constants in kPa."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -56,10 +57,10 @@ def material(
     model: str = "neo-hookean",
     young_modulus_kpa: float = 100.0,
     poisson_ratio: float = 0.45,
-    c10_kpa=None,
-    c20_kpa=0.0,
-    c30_kpa=0.0,
-    bulk_modulus_kpa=None,
+    c10_kpa: float | None = None,
+    c20_kpa: float = 0.0,
+    c30_kpa: float = 0.0,
+    bulk_modulus_kpa: float | None = None,
     where: str = "[material]",
 ) -> Material:
     """A checked Material, from the `constants` function of `model`'s entry in
@@ -92,7 +93,33 @@ def material(
     return MATERIAL_MODELS[model].builder()(keys, where)
 
 
-def from_scene(mat) -> Material:
+class MaterialFields(Protocol):
+    """The fields of a scene's [material] `from_scene` reads (a `fruitcli.scene`
+    `MaterialSection`); moduli in kPa."""
+
+    @property
+    def model(self) -> str: ...
+
+    @property
+    def young_modulus_kpa(self) -> float: ...
+
+    @property
+    def poisson_ratio(self) -> float: ...
+
+    @property
+    def c10_kpa(self) -> float | None: ...
+
+    @property
+    def c20_kpa(self) -> float | None: ...
+
+    @property
+    def c30_kpa(self) -> float | None: ...
+
+    @property
+    def bulk_modulus_kpa(self) -> float | None: ...
+
+
+def from_scene(mat: MaterialFields) -> Material:
     """The Material of a scene's [material] table (a `fruitcli.scene.MaterialSection`)."""
     return material(
         mat.model,

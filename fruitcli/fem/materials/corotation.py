@@ -96,7 +96,12 @@ def svd_rotations(f: np.ndarray) -> np.ndarray:
 
 
 def forces_and_energy(
-    x: np.ndarray, rest: np.ndarray, tets: np.ndarray, k0: np.ndarray, rot: np.ndarray, scatter=None
+    x: np.ndarray,
+    rest: np.ndarray,
+    tets: np.ndarray,
+    k0: np.ndarray,
+    rot: np.ndarray,
+    scatter: sp.csr_matrix | None = None,
 ) -> tuple[np.ndarray, float]:
     """Elastic forces (n, 3) mN and strain energy (mN mm = uJ) sum_e u.K0 u / 2 with
     u = R^T x_e - X_e. For isotropic Hooke and the polar R the forces are the exact

@@ -160,7 +160,17 @@ def forces_and_energy(tets, grads, volumes, lam, mu, f, rot, ptr, rows) -> tuple
     return out, energy
 
 
-def tangent_product(tets, grads, volumes, lam, mu, rot, t_world, with_t, v) -> np.ndarray:
+def tangent_product(
+    tets: np.ndarray,
+    grads: np.ndarray,
+    volumes: np.ndarray,
+    lam: float,
+    mu: float,
+    rot: np.ndarray,
+    t_world: np.ndarray,
+    with_t: bool,
+    v: np.ndarray,
+) -> np.ndarray:
     """Consistent tangent times v (n, 3) (mN) over every dof (`tangent_product_dofs`)."""
     n = v.shape[0]
     dof = np.arange(3 * n).reshape(n, 3)
