@@ -33,7 +33,7 @@ class Wall:
             for k in (0, 1)
         ]
 
-    def _frames(self, x):
+    def _frames(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = x[self.tris]  # (t, nn, 3)
         xq = np.einsum("qa,tai->tqi", self.n, p)
         xi = np.einsum("qa,tai->tqi", self.dn[:, :, 0], p)
@@ -56,7 +56,7 @@ class Wall:
         """(3 n, 3 n) d2V/dx2 (mm), symmetric."""
         _, xi, eta, _ = self._frames(x)
 
-        def skew(v):  # (t, q, 3) -> (t, q, 3, 3), [v]x
+        def skew(v: np.ndarray) -> np.ndarray:  # (t, q, 3) -> (t, q, 3, 3), [v]x
             z = np.zeros(v.shape[:-1])
             return np.stack(
                 [

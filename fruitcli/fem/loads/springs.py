@@ -7,11 +7,15 @@ Stiffness per node in mN/mm; positions mm; angles in degrees at the user edge.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
-def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
+
+def rotation_matrix(axis: ArrayLike, angle_deg: float) -> np.ndarray:
     """(3, 3) right-handed rotation by `angle_deg` about `axis` (Rodrigues)."""
     a = np.asarray(axis, float)
     a = a / np.linalg.norm(a)
@@ -20,7 +24,7 @@ def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
     return np.eye(3) + np.sin(t) * k + (1.0 - np.cos(t)) * (k @ k)
 
 
-def nodes_in_box(points: np.ndarray, box_mm) -> np.ndarray:
+def nodes_in_box(points: np.ndarray, box_mm: ArrayLike) -> np.ndarray:
     """Indices of points inside [xmin, ymin, zmin, xmax, ymax, zmax] (bounds included)."""
     b = np.asarray(box_mm, float)
     inside = np.all((points >= b[:3]) & (points <= b[3:]), axis=1)

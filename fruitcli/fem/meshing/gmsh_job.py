@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
 from fruitcli.interrupts import ignore_sigpipe
 
 
-def _occ_surface(gmsh, spec_kind: str, values: np.ndarray, size: float):
+def _occ_surface(gmsh: ModuleType, spec_kind: str, values: np.ndarray, size: float):
     """Triangulate an analytic shape's surface; returns (vertices (v,3), faces (f,3))."""
     gmsh.model.add(f"shape_{spec_kind}")
     occ = gmsh.model.occ
@@ -69,7 +70,7 @@ class _Tags:
         return np.arange(self.node - n, self.node)
 
 
-def _add_kept(gmsh, tags: _Tags, v: np.ndarray, f: np.ndarray) -> list[int]:
+def _add_kept(gmsh: ModuleType, tags: _Tags, v: np.ndarray, f: np.ndarray) -> list[int]:
     """One discrete surface meshed as given (no parametrization: gmsh keeps it)."""
     s = tags.entity(2)
     gmsh.model.addDiscreteEntity(2, s)
@@ -79,7 +80,7 @@ def _add_kept(gmsh, tags: _Tags, v: np.ndarray, f: np.ndarray) -> list[int]:
     return [s]
 
 
-def _add_split(gmsh, tags: _Tags, v: np.ndarray, f: np.ndarray, bottom: np.ndarray):
+def _add_split(gmsh: ModuleType, tags: _Tags, v: np.ndarray, f: np.ndarray, bottom: np.ndarray):
     """A closed shell as two discrete disk patches (top, bottom) bounded by two curves
     through the min-x and max-x vertices of their shared loop; returns the surface tags
     and the dimTags that `createGeometry` must parametrize."""
@@ -119,7 +120,7 @@ def _add_split(gmsh, tags: _Tags, v: np.ndarray, f: np.ndarray, bottom: np.ndarr
     return surfaces, [(1, c) for c in curves] + [(2, s) for s in surfaces]
 
 
-def _size_field(gmsh, job: dict, size: float, min_size: float) -> None:
+def _size_field(gmsh: ModuleType, job: dict, size: float, min_size: float) -> None:
     """Background size: each chamber's wall size inside its box (growing to size over
     one size outside), min_size within the taxel radius of each taxel."""
     fields = []
@@ -229,7 +230,7 @@ def mesh_job(job: dict, out_dir: Path) -> None:
             "gamma": np.asarray(gmsh.model.mesh.getElementQualities(tet_tags, "gamma")),
         }
 
-        def tris(surfs):
+        def tris(surfs: list[int]) -> np.ndarray:
             got = [gmsh.model.mesh.getElementsByType(2, s)[1] for s in surfs]
             return index[np.concatenate(got).astype(np.int64)].reshape(-1, 3)
 

@@ -8,8 +8,13 @@ preferred diagonal direction (a uniform split biases bending, sofa #5751).
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 # Kuhn split of the unit cube: each tet follows one path (0,0,0) -> (1,1,1) along axes.
 _KUHN = []
@@ -22,7 +27,9 @@ for perm in itertools.permutations(range(3)):
     _KUHN.append(path)
 
 
-def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
+def structured_box(
+    lo_mm: ArrayLike, hi_mm: ArrayLike, cells: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray]:
     """Nodes (n, 3) mm and tets (m, 4) filling the box [lo, hi] with cells = (nx, ny, nz)."""
     lo, hi = np.asarray(lo_mm, float), np.asarray(hi_mm, float)
     nx, ny, nz = (int(c) for c in cells)
@@ -30,7 +37,7 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
     gx, gy, gz = np.meshgrid(*axes, indexing="ij")
     nodes = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
 
-    def node_id(i, j, k):
+    def node_id(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
         return (i * (ny + 1) + j) * (nz + 1) + k
 
     gi, gj, gk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
@@ -49,7 +56,11 @@ def structured_box(lo_mm, hi_mm, cells) -> tuple[np.ndarray, np.ndarray]:
 
 
 def structured_box_with_cavity(
-    lo_mm, hi_mm, cells, cavity_lo_mm, cavity_hi_mm
+    lo_mm: ArrayLike,
+    hi_mm: ArrayLike,
+    cells: Sequence[int],
+    cavity_lo_mm: ArrayLike,
+    cavity_hi_mm: ArrayLike,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Structured box minus the cells whose centre lies in the cavity box. Returns nodes
     (n, 3), tets (m, 4) and the cavity wall triangles (t, 3), normals out of the cavity."""

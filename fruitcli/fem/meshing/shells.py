@@ -18,10 +18,11 @@ from fruitcli.fem.tolerances import INSIDE_VOLUME_MM3
 
 if TYPE_CHECKING:
     from manifold3d import Manifold
+    from numpy.typing import ArrayLike
 
 
 def load_surface(
-    path: Path, what: str, error=SceneError, scale: float = 1.0
+    path: Path, what: str, error: type[Exception] = SceneError, scale: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (v, 3) mm and faces (f, 3) of a closed, consistently wound surface file
     (its coordinates times `scale`: 1000 for a file in metres)."""
@@ -50,7 +51,7 @@ def load_surface(
     return np.asarray(mesh.vertices, float) * scale, np.asarray(mesh.faces, np.int64)
 
 
-def surface_shell(name: str, vertices, faces) -> dict:
+def surface_shell(name: str, vertices: ArrayLike, faces: ArrayLike) -> dict:
     return {
         "name": name,
         "kind": "surface",
@@ -59,7 +60,7 @@ def surface_shell(name: str, vertices, faces) -> dict:
     }
 
 
-def box_shell(name: str, lo, hi) -> dict:
+def box_shell(name: str, lo: ArrayLike, hi: ArrayLike) -> dict:
     import trimesh
 
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
@@ -73,7 +74,7 @@ def box_shell(name: str, lo, hi) -> dict:
     }
 
 
-def ellipsoid_shell(name: str, center_mm, radii_mm) -> dict:
+def ellipsoid_shell(name: str, center_mm: ArrayLike, radii_mm: ArrayLike) -> dict:
     import trimesh
 
     c, r = np.asarray(center_mm, float), np.asarray(radii_mm, float)

@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import logging
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -175,7 +176,7 @@ def run_gmsh(
     label: str,
     work_dir: Path | None = None,
     taxels_xyz: np.ndarray | None = None,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> dict:
     """Mesh the outer shell (first) with the chamber shells as holes, through the
     fallback chain (module docstring). Returns gmsh's raw arrays, the .msh text and
