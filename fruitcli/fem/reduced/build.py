@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,9 @@ from fruitcli.fem.reduced import response_surface as rs
 from fruitcli.fem.reduced.model import ReducedModel
 from fruitcli.fem.solver.options import SolverOptions, StateResult
 from fruitcli.fem.solver.state import solve_state
+
+if TYPE_CHECKING:
+    from fruitcli.scene import Scene
 
 POD_TOLERANCE_MM = 1e-4
 """The nodes' POD keeps modes until no sample's node moves by more than this (mm) from
@@ -54,7 +58,7 @@ class PressureBoxInputs:
     volume_controlled: bool
 
 
-def pressure_box_inputs(scene) -> PressureBoxInputs:
+def pressure_box_inputs(scene: Scene) -> PressureBoxInputs:
     """The pressure box's inputs from a validated scene."""
     cfg, act = scene.reduced, scene.actuation
     rng = cfg.pressure_range_kpa
@@ -67,7 +71,7 @@ def pressure_box_inputs(scene) -> PressureBoxInputs:
     )
 
 
-def pressure_box(scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def pressure_box(scene: Scene, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """The scene's pressure box (`pressure_range` of `pressure_box_inputs`), which the
     reduce stage's inputs hash (`workflow.fem_stages`)."""
     return pressure_range(pressure_box_inputs(scene), names)
@@ -119,7 +123,7 @@ class ReduceInputs:
     seed: int
 
 
-def reduce_inputs(scene) -> ReduceInputs:
+def reduce_inputs(scene: Scene) -> ReduceInputs:
     """The reduce stage's inputs from a validated scene."""
     cfg = scene.reduced
     return ReduceInputs(
@@ -345,7 +349,15 @@ def _solve_samples(
     return grid_rows, val_rows
 
 
-def _degree_study(xi_grid, grid_idx, xi_val, grid, held_out, n: int, max_degree: int) -> tuple:
+def _degree_study(
+    xi_grid: np.ndarray,
+    grid_idx: np.ndarray,
+    xi_val: np.ndarray,
+    grid: tuple[np.ndarray, np.ndarray],
+    held_out: tuple[np.ndarray, np.ndarray],
+    n: int,
+    max_degree: int,
+) -> tuple:
     """(degrees, the grid's leave-one-out taxel error (mm) of each, the study rows
     [points/axis, degree, samples, taxel mm, volume %] on held-out pressures) of the fits
     to `grid` = (taxels, volumes) at the grid points `xi_grid` (S, K) in [-1, 1], checked
@@ -379,7 +391,13 @@ def _degree_study(xi_grid, grid_idx, xi_val, grid, held_out, n: int, max_degree:
     return degrees, loo_max, study
 
 
-def run_reduce(scene, mesh_npz, taxels_xyz, out_dir, progress=None) -> dict:
+def run_reduce(
+    scene: Scene,
+    mesh_npz: str | Path,
+    taxels_xyz: np.ndarray | None,
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
     """The reduce stage: build the scene's reduced model on mesh.npz for the taxels
     (T, 3) mm; write out_dir/reduced.npz and out_dir/validation.json. Returns the
     validation figures (a model past its bound is warned about through `progress`).

@@ -11,8 +11,10 @@ build's held-out validation (`validation_*` arrays and the bound figures).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +22,9 @@ from fruitcli.errors import FruitError, SolverError
 from fruitcli.fem import io
 from fruitcli.fem.reduced import response_surface
 from fruitcli.tables import read_npz_arrays
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 TAXEL_BOUND_MM = 0.05
 """Largest taxel error (mm) against the full model at held-out pressures for the
@@ -61,7 +66,7 @@ class ReducedModel:
         self._b = ((self.lo + self.hi) / (self.hi - self.lo)).tolist()
         self._rec = [((2 * n + 1) / (n + 1), n / (n + 1)) for n in range(1, d)]
 
-    def phi(self, pressure_kpa) -> np.ndarray:
+    def phi(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """Basis at one pressure vector (K,) -> (M,), or at (n, K) -> (n, M)."""
         p = np.asarray(pressure_kpa, float)
         if p.ndim == 1 and self.degree >= 1:
@@ -76,31 +81,36 @@ class ReducedModel:
             return np.array(vals)[self._flat].reshape(-1, len(self._a)).prod(axis=1)
         return response_surface.basis(response_surface.scale(p, self.lo, self.hi), self.exps)
 
-    def taxels(self, pressure_kpa) -> np.ndarray:
+    def taxels(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """Taxel positions (T, 3) mm at one pressure vector (K,), or (n, T, 3) at (n, K)."""
         y = self.phi(pressure_kpa) @ self.coef_taxels
         return y.reshape(*y.shape[:-1], -1, 3)
 
-    def volumes(self, pressure_kpa) -> np.ndarray:
+    def volumes(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """Chamber volumes (K,) mm^3 at (K,) kPa, or (n, K) at (n, K)."""
         return self.phi(pressure_kpa) @ self.coef_volume
 
-    def nodes(self, pressure_kpa) -> np.ndarray:
+    def nodes(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """Node positions (N, 3) mm at (K,) kPa, or (n, N, 3) at (n, K)."""
         amp = self.phi(pressure_kpa) @ self.coef_modes
         u = amp @ self.modes
         return self.rest_nodes + u.reshape(*u.shape[:-1], -1, 3)
 
-    def surface_nodes(self, pressure_kpa) -> np.ndarray:
+    def surface_nodes(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """Positions (S, 3) mm of the body's surface nodes (`surface_node_index`)."""
         return self.nodes(pressure_kpa)[..., self.arrays["surface_node_index"], :]
 
-    def outside(self, pressure_kpa) -> np.ndarray:
+    def outside(self, pressure_kpa: ArrayLike) -> np.ndarray:
         """(n,) bool: the rows of (n, K) kPa that lie outside the box."""
         p = np.atleast_2d(np.asarray(pressure_kpa, float))
         return np.any((p < self.lo - RANGE_SLACK) | (p > self.hi + RANGE_SLACK), axis=1)
 
-    def check_range(self, pressure_kpa, where: str = "pressures", rows=None) -> None:
+    def check_range(
+        self,
+        pressure_kpa: ArrayLike,
+        where: str = "pressures",
+        rows: Sequence[int] | np.ndarray | None = None,
+    ) -> None:
         """SolverError naming the first row of (n, K) kPa outside the box; `rows` (n,)
         are the numbers to name (default 1..n)."""
         bad = np.flatnonzero(self.outside(pressure_kpa))
@@ -209,7 +219,7 @@ def load(path: str | Path) -> ReducedModel:
     return ReducedModel.from_arrays(arrays)
 
 
-def states_arrays(reduced: ReducedModel, pressure_kpa) -> dict:
+def states_arrays(reduced: ReducedModel, pressure_kpa: ArrayLike) -> dict:
     """states.npz arrays (as `fruitcli.fem.stage.run_simulate` writes them) of the
     reduced model at (S, K) kPa; `solve_ms` is the time per vector of the taxels, nodes
     and volumes together, and no Newton ran (iterations 0, residual and det F nan)."""
