@@ -38,6 +38,8 @@ from fruitcli.fem.units import body_force_mn_mm3
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
+    from numpy.typing import ArrayLike
+
     from fruitcli.fem.solver.continuum_linsolve import ContinuumSolver
 
 
@@ -181,14 +183,14 @@ class ContinuumModel:
     @classmethod
     def from_arrays(
         cls,
-        nodes,
-        conn,
+        nodes: ArrayLike,
+        conn: ArrayLike,
         mat: Material,
         element: str = "p2",
         *,
         density_kg_m3: float = 0.0,
-        gravity_m_s2=None,
-        fixed_nodes=None,
+        gravity_m_s2: ArrayLike | None = None,
+        fixed_nodes: ArrayLike | None = None,
         chambers: dict | None = None,
         jigs: list[Jig] | None = None,
         prescribed: list | None = None,
@@ -300,7 +302,9 @@ class ContinuumModel:
         self.__dict__["_last"] = (x, forces, energy, blocks)
         return x, x, jmin
 
-    def forces_and_energy(self, f: np.ndarray, rot=None) -> tuple[np.ndarray, float]:
+    def forces_and_energy(
+        self, f: np.ndarray, rot: np.ndarray | None = None
+    ) -> tuple[np.ndarray, float]:
         """Internal forces (n, 3) mN and strain energy (mN mm) at the state of
         `kinematics`."""
         last = self.__dict__.get("_last")
@@ -452,7 +456,7 @@ class ContinuumModel:
 
 
 def _checked_elements(
-    nodes, conn, fam: Family, element: str, min_quality: float
+    nodes: ArrayLike, conn: ArrayLike, fam: Family, element: str, min_quality: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """(nodes (n, 3) mm, conn (m, nen)) as contiguous arrays, or MeshError in one line:
     conn not (m, nen) of `element`'s family, a node index out of range, a sliver (tet
@@ -510,7 +514,7 @@ def _body_force(
     wq: np.ndarray,
     n: int,
     density_kg_m3: float,
-    gravity_m_s2,
+    gravity_m_s2: ArrayLike | None,
 ) -> np.ndarray:
     """(n, 3) nodal gravity force (mN) at full load: the consistent load int N_a dV
     (mm^3, from the quadrature weights wq (m, q)) times the body force density; zero

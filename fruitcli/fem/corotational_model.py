@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -36,8 +36,13 @@ from fruitcli.fem.units import body_force_mn_mm3
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
+    from numpy.typing import ArrayLike
 
     from fruitcli.fem.solver.linsolve import TangentSolver
+
+
+Mixed = TypeVar("Mixed", float, np.ndarray)
+"""What `Load.lerp` mixes: a scale or an array of them."""
 
 
 @dataclass(frozen=True)
@@ -55,7 +60,7 @@ class Load:
     ratio: np.ndarray | None = None  # (K,): the chambers together, see `together`
 
     @classmethod
-    def together(cls, ratio, growth_mm3: float) -> Load:
+    def together(cls, ratio: ArrayLike, growth_mm3: float) -> Load:
         """The chambers inflated together along pressure ratios `ratio` (K,): their
         pressures are p_k = lambda ratio_k with one unknown lambda, the controlled
         volume sum_k ratio_k V_k grown by `growth_mm3` (spread over the chambers as
@@ -65,13 +70,17 @@ class Load:
 
     @classmethod
     def pressures(
-        cls, pressure_kpa, gravity: float = 1.0, jig: float = 1.0, prescribed: float = 1.0
+        cls,
+        pressure_kpa: ArrayLike,
+        gravity: float = 1.0,
+        jig: float = 1.0,
+        prescribed: float = 1.0,
     ) -> Load:
         p = np.asarray(pressure_kpa, float).reshape(-1)
         return cls(p, np.zeros_like(p), np.zeros(len(p), bool), gravity, jig, prescribed)
 
     @classmethod
-    def zero(cls, n_chambers: int, volume_controlled=None) -> Load:
+    def zero(cls, n_chambers: int, volume_controlled: ArrayLike | None = None) -> Load:
         vc = np.zeros(n_chambers, bool) if volume_controlled is None else volume_controlled
         return cls(np.zeros(n_chambers), np.zeros(n_chambers), np.asarray(vc, bool), 0.0, 0.0, 0.0)
 
@@ -88,7 +97,7 @@ class Load:
     def lerp(self, other: Load, t: float) -> Load:
         """The load a fraction t of the way from self to other."""
 
-        def mix(a, b):
+        def mix(a: Mixed, b: Mixed) -> Mixed:
             return (1.0 - t) * a + t * b
 
         return replace(
@@ -113,7 +122,7 @@ def pin_rigid_modes(rest: np.ndarray) -> np.ndarray:
     return np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b + 1, 3 * b + 2, 3 * c + 2])
 
 
-def prescribed_dofs(prescribed) -> tuple[np.ndarray, np.ndarray]:
+def prescribed_dofs(prescribed: list | None) -> tuple[np.ndarray, np.ndarray]:
     """(global dofs (d,), their displacement at full load (d,) mm) of prescribed
     [(node indices, (3,) displacement mm[, (3,) components held])]: a moved clamp
     holds all three components; a mask holds some (a roller)."""
@@ -178,14 +187,14 @@ class Model:
     @classmethod
     def from_arrays(
         cls,
-        nodes,
-        tets,
+        nodes: ArrayLike,
+        tets: ArrayLike,
         E_kpa: float,
         nu: float,
         *,
         density_kg_m3: float = 0.0,
-        gravity_m_s2=None,
-        fixed_nodes=None,
+        gravity_m_s2: ArrayLike | None = None,
+        fixed_nodes: ArrayLike | None = None,
         chambers: dict | None = None,
         jigs: list[Jig] | None = None,
         prescribed: list | None = None,
@@ -545,7 +554,9 @@ class Model:
         return f"tet {i} at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm (det F = {det_f[i]:.3g})"
 
 
-def _checked_mesh(nodes, tets, E_kpa: float, nu: float, min_quality: float) -> tuple:
+def _checked_mesh(
+    nodes: ArrayLike, tets: ArrayLike, E_kpa: float, nu: float, min_quality: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(rest (n, 3) mm, tets (m, 4) each with a positive volume, signed volumes (m,)
     mm^3 before the flips), or MeshError / SolverError naming what is wrong: the arrays,
     a sliver, E (kPa) or nu."""

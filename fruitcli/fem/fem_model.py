@@ -35,8 +35,9 @@ class LinearSolver(Protocol):
     residual) stop, `linsolve.pcg`), `near_tolerance` (Newton's chord steps, 0: none),
     `newton_c` (Newton's merit_new / merit^2, kept across states), `factor_seconds`
     (the last factorization's, s; 0: not looked ahead), `history` (the converged
-    states kept) and `sensitivity` ((dx/dp (n, 3, K), volume compliance (K, K) mm^3/kPa)
-    of the first state, or None)."""
+    states kept), `sensitivity` ((dx/dp (n, 3, K), volume compliance (K, K) mm^3/kPa)
+    of the first state, or None) and `estimated` (the last `estimate`: (r, factorizations
+    then, its solve), or None)."""
 
     rtol: float
     displacement_goal: tuple[float, float]
@@ -45,6 +46,7 @@ class LinearSolver(Protocol):
     factor_seconds: float
     history: list[Kept]
     sensitivity: tuple[np.ndarray, np.ndarray] | None
+    estimated: tuple[np.ndarray, int, np.ndarray] | None
 
     def update(
         self,

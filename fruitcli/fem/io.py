@@ -54,7 +54,7 @@ def write_vtu(
     n, (m, nen) = len(nodes), np.shape(tets)
     cell_type = 10 if nen == 4 else 24  # VTK_TETRA, VTK_QUADRATIC_TETRA
 
-    def arr(name, a, dtype, comps):
+    def arr(name: str, a: np.ndarray, dtype: str, comps: int) -> str:
         return (
             f'<DataArray type="{dtype}" Name="{name}" NumberOfComponents="{comps}" '
             f'format="binary">{_b64(a)}</DataArray>'

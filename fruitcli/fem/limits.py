@@ -23,15 +23,19 @@ body start from its equilibrium under its weight (`start_state`). Units: mm, mm^
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.corotational_model import Load
-from fruitcli.fem.fem_model import FemModel
-from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.fem_model import FemModel, LinearSolver
+from fruitcli.fem.solver.options import OutOfTime, SolverOptions, StateResult
 from fruitcli.fem.solver.state import solve_state
+
+Chambers = int | np.integer | np.ndarray | Sequence[float]
+"""A curve's chambers: one chamber's index, or pressure ratios (K,) of them together."""
 
 TOGETHER = "together"
 """The name of the curve of the chambers inflated together (`follow` with ratios)."""
@@ -138,7 +142,7 @@ PEAK_RISE = 1e-3
 takes as the limit: the extrapolation's error is a fraction of it."""
 
 
-def vertex(stretch, pressure) -> tuple[float, float] | None:
+def vertex(stretch: np.ndarray, pressure: np.ndarray) -> tuple[float, float] | None:
     """(stretch, pressure) of the vertex of the parabola through the last three samples
     when it opens downward, else None."""
     if len(pressure) < 3:
@@ -150,7 +154,9 @@ def vertex(stretch, pressure) -> tuple[float, float] | None:
     return float(top), float(np.polyval([a, b, c], top))
 
 
-def _next_step(model, curve, stretches, step: float, fall_steps: int):
+def _next_step(
+    model: FemModel, curve: ChamberCurve, stretches: list[float], step: float, fall_steps: int
+) -> float | None:
     """(the next inflation step, or None to end the curve at an extrapolated limit):
     with the parabola through the last three samples peaking behind the last one
     (sample i the largest), half a step (a sample just past the peak brackets it); peaking
@@ -190,7 +196,7 @@ class Start:
     compliance: np.ndarray
 
 
-def response(model, solver, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def response(model: FemModel, solver: LinearSolver, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(dx/dp (n, 3, K) mm/kPa, dV/dp (K, K) mm^3/kPa) of the chambers at the
     configuration x with their pressures at 0 (no follower-pressure stiffness), by one
     solve with the tangent there on `solver` (its kept factor refreshed when CG needs
@@ -206,7 +212,12 @@ def response(model, solver, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dx.reshape(model.n_nodes, 3, k), h @ cols
 
 
-def start_state(model, solver, options: SolverOptions, progress=None) -> Start:
+def start_state(
+    model: FemModel,
+    solver: LinearSolver,
+    options: SolverOptions,
+    progress: Callable[[str], None] | None = None,
+) -> Start:
     """The `Start` of a body's curves, on `solver` (forgotten afterwards, `forget`): under
     a body force its equilibrium under the weight alone (pressure 0 in every chamber),
     solved from rest once for all the curves in FIRST_STEPS load steps (on the default
@@ -233,7 +244,17 @@ def start_state(model, solver, options: SolverOptions, progress=None) -> Start:
     return Start(x, model.chamber_volumes(x), dx_dp, compliance)
 
 
-def _first_sample(model, k, r, start, load: Load, growth: float, options, solver, label):
+def _first_sample(
+    model: FemModel,
+    k: Chambers,
+    r: np.ndarray,
+    start: Start | None,
+    load: Load,
+    growth: float,
+    options: SolverOptions,
+    solver: LinearSolver,
+    label: str,
+) -> StateResult:
     """The first sample of a curve (chamber k alone, or the chambers along ratios r) at
     volume growth `growth` over the rest volume, from the `Start` and its linear response
     (the pressure that makes the volume, and the nodes moved by it) in one load step;
@@ -245,16 +266,15 @@ def _first_sample(model, k, r, start, load: Load, growth: float, options, solver
         if np.any(getattr(model, "body_force_mn", 0.0)):
             options = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
         return solve_state(model, load, options=options, solver=solver, label=label)
-    alone = isinstance(k, (int, np.integer))
+    alone = chamber_index(k)
     grown = start.volume_mm3 - model.chamber_rest_volume_mm3
-    if alone:
-        before = chamber_load(model, k, float(grown[k]))
+    if alone is not None:
+        before = chamber_load(model, alone, float(grown[alone]))
         dp = np.zeros(len(r))
-        dp[k] = (growth - grown[k]) / start.compliance[k, k]
+        dp[alone] = (growth - grown[alone]) / start.compliance[alone, alone]
     else:
         before = Load.together(r, float(r @ grown))
         dp = r * (growth - float(r @ grown)) / float(r @ start.compliance @ r)
-    kw = {"load_start": before, "solver": solver, "label": label}
     try:
         return solve_state(
             model,
@@ -262,7 +282,9 @@ def _first_sample(model, k, r, start, load: Load, growth: float, options, solver
             x_start=start.x + start.dx_dp @ dp,
             pressure_start=dp,
             options=options,
-            **kw,
+            load_start=before,
+            solver=solver,
+            label=label,
         )
     except OutOfTime:
         raise
@@ -270,11 +292,23 @@ def _first_sample(model, k, r, start, load: Load, growth: float, options, solver
         forget(solver)
         steps = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
         return solve_state(
-            model, load, x_start=start.x, pressure_start=np.zeros(len(r)), options=steps, **kw
+            model,
+            load,
+            x_start=start.x,
+            pressure_start=np.zeros(len(r)),
+            options=steps,
+            load_start=before,
+            solver=solver,
+            label=label,
         )
 
 
-def ratio_of(model: FemModel, k) -> np.ndarray:
+def chamber_index(k: Chambers) -> int | None:
+    """The chamber a curve follows alone (k an int), or None for pressure ratios."""
+    return int(k) if isinstance(k, (int, np.integer)) else None
+
+
+def ratio_of(model: FemModel, k: Chambers) -> np.ndarray:
     """(K,) pressure ratios of a curve: chamber k alone (an int), or the given ratios
     scaled to a largest of 1."""
     if isinstance(k, (int, np.integer)):
@@ -284,11 +318,11 @@ def ratio_of(model: FemModel, k) -> np.ndarray:
 
 
 def follow(
-    model,
-    k,
+    model: FemModel,
+    k: Chambers,
     direction: int = 1,
     *,
-    solver=None,
+    solver: LinearSolver | None = None,
     options: SolverOptions | None = None,
     stop_beyond_kpa: float | None = None,
     step: float = STRETCH_STEP,
@@ -298,7 +332,7 @@ def follow(
     stop_at_asked: bool = True,
     halvings: int = 0,
     beyond: tuple | None = None,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
     start: Start | None = None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
@@ -320,8 +354,8 @@ def follow(
     from (`start_state`, shared among the curves of a body); without it the first
     sample comes from rest, in FIRST_STEPS load steps under a body force."""
     r = ratio_of(model, k)
-    alone = isinstance(k, (int, np.integer))
-    name = model.chamber_names[k] if alone else TOGETHER
+    alone = chamber_index(k)
+    name = model.chamber_names[alone] if alone is not None else TOGETHER
     v0 = float(r @ model.chamber_rest_volume_mm3)
     curve = ChamberCurve(name, v0, [0.0], [0.0])
     budget = budget or STEP_BUDGET
@@ -336,9 +370,9 @@ def follow(
         if _out_of_range(curve, s, step, direction, stretches, deadline):
             break
         growth = v0 * (s**3 - 1.0)
-        load = chamber_load(model, k, growth) if alone else Load.together(r, growth)
+        load = chamber_load(model, alone, growth) if alone is not None else Load.together(r, growth)
         try:
-            if x is None:
+            if x is None or p_start is None or last is None:  # all three set together
                 res = _first_sample(
                     model, k, r, start, load, growth, options, solver, f"chamber {name}"
                 )
@@ -373,13 +407,23 @@ def follow(
             break
         ds = step
         if direction > 0 and len(stretches) >= 4:
-            ds = _next_step(model, curve, stretches, step, fall_steps)
-            if ds is None:
+            shorter = _next_step(model, curve, stretches, step, fall_steps)
+            if shorter is None:
                 break
+            ds = shorter
     return curve
 
 
-def _next_sample(model, load: Load, x, prev: Load | None, p_start, options, solver, name: str):
+def _next_sample(
+    model: FemModel,
+    load: Load,
+    x: np.ndarray,
+    prev: Load | None,
+    p_start: np.ndarray,
+    options: SolverOptions,
+    solver: LinearSolver,
+    name: str,
+) -> StateResult:
     """A sample after the first: the state under `load` from the last sample's `x`
     (under `prev`, chamber pressures `p_start` kPa)."""
     return solve_state(
@@ -394,7 +438,12 @@ def _next_sample(model, load: Load, x, prev: Load | None, p_start, options, solv
     )
 
 
-def _record(curve: ChamberCurve, res, r: np.ndarray, progress) -> float:
+def _record(
+    curve: ChamberCurve,
+    res: StateResult,
+    r: np.ndarray,
+    progress: Callable[[str], None] | None,
+) -> float:
     """Add a solved sample `res` to `curve` (volume growth mm^3 and pressure kPa along
     the ratios `r`), tell `progress`; -> its pressure (kPa)."""
     volume = float(r @ res.chamber_volume_mm3)
@@ -410,7 +459,9 @@ def _record(curve: ChamberCurve, res, r: np.ndarray, progress) -> float:
     return p
 
 
-def _curve_solver(model, solver, options: SolverOptions | None):
+def _curve_solver(
+    model: FemModel, solver: LinearSolver | None, options: SolverOptions | None
+) -> LinearSolver:
     """The linear solver a curve's samples share: `solver`, or the model's of the
     options' kind (PCG without options)."""
     solver = solver or model.make_solver(options.linear_solver if options else "pcg")
@@ -423,7 +474,14 @@ def _curve_solver(model, solver, options: SolverOptions | None):
     return solver
 
 
-def _out_of_range(curve, s, step, direction, stretches, deadline) -> bool:
+def _out_of_range(
+    curve: ChamberCurve,
+    s: float,
+    step: float,
+    direction: int,
+    stretches: list[float],
+    deadline: float | None,
+) -> bool:
     """Whether the next sample, at mean stretch `s`, leaves the range followed or comes
     after the deadline; then the curve's end (and collapse pressure) says so."""
     if direction > 0 and s > MAX_STRETCH + 1e-9:
@@ -440,7 +498,9 @@ def _out_of_range(curve, s, step, direction, stretches, deadline) -> bool:
     return False
 
 
-def _sample_options(options: SolverOptions, last, budget) -> SolverOptions:
+def _sample_options(
+    options: SolverOptions, last: float, budget: tuple[float, float]
+) -> SolverOptions:
     """A sample's solver options after the first: at most budget[0] times the longest
     sample so far `last` (s) or budget[1] s, and at most SAMPLE_SUBDIVISIONS load-step
     halvings."""
@@ -451,7 +511,7 @@ def _sample_options(options: SolverOptions, last, budget) -> SolverOptions:
     )
 
 
-def _no_equilibrium(curve, exc, s, direction) -> None:
+def _no_equilibrium(curve: ChamberCurve, exc: Exception, s: float, direction: int) -> None:
     """End the curve at the sample at mean stretch `s` that found no equilibrium."""
     why = "no equilibrium found within the time" if isinstance(exc, OutOfTime) else "no equilibrium"
     curve.end = f"{why} at {s**3:.2f} V0"
@@ -460,7 +520,13 @@ def _no_equilibrium(curve, exc, s, direction) -> None:
         curve.collapse_pressure_kpa = min(curve.pressure_kpa)
 
 
-def _levels_off(model, curve, stretches, direction, stop_beyond_kpa) -> bool:
+def _levels_off(
+    model: FemModel,
+    curve: ChamberCurve,
+    stretches: list[float],
+    direction: int,
+    stop_beyond_kpa: float | None,
+) -> bool:
     """Whether an inflation's curve levels off below the pressure asked
     (`levels_off_below`); then the bound and the end are the curve's."""
     bound = levels_off_below(model, np.array(curve.pressure_kpa), np.array(stretches))
@@ -471,7 +537,14 @@ def _levels_off(model, curve, stretches, direction, stop_beyond_kpa) -> bool:
     return False
 
 
-def _turned(model, curve, stretches, res, direction: int, fall_steps: int) -> bool:
+def _turned(
+    model: FemModel,
+    curve: ChamberCurve,
+    stretches: list[float],
+    res: StateResult,
+    direction: int,
+    fall_steps: int,
+) -> bool:
     """Whether the curve turned at its last sample `res`: an inflation `fall_steps`
     samples past its peak (the limit point, `peak`), or a suction collapsing (the
     cavity's volume gone, elements about to invert, or `fall_steps` samples past the
@@ -529,7 +602,7 @@ shorter one). With 6, the default Fruit's chambers c2 and c3 spent 29 s and 18 s
 within its budget."""
 
 
-def forget(solver) -> None:
+def forget(solver: LinearSolver) -> None:
     """Clear what the curve's states left on the solver for the next state's predictor
     (`newton._history_guess`, `_sensitivity_guess`), and have its next tangent factored
     afresh (the kept factor is of a deformed state); its analysis stays."""
@@ -538,7 +611,7 @@ def forget(solver) -> None:
         solver.refresh = True
 
 
-def _start_from_last(solver) -> None:
+def _start_from_last(solver: LinearSolver) -> None:
     """Have the next inflation sample start from the last one: keep only the last state
     for the predictor and drop the first state's dx/dp (`newton._history_guess`,
     `_sensitivity_guess`). Near a flat chamber's peak the wall turns, and a start

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,7 +31,9 @@ from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 if TYPE_CHECKING:
+    from fruitcli.fem.fem_model import FemModel
     from fruitcli.fem.solver.options import SolverOptions
+    from fruitcli.scene import Scene
 
 
 def _noop(msg: str) -> None:
@@ -48,24 +51,44 @@ past the peak of a flat chamber is its slowest (on the default Fruit, chamber c1
 second sample past its peak took 185 s of the curve's 420 s)."""
 
 
-def curve_options(options) -> SolverOptions:
+def curve_options(options: SolverOptions) -> SolverOptions:
     """The scene's [solver] options for the samples of a curve: Newton's tolerance
     loosened to `limits.CHECK_TOLERANCE`."""
     return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))
 
 
-def follow_both(model, k: int, options, progress=_noop, start=None) -> tuple:
+def follow_both(
+    model: FemModel,
+    k: int,
+    options: SolverOptions,
+    progress: Callable[[str], None] = _noop,
+    start: limits.Start | None = None,
+) -> tuple:
     """(suction curve, inflation curve) of chamber k, each on a fresh solver, from
     `start` (`limits.start_state`)."""
-    kw = {"options": options, "progress": progress, "start": start}
-    down = limits.follow(model, k, -1, fall_steps=CURVE_FALL_STEPS, **kw)
+    down = limits.follow(
+        model,
+        k,
+        -1,
+        fall_steps=CURVE_FALL_STEPS,
+        options=options,
+        progress=progress,
+        start=start,
+    )
     up = limits.follow(
-        model, k, 1, fall_steps=CURVE_FALL_STEPS, halvings=limits.CURVE_HALVINGS, **kw
+        model,
+        k,
+        1,
+        fall_steps=CURVE_FALL_STEPS,
+        halvings=limits.CURVE_HALVINGS,
+        options=options,
+        progress=progress,
+        start=start,
     )
     return down, up
 
 
-def scene_ratios(scene, names: list[str]) -> np.ndarray:
+def scene_ratios(scene: Scene, names: list[str]) -> np.ndarray:
     """(K,) the scene's own pressure ratios: each chamber's largest pressure over the
     states (0 where volume controlled or never inflated), scaled to a largest of 1;
     equal ratios when no chamber is inflated by pressure."""
@@ -77,7 +100,15 @@ def scene_ratios(scene, names: list[str]) -> np.ndarray:
     return top / top.max() if top.max() > 0 else np.ones(len(names))
 
 
-def _write_limits(out_dir, model, t0: float, chambers, together, rows, curves) -> dict:
+def _write_limits(
+    out_dir: Path,
+    model: FemModel,
+    t0: float,
+    chambers: dict,
+    together: dict | None,
+    rows: list,
+    curves: list,
+) -> dict:
     """Write limits.json (with the element, mesh and seconds since `t0`) and, when curves
     were followed, pv.csv from `rows` and pv.png from `curves` ((name, suction,
     inflation) each), all at once in out_dir.
@@ -97,7 +128,9 @@ def _write_limits(out_dir, model, t0: float, chambers, together, rows, curves) -
     return info
 
 
-def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
+def run_limits(
+    scene: Scene, mesh_npz: str | Path, out_dir: Path, progress: Callable[[str], None] | None = None
+) -> dict:
     """Follow each chamber's curve; write limits.json, pv.csv and pv.png (see module
     docstring). Returns the limits.json content."""
     progress = progress or _noop
@@ -151,7 +184,9 @@ def run_limits(scene, mesh_npz, out_dir, progress=None) -> dict:
     return _write_limits(out_dir, model, t0, chambers, together, rows, curves)
 
 
-def plot_curves(path, curves) -> None:
+def plot_curves(
+    path: Path, curves: list[tuple[str, limits.ChamberCurve, limits.ChamberCurve]]
+) -> None:
     """pv.png: pressure (kPa) against volume growth (mm^3), one line per chamber, the
     limit (triangle) and collapse (cross) marked."""
     import matplotlib
@@ -167,7 +202,8 @@ def plot_curves(path, curves) -> None:
         if name == limits.TOGETHER:
             label, style = "together (largest chamber's pressure)", ".--"
         (line,) = ax.plot(g, p, style, label=label)
-        if up.limit_pressure_kpa is not None:
+        # set together (`limits`)
+        if up.limit_pressure_kpa is not None and up.limit_growth_mm3 is not None:
             ax.plot(
                 [up.limit_growth_mm3], [up.limit_pressure_kpa], "^", ms=10, color=line.get_color()
             )
@@ -216,7 +252,7 @@ compliance screen, `pressure_check.SCREEN_GROWTH`); the default Fruit's breathin
 0.36 mu) stays below."""
 
 
-def near_limit(scene) -> tuple[bool, str]:
+def near_limit(scene: Scene) -> tuple[bool, str]:
     """(whether the scene's pressures come near a limit by the cheap estimate
     NEAR_SHEAR_FRACTION, why), from the scene alone (no mesh)."""
     from fruitcli.fem.materials import build as materials
@@ -237,7 +273,9 @@ def near_limit(scene) -> tuple[bool, str]:
     )
 
 
-def run_limits_stage(scene, mesh_npz, out_dir, progress=None) -> dict:
+def run_limits_stage(
+    scene: Scene, mesh_npz: str | Path, out_dir: Path, progress: Callable[[str], None] | None = None
+) -> dict:
     """The planner's `limits` stage: the scene's pressures checked against the limits
     (`pressure_check.check_pressures` on the scene's states, without its screen: the planner
     runs this stage when the pressures come near a limit, `near_limit`), each

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -22,6 +24,11 @@ from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from fruitcli.fem.reduced.model import ReducedModel
 
 MIN_CHANGE_KPA = 0.05
 """Pressures that differ from the last solved ones by less than this in every chamber
@@ -59,7 +66,7 @@ class OnlineSolver:
         self.last_error: str | None = None
         self.stopped: str | None = None  # why the thread of `run` ended early
 
-    def update(self, pressure_kpa) -> bool:
+    def update(self, pressure_kpa: ArrayLike | None) -> bool:
         """Solve at pressure_kpa (K,) unless it is None (nothing measured yet) or within
         `min_change_kpa` of the last pressures tried (solved or failed); returns whether
         new positions were published."""
@@ -97,7 +104,9 @@ class OnlineSolver:
         self.solve_ms.append(res.solve_ms)
         return True
 
-    def run(self, source, stop: threading.Event, idle_s: float = 0.002) -> threading.Thread:
+    def run(
+        self, source: Callable[[], ArrayLike | None], stop: threading.Event, idle_s: float = 0.002
+    ) -> threading.Thread:
         """Start a daemon thread solving the pressures `source()` returns (K,) kPa until
         `stop` is set; it sleeps `idle_s` whenever nothing changed."""
 
@@ -146,7 +155,7 @@ class ReducedOnline:
     evaluated at the nearest pressures inside it (the fit does not extrapolate) and
     counted in `clamped`."""
 
-    def __init__(self, reduced):
+    def __init__(self, reduced: ReducedModel):
         self.reduced, self.model = reduced, reduced  # .model.chamber_names, as OnlineSolver
         self.taxels_mm = reduced.taxels(np.clip(np.zeros(len(reduced.lo)), reduced.lo, reduced.hi))
         self.solved_kpa: np.ndarray | None = None
@@ -157,7 +166,7 @@ class ReducedOnline:
         self.clamped = 0
         self.stopped: str | None = None
 
-    def update(self, pressure_kpa) -> bool:
+    def update(self, pressure_kpa: ArrayLike | None) -> bool:
         """Evaluate at pressure_kpa (K,) unless None or unchanged; returns whether new
         positions were published."""
         if pressure_kpa is None:

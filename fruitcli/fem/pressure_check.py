@@ -8,6 +8,7 @@ growth past what the curves cover is refused (`check_growth`). The curves are
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,13 +16,15 @@ import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.corotational_model import Load
-from fruitcli.fem.fem_model import FemModel
+from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
     CURVE_HALVINGS,
     SAMPLE_SUBDIVISIONS,
     STEP_BUDGET,
     ChamberCurve,
+    Chambers,
+    Start,
     follow,
     forget,
     response,
@@ -45,7 +48,7 @@ reached in half the time (the converging samples take 3-4 Newton steps each, the
 first, from rest, the longest)."""
 
 
-def rest_compliance(model, solver) -> np.ndarray:
+def rest_compliance(model: FemModel, solver: LinearSolver) -> np.ndarray:
     """(K, K) dV_i/dp_j (mm^3/kPa) of the chambers at rest, from the solver's tangent
     there (its factor is then the one the first state starts with)."""
     return response(model, solver, model.rest)[1]
@@ -57,8 +60,16 @@ def kpa(value: float) -> str:
 
 
 def _check_curve(
-    model, which, direction: int, asked: float, solver, check, progress, found, start=None
-):
+    model: FemModel,
+    which: Chambers,
+    direction: int,
+    asked: float,
+    solver: LinearSolver,
+    check: SolverOptions,
+    progress: Callable[[str], None] | None,
+    found: list | None,
+    start: Start | None = None,
+) -> ChamberCurve:
     """The curve of chamber `which` (or of chambers along ratios `which`) followed as
     far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
     (its analysis forgotten afterwards) from `start` (`start_state`); with a `found`
@@ -91,12 +102,12 @@ def pressure_keys(names: list[str]) -> list[str]:
 
 
 def check_pressures(
-    model,
+    model: FemModel,
     pressures: np.ndarray,
     keys: list[str],
-    solver,
+    solver: LinearSolver,
     options: SolverOptions,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
     screen: float = SCREEN_GROWTH,
     found: list | None = None,
 ) -> None:
@@ -200,16 +211,16 @@ def _refuse(key: str, asked: float, direction: int, curve: ChamberCurve) -> None
 
 
 def check_together(
-    model,
-    pressures,
-    keys,
-    solver,
-    check,
-    compliance,
-    screen,
-    progress=None,
-    found=None,
-    start=None,
+    model: FemModel,
+    pressures: np.ndarray,
+    keys: list[str],
+    solver: LinearSolver,
+    check: SolverOptions,
+    compliance: np.ndarray,
+    screen: float,
+    progress: Callable[[str], None] | None = None,
+    found: list | None = None,
+    start: Callable[[], Start | None] | None = None,
 ) -> None:
     """Refuse, in one line naming the state's keys, the state whose pressures, several
     chambers inflated together, are past the chambers' limit along their own ratios:
@@ -245,13 +256,13 @@ def check_together(
 
 
 def explain_failure(
-    model,
+    model: FemModel,
     load: Load,
     keys: list[str],
-    solver,
+    solver: LinearSolver,
     options: SolverOptions,
     error: SolverError,
-    progress=None,
+    progress: Callable[[str], None] | None = None,
 ) -> None:
     """After `error` (a state under `load` found no equilibrium): raise the one line of
     `check_pressures` when a chamber's pressure in `load` is past its limit or collapse
@@ -284,7 +295,7 @@ LIMITS_FILE = "limits.json"
 """The limits stage's summary (`fruitcli.fem.limits_stage.run_limits_stage`)."""
 
 
-def checked_by(limits_dir) -> bool:
+def checked_by(limits_dir: str | Path | None) -> bool:
     """True when the limits stage's output is in `limits_dir` (simulate then skips its
     own check: the stage checked the same pressures on the same mesh)."""
     return limits_dir is not None and (Path(limits_dir) / LIMITS_FILE).exists()

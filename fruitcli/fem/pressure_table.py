@@ -5,12 +5,16 @@ provenance), as the project's other CSVs (`fruitcli.tables`)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import FruitError
 from fruitcli.fsutil import write_csv
 from fruitcli.tables import read_table
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 
 def column(chamber: str) -> str:
@@ -56,7 +60,9 @@ def _data_lines(path: Path) -> list[tuple[int, str]]:
     ]
 
 
-def write_pressures(path: str | Path, chambers: list[str], kpa, comment: str = "") -> None:
+def write_pressures(
+    path: str | Path, chambers: list[str], kpa: ArrayLike, comment: str = ""
+) -> None:
     """Write (S, K) kPa as a pressure table, atomically."""
     rows = [
         [repr(float(v)) for v in row]  # repr: read back exactly

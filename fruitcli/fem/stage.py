@@ -12,7 +12,9 @@ starts with "state i/S".
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,12 +37,19 @@ from fruitcli.fsutil import staged_dir, write_json
 from fruitcli.geometry.mesh.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent
 from fruitcli.scene import n_states
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from fruitcli.fem.fem_model import FemModel, LinearSolver
+    from fruitcli.fem.solver.options import StateResult
+    from fruitcli.scene import Scene
+
 
 def _noop(msg: str) -> None:
     pass
 
 
-def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
+def body_shells(scene: Scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     """The outer shell (solid surface or flat pad box) and the chamber shells.
 
     The scene's own surface files (`solid`, chamber `surface`) are in [geometry].unit,
@@ -49,7 +58,9 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
     """
     geo, where = scene.geometry, scene.path.name
 
-    def scene_surface(path, what):  # a file of the scene's, in [geometry].unit
+    def scene_surface(
+        path: str | Path, what: str
+    ) -> tuple[np.ndarray, np.ndarray]:  # a file of the scene's, in [geometry].unit
         v, f = shells.load_surface(path, what, scale=UNIT_TO_MM[geo.unit])
         check_extent(v, geo.unit, f"{what}: {Path(path).name}", SCENE_UNIT_HINT)
         return v, f
@@ -80,13 +91,23 @@ def body_shells(scene, solid_path: Path | None) -> tuple[dict, list[dict]]:
         if ch.ellipsoid is not None:
             e = ch.ellipsoid
             chambers.append(shells.ellipsoid_shell(name, e.center_mm, e.radii_mm))
-        else:
+        elif ch.surface is not None:
             v, f = scene_surface(ch.surface, f"{where}: [[geometry.chamber]] '{name}'.surface")
             chambers.append(shells.surface_shell(name, v, f))
+        else:
+            raise SceneError(
+                f"{where}: [[geometry.chamber]] '{name}': needs `ellipsoid` or `surface`"
+            )
     return outer, chambers
 
 
-def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dict:
+def run_tetra(
+    scene: Scene,
+    solid_path: str | Path | None,
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+    taxels_xyz: np.ndarray | None = None,
+) -> dict:
     """Tetrahedralize the scene's body with its chambers; write mesh files to out_dir.
     `taxels_xyz` (t, 3) mm, when given, tags the taxels' region of the surface and
     refines the mesh there to [mesh].min_size_mm (see `fruitcli.fem.meshing.tetra`)."""
@@ -146,7 +167,7 @@ def run_tetra(scene, solid_path, out_dir, progress=None, taxels_xyz=None) -> dic
     return report
 
 
-def _jigs(scene, nodes: np.ndarray) -> list[Jig]:
+def _jigs(scene: Scene, nodes: np.ndarray) -> list[Jig]:
     out = []
     for n, jig in enumerate(scene.jig):
         idx = nodes_in_box(nodes, jig.region_box_mm)
@@ -167,7 +188,7 @@ def _jigs(scene, nodes: np.ndarray) -> list[Jig]:
     return out
 
 
-def _fixed(scene, nodes: np.ndarray) -> tuple[np.ndarray, list]:
+def _fixed(scene: Scene, nodes: np.ndarray) -> tuple[np.ndarray, list]:
     """(held node indices, [(moved node indices, displacement mm)]) of [[fixed]]."""
     idx, moved = [], []
     for n, fx in enumerate(scene.fixed):
@@ -181,7 +202,7 @@ def _fixed(scene, nodes: np.ndarray) -> tuple[np.ndarray, list]:
     return (np.unique(np.concatenate(idx)) if idx else np.zeros(0, np.int64)), moved
 
 
-def state_loads(scene, names: list[str]) -> list[Load]:
+def state_loads(scene: Scene, names: list[str]) -> list[Load]:
     """One Load per actuation state (pressure or volume growth per chamber)."""
     act, s = scene.actuation, n_states(scene)
     k = len(names)
@@ -221,7 +242,7 @@ def check_closed_walls(chambers: dict[str, np.ndarray]) -> None:
             )
 
 
-def build_model(scene, mesh: dict) -> Model | ContinuumModel:
+def build_model(scene: Scene, mesh: dict) -> Model | ContinuumModel:
     """Model of a scene on a loaded mesh.npz: the paper's corotational `Model` on linear
     tets, or the hyperelastic `ContinuumModel` on the scene's [fem].element (quadratic
     tets built here from the linear mesh, edge nodes on ellipsoid chambers moved onto
@@ -263,9 +284,10 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
         nodes, tets, walls = quadratic_mesh(nodes, tets, walls)
         spec = {c.name: c.ellipsoid for c in scene.chambers}
         for name, wall in zip(chambers, walls, strict=True):
-            if spec.get(name) is not None:
+            ellipsoid = spec.get(name)
+            if ellipsoid is not None:
                 curve_onto_ellipsoid(
-                    nodes, tets, np.unique(wall[:, 3:]), spec[name].center_mm, spec[name].radii_mm
+                    nodes, tets, np.unique(wall[:, 3:]), ellipsoid.center_mm, ellipsoid.radii_mm
                 )
     fixed, moved = _fixed(scene, nodes)
     return ContinuumModel.from_arrays(
@@ -282,7 +304,7 @@ def build_model(scene, mesh: dict) -> Model | ContinuumModel:
     )
 
 
-def state_line(i: int, total: int, solve_ms: list, res) -> str:
+def state_line(i: int, total: int, solve_ms: list, res: StateResult) -> str:
     """The progress line of state i (0-based) of `total` solved: its Newton iterations,
     time and relative residual, and, after the second state, the time left at the mean
     of the states after the first (the first, from rest, takes its own load steps)."""
@@ -297,7 +319,7 @@ def state_line(i: int, total: int, solve_ms: list, res) -> str:
     return line
 
 
-def _off_body(mesh: dict):
+def _off_body(mesh: dict) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """off_body(points, outside) -> (t,) mm by which points outside the mesh lie beyond
     its boundary's own distance from the body's surface (`surface_fit`; a mesh.npz
     written before tetra measured that distance allows none): > 0 is off the body."""
@@ -307,14 +329,14 @@ def _off_body(mesh: dict):
     edge = float(np.median(np.linalg.norm(nodes[tris[:, 1]] - nodes[tris[:, 0]], axis=1)))
     allowed = surface_fit.tolerance_mm(deviation, edge)
 
-    def off_body(points, outside):
+    def off_body(points: np.ndarray, outside: np.ndarray) -> np.ndarray:
         d = surface_fit.outside_mm(nodes, mesh["surface_tris"], points, outside)
         return np.where(d > allowed, d - allowed, 0.0)
 
     return off_body
 
 
-def solver_options(scene, first_state: bool = False, jig: bool = True) -> SolverOptions:
+def solver_options(scene: Scene, first_state: bool = False, jig: bool = True) -> SolverOptions:
     """The scene's [solver] settings; the state solved from rest (`first_state`) takes
     `jig_steps` load steps under a jig, and at least `first_steps` with the hyperelastic
     model (a nearly incompressible body loaded from rest in one step needs about four
@@ -337,15 +359,15 @@ def solver_options(scene, first_state: bool = False, jig: bool = True) -> Solver
 
 
 def run_simulate(
-    scene,
-    mesh_npz,
-    taxels_xyz,
-    out_dir,
-    progress=None,
-    vtu=False,
-    tracks_csv=None,
-    pressures=None,
-    limits_dir=None,
+    scene: Scene,
+    mesh_npz: str | Path,
+    taxels_xyz: ArrayLike | None,
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+    vtu: bool = False,
+    tracks_csv: str | Path | None = None,
+    pressures: Mapping[str, ArrayLike] | None = None,
+    limits_dir: str | Path | None = None,
     taxels_source: str | None = None,
 ) -> dict:
     """Solve every actuation state, or with `pressures` {chamber: (S,) kPa} those
@@ -419,7 +441,7 @@ def run_simulate(
     } | ({"yarns": summary_yarns} if summary_yarns else {})
 
 
-def _loads(scene, model, pressures) -> list:
+def _loads(scene: Scene, model: FemModel, pressures: Mapping[str, ArrayLike] | None) -> list[Load]:
     """The states' loads: the scene's actuation states, or the pressure vectors of
     `pressures` {chamber: (S,) kPa}."""
     if pressures is None:
@@ -428,7 +450,14 @@ def _loads(scene, model, pressures) -> list:
     return [Load.pressures(row) for row in table]
 
 
-def _solve_states(scene, model, loads, keys, solver, progress) -> list:
+def _solve_states(
+    scene: Scene,
+    model: FemModel,
+    loads: list[Load],
+    keys: list[str],
+    solver: LinearSolver,
+    progress: Callable[[str], None],
+) -> list[StateResult]:
     """Each load's equilibrium, from the last one's (a failure past a chamber's limit
     named by `pressure_check.explain_failure`); one progress line per state."""
     results, x, p, prev = [], None, None, None
@@ -456,7 +485,7 @@ def _solve_states(scene, model, loads, keys, solver, progress) -> list:
     return results
 
 
-def _states_arrays(model, mesh, results) -> dict:
+def _states_arrays(model: FemModel, mesh: dict, results: list[StateResult]) -> dict:
     """The arrays of states.npz but the taxels' (see the module docstring)."""
     n = len(results)
     return {
@@ -480,7 +509,14 @@ def _states_arrays(model, mesh, results) -> dict:
     }
 
 
-def _taxel_arrays(model, results, taxels_xyz, off_body, taxels_source, progress) -> dict:
+def _taxel_arrays(
+    model: FemModel,
+    results: list[StateResult],
+    taxels_xyz: ArrayLike,
+    off_body: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    taxels_source: str | None,
+    progress: Callable[[str], None],
+) -> dict:
     """The taxels' arrays of states.npz: each taxel's tet, barycentric weights, whether
     it lies outside the mesh, and its positions (S, T, 3) mm in every state; a warning
     for each taxel off the body."""

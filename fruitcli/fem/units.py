@@ -11,7 +11,12 @@ User-facing inputs are converted here and nowhere else:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 MN_PER_N = 1000.0
 """mN in one N."""
@@ -25,6 +30,6 @@ def spring_mn_per_mm(stiffness_n_per_mm: float) -> float:
     return float(stiffness_n_per_mm) * MN_PER_N
 
 
-def body_force_mn_mm3(density_kg_m3: float, gravity_m_s2) -> np.ndarray:
+def body_force_mn_mm3(density_kg_m3: float, gravity_m_s2: ArrayLike) -> np.ndarray:
     """Body force per volume (3,) in mN/mm^3 from density (kg/m^3) and gravity (m/s^2)."""
     return float(density_kg_m3) * np.asarray(gravity_m_s2, float) * BODY_FORCE_MN_MM3_PER_KG_M3_M_S2

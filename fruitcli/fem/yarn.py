@@ -16,12 +16,17 @@ Lengths in mm, stretch as a fraction (0.1 = 10 %).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fruitcli.errors import GeometryError
+
+if TYPE_CHECKING:
+    from fruitcli.fem.fem_model import FemModel
 
 YARN_BREAK_STRETCH = 0.30
 """DataStretch yarn stretches at most about 30 % (the paper)."""
@@ -58,7 +63,7 @@ class Track:
 TRACK_FIELDS = ["track", "axis", "index", "point", "x_mm", "y_mm", "z_mm"]
 
 
-def read_tracks(path) -> list[Track]:
+def read_tracks(path: str | Path) -> list[Track]:
     """Tracks from make-tracks' tracks.csv (track, axis, index, point, x_mm, y_mm, z_mm;
     lines starting with # are comments). Any fault: GeometryError naming the file and line."""
     import csv
@@ -204,13 +209,13 @@ def yarn_stretch(
 
 
 def follow_tracks(
-    model,
+    model: FemModel,
     tracks: list[Track],
     states_x: np.ndarray,
     max_stretch: float,
     pitch_mm: float,
-    off_body,
-    progress,
+    off_body: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    progress: Callable[[str], None],
     source: str = "the tracks file",
 ) -> tuple[list, dict]:
     """The tracks through a solved FEM: every point located in the model's corner tets
@@ -263,7 +268,7 @@ def zigzag_amplitude(stretch: float, pitch_mm: float) -> float:
     return 0.25 * pitch_mm * float(np.sqrt((1.0 + s) ** 2 - 1.0))
 
 
-def write_yarns_csv(path, rows) -> None:
+def write_yarns_csv(path: str | Path, rows: list[list]) -> None:
     """yarns.csv: one row per track (YARN_COLUMNS), units in its header."""
     from fruitcli.fsutil import write_csv
 

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 
 
 def load_surface(
-    path: Path, what: str, error: type[Exception] = SceneError, scale: float = 1.0
+    path: str | Path, what: str, error: type[Exception] = SceneError, scale: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (v, 3) mm and faces (f, 3) of a closed, consistently wound surface file
     (its coordinates times `scale`: 1000 for a file in metres)."""
