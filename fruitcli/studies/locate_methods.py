@@ -476,8 +476,10 @@ def plot(path: Path, rows: list[dict], scene_name: str) -> None:
         ax.set_xscale("log")
         ax.set_ylim(0, 1.1 * top)
         ax.grid(True, which="both", color="0.9")
-    for ax in axes[(nrows - 1) * ncols :]:
-        ax.set_xlabel("us per frame (log scale)")
+    for k, ax in enumerate(axes[: len(skins)]):
+        if k + ncols >= len(skins):  # the lowest panel of its column: its x axis labelled
+            ax.xaxis.set_tick_params(labelbottom=True)
+            ax.set_xlabel("us per frame (log scale)")
     for ax in axes[::ncols]:
         ax.set_ylabel("registered mean error (mm)")
     handles = [
