@@ -19,9 +19,9 @@ import numpy as np
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.materials.build import Material
     from fruitcli.fem.solver.assemble import CsrPattern
+    from fruitcli.fem.state_load import Load
 
 Kept = tuple[np.ndarray, np.ndarray, np.ndarray]
 """A converged state kept on a linear solver for the next state's start: (load vector

@@ -29,10 +29,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel, LinearSolver
+from fruitcli.fem.linear_response import Start, response
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions, StateResult
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 Chambers = int | np.integer | np.ndarray | Sequence[float]
 """A curve's chambers: one chamber's index, or pressure ratios (K,) of them together."""
@@ -181,35 +182,6 @@ def _next_step(
         curve.end = "at the limit point (the vertex of the last three samples' parabola)"
         return None
     return min(step, max(ahead, step / 4))
-
-
-@dataclass
-class Start:
-    """Where every curve of a body starts: its equilibrium under its weight (rest when it
-    carries none), x (n, 3) mm with chamber volumes (K,) mm^3 there, and the chambers'
-    pressure response there: dx/dp (n, 3, K) mm/kPa and the compliance dV/dp (K, K)
-    mm^3/kPa (`response`)."""
-
-    x: np.ndarray
-    volume_mm3: np.ndarray
-    dx_dp: np.ndarray
-    compliance: np.ndarray
-
-
-def response(model: FemModel, solver: LinearSolver, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(dx/dp (n, 3, K) mm/kPa, dV/dp (K, K) mm^3/kPa) of the chambers at the
-    configuration x with their pressures at 0 (no follower-pressure stiffness), by one
-    solve with the tangent there on `solver` (its kept factor refreshed when CG needs
-    it)."""
-    free = model.pattern.free
-    k = len(model.chamber_tris)
-    kin = model.kinematics(x)
-    solver.update(kin[1], kin[0], None, False)
-    h = model.chamber_gradients(x).reshape(k, -1)[:, free]
-    cols = solver.solve(np.ascontiguousarray(h.T)).reshape(len(free), k)
-    dx = np.zeros((3 * model.n_nodes, k))
-    dx[free] = cols
-    return dx.reshape(model.n_nodes, 3, k), h @ cols
 
 
 def start_state(

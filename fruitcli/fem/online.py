@@ -20,10 +20,10 @@ import numba
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
@@ -27,10 +26,11 @@ from fruitcli.fem.limits import (
     Start,
     follow,
     forget,
-    response,
     start_state,
 )
+from fruitcli.fem.linear_response import response
 from fruitcli.fem.solver.options import SolverOptions
+from fruitcli.fem.state_load import Load
 
 SCREEN_GROWTH = 1.0
 """Pressures whose linearized volume growth p dV/dp (the rest tangent's compliance) stays

@@ -21,7 +21,7 @@ import numpy as np
 from fruitcli.errors import MeshError, SceneError, SolverError
 from fruitcli.fem import io, pressure_check
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements import barycentric, tet4
 from fruitcli.fem.elements.lagrange import ELEMENTS
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
@@ -32,6 +32,7 @@ from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
 from fruitcli.geometry.mesh.load import SCENE_UNIT_HINT, UNIT_TO_MM, check_extent

@@ -201,8 +201,8 @@ def pressure_outward(nodes: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 
 def _beam(case: Case):
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.meshing.grid import structured_box
+    from fruitcli.fem.state_load import Load
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
     model = _build(
@@ -212,8 +212,8 @@ def _beam(case: Case):
 
 
 def _hollow(case: Case, free: bool = False):
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
+    from fruitcli.fem.state_load import Load
 
     nodes, tets, cavity = structured_box_with_cavity(
         (0.0,) * 3, HOLLOW_MM, HOLLOW_CELLS, CAVITY_LO_MM, CAVITY_HI_MM
@@ -228,9 +228,10 @@ def _hollow(case: Case, free: bool = False):
 
 
 def _jig(case: Case):
-    from fruitcli.fem.corotational_model import Load, Model
+    from fruitcli.fem.corotational_model import Model
     from fruitcli.fem.loads.springs import Jig
     from fruitcli.fem.meshing.grid import structured_box
+    from fruitcli.fem.state_load import Load
     from fruitcli.fem.units import spring_mn_per_mm
 
     nodes, tets = structured_box((0.0, 0.0, 0.0), BEAM_MM, BEAM_CELLS)
@@ -248,7 +249,8 @@ def _jig(case: Case):
 
 
 def _sliver(case: Case):
-    from fruitcli.fem.corotational_model import Load, Model
+    from fruitcli.fem.corotational_model import Model
+    from fruitcli.fem.state_load import Load
 
     nodes = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1e-4]], float)
     tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4], [0, 1, 2, 4]])
@@ -293,8 +295,8 @@ def _gmsh_sphere(case: Case):
     import trimesh
 
     from fruitcli.fem import io
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.stage import build_model, run_tetra
+    from fruitcli.fem.state_load import Load
     from fruitcli.scene import parse_scene
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import MeshError, SolverError
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.loads import pressure
 from fruitcli.fem.loads.springs import Jig, nodes_in_box, rotation_matrix
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.units import body_force_mn_mm3
 
 RNG = np.random.default_rng(3)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fruitcli.errors import MeshError, SolverError
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements import tet4
 from fruitcli.fem.loads.springs import rotation_matrix
 from fruitcli.fem.materials import corotation
@@ -13,6 +13,7 @@ from fruitcli.fem.meshing.grid import structured_box
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 RNG = np.random.default_rng(7)
 

@@ -16,7 +16,6 @@ from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import limits, pressure_check
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.solver import linsolve, state
@@ -24,6 +23,7 @@ from fruitcli.fem.solver.c_output import captured_output
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions
 from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.stage import run_simulate, run_tetra
+from fruitcli.fem.state_load import Load
 from fruitcli.scene import parse_scene
 from tests.fem.meshing.test_mesh import ball_scene, inflation_pressure, octant_ball
 

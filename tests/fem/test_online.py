@@ -12,12 +12,13 @@ from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements import barycentric
 from fruitcli.fem.meshing.grid import structured_box_with_cavity
 from fruitcli.fem.online import OnlineSolver
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from tests.sensing.live.test_serial import PressureSource, live_lines, touch_frames
 from tests.sensing.skin.test_virtual_bench import pad_taxel_csv
 

@@ -8,13 +8,14 @@ import pytest
 
 from fruitcli.fem import threads
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements.quadratic import quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 pytestmark = pytest.mark.skipif(
     numba.config.NUMBA_NUM_THREADS < 2, reason="one thread only on this machine"

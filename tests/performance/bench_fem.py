@@ -77,8 +77,8 @@ def live_loads(scene, names, rate_hz: float, cycles: int) -> list:
     its states spread evenly over [actuation].period_s (the last state closes the cycle)."""
     from scipy.interpolate import CubicSpline
 
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.stage import state_loads
+    from fruitcli.fem.state_load import Load
 
     table = np.array([ld.pressure_kpa for ld in state_loads(scene, names)])
     period = scene.actuation.period_s

@@ -102,8 +102,8 @@ def main() -> None:
     from bench_fem import scene_loads
     from run_all import commit, processor
 
-    from fruitcli.fem.corotational_model import Load
     from fruitcli.fem.stage import state_loads
+    from fruitcli.fem.state_load import Load
     from fruitcli.scene import load_scene
 
     scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)

@@ -26,12 +26,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel
 from fruitcli.fem.reduced import response_surface as rs
 from fruitcli.fem.reduced.model import ReducedModel
 from fruitcli.fem.solver.options import SolverOptions, StateResult
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 if TYPE_CHECKING:
     from fruitcli.scene import Scene

@@ -19,9 +19,9 @@ from typing import NamedTuple
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.tolerances import (
     ARMIJO,
     CHORD_CONTRACTION,

@@ -12,8 +12,8 @@ import itertools
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel, Kept, LinearSolver
+from fruitcli.fem.state_load import Load
 
 HISTORY_STATES = 16
 """Converged states kept (on the linear solver) for the predictor of the next: with 10,

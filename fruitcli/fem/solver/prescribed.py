@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import FemModel, LinearSolver
+from fruitcli.fem.state_load import Load
 
 
 def impose_prescribed(model: FemModel, x: np.ndarray, load: Load) -> np.ndarray:

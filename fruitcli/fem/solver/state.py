@@ -17,7 +17,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.fem_model import BulkStaged, FemModel, LinearSolver
 from fruitcli.fem.solver.newton import NewtonStep, iterate
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions, StateResult
@@ -29,6 +28,7 @@ from fruitcli.fem.solver.predictor import (
     sensitivity_guess,
 )
 from fruitcli.fem.solver.prescribed import impose_prescribed, lift_prescribed
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.tolerances import FORCE_FLOOR, MIN_DET_F
 
 DEFAULT_OPTIONS = SolverOptions()

@@ -13,13 +13,14 @@ import pytest
 from scipy.optimize import brentq
 
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import shell_octant, structured_box
 from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.units import body_force_mn_mm3
 
 ACCURATE = SolverOptions(tolerance=1e-10, linear_solver="direct")

@@ -15,7 +15,6 @@ import pytest
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem import continuum
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.elements.lagrange import (
     ELEMENTS,
     tet_rule,
@@ -31,6 +30,7 @@ from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.units import body_force_mn_mm3
 
 RNG = np.random.default_rng(7)

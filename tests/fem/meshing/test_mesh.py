@@ -10,7 +10,6 @@ from click.testing import CliRunner
 from fruitcli.errors import GeometryError, MeshError, SceneError
 from fruitcli.fem import io
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.elements.quadratic import curve_onto_ellipsoid, quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import shell_octant
@@ -18,6 +17,7 @@ from fruitcli.fem.meshing.topology import boundary_faces
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.stage import build_model, run_simulate, run_tetra
+from fruitcli.fem.state_load import Load
 from fruitcli.fem.tolerances import ESTIMATE_WINDOW
 from fruitcli.scene import parse_scene
 

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from fruitcli.fem.continuum import ContinuumModel
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.elements.quadratic import quadratic_mesh
 from fruitcli.fem.materials.build import material
 from fruitcli.fem.meshing.grid import structured_box_with_cavity
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 
 def hollow_cube(element: str):

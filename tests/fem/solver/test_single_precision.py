@@ -76,13 +76,14 @@ def hollow_cube_states(
     with or without Newton's chord steps; (nodes of both states, whether the last factor
     was single precision, tangent updates over Newton steps)."""
     from fruitcli.fem.continuum import ContinuumModel
-    from fruitcli.fem.corotational_model import Load, Model
+    from fruitcli.fem.corotational_model import Model
     from fruitcli.fem.elements.quadratic import quadratic_mesh
     from fruitcli.fem.materials.build import material
     from fruitcli.fem.meshing.grid import structured_box_with_cavity
     from fruitcli.fem.solver import linsolve
     from fruitcli.fem.solver.options import SolverOptions
     from fruitcli.fem.solver.state import solve_state
+    from fruitcli.fem.state_load import Load
 
     monkeypatch.setattr(linsolve, "SINGLE_PRECISION", single)
     nodes, tets, cav = structured_box_with_cavity(

@@ -5,13 +5,14 @@ continued from the previous states, and the SuperLU fallback without cholespy.""
 import numpy as np
 import pytest
 
-from fruitcli.fem.corotational_model import Load, Model
+from fruitcli.fem.corotational_model import Model
 from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.meshing.grid import structured_box, structured_box_with_cavity
 from fruitcli.fem.solver import linsolve
 from fruitcli.fem.solver.linsolve import TangentSolver
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 
 
 def hollow_box(nu: float) -> Model:

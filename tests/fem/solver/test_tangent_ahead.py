@@ -5,10 +5,10 @@ loops."""
 
 import numpy as np
 
-from fruitcli.fem.corotational_model import Load
 from fruitcli.fem.solver import newton
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.state_load import Load
 from tests.fem.solver.test_displacement_tolerance import hollow_cube
 
 
