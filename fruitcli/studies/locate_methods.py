@@ -352,11 +352,14 @@ def inside_outline(points_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
 
 
 def _registered_mean(truth: np.ndarray, measured: np.ndarray) -> float:
-    """Translation-registered mean error (mm) of matched points (n, 3); NaN for none."""
+    """Translation-registered mean error (mm) of matched points (n, 3), registered as
+    Table I's rows are (`fruitcli.evaluation.register`); NaN for none."""
+    from fruitcli.evaluation.register import register
+
     if len(truth) == 0:
         return float("nan")
-    error = measured - truth
-    return float(np.linalg.norm(error - error.mean(axis=0), axis=1).mean())
+    moved = register(truth, measured, "translation").apply(measured)
+    return float(np.linalg.norm(moved - truth, axis=1).mean())
 
 
 def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
