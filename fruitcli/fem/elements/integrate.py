@@ -47,11 +47,12 @@ def evaluate(
 ) -> float:
     """Strain energy (mN mm) at node positions x (n, 3); writes the internal forces
     dPsi/dx (n, 3, mN) into `forces`, element tangents (m, 3 nen, 3 nen, mN/mm) into
-    `blocks` when want_tangent, and each element's smallest det F into jmin (m,).
-    Returns -1.0 when some det F <= 0 (energy undefined). The elements run over every
-    core in blocks; each node sums its elements' force rows in element order (ptr,
-    rows: `element_sums.node_incidence`) and the energy sums the elements' in
-    element order, so the result does not depend on the number of threads.
+    `blocks` when want_tangent (zero for an inverted element), and each element's
+    smallest det F into jmin (m,). Returns -1.0 when some det F <= 0 (energy
+    undefined). The elements run over every core in blocks; each node sums its
+    elements' force rows in element order (ptr, rows: `element_sums.node_incidence`)
+    and the energy sums the elements' in element order, so the result does not depend
+    on the number of threads.
 
     Per element: F (`_deformation`), then point by point the energy, the forces
     (`_add_point_forces`) and the moduli (`isochoric`, `_add_volumetric_moduli`: the
@@ -80,7 +81,9 @@ def evaluate(
         lo_e, hi_e = block_range(blk, nblocks, m)
         for e in range(lo_e, hi_e):
             jmin[e] = _deformation(x, conn[e], dn[e], fq, finv, det)
-            if jmin[e] <= 0.0:
+            if jmin[e] <= 0.0:  # inverted: no energy, and a zero tangent, not stale memory
+                if want_tangent:
+                    blocks[e, :, :] = 0.0
                 continue
             ve = 0.0
             theta = 0.0
