@@ -40,6 +40,8 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
+from fruitcli.studies.model_frames import MODEL_FRAMES
+
 if TYPE_CHECKING:
     from types import ModuleType
 
@@ -76,6 +78,9 @@ CALIBRATED = {
     "gaussian, table fitted": ("gaussian", "electrostatic"),
 }
 REPEATS = 3
+# the calibrated cases' row of the model with `[detection].model_frames` chosen on their
+# calibration run (`model_frames.choose`), as the demo's model rows
+CHOSEN_LABEL = "model, frames chosen"
 # the model method's settings rows: label -> (window half-width in cells, iteration cap,
 # `[detection].model_frames`); the plain "model" row is the defaults (5 x 5,
 # `model_fit.ITERATIONS`, the frame alone)
@@ -101,6 +106,7 @@ HEADER = [
     "model_sigma_mm",
     "n_inside",
     "reg_mean_inside_mm",
+    "model_frames",
 ]
 
 
@@ -137,6 +143,7 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_bench, run_locate
+    from fruitcli.studies import model_frames
 
     scene_path, work, taxels, states, surface, unit, name = args
     scene = load_scene(scene_path)
@@ -169,7 +176,24 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
         )
     outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
-    for label, changes, setting in variants():
+    cases = variants()
+    if name in CALIBRATED:  # the model with as many frames as the calibration run says
+        model_setting = next(c[2] for c in cases if c[0] == "model")
+
+        def locate(frames: int, bench: Path, folder: Path) -> None:
+            keys = {"detection.method": "model", "detection.model_frames": frames}
+            inputs = locate_inputs(
+                scene.with_values(keys), skin_table=skin_table, crossing_dir=located_table
+            )
+            with model_setting():
+                run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
+
+        chosen, _ = model_frames.choose(
+            locate, base / "calibration" / "bench" / CALIBRATION_INDENTER, base / "frames"
+        )
+        keys = {"detection.method": "model", "detection.model_frames": chosen}
+        cases.append((CHOSEN_LABEL, keys, model_setting))
+    for label, changes, setting in cases:
         located = scene.with_values(changes)
         inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
         for ind in scene.bench.indenters:
@@ -207,6 +231,9 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
                     "model_sigma_mm": sigma,
                     "n_inside": int(inside.sum()),
                     "reg_mean_inside_mm": _registered_mean(truth[inside], measured[inside]),
+                    "model_frames": (
+                        changes.get("detection.model_frames", 1) if "model" in label else None
+                    ),
                 }
             )
     return rows
@@ -412,9 +439,23 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
             + (f", the mean of the touch's frame and the {f - 1} before it" if f > 1 else "")
             for k, (h, it, f) in MODEL_SETTINGS.items()
         )
-        + ".",
+        + ". "
+        + _chosen_note(rows),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _chosen_note(rows: list[dict]) -> str:
+    """The sentence on the chosen row: what it is and how many frames each board got."""
+    chosen = {r["bench_skin"]: r["model_frames"] for r in rows if r["method"] == CHOSEN_LABEL}
+    if not chosen:
+        return ""
+    return (
+        f"{CHOSEN_LABEL}: the mean of as many frames ({', '.join(map(str, MODEL_FRAMES))}) "
+        "as place the touches of the calibration run best (as the demo's model rows): "
+        + ", ".join(f"{k} {v}" for k, v in chosen.items())
+        + "."
+    )
 
 
 def _default_iterations() -> int:

@@ -9,8 +9,8 @@ for the law and right over each taxel for its gain, with the small indenter
 (`fruitcli.studies.locate_methods.calibrated_skin`), and the
 model method locates the very frames the N9 rows were scored on. How many frames' mean
 it fits (``[detection].model_frames``: the bench's indenter is still in x and y while it
-descends) is chosen the same way, as the setting of ``MODEL_FRAMES`` that places the
-calibration run's touches best; the rows come with that setting and with the frame at
+descends) is chosen the same way, on the calibration run (`fruitcli.studies.model_frames`); the
+rows come with that setting and with the frame at
 the threshold alone. The bench's law family
 is still the locator's (a Gaussian board gets a Gaussian fit; an electrostatic board gets
 the Gaussian law fitted to it): `fruit study locate` has the boards whose law differs.
@@ -29,9 +29,6 @@ if TYPE_CHECKING:
     from fruitcli.workflow.stage_types import Context
 
 MODEL_METHOD = "model"
-# `[detection].model_frames` tried on the calibration run; the rows are located with the
-# best of them there (and with 1, the frame at the threshold alone)
-MODEL_FRAMES = (1, 2, 4, 8, 16)
 
 
 def _needed(scene: Scene):
@@ -44,6 +41,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.evaluation.report import evaluate_pair, write_many
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
+    from fruitcli.studies import model_frames
     from fruitcli.studies.locate_methods import CALIBRATION_INDENTER, calibrated_skin
     from fruitcli.workflow import stage_paths as st
 
@@ -58,9 +56,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         scene, taxels, states, surface, unit, out_dir / "calibration", board_table
     )
 
-    def locate(
-        frames: int, bench: Path, folder: Path, truth: Path, label: str, found_only: bool = False
-    ) -> tuple:
+    def locate(frames: int, bench: Path, folder: Path) -> None:
         run = replace(
             scene,
             sections={
@@ -70,43 +66,27 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         )
         inputs = locate_inputs(run, method=MODEL_METHOD, skin_table=skin, crossing_dir=board_table)
         run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
-        if found_only:
-            truth = _found(truth, folder)
-        return evaluate_pair(
-            truth,
-            folder / "measured.csv",
-            scene.bench.reference_length_mm,
-            label,
-            scene.bench.register,
-        )
 
-    calibration = out_dir / "calibration" / "bench" / CALIBRATION_INDENTER
-    tried = {}
-    for k in MODEL_FRAMES:
-        ctx.progress(f"model-rows: the calibration run located with the mean of {k} frame(s)")
-        folder = out_dir / "frames" / str(k)
-        result = locate(
-            k,
-            calibration / "frames.npz",
-            folder,
-            calibration / "truth.csv",
-            f"calibration, {k} frame(s)",
-            found_only=True,
-        )
-        tried[k] = float(result[0]["compare"]["translation"]["mean_mm"])
-    chosen = min(tried, key=lambda k: (tried[k], k))
+    chosen, tried = model_frames.choose(
+        locate,
+        out_dir / "calibration" / "bench" / CALIBRATION_INDENTER,
+        out_dir / "frames",
+        lambda msg: ctx.progress(f"model-rows: {msg}"),
+    )
     rows = {}
     for frames in sorted({1, chosen}):
         results = []
         for ind in st.indenters(scene):
             ctx.progress(f"model-rows: locating {ind} with the model, {frames} frame(s)")
+            folder = out_dir / _folder(frames) / ind
+            locate(frames, ctx.dir("bench") / ind / "frames.npz", folder)
             results.append(
-                locate(
-                    frames,
-                    ctx.dir("bench") / ind / "frames.npz",
-                    out_dir / _folder(frames) / ind,
+                evaluate_pair(
                     ctx.dir("bench") / ind / "truth.csv",
+                    folder / "measured.csv",
+                    scene.bench.reference_length_mm,
                     f"{scene.scene.configuration}, {ind}",
+                    scene.bench.register,
                 )
             )
         summaries = write_many(out_dir / _folder(frames, "evaluate"), results)
@@ -159,28 +139,6 @@ def model_share(touches_csv: Path) -> float | None:
 
     share, _ = model_fits(touches_csv)
     return None if np.isnan(share) else round(share, 4)
-
-
-def _found(truth_csv: Path, folder: Path) -> Path:
-    """FOLDER/truth.csv: the calibration run's truth rows of the samples the locate found
-    a touch for (a sample whose peak ends on the threshold itself has none; which are
-    found does not depend on the frames' mean, so every setting is scored on the same)."""
-    from fruitcli.fsutil import write_csv
-    from fruitcli.tables import read_table
-
-    found = set(read_table(folder / "measured.csv", ["sample"])["sample"].astype(int).tolist())
-    truth = read_table(truth_csv, ["sample", "x_mm", "y_mm", "z_mm"])
-    keep = [k for k, s in enumerate(truth["sample"].astype(int)) if int(s) in found]
-    out = folder / "truth.csv"
-    write_csv(
-        out,
-        ["sample", "x_mm", "y_mm", "z_mm"],
-        (
-            [int(truth["sample"][k]), *(float(truth[c][k]) for c in ("x_mm", "y_mm", "z_mm"))]
-            for k in keep
-        ),
-    )
-    return out
 
 
 def _reads():

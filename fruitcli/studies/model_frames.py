@@ -1,0 +1,65 @@
+"""How many frames' mean the model method fits (``[detection].model_frames``), chosen on
+a calibration run: the setting of ``MODEL_FRAMES`` whose touches of that run land
+nearest its truth (translation-registered mean error, mm; ties to fewer frames).
+
+The bench's indenter is still in x and y while it descends, so the frames before the
+threshold show the same touch and their mean has less noise; a live touch that moves
+does not (`model_fit.recent_frames` takes only the frames that point the same way). The
+demo's model rows (`fruitcli.workflow.model_rows`) and `fruit study locate`'s chosen row
+(`fruitcli.studies.locate_methods`) both choose this way, on the run `calibrated_skin`
+made, never on the frames they score.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+MODEL_FRAMES = (1, 2, 4, 8, 16)
+
+
+def choose(
+    locate: Callable[[int, Path, Path], None],
+    calibration: Path,
+    work: Path,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[int, dict[int, float]]:
+    """(the chosen number of frames, the calibration run's registered mean error (mm) for
+    each setting tried). ``locate(frames, frames_npz, folder)`` locates a recording with
+    the model method and that setting into folder (measured.csv, touches.csv);
+    `calibration` holds the run's frames.npz and truth.csv; `work` gets a folder a
+    setting."""
+    from fruitcli.evaluation.report import evaluate_pair
+
+    say = progress or (lambda msg: None)
+    tried = {}
+    for k in MODEL_FRAMES:
+        say(f"the calibration run located with the mean of {k} frame(s)")
+        folder = work / str(k)
+        locate(k, calibration / "frames.npz", folder)
+        truth = found_truth(calibration / "truth.csv", folder)
+        result = evaluate_pair(truth, folder / "measured.csv", None, f"calibration, {k}")
+        tried[k] = float(result[0]["compare"]["translation"]["mean_mm"])
+    return min(tried, key=lambda k: (tried[k], k)), tried
+
+
+def found_truth(truth_csv: Path, folder: Path) -> Path:
+    """FOLDER/truth.csv: the calibration run's truth rows of the samples the locate found
+    a touch for (a sample whose peak ends on the threshold itself has none; which are
+    found does not depend on the frames' mean, so every setting is scored on the same)."""
+    from fruitcli.fsutil import write_csv
+    from fruitcli.tables import read_table
+
+    found = set(read_table(folder / "measured.csv", ["sample"])["sample"].astype(int).tolist())
+    truth = read_table(truth_csv, ["sample", "x_mm", "y_mm", "z_mm"])
+    keep = [k for k, s in enumerate(truth["sample"].astype(int)) if int(s) in found]
+    out = folder / "truth.csv"
+    write_csv(
+        out,
+        ["sample", "x_mm", "y_mm", "z_mm"],
+        (
+            [int(truth["sample"][k]), *(float(truth[c][k]) for c in ("x_mm", "y_mm", "z_mm"))]
+            for k in keep
+        ),
+    )
+    return out
