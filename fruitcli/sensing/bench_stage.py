@@ -248,6 +248,9 @@ def _write_run(
         "threshold_counts": scene.detection.threshold_counts,
         "baseline_frames": bench.baseline_frames,
         "fps": BENCH_FPS,
+        "start_gap_mm": {
+            str(int(k)): float(g) for k, g in zip(run.truth_ids, run.start_gap_mm, strict=True)
+        },
     }
     rec = Recording(frames, np.arange(n_frames) / BENCH_FPS, sample=run.sample, meta=meta)
     write_npz(out_dir / "frames.npz", rec)

@@ -143,7 +143,6 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
     from fruitcli.evaluation.report import evaluate_pair
     from fruitcli.scene import load_scene
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_bench, run_locate
-    from fruitcli.studies import model_frames
 
     scene_path, work, taxels, states, surface, unit, name = args
     scene = load_scene(scene_path)
@@ -173,30 +172,32 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
             base / "calibration",
             table.get(board),
             located_table,
+            scene.bench.indenters,
         )
     outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
     cases = variants()
-    if name in CALIBRATED:  # the model with as many frames as the calibration run says
+    chosen: dict[str, int] = {}  # per indenter, the frames its calibration run chose
+    if name in CALIBRATED:
         model_setting = next(c[2] for c in cases if c[0] == "model")
 
-        def locate(frames: int, bench: Path, folder: Path) -> None:
-            keys = {"detection.method": "model", "detection.model_frames": frames}
+        def locate(keys: dict, bench: Path, folder: Path) -> None:
             inputs = locate_inputs(
                 scene.with_values(keys), skin_table=skin_table, crossing_dir=located_table
             )
             with model_setting():
                 run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
 
-        chosen, _ = model_frames.choose(
-            locate, base / "calibration" / "bench" / CALIBRATION_INDENTER, base / "frames"
-        )
-        keys = {"detection.method": "model", "detection.model_frames": chosen}
-        cases.append((CHOSEN_LABEL, keys, model_setting))
+        chosen = _frames_chosen(locate, scene.bench.indenters, base)
+        cases.append((CHOSEN_LABEL, {"detection.method": "model"}, model_setting))
     for label, changes, setting in cases:
-        located = scene.with_values(changes)
-        inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
         for ind in scene.bench.indenters:
+            # the locator knows which indenter touches, as the bench does: its footprint
+            keys = {**changes, "detection.footprint": ind}
+            if label == CHOSEN_LABEL:
+                keys["detection.model_frames"] = chosen[ind]
+            located = scene.with_values(keys)
+            inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
             frames = base / "bench" / ind / "frames.npz"
             out = base / label.replace(" ", "_").replace(",", "") / ind
             times = []
@@ -232,11 +233,32 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
                     "n_inside": int(inside.sum()),
                     "reg_mean_inside_mm": _registered_mean(truth[inside], measured[inside]),
                     "model_frames": (
-                        changes.get("detection.model_frames", 1) if "model" in label else None
+                        keys.get("detection.model_frames", 1) if "model" in label else None
                     ),
                 }
             )
     return rows
+
+
+def _frames_chosen(
+    locate: Callable[[dict, Path, Path], None], indenters: Iterable[str], base: Path
+) -> dict[str, int]:
+    """Per indenter, the model's `[detection].model_frames` chosen on its own calibration
+    run (BASE/calibration/bench/NAME, `model_frames.choose`); ``locate(keys, frames_npz,
+    folder)`` locates a recording with those [detection] keys."""
+    from fruitcli.studies import model_frames
+
+    chosen = {}
+    for ind in indenters:
+
+        def with_frames(frames: int, bench: Path, folder: Path, ind: str = ind) -> None:
+            keys = {"detection.method": "model", "detection.model_frames": frames}
+            locate({**keys, "detection.footprint": ind}, bench, folder)
+
+        chosen[ind], _ = model_frames.choose(
+            with_frames, base / "calibration" / "bench" / ind, base / "frames" / ind
+        )
+    return chosen
 
 
 Variant = tuple[str, dict[str, object], Callable[[], AbstractContextManager[object]]]
@@ -286,12 +308,15 @@ def calibrated_skin(
     work: Path,
     board_table: Path | None = None,
     fitted_table: Path | None = None,
+    indenters: Iterable[str] = (),
 ) -> Any:
     """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene`
     (its crossing table `board_table` when electrostatic) at other sample points (half a
     pitch off each taxel, for the law, and right over each taxel, for its gain:
     `taxel_gains`; ``CALIBRATION_INDENTER``): the Gaussian law, or with `fitted_table` the
-    crossing table's counts per fF, and the gains."""
+    crossing table's counts per fF, and the gains. Each of `indenters` is calibrated on
+    the same run too (WORK/skin-NAME), and its footprint width joins the table's, as a
+    user calibrates each object the skin will see; the rest is ``CALIBRATION_INDENTER``'s."""
     from fruitcli.fsutil import write_csv
     from fruitcli.scene import load_skin_table
     from fruitcli.sensing.inputs_stage import calibrate_inputs, crossing_skin_inputs
@@ -308,8 +333,11 @@ def calibrated_skin(
     write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
     # the two [bench] keys replaced as they are, without `with_values`' checks across
     # keys: those read every section, and the demo's stage declares only what it reads
+    others = [i for i in dict.fromkeys(indenters) if i != CALIBRATION_INDENTER]
     bench = replace(
-        bench_scene.bench, samples=str(points.resolve()), indenters=[CALIBRATION_INDENTER]
+        bench_scene.bench,
+        samples=str(points.resolve()),
+        indenters=[CALIBRATION_INDENTER, *others],
     )
     run = replace(bench_scene, sections={**bench_scene.sections, "bench": bench})
     run_bench(
@@ -321,22 +349,27 @@ def calibrated_skin(
         surface_unit=unit,
         crossing_dir=board_table,
     )
-    ind = work / "bench" / CALIBRATION_INDENTER
     fitter = run
     response = None
     if fitted_table is not None:
         fitter = run.with_values({"skin.model": "electrostatic"})
         response = electrostatic_skin(crossing_skin_inputs(fitter, fitted_table))
-    run_calibrate(
-        calibrate_inputs(fitter),
-        ind / "frames.npz",
-        ind / "truth.csv",
-        taxels,
-        work / "skin",
-        CALIBRATION_INDENTER,
-        response=response,
-    )
-    return load_skin_table(work / "skin" / "skin.toml")
+    feet = {}
+    for name in [CALIBRATION_INDENTER, *others]:
+        ind = work / "bench" / name
+        folder = work / ("skin" if name == CALIBRATION_INDENTER else f"skin-{name}")
+        run_calibrate(
+            calibrate_inputs(fitter),
+            ind / "frames.npz",
+            ind / "truth.csv",
+            taxels,
+            folder,
+            name,
+            response=response,
+        )
+        feet.update(load_skin_table(folder / "skin.toml").footprint_sigma_mm or {})
+    skin = load_skin_table(work / "skin" / "skin.toml")
+    return replace(skin, footprint_sigma_mm=feet) if others else skin
 
 
 def model_fits(touches_csv: Path) -> tuple[float, float]:
@@ -414,8 +447,10 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
         "",
         "Bench skins differ from the skin the locator assumes: calibrated: the board's gains "
         f"spread +-{100 * GAIN_SPREAD:.0f} %, the locator uses `fruit calibrate`'s fit to "
-        "another run at other sample points (half a pitch off the taxels, the "
-        f"{CALIBRATION_INDENTER} indenter); electrostatic: the board is the crossing "
+        "another run at other sample points (half a pitch off the taxels and right over "
+        f"them; the law and gains from the {CALIBRATION_INDENTER} indenter, each "
+        "indenter's footprint width from its own descents there); electrostatic: the "
+        "board is the crossing "
         "table's, the locator a Gaussian law calibrated as above; gaussian, table "
         "fitted: a Gaussian board, the locator the crossing table calibrated as above; "
         + "; ".join(
@@ -425,8 +460,9 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
             for k, v in BENCH_SKINS.items()
             if v["field_sigma_mm"] is not None
         )
-        + ". Registered: translation (the paper's protocol). Inside the outline: the samples "
-        "within the convex hull of the taxels seen from above (at the bench's state), "
+        + ". The locator is told which indenter touches (`[detection].footprint`), as the "
+        "bench knows. Registered: translation (the paper's protocol). Inside the outline: "
+        "the samples within the convex hull of the taxels seen from above (at the bench's state), "
         "registered on their own. The model's 1-sigma radius: the median of the fit's own "
         "position uncertainty over the touches it placed. Time per frame: `fruit locate`'s "
         "loop on one thread, file reading and writing included, set-up left out, median of "
@@ -447,13 +483,14 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
 
 def _chosen_note(rows: list[dict]) -> str:
     """The sentence on the chosen row: what it is and how many frames each board got."""
-    chosen = {r["bench_skin"]: r["model_frames"] for r in rows if r["method"] == CHOSEN_LABEL}
+    chosen = [r for r in rows if r["method"] == CHOSEN_LABEL]
     if not chosen:
         return ""
     return (
         f"{CHOSEN_LABEL}: the mean of as many frames ({', '.join(map(str, MODEL_FRAMES))}) "
-        "as place the touches of the calibration run best (as the demo's model rows): "
-        + ", ".join(f"{k} {v}" for k, v in chosen.items())
+        "as place the touches of the indenter's calibration run best (as the demo's model "
+        "rows): "
+        + ", ".join(f"{r['bench_skin']} {r['indenter']} {r['model_frames']}" for r in chosen)
         + "."
     )
 

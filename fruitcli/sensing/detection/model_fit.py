@@ -340,8 +340,10 @@ def recent_frames(
     (counts over the baseline, gains divided out or not as the fit's law says, not
     clipped at 0) are the touches' frames, centre (n,) their peak taxels. A frame before
     is taken when its activations over the touch's window point the same way as the
-    touch's own (cosine at least ``SAME_TOUCH_COSINE``): another touch's frames, a moving
-    touch's older ones and frames with little more than noise are left out.
+    touch's own (cosine at least ``SAME_TOUCH_COSINE``), going back from the touch's frame
+    and stopping at the first that does not: another touch's frames, a moving touch's
+    older ones, frames with little more than noise and anything before those are left
+    out.
     -> (means clipped at 0, frames taken (n,))."""
     rows = np.asarray(rows, np.int64)
     total = history[rows].copy()
@@ -351,6 +353,7 @@ def recent_frames(
         inside = win >= 0
         own = np.where(inside, np.take_along_axis(total, np.maximum(win, 0), 1), 0.0)
         own_norm = np.linalg.norm(own, axis=1)
+        alive = np.ones(len(rows), bool)  # every frame since the touch's shows it
         for lag in range(1, frames):
             there = rows - lag >= 0
             earlier = history[np.maximum(rows - lag, 0)]  # (n, T)
@@ -358,7 +361,10 @@ def recent_frames(
             cosine = np.sum(seen * own, axis=1) / np.maximum(
                 np.linalg.norm(seen, axis=1) * own_norm, 1e-12
             )
-            same = there & (cosine >= SAME_TOUCH_COSINE)
+            same = alive & there & (cosine >= SAME_TOUCH_COSINE)
+            alive = same
+            if not alive.any():
+                break
             total[same] += earlier[same]
             taken += same
     return np.maximum(total / taken[:, None], 0.0), taken

@@ -11,8 +11,9 @@ contact point. Frames used: every frame of every sample's descent (from the firs
 after the previous sample's frame to the sample's own frame). The gap of a frame is
 ``printer_mm`` z minus the model origin's z (meta ``model_origin_mm``) minus the contact
 z for a printer-bench recording; for a virtual-bench recording (no ``printer_mm``) it is
-``START_GAP_MM - j * step_mm`` for the j-th frame of the descent, as the virtual bench
-moves. Least squares over log-parameters (scipy), the gains normalized to mean 1 (their
+``start - j * step_mm`` for the j-th frame of the descent, as the virtual bench moves
+(start: the sample's in meta ``start_gap_mm``, else ``START_GAP_MM``). Least squares over
+log-parameters (scipy), the gains normalized to mean 1 (their
 common factor is contact_counts). The noise std is that of the idle frames, less the
 rounding of integer counts (1/12 count^2). Taxels whose fitted activation never reaches
 ``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured. With ``[skin].model =
@@ -60,6 +61,9 @@ def descent_gaps(
             raise FrameError(f"{where}: printer_mm without meta model_origin_mm")
         printer_z = rec.printer_mm[:, 2] - float(origin[2])
     step = rec.meta.get("step_mm")
+    starts = rec.meta.get("start_gap_mm", {})  # per sample id, where the descent started
+    if not isinstance(starts, dict):
+        raise FrameError(f"{where}: meta start_gap_mm: expected a table of sample -> mm")
     if printer_z is None and step is None:
         raise FrameError(f"{where}: meta has no step_mm (virtual bench) and no printer_mm")
     for f in np.flatnonzero(rec.sample >= 0):
@@ -72,7 +76,8 @@ def descent_gaps(
             gap: np.ndarray = printer_z[idx] - truth_z[k]
         else:
             assert step is not None  # checked above
-            gap = START_GAP_MM - np.arange(idx.size) * float(step)
+            start_mm = float(starts.get(str(k), START_GAP_MM))
+            gap = start_mm - np.arange(idx.size) * float(step)
         frames.append(idx)
         samples.append(np.full(idx.size, k))
         gaps.append(gap)

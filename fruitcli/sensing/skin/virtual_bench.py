@@ -18,7 +18,11 @@ Delaunay triangulation of their (x, y), and says so.
 The indenter starts ``START_GAP_MM`` above the contact point and descends by ``step_mm``;
 each step is one frame. The first frame in which some taxel's v = C - C0 exceeds the
 threshold (C0: the mean of the bench's idle frames) is the sample's frame; the indenter
-then lifts for the next sample. A sample that does not cross the threshold even
+then lifts for the next sample. Where the board is over the threshold already at the
+start (a large object on a sensitive board), the descent starts higher instead, at the
+first of ``START_GAPS_MM`` where it is not, so every recorded descent shows the
+approach and no frame of it is taken for the previous sample's touch; the recording's
+meta ``start_gap_mm`` gives each sample's start. A sample that does not cross the threshold even
 ``PRESS_MM`` into the skin is dropped and counted.
 """
 
@@ -36,6 +40,9 @@ if TYPE_CHECKING:
     from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
 START_GAP_MM = 5.0  # indenter start above the contact point
+# the starts tried in turn when the board is over the threshold at the one before (the
+# last, the printer bench's default safe height, is kept whatever the board reads)
+START_GAPS_MM = (START_GAP_MM, 10.0, 20.0)
 PRESS_MM = 2.0  # deepest press into the skin before a sample is given up
 BENCH_FPS = 60.0  # frame rate of the virtual board (frames/s)
 
@@ -53,9 +60,9 @@ activation, mean, noise, counts and a mask)."""
 
 
 def descent_steps(step_mm: float) -> float:
-    """Frames of one full descent, from START_GAP_MM above contact to PRESS_MM into it
-    (about; a float, so that any step > 0 gives a number)."""
-    return (START_GAP_MM + PRESS_MM) / step_mm + 1.0
+    """Frames of the longest descent, from the last of START_GAPS_MM above contact to
+    PRESS_MM into it (about; a float, so that any step > 0 gives a number)."""
+    return (START_GAPS_MM[-1] + PRESS_MM) / step_mm + 1.0
 
 
 def bench_bytes(step_mm: float, samples: int, taxels: int, cells: int) -> float:
@@ -75,6 +82,7 @@ class BenchRun:
     truth_mm: np.ndarray  # (m, 3) contact points of the crossed samples
     truth_ids: np.ndarray  # (m,) sample ids (index in the sample list)
     dropped: int  # samples that never crossed the threshold
+    start_gap_mm: np.ndarray  # (m,) where each crossed sample's descent started (mm)
 
 
 def descend(
@@ -99,23 +107,28 @@ def descend(
         np.broadcast_to(rest_counts, (idle_frames, len(rest_counts))), skin.noise_std_counts, rng
     )
     c0 = idle.mean(axis=0)
-    gaps = np.arange(START_GAP_MM, -PRESS_MM - step_mm / 2, -step_mm)
     blocks, samples, truth, ids, dropped = [idle], [np.full(idle_frames, -1)], [], [], 0
+    starts = []
     if response is not None:
         descent = response.descent(indenter, contact_mm, taxels_mm)
     for k, p in enumerate(contact_mm):
-        if response is None:
-            dist = np.linalg.norm(taxels_mm - p, axis=1)
-            touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
-        else:
-            touch = descent(k, gaps)
-            touch = touch if skin.gain is None else touch * skin.gain
-        mean = rest_counts + touch
-        counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
-        hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
+        for start in START_GAPS_MM:  # from higher up while the first frame is over
+            gaps = np.arange(start, -PRESS_MM - step_mm / 2, -step_mm)
+            if response is None:
+                dist = np.linalg.norm(taxels_mm - p, axis=1)
+                touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
+            else:
+                touch = descent(k, gaps)
+                touch = touch if skin.gain is None else touch * skin.gain
+            mean = rest_counts + touch
+            counts = forward.frame_counts(mean, skin.noise_std_counts, rng)
+            hit = np.flatnonzero((counts - c0 > threshold).any(axis=1))
+            if hit.size == 0 or hit[0] > 0:
+                break
         if hit.size == 0:
             dropped += 1
             continue
+        starts.append(start)
         n = hit[0] + 1
         blocks.append(counts[:n])
         s = np.full(n, -1)
@@ -129,6 +142,7 @@ def descend(
         np.reshape(truth, (-1, 3)),
         np.asarray(ids, np.int64),
         dropped,
+        np.asarray(starts, float),
     )
 
 

@@ -286,3 +286,37 @@ def test_frames_of_another_touch_before_are_left_out_of_the_mean():
     # the first touch's 10th frame is the mean of 8 of its own frames: closer than one
     late = np.linalg.norm(eight.xyz_mm[eight.frame == 9][0] - first)
     assert late < 1.0
+
+
+def test_the_mean_of_frames_stops_at_the_first_frame_without_the_touch():
+    """A touch for 6 frames, a frame of noise alone (the finger lifted), then the touch
+    again at the same place: its first frame back is fitted on itself alone, not on the
+    frames before the gap, in a batch and live alike."""
+    taxels = grid_taxels()
+    point = np.array([36.0, 27.0, 0.0])
+    frames = [frame_of(taxels, point, 60.0, noise=1.0, seed=s) for s in range(6)]
+    frames += [frame_of(taxels, point, 0.0, noise=1.0, seed=6)]
+    frames += [frame_of(taxels, point, 60.0, noise=1.0, seed=s) for s in range(7, 10)]
+    base = np.full(len(taxels), BASE)
+    one, eight = (
+        Locator(
+            taxels,
+            default_board(),
+            taxels.xyz_mm,
+            Settings(method="model", model_frames=k),
+            heights=LAW,
+        )
+        for k in (1, 8)
+    )
+    alone, mean = one.batch(np.asarray(frames), base), eight.batch(np.asarray(frames), base)
+    back = 7  # the first frame after the gap
+    np.testing.assert_array_equal(
+        mean.xyz_mm[mean.frame == back], alone.xyz_mm[alone.frame == back]
+    )
+    # the frame after it is the mean of the two since the gap: not the frame alone
+    assert not np.allclose(
+        mean.xyz_mm[mean.frame == back + 1], alone.xyz_mm[alone.frame == back + 1]
+    )
+    stream = Stream(eight, base)
+    live = TouchTable.concat([stream.step(f) for f in np.asarray(frames, float)])
+    np.testing.assert_allclose(live.xyz_mm, mean.xyz_mm, atol=1e-6)

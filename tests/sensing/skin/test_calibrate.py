@@ -6,6 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from fruitcli.cli.main import cli
+from fruitcli.errors import FrameError
 from fruitcli.fsutil import write_csv
 from fruitcli.output_folder import MARKER
 from fruitcli.sensing.frames.recording import Recording, write_npz
@@ -152,6 +153,12 @@ def test_descent_gaps_of_a_printer_bench_recording():
     rec.printer_mm = None
     _, _, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
     assert gaps == pytest.approx([5.0, 4.9, 4.8, 5.0, 4.9])
+    rec.meta["start_gap_mm"] = {"1": 10.0}  # the second descent started higher
+    _, _, gaps = descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
+    assert gaps == pytest.approx([5.0, 4.9, 4.8, 10.0, 9.9])
+    rec.meta["start_gap_mm"] = [10.0]
+    with pytest.raises(FrameError, match=r"r.npz: meta start_gap_mm: expected a table"):
+        descent_gaps(rec, {0: 3.0, 1: 4.0}, 2, "r.npz")
 
 
 HIDDEN_SKIN = """

@@ -389,3 +389,29 @@ def test_frame_counts_saturate_at_the_boards_16_bit_range():
 
     got = frame_counts(np.array([[-5.0, 10.0, 1e6]]), np.zeros(3), np.random.default_rng(0))
     assert got.tolist() == [[0, 10, 65535]]
+
+
+def test_a_descent_over_the_threshold_at_its_start_starts_higher():
+    """A strong wide touch crosses the threshold already 5 mm up: its descent starts at
+    the next of START_GAPS_MM from which the first frame is under it, so the recording
+    shows the approach; a weak one starts at 5 mm."""
+    from fruitcli.sensing.skin.virtual_bench import START_GAPS_MM, descend
+
+    taxels = forward.pad_taxels_mm(z_mm=3.0)
+    rest = np.full(len(taxels), 500.0)
+    contact = taxels[:2] + [4.0, 4.0, 0.0]
+    runs = {}
+    for name, counts in (("weak", 60.0), ("strong", 4000.0)):
+        params = forward.SkinParams(forward.default_footprints_mm(), counts, 2.0, 0.0, 1.0)
+        skin = forward.make_skin(len(taxels), 0, params)
+        runs[name] = descend(
+            contact, taxels, rest, skin, "small", 0.1, 10, 20.0, np.random.default_rng(0)
+        )
+    assert runs["weak"].start_gap_mm.tolist() == [START_GAPS_MM[0]] * 2
+    strong = runs["strong"]
+    # 4000 counts fall under 20 only past 5.3 mm of gap (2 mm decay): 10 mm is the start
+    assert strong.start_gap_mm.tolist() == [START_GAPS_MM[1]] * 2
+    last = np.flatnonzero(strong.sample >= 0)
+    first = np.r_[10, last[:-1] + 1]  # each descent's first frame
+    over = (strong.counts - strong.counts[:10].mean(axis=0) > 20.0).any(axis=1)
+    assert not over[first].any() and over[last].all()
