@@ -400,6 +400,24 @@ Measured in this round and not adopted:
   around the first state with its dx/dp (0.011-0.025 mm), where the states that take
   one Newton step start within 0.001-0.003 mm;
 - numba's fastmath on the element loop: no change measurable.
+
+### The element blocks' array kept
+
+Newton's element tangents are written over one array of blocks the model keeps (64 MB
+on the default Fruit) instead of a new one at every tangent: the tangent alone 64 ms of
+CPU instead of 71 ms (96 ms wall instead of 105 ms; median of 20 each, alternately in
+one process, 2026-12-06 15:29 UTC, load average 2.5-2.7). `python
+tests/performance/bench_state.py --mesh DIR --save PREFIX`, the code before (commit
+a70ba91) and after (commit fbb5125) run alternately, four times each, 15:25-15:29 UTC at
+load average 1.2-1.9 (2 cores shared with other work; CPU medians of both cores):
+
+| | before | after |
+|---|---|---|
+| breathing: CPU median, ms | 284, 316, 315, 364 | 268, 329, 283, 286 |
+| sweep: CPU median, ms | 159, 192, 168, 220 | 155, 192, 166, 175 |
+
+The same Newton steps (1.42 and 1.11 a state) and CG iterations (8.4 and 3.8), and the
+states of both paths equal to the last bit.
 """
 
 
