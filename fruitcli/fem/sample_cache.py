@@ -5,12 +5,14 @@ a scene edited only in its pressures is refused, or passed, within a second or t
 the mesh instead of solving its first sample from rest again (on the default Fruit 9
 Newton steps under the body's weight).
 
-A kept sample is used only when the file's key is the body's (mesh, element, material,
-density and gravity, supports, jigs, chambers: `body_key`) and its entry's key the
-load's and tolerance's, and when it is still an equilibrium of the model as it is now:
-the supported and moved dofs where the load puts them, no element inverted, and the
-relative residual and volume error within the tolerance, as Newton's own test. A stale,
-edited or unreadable file is ignored and written anew. Units: mm, kPa.
+A kept sample is looked at only when the file's key is the body's (mesh, element,
+material, density and gravity, supports, jigs, chambers: `body_key`), its entry's key
+the load's and tolerance's, and its supported and moved dofs where the load puts them.
+It is used as it is when it is an equilibrium of the model as it is now (no element
+inverted, the relative residual and volume error within the tolerance: Newton's own
+test at the sample's forces); otherwise Newton starts from it, and it is dropped when
+Newton finds no equilibrium there. A stale, edited or unreadable file is ignored and
+written anew. Units: mm, kPa.
 """
 
 from __future__ import annotations
