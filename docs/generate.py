@@ -400,6 +400,24 @@ Measured in this round and not adopted:
   around the first state with its dx/dp (0.011-0.025 mm), where the states that take
   one Newton step start within 0.001-0.003 mm;
 - numba's fastmath on the element loop: no change measurable.
+
+### The element blocks' array kept
+
+Newton's element tangents are written over one array of blocks the model keeps (64 MB
+on the default Fruit) instead of a new one at every tangent: the tangent alone 64 ms of
+CPU instead of 71 ms (96 ms wall instead of 105 ms; median of 20 each, alternately in
+one process, 2026-12-06 15:29 UTC, load average 2.5-2.7). `python
+tests/performance/bench_state.py --mesh DIR --save PREFIX`, the code before (commit
+a70ba91) and after (commit fbb5125) run alternately, four times each, 15:25-15:29 UTC at
+load average 1.2-1.9 (2 cores shared with other work; CPU medians of both cores):
+
+| | before | after |
+|---|---|---|
+| breathing: CPU median, ms | 284, 316, 315, 364 | 268, 329, 283, 286 |
+| sweep: CPU median, ms | 159, 192, 168, 220 | 155, 192, 166, 175 |
+
+The same Newton steps (1.42 and 1.11 a state) and CG iterations (8.4 and 3.8), and the
+states of both paths equal to the last bit.
 """
 
 
@@ -461,6 +479,35 @@ chamber c1 at 2000 kPa 12.3 s after the mesh (10.0 s of CPU for the whole comman
 against 10.5 s (11.2 s); at -500 kPa 16.3 s (16.8 s) against 16.5 s (19.0 s). The
 check follows one curve from rest; most of it is the first sample carrying the body's
 weight (10 Newton steps). The 3 s target is not reached.
+
+Where the refusal of chamber c1 at 2000 kPa goes after the mesh (cProfile of `fruit
+simulate`, 2026-12-06 15:30 UTC, load average 3.3, commit de40eac): 6.0 s in all, of it
+the model 0.75 s (its sparsity pattern 0.57 s), the chambers' compliance at rest for
+the screen 0.90 s (PARDISO's analysis and first factorization), the curve's first
+sample from rest 3.5 s (the weight and the first volume step together: 9 Newton steps
+in 3 load steps of 1.4, 1.0 and 0.9 s, 2 factorizations and 133 CG iterations) and its
+second sample 0.7 s, after which the curve levels off below 141 kPa. The first sample
+from the linear response at rest (the weight's and the pressure's) instead took 17
+Newton steps, 15 factorizations and 29.6 s: the 20 mm sag is far from linear. Below 3 s
+the first run would need the weight carried in 2-3 Newton steps.
+
+The check's samples are now kept in the output folder (`pressure-check.npz`,
+`fruitcli/fem/sample_cache.py`): a later `fruit simulate` of the same body (the same
+mesh, element, material, weight, supports, jigs and chambers; any pressures) takes a
+kept sample as it is when it is still an equilibrium by Newton's own test, as Newton's
+start otherwise, and refuses or passes the same pressures
+(`python tests/performance/bench_refusal.py --again`, 15:39-15:41 UTC, load average
+1.5-1.9, commit bc338da; the code before, commit de40eac, the same minutes):
+
+| default Fruit, c1 at | before | first run | again, same folder |
+|---|---|---|---|
+| 2000 kPa: s after the mesh | 5.7 | 6.1 | 2.8 |
+| -500 kPa: s after the mesh | 9.3 | 9.4 | 1.6 |
+
+The second run at 2000 kPa took one Newton step from its second sample (kept at a
+relative residual of 2e-3 of its own forces: the first run's Newton had measured it
+against the larger elastic force of its start) and keeps the result: a third run
+took both samples as they are, 1.6 s after the mesh (15:41 UTC, load average 2.2).
 """
 
 

@@ -248,15 +248,22 @@ class ContinuumModel:
     # -- physics at a configuration x (n, 3) -------------------------------------------
 
     def evaluate(
-        self, x: np.ndarray, tangent: bool = False
+        self, x: np.ndarray, tangent: bool = False, *, reuse: bool = False
     ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray | None]:
         """(internal forces (n, 3) mN, strain energy mN mm or nan when an element is
         inverted, smallest det F per element (m,), element tangents (m, d, d) or None;
-        the tangents in `loop_order`, as `pattern` assembles them)."""
+        the tangents in `loop_order`, as `pattern` assembles them). With `reuse` the
+        tangents are written over the model's own array (`_blocks`), valid until the
+        next such call; otherwise into a new one."""
         x = np.ascontiguousarray(x, dtype=float)
         forces = np.zeros((self.n_nodes, 3))
         d = 3 * self.conn.shape[1]
-        blocks = np.empty((len(self.conn), d, d)) if tangent else np.empty((0, d, d))
+        if not tangent:
+            blocks = np.empty((0, d, d))
+        elif reuse:
+            blocks = self._blocks
+        else:
+            blocks = np.empty((len(self.conn), d, d))
         jmin = np.empty(len(self.conn))
         order, conn, dn, wq, incidence = self._loop
         energy = evaluate(
@@ -281,6 +288,15 @@ class ContinuumModel:
     extent_mm = Model.extent_mm  # the same cached rest extent (mm)
 
     @functools.cached_property
+    def _blocks(self) -> np.ndarray:
+        """(m, d, d) the array Newton's element tangents are written over, one tangent
+        after another (`kinematics`, `tangent`): on the default Fruit 64 MB, a tangent 64
+        ms of CPU instead of 71 with a new array (its page faults) every time. The
+        element loop writes every entry, an inverted element's block as zeros."""
+        d = 3 * self.conn.shape[1]
+        return np.empty((len(self.conn), d, d))
+
+    @functools.cached_property
     def _loop(self):
         """(order, conn, dn, wq, node incidence) of the element loop: the elements in
         `loop_order`, the order of the tangent blocks `evaluate` returns and `pattern`
@@ -298,7 +314,7 @@ class ContinuumModel:
         the element tangents too, kept for `tangent` at this state (one element loop
         instead of two when Newton knows it will need the tangent here)."""
         x = np.array(x, float)
-        forces, energy, jmin, blocks = self.evaluate(x, tangent=tangent)
+        forces, energy, jmin, blocks = self.evaluate(x, tangent=tangent, reuse=True)
         self.__dict__["_last"] = (x, forces, energy, blocks)
         return x, x, jmin
 
@@ -320,7 +336,9 @@ class ContinuumModel:
         if last is not None and last[0] is x and last[3] is not None:
             blocks = last[3]  # evaluated with the forces by `kinematics(x, tangent=True)`
         else:
-            _, _, _, blocks = self.evaluate(x, tangent=True)
+            _, _, _, blocks = self.evaluate(x, tangent=True, reuse=True)
+            if last is not None and last[3] is blocks:  # written over: no longer last's
+                self.__dict__["_last"] = (*last[:3], None)
         if project:
             w, v = np.linalg.eigh(blocks)
             blocks = np.einsum("mij,mj,mkj->mik", v, np.maximum(w, 0.0), v)

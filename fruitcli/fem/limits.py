@@ -22,6 +22,7 @@ body start from its equilibrium under its weight (`start_state`). Units: mm, mm^
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -31,6 +32,7 @@ import numpy as np
 from fruitcli.errors import SolverError
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.linear_response import Start, response
+from fruitcli.fem.sample_cache import SampleCache, kept_or_solved
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions, StateResult
 from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.state_load import Load
@@ -225,7 +227,7 @@ def _first_sample(
     growth: float,
     options: SolverOptions,
     solver: LinearSolver,
-    label: str,
+    name: str,
 ) -> StateResult:
     """The first sample of a curve (chamber k alone, or the chambers along ratios r) at
     volume growth `growth` over the rest volume, from the `Start` and its linear response
@@ -237,7 +239,7 @@ def _first_sample(
     if start is None:
         if np.any(getattr(model, "body_force_mn", 0.0)):
             options = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
-        return solve_state(model, load, options=options, solver=solver, label=label)
+        return solve_state(model, load, options=options, solver=solver, label=f"chamber {name}")
     alone = chamber_index(k)
     grown = start.volume_mm3 - model.chamber_rest_volume_mm3
     if alone is not None:
@@ -256,7 +258,7 @@ def _first_sample(
             options=options,
             load_start=before,
             solver=solver,
-            label=label,
+            label=f"chamber {name}",
         )
     except OutOfTime:
         raise
@@ -271,7 +273,7 @@ def _first_sample(
             options=steps,
             load_start=before,
             solver=solver,
-            label=label,
+            label=f"chamber {name}",
         )
 
 
@@ -306,6 +308,7 @@ def follow(
     beyond: tuple | None = None,
     progress: Callable[[str], None] | None = None,
     start: Start | None = None,
+    samples: SampleCache | None = None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
     ratios k, (K,), `Load.together`: the curve's pressure is then the largest chamber
@@ -324,7 +327,8 @@ def follow(
     `stop_beyond_kpa` (a check going on to the limit as `fruit limits` does).
     `progress(msg)` is told each sample. `start`: the `Start` the first sample comes
     from (`start_state`, shared among the curves of a body); without it the first
-    sample comes from rest, in FIRST_STEPS load steps under a body force."""
+    sample comes from rest, in FIRST_STEPS load steps under a body force. `samples`:
+    where kept samples are taken from, solved ones put (`SampleCache`)."""
     r = ratio_of(model, k)
     alone = chamber_index(k)
     name = model.chamber_names[alone] if alone is not None else TOGETHER
@@ -345,12 +349,15 @@ def follow(
         load = chamber_load(model, alone, growth) if alone is not None else Load.together(r, growth)
         try:
             if x is None or p_start is None or last is None:  # all three set together
-                res = _first_sample(
-                    model, k, r, start, load, growth, options, solver, f"chamber {name}"
+                solve = functools.partial(
+                    _first_sample, model, k, r, start, load, growth, options, solver, name
                 )
-            else:
-                sample_options = _sample_options(options, last, budget)
-                res = _next_sample(model, load, x, prev, p_start, sample_options, solver, name)
+            else:  # from the last sample
+                opts = _sample_options(options, last, budget)
+                solve = functools.partial(
+                    solve_state, model, load, x, prev, p_start, opts, solver, f"chamber {name}"
+                )
+            res = kept_or_solved(samples, load, solver, solve)
         except SolverError as exc:
             if halvings > 0 and last is not None:
                 halvings -= 1
@@ -386,30 +393,6 @@ def follow(
     return curve
 
 
-def _next_sample(
-    model: FemModel,
-    load: Load,
-    x: np.ndarray,
-    prev: Load | None,
-    p_start: np.ndarray,
-    options: SolverOptions,
-    solver: LinearSolver,
-    name: str,
-) -> StateResult:
-    """A sample after the first: the state under `load` from the last sample's `x`
-    (under `prev`, chamber pressures `p_start` kPa)."""
-    return solve_state(
-        model,
-        load,
-        x_start=x,
-        load_start=prev,
-        pressure_start=p_start,
-        options=options,
-        solver=solver,
-        label=f"chamber {name}",
-    )
-
-
 def _record(
     curve: ChamberCurve,
     res: StateResult,
@@ -423,10 +406,12 @@ def _record(
     curve.growth_mm3.append(volume - curve.rest_volume_mm3)
     curve.pressure_kpa.append(p)
     if progress:
+        how = (
+            " from the sample an earlier run kept" if res.kept else f", {res.solve_ms / 1e3:.1f} s"
+        )
         progress(
             f"limits: chamber {curve.name}: volume {volume / curve.rest_volume_mm3:.3f} V0, "
-            f"pressure {p:.4g} kPa ({res.iterations} Newton steps, "
-            f"{res.solve_ms / 1e3:.1f} s)"
+            f"pressure {p:.4g} kPa ({res.iterations} Newton steps{how})"
         )
     return p
 

@@ -29,6 +29,7 @@ from fruitcli.fem.limits import (
     start_state,
 )
 from fruitcli.fem.linear_response import response
+from fruitcli.fem.sample_cache import SampleCache
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.state_load import Load
 
@@ -69,12 +70,13 @@ def _check_curve(
     progress: Callable[[str], None] | None,
     found: list | None,
     start: Start | None = None,
+    samples: SampleCache | None = None,
 ) -> ChamberCurve:
     """The curve of chamber `which` (or of chambers along ratios `which`) followed as
     far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
-    (its analysis forgotten afterwards) from `start` (`start_state`); with a `found`
-    list, followed on to the limit or collapse and appended to it as (direction,
-    curve)."""
+    (its analysis forgotten afterwards) from `start` (`start_state`), its samples taken
+    from and kept in `samples` (saved after the curve); with a `found` list, followed on
+    to the limit or collapse and appended to it as (direction, curve)."""
     curve = follow(
         model,
         which,
@@ -88,8 +90,11 @@ def _check_curve(
         beyond=(STEP_BUDGET, CURVE_HALVINGS if direction > 0 else 0),
         progress=progress,
         start=start,
+        samples=samples,
     )
     forget(solver)
+    if samples is not None:
+        samples.save()
     if found is not None:
         found.append((direction, curve))
     return curve
@@ -110,6 +115,7 @@ def check_pressures(
     progress: Callable[[str], None] | None = None,
     screen: float = SCREEN_GROWTH,
     found: list | None = None,
+    kept: Path | None = None,
 ) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
@@ -119,7 +125,9 @@ def check_pressures(
     `solver` (the states' own: its analysis is kept, see `forget`). With a `found`
     list, the curves followed go on to the limit or collapse (unless a bound refuses
     first), all from the body's equilibrium under its weight (`start_state`), and are
-    appended to it as (direction, curve)."""
+    appended to it as (direction, curve). With `kept` (a file), the curves' samples
+    solved by an earlier check of the same body are taken from there, and the new ones
+    kept there (`SampleCache`)."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -132,6 +140,7 @@ def check_pressures(
     )
     v0 = model.chamber_rest_volume_mm3
     start: list = []  # the curves' `Start`, once one is followed on to its limit
+    samples = None if kept is None else SampleCache(model, kept, check)
 
     def first():
         if found is None:  # mostly one curve, a few samples: each from rest
@@ -145,11 +154,11 @@ def check_pressures(
             if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
                 continue
             curve = _check_curve(
-                model, k, direction, asked, solver, check, progress, found, first()
+                model, k, direction, asked, solver, check, progress, found, first(), samples
             )
             _refuse(key, asked, direction, curve)
     check_together(
-        model, pressures, keys, solver, check, compliance, screen, progress, found, first
+        model, pressures, keys, solver, check, compliance, screen, progress, found, first, samples
     )
 
 
@@ -221,13 +230,15 @@ def check_together(
     progress: Callable[[str], None] | None = None,
     found: list | None = None,
     start: Callable[[], Start | None] | None = None,
+    samples: SampleCache | None = None,
 ) -> None:
     """Refuse, in one line naming the state's keys, the state whose pressures, several
     chambers inflated together, are past the chambers' limit along their own ratios:
     the state with the largest chamber pressure among those with several (all pressure
     controlled), followed along its ratios (`follow` with ratios) as far as that
     pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest.
-    `start()`, when given, returns the curves' `Start` (`start_state`)."""
+    `start()`, when given, returns the curves' `Start` (`start_state`); `samples` as
+    `_check_curve`'s."""
     rows = np.nan_to_num(pressures, nan=-1.0)
     several = np.flatnonzero(((rows > 0).sum(1) >= 2) & (rows >= 0).all(1))
     if not len(several):
@@ -238,7 +249,8 @@ def check_together(
     v0 = model.chamber_rest_volume_mm3
     if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
         return
-    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found, start and start())
+    first = start and start()
+    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found, first, samples)
     if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
         return
     which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))

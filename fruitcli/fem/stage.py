@@ -30,6 +30,7 @@ from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
 from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
+from fruitcli.fem.sample_cache import CACHE_FILE
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.state_load import Load
@@ -399,7 +400,13 @@ def run_simulate(
         asked = np.array([np.where(ld.volume_controlled, np.nan, ld.pressure_kpa) for ld in loads])
         if pressures is not None or not pressure_check.checked_by(limits_dir):
             pressure_check.check_pressures(
-                model, asked, keys, solver, solver_options(scene), progress=progress
+                model,
+                asked,
+                keys,
+                solver,
+                solver_options(scene),
+                progress=progress,
+                kept=Path(out_dir) / CACHE_FILE,
             )
     results = _solve_states(scene, model, loads, keys, solver, progress)
     out = _states_arrays(model, mesh, results)

@@ -587,12 +587,12 @@ def failing_once_at(stretch: float, error: Exception):
     real = limits.solve_state
     failed = []
 
-    def solve(model, load, **kw):
+    def solve(model, load, *args, **kw):
         v = load.volume_growth_mm3[0] / model.chamber_rest_volume_mm3[0] + 1.0
         if abs(v - stretch**3) < 1e-9 and not failed:
             failed.append(v)
             raise error
-        return real(model, load, **kw)
+        return real(model, load, *args, **kw)
 
     return solve, failed
 

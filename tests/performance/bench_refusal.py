@@ -10,9 +10,12 @@ limit pressure (inflation) or collapse (suction) (`fruitcli.fem.pressure_check.c
 Each line: the time from the mesh (the tetra stage's last line) to the refusal, the
 whole command's wall time, the exit code and the refusal's first words. The load
 average is printed before and after (2 cores shared: compare figures taken at a like
-load).
+load). With --again each Fruit case runs a second time into the same output folder:
+the check then takes its samples from the first run's pressure-check.npz
+(`fruitcli.fem.sample_cache`).
 
 Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit] [--without-pardiso]
+     [--again]
 (--without-pardiso: as the default install, through tests/performance/without_pardiso.py)
 """
 
@@ -106,6 +109,9 @@ def main() -> None:
     parser.add_argument(
         "--without-pardiso", action="store_true", help="as the default install: no MKL PARDISO"
     )
+    parser.add_argument(
+        "--again", action="store_true", help="run each Fruit case again in the same folder"
+    )
     args = parser.parse_args()
     pardiso = not args.without_pardiso
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
@@ -124,7 +130,10 @@ def main() -> None:
                 scene = tmp / f"fruit_{p:g}.toml"
                 scene.write_text(fruit_scene(p))
                 line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso)
-                print(f"default Fruit, c1 at {p:g} kPa: {line}")
+                print(f"default Fruit, c1 at {p:g} kPa: {line}", flush=True)
+                if args.again:
+                    line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso)
+                    print(f"default Fruit, c1 at {p:g} kPa, again: {line}", flush=True)
     print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 
 

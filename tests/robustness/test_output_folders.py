@@ -20,7 +20,10 @@ from tests.conftest import PAPER, ROOT
 OUTPUTS = {
     "run": (["s.toml"], ["pad-grid/taxels.csv", "tetra/mesh.npz", "evaluate/table.md"]),
     "demo": ([], ["report.md", "scenes/paper-table.toml", "paper-table/evaluate/table.md"]),
-    "simulate": (["s.toml"], ["mesh.npz", "mesh.msh", "quality.json", "states.npz", "yarns.csv"]),
+    "simulate": (
+        ["s.toml"],
+        ["mesh.npz", "mesh.msh", "quality.json", "states.npz", "yarns.csv", "pressure-check.npz"],
+    ),
     "limits": (["s.toml"], ["mesh.npz", "limits.json", "pv.csv", "pv.png"]),
     "tetra": (["s.toml"], ["mesh.npz", "mesh.msh", "mesh.vtu", "quality.json"]),
     "skin": (["s.toml"], ["crossing.npz", "summary.json"]),

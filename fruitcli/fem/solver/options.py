@@ -73,3 +73,4 @@ class StateResult:
     subdivisions: int
     min_det_f: float
     solve_ms: float
+    kept: bool = False  # a curve's sample kept from an earlier run (`sample_cache`)

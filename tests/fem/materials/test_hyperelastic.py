@@ -417,6 +417,32 @@ def test_the_tangent_evaluated_with_the_forces_is_the_tangent_of_that_state_only
     assert not np.array_equal(projected, fresh_x.toarray())
 
 
+def test_the_tangents_array_reused_from_state_to_state_leaves_no_old_values():
+    """Newton's tangents write over one array of element blocks (`_blocks`), kept by
+    the model: a tangent at a state that inverts an element, asked after one at a sound
+    state, is the matrix assembled from a new array, the inverted element's entries
+    zero (not the sound state's), and the array is the same one throughout."""
+    nodes, conn = mesh_of("p2")
+    held = np.flatnonzero(nodes[:, 0] == 0.0)
+    m = ContinuumModel.from_arrays(nodes, conn, MATERIALS["neo-hookean"], "p2", fixed_nodes=held)
+    x = nodes + 0.02 * RNG.standard_normal(nodes.shape)
+    y = x.copy()
+    y[1] = [4.0, 2.0, 2.0]  # corner (0, 0, 1) mm through its two tets' opposite faces
+    det_x, det_y = m.evaluate(x)[2], m.evaluate(y)[2]
+    assert (det_x > 0.0).all() and 0 < (det_y <= 0.0).sum() < len(conn)
+    array = m._blocks
+    for state, det in ((x, det_x), (y, det_y), (x, det_x), (y, det_y)):
+        kept = m.tangent(state).toarray()
+        _, _, _, fresh = m.evaluate(state, tangent=True)
+        assert fresh is not m._blocks and np.array_equal(m._blocks, fresh)
+        assert np.array_equal(kept, m.pattern.assemble(fresh).toarray())
+        order = m._loop[0]
+        assert np.all(fresh[det[order] <= 0.0] == 0.0)
+        m.kinematics(state, tangent=True)
+        assert np.array_equal(m.tangent(m.__dict__["_last"][0]).toarray(), kept)
+    assert m._blocks is array
+
+
 def test_the_loop_order_leaves_det_f_and_forces_in_the_mesh_order():
     """The element loop runs in `loop_order` (here not the mesh's order): each element's
     smallest det F comes back in the mesh's order (equal to the quadrature points' det F

@@ -17,9 +17,9 @@ def three_states(m):
     calls = []
     evaluate = m.evaluate
 
-    def counted(x, tangent=False):
+    def counted(x, tangent=False, **kw):
         calls.append(tangent)
-        return evaluate(x, tangent)
+        return evaluate(x, tangent, **kw)
 
     m.evaluate = counted
     solver = m.make_solver("pcg")

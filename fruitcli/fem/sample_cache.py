@@ -1,0 +1,180 @@
+"""The samples of the chambers' pressure-volume curves that the pressure check solved
+(`fruitcli.fem.pressure_check.check_pressures`), kept in the output folder so that a
+later run on the same body reuses them instead of solving them again (`SampleCache`):
+a scene edited only in its pressures is refused, or passed, within a second or two of
+the mesh instead of solving its first sample from rest again (on the default Fruit 9
+Newton steps under the body's weight).
+
+A kept sample is looked at only when the file's key is the body's (mesh, element,
+material, density and gravity, supports, jigs, chambers: `body_key`), its entry's key
+the load's and tolerance's, and its supported and moved dofs where the load puts them.
+It is used as it is when it is an equilibrium of the model as it is now (no element
+inverted, the relative residual and volume error within the tolerance: Newton's own
+test at the sample's forces); otherwise Newton starts from it, and it is dropped when
+Newton finds no equilibrium there. A stale, edited or unreadable file is ignored and
+written anew. Units: mm, kPa.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import zipfile
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from fruitcli.errors import SolverError
+from fruitcli.fem.fem_model import FemModel, LinearSolver
+from fruitcli.fem.io import save_npz
+from fruitcli.fem.solver.newton import NewtonStep
+from fruitcli.fem.solver.options import SolverOptions, StateResult
+from fruitcli.fem.solver.prescribed import impose_prescribed
+from fruitcli.fem.solver.state import _reference_force, solve_state
+from fruitcli.fem.state_load import Load
+from fruitcli.fem.tolerances import FORCE_FLOOR
+
+CACHE_FILE = "pressure-check.npz"
+"""The kept samples' file in a `fruit simulate` output folder."""
+
+
+def _digest(parts: list) -> str:
+    """sha256 (hex) of arrays and plain values, each with its type, shape and bytes."""
+    h = hashlib.sha256()
+    for part in parts:
+        if isinstance(part, np.ndarray):
+            a = np.ascontiguousarray(part)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+        else:
+            h.update(repr(part).encode())
+        h.update(b"|")
+    return h.hexdigest()
+
+
+def body_key(model: FemModel) -> str:
+    """The key of everything a sample's equilibrium depends on besides its load: rest
+    nodes, elements and their family, the material, the body force, the fixed, pinned
+    and moved dofs, the jigs and the chamber walls."""
+    parts: list = [
+        type(model).__name__,
+        getattr(model, "element_name", ""),
+        repr(getattr(model, "material", None)),
+        model.young_modulus_kpa,
+        getattr(model, "poisson_ratio", None),
+        model.rest,
+        model.elements,
+        model.body_force_mn,
+        model.fixed_nodes,
+        model.pinned_dofs,
+        model.prescribed_dofs,
+        model.prescribed_mm,
+        *model.chamber_tris,
+    ]
+    for jig in model.jigs:
+        parts += [np.asarray(getattr(jig, f.name)) for f in dataclasses.fields(jig)]
+    return _digest(parts)
+
+
+def load_key(load: Load, tolerance: float) -> str:
+    """The key of one sample: its load's fields and the tolerance it was solved to."""
+    fields = [getattr(load, f.name) for f in dataclasses.fields(load)]
+    return _digest([np.asarray(v) if v is not None else "none" for v in fields] + [tolerance])[:32]
+
+
+class SampleCache:
+    """The curves' samples of one body kept in `path` (npz, no pickles): `get` a load's
+    sample when kept and still an equilibrium, `put` a solved one, `save` them."""
+
+    def __init__(self, model: FemModel, path: Path, options: SolverOptions):
+        self.model, self.path, self.options = model, Path(path), options
+        self.tolerance = options.tolerance
+        self.key = body_key(model)
+        self.entries: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+        self.changed = False
+        self._read()
+
+    def _read(self) -> None:
+        """The file's entries when its key is the body's (none otherwise)."""
+        try:
+            with np.load(self.path, allow_pickle=False) as data:
+                if str(data["body"]) != self.key:
+                    return
+                for name in data.files:
+                    if name.endswith("_x"):
+                        k = name[:-2]
+                        self.entries[k] = (data[name], data[k + "_p"], float(data[k + "_ms"]))
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+            self.entries = {}
+
+    def get(self, load: Load, solver: LinearSolver) -> StateResult | None:
+        """The kept sample under `load` (marked `kept`, its solve time the original's,
+        which sets the next samples' budget as it did then): as it is when it is an
+        equilibrium by Newton's test at its own forces, else after Newton's steps from
+        it; None when none is kept, its supports moved, or Newton finds no equilibrium
+        from it."""
+        entry = self.entries.get(load_key(load, self.tolerance))
+        if entry is None:
+            return None
+        x, p, ms = entry
+        m = self.model
+        if x.shape != m.rest.shape or p.shape != (len(m.chamber_tris),) or not np.isfinite(x).all():
+            return None
+        held = np.ones(3 * m.n_nodes, bool)
+        held[m.pattern.free] = False
+        placed = impose_prescribed(m, m.rest, load).reshape(-1)
+        if not np.array_equal(x.reshape(-1)[held], placed[held]):
+            return None
+        pk = p.copy()
+        vc = np.asarray(load.volume_controlled, bool)
+        pk[~vc] = load.pressure_kpa[~vc]
+        scale = FORCE_FLOOR * m.young_modulus_kpa * m.extent_mm**2
+        step = NewtonStep(m, solver, load, _reference_force(m, x, pk, load, load, scale))
+        now = step.evaluate(x, pk)  # Newton's own relative residual and volume error
+        if np.isfinite(now.energy) and now.merit <= self.tolerance:
+            volumes = m.chamber_volumes(x)
+            det = float(now.det_f.min())
+            return StateResult(x, x - m.rest, pk, volumes, 0, now.merit, 0, det, ms, kept=True)
+        try:
+            res = solve_state(
+                m, load, x, load, pk, replace(self.options, load_steps=1), solver, "kept sample"
+            )
+        except SolverError:
+            return None
+        return dataclasses.replace(res, solve_ms=max(res.solve_ms, ms), kept=True)
+
+    def put(self, load: Load, res: StateResult) -> None:
+        """Keep the sample `res` under `load` (solved, or a kept one Newton moved)."""
+        key = load_key(load, self.tolerance)
+        if key not in self.entries or res.iterations:
+            self.entries[key] = (res.x, res.pressure_kpa, res.solve_ms)
+            self.changed = True
+
+    def save(self) -> None:
+        """Write the kept samples (when any was added) through a temporary file; a
+        folder that cannot be written keeps none."""
+        if not self.changed:
+            return
+        arrays: dict[str, np.ndarray] = {"body": np.array(self.key)}
+        for k, (x, p, ms) in self.entries.items():
+            arrays.update({k + "_x": x, k + "_p": p, k + "_ms": np.array(ms)})
+        try:
+            save_npz(self.path, arrays)
+        except OSError:
+            return
+        self.changed = False
+
+
+def kept_or_solved(
+    samples: SampleCache | None, load: Load, solver: LinearSolver, solve: Callable[[], StateResult]
+) -> StateResult:
+    """The sample under `load`: kept in `samples` (`SampleCache.get`), else `solve()`'s,
+    then kept there."""
+    res = samples.get(load, solver) if samples is not None else None
+    if res is None:
+        res = solve()
+    if samples is not None:
+        samples.put(load, res)
+    return res
