@@ -262,6 +262,12 @@ def test_the_frames_before_a_chunk_are_read_again_and_the_stream_agrees():
     np.testing.assert_allclose(live.xyz_mm, whole.xyz_mm, atol=1e-6)
 
 
+def model_locator(taxels, frames):
+    """The model method's locator on the taxels' own grid with the mean of `frames`."""
+    settings = Settings(method="model", model_frames=frames)
+    return Locator(taxels, default_board(), taxels.xyz_mm, settings, heights=LAW)
+
+
 def test_frames_of_another_touch_before_are_left_out_of_the_mean():
     """A touch at one place for 10 frames, then one elsewhere: the second's first frame is
     fitted on itself alone (the frames before peak at another taxel of its window)."""
@@ -270,16 +276,7 @@ def test_frames_of_another_touch_before_are_left_out_of_the_mean():
     frames = [frame_of(taxels, first, 60.0, noise=1.0, seed=s) for s in range(10)]
     frames += [frame_of(taxels, second, 60.0, noise=1.0, seed=s) for s in range(10, 14)]
     base = np.full(len(taxels), BASE)
-    one, eight = (
-        Locator(
-            taxels,
-            default_board(),
-            taxels.xyz_mm,
-            Settings(method="model", model_frames=k),
-            heights=LAW,
-        ).batch(np.asarray(frames), base)
-        for k in (1, 8)
-    )
+    one, eight = (model_locator(taxels, k).batch(np.asarray(frames), base) for k in (1, 8))
     at = eight.frame == 10
     np.testing.assert_array_equal(eight.xyz_mm[at], one.xyz_mm[one.frame == 10])
     assert np.linalg.norm(eight.xyz_mm[at][0] - second) < 1.5
@@ -298,16 +295,7 @@ def test_the_mean_of_frames_stops_at_the_first_frame_without_the_touch():
     frames += [frame_of(taxels, point, 0.0, noise=1.0, seed=6)]
     frames += [frame_of(taxels, point, 60.0, noise=1.0, seed=s) for s in range(7, 10)]
     base = np.full(len(taxels), BASE)
-    one, eight = (
-        Locator(
-            taxels,
-            default_board(),
-            taxels.xyz_mm,
-            Settings(method="model", model_frames=k),
-            heights=LAW,
-        )
-        for k in (1, 8)
-    )
+    one, eight = model_locator(taxels, 1), model_locator(taxels, 8)
     alone, mean = one.batch(np.asarray(frames), base), eight.batch(np.asarray(frames), base)
     back = 7  # the first frame after the gap
     np.testing.assert_array_equal(
