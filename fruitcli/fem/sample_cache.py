@@ -3,7 +3,9 @@
 later run on the same body reuses them instead of solving them again (`SampleCache`):
 a scene edited only in its pressures is refused, or passed, within a second or two of
 the mesh instead of solving its first sample from rest again (on the default Fruit 9
-Newton steps under the body's weight).
+Newton steps under the body's weight). `fruit simulate` keeps its first state (solved
+from rest) there too, and a later run on the same body starts from it
+(`kept_first_state`).
 
 A kept sample is looked at only when the file's key is the body's (mesh, element,
 material, density and gravity, supports, jigs, chambers: `body_key`), its entry's key
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import time
 import zipfile
 from collections.abc import Callable
 from dataclasses import replace
@@ -29,8 +32,10 @@ import numpy as np
 from fruitcli.errors import SolverError
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.io import save_npz
+from fruitcli.fem.linear_response import response
 from fruitcli.fem.solver.newton import NewtonStep
 from fruitcli.fem.solver.options import SolverOptions, StateResult
+from fruitcli.fem.solver.predictor import load_vector, remember
 from fruitcli.fem.solver.prescribed import impose_prescribed
 from fruitcli.fem.solver.state import _reference_force, solve_state
 from fruitcli.fem.state_load import Load
@@ -178,3 +183,25 @@ def kept_or_solved(
     if samples is not None:
         samples.put(load, res)
     return res
+
+
+def kept_first_state(
+    model: FemModel, load: Load, solver: LinearSolver, first: SampleCache | None
+) -> StateResult | None:
+    """The first state under `load` as an earlier run on the same body kept it in
+    `first` (`SampleCache.get`: as it is when still an equilibrium of the model to the
+    states' tolerance, else after Newton's steps from it), its solve time this run's,
+    with the solver left as a state solved from rest leaves it for the next state's
+    predictor (the state kept, the chambers' pressure response there); None when none
+    is kept or it is no longer an equilibrium."""
+    if first is None:
+        return None
+    t0 = time.perf_counter()
+    res = first.get(load, solver)
+    if res is None:
+        return None
+    if not solver.history:
+        solver.history = remember([], load_vector(load), res.x, res.pressure_kpa)
+    if solver.sensitivity is None and len(model.chamber_tris):
+        solver.sensitivity = response(model, solver, res.x)
+    return replace(res, solve_ms=1e3 * (time.perf_counter() - t0))
