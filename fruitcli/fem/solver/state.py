@@ -41,11 +41,20 @@ PATH_TOLERANCE = 0.01
 (`fruit simulate`'s first state): a step short of the state's load only brings the
 next one's start within Newton's reach, and the last converges to the tolerance, so the
 equilibrium is the same. On the default Fruit from rest (its weight and 9 kPa in two
-chambers, 4 load steps) each step's first Newton step mostly removes the bulk error of
-a start extrapolated along straight lines and leaves a relative residual of 0.4-6 %:
-9 Newton steps, 3 factorizations and 63 CG iterations instead of 13, 5 and 146, the
-equilibrium within 3e-5 mm of the state solved to 1e-11 (the state solved with every
-step to the tolerance: within 6e-5 mm)."""
+chambers, 4 load steps) each step's first Newton step removes the bulk error of a start
+extrapolated along straight lines and leaves a relative residual of about 1e-2: 9 Newton
+steps, 4 factorizations and 92 CG iterations instead of 13, 5 and 146, the equilibrium
+within 8e-6 mm of the state solved to 1e-11 (every step to the tolerance: 6e-5 mm).
+0.1 saved one factorization more there, but on a beam turning far under its weight
+(`tests/fem/solver/test_path_tolerance.py`) it took 85 Newton steps instead of 58,
+where 0.01 takes 54 (both with the refactorization below).
+
+Along such steps each step's second Newton step also factors its tangent afresh
+(`NewtonStep.refactor_second`): the first removes the bulk error of the step's start
+and leaves the kept factor too far from the tangent for CG (on the default Fruit, 24 CG
+iterations in the last step and then a refactorization all the same). With it the
+default Fruit's state took 8 Newton steps, 4 factorizations and 36 CG iterations
+instead of 9, 4 and 92 (3.0 s instead of 4.1 s at load average 0.8-2)."""
 
 PROGRESS_SECONDS = 2.0
 """A state running longer than this reports where it is (part of the load, Newton
@@ -223,6 +232,9 @@ class _LoadPath:
             model, self.solver, step_load, _reference_force(model, x, p, at, step_load, scale)
         )
         step.deadline = self.deadline
+        # along loose steps, each step's first Newton step leaves the kept factor stale
+        # for its second (`PATH_TOLERANCE`)
+        step.refactor_second = self.options.path_tolerance > self.options.tolerance
         # a kept state of this very load needs no Newton step: no tangent at its start
         step.tangent_at_start = not (t_new == 1.0 and self.kept is not None and self.kept[1])
         if self.progress is not None:
