@@ -35,7 +35,7 @@ from fruitcli.fem.io import save_npz
 from fruitcli.fem.linear_response import response
 from fruitcli.fem.solver.newton import NewtonStep
 from fruitcli.fem.solver.options import SolverOptions, StateResult
-from fruitcli.fem.solver.predictor import load_vector, remember
+from fruitcli.fem.solver.predictor import SENSITIVITY_RTOL, load_vector, remember
 from fruitcli.fem.solver.prescribed import impose_prescribed
 from fruitcli.fem.solver.state import _reference_force, solve_state
 from fruitcli.fem.state_load import Load
@@ -194,14 +194,22 @@ def kept_first_state(
     with the solver left as a state solved from rest leaves it for the next state's
     predictor (the state kept, the chambers' pressure response there); None when none
     is kept or it is no longer an equilibrium."""
-    if first is None:
+    if first is None or load_key(load, first.tolerance) not in first.entries:
         return None
     t0 = time.perf_counter()
+    # the kept factor (of rest, or none) is far from the state's tangent: CG would only
+    # find that out before refactoring (Newton's steps from the state, or `response`)
+    if hasattr(solver, "refresh"):
+        solver.refresh = True
     res = first.get(load, solver)
     if res is None:
         return None
     if not solver.history:
         solver.history = remember([], load_vector(load), res.x, res.pressure_kpa)
     if solver.sensitivity is None and len(model.chamber_tris):
-        solver.sensitivity = response(model, solver, res.x)
+        rtol, solver.rtol = solver.rtol, SENSITIVITY_RTOL
+        try:
+            solver.sensitivity = response(model, solver, res.x)
+        finally:
+            solver.rtol = rtol
     return replace(res, solve_ms=1e3 * (time.perf_counter() - t0))

@@ -57,8 +57,10 @@ def simulate(scene, mesh, out):
 
 def test_a_later_run_takes_the_kept_first_state(meshed, tmp_path):
     """The second run into the same folder takes the first state as it is (no Newton
-    step, told in its line), the same nodes to the last digit; the next state is the
-    first run's within the displacement tolerance."""
+    step, told in its line), the same nodes to the last digit; the next state, started
+    from it by the predictor as in the first run (the state and its pressure response
+    left on the solver), takes no more Newton steps and is the first run's within the
+    displacement tolerance."""
     scene, mesh = meshed
     cold, _ = simulate(scene, mesh, tmp_path)
     assert cold["iterations"][0] > 0 and (tmp_path / sample_cache.CACHE_FILE).exists()
@@ -68,6 +70,7 @@ def test_a_later_run_takes_the_kept_first_state(meshed, tmp_path):
     assert np.array_equal(warm["displacement_mm"][0], cold["displacement_mm"][0])
     # the residual tolerance, or near it the displacement tolerance (newton._close_enough)
     assert (warm["residual"] <= 1e-6 * ESTIMATE_WINDOW).all()
+    assert 0 < warm["iterations"][1] <= cold["iterations"][1]
     close = scene.solver.displacement_tolerance_mm  # [solver]'s, 1e-4 mm
     assert np.abs(warm["displacement_mm"][1] - cold["displacement_mm"][1]).max() <= close
 
