@@ -32,10 +32,9 @@ import numpy as np
 from fruitcli.errors import SolverError
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.io import save_npz
-from fruitcli.fem.linear_response import response
 from fruitcli.fem.solver.newton import NewtonStep
 from fruitcli.fem.solver.options import SolverOptions, StateResult
-from fruitcli.fem.solver.predictor import SENSITIVITY_RTOL, load_vector, remember
+from fruitcli.fem.solver.predictor import load_vector, remember, remember_sensitivity
 from fruitcli.fem.solver.prescribed import impose_prescribed
 from fruitcli.fem.solver.state import _reference_force, solve_state
 from fruitcli.fem.state_load import Load
@@ -192,8 +191,9 @@ def kept_first_state(
     `first` (`SampleCache.get`: as it is when still an equilibrium of the model to the
     states' tolerance, else after Newton's steps from it), its solve time this run's,
     with the solver left as a state solved from rest leaves it for the next state's
-    predictor (the state kept, the chambers' pressure response there); None when none
-    is kept or it is no longer an equilibrium."""
+    predictor (the state kept, the chambers' pressure response there with its full
+    tangent, `predictor.remember_sensitivity`); None when none is kept or it is no
+    longer an equilibrium."""
     if first is None or load_key(load, first.tolerance) not in first.entries:
         return None
     t0 = time.perf_counter()
@@ -207,9 +207,9 @@ def kept_first_state(
     if not solver.history:
         solver.history = remember([], load_vector(load), res.x, res.pressure_kpa)
     if solver.sensitivity is None and len(model.chamber_tris):
-        rtol, solver.rtol = solver.rtol, SENSITIVITY_RTOL
-        try:
-            solver.sensitivity = response(model, solver, res.x)
-        finally:
-            solver.rtol = rtol
+        # the tangent Newton's last step would have left (the follower-pressure
+        # stiffness included), then the chambers' pressure response with it
+        f, rot, _ = model.kinematics(res.x)
+        solver.update(rot, f, model.load_stiffness(res.x, res.pressure_kpa), False)
+        remember_sensitivity(model, solver, res.x, load, 1)
     return replace(res, solve_ms=1e3 * (time.perf_counter() - t0))
