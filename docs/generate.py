@@ -483,6 +483,16 @@ after the check's). Starting from the body's equilibrium under its weight does n
 apply here: `fruit simulate` solves it only when its pressure check follows a curve on
 to its limit, which the breathing's pressures do not ask for.
 
+Through the command itself, `fruit simulate pipelines/fruit-breathing.toml --out DIR`
+(its own mesh, refined at the taxels: 8,865 tets), on a quiet machine (16:27-16:29 UTC,
+load average 0.1-0.9): the code before (commit cc6262d) took 4980 and 5126 ms for the
+first state (13 Newton steps) and 7.9 s for all 13; after (commit 5fa4330) 2214 ms
+(8 Newton steps) and 5.1 s into a new folder, 556 ms (1 Newton step) and 3.9 s again
+into the same folder, 497 ms (0 Newton steps) and 3.8 s a third time. After a kept
+first state the 12 later states took 3.3 s instead of 2.8 s, one of them refactorizing
+(0.8 s): Newton's observed constant that sets the first linear solve's tolerance
+(`LinearSolver.newton_c`) is not kept with the state, and that is the likely cause.
+
 The pressure check's first sample of a curve from rest (the weight and the first
 volume step, 3 load steps) takes the same path tolerance and refactorization
 (`fruitcli.fem.limits._first_sample`, commit 8e0b1a9). `python
