@@ -499,7 +499,7 @@ def _solve_states(
                 model, load, keys, solver, solver_options(scene), exc, progress
             )
         if i == 0 and first is not None and res.iterations:  # a state worth keeping
-            first.put(load, res)
+            first.put(load, res, solver.newton_c)
             first.save()
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
