@@ -484,14 +484,15 @@ apply here: `fruit simulate` solves it only when its pressure check follows a cu
 to its limit, which the breathing's pressures do not ask for.
 
 Through the command itself, `fruit simulate pipelines/fruit-breathing.toml --out DIR`
-(its own mesh, refined at the taxels: 8,865 tets), on a quiet machine (16:27-16:29 UTC,
-load average 0.1-0.9): the code before (commit cc6262d) took 4980 and 5126 ms for the
-first state (13 Newton steps) and 7.9 s for all 13; after (commit 5fa4330) 2214 ms
-(8 Newton steps) and 5.1 s into a new folder, 556 ms (1 Newton step) and 3.9 s again
-into the same folder, 497 ms (0 Newton steps) and 3.8 s a third time. After a kept
-first state the 12 later states took 3.3 s instead of 2.8 s, one of them refactorizing
-(0.8 s): Newton's observed constant that sets the first linear solve's tolerance
-(`LinearSolver.newton_c`) is not kept with the state, and that is the likely cause.
+(its own mesh, refined at the taxels: 8,865 tets), on a quiet machine (16:27-16:32 UTC,
+load average 0.1-0.9): the code before (commit cc6262d) took 4895-5126 ms for the
+first state (13 Newton steps) and 7.7-7.9 s for all 13; after (commit 49d6314) 2224 ms
+(8 Newton steps) and 5.0 s into a new folder, 586 ms (1 Newton step) and 3.4 s again
+into the same folder, 499 ms (0 Newton steps) and 3.3 s a third time; every state
+within 5.8e-5 mm of the code before's. The solver's Newton constant, which sets the
+next states' first linear tolerance (`LinearSolver.newton_c`), is kept with the first
+state: without it the 12 later states of a run with a kept first state took 3.2-3.3 s
+instead of 2.8-2.9 s, one of them refactorizing (0.8 s).
 
 The pressure check's first sample of a curve from rest (the weight and the first
 volume step, 3 load steps) takes the same path tolerance and refactorization
