@@ -421,6 +421,102 @@ states of both paths equal to the last bit.
 """
 
 
+FIRST_STATE_STEPS = """
+## The first state from rest
+
+The first state of `fruit simulate` is solved from rest: on the default Fruit's breathing
+(its weight and 9 kPa in chambers c2 and c3) in `[solver] first_steps` = 4 load steps.
+Where its time went (the code before, commit cc6262d, profiled with cProfile on
+2026-12-06 15:52 UTC, load average 2.7-3.3, AMD EPYC, 2 cores shared with other work):
+6.2 s in all, 13 Newton steps (3, 3, 3 and 4 a load step), 5 factorizations 2.5 s (the
+first with PARDISO's analysis, 0.75 s), 146 CG iterations 2.4 s (PARDISO's solves, 15 ms
+each), the tangents' assembly 0.6 s and the element loops 0.6 s. In one load step it
+took 14 Newton steps (5.9 s), in two 16 (9.3 s). Each load step's first Newton step
+only removes the bulk error of its start, extrapolated along straight lines (relative
+residual from 0.85-0.97 to about 1e-2); two more converged it to 1e-6, and the second
+ran 24 CG iterations on a factor gone stale before refactorizing all the same.
+
+What each step bought (the state alone, `fruitcli.fem.solver.state.solve_state`, load
+average 0.8-2):
+
+- The load steps short of the state's load converged to a relative residual of 1e-2
+  (`state.PATH_TOLERANCE`, set for the first state only; the last step to the
+  tolerance, and the state solved again from its start with every step to it should a
+  later step fail): 9 Newton steps, 4 factorizations and 92 CG iterations, 4.1-4.4 s.
+- Each such step's second Newton step with its tangent factored afresh: 8 Newton steps,
+  4 factorizations and 36 CG iterations, 3.0-3.2 s.
+- The first state kept in the output folder (`pressure-check.npz`, next to the pressure
+  check's samples; `fruitcli.fem.sample_cache.kept_first_state`): a later run on the
+  same body (the same mesh, element, material, weight, supports, jigs and chambers) with
+  the same first state takes it as it is while it is an equilibrium by Newton's own
+  test, as Newton's start otherwise, and factors its tangent there for the next state.
+
+`python tests/performance/bench_state.py --mesh DIR --first` (the first state as
+`fruit simulate` solves it, after the pressure check's compliance at rest, which makes
+the first factorization; into a new folder, then again into the same one), the code
+before (commit cc6262d) and after (commit 2ddf676) run alternately, twice each,
+16:11-16:12 UTC at load average 1.8-1.9:
+
+| | before | after |
+|---|---|---|
+| new folder: the state, ms | 5292, 5429 | 2527, 2579 |
+| new folder: Newton steps, factorizations, CG (the check's too) | 13, 5, 151 | 8, 4, 40 |
+| new folder: `run_simulate`, s | 7.2, 7.3 | 4.2, 4.2 |
+| same folder: the state, ms | 5206, 5279 | 596, 618 |
+| same folder: `run_simulate`, s | 6.3, 6.4 | 1.7, 1.8 |
+
+The run into the same folder takes one Newton step from the kept state (kept at the
+displacement tolerance, above the residual tolerance) and keeps the result: a third run
+takes it as it is, 489-515 ms (0 Newton steps; one factorization at the state, for the
+next one's start). Without the check (`bench_state.py --only breathing`, alternately,
+16:10 UTC, load 1.8-2.0) the state from rest took 3305-3325 ms instead of 6086-6277 ms;
+the 12 states after it kept their Newton steps (1.42 a state), CG iterations (8.4) and
+median (275-281 ms against 273-286 ms).
+
+The first state is within 5.1e-5 mm of the code before's, and within 2.9e-5 mm of the
+equilibrium solved to a relative residual of 1e-11 (the code before's: 5.6e-5 mm);
+through `run_simulate` every breathing state is within 5.1e-5 mm of the code before's,
+and a second run into the same folder within 1.4e-4 mm of the first (each within the
+displacement tolerance of 1e-4 mm of the equilibrium). The 2 s target is reached by a
+later run on the same body, not by a first run (2.5 s: 8 Newton steps, 3 factorizations
+after the check's). Starting from the body's equilibrium under its weight does not
+apply here: `fruit simulate` solves it only when its pressure check follows a curve on
+to its limit, which the breathing's pressures do not ask for.
+
+Through the command itself, `fruit simulate pipelines/fruit-breathing.toml --out DIR`
+(its own mesh, refined at the taxels: 8,865 tets), on a quiet machine (16:27-16:32 UTC,
+load average 0.1-0.9): the code before (commit cc6262d) took 4895-5126 ms for the
+first state (13 Newton steps) and 7.7-7.9 s for all 13; after (commit 49d6314) 2224 ms
+(8 Newton steps) and 5.0 s into a new folder, 586 ms (1 Newton step) and 3.4 s again
+into the same folder, 499 ms (0 Newton steps) and 3.3 s a third time; every state
+within 5.8e-5 mm of the code before's. The solver's Newton constant, which sets the
+next states' first linear tolerance (`LinearSolver.newton_c`), is kept with the first
+state: without it the 12 later states of a run with a kept first state took 3.2-3.3 s
+instead of 2.8-2.9 s, one of them refactorizing (0.8 s).
+
+The pressure check's first sample of a curve from rest (the weight and the first
+volume step, 3 load steps) takes the same path tolerance and refactorization
+(`fruitcli.fem.limits._first_sample`, commit 8e0b1a9). `python
+tests/performance/bench_refusal.py`, after and before (commit cc6262d) alternately,
+twice each, 16:17-16:20 UTC at load average 1.1-2.1: chamber c1 at 2000 kPa refused 5.0
+and 4.8 s after the mesh instead of 5.6 and 5.4 s, at -500 kPa 8.1 and 8.2 s instead of
+9.2 and 9.2 s, in the same words (the limit's bound 140.9 kPa, the collapse -24.0 kPa);
+the thick sphere (no weight: one load step) as before. The 3 s target is not reached.
+The body's equilibrium under its weight that `fruit limits` solves once
+(`limits.start_state`) took 8 Newton steps and 3.2 s with the path tolerance instead of
+10 and 3.9 s, but moved by 0.014 mm (within the check's tolerance of 1e-3): left as it
+was, as the limits would need validating anew.
+
+Measured and not adopted: a path tolerance of 0.1 (one factorization fewer on the
+Fruit, but a beam turning far under its weight took 85 Newton steps instead of 58,
+`tests/fem/solver/test_path_tolerance.py`; 1e-2 takes 54); 2e-2-5e-2 (before the
+refactorization at the second step: 8-10 Newton steps and 3-4 factorizations, as 1e-2
+or one fewer); 3, 6 and 2 load steps with both changes (9, 11 and 21 Newton
+steps); the factor refreshed at each load step's start instead of its second Newton
+step (6 factorizations, 41 CG iterations, 3.9 s).
+"""
+
+
 LIMITS_STEPS = """
 ## `fruit limits`: what each step bought
 
@@ -538,6 +634,7 @@ def performance_page(result: dict, source: str) -> str:
     ]
     lines += SOLVER_STEPS.strip().splitlines() + [""]
     lines += STATE_STEPS.strip().splitlines() + [""]
+    lines += FIRST_STATE_STEPS.strip().splitlines() + [""]
     lines += LIMITS_STEPS.strip().splitlines() + [""]
     if "sample" in source:
         lines += [

@@ -61,8 +61,9 @@ def simulate(scene, out_dir, solid, taxels_csv, vtu, pressures_csv, model_kind) 
     chamber_volume_mm3 (S,K), taxels_mm (S,T,3), iterations, residual, solve_ms, model;
     and OUT/yarns.csv (each track's rest length and largest stretch) when the scene has
     tracks (make-tracks' tracks.csv or [tracks] file). The pressures are checked against
-    the chambers' limits first; the check's samples are kept in OUT/pressure-check.npz,
-    and a later run on the same body reuses those still in equilibrium.
+    the chambers' limits first; the check's samples and the first state are kept in
+    OUT/pressure-check.npz, and a later run on the same body reuses those still in
+    equilibrium.
 
     With --pressures P.csv the states are the rows of P.csv (one column <chamber>_kpa per
     chamber). --model reduced evaluates the scene's reduced model instead of solving

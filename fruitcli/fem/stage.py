@@ -30,9 +30,9 @@ from fruitcli.fem.loads.springs import Jig, nodes_in_box
 from fruitcli.fem.materials import build as materials
 from fruitcli.fem.materials.models import MATERIAL_MODELS
 from fruitcli.fem.meshing import estimate, shells, surface_fit, tetra
-from fruitcli.fem.sample_cache import CACHE_FILE
+from fruitcli.fem.sample_cache import CACHE_FILE, SampleCache, kept_first_state
 from fruitcli.fem.solver.options import SolverOptions
-from fruitcli.fem.solver.state import solve_state
+from fruitcli.fem.solver.state import PATH_TOLERANCE, solve_state
 from fruitcli.fem.state_load import Load
 from fruitcli.fem.units import spring_mn_per_mm
 from fruitcli.fsutil import staged_dir, write_json
@@ -307,12 +307,16 @@ def build_model(scene: Scene, mesh: dict) -> Model | ContinuumModel:
 
 
 def state_line(i: int, total: int, solve_ms: list, res: StateResult) -> str:
-    """The progress line of state i (0-based) of `total` solved: its Newton iterations,
-    time and relative residual, and, after the second state, the time left at the mean
-    of the states after the first (the first, from rest, takes its own load steps)."""
+    """The progress line of state i (0-based) of `total` solved: its Newton iterations
+    (and whether it was kept from an earlier run), time and relative residual, and,
+    after the second state, the time left at the mean of the states after the first
+    (the first, from rest, takes its own load steps)."""
     n = res.iterations
+    how = f"after {n} Newton iteration{'' if n == 1 else 's'}"
+    if res.kept:
+        how = f"kept from an earlier run ({CACHE_FILE}), {how}"
     line = (
-        f"state {i + 1}/{total}: equilibrium after {n} Newton iteration{'' if n == 1 else 's'}"
+        f"state {i + 1}/{total}: equilibrium {how}"
         f" in {res.solve_ms / 1e3:.1f} s (relative force residual {res.residual:.1e})"
     )
     left = total - i - 1
@@ -342,7 +346,8 @@ def solver_options(scene: Scene, first_state: bool = False, jig: bool = True) ->
     """The scene's [solver] settings; the state solved from rest (`first_state`) takes
     `jig_steps` load steps under a jig, and at least `first_steps` with the hyperelastic
     model (a nearly incompressible body loaded from rest in one step needs about four
-    times the Newton iterations: 65 against 15 on the default Fruit at 8 mm)."""
+    times the Newton iterations: 65 against 15 on the default Fruit at 8 mm), those
+    short of its load converged to `state.PATH_TOLERANCE` only."""
     cfg = scene.solver
     steps = 1
     if first_state:
@@ -357,6 +362,7 @@ def solver_options(scene: Scene, first_state: bool = False, jig: bool = True) ->
         steps,
         cfg.displacement_tolerance_mm,
         cfg.max_seconds,
+        PATH_TOLERANCE if first_state else 0.0,
     )
 
 
@@ -408,7 +414,8 @@ def run_simulate(
                 progress=progress,
                 kept=Path(out_dir) / CACHE_FILE,
             )
-    results = _solve_states(scene, model, loads, keys, solver, progress)
+    first = SampleCache(model, Path(out_dir) / CACHE_FILE, solver_options(scene))
+    results = _solve_states(scene, model, loads, keys, solver, progress, first)
     out = _states_arrays(model, mesh, results)
     off_body = _off_body(mesh)
     if taxels_xyz is not None:
@@ -465,14 +472,18 @@ def _solve_states(
     keys: list[str],
     solver: LinearSolver,
     progress: Callable[[str], None],
+    first: SampleCache | None = None,
 ) -> list[StateResult]:
     """Each load's equilibrium, from the last one's (a failure past a chamber's limit
-    named by `pressure_check.explain_failure`); one progress line per state."""
+    named by `pressure_check.explain_failure`); one progress line per state. The first,
+    from rest, is taken from `first` when an earlier run kept it there and it is still
+    an equilibrium of the model (`kept_first_state`), and kept there once solved."""
     results, x, p, prev = [], None, None, None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0, jig=bool(model.jigs))
+        kept = kept_first_state(model, load, solver, first) if i == 0 else None
         try:
-            res = solve_state(
+            res = kept or solve_state(
                 model,
                 load,
                 x_start=x,
@@ -487,6 +498,9 @@ def _solve_states(
             pressure_check.explain_failure(
                 model, load, keys, solver, solver_options(scene), exc, progress
             )
+        if i == 0 and first is not None and res.iterations:  # a state worth keeping
+            first.put(load, res, solver.newton_c)
+            first.save()
         results.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
         progress(state_line(i, len(loads), [r.solve_ms for r in results], res))

@@ -18,8 +18,17 @@ each time) and prints every run's median; --mesh DIR keeps the tetrahedral mesh 
 --save PREFIX writes each path's states (nodes, mm) to PREFIX-breathing.npz and
 PREFIX-sweep.npz, to compare the equilibria of two versions.
 
+--first times only the breathing's first state, from rest, as `fruit simulate` solves it
+(`run_simulate` with the first state's pressures: the pressure check's compliance at
+rest, which makes the first factorization, then the state), --repeat N times: each time
+into a new output folder, then again into the same folder (a later run on the same
+body, which takes the first state kept there, `sample_cache.kept_first_state`). Prints
+the state's wall time, Newton steps, factorizations and CG iterations and the whole
+call's wall time (the model, the check, the state and the files); with --save, the
+state's nodes to PREFIX-first.npz.
+
 Run: .venv/bin/python tests/performance/bench_state.py [--mesh DIR] [--repeat N]
-     [--sweep 10] [--only breathing|sweep] [--save PREFIX]
+     [--sweep 10] [--only breathing|sweep] [--save PREFIX] [--first]
 """
 
 import argparse
@@ -89,12 +98,52 @@ def run_path(scene, mesh_npz: Path, loads_of) -> dict:
     }
 
 
+def first_state(scene, mesh_npz: Path, out: Path) -> dict:
+    """`run_simulate` of the breathing's first state alone into `out`: the state's
+    figures and the call's wall time (s)."""
+    from fruitcli.fem.stage import run_simulate, state_loads
+
+    names = [c.name for c in scene.chambers]
+    first = state_loads(scene, names)[0].pressure_kpa
+    t0 = time.perf_counter()
+    info = run_simulate(
+        scene, mesh_npz, None, out, pressures={n: [first[k]] for k, n in enumerate(names)}
+    )
+    wall = time.perf_counter() - t0
+    with np.load(out / "states.npz", allow_pickle=False) as st:
+        x = st["rest_nodes"] + st["displacement_mm"][0]
+    return info | {"wall_s": wall, "x": x}
+
+
+def run_first(scene, npz: Path, args) -> None:
+    """--first: the first state from rest in a new folder, then again in the same one."""
+    for _ in range(args.repeat):
+        with tempfile.TemporaryDirectory() as out_dir:
+            for run in ("new folder", "same folder"):
+                before = load_text()
+                r = first_state(scene, npz, Path(out_dir))
+                st = r["linear_solver"]
+                print(
+                    f"first state from rest, {run}: {r['solve_ms'][0]:.0f} ms, "
+                    f"{r['iterations'][0]} Newton steps; {st['factorizations']} "
+                    f"factorizations and {st['cg_iterations']} CG iterations in the call "
+                    f"(the check's included), the call {r['wall_s']:.1f} s; load average "
+                    f"{before} -> {load_text()}",
+                    flush=True,
+                )
+                if args.save is not None and run == "new folder":
+                    np.savez(f"{args.save}-first.npz", x=r["x"])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--sweep", type=int, default=10, help="steps of the c1 pressure sweep")
     ap.add_argument("--only", choices=("breathing", "sweep"), default=None)
+    ap.add_argument(
+        "--first", action="store_true", help="time only the first state, as fruit simulate"
+    )
     ap.add_argument(
         "--save", type=Path, default=None, help="write each path's nodes (mm) to SAVE-path.npz"
     )
@@ -115,6 +164,10 @@ def main() -> None:
         mesh_dir = args.mesh or Path(tmp)
         mesh_dir.mkdir(parents=True, exist_ok=True)
         npz = default_mesh(mesh_dir, scene)
+        if args.first:
+            print(f"the default Fruit's first breathing state from rest; {stamp}")
+            run_first(scene, npz, args)
+            return
 
         def breathing(names):
             return scene_loads(scene, names, 10**6)

@@ -69,6 +69,8 @@ class NewtonStep:
         self.deadline: float | None = None
         # whether the start's evaluation brings the tangent along (`evaluate`)
         self.tangent_at_start = True
+        # whether the second Newton step's tangent is factored afresh (`iterate`)
+        self.refactor_second = False
         # report(iteration, merit) when progress is asked for
         self.report: Callable[[int, float], None] | None = None
 
@@ -163,6 +165,8 @@ def iterate(
             level = SAFEST
         near = _chord_step(step, it, level, chord, now.merit, last_merit, options)
         chord, last_merit = near, now.merit
+        if it == 1 and step.refactor_second and hasattr(step.solver, "refresh"):
+            step.solver.refresh = True  # a load step from rest: its first step moved far
         _ask_linear_solve(step, it, now.merit, near, options)
         try:
             dx_free, dp = step.direction(x, p, now, level, keep_tangent=near)

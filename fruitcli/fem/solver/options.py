@@ -26,7 +26,13 @@ class SolverOptions:
     A state also counts as converged when round-off keeps the residual from reaching
     the tolerance: the residual is within STALL_RESIDUAL_FACTOR of it and the full
     Newton correction moves no node by more than STEP_TOLERANCE times the body size
-    (see `fruitcli.fem.tolerances`)."""
+    (see `fruitcli.fem.tolerances`).
+
+    `path_tolerance` (0: off): the relative residual the load steps short of the
+    state's load are converged to when it is looser than `tolerance` (the last step
+    converges to `tolerance`); when a later step then fails, the state is solved again
+    from its start with every step to `tolerance` (`solver.state.PATH_TOLERANCE`; not
+    a [solver] key: `fruit simulate` sets it for its first state)."""
 
     tolerance: float = 1e-6
     max_iterations: int = 25
@@ -35,6 +41,7 @@ class SolverOptions:
     load_steps: int = 1
     displacement_tolerance_mm: float = 0.0
     max_seconds: float = 0.0
+    path_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
         """Refuse, with one line naming the [solver] key, an option that would make a

@@ -1,5 +1,7 @@
 """Quasi-static equilibrium of one state (`solve_state`): load steps from the start's
-load to the state's, halved when Newton (`newton`) does not converge on one. Each load
+load to the state's, halved when Newton (`newton`) does not converge on one (with
+`SolverOptions.path_tolerance`, those short of the state's load converged only to it,
+and the state solved again from its start without it when a step fails). Each load
 step starts from a secant predictor: along the load path from the two previous steps,
 or, for a new state, from the previous states kept on the linear solver (`predictor`);
 Newton retries from the plain start if it fails. A body stiff in bulk is solved from
@@ -33,6 +35,26 @@ from fruitcli.fem.tolerances import FORCE_FLOOR, MIN_DET_F
 
 DEFAULT_OPTIONS = SolverOptions()
 """The options of a state solved without any (the [solver] defaults)."""
+
+PATH_TOLERANCE = 0.01
+"""The `SolverOptions.path_tolerance` of a state solved from rest in several load steps
+(`fruit simulate`'s first state): a step short of the state's load only brings the
+next one's start within Newton's reach, and the last converges to the tolerance, so the
+equilibrium is the same. On the default Fruit from rest (its weight and 9 kPa in two
+chambers, 4 load steps) each step's first Newton step removes the bulk error of a start
+extrapolated along straight lines and leaves a relative residual of about 1e-2: 9 Newton
+steps, 4 factorizations and 92 CG iterations instead of 13, 5 and 146, the equilibrium
+within 8e-6 mm of the state solved to 1e-11 (every step to the tolerance: 6e-5 mm).
+0.1 saved one factorization more there, but on a beam turning far under its weight
+(`tests/fem/solver/test_path_tolerance.py`) it took 85 Newton steps instead of 58,
+where 0.01 takes 54 (both with the refactorization below).
+
+Along such steps each step's second Newton step also factors its tangent afresh
+(`NewtonStep.refactor_second`): the first removes the bulk error of the step's start
+and leaves the kept factor too far from the tangent for CG (on the default Fruit, 24 CG
+iterations in the last step and then a refactorization all the same). With it the
+default Fruit's state took 8 Newton steps, 4 factorizations and 36 CG iterations
+instead of 9, 4 and 92 (3.0 s instead of 4.1 s at load average 0.8-2)."""
 
 PROGRESS_SECONDS = 2.0
 """A state running longer than this reports where it is (part of the load, Newton
@@ -94,12 +116,16 @@ def solve_state(
     iterations, subdivisions, merit, det_f = 0, 0, 0.0, np.ones(1)
     last = None  # (t, x, p) of the load step before the last one, for the predictor
     retry = False
+    loose = options.path_tolerance > options.tolerance  # steps short of the load
+    begin = (x, p, dt)
     while t < 1.0:
         t_new = min(1.0, t + dt)
         step_load = load_start.lerp(load, t_new)
         x_try, p_try = path.predict(t, t_new, step_load, x, p, last, retry)
         step = path.step(t, t_new, step_load, x, p)
-        ok, x_new, p_new, its, merit, det_f = path.newton(step, x_try, p_try, t, p)
+        ok, x_new, p_new, its, merit, det_f = path.newton(
+            step, x_try, p_try, t, p, loose and t_new < 1.0
+        )
         iterations += its
         if ok:
             last = (t, x, p)
@@ -109,6 +135,10 @@ def solve_state(
             retry = True  # from x first
             continue
         retry = False
+        if loose and t > 0.0:  # from a step converged to path_tolerance: start again
+            loose, t, last, det_ok = False, 0.0, None, None
+            x, p, dt = begin
+            continue
         subdivisions += 1
         if subdivisions > options.max_subdivisions:
             raise path.no_equilibrium(subdivisions - 1, t, t_new, merit, det_f)
@@ -202,6 +232,9 @@ class _LoadPath:
             model, self.solver, step_load, _reference_force(model, x, p, at, step_load, scale)
         )
         step.deadline = self.deadline
+        # along loose steps, each step's first Newton step leaves the kept factor stale
+        # for its second (`PATH_TOLERANCE`)
+        step.refactor_second = self.options.path_tolerance > self.options.tolerance
         # a kept state of this very load needs no Newton step: no tangent at its start
         step.tangent_at_start = not (t_new == 1.0 and self.kept is not None and self.kept[1])
         if self.progress is not None:
@@ -211,12 +244,22 @@ class _LoadPath:
         return step
 
     def newton(
-        self, step: NewtonStep, x: np.ndarray, p: np.ndarray, t: float, p_at_t: np.ndarray
+        self,
+        step: NewtonStep,
+        x: np.ndarray,
+        p: np.ndarray,
+        t: float,
+        p_at_t: np.ndarray,
+        loose: bool = False,
     ) -> tuple[bool, np.ndarray, np.ndarray, int, float, np.ndarray]:
-        """`newton.iterate` from (x, p) on `step`; past the deadline, OutOfTime with the
-        one line naming where the state stopped (t and the pressures p_at_t there)."""
+        """`newton.iterate` from (x, p) on `step` (to options.path_tolerance when
+        `loose`); past the deadline, OutOfTime with the one line naming where the state
+        stopped (t and the pressures p_at_t there)."""
+        options = self.options
+        if loose:
+            options = replace(options, tolerance=options.path_tolerance)
         try:
-            return iterate(step, x, p, self.options)
+            return iterate(step, x, p, options)
         except OutOfTime:
             line = _out_of_time(
                 self.model,
