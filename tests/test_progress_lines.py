@@ -13,12 +13,18 @@ from tests.conftest import ROOT
 
 
 def test_state_line_names_its_figures_and_the_time_left():
-    res = SimpleNamespace(iterations=1, solve_ms=2500.0, residual=4.9e-7)
+    res = SimpleNamespace(iterations=1, solve_ms=2500.0, residual=4.9e-7, kept=False)
     assert state_line(0, 3, [9000.0], res) == (
         "state 1/3: equilibrium after 1 Newton iteration in 2.5 s (relative force residual 4.9e-07)"
     )
+    # a first state taken from the one an earlier run kept in the folder says so
+    kept = SimpleNamespace(iterations=0, solve_ms=500.0, residual=4.9e-7, kept=True)
+    assert state_line(0, 3, [500.0], kept) == (
+        "state 1/3: equilibrium kept from an earlier run (pressure-check.npz), after 0 Newton "
+        "iterations in 0.5 s (relative force residual 4.9e-07)"
+    )
     # after the second state: the mean of the states after the first, times those left
-    res = SimpleNamespace(iterations=4, solve_ms=3000.0, residual=1e-7)
+    res = SimpleNamespace(iterations=4, solve_ms=3000.0, residual=1e-7, kept=False)
     assert state_line(2, 13, [9000.0, 1000.0, 3000.0], res) == (
         "state 3/13: equilibrium after 4 Newton iterations in 3.0 s "
         "(relative force residual 1.0e-07); about 20 s left for 10 more"
