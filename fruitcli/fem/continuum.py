@@ -488,15 +488,7 @@ def _checked_elements(
     if conn.min() < 0 or conn.max() >= len(rest):
         raise MeshError("elements: node index out of range")
     corners = conn[:, :4]
-    quality = tet4.tet_quality(rest, corners)
-    worst = int(np.argmin(quality))
-    if quality[worst] < min_quality:
-        c = rest[corners[worst]].mean(axis=0)
-        raise MeshError(
-            f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-            "remesh before solving"
-        )
+    tet4.refuse_slivers(rest, corners, min_quality)
     if (tet4.signed_volumes(rest, corners) < 0).any():
         raise MeshError("elements: expected positively oriented tets")
     return rest, conn

@@ -510,15 +510,7 @@ def _checked_mesh(
     if flip.any():
         tets = tets.copy()
         tets[flip] = tets[flip][:, [0, 2, 1, 3]]
-    quality = tet4.tet_quality(rest, tets)
-    worst = int(np.argmin(quality))
-    if quality[worst] < min_quality:
-        c = rest[tets[worst]].mean(axis=0)
-        raise MeshError(
-            f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
-            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
-            "remesh before solving"
-        )
+    tet4.refuse_slivers(rest, tets, min_quality)
     return rest, tets, vol
 
 

@@ -57,3 +57,19 @@ def tet_quality(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
     sq = sum(((p[:, a] - p[:, b]) ** 2).sum(axis=1) for a, b in pairs) / 6.0
     l_rms = np.sqrt(np.maximum(sq, np.finfo(float).tiny))
     return 6.0 * np.sqrt(2.0) * signed_volumes(points, tets) / l_rms**3
+
+
+def refuse_slivers(points: np.ndarray, tets: np.ndarray, min_quality: float) -> None:
+    """MeshError naming the worst tet (m, 4) and where it is when its `tet_quality` is
+    below `min_quality`."""
+    from fruitcli.errors import MeshError
+
+    quality = tet_quality(points, tets)
+    worst = int(np.argmin(quality))
+    if quality[worst] < min_quality:
+        c = points[tets[worst]].mean(axis=0)
+        raise MeshError(
+            f"mesh: tet {worst} at ({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm is "
+            f"a sliver (quality {quality[worst]:.2e} < {min_quality:g}); "
+            "remesh before solving"
+        )
