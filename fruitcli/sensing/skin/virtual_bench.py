@@ -22,8 +22,8 @@ then lifts for the next sample. Where the board is over the threshold already at
 start (a large object on a sensitive board), the descent starts higher instead, at the
 first of ``START_GAPS_MM`` where it is not, so every recorded descent shows the
 approach and no frame of it is taken for the previous sample's touch; the recording's
-meta ``start_gap_mm`` gives each sample's start. A sample that does not cross the threshold even
-``PRESS_MM`` into the skin is dropped and counted.
+meta ``start_gap_mm`` gives each sample's start. A sample that does not cross the
+threshold even ``PRESS_MM`` into the skin is dropped and counted.
 """
 
 from __future__ import annotations
@@ -112,10 +112,11 @@ def descend(
     if response is not None:
         descent = response.descent(indenter, contact_mm, taxels_mm)
     for k, p in enumerate(contact_mm):
+        if response is None:
+            dist = np.linalg.norm(taxels_mm - p, axis=1)
         for start in START_GAPS_MM:  # from higher up while the first frame is over
             gaps = np.arange(start, -PRESS_MM - step_mm / 2, -step_mm)
             if response is None:
-                dist = np.linalg.norm(taxels_mm - p, axis=1)
                 touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
             else:
                 touch = descent(k, gaps)
