@@ -4,10 +4,10 @@ nearest its truth (translation-registered mean error, mm; ties to fewer frames).
 
 The bench's indenter is still in x and y while it descends, so the frames before the
 threshold show the same touch and their mean has less noise; a live touch that moves
-does not (`model_fit.recent_frames` takes only the frames that point the same way). The
-demo's model rows (`fruitcli.workflow.model_rows`) and `fruit study locate`'s chosen row
-(`fruitcli.studies.locate_methods`) both choose this way, on the run `calibrated_skin`
-made, never on the frames they score.
+does not (`model_fit.recent_frames` takes only the frames since the touch's that point
+the same way). The demo's model rows (`fruitcli.workflow.model_rows`) and `fruit study
+locate`'s chosen row (`fruitcli.studies.locate_methods`) both choose this way, on the
+run `calibrated_skin` made, never on the frames they score.
 """
 
 from __future__ import annotations

@@ -6,13 +6,12 @@ model that made its frames, so the locator here is not given the scene's [skin]:
 calibrate` fits it (footprint width, counts at contact, gap decay, noise, gains) to a
 second bench run of the same board at other sample points, half a pitch off each taxel
 for the law and right over each taxel for its gain, with the small indenter
-(`fruitcli.studies.locate_methods.calibrated_skin`), and the
-model method locates the very frames the N9 rows were scored on. How many frames' mean
-it fits (``[detection].model_frames``: the bench's indenter is still in x and y while it
-descends) is chosen the same way, on the calibration run (`fruitcli.studies.model_frames`); the
-rows come with that setting and with the frame at
-the threshold alone. The bench's law family
-is still the locator's (a Gaussian board gets a Gaussian fit; an electrostatic board gets
+(`fruitcli.studies.locate_methods.calibrated_skin`), and the model method locates the
+very frames the N9 rows were scored on. How many frames' mean it fits
+(``[detection].model_frames``: the bench's indenter is still in x and y while it
+descends) is chosen on the same calibration run (`fruitcli.studies.model_frames`); the
+rows come with that setting and with the frame at the threshold alone. The bench's law
+family is still the locator's (a Gaussian board gets a Gaussian fit; an electrostatic board gets
 the Gaussian law fitted to it): `fruit study locate` has the boards whose law differs.
 """
 
