@@ -781,7 +781,8 @@ def limits_page(info: dict) -> str:
         f"`fruit limits {info['scene']}` on {info['machine']}, {info['date']}, commit "
         f"`{info['commit'][:12]}`: {info['wall_seconds']:.0f} s in all "
         + (f"and {info['cpu_seconds']:.0f} s of CPU " if "cpu_seconds" in info else "")
-        + f"({info['seconds']:.0f} s following the curves; {info['element']} element, "
+        + (f"over {info['jobs']} worker processes " if "jobs" in info else "")
+        + f"({info['seconds']:.0f} s after the mesh; {info['element']} element, "
         f"{mesh['elements']} tetrahedra)"
         + (
             f"; load average {info['load_average'][0]} before, {info['load_average'][1]} "

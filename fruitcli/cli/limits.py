@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, out_option
+from fruitcli.cli.options import Progress, fruit_errors, jobs_option, out_option
 from fruitcli.workflow.scene_outputs import shared_outputs
 
 
@@ -21,7 +21,8 @@ from fruitcli.workflow.scene_outputs import shared_outputs
     help="Closed surface of the body (mm), e.g. reduced.stl. For an artist scene "
     "without it, make-tracks runs first (into OUT/make-tracks).",
 )
-def limits(scene, out_dir, solid) -> None:
+@jobs_option("Worker processes following the curves, one curve each at a time")
+def limits(scene, out_dir, solid, jobs) -> None:
     """Follow each chamber of SCENE past its limit pressure by volume control.
 
     One chamber at a time, the others at rest: inflation until the pressure has passed
@@ -54,7 +55,7 @@ def limits(scene, out_dir, solid) -> None:
         elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log)
-        info = run_limits(sc, out_dir / "mesh.npz", out_dir, progress=log)
+        info = run_limits(sc, out_dir / "mesh.npz", out_dir, progress=log, jobs=jobs)
     for name, ch in info["chambers"].items():
         lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
         click.echo(

@@ -203,7 +203,11 @@ def start_state(
         res = solve_state(
             model,
             Load.pressures(np.zeros(k)),
-            options=replace(options, load_steps=max(options.load_steps, FIRST_STEPS)),
+            options=replace(
+                options,
+                load_steps=max(options.load_steps, FIRST_STEPS),
+                path_tolerance=PATH_TOLERANCE,
+            ),
             solver=solver,
             label="the body under its weight",
         )

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -57,35 +57,81 @@ def curve_options(options: SolverOptions) -> SolverOptions:
     return replace(options, tolerance=max(options.tolerance, limits.CHECK_TOLERANCE))
 
 
-def follow_both(
+@dataclass(frozen=True)
+class Curve:
+    """One curve of `fruit limits`: chamber `which` alone (an int) or the chambers along
+    pressure ratios `which` (K,), inflated (direction 1) or sucked (-1)."""
+
+    which: int | np.ndarray
+    direction: int
+
+
+def follow_curve(args: tuple) -> limits.ChamberCurve:
+    """(model, Curve, options, start, progress) -> the curve followed on a fresh solver
+    from `start` (`limits.start_state`) past its limit or collapse; module level, so a
+    worker process can run it."""
+    model, curve, options, start, progress = args
+    return limits.follow(
+        model,
+        curve.which,
+        curve.direction,
+        fall_steps=CURVE_FALL_STEPS,
+        halvings=limits.CURVE_HALVINGS if curve.direction > 0 else 0,
+        options=options,
+        progress=progress,
+        start=start,
+    )
+
+
+WORKER_BYTES_PER_DOF = 15_000
+"""Memory one worker of `follow_curves` takes per degree of freedom (bytes): the model,
+its tangent and the sparse factor; on the default Fruit (50,990 dofs, PARDISO) a worker
+peaked at 740 MB."""
+
+
+def curve_jobs(jobs: int | None, curves: int, dofs: int) -> tuple[int, str]:
+    """(worker processes for `curves` curves, why fewer than asked): `jobs` (None: every
+    core), at most one per curve and as many as the memory available holds."""
+    from fruitcli import memory
+    from fruitcli.studies.executors import default_jobs
+
+    asked = default_jobs() if jobs is None else jobs
+    room = int(memory.SHARE * memory.available_bytes() // (WORKER_BYTES_PER_DOF * dofs))
+    n = max(1, min(asked, curves, room))
+    why = "" if n >= min(asked, curves) else f" (the memory available holds {max(room, 1)})"
+    return n, why
+
+
+def follow_curves(
     model: FemModel,
-    k: int,
+    curves: list[Curve],
     options: SolverOptions,
+    start: limits.Start,
+    jobs: int | None = None,
     progress: Callable[[str], None] = _noop,
-    start: limits.Start | None = None,
-) -> tuple:
-    """(suction curve, inflation curve) of chamber k, each on a fresh solver, from
-    `start` (`limits.start_state`)."""
-    down = limits.follow(
-        model,
-        k,
-        -1,
-        fall_steps=CURVE_FALL_STEPS,
-        options=options,
-        progress=progress,
-        start=start,
+) -> list[limits.ChamberCurve]:
+    """Each of `curves` followed from `start` (`follow_curve`), in this process or, with
+    `jobs` (None: every core) over 1, in that many worker processes: the curves share
+    nothing but the start, so the results are those of one process. Inflations go
+    first, the last given first (the chambers together: the longest); progress says
+    each sample in one process, each curve in several."""
+    n, why = curve_jobs(jobs, len(curves), 3 * model.n_nodes)
+    if n == 1:
+        return [follow_curve((model, c, options, start, progress)) for c in curves]
+    from fruitcli.studies.parallel import run_cases
+
+    order = sorted(range(len(curves)), key=lambda i: (-curves[i].direction, -i))
+    progress(f"limits: {len(curves)} curves in {n} worker processes{why}")
+    done = run_cases(
+        follow_curve,
+        [(model, curves[i], options, start, None) for i in order],
+        n,
+        lambda k, total: progress(f"limits: {k} of {total} curves followed"),
     )
-    up = limits.follow(
-        model,
-        k,
-        1,
-        fall_steps=CURVE_FALL_STEPS,
-        halvings=limits.CURVE_HALVINGS,
-        options=options,
-        progress=progress,
-        start=start,
-    )
-    return down, up
+    results: list = [None] * len(curves)
+    for i, curve in zip(order, done, strict=True):
+        results[i] = curve
+    return results
 
 
 def scene_ratios(scene: Scene, names: list[str]) -> np.ndarray:
@@ -129,18 +175,29 @@ def _write_limits(
 
 
 def run_limits(
-    scene: Scene, mesh_npz: str | Path, out_dir: Path, progress: Callable[[str], None] | None = None
+    scene: Scene,
+    mesh_npz: str | Path,
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+    jobs: int | None = 1,
 ) -> dict:
-    """Follow each chamber's curve; write limits.json, pv.csv and pv.png (see module
+    """Follow each chamber's curve, in `jobs` worker processes (None: every core; 1: in
+    this process, `follow_curves`); write limits.json, pv.csv and pv.png (see module
     docstring). Returns the limits.json content."""
     progress = progress or _noop
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
     options = curve_options(solver_options(scene))
     start = limits.start_state(model, model.make_solver(options.linear_solver), options, progress)
+    names = model.chamber_names
+    order = [Curve(k, d) for k in range(len(names)) for d in (-1, 1)]
+    ratio = scene_ratios(scene, names)
+    if len(names) > 1:
+        order.append(Curve(ratio, 1))
+    followed = follow_curves(model, order, options, start, jobs, progress)
     chambers, rows, curves = {}, [], []
-    for k, name in enumerate(model.chamber_names):
-        down, up = follow_both(model, k, options, progress, start)
+    for k, name in enumerate(names):
+        down, up = followed[2 * k], followed[2 * k + 1]
         curves.append((name, down, up))
         chambers[name] = {
             "limit_pressure_kpa": up.limit_pressure_kpa,
@@ -158,20 +215,10 @@ def run_limits(
             f"collapse {_kpa(down.collapse_pressure_kpa)}"
         )
     together = None
-    if len(model.chamber_names) > 1:
-        ratio = scene_ratios(scene, model.chamber_names)
-        up = limits.follow(
-            model,
-            ratio,
-            1,
-            options=options,
-            fall_steps=CURVE_FALL_STEPS,
-            halvings=limits.CURVE_HALVINGS,
-            progress=progress,
-            start=start,
-        )
+    if len(names) > 1:
+        up = followed[-1]
         together = {
-            "ratios": dict(zip(model.chamber_names, map(float, ratio), strict=True)),
+            "ratios": dict(zip(names, map(float, ratio), strict=True)),
             "limit_pressure_kpa": up.limit_pressure_kpa,
             "limit_volume_growth_mm3": up.limit_growth_mm3,
             "inflation_end": up.end,

@@ -363,6 +363,30 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
         "limit); give `volume_growth_mm3` to follow the inflation past it"
     )
     assert not (tmp_path / "sim" / "states.npz").exists()
+    # the two curves in two worker processes: the same limits.json, pv.csv and points
+    run_limits(scene, out / "mesh.npz", tmp_path / "par", jobs=2)
+    again = json.loads((tmp_path / "par" / "limits.json").read_text())
+    assert {**again, "seconds": 0} == {**saved, "seconds": 0}
+    assert (tmp_path / "par" / "pv.csv").read_text() == (out / "pv.csv").read_text()
+
+
+def test_curve_jobs_one_per_curve_and_as_many_as_the_memory_holds(monkeypatch):
+    """`fruit limits --jobs`: at most one worker per curve, every core by default, and no
+    more workers than WORKER_BYTES_PER_DOF says the memory available holds (at least one)."""
+    from fruitcli import memory
+    from fruitcli.fem import limits_stage
+    from fruitcli.studies import executors
+
+    per = limits_stage.WORKER_BYTES_PER_DOF * 1000
+    monkeypatch.setattr(executors, "default_jobs", lambda: 8)
+    monkeypatch.setattr(memory, "available_bytes", lambda: int(10 * per / memory.SHARE))
+    assert limits_stage.curve_jobs(None, 7, 1000) == (7, "")
+    assert limits_stage.curve_jobs(3, 7, 1000) == (3, "")
+    assert limits_stage.curve_jobs(None, 20, 1000) == (8, "")
+    monkeypatch.setattr(memory, "available_bytes", lambda: int(3.5 * per / memory.SHARE))
+    assert limits_stage.curve_jobs(None, 7, 1000) == (3, " (the memory available holds 3)")
+    monkeypatch.setattr(memory, "available_bytes", lambda: int(0.5 * per / memory.SHARE))
+    assert limits_stage.curve_jobs(4, 7, 1000) == (1, " (the memory available holds 1)")
 
 
 def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):

@@ -16,7 +16,7 @@
    each with its wall and CPU time and its samples; --mesh DIR keeps the mesh there.
 
 Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-fruit]
-[--out DIR] [--docs] [--curves [--mesh DIR]]
+[--out DIR] [--docs] [--jobs N] [--curves [--mesh DIR]]
 """
 
 import argparse
@@ -78,12 +78,13 @@ def load_average() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
-def fruit_limits(out: Path, docs: bool = False) -> None:
+def fruit_limits(out: Path, docs: bool = False, jobs: int | None = None) -> None:
     scene = ROOT / "pipelines" / "fruit-breathing.toml"
     t0, cpu0, load0 = time.perf_counter(), children_cpu(), load_average()
     fruit = Path(sys.executable).parent / "fruit"
+    given = [] if jobs is None else ["--jobs", str(jobs)]
     code = subprocess.call(
-        [str(fruit), "-q", "limits", str(scene), "--out", str(out)],
+        [str(fruit), "-q", "limits", str(scene), "--out", str(out), *given],
         cwd=ROOT,
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
@@ -94,8 +95,9 @@ def fruit_limits(out: Path, docs: bool = False) -> None:
     info = json.loads((out / "limits.json").read_text())
     print(
         f"\nfruit limits on the default Fruit ({info['element']}, {info['mesh']['elements']} "
-        f"tets): {wall:.1f} s wall, {cpu:.1f} s CPU (all threads; make-tracks and tetra "
-        f"included), {info['seconds']:.1f} s following the curves; load average "
+        f"tets, --jobs {'default' if jobs is None else jobs}): {wall:.1f} s wall, {cpu:.1f} s "
+        f"CPU (all threads and worker processes; make-tracks and tetra included), "
+        f"{info['seconds']:.1f} s after the mesh; load average "
         f"{load[0]} -> {load[1]}"
     )
     import tomllib
@@ -119,10 +121,12 @@ def fruit_limits(out: Path, docs: bool = False) -> None:
             + ("none up to 27 V0" if lim is None else f"{lim:.4g} kPa (largest chamber)")
         )
     if docs:
-        write_docs(out, info, wall, asked, cpu, load)
+        write_docs(out, info, wall, asked, cpu, load, jobs)
 
 
-def write_docs(out: Path, info: dict, wall: float, asked: dict, cpu: float, load) -> None:
+def write_docs(
+    out: Path, info: dict, wall: float, asked: dict, cpu: float, load, jobs: int | None
+) -> None:
     """docs/data/fruit-limits.csv (the pv.csv) and fruit-limits.json (the limits, the
     breathing's largest pressures, the times (wall, CPU), load average before and after,
     date, commit and machine)."""
@@ -143,6 +147,7 @@ def write_docs(out: Path, info: dict, wall: float, asked: dict, cpu: float, load
         "scene": "pipelines/fruit-breathing.toml",
         "wall_seconds": round(wall, 1),
         "cpu_seconds": round(cpu, 1),
+        "jobs": jobs or os.cpu_count(),
         "load_average": list(load),
         "breathing_max_kpa": {c: max(v) for c, v in asked.items()},
         **info,
@@ -157,7 +162,7 @@ def fruit_curves(mesh_dir: Path) -> None:
     from bench_state import default_mesh
 
     from fruitcli.fem import io, limits
-    from fruitcli.fem.limits_stage import CURVE_FALL_STEPS, curve_options, scene_ratios
+    from fruitcli.fem.limits_stage import Curve, curve_options, follow_curve, scene_ratios
     from fruitcli.fem.stage import build_model, solver_options
     from fruitcli.scene import load_scene
 
@@ -175,16 +180,7 @@ def fruit_curves(mesh_dir: Path) -> None:
     curves.append((limits.TOGETHER, scene_ratios(scene, model.chamber_names), 1))
     for name, k, d in curves:
         t1, c1 = time.perf_counter(), time.process_time()
-        halvings = limits.CURVE_HALVINGS if d > 0 else 0
-        curve = limits.follow(
-            model,
-            k,
-            d,
-            options=options,
-            fall_steps=CURVE_FALL_STEPS,
-            halvings=halvings,
-            start=start,
-        )
+        curve = follow_curve((model, Curve(k, d), options, start, None))
         value = curve.limit_pressure_kpa if d > 0 else curve.collapse_pressure_kpa
         print(
             f"  {name} {'inflation' if d > 0 else 'suction'}: {value} kPa ({curve.end}); "
@@ -205,6 +201,7 @@ def main() -> None:
     parser.add_argument("--docs", action="store_true", help="write docs/data/fruit-limits.*")
     parser.add_argument("--curves", action="store_true", help="each curve timed in-process")
     parser.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
+    parser.add_argument("--jobs", type=int, default=None, help="fruit limits --jobs")
     args = parser.parse_args()
     if not args.no_sphere:
         sphere_refinement()
@@ -215,7 +212,7 @@ def main() -> None:
             fruit_curves(mesh_dir)
     elif not args.no_fruit:
         with tempfile.TemporaryDirectory() as tmp:
-            fruit_limits(args.out or Path(tmp) / "limits", args.docs)
+            fruit_limits(args.out or Path(tmp) / "limits", args.docs, args.jobs)
 
 
 if __name__ == "__main__":
