@@ -554,9 +554,24 @@ The limits are those of the code before within 0.03 % (c1 29.823 kPa instead of 
 c2 39.100 instead of 39.108, c3 38.022 instead of 38.034, together 29.8234 instead of
 29.8235), the collapse pressures within 0.001 %; the volume growth at each chamber's
 limit moves by up to 1.5 % (the peak is flat: its place is far less certain than its
-pressure). The 60 s target is not reached: what is left is about 30 Newton steps a
-chamber's inflation, 15 a suction and 40 the chambers together, each 0.4-0.7 s of CPU
-(PARDISO's solves and refactorizations with two right-hand sides, 70 % of it).
+pressure). In one process what is left is about 30 Newton steps a chamber's inflation,
+15 a suction and 40 the chambers together, each 0.4-0.7 s of CPU (PARDISO's solves and
+refactorizations with two right-hand sides, 70 % of it).
+
+The curves share nothing but the body under its weight, so `fruit limits` follows them
+in worker processes (`--jobs`, every core by default; the chambers together first, then
+the other inflations, then the suctions, so the longest start first), and solves the
+body under its weight with its load steps short of the weight converged to the path
+tolerance (8 Newton steps, 2.9 s, instead of 10 and 3.6-3.7 s). The whole command
+(`python tests/performance/bench_limits.py --no-sphere [--jobs 1]`, make-tracks and
+tetra included) on 2026-12-06 17:45-17:50 UTC, load average 1.1-1.8, run one after the
+other: 56.6 s wall and 103 s of CPU over two worker processes (51.6 s after the mesh);
+90.8 s and 99 s with `--jobs 1` (85.7 s after the mesh); 108.8 s and 118 s for the code
+before (commit b9ba0ad). Each worker peaked at 740 MB. The limits are those of one
+process to every digit, and those of the code before within 1.3e-6 relative (the
+chambers together 29.82342 kPa instead of 29.82346, c2 39.10044 instead of 39.10041),
+the collapse pressures within 1e-8. On a machine with fewer free cores than curves
+the time is about the CPU time over the free cores.
 
 Measured and not adopted: one solver (one PARDISO analysis) shared by all the curves
 (107 s of CPU against 111 s, within the run-to-run spread); the factor refreshed at
