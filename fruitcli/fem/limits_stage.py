@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fruitcli.fem import io, limits, pressure_check
+from fruitcli.fem.curve_workers import curve_jobs, run_curves
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
@@ -83,25 +84,6 @@ def follow_curve(args: tuple) -> limits.ChamberCurve:
     )
 
 
-WORKER_BYTES_PER_DOF = 15_000
-"""Memory one worker of `follow_curves` takes per degree of freedom (bytes): the model,
-its tangent and the sparse factor; on the default Fruit (50,990 dofs, PARDISO) a worker
-peaked at 740 MB."""
-
-
-def curve_jobs(jobs: int | None, curves: int, dofs: int) -> tuple[int, str]:
-    """(worker processes for `curves` curves, why fewer than asked): `jobs` (None: every
-    core), at most one per curve and as many as the memory available holds."""
-    from fruitcli import memory
-    from fruitcli.studies.executors import default_jobs
-
-    asked = default_jobs() if jobs is None else jobs
-    room = int(memory.SHARE * memory.available_bytes() // (WORKER_BYTES_PER_DOF * dofs))
-    n = max(1, min(asked, curves, room))
-    why = "" if n >= min(asked, curves) else f" (the memory available holds {max(room, 1)})"
-    return n, why
-
-
 def follow_curves(
     model: FemModel,
     curves: list[Curve],
@@ -118,16 +100,9 @@ def follow_curves(
     n, why = curve_jobs(jobs, len(curves), 3 * model.n_nodes)
     if n == 1:
         return [follow_curve((model, c, options, start, progress)) for c in curves]
-    from fruitcli.studies.parallel import run_cases
-
     order = sorted(range(len(curves)), key=lambda i: (-curves[i].direction, -i))
-    progress(f"limits: {len(curves)} curves in {n} worker processes{why}")
-    done = run_cases(
-        follow_curve,
-        [(model, curves[i], options, start, None) for i in order],
-        n,
-        lambda k, total: progress(f"limits: {k} of {total} curves followed"),
-    )
+    cases = [(model, curves[i], options, start, None) for i in order]
+    done = run_curves(follow_curve, cases, n, progress, why)
     results: list = [None] * len(curves)
     for i, curve in zip(order, done, strict=True):
         results[i] = curve
@@ -321,12 +296,17 @@ def near_limit(scene: Scene) -> tuple[bool, str]:
 
 
 def run_limits_stage(
-    scene: Scene, mesh_npz: str | Path, out_dir: Path, progress: Callable[[str], None] | None = None
+    scene: Scene,
+    mesh_npz: str | Path,
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+    jobs: int | None = None,
 ) -> dict:
     """The planner's `limits` stage: the scene's pressures checked against the limits
     (`pressure_check.check_pressures` on the scene's states, without its screen: the planner
     runs this stage when the pressures come near a limit, `near_limit`), each
-    pressurised chamber's curve followed on to its limit or collapse; raises the
+    pressurised chamber's curve followed on to its limit or collapse (in `jobs` worker
+    processes, None: one per core, `curve_workers.curve_jobs`); raises the
     check's one line for a pressure past one, else writes out_dir/limits.json
     (chambers.<name>.{followed, limit_pressure_kpa, limit_volume_growth_mm3,
     collapse_pressure_kpa}, together (or None), element, mesh, seconds) and, when a
@@ -343,7 +323,15 @@ def run_limits_stage(
     found: list = []
     solver = model.make_solver(scene.solver.linear_solver)
     pressure_check.check_pressures(
-        model, asked, keys, solver, solver_options(scene), progress, screen=0.0, found=found
+        model,
+        asked,
+        keys,
+        solver,
+        solver_options(scene),
+        progress,
+        screen=0.0,
+        found=found,
+        jobs=jobs,
     )
     chambers: dict[str, dict[str, Any]] = {
         c: {

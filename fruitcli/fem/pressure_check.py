@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
+from fruitcli.fem.curve_workers import curve_jobs, run_curves
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
@@ -65,7 +66,7 @@ def _check_curve(
     which: Chambers,
     direction: int,
     asked: float,
-    solver: LinearSolver,
+    solver: LinearSolver | None,
     check: SolverOptions,
     progress: Callable[[str], None] | None,
     found: list | None,
@@ -74,9 +75,10 @@ def _check_curve(
 ) -> ChamberCurve:
     """The curve of chamber `which` (or of chambers along ratios `which`) followed as
     far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
-    (its analysis forgotten afterwards) from `start` (`start_state`), its samples taken
-    from and kept in `samples` (saved after the curve); with a `found` list, followed on
-    to the limit or collapse and appended to it as (direction, curve)."""
+    (its analysis forgotten afterwards; None: a fresh one) from `start`
+    (`start_state`), its samples taken from and kept in `samples` (saved after the
+    curve); with a `found` list, followed on to the limit or collapse and appended to it
+    as (direction, curve)."""
     curve = follow(
         model,
         which,
@@ -92,12 +94,20 @@ def _check_curve(
         start=start,
         samples=samples,
     )
-    forget(solver)
+    if solver is not None:
+        forget(solver)
     if samples is not None:
         samples.save()
     if found is not None:
         found.append((direction, curve))
     return curve
+
+
+def _curve_to_the_limit(args: tuple) -> ChamberCurve:
+    """(model, which, direction, asked, check, start) -> `_check_curve` on a fresh
+    solver, followed on to the limit or collapse; module level, for a worker process."""
+    model, which, direction, asked, check, start = args
+    return _check_curve(model, which, direction, asked, None, check, None, [], start)
 
 
 def pressure_keys(names: list[str]) -> list[str]:
@@ -116,6 +126,7 @@ def check_pressures(
     screen: float = SCREEN_GROWTH,
     found: list | None = None,
     kept: Path | None = None,
+    jobs: int | None = 1,
 ) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
@@ -127,7 +138,8 @@ def check_pressures(
     first), all from the body's equilibrium under its weight (`start_state`), and are
     appended to it as (direction, curve). With `kept` (a file), the curves' samples
     solved by an earlier check of the same body are taken from there, and the new ones
-    kept there (`SampleCache`)."""
+    kept there (`SampleCache`). `jobs` (None: every core) over 1 follows the curves of
+    a `found` list in worker processes (`curve_workers`), refused in the same order."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -139,6 +151,21 @@ def check_pressures(
         max_subdivisions=min(options.max_subdivisions, SAMPLE_SUBDIVISIONS),
     )
     v0 = model.chamber_rest_volume_mm3
+    plan = [
+        (k, direction, asked)
+        for k in range(len(keys))
+        for col in [pressures[:, k][np.isfinite(pressures[:, k])]]
+        for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0)))
+        if direction * asked > 0 and abs(asked) * w[k] >= screen * v0[k]
+    ]
+    together = _together_case(model, pressures, compliance, screen)
+    if found is not None:
+        n, why = curve_jobs(jobs, len(plan) + (together is not None), 3 * model.n_nodes)
+        if n > 1:
+            _check_in_workers(
+                model, pressures, plan, together, keys, solver, check, progress, found, n, why
+            )
+            return
     start: list = []  # the curves' `Start`, once one is followed on to its limit
     samples = None if kept is None else SampleCache(model, kept, check)
 
@@ -148,18 +175,50 @@ def check_pressures(
         start[:] = start or [start_state(model, solver, check, progress)]
         return start[0]
 
-    for k, key in enumerate(keys):
-        col = pressures[:, k][np.isfinite(pressures[:, k])]
-        for direction, asked in ((1, col.max(initial=0.0)), (-1, col.min(initial=0.0))):
-            if direction * asked <= 0 or abs(asked) * w[k] < screen * v0[k]:
-                continue
-            curve = _check_curve(
-                model, k, direction, asked, solver, check, progress, found, first(), samples
-            )
-            _refuse(key, asked, direction, curve)
-    check_together(
-        model, pressures, keys, solver, check, compliance, screen, progress, found, first, samples
-    )
+    for k, direction, asked in plan:
+        curve = _check_curve(
+            model, k, direction, asked, solver, check, progress, found, first(), samples
+        )
+        _refuse(keys[k], asked, direction, curve)
+    if together is not None:
+        i, ratio, asked = together
+        curve = _check_curve(
+            model, ratio, 1, asked, solver, check, progress, found, first(), samples
+        )
+        _refuse_together(pressures, keys, i, asked, curve)
+
+
+def _check_in_workers(
+    model: FemModel,
+    pressures: np.ndarray,
+    plan: list[tuple[int, int, float]],
+    together: tuple[int, np.ndarray, float] | None,
+    keys: list[str],
+    solver: LinearSolver,
+    check: SolverOptions,
+    progress: Callable[[str], None] | None,
+    found: list,
+    jobs: int,
+    why: str,
+) -> None:
+    """`check_pressures` with `found`, its curves (`plan`: (chamber, direction, asked),
+    and `together`) followed on to their limits in `jobs` worker processes from the body
+    under its weight; the curves appended to `found` and refused in the order of one
+    process (the chambers together last)."""
+    start = start_state(model, solver, check, progress)
+    cases: list[tuple] = [(model, k, d, asked, check, start) for k, d, asked in plan]
+    if together is not None:  # the longest: first
+        cases.insert(0, (model, together[1], 1, together[2], check, start))
+    curves = run_curves(_curve_to_the_limit, cases, jobs, progress or (lambda msg: None), why)
+    if together is not None:
+        curves = curves[1:] + curves[:1]
+    found += [(d, curve) for (k, d, asked), curve in zip(plan, curves, strict=False)]
+    if together is not None:
+        found.append((1, curves[-1]))
+    for (k, d, asked), curve in zip(plan, curves, strict=False):
+        _refuse(keys[k], asked, d, curve)
+    if together is not None:
+        _refuse_together(pressures, keys, together[0], together[2], curves[-1])
 
 
 def _refuse(key: str, asked: float, direction: int, curve: ChamberCurve) -> None:
@@ -228,31 +287,46 @@ def check_together(
     compliance: np.ndarray,
     screen: float,
     progress: Callable[[str], None] | None = None,
-    found: list | None = None,
-    start: Callable[[], Start | None] | None = None,
-    samples: SampleCache | None = None,
 ) -> None:
     """Refuse, in one line naming the state's keys, the state whose pressures, several
-    chambers inflated together, are past the chambers' limit along their own ratios:
-    the state with the largest chamber pressure among those with several (all pressure
-    controlled), followed along its ratios (`follow` with ratios) as far as that
-    pressure, when its linearized growth of sum_k r_k V_k passes `screen` of the rest.
-    `start()`, when given, returns the curves' `Start` (`start_state`); `samples` as
-    `_check_curve`'s."""
+    chambers inflated together, are past the chambers' limit along their own ratios
+    (`_together_case`), followed along its ratios (`follow` with ratios) as far as the
+    largest chamber pressure, from rest."""
+    case = _together_case(model, pressures, compliance, screen)
+    if case is not None:
+        i, ratio, asked = case
+        curve = _check_curve(model, ratio, 1, asked, solver, check, progress, None)
+        _refuse_together(pressures, keys, i, asked, curve)
+
+
+def _together_case(
+    model: FemModel, pressures: np.ndarray, compliance: np.ndarray, screen: float
+) -> tuple[int, np.ndarray, float] | None:
+    """(state, ratios (K,), largest pressure kPa) of the state `check_together` follows:
+    the one with the largest chamber pressure among those with several chambers inflated
+    (all pressure controlled), when its linearized growth of sum_k r_k V_k passes
+    `screen` of the rest; None otherwise."""
     rows = np.nan_to_num(pressures, nan=-1.0)
     several = np.flatnonzero(((rows > 0).sum(1) >= 2) & (rows >= 0).all(1))
     if not len(several):
-        return
-    i = several[np.argmax(rows[several].max(1))]
+        return None
+    i = int(several[np.argmax(rows[several].max(1))])
     asked = float(rows[i].max())
     ratio = rows[i] / asked
     v0 = model.chamber_rest_volume_mm3
     if asked * float(ratio @ compliance @ ratio) < screen * float(ratio @ v0):
-        return
-    first = start and start()
-    curve = _check_curve(model, ratio, 1, asked, solver, check, progress, found, first, samples)
+        return None
+    return i, ratio, asked
+
+
+def _refuse_together(
+    pressures: np.ndarray, keys: list[str], i: int, asked: float, curve: ChamberCurve
+) -> None:
+    """SceneError naming state i's keys when its largest pressure `asked` (kPa) is past
+    the limit (or a bound of it) of the chambers' `curve` along its ratios."""
     if curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
         return
+    rows = np.nan_to_num(pressures, nan=-1.0)
     which = ", ".join(f"{keys[k]} {rows[i, k]:g} kPa" for k in np.flatnonzero(rows[i] > 0))
     if curve.limit_bound_kpa is not None:
         limit = f"at most {kpa(curve.limit_bound_kpa)} kPa (a bound: the curve levels off)"

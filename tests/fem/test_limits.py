@@ -374,7 +374,7 @@ def test_curve_jobs_one_per_curve_and_as_many_as_the_memory_holds(monkeypatch):
     """`fruit limits --jobs`: at most one worker per curve, every core by default, and no
     more workers than WORKER_BYTES_PER_DOF says the memory available holds (at least one)."""
     from fruitcli import memory
-    from fruitcli.fem import limits_stage
+    from fruitcli.fem import curve_workers as limits_stage
     from fruitcli.studies import executors
 
     per = limits_stage.WORKER_BYTES_PER_DOF * 1000
@@ -751,3 +751,34 @@ def test_a_failed_sample_is_tried_again_with_half_the_step(monkeypatch):
         "k: 26 kPa was not reached: following this chamber's inflation by volume control "
         "found no equilibrium beyond "
     )
+
+
+@pytest.mark.slow
+def test_the_stage_check_in_worker_processes_finds_what_one_process_finds():
+    """`check_pressures` with a `found` list (the limits stage) on the nested balls, in
+    one process and over two worker processes: at (20, 10) kPa the same curves (each
+    chamber's inflation on to its limit, then the two together), the pressures to the
+    check's four digits; at (28, 28) kPa the same refusal line."""
+    model = nested_octant_balls()
+    keys = ["[actuation].pressure_kpa.c", "[actuation].pressure_kpa.d"]
+
+    def check(pressures, jobs):
+        found: list = []
+        solver = model.make_solver()
+        options = SolverOptions()
+        pressure_check.check_pressures(
+            model, np.array(pressures), keys, solver, options, screen=0.0, found=found, jobs=jobs
+        )
+        return [(d, c.name, np.array(c.pressure_kpa), c.limit_pressure_kpa) for d, c in found]
+
+    one, two = check([[20.0, 10.0]], 1), check([[20.0, 10.0]], 2)
+    assert [(d, name) for d, name, *_ in one] == [(1, "c"), (1, "d"), (1, limits.TOGETHER)]
+    assert [(d, name) for d, name, *_ in two] == [(d, name) for d, name, *_ in one]
+    for (_, _, p1, lim1), (_, _, p2, lim2) in zip(one, two, strict=True):
+        assert p2 == pytest.approx(p1, rel=1e-4) and lim2 == pytest.approx(lim1, rel=1e-4)
+    lines = []
+    for jobs in (1, 2):
+        with pytest.raises(SceneError) as refused:
+            check([[28.0, 28.0]], jobs)
+        lines.append(str(refused.value))
+    assert lines[0] == lines[1] and lines[0].startswith("[actuation].pressure_kpa.c: 28 kPa")
