@@ -571,7 +571,11 @@ before (commit b9ba0ad). Each worker peaked at 740 MB. The limits are those of o
 process to every digit, and those of the code before within 1.3e-6 relative (the
 chambers together 29.82342 kPa instead of 29.82346, c2 39.10044 instead of 39.10041),
 the collapse pressures within 1e-8. On a machine with fewer free cores than curves
-the time is about the CPU time over the free cores.
+the time is about the CPU time over the free cores. The `limits` stage of `fruit run`
+follows its curves the same way: on the default Fruit's mesh with every chamber at 20
+kPa (four curves on to their limits, the chambers together included), 40.2 s wall and
+70 s of CPU over two worker processes against 61.6 s and 68 s in one (17:56-17:59 UTC,
+load average 0.2-1.2), the limits within 2e-6 relative of each other.
 
 Measured and not adopted: one solver (one PARDISO analysis) shared by all the curves
 (107 s of CPU against 111 s, within the run-to-run spread); the factor refreshed at

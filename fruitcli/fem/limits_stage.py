@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fruitcli.fem import io, limits, pressure_check
-from fruitcli.fem.curve_workers import curve_jobs, run_curves
+from fruitcli.fem.curve_workers import curve_jobs, curve_label, run_curves
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
@@ -102,7 +102,8 @@ def follow_curves(
         return [follow_curve((model, c, options, start, progress)) for c in curves]
     order = sorted(range(len(curves)), key=lambda i: (-curves[i].direction, -i))
     cases = [(model, curves[i], options, start, None) for i in order]
-    done = run_curves(follow_curve, cases, n, progress, why)
+    labels = [curve_label(model.chamber_names, curves[i].which, curves[i].direction) for i in order]
+    done = run_curves(follow_curve, cases, labels, n, progress, why)
     results: list = [None] * len(curves)
     for i, curve in zip(order, done, strict=True):
         results[i] = curve

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem.curve_workers import curve_jobs, run_curves
+from fruitcli.fem.curve_workers import curve_jobs, curve_label, run_curves
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
@@ -209,7 +209,10 @@ def _check_in_workers(
     cases: list[tuple] = [(model, k, d, asked, check, start) for k, d, asked in plan]
     if together is not None:  # the longest: first
         cases.insert(0, (model, together[1], 1, together[2], check, start))
-    curves = run_curves(_curve_to_the_limit, cases, jobs, progress or (lambda msg: None), why)
+    labels = [curve_label(model.chamber_names, c[1], c[2]) for c in cases]
+    curves = run_curves(
+        _curve_to_the_limit, cases, labels, jobs, progress or (lambda msg: None), why
+    )
     if together is not None:
         curves = curves[1:] + curves[:1]
     found += [(d, curve) for (k, d, asked), curve in zip(plan, curves, strict=False)]
