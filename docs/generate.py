@@ -295,7 +295,8 @@ In every run the breathing took 1.50 Newton steps and 10.3 CG iterations a state
 1.42 and 8.4 after, and the sweep 1.11 and 7.2 before, 1.11 and 3.8 after; before, each
 path refactorized once after its first state, after, neither did. On the quiet machine
 earlier that day (09:32 UTC, load average 0.9-1.1) commit 82334ef took a median 309 ms
-per breathing state and 218 ms per sweep state. The states of both paths (`--save`) are
+per breathing state and 218 ms per sweep state; at 17:52 UTC (load average 1.0) commit
+af3b3b3 took 217 ms and 121 ms. The states of both paths (`--save`) are
 within 5.1e-5 mm (breathing) and 5.5e-5 mm (sweep) of the code before, under the
 displacement tolerance of 1e-4 mm; through `fruit run` the paper's model (`element =
 "p1"`) within 6.2e-5 mm.
@@ -326,7 +327,13 @@ a refactorization costs 0.36-0.53 s. The breathing's first six states take two N
 steps because the predictor, with few kept states, starts them 0.009-0.029 mm from the
 equilibrium (0.001-0.003 mm later in the cycle); each Newton step needs its own tangent
 (the previous state's last tangent kept for the first step cut the residual to
-1e-2-1e-1 instead of 1e-3: three steps instead of two). The state from rest (7.0-10.2 s
+1e-2-1e-1 instead of 1e-3: three steps instead of two). Measured state by state
+(commit f90d870, 18:08 UTC): states 1-6 start from a relative residual of 0.14-0.47 and
+take two Newton steps with 6-18 CG iterations (211-387 ms), states 7-11 start from
+0.03 and take one with 11 down to 2 (238 down to 106 ms), and state 12, the cycle's
+start again, none (22 ms); the first state's sensitivity solved to 1e-5 instead of
+1e-2 starts states 1-6 no closer (the predictor's error there is the response's
+curvature, which the few states kept do not yet fit). The state from rest (7.0-10.2 s
 after, 9.0-14.2 s before, in runs A and B) was not worked on.
 
 Measured on the same states and not adopted: the upper triangle of each element block
