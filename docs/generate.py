@@ -328,7 +328,7 @@ steps because the predictor, with few kept states, starts them 0.009-0.029 mm fr
 equilibrium (0.001-0.003 mm later in the cycle); each Newton step needs its own tangent
 (the previous state's last tangent kept for the first step cut the residual to
 1e-2-1e-1 instead of 1e-3: three steps instead of two). Measured state by state
-(commit f90d870, 18:08 UTC): states 1-6 start from a relative residual of 0.14-0.47 and
+(commit af3b3b3, 17:53-18:09 UTC): states 1-6 start from a relative residual of 0.14-0.47 and
 take two Newton steps with 6-18 CG iterations (211-387 ms), states 7-11 start from
 0.03 and take one with 11 down to 2 (238 down to 106 ms), and state 12, the cycle's
 start again, none (22 ms); the first state's sensitivity solved to 1e-5 instead of
