@@ -139,7 +139,8 @@ def check_pressures(
     appended to it as (direction, curve). With `kept` (a file), the curves' samples
     solved by an earlier check of the same body are taken from there, and the new ones
     kept there (`SampleCache`). `jobs` (None: every core) over 1 follows the curves of
-    a `found` list in worker processes (`curve_workers`), refused in the same order."""
+    a `found` list without `kept` in worker processes (`curve_workers`), refused in the
+    same order."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -159,7 +160,7 @@ def check_pressures(
         if direction * asked > 0 and abs(asked) * w[k] >= screen * v0[k]
     ]
     together = _together_case(model, pressures, compliance, screen)
-    if found is not None:
+    if found is not None and kept is None:
         n, why = curve_jobs(jobs, len(plan) + (together is not None), 3 * model.n_nodes)
         if n > 1:
             _check_in_workers(
