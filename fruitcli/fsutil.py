@@ -165,3 +165,13 @@ def staged_dir(final: str | os.PathLike) -> Iterator[Path]:
 def slug(label: str) -> str:
     """A file-system friendly version of a row label ('Rest, small' -> 'rest-small')."""
     return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-") or "row"
+
+
+def file_hash_many(paths: Iterable[str | Path]) -> str:
+    """sha256 (hex) of the files' bytes one after the other, in the order given."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(Path(p).read_bytes())
+    return h.hexdigest()

@@ -38,6 +38,7 @@ def limits(scene, out_dir, solid, jobs) -> None:
     from fruitcli.fem.limits_stage import run_limits
     from fruitcli.fem.stage import run_tetra
     from fruitcli.scene import load_scene
+    from fruitcli.studies.parallel import CurveProcesses
 
     log = Progress("limits ")
     with fruit_errors():
@@ -55,7 +56,8 @@ def limits(scene, out_dir, solid, jobs) -> None:
         elif solid is None and geo.solid is None and geo.pad_size_mm is None:
             raise SceneError(f"{scene}: [geometry]: no artist, solid or pad_size_mm to mesh")
         run_tetra(sc, solid, out_dir, progress=log)
-        info = run_limits(sc, out_dir / "mesh.npz", out_dir, progress=log, jobs=jobs)
+        pool = CurveProcesses(jobs)
+        info = run_limits(sc, out_dir / "mesh.npz", out_dir, progress=log, pool=pool)
     for name, ch in info["chambers"].items():
         lim, col = ch["limit_pressure_kpa"], ch["collapse_pressure_kpa"]
         click.echo(

@@ -2,13 +2,15 @@
 curves of a body share nothing but its equilibrium under its weight (`limits.Start`),
 so each runs on its own solver and gives what it gives in one process. `fruit limits`
 (`limits_stage.follow_curves`) and the planner's `limits` stage
-(`pressure_check.check_pressures` with `jobs`) use them."""
+(`pressure_check.check_pressures`) take a `CurvePool` from their caller (the processes
+themselves are `fruitcli.studies.parallel.CurveProcesses`, above this package)."""
 
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -17,15 +19,35 @@ WORKER_BYTES_PER_DOF = 15_000
 sparse factor; on the default Fruit (50,990 dofs, PARDISO) a worker peaked at 740 MB."""
 
 
-def curve_jobs(jobs: int | None, curves: int, dofs: int) -> tuple[int, str]:
-    """(worker processes for `curves` curves, why fewer than asked): `jobs` (None: every
-    core, or one in a process that is itself a worker, such as a sweep's), at most one
-    per curve and as many as the memory available holds."""
-    from fruitcli import memory
-    from fruitcli.studies.executors import default_jobs
+class CurvePool(Protocol):
+    """Where curves may run: `jobs` worker processes (None: every core), and `map`,
+    which runs `[follow(c) for c in cases]` over `workers` of them, in the order given,
+    saying each case's label through `progress` as it ends."""
 
+    jobs: int | None
+
+    def map(
+        self,
+        follow: Callable[[Any], Any],
+        cases: Sequence[Any],
+        labels: Sequence[str],
+        workers: int,
+        progress: Callable[[str], None],
+    ) -> list: ...
+
+
+def curve_jobs(pool: CurvePool | None, curves: int, dofs: int) -> tuple[int, str]:
+    """(worker processes for `curves` curves, why fewer than asked): none without a
+    pool; the pool's jobs (None: every core, or one in a process that is itself a
+    worker, such as a sweep's), at most one per curve and as many as the memory
+    available holds."""
+    from fruitcli import memory
+
+    if pool is None:
+        return 1, ""
+    jobs = pool.jobs
     if jobs is None:
-        jobs = 1 if multiprocessing.parent_process() is not None else default_jobs()
+        jobs = 1 if multiprocessing.parent_process() is not None else os.cpu_count() or 1
     room = int(memory.SHARE * memory.available_bytes() // (WORKER_BYTES_PER_DOF * dofs))
     n = max(1, min(jobs, curves, room))
     why = "" if n >= min(jobs, curves) else f" (the memory available holds {max(room, 1)})"
@@ -39,37 +61,3 @@ def curve_label(names: Sequence[str], which: Any, direction: int) -> str:
     if isinstance(which, (int, np.integer)):
         return f"chamber {names[int(which)]} {what}"
     return f"chambers together {what}"
-
-
-def run_curves(
-    follow: Callable[[Any], Any],
-    cases: Sequence[Any],
-    labels: Sequence[str],
-    jobs: int,
-    progress: Callable[[str], None],
-    why: str = "",
-) -> list:
-    """`[follow(c) for c in cases]` over `jobs` (> 1) worker processes, in the order
-    given (start the longest first), saying each curve's label as it ends; `follow` is a
-    module-level function."""
-    from fruitcli.studies.executors import Task, open_executor, run_graph
-
-    progress(f"limits: {len(cases)} curves in {jobs} worker processes{why}")
-    done = 0
-
-    def ended(key: int, result: Any) -> None:
-        nonlocal done
-        done += 1
-        progress(f"limits: {labels[key]} followed ({done} of {len(cases)})")
-
-    pool = open_executor(jobs)
-    try:
-        results = run_graph(pool, {k: Task(_call, (follow, c)) for k, c in enumerate(cases)}, ended)
-    finally:
-        pool.close()
-    return [results[k] for k in range(len(cases))]
-
-
-def _call(arg: tuple[Callable[[Any], Any], Any], deps: dict) -> Any:
-    follow, case = arg
-    return follow(case)

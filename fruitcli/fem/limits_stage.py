@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fruitcli.fem import io, limits, pressure_check
-from fruitcli.fem.curve_workers import curve_jobs, curve_label, run_curves
+from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
@@ -89,21 +89,23 @@ def follow_curves(
     curves: list[Curve],
     options: SolverOptions,
     start: limits.Start,
-    jobs: int | None = None,
+    pool: CurvePool | None = None,
     progress: Callable[[str], None] = _noop,
 ) -> list[limits.ChamberCurve]:
-    """Each of `curves` followed from `start` (`follow_curve`), in this process or, with
-    `jobs` (None: every core) over 1, in that many worker processes: the curves share
+    """Each of `curves` followed from `start` (`follow_curve`), in this process or over
+    the worker processes of `pool` (`curve_workers.curve_jobs`): the curves share
     nothing but the start, so the results are those of one process. Inflations go
     first, the last given first (the chambers together: the longest); progress says
     each sample in one process, each curve in several."""
-    n, why = curve_jobs(jobs, len(curves), 3 * model.n_nodes)
-    if n == 1:
+    n, why = curve_jobs(pool, len(curves), 3 * model.n_nodes)
+    if pool is None or n == 1:
         return [follow_curve((model, c, options, start, progress)) for c in curves]
     order = sorted(range(len(curves)), key=lambda i: (-curves[i].direction, -i))
     cases = [(model, curves[i], options, start, None) for i in order]
     labels = [curve_label(model.chamber_names, curves[i].which, curves[i].direction) for i in order]
-    done = run_curves(follow_curve, cases, labels, n, progress, why)
+    if why:
+        progress(f"limits: {n} worker processes{why}")
+    done = pool.map(follow_curve, cases, labels, n, progress)
     results: list = [None] * len(curves)
     for i, curve in zip(order, done, strict=True):
         results[i] = curve
@@ -155,10 +157,10 @@ def run_limits(
     mesh_npz: str | Path,
     out_dir: Path,
     progress: Callable[[str], None] | None = None,
-    jobs: int | None = 1,
+    pool: CurvePool | None = None,
 ) -> dict:
-    """Follow each chamber's curve, in `jobs` worker processes (None: every core; 1: in
-    this process, `follow_curves`); write limits.json, pv.csv and pv.png (see module
+    """Follow each chamber's curve, over the worker processes of `pool` (None: in this
+    process, `follow_curves`); write limits.json, pv.csv and pv.png (see module
     docstring). Returns the limits.json content."""
     progress = progress or _noop
     t0 = time.perf_counter()
@@ -170,7 +172,7 @@ def run_limits(
     ratio = scene_ratios(scene, names)
     if len(names) > 1:
         order.append(Curve(ratio, 1))
-    followed = follow_curves(model, order, options, start, jobs, progress)
+    followed = follow_curves(model, order, options, start, pool, progress)
     chambers, rows, curves = {}, [], []
     for k, name in enumerate(names):
         down, up = followed[2 * k], followed[2 * k + 1]
@@ -301,13 +303,13 @@ def run_limits_stage(
     mesh_npz: str | Path,
     out_dir: Path,
     progress: Callable[[str], None] | None = None,
-    jobs: int | None = None,
+    pool: CurvePool | None = None,
 ) -> dict:
     """The planner's `limits` stage: the scene's pressures checked against the limits
     (`pressure_check.check_pressures` on the scene's states, without its screen: the planner
     runs this stage when the pressures come near a limit, `near_limit`), each
-    pressurised chamber's curve followed on to its limit or collapse (in `jobs` worker
-    processes, None: one per core, `curve_workers.curve_jobs`); raises the
+    pressurised chamber's curve followed on to its limit or collapse (over the worker
+    processes of `pool`, `curve_workers.curve_jobs`); raises the
     check's one line for a pressure past one, else writes out_dir/limits.json
     (chambers.<name>.{followed, limit_pressure_kpa, limit_volume_growth_mm3,
     collapse_pressure_kpa}, together (or None), element, mesh, seconds) and, when a
@@ -332,7 +334,7 @@ def run_limits_stage(
         progress,
         screen=0.0,
         found=found,
-        jobs=jobs,
+        pool=pool,
     )
     chambers: dict[str, dict[str, Any]] = {
         c: {

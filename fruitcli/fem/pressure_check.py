@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem.curve_workers import curve_jobs, curve_label, run_curves
+from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
@@ -126,7 +126,7 @@ def check_pressures(
     screen: float = SCREEN_GROWTH,
     found: list | None = None,
     kept: Path | None = None,
-    jobs: int | None = 1,
+    pool: CurvePool | None = None,
 ) -> None:
     """Refuse, with one SceneError line naming keys[k], a chamber pressure past that
     chamber's limit pressure (inflation) or collapse pressure (suction). pressures (S,
@@ -138,9 +138,9 @@ def check_pressures(
     first), all from the body's equilibrium under its weight (`start_state`), and are
     appended to it as (direction, curve). With `kept` (a file), the curves' samples
     solved by an earlier check of the same body are taken from there, and the new ones
-    kept there (`SampleCache`). `jobs` (None: every core) over 1 follows the curves of
-    a `found` list without `kept` in worker processes (`curve_workers`), refused in the
-    same order."""
+    kept there (`SampleCache`). With a `pool`, the curves of a `found` list without
+    `kept` are followed over its worker processes (`curve_workers`), refused in the same
+    order."""
     if not np.any(np.nan_to_num(pressures)):
         return
     compliance = rest_compliance(model, solver)
@@ -161,10 +161,10 @@ def check_pressures(
     ]
     together = _together_case(model, pressures, compliance, screen)
     if found is not None and kept is None:
-        n, why = curve_jobs(jobs, len(plan) + (together is not None), 3 * model.n_nodes)
-        if n > 1:
+        n, why = curve_jobs(pool, len(plan) + (together is not None), 3 * model.n_nodes)
+        if pool is not None and n > 1:
             _check_in_workers(
-                model, pressures, plan, together, keys, solver, check, progress, found, n, why
+                model, pressures, plan, together, keys, solver, check, progress, found, pool, n, why
             )
             return
     start: list = []  # the curves' `Start`, once one is followed on to its limit
@@ -199,11 +199,12 @@ def _check_in_workers(
     check: SolverOptions,
     progress: Callable[[str], None] | None,
     found: list,
-    jobs: int,
+    pool: CurvePool,
+    workers: int,
     why: str,
 ) -> None:
     """`check_pressures` with `found`, its curves (`plan`: (chamber, direction, asked),
-    and `together`) followed on to their limits in `jobs` worker processes from the body
+    and `together`) followed on to their limits in `workers` of `pool`'s processes from the body
     under its weight; the curves appended to `found` and refused in the order of one
     process (the chambers together last)."""
     start = start_state(model, solver, check, progress)
@@ -211,9 +212,10 @@ def _check_in_workers(
     if together is not None:  # the longest: first
         cases.insert(0, (model, together[1], 1, together[2], check, start))
     labels = [curve_label(model.chamber_names, c[1], c[2]) for c in cases]
-    curves = run_curves(
-        _curve_to_the_limit, cases, labels, jobs, progress or (lambda msg: None), why
-    )
+    say = progress or (lambda msg: None)
+    if why:
+        say(f"limits: {workers} worker processes{why}")
+    curves = pool.map(_curve_to_the_limit, cases, labels, workers, say)
     if together is not None:
         curves = curves[1:] + curves[:1]
     found += [(d, curve) for (k, d, asked), curve in zip(plan, curves, strict=False)]

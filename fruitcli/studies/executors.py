@@ -259,7 +259,7 @@ def see_probe(path: str, token: str) -> tuple[bool, str, str]:
 def code_hash() -> str:
     """sha256 of the fruitcli package's sources (same on every machine of one install)."""
     import fruitcli
-    from fruitcli.workflow.planner import file_hash_many
+    from fruitcli.fsutil import file_hash_many
 
     root = Path(fruitcli.__file__).parent
     return file_hash_many(sorted(root.rglob("*.py")))

@@ -11,7 +11,7 @@ from fruitcli.studies.executors import Task, default_jobs, open_executor, run_gr
 if TYPE_CHECKING:
     from fruitcli.studies.executors import DaskPool, LocalPool, Serial
 
-__all__ = ["default_jobs", "run_cases"]
+__all__ = ["CurveProcesses", "default_jobs", "run_cases"]
 
 C = TypeVar("C")  # a case
 R = TypeVar("R")  # its result
@@ -53,3 +53,38 @@ def run_cases(
 def _call(arg: tuple[Callable[[C], R], C], deps: dict):
     func, case = arg
     return func(case)
+
+
+class CurveProcesses:
+    """Local worker processes for the FEM's pressure-volume curves
+    (`fruitcli.fem.curve_workers.CurvePool`): `jobs` of them at most (None: every
+    core)."""
+
+    def __init__(self, jobs: int | None = None):
+        self.jobs = jobs
+
+    def map(
+        self,
+        follow: Callable[[C], R],
+        cases: Sequence[C],
+        labels: Sequence[str],
+        workers: int,
+        progress: Callable[[str], None],
+    ) -> list[R]:
+        """`[follow(c) for c in cases]` over `workers` processes, in the order given
+        (start the longest first), saying each case's label as it ends."""
+        progress(f"limits: {len(cases)} curves in {workers} worker processes")
+        done = 0
+
+        def ended(key: int, result: object) -> None:
+            nonlocal done
+            done += 1
+            progress(f"limits: {labels[key]} followed ({done} of {len(cases)})")
+
+        pool = open_executor(workers)
+        try:
+            tasks = {n: Task(_call, (follow, case)) for n, case in enumerate(cases)}
+            results = run_graph(pool, tasks, ended)
+        finally:
+            pool.close()
+        return [results[n] for n in range(len(cases))]

@@ -102,9 +102,10 @@ def _limits_needed(scene: Scene):
 
 def _limits_run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fem.limits_stage import run_limits_stage
+    from fruitcli.studies.parallel import CurveProcesses
 
     mesh = ctx.dir("tetra") / "mesh.npz"
-    return run_limits_stage(scene, mesh, out_dir, progress=ctx.progress)
+    return run_limits_stage(scene, mesh, out_dir, progress=ctx.progress, pool=CurveProcesses())
 
 
 LIMITS_STAGE = Stage(

@@ -20,10 +20,11 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
 
 from fruitcli.errors import FruitError
+from fruitcli.fsutil import file_hash_many
 from fruitcli.scene import Scene
 from fruitcli.workflow.scene_hash import content, scene_inputs
 from fruitcli.workflow.stage_types import Context, Stage, Step
@@ -91,13 +92,6 @@ def code_files(module: str) -> list[Path]:
         elif (top / f"{name}.py").exists():
             files.add(top / f"{name}.py")
     return sorted(files)
-
-
-def file_hash_many(paths: Iterable[str | Path]) -> str:
-    h = hashlib.sha256()
-    for p in paths:
-        h.update(Path(p).read_bytes())
-    return h.hexdigest()
 
 
 def output_hashes(folder: Path) -> dict[str, str]:

@@ -25,6 +25,7 @@ from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.stage import run_simulate, run_tetra
 from fruitcli.fem.state_load import Load
 from fruitcli.scene import parse_scene
+from fruitcli.studies.parallel import CurveProcesses
 from tests.fem.meshing.test_mesh import ball_scene, inflation_pressure, octant_ball
 
 LIMIT_B_OVER_A_2 = 0.8164  # max P / mu of the incompressible sphere, B / A = 2
@@ -364,29 +365,36 @@ def test_fruit_limits_cli_and_simulate_refusal(tmp_path):
     )
     assert not (tmp_path / "sim" / "states.npz").exists()
     # the two curves in two worker processes: the same limits.json, pv.csv and points
-    run_limits(scene, out / "mesh.npz", tmp_path / "par", jobs=2)
+    run_limits(scene, out / "mesh.npz", tmp_path / "par", pool=CurveProcesses(2))
     again = json.loads((tmp_path / "par" / "limits.json").read_text())
     assert {**again, "seconds": 0} == {**saved, "seconds": 0}
     assert (tmp_path / "par" / "pv.csv").read_text() == (out / "pv.csv").read_text()
 
 
 def test_curve_jobs_one_per_curve_and_as_many_as_the_memory_holds(monkeypatch):
-    """`fruit limits --jobs`: at most one worker per curve, every core by default, and no
-    more workers than WORKER_BYTES_PER_DOF says the memory available holds (at least one)."""
+    """`fruit limits --jobs`: one process without a pool; at most one worker per curve,
+    every core by default, and no more workers than WORKER_BYTES_PER_DOF says the
+    memory available holds (at least one)."""
     from fruitcli import memory
-    from fruitcli.fem import curve_workers as limits_stage
-    from fruitcli.studies import executors
+    from fruitcli.fem import curve_workers
 
-    per = limits_stage.WORKER_BYTES_PER_DOF * 1000
-    monkeypatch.setattr(executors, "default_jobs", lambda: 8)
+    per = curve_workers.WORKER_BYTES_PER_DOF * 1000
+    monkeypatch.setattr(curve_workers.os, "cpu_count", lambda: 8)
     monkeypatch.setattr(memory, "available_bytes", lambda: int(10 * per / memory.SHARE))
-    assert limits_stage.curve_jobs(None, 7, 1000) == (7, "")
-    assert limits_stage.curve_jobs(3, 7, 1000) == (3, "")
-    assert limits_stage.curve_jobs(None, 20, 1000) == (8, "")
+    assert curve_workers.curve_jobs(None, 7, 1000) == (1, "")
+    assert curve_workers.curve_jobs(CurveProcesses(), 7, 1000) == (7, "")
+    assert curve_workers.curve_jobs(CurveProcesses(3), 7, 1000) == (3, "")
+    assert curve_workers.curve_jobs(CurveProcesses(), 20, 1000) == (8, "")
     monkeypatch.setattr(memory, "available_bytes", lambda: int(3.5 * per / memory.SHARE))
-    assert limits_stage.curve_jobs(None, 7, 1000) == (3, " (the memory available holds 3)")
+    assert curve_workers.curve_jobs(CurveProcesses(), 7, 1000) == (
+        3,
+        " (the memory available holds 3)",
+    )
     monkeypatch.setattr(memory, "available_bytes", lambda: int(0.5 * per / memory.SHARE))
-    assert limits_stage.curve_jobs(4, 7, 1000) == (1, " (the memory available holds 1)")
+    assert curve_workers.curve_jobs(CurveProcesses(4), 7, 1000) == (
+        1,
+        " (the memory available holds 1)",
+    )
 
 
 def test_fruit_limits_refuses_a_scene_without_chambers(tmp_path):
@@ -764,10 +772,11 @@ def test_the_stage_check_in_worker_processes_finds_what_one_process_finds():
 
     def check(pressures, jobs):
         found: list = []
+        pool = CurveProcesses(jobs) if jobs > 1 else None
         solver = model.make_solver()
         options = SolverOptions()
         pressure_check.check_pressures(
-            model, np.array(pressures), keys, solver, options, screen=0.0, found=found, jobs=jobs
+            model, np.array(pressures), keys, solver, options, screen=0.0, found=found, pool=pool
         )
         return [(d, c.name, np.array(c.pressure_kpa), c.limit_pressure_kpa) for d, c in found]
 

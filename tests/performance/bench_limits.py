@@ -14,9 +14,12 @@
    process (`fruitcli.fem.limits.follow` as `fruit limits` does: the body under its
    weight once, then each chamber's suction and inflation and the chambers together),
    each with its wall and CPU time and its samples; --mesh DIR keeps the mesh there.
+4. With --stage, instead of 2: the planner's `limits` stage (`run_limits_stage`) on the
+   default Fruit with every chamber at 20 kPa, near its limit, over --jobs worker
+   processes (default: every core), timed; --mesh DIR as for --curves.
 
 Run: .venv/bin/python tests/performance/bench_limits.py [--no-sphere] [--no-fruit]
-[--out DIR] [--docs] [--jobs N] [--curves [--mesh DIR]]
+[--out DIR] [--docs] [--jobs N] [--curves | --stage] [--mesh DIR]
 """
 
 import argparse
@@ -193,6 +196,47 @@ def fruit_curves(mesh_dir: Path) -> None:
     )
 
 
+def fruit_stage(mesh_dir: Path, jobs: int | None) -> None:
+    """The planner's `limits` stage on the default Fruit with every chamber at
+    NEAR_KPA (near its limit: each chamber's inflation and the chambers together
+    followed on to their limits), timed (wall, and CPU of this process and its
+    workers)."""
+    import datetime
+    import re
+
+    sys.path.insert(0, str(HERE))
+    from bench_state import default_mesh
+    from run_all import commit, processor
+
+    from fruitcli.fem.limits_stage import run_limits_stage
+    from fruitcli.scene import load_scene, parse_scene
+    from fruitcli.studies.parallel import CurveProcesses
+
+    path = ROOT / "pipelines" / "fruit-breathing.toml"
+    mesh = default_mesh(mesh_dir, load_scene(path, must_exist=False))
+    pressures = ", ".join(f"c{k} = [{NEAR_KPA}]" for k in (1, 2, 3))
+    text = re.sub(r"(?m)^pressure_kpa = .*$", f"pressure_kpa = {{ {pressures} }}", path.read_text())
+    scene = parse_scene(text, path)
+    load0, t0 = load_average(), time.perf_counter()
+    cpu0 = time.process_time() + children_cpu()
+    with tempfile.TemporaryDirectory() as out:
+        info = run_limits_stage(scene, mesh, Path(out) / "limits", pool=CurveProcesses(jobs))
+    wall, cpu = time.perf_counter() - t0, time.process_time() + children_cpu() - cpu0
+    limits = ", ".join(f"{c} {v['limit_pressure_kpa']:.6g}" for c, v in info["chambers"].items())
+    print(
+        f"limits stage, default Fruit, every chamber at {NEAR_KPA:g} kPa, jobs "
+        f"{'default' if jobs is None else jobs}: {wall:.1f} s wall, {cpu:.1f} s CPU; limits "
+        f"{limits}, together {info['together']['limit_pressure_kpa']:.6g} kPa; "
+        f"{datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, commit {commit()[:12]}, "
+        f"{processor()}, {os.cpu_count()} cores, load average {load0} -> {load_average()}"
+    )
+
+
+NEAR_KPA = 20.0
+"""The chambers' pressure of `fruit_stage`: 0.58 of the material's shear modulus, over the
+planner's NEAR_SHEAR_FRACTION, under every chamber's limit."""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--no-sphere", action="store_true")
@@ -202,10 +246,16 @@ def main() -> None:
     parser.add_argument("--curves", action="store_true", help="each curve timed in-process")
     parser.add_argument("--mesh", type=Path, default=None, help="keep the mesh in this folder")
     parser.add_argument("--jobs", type=int, default=None, help="fruit limits --jobs")
+    parser.add_argument("--stage", action="store_true", help="the limits stage instead of 2")
     args = parser.parse_args()
     if not args.no_sphere:
         sphere_refinement()
-    if args.curves:
+    if args.stage:
+        with tempfile.TemporaryDirectory() as tmp:
+            mesh_dir = args.mesh or Path(tmp)
+            mesh_dir.mkdir(parents=True, exist_ok=True)
+            fruit_stage(mesh_dir, args.jobs)
+    elif args.curves:
         with tempfile.TemporaryDirectory() as tmp:
             mesh_dir = args.mesh or Path(tmp)
             mesh_dir.mkdir(parents=True, exist_ok=True)
