@@ -579,10 +579,11 @@ process to every digit, and those of the code before within 1.3e-6 relative (the
 chambers together 29.82342 kPa instead of 29.82346, c2 39.10044 instead of 39.10041),
 the collapse pressures within 1e-8. On a machine with fewer free cores than curves
 the time is about the CPU time over the free cores. The `limits` stage of `fruit run`
-follows its curves the same way: on the default Fruit's mesh with every chamber at 20
-kPa (four curves on to their limits, the chambers together included), 40.2 s wall and
-70 s of CPU over two worker processes against 61.6 s and 68 s in one (17:56-17:59 UTC,
-load average 0.2-1.2), the limits within 2e-6 relative of each other.
+follows its curves the same way (`python tests/performance/bench_limits.py --no-sphere
+--stage [--jobs 1]`: the default Fruit's mesh with every chamber at 20 kPa, four curves
+on to their limits, the chambers together included): 40.5 s wall and 72 s of CPU over
+two worker processes against 62.0 s and 68 s in one (2026-12-06 18:16-18:17 UTC, commit
+2062861, load average 0.4-1.1), the same limits to six digits.
 
 Measured and not adopted: one solver (one PARDISO analysis) shared by all the curves
 (107 s of CPU against 111 s, within the run-to-run spread); the factor refreshed at
