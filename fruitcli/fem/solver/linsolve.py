@@ -83,12 +83,47 @@ double precision."""
 
 
 def upper_triangle(k: sp.spmatrix | sp.sparray) -> sp.csr_matrix | sp.csr_array:
-    """The upper triangle of the symmetric sparse k in CSR with sorted indices."""
+    """The upper triangle of the symmetric sparse k in CSR with sorted indices. A CSR
+    matrix with sorted indices takes its entries by the positions found for its pattern
+    (`_UpperPick`, kept for the last pattern seen: every tangent of a body has the
+    same): 5 ms instead of scipy's `triu`, 37-56 ms on the quadratic default Fruit."""
     import scipy.sparse as sp
 
+    if sp.issparse(k) and k.format == "csr" and k.has_sorted_indices:
+        pick = _UPPER_PICK[0]
+        if pick is None or not pick.fits(k):
+            pick = _UPPER_PICK[0] = _UpperPick(k.indptr, k.indices)
+        return sp.csr_matrix((k.data[pick.positions], pick.indices, pick.indptr), shape=k.shape)
     u = sp.triu(k, format="csr")
     u.sort_indices()
     return u
+
+
+class _UpperPick:
+    """Where the upper triangle's entries lie in the data of a CSR pattern (indptr,
+    indices; sorted indices), and the triangle's own indptr and indices."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray) -> None:
+        n = len(indptr) - 1
+        rows = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
+        self.positions = np.flatnonzero(indices >= rows)
+        self.indices = indices[self.positions]
+        self.indptr = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(rows[self.positions], minlength=n), out=self.indptr[1:])
+        self.pattern = (indptr.copy(), indices.copy())
+
+    def fits(self, k: sp.csr_matrix) -> bool:
+        """True when k has this pick's pattern."""
+        indptr, indices = self.pattern
+        return (
+            len(k.indices) == len(indices)
+            and np.array_equal(k.indptr, indptr)
+            and np.array_equal(k.indices, indices)
+        )
+
+
+_UPPER_PICK: list[_UpperPick | None] = [None]
+"""The pick of the last CSR pattern `upper_triangle` met."""
 
 
 def _cholespy_factor(k: sp.csc_matrix) -> Factor:

@@ -71,3 +71,32 @@ def test_pattern_equals_the_dof_pairs_pattern_and_assembles_like_scipy(quadratic
             shape=(3 * n_nodes, 3 * n_nodes),
         ).tocsr()[free_mask][:, free_mask] + sp.diags(diagonal)
         assert abs(got - full).max() < 1e-12 * abs(full).max()
+
+
+def test_upper_triangle_is_scipys_for_new_and_repeated_patterns():
+    """`upper_triangle` of CSR matrices (sorted indices) gives scipy's `triu` exactly: for
+    a pattern, for new values on the same pattern (the kept pick), for another pattern,
+    and for a matrix with unsorted indices (scipy's own path)."""
+    from fruitcli.fem.solver.linsolve import upper_triangle
+
+    rng = np.random.default_rng(4)
+
+    def symmetric(n, density):
+        a = sp.random(n, n, density=density, random_state=rng, format="csr")
+        return (a + a.T + sp.identity(n)).tocsr()
+
+    k = symmetric(60, 0.1)
+    again = k.copy()
+    again.data = rng.normal(size=again.nnz)
+    other = symmetric(45, 0.2)
+    unsorted = sp.csr_matrix((k.data[::-1].copy(), k.indices.copy(), k.indptr.copy()), k.shape)
+    unsorted.indices = np.concatenate(
+        [k.indices[a:b][::-1] for a, b in zip(k.indptr[:-1], k.indptr[1:], strict=True)]
+    )
+    unsorted.has_sorted_indices = False
+    for m in (k, again, other, k, unsorted):
+        u, want = upper_triangle(m), sp.triu(m, format="csr")
+        want.sort_indices()
+        assert np.array_equal(u.indptr, want.indptr)
+        assert np.array_equal(u.indices, want.indices)
+        assert np.array_equal(u.data, want.data)
