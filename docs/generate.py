@@ -484,11 +484,12 @@ The first state is within 5.1e-5 mm of the code before's, and within 2.9e-5 mm o
 equilibrium solved to a relative residual of 1e-11 (the code before's: 5.6e-5 mm);
 through `run_simulate` every breathing state is within 5.1e-5 mm of the code before's,
 and a second run into the same folder within 1.4e-4 mm of the first (each within the
-displacement tolerance of 1e-4 mm of the equilibrium). The 2 s target is reached by a
-later run on the same body, not by a first run (2.5 s: 8 Newton steps, 3 factorizations
-after the check's). Starting from the body's equilibrium under its weight does not
-apply here: `fruit simulate` solves it only when its pressure check follows a curve on
-to its limit, which the breathing's pressures do not ask for.
+displacement tolerance of 1e-4 mm of the equilibrium). On that machine the 2 s target
+is reached by a later run on the same body, not by a first run (2.5 s: 8 Newton steps, 3
+factorizations after the check's; below for another machine). Starting from the body's
+equilibrium under its weight does not apply here: `fruit simulate` solves it only when
+its pressure check follows a curve on to its limit, which the breathing's pressures do
+not ask for.
 
 Through the command itself, `fruit simulate pipelines/fruit-breathing.toml --out DIR`
 (its own mesh, refined at the taxels: 8,865 tets), on a quiet machine (16:27-16:32 UTC,
@@ -513,6 +514,19 @@ The body's equilibrium under its weight that `fruit limits` solves once
 (`limits.start_state`) took 8 Newton steps and 3.2 s with the path tolerance instead of
 10 and 3.9 s, but moved by 0.014 mm (within the check's tolerance of 1e-3): left as it
 was, as the limits would need validating anew.
+
+The upper triangle PARDISO factors is taken from the tangent by positions found once per
+sparsity pattern (`linsolve.upper_triangle`) instead of SciPy's `triu`: 5-9 ms instead
+of 37-56 ms at every factorization, the same matrix entry for entry
+(`tests/fem/solver/test_assemble.py`). `python tests/performance/bench_state.py --mesh
+DIR --first`, the code before (commit ee1bc33) and after (commit 19f4516) alternately,
+three times each, on 2026-12-06 18:55-18:58 UTC on a quiet Intel Xeon, 2 cores (load
+average 0.3-0.7): the first state into a new folder 1931-1981 ms instead of
+2033-2098 ms (a run's second and third state from rest in the same process: 1847-1888
+ms), with the same 8 Newton steps, 4 factorizations and 40 CG iterations.
+`tests/performance/bench_refusal.py` on the same machine (commit 19f4516, 18:51-18:57
+UTC, load average 0.8-1.0): chamber c1 at 2000 kPa refused 4.1 s after the mesh, at
+-500 kPa 7.7 s; the thick sphere at 2000 kPa 2.4 s, at -500 kPa 4.8 s.
 
 Measured and not adopted: a path tolerance of 0.1 (one factorization fewer on the
 Fruit, but a beam turning far under its weight took 85 Newton steps instead of 58,
