@@ -520,11 +520,11 @@ sparsity pattern (`linsolve.upper_triangle`) instead of SciPy's `triu`: 5-9 ms i
 of 37-56 ms at every factorization, the same matrix entry for entry
 (`tests/fem/solver/test_assemble.py`). `python tests/performance/bench_state.py --mesh
 DIR --first`, the code before (commit ee1bc33) and after (commit 19f4516) alternately,
-three times each, on 2026-12-06 18:55-18:58 UTC on a quiet Intel Xeon, 2 cores (load
+three times each, on 2026-12-06 18:53-18:55 UTC on a quiet Intel Xeon, 2 cores (load
 average 0.3-0.7): the first state into a new folder 1931-1981 ms instead of
 2033-2098 ms (a run's second and third state from rest in the same process: 1847-1888
 ms), with the same 8 Newton steps, 4 factorizations and 40 CG iterations.
-`tests/performance/bench_refusal.py` on the same machine (commit 19f4516, 18:51-18:57
+`tests/performance/bench_refusal.py` on the same machine (commit 19f4516, 18:50-18:53
 UTC, load average 0.8-1.0): chamber c1 at 2000 kPa refused 4.1 s after the mesh, at
 -500 kPa 7.7 s; the thick sphere at 2000 kPa 2.4 s, at -500 kPa 4.8 s.
 
