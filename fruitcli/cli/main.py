@@ -168,9 +168,18 @@ def accept_late_options(cmd: click.Command) -> click.Command:
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output; -vv shows tracebacks.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress output on stderr.")
+@click.option(
+    "--solver-threads",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Threads of MKL PARDISO's factorizations and solves in the FEM. 1: every run's "
+    "results the same to the last bit; more: faster on an idle machine, results "
+    "varying between runs within the solver's tolerances.",
+)
 @click.version_option(package_name=DISTRIBUTION, prog_name="fruit")
 @click.pass_context
-def cli(ctx, verbose, quiet) -> None:
+def cli(ctx, verbose, quiet, solver_threads) -> None:
     """fruit: model-based capacitive touch sensing on soft robots.
 
     From an artist's mesh to a fabricated, calibrated, evaluated touch skin.
@@ -180,6 +189,10 @@ def cli(ctx, verbose, quiet) -> None:
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
     compile_notice.silence(quiet)
+    if solver_threads > 1:  # before MKL is loaded (`pardiso.use_threads`)
+        from fruitcli.fem.solver import pardiso
+
+        pardiso.use_threads(solver_threads)
     logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
 
 

@@ -15,8 +15,9 @@ the check then takes its samples from the first run's pressure-check.npz
 (`fruitcli.fem.sample_cache`).
 
 Run: .venv/bin/python tests/performance/bench_refusal.py [--no-fruit] [--without-pardiso]
-     [--again]
-(--without-pardiso: as the default install, through tests/performance/without_pardiso.py)
+     [--again] [--solver-threads N]
+(--without-pardiso: as the default install, through tests/performance/without_pardiso.py;
+--solver-threads N: `fruit --solver-threads N simulate`)
 """
 
 import argparse
@@ -60,16 +61,18 @@ def fruit_scene(pressure: float) -> str:
     )
 
 
-def refusal(scene: Path, out: Path, pardiso: bool = True) -> tuple[float | None, float, int, str]:
+def refusal(
+    scene: Path, out: Path, pardiso: bool = True, threads: int = 1
+) -> tuple[float | None, float, int, str]:
     """`fruit simulate` on `scene` (without MKL PARDISO, as the default install, unless
-    `pardiso`): (seconds from the mesh to its last line or None, wall seconds, exit code,
-    last line)."""
+    `pardiso`; PARDISO on `threads` threads): (seconds from the mesh to its last line or
+    None, wall seconds, exit code, last line)."""
     fruit = [str(Path(sys.executable).parent / "fruit")]
     if not pardiso:
         fruit = [sys.executable, str(HERE / "without_pardiso.py")]
     t0 = time.monotonic()
     proc = subprocess.Popen(
-        [*fruit, "simulate", str(scene), "--out", str(out)],
+        [*fruit, "--solver-threads", str(threads), "simulate", str(scene), "--out", str(out)],
         cwd=scene.parent,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -93,11 +96,11 @@ def children_cpu() -> float:
     return use.ru_utime + use.ru_stime
 
 
-def refuse(scene: Path, out: Path, pardiso: bool = True) -> str:
+def refuse(scene: Path, out: Path, pardiso: bool = True, threads: int = 1) -> str:
     """One line: `refusal` of `scene`, timed from the mesh to its last line (wall), and
     the whole command's CPU time (all threads, meshing included)."""
     cpu0 = children_cpu()
-    after, wall, code, last = refusal(scene, out, pardiso)
+    after, wall, code, last = refusal(scene, out, pardiso, threads)
     cpu = children_cpu() - cpu0
     when = "?" if after is None else f"{after:.1f} s"
     return f"{when} after the mesh, {wall:.1f} s in all ({cpu:.1f} s CPU), exit {code}: {last[:90]}"
@@ -112,8 +115,11 @@ def main() -> None:
     parser.add_argument(
         "--again", action="store_true", help="run each Fruit case again in the same folder"
     )
+    parser.add_argument("--solver-threads", type=int, default=1, help="MKL PARDISO's threads")
     args = parser.parse_args()
     pardiso = not args.without_pardiso
+    threads = args.solver_threads
+    print(f"PARDISO on {threads} thread(s)")
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -123,16 +129,16 @@ def main() -> None:
         for p in (-500.0, 2000.0):
             scene = tmp / f"sphere_{p:g}.toml"
             scene.write_text(SPHERE.format(p=p))
-            line = refuse(scene, tmp / f"o_sphere_{p:g}", pardiso)
+            line = refuse(scene, tmp / f"o_sphere_{p:g}", pardiso, threads)
             print(f"thick sphere, cavity at {p:g} kPa: {line}")
         if not args.no_fruit:
             for p in (-500.0, 2000.0):
                 scene = tmp / f"fruit_{p:g}.toml"
                 scene.write_text(fruit_scene(p))
-                line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso)
+                line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso, threads)
                 print(f"default Fruit, c1 at {p:g} kPa: {line}", flush=True)
                 if args.again:
-                    line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso)
+                    line = refuse(scene, tmp / f"o_fruit_{p:g}", pardiso, threads)
                     print(f"default Fruit, c1 at {p:g} kPa, again: {line}", flush=True)
     print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 

@@ -15,6 +15,9 @@ compare figures taken at a like load). --repeat N runs each path N times (fresh 
 each time) and prints every run's median; --mesh DIR keeps the tetrahedral mesh there
 (built once, about a minute) so that later runs skip the meshing.
 
+--solver-threads N runs MKL PARDISO on N threads (`fruit --solver-threads`; the results
+then vary between runs within the solver's tolerances).
+
 --save PREFIX writes each path's states (nodes, mm) to PREFIX-breathing.npz and
 PREFIX-sweep.npz, to compare the equilibria of two versions.
 
@@ -28,7 +31,7 @@ call's wall time (the model, the check, the state and the files); with --save, t
 state's nodes to PREFIX-first.npz.
 
 Run: .venv/bin/python tests/performance/bench_state.py [--mesh DIR] [--repeat N]
-     [--sweep 10] [--only breathing|sweep] [--save PREFIX] [--first]
+     [--sweep 10] [--only breathing|sweep] [--save PREFIX] [--first] [--solver-threads N]
 """
 
 import argparse
@@ -147,7 +150,16 @@ def main() -> None:
     ap.add_argument(
         "--save", type=Path, default=None, help="write each path's nodes (mm) to SAVE-path.npz"
     )
+    ap.add_argument(
+        "--solver-threads",
+        type=int,
+        default=1,
+        help="MKL PARDISO's threads, as `fruit --solver-threads` (default 1)",
+    )
     args = ap.parse_args()
+    from fruitcli.fem.solver import pardiso
+
+    pardiso.use_threads(args.solver_threads)
     from bench_fem import scene_loads
     from run_all import commit, processor
 
@@ -158,7 +170,7 @@ def main() -> None:
     scene = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
     stamp = (
         f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, commit {commit()}, "
-        f"{processor()}, {os.cpu_count()} cores"
+        f"{processor()}, {os.cpu_count()} cores, PARDISO on {args.solver_threads} thread(s)"
     )
     with tempfile.TemporaryDirectory() as tmp:
         mesh_dir = args.mesh or Path(tmp)

@@ -7,7 +7,8 @@ factorized and converts its index arrays to one-based int32, and MKL's default o
 iterative-refinement steps per solve triples the cost of a solve that only
 preconditions CG. The symbolic analysis is kept: `refactor` redoes only the numerical
 factorization of a matrix with the same pattern. MKL runs on one thread (see
-`_functions`). On the default Fruit (`python tests/bench/bench_fem.py --factor`):
+`_functions`) unless the process asks for more (`use_threads`, `fruit --solver-threads`).
+On the default Fruit (`python tests/bench/bench_fem.py --factor`):
 
 | | linear tets, 6,762 dofs | quadratic, 44,403 dofs |
 |---|---|---|
@@ -38,6 +39,33 @@ if TYPE_CHECKING:
 
 SPD, SYMMETRIC_INDEFINITE = 2, -2  # PARDISO's mtype
 MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, GNU 3
+MKL_THREADING_INTEL = 0
+
+_THREADS = [1]  # PARDISO's threads in this process (`use_threads`)
+
+
+def use_threads(threads: int) -> None:
+    """Run PARDISO's factorizations and solves on `threads` threads in this process, from
+    before MKL is loaded (the threading layer is chosen then: 1, the default, MKL's
+    sequential one). With more than one, MKL's OpenMP layer factors and solves in
+    parallel: on a quiet 2-core machine a single-precision solve of the quadratic
+    default Fruit took 5 ms instead of 10 and a refactorization 0.11 s instead of 0.21,
+    but the sums' order then changes from call to call, so results vary between runs
+    within the solver's tolerances (on one thread they are the same to the last bit).
+    A worker process (`multiprocessing`) keeps one thread: its parent's workers share the
+    cores. RuntimeError once MKL is loaded on one thread and more are asked for."""
+    if threads < 1:
+        raise ValueError(f"PARDISO threads: expected 1 or more, got {threads}")
+    if _FUNCTIONS is not None and _THREADS[0] == 1 and threads > 1:
+        raise RuntimeError("PARDISO threads: MKL is already loaded on one thread")
+    _THREADS[0] = threads
+
+
+def threads_used() -> int:
+    """PARDISO's threads in this process: `use_threads`'s, one in a worker process."""
+    import multiprocessing
+
+    return 1 if multiprocessing.parent_process() is not None else _THREADS[0]
 
 
 class PardisoError(SolverError):
@@ -100,10 +128,22 @@ def _functions():
         # between calls made the p1 tangent products about 60 % slower and a p2 state
         # 15-20 % slower on this 2-core machine; one thread also makes the factor's sums
         # the same from run to run
+        # the same from run to run; `use_threads` asks for MKL's OpenMP layer instead (its
+        # threads sleep at once after each call, KMP_BLOCKTIME, unless the user set it)
+        layer = MKL_THREADING_SEQUENTIAL
+        if _THREADS[0] > 1 and not _beside(lib, "libmkl_intel_thread*", "libiomp5*"):
+            _THREADS[0] = 1  # MKL's OpenMP layer is not installed: one thread
+        if _THREADS[0] > 1:
+            os.environ.setdefault("KMP_BLOCKTIME", "0")
+            layer = MKL_THREADING_INTEL
         try:
-            lib.MKL_Set_Threading_Layer(ctypes.c_int(MKL_THREADING_SEQUENTIAL))
+            if lib.MKL_Set_Threading_Layer(ctypes.c_int(layer)) != layer:
+                _THREADS[0] = 1  # the OpenMP layer is missing: one thread
+                lib.MKL_Set_Threading_Layer(ctypes.c_int(MKL_THREADING_SEQUENTIAL))
         except AttributeError:
-            pass
+            _THREADS[0] = 1
+        if _THREADS[0] > 1:
+            lib.MKL_Set_Dynamic(ctypes.c_int(0))  # the threads asked, not fewer
         i32 = ctypes.POINTER(ctypes.c_int32)
         pardiso = lib.pardiso
         pardiso.argtypes = [
@@ -128,8 +168,20 @@ def _functions():
         init = lib.pardisoinit
         init.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32]
         init.restype = None
-        _FUNCTIONS = pardiso, init
+        _FUNCTIONS = pardiso, init, lib
     return _FUNCTIONS
+
+
+def _beside(lib: ctypes.CDLL, *patterns: str) -> bool:
+    """True when a file of each glob pattern lies in the folder of the loaded library
+    `lib` (MKL's threading layer and OpenMP runtime beside its runtime library; Windows
+    names them .dll, without "lib")."""
+    folder = os.path.dirname(str(getattr(lib, "_name", "")))
+    return all(
+        glob.glob(os.path.join(folder, pattern + "*"))
+        or glob.glob(os.path.join(folder, pattern.removeprefix("lib") + "*"))
+        for pattern in patterns
+    )
 
 
 def available() -> bool:
@@ -153,7 +205,8 @@ class Pardiso:
     on its quadratic ones: a preconditioner, not a solver). Raises PardisoError."""
 
     def __init__(self, upper: sp.csr_matrix, mtype: int = SPD, single: bool = False):
-        self._pardiso, init = _functions()
+        self._pardiso, init, self._lib = _functions()
+        self.threads = threads_used()
         self.n = upper.shape[0]
         self.mtype = mtype
         self.single = single
@@ -231,6 +284,28 @@ class Pardiso:
     ) -> None:
         err = ctypes.c_int32(0)
         one = ctypes.c_int32(1)
+        before = None
+        if self.threads > 1:  # over any per-thread limit (threadpoolctl's, `threads`)
+            before = self._lib.MKL_Set_Num_Threads_Local(ctypes.c_int(self.threads))
+        try:
+            self._call_pardiso(phase, data, b, x, nrhs, err, one)
+        finally:
+            if before is not None:
+                self._lib.MKL_Set_Num_Threads_Local(ctypes.c_int(before))
+        if err.value != 0:
+            meaning = ERRORS.get(err.value, "unknown error")
+            raise PardisoError(f"PARDISO phase {phase}: {meaning} (error {err.value})", err.value)
+
+    def _call_pardiso(
+        self,
+        phase: int,
+        data: np.ndarray,
+        b: np.ndarray,
+        x: np.ndarray,
+        nrhs: int,
+        err: ctypes.c_int32,
+        one: ctypes.c_int32,
+    ) -> None:
         self._pardiso(
             self._ptr(self.pt, ctypes.c_int64),
             ctypes.byref(one),
@@ -249,9 +324,6 @@ class Pardiso:
             x.ctypes.data,
             ctypes.byref(err),
         )
-        if err.value != 0:
-            meaning = ERRORS.get(err.value, "unknown error")
-            raise PardisoError(f"PARDISO phase {phase}: {meaning} (error {err.value})", err.value)
 
 
 def factorize_upper(
