@@ -538,6 +538,42 @@ step (6 factorizations, 41 CG iterations, 3.9 s).
 """
 
 
+THREADS_STEPS = """
+## PARDISO on two threads: `fruit --solver-threads 2`
+
+MKL PARDISO runs on one thread by default, so that every run gives the same bits. With
+`fruit --solver-threads N` it runs on N (`fruitcli.fem.solver.pardiso.use_threads`: MKL's
+OpenMP layer, chosen before MKL is loaded, its threads put to sleep after each call).
+Timed alone on an idle Intel Xeon, 2 cores, a single-precision solve of the quadratic
+default Fruit's tangent took 5.0-5.4 ms instead of 9.1-10.4 ms and a refactorization
+0.10-0.12 s instead of 0.21 s; with the other core kept busy, 10-12 ms and 0.18-0.27 s,
+nothing gained.
+
+`python tests/performance/bench_state.py --mesh DIR [--first] --solver-threads N` and
+`python tests/performance/bench_refusal.py --solver-threads N` (commit da0e65a,
+2026-12-06 19:05-19:12 UTC, the same Intel Xeon, load average 0.7-1.3; one and two
+threads alternately):
+
+| | one thread | two threads |
+|---|---|---|
+| breathing, a state from the previous one: median, ms | 268, 261 | 215, 204 |
+| sweep of c1: median, ms | 154, 144 | 117, 116 |
+| CPU median of both cores, breathing; sweep, ms | 313, 306; 177, 174 | 312, 302; 176, 172 |
+| first state from rest as `fruit simulate` solves it, new folder, ms | 1924, 2005 | 1471, 1448 |
+| the same, again into the same folder, ms | 418, 417 | 298, 302 |
+| chamber c1 at 2000 kPa refused after the mesh, s | 4.2 | 4.1 |
+| chamber c1 at -500 kPa refused after the mesh, s | 7.6 | 6.6 |
+
+The Newton steps (1.42 and 1.11 a state) and CG iterations (8.4 and 3.8) are the same.
+The states are not the same bits: two runs on two threads, and a run on one thread
+against one on two, differ by up to 2.0e-6 mm on the breathing and 6.5e-7 mm on the sweep
+(`--save`; the displacement tolerance is 1e-4 mm), and a first state from rest took 39
+CG iterations instead of 40 in one run of five. The 100 ms target for a state from the
+previous one is met by the sweep's median on two threads within 20 %, not by the
+breathing's.
+"""
+
+
 LIMITS_STEPS = """
 ## `fruit limits`: what each step bought
 
@@ -676,6 +712,7 @@ def performance_page(result: dict, source: str) -> str:
     lines += SOLVER_STEPS.strip().splitlines() + [""]
     lines += STATE_STEPS.strip().splitlines() + [""]
     lines += FIRST_STATE_STEPS.strip().splitlines() + [""]
+    lines += THREADS_STEPS.strip().splitlines() + [""]
     lines += LIMITS_STEPS.strip().splitlines() + [""]
     if "sample" in source:
         lines += [
