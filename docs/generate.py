@@ -569,8 +569,8 @@ The states are not the same bits: two runs on two threads, and a run on one thre
 against one on two, differ by up to 2.0e-6 mm on the breathing and 6.5e-7 mm on the sweep
 (`--save`; the displacement tolerance is 1e-4 mm), and a first state from rest took 39
 CG iterations instead of 40 in one run of five. The 100 ms target for a state from the
-previous one is met by the sweep's median on two threads within 20 %, not by the
-breathing's.
+previous one is still missed on two threads: 116-117 ms on the sweep, 204-215 ms on the
+breathing.
 """
 
 
