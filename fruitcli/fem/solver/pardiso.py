@@ -144,6 +144,7 @@ def _functions():
             _THREADS[0] = 1
         if _THREADS[0] > 1:
             lib.MKL_Set_Dynamic(ctypes.c_int(0))  # the threads asked, not fewer
+            lib.MKL_Set_Num_Threads(ctypes.c_int(1))  # a call asks for more (`_call`)
         i32 = ctypes.POINTER(ctypes.c_int32)
         pardiso = lib.pardiso
         pardiso.argtypes = [

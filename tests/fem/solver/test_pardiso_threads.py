@@ -59,21 +59,37 @@ def test_two_threads_factor_and_solve_with_two_and_match_scipy():
 
 
 def test_a_worker_process_keeps_one_thread():
-    """A process started by multiprocessing asks PARDISO for one thread whatever its
-    parent asked (the workers share the cores)."""
+    """A process forked by multiprocessing from a parent whose PARDISO runs on two threads
+    factors and solves on one (MKL's max threads read inside its calls): the workers
+    share the cores."""
     out = run_python(
         """
         import multiprocessing
+        import numpy as np, scipy.sparse as sp
         from fruitcli.fem.solver import pardiso
-        def threads(_):
-            return pardiso.threads_used()
+        from fruitcli.fem.solver.linsolve import upper_triangle
+        seen = []
+        call = pardiso.Pardiso._call_pardiso
+        def spy(self, *args):
+            seen.append(self._lib.MKL_Get_Max_Threads())
+            return call(self, *args)
+        pardiso.Pardiso._call_pardiso = spy
+        k = upper_triangle((sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(50, 50))).tocsr())
+        def factor_and_solve():
+            seen.clear()
+            pardiso.factorize_upper(k).solve(np.ones(50))
+            return pardiso.threads_used(), sorted(set(seen))
+        def in_worker(_):
+            return factor_and_solve()
         if __name__ == "__main__":
             pardiso.use_threads(2)
+            here = factor_and_solve()
             with multiprocessing.get_context("fork").Pool(1) as pool:
-                print(pardiso.threads_used(), pool.map(threads, [0])[0])
+                there = pool.map(in_worker, [0])[0]
+            print(here, there)
         """
     )
-    assert out.split() == ["2", "1"]
+    assert out.strip() == "(2, [2]) (1, [1])"
 
 
 def test_threads_asked_after_mkl_is_loaded_or_below_one_are_refused():
