@@ -16,10 +16,24 @@ from fruitcli.fem.solver import pardiso
 pytestmark = pytest.mark.skipif(not pardiso.available(), reason="MKL PARDISO not installed")
 
 
+SPY = """
+def spy_on_threads(pardiso):
+    \"\"\"A list that gets MKL's max threads inside each PARDISO call from now on.\"\"\"
+    seen = []
+    call = pardiso.Pardiso._call_pardiso
+    def spy(self, *args):
+        seen.append(self._lib.MKL_Get_Max_Threads())
+        return call(self, *args)
+    pardiso.Pardiso._call_pardiso = spy
+    return seen
+"""
+
+
 def run_python(code: str) -> str:
-    """stdout of `code` run by this interpreter in a new process (fails on its errors)."""
+    """stdout of `code`, after `SPY`, run by this interpreter in a new process (fails on
+    its errors)."""
     done = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)],
+        [sys.executable, "-c", SPY + textwrap.dedent(code)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -38,12 +52,7 @@ def test_two_threads_factor_and_solve_with_two_and_match_scipy():
         from fruitcli.fem.solver import pardiso
         from fruitcli.fem.solver.linsolve import upper_triangle
         pardiso.use_threads(2)
-        seen = []
-        call = pardiso.Pardiso._call_pardiso
-        def spy(self, *args):
-            seen.append(self._lib.MKL_Get_Max_Threads())
-            return call(self, *args)
-        pardiso.Pardiso._call_pardiso = spy
+        seen = spy_on_threads(pardiso)
         one = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(16, 16))
         eye = sp.identity(16)
         k = (sp.kron(sp.kron(one, eye), eye) + sp.kron(sp.kron(eye, one), eye)
@@ -68,12 +77,7 @@ def test_a_worker_process_keeps_one_thread():
         import numpy as np, scipy.sparse as sp
         from fruitcli.fem.solver import pardiso
         from fruitcli.fem.solver.linsolve import upper_triangle
-        seen = []
-        call = pardiso.Pardiso._call_pardiso
-        def spy(self, *args):
-            seen.append(self._lib.MKL_Get_Max_Threads())
-            return call(self, *args)
-        pardiso.Pardiso._call_pardiso = spy
+        seen = spy_on_threads(pardiso)
         k = upper_triangle((sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(50, 50))).tocsr())
         def factor_and_solve():
             seen.clear()
