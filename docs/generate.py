@@ -543,7 +543,8 @@ THREADS_STEPS = """
 
 MKL PARDISO runs on one thread by default, so that every run gives the same bits. With
 `fruit --solver-threads N` it runs on N (`fruitcli.fem.solver.pardiso.use_threads`: MKL's
-OpenMP layer, chosen before MKL is loaded, its threads put to sleep after each call).
+OpenMP layer, chosen before MKL is loaded, its threads put to sleep after each call
+unless `KMP_BLOCKTIME` says otherwise).
 Timed alone on an idle Intel Xeon, 2 cores, a single-precision solve of the quadratic
 default Fruit's tangent took 5.0-5.4 ms instead of 9.1-10.4 ms and a refactorization
 0.10-0.12 s instead of 0.21 s; with the other core kept busy, 10-12 ms and 0.18-0.27 s,

@@ -173,9 +173,10 @@ def accept_late_options(cmd: click.Command) -> click.Command:
     type=click.IntRange(min=1),
     default=1,
     show_default=True,
-    help="Threads of MKL PARDISO's factorizations and solves in the FEM. 1: every run's "
-    "results the same to the last bit; more: faster on an idle machine, results "
-    "varying between runs within the solver's tolerances.",
+    metavar="N",
+    help="Threads of MKL PARDISO's factorizations and solves in the FEM (at most the "
+    "cores). 1: every run's results the same to the last bit; more: faster on an idle "
+    "machine, results varying between runs within the solver's tolerances.",
 )
 @click.version_option(package_name=DISTRIBUTION, prog_name="fruit")
 @click.pass_context
@@ -189,11 +190,16 @@ def cli(ctx, verbose, quiet, solver_threads) -> None:
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
     compile_notice.silence(quiet)
+    logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
     if solver_threads > 1:  # before MKL is loaded (`pardiso.use_threads`)
         from fruitcli.fem.solver import pardiso
 
-        pardiso.use_threads(solver_threads)
-    logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
+        cores = os.cpu_count() or 1
+        if solver_threads > cores:
+            logging.getLogger(__name__).warning(
+                f"--solver-threads {solver_threads}: this machine has {cores} cores; {cores}"
+            )
+        pardiso.use_threads(min(solver_threads, cores))
 
 
 def main(argv: list[str] | None = None) -> None:

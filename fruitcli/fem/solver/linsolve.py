@@ -83,17 +83,21 @@ double precision."""
 
 
 def upper_triangle(k: sp.spmatrix | sp.sparray) -> sp.csr_matrix | sp.csr_array:
-    """The upper triangle of the symmetric sparse k in CSR with sorted indices. A CSR
-    matrix with sorted indices takes its entries by the positions found for its pattern
-    (`_UpperPick`, kept for the last pattern seen: every tangent of a body has the
-    same): 5 ms instead of scipy's `triu`, 37-56 ms on the quadratic default Fruit."""
+    """The upper triangle of the symmetric sparse k in CSR with sorted indices, of k's
+    class. A CSR matrix in canonical form (sorted indices, no duplicates) takes its
+    entries by the positions found for its pattern (`_UpperPick`, kept for the last
+    pattern seen: every tangent of a body has the same): 5 ms instead of scipy's `triu`,
+    37-56 ms on the quadratic default Fruit."""
     import scipy.sparse as sp
 
-    if sp.issparse(k) and k.format == "csr" and k.has_sorted_indices:
+    if sp.issparse(k) and k.format == "csr" and k.has_canonical_format:
         pick = _UPPER_PICK[0]
         if pick is None or not pick.fits(k):
-            pick = _UPPER_PICK[0] = _UpperPick(k.indptr, k.indices)
-        return sp.csr_matrix((k.data[pick.positions], pick.indices, pick.indptr), shape=k.shape)
+            pick = _UpperPick.of(k)
+        if pick is not None:
+            _UPPER_PICK[0] = pick
+            nnz = int(k.indptr[-1])
+            return type(k)((k.data[:nnz][pick.positions], pick.indices, pick.indptr), shape=k.shape)
     u = sp.triu(k, format="csr")
     u.sort_indices()
     return u
@@ -101,24 +105,42 @@ def upper_triangle(k: sp.spmatrix | sp.sparray) -> sp.csr_matrix | sp.csr_array:
 
 class _UpperPick:
     """Where the upper triangle's entries lie in the data of a CSR pattern (indptr,
-    indices; sorted indices), and the triangle's own indptr and indices."""
+    indices), and the triangle's own indptr and indices (read-only: every triangle of
+    the pattern shares them)."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray) -> None:
         n = len(indptr) - 1
         rows = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
-        self.positions = np.flatnonzero(indices >= rows)
+        kind = np.int32 if len(indices) < 2**31 else np.int64
+        self.positions = np.flatnonzero(indices >= rows).astype(kind)
         self.indices = indices[self.positions]
         self.indptr = np.zeros(n + 1, np.int64)
         np.cumsum(np.bincount(rows[self.positions], minlength=n), out=self.indptr[1:])
         self.pattern = (indptr.copy(), indices.copy())
+        for a in (self.positions, self.indices, self.indptr, *self.pattern):
+            a.flags.writeable = False
+
+    @classmethod
+    def of(cls, k: sp.csr_matrix) -> _UpperPick | None:
+        """The pick of k's pattern, or None when its indices are not strictly increasing
+        along each row (a flag that says otherwise is not trusted)."""
+        nnz = int(k.indptr[-1])
+        indices = k.indices[:nnz]
+        step = np.diff(indices)
+        last_of_row = k.indptr[1:-1] - 1  # a row's last entry: the next row may restart
+        inside = np.ones(len(step), bool)
+        inside[last_of_row[(last_of_row >= 0) & (last_of_row < len(step))]] = False
+        if np.any(step[inside] <= 0):
+            return None
+        return cls(k.indptr, indices)
 
     def fits(self, k: sp.csr_matrix) -> bool:
         """True when k has this pick's pattern."""
         indptr, indices = self.pattern
         return (
-            len(k.indices) == len(indices)
+            int(k.indptr[-1]) == len(indices)
             and np.array_equal(k.indptr, indptr)
-            and np.array_equal(k.indices, indices)
+            and np.array_equal(k.indices[: len(indices)], indices)
         )
 
 

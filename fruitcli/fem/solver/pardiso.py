@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import ctypes
 import glob
+import logging
 import os
 import sys
 from typing import TYPE_CHECKING, Protocol
@@ -38,10 +39,12 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 SPD, SYMMETRIC_INDEFINITE = 2, -2  # PARDISO's mtype
+_LOG = logging.getLogger(__name__)
 MKL_THREADING_SEQUENTIAL = 1  # mkl_set_threading_layer: INTEL 0, SEQUENTIAL 1, GNU 3
 MKL_THREADING_INTEL = 0
 
-_THREADS = [1]  # PARDISO's threads in this process (`use_threads`)
+_THREADS = [1]  # PARDISO's threads asked for in this process (`use_threads`)
+_LAYER: list[int | None] = [None]  # MKL's threading layer, once MKL is loaded
 
 
 def use_threads(threads: int) -> None:
@@ -53,19 +56,77 @@ def use_threads(threads: int) -> None:
     but the sums' order then changes from call to call, so results vary between runs
     within the solver's tolerances (on one thread they are the same to the last bit).
     A worker process (`multiprocessing`) keeps one thread: its parent's workers share the
-    cores. RuntimeError once MKL is loaded on one thread and more are asked for."""
+    cores. Where the OpenMP layer is not installed, one thread, with a warning.
+    RuntimeError once MKL is loaded on its sequential layer and more are asked for."""
     if threads < 1:
         raise ValueError(f"PARDISO threads: expected 1 or more, got {threads}")
-    if _FUNCTIONS is not None and _THREADS[0] == 1 and threads > 1:
+    if _LAYER[0] == MKL_THREADING_SEQUENTIAL and threads > 1:
         raise RuntimeError("PARDISO threads: MKL is already loaded on one thread")
     _THREADS[0] = threads
 
 
 def threads_used() -> int:
-    """PARDISO's threads in this process: `use_threads`'s, one in a worker process."""
+    """PARDISO's threads in this process: `use_threads`'s; one in a worker process or
+    once MKL is loaded on its sequential layer."""
     import multiprocessing
 
-    return 1 if multiprocessing.parent_process() is not None else _THREADS[0]
+    if multiprocessing.parent_process() is not None or _LAYER[0] == MKL_THREADING_SEQUENTIAL:
+        return 1
+    return _THREADS[0]
+
+
+def _choose_layer(lib: ctypes.CDLL) -> None:
+    """Set MKL's threading layer before its first call: the sequential one, or the OpenMP
+    one when `threads_used` is above 1 and its libraries load (else a warning and one
+    thread). MKL's global thread count is then 1; a PARDISO call asks for its own
+    (`Pardiso._call`). The OpenMP threads sleep at once after each call (KMP_BLOCKTIME
+    0, unless the user set it): spinning, they took the cores from numba's loops."""
+    layer = MKL_THREADING_SEQUENTIAL
+    if threads_used() > 1:
+        if _openmp_layer_loads(lib):
+            os.environ.setdefault("KMP_BLOCKTIME", "0")
+            layer = MKL_THREADING_INTEL
+        else:
+            _LOG.warning(
+                "PARDISO: MKL's OpenMP threading layer (mkl_intel_thread, libiomp5) is not "
+                "installed beside MKL: one thread"
+            )
+    try:
+        got = lib.MKL_Set_Threading_Layer(ctypes.c_int(layer))
+        if layer == MKL_THREADING_INTEL and got != layer:  # MKL was initialised before
+            _LOG.warning("PARDISO: MKL was loaded before fruit chose its threads: one thread")
+            layer = MKL_THREADING_SEQUENTIAL
+        if layer == MKL_THREADING_INTEL:
+            lib.MKL_Set_Dynamic(ctypes.c_int(0))  # the threads asked, not fewer
+        lib.MKL_Set_Num_Threads(ctypes.c_int(1))
+    except AttributeError:  # an MKL without these functions: as it is
+        layer = MKL_THREADING_SEQUENTIAL
+    _LAYER[0] = layer
+
+
+def _openmp_layer_loads(lib: ctypes.CDLL) -> bool:
+    """True when MKL's OpenMP threading layer of the same version as the runtime library
+    `lib` lies beside it (libmkl_intel_thread.so.3 beside libmkl_rt.so.3;
+    mkl_intel_thread.2.dll beside mkl_rt.2.dll) and Intel's OpenMP runtime (libiomp5)
+    there loads: MKL ends the process when it cannot load the layer it was told to use.
+    (The layer itself loads only through MKL's runtime, which brings its core.)"""
+    path = str(getattr(lib, "_name", ""))
+    folder, name = os.path.split(path)
+    if "mkl_rt" not in name:
+        return False
+    omp = [
+        os.path.join(folder, f)
+        for f in ("libiomp5.so", "libiomp5md.dll", "libiomp5.dylib")
+        if os.path.exists(os.path.join(folder, f))
+    ]
+    layer = os.path.join(folder, name.replace("mkl_rt", "mkl_intel_thread"))
+    if not omp or not os.path.exists(layer):
+        return False
+    try:
+        ctypes.CDLL(omp[0], mode=ctypes.RTLD_GLOBAL)
+    except OSError:
+        return False
+    return True
 
 
 class PardisoError(SolverError):
@@ -119,32 +180,16 @@ def _library():
 
 
 def _functions():
-    """(pardiso, pardisoinit) of MKL's runtime library, loaded once."""
+    """(pardiso, pardisoinit, the library) of MKL's runtime library, loaded once."""
     global _FUNCTIONS
     if _FUNCTIONS is None:
         lib = _library()
-        # MKL on one thread: numba's parallel element loops own the cores. Beside them,
-        # MKL's OpenMP threads (Intel's runtime, or GNU's shared with numba) spinning
-        # between calls made the p1 tangent products about 60 % slower and a p2 state
-        # 15-20 % slower on this 2-core machine; one thread also makes the factor's sums
-        # the same from run to run
-        # the same from run to run; `use_threads` asks for MKL's OpenMP layer instead (its
-        # threads sleep at once after each call, KMP_BLOCKTIME, unless the user set it)
-        layer = MKL_THREADING_SEQUENTIAL
-        if _THREADS[0] > 1 and not _beside(lib, "libmkl_intel_thread*", "libiomp5*"):
-            _THREADS[0] = 1  # MKL's OpenMP layer is not installed: one thread
-        if _THREADS[0] > 1:
-            os.environ.setdefault("KMP_BLOCKTIME", "0")
-            layer = MKL_THREADING_INTEL
-        try:
-            if lib.MKL_Set_Threading_Layer(ctypes.c_int(layer)) != layer:
-                _THREADS[0] = 1  # the OpenMP layer is missing: one thread
-                lib.MKL_Set_Threading_Layer(ctypes.c_int(MKL_THREADING_SEQUENTIAL))
-        except AttributeError:
-            _THREADS[0] = 1
-        if _THREADS[0] > 1:
-            lib.MKL_Set_Dynamic(ctypes.c_int(0))  # the threads asked, not fewer
-            lib.MKL_Set_Num_Threads(ctypes.c_int(1))  # a call asks for more (`_call`)
+        # MKL on one thread by default: numba's parallel element loops own the cores.
+        # Beside them, MKL's OpenMP threads (Intel's runtime, or GNU's shared with numba)
+        # spinning between calls made the p1 tangent products about 60 % slower and a p2
+        # state 15-20 % slower on this 2-core machine; one thread also makes the factor's
+        # sums the same from run to run (`use_threads` asks for more)
+        _choose_layer(lib)
         i32 = ctypes.POINTER(ctypes.c_int32)
         pardiso = lib.pardiso
         pardiso.argtypes = [
@@ -171,18 +216,6 @@ def _functions():
         init.restype = None
         _FUNCTIONS = pardiso, init, lib
     return _FUNCTIONS
-
-
-def _beside(lib: ctypes.CDLL, *patterns: str) -> bool:
-    """True when a file of each glob pattern lies in the folder of the loaded library
-    `lib` (MKL's threading layer and OpenMP runtime beside its runtime library; Windows
-    names them .dll, without "lib")."""
-    folder = os.path.dirname(str(getattr(lib, "_name", "")))
-    return all(
-        glob.glob(os.path.join(folder, pattern + "*"))
-        or glob.glob(os.path.join(folder, pattern.removeprefix("lib") + "*"))
-        for pattern in patterns
-    )
 
 
 def available() -> bool:

@@ -74,9 +74,11 @@ def test_pattern_equals_the_dof_pairs_pattern_and_assembles_like_scipy(quadratic
 
 
 def test_upper_triangle_is_scipys_for_new_and_repeated_patterns():
-    """`upper_triangle` of CSR matrices (sorted indices) gives scipy's `triu` exactly: for
-    a pattern, for new values on the same pattern (the kept pick), for another pattern,
-    and for a matrix with unsorted indices (scipy's own path)."""
+    """`upper_triangle` of CSR matrices gives scipy's `triu` exactly, of the input's class:
+    for a pattern, for new values on the same pattern (the kept pick, reused), for
+    another pattern, a csr_array, a matrix with unsorted indices, one with duplicate
+    entries and one whose sorted flag is wrong; the kept pick's arrays are read-only."""
+    from fruitcli.fem.solver import linsolve
     from fruitcli.fem.solver.linsolve import upper_triangle
 
     rng = np.random.default_rng(4)
@@ -89,14 +91,22 @@ def test_upper_triangle_is_scipys_for_new_and_repeated_patterns():
     again = k.copy()
     again.data = rng.normal(size=again.nnz)
     other = symmetric(45, 0.2)
-    unsorted = sp.csr_matrix((k.data[::-1].copy(), k.indices.copy(), k.indptr.copy()), k.shape)
-    unsorted.indices = np.concatenate(
-        [k.indices[a:b][::-1] for a, b in zip(k.indptr[:-1], k.indptr[1:], strict=True)]
+    rows = [k.indices[a:b][::-1] for a, b in zip(k.indptr[:-1], k.indptr[1:], strict=True)]
+    unsorted = sp.csr_matrix((k.data.copy(), np.concatenate(rows), k.indptr.copy()), k.shape)
+    twice = sp.csr_matrix(
+        (np.array([1.0, 2.0, 3.0, 4.0]), np.array([0, 1, 1, 1]), np.array([0, 3, 4])), (2, 2)
     )
-    unsorted.has_sorted_indices = False
-    for m in (k, again, other, k, unsorted):
+    lying, lying_twice = unsorted.copy(), twice.copy()
+    for m in (lying, lying_twice):  # flags that are wrong
+        m.has_canonical_format = True
+    for m in (k, again, other, sp.csr_array(k), k, unsorted, twice, lying, lying_twice):
         u, want = upper_triangle(m), sp.triu(m, format="csr")
-        want.sort_indices()
+        want.sum_duplicates()
+        assert type(u) is type(m)
         assert np.array_equal(u.indptr, want.indptr)
         assert np.array_equal(u.indices, want.indices)
         assert np.array_equal(u.data, want.data)
+    kept = linsolve._UPPER_PICK[0]
+    upper_triangle(again)
+    assert linsolve._UPPER_PICK[0] is kept  # the same pattern: the same pick
+    assert not upper_triangle(again).indices.flags.writeable

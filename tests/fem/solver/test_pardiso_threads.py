@@ -124,3 +124,40 @@ def test_the_cli_refuses_fewer_than_one_solver_thread():
     assert result.exit_code == 2
     assert "--solver-threads" in result.output
     assert "Traceback" not in result.output
+
+
+def test_without_the_openmp_layer_pardiso_warns_and_keeps_one_thread():
+    """Where MKL's OpenMP layer does not load, asking for two threads gives a warning
+    naming it and a factor that runs on one (MKL's threads read inside its calls)."""
+    out = run_python(
+        """
+        import logging, sys
+        import numpy as np, scipy.sparse as sp
+        logging.basicConfig(stream=sys.stdout, format="warning: %(message)s")
+        from fruitcli.fem.solver import pardiso
+        from fruitcli.fem.solver.linsolve import upper_triangle
+        seen = spy_on_threads(pardiso)
+        pardiso._openmp_layer_loads = lambda lib: False
+        pardiso.use_threads(2)
+        k = upper_triangle((sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(50, 50))).tocsr())
+        fac = pardiso.factorize_upper(k)
+        fac.solve(np.ones(50))
+        print(fac.threads, pardiso.threads_used(), sorted(set(seen)))
+        """
+    )
+    assert "warning: PARDISO: MKL's OpenMP threading layer" in out
+    assert out.strip().splitlines()[-1] == "1 1 [1]"
+
+
+def test_the_cli_hands_its_solver_threads_to_pardiso(monkeypatch):
+    """`fruit --solver-threads 2 COMMAND` asks PARDISO for two threads before the command
+    runs; more threads than cores are capped at the cores with a warning."""
+    import os
+
+    asked = []
+    monkeypatch.setattr(pardiso, "use_threads", asked.append)
+    assert CliRunner().invoke(cli, ["--solver-threads", "2", "scenes"]).exit_code == 0
+    many = (os.cpu_count() or 1) + 3
+    result = CliRunner().invoke(cli, ["--solver-threads", str(many), "scenes"])
+    assert result.exit_code == 0
+    assert asked == [2, os.cpu_count() or 1]
