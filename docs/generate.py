@@ -550,6 +550,8 @@ default Fruit's tangent took 5.0-5.4 ms instead of 9.1-10.4 ms and a refactoriza
 0.10-0.12 s instead of 0.21 s; with the other core kept busy, 10-12 ms and 0.18-0.27 s,
 nothing gained.
 
+`make bench` runs `tests/performance/bench_solver_threads.py`, which prints the
+breathing, the sweep and the first state on one thread and then on two.
 `python tests/performance/bench_state.py --mesh DIR [--first] --solver-threads N` and
 `python tests/performance/bench_refusal.py --solver-threads N` (commit da0e65a,
 2026-12-06 19:05-19:12 UTC, the same Intel Xeon, load average 0.7-1.3; one and two
