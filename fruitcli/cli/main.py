@@ -120,14 +120,33 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
 
+def use_solver_threads(threads: int) -> None:
+    """Ask MKL PARDISO for `threads` threads (`--solver-threads`), at most the cores (with
+    a warning), before anything loads MKL (`pardiso.use_threads`); 1 changes nothing."""
+    if threads <= 1:
+        return
+    from fruitcli.fem.solver import pardiso
+
+    cores = os.cpu_count() or 1
+    if threads > cores:
+        logging.getLogger(__name__).warning(
+            f"--solver-threads {threads}: this machine has {cores} cores; {cores}"
+        )
+    pardiso.use_threads(min(threads, cores))
+
+
 def log_level(verbose: int, quiet: bool) -> int:
     """The logging level of -v (counted) and -q."""
     return logging.ERROR if quiet else max(logging.WARNING - 10 * verbose, logging.DEBUG)
 
 
 def _late_option(ctx: click.Context, param: click.Parameter, value: object) -> None:
-    """-v or -q given after the subcommand: the same as given before it."""
+    """-v, -q or --solver-threads given after the subcommand: the same as given before
+    it."""
     if not value:
+        return
+    if param.name == "solver_threads":
+        use_solver_threads(int(value))  # type: ignore[call-overload]
         return
     obj = ctx.find_root().ensure_object(dict)
     if param.name == "verbose":
@@ -138,12 +157,13 @@ def _late_option(ctx: click.Context, param: click.Parameter, value: object) -> N
 
 
 _LATE_OPTIONS: weakref.WeakSet[click.Command] = weakref.WeakSet()
-"""The commands `accept_late_options` has given -v and -q."""
+"""The commands `accept_late_options` has given -v, -q and --solver-threads."""
 
 
 def accept_late_options(cmd: click.Command) -> click.Command:
-    """`cmd` (and the commands of a group, at every level) also taking the group's -v and
-    -q after its name (hidden from its --help: they are the group's options)."""
+    """`cmd` (and the commands of a group, at every level) also taking the group's -v, -q
+    and --solver-threads after its name (hidden from its --help: they are the group's
+    options)."""
     if cmd in _LATE_OPTIONS:
         return cmd
     names = {n for p in cmd.params for n in getattr(p, "opts", [])}
@@ -159,6 +179,16 @@ def accept_late_options(cmd: click.Command) -> click.Command:
                     callback=_late_option,
                 )
             )
+    if "--solver-threads" not in names:
+        cmd.params.append(
+            click.Option(
+                ("--solver-threads",),
+                type=click.IntRange(min=1),
+                hidden=True,
+                expose_value=False,
+                callback=_late_option,
+            )
+        )
     _LATE_OPTIONS.add(cmd)
     for sub in getattr(cmd, "commands", {}).values():
         accept_late_options(sub)
@@ -191,15 +221,7 @@ def cli(ctx, verbose, quiet, solver_threads) -> None:
     ctx.obj["quiet"] = quiet
     compile_notice.silence(quiet)
     logging.basicConfig(level=log_level(verbose, quiet), format="%(message)s", stream=sys.stderr)
-    if solver_threads > 1:  # before MKL is loaded (`pardiso.use_threads`)
-        from fruitcli.fem.solver import pardiso
-
-        cores = os.cpu_count() or 1
-        if solver_threads > cores:
-            logging.getLogger(__name__).warning(
-                f"--solver-threads {solver_threads}: this machine has {cores} cores; {cores}"
-            )
-        pardiso.use_threads(min(solver_threads, cores))
+    use_solver_threads(solver_threads)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -150,14 +150,22 @@ def test_without_the_openmp_layer_pardiso_warns_and_keeps_one_thread():
 
 
 def test_the_cli_hands_its_solver_threads_to_pardiso(monkeypatch):
-    """`fruit --solver-threads 2 COMMAND` asks PARDISO for two threads before the command
-    runs; more threads than cores are capped at the cores with a warning."""
+    """`fruit --solver-threads 2 COMMAND` and `fruit COMMAND --solver-threads 2` ask
+    PARDISO for two threads before the command runs; more threads than cores are capped
+    at the cores; one thread asks for nothing; 0 after the command is refused too."""
     import os
 
     asked = []
     monkeypatch.setattr(pardiso, "use_threads", asked.append)
-    assert CliRunner().invoke(cli, ["--solver-threads", "2", "scenes"]).exit_code == 0
-    many = (os.cpu_count() or 1) + 3
-    result = CliRunner().invoke(cli, ["--solver-threads", str(many), "scenes"])
-    assert result.exit_code == 0
-    assert asked == [2, os.cpu_count() or 1]
+    cores = os.cpu_count() or 1
+    for args in (
+        ["--solver-threads", "2", "scenes"],
+        ["scenes", "--solver-threads", "2"],
+        ["--solver-threads", str(cores + 3), "scenes"],
+        ["scenes", "--solver-threads", "1"],
+    ):
+        assert CliRunner().invoke(cli, args).exit_code == 0, args
+    assert asked == [min(2, cores), min(2, cores), cores]
+    late = CliRunner().invoke(cli, ["scenes", "--solver-threads", "0"])
+    assert late.exit_code == 2
+    assert "--solver-threads" in late.output
