@@ -7,12 +7,13 @@ themselves are `fruitcli.studies.parallel.CurveProcesses`, above this package)."
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
+
+from fruitcli.fem import threads
 
 WORKER_BYTES_PER_DOF = 15_000
 """Memory one worker takes per degree of freedom (bytes): the model, its tangent and the
@@ -47,7 +48,7 @@ def curve_jobs(pool: CurvePool | None, curves: int, dofs: int) -> tuple[int, str
         return 1, ""
     jobs = pool.jobs
     if jobs is None:
-        jobs = 1 if multiprocessing.parent_process() is not None else os.cpu_count() or 1
+        jobs = 1 if threads.in_worker_process() else os.cpu_count() or 1
     room = int(memory.SHARE * memory.available_bytes() // (WORKER_BYTES_PER_DOF * dofs))
     n = max(1, min(jobs, curves, room))
     why = "" if n >= min(jobs, curves) else f" (the memory available holds {max(room, 1)})"
@@ -61,3 +62,27 @@ def curve_label(names: Sequence[str], which: Any, direction: int) -> str:
     if isinstance(which, (int, np.integer)):
         return f"chamber {names[int(which)]} {what}"
     return f"chambers together {what}"
+
+
+def run_curves(
+    pool: CurvePool,
+    follow: Callable[[Any], Any],
+    cases: Sequence[Any],
+    labels: Sequence[str],
+    order: Sequence[int],
+    workers: int,
+    why: str,
+    progress: Callable[[str], None],
+) -> list:
+    """`[follow(c) for c in cases]` over `workers` of `pool`'s processes (`curve_jobs`,
+    `why` fewer), started in `order` (indices into `cases`: the longest first), each
+    case's label said as it ends; the results in the cases' own order."""
+    if why:
+        progress(f"limits: {workers} worker processes{why}")
+    done = pool.map(
+        follow, [cases[i] for i in order], [labels[i] for i in order], workers, progress
+    )
+    results: list = [None] * len(cases)
+    for i, result in zip(order, done, strict=True):
+        results[i] = result
+    return results

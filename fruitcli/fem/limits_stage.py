@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fruitcli.fem import io, limits, pressure_check
-from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label
+from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label, run_curves
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
@@ -101,15 +101,9 @@ def follow_curves(
     if pool is None or n == 1:
         return [follow_curve((model, c, options, start, progress)) for c in curves]
     order = sorted(range(len(curves)), key=lambda i: (-curves[i].direction, -i))
-    cases = [(model, curves[i], options, start, None) for i in order]
-    labels = [curve_label(model.chamber_names, curves[i].which, curves[i].direction) for i in order]
-    if why:
-        progress(f"limits: {n} worker processes{why}")
-    done = pool.map(follow_curve, cases, labels, n, progress)
-    results: list = [None] * len(curves)
-    for i, curve in zip(order, done, strict=True):
-        results[i] = curve
-    return results
+    cases = [(model, c, options, start, None) for c in curves]
+    labels = [curve_label(model.chamber_names, c.which, c.direction) for c in curves]
+    return run_curves(pool, follow_curve, cases, labels, order, n, why, progress)
 
 
 def scene_ratios(scene: Scene, names: list[str]) -> np.ndarray:

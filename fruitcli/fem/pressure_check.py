@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label
+from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label, run_curves
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
     CHECK_TOLERANCE,
@@ -209,15 +209,14 @@ def _check_in_workers(
     process (the chambers together last)."""
     start = start_state(model, solver, check, progress)
     cases: list[tuple] = [(model, k, d, asked, check, start) for k, d, asked in plan]
-    if together is not None:  # the longest: first
-        cases.insert(0, (model, together[1], 1, together[2], check, start))
-    labels = [curve_label(model.chamber_names, c[1], c[2]) for c in cases]
-    say = progress or (lambda msg: None)
-    if why:
-        say(f"limits: {workers} worker processes{why}")
-    curves = pool.map(_curve_to_the_limit, cases, labels, workers, say)
     if together is not None:
-        curves = curves[1:] + curves[:1]
+        cases.append((model, together[1], 1, together[2], check, start))
+    labels = [curve_label(model.chamber_names, c[1], c[2]) for c in cases]
+    order = list(range(len(cases)))
+    if together is not None:  # the longest: first
+        order = order[-1:] + order[:-1]
+    say = progress or (lambda msg: None)
+    curves = run_curves(pool, _curve_to_the_limit, cases, labels, order, workers, why, say)
     found += [(d, curve) for (k, d, asked), curve in zip(plan, curves, strict=False)]
     if together is not None:
         found.append((1, curves[-1]))

@@ -13,6 +13,14 @@ from __future__ import annotations
 _DONE = False
 
 
+def in_worker_process() -> bool:
+    """True in a process started by `multiprocessing` (a sweep's, a study's or a curve's
+    worker): its siblings share the cores, so it takes one (curves, PARDISO threads)."""
+    import multiprocessing
+
+    return multiprocessing.parent_process() is not None
+
+
 def one_blas_thread() -> None:
     """Limit the BLAS libraries loaded in this process to one thread, from the first
     solver on and for the rest of the process (threadpoolctl, so it holds whether numpy

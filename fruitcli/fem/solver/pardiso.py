@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from fruitcli.errors import SolverError
+from fruitcli.fem import threads
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
@@ -68,9 +69,7 @@ def use_threads(threads: int) -> None:
 def threads_used() -> int:
     """PARDISO's threads in this process: `use_threads`'s; one in a worker process or
     once MKL is loaded on its sequential layer."""
-    import multiprocessing
-
-    if multiprocessing.parent_process() is not None or _LAYER[0] == MKL_THREADING_SEQUENTIAL:
+    if threads.in_worker_process() or _LAYER[0] == MKL_THREADING_SEQUENTIAL:
         return 1
     return _THREADS[0]
 
