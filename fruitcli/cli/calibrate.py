@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import click
 
-from fruitcli.cli.options import Progress, fruit_errors, out_option, taxels_option
+from fruitcli.cli.options import (
+    Progress,
+    fruit_errors,
+    out_option,
+    states_option,
+    taxels_option,
+)
 from fruitcli.workflow.scene_outputs import scene_products
 
 
@@ -13,9 +19,10 @@ from fruitcli.workflow.scene_outputs import scene_products
 @click.option(
     "--truth",
     "truth_csv",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False),
-    help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm).",
+    help="truth.csv of the same bench run (sample,x_mm,y_mm,z_mm, model mm); without "
+    "it, only the footprint's width, from the touches alone.",
 )
 @click.option(
     "--scene",
@@ -26,13 +33,18 @@ from fruitcli.workflow.scene_outputs import scene_products
 )
 @taxels_option()
 @click.option("--indenter", default=None, help="Indenter of the recording (default: its meta).")
+@states_option("without --truth, the recording's taxels are at that state (its meta's)")
 @out_option("Output folder: skin.toml ([skin] table), gains.csv, calibration.json.")
-def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir) -> None:
+def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, states_npz, out_dir) -> None:
     """Fit footprint width, activation at contact, gap decay, per-taxel gains and noise to
     a bench recording (FRAMES: frames.npz of `fruit bench`, virtual or --printer).
 
     With the scene's [skin] model = "electrostatic": the crossing table's counts per fF
-    (the table from the scene's skin stage), per-taxel gains and noise instead."""
+    (the table from the scene's skin stage), per-taxel gains and noise instead.
+
+    Without --truth, any recording of touches: the footprint's width at which the model
+    method explains its touches best, the rest of skin.toml the scene's [skin] (no gains;
+    the Gaussian skin only)."""
     from fruitcli.errors import FrameError
     from fruitcli.scene import load_scene
     from fruitcli.sensing.inputs_stage import calibrate_inputs
@@ -45,6 +57,21 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, out_dir) -> N
         taxels = taxels_csv or scene.grid.taxels or scene_products(scene)[0]
         if taxels is None:
             raise FrameError(f"{scene_path}: no taxels: give --taxels or [grid].taxels")
+        if truth_csv is None:
+            from fruitcli.sensing.touch_width import run_touch_width
+
+            res = run_touch_width(scene, frames, taxels, out_dir, indenter, states_npz, progress)
+            click.echo(
+                f"{res['indenter']}: footprint sigma {res['footprint_sigma_mm']:.2f} mm from "
+                f"{res['touches']} touches ({res['width_scale']:.3f} times the scene's) "
+                f"-> {out_dir}/skin.toml",
+                err=True,
+            )
+            return
+        if states_npz is not None:
+            raise click.UsageError(
+                "--states: only without --truth (a bench run's truth is at rest)"
+            )
         response = crossing_response(scene, progress=progress)
         inputs = calibrate_inputs(scene)
         res = run_calibrate(

@@ -17,7 +17,8 @@ Sub-packages, by concept (each states what it may import in its own docstring):
 The sensing stages as file-to-file functions, one module each: `locate_stage`,
 `bench_stage`, `sensitivity_stage` (`stages` offers all three); `inputs_stage` turns the
 scene into their typed inputs; `locator_setup` builds what locating a recording needs
-(the locator, the surface projector, the skin's heights) from those inputs.
+(the locator, the surface projector, the skin's heights) from those inputs;
+`touch_width` finds the skin's footprint width from a recording's touches alone.
 May import: the sub-packages above, `fruitcli.geometry`, `fruitcli.fem`,
 `fruitcli.electrostatics`, `fruitcli.scene`; never `fruitcli.workflow` or `fruitcli.cli`.
 """

@@ -34,12 +34,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from contextlib import AbstractContextManager
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
+from fruitcli.studies.locator_skins import CALIBRATION_INDENTER, calibrated_skin, touch_width_skin
 from fruitcli.studies.model_frames import MODEL_FRAMES
 
 if TYPE_CHECKING:
@@ -69,7 +69,6 @@ BENCH_SKINS: dict[str, BenchSkin] = {
     "wider": {"field_sigma_mm": 7.0, "contact_counts": 75.0, "gain_spread": GAIN_SPREAD},
     "narrower": {"field_sigma_mm": 5.0, "contact_counts": 50.0, "gain_spread": GAIN_SPREAD},
 }
-CALIBRATION_INDENTER = "small"
 # the cases whose locator is calibrated on another run, and the skin model of the board and
 # of the locator's calibration
 CALIBRATED = {
@@ -81,6 +80,9 @@ REPEATS = 3
 # the calibrated cases' row of the model with `[detection].model_frames` chosen on their
 # calibration run (`model_frames.choose`), as the demo's model rows
 CHOSEN_LABEL = "model, frames chosen"
+# the uncalibrated cases' row of the model (8 frames) with each indenter's footprint width
+# from the touches of another run of the board alone (`locator_skins.touch_width_skin`)
+WIDTH_LABEL = "model, 8 frames, width from touches"
 # the model method's settings rows: label -> (window half-width in cells, iteration cap,
 # `[detection].model_frames`); the plain "model" row is the defaults (5 x 5,
 # `model_fit.ITERATIONS`, the frame alone)
@@ -161,19 +163,9 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
         surface_unit=unit,
         crossing_dir=table.get(board),
     )
-    skin_table, located_table = None, table.get(fitted)
-    if name in CALIBRATED:
-        skin_table = calibrated_skin(
-            bench_scene,
-            taxels,
-            states,
-            surface,
-            unit,
-            base / "calibration",
-            table.get(board),
-            located_table,
-            scene.bench.indenters,
-        )
+    located_table = table.get(fitted)
+    work_skin = (bench_scene, scene, taxels, states, surface, unit, base)
+    skin_table = _locator_skin(name, work_skin, table.get(board), located_table)
     outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
     cases = variants()
@@ -190,6 +182,9 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
 
         chosen = _frames_chosen(locate, scene.bench.indenters, base)
         cases.append((CHOSEN_LABEL, {"detection.method": "model"}, model_setting))
+    else:
+        keys = {"detection.method": "model", "detection.model_frames": 8}
+        cases.append((WIDTH_LABEL, keys, next(c[2] for c in cases if c[0] == "model")))
     for label, changes, setting in cases:
         for ind in scene.bench.indenters:
             # the locator knows which indenter touches, as the bench does: its footprint
@@ -197,7 +192,9 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
             if label == CHOSEN_LABEL:
                 keys["detection.model_frames"] = chosen[ind]
             located = scene.with_values(keys)
-            inputs = locate_inputs(located, skin_table=skin_table, crossing_dir=located_table)
+            # the uncalibrated cases' other rows assume the scene's skin
+            skin = skin_table if name in CALIBRATED or label == WIDTH_LABEL else None
+            inputs = locate_inputs(located, skin_table=skin, crossing_dir=located_table)
             frames = base / "bench" / ind / "frames.npz"
             out = base / label.replace(" ", "_").replace(",", "") / ind
             times = []
@@ -238,6 +235,31 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
                 }
             )
     return rows
+
+
+def _locator_skin(
+    name: str, work: tuple, board_table: Path | None, located_table: Path | None
+) -> Any:
+    """The [skin] table bench skin `name`'s locator gets: `calibrated_skin` for the
+    calibrated cases, else the scene's with the footprint widths from another run's
+    touches (`touch_width_skin`, for the ``WIDTH_LABEL`` row alone). `work`: (the bench's
+    scene, the locator's scene, taxels, states, surface, its unit, the case's folder)."""
+    bench_scene, scene, taxels, states, surface, unit, base = work
+    if name in CALIBRATED:
+        return calibrated_skin(
+            bench_scene,
+            taxels,
+            states,
+            surface,
+            unit,
+            base / "calibration",
+            board_table,
+            located_table,
+            scene.bench.indenters,
+        )
+    return touch_width_skin(
+        bench_scene, scene, taxels, states, surface, unit, base / "widths", scene.bench.indenters
+    )
 
 
 def _frames_chosen(
@@ -297,79 +319,6 @@ def crossing_table(scene: Scene, work: Path) -> Path:
     root = work / "crossing"
     planner.run(es, root, until="skin", shared=work.resolve().parent)
     return planner.Context(root).dir("skin")
-
-
-def calibrated_skin(
-    bench_scene: Scene,
-    taxels: Path,
-    states: Path | None,
-    surface: Path | None,
-    unit: str,
-    work: Path,
-    board_table: Path | None = None,
-    fitted_table: Path | None = None,
-    indenters: Iterable[str] = (),
-) -> Any:
-    """`fruit calibrate`'s [skin] table fitted to a run of the board of `bench_scene`
-    (its crossing table `board_table` when electrostatic) at other sample points (half a
-    pitch off each taxel, for the law, and right over each taxel, for its gain:
-    `taxel_gains`; ``CALIBRATION_INDENTER``): the Gaussian law, or with `fitted_table` the
-    crossing table's counts per fF, and the gains. Each of `indenters` is calibrated on
-    the same run too (WORK/skin-NAME), and its footprint width joins the table's, as a
-    user calibrates each object the skin will see; the rest is ``CALIBRATION_INDENTER``'s."""
-    from fruitcli.fsutil import write_csv
-    from fruitcli.scene import load_skin_table
-    from fruitcli.sensing.inputs_stage import calibrate_inputs, crossing_skin_inputs
-    from fruitcli.sensing.locator_setup import electrostatic_skin
-    from fruitcli.sensing.skin.calibrate import run_calibrate
-    from fruitcli.sensing.stages import run_bench
-    from fruitcli.tables import read_taxels
-
-    work.mkdir(parents=True, exist_ok=True)
-    g = bench_scene.grid
-    over = read_taxels(taxels).xyz_mm[:, :2]
-    xy = np.vstack([over + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2, over])
-    points = work / "samples.csv"
-    write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
-    # the two [bench] keys replaced as they are, without `with_values`' checks across
-    # keys: those read every section, and the demo's stage declares only what it reads
-    others = [i for i in dict.fromkeys(indenters) if i != CALIBRATION_INDENTER]
-    bench = replace(
-        bench_scene.bench,
-        samples=str(points.resolve()),
-        indenters=[CALIBRATION_INDENTER, *others],
-    )
-    run = replace(bench_scene, sections={**bench_scene.sections, "bench": bench})
-    run_bench(
-        run,
-        taxels,
-        states,
-        work / "bench",
-        surface_path=surface,
-        surface_unit=unit,
-        crossing_dir=board_table,
-    )
-    fitter = run
-    response = None
-    if fitted_table is not None:
-        fitter = run.with_values({"skin.model": "electrostatic"})
-        response = electrostatic_skin(crossing_skin_inputs(fitter, fitted_table))
-    feet = {}
-    for name in [CALIBRATION_INDENTER, *others]:
-        ind = work / "bench" / name
-        folder = work / ("skin" if name == CALIBRATION_INDENTER else f"skin-{name}")
-        run_calibrate(
-            calibrate_inputs(fitter),
-            ind / "frames.npz",
-            ind / "truth.csv",
-            taxels,
-            folder,
-            name,
-            response=response,
-        )
-        feet.update(load_skin_table(folder / "skin.toml").footprint_sigma_mm or {})
-    skin = load_skin_table(work / "skin" / "skin.toml")
-    return replace(skin, footprint_sigma_mm=feet) if others else skin
 
 
 def model_fits(touches_csv: Path) -> tuple[float, float]:

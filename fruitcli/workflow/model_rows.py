@@ -6,7 +6,7 @@ model that made its frames, so the locator here is not given the scene's [skin]:
 calibrate` fits it (footprint width, counts at contact, gap decay, noise, gains) to a
 second bench run of the same board at other sample points, half a pitch off each taxel
 for the law and right over each taxel for its gain, with the small indenter
-(`fruitcli.studies.locate_methods.calibrated_skin`), and the model method locates the
+(`fruitcli.studies.locator_skins.calibrated_skin`), and the model method locates the
 very frames the N9 rows were scored on. How many frames' mean it fits
 (``[detection].model_frames``: the bench's indenter is still in x and y while it
 descends) is chosen on the same calibration run (`fruitcli.studies.model_frames`); the
@@ -41,7 +41,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
     from fruitcli.studies import model_frames
-    from fruitcli.studies.locate_methods import CALIBRATION_INDENTER, calibrated_skin
+    from fruitcli.studies.locator_skins import CALIBRATION_INDENTER, calibrated_skin
     from fruitcli.workflow import stage_paths as st
 
     out_dir = Path(out_dir)

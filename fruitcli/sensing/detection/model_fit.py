@@ -48,7 +48,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -83,12 +83,22 @@ FIT_NAMES = ("", "model", "n9")
 @dataclass(frozen=True)
 class FootprintLaw:
     """The skin's radial footprint f(d) (f(0) = 1) sampled every ``PROFILE_STEP_MM``,
-    its nominal width (mm), the noise (counts std) and the taxels' gains (T,) or None."""
+    its nominal width (mm), the noise (counts std), the taxels' gains (T,) or None, and
+    the 1-sigma of a touch's width scale around 1 (``WIDTH_PRIOR``)."""
 
     profile: np.ndarray
     sigma_mm: float
     noise_std_counts: float
     gain: np.ndarray | None = None
+    width_prior: float = WIDTH_PRIOR
+
+    def scaled(self, scale: float, width_prior: float | None = None) -> FootprintLaw:
+        """The same footprint `scale` times as wide, f(d / scale) (and with another
+        width prior when given)."""
+        d = np.arange(self.profile.size) * PROFILE_STEP_MM
+        profile = np.interp(d / scale, d, self.profile, right=0.0)
+        prior = self.width_prior if width_prior is None else float(width_prior)
+        return replace(self, profile=profile, sigma_mm=self.sigma_mm * scale, width_prior=prior)
 
     @classmethod
     def of(cls, heights: HeightModel, method: str = "model") -> FootprintLaw:
@@ -223,7 +233,7 @@ def refine(
         sub,
         law.profile,
         PROFILE_STEP_MM,
-        WIDTH_PRIOR,
+        law.width_prior,
         ITERATIONS,
         out,
         cov,
@@ -233,7 +243,7 @@ def refine(
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0), 0.0))
-    kept = _failed(out, err_mm, red, a0, b0, used)
+    kept = _failed(out, err_mm, red, a0, b0, used, law.width_prior)
     return Fitted(
         np.where(kept, i0, ci + a),
         np.where(kept, j0, cj + b),
@@ -313,10 +323,11 @@ def _failed(
     a0: np.ndarray,
     b0: np.ndarray,
     used: np.ndarray,
+    width_prior: float = WIDTH_PRIOR,
 ) -> np.ndarray:
     """Which fits (n,) fail a test of the module's list, so that N9's point is kept: out
     (n, 6) `fit_all`'s results, err_mm the 1-sigma radii, red the reduced chi^2, a0, b0
-    the N9 start, used the taxels fitted."""
+    the N9 start, used the taxels fitted, `width_prior` the law's."""
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     edge = 1e-6
     return (
@@ -325,7 +336,7 @@ def _failed(
         | (np.hypot(a - a0, b - b0) > 1.0)
         | (np.abs(a) >= MAX_SHIFT - edge)
         | (np.abs(b) >= MAX_SHIFT - edge)
-        | (np.abs(s - 1.0) > MAX_WIDTH_SIGMAS * WIDTH_PRIOR)
+        | (np.abs(s - 1.0) > MAX_WIDTH_SIGMAS * width_prior)
         | (used < MIN_TAXELS)
         | (err_mm > MAX_UNCERTAINTY_MM)
         | (red > MAX_REDUCED_CHI2)
