@@ -264,6 +264,7 @@ EXPECTED = {  # files the tutorial's page says its commands make
         "out/lab-bench/small/frames.npz",
         "out/lab-evaluate/table.md",
         "out/calibration/skin.toml",
+        "out/width/skin.toml",
         "out/bench-calibrated/small/frames.npz",
         "recording.npz",
         "out/recording-locate/touches.csv",

@@ -64,14 +64,16 @@ class TouchWidth:
 
 def touch_width(
     locator: Locator,
-    frames: np.ndarray,
+    read: Callable[[int, int], np.ndarray],
+    n_frames: int,
     baseline: np.ndarray,
     where: str,
     pressure_kpa: np.ndarray | None = None,
 ) -> TouchWidth:
-    """The width the model method's fits of every touch of `frames` (N, R, C) explain
-    best (`locator`: the model method's, its baseline (T,) counts; `pressure_kpa` (N, K)
-    the frames' chamber pressures or None). FrameError (naming `where`) with fewer than
+    """The width the model method's fits of every touch of a recording explain best:
+    ``read(start, count)`` gives its frames (count, R, C), chunk by chunk, of `n_frames`
+    (`locator`: the model method's, its baseline (T,) counts; `pressure_kpa` (N, K) the
+    frames' chamber pressures or None). FrameError (naming `where`) with fewer than
     ``MIN_TOUCHES`` touches or a best width at the edge of ``SCALES``."""
     if locator.model is None:
         raise FrameError(f'{where}: the width from the touches needs [detection].method = "model"')
@@ -81,8 +83,8 @@ def touch_width(
     try:
         for k, scale in enumerate(SCALES):
             locator.model = (window, law.scaled(float(scale), HELD_PRIOR))
-            table = locator.batch(frames, baseline, pressure_kpa)
-            red = np.asarray(table.residual, float) ** 2
+            tables = locator.chunks(read, n_frames, baseline, pressure_kpa)
+            red = np.concatenate([np.asarray(tb.residual, float) ** 2 for tb in tables])
             red = red[np.isfinite(red)]
             touches = red.size
             if touches < MIN_TOUCHES:
@@ -160,12 +162,12 @@ def run_touch_width(
         locator, pressure = build_locator(
             board, taxels, states, rec, settings, where, None, gain, heights
         )
-        frames = rec.read(0, len(rec))
-    baseline = locator.baseline(frames[: settings.baseline_frames], where, len(frames))
-    say(f"{len(frames)} frames: fitting every touch at {len(SCALES)} footprint widths")
-    width = touch_width(locator, frames, baseline, where, pressure)
-    idle = locator.values(frames[: settings.baseline_frames]).astype(float)
-    noise, _ = noise_std_counts(idle)
+        first = rec.read(0, settings.baseline_frames)
+        baseline = locator.baseline(first, where, len(rec))
+        n_frames = len(rec)
+        say(f"{n_frames} frames: fitting every touch at {len(SCALES)} footprint widths")
+        width = touch_width(locator, rec.read, n_frames, baseline, where, pressure)
+    noise, _ = noise_std_counts(locator.values(first).astype(float))
     skin = scene.skin
     toml = (
         "# fruit calibrate: the footprint's width from a recording's touches (no ground "
@@ -186,7 +188,7 @@ def run_touch_width(
         "scales": width.scales.tolist(),
         "mean_reduced_chi2": width.chi2.tolist(),
         "noise_std_counts": noise,
-        "frames": len(frames),
+        "frames": n_frames,
         "recording": where,
         "truth": None,
     }
