@@ -425,7 +425,15 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
             for k, (h, it, f) in MODEL_SETTINGS.items()
         )
         + ". "
-        + _chosen_note(rows),
+        + _chosen_note(rows)
+        + (
+            f" {WIDTH_LABEL} (the boards not calibrated): the locator assumes the scene's "
+            "[skin] but each indenter's footprint width, which `fruit calibrate` without "
+            "--truth found from the touches alone of another run at the calibration's sample "
+            "points."
+            if any(r["method"] == WIDTH_LABEL for r in rows)
+            else ""
+        ),
     ]
     return "\n".join(lines) + "\n"
 
