@@ -164,8 +164,10 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
         crossing_dir=table.get(board),
     )
     located_table = table.get(fitted)
-    work_skin = (bench_scene, scene, taxels, states, surface, unit, base)
-    skin_table = _locator_skin(name, work_skin, table.get(board), located_table)
+    skin_table = _locator_skin(
+        name, bench_scene, scene, taxels, states, surface, unit, base, table.get(board),
+        located_table,
+    )  # fmt: skip
     outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
     cases = variants()
@@ -238,13 +240,21 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
 
 
 def _locator_skin(
-    name: str, work: tuple, board_table: Path | None, located_table: Path | None
+    name: str,
+    bench_scene: Scene,
+    scene: Scene,
+    taxels: Path,
+    states: Path | None,
+    surface: Path | None,
+    unit: str,
+    base: Path,
+    board_table: Path | None,
+    located_table: Path | None,
 ) -> Any:
-    """The [skin] table bench skin `name`'s locator gets: `calibrated_skin` for the
-    calibrated cases, else the scene's with the footprint widths from another run's
-    touches (`touch_width_skin`, for the ``WIDTH_LABEL`` row alone). `work`: (the bench's
-    scene, the locator's scene, taxels, states, surface, its unit, the case's folder)."""
-    bench_scene, scene, taxels, states, surface, unit, base = work
+    """The [skin] table bench skin `name`'s locator gets, made under the case's folder
+    `base`: `calibrated_skin` for the calibrated cases, else `scene`'s with the footprint
+    widths from another run's touches (`touch_width_skin`, for the ``WIDTH_LABEL`` row
+    alone), from `taxels`, `states` and the body's `surface` in `unit`."""
     if name in CALIBRATED:
         return calibrated_skin(
             bench_scene,

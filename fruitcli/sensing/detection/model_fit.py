@@ -323,7 +323,7 @@ def _failed(
     a0: np.ndarray,
     b0: np.ndarray,
     used: np.ndarray,
-    width_prior: float = WIDTH_PRIOR,
+    width_prior: float,
 ) -> np.ndarray:
     """Which fits (n,) fail a test of the module's list, so that N9's point is kept: out
     (n, 6) `fit_all`'s results, err_mm the 1-sigma radii, red the reduced chi^2, a0, b0
