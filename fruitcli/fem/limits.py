@@ -115,21 +115,50 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
     return s_top, float(np.polyval([a, b, c], s_top))
 
 
-def levels_off_below(model: FemModel, pressure: np.ndarray, stretch: np.ndarray) -> float:
+def levels_off_below(
+    model: FemModel,
+    pressure: np.ndarray,
+    stretch: np.ndarray,
+    slope_at_rest: float | None = None,
+) -> float:
     """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
-    MAX_STRETCH, from its samples so far (pressures at mean stretches `stretch`): once
-    its slopes shrink (the curve is concave in the stretch, as before a neo-Hookean
-    chamber's limit point), the secant of the last step overestimates the slope from
-    there on, so the curve stays below the secant continued to MAX_STRETCH. Infinite
-    with fewer than three samples, slopes that do not shrink, or another material
-    (Yeoh's stiffening can bend the curve up again)."""
-    if model.material_name != "neo-hookean" or len(pressure) < 3:
+    MAX_STRETCH, from its samples so far (pressures at mean stretches `stretch`, the
+    first the rest's): once its slopes shrink (the curve is concave in the stretch, as
+    before a neo-Hookean chamber's limit point), the secant of the last step
+    overestimates the slope from there on, so the curve stays below the secant continued
+    to MAX_STRETCH. With one sample past rest, the slope at rest `slope_at_rest` (kPa per
+    unit of stretch, `rest_slope`) is the first of the slopes compared. Infinite with
+    fewer samples, slopes that do not shrink, or another material (Yeoh's stiffening can
+    bend the curve up again)."""
+    if model.material_name != "neo-hookean" or len(pressure) < 2:
         return np.inf
-    h1, h2 = stretch[-2] - stretch[-3], stretch[-1] - stretch[-2]
-    g1, g2 = (pressure[-2] - pressure[-3]) / h1, (pressure[-1] - pressure[-2]) / h2
+    h2 = stretch[-1] - stretch[-2]
+    g2 = (pressure[-1] - pressure[-2]) / h2
+    if len(pressure) >= 3:
+        g1 = (pressure[-2] - pressure[-3]) / (stretch[-2] - stretch[-3])
+    elif slope_at_rest is not None:
+        g1 = slope_at_rest
+    else:
+        return np.inf
     if not 0 < g2 < g1:
         return np.inf
     return float(pressure[-1] + g2 * (MAX_STRETCH - stretch[-1]))
+
+
+def rest_slope(model: FemModel, r: np.ndarray, compliance: np.ndarray) -> float:
+    """dp/ds (kPa) at rest of the curve of chambers along ratios r (K,) (a chamber alone:
+    its unit vector), s the mean stretch (V / V0)^(1/3), from the chambers' compliance
+    dV/dp (K, K) mm^3/kPa at rest (`pressure_check.rest_compliance`)."""
+    return float(3.0 * (r @ model.chamber_rest_volume_mm3) / (r @ compliance @ r))
+
+
+ONE_SAMPLE_MARGIN = 2.0
+"""A curve is ended by `levels_off_below` after its first sample (the slope at rest the
+first of the slopes compared) only for a pressure asked above this many times that
+bound: the curve's rest point is taken at pressure 0, which under the body's weight
+holds only to the pressure the weight puts on the chamber (on the default Fruit a
+hundredth of the first sample's). After two samples the bound stands on solved samples
+alone, and the pressure asked need only be above it."""
 
 
 PEAK_AHEAD = 0.5
@@ -320,6 +349,7 @@ def follow(
     progress: Callable[[str], None] | None = None,
     start: Start | None = None,
     samples: SampleCache | None = None,
+    slope_at_rest: float | None = None,
 ) -> ChamberCurve:
     """Chamber k's curve from rest (k an int; or the chambers together along pressure
     ratios k, (K,), `Load.together`: the curve's pressure is then the largest chamber
@@ -339,7 +369,9 @@ def follow(
     `progress(msg)` is told each sample. `start`: the `Start` the first sample comes
     from (`start_state`, shared among the curves of a body); without it the first
     sample comes from rest, in FIRST_STEPS load steps under a body force. `samples`:
-    where kept samples are taken from, solved ones put (`SampleCache`)."""
+    where kept samples are taken from, solved ones put (`SampleCache`). `slope_at_rest`:
+    the curve's dp/ds at rest (`rest_slope`), which lets `levels_off_below` end an
+    inflation after its first sample."""
     r = ratio_of(model, k)
     alone = chamber_index(k)
     name = model.chamber_names[alone] if alone is not None else TOGETHER
@@ -391,7 +423,7 @@ def follow(
             break
         if passed and beyond is not None:
             (budget, halvings), beyond = beyond, None
-        if _levels_off(model, curve, stretches, direction, stop_beyond_kpa):
+        if _levels_off(model, curve, stretches, direction, stop_beyond_kpa, slope_at_rest):
             break
         if _turned(model, curve, stretches, res, direction, fall_steps):
             break
@@ -494,11 +526,15 @@ def _levels_off(
     stretches: list[float],
     direction: int,
     stop_beyond_kpa: float | None,
+    slope_at_rest: float | None = None,
 ) -> bool:
     """Whether an inflation's curve levels off below the pressure asked
-    (`levels_off_below`); then the bound and the end are the curve's."""
-    bound = levels_off_below(model, np.array(curve.pressure_kpa), np.array(stretches))
-    if stop_beyond_kpa is not None and direction > 0 and bound < stop_beyond_kpa:
+    (`levels_off_below`, after the first sample with the slope at rest and
+    ``ONE_SAMPLE_MARGIN``); then the bound and the end are the curve's."""
+    pressure = np.array(curve.pressure_kpa)
+    bound = levels_off_below(model, pressure, np.array(stretches), slope_at_rest)
+    margin = ONE_SAMPLE_MARGIN if len(pressure) == 2 else 1.0
+    if stop_beyond_kpa is not None and direction > 0 and margin * bound < stop_beyond_kpa:
         curve.limit_bound_kpa = bound
         curve.end = f"the pressure levels off below {bound:.3g} kPa"
         return True

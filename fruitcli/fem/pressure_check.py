@@ -27,6 +27,8 @@ from fruitcli.fem.limits import (
     Start,
     follow,
     forget,
+    ratio_of,
+    rest_slope,
     start_state,
 )
 from fruitcli.fem.linear_response import response
@@ -72,13 +74,17 @@ def _check_curve(
     found: list | None,
     start: Start | None = None,
     samples: SampleCache | None = None,
+    compliance: np.ndarray | None = None,
 ) -> ChamberCurve:
     """The curve of chamber `which` (or of chambers along ratios `which`) followed as
     far as the pressure `asked` (kPa) under the check's options and budget, on `solver`
     (its analysis forgotten afterwards; None: a fresh one) from `start`
     (`start_state`), its samples taken from and kept in `samples` (saved after the
     curve); with a `found` list, followed on to the limit or collapse and appended to it
-    as (direction, curve)."""
+    as (direction, curve). With the chambers' `compliance` at rest (`rest_compliance`),
+    an inflation far past its bound is refused after its first sample
+    (`limits.ONE_SAMPLE_MARGIN`)."""
+    slope = None if compliance is None else rest_slope(model, ratio_of(model, which), compliance)
     curve = follow(
         model,
         which,
@@ -93,6 +99,7 @@ def _check_curve(
         progress=progress,
         start=start,
         samples=samples,
+        slope_at_rest=slope,
     )
     if solver is not None:
         forget(solver)
@@ -178,13 +185,13 @@ def check_pressures(
 
     for k, direction, asked in plan:
         curve = _check_curve(
-            model, k, direction, asked, solver, check, progress, found, first(), samples
+            model, k, direction, asked, solver, check, progress, found, first(), samples, compliance
         )
         _refuse(keys[k], asked, direction, curve)
     if together is not None:
         i, ratio, asked = together
         curve = _check_curve(
-            model, ratio, 1, asked, solver, check, progress, found, first(), samples
+            model, ratio, 1, asked, solver, check, progress, found, first(), samples, compliance
         )
         _refuse_together(pressures, keys, i, asked, curve)
 

@@ -4,6 +4,7 @@ compressible material the FEM uses; suction down to the collapse."""
 
 import json
 import os
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -215,6 +216,44 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
         model, np.array([[0.5]]), key, model.make_solver(), options, progress=told.append
     )
     assert told == []  # screened out: no sample followed
+
+
+def test_levels_off_below_from_one_sample_and_the_slope_at_rest():
+    """With one sample past rest, the slope at rest is the first slope compared: a
+    secant below it bounds the curve by that secant continued to MAX_STRETCH; one above
+    it (the curve not concave), no rest slope, or another material: no bound."""
+    model = octant_ball(1, 1, nu=0.49)
+    pressure, stretch = np.array([0.0, 8.0]), np.array([1.0, 1.1])
+    bound = limits.levels_off_below(model, pressure, stretch, slope_at_rest=100.0)
+    assert bound == pytest.approx(8.0 + 80.0 * (limits.MAX_STRETCH - 1.1))
+    assert limits.levels_off_below(model, pressure, stretch, slope_at_rest=70.0) == np.inf
+    assert limits.levels_off_below(model, pressure, stretch) == np.inf
+    yeoh = SimpleNamespace(material_name="yeoh")
+    assert limits.levels_off_below(yeoh, pressure, stretch, slope_at_rest=100.0) == np.inf
+
+
+def test_far_past_the_bound_is_refused_after_the_first_sample():
+    """The octant at 2000 kPa: its rest compliance gives the slope at rest (3 V0 / C),
+    and the first sample's secant below it bounds the curve; 2000 kPa is more than
+    ONE_SAMPLE_MARGIN times that bound, so the check refuses after one sample, with that
+    bound in its line. 100 kPa is not (see above: refused once the curve bends)."""
+    model = octant_ball(1, 1, nu=0.49)
+    solver = model.make_solver()
+    compliance = pressure_check.rest_compliance(model, solver)
+    slope = limits.rest_slope(model, np.array([1.0]), compliance)
+    assert slope == pytest.approx(3 * model.chamber_rest_volume_mm3[0] / compliance[0, 0])
+    told = []
+    with pytest.raises(SceneError) as info:
+        pressure_check.check_pressures(
+            model, np.array([[2000.0]]), ["k"], solver, SolverOptions(), progress=told.append
+        )
+    assert len(told) == 1
+    p1 = float(told[0].split("pressure ")[1].split(" kPa")[0])
+    s1 = 1.0 + limits.STRETCH_STEP
+    assert p1 / (s1 - 1.0) < slope
+    bound = float(str(info.value).split("which is at most ")[1].split(" kPa")[0])
+    assert bound == pytest.approx(p1 / (s1 - 1.0) * (limits.MAX_STRETCH - 1.0), rel=2e-3)
+    assert limits.ONE_SAMPLE_MARGIN * bound < 2000.0
 
 
 def test_a_failed_state_past_the_limit_is_named():
