@@ -537,8 +537,8 @@ steps); the factor refreshed at each load step's start instead of its second New
 step (6 factorizations, 41 CG iterations, 3.9 s).
 
 A pressure far past the limit is refused after the check's first sample
-(`limits.levels_off_below` with the slope at rest from the check's rest compliance,
-`limits.ONE_SAMPLE_MARGIN`): `python tests/performance/bench_refusal.py`, the code
+(`curve_peak.levels_off_below` with the slope at rest from the check's rest compliance,
+`curve_peak.ONE_SAMPLE_MARGIN`): `python tests/performance/bench_refusal.py`, the code
 before (commit e8d3f1c) and after (commit 8d80799) alternately, twice each, on
 2026-12-06 23:15-23:18 UTC on a quiet Intel Xeon, 2 cores (load average 0.7-1.1):
 chamber c1 at 2000 kPa refused 3.5 and 3.4 s after the mesh instead of 4.1 and 4.1 s

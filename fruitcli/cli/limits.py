@@ -34,7 +34,7 @@ def limits(scene, out_dir, solid, jobs) -> None:
     volume_growth_mm3, pressure_kpa) and OUT/pv.png.
     """
     from fruitcli.errors import SceneError
-    from fruitcli.fem.limits import MAX_STRETCH
+    from fruitcli.fem.curve_peak import MAX_STRETCH
     from fruitcli.fem.limits_stage import run_limits
     from fruitcli.fem.stage import run_tetra
     from fruitcli.scene import load_scene

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
+from fruitcli.fem.curve_peak import rest_slope
 from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label, run_curves
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
@@ -28,7 +29,6 @@ from fruitcli.fem.limits import (
     follow,
     forget,
     ratio_of,
-    rest_slope,
     start_state,
 )
 from fruitcli.fem.linear_response import response
@@ -83,7 +83,7 @@ def _check_curve(
     curve); with a `found` list, followed on to the limit or collapse and appended to it
     as (direction, curve). With the chambers' `compliance` at rest (`rest_compliance`),
     an inflation far past its bound is refused after its first sample
-    (`limits.ONE_SAMPLE_MARGIN`)."""
+    (`curve_peak.ONE_SAMPLE_MARGIN`)."""
     slope = None if compliance is None else rest_slope(model, ratio_of(model, which), compliance)
     curve = follow(
         model,

@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem import limits, pressure_check
+from fruitcli.fem import curve_peak, limits, pressure_check
 from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.materials.build import material
@@ -224,12 +224,12 @@ def test_levels_off_below_from_one_sample_and_the_slope_at_rest():
     it (the curve not concave), no rest slope, or another material: no bound."""
     model = octant_ball(1, 1, nu=0.49)
     pressure, stretch = np.array([0.0, 8.0]), np.array([1.0, 1.1])
-    bound = limits.levels_off_below(model, pressure, stretch, slope_at_rest=100.0)
-    assert bound == pytest.approx(8.0 + 80.0 * (limits.MAX_STRETCH - 1.1))
-    assert limits.levels_off_below(model, pressure, stretch, slope_at_rest=70.0) == np.inf
-    assert limits.levels_off_below(model, pressure, stretch) == np.inf
+    bound = curve_peak.levels_off_below(model, pressure, stretch, slope_at_rest=100.0)
+    assert bound == pytest.approx(8.0 + 80.0 * (curve_peak.MAX_STRETCH - 1.1))
+    assert curve_peak.levels_off_below(model, pressure, stretch, slope_at_rest=70.0) == np.inf
+    assert curve_peak.levels_off_below(model, pressure, stretch) == np.inf
     yeoh = SimpleNamespace(material_name="yeoh")
-    assert limits.levels_off_below(yeoh, pressure, stretch, slope_at_rest=100.0) == np.inf
+    assert curve_peak.levels_off_below(yeoh, pressure, stretch, slope_at_rest=100.0) == np.inf
 
 
 def test_far_past_the_bound_is_refused_after_the_first_sample():
@@ -240,7 +240,7 @@ def test_far_past_the_bound_is_refused_after_the_first_sample():
     model = octant_ball(1, 1, nu=0.49)
     solver = model.make_solver()
     compliance = pressure_check.rest_compliance(model, solver)
-    slope = limits.rest_slope(model, np.array([1.0]), compliance)
+    slope = curve_peak.rest_slope(model, np.array([1.0]), compliance)
     assert slope == pytest.approx(3 * model.chamber_rest_volume_mm3[0] / compliance[0, 0])
     told = []
     with pytest.raises(SceneError) as info:
@@ -252,8 +252,8 @@ def test_far_past_the_bound_is_refused_after_the_first_sample():
     s1 = 1.0 + limits.STRETCH_STEP
     assert p1 / (s1 - 1.0) < slope
     bound = float(str(info.value).split("which is at most ")[1].split(" kPa")[0])
-    assert bound == pytest.approx(p1 / (s1 - 1.0) * (limits.MAX_STRETCH - 1.0), rel=2e-3)
-    assert limits.ONE_SAMPLE_MARGIN * bound < 2000.0
+    assert bound == pytest.approx(p1 / (s1 - 1.0) * (curve_peak.MAX_STRETCH - 1.0), rel=2e-3)
+    assert curve_peak.ONE_SAMPLE_MARGIN * bound < 2000.0
 
 
 def test_a_failed_state_past_the_limit_is_named():

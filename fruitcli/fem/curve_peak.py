@@ -1,0 +1,101 @@
+"""What the samples of a chamber's pressure-volume curve (pressure against the mean
+stretch s = (V / V0)^(1/3)) say about its peak, for `fruitcli.fem.limits`: the vertex of
+the parabola through three samples (`peak`, `vertex`: the limit pressure), and an upper
+bound of the limit while a neo-Hookean curve is concave (`levels_off_below`, after one
+sample with the slope at rest `rest_slope`). Units: kPa, mm^3.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from fruitcli.fem.fem_model import FemModel
+
+MAX_STRETCH = 3.0
+"""Inflation is followed up to this mean stretch (27 V0); a chamber whose pressure still
+rises there has no limit in the range (limit null)."""
+
+
+def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, float]:
+    """(stretch, pressure) at the vertex of the parabola through samples i - 1, i, i + 1
+    (sample i the largest); sample i itself when the parabola opens upward."""
+    s, p = stretch[i - 1 : i + 2], pressure[i - 1 : i + 2]
+    a, b, c = np.polyfit(s, p, 2)
+    if a >= 0:
+        return float(stretch[i]), float(pressure[i])
+    s_top = float(np.clip(-b / (2 * a), s[0], s[-1]))
+    return s_top, float(np.polyval([a, b, c], s_top))
+
+
+def levels_off_below(
+    model: FemModel,
+    pressure: np.ndarray,
+    stretch: np.ndarray,
+    slope_at_rest: float | None = None,
+) -> float:
+    """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
+    MAX_STRETCH, from its samples so far (pressures at mean stretches `stretch`, the
+    first the rest's): once its slopes shrink (the curve is concave in the stretch, as
+    before a neo-Hookean chamber's limit point), the secant of the last step
+    overestimates the slope from there on, so the curve stays below the secant continued
+    to MAX_STRETCH. With one sample past rest, the slope at rest `slope_at_rest` (kPa per
+    unit of stretch, `rest_slope`) is the first of the slopes compared. Infinite with
+    fewer samples, slopes that do not shrink, or another material (Yeoh's stiffening can
+    bend the curve up again)."""
+    if model.material_name != "neo-hookean" or len(pressure) < 2:
+        return np.inf
+    h2 = stretch[-1] - stretch[-2]
+    g2 = (pressure[-1] - pressure[-2]) / h2
+    if len(pressure) >= 3:
+        g1 = (pressure[-2] - pressure[-3]) / (stretch[-2] - stretch[-3])
+    elif slope_at_rest is not None:
+        g1 = slope_at_rest
+    else:
+        return np.inf
+    if not 0 < g2 < g1:
+        return np.inf
+    return float(pressure[-1] + g2 * (MAX_STRETCH - stretch[-1]))
+
+
+def rest_slope(model: FemModel, r: np.ndarray, compliance: np.ndarray) -> float:
+    """dp/ds (kPa) at rest of the curve of chambers along ratios r (K,) (a chamber alone:
+    its unit vector), s the mean stretch (V / V0)^(1/3), from the chambers' compliance
+    dV/dp (K, K) mm^3/kPa at rest (`pressure_check.rest_compliance`)."""
+    return float(3.0 * (r @ model.chamber_rest_volume_mm3) / (r @ compliance @ r))
+
+
+ONE_SAMPLE_MARGIN = 2.0
+"""A curve is ended by `levels_off_below` after its first sample (the slope at rest the
+first of the slopes compared) only for a pressure asked above this many times that
+bound: the curve's rest point is taken at pressure 0, which under the body's weight
+holds only to the pressure the weight puts on the chamber (on the default Fruit a
+hundredth of the first sample's). After two samples the bound stands on solved samples
+alone, and the pressure asked need only be above it."""
+
+
+PEAK_AHEAD = 0.5
+"""An inflation curve (neo-Hookean) ends without a sample past its peak once the
+parabola through its last three samples has its vertex less than this many steps ahead
+of the last sample, rising less than PEAK_RISE above it: the vertex is then the limit.
+On the default Fruit the sample past each chamber's peak was the slowest of its curve
+(7-10 Newton steps against 3-5), and the vertex ahead is the limit of the parabola
+through the top and its neighbours within 0.05 %."""
+
+PEAK_RISE = 1e-3
+"""Largest rise of the vertex ahead above the last sample (relative) that `PEAK_AHEAD`
+takes as the limit: the extrapolation's error is a fraction of it."""
+
+
+def vertex(stretch: np.ndarray, pressure: np.ndarray) -> tuple[float, float] | None:
+    """(stretch, pressure) of the vertex of the parabola through the last three samples
+    when it opens downward, else None."""
+    if len(pressure) < 3:
+        return None
+    a, b, c = np.polyfit(stretch[-3:], pressure[-3:], 2)
+    if not a < 0:
+        return None
+    top = -b / (2 * a)
+    return float(top), float(np.polyval([a, b, c], top))
