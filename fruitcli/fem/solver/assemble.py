@@ -31,52 +31,22 @@ class CsrPattern:
     @classmethod
     def build(cls, tets: np.ndarray, n_nodes: int, free_mask: np.ndarray) -> CsrPattern:
         """Pattern for dofs where `free_mask` (3 n_nodes,) is True: from the node pairs
-        that share an element (nen^2 per element, a ninth of the dof pairs: their sort
-        is what costs, 1.3 s of dof pairs on a quadratic sphere of 6,327 tets), each
-        pair a 3 x 3 block of dofs, then the fixed dofs dropped."""
+        that share an element (each node's neighbours found through the elements it is
+        in, `_node_pairs`; a ninth of the dof pairs), each pair a 3 x 3 block of dofs,
+        then the fixed dofs dropped (`_dof_slots`); compiled passes, without the sort of
+        every element's node pairs."""
         free = np.flatnonzero(free_mask)
         new = np.full(3 * n_nodes, -1, dtype=np.int64)
         new[free] = np.arange(len(free))
-        keep_dof = new >= 0
-        tets = np.asarray(tets, dtype=np.int64)
-        m, nen = tets.shape
-        own = np.arange(n_nodes, dtype=np.int64)  # every node's diagonal block
-        a = np.concatenate([np.repeat(tets, nen, axis=1).ravel(), own])
-        b = np.concatenate([np.tile(tets, (1, nen)).ravel(), own])
-        pairs, pair_of = np.unique(a * n_nodes + b, return_inverse=True)
-        pa, pb = pairs // n_nodes, pairs % n_nodes  # sorted by (row node, column node)
-        row_start = np.searchsorted(pa, np.arange(n_nodes + 1))
-        comp = np.arange(3)
-        rows = 3 * pa[:, None] + comp  # (P, 3) dofs of each pair's row node
-        cols = 3 * pb[:, None] + comp
-        kept = keep_dof[rows][:, :, None] & keep_dof[cols][:, None, :]  # (P, i, j)
-        in_element = np.zeros(len(pairs), bool)
-        in_element[pair_of[: m * nen * nen]] = True
-        kept[~in_element] &= np.eye(3, dtype=bool)  # a node in no element: its diagonal
-        # the CSR row of dof (a, i) runs over a's pairs in order, j inner
-        per_pair = kept.sum(2)  # (P, 3) entries of pair p in row (a, i)
-        before = np.zeros((len(pairs) + 1, 3), np.int64)
-        np.cumsum(per_pair, axis=0, out=before[1:])
-        row_len = before[row_start[1:]] - before[row_start[:-1]]  # (n_nodes, 3)
-        n = len(free)
-        indptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(row_len.reshape(-1)[free], out=indptr[1:])
-        within: np.ndarray = np.cumsum(kept, axis=2) - kept  # kept entries before j in the pair
-        slot = (
-            indptr[:-1][np.maximum(new[rows], 0)][:, :, None]
-            + (before[:-1] - before[row_start[pa]])[:, :, None]
-            + within
-        )
-        slot = np.where(kept, slot, -1)
-        indices = np.empty(int(indptr[-1]), dtype=np.int32)
-        indices[slot[kept]] = np.broadcast_to(new[cols][:, None, :], kept.shape)[kept]
-        # element entry (e, 3 la + i, 3 lb + j) is pair (e, la, lb)'s entry (i, j)
-        d = 3 * nen
+        tets = np.ascontiguousarray(tets, dtype=np.int64)
+        pair_start, pair_col = _node_pairs(tets, int(n_nodes))
+        in_element = np.bincount(tets.ravel(), minlength=n_nodes)[:n_nodes] > 0
+        indptr, indices, slot, own = _dof_slots(pair_start, pair_col, in_element, new)
+        d = 3 * tets.shape[1]
         dtype = np.int32 if len(indices) < 2**31 else np.int64
-        entry_slot = _entry_slots(
-            pair_of[: m * nen * nen].reshape(m, nen, nen), slot.astype(dtype), d
-        )
-        diag = slot[pair_of[m * nen * nen :]][:, comp, comp].reshape(-1)  # (3 n_nodes,)
+        entry_slot = _entry_slots(_pair_index(tets, pair_start, pair_col), slot.astype(dtype), d)
+        comp = np.arange(3)
+        diag = slot[own][:, comp, comp].reshape(-1)  # (3 n_nodes,)
         return cls(
             free=free,
             entry_slot=entry_slot,
@@ -132,3 +102,114 @@ def _entry_slots(pair_of, slot, d):
                     for j in range(3):
                         out[base + j] = slot[p, i, j]
     return out
+
+
+@njit(cache=True, nogil=True)
+def _node_pairs(tets, n_nodes):
+    """(pair_start (n_nodes + 1,), pair_col (P,)): node a's neighbours, itself included,
+    sorted, are pair_col[pair_start[a]:pair_start[a + 1]] (the node pairs (a, b) that
+    share an element, and (a, a) for every node)."""
+    m, nen = tets.shape
+    start = np.zeros(n_nodes + 1, np.int64)
+    for e in range(m):
+        for la in range(nen):
+            start[tets[e, la] + 1] += 1
+    for a in range(n_nodes):
+        start[a + 1] += start[a]
+    elements = np.empty(start[n_nodes], np.int64)
+    fill = start[:-1].copy()
+    for e in range(m):
+        for la in range(nen):
+            a = tets[e, la]
+            elements[fill[a]] = e
+            fill[a] += 1
+    room = np.empty(n_nodes + 1, np.int64)
+    room[0] = 0
+    for a in range(n_nodes):
+        room[a + 1] = room[a] + (start[a + 1] - start[a]) * nen + 1
+    buf = np.empty(room[n_nodes], np.int64)
+    count = np.zeros(n_nodes, np.int64)
+    for a in range(n_nodes):
+        k = room[a]
+        buf[k] = a
+        k += 1
+        for q in range(start[a], start[a + 1]):
+            for lb in range(nen):
+                buf[k] = tets[elements[q], lb]
+                k += 1
+        seg = np.sort(buf[room[a] : k])
+        u = 0
+        for t in range(seg.shape[0]):
+            if t == 0 or seg[t] != seg[t - 1]:
+                buf[room[a] + u] = seg[t]
+                u += 1
+        count[a] = u
+    pair_start = np.zeros(n_nodes + 1, np.int64)
+    for a in range(n_nodes):
+        pair_start[a + 1] = pair_start[a] + count[a]
+    pair_col = np.empty(pair_start[n_nodes], np.int64)
+    for a in range(n_nodes):
+        pair_col[pair_start[a] : pair_start[a + 1]] = buf[room[a] : room[a] + count[a]]
+    return pair_start, pair_col
+
+
+@njit(cache=True, nogil=True)
+def _pair_index(tets, pair_start, pair_col):
+    """(m, nen, nen) index of node pair (tets[e, la], tets[e, lb]) in pair_col."""
+    m, nen = tets.shape
+    out = np.empty((m, nen, nen), np.int64)
+    for e in range(m):
+        for la in range(nen):
+            a = tets[e, la]
+            row = pair_col[pair_start[a] : pair_start[a + 1]]
+            for lb in range(nen):
+                out[e, la, lb] = pair_start[a] + np.searchsorted(row, tets[e, lb])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _dof_slots(pair_start, pair_col, in_element, new):
+    """The free-dof CSR (indptr, indices), each node pair's (P, 3, 3) CSR slots (-1:
+    dropped) and each node's own pair (n_nodes,): the row of dof (a, i) runs over a's
+    pairs in order, component j inner; a node in no element keeps its diagonal alone;
+    `new` (3 n_nodes,) numbers the free dofs (-1: fixed)."""
+    n_nodes = pair_start.shape[0] - 1
+    indptr, own = _dof_rows(pair_start, pair_col, in_element, new)
+    slot = np.full((pair_col.shape[0], 3, 3), -1, np.int64)
+    indices = np.empty(indptr[-1], np.int32)
+    for a in range(n_nodes):
+        for i in range(3):
+            r = new[3 * a + i]
+            if r < 0:
+                continue
+            pos = indptr[r]
+            for p in range(pair_start[a], pair_start[a + 1]):
+                for j in range(3):
+                    c = new[3 * pair_col[p] + j]
+                    if (in_element[a] or j == i) and c >= 0:
+                        slot[p, i, j] = pos
+                        indices[pos] = c
+                        pos += 1
+    return indptr, indices, slot, own
+
+
+@njit(cache=True, nogil=True)
+def _dof_rows(pair_start, pair_col, in_element, new):
+    """(indptr (n_free + 1,), own (n_nodes,)) of `_dof_slots`: the free dofs' row
+    lengths summed, and each node's own pair."""
+    n_nodes = pair_start.shape[0] - 1
+    indptr = np.zeros(int((new >= 0).sum()) + 1, np.int64)
+    own = np.empty(n_nodes, np.int64)
+    for a in range(n_nodes):
+        own[a] = pair_start[a] + np.searchsorted(pair_col[pair_start[a] : pair_start[a + 1]], a)
+        for i in range(3):
+            r = new[3 * a + i]
+            if r < 0:
+                continue
+            for p in range(pair_start[a], pair_start[a + 1]):
+                for j in range(3):
+                    if (in_element[a] or j == i) and new[3 * pair_col[p] + j] >= 0:
+                        indptr[r + 1] += 1
+    for r in range(indptr.shape[0] - 1):
+        indptr[r + 1] += indptr[r]
+    return indptr, own
