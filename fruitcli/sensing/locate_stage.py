@@ -27,6 +27,7 @@ from fruitcli.sensing.locator_setup import (
     SurfaceInputs,
     build_locator,
     electrostatic_skin,
+    idle_settings,
     skin_heights,
     surface_projector,
 )
@@ -99,6 +100,7 @@ def run_locate(
         workers = min(4, _usable_cpus())
     surface = SurfaceInputs(inputs.project, settings.method, files.surface, files.surface_unit)
     with open_recording(frames_path, board.rows, board.cols, board.format, "read") as rec:
+        settings = idle_settings(settings, rec.meta, len(rec), where)
         locator, pressure = build_locator(
             board, taxels, states, rec, settings, where, inputs.reduced, gain, heights
         )

@@ -8,7 +8,7 @@ stages build (`inputs_stage`), never the scene. Units: mm, counts, kPa.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,6 +42,23 @@ class SurfaceInputs:
     method: str
     path: str | Path | None = None
     unit: str = "mm"
+
+
+def idle_settings(settings: Settings, meta: dict, n_frames: int, where: str) -> Settings:
+    """`settings` with the baseline C0 taken over all the idle frames a recording says it
+    begins with (its meta's ``baseline_frames``, which a bench writes) when they are more
+    than ``[detection].baseline_frames``: C0's error is the noise over the square root
+    of its frames, an offset on every touch of the recording that no mean of a touch's
+    own frames removes. A meta count that is not an integer 1 .. N - 1: FrameError."""
+    idle = meta.get("baseline_frames")
+    if idle is None:
+        return settings
+    if isinstance(idle, bool) or not isinstance(idle, int) or not 1 <= idle < n_frames:
+        raise FrameError(
+            f"{where}: meta baseline_frames (the idle frames it begins with): expected an "
+            f"integer 1 .. {n_frames - 1}, got {idle!r}"
+        )
+    return replace(settings, baseline_frames=idle) if idle > settings.baseline_frames else settings
 
 
 def build_locator(

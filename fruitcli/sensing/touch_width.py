@@ -132,7 +132,7 @@ def run_touch_width(
     from fruitcli.sensing.detection.locate import load_states
     from fruitcli.sensing.frames.recording_chunks import open_recording
     from fruitcli.sensing.inputs_stage import locate_inputs
-    from fruitcli.sensing.locator_setup import build_locator, skin_heights
+    from fruitcli.sensing.locator_setup import build_locator, idle_settings, skin_heights
     from fruitcli.sensing.skin.calibrate import noise_std_counts
     from fruitcli.tables import read_taxels
 
@@ -156,7 +156,7 @@ def run_touch_width(
             "detection.model_frames": SCAN_FRAMES,
         }
         inputs = locate_inputs(scene.with_values(keys))
-        settings = inputs.settings
+        settings = idle_settings(inputs.settings, rec.meta, len(rec), where)
         gain = detection_gain(inputs.gain, taxels, inputs.gains_csv)
         heights = skin_heights(inputs.skin, taxels, settings, gain is not None)
         locator, pressure = build_locator(

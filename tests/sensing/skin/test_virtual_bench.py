@@ -130,6 +130,23 @@ def test_bench_without_states_then_locate_recovers_the_samples(tmp_path):
     assert err.max() < 8.0 and err.mean() < 5.0  # N9 pulls towards the grid points
 
 
+def test_locate_takes_the_baseline_over_every_idle_frame_of_the_bench(tmp_path):
+    """A bench that records 40 idle frames: `fruit locate` with ``[detection]
+    .baseline_frames`` left at 10 finds the touches it finds when told 40 (the meta's
+    count), to the last digit."""
+    sc = scene(tmp_path, "baseline_frames = 40\n")
+    taxels = pad_taxel_csv(tmp_path / "t.csv")
+    run_bench(sc, taxels, None, tmp_path / "bench")
+    frames = tmp_path / "bench" / "small" / "frames.npz"
+    assert read_npz(frames).meta["baseline_frames"] == 40
+    told = sc.with_values({"detection.baseline_frames": 40})
+    locate_scene(sc, frames, taxels, None, tmp_path / "default")
+    locate_scene(told, frames, taxels, None, tmp_path / "told")
+    default = (tmp_path / "default" / "touches.csv").read_text()
+    assert default == (tmp_path / "told" / "touches.csv").read_text()
+    assert sc.detection.baseline_frames == 10
+
+
 def test_bench_on_bent_states_truth_on_the_deformed_surface(tmp_path):
     sc = scene(tmp_path, "state = 2\n")
     states = pad_states(tmp_path / "s.npz")
