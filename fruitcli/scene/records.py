@@ -260,7 +260,7 @@ class BenchSection(Record):
     state: int = 0
     step_mm: float = 0.1
     seed: int = 0
-    baseline_frames: int = 120
+    baseline_frames: int = 10
     reference_length_mm: float | None = None
     register: str = "none"
 

@@ -184,9 +184,9 @@ SECTIONS: dict[str, dict[str, Key]] = {
         "seed": Key("int", 0, "seed of the noise", **SEED),
         "baseline_frames": Key(
             "int",
-            120,
-            "idle frames recorded before the first descent (2 s at 60 frames/s): the "
-            "baseline `fruit locate` takes, if more than [detection].baseline_frames",
+            10,
+            "idle frames recorded before the first descent: the baseline `fruit locate` "
+            "takes, if more than [detection].baseline_frames",
             min=1,
             max=MAX_FRAMES,
         ),

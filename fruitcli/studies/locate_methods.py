@@ -17,7 +17,8 @@ a board whose skin the locator does not know:
 - ``wider``: a field sigma of 7 mm where the locator assumes the scene's 6, 75 counts at
   contact where it assumes 60, gains spread +-20 % that it does not know;
 - ``narrower``: a field sigma of 5 mm, 50 counts at contact, gains spread +-20 %;
-- the noise is the scene's (by default the per-taxel std of Fig. 10) in all.
+- the noise is the scene's (by default the per-taxel std of Fig. 10) in all, and every
+  bench records ``IDLE_FRAMES`` idle frames before its first descent.
 
 Every method of `fruitcli.sensing.detection.methods.METHODS` locates the same frames,
 and so does the model method with other settings (`MODEL_SETTINGS`: a 3 x 3 window, the
@@ -48,6 +49,12 @@ if TYPE_CHECKING:
     from fruitcli.scene import Scene
 
 GAIN_SPREAD = 0.2
+IDLE_FRAMES = 120
+"""Idle frames every bench of the study records before its first descent (2 s at 60
+frames/s; ``[bench].baseline_frames``), all of which `fruit locate` and `fruit calibrate`
+take as the baseline: with the scene's default of 10 the baseline is off by the noise
+over the square root of 10 on every taxel, an offset that averaging a touch's frames
+does not remove."""
 
 
 class BenchSkin(TypedDict):
@@ -114,7 +121,8 @@ HEADER = [
 
 def bench_skin_values(name: str, indenters: Iterable[str]) -> dict:
     """The [skin] keys of bench skin `name` for `indenters` (footprint hypot(field
-    sigma, indenter radius), as `fruitcli.sensing.skin.forward` makes it)."""
+    sigma, indenter radius), as `fruitcli.sensing.skin.forward` makes it), and the
+    bench's ``IDLE_FRAMES``."""
     from fruitcli.sensing.skin import forward
 
     case = BENCH_SKINS[name]
@@ -124,6 +132,7 @@ def bench_skin_values(name: str, indenters: Iterable[str]) -> dict:
             "skin.gain_spread": case["gain_spread"],
             "skin.taxel_gain": None,
             "skin.model": board,
+            "bench.baseline_frames": IDLE_FRAMES,
         }
     sigma = case["field_sigma_mm"]
     assert sigma is not None, f"bench skin {name!r}: a field sigma or a calibration"
@@ -137,6 +146,7 @@ def bench_skin_values(name: str, indenters: Iterable[str]) -> dict:
         "skin.contact_counts": case["contact_counts"],
         "skin.gain_spread": case["gain_spread"],
         "skin.taxel_gain": None,
+        "bench.baseline_frames": IDLE_FRAMES,
     }
 
 
@@ -419,8 +429,10 @@ def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:
             for k, v in BENCH_SKINS.items()
             if v["field_sigma_mm"] is not None
         )
-        + ". The locator is told which indenter touches (`[detection].footprint`), as the "
-        "bench knows. Registered: translation (the paper's protocol). Inside the outline: "
+        + f". Every bench records {IDLE_FRAMES} idle frames before its first descent, all of "
+        "them the locator's baseline. The locator is told which indenter touches "
+        "(`[detection].footprint`), as the bench knows. Registered: translation (the "
+        "paper's protocol). Inside the outline: "
         "the samples within the convex hull of the taxels seen from above (at the bench's state), "
         "registered on their own. The model's 1-sigma radius: the median of the fit's own "
         "position uncertainty over the touches it placed. Time per frame: `fruit locate`'s "
