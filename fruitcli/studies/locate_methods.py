@@ -40,7 +40,12 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
-from fruitcli.studies.locator_skins import CALIBRATION_INDENTER, calibrated_skin, touch_width_skin
+from fruitcli.studies.locator_skins import (
+    CALIBRATION_INDENTER,
+    BenchBody,
+    calibrated_skin,
+    touch_width_skin,
+)
 from fruitcli.studies.model_frames import MODEL_FRAMES
 
 if TYPE_CHECKING:
@@ -174,10 +179,9 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
         crossing_dir=table.get(board),
     )
     located_table = table.get(fitted)
-    skin_table = _locator_skin(
-        name, bench_scene, scene, taxels, states, surface, unit, base, table.get(board),
-        located_table,
-    )  # fmt: skip
+    body = BenchBody(taxels, states, surface, unit)
+    board_table = table.get(board)
+    skin_table = _locator_skin(name, bench_scene, scene, body, base, board_table, located_table)
     outline = _bench_taxels(taxels, states, scene.bench.state)
     rows = []
     cases = variants()
@@ -253,33 +257,25 @@ def _locator_skin(
     name: str,
     bench_scene: Scene,
     scene: Scene,
-    taxels: Path,
-    states: Path | None,
-    surface: Path | None,
-    unit: str,
+    body: BenchBody,
     base: Path,
     board_table: Path | None,
     located_table: Path | None,
 ) -> Any:
     """The [skin] table bench skin `name`'s locator gets, made under the case's folder
-    `base`: `calibrated_skin` for the calibrated cases, else `scene`'s with the footprint
-    widths from another run's touches (`touch_width_skin`, for the ``WIDTH_LABEL`` row
-    alone), from `taxels`, `states` and the body's `surface` in `unit`."""
+    `base` on `body`: `calibrated_skin` for the calibrated cases, else `scene`'s with the
+    footprint widths from another run's touches (`touch_width_skin`, for the
+    ``WIDTH_LABEL`` row alone)."""
     if name in CALIBRATED:
         return calibrated_skin(
             bench_scene,
-            taxels,
-            states,
-            surface,
-            unit,
+            body,
             base / "calibration",
             board_table,
             located_table,
             scene.bench.indenters,
         )
-    return touch_width_skin(
-        bench_scene, scene, taxels, states, surface, unit, base / "widths", scene.bench.indenters
-    )
+    return touch_width_skin(bench_scene, scene, body, base / "widths", scene.bench.indenters)
 
 
 def _frames_chosen(

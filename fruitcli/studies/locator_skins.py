@@ -9,7 +9,7 @@ Units: mm.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,18 +21,26 @@ if TYPE_CHECKING:
 CALIBRATION_INDENTER = "small"
 
 
+@dataclass(frozen=True)
+class BenchBody:
+    """What a bench run stands on: the taxels (CSV), the FEM states (npz; None: at rest)
+    and the body's closed surface (None: not known) in `unit`."""
+
+    taxels: Path
+    states: Path | None
+    surface: Path | None
+    unit: str = "mm"
+
+
 def calibration_run(
     bench_scene: Scene,
-    taxels: Path,
-    states: Path | None,
-    surface: Path | None,
-    unit: str,
+    body: BenchBody,
     work: Path,
     board_table: Path | None = None,
     indenters: Iterable[str] = (),
 ) -> list[str]:
     """The board of `bench_scene` (its crossing table `board_table` when electrostatic)
-    run on the bench at other sample points than the scene's (half a pitch off each
+    run on the bench on `body` at other sample points than the scene's (half a pitch off each
     taxel, and right over each taxel) into WORK/bench, with ``CALIBRATION_INDENTER``
     and each of `indenters`. -> the indenters run, in that order."""
     from fruitcli.fsutil import write_csv
@@ -41,7 +49,7 @@ def calibration_run(
 
     work.mkdir(parents=True, exist_ok=True)
     g = bench_scene.grid
-    over = read_taxels(taxels).xyz_mm[:, :2]
+    over = read_taxels(body.taxels).xyz_mm[:, :2]
     xy = np.vstack([over + np.array([g.spacing_x_mm, g.spacing_y_mm]) / 2, over])
     points = work / "samples.csv"
     write_csv(points, ["sample", "x_mm", "y_mm"], ([k, *p] for k, p in enumerate(xy)))
@@ -55,11 +63,11 @@ def calibration_run(
     run = replace(bench_scene, sections={**bench_scene.sections, "bench": bench})
     run_bench(
         run,
-        taxels,
-        states,
+        body.taxels,
+        body.states,
         work / "bench",
-        surface_path=surface,
-        surface_unit=unit,
+        surface_path=body.surface,
+        surface_unit=body.unit,
         crossing_dir=board_table,
     )
     return names
@@ -67,10 +75,7 @@ def calibration_run(
 
 def calibrated_skin(
     bench_scene: Scene,
-    taxels: Path,
-    states: Path | None,
-    surface: Path | None,
-    unit: str,
+    body: BenchBody,
     work: Path,
     board_table: Path | None = None,
     fitted_table: Path | None = None,
@@ -88,9 +93,7 @@ def calibrated_skin(
     from fruitcli.sensing.locator_setup import electrostatic_skin
     from fruitcli.sensing.skin.calibrate import run_calibrate
 
-    names = calibration_run(
-        bench_scene, taxels, states, surface, unit, work, board_table, indenters
-    )
+    names = calibration_run(bench_scene, body, work, board_table, indenters)
     fitter = bench_scene
     response = None
     if fitted_table is not None:
@@ -104,7 +107,7 @@ def calibrated_skin(
             calibrate_inputs(fitter),
             ind / "frames.npz",
             ind / "truth.csv",
-            taxels,
+            body.taxels,
             folder,
             name,
             response=response,
@@ -117,10 +120,7 @@ def calibrated_skin(
 def touch_width_skin(
     bench_scene: Scene,
     scene: Scene,
-    taxels: Path,
-    states: Path | None,
-    surface: Path | None,
-    unit: str,
+    body: BenchBody,
     work: Path,
     indenters: Iterable[str],
 ) -> Any:
@@ -130,10 +130,12 @@ def touch_width_skin(
     without a printer bench would."""
     from fruitcli.sensing.touch_width import run_touch_width
 
-    names = calibration_run(bench_scene, taxels, states, surface, unit, work, None, indenters)
+    names = calibration_run(bench_scene, body, work, None, indenters)
     feet = dict(scene.skin.footprint_sigma_mm or {})
     for name in names:
         frames = work / "bench" / name / "frames.npz"
-        found = run_touch_width(scene, frames, taxels, work / f"width-{name}", name, states)
+        found = run_touch_width(
+            scene, frames, body.taxels, work / f"width-{name}", name, body.states
+        )
         feet[name] = found["footprint_sigma_mm"]
     return replace(scene.skin, footprint_sigma_mm=feet)

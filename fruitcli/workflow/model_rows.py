@@ -41,7 +41,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
     from fruitcli.fsutil import write_json
     from fruitcli.sensing.stages import LocateFiles, locate_inputs, run_locate
     from fruitcli.studies import model_frames
-    from fruitcli.studies.locator_skins import CALIBRATION_INDENTER, calibrated_skin
+    from fruitcli.studies.locator_skins import CALIBRATION_INDENTER, BenchBody, calibrated_skin
     from fruitcli.workflow import stage_paths as st
 
     out_dir = Path(out_dir)
@@ -51,9 +51,8 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
     unit = scene.geometry.unit if st.geometry_kind(scene) == "solid" else "mm"
     board_table = st.crossing_dir(scene, ctx)
     ctx.progress("model-rows: calibrating the skin on another bench run")
-    skin = calibrated_skin(
-        scene, taxels, states, surface, unit, out_dir / "calibration", board_table
-    )
+    body = BenchBody(taxels, states, surface, unit)
+    skin = calibrated_skin(scene, body, out_dir / "calibration", board_table)
 
     def locate(frames: int, bench: Path, folder: Path) -> None:
         run = replace(
