@@ -38,8 +38,10 @@ footprint); fewer than ``MIN_TAXELS`` taxels in its window; a 1-sigma radius abo
 or a reduced chi^2 above
 ``MAX_REDUCED_CHI2`` (the footprint does not explain the frame: a palm, two merged
 fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
-covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1; the residual
-is the RMS of the weighted residuals (1: at the noise).
+covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1, and, for a
+touch seen from one side only, widened by a second explanation of its frame on the
+other side of its peak taxel (`_mirror_spread`); the residual is the RMS of the
+weighted residuals (1: at the noise).
 """
 
 from __future__ import annotations
@@ -70,6 +72,10 @@ ITERATIONS = 12  # Levenberg-Marquardt steps at most
 MAX_REDUCED_CHI2 = 9.0  # above: the footprint does not explain the frame
 MAX_UNCERTAINTY_MM = 30.0  # a 1-sigma radius above two pitches: the taxels do not place it
 MIN_TAXELS = 5  # taxels in the window at least (4 parameters, one to spare)
+MIRROR_FAR = 1.0  # grid units out on an open side: where a touch's second fit starts ...
+MIRROR_NEAR = 0.25  # ... when its first ended nearer the peak taxel than this
+MIRROR_UNSEEN = 3.0  # errors: taxels one row inwards reading less do not see the touch
+MIRROR_MIN_MM = 1.0  # a second fit ending nearer the touch's point is the same one
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
 # an earlier frame shows the same touch when its window's activations point the same way
 # (cosine, an assumption: a still touch 20 counts strong over noise of 1-2 counts gives
@@ -242,7 +248,9 @@ def refine(
     )
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
-    err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0), 0.0))
+    fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law)
+    spread = _mirror_spread(out, xyz, red, _open_sides(win, window), window, fit)
+    err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0) + spread, 0.0))
     kept = _failed(out, err_mm, red, a0, b0, used, law.width_prior)
     return Fitted(
         np.where(kept, i0, ci + a),
@@ -298,6 +306,84 @@ def _windows(
         used,
     )
     return vw, inv_e, gain, coef, corr, used
+
+
+def _open_sides(win: np.ndarray, window: Window) -> np.ndarray:
+    """(n, 2) each touch's open side along a and along b: +1 or -1 where its window has no
+    taxel in the next row of cells on that side of its peak taxel (column +1 or -1 of
+    the N9), 0 where both sides have one; +1 where both are open. A footprint seen from
+    one side only."""
+    have = win >= 0
+    near_b, near_a = np.abs(window.dj) <= 1, np.abs(window.di) <= 1
+    sides = np.zeros((len(win), 2), np.int64)
+    for axis, offset, near in ((0, window.di, near_b), (1, window.dj, near_a)):
+        for d in (-1, 1):
+            gone = ~np.any(have & (offset == d) & near, axis=1)
+            sides[gone, axis] = d
+    return sides
+
+
+def _mirror_spread(
+    out: np.ndarray,
+    xyz: np.ndarray,
+    red: np.ndarray,
+    sides: np.ndarray,
+    window: Window,
+    fit: tuple,
+) -> np.ndarray:
+    """(n,) mm^2 to add to each touch's squared 1-sigma radius for a second explanation
+    of its frame. Seen from one side only (`_open_sides`), a farther point with more
+    amplitude and a nearer one with less explain the taxels nearly alike: a touch down a
+    body's flank past the last column, and one on the top by that column, when the
+    taxels one row inwards read less than ``MIRROR_UNSEEN`` times their error. Such a
+    touch is fitted again along each such axis, from ``MIRROR_FAR`` grid units out on the open
+    side when its point is nearer the peak taxel than ``MIRROR_NEAR``, from the peak
+    taxel's row otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the
+    first, with a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1),
+    the two points are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2))
+    on the second, and the radius grows by w D^2, D their distance (mm): the mean
+    squared distance from the point kept to the posterior's (of the two axes', the
+    larger). `fit`: (lo, hi, v, inv_e, gain, pos, coef, corr, sub, law) of `refine`'s
+    fits."""
+    from fruitcli.sensing.detection.model_kernel import fit_all
+
+    lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law = fit
+    spread = np.zeros(len(out))
+    finite = np.isfinite(out).all(axis=1)
+    snr = vw * inv_e  # (n, K) each window taxel's activation over its error
+    touch, starts = [], []
+    for axis, offset, across in ((0, window.di, window.dj), (1, window.dj, window.di)):
+        inward = (offset[None, :] == -sides[:, axis : axis + 1]) & (np.abs(across) <= 1)
+        unseen = np.where(inward, snr, 0.0).max(axis=1) < MIRROR_UNSEEN
+        k = np.flatnonzero(finite & (sides[:, axis] != 0) & unseen)
+        x = out[k, :4].copy()
+        out_side = sides[k, axis] * out[k, axis]  # grid units out on the open side
+        x[:, axis] = np.where(out_side < MIRROR_NEAR, sides[k, axis] * MIRROR_FAR, 0.0)
+        touch.append(k)
+        starts.append(x)
+    k = np.concatenate(touch)
+    if not k.size:
+        return spread
+    alt, alt_xyz = np.empty((k.size, 6)), np.empty((k.size, 3))
+    fit_all(
+        np.clip(np.concatenate(starts), lo[k], hi[k]), lo[k], hi[k], vw[k], inv_e[k],
+        gain[k], pos[k], coef[k], corr[k], sub, law.profile, PROFILE_STEP_MM,
+        law.width_prior, ITERATIONS, alt, np.empty((k.size, 4, 4)), alt_xyz, np.empty(k.size),
+    )  # fmt: skip
+    prior = law.width_prior
+    dist2 = np.sum((alt_xyz - xyz[k]) ** 2, axis=1)
+    valid = (
+        np.isfinite(alt).all(axis=1)
+        & (np.abs(alt[:, :2]) < MAX_SHIFT - 1e-6).all(axis=1)
+        & (np.abs(alt[:, 3] - 1.0) <= MAX_WIDTH_SIGMAS * prior)
+        & (dist2 > MIRROR_MIN_MM**2)
+    )
+    chi2 = out[k, 4] + ((out[k, 3] - 1.0) / prior) ** 2
+    chi2_alt = alt[:, 4] + ((alt[:, 3] - 1.0) / prior) ** 2
+    d = (chi2_alt - chi2) / np.maximum(red[k], 1.0)
+    w = 1.0 / (1.0 + np.exp(np.minimum(d / 2.0, 700.0)))
+    np.maximum.at(spread, k, np.where(valid, w * dist2, 0.0))
+    return spread
 
 
 def _start_and_bounds(

@@ -107,3 +107,49 @@ def test_the_chart_lies_on_the_surface_and_walks_a_pitch_per_grid_unit():
     steps = np.linalg.norm(np.diff(row, axis=0), axis=1)
     assert np.allclose(steps, 16.0 / SUB, rtol=0.03)
     assert row[-1, 2] < -EDGE_R  # two pitches on, it is down the wall
+
+
+def test_a_light_touch_down_the_edge_has_a_radius_that_covers_its_mirror_image():
+    # At the threshold (25 counts at the last column) with noise of 1.2 counts, a touch
+    # 45 or 60 degrees down the edge and one on the top by the last column (lower
+    # amplitude) explain the taxels nearly alike; for some noise draws the fit takes the
+    # top. Its radius must then say so (`model_fit._mirror_spread`): without the second
+    # fits 16 of the 54 touches the model placed were more than 3 radii off, with them 4.
+    taxels, surface = taxels_on_top(), ledge()
+    rng = np.random.default_rng(0)
+    placed, uncovered = 0, 0
+    for degrees in (45.0, 60.0):
+        point = on_edge(degrees)
+        nearest = np.linalg.norm(taxels.xyz_mm - point, axis=1).min()
+        amplitude = 25.0 / np.exp(-0.5 * (nearest / SIGMA_MM) ** 2)
+        frames = [
+            np.round(frame_of(taxels, point, amplitude) + rng.normal(0.0, 1.2, (21, 12)))
+            for _ in range(40)
+        ]
+        t = locate(taxels, frames, surface)
+        model = t.fit == FIT_MODEL
+        err = np.linalg.norm(t.xyz_mm - point, axis=1)
+        placed += model.sum()
+        uncovered += (model & (err > 3.0 * t.pos_err_mm)).sum()
+    assert placed == 54
+    assert uncovered <= 0.1 * placed
+
+
+def test_the_open_sides_of_a_window_are_those_without_a_taxel_next_to_the_peak():
+    from fruitcli.sensing.detection.model_fit import Window, _open_sides
+
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(3), np.arange(4), indexing="ij"))
+    window = Window(i, j)
+    sides = _open_sides(window.taxels, window)
+    expected = np.stack([(i == 2) * 1 - (i == 0), (j == 3) * 1 - (j == 0)], axis=1)
+    assert np.array_equal(sides, expected)
+    # a hole next to a taxel opens that side, a taxel one cell diagonally closes it
+    keep = ~((i == 1) & (j == 2))
+    window = Window(i[keep], j[keep])
+    sides = _open_sides(window.taxels, window)
+    at = {(a, b): k for k, (a, b) in enumerate(zip(i[keep], j[keep], strict=True))}
+    assert sides[at[1, 1]].tolist() == [0, 0]  # (1, 2) gone; (0, 2) and (2, 2) remain
+    assert sides[at[1, 3]].tolist() == [0, 1]
+    # one row of taxels: both sides of a open, +1
+    window = Window(np.zeros(4, np.int64), np.arange(4))
+    assert _open_sides(window.taxels, window)[:, 0].tolist() == [1, 1, 1, 1]
