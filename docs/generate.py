@@ -598,6 +598,18 @@ against one on two, differ by up to 2.0e-6 mm on the breathing and 6.5e-7 mm on 
 CG iterations instead of 40 in one run of five. The 100 ms target for a state from the
 previous one is still missed on two threads: 116-117 ms on the sweep, 204-215 ms on the
 breathing.
+
+Measured and not adopted: MKL's conditional numerical reproducibility mode on two
+threads (`MKL_CBWR=AUTO` set before MKL loads; MKL then reports that branch). Two runs
+gave the same bits on the breathing, the sweep and the first state from rest (without
+it they differed by up to 9.6e-7 mm), but it took the second thread's gain away.
+`python tests/performance/bench_state.py --mesh DIR [--first] --solver-threads 2 --save
+PREFIX` with the mode and without it (commit 301bba2), alternately, twice each, on
+2026-12-07 02:43-02:45 UTC on the quiet Intel Xeon (load average 0.0-0.9): the
+breathing's median 295 and 297 ms a state instead of 214 and 219 ms, the sweep's 159 and
+163 ms instead of 121 and 124 ms, the first state from rest 1827 and 1832 ms instead of
+1456 and 1459 ms (one thread, in the table above: 261-268 ms, 144-154 ms and 1.92-2.01
+s). One thread stays the way to the same bits on every run.
 """
 
 
