@@ -153,3 +153,20 @@ def test_the_open_sides_of_a_window_are_those_without_a_taxel_next_to_the_peak()
     # one row of taxels: both sides of a open, +1
     window = Window(np.zeros(4, np.int64), np.arange(4))
     assert _open_sides(window.taxels, window)[:, 0].tolist() == [1, 1, 1, 1]
+
+
+def test_a_touch_the_row_inwards_reads_keeps_the_first_fits_radius(monkeypatch):
+    # A touch on the top between the last two columns lights both: the column inwards
+    # reads it, so there is no second explanation and the radius is the first fit's.
+    import fruitcli.sensing.detection.model_fit as model_fit
+
+    taxels, surface = taxels_on_top(), ledge()
+    point = np.array([EDGE_X - 6.0, 36.0, 0.0])
+    rng = np.random.default_rng(1)
+    frames = [np.round(frame_of(taxels, point, 40.0) + rng.normal(0.0, 1.2, (21, 12)))]
+    with_second = locate(taxels, frames, surface)
+    monkeypatch.setattr(model_fit, "_mirror_spread", lambda out, *args: np.zeros(len(out)))
+    first_only = locate(taxels, frames, surface)
+    assert (with_second.fit == FIT_MODEL).all()
+    assert np.array_equal(with_second.pos_err_mm, first_only.pos_err_mm)
+    assert np.array_equal(with_second.xyz_mm, first_only.xyz_mm)
