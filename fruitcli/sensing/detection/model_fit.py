@@ -135,7 +135,8 @@ class FootprintLaw:
 
 class Window:
     """The window of grid cells around each taxel (5 x 5 with ``HALF`` = 2): its taxels
-    (-1: none) and the cells' offsets (di, dj) from the centre."""
+    (-1: none), the cells' offsets (di, dj) from the centre and its open sides
+    (`_open_sides`)."""
 
     def __init__(self, i: np.ndarray, j: np.ndarray, half: int | None = None):
         half = HALF if half is None else int(half)
@@ -146,6 +147,7 @@ class Window:
         di, dj = np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1), indexing="ij")
         self.di, self.dj = di.ravel(), dj.ravel()
         self.taxels = grid[i[:, None] + half + self.di, j[:, None] + half + self.dj]  # (T, K)
+        self.open_sides = _open_sides(self.taxels, self.di, self.dj)  # (T, 2)
         self.i, self.j = i, j
         basis = [np.ones(self.di.size), self.di, self.dj, self.di**2, self.di * self.dj]
         self.basis = np.stack([*basis, self.dj**2], axis=1).astype(float)  # (K, 6)
@@ -249,7 +251,7 @@ def refine(
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
     fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law)
-    spread = _mirror_spread(out, xyz, red, _open_sides(win, window), window, fit)
+    spread = _mirror_spread(out, xyz, red, window.open_sides[centre], window, fit)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0) + spread, 0.0))
     kept = _failed(out, err_mm, red, a0, b0, used, law.width_prior)
     return Fitted(
@@ -308,15 +310,15 @@ def _windows(
     return vw, inv_e, gain, coef, corr, used
 
 
-def _open_sides(win: np.ndarray, window: Window) -> np.ndarray:
-    """(n, 2) each touch's open side along a and along b: +1 or -1 where its window has no
-    taxel in the next row of cells on that side of its peak taxel (column +1 or -1 of
-    the N9), 0 where both sides have one; +1 where both are open. A footprint seen from
-    one side only."""
+def _open_sides(win: np.ndarray, di: np.ndarray, dj: np.ndarray) -> np.ndarray:
+    """(T, 2) each window's open side along a and along b: +1 or -1 where the window
+    `win` (T, K) of cells at offsets di, dj (K,) has no taxel in the next row of cells on
+    that side of its centre taxel (column +1 or -1 of the N9), 0 where both sides have
+    one; +1 where both are open. A footprint seen from one side only."""
     have = win >= 0
-    near_b, near_a = np.abs(window.dj) <= 1, np.abs(window.di) <= 1
+    near_b, near_a = np.abs(dj) <= 1, np.abs(di) <= 1
     sides = np.zeros((len(win), 2), np.int64)
-    for axis, offset, near in ((0, window.di, near_b), (1, window.dj, near_a)):
+    for axis, offset, near in ((0, di, near_b), (1, dj, near_a)):
         for d in (-1, 1):
             gone = ~np.any(have & (offset == d) & near, axis=1)
             sides[gone, axis] = d
@@ -336,9 +338,9 @@ def _mirror_spread(
     amplitude and a nearer one with less explain the taxels nearly alike: a touch down a
     body's flank past the last column, and one on the top by that column, when the
     taxels one row inwards read less than ``MIRROR_UNSEEN`` times their error. Such a
-    touch is fitted again along each such axis, from ``MIRROR_FAR`` grid units out on the open
-    side when its point is nearer the peak taxel than ``MIRROR_NEAR``, from the peak
-    taxel's row otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the
+    touch is fitted again along each such axis, from ``MIRROR_FAR`` grid units out on
+    the open side when its point is nearer the peak taxel than ``MIRROR_NEAR``, from the
+    peak taxel's row otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the
     first, with a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1),
     the two points are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2))
     on the second, and the radius grows by w D^2, D their distance (mm): the mean
@@ -349,6 +351,8 @@ def _mirror_spread(
 
     lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law = fit
     spread = np.zeros(len(out))
+    if not sides.any():  # no touch at an edge of the grid
+        return spread
     finite = np.isfinite(out).all(axis=1)
     snr = vw * inv_e  # (n, K) each window taxel's activation over its error
     touch, starts = [], []
@@ -372,12 +376,7 @@ def _mirror_spread(
     )  # fmt: skip
     prior = law.width_prior
     dist2 = np.sum((alt_xyz - xyz[k]) ** 2, axis=1)
-    valid = (
-        np.isfinite(alt).all(axis=1)
-        & (np.abs(alt[:, :2]) < MAX_SHIFT - 1e-6).all(axis=1)
-        & (np.abs(alt[:, 3] - 1.0) <= MAX_WIDTH_SIGMAS * prior)
-        & (dist2 > MIRROR_MIN_MM**2)
-    )
+    valid = ~_off_footprint(alt, prior) & (dist2 > MIRROR_MIN_MM**2)
     chi2 = out[k, 4] + ((out[k, 3] - 1.0) / prior) ** 2
     chi2_alt = alt[:, 4] + ((alt[:, 3] - 1.0) / prior) ** 2
     d = (chi2_alt - chi2) / np.maximum(red[k], 1.0)
@@ -402,6 +401,18 @@ def _start_and_bounds(
     return x0, lo, hi
 
 
+def _off_footprint(out: np.ndarray, width_prior: float) -> np.ndarray:
+    """Which fits (n,) of `fit_all`'s results out (n, 6) are not finite, end on a bound of
+    the point (``MAX_SHIFT``) or have a width scale more than ``MAX_WIDTH_SIGMAS`` priors
+    from 1 (not the skin's footprint)."""
+    edge = 1e-6
+    return (
+        ~np.isfinite(out).all(axis=1)
+        | (np.abs(out[:, :2]) >= MAX_SHIFT - edge).any(axis=1)
+        | (np.abs(out[:, 3] - 1.0) > MAX_WIDTH_SIGMAS * width_prior)
+    )
+
+
 def _failed(
     out: np.ndarray,
     err_mm: np.ndarray,
@@ -414,15 +425,11 @@ def _failed(
     """Which fits (n,) fail a test of the module's list, so that N9's point is kept: out
     (n, 6) `fit_all`'s results, err_mm the 1-sigma radii, red the reduced chi^2, a0, b0
     the N9 start, used the taxels fitted, `width_prior` the law's."""
-    a, b, s = out[:, 0], out[:, 1], out[:, 3]
-    edge = 1e-6
+    a, b = out[:, 0], out[:, 1]
     return (
-        ~np.isfinite(out).all(axis=1)
+        _off_footprint(out, width_prior)
         | ~np.isfinite(err_mm)
         | (np.hypot(a - a0, b - b0) > 1.0)
-        | (np.abs(a) >= MAX_SHIFT - edge)
-        | (np.abs(b) >= MAX_SHIFT - edge)
-        | (np.abs(s - 1.0) > MAX_WIDTH_SIGMAS * width_prior)
         | (used < MIN_TAXELS)
         | (err_mm > MAX_UNCERTAINTY_MM)
         | (red > MAX_REDUCED_CHI2)

@@ -136,23 +136,23 @@ def test_a_light_touch_down_the_edge_has_a_radius_that_covers_its_mirror_image()
 
 
 def test_the_open_sides_of_a_window_are_those_without_a_taxel_next_to_the_peak():
-    from fruitcli.sensing.detection.model_fit import Window, _open_sides
+    from fruitcli.sensing.detection.model_fit import Window
 
     i, j = (a.ravel() for a in np.meshgrid(np.arange(3), np.arange(4), indexing="ij"))
     window = Window(i, j)
-    sides = _open_sides(window.taxels, window)
+    sides = window.open_sides
     expected = np.stack([(i == 2) * 1 - (i == 0), (j == 3) * 1 - (j == 0)], axis=1)
     assert np.array_equal(sides, expected)
     # a hole next to a taxel opens that side, a taxel one cell diagonally closes it
     keep = ~((i == 1) & (j == 2))
     window = Window(i[keep], j[keep])
-    sides = _open_sides(window.taxels, window)
+    sides = window.open_sides
     at = {(a, b): k for k, (a, b) in enumerate(zip(i[keep], j[keep], strict=True))}
     assert sides[at[1, 1]].tolist() == [0, 0]  # (1, 2) gone; (0, 2) and (2, 2) remain
     assert sides[at[1, 3]].tolist() == [0, 1]
     # one row of taxels: both sides of a open, +1
     window = Window(np.zeros(4, np.int64), np.arange(4))
-    assert _open_sides(window.taxels, window)[:, 0].tolist() == [1, 1, 1, 1]
+    assert window.open_sides[:, 0].tolist() == [1, 1, 1, 1]
 
 
 def test_a_touch_the_row_inwards_reads_keeps_the_first_fits_radius(monkeypatch):
