@@ -114,7 +114,7 @@ def test_a_light_touch_down_the_edge_has_a_radius_that_covers_its_mirror_image()
     # 45 or 60 degrees down the edge and one on the top by the last column (lower
     # amplitude) explain the taxels nearly alike; for some noise draws the fit takes the
     # top. Its radius must then say so (`model_fit._mirror_spread`): without the second
-    # fits 16 of the 54 touches the model placed were more than 3 radii off, with them 4.
+    # fits 16 of the 54 touches the model placed were more than 3 radii off, with them 5.
     taxels, surface = taxels_on_top(), ledge()
     rng = np.random.default_rng(0)
     placed, uncovered = 0, 0
