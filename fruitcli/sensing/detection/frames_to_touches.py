@@ -486,7 +486,13 @@ class Locator:
         s0 = seg[frame]
         s1 = np.minimum(s0 + 1, pos.shape[0] - 1)
         t = frac[frame][:, None, None]
-        return (1.0 - t) * pos[s0[:, None], tax] + t * pos[s1[:, None], tax]
+        flat, per_state = pos.reshape(-1, 3), pos.shape[1]
+        here = flat.take(s0[:, None] * per_state + tax, axis=0)
+        after = flat.take(s1[:, None] * per_state + tax, axis=0)
+        here *= 1.0 - t
+        after *= t
+        here += after
+        return here
 
     def batch(
         self,

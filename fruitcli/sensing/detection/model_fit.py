@@ -139,6 +139,8 @@ class Window:
     (`_open_sides`)."""
 
     def __init__(self, i: np.ndarray, j: np.ndarray, half: int | None = None):
+        from fruitcli.sensing.detection.model_kernel import map_factors
+
         half = HALF if half is None else int(half)
         i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
         h, w = int(i.max()) + 1 + 2 * half, int(j.max()) + 1 + 2 * half
@@ -153,6 +155,9 @@ class Window:
         self.basis = np.stack([*basis, self.dj**2], axis=1).astype(float)  # (K, 6)
         near = (np.abs(self.di) <= 1) & (np.abs(self.dj) <= 1)
         self.map_weight = np.where(near, 1.0, RING_WEIGHT)
+        self.map_low = np.zeros((i.size, self.basis.shape[1], self.basis.shape[1]))
+        self.map_ok = np.zeros(i.size, np.bool_)
+        map_factors(self.taxels, self.basis, self.map_weight, self.map_low, self.map_ok)
 
 
 @dataclass
@@ -213,7 +218,7 @@ def refine(
     rows = frame if rows is None else rows
     noise_t = _touch_noise(noise, law, v.shape[1], frame, frames_taken)
     vw, inv_e, gain, coef, corr, used = _windows(
-        frame, rows, win, n9_taxels, v, law, noise_t, pos, window
+        frame, rows, centre, win, n9_taxels, v, law, noise_t, pos, window
     )
     sub = 1
     if chart is not None:
@@ -268,6 +273,7 @@ def refine(
 def _windows(
     frame: np.ndarray,
     rows: np.ndarray | None,
+    centre: np.ndarray,
     win: np.ndarray,
     n9_taxels: np.ndarray | None,
     v: np.ndarray,
@@ -291,6 +297,7 @@ def _windows(
     prepare(
         np.ascontiguousarray(frame, dtype=np.int64),
         np.ascontiguousarray(rows, dtype=np.int64),
+        np.ascontiguousarray(centre, dtype=np.int64),
         win,
         np.ascontiguousarray(n9, dtype=np.int64),
         np.ascontiguousarray(v, dtype=float),
@@ -300,6 +307,8 @@ def _windows(
         pos,
         window.basis,
         window.map_weight,
+        window.map_low,
+        window.map_ok,
         vw,
         inv_e,
         gain,

@@ -39,17 +39,15 @@ def _profile(x, profile, step):
 
 
 @njit(cache=True, nogil=True)
-def _point(coef, corr, sub, a, b):
-    """c(a, b) (3,) and its derivatives dc/da, dc/db: the quadratic map plus the bilinear
+def _point(coef, corr, sub, a, b, pt):
+    """pt (3, 3) = c(a, b) and its derivatives dc/da, dc/db: the quadratic map plus the bilinear
     interpolation of the corrections `corr` (L, L, 3), a lattice of `sub` nodes per
     grid cell over the window (L = 2 half sub + 1): the map's misfit at the taxels
     (sub = 1; a cell without a taxel has misfit 0), so c passes through every taxel, or
     the way from the map to the body's surface (`surface_chart`)."""
     last = corr.shape[0] - 1
     half = last / (2.0 * sub)
-    c = np.empty(3)
-    ca = np.empty(3)
-    cb = np.empty(3)
+    c, ca, cb = pt[0], pt[1], pt[2]
     u = min(max((a + half) * sub, 0.0), float(last))
     w = min(max((b + half) * sub, 0.0), float(last))
     i0 = min(int(u), last - 1)
@@ -77,15 +75,15 @@ def _point(coef, corr, sub, a, b):
         )
         ca[d] = coef[1, d] + 2.0 * coef[3, d] * a + coef[4, d] * b + ra
         cb[d] = coef[2, d] + coef[4, d] * a + 2.0 * coef[5, d] * b + rb
-    return c, ca, cb
 
 
 @njit(cache=True, nogil=True)
-def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res):
+def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res, pt):
     """Weighted residuals res (K + 1,) at x, the last the width prior (s - 1) /
-    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2."""
+    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2. pt (3, 3): scratch."""
     a, b, amp, s = x[0], x[1], x[2], x[3]
-    c, ca, cb = _point(coef, corr, sub, a, b)
+    _point(coef, corr, sub, a, b, pt)
+    c, ca, cb = pt[0], pt[1], pt[2]
     kp = v.shape[0]
     res[kp] = (s - 1.0) / width_prior
     jac[kp, 0] = 0.0
@@ -155,10 +153,9 @@ def _cholesky(a, low) -> bool:
 
 
 @njit(cache=True, nogil=True)
-def _solve(low, b, x):
-    """x = (L L^T)^-1 b for b, x (p,)."""
+def _solve(low, b, x, y):
+    """x = (L L^T)^-1 b for b, x (p,); y (p,): scratch."""
     p = low.shape[0]
-    y = np.empty(p)
     for i in range(p):
         t = b[i]
         for k in range(i):
@@ -191,22 +188,23 @@ def fit_one(
     cov,
     work_jac,
     work_res,
+    work_vec,
+    work_mat,
 ) -> None:
     """Fit x = (a, b, A, s) from x0 within [lo, hi]; out = (a, b, A, s, chi^2 of the
     taxels, steps taken), cov (4, 4) = (J^T J)^-1 at the solution (zeros when
-    singular). `work_jac` (2, K + 1, 4) and `work_res` (2, K + 1): scratch."""
+    singular). Scratch: `work_jac` (2, K + 1, 4), `work_res` (2, K + 1), `work_vec`
+    (8, 4), `work_mat` (4, 4, 4) (no allocation per fit)."""
     m = v.shape[0] + 1
     jac, jac_t = work_jac[0], work_jac[1]
     res, res_t = work_res[0], work_res[1]
-    x = x0.copy()
-    xt = np.empty(N_PARAMS)
-    dx = np.empty(N_PARAMS)
-    rhs = np.empty(N_PARAMS)
-    jtj = np.empty((N_PARAMS, N_PARAMS))
-    jtr = np.empty(N_PARAMS)
-    damped = np.empty((N_PARAMS, N_PARAMS))
-    low = np.empty((N_PARAMS, N_PARAMS))
-    chi2 = _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res)
+    x, xt, dx, rhs = work_vec[0], work_vec[1], work_vec[2], work_vec[3]
+    jtr, e, col, y = work_vec[4], work_vec[5], work_vec[6], work_vec[7]
+    jtj, damped, low, pt = work_mat[0], work_mat[1], work_mat[2], work_mat[3, :3, :3]
+    x[:] = x0
+    chi2 = _residuals(
+        x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res, pt
+    )
     lam = 1e-3
     taken = 0
     for _ in range(iterations):
@@ -222,15 +220,16 @@ def fit_one(
             if not _cholesky(damped, low):
                 lam *= 10.0
                 continue
-            _solve(low, rhs, dx)
+            _solve(low, rhs, dx, y)
             biggest = 0.0
             for p in range(N_PARAMS):
                 xt[p] = min(max(x[p] + dx[p], lo[p]), hi[p])
                 scale = max(abs(x[p]), 1.0) if p == 2 else 1.0  # the amplitude: relative
                 biggest = max(biggest, abs(xt[p] - x[p]) / scale)
             chi2_t = _residuals(
-                xt, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac_t, res_t
-            )
+                xt, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac_t,
+                res_t, pt,
+            )  # fmt: skip
             if chi2_t < chi2:
                 x[:] = xt
                 chi2 = chi2_t
@@ -250,12 +249,10 @@ def fit_one(
     _normal(jac, res, m, jtj, jtr)
     cov[:, :] = 0.0
     if _cholesky(jtj, low):
-        e = np.zeros(N_PARAMS)
-        col = np.empty(N_PARAMS)
         for p in range(N_PARAMS):
             e[:] = 0.0
             e[p] = 1.0
-            _solve(low, e, col)
+            _solve(low, e, col, y)
             for q in range(N_PARAMS):
                 cov[q, p] = col[q]
 
@@ -285,17 +282,28 @@ def fit_all(
     coef (n, 6, 3), corr (n, L, L, 3) with `sub` lattice nodes per cell; writes out
     (n, 6), cov (n, 4, 4), the point xyz (n, 3) mm and var_mm2 (n,), the trace of the
     point's covariance in mm^2."""
-    work_jac = np.empty((2, v.shape[1] + 1, N_PARAMS))
-    work_res = np.empty((2, v.shape[1] + 1))
+    kk = v.shape[1]
+    work_jac = np.empty((2, kk + 1, N_PARAMS))
+    work_res = np.empty((2, kk + 1))
+    work_vec = np.empty((8, N_PARAMS))
+    work_mat = np.empty((4, N_PARAMS, N_PARAMS))
+    vt, et, gt, pt = np.empty(kk), np.empty(kk), np.empty(kk), np.empty((kk, 3))
+    here = np.empty((3, 3))
     for t in range(x0.shape[0]):
+        u = 0  # the window's taxels with weight, in order (the others add exact zeros)
+        for k in range(kk):
+            if inv_e[t, k] != 0.0:
+                vt[u], et[u], gt[u] = v[t, k], inv_e[t, k], gain[t, k]
+                pt[u, :] = pos[t, k, :]
+                u += 1
         fit_one(
             x0[t],
             lo[t],
             hi[t],
-            v[t],
-            inv_e[t],
-            gain[t],
-            pos[t],
+            vt[:u],
+            et[:u],
+            gt[:u],
+            pt[:u],
             coef[t],
             corr[t],
             sub,
@@ -307,8 +315,11 @@ def fit_all(
             cov[t],
             work_jac,
             work_res,
+            work_vec,
+            work_mat,
         )
-        c, ca, cb = _point(coef[t], corr[t], sub, out[t, 0], out[t, 1])
+        _point(coef[t], corr[t], sub, out[t, 0], out[t, 1], here)
+        c, ca, cb = here[0], here[1], here[2]
         xyz[t, :] = c
         var = 0.0
         for d in range(3):
@@ -321,24 +332,35 @@ def fit_all(
 
 
 @njit(cache=True, nogil=True)
-def _spd_solve(a, b, out) -> bool:
-    """out = a^-1 b for a small symmetric positive definite a (p, p) and b (p, d);
-    False when a is not positive definite."""
-    p = a.shape[0]
-    low = np.empty((p, p))
-    if not _cholesky(a, low):
-        return False
-    col = np.empty(p)
-    for d in range(b.shape[1]):
-        _solve(low, b[:, d].copy(), col)
-        out[:, d] = col
-    return True
+def map_factors(win, basis, map_weight, low, ok) -> None:
+    """The Cholesky factors low (T, 6, 6) of each window's surface-map normal matrix,
+    sum over its taxels of map_weight basis basis^T plus a light ridge on the
+    non-constant terms; win (T, K) each taxel's window (-1: no taxel), basis (K, 6);
+    ok (T,) False where the matrix is not positive definite. The matrix depends on the
+    window's cells only, so `prepare` reuses it for every touch centred there."""
+    nb = basis.shape[1]
+    lhs = np.empty((nb, nb))
+    for t in range(win.shape[0]):
+        lhs[:, :] = 0.0
+        for k in range(win.shape[1]):
+            if win[t, k] < 0:
+                continue
+            for p in range(nb):
+                for q in range(nb):
+                    lhs[p, q] += basis[k, p] * map_weight[k] * basis[k, q]
+        trace = 0.0
+        for p in range(nb):
+            trace += lhs[p, p]
+        for p in range(1, nb):
+            lhs[p, p] += 1e-9 * max(trace, 1e-12)
+        ok[t] = _cholesky(lhs, low[t])
 
 
 @njit(cache=True, nogil=True)
 def prepare(
     frame,
     row,
+    centre,
     win,
     n9_taxels,
     v,
@@ -348,6 +370,8 @@ def prepare(
     pos,
     basis,
     map_weight,
+    map_low,
+    map_ok,
     vw,
     inv_e,
     gain,
@@ -356,18 +380,19 @@ def prepare(
     used,
 ) -> None:
     """Each touch's window (n rows, touches of one frame next to each other, `frame` (n,)
-    their frames, `row` (n,) their rows of `v`): its
+    their frames, `row` (n,) their rows of `v`, `centre` (n,) their peak taxels): its
     activations vw, inverse errors inv_e and gains (n, K) (0 weight where no taxel, or
     where a taxel lies in another touch's N9 of the frame), the surface map coef (n, 6, 3)
-    fitted to its taxels' positions pos (n, K, 3) (N9 weight 1, ring `map_weight`, a
-    light ridge on the non-constant terms) and its misfit corr (n, W, W, 3) at the
-    taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain (T,), noise
-    (n, T) (counts std of each taxel in each touch's activations)."""
+    fitted to its taxels' positions pos (n, K, 3) (N9 weight 1, ring `map_weight`, the
+    factors `map_low`, `map_ok` of `map_factors`) and its misfit corr (n, W, W, 3) at
+    the taxels; `used` (n,) the taxels fitted. v (F, T) activations, taxel_gain (T,),
+    noise (n, T) (counts std of each taxel in each touch's activations)."""
     n, kk = win.shape
     side = corr.shape[1]
     nb = basis.shape[1]
-    lhs = np.empty((nb, nb))
     rhs = np.empty((nb, 3))
+    col = np.empty(nb)
+    y = np.empty(nb)
     for t in range(n):
         lo = t
         while lo > 0 and frame[lo - 1] == frame[t]:
@@ -376,7 +401,6 @@ def prepare(
         while hi < n - 1 and frame[hi + 1] == frame[t]:
             hi += 1
         count = 0
-        lhs[:, :] = 0.0
         rhs[:, :] = 0.0
         for k in range(kk):
             w = win[t, k]
@@ -386,8 +410,6 @@ def prepare(
             if w < 0:
                 continue
             for p in range(nb):
-                for q in range(nb):
-                    lhs[p, q] += basis[k, p] * map_weight[k] * basis[k, q]
                 for d in range(3):
                     rhs[p, d] += basis[k, p] * map_weight[k] * pos[t, k, d]
             other = False
@@ -406,13 +428,13 @@ def prepare(
             inv_e[t, k] = 1.0 / max(np.sqrt(e * e + (model_error * x) ** 2), 1e-9)
             count += 1
         used[t] = count
-        trace = 0.0
-        for p in range(nb):
-            trace += lhs[p, p]
-        for p in range(1, nb):
-            lhs[p, p] += 1e-9 * max(trace, 1e-12)
-        if not _spd_solve(lhs, rhs, coef[t]):
-            coef[t, :, :] = 0.0
+        c = centre[t]
+        for d in range(3):
+            if map_ok[c]:
+                _solve(map_low[c], rhs[:, d].copy(), col, y)
+                coef[t, :, d] = col
+            else:
+                coef[t, :, d] = 0.0
         for k in range(kk):
             i = k // side
             j = k % side

@@ -143,6 +143,7 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
     prepare(
         np.zeros(n, np.int64),
         np.zeros(n, np.int64),
+        centre,
         win,
         np.full((n, 9), -1, np.int64),
         np.zeros((1, len(taxels))),
@@ -152,6 +153,8 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
         pos,
         w.basis,
         w.map_weight,
+        w.map_low,
+        w.map_ok,
         *scratch,
         coef,
         corr,
