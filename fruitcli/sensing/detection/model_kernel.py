@@ -23,19 +23,20 @@ import numpy as np
 from numba import njit
 
 N_PARAMS = 4  # a, b, A, s
-STEP_TOLERANCE = 1e-4  # a step smaller than this (grid units, width scale, A relative) ends
+STEP_TOLERANCE = 1e-3  # a step smaller than this (grid units, width scale, A relative) ends
 
 
 @njit(cache=True, nogil=True)
-def _profile(x, profile, step):
-    """f(x) and f'(x) of the tabulated profile (linear between samples, 0 beyond)."""
-    u = x / step
+def _profile(x, profile, inv_step):
+    """f(x) and f'(x) of the tabulated profile, samples 1 / inv_step apart (linear between
+    samples, 0 beyond)."""
+    u = x * inv_step
     k = int(u)
     if k >= profile.shape[0] - 1:
         return 0.0, 0.0
     t = u - k
-    slope = (profile[k + 1] - profile[k]) / step
-    return profile[k] + t * (profile[k + 1] - profile[k]), slope
+    rise = profile[k + 1] - profile[k]
+    return profile[k] + t * rise, rise * inv_step
 
 
 @njit(cache=True, nogil=True)
@@ -91,25 +92,27 @@ def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_pri
     jac[kp, 2] = 0.0
     jac[kp, 3] = 1.0 / width_prior
     chi2 = res[kp] * res[kp]
+    inv_s, inv_step = 1.0 / s, 1.0 / step  # multiplications in the loop, not divisions
     for k in range(v.shape[0]):
         dx = c[0] - pos[k, 0]
         dy = c[1] - pos[k, 1]
         dz = c[2] - pos[k, 2]
         d = np.sqrt(dx * dx + dy * dy + dz * dz)
-        f, fp = _profile(d / s, profile, step)
+        f, fp = _profile(d * inv_s, profile, inv_step)
         m = amp * gain[k] * f
         res[k] = (m - v[k]) * inv_e[k]
         chi2 += res[k] * res[k]
         dd_da = 0.0
         dd_db = 0.0
         if d > 1e-9:
-            dd_da = (dx * ca[0] + dy * ca[1] + dz * ca[2]) / d
-            dd_db = (dx * cb[0] + dy * cb[1] + dz * cb[2]) / d
-        g = amp * gain[k] * fp / s * inv_e[k]
+            inv_d = 1.0 / d
+            dd_da = (dx * ca[0] + dy * ca[1] + dz * ca[2]) * inv_d
+            dd_db = (dx * cb[0] + dy * cb[1] + dz * cb[2]) * inv_d
+        g = amp * gain[k] * fp * inv_s * inv_e[k]
         jac[k, 0] = g * dd_da
         jac[k, 1] = g * dd_db
         jac[k, 2] = gain[k] * f * inv_e[k]
-        jac[k, 3] = -g * d / s
+        jac[k, 3] = -g * d * inv_s
     return chi2
 
 
