@@ -167,6 +167,24 @@ def test_surface_map_is_exact_on_a_quadratic_surface_with_missing_taxels():
     assert got == pytest.approx(want, abs=1e-4)
 
 
+def test_each_windows_surface_map_factor_is_that_of_its_own_taxels():
+    """The factor a window keeps (`Window.map_low`) is the Cholesky factor of the weighted
+    normal matrix of the taxels it has, ridge included, at the grid's corner (9 of 25
+    cells), at its edge and inside."""
+    taxels = grid_taxels(rows=6, cols=7)
+    w = Window(taxels.i, taxels.j)
+    for t in range(len(taxels)):
+        have = w.taxels[t] >= 0
+        b = w.basis[have]
+        lhs = b.T @ (w.map_weight[have, None] * b)
+        lhs[np.arange(1, 6), np.arange(1, 6)] += 1e-9 * np.trace(lhs)
+        assert w.map_ok[t]
+        low = w.map_low[t]
+        np.testing.assert_array_equal(low, np.tril(low))
+        np.testing.assert_allclose(low @ low.T, lhs, rtol=1e-12, atol=1e-12)
+    assert {int(n) for n in (w.taxels >= 0).sum(axis=1)} == {9, 12, 15, 16, 20, 25}
+
+
 def test_a_skin_without_a_footprint_law_is_one_error():
     taxels = grid_taxels()
     with pytest.raises(FrameError, match=r'method = "model".*footprint'):
