@@ -393,7 +393,7 @@ def prepare(
     n, kk = win.shape
     side = corr.shape[1]
     nb = basis.shape[1]
-    rhs = np.empty((nb, 3))
+    rhs = np.empty((3, nb))  # a row per coordinate: each a contiguous right-hand side
     col = np.empty(nb)
     y = np.empty(nb)
     for t in range(n):
@@ -414,7 +414,7 @@ def prepare(
                 continue
             for p in range(nb):
                 for d in range(3):
-                    rhs[p, d] += basis[k, p] * map_weight[k] * pos[t, k, d]
+                    rhs[d, p] += basis[k, p] * map_weight[k] * pos[t, k, d]
             other = False
             for u in range(lo, hi + 1):
                 if u == t:
@@ -432,12 +432,12 @@ def prepare(
             count += 1
         used[t] = count
         c = centre[t]
-        for d in range(3):
-            if map_ok[c]:
-                _solve(map_low[c], rhs[:, d].copy(), col, y)
+        if map_ok[c]:
+            for d in range(3):
+                _solve(map_low[c], rhs[d], col, y)
                 coef[t, :, d] = col
-            else:
-                coef[t, :, d] = 0.0
+        else:
+            coef[t, :, :] = 0.0
         for k in range(kk):
             i = k // side
             j = k % side
