@@ -79,7 +79,9 @@ def calibrate(frames, truth_csv, scene_path, taxels_csv, indenter, states_npz, o
         )
     fitted = (
         f"footprint sigma {res['footprint_sigma_mm']:.2f} mm, contact "
-        f"{res['contact_counts']:.1f} counts, gap decay {res['gap_decay_mm']:.2f} mm"
+        f"{res['contact_counts']:.1f} counts, gap decay {res['gap_decay_mm']:.2f} mm, a "
+        f"crossing's height difference as distance {res['height_as_distance']:.2f} and as gap "
+        f"{res['height_as_gap']:.2f}"
         if response is None
         else f"electrostatic skin, {res['counts_per_ff']:.4g} counts per fF"
     )

@@ -72,7 +72,8 @@ class SkinBoard:
             act = self.response.activation(self.indenter, contact, self.taxels_mm, gap)[0]
             return base + (act if self.skin.gain is None else act * self.skin.gain)
         dist = np.linalg.norm(self.taxels_mm - contact, axis=1)
-        act = forward.activation_counts(dist[None, :], gap, self.indenter, self.skin)
+        height = (z - self.taxels_mm[:, 2])[None, :]
+        act = forward.activation_counts(dist[None, :], gap, self.indenter, self.skin, height)
         return base + act[0]
 
     def frame(self, k: int) -> np.ndarray:

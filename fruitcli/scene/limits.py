@@ -28,6 +28,9 @@ ANGLE: Bounds = {"min": -360.0, "max": 360.0}
 MAX_COUNTS = 65535
 """Largest CDC count a board reports (16-bit)."""
 COUNTS: Bounds = {"min": 0.0, "max": MAX_COUNTS}
+MAX_HEIGHT_FORM = 4.0
+"""Largest weight or share of a crossing's height difference in the skin's footprint
+([skin].height_as_distance, height_as_gap): the calibrated ones are 0-1."""
 MODULUS_KPA = 1e9
 """Largest modulus (kPa): 1 TPa, stiffer than any solid."""
 PRESSURE_KPA = 1e5

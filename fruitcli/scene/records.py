@@ -272,6 +272,8 @@ class SkinSection(Record):
     footprint_sigma_mm: dict | None = None
     contact_counts: float = 60.0
     gap_decay_mm: float = 2.0
+    height_as_distance: float = 1.0
+    height_as_gap: float = 0.0
     gain_spread: float = 0.0
     noise_std_counts: float | list[float] = field(default_factory=lambda: [0.5, 1.85])
     taxel_gain: Path | None = None

@@ -15,6 +15,7 @@ from fruitcli.scene.limits import (
     LENGTH,
     MAX_COUNTS,
     MAX_FRAMES,
+    MAX_HEIGHT_FORM,
     MAX_INDENTERS,
     MAX_ITEMS,
     MAX_MODEL_FRAMES,
@@ -219,6 +220,23 @@ SECTIONS: dict[str, dict[str, Key]] = {
         ),
         "gap_decay_mm": Key(
             "num", 2.0, "activation falls as exp(-gap / gap_decay_mm) (mm)", **POSITIVE_LENGTH
+        ),
+        "height_as_distance": Key(
+            "num",
+            1.0,
+            "weight of a crossing's height under the contact point (along z, the bench's "
+            "approach) in the footprint's squared distance: 1 a Gaussian in 3D distance, 0 "
+            "in the lateral offset only (fruit calibrate fits it)",
+            min=0.0,
+            max=MAX_HEIGHT_FORM,
+        ),
+        "height_as_gap": Key(
+            "num",
+            0.0,
+            "share of a crossing's height difference from the contact point added to the gap "
+            "in exp(-gap / gap_decay_mm) (fruit calibrate fits it)",
+            min=0.0,
+            max=MAX_HEIGHT_FORM,
         ),
         "gain_spread": Key(
             "num",

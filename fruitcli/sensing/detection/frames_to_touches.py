@@ -33,6 +33,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import replace
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -179,7 +180,7 @@ class Locator:
         if METHODS[settings.method].refine == "model":
             law = FootprintLaw.of(heights)
             if self.gain is not None:  # activations divided by the gains already
-                law = FootprintLaw(law.profile, law.sigma_mm, law.noise_std_counts)
+                law = replace(law, gain=None)
             self.model = (Window(taxels.i, taxels.j), law)
         self.chart: SurfaceChart | None = None  # the body's surface, model method (`use_surface`)
         self.noise_counts: np.ndarray | None = None  # (T,) noise std in the baseline frames

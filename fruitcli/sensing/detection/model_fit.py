@@ -18,6 +18,9 @@ ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state put
 - taxel k reads A g_k f(|c - P_k| / s): f the skin's radial footprint (the Gaussian
   law's or the crossing table's, `FootprintLaw.of`) at its calibrated width, A the
   amplitude, s the width's scale (a wider object, a farther gap), g_k the taxel's gain;
+  with the skin's height form (``[skin].height_as_distance``, ``height_as_gap``, which
+  `fruit calibrate` fits) the taxel's height difference from c along z enters the
+  distance with its weight and the gap with its share instead (`model_kernel`);
 - s has a prior: 1 with a 1-sigma of ``WIDTH_PRIOR`` (an assumption: the calibrated
   width is right to about that, the small and the medium indenter differ by 17 %);
   without it a touch at the grid's edge trades width against distance off the edge;
@@ -89,14 +92,24 @@ FIT_NAMES = ("", "model", "n9")
 @dataclass(frozen=True)
 class FootprintLaw:
     """The skin's radial footprint f(d) (f(0) = 1) sampled every ``PROFILE_STEP_MM``,
-    its nominal width (mm), the noise (counts std), the taxels' gains (T,) or None, and
-    the 1-sigma of a touch's width scale around 1 (``WIDTH_PRIOR``)."""
+    its nominal width (mm), the noise (counts std), the taxels' gains (T,) or None, the
+    1-sigma of a touch's width scale around 1 (``WIDTH_PRIOR``), and how a taxel's height
+    difference h from the contact point enters (`model_kernel`): d^2 = r^2 +
+    ``height_distance`` h^2 and a factor exp(-``height_gap_per_mm`` |h|) (the skin's
+    ``[skin].height_as_distance`` and ``height_as_gap / gap_decay_mm``)."""
 
     profile: np.ndarray
     sigma_mm: float
     noise_std_counts: float
     gain: np.ndarray | None = None
     width_prior: float = WIDTH_PRIOR
+    height_distance: float = 1.0
+    height_gap_per_mm: float = 0.0
+
+    @property
+    def height(self) -> np.ndarray:
+        """(alpha, kappa per mm) for `model_kernel`."""
+        return np.array([self.height_distance, self.height_gap_per_mm])
 
     def scaled(self, scale: float, width_prior: float | None = None) -> FootprintLaw:
         """The same footprint `scale` times as wide, f(d / scale) (and with another
@@ -125,11 +138,15 @@ class FootprintLaw:
                 "at contact"
             )
         gain = getattr(heights, "gain", None)
+        as_gap = float(getattr(heights, "height_as_gap", 0.0))
+        decay = float(getattr(heights, "gap_decay_mm", np.inf))
         return cls(
             np.ascontiguousarray(np.maximum(c / c[0], 0.0)),
             sigma,
             float(heights.noise_std_counts),
             None if gain is None else np.asarray(gain, dtype=float),
+            height_distance=float(getattr(heights, "height_as_distance", 1.0)),
+            height_gap_per_mm=as_gap / decay if as_gap else 0.0,
         )
 
 
@@ -246,6 +263,7 @@ def refine(
         sub,
         law.profile,
         PROFILE_STEP_MM,
+        law.height,
         law.width_prior,
         ITERATIONS,
         out,
@@ -380,7 +398,7 @@ def _mirror_spread(
     alt, alt_xyz = np.empty((k.size, 6)), np.empty((k.size, 3))
     fit_all(
         np.clip(np.concatenate(starts), lo[k], hi[k]), lo[k], hi[k], vw[k], inv_e[k],
-        gain[k], pos[k], coef[k], corr[k], sub, law.profile, PROFILE_STEP_MM,
+        gain[k], pos[k], coef[k], corr[k], sub, law.profile, PROFILE_STEP_MM, law.height,
         law.width_prior, ITERATIONS, alt, np.empty((k.size, 4, 4)), alt_xyz, np.empty(k.size),
     )  # fmt: skip
     prior = law.width_prior

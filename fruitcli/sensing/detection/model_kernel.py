@@ -8,10 +8,13 @@ through each of them, or, where the body's surface is known, of the way from the
 quadratic to the surface on a finer lattice, so c runs over the body itself); taxel k
 of the window reads
 
-    m_k = A g_k f(|c(a, b) - P_k| / s)
+    m_k = A g_k f(sqrt(r_k^2 + alpha h_k^2) / s) exp(-kappa |h_k|)
 
 with f the skin's radial footprint at its calibrated width (tabulated, f(0) = 1), A the
-amplitude (counts), s the width's scale and g_k the taxel's gain. The residuals
+amplitude (counts), s the width's scale, g_k the taxel's gain, h_k the z component of
+c - P_k (the contact point's height over the taxel: z is the bench's approach), r_k the
+rest of |c - P_k|, alpha the weight of h in the distance and kappa (per mm) the share
+of it taken as gap over the gap decay (``height``; 1 and 0: f of the 3D distance). The residuals
 (m_k - v_k) / e_k, e_k the noise of taxel k, and a prior (s - 1) / width_prior on the
 width are minimised by Levenberg-Marquardt steps from the N9 start within bounds on
 (a, b, A, s). Releases the GIL.
@@ -79,9 +82,12 @@ def _point(coef, corr, sub, a, b, pt):
 
 
 @njit(cache=True, nogil=True)
-def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res, pt):
+def _residuals(
+    x, v, inv_e, gain, pos, coef, corr, sub, profile, step, height, width_prior, jac, res, pt
+):
     """Weighted residuals res (K + 1,) at x, the last the width prior (s - 1) /
-    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2. pt (3, 3): scratch."""
+    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2. height (2,): alpha,
+    kappa (per mm). pt (3, 3): scratch."""
     a, b, amp, s = x[0], x[1], x[2], x[3]
     _point(coef, corr, sub, a, b, pt)
     c, ca, cb = pt[0], pt[1], pt[2]
@@ -93,12 +99,20 @@ def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_pri
     jac[kp, 3] = 1.0 / width_prior
     chi2 = res[kp] * res[kp]
     inv_s, inv_step = 1.0 / s, 1.0 / step  # multiplications in the loop, not divisions
+    alpha, kappa = height[0], height[1]
     for k in range(v.shape[0]):
         dx = c[0] - pos[k, 0]
         dy = c[1] - pos[k, 1]
         dz = c[2] - pos[k, 2]
-        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        az = alpha * dz
+        d = np.sqrt(dx * dx + dy * dy + az * dz)
         f, fp = _profile(d * inv_s, profile, inv_step)
+        dgap = 0.0  # d(kappa |h|) / dh
+        if kappa != 0.0:
+            fall = np.exp(-kappa * abs(dz))
+            f *= fall
+            fp *= fall
+            dgap = kappa if dz > 0.0 else (-kappa if dz < 0.0 else 0.0)
         m = amp * gain[k] * f
         res[k] = (m - v[k]) * inv_e[k]
         chi2 += res[k] * res[k]
@@ -106,13 +120,17 @@ def _residuals(x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_pri
         dd_db = 0.0
         if d > 1e-9:
             inv_d = 1.0 / d
-            dd_da = (dx * ca[0] + dy * ca[1] + dz * ca[2]) * inv_d
-            dd_db = (dx * cb[0] + dy * cb[1] + dz * cb[2]) * inv_d
+            dd_da = (dx * ca[0] + dy * ca[1] + az * ca[2]) * inv_d
+            dd_db = (dx * cb[0] + dy * cb[1] + az * cb[2]) * inv_d
         g = amp * gain[k] * fp * inv_s * inv_e[k]
         jac[k, 0] = g * dd_da
         jac[k, 1] = g * dd_db
         jac[k, 2] = gain[k] * f * inv_e[k]
         jac[k, 3] = -g * d * inv_s
+        if dgap != 0.0:
+            slope = amp * gain[k] * f * inv_e[k] * dgap
+            jac[k, 0] -= slope * ca[2]
+            jac[k, 1] -= slope * cb[2]
     return chi2
 
 
@@ -185,6 +203,7 @@ def fit_one(
     sub,
     profile,
     step,
+    height,
     width_prior,
     iterations,
     out,
@@ -194,7 +213,8 @@ def fit_one(
     work_vec,
     work_mat,
 ) -> None:
-    """Fit x = (a, b, A, s) from x0 within [lo, hi]; out = (a, b, A, s, chi^2 of the
+    """Fit x = (a, b, A, s) from x0 within [lo, hi] (`height`: alpha, kappa of the
+    footprint); out = (a, b, A, s, chi^2 of the
     taxels, steps taken), cov (4, 4) = (J^T J)^-1 at the solution (zeros when
     singular). Scratch: `work_jac` (2, K + 1, 4), `work_res` (2, K + 1), `work_vec`
     (8, 4), `work_mat` (4, 4, 4) (no allocation per fit)."""
@@ -206,7 +226,7 @@ def fit_one(
     jtj, damped, low, pt = work_mat[0], work_mat[1], work_mat[2], work_mat[3, :3, :3]
     x[:] = x0
     chi2 = _residuals(
-        x, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac, res, pt
+        x, v, inv_e, gain, pos, coef, corr, sub, profile, step, height, width_prior, jac, res, pt
     )
     lam = 1e-3
     taken = 0
@@ -230,8 +250,8 @@ def fit_one(
                 scale = max(abs(x[p]), 1.0) if p == 2 else 1.0  # the amplitude: relative
                 biggest = max(biggest, abs(xt[p] - x[p]) / scale)
             chi2_t = _residuals(
-                xt, v, inv_e, gain, pos, coef, corr, sub, profile, step, width_prior, jac_t,
-                res_t, pt,
+                xt, v, inv_e, gain, pos, coef, corr, sub, profile, step, height, width_prior,
+                jac_t, res_t, pt,
             )  # fmt: skip
             if chi2_t < chi2:
                 x[:] = xt
@@ -274,6 +294,7 @@ def fit_all(
     sub,
     profile,
     step,
+    height,
     width_prior,
     iterations,
     out,
@@ -282,7 +303,8 @@ def fit_all(
     var_mm2,
 ) -> None:
     """`fit_one` for every touch: x0, lo, hi (n, 4), v, inv_e, gain (n, K), pos (n, K, 3),
-    coef (n, 6, 3), corr (n, L, L, 3) with `sub` lattice nodes per cell; writes out
+    coef (n, 6, 3), corr (n, L, L, 3) with `sub` lattice nodes per cell, the footprint's
+    `height` (2,) (alpha, kappa per mm); writes out
     (n, 6), cov (n, 4, 4), the point xyz (n, 3) mm and var_mm2 (n,), the trace of the
     point's covariance in mm^2."""
     kk = v.shape[1]
@@ -312,6 +334,7 @@ def fit_all(
             sub,
             profile,
             step,
+            height,
             width_prior,
             iterations,
             out[t],

@@ -3,18 +3,28 @@
 Units: mm, counts. The model fitted is the virtual bench's (`fruitcli.sensing.skin.forward`),
 with a gain per taxel:
 
-    v(frame, taxel) = gain_t * contact_counts * exp(-d^2 / (2 sigma^2)) * exp(-gap / gap_decay_mm)
+    v(frame, taxel) = gain_t * contact_counts * exp(-d^2 / (2 sigma^2)) * exp(-g / gap_decay_mm)
+    d^2 = r^2 + height_as_distance h^2,   g = gap + height_as_gap |h|
 
-v = C - C0 (C0: the mean of the recording's idle frames), d the 3D distance from the
-sample's contact point (truth.csv) to the taxel at rest, gap the tip's height above the
-contact point. Frames used: every frame of every sample's descent (from the first frame
-after the previous sample's frame to the sample's own frame). The gap of a frame is
+v = C - C0 (C0: the mean of the recording's idle frames), h the height of the sample's
+contact point (truth.csv) over the taxel at rest (z, the printer's approach), r the rest
+of their 3D distance, gap the tip's height above the contact point. The two height
+terms say how the board's field sees a crossing below or above the contact point: as
+distance (a Gaussian in 3D) or as gap (the electrostatic crossing's table); on a curved
+body the descents' crossings lie at various heights and fix both (0 .. ``MAX_HEIGHT_FORM``;
+a weak prior, ``HEIGHT_PRIOR_COUNTS``, keeps them at 1 and 0 where they do not). They
+are kept only when they explain the descents better than the 3D distance by more than
+the Bayesian information criterion asks of two more parameters (the sum of squared
+residuals, over the 3D distance fit's mean square, falls by more than 2 ln(M T)); else
+the law is the 3D distance's (1 and 0), fitted without them. Frames
+used: every frame of every sample's descent (from the first frame after the previous
+sample's frame to the sample's own frame). The gap of a frame is
 ``printer_mm`` z minus the model origin's z (meta ``model_origin_mm``) minus the contact
 z for a printer-bench recording; for a virtual-bench recording (no ``printer_mm``) it is
 ``start - j * step_mm`` for the j-th frame of the descent, as the virtual bench moves
 (start: the sample's in meta ``start_gap_mm``, else ``START_GAP_MM``). Least squares over
-log-parameters (scipy), the gains normalized to mean 1 (their
-common factor is contact_counts). The noise std is that of the idle frames, less the
+log-parameters (scipy; the height terms bounded, linear), the gains normalized to mean 1
+(their common factor is contact_counts). The noise std is that of the idle frames, less the
 rounding of integer counts (1/12 count^2). Taxels whose fitted activation never reaches
 ``MEASURED_MIN_COUNTS`` keep gain 1 and are marked not measured. With ``[skin].model =
 "electrostatic"`` the model fitted is the crossing table's instead: its counts per fF and
@@ -44,6 +54,7 @@ if TYPE_CHECKING:
 MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation reaches this
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
 GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts trade off)
+HEIGHT_PRIOR_COUNTS = 1.0  # counts per unit of height_as_distance - 1 and height_as_gap
 
 
 def descent_gaps(
@@ -109,43 +120,94 @@ def check_samples(
         raise FrameError(f"{truth_where}: does not match the recording: {'; '.join(parts)}")
 
 
-def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
-    """Fit v (M, T) counts = g_t A exp(-d^2/2s^2) exp(-gap/l) for d (M, T) mm, gap (M,) mm.
-    -> {contact_counts, sigma_mm, gap_decay_mm, gain (T,), measured (T,), rms_counts}."""
+def fit_skin(
+    v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray, height_mm: np.ndarray | None = None
+) -> dict:
+    """Fit v (M, T) counts = g_t A exp(-d^2/2s^2) exp(-g/l) (the module's law) for 3D
+    distances dist (M, T) mm, gaps (M,) mm and heights h (M, T) mm of the contact point
+    over each taxel, the height terms kept only when the criterion of the module's
+    docstring asks for them (None: not tried). -> {contact_counts, sigma_mm,
+    gap_decay_mm, height_as_distance, height_as_gap, height_form_gain (the fall of the
+    squared residuals in noise variances; 0 when not tried), gain (T,), measured (T,),
+    rms_counts}."""
+    plain = _fit_law(v, dist_mm, gap_mm, None)
+    plain["height_form_gain"] = 0.0
+    if height_mm is None:
+        return plain
+    form = _fit_law(v, dist_mm, gap_mm, height_mm)
+    gain = v.size * (1.0 - form["rms_counts"] ** 2 / max(plain["rms_counts"] ** 2, 1e-300))
+    best = form if gain > 2.0 * 2.0 * np.log(v.size) else plain
+    return {**best, "height_form_gain": float(gain)}
+
+
+def _fit_law(
+    v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray, height_mm: np.ndarray | None
+) -> dict:
+    """`fit_skin`'s law fitted with its height terms (`height_mm` given) or without them
+    (1 and 0)."""
     from scipy.optimize import least_squares
 
+    from fruitcli.scene.limits import MAX_HEIGHT_FORM
+
     t = v.shape[1]
+    free = 2 if height_mm is not None else 0  # the height terms fitted
+    h = np.zeros(1) if height_mm is None else np.asarray(height_mm, float)
+    h2, habs = h * h, np.abs(h)
+    r2 = np.maximum(dist_mm**2 - h2, 0.0)
+
+    def unpack(x: np.ndarray):
+        a, s, lam = np.exp(x[:3])
+        alpha, beta = (x[3], x[4]) if free else (1.0, 0.0)
+        return a, s, lam, alpha, beta, np.exp(x[3 + free :])
 
     def model(x: np.ndarray):
-        a, s, lam = np.exp(x[:3])
-        g = np.exp(x[3:])
-        return g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
+        a, s, lam, alpha, beta, g = unpack(x)
+        if not free:  # the 3D distance
+            return (
+                g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
+            )
+        d2 = r2 + alpha * h2
+        return g[None, :] * a * np.exp(-0.5 * d2 / s**2 - (gap_mm[:, None] + beta * habs) / lam)
 
     def residual(x: np.ndarray):
-        return np.concatenate([(model(x) - v).ravel(), [GAUGE_WEIGHT * x[3:].mean()]])
+        prior = HEIGHT_PRIOR_COUNTS * np.array([x[3] - 1.0, x[4]]) if free else np.zeros(0)
+        gauge = GAUGE_WEIGHT * x[3 + free :].mean()
+        return np.concatenate([(model(x) - v).ravel(), prior, [gauge]])
 
     def jacobian(x: np.ndarray):
-        """d residual / d log-parameters: m, m d^2/s^2, m gap/l, and m in taxel t's
-        column for log g_t; the gauge row last."""
+        """d residual / d (log A, log s, log l, [alpha, beta,] log g): m, m d^2/s^2,
+        m g/l, [-m h^2/2s^2, -m |h|/l,] and m in taxel t's column for log g_t; the
+        priors' and the gauge's rows last."""
+        a, s, lam, alpha, beta, _ = unpack(x)
         m = model(x)
-        s, lam = np.exp(x[1]), np.exp(x[2])
-        jac = np.zeros((m.size + 1, 3 + t))
-        jac[:-1, 0] = m.ravel()
-        jac[:-1, 1] = (m * (dist_mm / s) ** 2).ravel()
-        jac[:-1, 2] = (m * (gap_mm / lam)[:, None]).ravel()
+        jac = np.zeros((m.size + free + 1, 3 + free + t))
+        jac[: m.size, 0] = m.ravel()
+        if not free:
+            jac[: m.size, 1] = (m * (dist_mm / s) ** 2).ravel()
+            jac[: m.size, 2] = (m * (gap_mm / lam)[:, None]).ravel()
+        else:
+            jac[: m.size, 1] = (m * (r2 + alpha * h2) / s**2).ravel()
+            jac[: m.size, 2] = (m * (gap_mm[:, None] + beta * habs) / lam).ravel()
+            jac[: m.size, 3] = (-0.5 * m * h2 / s**2).ravel()
+            jac[: m.size, 4] = (-m * habs / lam).ravel()
+            jac[m.size, 3] = jac[m.size + 1, 4] = HEIGHT_PRIOR_COUNTS
         rows = np.arange(m.size)
-        jac[rows, 3 + rows % t] = m.ravel()
-        jac[-1, 3:] = GAUGE_WEIGHT / t
+        jac[rows, 3 + free + rows % t] = m.ravel()
+        jac[-1, 3 + free :] = GAUGE_WEIGHT / t
         return jac
 
     peak = max(float(v.max()), 1.0)
-    x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), np.zeros(t)]
+    x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), [1.0, 0.0][:free], np.zeros(t)]
+    lo = np.full(x0.size, -np.inf)
+    hi = np.full(x0.size, np.inf)
+    lo[3 : 3 + free], hi[3 : 3 + free] = 0.0, MAX_HEIGHT_FORM
     # a trial step far out (the log-gain of a taxel no sample reached) overflows; its
     # cost is then inf or huge and the step is turned down, without numpy's warning
     with np.errstate(over="ignore", invalid="ignore"):
-        res = least_squares(residual, x0, jac=jacobian, method="trf", x_scale="jac")
-    a, s, lam = np.exp(res.x[:3])
-    g = np.exp(res.x[3:])
+        res = least_squares(
+            residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac"
+        )
+    a, s, lam, alpha, beta, g = unpack(res.x)
     pred = model(res.x)
     measured = pred.max(axis=0) >= MEASURED_MIN_COUNTS
     g = np.where(measured, g, np.nan)
@@ -155,6 +217,8 @@ def fit_skin(v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray) -> dict:
         "contact_counts": float(a * scale),
         "sigma_mm": float(s),
         "gap_decay_mm": float(lam),
+        "height_as_distance": float(alpha),
+        "height_as_gap": float(beta),
         "gain": gain,
         "measured": measured,
         "rms_counts": float(np.sqrt(np.mean((pred - v) ** 2))),
@@ -176,6 +240,8 @@ def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.c
         f"footprint_sigma_mm = {{ {indenter} = {fit['sigma_mm']:.4f} }}\n"
         f"contact_counts = {fit['contact_counts']:.4f}\n"
         f"gap_decay_mm = {fit['gap_decay_mm']:.4f}\n"
+        f"height_as_distance = {fit['height_as_distance']:.4f}\n"
+        f"height_as_gap = {fit['height_as_gap']:.4f}\n"
         "gain_spread = 0.0\n"
         f'taxel_gain = "{gains_name}"\n'
         f"noise_std_counts = {noise:.4f}\n"
@@ -284,16 +350,21 @@ def run_calibrate(
     noise, noise_per = noise_std_counts(idle)
     if response is None:
         dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - run.contact[:, None, :], axis=2)
-        fit = _gains_over_taxels(fit_skin(v, dist, run.gaps), "contact_counts", v, run)
+        height = run.contact[:, None, 2] - taxels.xyz_mm[None, :, 2]
+        fit = _gains_over_taxels(fit_skin(v, dist, run.gaps, height), "contact_counts", v, run)
         toml = skin_toml(name, fit, noise)
         figures = {
             "footprint_sigma_mm": fit["sigma_mm"],
             "contact_counts": fit["contact_counts"],
             "gap_decay_mm": fit["gap_decay_mm"],
+            "height_as_distance": fit["height_as_distance"],
+            "height_as_gap": fit["height_as_gap"],
+            "height_form_gain": fit["height_form_gain"],
         }
         fitted = (
             f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
-            f"decay {fit['gap_decay_mm']:.2f} mm"
+            f"decay {fit['gap_decay_mm']:.2f} mm, height as distance "
+            f"{fit['height_as_distance']:.2f} and as gap {fit['height_as_gap']:.2f}"
         )
     else:
         from fruitcli.sensing.skin import calibrate_crossing as cc

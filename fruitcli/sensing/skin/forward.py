@@ -17,6 +17,11 @@ rows depend on the assumed ones):
   (``[tracks].cover_mm`` = 2 mm) beyond the electrodes (Sec. III-C, Fig. 5). With 60
   counts at contact, the threshold is crossed at a gap of 2 ln 3 = 2.2 mm.
   ``[skin].gap_decay_mm``.
+- ``[skin].height_as_distance`` = 1, ``height_as_gap`` = 0: how a crossing's height
+  difference h from the contact point (along z, the bench's approach) enters. The
+  Gaussian's squared distance is r^2 + height_as_distance h^2 (r the offset across z), and
+  the gap gap + height_as_gap |h|: by default the 3D distance; ``fruit calibrate`` fits
+  both (an electrostatic board's crossings see h as gap, not as distance).
 - ``FIELD_SIGMA_MM`` = 6: the lateral reach of one crossing, a Gaussian in the 3D
   distance from the contact point to the (deformed) taxel. Assumption: half the 12 mm
   pitch, so a quarter-taxel offset activates more than one taxel, as the paper's bench
@@ -118,6 +123,8 @@ class SkinParams:
     gain_spread: float = float(_SKIN["gain_spread"].default)  # gains uniform in 1 +- spread
     noise_std_counts: float | tuple = NOISE_STD_RANGE_COUNTS  # one std, or (lo, hi) per taxel
     taxel_gain: Path | None = _SKIN["taxel_gain"].default  # CSV (id, gain) of measured gains
+    height_as_distance: float = 1.0  # weight of a crossing's height difference in d^2
+    height_as_gap: float = 0.0  # share of it added to the gap
 
     @classmethod
     def from_table(cls, skin: SkinSection | None = None) -> SkinParams:
@@ -132,6 +139,8 @@ class SkinParams:
             float(skin.gain_spread),
             tuple(map(float, noise)) if isinstance(noise, (list, tuple)) else float(noise),
             skin.taxel_gain,
+            float(skin.height_as_distance),
+            float(skin.height_as_gap),
         )
 
 
@@ -222,15 +231,27 @@ def footprint_sigma_mm(indenter: str, params: SkinParams = DEFAULT_PARAMS) -> fl
 
 
 def activation_counts(
-    dist_mm: np.ndarray, gap_mm: np.ndarray, indenter: str, skin: Skin | None = None
+    dist_mm: np.ndarray,
+    gap_mm: np.ndarray,
+    indenter: str,
+    skin: Skin | None = None,
+    height_mm: np.ndarray | None = None,
 ) -> np.ndarray:
     """Mean activation (counts) of taxels at 3D distance `dist_mm` (..., T) from the
-    contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in)."""
+    contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in).
+    `height_mm` (..., T): the contact point's height over each taxel (z), which the
+    skin's ``height_as_distance`` and ``height_as_gap`` weigh; None: as 3D distance."""
     p = DEFAULT_PARAMS if skin is None else skin.params
     sigma = footprint_sigma_mm(indenter, p)
-    lateral = np.exp(-0.5 * (np.asarray(dist_mm) / sigma) ** 2)
-    approach = np.exp(-np.asarray(gap_mm, dtype=float) / p.gap_decay_mm)
-    v = p.contact_counts * lateral * approach[..., None]
+    dist = np.asarray(dist_mm, dtype=float)
+    gap = np.asarray(gap_mm, dtype=float)
+    approach = np.exp(-gap / p.gap_decay_mm)[..., None]
+    if height_mm is not None and (p.height_as_distance != 1.0 or p.height_as_gap != 0.0):
+        h = np.asarray(height_mm, dtype=float)
+        dist = np.sqrt(np.maximum(dist**2 + (p.height_as_distance - 1.0) * h * h, 0.0))
+        approach = np.exp(-(gap[..., None] + p.height_as_gap * np.abs(h)) / p.gap_decay_mm)
+    lateral = np.exp(-0.5 * (dist / sigma) ** 2)
+    v = p.contact_counts * lateral * approach
     return v if skin is None or skin.gain is None else v * skin.gain
 
 

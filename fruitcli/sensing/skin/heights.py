@@ -58,6 +58,8 @@ class GapLaw:
     sigma_mm: float  # footprint width of the touching object
     noise_std_counts: float
     gain: np.ndarray | None = None  # (T,) taxel gains, None: 1 (or activations divided)
+    height_as_distance: float = 1.0  # [skin].height_as_distance (forward's)
+    height_as_gap: float = 0.0  # [skin].height_as_gap
 
     def contact_counts(self, taxel: np.ndarray, dist_mm: np.ndarray) -> np.ndarray:
         m = self.contact * np.exp(-0.5 * (dist_mm / self.sigma_mm) ** 2)
@@ -104,6 +106,8 @@ def gap_law(
         params.footprint_sigma_mm[footprint_name(params, footprint)],
         noise,
         gain,
+        params.height_as_distance,
+        params.height_as_gap,
     )
 
 

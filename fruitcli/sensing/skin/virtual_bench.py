@@ -114,10 +114,13 @@ def descend(
     for k, p in enumerate(contact_mm):
         if response is None:
             dist = np.linalg.norm(taxels_mm - p, axis=1)
+            height = p[2] - taxels_mm[:, 2]
         for start in START_GAPS_MM:  # from higher up while the first frame is over
             gaps = np.arange(start, -PRESS_MM - step_mm / 2, -step_mm)
             if response is None:
-                touch = forward.activation_counts(dist[None, :], gaps, indenter, skin)
+                touch = forward.activation_counts(
+                    dist[None, :], gaps, indenter, skin, height[None, :]
+                )
             else:
                 touch = descent(k, gaps)
                 touch = touch if skin.gain is None else touch * skin.gain
