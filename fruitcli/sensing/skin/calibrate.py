@@ -15,8 +15,9 @@ body the descents' crossings lie at various heights and fix both (0 .. ``MAX_HEI
 a weak prior, ``HEIGHT_PRIOR_COUNTS``, keeps them at 1 and 0 where they do not). They
 are kept only when they explain the descents better than the 3D distance by more than
 the Bayesian information criterion asks of two more parameters (the sum of squared
-residuals, over the 3D distance fit's mean square, falls by more than 2 ln(M T)); else
-the law is the 3D distance's (1 and 0), fitted without them. Frames
+residuals, over the 3D distance fit's mean square, falls by more than 2 ln(M T)) and by
+at least ``HEIGHT_FORM_MIN_FALL`` of it; else the law is the 3D distance's (1 and 0),
+fitted without them. Frames
 used: every frame of every sample's descent (from the first frame after the previous
 sample's frame to the sample's own frame). The gap of a frame is
 ``printer_mm`` z minus the model origin's z (meta ``model_origin_mm``) minus the contact
@@ -55,6 +56,10 @@ MEASURED_MIN_COUNTS = 10.0  # a taxel's gain is measured when its activation rea
 ROUNDING_VAR = 1.0 / 12.0  # variance of rounding to integer counts
 GAUGE_WEIGHT = 100.0  # weight of mean(log gain) = 0 (gains and contact_counts trade off)
 HEIGHT_PRIOR_COUNTS = 1.0  # counts per unit of height_as_distance - 1 and height_as_gap
+# the least share of the squared residuals the height form must remove (an assumption:
+# a Gaussian board's descents on the deformed Fruit, its taxels taken at rest, give 0.1 %
+# for the form; an electrostatic board's 2-9 %)
+HEIGHT_FORM_MIN_FALL = 0.01
 
 
 def descent_gaps(
@@ -136,7 +141,8 @@ def fit_skin(
         return plain
     form = _fit_law(v, dist_mm, gap_mm, height_mm)
     gain = v.size * (1.0 - form["rms_counts"] ** 2 / max(plain["rms_counts"] ** 2, 1e-300))
-    best = form if gain > 2.0 * 2.0 * np.log(v.size) else plain
+    kept = gain > max(2.0 * 2.0 * np.log(v.size), HEIGHT_FORM_MIN_FALL * v.size)
+    best = form if kept else plain
     return {**best, "height_form_gain": float(gain)}
 
 

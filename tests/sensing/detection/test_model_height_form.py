@@ -155,11 +155,11 @@ def calibration_descents(as_distance, as_gap, seed=0):
     return v, dist, gap, height, gains
 
 
-@pytest.mark.parametrize("as_distance, as_gap", [(0.0, AS_GAP), (0.5, 0.3)])
+@pytest.mark.parametrize("as_distance, as_gap", [(0.0, AS_GAP), (0.3, 0.6)])
 def test_calibration_finds_how_the_height_difference_enters(as_distance, as_gap):
     v, dist, gap, height, gains = calibration_descents(as_distance, as_gap)
     fit = fit_skin(v, dist, gap, height)
-    assert fit["height_form_gain"] > 4.0 * np.log(v.size)
+    assert fit["height_form_gain"] > 0.01 * v.size  # kept: well over the criterion
     # the two trade off a little: within a tenth with 80 descents, heights of +-8 mm
     assert fit["height_as_distance"] == pytest.approx(as_distance, abs=0.1)
     assert fit["height_as_gap"] == pytest.approx(as_gap, abs=0.1)
@@ -175,8 +175,20 @@ def test_the_3d_distance_is_kept_unless_the_height_terms_explain_the_descents_be
     fit = fit_skin(v, dist, gap, height)
     plain = fit_skin(v, dist, gap)
     assert (fit["height_as_distance"], fit["height_as_gap"]) == (1.0, 0.0)
-    assert fit["height_form_gain"] < 4.0 * np.log(v.size)
+    assert fit["height_form_gain"] < 4.0 * np.log(v.size)  # not kept
     assert plain["height_form_gain"] == 0.0
     for key in ("contact_counts", "sigma_mm", "gap_decay_mm", "rms_counts"):
         assert fit[key] == plain[key]
     assert np.array_equal(fit["gain"], plain["gain"])
+
+
+def test_a_form_that_removes_less_than_the_least_share_is_not_kept():
+    """Half the height as distance and 0.3 as gap: on these descents the form removes
+    0.6 % of the squared residuals, well past the information criterion's 2 ln(M T)
+    per parameter but short of ``HEIGHT_FORM_MIN_FALL``: the 3D distance is kept."""
+    from fruitcli.sensing.skin.calibrate import HEIGHT_FORM_MIN_FALL
+
+    v, dist, gap, height, _ = calibration_descents(0.5, 0.3)
+    fit = fit_skin(v, dist, gap, height)
+    assert 4.0 * np.log(v.size) < fit["height_form_gain"] < HEIGHT_FORM_MIN_FALL * v.size
+    assert (fit["height_as_distance"], fit["height_as_gap"]) == (1.0, 0.0)
