@@ -104,6 +104,8 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
             "footprint_sigma_mm": _plain(skin.footprint_sigma_mm),
             "contact_counts": _plain(skin.contact_counts),
             "gap_decay_mm": _plain(skin.gap_decay_mm),
+            "height_as_distance": _plain(skin.height_as_distance),
+            "height_as_gap": _plain(skin.height_as_gap),
         },
         "model_frames": {
             "chosen": chosen,

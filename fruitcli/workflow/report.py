@@ -133,6 +133,14 @@ def model_rows(out: Path, name: str, stats_rows: list) -> tuple[list[str], list[
         f"sigma (mm) {sigma or '-'}, {cal['contact_counts']:.1f} counts at contact, gap "
         f"decay {cal['gap_decay_mm']:.2f} mm"
     )
+    if "height_as_gap" in cal:  # the height form (`fruit calibrate` keeps 1, 0 unless it pays)
+        form = (cal["height_as_distance"], cal["height_as_gap"])
+        how += (
+            ", a crossing's height difference as 3D distance"
+            if form == (1.0, 0.0)
+            else f", a crossing's height difference as distance {form[0]:.2f} and as gap "
+            f"{form[1]:.2f}"
+        )
     by_frames = data.get("rows_by_frames") or {"1": data["rows"]}
     chosen = str(data.get("model_frames", {}).get("chosen", 1))
     rows = []

@@ -144,6 +144,14 @@ def test_the_report_puts_the_model_rows_under_their_scene_and_says_how(tmp_path)
         "1.30 mm" in line
         for line in lines
     )
+    # the calibration's height form: said as 3D distance, or with its two terms
+    for form, said in (
+        ((1.0, 0.0), "gap decay 2.02 mm, a crossing's height difference as 3D distance;"),
+        ((0.0, 0.72), "a crossing's height difference as distance 0.00 and as gap 0.72;"),
+    ):
+        cal |= {"height_as_distance": form[0], "height_as_gap": form[1]}
+        (mr / "summary.json").write_text(json.dumps(data))
+        assert any(said in line for line in table_section(tmp_path, ["fruit-rest"]))
     # a summary of another form (an older run's) leaves the rows out, no error
     (mr / "summary.json").write_text(json.dumps({"rows": {}}))
     assert not any(", model" in line for line in table_section(tmp_path, ["fruit-rest"]))
