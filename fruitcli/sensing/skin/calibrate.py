@@ -131,13 +131,14 @@ def fit_skin(
     """Fit v (M, T) counts = g_t A exp(-d^2/2s^2) exp(-g/l) (the module's law) for 3D
     distances dist (M, T) mm, gaps (M,) mm and heights h (M, T) mm of the contact point
     over each taxel, the height terms kept only when the criterion of the module's
-    docstring asks for them (None: not tried). -> {contact_counts, sigma_mm,
+    docstring asks for them (None, or all 0 as on a flat body: not tried). ->
+    {contact_counts, sigma_mm,
     gap_decay_mm, height_as_distance, height_as_gap, height_form_gain (the fall of the
     squared residuals in noise variances; 0 when not tried), gain (T,), measured (T,),
     rms_counts}."""
     plain = _fit_law(v, dist_mm, gap_mm, None)
     plain["height_form_gain"] = 0.0
-    if height_mm is None:
+    if height_mm is None or not np.any(height_mm):
         return plain
     form = _fit_law(v, dist_mm, gap_mm, height_mm)
     gain = v.size * (1.0 - form["rms_counts"] ** 2 / max(plain["rms_counts"] ** 2, 1e-300))
@@ -157,9 +158,10 @@ def _fit_law(
 
     t = v.shape[1]
     free = 2 if height_mm is not None else 0  # the height terms fitted
-    h = np.zeros(1) if height_mm is None else np.asarray(height_mm, float)
-    h2, habs = h * h, np.abs(h)
-    r2 = np.maximum(dist_mm**2 - h2, 0.0)
+    if free:  # the offset across z, and the height along it
+        h = np.asarray(height_mm, float)
+        h2, habs = h * h, np.abs(h)
+        r2 = np.maximum(dist_mm**2 - h2, 0.0)
 
     def unpack(x: np.ndarray):
         a, s, lam = np.exp(x[:3])
@@ -355,8 +357,8 @@ def run_calibrate(
     say(f"fitting {len(run.frames)} descent frames of {run.samples} samples x {len(taxels)} taxels")
     noise, noise_per = noise_std_counts(idle)
     if response is None:
-        dist = np.linalg.norm(taxels.xyz_mm[None, :, :] - run.contact[:, None, :], axis=2)
-        height = run.contact[:, None, 2] - taxels.xyz_mm[None, :, 2]
+        offset = run.contact[:, None, :] - taxels.xyz_mm[None, :, :]
+        dist, height = np.linalg.norm(offset, axis=2), offset[:, :, 2]
         fit = _gains_over_taxels(fit_skin(v, dist, run.gaps, height), "contact_counts", v, run)
         toml = skin_toml(name, fit, noise)
         figures = {
