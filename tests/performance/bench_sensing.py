@@ -118,7 +118,28 @@ def main():
     recordings()
 
 
-METHOD_FRAMES = (("n9", 1), ("model", 1), ("model", 8))  # method, [detection].model_frames
+# method, [detection].model_frames, the skin's [skin].height_as_gap ("as gap": a calibrated
+# electrostatic board's form, 0.7, height_as_distance 0; every touch at the grid's edge
+# gets a second fit, `model_fit._mirror_spread`)
+METHOD_FRAMES = (("n9", 1, 0.0), ("model", 1, 0.0), ("model", 8, 0.0), ("model", 1, 0.7))
+
+
+def _heights(as_gap: float):
+    """The default skin's gap law, with the height difference as gap when `as_gap` > 0."""
+    if not as_gap:
+        return None
+    from dataclasses import replace
+
+    from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
+    from fruitcli.sensing.skin.heights import gap_law
+
+    form = replace(DEFAULT_PARAMS, height_as_gap=as_gap, height_as_distance=0.0)
+    return gap_law(form)
+
+
+def _method_name(method: str, frames: int, as_gap: float) -> str:
+    name = method if frames == 1 else f"{method}, mean of {frames} frames"
+    return name if not as_gap else f"{name}, height as gap {as_gap}"
 
 
 def model_method(n: int = 100_000) -> None:
@@ -130,11 +151,12 @@ def model_method(n: int = 100_000) -> None:
     state_kpa = np.stack([np.linspace(0, 8, 5), np.linspace(0, 4, 5)], axis=1)
     frames = frames_with_touches(n, taxels)
     kpa = np.random.default_rng(1).uniform(0, 8, (n, 2))
-    for method, k in METHOD_FRAMES:
+    for method, k, as_gap in METHOD_FRAMES:
         settings = Settings(method=method, model_frames=k)
-        loc = Locator(taxels, default_board(), states, settings, state_kpa)
+        heights = _heights(as_gap)
+        loc = Locator(taxels, default_board(), states, settings, state_kpa, heights=heights)
         base = loc.baseline(frames)
-        method = method if k == 1 else f"{method}, mean of {k} frames"
+        method = _method_name(method, k, as_gap)
         loc.batch(frames[:1000], base, kpa[:1000])  # warm up (numba's first compile)
         t0 = time.perf_counter()
         table = loc.batch(frames, base, kpa)
@@ -160,11 +182,11 @@ def model_method(n: int = 100_000) -> None:
     centres = np.stack([rng.uniform(0, 320, (2000, 10)), rng.uniform(0, 132, (2000, 10))], -1)
     d = np.linalg.norm(board.xyz_mm[None, None, :, :2] - centres[:, :, None, :], axis=3)
     v = (60 * np.exp(-0.5 * (d / 6.18) ** 2)).sum(axis=1) + rng.normal(0, 1.2, (2000, i.size))
-    for method, k in METHOD_FRAMES:
+    for method, k, as_gap in METHOD_FRAMES:
         settings = Settings(method=method, model_frames=k)
-        loc = Locator(board, default_board(), board.xyz_mm, settings)
+        loc = Locator(board, default_board(), board.xyz_mm, settings, heights=_heights(as_gap))
         stream = Stream(loc, np.zeros(i.size))
-        method = method if k == 1 else f"{method}, mean of {k} frames"
+        method = _method_name(method, k, as_gap)
         stream.step(v[0])
         times, touches = np.empty(len(v)), 0
         for k, frame in enumerate(v):

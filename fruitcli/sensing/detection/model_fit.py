@@ -43,8 +43,9 @@ or a reduced chi^2 above
 fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
 covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1, and, for a
 touch seen from one side only, widened by a second explanation of its frame on the
-other side of its peak taxel (`_mirror_spread`); the residual is the RMS of the
-weighted residuals (1: at the noise).
+other side of its peak taxel (`_mirror_spread`), whose point the touch takes where it
+explains the frame far better (chi^2 lower by ``MIRROR_KEEP``); the residual is the RMS
+of the weighted residuals (1: at the noise).
 """
 
 from __future__ import annotations
@@ -79,6 +80,7 @@ MIRROR_FAR = 1.0  # grid units out on an open side: where a touch's second fit s
 MIRROR_NEAR = 0.25  # ... when its first ended nearer the peak taxel than this
 MIRROR_UNSEEN = 3.0  # errors: taxels one row inwards reading less do not see the touch
 MIRROR_MIN_MM = 1.0  # a second fit ending nearer the touch's point is the same one
+MIRROR_KEEP = 4.0  # chi^2 lower by more: the second fit's point is kept (weight > 0.88)
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
 # an earlier frame shows the same touch when its window's activations point the same way
 # (cosine, an assumption: a still touch 20 counts strong over noise of 1-2 counts gives
@@ -273,8 +275,8 @@ def refine(
     )
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
-    fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law)
-    spread = _mirror_spread(out, xyz, red, window.open_sides[centre], window, fit)
+    fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used)
+    spread = _mirror_spread(out, xyz, red, var_mm2, window.open_sides[centre], window, fit)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0) + spread, 0.0))
     kept = _failed(out, err_mm, red, a0, b0, used, law.width_prior)
     return Fitted(
@@ -356,6 +358,7 @@ def _mirror_spread(
     out: np.ndarray,
     xyz: np.ndarray,
     red: np.ndarray,
+    var_mm2: np.ndarray,
     sides: np.ndarray,
     window: Window,
     fit: tuple,
@@ -363,53 +366,79 @@ def _mirror_spread(
     """(n,) mm^2 to add to each touch's squared 1-sigma radius for a second explanation
     of its frame. Seen from one side only (`_open_sides`), a farther point with more
     amplitude and a nearer one with less explain the taxels nearly alike: a touch down a
-    body's flank past the last column, and one on the top by that column, when the
-    taxels one row inwards read less than ``MIRROR_UNSEEN`` times their error. Such a
-    touch is fitted again along each such axis, from ``MIRROR_FAR`` grid units out on
-    the open side when its point is nearer the peak taxel than ``MIRROR_NEAR``, from the
-    peak taxel's row otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the
-    first, with a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1),
-    the two points are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2))
-    on the second, and the radius grows by w D^2, D their distance (mm): the mean
-    squared distance from the point kept to the posterior's (of the two axes', the
-    larger). `fit`: (lo, hi, v, inv_e, gain, pos, coef, corr, sub, law) of `refine`'s
-    fits."""
+    body's flank past the last column, and one on the top by that column. With the 3D
+    distance that happens when the taxels one row inwards read less than
+    ``MIRROR_UNSEEN`` times their error; with the height as gap (the law's
+    ``height_gap_per_mm`` > 0) a flank touch weakens every crossing alike and the row
+    inwards reads it too, so every touch at an open side whose point is nearer the peak
+    taxel than ``MIRROR_NEAR`` is also tried (for a flank point). Such a touch is fitted
+    again along each such axis, from ``MIRROR_FAR`` grid units out on the open side when
+    its point is nearer the peak taxel than ``MIRROR_NEAR``, from the peak taxel's row
+    otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the first, with
+    a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1), the two points
+    are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2)) on the second.
+    Where d < -``MIRROR_KEEP`` (w over 0.88) the second fit's point is kept: out, xyz,
+    red and var_mm2 (the fits' results, points, reduced chi^2 and position variances)
+    are replaced in place, and w becomes the first's weight. The radius grows by w D^2,
+    D the points' distance (mm): the mean squared distance from the point kept to the
+    posterior's (of the two axes', the larger). `fit`: (lo, hi, v, inv_e, gain, pos,
+    coef, corr, sub, law, used) of `refine`'s fits."""
     from fruitcli.sensing.detection.model_kernel import fit_all
 
-    lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law = fit
+    lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used = fit
     spread = np.zeros(len(out))
     if not sides.any():  # no touch at an edge of the grid
         return spread
     finite = np.isfinite(out).all(axis=1)
     snr = vw * inv_e  # (n, K) each window taxel's activation over its error
+    as_gap = law.height_gap_per_mm > 0.0
     touch, starts = [], []
     for axis, offset, across in ((0, window.di, window.dj), (1, window.dj, window.di)):
         inward = (offset[None, :] == -sides[:, axis : axis + 1]) & (np.abs(across) <= 1)
+        out_side = sides[:, axis] * out[:, axis]  # grid units out on the open side
         unseen = np.where(inward, snr, 0.0).max(axis=1) < MIRROR_UNSEEN
+        unseen |= as_gap & (out_side < MIRROR_NEAR)
         k = np.flatnonzero(finite & (sides[:, axis] != 0) & unseen)
         x = out[k, :4].copy()
-        out_side = sides[k, axis] * out[k, axis]  # grid units out on the open side
+        out_side = out_side[k]
         x[:, axis] = np.where(out_side < MIRROR_NEAR, sides[k, axis] * MIRROR_FAR, 0.0)
         touch.append(k)
         starts.append(x)
     k = np.concatenate(touch)
     if not k.size:
         return spread
-    alt, alt_xyz = np.empty((k.size, 6)), np.empty((k.size, 3))
+    alt, alt_xyz, alt_var = np.empty((k.size, 6)), np.empty((k.size, 3)), np.empty(k.size)
     fit_all(
         np.clip(np.concatenate(starts), lo[k], hi[k]), lo[k], hi[k], vw[k], inv_e[k],
         gain[k], pos[k], coef[k], corr[k], sub, law.profile, PROFILE_STEP_MM, law.height,
-        law.width_prior, ITERATIONS, alt, np.empty((k.size, 4, 4)), alt_xyz, np.empty(k.size),
+        law.width_prior, ITERATIONS, alt, np.empty((k.size, 4, 4)), alt_xyz, alt_var,
     )  # fmt: skip
     prior = law.width_prior
     dist2 = np.sum((alt_xyz - xyz[k]) ** 2, axis=1)
     valid = ~_off_footprint(alt, prior) & (dist2 > MIRROR_MIN_MM**2)
     chi2 = out[k, 4] + ((out[k, 3] - 1.0) / prior) ** 2
     chi2_alt = alt[:, 4] + ((alt[:, 3] - 1.0) / prior) ** 2
-    d = (chi2_alt - chi2) / np.maximum(red[k], 1.0)
+    d = np.where(valid, (chi2_alt - chi2) / np.maximum(red[k], 1.0), np.inf)
+    keep = _kept_seconds(k, d, len(out))  # (m,) rows of k whose point is kept
+    if keep.size:
+        t = k[keep]
+        out[t], xyz[t], var_mm2[t] = alt[keep], alt_xyz[keep], alt_var[keep]
+        red[t] = alt[keep, 4] / np.maximum(used[t] - 4, 1)
+        spread[t] = dist2[keep] / (1.0 + np.exp(d[keep] / -2.0))
+    swapped = np.zeros(len(out), np.bool_)
+    swapped[k[keep]] = True
     w = 1.0 / (1.0 + np.exp(np.minimum(d / 2.0, 700.0)))
-    np.maximum.at(spread, k, np.where(valid, w * dist2, 0.0))
+    np.maximum.at(spread, k, np.where(valid & ~swapped[k], w * dist2, 0.0))
     return spread
+
+
+def _kept_seconds(k: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:
+    """Rows of the second fits of touches k (m,) whose point is kept: their chi^2 lower
+    than the first's by more than ``MIRROR_KEEP`` (d, scaled), the lowest of a touch's
+    two axes."""
+    best = np.full(n, -MIRROR_KEEP)
+    np.minimum.at(best, k, d)
+    return np.flatnonzero((d < -MIRROR_KEEP) & (d == best[k]))
 
 
 def _start_and_bounds(

@@ -192,3 +192,57 @@ def test_a_form_that_removes_less_than_the_least_share_is_not_kept():
     fit = fit_skin(v, dist, gap, height)
     assert 4.0 * np.log(v.size) < fit["height_form_gain"] < HEIGHT_FORM_MIN_FALL * v.size
     assert (fit["height_as_distance"], fit["height_as_gap"]) == (1.0, 0.0)
+
+
+class FirstFitHeld:
+    """`model_kernel.fit_all` whose first call keeps each touch's point within 1 um of
+    its start (N9's point): a first fit stuck in a local minimum there."""
+
+    def __init__(self, fit_all):
+        self.fit_all, self.calls = fit_all, 0
+
+    def __call__(self, x0, lo, hi, *rest):
+        if not self.calls:
+            lo, hi = lo.copy(), hi.copy()
+            lo[:, :2], hi[:, :2] = x0[:, :2] - 1e-3, x0[:, :2] + 1e-3
+        self.calls += 1
+        self.fit_all(x0, lo, hi, *rest)
+
+
+@pytest.mark.parametrize("point_xy", [(40.0, 3.0), (38.0, -4.0)])
+def test_a_second_fit_that_explains_the_frame_far_better_is_kept(monkeypatch, point_xy):
+    """A touch 2-4 mm past the dome's last column (x = 36 mm), 13-15 mm below its top, of
+    a skin that takes the height as gap. Its first fit is held at N9's point on the top;
+    every touch at the grid's edge then gets a second fit from a pitch out
+    (`model_fit._mirror_spread`), whose chi^2 is lower by far more than ``MIRROR_KEEP``:
+    its point, radius and residual are the touch's, those of the fit left free."""
+    from fruitcli.sensing.detection import model_fit, model_kernel
+
+    taxels = dome_taxels()
+    point = np.array([*point_xy, on_dome(*point_xy)])
+    frames = board_frames(taxels, gap_form_counts(taxels.xyz_mm, point, 150.0), n=5)
+    form = GapLaw(60.0, DECAY_MM, SIGMA_MM, 1.0, None, 0.0, AS_GAP)
+    free = locate(taxels, frames, heights=form)
+    fit_all = model_kernel.fit_all
+    monkeypatch.setattr(model_kernel, "fit_all", held := FirstFitHeld(fit_all))
+    second = locate(taxels, frames, heights=form)
+    assert held.calls == 2  # the first fits and the second
+    monkeypatch.setattr(model_kernel, "fit_all", FirstFitHeld(fit_all))
+    monkeypatch.setattr(model_fit, "MIRROR_KEEP", np.inf)
+    first = locate(taxels, frames, heights=form)
+    assert (second.fit == FIT_MODEL).all() and (first.fit == FIT_MODEL).all()
+    assert second.residual == pytest.approx(free.residual, abs=0.01)
+    assert (second.residual < first.residual - 0.5).all()
+    err = np.linalg.norm(second.xyz_mm - point, axis=1)
+    err_first = np.linalg.norm(first.xyz_mm - point, axis=1)
+    assert err.mean() < err_first.mean() - 2.0
+    assert (err <= 3.0 * second.pos_err_mm).all()
+
+
+def test_of_a_touchs_second_fits_the_lowest_below_the_margin_is_kept():
+    from fruitcli.sensing.detection.model_fit import MIRROR_KEEP, _kept_seconds
+
+    k = np.array([0, 1, 1, 2, 3, 3])  # touches 1 and 3 tried along both axes
+    m = MIRROR_KEEP
+    d = np.array([-m - 0.1, -m - 1.0, -m - 2.0, -m + 0.1, np.inf, -3 * m])
+    assert _kept_seconds(k, d, 5).tolist() == [0, 2, 5]
