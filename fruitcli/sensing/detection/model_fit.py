@@ -81,6 +81,7 @@ MIRROR_NEAR = 0.25  # ... when its first ended nearer the peak taxel than this
 MIRROR_UNSEEN = 3.0  # errors: taxels one row inwards reading less do not see the touch
 MIRROR_MIN_MM = 1.0  # a second fit ending nearer the touch's point is the same one
 MIRROR_KEEP = 4.0  # chi^2 lower by more: the second fit's point is kept (weight > 0.88)
+MIRROR_MISFIT = 1.0  # reduced chi^2 over which a gap-form skin's edge touch is fitted again
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
 # an earlier frame shows the same touch when its window's activations point the same way
 # (cosine, an assumption: a still touch 20 counts strong over noise of 1-2 counts gives
@@ -371,7 +372,8 @@ def _mirror_spread(
     ``MIRROR_UNSEEN`` times their error; with the height as gap (the law's
     ``height_gap_per_mm`` > 0) a flank touch weakens every crossing alike and the row
     inwards reads it too, so every touch at an open side whose point is nearer the peak
-    taxel than ``MIRROR_NEAR`` is also tried (for a flank point). Such a touch is fitted
+    taxel than ``MIRROR_NEAR`` and whose fit leaves more than the noise (reduced chi^2
+    over ``MIRROR_MISFIT``) is also tried (for a flank point). Such a touch is fitted
     again along each such axis, from ``MIRROR_FAR`` grid units out on the open side when
     its point is nearer the peak taxel than ``MIRROR_NEAR``, from the peak taxel's row
     otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the first, with
@@ -397,7 +399,7 @@ def _mirror_spread(
         inward = (offset[None, :] == -sides[:, axis : axis + 1]) & (np.abs(across) <= 1)
         out_side = sides[:, axis] * out[:, axis]  # grid units out on the open side
         unseen = np.where(inward, snr, 0.0).max(axis=1) < MIRROR_UNSEEN
-        unseen |= as_gap & (out_side < MIRROR_NEAR)
+        unseen |= as_gap & (out_side < MIRROR_NEAR) & (red > MIRROR_MISFIT)
         k = np.flatnonzero(finite & (sides[:, axis] != 0) & unseen)
         x = out[k, :4].copy()
         out_side = out_side[k]
