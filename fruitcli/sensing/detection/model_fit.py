@@ -383,7 +383,8 @@ def _mirror_spread(
     red and var_mm2 (the fits' results, points, reduced chi^2 and position variances)
     are replaced in place, and w becomes the first's weight. The radius grows by w D^2,
     D the points' distance (mm): the mean squared distance from the point kept to the
-    posterior's (of the two axes', the larger). `fit`: (lo, hi, v, inv_e, gain, pos,
+    posterior's (of the two axes', the larger; for a touch that took a second fit's
+    point, that pair's alone). `fit`: (lo, hi, v, inv_e, gain, pos,
     coef, corr, sub, law, used) of `refine`'s fits."""
     from fruitcli.sensing.detection.model_kernel import fit_all
 
