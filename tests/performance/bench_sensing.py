@@ -119,8 +119,9 @@ def main():
 
 
 # method, [detection].model_frames, the skin's [skin].height_as_gap ("as gap": a calibrated
-# electrostatic board's form, 0.7, height_as_distance 0; every touch at the grid's edge
-# gets a second fit, `model_fit._mirror_spread`)
+# electrostatic board's form, 0.7, height_as_distance 0; a touch at the grid's edge placed
+# by its peak taxel whose fit leaves more than the noise gets a second fit,
+# `model_fit._mirror_spread`)
 METHOD_FRAMES = (("n9", 1, 0.0), ("model", 1, 0.0), ("model", 8, 0.0), ("model", 1, 0.7))
 
 

@@ -379,7 +379,8 @@ def _mirror_spread(
     otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the first, with
     a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1), the two points
     are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2)) on the second.
-    Where d < -``MIRROR_KEEP`` (w over 0.88) the second fit's point is kept: out, xyz,
+    Where d < -``MIRROR_KEEP`` (w over 0.88) and the second fit has a position variance,
+    its point is kept: out, xyz,
     red and var_mm2 (the fits' results, points, reduced chi^2 and position variances)
     are replaced in place, and w becomes the first's weight. The radius grows by w D^2,
     D the points' distance (mm): the mean squared distance from the point kept to the
@@ -422,12 +423,13 @@ def _mirror_spread(
     chi2 = out[k, 4] + ((out[k, 3] - 1.0) / prior) ** 2
     chi2_alt = alt[:, 4] + ((alt[:, 3] - 1.0) / prior) ** 2
     d = np.where(valid, (chi2_alt - chi2) / np.maximum(red[k], 1.0), np.inf)
-    keep = _kept_seconds(k, d, len(out))  # (m,) rows of k whose point is kept
+    placed = np.isfinite(alt_var) & (alt_var > 0.0)  # a covariance to give the touch
+    keep = _kept_seconds(k, np.where(placed, d, np.inf), len(out))  # rows of k kept
     if keep.size:
         t = k[keep]
         out[t], xyz[t], var_mm2[t] = alt[keep], alt_xyz[keep], alt_var[keep]
         red[t] = alt[keep, 4] / np.maximum(used[t] - 4, 1)
-        spread[t] = dist2[keep] / (1.0 + np.exp(d[keep] / -2.0))
+        spread[t] = dist2[keep] / (1.0 + np.exp(np.minimum(-d[keep] / 2.0, 700.0)))
     swapped = np.zeros(len(out), np.bool_)
     swapped[k[keep]] = True
     w = 1.0 / (1.0 + np.exp(np.minimum(d / 2.0, 700.0)))
@@ -437,11 +439,12 @@ def _mirror_spread(
 
 def _kept_seconds(k: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:
     """Rows of the second fits of touches k (m,) whose point is kept: their chi^2 lower
-    than the first's by more than ``MIRROR_KEEP`` (d, scaled), the lowest of a touch's
-    two axes."""
+    than the first's by more than ``MIRROR_KEEP`` (d, scaled; inf: not to be kept), the
+    lowest of a touch's two axes (the first of them on a tie)."""
     best = np.full(n, -MIRROR_KEEP)
     np.minimum.at(best, k, d)
-    return np.flatnonzero((d < -MIRROR_KEEP) & (d == best[k]))
+    rows = np.flatnonzero((d < -MIRROR_KEEP) & (d == best[k]))
+    return rows[np.unique(k[rows], return_index=True)[1]]
 
 
 def _start_and_bounds(

@@ -195,15 +195,17 @@ def test_a_form_that_removes_less_than_the_least_share_is_not_kept():
 
 
 class FirstFitHeld:
-    """`model_kernel.fit_all` whose first call keeps each touch's point within 1 um of
-    its start (N9's point): a first fit stuck in a local minimum there."""
+    """`model_kernel.fit_all` whose first call keeps each touch's point within 1e-3 grid
+    units of its start (N9's point) moved by `shift` grid units along a: a first fit
+    stuck in a local minimum there (with `hold`; else it only counts the calls)."""
 
-    def __init__(self, fit_all):
-        self.fit_all, self.calls = fit_all, 0
+    def __init__(self, fit_all, hold=True, shift=0.0):
+        self.fit_all, self.calls, self.hold, self.shift = fit_all, 0, hold, shift
 
     def __call__(self, x0, lo, hi, *rest):
-        if not self.calls:
-            lo, hi = lo.copy(), hi.copy()
+        if self.hold and not self.calls:
+            lo, hi, x0 = lo.copy(), hi.copy(), x0.copy()
+            x0[:, 0] += self.shift
             lo[:, :2], hi[:, :2] = x0[:, :2] - 1e-3, x0[:, :2] + 1e-3
         self.calls += 1
         self.fit_all(x0, lo, hi, *rest)
@@ -246,3 +248,29 @@ def test_of_a_touchs_second_fits_the_lowest_below_the_margin_is_kept():
     m = MIRROR_KEEP
     d = np.array([-m - 0.1, -m - 1.0, -m - 2.0, -m + 0.1, np.inf, -3 * m])
     assert _kept_seconds(k, d, 5).tolist() == [0, 2, 5]
+
+
+@pytest.mark.parametrize(
+    "held, as_gap, calls", [(False, AS_GAP, 1), (True, AS_GAP, 2), (True, 0.0, 1)]
+)
+def test_a_touch_the_row_inwards_reads_is_fitted_again_only_for_a_gap_form_misfit(
+    monkeypatch, held, as_gap, calls
+):
+    """A touch 3 mm inside the dome's last column (x = 36 mm) is read by the column before.
+    Frames of its own gap-form law with little noise leave no misfit: no second fit. Held
+    half a pitch inwards its fit leaves one (``MIRROR_MISFIT``): a skin that takes the
+    height as gap fits it again; with the 3D distance the column before reads it, so
+    not, and the held fit fails (``MAX_REDUCED_CHI2``)."""
+    from fruitcli.sensing.detection import model_kernel
+
+    taxels = dome_taxels()
+    point = np.array([33.0, 3.0, on_dome(33.0, 3.0)])
+    frames = board_frames(taxels, gap_form_counts(taxels.xyz_mm, point), noise=0.1, n=3)
+    law = GapLaw(60.0, DECAY_MM, SIGMA_MM, 1.0, None, 0.0 if as_gap else 1.0, as_gap)
+    fits = FirstFitHeld(model_kernel.fit_all, held, shift=-0.5)
+    monkeypatch.setattr(model_kernel, "fit_all", fits)
+    t = locate(taxels, frames, heights=law)
+    assert fits.calls == calls
+    assert held or (t.residual < 1.0).all()  # free: at its own law, no misfit
+    # held with the 3D distance, the fit explains the frame too badly: N9's point
+    assert ((t.fit == FIT_MODEL) == (not held or as_gap > 0)).all()
