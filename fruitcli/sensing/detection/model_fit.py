@@ -380,13 +380,12 @@ def _mirror_spread(
     a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1), the two points
     are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2)) on the second.
     Where d < -``MIRROR_KEEP`` (w over 0.88) and the second fit has a position variance,
-    its point is kept: out, xyz,
-    red and var_mm2 (the fits' results, points, reduced chi^2 and position variances)
-    are replaced in place, and w becomes the first's weight. The radius grows by w D^2,
-    D the points' distance (mm): the mean squared distance from the point kept to the
-    posterior's (of the two axes', the larger; for a touch that took a second fit's
-    point, that pair's alone). `fit`: (lo, hi, v, inv_e, gain, pos,
-    coef, corr, sub, law, used) of `refine`'s fits."""
+    its point is kept: out, xyz, red and var_mm2 (the fits' results, points, reduced
+    chi^2 and position variances) are replaced in place, and w becomes the first's
+    weight. The radius grows by w D^2, D the points' distance (mm): the mean squared
+    distance from the point kept to the posterior's (of the two axes', the larger; for a
+    touch that took a second fit's point, that pair's alone). `fit`: (lo, hi, v, inv_e,
+    gain, pos, coef, corr, sub, law, used) of `refine`'s fits."""
     from fruitcli.sensing.detection.model_kernel import fit_all
 
     lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used = fit
@@ -425,13 +424,12 @@ def _mirror_spread(
     d = np.where(valid, (chi2_alt - chi2) / np.maximum(red[k], 1.0), np.inf)
     placed = np.isfinite(alt_var) & (alt_var > 0.0)  # a covariance to give the touch
     keep = _kept_seconds(k, np.where(placed, d, np.inf), len(out))  # rows of k kept
-    if keep.size:
-        t = k[keep]
-        out[t], xyz[t], var_mm2[t] = alt[keep], alt_xyz[keep], alt_var[keep]
-        red[t] = alt[keep, 4] / np.maximum(used[t] - 4, 1)
-        spread[t] = dist2[keep] / (1.0 + np.exp(np.minimum(-d[keep] / 2.0, 700.0)))
+    t = k[keep]  # the touches that take their second fit's point
+    out[t], xyz[t], var_mm2[t] = alt[keep], alt_xyz[keep], alt_var[keep]
+    red[t] = alt[keep, 4] / np.maximum(used[t] - 4, 1)
+    spread[t] = dist2[keep] / (1.0 + np.exp(np.minimum(-d[keep] / 2.0, 700.0)))
     swapped = np.zeros(len(out), np.bool_)
-    swapped[k[keep]] = True
+    swapped[t] = True
     w = 1.0 / (1.0 + np.exp(np.minimum(d / 2.0, 700.0)))
     np.maximum.at(spread, k, np.where(valid & ~swapped[k], w * dist2, 0.0))
     return spread
