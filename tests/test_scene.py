@@ -381,7 +381,7 @@ CHECKED_KEYS = {
     "scene": "name",
     "sensitivity": "animation_frames noise_frames",
     "skin": "contact_counts counts_per_ff footprint_sigma_mm gain_spread gap_decay_mm gaps_mm "
-    "height_as_distance height_as_gap "
+    "height_as_distance height_as_gap widening_per_mm "
     "insulation_mm model noise_std_counts permittivity yarn_radius_mm",
     "solver": "displacement_tolerance_mm first_steps jig_steps linear_solver max_iterations "
     "max_seconds max_subdivisions tolerance",

@@ -107,7 +107,7 @@ def locator(
 
     skin_table = scene.skin
     if o.skin_toml is not None:
-        from fruitcli.sensing.detection.model_fit import check_skin_file
+        from fruitcli.sensing.detection.settings import check_skin_file
         from fruitcli.sensing.skin.heights import skin_with_gap_law
 
         skin_table = skin_with_gap_law(o.skin_toml)

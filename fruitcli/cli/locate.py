@@ -94,7 +94,7 @@ def locate(
         scene = load_scene(scene_path) if scene_path else None
         skin_table = None
         if skin_toml is not None:
-            from fruitcli.sensing.detection.model_fit import check_skin_file
+            from fruitcli.sensing.detection.settings import check_skin_file
             from fruitcli.sensing.skin.heights import skin_with_gap_law
 
             skin_table = skin_with_gap_law(skin_toml)

@@ -31,6 +31,9 @@ COUNTS: Bounds = {"min": 0.0, "max": MAX_COUNTS}
 MAX_HEIGHT_FORM = 4.0
 """Largest weight or share of a crossing's height difference in the skin's footprint
 ([skin].height_as_distance, height_as_gap): the calibrated ones are 0-1."""
+MAX_WIDENING_PER_MM = 1.0
+"""Largest growth of the footprint's width per mm of gap ([skin].widening_per_mm): twice as
+wide 1 mm away; an electrostatic crossing's calibrated growth is 0.02-0.07 per mm."""
 MODULUS_KPA = 1e9
 """Largest modulus (kPa): 1 TPa, stiffer than any solid."""
 PRESSURE_KPA = 1e5

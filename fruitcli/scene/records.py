@@ -274,6 +274,7 @@ class SkinSection(Record):
     gap_decay_mm: float = 2.0
     height_as_distance: float = 1.0
     height_as_gap: float = 0.0
+    widening_per_mm: float = 0.0
     gain_spread: float = 0.0
     noise_std_counts: float | list[float] = field(default_factory=lambda: [0.5, 1.85])
     taxel_gain: Path | None = None

@@ -21,6 +21,7 @@ from fruitcli.scene.limits import (
     MAX_MODEL_FRAMES,
     MAX_SECONDS,
     MAX_STATES,
+    MAX_WIDENING_PER_MM,
     POSITIVE,
     POSITIVE_LENGTH,
     SEED,
@@ -237,6 +238,15 @@ SECTIONS: dict[str, dict[str, Key]] = {
             "in exp(-gap / gap_decay_mm) (fruit calibrate fits it)",
             min=0.0,
             max=MAX_HEIGHT_FORM,
+        ),
+        "widening_per_mm": Key(
+            "num",
+            0.0,
+            "share by which the footprint's width grows per mm of gap: sigma (1 + "
+            "widening_per_mm * gap), the gap with the height difference's share "
+            "(fruit calibrate fits it)",
+            min=0.0,
+            max=MAX_WIDENING_PER_MM,
         ),
         "gain_spread": Key(
             "num",

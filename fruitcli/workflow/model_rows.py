@@ -106,6 +106,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
             "gap_decay_mm": _plain(skin.gap_decay_mm),
             "height_as_distance": _plain(skin.height_as_distance),
             "height_as_gap": _plain(skin.height_as_gap),
+            "widening_per_mm": _plain(skin.widening_per_mm),
         },
         "model_frames": {
             "chosen": chosen,

@@ -141,6 +141,8 @@ def model_rows(out: Path, name: str, stats_rows: list) -> tuple[list[str], list[
             else f", a crossing's height difference as distance {form[0]:.2f} and as gap "
             f"{form[1]:.2f}"
         )
+    if cal.get("widening_per_mm"):  # `fruit calibrate` keeps 0 unless it pays
+        how += f", the footprint {100 * cal['widening_per_mm']:.1f} % wider per mm of gap"
     by_frames = data.get("rows_by_frames") or {"1": data["rows"]}
     chosen = str(data.get("model_frames", {}).get("chosen", 1))
     rows = []

@@ -152,6 +152,11 @@ def test_the_report_puts_the_model_rows_under_their_scene_and_says_how(tmp_path)
         cal |= {"height_as_distance": form[0], "height_as_gap": form[1]}
         (mr / "summary.json").write_text(json.dumps(data))
         assert any(said in line for line in table_section(tmp_path, ["fruit-rest"]))
+    # and its widening with the gap, once calibrated
+    cal |= {"widening_per_mm": 0.071}
+    (mr / "summary.json").write_text(json.dumps(data))
+    said = "as gap 0.72, the footprint 7.1 % wider per mm of gap;"
+    assert any(said in line for line in table_section(tmp_path, ["fruit-rest"]))
     # a summary of another form (an older run's) leaves the rows out, no error
     (mr / "summary.json").write_text(json.dumps({"rows": {}}))
     assert not any(", model" in line for line in table_section(tmp_path, ["fruit-rest"]))

@@ -20,7 +20,9 @@ ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state put
   amplitude, s the width's scale (a wider object, a farther gap), g_k the taxel's gain;
   with the skin's height form (``[skin].height_as_distance``, ``height_as_gap``, which
   `fruit calibrate` fits) the taxel's height difference from c along z enters the
-  distance with its weight and the gap with its share instead (`model_kernel`);
+  distance with its weight and the gap with its share instead, and with the skin's
+  widening (``[skin].widening_per_mm``) that share of the gap widens the footprint at
+  that taxel (`model_kernel`);
 - s has a prior: 1 with a 1-sigma of ``WIDTH_PRIOR`` (an assumption: the calibrated
   width is right to about that, the small and the medium indenter differ by 17 %);
   without it a touch at the grid's edge trades width against distance off the edge;
@@ -34,7 +36,8 @@ ring beyond, a 5 x 5 window of the grid), each taxel where the frame's state put
 
 Taxels in another touch's N9 of the same frame are left out of a touch's fit. A touch
 keeps N9's position (``fit`` = ``FIT_N9``) when its fit fails a test: a result that is
-not finite; a point more than one pitch from N9's or on a bound; a width scale more
+not finite; a point more than one pitch from N9's (from its peak taxel for a touch that
+took its second explanation, below) or on a bound; a width scale more
 than ``MAX_WIDTH_SIGMAS`` priors from 1 (a spike, a stuck taxel: not the skin's
 footprint); fewer than ``MIN_TAXELS`` taxels in its window; a 1-sigma radius above
 ``MAX_UNCERTAINTY_MM`` (the taxels do not place it: a weak touch off the grid's edge);
@@ -50,7 +53,6 @@ of the weighted residuals (1: at the noise).
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -98,8 +100,11 @@ class FootprintLaw:
     its nominal width (mm), the noise (counts std), the taxels' gains (T,) or None, the
     1-sigma of a touch's width scale around 1 (``WIDTH_PRIOR``), and how a taxel's height
     difference h from the contact point enters (`model_kernel`): d^2 = r^2 +
-    ``height_distance`` h^2 and a factor exp(-``height_gap_per_mm`` |h|) (the skin's
-    ``[skin].height_as_distance`` and ``height_as_gap / gap_decay_mm``)."""
+    ``height_distance`` h^2, a factor exp(-``height_gap_per_mm`` |h|) and the width
+    sigma (s + ``height_widening_per_mm`` |h|), s the touch's width scale (the skin's
+    ``[skin].height_as_distance``, ``height_as_gap / gap_decay_mm`` and ``widening_per_mm
+    * height_as_gap``: the skin's footprint widens with the gap, and the height's share
+    of it; the gap of the touch itself, common to its taxels, is in s)."""
 
     profile: np.ndarray
     sigma_mm: float
@@ -108,11 +113,12 @@ class FootprintLaw:
     width_prior: float = WIDTH_PRIOR
     height_distance: float = 1.0
     height_gap_per_mm: float = 0.0
+    height_widening_per_mm: float = 0.0
 
     @property
     def height(self) -> np.ndarray:
-        """(alpha, kappa per mm) for `model_kernel`."""
-        return np.array([self.height_distance, self.height_gap_per_mm])
+        """(alpha, kappa per mm, omega per mm) for `model_kernel`."""
+        return np.array([self.height_distance, self.height_gap_per_mm, self.height_widening_per_mm])
 
     def scaled(self, scale: float, width_prior: float | None = None) -> FootprintLaw:
         """The same footprint `scale` times as wide, f(d / scale) (and with another
@@ -143,6 +149,7 @@ class FootprintLaw:
         gain = getattr(heights, "gain", None)
         as_gap = float(getattr(heights, "height_as_gap", 0.0))
         decay = float(getattr(heights, "gap_decay_mm", np.inf))
+        widening = float(getattr(heights, "widening_per_mm", 0.0))
         return cls(
             np.ascontiguousarray(np.maximum(c / c[0], 0.0)),
             sigma,
@@ -150,6 +157,7 @@ class FootprintLaw:
             None if gain is None else np.asarray(gain, dtype=float),
             height_distance=float(getattr(heights, "height_as_distance", 1.0)),
             height_gap_per_mm=as_gap / decay if as_gap else 0.0,
+            height_widening_per_mm=widening * as_gap,
         )
 
 
@@ -277,9 +285,14 @@ def refine(
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
     fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used)
+    first = out[:, :2].copy()
     spread = _mirror_spread(out, xyz, red, var_mm2, window.open_sides[centre], window, fit)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0) + spread, 0.0))
-    kept = _failed(out, err_mm, red, a0, b0, used, law.width_prior)
+    # a touch that took its second fit's point is held to its peak taxel: N9's point lies
+    # on the other side of it, where the second fit did not start
+    swapped = (out[:, :2] != first).any(axis=1)
+    ref_a, ref_b = np.where(swapped, 0.0, a0), np.where(swapped, 0.0, b0)
+    kept = _failed(out, err_mm, red, ref_a, ref_b, used, law.width_prior)
     return Fitted(
         np.where(kept, i0, ci + a),
         np.where(kept, j0, cj + b),
@@ -546,28 +559,6 @@ def _touch_noise(
     base = np.full(taxels, law.noise_std_counts) if noise is None else np.asarray(noise, float)
     taken = np.ones(len(frame)) if frames_taken is None else np.asarray(frames_taken, float)
     return np.ascontiguousarray(base[None, :] / np.sqrt(taken)[:, None])
-
-
-def check_skin_file(path: str | os.PathLike, method: str | None) -> None:
-    """A [skin] file given for detection (``--skin``, `fruit calibrate`'s skin.toml) must
-    state the footprint the model method fits: without ``footprint_sigma_mm`` its table
-    would silently take the default width. FrameError naming the file and key."""
-    import tomllib
-
-    from fruitcli.sensing.detection.methods import METHODS
-
-    if method not in METHODS or METHODS[method].refine != "model":
-        return
-    try:
-        with open(path, "rb") as fh:
-            given = tomllib.load(fh).get("skin", {})
-    except (OSError, tomllib.TOMLDecodeError):
-        return  # the skin file's own reader reports it
-    if isinstance(given, dict) and "footprint_sigma_mm" not in given:
-        raise FrameError(
-            f'{path}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
-            "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
-        )
 
 
 @contextmanager

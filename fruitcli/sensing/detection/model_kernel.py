@@ -8,13 +8,14 @@ through each of them, or, where the body's surface is known, of the way from the
 quadratic to the surface on a finer lattice, so c runs over the body itself); taxel k
 of the window reads
 
-    m_k = A g_k f(sqrt(r_k^2 + alpha h_k^2) / s) exp(-kappa |h_k|)
+    m_k = A g_k f(sqrt(r_k^2 + alpha h_k^2) / (s + omega |h_k|)) exp(-kappa |h_k|)
 
 with f the skin's radial footprint at its calibrated width (tabulated, f(0) = 1), A the
 amplitude (counts), s the width's scale, g_k the taxel's gain, h_k the z component of
 c - P_k (the contact point's height over the taxel: z is the bench's approach), r_k the
-rest of |c - P_k|, alpha the weight of h in the distance and kappa (per mm) the share
-of it taken as gap over the gap decay (``height``; 1 and 0: f of the 3D distance). The residuals
+rest of |c - P_k|, alpha the weight of h in the distance, kappa (per mm) the share
+of it taken as gap over the gap decay and omega (per mm) the footprint's widening with
+that gap (``height``; 1, 0 and 0: f of the 3D distance). The residuals
 (m_k - v_k) / e_k, e_k the noise of taxel k, and a prior (s - 1) / width_prior on the
 width are minimised by Levenberg-Marquardt steps from the N9 start within bounds on
 (a, b, A, s). Releases the GIL.
@@ -86,8 +87,8 @@ def _residuals(
     x, v, inv_e, gain, pos, coef, corr, sub, profile, step, height, width_prior, jac, res, pt
 ):
     """Weighted residuals res (K + 1,) at x, the last the width prior (s - 1) /
-    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2. height (2,): alpha,
-    kappa (per mm). pt (3, 3): scratch."""
+    width_prior, and their Jacobian jac (K + 1, 4); returns chi^2. height (3,): alpha,
+    kappa and omega (per mm). pt (3, 3): scratch."""
     a, b, amp, s = x[0], x[1], x[2], x[3]
     _point(coef, corr, sub, a, b, pt)
     c, ca, cb = pt[0], pt[1], pt[2]
@@ -99,14 +100,17 @@ def _residuals(
     jac[kp, 3] = 1.0 / width_prior
     chi2 = res[kp] * res[kp]
     inv_s, inv_step = 1.0 / s, 1.0 / step  # multiplications in the loop, not divisions
-    alpha, kappa = height[0], height[1]
+    alpha, kappa, omega = height[0], height[1], height[2]
     for k in range(v.shape[0]):
         dx = c[0] - pos[k, 0]
         dy = c[1] - pos[k, 1]
         dz = c[2] - pos[k, 2]
         az = alpha * dz
         d = np.sqrt(dx * dx + dy * dy + az * dz)
-        f, fp = _profile(d * inv_s, profile, inv_step)
+        inv_w = inv_s  # 1 / (s + omega |h|): the width's scale at this taxel
+        if omega != 0.0:
+            inv_w = 1.0 / (s + omega * abs(dz))
+        f, fp = _profile(d * inv_w, profile, inv_step)
         dgap = 0.0  # d(kappa |h|) / dh
         if kappa != 0.0:
             fall = np.exp(-kappa * abs(dz))
@@ -122,11 +126,15 @@ def _residuals(
             inv_d = 1.0 / d
             dd_da = (dx * ca[0] + dy * ca[1] + az * ca[2]) * inv_d
             dd_db = (dx * cb[0] + dy * cb[1] + az * cb[2]) * inv_d
-        g = amp * gain[k] * fp * inv_s * inv_e[k]
+        g = amp * gain[k] * fp * inv_w * inv_e[k]
         jac[k, 0] = g * dd_da
         jac[k, 1] = g * dd_db
         jac[k, 2] = gain[k] * f * inv_e[k]
-        jac[k, 3] = -g * d * inv_s
+        jac[k, 3] = -g * d * inv_w
+        if omega != 0.0 and dz != 0.0:  # the width grows with |h| too
+            wide = g * d * inv_w * omega * (1.0 if dz > 0.0 else -1.0)
+            jac[k, 0] -= wide * ca[2]
+            jac[k, 1] -= wide * cb[2]
         if dgap != 0.0:
             slope = amp * gain[k] * f * inv_e[k] * dgap
             jac[k, 0] -= slope * ca[2]
@@ -213,7 +221,7 @@ def fit_one(
     work_vec,
     work_mat,
 ) -> None:
-    """Fit x = (a, b, A, s) from x0 within [lo, hi] (`height`: alpha, kappa of the
+    """Fit x = (a, b, A, s) from x0 within [lo, hi] (`height`: alpha, kappa, omega of the
     footprint); out = (a, b, A, s, chi^2 of the
     taxels, steps taken), cov (4, 4) = (J^T J)^-1 at the solution (zeros when
     singular). Scratch: `work_jac` (2, K + 1, 4), `work_res` (2, K + 1), `work_vec`
@@ -304,7 +312,7 @@ def fit_all(
 ) -> None:
     """`fit_one` for every touch: x0, lo, hi (n, 4), v, inv_e, gain (n, K), pos (n, K, 3),
     coef (n, 6, 3), corr (n, L, L, 3) with `sub` lattice nodes per cell, the footprint's
-    `height` (2,) (alpha, kappa per mm); writes out
+    `height` (3,) (alpha, kappa and omega per mm); writes out
     (n, 6), cov (n, 4, 4), the point xyz (n, 3) mm and var_mm2 (n,), the trace of the
     point's covariance in mm^2."""
     kk = v.shape[1]

@@ -4,6 +4,7 @@ frames, mm."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -93,3 +94,23 @@ class Settings:
     @property
     def floor(self) -> float:
         return self.noise_floor_counts if METHODS[self.method].floor else 0.0
+
+
+def check_skin_file(path: str | os.PathLike, method: str | None) -> None:
+    """A [skin] file given for detection (``--skin``, `fruit calibrate`'s skin.toml) must
+    state the footprint the model method fits: without ``footprint_sigma_mm`` its table
+    would silently take the default width. FrameError naming the file and key."""
+    import tomllib
+
+    if method not in METHODS or METHODS[method].refine != "model":
+        return
+    try:
+        with open(path, "rb") as fh:
+            given = tomllib.load(fh).get("skin", {})
+    except (OSError, tomllib.TOMLDecodeError):
+        return  # the skin file's own reader reports it
+    if isinstance(given, dict) and "footprint_sigma_mm" not in given:
+        raise FrameError(
+            f'{path}: [skin].footprint_sigma_mm: missing; [detection].method = "model" '
+            "fits the skin's footprint at its calibrated width (fruit calibrate writes it)"
+        )

@@ -3,8 +3,9 @@
 Units: mm, counts. The model fitted is the virtual bench's (`fruitcli.sensing.skin.forward`),
 with a gain per taxel:
 
-    v(frame, taxel) = gain_t * contact_counts * exp(-d^2 / (2 sigma^2)) * exp(-g / gap_decay_mm)
+    v(frame, taxel) = gain_t * contact_counts * exp(-d^2 / (2 S^2)) * exp(-g / gap_decay_mm)
     d^2 = r^2 + height_as_distance h^2,   g = gap + height_as_gap |h|
+    S = sigma (1 + widening_per_mm * max(g, height_as_gap |h|))
 
 v = C - C0 (C0: the mean of the recording's idle frames), h the height of the sample's
 contact point (truth.csv) over the taxel at rest (z, the printer's approach), r the rest
@@ -17,7 +18,9 @@ are kept only when they explain the descents better than the 3D distance by more
 the Bayesian information criterion asks of two more parameters (the sum of squared
 residuals, over the 3D distance fit's mean square, falls by more than 2 ln(M T)) and by
 at least ``HEIGHT_FORM_MIN_FALL`` of it; else the law is the 3D distance's (1 and 0),
-fitted without them. Frames
+fitted without them. The widening (0 .. ``MAX_WIDENING_PER_MM``: a field that spreads as
+it reaches farther) is then fitted on top of the law kept, and kept by the same test for
+one parameter, with ``WIDENING_MIN_FALL`` as its least share. Frames
 used: every frame of every sample's descent (from the first frame after the previous
 sample's frame to the sample's own frame). The gap of a frame is
 ``printer_mm`` z minus the model origin's z (meta ``model_origin_mm``) minus the contact
@@ -60,6 +63,9 @@ HEIGHT_PRIOR_COUNTS = 1.0  # counts per unit of height_as_distance - 1 and heigh
 # a Gaussian board's descents on the deformed Fruit, its taxels taken at rest, give 0.1 %
 # for the form; an electrostatic board's 2-9 %)
 HEIGHT_FORM_MIN_FALL = 0.01
+# the same for the widening with the gap (an assumption: a Gaussian board's descents give
+# 1e-5 and less; an electrostatic board's on the Fruit 0.5-2 %)
+WIDENING_MIN_FALL = 0.002
 
 
 def descent_gaps(
@@ -131,92 +137,134 @@ def fit_skin(
     """Fit v (M, T) counts = g_t A exp(-d^2/2s^2) exp(-g/l) (the module's law) for 3D
     distances dist (M, T) mm, gaps (M,) mm and heights h (M, T) mm of the contact point
     over each taxel, the height terms kept only when the criterion of the module's
-    docstring asks for them (None, or all 0 as on a flat body: not tried). ->
-    {contact_counts, sigma_mm,
-    gap_decay_mm, height_as_distance, height_as_gap, height_form_gain (the fall of the
-    squared residuals in noise variances; 0 when not tried), gain (T,), measured (T,),
-    rms_counts}."""
+    docstring asks for them (None, or all 0 as on a flat body: not tried), then the
+    widening likewise. -> {contact_counts, sigma_mm, gap_decay_mm, height_as_distance,
+    height_as_gap, widening_per_mm, height_form_gain and widening_gain (the fall of the
+    squared residuals in noise variances; the form's 0 when not tried), gain (T,),
+    measured (T,), rms_counts}."""
     plain = _fit_law(v, dist_mm, gap_mm, None)
-    plain["height_form_gain"] = 0.0
-    if height_mm is None or not np.any(height_mm):
-        return plain
-    form = _fit_law(v, dist_mm, gap_mm, height_mm)
-    gain = v.size * (1.0 - form["rms_counts"] ** 2 / max(plain["rms_counts"] ** 2, 1e-300))
-    kept = gain > max(2.0 * 2.0 * np.log(v.size), HEIGHT_FORM_MIN_FALL * v.size)
-    best = form if kept else plain
-    return {**best, "height_form_gain": float(gain)}
+    best, gain = plain, 0.0
+    if height_mm is not None and np.any(height_mm):
+        form = _fit_law(v, dist_mm, gap_mm, height_mm)
+        gain = _fall(form, plain, v.size)
+        if gain > max(2.0 * 2.0 * np.log(v.size), HEIGHT_FORM_MIN_FALL * v.size):
+            best = form
+    kept_heights = height_mm if best is not plain else None
+    wide = _fit_law(v, dist_mm, gap_mm, kept_heights, widen=True)
+    widening_gain = _fall(wide, best, v.size)
+    if widening_gain > max(2.0 * np.log(v.size), WIDENING_MIN_FALL * v.size):
+        best = wide
+    return {**best, "height_form_gain": float(gain), "widening_gain": float(widening_gain)}
+
+
+def _fall(fit: dict, simpler: dict, size: int) -> float:
+    """How much `fit` lowers `simpler`'s sum of squared residuals, in `simpler`'s mean
+    squares (`size` of them): what the information criterion weighs."""
+    return size * (1.0 - fit["rms_counts"] ** 2 / max(simpler["rms_counts"] ** 2, 1e-300))
 
 
 def _fit_law(
-    v: np.ndarray, dist_mm: np.ndarray, gap_mm: np.ndarray, height_mm: np.ndarray | None
+    v: np.ndarray,
+    dist_mm: np.ndarray,
+    gap_mm: np.ndarray,
+    height_mm: np.ndarray | None,
+    widen: bool = False,
 ) -> dict:
     """`fit_skin`'s law fitted with its height terms (`height_mm` given) or without them
-    (1 and 0)."""
+    (1 and 0), and with the width's growth per mm of gap (`widen`) or without it (0)."""
     from scipy.optimize import least_squares
 
-    from fruitcli.scene.limits import MAX_HEIGHT_FORM
+    from fruitcli.scene.limits import MAX_HEIGHT_FORM, MAX_WIDENING_PER_MM
 
     t = v.shape[1]
     free = 2 if height_mm is not None else 0  # the height terms fitted
-    if free:  # the offset across z, and the height along it
-        h = np.asarray(height_mm, float)
-        h2, habs = h * h, np.abs(h)
-        r2 = np.maximum(dist_mm**2 - h2, 0.0)
+    grow = int(widen)  # the widening fitted
+    h = np.zeros_like(dist_mm) if height_mm is None else np.asarray(height_mm, float)
+    h2, habs = h * h, np.abs(h)
+    r2 = np.maximum(dist_mm**2 - h2, 0.0)  # the offset across z
+    pressed_gap = np.maximum(gap_mm, 0.0)[:, None]
+    first_gain = 3 + free + grow  # the log-gains' first column
 
     def unpack(x: np.ndarray):
         a, s, lam = np.exp(x[:3])
         alpha, beta = (x[3], x[4]) if free else (1.0, 0.0)
-        return a, s, lam, alpha, beta, np.exp(x[3 + free :])
+        w = x[3 + free] if grow else 0.0
+        return a, s, lam, alpha, beta, w, np.exp(x[first_gain:])
+
+    def terms(x: np.ndarray):
+        """(model, squared distance, the gap the width grows with, 1 + w times it)."""
+        a, s, lam, alpha, beta, w, g = unpack(x)
+        if not free and not grow:  # the 3D distance, as before the two forms
+            m = g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
+            return m, dist_mm**2, 0.0, 1.0
+        d2 = r2 + alpha * h2
+        spread = pressed_gap + beta * habs
+        q = 1.0 + w * spread
+        fall = (gap_mm[:, None] + beta * habs) / lam
+        m = g[None, :] * a * np.exp(-0.5 * d2 / (s * q) ** 2 - fall)
+        return m, d2, spread, q
 
     def model(x: np.ndarray):
-        a, s, lam, alpha, beta, g = unpack(x)
-        if not free:  # the 3D distance
-            return (
-                g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
-            )
-        d2 = r2 + alpha * h2
-        return g[None, :] * a * np.exp(-0.5 * d2 / s**2 - (gap_mm[:, None] + beta * habs) / lam)
+        return terms(x)[0]
 
     def residual(x: np.ndarray):
         prior = HEIGHT_PRIOR_COUNTS * np.array([x[3] - 1.0, x[4]]) if free else np.zeros(0)
-        gauge = GAUGE_WEIGHT * x[3 + free :].mean()
+        gauge = GAUGE_WEIGHT * x[first_gain:].mean()
         return np.concatenate([(model(x) - v).ravel(), prior, [gauge]])
 
     def jacobian(x: np.ndarray):
-        """d residual / d (log A, log s, log l, [alpha, beta,] log g): m, m d^2/s^2,
-        m g/l, [-m h^2/2s^2, -m |h|/l,] and m in taxel t's column for log g_t; the
-        priors' and the gauge's rows last."""
-        a, s, lam, alpha, beta, _ = unpack(x)
-        m = model(x)
-        jac = np.zeros((m.size + free + 1, 3 + free + t))
+        """d residual / d (log A, log s, log l, [alpha, beta,] [w,] log g): m, m d^2/S^2,
+        m g/l, [-m h^2/2S^2, -m |h|/l + m d^2 w |h| / S^2 q,] [m d^2 G / S^2 q,] and m in
+        taxel t's column for log g_t (S = s q the width, q = 1 + w G, G the gap it grows
+        with; without the widening, q = 1); the priors' and the gauge's rows last."""
+        _, s, lam, alpha, beta, w, _ = unpack(x)
+        m, d2, spread, q = terms(x)
+        width2 = (s * q) ** 2
+        jac = np.zeros((m.size + free + 1, first_gain + t))
         jac[: m.size, 0] = m.ravel()
-        if not free:
+        if not free and not grow:
             jac[: m.size, 1] = (m * (dist_mm / s) ** 2).ravel()
             jac[: m.size, 2] = (m * (gap_mm / lam)[:, None]).ravel()
         else:
-            jac[: m.size, 1] = (m * (r2 + alpha * h2) / s**2).ravel()
+            jac[: m.size, 1] = (m * d2 / width2).ravel()
             jac[: m.size, 2] = (m * (gap_mm[:, None] + beta * habs) / lam).ravel()
-            jac[: m.size, 3] = (-0.5 * m * h2 / s**2).ravel()
+        if free:
+            jac[: m.size, 3] = (-0.5 * m * h2 / width2).ravel()
             jac[: m.size, 4] = (-m * habs / lam).ravel()
             jac[m.size, 3] = jac[m.size + 1, 4] = HEIGHT_PRIOR_COUNTS
+        if grow:
+            spread_slope = m * d2 / width2 / q  # d m / d spread, over w
+            jac[: m.size, 3 + free] = (spread_slope * spread).ravel()
+            if free:
+                jac[: m.size, 4] += (spread_slope * w * habs).ravel()
         rows = np.arange(m.size)
-        jac[rows, 3 + free + rows % t] = m.ravel()
-        jac[-1, 3 + free :] = GAUGE_WEIGHT / t
+        jac[rows, first_gain + rows % t] = m.ravel()
+        jac[-1, first_gain:] = GAUGE_WEIGHT / t
         return jac
 
     peak = max(float(v.max()), 1.0)
-    x0 = np.r_[np.log(peak * 2.0), np.log(6.0), np.log(2.0), [1.0, 0.0][:free], np.zeros(t)]
+    x0 = np.r_[
+        np.log(peak * 2.0), np.log(6.0), np.log(2.0), [1.0, 0.0][:free], [0.0][:grow], np.zeros(t)
+    ]
     lo = np.full(x0.size, -np.inf)
     hi = np.full(x0.size, np.inf)
     lo[3 : 3 + free], hi[3 : 3 + free] = 0.0, MAX_HEIGHT_FORM
+    lo[3 + free : first_gain], hi[3 + free : first_gain] = 0.0, MAX_WIDENING_PER_MM
     # a trial step far out (the log-gain of a taxel no sample reached) overflows; its
     # cost is then inf or huge and the step is turned down, without numpy's warning
     with np.errstate(over="ignore", invalid="ignore"):
         res = least_squares(
             residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac"
         )
-    a, s, lam, alpha, beta, g = unpack(res.x)
-    pred = model(res.x)
+    return _law_result(unpack(res.x), model(res.x), v)
+
+
+def _law_result(params: tuple, pred: np.ndarray, v: np.ndarray) -> dict:
+    """`_fit_law`'s result from its parameters (A, sigma, decay, alpha, beta, widening,
+    gains (T,)) and its model of v (M, T): the gains of taxels the model never takes
+    to ``MEASURED_MIN_COUNTS`` set to 1 (not measured), the others normalized to mean 1
+    (their factor goes into contact_counts)."""
+    a, s, lam, alpha, beta, w, g = params
     measured = pred.max(axis=0) >= MEASURED_MIN_COUNTS
     g = np.where(measured, g, np.nan)
     scale = float(np.nanmean(g)) if measured.any() else 1.0
@@ -227,6 +275,7 @@ def _fit_law(
         "gap_decay_mm": float(lam),
         "height_as_distance": float(alpha),
         "height_as_gap": float(beta),
+        "widening_per_mm": float(w),
         "gain": gain,
         "measured": measured,
         "rms_counts": float(np.sqrt(np.mean((pred - v) ** 2))),
@@ -250,6 +299,7 @@ def skin_toml(indenter: str, fit: dict, noise: float, gains_name: str = "gains.c
         f"gap_decay_mm = {fit['gap_decay_mm']:.4f}\n"
         f"height_as_distance = {fit['height_as_distance']:.4f}\n"
         f"height_as_gap = {fit['height_as_gap']:.4f}\n"
+        f"widening_per_mm = {fit['widening_per_mm']:.4f}\n"
         "gain_spread = 0.0\n"
         f'taxel_gain = "{gains_name}"\n'
         f"noise_std_counts = {noise:.4f}\n"
@@ -368,11 +418,14 @@ def run_calibrate(
             "height_as_distance": fit["height_as_distance"],
             "height_as_gap": fit["height_as_gap"],
             "height_form_gain": fit["height_form_gain"],
+            "widening_per_mm": fit["widening_per_mm"],
+            "widening_gain": fit["widening_gain"],
         }
         fitted = (
             f"sigma {fit['sigma_mm']:.2f} mm, contact {fit['contact_counts']:.1f} counts, gap "
             f"decay {fit['gap_decay_mm']:.2f} mm, height as distance "
-            f"{fit['height_as_distance']:.2f} and as gap {fit['height_as_gap']:.2f}"
+            f"{fit['height_as_distance']:.2f} and as gap {fit['height_as_gap']:.2f}, widening "
+            f"{fit['widening_per_mm']:.3f} per mm"
         )
     else:
         from fruitcli.sensing.skin import calibrate_crossing as cc

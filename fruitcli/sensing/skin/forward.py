@@ -22,6 +22,9 @@ rows depend on the assumed ones):
   Gaussian's squared distance is r^2 + height_as_distance h^2 (r the offset across z), and
   the gap gap + height_as_gap |h|: by default the 3D distance; ``fruit calibrate`` fits
   both (an electrostatic board's crossings see h as gap, not as distance).
+- ``[skin].widening_per_mm`` = 0: the footprint's width grows with the gap, sigma (1 + w
+  g), g the gap (0 for a press) plus ``height_as_gap`` |h|. By default it does not; ``fruit
+  calibrate`` fits it (an electrostatic crossing's field spreads as it reaches farther).
 - ``FIELD_SIGMA_MM`` = 6: the lateral reach of one crossing, a Gaussian in the 3D
   distance from the contact point to the (deformed) taxel. Assumption: half the 12 mm
   pitch, so a quarter-taxel offset activates more than one taxel, as the paper's bench
@@ -125,6 +128,7 @@ class SkinParams:
     taxel_gain: Path | None = _SKIN["taxel_gain"].default  # CSV (id, gain) of measured gains
     height_as_distance: float = 1.0  # weight of a crossing's height difference in d^2
     height_as_gap: float = 0.0  # share of it added to the gap
+    widening_per_mm: float = 0.0  # the width's growth per mm of gap: sigma (1 + w g)
 
     @classmethod
     def from_table(cls, skin: SkinSection | None = None) -> SkinParams:
@@ -141,6 +145,7 @@ class SkinParams:
             skin.taxel_gain,
             float(skin.height_as_distance),
             float(skin.height_as_gap),
+            float(skin.widening_per_mm),
         )
 
 
@@ -240,16 +245,22 @@ def activation_counts(
     """Mean activation (counts) of taxels at 3D distance `dist_mm` (..., T) from the
     contact point, with the indenter `gap_mm` (...,) above it (negative: pressing in).
     `height_mm` (..., T): the contact point's height over each taxel (z), which the
-    skin's ``height_as_distance`` and ``height_as_gap`` weigh; None: as 3D distance."""
+    skin's ``height_as_distance`` and ``height_as_gap`` weigh; None: as 3D distance. The
+    width is sigma (1 + ``widening_per_mm`` g), g the gap (0 for a press) plus the
+    height's share."""
     p = DEFAULT_PARAMS if skin is None else skin.params
     sigma = footprint_sigma_mm(indenter, p)
     dist = np.asarray(dist_mm, dtype=float)
     gap = np.asarray(gap_mm, dtype=float)
     approach = np.exp(-gap / p.gap_decay_mm)[..., None]
+    spread = np.maximum(gap, 0.0)[..., None]  # the gap the width grows with
     if height_mm is not None and (p.height_as_distance != 1.0 or p.height_as_gap != 0.0):
         h = np.asarray(height_mm, dtype=float)
         dist = np.sqrt(np.maximum(dist**2 + (p.height_as_distance - 1.0) * h * h, 0.0))
         approach = np.exp(-(gap[..., None] + p.height_as_gap * np.abs(h)) / p.gap_decay_mm)
+        spread = spread + p.height_as_gap * np.abs(h)
+    if p.widening_per_mm:
+        sigma = sigma * (1.0 + p.widening_per_mm * spread)
     lateral = np.exp(-0.5 * (dist / sigma) ** 2)
     v = p.contact_counts * lateral * approach
     return v if skin is None or skin.gain is None else v * skin.gain

@@ -60,6 +60,7 @@ class GapLaw:
     gain: np.ndarray | None = None  # (T,) taxel gains, None: 1 (or activations divided)
     height_as_distance: float = 1.0  # [skin].height_as_distance (forward's)
     height_as_gap: float = 0.0  # [skin].height_as_gap
+    widening_per_mm: float = 0.0  # [skin].widening_per_mm
 
     def contact_counts(self, taxel: np.ndarray, dist_mm: np.ndarray) -> np.ndarray:
         m = self.contact * np.exp(-0.5 * (dist_mm / self.sigma_mm) ** 2)
@@ -108,6 +109,7 @@ def gap_law(
         gain,
         params.height_as_distance,
         params.height_as_gap,
+        params.widening_per_mm,
     )
 
 

@@ -52,8 +52,10 @@ def board_frames(taxels, v, noise=1.0, n=20):
     return out
 
 
-def test_the_residuals_jacobian_is_their_derivative():
-    """Analytic against central differences, with both height terms on, on a curved map."""
+@pytest.mark.parametrize("omega", [0.0, 0.06])
+def test_the_residuals_jacobian_is_their_derivative(omega):
+    """Analytic against central differences, with both height terms on, on a curved map,
+    without and with the footprint's widening."""
     rng = np.random.default_rng(3)
     coef = np.zeros((6, 3))
     coef[1, 0], coef[2, 1] = 12.0, 12.0  # x = 12 a, y = 12 b
@@ -65,7 +67,7 @@ def test_the_residuals_jacobian_is_their_derivative():
     inv_e, gain = rng.uniform(0.3, 1.0, 25), rng.uniform(0.8, 1.2, 25)
     d = np.arange(0.0, 80.0, 0.05)
     profile = np.exp(-0.5 * (d / SIGMA_MM) ** 2)
-    height = np.array([0.3, 0.15])
+    height = np.array([0.3, 0.15, omega])
     jac, res, pt = np.empty((26, 4)), np.empty(26), np.empty((3, 3))
 
     def residuals(x):
@@ -130,9 +132,12 @@ def test_a_touch_on_a_dome_of_a_gap_form_skin_comes_back_with_its_form(point_xy)
 def test_the_footprint_law_carries_the_skins_form():
     law = FootprintLaw.of(GapLaw(60.0, 4.0, SIGMA_MM, 1.0, None, 0.25, 0.5))
     assert (law.height_distance, law.height_gap_per_mm) == (0.25, 0.5 / 4.0)
-    assert law.scaled(1.2).height.tolist() == [0.25, 0.125]
+    assert law.scaled(1.2).height.tolist() == [0.25, 0.125, 0.0]
     plain = FootprintLaw.of(GapLaw(60.0, 4.0, SIGMA_MM, 1.0))
-    assert plain.height.tolist() == [1.0, 0.0]
+    assert plain.height.tolist() == [1.0, 0.0, 0.0]
+    # the widening per mm of gap, at the height's share of the gap
+    wide = FootprintLaw.of(GapLaw(60.0, 4.0, SIGMA_MM, 1.0, None, 0.25, 0.5, 0.08))
+    assert wide.height.tolist() == [0.25, 0.125, 0.04]
 
 
 def calibration_descents(as_distance, as_gap, seed=0):
