@@ -64,7 +64,7 @@ HEIGHT_PRIOR_COUNTS = 1.0  # counts per unit of height_as_distance - 1 and heigh
 # for the form; an electrostatic board's 2-9 %)
 HEIGHT_FORM_MIN_FALL = 0.01
 # the same for the widening with the gap (an assumption: a Gaussian board's descents give
-# 1e-5 and less; an electrostatic board's on the Fruit 0.5-2 %)
+# 2e-5 and less; an electrostatic board's on the Fruit 0.5-2 %)
 WIDENING_MIN_FALL = 0.002
 
 
