@@ -119,14 +119,16 @@ def main():
 
 
 # method, [detection].model_frames, the skin's [skin].height_as_gap ("as gap": a calibrated
-# electrostatic board's form, 0.7, height_as_distance 0; a touch at the grid's edge placed
-# by its peak taxel whose fit leaves more than the noise gets a second fit,
-# `model_fit._mirror_spread`)
+# electrostatic board's form, 0.7, height_as_distance 0, widening_per_mm WIDENING; a touch
+# at the grid's edge placed by its peak taxel whose fit leaves more than the noise gets a
+# second fit, `model_fit._mirror_spread`)
 METHOD_FRAMES = (("n9", 1, 0.0), ("model", 1, 0.0), ("model", 8, 0.0), ("model", 1, 0.7))
+WIDENING = 0.07  # per mm of gap, about what `fruit calibrate` finds for that board
 
 
 def _heights(as_gap: float):
-    """The default skin's gap law, with the height difference as gap when `as_gap` > 0."""
+    """The default skin's gap law, with the height difference as gap and the footprint
+    widening with the gap (``WIDENING``) when `as_gap` > 0."""
     if not as_gap:
         return None
     from dataclasses import replace
@@ -134,13 +136,15 @@ def _heights(as_gap: float):
     from fruitcli.sensing.skin.forward import DEFAULT_PARAMS
     from fruitcli.sensing.skin.heights import gap_law
 
-    form = replace(DEFAULT_PARAMS, height_as_gap=as_gap, height_as_distance=0.0)
+    form = replace(
+        DEFAULT_PARAMS, height_as_gap=as_gap, height_as_distance=0.0, widening_per_mm=WIDENING
+    )
     return gap_law(form)
 
 
 def _method_name(method: str, frames: int, as_gap: float) -> str:
     name = method if frames == 1 else f"{method}, mean of {frames} frames"
-    return name if not as_gap else f"{name}, height as gap {as_gap}"
+    return name if not as_gap else f"{name}, height as gap {as_gap}, widening {WIDENING}"
 
 
 def model_method(n: int = 100_000) -> None:
