@@ -140,10 +140,10 @@ def test_the_footprint_law_carries_the_skins_form():
     assert wide.height.tolist() == [0.25, 0.125, 0.04]
 
 
-def calibration_descents(as_distance, as_gap, seed=0):
+def calibration_descents(as_distance, as_gap, seed=0, widening=0.0):
     """Descents (gap 4 .. 0 mm) over contact points on the dome, counts of the module's
-    law with the height terms given, gains 1 +- 15 %, noise 1 count: (v, dist, gap,
-    height, gains)."""
+    law with the height terms given and the footprint `widening` per mm of gap, gains 1 +-
+    15 %, noise 1 count: (v, dist, gap, height, gains)."""
     rng = np.random.default_rng(seed)
     taxels = dome_taxels().xyz_mm
     gains = rng.uniform(0.85, 1.15, len(taxels))
@@ -155,7 +155,8 @@ def calibration_descents(as_distance, as_gap, seed=0):
     off = point[:, None, :] - taxels[None, :, :]
     dist, height = np.linalg.norm(off, axis=2), off[:, :, 2]
     d2 = off[:, :, 0] ** 2 + off[:, :, 1] ** 2 + as_distance * height**2
-    law = np.exp(-0.5 * d2 / SIGMA_MM**2 - (gap[:, None] + as_gap * np.abs(height)) / DECAY_MM)
+    g = gap[:, None] + as_gap * np.abs(height)
+    law = np.exp(-0.5 * d2 / (SIGMA_MM * (1.0 + widening * g)) ** 2 - g / DECAY_MM)
     v = gains * 40.0 * law + rng.normal(0.0, 1.0, law.shape)
     return v, dist, gap, height, gains
 

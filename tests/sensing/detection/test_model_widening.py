@@ -16,6 +16,7 @@ from tests.sensing.detection.test_model_height_form import (
     SIGMA_MM,
     FirstFitHeld,
     board_frames,
+    calibration_descents,
     dome_taxels,
     gap_form_counts,
     on_dome,
@@ -53,29 +54,8 @@ def test_the_bench_law_widens_with_the_gap_and_the_heights_share():
         assert got[row] == pytest.approx([want, want], rel=1e-12)
 
 
-def widening_descents(widening, seed=0):
-    """Descents (gap 4 .. 0 mm) over contact points on the dome, counts of a skin that
-    takes the height as gap (``AS_GAP``) and widens by `widening` per mm of gap, gains
-    1 +- 15 %, noise 1 count: (v, dist, gap, height)."""
-    rng = np.random.default_rng(seed)
-    taxels = dome_taxels().xyz_mm
-    gains = rng.uniform(0.85, 1.15, len(taxels))
-    xy = rng.uniform(-30, 30, (80, 2))
-    contact = np.column_stack([xy, on_dome(xy[:, 0], xy[:, 1])])
-    gaps = np.arange(4.0, -0.05, -0.2)
-    point = np.repeat(contact, gaps.size, axis=0)
-    gap = np.tile(gaps, len(contact))
-    off = point[:, None, :] - taxels[None, :, :]
-    dist, height = np.linalg.norm(off, axis=2), off[:, :, 2]
-    g = gap[:, None] + AS_GAP * np.abs(height)
-    width = SIGMA_MM * (1.0 + widening * g)
-    r2 = off[:, :, 0] ** 2 + off[:, :, 1] ** 2
-    v = gains * 40.0 * np.exp(-0.5 * r2 / width**2 - g / DECAY_MM)
-    return v + rng.normal(0.0, 1.0, v.shape), dist, gap, height
-
-
 def test_calibration_finds_the_widening():
-    v, dist, gap, height = widening_descents(WIDENING)
+    v, dist, gap, height, _ = calibration_descents(0.0, AS_GAP, widening=WIDENING)
     fit = fit_skin(v, dist, gap, height)
     assert fit["widening_gain"] > 0.01 * v.size  # kept: well over the criterion
     assert fit["widening_per_mm"] == pytest.approx(WIDENING, abs=0.01)
@@ -89,7 +69,7 @@ def test_a_footprint_that_does_not_widen_is_calibrated_without_it():
     law the same as fitted without trying it."""
     from fruitcli.sensing.skin import calibrate
 
-    v, dist, gap, height = widening_descents(0.0)
+    v, dist, gap, height, _ = calibration_descents(0.0, AS_GAP)
     fit = fit_skin(v, dist, gap, height)
     assert fit["widening_per_mm"] == 0.0
     assert fit["widening_gain"] < 2.0 * np.log(v.size)
