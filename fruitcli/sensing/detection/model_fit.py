@@ -47,7 +47,7 @@ fingers, water). The position's 1-sigma radius (mm) is sqrt(trace) of the fit's
 covariance mapped to 3D, scaled by the reduced chi^2 when that exceeds 1, and, for a
 touch seen from one side only, widened by a second explanation of its frame on the
 other side of its peak taxel (`_mirror_spread`), whose point the touch takes where it
-explains the frame far better (chi^2 lower by ``MIRROR_KEEP``); the residual is the RMS
+explains the frame clearly better (chi^2 lower by ``MIRROR_KEEP``); the residual is the RMS
 of the weighted residuals (1: at the noise).
 """
 
@@ -82,7 +82,7 @@ MIRROR_FAR = 1.0  # grid units out on an open side: where a touch's second fit s
 MIRROR_NEAR = 0.25  # ... when its first ended nearer the peak taxel than this
 MIRROR_UNSEEN = 3.0  # errors: taxels one row inwards reading less do not see the touch
 MIRROR_MIN_MM = 1.0  # a second fit ending nearer the touch's point is the same one
-MIRROR_KEEP = 4.0  # chi^2 lower by more: the second fit's point is kept (weight > 0.88)
+MIRROR_KEEP = 2.0  # chi^2 lower by more: the second fit's point is kept (weight > 0.73)
 MIRROR_MISFIT = 1.0  # reduced chi^2 over which a gap-form skin's edge touch is fitted again
 RING_WEIGHT = 0.5  # weight of the ring's taxels in the surface map
 # an earlier frame shows the same touch when its window's activations point the same way
@@ -392,7 +392,7 @@ def _mirror_spread(
     otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the first, with
     a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1), the two points
     are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2)) on the second.
-    Where d < -``MIRROR_KEEP`` (w over 0.88) and the second fit has a position variance,
+    Where d < -``MIRROR_KEEP`` (w over 0.73) and the second fit has a position variance,
     its point is kept: out, xyz, red and var_mm2 (the fits' results, points, reduced
     chi^2 and position variances) are replaced in place, and w becomes the first's
     weight. The radius grows by w D^2, D the points' distance (mm): the mean squared
