@@ -285,12 +285,11 @@ def refine(
     a, b, s = out[:, 0], out[:, 1], out[:, 3]
     red = out[:, 4] / np.maximum(used - 4, 1)
     fit = (lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used)
-    first = out[:, :2].copy()
-    spread = _mirror_spread(out, xyz, red, var_mm2, window.open_sides[centre], window, fit)
+    sides = window.open_sides[centre]
+    spread, swapped = _mirror_spread(out, xyz, red, var_mm2, sides, window, fit)
     err_mm = np.sqrt(np.maximum(var_mm2 * np.maximum(red, 1.0) + spread, 0.0))
     # a touch that took its second fit's point is held to its peak taxel: N9's point lies
     # on the other side of it, where the second fit did not start
-    swapped = (out[:, :2] != first).any(axis=1)
     ref_a, ref_b = np.where(swapped, 0.0, a0), np.where(swapped, 0.0, b0)
     kept = _failed(out, err_mm, red, ref_a, ref_b, used, law.width_prior)
     return Fitted(
@@ -376,35 +375,35 @@ def _mirror_spread(
     sides: np.ndarray,
     window: Window,
     fit: tuple,
-) -> np.ndarray:
-    """(n,) mm^2 to add to each touch's squared 1-sigma radius for a second explanation
-    of its frame. Seen from one side only (`_open_sides`), a farther point with more
-    amplitude and a nearer one with less explain the taxels nearly alike: a touch down a
-    body's flank past the last column, and one on the top by that column. With the 3D
-    distance that happens when the taxels one row inwards read less than
-    ``MIRROR_UNSEEN`` times their error; with the height as gap (the law's
-    ``height_gap_per_mm`` > 0) a flank touch weakens every crossing alike and the row
-    inwards reads it too, so every touch at an open side whose point is nearer the peak
-    taxel than ``MIRROR_NEAR`` and whose fit leaves more than the noise (reduced chi^2
-    over ``MIRROR_MISFIT``) is also tried (for a flank point). Such a touch is fitted
-    again along each such axis, from ``MIRROR_FAR`` grid units out on the open side when
-    its point is nearer the peak taxel than ``MIRROR_NEAR``, from the peak taxel's row
-    otherwise. When the second fit ends more than ``MIRROR_MIN_MM`` from the first, with
-    a chi^2 larger by d (scaled by the first's reduced chi^2 when over 1), the two points
-    are taken as a two-point posterior, weight w = 1 / (1 + exp(d / 2)) on the second.
-    Where d < -``MIRROR_KEEP`` (w over 0.73) and the second fit has a position variance,
-    its point is kept: out, xyz, red and var_mm2 (the fits' results, points, reduced
-    chi^2 and position variances) are replaced in place, and w becomes the first's
-    weight. The radius grows by w D^2, D the points' distance (mm): the mean squared
-    distance from the point kept to the posterior's (of the two axes', the larger; for a
-    touch that took a second fit's point, that pair's alone). `fit`: (lo, hi, v, inv_e,
-    gain, pos, coef, corr, sub, law, used) of `refine`'s fits."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """((n,) mm^2 to add to each touch's squared 1-sigma radius for a second explanation
+    of its frame, (n,) which touches took their second fit's point). Seen from one side
+    only (`_open_sides`), a farther point with more amplitude and a nearer one with less
+    explain the taxels nearly alike: a touch down a body's flank past the last column,
+    and one on the top by that column. With the 3D distance that happens when the taxels
+    one row inwards read less than ``MIRROR_UNSEEN`` times their error; with the height
+    as gap (the law's ``height_gap_per_mm`` > 0) a flank touch weakens every crossing
+    alike and the row inwards reads it too, so every touch at an open side whose point
+    is nearer the peak taxel than ``MIRROR_NEAR`` and whose fit leaves more than the
+    noise (reduced chi^2 over ``MIRROR_MISFIT``) is also tried (for a flank point). Such
+    a touch is fitted again along each such axis, from ``MIRROR_FAR`` grid units out on
+    the open side when its point is nearer the peak taxel than ``MIRROR_NEAR``, from the
+    peak taxel's row otherwise. When the second fit ends more than ``MIRROR_MIN_MM``
+    from the first, with a chi^2 larger by d (scaled by the first's reduced chi^2 when
+    over 1), the two points are taken as a two-point posterior, weight w = 1 / (1 +
+    exp(d / 2)) on the second. Where d < -``MIRROR_KEEP`` (w over 0.73) and the second
+    fit has a position variance, its point is kept: out, xyz, red and var_mm2 (the fits'
+    results, points, reduced chi^2 and position variances) are replaced in place, and w
+    becomes the first's weight. The radius grows by w D^2, D the points' distance (mm):
+    the mean squared distance from the point kept to the posterior's (of the two axes',
+    the larger; for a touch that took a second fit's point, that pair's alone). `fit`:
+    (lo, hi, v, inv_e, gain, pos, coef, corr, sub, law, used) of `refine`'s fits."""
     from fruitcli.sensing.detection.model_kernel import fit_all
 
     lo, hi, vw, inv_e, gain, pos, coef, corr, sub, law, used = fit
-    spread = np.zeros(len(out))
+    spread, swapped = np.zeros(len(out)), np.zeros(len(out), np.bool_)
     if not sides.any():  # no touch at an edge of the grid
-        return spread
+        return spread, swapped
     finite = np.isfinite(out).all(axis=1)
     snr = vw * inv_e  # (n, K) each window taxel's activation over its error
     as_gap = law.height_gap_per_mm > 0.0
@@ -422,7 +421,7 @@ def _mirror_spread(
         starts.append(x)
     k = np.concatenate(touch)
     if not k.size:
-        return spread
+        return spread, swapped
     alt, alt_xyz, alt_var = np.empty((k.size, 6)), np.empty((k.size, 3)), np.empty(k.size)
     fit_all(
         np.clip(np.concatenate(starts), lo[k], hi[k]), lo[k], hi[k], vw[k], inv_e[k],
@@ -441,11 +440,10 @@ def _mirror_spread(
     out[t], xyz[t], var_mm2[t] = alt[keep], alt_xyz[keep], alt_var[keep]
     red[t] = alt[keep, 4] / np.maximum(used[t] - 4, 1)
     spread[t] = dist2[keep] / (1.0 + np.exp(np.minimum(-d[keep] / 2.0, 700.0)))
-    swapped = np.zeros(len(out), np.bool_)
     swapped[t] = True
     w = 1.0 / (1.0 + np.exp(np.minimum(d / 2.0, 700.0)))
     np.maximum.at(spread, k, np.where(valid & ~swapped[k], w * dist2, 0.0))
-    return spread
+    return spread, swapped
 
 
 def _kept_seconds(k: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:

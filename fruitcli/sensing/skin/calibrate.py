@@ -192,11 +192,12 @@ def _fit_law(
         return a, s, lam, alpha, beta, w, np.exp(x[first_gain:])
 
     def terms(x: np.ndarray):
-        """(model, squared distance, the gap the width grows with, 1 + w times it)."""
+        """(model, squared distance, the gap the width grows with, 1 + w times it); the 3D
+        distance's law needs only the model (the rest None, 0 and 1)."""
         a, s, lam, alpha, beta, w, g = unpack(x)
         if not free and not grow:  # the 3D distance, as before the two forms
             m = g[None, :] * a * np.exp(-0.5 * (dist_mm / s) ** 2) * np.exp(-gap_mm / lam)[:, None]
-            return m, dist_mm**2, 0.0, 1.0
+            return m, None, 0.0, 1.0
         d2 = r2 + alpha * h2
         spread = pressed_gap + beta * habs
         q = 1.0 + w * spread

@@ -126,9 +126,9 @@ def test_a_touch_that_took_its_second_fit_is_held_to_its_peak_taxel(monkeypatch)
     mirror = model_fit._mirror_spread
 
     def swap(out, *args):  # the first fit's point moved as a swap would move it
-        spread = mirror(out, *args)
+        spread, _ = mirror(out, *args)
         out[:, 0] += 1.2
-        return spread
+        return spread, np.ones(len(out), bool)
 
     monkeypatch.setattr(model_kernel, "fit_all", FirstFitHeld(fit_all))
     monkeypatch.setattr(model_fit, "_mirror_spread", swap)

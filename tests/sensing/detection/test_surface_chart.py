@@ -165,7 +165,11 @@ def test_a_touch_the_row_inwards_reads_keeps_the_first_fits_radius(monkeypatch):
     rng = np.random.default_rng(1)
     frames = [np.round(frame_of(taxels, point, 40.0) + rng.normal(0.0, 1.2, (21, 12)))]
     with_second = locate(taxels, frames, surface)
-    monkeypatch.setattr(model_fit, "_mirror_spread", lambda out, *args: np.zeros(len(out)))
+    monkeypatch.setattr(
+        model_fit,
+        "_mirror_spread",
+        lambda out, *args: (np.zeros(len(out)), np.zeros(len(out), bool)),
+    )
     first_only = locate(taxels, frames, surface)
     assert (with_second.fit == FIT_MODEL).all()
     assert np.array_equal(with_second.pos_err_mm, first_only.pos_err_mm)
