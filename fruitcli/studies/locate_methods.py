@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
+from fruitcli.evaluation.outline import inside_outline, registered_mean
 from fruitcli.studies.locator_skins import (
     CALIBRATION_INDENTER,
     BenchBody,
@@ -182,7 +183,7 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
     body = BenchBody(taxels, states, surface, unit)
     board_table = table.get(board)
     skin_table = _locator_skin(name, bench_scene, scene, body, base, board_table, located_table)
-    outline = _bench_taxels(taxels, states, scene.bench.state)
+    outline = body.taxels_mm(scene.bench.state)
     rows = []
     cases = variants()
     chosen: dict[str, int] = {}  # per indenter, the frames its calibration run chose
@@ -196,7 +197,7 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
             with model_setting():
                 run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
 
-        chosen = _frames_chosen(locate, scene.bench.indenters, base)
+        chosen = _frames_chosen(locate, scene.bench.indenters, base, outline)
         cases.append((CHOSEN_LABEL, {"detection.method": "model"}, model_setting))
     else:
         keys = {"detection.method": "model", "detection.model_frames": 8}
@@ -244,7 +245,7 @@ def run_case(args: tuple[Path, Path, Path, Path | None, Path | None, str, str]) 
                     "model_share": share,
                     "model_sigma_mm": sigma,
                     "n_inside": int(inside.sum()),
-                    "reg_mean_inside_mm": _registered_mean(truth[inside], measured[inside]),
+                    "reg_mean_inside_mm": registered_mean(truth[inside], measured[inside]),
                     "model_frames": (
                         keys.get("detection.model_frames", 1) if "model" in label else None
                     ),
@@ -279,11 +280,15 @@ def _locator_skin(
 
 
 def _frames_chosen(
-    locate: Callable[[dict, Path, Path], None], indenters: Iterable[str], base: Path
+    locate: Callable[[dict, Path, Path], None],
+    indenters: Iterable[str],
+    base: Path,
+    outline_mm: np.ndarray,
 ) -> dict[str, int]:
     """Per indenter, the model's `[detection].model_frames` chosen on its own calibration
-    run (BASE/calibration/bench/NAME, `model_frames.choose`); ``locate(keys, frames_npz,
-    folder)`` locates a recording with those [detection] keys."""
+    run (BASE/calibration/bench/NAME, `model_frames.choose`, on its samples inside the
+    outline of the taxels `outline_mm` (T, 3)); ``locate(keys, frames_npz, folder)``
+    locates a recording with those [detection] keys."""
     from fruitcli.studies import model_frames
 
     chosen = {}
@@ -294,7 +299,10 @@ def _frames_chosen(
             locate({**keys, "detection.footprint": ind}, bench, folder)
 
         chosen[ind], _ = model_frames.choose(
-            with_frames, base / "calibration" / "bench" / ind, base / "frames" / ind
+            with_frames,
+            base / "calibration" / "bench" / ind,
+            base / "frames" / ind,
+            outline_mm=outline_mm,
         )
     return chosen
 
@@ -353,38 +361,6 @@ def model_fits(touches_csv: Path) -> tuple[float, float]:
     radii = cols["pos_err_mm"][placed].astype(float)
     sigma = float(np.median(radii)) if placed.any() else float("nan")
     return float(placed.mean()), sigma
-
-
-def _bench_taxels(taxels: Path, states: Path | None, state: int) -> np.ndarray:
-    """The taxels' positions (T, 3) mm at the bench's FEM state (at rest without states)."""
-    from fruitcli.sensing.detection.locate import load_states
-    from fruitcli.tables import read_taxels
-
-    if states is None:
-        return read_taxels(taxels).xyz_mm
-    return load_states(states).taxels_mm[state]
-
-
-def inside_outline(points_mm: np.ndarray, taxels_mm: np.ndarray) -> np.ndarray:
-    """Which points (n, 3) lie inside the taxels' outline seen from above: the convex
-    hull of their x, y (a sample a quarter pitch past the last column of a curved body,
-    such as the Fruit's flank, lies outside)."""
-    from scipy.spatial import Delaunay
-
-    if len(points_mm) == 0:
-        return np.zeros(0, bool)
-    return Delaunay(taxels_mm[:, :2]).find_simplex(points_mm[:, :2]) >= 0
-
-
-def _registered_mean(truth: np.ndarray, measured: np.ndarray) -> float:
-    """Translation-registered mean error (mm) of matched points (n, 3), registered as
-    Table I's rows are (`fruitcli.evaluation.register`); NaN for none."""
-    from fruitcli.evaluation.register import register
-
-    if len(truth) == 0:
-        return float("nan")
-    moved = register(truth, measured, "translation").apply(measured)
-    return float(np.linalg.norm(moved - truth, axis=1).mean())
 
 
 def table_markdown(rows: list[dict], scene_name: str, stamp: str) -> str:

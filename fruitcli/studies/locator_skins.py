@@ -31,6 +31,15 @@ class BenchBody:
     surface: Path | None
     unit: str = "mm"
 
+    def taxels_mm(self, state: int) -> np.ndarray:
+        """The taxels' positions (T, 3) mm at FEM state `state` (at rest without states)."""
+        from fruitcli.sensing.detection.locate import load_states
+        from fruitcli.tables import read_taxels
+
+        if self.states is None:
+            return read_taxels(self.taxels).xyz_mm
+        return load_states(self.states).taxels_mm[state]
+
 
 def calibration_run(
     bench_scene: Scene,

@@ -1,13 +1,19 @@
 """How many frames' mean the model method fits (``[detection].model_frames``), chosen on
 a calibration run: the setting of ``MODEL_FRAMES`` whose touches of that run land
-nearest its truth (translation-registered mean error, mm; ties to fewer frames).
+nearest its truth (translation-registered mean error, mm; ties to fewer frames) over the
+run's samples inside the taxels' outline (`evaluation.outline`) when at least
+``MIN_INSIDE`` of them are, over all of them otherwise.
 
 The bench's indenter is still in x and y while it descends, so the frames before the
 threshold show the same touch and their mean has less noise; a live touch that moves
 does not (`model_fit.recent_frames` takes only the frames since the touch's that point
-the same way). The demo's model rows (`fruitcli.workflow.model_rows`) and `fruit study
-locate`'s chosen row (`fruitcli.studies.locate_methods`) both choose this way, on the
-run `calibrated_skin` made, never on the frames they score.
+the same way). A sample past the outline is placed only to within several millimetres
+whatever the frames (`tests/performance/locate_bound.py`): its error swings by
+millimetres from one setting to the next (a second fit's point taken or not), so the few
+there can tip a close choice (`model-detection.md` has a case). The demo's model rows
+(`fruitcli.workflow.model_rows`) and `fruit study locate`'s chosen row
+(`fruitcli.studies.locate_methods`) both choose this way, on the run `calibrated_skin`
+made, never on the frames they score.
 """
 
 from __future__ import annotations
@@ -15,7 +21,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 MODEL_FRAMES = (1, 2, 4, 8, 16)
+MIN_INSIDE = 5  # calibration samples inside the taxels' outline that the choice needs
 
 
 def choose(
@@ -23,12 +32,15 @@ def choose(
     calibration: Path,
     work: Path,
     progress: Callable[[str], None] | None = None,
+    outline_mm: np.ndarray | None = None,
 ) -> tuple[int, dict[int, float]]:
     """(the chosen number of frames, the calibration run's registered mean error (mm) for
-    each setting tried). ``locate(frames, frames_npz, folder)`` locates a recording with
-    the model method and that setting into folder (measured.csv, touches.csv);
-    `calibration` holds the run's frames.npz and truth.csv; `work` gets a folder a
-    setting."""
+    each setting tried, over the samples the choice counts). ``locate(frames,
+    frames_npz, folder)`` locates a recording with the model method and that setting
+    into folder (measured.csv, touches.csv); `calibration` holds the run's frames.npz
+    and truth.csv; `work` gets a folder a setting; `outline_mm` (T, 3): the taxels in
+    the run's state, whose outline picks the samples counted (None: all)."""
+    from fruitcli.evaluation.outline import inside_outline, registered_mean
     from fruitcli.evaluation.report import evaluate_pair
 
     say = progress or (lambda msg: None)
@@ -39,7 +51,11 @@ def choose(
         locate(k, calibration / "frames.npz", folder)
         truth = found_truth(calibration / "truth.csv", folder)
         result = evaluate_pair(truth, folder / "measured.csv", None, f"calibration, {k}")
-        tried[k] = float(result[0]["compare"]["translation"]["mean_mm"])
+        counted = np.ones(len(result[2]), bool)
+        if outline_mm is not None:
+            inside = inside_outline(result[2], outline_mm)
+            counted = inside if inside.sum() >= MIN_INSIDE else counted
+        tried[k] = registered_mean(result[2][counted], result[3][counted])
     return min(tried, key=lambda k: (tried[k], k)), tried
 
 

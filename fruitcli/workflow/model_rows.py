@@ -9,8 +9,9 @@ for the law and right over each taxel for its gain, with the small indenter
 (`fruitcli.studies.locator_skins.calibrated_skin`), and the model method locates the
 very frames the N9 rows were scored on. How many frames' mean it fits
 (``[detection].model_frames``: the bench's indenter is still in x and y while it
-descends) is chosen on the same calibration run (`fruitcli.studies.model_frames`); the
-rows come with that setting and with the frame at the threshold alone. The bench's law
+descends) is chosen on the same calibration run's samples inside the taxels' outline
+(`fruitcli.studies.model_frames`); the rows come with that setting and with the frame at
+the threshold alone. The bench's law
 family is still the locator's (a Gaussian board gets a Gaussian fit; an electrostatic board gets
 the Gaussian law fitted to it): `fruit study locate` has the boards whose law differs.
 """
@@ -70,6 +71,7 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         out_dir / "calibration" / "bench" / CALIBRATION_INDENTER,
         out_dir / "frames",
         lambda msg: ctx.progress(f"model-rows: {msg}"),
+        body.taxels_mm(scene.bench.state),
     )
     rows = {}
     for frames in sorted({1, chosen}):

@@ -167,7 +167,8 @@ def model_rows(out: Path, name: str, stats_rows: list) -> tuple[list[str], list[
         how += (
             "; the calibration run's touches placed by the mean of "
             + ", ".join(f"{k} frame(s) {v:.2f} mm" for k, v in tried.items())
-            + " (translation-registered mean error)"
+            + " (translation-registered mean error over its samples inside the taxels' "
+            "outline)"
         )
     return rows, [how]
 
@@ -185,8 +186,9 @@ def model_note(calibrations: list[str]) -> list[str]:
         "right over each taxel for its gain; the small indenter). The indenter is still in "
         "x and y while it descends to the threshold, so the model may fit the mean "
         "activation of the frame at the threshold and the frames before it "
-        "(`[detection].model_frames`); how many is chosen on the same calibration run, "
-        "and the rows with the frame alone stay for comparison. The "
+        "(`[detection].model_frames`); how many is chosen on the same calibration run "
+        "(its samples inside the taxels' outline), and the rows with the frame alone stay "
+        "for comparison. The "
         "calibration gave:",
         "",
         *calibrations,

@@ -86,16 +86,17 @@ def main() -> None:
     import trimesh
     from run_all import commit, processor
 
+    from fruitcli.evaluation.outline import inside_outline
     from fruitcli.scene import load_scene
     from fruitcli.sensing.skin import forward
-    from fruitcli.studies.locate_methods import _bench_taxels, bench_skin_values, inside_outline
+    from fruitcli.studies.locate_methods import bench_skin_values
     from fruitcli.tables import read_taxels
 
     study = args.study
     taxels_csv = next((study / "scene").glob("*/taxels.csv"))
     surface = trimesh.load(next((study / "scene").glob("*/reduced.stl")), force="mesh")
     taxels = read_taxels(taxels_csv)
-    outline = _bench_taxels(taxels_csv, None, 0)
+    outline = read_taxels(taxels_csv).xyz_mm
     scene = load_scene(ROOT / "pipelines" / "fruit-rest.toml")
     threshold = float(scene.detection.threshold_counts)
     print(

@@ -42,13 +42,6 @@ def test_model_fits_reads_the_fit_and_radius_columns(tmp_path):
     assert all(np.isnan(lm.model_fits(p)))
 
 
-def test_inside_outline_is_the_taxels_hull_seen_from_above():
-    taxels = np.array([[0, 0, 0], [16, 0, 1], [0, 16, 2], [16, 16, 3]], float)
-    points = np.array([[8, 8, -20], [15.9, 0.1, 5], [20, 8, 0], [-0.1, 8, 0]], float)
-    assert lm.inside_outline(points, taxels).tolist() == [True, True, False, False]
-    assert lm.inside_outline(np.zeros((0, 3)), taxels).size == 0
-
-
 def test_the_table_names_its_skins_and_stamp():
     row = {
         "bench_skin": "wider",

@@ -64,3 +64,37 @@ def test_samples_without_a_touch_are_left_out_of_every_setting(tmp_path):
     placed = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]])
     expected = np.linalg.norm(placed - placed.mean(axis=0), axis=1).mean()
     assert tried[16] == pytest.approx(expected, abs=1e-9)
+
+
+def _grid_run(tmp_path: Path, truth: np.ndarray) -> Path:
+    run = tmp_path / "calibration"
+    run.mkdir()
+    write_csv(run / "truth.csv", HEADER, ([k, *p] for k, p in enumerate(truth)))
+    (run / "frames.npz").write_bytes(b"")
+    return run
+
+
+def test_samples_past_the_taxels_outline_do_not_tip_the_choice(tmp_path):
+    """Six samples inside the taxels' outline, placed best with 4 frames; one past it,
+    placed 20 mm off with 4 frames only: over all samples 8 frames would win, over the
+    samples inside 4 do; with too few samples inside, all count."""
+    taxels = np.array([[0, 0, 0], [30, 0, 0], [0, 30, 0], [30, 30, 0]], float)
+    inside = np.array([[5, 5, 0], [15, 5, 0], [25, 5, 0], [5, 25, 0], [15, 25, 0], [25, 25, 0]])
+    truth = np.vstack([inside, [[40.0, 15.0, 0.0]]]).astype(float)
+    spread = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [1, 0, 0], [-1, 0, 0]])
+    errors = {1: 2.0, 2: 1.5, 4: 0.5, 8: 0.75, 16: 1.0}
+
+    def locate(frames: int, bench: Path, folder: Path) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        placed = truth.copy()
+        placed[:6] += errors[frames] * spread
+        placed[6, 1] += 20.0 if frames == 4 else 0.0
+        write_csv(folder / "measured.csv", HEADER, ([k, *p] for k, p in enumerate(placed)))
+
+    run = _grid_run(tmp_path, truth)
+    assert model_frames.choose(locate, run, tmp_path / "all")[0] == 8
+    chosen, tried = model_frames.choose(locate, run, tmp_path / "in", outline_mm=taxels)
+    assert chosen == 4
+    assert tried == pytest.approx(errors, abs=1e-9)  # the six inside, registered alone
+    corner = taxels[[0, 1, 2]] * [0.5, 0.5, 1.0]  # an outline around one sample only
+    assert model_frames.choose(locate, run, tmp_path / "few", outline_mm=corner)[0] == 8
