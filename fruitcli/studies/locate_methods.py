@@ -439,8 +439,8 @@ def _chosen_note(rows: list[dict]) -> str:
         return ""
     return (
         f"{CHOSEN_LABEL}: the mean of as many frames ({', '.join(map(str, MODEL_FRAMES))}) "
-        "as place the touches of the indenter's calibration run best (as the demo's model "
-        "rows): "
+        "as place best the touches of the indenter's calibration run inside the taxels' "
+        "outline (as the demo's model rows): "
         + ", ".join(f"{r['bench_skin']} {r['indenter']} {r['model_frames']}" for r in chosen)
         + "."
     )
