@@ -47,7 +47,7 @@ from fruitcli.studies.locator_skins import (
     calibrated_skin,
     touch_width_skin,
 )
-from fruitcli.studies.model_frames import MODEL_FRAMES
+from fruitcli.studies.model_frames import MIN_INSIDE, MODEL_FRAMES
 
 if TYPE_CHECKING:
     from types import ModuleType
@@ -298,12 +298,12 @@ def _frames_chosen(
             keys = {"detection.method": "model", "detection.model_frames": frames}
             locate({**keys, "detection.footprint": ind}, bench, folder)
 
-        chosen[ind], _ = model_frames.choose(
+        chosen[ind] = model_frames.choose(
             with_frames,
             base / "calibration" / "bench" / ind,
             base / "frames" / ind,
             outline_mm=outline_mm,
-        )
+        ).frames
     return chosen
 
 
@@ -440,7 +440,8 @@ def _chosen_note(rows: list[dict]) -> str:
     return (
         f"{CHOSEN_LABEL}: the mean of as many frames ({', '.join(map(str, MODEL_FRAMES))}) "
         "as place best the touches of the indenter's calibration run inside the taxels' "
-        "outline (as the demo's model rows): "
+        f"outline (all of them when fewer than {MIN_INSIDE} lie inside; as the demo's "
+        "model rows): "
         + ", ".join(f"{r['bench_skin']} {r['indenter']} {r['model_frames']}" for r in chosen)
         + "."
     )

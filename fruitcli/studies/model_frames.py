@@ -20,11 +20,28 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 MODEL_FRAMES = (1, 2, 4, 8, 16)
 MIN_INSIDE = 5  # calibration samples inside the taxels' outline that the choice needs
+
+
+class Choice(NamedTuple):
+    """`choose`'s answer: the frames chosen, each setting's registered mean error (mm) over
+    the samples counted, how many were counted and how many the run's touches found."""
+
+    frames: int
+    error_mm: dict[int, float]
+    counted: int
+    found: int
+
+    def samples_text(self) -> str:
+        """Which of the calibration run's samples the choice counted, for a report."""
+        if self.counted < self.found:
+            return f"its {self.counted} of {self.found} samples inside the taxels' outline"
+        return f"all its {self.found} samples"
 
 
 def choose(
@@ -33,9 +50,9 @@ def choose(
     work: Path,
     progress: Callable[[str], None] | None = None,
     outline_mm: np.ndarray | None = None,
-) -> tuple[int, dict[int, float]]:
-    """(the chosen number of frames, the calibration run's registered mean error (mm) for
-    each setting tried, over the samples the choice counts). ``locate(frames,
+) -> Choice:
+    """The chosen number of frames, with the calibration run's registered mean error for
+    each setting tried over the samples the choice counts (`Choice`). ``locate(frames,
     frames_npz, folder)`` locates a recording with the model method and that setting
     into folder (measured.csv, touches.csv); `calibration` holds the run's frames.npz
     and truth.csv; `work` gets a folder a setting; `outline_mm` (T, 3): the taxels in
@@ -45,6 +62,7 @@ def choose(
 
     say = progress or (lambda msg: None)
     tried = {}
+    counted = np.zeros(0, bool)
     for k in MODEL_FRAMES:
         say(f"the calibration run located with the mean of {k} frame(s)")
         folder = work / str(k)
@@ -56,7 +74,8 @@ def choose(
             inside = inside_outline(result[2], outline_mm)
             counted = inside if inside.sum() >= MIN_INSIDE else counted
         tried[k] = registered_mean(result[2][counted], result[3][counted])
-    return min(tried, key=lambda k: (tried[k], k)), tried
+    best = min(tried, key=lambda k: (tried[k], k))
+    return Choice(best, tried, int(counted.sum()), len(counted))
 
 
 def found_truth(truth_csv: Path, folder: Path) -> Path:

@@ -66,13 +66,14 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         inputs = locate_inputs(run, method=MODEL_METHOD, skin_table=skin, crossing_dir=board_table)
         run_locate(inputs, LocateFiles(bench, taxels, states, folder, surface, unit))
 
-    chosen, tried = model_frames.choose(
+    choice = model_frames.choose(
         locate,
         out_dir / "calibration" / "bench" / CALIBRATION_INDENTER,
         out_dir / "frames",
         lambda msg: ctx.progress(f"model-rows: {msg}"),
-        body.taxels_mm(scene.bench.state),
+        outline_mm=body.taxels_mm(scene.bench.state),
     )
+    chosen = choice.frames
     rows = {}
     for frames in sorted({1, chosen}):
         results = []
@@ -112,7 +113,8 @@ def _run(scene: Scene, ctx: Context, out_dir: Path):
         },
         "model_frames": {
             "chosen": chosen,
-            "calibration_error_mm": {str(k): round(v, 3) for k, v in tried.items()},
+            "calibration_error_mm": {str(k): round(v, 3) for k, v in choice.error_mm.items()},
+            "calibration_samples": choice.samples_text(),
         },
         "rows": rows[str(chosen)],
         "rows_by_frames": rows,

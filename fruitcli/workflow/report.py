@@ -164,11 +164,12 @@ def model_rows(out: Path, name: str, stats_rows: list) -> tuple[list[str], list[
             stats_rows.append((f"{label} ({source})", compare["translation"]))
     tried = data.get("model_frames", {}).get("calibration_error_mm")
     if tried:
+        counted = data["model_frames"].get("calibration_samples")
         how += (
             "; the calibration run's touches placed by the mean of "
             + ", ".join(f"{k} frame(s) {v:.2f} mm" for k, v in tried.items())
-            + " (translation-registered mean error over its samples inside the taxels' "
-            "outline)"
+            + " (translation-registered mean error"
+            + (f" over {counted})" if counted else ")")
         )
     return rows, [how]
 

@@ -12,7 +12,9 @@ include a load step's first element tangents, evaluated with the forces at Newto
 start; factorizations), each figure stamped with the
 date, commit, machine and the load average before and after (the machine may be shared:
 compare figures taken at a like load). --repeat N runs each path N times (fresh solver
-each time) and prints every run's median; --mesh DIR keeps the tetrahedral mesh there
+each time) and prints every run's median; each path's line also has, per state, the kept
+factor's solves and Newton's force evaluations with their mean times (`WorkCounter`,
+which wraps the two methods while the path runs); --mesh DIR keeps the tetrahedral mesh there
 (built once, about a minute) so that later runs skip the meshing.
 
 --solver-threads N runs MKL PARDISO on N threads (`fruit --solver-threads`; the results
@@ -65,18 +67,65 @@ def default_mesh(mesh_dir: Path, scene) -> Path:
     return npz
 
 
+class WorkCounter:
+    """Counts and times, while active, the kept factor's solves (PARDISO's, one per
+    right-hand side) and Newton's evaluations of the forces at an iterate (with the
+    element tangents at a load step's start), by wrapping the two methods; the library
+    itself is not changed. `totals()` -> {name: [calls, seconds]}."""
+
+    def __init__(self) -> None:
+        from fruitcli.fem.solver import newton, pardiso
+
+        self.targets = [(pardiso.Pardiso, "solve"), (newton.NewtonStep, "evaluate")]
+        self.counts = {"solve": [0, 0.0], "evaluate": [0, 0.0]}
+
+    def __enter__(self) -> "WorkCounter":
+        self.saved = [(cls, name, getattr(cls, name)) for cls, name in self.targets]
+        for cls, name, fn in self.saved:
+            setattr(cls, name, self._wrapped(name, fn))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for cls, name, fn in self.saved:
+            setattr(cls, name, fn)
+
+    def _wrapped(self, name, fn):
+        counts = self.counts[name]
+
+        def call(obj, *args, **kwargs):
+            t0 = time.perf_counter()
+            out = fn(obj, *args, **kwargs)
+            counts[1] += time.perf_counter() - t0
+            first = args[0] if args else None
+            counts[0] += first.shape[1] if name == "solve" and first.ndim == 2 else 1
+            return out
+
+        return call
+
+    def totals(self) -> dict[str, list]:
+        return {k: list(v) for k, v in self.counts.items()}
+
+
 def run_path(scene, mesh_npz: Path, loads_of) -> dict:
     """Solve the loads (a function of the chamber names) in order with one solver."""
     from fruitcli.fem import io
-    from fruitcli.fem.solver.state import solve_state
     from fruitcli.fem.stage import build_model, solver_options
 
     model = build_model(scene, io.load_mesh(mesh_npz))
     loads = loads_of(model.chamber_names)
     solver = model.make_solver(solver_options(scene).linear_solver)
+    with WorkCounter() as work:
+        return _solve_path(scene, model, loads, solver, work)
+
+
+def _solve_path(scene, model, loads, solver, work: WorkCounter) -> dict:
+    """`run_path`'s states, counting their solves and evaluations from the second on."""
+    from fruitcli.fem.solver.state import solve_state
+    from fruitcli.fem.stage import solver_options
+
     x = p = prev = None
     ms, cpu, its, states = [], [], [], []
-    stats0 = None
+    stats0 = work0 = None
     for i, load in enumerate(loads):
         opts = solver_options(scene, first_state=i == 0)
         cpu0 = time.process_time()
@@ -84,21 +133,35 @@ def run_path(scene, mesh_npz: Path, loads_of) -> dict:
             model, load, x_start=x, load_start=prev, pressure_start=p, options=opts, solver=solver
         )
         if stats0 is None:
-            stats0 = dict(solver.stats)
+            stats0, work0 = dict(solver.stats), work.totals()
         ms.append(res.solve_ms)
         cpu.append(1e3 * (time.process_time() - cpu0))
         its.append(res.iterations)
         states.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
     later = {k: solver.stats[k] - stats0[k] for k in solver.stats}
+    now = work.totals()
+    later_work = {k: [now[k][0] - work0[k][0], now[k][1] - work0[k][1]] for k in now}
     return {
         "model": model,
         "ms": np.array(ms),
         "cpu_ms": np.array(cpu),
         "iterations": np.array(its),
         "later_stats": later,
+        "later_work": later_work,
         "states": states,
     }
+
+
+def _work_text(work: dict[str, list], states: int) -> str:
+    """Per state: the kept factor's solves and the forces' evaluations, each with its
+    mean time (`WorkCounter`)."""
+    parts = []
+    for name, what in (("solve", "factor solves"), ("evaluate", "force evaluations")):
+        calls, seconds = work[name]
+        each = 1e3 * seconds / calls if calls else 0.0
+        parts.append(f"{calls / states:.1f} {what} of {each:.1f} ms")
+    return "per state " + ", ".join(parts)
 
 
 def first_state(scene, mesh_npz: Path, out: Path) -> dict:
@@ -220,6 +283,7 @@ def main() -> None:
                     f"{st['factorizations']} factorizations; assembly "
                     f"{1e3 * st['assembly_s'] / len(later_ms):.0f} ms, factor "
                     f"{1e3 * st['factor_s'] / len(later_ms):.0f} ms per state; "
+                    f"{_work_text(run['later_work'], len(later_ms))}; "
                     f"load average {before} -> {after}",
                     flush=True,
                 )

@@ -96,7 +96,7 @@ def main() -> None:
     taxels_csv = next((study / "scene").glob("*/taxels.csv"))
     surface = trimesh.load(next((study / "scene").glob("*/reduced.stl")), force="mesh")
     taxels = read_taxels(taxels_csv)
-    outline = read_taxels(taxels_csv).xyz_mm
+    outline = taxels.xyz_mm
     scene = load_scene(ROOT / "pipelines" / "fruit-rest.toml")
     threshold = float(scene.detection.threshold_counts)
     print(
