@@ -408,6 +408,38 @@ Measured in this round and not adopted:
   one Newton step start within 0.001-0.003 mm;
 - numba's fastmath on the element loop: no change measurable.
 
+The benchmark also prints, per state, the kept factor's solves and Newton's force
+evaluations with their mean times (`WorkCounter`). On 2026-12-07 13:12 UTC (Intel Xeon,
+2 cores, load average 0.7-0.8, commit 4e14b54), two runs: the breathing 285-289 ms a
+state, of it 10.3 solves of 13.8-14.0 ms and 2.4 force evaluations of 12.9-13.1 ms
+(tangent updates 42-43 ms); the sweep 156 ms, 5.7 solves of 13.9-14.3 ms and 2.1 force
+evaluations of 14.3 ms (updates 28 ms). The solves alone are over the 100 ms target on
+the breathing.
+
+Measured on 2026-12-07 and not adopted (Intel Xeon, 2 cores, load average 0.4-0.9, one
+run each unless said):
+
+- MKL's conditional numerical reproducibility (PARDISO's iparm[33] = 2, a trial patch)
+  with the factorizations on two threads: a factor comes out the same to the last bit on
+  one thread or two, the analysis and factorization take 0.35 s instead of 0.57 s and a
+  refactorization 0.13 s instead of 0.23 s, but every solve takes 15.5 ms instead of
+  14.0 ms, on one thread or two (medians of 20). The breathing took 296-299 ms a state
+  instead of 263 ms and the sweep 163-168 ms instead of 147 ms; `bench_refusal.py
+  --solver-threads 2` refused c1 at 2000 kPa 3.2 s after the mesh instead of 3.4 s and
+  at -500 kPa 7.0 s instead of 7.6 s. A factor's solves on one thread and its next
+  refactorization on two crashed MKL in this mode, so the solves cannot stay on one
+  thread while the factorizations take two;
+- refreshing the kept factor after 4, 6 or 8 CG iterations instead of 12: breathing
+  medians 300, 258 and 244 ms against 263 ms, the refactorizations costing about what the
+  shorter solves save;
+- Newton's displacement estimate from a relative residual of 1e-2 instead of 1e-3
+  (`ESTIMATE_WINDOW` 1e4) with a displacement tolerance of 1e-3 mm instead of 1e-4: five
+  of the breathing's states 1-6 still took two Newton steps (median 234 ms against 295
+  ms in the same busier hour), the nodes within 5.8e-4 mm of those at the default;
+- for the breathing's first states, a quadratic response around the first state fitted
+  to the states so far and anchored at the last (errors 0.013-0.025 mm against
+  0.009-0.029 mm), or the last state's prediction error carried into the next (worse).
+
 ### The element blocks' array kept
 
 Newton's element tangents are written over one array of blocks the model keeps (64 MB
