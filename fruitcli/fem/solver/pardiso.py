@@ -235,9 +235,19 @@ class Pardiso:
     `upper`, of type `mtype` (SPD or SYMMETRIC_INDEFINITE), in double precision or, with
     `single`, in single precision (half the memory to read per solve; a solve then
     leaves a relative residual of about 1e-4 on the default Fruit's linear tets and 5e-4
-    on its quadratic ones: a preconditioner, not a solver). Raises PardisoError."""
+    on its quadratic ones: a preconditioner, not a solver). `order`: the rows' fill-reducing
+    order (PARDISO's perm: row i of the factored matrix is row order[i]; None: METIS's
+    on the matrix, PARDISO's default); with `order_only`, only the analysis runs and
+    `perm` holds METIS's order. Raises PardisoError."""
 
-    def __init__(self, upper: sp.csr_matrix, mtype: int = SPD, single: bool = False):
+    def __init__(
+        self,
+        upper: sp.csr_matrix,
+        mtype: int = SPD,
+        single: bool = False,
+        order: np.ndarray | None = None,
+        order_only: bool = False,
+    ):
         self._pardiso, init, self._lib = _functions()
         self.threads = threads_used()
         self.n = upper.shape[0]
@@ -258,9 +268,15 @@ class Pardiso:
         self.iparm[7] = 0  # no iterative refinement: the solves precondition CG
         self.iparm[27] = 1 if single else 0  # precision of the factor and the solves
         self.iparm[34] = 1  # zero-based indices
+        self.perm = None if order is None else np.ascontiguousarray(order, dtype=np.int32)
+        if self.perm is not None:
+            self.iparm[4] = 1  # the fill-reducing order is `order`, not PARDISO's METIS
+        elif order_only:
+            self.perm = np.zeros(self.n, np.int32)
+            self.iparm[4] = 2  # the analysis writes its order into `perm`
         self._alive = True
         try:
-            self._factor(12)
+            self._factor(11 if order_only else 12)
         except PardisoError:
             self.free()  # a failed factor's memory now, not when collected
             raise
@@ -349,7 +365,7 @@ class Pardiso:
             data.ctypes.data,
             self._ptr(self.indptr),
             self._ptr(self.indices),
-            None,
+            None if self.perm is None else self._ptr(self.perm),
             ctypes.byref(ctypes.c_int32(nrhs)),
             self._ptr(self.iparm),
             ctypes.byref(ctypes.c_int32(0)),
@@ -359,11 +375,48 @@ class Pardiso:
         )
 
 
+_LAST_ORDER: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
+
+
+def node_order(k: sp.csr_matrix) -> np.ndarray | None:
+    """The rows' fill-reducing order (PARDISO's perm) of the symmetric k (CSR, both
+    triangles, sorted columns) found on its nodes (`node_order.py`: METIS, PARDISO's own,
+    on the graph of the runs of rows with one pattern), kept for the last pattern seen.
+    None when no two rows are alike or PARDISO cannot order the runs' graph (then PARDISO
+    orders the rows itself). On the quadratic default Fruit (44,403 dofs, 14,801 runs) the
+    order and analysis took 0.52-0.54 s instead of 0.59-0.62 s, and the factor has 18.0 M
+    entries instead of 18.4 M."""
+    import scipy.sparse as sp
+
+    from fruitcli.fem.solver.node_order import expand, row_runs, run_graph
+
+    for indptr, indices, order in _LAST_ORDER:
+        if np.array_equal(indptr, k.indptr) and np.array_equal(indices, k.indices):
+            return order
+    starts = row_runs(k.indptr, k.indices)
+    order = None
+    runs = len(starts) - 1
+    if runs < k.shape[0]:
+        graph_ptr, graph_idx = run_graph(k.indptr, k.indices, starts)
+        graph = sp.csr_matrix((np.ones(len(graph_idx)), graph_idx, graph_ptr), (runs, runs))
+        try:
+            ordering = Pardiso(graph, SPD, order_only=True)
+        except PardisoError:
+            pass
+        else:
+            assert ordering.perm is not None
+            order = expand(ordering.perm, starts)
+            ordering.free()
+    _LAST_ORDER[:] = [(k.indptr.copy(), k.indices.copy(), order)]
+    return order
+
+
 def factorize_upper(
     upper: sp.csr_matrix,
     previous: Pardiso | None = None,
     single: bool = False,
     indefinite: bool = False,
+    full: sp.csr_matrix | None = None,
 ) -> Pardiso:
     """A Pardiso factor of the symmetric matrix with upper triangle `upper`, in single
     precision with `single`: the numerical refactorization of `previous` (as its type)
@@ -373,8 +426,9 @@ def factorize_upper(
     of 6,327 tets) with `indefinite` (the caller knows the matrix is not positive
     definite), when `previous` was indefinite, or when its positive definite
     refactorization met a non-positive pivot (then no ordering makes it positive
-    definite). `previous` is spent either way (freed unless returned). Raises
-    PardisoError."""
+    definite). `previous` is spent either way (freed unless returned). A new analysis
+    orders the rows on their nodes (`node_order`) when the whole matrix `full` (CSR,
+    sorted columns) is given, else by PARDISO's METIS on the rows. Raises PardisoError."""
     if previous is not None:
         known = previous.mtype == SYMMETRIC_INDEFINITE or not indefinite
         if known and previous.single == single and previous.same_pattern(upper):
@@ -388,7 +442,7 @@ def factorize_upper(
     message, code = "", 0
     for mtype in (SYMMETRIC_INDEFINITE,) if indefinite else (SPD, SYMMETRIC_INDEFINITE):
         try:
-            return Pardiso(upper, mtype, single)
+            return Pardiso(upper, mtype, single, None if full is None else node_order(full))
         except PardisoError as exc:  # its message only: the exception would keep the
             message, code = str(exc), exc.code  # failed factor alive through its frame
     raise PardisoError(message, code)
@@ -430,11 +484,13 @@ def factorize_probed(
     probe solve: single precision first when `single`, then double. None when the
     double-precision factor misses its probe (the caller's fallback takes over); a
     PardisoError of the double-precision factorization propagates. `previous` is spent
-    and `indefinite` passed on (see `factorize_upper`); a single-precision factor found
-    indefinite makes the double-precision one indefinite at once."""
+    and `indefinite` passed on (see `factorize_upper`, which orders a new analysis on k's
+    nodes when k is CSR in canonical form); a single-precision factor found indefinite
+    makes the double-precision one indefinite at once."""
+    full = k if getattr(k, "format", None) == "csr" and k.has_canonical_format else None
     for precision in (True, False) if single else (False,):
         try:
-            fac = factorize_upper(upper, previous, precision, indefinite)
+            fac = factorize_upper(upper, previous, precision, indefinite, full)
         except PardisoError:
             if not precision:
                 raise

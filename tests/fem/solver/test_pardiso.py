@@ -119,9 +119,9 @@ def counting(monkeypatch) -> list:
     tried = []
 
     class Counted(pardiso.Pardiso):
-        def __init__(self, upper, mtype=pardiso.SPD, single=False):
+        def __init__(self, upper, mtype=pardiso.SPD, single=False, *args, **kwargs):
             tried.append(mtype)
-            super().__init__(upper, mtype, single)
+            super().__init__(upper, mtype, single, *args, **kwargs)
 
     monkeypatch.setattr(pardiso, "Pardiso", Counted)
     return tried
