@@ -591,6 +591,36 @@ Fruit's model took 0.43-0.45 s instead of 0.54-0.81 s (three runs each, commit
 9968fc3 against d0c5794, 2026-12-06 23:53 UTC, the quiet Intel Xeon). Chamber c1 at
 2000 kPa was then refused 3.3 and 3.5 s after the mesh against 3.8 and 3.5 s
 (`bench_refusal.py`, alternately, load average 0.4-1.1): within the run-to-run spread.
+
+A new PARDISO analysis takes its fill-reducing order from the body's nodes
+(`pardiso.node_order`, `fruitcli/fem/solver/node_order.py`): the tangent's rows come in
+runs with one pattern, a node's free dofs, and METIS (PARDISO's own, called on that
+graph alone) orders the 14,801 runs of the quadratic default Fruit instead of its 44,403
+rows; each node's rows then stay together. The order is kept for the pattern, so a
+second analysis of the same tangent (positive definite to indefinite, single to double
+precision) does not order it again. Timed alone on the Fruit's tangent at rest (4 times
+each, alternately, 14:38 UTC): the order and the analysis with the first factorization
+0.55-0.56 s instead of 0.60-0.62 s, a refactorization 0.23-0.24 s instead of 0.25-0.26
+s, a factor of 18.0 M entries instead of 18.4 M. `python
+tests/performance/bench_state.py --mesh DIR [--first]` and `bench_refusal.py`, the
+code before (commit 10891da) and after (commit 0304ef9) alternately, twice each, on
+2026-12-07 14:34-14:38 UTC on the quiet Intel Xeon (load average 0.6-1.2):
+
+| | before | after |
+|---|---|---|
+| breathing: median per state, ms; its solves, ms each | 291, 281; 13.7, 13.2 | 287, 273; 13.7, 12.3 |
+| sweep: median per state, ms | 161, 156 | 156, 154 |
+| the paths' first state, from rest, analysis included, ms | 3656, 3299, 2831, 2910 | 2812, 2612, 2739, 2575 |
+| first state from rest as `fruit simulate` solves it, new folder, ms | 2179, 2078 | 2108, 2019 |
+| thick sphere at -500 kPa; at 2000 kPa: refused after the mesh, s | 5.4, 5.1; 2.2, 2.2 | 4.8, 5.0; 1.9, 2.1 |
+| default Fruit, c1 at -500 kPa; at 2000 kPa: refused after the mesh, s | 8.0, 7.9; 3.6, 3.5 | 7.7, 8.0; 3.6, 3.6 |
+
+The same Newton steps on both paths (1.42 and 1.11 a state) and the same CG iterations
+(8.4 and 3.8); the first state from rest 39 CG iterations instead of 40. The states are
+within 2.7e-5 mm (breathing) and 6.6e-7 mm (sweep) of the code before's (`--save`), under
+the displacement tolerance of 1e-4 mm. What it buys is a tenth of a second or less per
+analysis: the first state as `fruit simulate` solves it (its analysis is the check's)
+stays at about 2 s, and no refusal of the Fruit reaches 3 s.
 """
 
 

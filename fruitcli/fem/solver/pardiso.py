@@ -384,8 +384,8 @@ def node_order(k: sp.csr_matrix) -> np.ndarray | None:
     on the graph of the runs of rows with one pattern), kept for the last pattern seen.
     None when no two rows are alike or PARDISO cannot order the runs' graph (then PARDISO
     orders the rows itself). On the quadratic default Fruit (44,403 dofs, 14,801 runs) the
-    order and analysis took 0.52-0.54 s instead of 0.59-0.62 s, and the factor has 18.0 M
-    entries instead of 18.4 M."""
+    order, the analysis and the first factorization took 0.55-0.56 s instead of 0.60-0.62
+    s, and the factor has 18.0 M entries instead of 18.4 M (the docs' performance page)."""
     import scipy.sparse as sp
 
     from fruitcli.fem.solver.node_order import expand, row_runs, run_graph
