@@ -444,7 +444,8 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
 
 def bench_factor(scene0, mesh_npz: Path) -> None:
     """The kept factor on the default Fruit's rest tangent, p1 (paper's model) and p2
-    (default): PARDISO's analysis + factorization, numerical refactorization and one
+    (default): PARDISO's analysis + factorization (ordered on the nodes, as the solvers
+    do: `pardiso.node_order`, its time included), numerical refactorization and one
     solve (`fruitcli/fem/solver/pardiso.py`), beside cholespy's for p1, and the same in
     single precision, CG's default (with a random right-hand side's relative
     residual)."""
@@ -476,7 +477,8 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
         reps = 50 if label == "p1" else 10
         parts = []
         for single in (False, True):  # single precision: the default of both solvers' CG
-            fac, t_fac = timed(pardiso.factorize_upper, upper, None, single)
+            pardiso._LAST_ORDER.clear()  # the node order found again: its time included
+            fac, t_fac = timed(pardiso.factorize_upper, upper, None, single, False, k)
             _, t_re = timed(pardiso.factorize_upper, upper, fac, single)
             x = fac.solve(b)
             _, t_solve = timed(fac.solve, b, n=reps)

@@ -8,14 +8,15 @@ iterative-refinement steps per solve triples the cost of a solve that only
 preconditions CG. The symbolic analysis is kept: `refactor` redoes only the numerical
 factorization of a matrix with the same pattern. MKL runs on one thread (see
 `_functions`) unless the process asks for more (`use_threads`, `fruit --solver-threads`).
-On the default Fruit (`python tests/bench/bench_fem.py --factor`):
+On the default Fruit (`python tests/performance/bench_fem.py --factor`, one thread, rows
+ordered on the nodes as the solvers do, `node_order`; Intel Xeon, 2026-12-07):
 
 | | linear tets, 6,762 dofs | quadratic, 44,403 dofs |
 |---|---|---|
-| analysis + factorization | 31 ms (cholespy 74 ms) | 0.87 s |
-| numerical refactorization | 13 ms | 0.50 s |
-| one solve | 0.44 ms (cholespy 0.47 ms) | 19 ms (pypardiso's, refining, 2 threads: 26 ms) |
-| the same in single precision | | 0.66 s, 0.32 s, 13 ms |
+| analysis + factorization | 43 ms | 0.81 s |
+| numerical refactorization | 11 ms | 0.44 s |
+| one solve | 0.88 ms | 26 ms |
+| the same in single precision | 30 ms, 8 ms, 0.62 ms | 0.56 s, 0.24 s, 14 ms |
 
 Matrices are the upper triangle of a symmetric matrix in CSR with sorted indices,
 zero-based (iparm[34] = 1); the factor is float64, or float32 with `single` (both
