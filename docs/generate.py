@@ -615,8 +615,10 @@ code before (commit 10891da) and after (commit 0304ef9) alternately, twice each,
 | thick sphere refused, -500; 2000 kPa, s | 5.4, 5.1; 2.2, 2.2 | 4.8, 5.0; 1.9, 2.1 |
 | Fruit's c1 refused, -500; 2000 kPa, s | 8.0, 7.9; 3.6, 3.5 | 7.7, 8.0; 3.6, 3.6 |
 
-The same Newton steps on both paths (1.42 and 1.11 a state) and the same CG iterations
-(8.4 and 3.8); the first state from rest 39 CG iterations instead of 40. The states are
+"From rest" is each path's first state with the solver's first analysis in it (a run's
+breathing, then its sweep). The same Newton steps on both paths (1.42 and 1.11 a state)
+and the same CG iterations (8.4 and 3.8); the first state from rest 39 CG iterations
+instead of 40. The states are
 within 2.7e-5 mm (breathing) and 6.6e-7 mm (sweep) of the code before's (`--save`), under
 the displacement tolerance of 1e-4 mm. `fruit limits` on the default Fruit
 (`bench_limits.py --no-sphere`, 15:10-15:13 UTC, load average 0.7-1.9) took 58.9 s after
