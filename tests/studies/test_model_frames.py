@@ -14,10 +14,10 @@ TRUTH = np.array([[0.0, 0.0, 1.0], [10.0, 0.0, 1.0], [0.0, 10.0, 1.0], [10.0, 10
 HEADER = ["sample", "x_mm", "y_mm", "z_mm"]
 
 
-def _run(tmp_path: Path) -> Path:
+def _run(tmp_path: Path, truth: np.ndarray = TRUTH) -> Path:
     run = tmp_path / "calibration"
     run.mkdir()
-    write_csv(run / "truth.csv", HEADER, ([k, *p] for k, p in enumerate(TRUTH)))
+    write_csv(run / "truth.csv", HEADER, ([k, *p] for k, p in enumerate(truth)))
     (run / "frames.npz").write_bytes(b"")  # the fake locate does not read it
     return run
 
@@ -68,14 +68,6 @@ def test_samples_without_a_touch_are_left_out_of_every_setting(tmp_path):
     assert choice.error_mm[16] == pytest.approx(expected, abs=1e-9)
 
 
-def _grid_run(tmp_path: Path, truth: np.ndarray) -> Path:
-    run = tmp_path / "calibration"
-    run.mkdir()
-    write_csv(run / "truth.csv", HEADER, ([k, *p] for k, p in enumerate(truth)))
-    (run / "frames.npz").write_bytes(b"")
-    return run
-
-
 def _inside_and_outside(tmp_path: Path, inside_count: int):
     """A calibration run with `inside_count` samples inside a 30 mm square of taxels,
     placed best with 4 frames, and one past it placed 20 mm off with 4 frames only; ->
@@ -94,7 +86,7 @@ def _inside_and_outside(tmp_path: Path, inside_count: int):
         placed[-1, 1] += 20.0 if frames == 4 else 0.0
         write_csv(folder / "measured.csv", HEADER, ([k, *p] for k, p in enumerate(placed)))
 
-    return locate, _grid_run(tmp_path, truth), taxels, errors
+    return locate, _run(tmp_path, truth), taxels, errors
 
 
 def test_samples_past_the_taxels_outline_do_not_tip_the_choice(tmp_path):
