@@ -1,8 +1,9 @@
 """What the samples of a chamber's pressure-volume curve (pressure against the mean
 stretch s = (V / V0)^(1/3)) say about its peak, for `fruitcli.fem.limits`: the vertex of
-the parabola through three samples (`peak`, `vertex`: the limit pressure), and an upper
-bound of the limit while a neo-Hookean curve is concave (`levels_off_below`, after one
-sample with the slope at rest `rest_slope`). Units: kPa, mm^3.
+the parabola through three samples (`peak`, `vertex`: the limit pressure), and a bound
+of the limit (inflation) or of the collapse (suction) while a neo-Hookean curve levels
+off (`levels_off_bound`, after one sample with the slope at rest `rest_slope`). Units:
+kPa, mm^3.
 """
 
 from __future__ import annotations
@@ -30,34 +31,37 @@ def peak(stretch: np.ndarray, pressure: np.ndarray, i: int) -> tuple[float, floa
     return s_top, float(np.polyval([a, b, c], s_top))
 
 
-def levels_off_below(
+def levels_off_bound(
     model: FemModel,
     pressure: np.ndarray,
     stretch: np.ndarray,
     slope_at_rest: float | None = None,
-) -> float:
-    """An upper bound (kPa) of the pressures an inflating neo-Hookean chamber reaches up to
-    MAX_STRETCH, from its samples so far (pressures at mean stretches `stretch`, the
-    first the rest's): once its slopes shrink (the curve is concave in the stretch, as
-    before a neo-Hookean chamber's limit point), the secant of the last step
-    overestimates the slope from there on, so the curve stays below the secant continued
-    to MAX_STRETCH. With one sample past rest, the slope at rest `slope_at_rest` (kPa per
-    unit of stretch, `rest_slope`) is the first of the slopes compared. Infinite with
-    fewer samples, slopes that do not shrink, or another material (Yeoh's stiffening can
-    bend the curve up again)."""
+    end: float = MAX_STRETCH,
+) -> float | None:
+    """A bound (kPa) of the pressures a neo-Hookean chamber's curve reaches from its last
+    sample on to the mean stretch `end`, from its samples so far (pressures at mean
+    stretches `stretch`, the first the rest's): once its slopes dp/ds shrink, the secant
+    of the last step overestimates the slope from there on, and the curve stays on the
+    near side of the secant continued to `end`. Inflation (`end` MAX_STRETCH, above the
+    samples): an upper bound of the pressure, the curve concave in the stretch as before
+    a neo-Hookean chamber's limit point. Suction (`end` below the samples, the walls
+    about to meet): a lower bound, the suction levelling off as a flat chamber's walls
+    bend in (a spherical cavity's steepens: no bound). With one sample past rest, the
+    slope at rest `slope_at_rest` (kPa per unit of stretch, `rest_slope`) is the first of
+    the slopes compared. None with fewer samples, slopes that do not shrink, or another
+    material (Yeoh's stiffening can bend the curve up again)."""
     if model.material_name != "neo-hookean" or len(pressure) < 2:
-        return np.inf
-    h2 = stretch[-1] - stretch[-2]
-    g2 = (pressure[-1] - pressure[-2]) / h2
+        return None
+    g2 = (pressure[-1] - pressure[-2]) / (stretch[-1] - stretch[-2])
     if len(pressure) >= 3:
         g1 = (pressure[-2] - pressure[-3]) / (stretch[-2] - stretch[-3])
     elif slope_at_rest is not None:
         g1 = slope_at_rest
     else:
-        return np.inf
+        return None
     if not 0 < g2 < g1:
-        return np.inf
-    return float(pressure[-1] + g2 * (MAX_STRETCH - stretch[-1]))
+        return None
+    return float(pressure[-1] + g2 * (end - stretch[-1]))
 
 
 def rest_slope(model: FemModel, r: np.ndarray, compliance: np.ndarray) -> float:
@@ -68,12 +72,12 @@ def rest_slope(model: FemModel, r: np.ndarray, compliance: np.ndarray) -> float:
 
 
 ONE_SAMPLE_MARGIN = 2.0
-"""A curve is ended by `levels_off_below` after its first sample (the slope at rest the
-first of the slopes compared) only for a pressure asked above this many times that
-bound: the curve's rest point is taken at pressure 0, which under the body's weight
-holds only to the pressure the weight puts on the chamber (on the default Fruit a
-hundredth of the first sample's). After two samples the bound stands on solved samples
-alone, and the pressure asked need only be above it."""
+"""A curve is ended by `levels_off_bound` after its first sample (the slope at rest the
+first of the slopes compared) only for a pressure asked past this many times that bound
+(above it for an inflation, below it for a suction): the curve's rest point is taken at
+pressure 0, which under the body's weight holds only to the pressure the weight puts on
+the chamber (on the default Fruit a hundredth of the first sample's). After two samples
+the bound stands on solved samples alone, and the pressure asked need only be past it."""
 
 
 PEAK_AHEAD = 0.5

@@ -35,7 +35,7 @@ from fruitcli.fem.curve_peak import (
     ONE_SAMPLE_MARGIN,
     PEAK_AHEAD,
     PEAK_RISE,
-    levels_off_below,
+    levels_off_bound,
     peak,
     vertex,
 )
@@ -94,7 +94,8 @@ class ChamberCurve:
     limit_growth_mm3: float | None = None
     collapse_pressure_kpa: float | None = None
     end: str = ""
-    limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_below`)
+    limit_bound_kpa: float | None = None  # an upper bound of the limit (`levels_off_bound`)
+    collapse_bound_kpa: float | None = None  # a lower bound of the collapse (`levels_off_bound`)
     failed: bool = False  # the curve ended without equilibrium at its next sample
 
 
@@ -280,7 +281,7 @@ def follow(
     to MAX_STRETCH or past the limit, suction (direction -1) down to MIN_STRETCH or the
     collapse. With `stop_beyond_kpa`, it stops as soon as the pressure passes that value
     (reachable: neither a limit nor a collapse before it); without `stop_at_asked`, only
-    an inflation whose curve levels off below it ends there. `fall_steps`: samples past
+    a curve that levels off short of it ends there (`_levels_off`). `fall_steps`: samples past
     the peak (inflation) or the lowest pressure (suction) that end the curve. `deadline`
     (time.monotonic()) ends the curve where it is; `budget` (factor, floor) caps each
     sample after the first (default STEP_BUDGET). A sample after the first that finds no
@@ -448,17 +449,25 @@ def _levels_off(
     stop_beyond_kpa: float | None,
     slope_at_rest: float | None = None,
 ) -> bool:
-    """Whether an inflation's curve levels off below the pressure asked
-    (`levels_off_below`, after the first sample with the slope at rest and
+    """Whether the curve levels off short of the pressure asked: an inflation below it
+    (a bound of the limit), a suction above it down to MIN_STRETCH (a bound of the
+    collapse; `levels_off_bound`, after the first sample with the slope at rest and
     ``ONE_SAMPLE_MARGIN``); then the bound and the end are the curve's."""
+    if stop_beyond_kpa is None:
+        return False
     pressure = np.array(curve.pressure_kpa)
-    bound = levels_off_below(model, pressure, np.array(stretches), slope_at_rest)
+    end = MAX_STRETCH if direction > 0 else MIN_STRETCH
+    bound = levels_off_bound(model, pressure, np.array(stretches), slope_at_rest, end)
     margin = ONE_SAMPLE_MARGIN if len(pressure) == 2 else 1.0
-    if stop_beyond_kpa is not None and direction > 0 and margin * bound < stop_beyond_kpa:
+    if bound is None or direction * (stop_beyond_kpa - margin * bound) <= 0:
+        return False
+    if direction > 0:
         curve.limit_bound_kpa = bound
         curve.end = f"the pressure levels off below {bound:.3g} kPa"
-        return True
-    return False
+    else:
+        curve.collapse_bound_kpa = bound
+        curve.end = f"the suction levels off above {bound:.3g} kPa"
+    return True
 
 
 def _turned(

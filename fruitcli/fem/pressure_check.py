@@ -82,7 +82,7 @@ def _check_curve(
     (`start_state`), its samples taken from and kept in `samples` (saved after the
     curve); with a `found` list, followed on to the limit or collapse and appended to it
     as (direction, curve). With the chambers' `compliance` at rest (`rest_compliance`),
-    an inflation far past its bound is refused after its first sample
+    a pressure far past its bound is refused after its first sample
     (`curve_peak.ONE_SAMPLE_MARGIN`)."""
     slope = None if compliance is None else rest_slope(model, ratio_of(model, which), compliance)
     curve = follow(
@@ -235,8 +235,9 @@ def _check_in_workers(
 
 def _refuse(key: str, asked: float, direction: int, curve: ChamberCurve) -> None:
     """SceneError naming `key` when the pressure `asked` (kPa) lies past what chamber
-    `curve` (followed in `direction`: 1 inflation, -1 suction) reaches: its limit, a bound
-    of it, its collapse, or where no equilibrium was found; nothing when it is reached."""
+    `curve` (followed in `direction`: 1 inflation, -1 suction) reaches: its limit or
+    collapse, a bound of either, or where no equilibrium was found; nothing when it is
+    reached."""
     if direction > 0 and curve.limit_pressure_kpa is not None and asked < curve.limit_pressure_kpa:
         return
     if (
@@ -273,6 +274,14 @@ def _refuse(key: str, asked: float, direction: int, curve: ChamberCurve) -> None
             f"{kpa(max(curve.pressure_kpa))} kPa ({curve.end}; past a limit point, "
             "or the body does not hold under its other loads); lower it or give "
             "`volume_growth_mm3`"
+        )
+    if direction < 0 and curve.collapse_bound_kpa is not None:
+        raise SceneError(
+            f"{key}: {asked:g} kPa is past this chamber's collapse, whose pressure is at "
+            f"least {kpa(curve.collapse_bound_kpa)} kPa (a bound: its pressure-volume "
+            "curve levels off before its walls would meet, and self-contact is not "
+            "modelled; `fruit limits` computes the collapse); give `volume_growth_mm3` "
+            "to follow the suction"
         )
     if direction < 0 and curve.failed:
         raise SceneError(

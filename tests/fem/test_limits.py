@@ -166,7 +166,7 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     limit (one line with the key, the pressure and the limit, found by following the
     curve to its peak; without the screen, which lets it through to Newton and
     `explain_failure`, see below); 100 kPa is refused sooner, once the curve is concave, with a
-    bound of the limit (`levels_off_below`: a pressure no equilibrium reaches up to 27
+    bound of the limit (`levels_off_bound`: a pressure no equilibrium reaches up to 27
     V0); -500 kPa is past the collapse; 10 kPa and -10 kPa are reachable, and pressures
     too small to come near a limit (linearized growth under SCREEN_GROWTH V0) are not
     followed at all."""
@@ -218,18 +218,64 @@ def test_pressures_past_the_limit_or_collapse_are_refused_in_one_line():
     assert told == []  # screened out: no sample followed
 
 
-def test_levels_off_below_from_one_sample_and_the_slope_at_rest():
+def test_levels_off_bound_from_one_sample_and_the_slope_at_rest():
     """With one sample past rest, the slope at rest is the first slope compared: a
-    secant below it bounds the curve by that secant continued to MAX_STRETCH; one above
-    it (the curve not concave), no rest slope, or another material: no bound."""
+    secant below it bounds the curve by that secant continued to MAX_STRETCH (inflation)
+    or to the end given below the samples (suction, a lower bound); one above it (the
+    curve not levelling off), no rest slope, or another material: no bound."""
     model = octant_ball(1, 1, nu=0.49)
     pressure, stretch = np.array([0.0, 8.0]), np.array([1.0, 1.1])
-    bound = curve_peak.levels_off_below(model, pressure, stretch, slope_at_rest=100.0)
+    bound = curve_peak.levels_off_bound(model, pressure, stretch, slope_at_rest=100.0)
     assert bound == pytest.approx(8.0 + 80.0 * (curve_peak.MAX_STRETCH - 1.1))
-    assert curve_peak.levels_off_below(model, pressure, stretch, slope_at_rest=70.0) == np.inf
-    assert curve_peak.levels_off_below(model, pressure, stretch) == np.inf
+    assert curve_peak.levels_off_bound(model, pressure, stretch, slope_at_rest=70.0) is None
+    assert curve_peak.levels_off_bound(model, pressure, stretch) is None
     yeoh = SimpleNamespace(material_name="yeoh")
-    assert curve_peak.levels_off_below(yeoh, pressure, stretch, slope_at_rest=100.0) == np.inf
+    assert curve_peak.levels_off_bound(yeoh, pressure, stretch, slope_at_rest=100.0) is None
+    down, shrinking = np.array([0.0, -8.0, -14.0]), np.array([1.0, 0.9, 0.8])
+    bound = curve_peak.levels_off_bound(model, down, shrinking, end=0.45)
+    assert bound == pytest.approx(-14.0 - 60.0 * (0.8 - 0.45))
+    steepening = np.array([0.0, -8.0, -20.0])
+    assert curve_peak.levels_off_bound(model, steepening, shrinking, end=0.45) is None
+
+
+def test_a_suction_that_levels_off_is_refused_with_a_bound_of_its_collapse():
+    """An oblate octant shell (z scaled by 0.4: a flat cavity, nu = 0.49) under suction:
+    its flat walls bend in and the curve levels off (the sphere's steepens, above), so
+    -500 kPa is refused after the first sample, below ONE_SAMPLE_MARGIN times the
+    secant's bound continued to MIN_STRETCH, with that bound in its line; the collapse
+    followed to the end lies above the bound. -5 kPa is reached."""
+    model = octant_ball(2, 2, nu=0.49, flat=0.4)
+    key = ["[actuation].pressure_kpa.c"]
+    told = []
+    with pytest.raises(SceneError) as info:
+        pressure_check.check_pressures(
+            model,
+            np.array([[-500.0]]),
+            key,
+            model.make_solver(),
+            SolverOptions(),
+            progress=told.append,
+            screen=0.0,
+        )
+    assert len(told) == 1
+    p1 = float(told[0].split("pressure ")[1].split(" kPa")[0])
+    s1 = 1.0 - limits.STRETCH_STEP
+    line = str(info.value)
+    bound = float(line.split("whose pressure is at least ")[1].split(" kPa")[0])
+    assert bound == pytest.approx(p1 + p1 / (s1 - 1.0) * (limits.MIN_STRETCH - s1), rel=2e-3)
+    assert line == (
+        f"[actuation].pressure_kpa.c: -500 kPa is past this chamber's collapse, whose "
+        f"pressure is at least {pressure_check.kpa(bound)} kPa (a bound: its "
+        "pressure-volume curve levels off before its walls would meet, and self-contact "
+        "is not modelled; `fruit limits` computes the collapse); give "
+        "`volume_growth_mm3` to follow the suction"
+    )
+    curve = limits.follow(model, 0, -1)
+    assert curve.end.startswith("the cavity is nearly empty")
+    assert bound < curve.collapse_pressure_kpa < 0
+    pressure_check.check_pressures(
+        model, np.array([[-5.0]]), key, model.make_solver(), SolverOptions(), screen=0.0
+    )
 
 
 def test_far_past_the_bound_is_refused_after_the_first_sample():

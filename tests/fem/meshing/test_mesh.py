@@ -152,10 +152,11 @@ def test_thick_sphere_large_inflation_gmsh_ball(tmp_path):
     assert ratio == pytest.approx(la**3, rel=0.03)
 
 
-def octant_ball(cells=4, layers=4, nu=0.499, a=10.0, b=20.0):
+def octant_ball(cells=4, layers=4, nu=0.499, a=10.0, b=20.0, flat=1.0):
     """The octant x, y, z >= 0 of the hollow ball (`grid.shell_octant`, every node on
     its sphere, the walls' edge nodes curved onto them) on rollers on the three
-    symmetry planes; default element, neo-Hookean, E = 100 kPa."""
+    symmetry planes; default element, neo-Hookean, E = 100 kPa. `flat` < 1 scales z:
+    an oblate shell, its cavity and outside ellipsoids of radii (r, r, flat r)."""
     nodes, tets, wall = shell_octant(a, b, cells, layers)
     faces = boundary_faces(nodes, tets)
     r = np.linalg.norm(nodes[faces], axis=2)
@@ -164,9 +165,10 @@ def octant_ball(cells=4, layers=4, nu=0.499, a=10.0, b=20.0):
     assert np.all(on_plane | on_inner | on_outer)  # conforming: no inner boundary faces
     assert on_inner.sum() == len(wall)
     outer = faces[on_outer]
-    nodes, tets, (wall, outer) = quadratic_mesh(nodes, tets, [wall, outer])
+    nodes, tets, (wall, outer) = quadratic_mesh(nodes * [1.0, 1.0, flat], tets, [wall, outer])
     for tris, r in ((wall, a), (outer, b)):
-        assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0], [r] * 3) == 0
+        radii = [r, r, flat * r]
+        assert curve_onto_ellipsoid(nodes, tets, np.unique(tris[:, 3:]), [0, 0, 0], radii) == 0
     rollers = [
         (np.flatnonzero(np.abs(nodes[:, d]) < 1e-9), np.zeros(3), np.eye(3)[d] > 0)
         for d in range(3)
