@@ -569,7 +569,7 @@ steps); the factor refreshed at each load step's start instead of its second New
 step (6 factorizations, 41 CG iterations, 3.9 s).
 
 A pressure far past the limit is refused after the check's first sample
-(`curve_peak.levels_off_below` with the slope at rest from the check's rest compliance,
+(`curve_peak.levels_off_bound` with the slope at rest from the check's rest compliance,
 `curve_peak.ONE_SAMPLE_MARGIN`): `python tests/performance/bench_refusal.py`, the code
 before (commit e8d3f1c) and after (commit 8d80799) alternately, twice each, on
 2026-12-06 23:15-23:18 UTC on a quiet Intel Xeon, 2 cores (load average 0.7-1.1):
@@ -580,6 +580,19 @@ chamber c1 at 2000 kPa refused 3.5 and 3.4 s after the mesh instead of 4.1 and 4
 3.4 s, building the model takes about 0.6 s, the compliance at rest 0.8 s (the tangent's
 analysis and first factorization) and the first sample from rest under the weight 2.0-2.2
 s (3 load steps, 7 Newton steps, 3 factorizations).
+
+A suction that levels off is refused with a bound of its collapse, as an inflation is
+with a bound of its limit (`curve_peak.levels_off_bound`, continued down to 0.09 V0 for
+a suction): the Fruit's flat chambers level off under suction (c1's slopes, 81 down to
+19 kPa per unit of mean stretch from 0.9 to 0.5) where a spherical cavity's steepen. On
+chamber c1, -500 kPa is refused after the first sample, below twice the bound of -44.7
+kPa (the collapse `fruit limits` computes: -24.0 kPa). `python
+tests/performance/bench_refusal.py`, the code before (commit 502fc27) and after (commit
+b12287f) alternately, twice each, on 2026-12-07 17:03-17:05 UTC on the Intel Xeon
+(2 cores, load average 0.8-1.2): c1 at -500 kPa refused 4.3 and 4.1 s after the mesh
+instead of 9.4 and 9.6 s; c1 at 2000 kPa (4.1-4.4 s) and the thick sphere (2.3-2.5 s at
+2000 kPa, 5.7-6.0 s at -500 kPa, its cavity buckling in) as before. The 3 s target is
+still missed: the first sample from rest under the weight takes 2.5 s of it.
 
 The free dofs' CSR pattern is built by compiled passes over each node's elements
 (`assemble.CsrPattern.build`: `_node_pairs`, `_dof_slots`) instead of sorting the
