@@ -20,7 +20,7 @@ import numpy as np
 
 from fruitcli.errors import SolverError
 from fruitcli.fem.fem_model import FemModel, LinearSolver
-from fruitcli.fem.solver.options import OutOfTime, SolverOptions
+from fruitcli.fem.solver.options import OutOfTime, SolverOptions, Stalled
 from fruitcli.fem.state_load import Load
 from fruitcli.fem.tolerances import (
     ARMIJO,
@@ -33,6 +33,8 @@ from fruitcli.fem.tolerances import (
     MIN_DET_F,
     PCG_RELATIVE_TOLERANCE,
     PCG_TARGET,
+    STALL_CUT,
+    STALL_FAR,
     STALL_RESIDUAL_FACTOR,
     STEP_TOLERANCE,
 )
@@ -151,11 +153,14 @@ def iterate(
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
     level = 0  # index into TANGENTS; raised for one step when a step fails
     chord, last_merit = False, np.inf  # whether the last step kept the tangent; its merit
+    merits = []  # the relative residual at each iterate
     for it in range(options.max_iterations + 1):
         if now.merit <= options.tolerance or _close_enough(step, now.r, now.merit, options):
             return True, x, p, it, now.merit, now.det_f
         if it == options.max_iterations:
             break
+        merits.append(now.merit)
+        _check_stall(merits, options)
         # not a step whose tangent's factorization (as long as the solver's last) would
         # end past the deadline
         _check_time(step, step.solver.factor_seconds)
@@ -309,6 +314,20 @@ def _line_search(
             return alpha, xt, pt, trial
         alpha *= 0.5
     return 0.0, x, p, trial
+
+
+def _check_stall(merits: list[float], options: SolverOptions) -> None:
+    """Raise Stalled when the last options.stall_steps Newton steps cut the relative
+    residual (`merits`, one per iterate) by less than STALL_CUT in all, the residual
+    still above STALL_FAR times the tolerance."""
+    n = options.stall_steps
+    if n <= 0 or len(merits) <= n or merits[-1] <= STALL_FAR * options.tolerance:
+        return
+    if merits[-1] > (1.0 - STALL_CUT) * merits[-1 - n]:
+        raise Stalled(
+            f"Newton stalled at a relative residual of {merits[-1]:.2e} ({n} steps cut "
+            f"it by {1.0 - merits[-1] / merits[-1 - n]:.0%})"
+        )
 
 
 def _check_time(step: NewtonStep, ahead: float = 0.0) -> None:

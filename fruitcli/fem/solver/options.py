@@ -32,7 +32,12 @@ class SolverOptions:
     state's load are converged to when it is looser than `tolerance` (the last step
     converges to `tolerance`); when a later step then fails, the state is solved again
     from its start with every step to `tolerance` (`solver.state.PATH_TOLERANCE`; not
-    a [solver] key: `fruit simulate` sets it for its first state)."""
+    a [solver] key: `fruit simulate` sets it for its first state).
+
+    `stall_steps` (0: off): Newton gives up (`Stalled`) once this many steps in a row
+    cut the relative residual by less than `tolerances.STALL_CUT` in all, far from the
+    tolerance (not a [solver] key: the samples of a limit curve set it,
+    `limits.STALL_STEPS`)."""
 
     tolerance: float = 1e-6
     max_iterations: int = 25
@@ -42,6 +47,7 @@ class SolverOptions:
     displacement_tolerance_mm: float = 0.0
     max_seconds: float = 0.0
     path_tolerance: float = 0.0
+    stall_steps: int = 0
 
     def __post_init__(self) -> None:
         """Refuse, with one line naming the [solver] key, an option that would make a
@@ -67,6 +73,12 @@ class OutOfTime(SolverError):
     def __init__(self, message: str, fraction: float):
         super().__init__(message)
         self.fraction = fraction
+
+
+class Stalled(SolverError):
+    """Newton stopped where its steps no longer cut the residual
+    (`SolverOptions.stall_steps`): like `OutOfTime`, the state is not tried again with
+    shorter load steps."""
 
 
 @dataclass
