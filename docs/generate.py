@@ -594,6 +594,21 @@ instead of 9.4 and 9.6 s; c1 at 2000 kPa (4.1-4.4 s) and the thick sphere (2.3-2
 2000 kPa, 5.7-6.0 s at -500 kPa, its cavity buckling in) as before. The 3 s target is
 still missed: the first sample from rest under the weight takes 2.5 s of it.
 
+A sample of a limit curve after its first gives up once four Newton steps in a row cut
+its residual by less than 10 % in all (`SolverOptions.stall_steps`,
+`limits.STALL_STEPS`, `tolerances.STALL_CUT`), as a sample past its time budget did:
+past chamber c3's collapse (at 0.22 V0) Newton went from a relative residual of 2.6e-2
+to 2.4e-2 in ten steps until the budget ran out, where the slowest converging sample on
+the Fruit's seven curves cut it by 25 % every four steps. Every curve's own samples,
+limits and collapses are those of the code before to the last digit, and c3's suction
+took 6.9 s instead of 11.1 s (its seven curves in one process, commit 0740d9c against
+8f3a446); c2's failing sample is not a stall (a long line search, then an indefinite
+tangent) and still ends at its budget. `python tests/performance/bench_limits.py
+--no-sphere`, before and after alternately, 2026-12-07 17:20-17:26 UTC, Intel Xeon, 2
+cores, load average 0.6-2.0: `fruit limits` 61.7 and 60.0 s after the mesh (125.1 and
+121.5 s of CPU) before, 59.9, 58.9 and 59.9 s (118.7, 117.0 and 118.4 s) after: the two
+worker processes wait on the longest curves, the chambers together and the inflations.
+
 The free dofs' CSR pattern is built by compiled passes over each node's elements
 (`assemble.CsrPattern.build`: `_node_pairs`, `_dof_slots`) instead of sorting the
 886,500 node pairs of the Fruit's elements with NumPy: the same arrays
