@@ -164,3 +164,28 @@ def test_a_positive_definite_refactorization_that_meets_a_negative_pivot_goes_in
     other = pardiso.factorize_upper(upper_triangle(laplacian(5)), again)
     assert other.mtype == pardiso.SYMMETRIC_INDEFINITE
     assert tried == [pardiso.SYMMETRIC_INDEFINITE] * 2
+
+
+def test_a_stale_indefinite_factor_leaves_the_columns_after_the_first_failure():
+    """GMRES on a tangent whose kept indefinite factor is stale (the shifted Laplacian's,
+    the tangent that Laplacian plus a random diagonal of 0-100; 31-32 iterations with the
+    stale factor): with `stale`, the second column is not tried once the first fails
+    within the limit; without it both are. The solver's `_solve_columns` (24 with the
+    stale factor) then refactors once and solves both to CG's tolerance."""
+    from fruitcli.fem.solver.continuum_linsolve import ContinuumSolver, factorize
+
+    old = laplacian(8, shift=1.0)
+    rng = np.random.default_rng(3)
+    new = (old + sp.diags(rng.uniform(0.0, 100.0, old.shape[0]))).tocsr()
+    solver = ContinuumSolver(None)
+    solver.k, solver.single, solver.indefinite = new, False, True
+    solver.factor = factorize(old, indefinite=True)
+    b = rng.standard_normal((old.shape[0], 2))
+    _, its, ok = solver._krylov(b, 3, stale=True)
+    assert its.tolist() == [3, 0] and not ok.any()
+    _, its, ok = solver._krylov(b, 3)
+    assert its.tolist() == [3, 3] and not ok.any()
+    x = solver._solve_columns(b)
+    assert solver.stats["factorizations"] == 1
+    residual = np.linalg.norm(new @ x - b, axis=0) / np.linalg.norm(b, axis=0)
+    assert np.all(residual <= solver.rtol)
