@@ -609,6 +609,21 @@ cores, load average 0.6-2.0: `fruit limits` 61.7 and 60.0 s after the mesh (125.
 121.5 s of CPU) before, 59.9, 58.9 and 59.9 s (118.7, 117.0 and 118.4 s) after: the two
 worker processes wait on the longest curves, the chambers together and the inflations.
 
+Past a collapse the tangent is indefinite, and its solves run GMRES preconditioned by
+the kept factor, column by column (the displacement's and the chamber's). With a stale
+factor, the columns after the first that GMRES does not converge on now wait for the
+refactorization instead of running their own 24 iterations first
+(`ContinuumSolver._krylov`): on the thick sphere sucked past its collapse the second
+column took 0.55 s to fail as the first had. `python tests/performance/bench_refusal.py`,
+the code before (commit 74f5662) and after (commit dc944b3) alternately, twice each,
+2026-12-07 17:35-17:37 UTC on the Intel Xeon (load average 0.8-1.1): the thick sphere
+at -500 kPa refused 5.1 and 5.5 s after the mesh instead of 5.7 and 5.7 s; the other
+cases as before (the Fruit's c1 at -500 and 2000 kPa 4.0-4.2 s, the sphere at 2000 kPa
+2.3-2.4 s). `fruit limits` on the default Fruit gives the same limits and collapses
+(59.3 s after the mesh, 17:40 UTC). Of the sphere's 5.1-5.5 s, its failing sample
+takes about 1.7 s: the stale factor's GMRES, a refactorization, then a new analysis
+in double precision (0.86 s) where the single-precision factor misses its probe.
+
 The free dofs' CSR pattern is built by compiled passes over each node's elements
 (`assemble.CsrPattern.build`: `_node_pairs`, `_dof_slots`) instead of sorting the
 886,500 node pairs of the Fruit's elements with NumPy: the same arrays
