@@ -533,11 +533,11 @@ after 4.1 V0)."""
 
 STALL_STEPS = 4
 """Newton steps in a row that must cut a sample's residual by `tolerances.STALL_CUT`
-(after the curve's first sample): a sample past a collapse stalls instead of failing,
-and without it ran on to its time budget (5.5 s and 7 s past the default Fruit's
-chambers c2 and c3, 11-12 Newton steps from a relative residual of 2.6e-2 to 2.4e-2).
-Ending it sooner changes no sample that converges, and the curve ends as before, at
-its last equilibrium."""
+(after the curve's first sample). A sample past a collapse can stall instead of
+failing: past the default Fruit's chamber c3 it ran on to its time budget (7 s, 12
+Newton steps from a relative residual of 2.6e-2 to 2.4e-2). Ending it at the stall
+changes no sample that converges, and the curve ends as before, at its last
+equilibrium."""
 
 SAMPLE_SUBDIVISIONS = 2
 """Load-step halvings of a sample of a curve after the first (the scene's [solver]

@@ -18,9 +18,9 @@ LINE_SEARCH_STEPS = 8
 STALL_CUT = 0.1
 """Newton has stalled (`SolverOptions.stall_steps`, the samples of a limit curve) when
 its last `stall_steps` steps cut the relative residual by less than this fraction in
-all. On the default Fruit's curves (`fruit limits`) no converging sample's four steps in
-a row cut it by less than 25 %; the samples past chambers c2's and c3's collapse cut it
-by 4-8 % over four steps, from 2.6e-2 on, until their time budget ran out."""
+all. On the default Fruit's seven curves (`fruit limits`) no converging sample's four
+steps in a row cut it by less than 25 %; the sample past chamber c3's collapse cut it
+by 4-8 % every four steps, from 2.6e-2 on, until its time budget ran out."""
 
 STALL_FAR = 10.0
 """A stall counts only with the residual above this many times the tolerance (closer
