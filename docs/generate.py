@@ -598,18 +598,19 @@ A sample of a limit curve after its first gives up once four Newton steps in a r
 its residual by less than 10 % in all (`SolverOptions.stall_steps`,
 `limits.STALL_STEPS`, `tolerances.STALL_CUT`), as a sample past its time budget did:
 past chamber c3's collapse (at 0.22 V0) Newton went from a relative residual of 2.6e-2
-to 2.4e-2 in ten steps until the budget ran out, where the slowest converging sample on
-the Fruit's seven curves cut it by 25 % every four steps. Every curve's own samples,
-limits and collapses are those of the code before to the last digit, and c3's suction
-took 6.9 s instead of 11.1 s (its seven curves in one process, commit 0740d9c against
-8f3a446). Chamber c2's failing sample first runs a long line search and meets an
-indefinite tangent: in one process its budget ran out before four steps showed the
-stall, in `fruit limits`' worker processes (its samples slower, its budget longer) it
-ended at the stall too (`docs/data/fruit-limits.json`). `python tests/performance/bench_limits.py
---no-sphere`, before and after alternately, 2026-12-07 17:20-17:26 UTC, Intel Xeon, 2
-cores, load average 0.6-2.0: `fruit limits` 61.7 and 60.0 s after the mesh (125.1 and
-121.5 s of CPU) before, 59.9, 58.9 and 59.9 s (118.7, 117.0 and 118.4 s) after: the two
-worker processes wait on the longest curves, the chambers together and the inflations.
+to 2.4e-2 in ten steps until the budget ran out, where every converging sample on the
+Fruit's seven curves cut it by at least 25 % every four steps. Every curve's limit and
+collapse is that of the code before to the last digit, and c3's suction took 6.9 s
+instead of 11.1 s (its seven curves in one process, commit 0740d9c against 8f3a446).
+Chamber c2's failing sample first runs a long line search and meets an indefinite
+tangent: in one process its budget ran out before four steps showed the stall, in
+`fruit limits`' worker processes (its samples slower, its budget longer) it ended at
+the stall too (`docs/data/fruit-limits.json`). `python
+tests/performance/bench_limits.py --no-sphere`, before and after alternately,
+2026-12-07 17:20-17:26 UTC, Intel Xeon, 2 cores, load average 0.6-2.0: `fruit limits`
+61.7 and 60.0 s after the mesh (125.1 and 121.5 s of CPU) before, 59.9, 58.9 and 59.9 s
+(118.7, 117.0 and 118.4 s) after: the two worker processes wait on the longest curves,
+the chambers together and the inflations.
 
 Past a collapse the tangent is indefinite, and its solves run GMRES preconditioned by
 the kept factor, column by column (the displacement's and the chamber's). With a stale
