@@ -152,7 +152,7 @@ def iterate(
         return False, x, p, 0, np.inf, now.det_f
     step.ref = max(step.ref, step.f_int_norm)  # the elastic force at the start counts
     level = 0  # index into TANGENTS; raised for one step when a step fails
-    chord, last_merit = False, np.inf  # whether the last step kept the tangent; its merit
+    chord = False  # whether the last step kept the tangent
     merits = []  # the relative residual at each iterate
     for it in range(options.max_iterations + 1):
         if now.merit <= options.tolerance or _close_enough(step, now.r, now.merit, options):
@@ -168,8 +168,9 @@ def iterate(
             step.report(it, now.merit)
         if level == 0 and now.det_f.min() <= MIN_DET_F:
             level = SAFEST
+        last_merit = merits[-2] if it else np.inf
         near = _chord_step(step, it, level, chord, now.merit, last_merit, options)
-        chord, last_merit = near, now.merit
+        chord = near
         if it == 1 and step.refactor_second and hasattr(step.solver, "refresh"):
             step.solver.refresh = True  # a load step from rest: its first step moved far
         _ask_linear_solve(step, it, now.merit, near, options)
