@@ -536,14 +536,14 @@ instead of 2.8-2.9 s, one of them refactorizing (0.8 s).
 
 The pressure check's first sample of a curve from rest (the weight and the first
 volume step, 3 load steps) takes the same path tolerance and refactorization
-(`fruitcli.fem.limits._first_sample`, commit 8e0b1a9). `python
+(`fruitcli.fem.curve_start.first_sample`, commit 8e0b1a9). `python
 tests/performance/bench_refusal.py`, after and before (commit cc6262d) alternately,
 twice each, 16:17-16:20 UTC at load average 1.1-2.1: chamber c1 at 2000 kPa refused 5.0
 and 4.8 s after the mesh instead of 5.6 and 5.4 s, at -500 kPa 8.1 and 8.2 s instead of
 9.2 and 9.2 s, in the same words (the limit's bound 140.9 kPa, the collapse -24.0 kPa);
 the thick sphere (no weight: one load step) as before. The 3 s target is not reached.
 The body's equilibrium under its weight that `fruit limits` solves once
-(`limits.start_state`) took 8 Newton steps and 3.2 s with the path tolerance instead of
+(`curve_start.start_state`) took 8 Newton steps and 3.2 s with the path tolerance instead of
 10 and 3.9 s, but moved by 0.014 mm (within the check's tolerance of 1e-3): left as it
 was, as the limits would need validating anew.
 

@@ -2,8 +2,8 @@
 stretch s = (V / V0)^(1/3)) say about its peak, for `fruitcli.fem.limits`: the vertex of
 the parabola through three samples (`peak`, `vertex`: the limit pressure), and a bound
 of the limit (inflation) or of the collapse (suction) while a neo-Hookean curve levels
-off (`levels_off_bound`, after one sample with the slope at rest `rest_slope`). Units:
-kPa, mm^3.
+off (`levels_off_bound`, after one sample with the slope at rest `rest_slope`), which
+refuses a pressure asked past it (`refusing_bound`). Units: kPa, mm^3.
 """
 
 from __future__ import annotations
@@ -69,6 +69,26 @@ def rest_slope(model: FemModel, r: np.ndarray, compliance: np.ndarray) -> float:
     its unit vector), s the mean stretch (V / V0)^(1/3), from the chambers' compliance
     dV/dp (K, K) mm^3/kPa at rest (`pressure_check.rest_compliance`)."""
     return float(3.0 * (r @ model.chamber_rest_volume_mm3) / (r @ compliance @ r))
+
+
+def refusing_bound(
+    model: FemModel,
+    pressure: np.ndarray,
+    stretch: np.ndarray,
+    asked: float,
+    end: float,
+    slope_at_rest: float | None = None,
+) -> float | None:
+    """The bound `levels_off_bound` (kPa) of a curve's samples so far when it refuses the
+    pressure `asked` (kPa): `asked` past it towards `end` (above it for an inflation,
+    `end` above the samples; below it for a suction), or past ONE_SAMPLE_MARGIN times it
+    after the first sample alone; None otherwise."""
+    bound = levels_off_bound(model, pressure, stretch, slope_at_rest, end)
+    margin = ONE_SAMPLE_MARGIN if len(pressure) == 2 else 1.0
+    direction = 1.0 if end > stretch[-1] else -1.0
+    if bound is None or direction * (asked - margin * bound) <= 0:
+        return None
+    return bound
 
 
 ONE_SAMPLE_MARGIN = 2.0

@@ -17,37 +17,36 @@ others at rest (pressure 0).
 
 Steps are uniform in the chamber's mean stretch s = (V / V0)^(1/3) (the inner stretch
 of a spherical cavity), shorter near an inflation's peak (`_next_step`). The curves of a
-body start from its equilibrium under its weight (`start_state`). Units: mm, mm^3, kPa.
+body start from its equilibrium under its weight (`curve_start.start_state`). Units: mm,
+mm^3, kPa.
 """
 
 from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from fruitcli.errors import SolverError
-from fruitcli.fem.curve_peak import (
-    MAX_STRETCH,
-    ONE_SAMPLE_MARGIN,
-    PEAK_AHEAD,
-    PEAK_RISE,
-    levels_off_bound,
-    peak,
-    vertex,
+from fruitcli.fem.curve_peak import MAX_STRETCH, PEAK_AHEAD, PEAK_RISE, peak, refusing_bound, vertex
+from fruitcli.fem.curve_start import (
+    Chambers,
+    chamber_index,
+    chamber_load,
+    first_kept_or_solved,
+    first_sample,
+    ratio_of,
+    refuses_at_once,
 )
 from fruitcli.fem.fem_model import FemModel, LinearSolver
-from fruitcli.fem.linear_response import Start, response
+from fruitcli.fem.linear_response import Start
 from fruitcli.fem.sample_cache import SampleCache, kept_or_solved
 from fruitcli.fem.solver.options import OutOfTime, SolverOptions, Stalled, StateResult
-from fruitcli.fem.solver.state import PATH_TOLERANCE, solve_state
+from fruitcli.fem.solver.state import solve_state
 from fruitcli.fem.state_load import Load
-
-Chambers = int | np.integer | np.ndarray | Sequence[float]
-"""A curve's chambers: one chamber's index, or pressure ratios (K,) of them together."""
 
 TOGETHER = "together"
 """The name of the curve of the chambers inflated together (`follow` with ratios)."""
@@ -56,14 +55,6 @@ STRETCH_STEP = 0.1
 """Step of the mean stretch (V / V0)^(1/3) between samples of a curve: the thick
 sphere's peak (at stretch 1.83) comes out of the parabola within 0.1 % of the densely
 sampled curve's."""
-
-FIRST_STEPS = 3
-"""Load steps of the body's equilibrium under its weight from rest (`start_state`), and
-of a first sample that finds none from the start's linear response: on the default
-Fruit (gravity, fixed base) the weight alone took 14 Newton steps in one load step, 9 in
-3 and 11 in 4; the weight and chamber c1's first volume step at once took 21 in one load
-step, 10 (7-8 s) in 3, 11 in 4, 15 in 6 and 19 in 2, with the same pressure to 5
-digits."""
 
 FALL_STEPS = 2
 """Samples below the largest pressure that end an inflation curve (past its peak)."""
@@ -99,17 +90,6 @@ class ChamberCurve:
     failed: bool = False  # the curve ended without equilibrium at its next sample
 
 
-def chamber_load(model: FemModel, k: int, growth_mm3: float) -> Load:
-    """Chamber k held at rest volume + growth_mm3, the other chambers at pressure 0;
-    gravity and jigs as in the scene's states (full)."""
-    n = len(model.chamber_tris)
-    growth = np.zeros(n)
-    growth[k] = growth_mm3
-    vc = np.zeros(n, bool)
-    vc[k] = True
-    return Load(np.zeros(n), growth, vc, 1.0, 1.0)
-
-
 def _next_step(
     model: FemModel, curve: ChamberCurve, stretches: list[float], step: float, fall_steps: int
 ) -> float | None:
@@ -137,122 +117,6 @@ def _next_step(
         curve.end = "at the limit point (the vertex of the last three samples' parabola)"
         return None
     return min(step, max(ahead, step / 4))
-
-
-def start_state(
-    model: FemModel,
-    solver: LinearSolver,
-    options: SolverOptions,
-    progress: Callable[[str], None] | None = None,
-) -> Start:
-    """The `Start` of a body's curves, on `solver` (forgotten afterwards, `forget`): under
-    a body force its equilibrium under the weight alone (pressure 0 in every chamber),
-    solved from rest once for all the curves in FIRST_STEPS load steps (on the default
-    Fruit the weight sags the body by 20 mm: 9 Newton steps), instead of each curve's
-    first sample carrying the weight from rest (10 Newton steps each); rest otherwise."""
-    x = model.rest.copy()
-    k = len(model.chamber_tris)
-    if np.any(getattr(model, "body_force_mn", 0.0)):
-        res = solve_state(
-            model,
-            Load.pressures(np.zeros(k)),
-            options=replace(
-                options,
-                load_steps=max(options.load_steps, FIRST_STEPS),
-                path_tolerance=PATH_TOLERANCE,
-            ),
-            solver=solver,
-            label="the body under its weight",
-        )
-        x = res.x
-        if progress:
-            progress(
-                f"limits: the body under its weight ({res.iterations} Newton steps, "
-                f"{res.solve_ms / 1e3:.1f} s)"
-            )
-    dx_dp, compliance = response(model, solver, x)
-    forget(solver)
-    return Start(x, model.chamber_volumes(x), dx_dp, compliance)
-
-
-def _first_sample(
-    model: FemModel,
-    k: Chambers,
-    r: np.ndarray,
-    start: Start | None,
-    load: Load,
-    growth: float,
-    options: SolverOptions,
-    solver: LinearSolver,
-    name: str,
-) -> StateResult:
-    """The first sample of a curve (chamber k alone, or the chambers along ratios r) at
-    volume growth `growth` over the rest volume, from the `Start` and its linear response
-    (the pressure that makes the volume, and the nodes moved by it) in one load step;
-    from the start itself in FIRST_STEPS load steps when that finds no equilibrium.
-    Without a start (None), from rest, in FIRST_STEPS load steps under a body force, those
-    short of its load to `state.PATH_TOLERANCE`: a single curve (`check_pressures`) took
-    10 Newton steps so on the default Fruit at the check's tolerance in every step
-    (against 9 for the weight alone, `start_state`, and 3 for the sample from there);
-    with it chamber c1 at 2000 kPa is refused after 107 CG iterations instead of 154
-    (4.1-4.2 s instead of 4.9-5.0 s after the model)."""
-    if start is None:
-        if np.any(getattr(model, "body_force_mn", 0.0)):
-            options = replace(
-                options,
-                load_steps=max(options.load_steps, FIRST_STEPS),
-                path_tolerance=PATH_TOLERANCE,
-            )
-        return solve_state(model, load, options=options, solver=solver, label=f"chamber {name}")
-    alone = chamber_index(k)
-    grown = start.volume_mm3 - model.chamber_rest_volume_mm3
-    if alone is not None:
-        before = chamber_load(model, alone, float(grown[alone]))
-        dp = np.zeros(len(r))
-        dp[alone] = (growth - grown[alone]) / start.compliance[alone, alone]
-    else:
-        before = Load.together(r, float(r @ grown))
-        dp = r * (growth - float(r @ grown)) / float(r @ start.compliance @ r)
-    try:
-        return solve_state(
-            model,
-            load,
-            x_start=start.x + start.dx_dp @ dp,
-            pressure_start=dp,
-            options=options,
-            load_start=before,
-            solver=solver,
-            label=f"chamber {name}",
-        )
-    except OutOfTime:
-        raise
-    except SolverError:
-        forget(solver)
-        steps = replace(options, load_steps=max(options.load_steps, FIRST_STEPS))
-        return solve_state(
-            model,
-            load,
-            x_start=start.x,
-            pressure_start=np.zeros(len(r)),
-            options=steps,
-            load_start=before,
-            solver=solver,
-            label=f"chamber {name}",
-        )
-
-
-def chamber_index(k: Chambers) -> int | None:
-    """The chamber a curve follows alone (k an int), or None for pressure ratios."""
-    return int(k) if isinstance(k, (int, np.integer)) else None
-
-
-def ratio_of(model: FemModel, k: Chambers) -> np.ndarray:
-    """(K,) pressure ratios of a curve: chamber k alone (an int), or the given ratios
-    scaled to a largest of 1."""
-    if isinstance(k, (int, np.integer)):
-        return np.eye(len(model.chamber_tris))[k]
-    r = np.asarray(k, float)
-    return r / np.abs(r).max()
 
 
 def follow(
@@ -289,10 +153,12 @@ def follow(
     last sample (the step stays shorter afterwards). `beyond` = (budget, halvings): those
     of the samples after the pressure passed `stop_beyond_kpa` (a check going on to the
     limit as `fruit limits` does). `progress(msg)` is told each sample. `start`: the
-    `Start` the first sample comes from (`start_state`, shared among the curves of a
-    body); without it, from rest in FIRST_STEPS load steps under a body force. `samples`:
+    `Start` the first sample comes from (`curve_start.start_state`, shared among the
+    curves of a body); without it, from rest (`curve_start.first_sample`). `samples`:
     where kept samples come from and solved ones go (`SampleCache`). `slope_at_rest`:
-    dp/ds at rest (`curve_peak.rest_slope`), for a bound after the first sample."""
+    dp/ds at rest (`curve_peak.rest_slope`), for a bound after the first sample. The
+    loop stays in one piece: the step, the budget and the halvings left pass from each
+    sample to the next."""
     r = ratio_of(model, k)
     alone = chamber_index(k)
     name = model.chamber_names[alone] if alone is not None else TOGETHER
@@ -313,15 +179,19 @@ def follow(
         load = chamber_load(model, alone, growth) if alone is not None else Load.together(r, growth)
         try:
             if x is None or p_start is None or last is None:  # all three set together
-                solve = functools.partial(
-                    _first_sample, model, k, r, start, load, growth, options, solver, name
+                first = functools.partial(
+                    first_sample, model, k, r, start, load, growth, solver=solver, name=name
+                )
+                screen = _screen(model, r, s, direction, stop_beyond_kpa, slope_at_rest)
+                res = first_kept_or_solved(
+                    model, samples, load, solver, name, first, options, screen
                 )
             else:  # from the last sample
                 opts = _sample_options(options, last, budget)
                 solve = functools.partial(
                     solve_state, model, load, x, prev, p_start, opts, solver, f"chamber {name}"
                 )
-            res = kept_or_solved(samples, load, solver, solve)
+                res = kept_or_solved(samples, load, solver, solve)
         except SolverError as exc:
             if halvings > 0 and last is not None:
                 halvings -= 1
@@ -355,6 +225,23 @@ def follow(
                 break
             ds = shorter
     return curve
+
+
+def _screen(
+    model: FemModel,
+    r: np.ndarray,
+    s: float,
+    direction: int,
+    asked: float | None,
+    slope_at_rest: float | None,
+) -> Callable[[StateResult], bool] | None:
+    """Whether a curve's first sample at mean stretch `s` refuses the pressure `asked`
+    (kPa) at once (`curve_start.refuses_at_once`, with the slope at rest), as a function
+    of the sample; None without a pressure asked or a slope at rest."""
+    if asked is None or slope_at_rest is None:
+        return None
+    end = MAX_STRETCH if direction > 0 else MIN_STRETCH
+    return functools.partial(refuses_at_once, model, r, s, asked, end, slope_at_rest)
 
 
 def _record(
@@ -460,11 +347,10 @@ def _levels_off(
     ``ONE_SAMPLE_MARGIN``); then the bound and the end are the curve's."""
     if stop_beyond_kpa is None:
         return False
-    pressure = np.array(curve.pressure_kpa)
     end = MAX_STRETCH if direction > 0 else MIN_STRETCH
-    bound = levels_off_bound(model, pressure, np.array(stretches), slope_at_rest, end)
-    margin = ONE_SAMPLE_MARGIN if len(pressure) == 2 else 1.0
-    if bound is None or direction * (stop_beyond_kpa - margin * bound) <= 0:
+    pressure, s = np.array(curve.pressure_kpa), np.array(stretches)
+    bound = refusing_bound(model, pressure, s, stop_beyond_kpa, end, slope_at_rest)
+    if bound is None:
         return False
     if direction > 0:
         curve.limit_bound_kpa = bound
@@ -546,15 +432,6 @@ followed (the walls meeting, a step past a peak too long: `CURVE_HALVINGS` then 
 shorter one). With 6, the default Fruit's chambers c2 and c3 spent 29 s and 18 s of CPU
 (47 s and 42 s on a shared machine) on the suction sample that found no equilibrium
 within its budget."""
-
-
-def forget(solver: LinearSolver) -> None:
-    """Clear what the curve's states left on the solver for the next state's predictor
-    (`newton._history_guess`, `_sensitivity_guess`), and have its next tangent factored
-    afresh (the kept factor is of a deformed state); its analysis stays."""
-    solver.history, solver.sensitivity, solver.estimated = [], None, None
-    if hasattr(solver, "refresh"):
-        solver.refresh = True
 
 
 def _start_from_last(solver: LinearSolver) -> None:

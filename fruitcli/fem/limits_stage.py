@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fruitcli.fem import io, limits, pressure_check
+from fruitcli.fem import curve_start, io, limits, pressure_check
 from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label, run_curves
 from fruitcli.fem.stage import build_model, solver_options, state_loads
 from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
@@ -69,7 +69,7 @@ class Curve:
 
 def follow_curve(args: tuple) -> limits.ChamberCurve:
     """(model, Curve, options, start, progress) -> the curve followed on a fresh solver
-    from `start` (`limits.start_state`) past its limit or collapse; module level, so a
+    from `start` (`curve_start.start_state`) past its limit or collapse; module level, so a
     worker process can run it."""
     model, curve, options, start, progress = args
     return limits.follow(
@@ -160,7 +160,8 @@ def run_limits(
     t0 = time.perf_counter()
     model = build_model(scene, io.load_mesh(Path(mesh_npz)))
     options = curve_options(solver_options(scene))
-    start = limits.start_state(model, model.make_solver(options.linear_solver), options, progress)
+    solver = model.make_solver(options.linear_solver)
+    start = curve_start.start_state(model, solver, options, progress)
     names = model.chamber_names
     order = [Curve(k, d) for k in range(len(names)) for d in (-1, 1)]
     ratio = scene_ratios(scene, names)

@@ -16,6 +16,7 @@ import numpy as np
 
 from fruitcli.errors import SceneError, SolverError
 from fruitcli.fem.curve_peak import rest_slope
+from fruitcli.fem.curve_start import Chambers, forget, ratio_of, start_state
 from fruitcli.fem.curve_workers import CurvePool, curve_jobs, curve_label, run_curves
 from fruitcli.fem.fem_model import FemModel, LinearSolver
 from fruitcli.fem.limits import (
@@ -24,14 +25,9 @@ from fruitcli.fem.limits import (
     SAMPLE_SUBDIVISIONS,
     STEP_BUDGET,
     ChamberCurve,
-    Chambers,
-    Start,
     follow,
-    forget,
-    ratio_of,
-    start_state,
 )
-from fruitcli.fem.linear_response import response
+from fruitcli.fem.linear_response import Start, response
 from fruitcli.fem.sample_cache import SampleCache
 from fruitcli.fem.solver.options import SolverOptions
 from fruitcli.fem.state_load import Load

@@ -117,13 +117,16 @@ class SampleCache:
         except (OSError, KeyError, ValueError, zipfile.BadZipFile):
             self.entries, self.newton_c = {}, {}
 
-    def get(self, load: Load, solver: LinearSolver) -> StateResult | None:
-        """The kept sample under `load` (marked `kept`, its solve time the original's,
-        which sets the next samples' budget as it did then): as it is when it is an
-        equilibrium by Newton's test at its own forces, else after Newton's steps from
-        it; None when none is kept, its supports moved, or Newton finds no equilibrium
-        from it."""
-        entry = self.entries.get(load_key(load, self.tolerance))
+    def get(
+        self, load: Load, solver: LinearSolver, tolerance: float | None = None
+    ) -> StateResult | None:
+        """The kept sample under `load` solved to `tolerance` (default: the cache's;
+        marked `kept`, its solve time the original's, which sets the next samples'
+        budget as it did then): as it is when it is an equilibrium to that tolerance by
+        Newton's test at its own forces, else after Newton's steps from it; None when
+        none is kept, its supports moved, or Newton finds no equilibrium from it."""
+        tolerance = tolerance or self.tolerance
+        entry = self.entries.get(load_key(load, tolerance))
         if entry is None:
             return None
         x, p, ms = entry
@@ -141,22 +144,28 @@ class SampleCache:
         scale = FORCE_FLOOR * m.young_modulus_kpa * m.extent_mm**2
         step = NewtonStep(m, solver, load, _reference_force(m, x, pk, load, load, scale))
         now = step.evaluate(x, pk)  # Newton's own relative residual and volume error
-        if np.isfinite(now.energy) and now.merit <= self.tolerance:
+        if np.isfinite(now.energy) and now.merit <= tolerance:
             volumes = m.chamber_volumes(x)
             det = float(now.det_f.min())
             return StateResult(x, x - m.rest, pk, volumes, 0, now.merit, 0, det, ms, kept=True)
         try:
-            res = solve_state(
-                m, load, x, load, pk, replace(self.options, load_steps=1), solver, "kept sample"
-            )
+            opts = replace(self.options, tolerance=tolerance, load_steps=1)
+            res = solve_state(m, load, x, load, pk, opts, solver, "kept sample")
         except SolverError:
             return None
         return dataclasses.replace(res, solve_ms=max(res.solve_ms, ms), kept=True)
 
-    def put(self, load: Load, res: StateResult, newton_c: float | None = None) -> None:
-        """Keep the sample `res` under `load` (solved, or a kept one Newton moved), with
-        the solver's Newton constant after it when given."""
-        key = load_key(load, self.tolerance)
+    def put(
+        self,
+        load: Load,
+        res: StateResult,
+        newton_c: float | None = None,
+        tolerance: float | None = None,
+    ) -> None:
+        """Keep the sample `res` under `load` (solved to `tolerance`, default the
+        cache's, or a kept one Newton moved), with the solver's Newton constant after it
+        when given."""
+        key = load_key(load, tolerance or self.tolerance)
         if key not in self.entries or res.iterations:
             self.entries[key] = (res.x, res.pressure_kpa, res.solve_ms)
             if newton_c is not None:
@@ -181,15 +190,19 @@ class SampleCache:
 
 
 def kept_or_solved(
-    samples: SampleCache | None, load: Load, solver: LinearSolver, solve: Callable[[], StateResult]
+    samples: SampleCache | None,
+    load: Load,
+    solver: LinearSolver,
+    solve: Callable[[], StateResult],
+    tolerance: float | None = None,
 ) -> StateResult:
-    """The sample under `load`: kept in `samples` (`SampleCache.get`), else `solve()`'s,
-    then kept there."""
-    res = samples.get(load, solver) if samples is not None else None
+    """The sample under `load` solved to `tolerance` (default: the cache's): kept in
+    `samples` (`SampleCache.get`), else `solve()`'s, then kept there."""
+    res = samples.get(load, solver, tolerance) if samples is not None else None
     if res is None:
         res = solve()
     if samples is not None:
-        samples.put(load, res)
+        samples.put(load, res, tolerance=tolerance)
     return res
 
 

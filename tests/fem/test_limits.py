@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 
 from fruitcli.cli.main import cli
 from fruitcli.errors import SceneError, SolverError
-from fruitcli.fem import curve_peak, limits, pressure_check
+from fruitcli.fem import curve_peak, curve_start, limits, pressure_check, sample_cache
 from fruitcli.fem.continuum import ContinuumModel
 from fruitcli.fem.limits_stage import run_limits
 from fruitcli.fem.materials.build import material
@@ -115,7 +115,7 @@ def test_thick_sphere_limit_from_the_vertex_ahead():
     model = octant_ball(2, 2, nu=0.49)
     mu, kappa = model.material.shear_modulus_kpa, model.material.bulk_modulus_kpa
     solver = model.make_solver()
-    start = limits.start_state(model, solver, SolverOptions())
+    start = curve_start.start_state(model, solver, SolverOptions())
     curve = limits.follow(model, 0, fall_steps=1, solver=solver, start=start)
     assert curve.end.startswith("at the limit point")
     assert curve.limit_pressure_kpa == pytest.approx(
@@ -300,6 +300,72 @@ def test_far_past_the_bound_is_refused_after_the_first_sample():
     bound = float(str(info.value).split("which is at most ")[1].split(" kPa")[0])
     assert bound == pytest.approx(p1 / (s1 - 1.0) * (curve_peak.MAX_STRETCH - 1.0), rel=2e-3)
     assert curve_peak.ONE_SAMPLE_MARGIN * bound < 2000.0
+
+
+def tolerances_solved(monkeypatch) -> list[float]:
+    """The Newton tolerance of each state the curves solve from here on (samples, first
+    samples, kept samples moved by Newton)."""
+    seen: list[float] = []
+    for module in (curve_start, limits, sample_cache):
+        real = module.solve_state
+
+        def solve(model, load, *args, real=real, **kw):
+            seen.append((kw["options"] if "options" in kw else args[3]).tolerance)
+            return real(model, load, *args, **kw)
+
+        monkeypatch.setattr(module, "solve_state", solve)
+    return seen
+
+
+def test_a_first_sample_that_may_refuse_at_once_is_screened(monkeypatch, tmp_path):
+    """The octant's first inflation sample in a check is solved to the screen's
+    tolerance only. 2000 kPa is then refused after that one solve, with the sample's
+    pressure and the bound within 0.1 % of those of the sample converged to the check's
+    tolerance; a later check with the samples kept refuses it in the same line without
+    solving a state. 100 kPa, which the bound after one sample does not refuse, has the
+    first sample converged on from there to the check's tolerance, its pressure that of
+    the sample solved so at once."""
+    model = octant_ball(1, 1, nu=0.49)
+    s1 = 1.0 + limits.STRETCH_STEP
+    growth = model.chamber_rest_volume_mm3[0] * (s1**3 - 1.0)
+    load = curve_start.chamber_load(model, 0, growth)
+    check = SolverOptions(tolerance=limits.CHECK_TOLERANCE)
+    exact = curve_start.first_sample(
+        model, 0, np.array([1.0]), None, load, growth, check, model.make_solver(), "c"
+    )
+    p_exact = float(exact.pressure_kpa[0])
+    slope_bound = p_exact / (s1 - 1.0) * (curve_peak.MAX_STRETCH - 1.0)
+
+    def refusal(kpa: float, kept=None) -> tuple[str, list[str]]:
+        told: list[str] = []
+        with pytest.raises(SceneError) as info:
+            pressure_check.check_pressures(
+                model,
+                np.array([[kpa]]),
+                ["k"],
+                model.make_solver(),
+                SolverOptions(),
+                progress=told.append,
+                kept=kept,
+            )
+        return str(info.value), told
+
+    seen = tolerances_solved(monkeypatch)
+    line, told = refusal(2000.0, tmp_path / "kept.npz")
+    assert seen == [curve_start.SCREEN_TOLERANCE] and len(told) == 1
+    p1 = float(told[0].split("pressure ")[1].split(" kPa")[0])
+    assert p1 == pytest.approx(p_exact, rel=1e-3)
+    bound = float(line.split("which is at most ")[1].split(" kPa")[0])
+    assert bound == pytest.approx(slope_bound, rel=1e-3)
+    seen.clear()
+    assert refusal(2000.0, tmp_path / "kept.npz")[0] == line
+    assert seen == []
+    line, told = refusal(100.0)
+    assert line.startswith("k: 100 kPa is past this chamber's limit")
+    assert seen[:2] == [curve_start.SCREEN_TOLERANCE, limits.CHECK_TOLERANCE]
+    assert set(seen[1:]) == {limits.CHECK_TOLERANCE}
+    p1 = float(told[0].split("pressure ")[1].split(" kPa")[0])
+    assert p1 == pytest.approx(p_exact, rel=1e-3)
 
 
 def test_a_failed_state_past_the_limit_is_named():
@@ -699,8 +765,9 @@ def test_a_line_search_that_rejects_every_trial_fails_cleanly(monkeypatch):
 
 
 def failing_once_at(stretch: float, error: Exception):
-    """(limits.solve_state that raises `error` once, at chamber 0's mean stretch
-    `stretch`, the list it notes that failure in; clear the list to fail again)."""
+    """(a `solve_state` that raises `error` once, at chamber 0's mean stretch `stretch`,
+    the list it notes that failure in; clear the list to fail again): put it in place
+    of the curves' own with `solving_with`."""
     real = limits.solve_state
     failed = []
 
@@ -714,6 +781,13 @@ def failing_once_at(stretch: float, error: Exception):
     return solve, failed
 
 
+def solving_with(monkeypatch, solve) -> None:
+    """Have the curves' samples (`limits`) and first samples (`curve_start`) solved by
+    `solve` instead of `solve_state`."""
+    monkeypatch.setattr(limits, "solve_state", solve)
+    monkeypatch.setattr(curve_start, "solve_state", solve)
+
+
 def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     """The limits stage's check (`check_pressures` with a `found` list) goes on past the
     pressure asked (20 kPa, reached at mean stretch 1.3) to the limit. A sample past it
@@ -723,7 +797,7 @@ def test_a_check_going_on_to_the_limit_keeps_a_pressure_it_reached(monkeypatch):
     model = octant_ball(1, 1, nu=0.49)
     whole = limits.follow(model, 0)
     slow, failed = failing_once_at(1.5, OutOfTime("chamber c: out of time (forced)", 0.5))
-    monkeypatch.setattr(limits, "solve_state", slow)
+    solving_with(monkeypatch, slow)
     found = []
     pressure_check.check_pressures(
         model,
@@ -749,7 +823,7 @@ def test_a_first_sample_without_equilibrium_is_refused_as_not_holding(monkeypatc
     model = octant_ball(1, 1, nu=0.49)
     error = SolverError("chamber c: no equilibrium (forced)")
     flaky, failed = failing_once_at(1.1, error)
-    monkeypatch.setattr(limits, "solve_state", flaky)
+    solving_with(monkeypatch, flaky)
     with pytest.raises(SceneError) as info:
         pressure_check.check_pressures(
             model, np.array([[5.0]]), ["k"], model.make_solver(), SolverOptions(), screen=0.0
@@ -763,7 +837,7 @@ def test_a_first_sample_without_equilibrium_is_refused_as_not_holding(monkeypatc
     )
     failed.clear()
     solver = model.make_solver()
-    start = limits.start_state(model, solver, SolverOptions())
+    start = curve_start.start_state(model, solver, SolverOptions())
     curve = limits.follow(model, 0, solver=solver, start=start)
     assert failed and curve.limit_pressure_kpa is not None
 
@@ -826,7 +900,7 @@ def test_a_failed_sample_is_tried_again_with_half_the_step(monkeypatch):
     model = octant_ball(1, 1, nu=0.49)
     flaky, failed = failing_once_at(1.3, SolverError("chamber c: no equilibrium (forced)"))
     whole = limits.follow(model, 0)
-    monkeypatch.setattr(limits, "solve_state", flaky)
+    solving_with(monkeypatch, flaky)
     curve = limits.follow(model, 0, halvings=1)
     assert failed
     stretch = (np.array(curve.growth_mm3) / curve.rest_volume_mm3 + 1.0) ** (1 / 3)

@@ -164,7 +164,7 @@ def fruit_curves(mesh_dir: Path) -> None:
     sys.path.insert(0, str(HERE))
     from bench_state import default_mesh
 
-    from fruitcli.fem import io, limits
+    from fruitcli.fem import curve_start, io, limits
     from fruitcli.fem.limits_stage import Curve, curve_options, follow_curve, scene_ratios
     from fruitcli.fem.stage import build_model, solver_options
     from fruitcli.scene import load_scene
@@ -174,7 +174,7 @@ def fruit_curves(mesh_dir: Path) -> None:
     options = curve_options(solver_options(scene))
     print(f"the default Fruit's curves, one by one; load average {load_average()}")
     t0, c0 = time.perf_counter(), time.process_time()
-    start = limits.start_state(model, model.make_solver(options.linear_solver), options)
+    start = curve_start.start_state(model, model.make_solver(options.linear_solver), options)
     print(
         f"  the body under its weight: {time.perf_counter() - t0:.1f} s wall, "
         f"{time.process_time() - c0:.1f} s CPU"

@@ -159,7 +159,7 @@ def test_first_state_sensitivity_starts_a_volume_change_to_first_order():
     displacement between the two states and its pressure within 10 % of the pressure
     change; 5 mm^3 further, both errors half as large (a first-order guess), and fewer
     Newton iterations than from the previous state."""
-    from fruitcli.fem.limits import chamber_load
+    from fruitcli.fem.curve_start import chamber_load
 
     m = hollow_box(0.45)
     opts = SolverOptions(tolerance=1e-10)
