@@ -627,6 +627,26 @@ cases as before (the Fruit's c1 at -500 and 2000 kPa 4.0-4.2 s, the sphere at 20
 takes about 1.7 s: the stale factor's GMRES, a refactorization, then a new analysis
 in double precision (0.86 s) where the single-precision factor misses its probe.
 
+When the bound after a curve's first sample may refuse the pressure asked, the pressure
+check solves that sample to a relative residual of 0.1 first
+(`curve_start.SCREEN_TOLERANCE`, `first_kept_or_solved`), in every one of its 3 load
+steps, and converges it on from there only when the bound does not refuse: the Fruit's
+chamber c1 under its weight took 4 Newton steps and 2 factorizations instead of 7 and
+4 (1.8 s instead of 2.7-2.8 s), its pressure -8.124 kPa against -8.1245 kPa converged
+(at 0.729 V0) and 8.383 against 8.392 kPa (at 1.331 V0), and the bound in the line
+-44.7 kPa and 167.7 kPa against -44.7 and 167.8 kPa. A sample converged on from there
+(a pressure the bound does not refuse, such as -30 kPa) takes 3 Newton steps more, about
+0.3 s more than before. `python tests/performance/bench_refusal.py`, the code before
+(commit d525886, from a worktree, numba's cache warmed) and after (commit ed3cde3)
+alternately, twice each, on 2026-12-07 19:49-19:56 UTC on the Intel Xeon (2 cores, load
+average 1.0-1.1): the Fruit's c1 refused 3.4 and 3.2 s after the mesh at -500 kPa
+instead of 4.5 and 4.4 s, 3.2 and 3.3 s at 2000 kPa instead of 4.5 and 4.5 s; the thick
+sphere 5.1 and 5.3 s at -500 kPa instead of 5.8 s, 2.3 and 2.3 s at 2000 kPa instead of
+2.5-2.7 s. With `--again` (the samples kept in the output folder) the Fruit's c1 is
+refused 1.4-1.6 s after the mesh. The 3 s target is still missed by a few tenths on the
+Fruit: building the model takes 0.7-0.8 s of it (about 0.4 s of that numba's start-up
+in a fresh process), the compliance at rest 1.0 s, the screened sample 1.8 s.
+
 The free dofs' CSR pattern is built by compiled passes over each node's elements
 (`assemble.CsrPattern.build`: `_node_pairs`, `_dof_slots`) instead of sorting the
 886,500 node pairs of the Fruit's elements with NumPy: the same arrays
