@@ -186,10 +186,10 @@ def first_kept_or_solved(
     screen: Callable[[StateResult], bool] | None,
 ) -> StateResult:
     """A curve's first sample (`first(options)`: `first_sample` but for its options),
-    kept in or taken from `samples`. With a `screen` (whether the sample refuses the pressure
-    asked at once, `refuses_at_once`) and none kept at the options' tolerance: solved
+    kept in or taken from `samples`. With a `screen` (whether the sample refuses the
+    pressure asked at once, `refuses_at_once`) and none kept at the options' tolerance: solved
     (or kept) to SCREEN_TOLERANCE, then on to the options' tolerance from there unless
-    the screen refuses."""
+    the screen refuses (the sample's Newton steps and time then those of both)."""
     if screen is None:
         return kept_or_solved(samples, load, solver, lambda: first(options))
     kept = samples.get(load, solver) if samples is not None else None
@@ -199,8 +199,13 @@ def first_kept_or_solved(
     res = kept_or_solved(samples, load, solver, lambda: first(loose), loose.tolerance)
     if res.residual <= options.tolerance or screen(res):
         return res
-    on = (res.x, load, res.pressure_kpa, options, solver, f"chamber {name}")
-    return kept_or_solved(samples, load, solver, lambda: solve_state(model, load, *on))
+    label = f"chamber {name}"
+    on = solve_state(model, load, res.x, load, res.pressure_kpa, options, solver, label)
+    its, ms = res.iterations + on.iterations, res.solve_ms + on.solve_ms
+    done = replace(on, iterations=its, solve_ms=ms)
+    if samples is not None:
+        samples.put(load, done)
+    return done
 
 
 def refuses_at_once(
