@@ -627,10 +627,10 @@ cases as before (the Fruit's c1 at -500 and 2000 kPa 4.0-4.2 s, the sphere at 20
 takes about 1.7 s: the stale factor's GMRES, a refactorization, then a new analysis
 in double precision (0.86 s) where the single-precision factor misses its probe.
 
-When the bound after a curve's first sample may refuse the pressure asked, the pressure
-check solves that sample to a relative residual of 0.1 first
-(`curve_start.SCREEN_TOLERANCE`, `first_kept_or_solved`), in every one of its 3 load
-steps, and converges it on from there only when the bound does not refuse: the Fruit's
+The pressure check solves the first sample of each curve it follows to a relative
+residual of 0.1 first (`curve_start.SCREEN_TOLERANCE`, `first_kept_or_solved`), in every
+one of its 3 load steps, refuses at once when the bound after that sample refuses the
+pressure asked, and converges the sample on from there otherwise: the Fruit's
 chamber c1 under its weight took 4 Newton steps and 2 factorizations instead of 7 and
 4 (1.8 s instead of 2.7-2.8 s), its pressure -8.124 kPa against -8.1245 kPa converged
 (at 0.729 V0) and 8.383 against 8.392 kPa (at 1.331 V0), and the bound in the line

@@ -1,7 +1,7 @@
 """Pressure-volume curves followed in worker processes, one curve each at a time: the
-curves of a body share nothing but its equilibrium under its weight (`limits.Start`),
-so each runs on its own solver and gives what it gives in one process. `fruit limits`
-(`limits_stage.follow_curves`) and the planner's `limits` stage
+curves of a body share nothing but its equilibrium under its weight
+(`linear_response.Start`), so each runs on its own solver and gives what it gives in one
+process. `fruit limits` (`limits_stage.follow_curves`) and the planner's `limits` stage
 (`pressure_check.check_pressures`) take a `CurvePool` from their caller (the processes
 themselves are `fruitcli.studies.parallel.CurveProcesses`, above this package)."""
 

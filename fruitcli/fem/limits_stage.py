@@ -33,6 +33,7 @@ from fruitcli.fsutil import atomic_path, staged_dir, write_csv, write_json
 
 if TYPE_CHECKING:
     from fruitcli.fem.fem_model import FemModel
+    from fruitcli.fem.linear_response import Start
     from fruitcli.fem.solver.options import SolverOptions
     from fruitcli.scene import Scene
 
@@ -88,7 +89,7 @@ def follow_curves(
     model: FemModel,
     curves: list[Curve],
     options: SolverOptions,
-    start: limits.Start,
+    start: Start,
     pool: CurvePool | None = None,
     progress: Callable[[str], None] = _noop,
 ) -> list[limits.ChamberCurve]:

@@ -368,6 +368,35 @@ def test_a_first_sample_that_may_refuse_at_once_is_screened(monkeypatch, tmp_pat
     assert p1 == pytest.approx(p_exact, rel=1e-3)
 
 
+def test_a_screened_first_sample_that_cannot_be_converged_on_is_solved_afresh(monkeypatch):
+    """When Newton finds no equilibrium from the loosely solved first sample (forced
+    once), the sample is solved afresh to the check's tolerance, as without the screen,
+    and the curve goes on: 100 kPa on the octant is refused in the same line as when the
+    sample converged on from the loose one."""
+    model = octant_ball(1, 1, nu=0.49)
+
+    def refusal() -> str:
+        with pytest.raises(SceneError) as info:
+            pressure_check.check_pressures(
+                model, np.array([[100.0]]), ["k"], model.make_solver(), SolverOptions()
+            )
+        return str(info.value)
+
+    line = refusal()
+    real, failed = curve_start.solve_state, []
+
+    def flaky(model, load, *args, **kw):
+        if args and args[1] is load and not failed:  # converging on from the loose sample
+            failed.append(load)
+            raise SolverError("chamber c: no equilibrium (forced)")
+        return real(model, load, *args, **kw)
+
+    monkeypatch.setattr(curve_start, "solve_state", flaky)
+    seen = tolerances_solved(monkeypatch)
+    assert refusal() == line
+    assert failed and seen[:2] == [curve_start.SCREEN_TOLERANCE, limits.CHECK_TOLERANCE]
+
+
 def test_a_failed_state_past_the_limit_is_named():
     """28 kPa on the octant (limit 27.0 kPa) passes the screen (linearized growth 0.7 V0)
     and Newton finds no equilibrium; `explain_failure` then names the limit in the
