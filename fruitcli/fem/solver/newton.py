@@ -220,11 +220,16 @@ def _chord_step(
     step only has to cross it, so the linear solve may be as loose as the goal asks and
     the previous tangent will do; only right after a step in Newton's quadratic regime
     (`merit` at most CHORD_CONTRACTION times `last_merit`), with the exact tangent
-    (`level` 0), and never twice in a row (`chord`: the step before was one)."""
+    (`level` 0), and never twice in a row (`chord`: the step before was one). Never as
+    the second step of a load step along loose ones (`refactor_second`): its first
+    removed the bulk error of the step's start, not the quadratic regime's, and the
+    refactorization it asks for would be skipped (the default Fruit under its weight,
+    `curve_start.start_state`: 10 Newton steps with that chord step, 8 without)."""
     return (
         it > 0
         and level == 0
         and not chord
+        and not (it == 1 and step.refactor_second)
         and merit <= CHORD_CONTRACTION * last_merit
         and merit <= step.solver.near_tolerance * options.tolerance
     )
