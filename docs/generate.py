@@ -647,6 +647,22 @@ refused 1.4-1.6 s after the mesh. The 3 s target is still missed by a few tenths
 Fruit: building the model takes 0.7-0.8 s of it (about 0.4 s of that numba's start-up
 in a fresh process), the compliance at rest 1.0 s, the screened sample 1.8 s.
 
+Along loose load steps (`SolverOptions.path_tolerance`) each load step's second Newton
+step asks for a refactorization (`NewtonStep.refactor_second`); a chord step, which
+keeps the tangent, skipped it where the residual after the first step was already near
+a loose tolerance. Newton no longer takes a chord step there (`newton._chord_step`).
+The default Fruit's equilibrium under its weight (`curve_start.start_state`, tolerance
+1e-3) took 8 Newton steps instead of 10: in its last load step the chord step had cut
+the residual from 9.8e-3 to 8.6e-3 only (3.2 s instead of 3.8-4.0 s). The first state of
+`fruit simulate` (8 Newton steps, 39 CG iterations) and the pressure check's first
+samples take the same steps as before. `fruit limits` (`bench_limits.py --no-sphere`,
+the code before, commit 6a08797, and after, commit 652df4e, alternately, twice each,
+2026-12-07 20:37-20:43 UTC on the Intel Xeon, load average 0.2-2.0) took 57.7 and 57.3 s
+after the mesh against 56.8 and 57.4 s: no change beyond the run-to-run spread, the
+worker processes waiting on the longest curves. Its limits moved by 2.3e-6 relative at
+most (the chambers together: 29.82336 kPa instead of 29.82330 kPa) and its collapses by
+less than 1e-9.
+
 The free dofs' CSR pattern is built by compiled passes over each node's elements
 (`assemble.CsrPattern.build`: `_node_pairs`, `_dof_slots`) instead of sorting the
 886,500 node pairs of the Fruit's elements with NumPy: the same arrays
