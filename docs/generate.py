@@ -657,7 +657,7 @@ the residual from 9.8e-3 to 8.6e-3 only (3.2 s instead of 3.8-4.0 s). The first 
 `fruit simulate` (8 Newton steps, 39 CG iterations) and the pressure check's first
 samples take the same steps as before. `fruit limits` (`bench_limits.py --no-sphere`,
 the code before, commit 6a08797, and after, commit 652df4e, alternately, twice each,
-2026-12-07 20:37-20:43 UTC on the Intel Xeon, load average 0.2-2.0) took 57.7 and 57.3 s
+2026-12-07 20:35-20:40 UTC on the Intel Xeon, load average 0.2-2.0) took 57.7 and 57.3 s
 after the mesh against 56.8 and 57.4 s: no change beyond the run-to-run spread, the
 worker processes waiting on the longest curves. Its limits moved by 2.3e-6 relative at
 most (the chambers together: 29.82336 kPa instead of 29.82330 kPa) and its collapses by
