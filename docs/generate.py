@@ -638,7 +638,7 @@ chamber c1 under its weight took 4 Newton steps and 2 factorizations instead of 
 (a pressure the bound does not refuse, such as -30 kPa) takes 3 Newton steps more, about
 0.3 s more than before. `python tests/performance/bench_refusal.py`, the code before
 (commit d525886, from a worktree, numba's cache warmed) and after (commit ed3cde3)
-alternately, twice each, on 2026-12-07 19:49-19:56 UTC on the Intel Xeon (2 cores, load
+alternately, twice each, on 2026-12-07 19:47-19:50 UTC on the Intel Xeon (2 cores, load
 average 1.0-1.1): the Fruit's c1 refused 3.4 and 3.2 s after the mesh at -500 kPa
 instead of 4.5 and 4.4 s, 3.2 and 3.3 s at 2000 kPa instead of 4.5 and 4.5 s; the thick
 sphere 5.1 and 5.3 s at -500 kPa instead of 5.8 s, 2.3 and 2.3 s at 2000 kPa instead of
