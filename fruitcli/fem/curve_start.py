@@ -232,5 +232,11 @@ def refuses_at_once(
     """Whether a curve's first sample `res` at mean stretch `s` (chambers along ratios
     r) refuses the pressure `asked` (kPa) by its bound towards the mean stretch `end`
     after one sample, with the slope at rest `slope` (`curve_peak.refusing_bound`)."""
-    pressure = np.array([0.0, float(res.pressure_kpa @ r / (r @ r))])
+    pressure = np.array([0.0, pressure_along(res, r)])
     return refusing_bound(model, pressure, np.array([1.0, s]), asked, end, slope) is not None
+
+
+def pressure_along(res: StateResult, r: np.ndarray) -> float:
+    """A sample's pressure (kPa) on its curve along the chambers' ratios r: the
+    chamber's own for a chamber alone (what the curve records and its bound reads)."""
+    return float(res.pressure_kpa @ r / (r @ r))

@@ -38,6 +38,7 @@ from fruitcli.fem.curve_start import (
     chamber_load,
     first_kept_or_solved,
     first_sample,
+    pressure_along,
     ratio_of,
     refuses_at_once,
 )
@@ -240,8 +241,13 @@ def _screen(
     of the sample; None without a pressure asked or a slope at rest."""
     if asked is None or slope_at_rest is None:
         return None
-    end = MAX_STRETCH if direction > 0 else MIN_STRETCH
-    return functools.partial(refuses_at_once, model, r, s, asked, end, slope_at_rest)
+    return functools.partial(refuses_at_once, model, r, s, asked, _end(direction), slope_at_rest)
+
+
+def _end(direction: int) -> float:
+    """The mean stretch a curve's bound is continued to: MAX_STRETCH for an inflation
+    (direction 1), MIN_STRETCH for a suction (-1)."""
+    return MAX_STRETCH if direction > 0 else MIN_STRETCH
 
 
 def _record(
@@ -253,7 +259,7 @@ def _record(
     """Add a solved sample `res` to `curve` (volume growth mm^3 and pressure kPa along
     the ratios `r`), tell `progress`; -> its pressure (kPa)."""
     volume = float(r @ res.chamber_volume_mm3)
-    p = float(res.pressure_kpa @ r / (r @ r))
+    p = pressure_along(res, r)
     curve.growth_mm3.append(volume - curve.rest_volume_mm3)
     curve.pressure_kpa.append(p)
     if progress:
@@ -347,9 +353,8 @@ def _levels_off(
     ``ONE_SAMPLE_MARGIN``); then the bound and the end are the curve's."""
     if stop_beyond_kpa is None:
         return False
-    end = MAX_STRETCH if direction > 0 else MIN_STRETCH
     pressure, s = np.array(curve.pressure_kpa), np.array(stretches)
-    bound = refusing_bound(model, pressure, s, stop_beyond_kpa, end, slope_at_rest)
+    bound = refusing_bound(model, pressure, s, stop_beyond_kpa, _end(direction), slope_at_rest)
     if bound is None:
         return False
     if direction > 0:
