@@ -635,9 +635,10 @@ chamber c1 under its weight took 4 Newton steps and 2 factorizations instead of 
 4 (1.8 s instead of 2.7-2.8 s), its pressure -8.124 kPa against -8.1245 kPa converged
 (at 0.729 V0) and 8.383 against 8.392 kPa (at 1.331 V0), and the bound in the line
 -44.7 kPa and 167.7 kPa against -44.7 and 167.8 kPa. A sample converged on from there
-(a pressure the bound does not refuse, such as -30 kPa) takes 3 Newton steps more, about
-0.3 s more than before. `python tests/performance/bench_refusal.py`, the code before
-(commit d525886, from a worktree, numba's cache warmed) and after (commit ed3cde3)
+(a pressure the bound does not refuse, such as -30 kPa) takes the same 7 Newton steps in
+all (4 and 3), 2.8-3.1 s against 2.8 s before. `python
+tests/performance/bench_refusal.py`, the code before (commit d525886, from a worktree,
+numba's cache warmed) and after (commit ed3cde3)
 alternately, twice each, on 2026-12-07 19:47-19:50 UTC on the Intel Xeon (2 cores, load
 average 1.0-1.1): the Fruit's c1 refused 3.4 and 3.2 s after the mesh at -500 kPa
 instead of 4.5 and 4.4 s, 3.2 and 3.3 s at 2000 kPa instead of 4.5 and 4.5 s; the thick
