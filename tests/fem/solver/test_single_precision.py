@@ -20,10 +20,11 @@ def chain(n: int):
 
 
 class _Model:
-    """The solver only asks its model for the tangent."""
+    """The solver only asks its model for the tangent and its pattern."""
 
     def __init__(self, k):
         self.k = k
+        self.pattern = k  # CSR: its indptr and indices
 
     def tangent(self, x, project=False):
         return self.k
