@@ -31,7 +31,6 @@ from fruitcli.fem.elements.lagrange import ELEMENTS, Family, tet_shape, tet_shap
 from fruitcli.fem.loads.cavity import Wall
 from fruitcli.fem.loads.springs import Jig
 from fruitcli.fem.materials.build import Material
-from fruitcli.fem.solver import analysis_ahead, linsolve
 from fruitcli.fem.solver.assemble import CsrPattern, scatter
 from fruitcli.fem.tolerances import SLIVER_QUALITY
 from fruitcli.fem.units import body_force_mn_mm3
@@ -216,8 +215,6 @@ class ContinuumModel:
         free_mask[p_dofs] = False
         free_mask[pinned] = False
         pattern = CsrPattern.build(conn[loop_order(rest, conn)], n, free_mask)
-        if linsolve.USE_PARDISO:  # analysed while the model is built
-            analysis_ahead.start(pattern.indptr, pattern.indices, linsolve.SINGLE_PRECISION)
         spring = np.zeros(3 * n)
         for jig in jigs:
             np.add.at(

@@ -24,7 +24,7 @@ import scipy.sparse.linalg as spla
 
 from fruitcli.errors import SolverError
 from fruitcli.fem import threads
-from fruitcli.fem.solver import analysis_ahead, linsolve, pardiso
+from fruitcli.fem.solver import linsolve, pardiso
 from fruitcli.fem.solver.linsolve import Factor, kept_estimate, pcg, upper_triangle
 from fruitcli.fem.solver.solvers import LINEAR_SOLVERS
 from fruitcli.fem.tolerances import (
@@ -60,21 +60,14 @@ def factorize(
     solves are only approximate): MKL PARDISO when installed (`pardiso.py`; in single
     precision with `single` when it passes its probe, else double; the numerical
     refactorization of `previous`, a factor this returned before, when the pattern and
-    precision are the same; straight to the indefinite type with `indefinite`; a new
-    one takes the analysis of k's pattern that `analysis_ahead` made; SolverError when
-    it fails), otherwise SuperLU in symmetric mode (checked on a solve),
+    precision are the same; straight to the indefinite type with `indefinite`;
+    SolverError when it fails), otherwise SuperLU in symmetric mode (checked on a solve),
     otherwise SuperLU's general LU."""
     if linsolve.USE_PARDISO and pardiso.available():
         k = k.tocsr()  # as assembled: no conversion (40 ms each way on the quadratic Fruit)
         previous = previous if isinstance(previous, pardiso.Pardiso) else None
-        # a new factor takes the analysis made ahead of its pattern (none as indefinite)
-        analysed = None
-        if previous is None:
-            analysed = analysis_ahead.taken(None if indefinite else k, single)
         try:
-            fac = pardiso.factorize_probed(
-                k, upper_triangle(k), previous, single, indefinite, analysed
-            )
+            fac = pardiso.factorize_probed(k, upper_triangle(k), previous, single, indefinite)
         except pardiso.PardisoError as exc:
             fac, why = None, str(exc)
         else:
@@ -208,9 +201,6 @@ class ContinuumSolver:
         tangent with the follower-pressure stiffness, or (project, or no f) each
         element's block clamped to positive semi-definite and no pressure stiffness."""
         t0 = time.perf_counter()
-        if self.k is None and not self.indefinite and linsolve.USE_PARDISO:
-            pattern = self.model.pattern  # analysed while the first tangent is made
-            analysis_ahead.start(pattern.indptr, pattern.indices, self.single)
         project = project or f is None
         k = self.model.tangent(rot, project=project)
         if not project and load_stiffness is not None:

@@ -239,8 +239,7 @@ class Pardiso:
     on its quadratic ones: a preconditioner, not a solver). `order`: the rows' fill-reducing
     order (PARDISO's perm: row i of the factored matrix is row order[i]; None: METIS's
     on the matrix, PARDISO's default); with `order_only`, only the analysis runs and
-    `perm` holds METIS's order; with `analysis_only`, only the analysis runs (PARDISO's
-    phase 11; `refactor` then factors a matrix of the pattern). Raises PardisoError."""
+    `perm` holds METIS's order. Raises PardisoError."""
 
     def __init__(
         self,
@@ -249,7 +248,6 @@ class Pardiso:
         single: bool = False,
         order: np.ndarray | None = None,
         order_only: bool = False,
-        analysis_only: bool = False,
     ):
         self._pardiso, init, self._lib = _functions()
         self.threads = threads_used()
@@ -279,7 +277,7 @@ class Pardiso:
             self.iparm[4] = 2  # the analysis writes its order into `perm`
         self._alive = True
         try:
-            self._factor(11 if order_only or analysis_only else 12)
+            self._factor(11 if order_only else 12)
         except PardisoError:
             self.free()  # a failed factor's memory now, not when collected
             raise
@@ -420,7 +418,6 @@ def factorize_upper(
     single: bool = False,
     indefinite: bool = False,
     full: sp.csr_matrix | None = None,
-    analysed: Pardiso | None = None,
 ) -> Pardiso:
     """A Pardiso factor of the symmetric matrix with upper triangle `upper`, in single
     precision with `single`: the numerical refactorization of `previous` (as its type)
@@ -432,13 +429,7 @@ def factorize_upper(
     refactorization met a non-positive pivot (then no ordering makes it positive
     definite). `previous` is spent either way (freed unless returned). A new analysis
     orders the rows on their nodes (`node_order`) when the whole matrix `full` (CSR,
-    sorted columns) is given, else by PARDISO's METIS on the rows. `analysed`: an
-    analysis of upper's pattern, positive definite and of this precision
-    (`analysis_ahead`), which a new positive definite factor takes instead of its own;
-    spent either way. Raises PardisoError."""
-    if analysed is not None and (previous is not None or indefinite):
-        analysed.free()  # a kept factor, or the indefinite type, comes first
-        analysed = None
+    sorted columns) is given, else by PARDISO's METIS on the rows. Raises PardisoError."""
     if previous is not None:
         known = previous.mtype == SYMMETRIC_INDEFINITE or not indefinite
         if known and previous.single == single and previous.same_pattern(upper):
@@ -452,25 +443,10 @@ def factorize_upper(
     message, code = "", 0
     for mtype in (SYMMETRIC_INDEFINITE,) if indefinite else (SPD, SYMMETRIC_INDEFINITE):
         try:
-            if mtype == SPD and analysed is not None:
-                return _factored(analysed, upper)
             return Pardiso(upper, mtype, single, None if full is None else node_order(full))
         except PardisoError as exc:  # its message only: the exception would keep the
             message, code = str(exc), exc.code  # failed factor alive through its frame
     raise PardisoError(message, code)
-
-
-def _factored(analysed: Pardiso, upper: sp.csr_matrix) -> Pardiso:
-    """`analysed` (an analysis of upper's pattern) factoring `upper`; freed when that
-    fails (PardisoError)."""
-    try:
-        if not analysed.same_pattern(upper):
-            raise PardisoError("PARDISO: the analysis made ahead is of another pattern", -1)
-        analysed.refactor(upper)
-    except PardisoError:
-        analysed.free()
-        raise
-    return analysed
 
 
 SINGLE_PROBE = 0.1
@@ -504,27 +480,25 @@ def factorize_probed(
     previous: Pardiso | None = None,
     single: bool = False,
     indefinite: bool = False,
-    analysed: Pardiso | None = None,
 ) -> Pardiso | None:
     """A factor of the symmetric k (sparse, upper its upper triangle) that passes its
     probe solve: single precision first when `single`, then double. None when the
     double-precision factor misses its probe (the caller's fallback takes over); a
     PardisoError of the double-precision factorization propagates. `previous` is spent
     and `indefinite` passed on (see `factorize_upper`, which orders a new analysis on k's
-    nodes when k is CSR in canonical form, or takes `analysed`, an analysis of k's
-    pattern in the first precision tried); a single-precision factor found indefinite
+    nodes when k is CSR in canonical form); a single-precision factor found indefinite
     makes the double-precision one indefinite at once."""
     full = k if getattr(k, "format", None) == "csr" and k.has_canonical_format else None
     for precision in (True, False) if single else (False,):
         try:
-            fac = factorize_upper(upper, previous, precision, indefinite, full, analysed)
+            fac = factorize_upper(upper, previous, precision, indefinite, full)
         except PardisoError:
             if not precision:
                 raise
             indefinite = indefinite or (previous is not None and previous.mtype != SPD)
-            previous = analysed = None  # spent; double precision next
+            previous = None  # spent; double precision next
             continue
-        previous = analysed = None
+        previous = None
         indefinite = indefinite or fac.mtype == SYMMETRIC_INDEFINITE
         if passes_probe(k, fac, SINGLE_PROBE if precision else DOUBLE_PROBE):
             return fac

@@ -20,11 +20,10 @@ def chain(n: int):
 
 
 class _Model:
-    """The solver only asks its model for the tangent and its pattern."""
+    """The solver only asks its model for the tangent."""
 
     def __init__(self, k):
         self.k = k
-        self.pattern = k  # CSR: its indptr and indices
 
     def tangent(self, x, project=False):
         return self.k
