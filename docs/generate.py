@@ -709,6 +709,19 @@ the mesh against the code before's 61.4 s, the limits the same to the digits pri
 What it buys is a tenth of a second or less per analysis: the first state as `fruit
 simulate` solves it (its analysis is the check's) stays at about 2 s, and the Fruit's
 refusals (seconds after the mesh) stay above the 3 s target.
+
+Measured and not adopted: the order and the analysis of the tangent's pattern made
+ahead, on a thread of their own, from the moment the model's pattern is known (PARDISO
+releases the GIL, and the analysis of a positive definite matrix reads only the
+pattern, so the factor came out the same to the last bit; commit 80bc832, reverted in
+f74409e). The first factorization then took 0.27-0.29 s instead of 0.61 s, but the
+thread took a core from numba's loops while the model was built: from the mesh loaded
+to the compliance at rest 1.18-1.22 s against 1.22-1.27 s (four runs each, alternately,
+2026-12-07 22:30 UTC, Intel Xeon, 2 cores, load average 1.0-1.5). `bench_refusal.py`
+gave the same on both sides (the Fruit's c1 2.5-2.7 s after the mesh, the thick sphere
+4.1-4.3 s at -500 kPa and 1.8-1.9 s at 2000 kPa), and `bench_limits.py --no-sphere`
+54.9 and 55.0 s after the mesh against 53.9 and 54.5 s (the thread started in each
+worker process too, where the other worker holds the second core).
 """
 
 
