@@ -256,16 +256,16 @@ def bench_pad(tmp: Path, tolerance: float | None) -> None:
 
     scene = load_scene(ROOT / "pipelines" / "touchpad-4x4.toml", must_exist=False)
     cfg = scene.solver
-    tol = cfg["tolerance"] if tolerance is None else tolerance
+    tol = cfg.tolerance if tolerance is None else tolerance
     q = run_tetra(scene, None, tmp / "pad-mesh")
     model = build_model(scene, io.load_mesh(tmp / "pad-mesh" / "mesh.npz"))
     load = state_loads(scene, model.chamber_names)[0]
-    solver = model.make_solver(cfg["linear_solver"])
+    solver = model.make_solver(cfg.linear_solver)
     opts = dataclasses.replace(solver_options(scene, first_state=True), tolerance=tol)
     res = solve_state(model, load, options=opts, solver=solver)
     st = solver.stats
     print(
-        f"\ntouchpad bend: {q['n_tets']} tets, {cfg['jig_steps']} jig steps, tolerance {tol:g}: "
+        f"\ntouchpad bend: {q['n_tets']} tets, {cfg.jig_steps} jig steps, tolerance {tol:g}: "
         f"{res.solve_ms / 1e3:.2f} s, {res.iterations} Newton iterations, "
         f"{res.subdivisions} subdivisions, {st['factorizations']} factorizations "
         f"({st['factor_s']:.2f} s), {st['cg_iterations']} CG iterations, residual "
@@ -628,7 +628,7 @@ def main() -> None:
             f"default fruit: make-artist + make-tracks {time.perf_counter() - t0:.1f} s "
             f"-> {solid.name}"
         )
-        default_size = scene0["mesh"]["size_mm"]
+        default_size = scene0.mesh.size_mm
         sizes = sorted(set(args.sizes) | {default_size}, reverse=True)
         backend = (
             "MKL PARDISO"

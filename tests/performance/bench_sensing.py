@@ -31,6 +31,8 @@ from fruitcli.sensing.frames.board import default_board
 from fruitcli.sensing.frames.muca_line import format_line, parse_line
 from fruitcli.tables import Taxels, read_taxels
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests.helpers
+
 
 def fruit_like_taxels() -> Taxels:
     i, j = np.meshgrid(np.arange(12), np.arange(7), indexing="ij")
@@ -385,7 +387,6 @@ def rate(frames: int, seconds: float, spread: float) -> str:
 
 
 def check_against_reference(frames_npz: Path, taxels_csv: Path, out_dir: Path) -> bool:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
     from fruitcli.sensing.frames.board import taxel_cells
     from fruitcli.sensing.frames.recording import read_npz
     from tests.helpers.locate_reference import locate, touches_csv_text

@@ -33,6 +33,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # tests.performance
 PIPELINES = ROOT / "pipelines"
 ERROR_COLUMNS = ("rest-small_mean_mm", "rest-medium_mean_mm")
 
@@ -43,8 +44,6 @@ def default_counts_per_ff(out: Path) -> float:
 
     from fruitcli.scene import load_scene
     from fruitcli.workflow.planner import Context, run
-
-    sys.path.insert(0, str(ROOT))
     from tests.performance.compare_skins import variant
 
     path = variant("fruit-rest", "electrostatic", out)
@@ -57,7 +56,6 @@ def default_counts_per_ff(out: Path) -> float:
 
 def study_scene(out: Path, counts_per_ff: float) -> Path:
     """fruit-rest, translation-registered, with the electrostatic skin at `counts_per_ff`."""
-    sys.path.insert(0, str(ROOT))
     from tests.performance.compare_skins import variant
 
     base = variant("fruit-rest", "electrostatic", out, '\nregister = "translation"\n')
