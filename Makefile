@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 lint: $(STAMP)
 	$(BIN)/ruff check fruitcli tests docs
 	$(BIN)/ruff format --check fruitcli tests docs
-	$(BIN)/mypy  # the package, as [tool.mypy] in pyproject.toml says
+	$(BIN)/mypy  # the package and the benchmarks, as [tool.mypy] in pyproject.toml says
 
 # The tests but the slow end-to-end cases (pytest's mark `slow`); `make test-slow` runs
 # those, and CI runs both.

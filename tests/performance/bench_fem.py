@@ -358,7 +358,7 @@ def bench_p1_breathing(scene0, mesh_npz: Path, n_states: int) -> tuple[float, fl
 
     scene = paper_model(scene0)
     load0 = os.getloadavg()[0]
-    log = []
+    log: list = []
     model, solver, rows = time_states(scene, mesh_npz, "pcg", n_states, stats_log=log)
     threads_chosen = numba.get_num_threads()  # by the solver, from the load average
     runs = [rows] + [time_states(scene, mesh_npz, "pcg", n_states)[2] for _ in range(P1_RUNS - 1)]
@@ -450,6 +450,7 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
     single precision, CG's default (with a random right-hand side's relative
     residual)."""
     from fruitcli.fem import io
+    from fruitcli.fem.continuum import ContinuumModel
     from fruitcli.fem.solver import linsolve, pardiso
     from fruitcli.fem.stage import build_model
 
@@ -468,9 +469,11 @@ def bench_factor(scene0, mesh_npz: Path) -> None:
         model = build_model(scene, io.load_mesh(mesh_npz))
         if label == "p1":
             solver = model.make_solver("pcg")
+            assert isinstance(solver, linsolve.TangentSolver)
             solver.update(np.tile(np.eye(3), (len(model.tets), 1, 1)))
             k = solver._assemble(False).tocsr()
         else:
+            assert isinstance(model, ContinuumModel)
             k = model.tangent(model.rest.copy(), project=True).tocsr()
         upper = linsolve.upper_triangle(k)
         b = np.random.default_rng(0).standard_normal(k.shape[0])
@@ -516,7 +519,9 @@ ELEMENT_SETTINGS = [
 ]
 
 
-def bench_elements(scene0, mesh_npz: Path, n_states: int) -> None:
+def bench_elements(
+    scene0, mesh_npz: Path, n_states: int
+) -> dict[tuple[str, str], tuple[float, float]]:
     """Time per breathing state for each element and material on the default mesh: the
     first state from rest, the median of the others from the previous one, and the
     chambers' volume growth at the state with c1 at its peak relative to the default
@@ -610,8 +615,8 @@ def main() -> None:
 
     if args.factor or args.p1_only:  # the default fruit's mesh, then that part alone
         scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
-        with tempfile.TemporaryDirectory() as tmp:
-            tmp = Path(tmp)
+        with tempfile.TemporaryDirectory() as tmp_name:
+            tmp = Path(tmp_name)
             run_tetra(paper_model(scene_default), fruit_solid(tmp), tmp / "mesh")
             if args.factor:
                 bench_factor(scene_default, tmp / "mesh" / "mesh.npz")
@@ -620,8 +625,8 @@ def main() -> None:
         return
     scene_default = load_scene(ROOT / "pipelines" / "fruit-breathing.toml", must_exist=False)
     scene0 = paper_model(scene_default)  # the tables below: the paper's model, as before
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
         t0 = time.perf_counter()
         solid = fruit_solid(tmp)
         print(

@@ -56,8 +56,9 @@ def one_seed(tmp: Path, seed: int) -> dict:
     files = (rec / "frames.npz", rec / "truth.csv", tmp / "t.csv", tmp / "cal")
     run_calibrate(calibrate_inputs(scene), *files)
     hidden = forward.make_skin(16, seed, forward.SkinParams.from_table(scene.skin)).gain
+    assert hidden is not None  # a skin with a gain spread
     write_csv(tmp / "hidden.csv", ["id", "gain"], ([k, float(g)] for k, g in enumerate(hidden)))
-    out = {}
+    out: dict = {}
     for name, gains in (
         ("plain", None),
         ("calibrated", tmp / "cal" / "gains.csv"),
@@ -74,8 +75,8 @@ def one_seed(tmp: Path, seed: int) -> dict:
 def main(seeds: int = 10) -> None:
     print("load average:", ", ".join(f"{x:.1f}" for x in os.getloadavg()))
     names = ("plain", "calibrated", "hidden")
-    per = {n: [] for n in names}
-    paired = {n: [] for n in names}
+    per: dict[str, list] = {n: [] for n in names}
+    paired: dict[str, list] = {n: [] for n in names}
     found = {n: 0 for n in names}
     total = 0
     for seed in range(seeds):

@@ -129,6 +129,7 @@ def winding_step(v, f) -> None:
     lo, hi = dv.min(0) - 2 * h, dv.max(0) + 2 * h
     axes = [lo[k] + h * np.arange(int(np.ceil((hi[k] - lo[k]) / h)) + 1) for k in range(3)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    assert inside.tree is not None  # built above
     near = (
         inside.tree.query(pts, distance_upper_bound=winding.EXACT_BAND_SPACINGS * h)[0]
         < winding.EXACT_BAND_SPACINGS * h

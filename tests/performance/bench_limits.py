@@ -162,6 +162,7 @@ def write_docs(
 def fruit_curves(mesh_dir: Path) -> None:
     """Each curve of `fruit limits` on the default Fruit, timed (wall and CPU)."""
     sys.path.insert(0, str(HERE))
+    import numpy as np
     from bench_state import default_mesh
 
     from fruitcli.fem import curve_start, io, limits
@@ -179,7 +180,9 @@ def fruit_curves(mesh_dir: Path) -> None:
         f"  the body under its weight: {time.perf_counter() - t0:.1f} s wall, "
         f"{time.process_time() - c0:.1f} s CPU"
     )
-    curves = [(name, k, d) for k, name in enumerate(model.chamber_names) for d in (-1, 1)]
+    curves: list[tuple[str, int | np.ndarray, int]] = [
+        (name, k, d) for k, name in enumerate(model.chamber_names) for d in (-1, 1)
+    ]
     curves.append((limits.TOGETHER, scene_ratios(scene, model.chamber_names), 1))
     for name, k, d in curves:
         t1, c1 = time.perf_counter(), time.process_time()

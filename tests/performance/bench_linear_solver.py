@@ -58,7 +58,8 @@ def refusal_rows(paths: list[str], tmp: Path) -> list[dict]:
     path's."""
     from bench_refusal import fruit_scene, refusal
 
-    rows, first = [], {}
+    rows: list = []
+    first: dict = {}
     for name in paths:
         for p in (-500.0, 2000.0):
             scene = tmp / f"refuse_{name}_{p:g}.toml"
@@ -100,8 +101,8 @@ def main() -> None:
     load0 = os.getloadavg()
     print(f"load average before: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
     rows, reference = [], None
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
         wall, res = fruit(["run", args.scene, "--until", "make-tracks", "--out", tmp / "s"], True)
         if res.returncode != 0:
             sys.exit(f"make-tracks failed: {res.stderr.strip().splitlines()[-1:]}")

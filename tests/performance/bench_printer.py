@@ -19,13 +19,14 @@ from tests.printer.test_indentation import Rig, make_scene
 
 def main() -> None:
     for fmt in ("binary", "ascii"):
-        with tempfile.TemporaryDirectory() as tmp:
-            tmp = Path(tmp)
+        with tempfile.TemporaryDirectory() as tmp_name:
+            tmp = Path(tmp_name)
             rig = Rig(make_scene(tmp), fmt=fmt, baud=115200, time_scale=1.0)
             t0 = time.perf_counter()
             res = rig.run(tmp / "out")
             dt = time.perf_counter() - t0
             rec = read_npz(tmp / "out" / "small" / "frames.npz")
+            assert rec.printer_mm is not None  # the printer bench records its tip
             dz = np.diff(rec.printer_mm[:, 2])
             step = np.isclose(dz, -0.1)  # one descent step between these frames
             per_step = np.diff(rec.t_s)[step]

@@ -80,6 +80,7 @@ def refusal(
         env=os.environ | {"MPLBACKEND": "Agg"},
     )
     meshed, last, at = None, "", 0.0
+    assert proc.stdout is not None  # stdout=PIPE
     for line in proc.stdout:
         now = time.monotonic() - t0
         if re.search(r"tetra: \d+ tets", line):
@@ -121,8 +122,8 @@ def main() -> None:
     threads = args.solver_threads
     print(f"PARDISO on {threads} thread(s)")
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
         import trimesh
 
         trimesh.creation.icosphere(3, 20.0).export(tmp / "ball.stl")

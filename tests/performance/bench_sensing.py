@@ -35,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests.helpers
 
 
 def fruit_like_taxels() -> Taxels:
-    i, j = np.meshgrid(np.arange(12), np.arange(7), indexing="ij")
-    i, j = i.ravel(), j.ravel()
+    grid_i, grid_j = np.meshgrid(np.arange(12), np.arange(7), indexing="ij")
+    i, j = grid_i.ravel(), grid_j.ravel()
     keep = np.hypot((i - 5.5) / 6.5, (j - 3) / 4.2) <= 1.0  # an oval patch
     i, j = i[keep][:47], j[keep][:47]
     xyz = np.stack([16.0 * i, 12.0 * j, 5 * np.sin(i / 3)], axis=1)
@@ -110,8 +110,8 @@ def main():
     raw = [(line + "\r\n").encode() for line in lines]
     dec.feed(raw[0])
     t0 = time.perf_counter()
-    for line in raw:
-        dec.feed(line)
+    for packet in raw:
+        dec.feed(packet)
     fast = (time.perf_counter() - t0) / len(raw)
     print(
         f"live loop line parsing (252 counts): {fast * 1e3:.4f} ms per frame through the "
@@ -284,8 +284,8 @@ def recordings(repeats: int = 5) -> None:
     of `repeats` runs each (a shared machine's load only adds time), and peak memory on
     1,000,000 frames (one run; frames/s against the best 20,000-frame run)."""
     fruit = str(Path(sys.executable).with_name("fruit"))
-    with tempfile.TemporaryDirectory(prefix="bench-locate-") as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix="bench-locate-") as tmp_name:
+        tmp = Path(tmp_name)
         taxels = full_board_taxels(tmp / "taxels.csv")
         sizes = (20_000, 200_000, 1_000_000)
         for n in sizes:
@@ -471,7 +471,7 @@ def bench_osc_latency(n_frames: int = 3000, live_defaults: bool = False, hovers:
             os.write(master, line)
             select.select([port.fileno()], [], [])
             t0, c0 = time.perf_counter(), time.thread_time()
-            got = []
+            got: list = []
             while not got:
                 got = reader.poll()
             lf = live.step(got[0][0], got[0][1])

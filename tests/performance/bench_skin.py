@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -174,6 +175,6 @@ if __name__ == "__main__":
     elif "--frames" in sys.argv[1:]:
         from fruitcli.sensing.skin.crossing_skin import CrossingSkin
 
-        frame_cost(CrossingSkin.load(sys.argv[sys.argv.index("--frames") + 1]))
+        frame_cost(CrossingSkin.load(Path(sys.argv[sys.argv.index("--frames") + 1])))
     else:
         table()

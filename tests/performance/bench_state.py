@@ -96,8 +96,8 @@ class WorkCounter:
             t0 = time.perf_counter()
             out = fn(obj, *args, **kwargs)
             counts[1] += time.perf_counter() - t0
-            first = args[0] if args else None
-            counts[0] += first.shape[1] if name == "solve" and first.ndim == 2 else 1
+            wide = name == "solve" and args and args[0].ndim == 2
+            counts[0] += args[0].shape[1] if wide else 1
             return out
 
         return call
@@ -139,6 +139,7 @@ def _solve_path(scene, model, loads, solver, work: WorkCounter) -> dict:
         its.append(res.iterations)
         states.append(res)
         x, p, prev = res.x, res.pressure_kpa, load
+    assert stats0 is not None and work0 is not None  # set after the first state
     later = {k: solver.stats[k] - stats0[k] for k in solver.stats}
     now = work.totals()
     later_work = {k: [now[k][0] - work0[k][0], now[k][1] - work0[k][1]] for k in now}

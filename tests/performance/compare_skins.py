@@ -38,6 +38,7 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
@@ -141,7 +142,7 @@ def bent_pad_shifts(model: str, response=None) -> dict[str, float]:
     nodes, tets = forward.pad_mesh()
     tris = boundary_faces(nodes, tets)
     taxels = forward.pad_taxels_mm(z_mm=forward.PAD_SIZE_MM[2] - 1e-6)
-    out = {}
+    out: dict[str, Any] = {}
     for along in ("x", "y"):
         bent = _bent(nodes, along)
         if model == "gaussian":
@@ -183,7 +184,7 @@ def finger_behind(model: str, response=None) -> dict:
     from fruitcli.sensing.skin import forward
 
     thick = forward.PAD_SIZE_MM[2]
-    out = {}
+    out: dict[str, Any] = {}
     for depth in FINGER_DEPTHS_MM:
         if model == "gaussian":
             gap = thick - 2 * depth
@@ -224,7 +225,7 @@ def electrostatic_pretouch(folder: Path, counts_per_ff: float | None = None) -> 
 
     response = CrossingSkin.load(folder, counts_per_ff)
     gaps = np.linspace(0.0, float(response.gap_mm[-1]), 8001)
-    out = {}
+    out: dict[str, Any] = {}
     for name in response.objects:
         counts = response.drop(name, 0.0, 0.0, gaps)
         above = np.flatnonzero(counts >= 20.0)
@@ -257,7 +258,7 @@ def breathing_shifts(root: Path, model: str, response=None) -> dict:
     per_taxel = np.abs(shift).max(axis=0)
     strain = forward.taxel_strain(states).max(axis=0)  # each taxel's largest
     k = int(np.argmax(per_taxel))
-    centres = {c.name: np.asarray(c.ellipsoid.center_mm) for c in scene.chambers}
+    centres = {c.name: np.asarray(c.ellipsoid.center_mm) for c in scene.chambers if c.ellipsoid}
     near = min(centres, key=lambda n: np.hypot(*(centres[n][:2] - taxels.xyz_mm[k, :2])))
     far = np.hypot(*(centres[near][:2] - taxels.xyz_mm[k, :2]))
     signed = shift[:, k][np.argmax(np.abs(shift[:, k]))]
@@ -300,7 +301,8 @@ def assumption_variants(scene_path: Path, out: Path, breathing: Path) -> list[di
         if not (folder / "summary.json").exists():
             print(f"  crossing with {key} = {value}")
             try:
-                table, summary = design.run_crossing(replace(base, **{key: value}))
+                changed: dict[str, Any] = {key: value}
+                table, summary = design.run_crossing(replace(base, **changed))
             except FruitError as exc:  # e.g. gmsh fails on the cell: a row saying so
                 rows.append({"key": key, "value": value, "error": str(exc)})
                 continue
@@ -387,13 +389,13 @@ def deformation_variants(inputs, table: Path, breathing: Path) -> list[dict]:
     c0 = solver.capacitance()
     rows = []
     for key, value in (("default", None), *DEFORMATION_VARIANTS):
-        kwargs = {} if value is None else {key: value}
+        kwargs: dict[str, Any] = {} if value is None else {key: value}
         strains, c_s, curvatures, c_b = crossing.deformation_table(solver, spec, c0, **kwargs)
         i = int(np.argmin(np.abs(curvatures - crossing.PAD_BEND_CURVATURE_PER_MM)))
         bend = c_b[:, i] - c0
         cpf = crossing.BEND_SHIFT_COUNTS / float(np.abs(bend).max())
         at = int(np.argmin(np.abs(strains - 0.1)))
-        row = {
+        row: dict[str, Any] = {
             "key": key,
             "value": value,
             "counts_per_ff": cpf,
@@ -406,7 +408,7 @@ def deformation_variants(inputs, table: Path, breathing: Path) -> list[dict]:
         moved = {**arrays, "c_stretch_ff": c_s - c0 + arrays["c0_ff"]}
         moved["c_bend_ff"] = c_b - c0 + arrays["c0_ff"]
         response = CrossingSkin.from_table(moved, summary, cpf)
-        if key == "neutral_mm":
+        if key == "neutral_mm" and value is not None:
             response = replace(response, neutral_mm=value)
         row["breathing"] = _max_mean(breathing, response)
         print(f"  {key} = {value}: {row}")
@@ -428,7 +430,7 @@ def observe(out: Path, assumptions: bool) -> dict:
         deformed = run_scene(variant("fruit-deformed", model, out, reg), out)
         breathing = run_scene(variant("fruit-breathing", model, out), out)
         response = pad if model == "electrostatic" else None
-        entry = {
+        entry: dict[str, Any] = {
             "table_i": {**obs.table_i(rest), **obs.table_i(deformed)},
             "bent_pad": bent_pad_shifts(model, response),
             "finger_behind": finger_behind(model, response),

@@ -108,6 +108,7 @@ def run_script(script: Path) -> tuple[int, str, float]:
         [sys.executable, str(script)], cwd=ROOT, stdout=subprocess.PIPE, text=True
     )
     lines = []
+    assert proc.stdout is not None  # stdout=PIPE
     for line in proc.stdout:
         print(line, end="", flush=True)
         lines.append(line)

@@ -73,7 +73,9 @@ def main() -> None:
     solver = crossing.CellSolver(mesh_cell(spec, 1, 600.0), 2.8)
     c0 = solver.crossings()
     print(f"cell: {len(solver.mesh.tets)} tets ({time.perf_counter() - t0:.0f} s)")
-    dx, dy, dc, mismatch = crossing.touch_table(solver, spec, list(OBJECTS), GAPS, c0, steps=fine)
+    dx, dy, dc, mismatch = crossing.touch_table(
+        solver, spec, list(OBJECTS), np.asarray(GAPS), c0, steps=fine
+    )
     if len(sys.argv) > 1:
         np.savez(sys.argv[1], dx=dx, dy=dy, dc=dc)
     print(f"largest difference of two crossings at one offset: {mismatch:.2f} fF")

@@ -7,11 +7,9 @@ Run: .venv/bin/python tests/performance/without_pardiso.py SUBCOMMAND [ARGS]...
 (the arguments of `fruit`).
 """
 
-import sys
-
 from fruitcli.cli.main import main
 from fruitcli.fem.solver import pardiso
 
 if __name__ == "__main__":
     pardiso._MISSING = True  # what `available` keeps when MKL cannot be loaded
-    sys.exit(main())
+    main()
