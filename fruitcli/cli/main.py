@@ -227,8 +227,9 @@ def cli(ctx, verbose, quiet, solver_threads) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: FruitErrors become one line on stderr and exit code 1; Ctrl-C,
     up to the process's last instant, "Interrupted." and exit code 130. From the console
-    (`argv` None) an interrupted command then ends the process at once (`_exit_now`),
-    without the interpreter's finalization; called with `argv`, it raises SystemExit."""
+    (`argv` None) a command ending with 130 (interrupted, or aborted at a prompt) then
+    ends the process at once (`_exit_now`), without the interpreter's finalization;
+    called with `argv`, it raises SystemExit."""
     try:
         try:
             return _main(argv)

@@ -258,7 +258,10 @@ def breathing_shifts(root: Path, model: str, response=None) -> dict:
     per_taxel = np.abs(shift).max(axis=0)
     strain = forward.taxel_strain(states).max(axis=0)  # each taxel's largest
     k = int(np.argmax(per_taxel))
-    centres = {c.name: np.asarray(c.ellipsoid.center_mm) for c in scene.chambers if c.ellipsoid}
+    centres = {}
+    for c in scene.chambers:  # the study's scenes give every chamber as an ellipsoid
+        assert c.ellipsoid is not None, f"chamber {c.name}: no ellipsoid, so no centre"
+        centres[c.name] = np.asarray(c.ellipsoid.center_mm)
     near = min(centres, key=lambda n: np.hypot(*(centres[n][:2] - taxels.xyz_mm[k, :2])))
     far = np.hypot(*(centres[near][:2] - taxels.xyz_mm[k, :2]))
     signed = shift[:, k][np.argmax(np.abs(shift[:, k]))]
