@@ -226,40 +226,18 @@ def cli(ctx, verbose, quiet, solver_threads) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: FruitErrors become one line on stderr and exit code 1; Ctrl-C,
-    up to the process's last instant, "Interrupted." and exit code 130. From the console
-    (`argv` None) a command ending with 130 (interrupted, or aborted at a prompt) then
-    ends the process at once (`_exit_now`), without the interpreter's finalization;
-    called with `argv`, it raises SystemExit."""
+    up to the process's last instant, "Interrupted." and exit code 130."""
     try:
-        try:
-            return _main(argv)
-        except KeyboardInterrupt:  # while an error or the result was being reported
-            click.echo("Interrupted.", err=True)
-            sys.exit(130)
-    except SystemExit as exc:
-        if argv is None and exc.code == 130:
-            _exit_now(130)
-        raise
+        return _main(argv)
+    except KeyboardInterrupt:  # while an error or the result was being reported
+        click.echo("Interrupted.", err=True)
+        sys.exit(130)
     finally:
         # the console script (the interpreter's shutdown follows), unless Ctrl-C is ignored
         # (a background job)
         if argv is None and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             signal.signal(signal.SIGINT, _interrupted_at_exit)
             atexit.register(_hold_interrupts)  # runs first of the exit functions
-
-
-def _exit_now(code: int) -> None:
-    """End the process with `code` once stdout and stderr are flushed, skipping the exit
-    functions and the interpreter's finalization. A `fruit run` interrupted as its
-    evaluate stage began was once aborted during finalization ("Fatal Python error:
-    PyThreadState_Get: ... the GIL is released", exit -6 instead of 130): a thread with
-    no Python state called into Python there. What an interrupted command leaves is
-    already cleaned up by then: temporary folders and partial files are removed as the
-    KeyboardInterrupt unwinds, and worker processes are stopped (`studies.executors`)."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    os._exit(code)
 
 
 def _hold_interrupts() -> None:
@@ -278,7 +256,8 @@ def _interrupted_at_exit(signum: int, frame: FrameType | None) -> None:
         sys.stdout.flush()
     with contextlib.suppress(Exception):
         sys.stderr.write("Interrupted.\n")
-    _exit_now(130)
+        sys.stderr.flush()
+    os._exit(130)
 
 
 def show_warning(

@@ -20,31 +20,6 @@ def test_a_kernel_interrupted_by_ctrl_c_is_one_line(monkeypatch, capsys, tmp_pat
     assert capsys.readouterr().err == "Interrupted.\n"
 
 
-def test_an_interrupted_console_command_ends_without_the_exit_functions(tmp_path):
-    """From the console (`main()`), an interrupted command prints one line and ends the
-    process with 130 at once: no exit function runs (the interpreter's finalization is
-    skipped too)."""
-    import subprocess
-    import sys
-
-    code = (
-        "import atexit\n"
-        "from fruitcli.evaluation import report\n"
-        "def interrupted(*args, **kwargs):\n"
-        "    raise KeyboardInterrupt\n"
-        "report.evaluate_pair = interrupted\n"
-        "atexit.register(print, 'an exit function ran')\n"
-        "from fruitcli.cli.main import main\n"
-        "main()\n"
-    )
-    args = ["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out", str(tmp_path / "o")]
-    done = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=tmp_path
-    )
-    # click ends the line a Ctrl-C interrupted (its "^C") before the message
-    assert (done.returncode, done.stdout, done.stderr) == (130, "", "\nInterrupted.\n")
-
-
 def test_other_errors_still_show_their_traceback(monkeypatch, tmp_path):
     from fruitcli.cli.main import main
     from fruitcli.evaluation import report

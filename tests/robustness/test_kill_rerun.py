@@ -66,7 +66,7 @@ KILL_POINTS = [
 
 
 def _fruit(*args):
-    code = "from fruitcli.cli.main import main; main()"  # as the console script
+    code = "import sys; from fruitcli.cli.main import main; main(sys.argv[1:])"
     return [sys.executable, "-c", code, *map(str, args)]
 
 
