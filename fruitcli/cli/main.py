@@ -226,18 +226,48 @@ def cli(ctx, verbose, quiet, solver_threads) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: FruitErrors become one line on stderr and exit code 1; Ctrl-C,
-    up to the process's last instant, "Interrupted." and exit code 130."""
+    up to the process's last instant, "Interrupted." and exit code 130. From the console
+    (`argv` None) an interrupted command then ends the process through `_exit_now`;
+    called with `argv`, it raises SystemExit."""
     try:
-        return _main(argv)
-    except KeyboardInterrupt:  # while an error or the result was being reported
-        click.echo("Interrupted.", err=True)
-        sys.exit(130)
+        try:
+            return _main(argv)
+        except KeyboardInterrupt:  # while an error or the result was being reported
+            click.echo("Interrupted.", err=True)
+            sys.exit(130)
+    except SystemExit as exc:
+        if argv is None and exc.code == 130:
+            _exit_now(130)
+        raise
     finally:
         # the console script (the interpreter's shutdown follows), unless Ctrl-C is ignored
         # (a background job)
         if argv is None and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             signal.signal(signal.SIGINT, _interrupted_at_exit)
             atexit.register(_hold_interrupts)  # runs first of the exit functions
+
+
+def _exit_now(code: int) -> None:
+    """End the process with `code` the way the interpreter's exit starts (non-daemon
+    threads joined, exit functions run: worker pools and multiprocessing's semaphores
+    are cleaned up there, stdout and stderr flushed), then skip the interpreter's
+    finalization. A `fruit run` interrupted as its evaluate stage began was once
+    aborted during finalization ("Fatal Python error: PyThreadState_Get: ... the GIL is
+    released", exit -6 instead of 130). `threading._shutdown` and
+    `atexit._run_exitfuncs` are the two steps the interpreter takes first at its exit;
+    Python has no public call for them. A further Ctrl-C meanwhile is ignored."""
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(Exception):
+        threading._shutdown()  # type: ignore[attr-defined]
+    with contextlib.suppress(Exception):
+        atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
 
 
 def _hold_interrupts() -> None:

@@ -20,6 +20,41 @@ def test_a_kernel_interrupted_by_ctrl_c_is_one_line(monkeypatch, capsys, tmp_pat
     assert capsys.readouterr().err == "Interrupted.\n"
 
 
+def test_an_interrupted_console_command_runs_the_exit_functions_and_skips_finalization(
+    tmp_path,
+):
+    """From the console (`main()`), an interrupted command prints one line, runs the
+    exit functions (multiprocessing's clean-up is one) and ends with 130 without the
+    interpreter's finalization: a module-level object's finalizer never runs."""
+    import subprocess
+    import sys
+
+    code = (
+        "import atexit\n"
+        "from fruitcli.evaluation import report\n"
+        "def interrupted(*args, **kwargs):\n"
+        "    raise KeyboardInterrupt\n"
+        "report.evaluate_pair = interrupted\n"
+        "atexit.register(print, 'exit function')\n"
+        "class Finalized:\n"
+        "    def __del__(self):\n"
+        "        print('finalized')\n"
+        "kept = Finalized()\n"
+        "from fruitcli.cli.main import main\n"
+        "main()\n"
+    )
+    args = ["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out", str(tmp_path / "o")]
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=tmp_path
+    )
+    # click ends the line a Ctrl-C interrupted (its "^C") before the message
+    assert (done.returncode, done.stdout, done.stderr) == (
+        130,
+        "exit function\n",
+        "\nInterrupted.\n",
+    )
+
+
 def test_other_errors_still_show_their_traceback(monkeypatch, tmp_path):
     from fruitcli.cli.main import main
     from fruitcli.evaluation import report

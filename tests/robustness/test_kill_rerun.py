@@ -66,7 +66,7 @@ KILL_POINTS = [
 
 
 def _fruit(*args):
-    code = "import sys; from fruitcli.cli.main import main; main(sys.argv[1:])"
+    code = "from fruitcli.cli.main import main; main()"  # as the console script
     return [sys.executable, "-c", code, *map(str, args)]
 
 
