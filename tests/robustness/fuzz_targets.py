@@ -5,8 +5,10 @@ fuzz_run.py (a long one, `make fuzz`)."""
 
 from __future__ import annotations
 
+import atexit
 import io
 import math
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -17,6 +19,7 @@ from fruitcli.errors import FruitError
 
 ROWS, COLS = 21, 12
 WORK = Path(tempfile.mkdtemp(prefix="fruit-fuzz-"))
+atexit.register(shutil.rmtree, WORK, ignore_errors=True)  # the inputs written, at exit
 
 
 class Misbehaved(AssertionError):
