@@ -251,7 +251,7 @@ def _exit_now(code: int) -> None:
     """End the process with `code` the way the interpreter's exit starts (non-daemon
     threads joined, exit functions run: worker pools and multiprocessing's semaphores
     are cleaned up there, stdout and stderr flushed), then skip the interpreter's
-    finalization. A `fruit run` interrupted as its evaluate stage began was once
+    finalization. A `fruit run` interrupted as its evaluate stage began was now and then
     aborted during finalization ("Fatal Python error: PyThreadState_Get: ... the GIL is
     released", exit -6 instead of 130). `threading._shutdown` and
     `atexit._run_exitfuncs` are the two steps the interpreter takes first at its exit;
