@@ -3,6 +3,16 @@
 import pytest
 
 
+def _checkout_env() -> dict:
+    """The environment of a child Python that imports this checkout's fruitcli."""
+    import os
+    from pathlib import Path
+
+    import fruitcli
+
+    return dict(os.environ, PYTHONPATH=str(Path(fruitcli.__file__).parents[1]))
+
+
 def test_a_kernel_interrupted_by_ctrl_c_is_one_line(monkeypatch, capsys, tmp_path):
     from fruitcli.cli.main import main
     from fruitcli.evaluation import report
@@ -45,7 +55,11 @@ def test_an_interrupted_console_command_runs_the_exit_functions_and_skips_finali
     )
     args = ["evaluate", "--truth", "t.csv", "--measured", "m.csv", "--out", str(tmp_path / "o")]
     done = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=tmp_path
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=_checkout_env(),
     )
     # click ends the line a Ctrl-C interrupted (its "^C") before the message
     assert (done.returncode, done.stdout, done.stderr) == (
@@ -130,18 +144,13 @@ TAXELS = "id,i,j,x_mm,y_mm,z_mm\n0,0,0,0,0,0\n1,1,0,16,0,0\n2,0,1,0,12,0\n3,1,1,
 
 
 def _fruit(args, cwd, **kwargs):
-    import os
     import subprocess
     import sys
-    from pathlib import Path
 
-    import fruitcli
-
-    env = dict(os.environ, PYTHONPATH=str(Path(fruitcli.__file__).parents[1]))
     return subprocess.Popen(
         [sys.executable, "-c", "from fruitcli.cli.main import main; main()", *args],
         cwd=cwd,
-        env=env,
+        env=_checkout_env(),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -179,12 +188,8 @@ def test_ctrl_c_at_the_last_instant_is_interrupted(tmp_path):
     """A Ctrl-C while the interpreter shuts down (after the command's work, in its exit
     functions) does not end the process by the signal: the command, done, exits 0 with
     what it printed, or says "Interrupted." with exit 130."""
-    import os
     import subprocess
     import sys
-    from pathlib import Path
-
-    import fruitcli
 
     code = (
         "import atexit, os, signal, time\n"
@@ -192,9 +197,12 @@ def test_ctrl_c_at_the_last_instant_is_interrupted(tmp_path):
         "import sys; sys.argv = ['fruit', 'scenes']\n"
         "from fruitcli.cli.main import main; main()\n"
     )
-    env = dict(os.environ, PYTHONPATH=str(Path(fruitcli.__file__).parents[1]))
     done = subprocess.run(
-        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env=_checkout_env(),
+        capture_output=True,
+        text=True,
     )
     assert (done.returncode, done.stderr) in ((0, ""), (130, "Interrupted.\n")), done
     assert "touchpad-4x4" in done.stdout  # what the command printed is kept

@@ -71,7 +71,9 @@ def _fruit(*args):
 
 
 def _env():
-    return dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1")
+    """The child's environment: this checkout's fruitcli, no plot windows, no buffering."""
+    root = str(Path(__file__).resolve().parents[2])
+    return dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1", PYTHONPATH=root)
 
 
 def _run_until(scene: Path, out: Path, line: str, sig: int, delay_s: float):
