@@ -732,10 +732,10 @@ MKL PARDISO runs on one thread by default, so that every run gives the same bits
 `fruit --solver-threads N` it runs on N (`fruitcli.fem.solver.pardiso.use_threads`: MKL's
 OpenMP layer, chosen before MKL is loaded, its threads put to sleep after each call
 unless `KMP_BLOCKTIME` says otherwise).
-Timed alone on an idle Intel Xeon, 2 cores, a single-precision solve of the quadratic
-default Fruit's tangent took 5.0-5.4 ms instead of 9.1-10.4 ms and a refactorization
-0.10-0.12 s instead of 0.21 s; with the other core kept busy, 10-12 ms and 0.18-0.27 s,
-nothing gained.
+Timed alone on an idle Intel Xeon, 2 cores, on 2026-12-06, a single-precision solve of
+the quadratic default Fruit's tangent took 5.0-5.4 ms instead of 9.1-10.4 ms and a
+refactorization 0.10-0.12 s instead of 0.21 s; with the other core kept busy, 10-12 ms
+and 0.18-0.27 s, nothing gained.
 
 `make bench` runs `tests/performance/bench_solver_threads.py`, which prints the
 breathing, the sweep and the first state on one thread and then on two.
@@ -761,6 +761,15 @@ against one on two, differ by up to 2.0e-6 mm on the breathing and 6.5e-7 mm on 
 CG iterations instead of 40 in one run of five. The 100 ms target for a state from the
 previous one is still missed on two threads: 116-117 ms on the sweep, 204-215 ms on the
 breathing.
+
+What the second thread buys depends on the machine. On an Intel Xeon with 2 cores two
+days later (`python tests/performance/bench_solver_threads.py --mesh DIR`, commit
+ec980b7, 2026-12-08 03:52 and 03:53 UTC, load average 0.7-0.9) only the factorizations
+gained: a solve took 15.3-15.9 ms on two threads against 14.3-14.7 ms on one, so the
+breathing's median was 305 and 307 ms a state against 298 and 296 ms, and the sweep's
+176 and 165 ms against 159 and 167 ms, while the first state from rest, with its four
+factorizations, took 1929 and 1902 ms against 2113 and 2166 ms. The benchmark tells what
+it buys on yours.
 
 Measured and not adopted: MKL's conditional numerical reproducibility mode on two
 threads (`MKL_CBWR=AUTO` set before MKL loads; MKL then reports that branch). Two runs

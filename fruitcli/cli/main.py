@@ -205,8 +205,9 @@ def accept_late_options(cmd: click.Command) -> click.Command:
     show_default=True,
     metavar="N",
     help="Threads of MKL PARDISO's factorizations and solves in the FEM (at most the "
-    "cores). 1: every run's results the same to the last bit; more: faster on an idle "
-    "machine, results varying between runs within the solver's tolerances.",
+    "cores). 1: every run's results the same to the last bit; more: faster "
+    "factorizations on an idle machine, results varying between runs within the solver's "
+    "tolerances.",
 )
 @click.version_option(package_name=DISTRIBUTION, prog_name="fruit")
 @click.pass_context

@@ -53,8 +53,9 @@ def use_threads(threads: int) -> None:
     """Run PARDISO's factorizations and solves on `threads` threads in this process, from
     before MKL is loaded (the threading layer is chosen then: 1, the default, MKL's
     sequential one). With more than one, MKL's OpenMP layer factors and solves in
-    parallel: on a quiet 2-core machine a single-precision solve of the quadratic
-    default Fruit took 5 ms instead of 10 and a refactorization 0.11 s instead of 0.21,
+    parallel: on a quiet 2-core Intel Xeon a refactorization of the quadratic default
+    Fruit took 0.11 s instead of 0.21, and a single-precision solve 5 ms instead of 10 on
+    one day but no less than on one thread on another (the docs' performance page),
     but the sums' order then changes from call to call, so results vary between runs
     within the solver's tolerances (on one thread they are the same to the last bit).
     A worker process (`multiprocessing`) keeps one thread: its parent's workers share the
